@@ -1,0 +1,85 @@
+"""Test configuration shared by `tests/`, `equivariance_tests/` and the doctests in `jmeshtex/`.
+
+- numerics are strict: float64 is available (x64 on) so that float32 *and* float64 paths are tested,
+  dtype promotion is strict (no silent float32 -> float64 upcasts), and NaNs raise at their source;
+- every warning is an error (pyproject's ``filterwarnings``);
+- the ``key`` fixture prints its seed; pin it with ``JMESHTEX_SEED=<int>`` to replay a failure;
+- hypothesis has a reproducible ``ci`` profile (fixed example count, derandomised), selected when
+  ``CI`` is set, and a longer ``dev`` profile otherwise (``HYPOTHESIS_PROFILE`` overrides both).
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import random
+
+import jax
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, settings
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_dtype_promotion", "strict")
+jax.config.update("jax_debug_nans", True)
+jax.config.update("jax_platforms", "cpu")
+
+settings.register_profile(
+    "ci",
+    max_examples=20,
+    derandomize=True,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.register_profile(
+    "dev",
+    max_examples=60,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci" if os.environ.get("CI") else "dev"))
+
+_SEED_ENV = "JMESHTEX_SEED"
+
+
+@pytest.fixture
+def seed(request: pytest.FixtureRequest) -> int:
+    """An integer seed, random per test unless ``JMESHTEX_SEED`` pins it; printed for replay."""
+    value = int(os.environ.get(_SEED_ENV, random.SystemRandom().randrange(2**31)))
+    print(f"[jmeshtex] {request.node.nodeid}: seed={value} (replay with {_SEED_ENV}={value})")
+    request.node.user_properties.append(("seed", value))
+    return value
+
+
+@pytest.fixture
+def key(seed: int) -> jax.Array:
+    """A JAX PRNG key from the printed ``seed``."""
+    return jax.random.key(seed)
+
+
+@pytest.fixture
+def rng(seed: int) -> np.random.Generator:
+    """A NumPy generator from the printed ``seed`` (host-side geometry tests)."""
+    return np.random.default_rng(seed)
+
+
+def _shared_data_dir() -> pathlib.Path | None:
+    env = os.environ.get("JMESHTEX_SHARED_DATA")
+    candidates = [pathlib.Path(env)] if env else []
+    here = pathlib.Path(__file__).resolve().parent
+    candidates += [here.parent / "shared" / "data", here / ".." / "shared" / "data"]
+    for c in candidates:
+        if c.is_dir():
+            return c.resolve()
+    return None
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> pathlib.Path:
+    """``../shared/data`` (or ``$JMESHTEX_SHARED_DATA``); skips the test, with the reason, if absent."""
+    path = _shared_data_dir()
+    if path is None:
+        pytest.skip("../shared/data is absent (set JMESHTEX_SHARED_DATA to point at it)")
+    return path

@@ -1,0 +1,26 @@
+"""jmeshtex: learning and transferring textures on triangle meshes with pure, jit-compiled JAX.
+
+Layers (see the README): ``jmeshtex.io`` (files) → ``jmeshtex.geometry`` (host-side NumPy geometry,
+padded neighbourhood pytrees) → ``jmeshtex.ops`` (pure JAX operators) → ``jmeshtex.nn`` (thin flax
+modules) → methods (``dgts``, ``fl``, ``surfacecnn``, ``meshmatch``) → ``jmeshtex.cli``.
+``jmeshtex.testing`` holds the equivariance harness and hypothesis strategies.
+"""
+
+from ._errors import ConfigError as ConfigError
+from ._errors import DegenerateFaceError as DegenerateFaceError
+from ._errors import DuplicateFaceError as DuplicateFaceError
+from ._errors import EmptyMeshError as EmptyMeshError
+from ._errors import FaceIndexError as FaceIndexError
+from ._errors import InconsistentOrientationError as InconsistentOrientationError
+from ._errors import InputError as InputError
+from ._errors import JmeshtexError as JmeshtexError
+from ._errors import MeshError as MeshError
+from ._errors import MeshIOError as MeshIOError
+from ._errors import MeshRepairWarning as MeshRepairWarning
+from ._errors import NonFiniteVertexError as NonFiniteVertexError
+from ._errors import NonManifoldEdgeError as NonManifoldEdgeError
+from ._errors import NonManifoldVertexError as NonManifoldVertexError
+from ._errors import NonTriangleFaceError as NonTriangleFaceError
+from ._mesh import Mesh as Mesh
+
+__version__ = "0.1.0"

@@ -1,0 +1,103 @@
+"""The jmeshtex exception hierarchy.
+
+Every error a user can provoke with bad input is a subclass of :class:`JmeshtexError`, names the
+problem, and where it can the offending indices and the fix. Catch ``JmeshtexError`` to handle all of
+them; the subclasses also derive from the matching built-in (``ValueError``, ``OSError``) so code that
+already catches those keeps working.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+class JmeshtexError(Exception):
+    """Base class of every error jmeshtex raises on purpose."""
+
+
+class InputError(JmeshtexError, ValueError):
+    """An argument has the wrong shape, dtype, range or combination (not a mesh defect)."""
+
+
+class ConfigError(JmeshtexError, ValueError):
+    """A configuration value is invalid or inconsistent."""
+
+
+class MeshIOError(JmeshtexError, OSError):
+    """A mesh, texture or checkpoint file cannot be read or written."""
+
+
+class MeshError(JmeshtexError, ValueError):
+    """A mesh is invalid. ``indices`` holds the offending vertex/face/edge indices (may be empty)."""
+
+    what: str = "invalid mesh"
+    fix: str = ""
+
+    def __init__(self, message: str | None = None, *, indices: Sequence | np.ndarray = ()):
+        self.indices = np.asarray(indices)
+        if message is None:
+            message = self.what
+        shown = _format_indices(self.indices)
+        if shown:
+            message = f"{message} {shown}"
+        if self.fix:
+            message = f"{message}. Fix: {self.fix}"
+        super().__init__(message)
+
+
+def _format_indices(indices: np.ndarray, limit: int = 10) -> str:
+    if indices.size == 0:
+        return ""
+    flat = indices.reshape(len(indices), -1) if indices.ndim > 1 else indices
+    items = [str(tuple(int(v) for v in row)) if np.ndim(row) else str(int(row)) for row in flat[:limit]]
+    more = f", ... ({len(flat) - limit} more)" if len(flat) > limit else ""
+    return f"(count {len(flat)}: {', '.join(items)}{more})"
+
+
+class EmptyMeshError(MeshError):
+    what = "the mesh has no vertices or no faces"
+
+
+class NonTriangleFaceError(MeshError):
+    what = "faces must be triangles, shape [F, 3]"
+    fix = "triangulate the mesh first (e.g. trimesh loads polygons triangulated)"
+
+
+class FaceIndexError(MeshError):
+    what = "face indices out of range or negative at faces"
+
+
+class NonFiniteVertexError(MeshError):
+    what = "vertex coordinates are NaN or infinite at vertices"
+    fix = "remove or fix those vertices"
+
+
+class DegenerateFaceError(MeshError):
+    what = "zero-area (degenerate) faces"
+    fix = "pass repair=True to drop them, or remesh"
+
+
+class DuplicateFaceError(MeshError):
+    what = "duplicate faces (same three vertices)"
+    fix = "pass repair=True to drop the duplicates"
+
+
+class NonManifoldEdgeError(MeshError):
+    what = "non-manifold edges (shared by more than two faces), as vertex pairs"
+    fix = "split the mesh at those edges or remove the extra faces"
+
+
+class NonManifoldVertexError(MeshError):
+    what = "non-manifold (bow-tie) vertices whose faces form several fans"
+    fix = "pass repair=True to split each such vertex into one copy per fan"
+
+
+class InconsistentOrientationError(MeshError):
+    what = "inconsistent face orientation: edges traversed in the same direction by two faces"
+    fix = "pass repair=True to re-orient faces consistently per component"
+
+
+class MeshRepairWarning(UserWarning):
+    """A mesh was changed on load or validation (unreferenced / duplicate vertices, repairs)."""

@@ -1,0 +1,62 @@
+"""The host-side mesh record shared by I/O, geometry and the methods."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Mesh:
+    """A triangle mesh with optional UV texture and vertex colours (host side, NumPy).
+
+    Geometry always sees the *merged* surface: files that split vertices along UV seams are merged
+    by position, and ``split_faces`` / ``split_to_merged`` keep the stored indexing so the mesh can be
+    written back with its seams.
+
+    Attributes:
+      vertices: ``[V, 3]`` float64 positions of the merged surface.
+      faces: ``[F, 3]`` int64 vertex indices, counter-clockwise seen from outside.
+      uv: ``[F, 3, 2]`` float64 per-corner texture coordinates (u right, v up, in [0, 1]), or None.
+      texture: ``[H, W, C]`` float32 image in [0, 1], row 0 at the top (v = 1), or None.
+      vertex_colors: ``[V, C]`` float32 colours in [0, 1] (C = 3 or 4), or None.
+      split_faces: ``[F, 3]`` int64 faces in the stored (seam-split) indexing, or None if not split.
+      split_to_merged: ``[V_stored]`` int64 merged vertex of each stored vertex, or None.
+      name: a short name used for file names of materials/textures on save.
+
+    Example:
+      >>> import numpy as np
+      >>> m = Mesh(np.eye(3), np.array([[0, 1, 2]]))
+      >>> m.num_vertices, m.num_faces
+      (3, 1)
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray | None = None
+    texture: np.ndarray | None = None
+    vertex_colors: np.ndarray | None = None
+    split_faces: np.ndarray | None = None
+    split_to_merged: np.ndarray | None = None
+    name: str = "mesh"
+
+    @property
+    def num_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def num_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    @property
+    def has_uv(self) -> bool:
+        return self.uv is not None
+
+    @property
+    def has_texture(self) -> bool:
+        return self.texture is not None
+
+    def replace(self, **changes) -> Mesh:
+        """A copy with some fields replaced (the original is never modified)."""
+        return dataclasses.replace(self, **changes)

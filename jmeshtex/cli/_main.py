@@ -1,0 +1,55 @@
+"""Entry point of the ``jmeshtex`` console script.
+
+Each subcommand lives in its own module ``jmeshtex/cli/_<name>.py`` that defines
+``register(subparsers)`` (adds its parser and sets ``func``) and is listed in ``_SUBCOMMANDS``.
+Errors derived from :class:`jmeshtex.JmeshtexError` are printed as one clear message (no traceback)
+with exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .._errors import JmeshtexError
+
+# subcommand modules, in the order `jmeshtex --help` lists them
+_SUBCOMMANDS: list[str] = []
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="jmeshtex",
+        description="Learn and transfer textures on triangle meshes (JAX).",
+    )
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in _SUBCOMMANDS:
+        importlib.import_module(f"{__package__}.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.version:
+        from .. import __version__
+
+        print(f"jmeshtex {__version__}")
+        return 0
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 1
+    try:
+        return int(args.func(args) or 0)
+    except JmeshtexError as err:
+        print(f"jmeshtex {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"jmeshtex {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

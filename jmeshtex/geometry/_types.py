@@ -1,0 +1,227 @@
+"""Padded neighbourhood pytrees: the contract between host-side geometry and pure JAX ops.
+
+Every builder in :mod:`jmeshtex.geometry` returns one of these NamedTuples of arrays with static
+shapes. They are pytrees, so they pass through ``jax.jit`` / ``vmap`` as arguments, and can be padded
+to common sizes with :func:`pad_to` and stacked for batches.
+
+Padding contract (DESIGN.md): a padded slot holds index 0, ``mask`` False and zero weight; no op may
+let a padded slot change its output. Padded vertices / faces have ``vertex_mask`` / ``face_mask``
+False.
+
+Frames: tangent vectors are complex numbers in a per-vertex frame; ``log[p, j]`` is the position of
+neighbour ``index[p, j]`` in p's frame; ``transport[p, j]`` (unit modulus) maps coordinates in the
+neighbour's frame to p's frame: ``x_in_p = transport[p, j] * x_in_q``.
+
+Host builders return NumPy float64 / complex128 / int32 / bool arrays; :func:`to_jax` converts a
+whole pytree to JAX arrays of a chosen precision.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, TypeVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array, Bool, Complex, Float, Int
+
+
+class FaceNeighborhood(NamedTuple):
+    """Face-to-face connectivity for DGTS face convolutions (Hertz et al. 2020, §3.1).
+
+    Edge ``k`` of face ``f`` is ``(faces[f, k], faces[f, (k + 1) % 3])``.
+
+    Attributes:
+      faces: ``[F, 3]`` vertex indices.
+      neighbors: ``[F, 3]`` face across edge k; 0 where ``mask`` is False (boundary / padding).
+      opposite: ``[F, 3]`` vertex of the neighbour face opposite edge k; on a boundary edge the
+        face's own opposite vertex ``faces[f, (k + 2) % 3]`` (a consistent substitute).
+      mask: ``[F, 3]`` True where edge k has a neighbour face.
+      face_mask: ``[F]`` True for real faces, False for padding.
+      vertex_faces: ``[V, M]`` faces incident to each vertex, padded with 0.
+      vertex_corners: ``[V, M]`` which corner (0, 1, 2) of that face the vertex is.
+      vertex_faces_mask: ``[V, M]`` True for real incidences.
+      vertex_mask: ``[V]`` True for real vertices.
+    """
+
+    faces: Int[Array, "F 3"]
+    neighbors: Int[Array, "F 3"]
+    opposite: Int[Array, "F 3"]
+    mask: Bool[Array, "F 3"]
+    face_mask: Bool[Array, " F"]
+    vertex_faces: Int[Array, "V M"]
+    vertex_corners: Int[Array, "V M"]
+    vertex_faces_mask: Bool[Array, "V M"]
+    vertex_mask: Bool[Array, " V"]
+
+
+class VertexNeighborhood(NamedTuple):
+    """Padded vertex neighbourhoods with intrinsic log maps and transport.
+
+    Used both for one-rings (no self slot, counter-clockwise order, slot 0 is the gauge's reference
+    edge) and for k-nearest geodesic neighbourhoods (slot 0 is the vertex itself with ``log`` 0 and
+    ``transport`` 1).
+
+    Attributes:
+      index: ``[V, K]`` neighbour vertex q of each slot; 0 on padding.
+      mask: ``[V, K]`` True for real slots.
+      log: ``[V, K]`` complex ``log_p(q)`` in p's tangent frame (0 on padding).
+      transport: ``[V, K]`` unit complex ``rho_{q->p}``, q's frame to p's frame (1 on padding).
+      weight: ``[V, K]`` integration weight of the slot: the vertex area of q (0 on padding).
+      area: ``[V]`` vertex area of p (barycentric, a third of incident face areas); 0 on padding.
+      vertex_mask: ``[V]`` True for real vertices.
+    """
+
+    index: Int[Array, "V K"]
+    mask: Bool[Array, "V K"]
+    log: Complex[Array, "V K"]
+    transport: Complex[Array, "V K"]
+    weight: Float[Array, "V K"]
+    area: Float[Array, " V"]
+    vertex_mask: Bool[Array, " V"]
+
+
+class TangentFrames(NamedTuple):
+    """Extrinsic orthonormal frames per vertex, used only to convert tangent vectors to/from 3D.
+
+    ``x`` is the reference one-ring edge projected onto the tangent plane, so the complex angle of a
+    tangent vector measured from ``x`` agrees with the intrinsic gauge of :class:`VertexNeighborhood`.
+
+    Attributes:
+      normal: ``[V, 3]`` unit angle-weighted vertex normals.
+      x: ``[V, 3]`` unit tangent x-axes.
+      y: ``[V, 3]`` ``normal × x``.
+    """
+
+    normal: Float[Array, "V 3"]
+    x: Float[Array, "V 3"]
+    y: Float[Array, "V 3"]
+
+
+class PoolingMap(NamedTuple):
+    """Maps between two hierarchy levels, fine (``Vf`` vertices) and coarse (``Vc``).
+
+    Attributes:
+      parent: ``[Vf]`` coarse vertex each fine vertex belongs to.
+      to_parent: ``[Vf]`` unit complex transport from the fine vertex's frame to its parent's frame.
+      children: ``[Vc, M]`` fine vertices of each coarse vertex, padded with 0.
+      children_mask: ``[Vc, M]`` True for real children.
+      children_weight: ``[Vc, M]`` area weight of each child (0 on padding).
+      children_transport: ``[Vc, M]`` transport child frame → parent frame (1 on padding).
+    """
+
+    parent: Int[Array, " Vf"]
+    to_parent: Complex[Array, " Vf"]
+    children: Int[Array, "Vc M"]
+    children_mask: Bool[Array, "Vc M"]
+    children_weight: Float[Array, "Vc M"]
+    children_transport: Complex[Array, "Vc M"]
+
+
+T = TypeVar("T")
+
+
+def to_jax(tree: T, dtype=jnp.float32) -> T:
+    """Convert a host pytree to JAX arrays: floats to ``dtype``, complex to the matching complex.
+
+    Integer and boolean leaves keep their kind (integers become int32).
+
+    Args:
+      tree: any pytree of NumPy/JAX arrays, e.g. a :class:`VertexNeighborhood`.
+      dtype: ``jnp.float32`` (default) or ``jnp.float64`` (needs ``jax_enable_x64``).
+
+    Example:
+      >>> import numpy as np
+      >>> t = to_jax({"a": np.ones(2), "z": np.ones(2, complex), "i": np.arange(2)})
+      >>> t["a"].dtype, t["z"].dtype, t["i"].dtype
+      (dtype('float32'), dtype('complex64'), dtype('int32'))
+    """
+    real = jnp.dtype(dtype)
+    cplx = jnp.result_type(real, jnp.complex64) if real == jnp.float64 else jnp.dtype(jnp.complex64)
+
+    def convert(leaf):
+        leaf_dtype = np.asarray(leaf).dtype if not isinstance(leaf, jax.Array) else leaf.dtype
+        if jnp.issubdtype(leaf_dtype, jnp.complexfloating):
+            return jnp.asarray(leaf, dtype=cplx)
+        if jnp.issubdtype(leaf_dtype, jnp.floating):
+            return jnp.asarray(leaf, dtype=real)
+        if jnp.issubdtype(leaf_dtype, jnp.integer):
+            return jnp.asarray(leaf, dtype=jnp.int32)
+        return jnp.asarray(leaf)
+
+    return jax.tree.map(convert, tree)
+
+
+_PAD_VALUES = {"transport": 1, "to_parent": 1, "children_transport": 1}
+
+
+def pad_to(tree: T, sizes: dict[str, int]) -> T:
+    """Pad a neighbourhood pytree's leading / slot axes to larger static sizes.
+
+    ``sizes`` maps axis names to target sizes: ``"V"`` (vertices), ``"F"`` (faces), ``"K"``
+    (slots of ``[V, K]`` fields), ``"M"`` (incident faces / children). Index fields are padded with 0,
+    masks with False, weights and logs with 0, transports with 1 — the padding contract.
+
+    Args:
+      tree: a :class:`VertexNeighborhood` or :class:`FaceNeighborhood`.
+      sizes: target sizes; each must be at least the current size.
+
+    Returns:
+      The same type with padded arrays (NumPy or JAX following the input).
+
+    Example:
+      >>> import numpy as np
+      >>> nb = VertexNeighborhood(np.zeros((2, 3), np.int32), np.ones((2, 3), bool),
+      ...     np.zeros((2, 3), complex), np.ones((2, 3), complex), np.ones((2, 3)), np.ones(2),
+      ...     np.ones(2, bool))
+      >>> pad_to(nb, {"V": 4, "K": 5}).index.shape
+      (4, 5)
+    """
+    axes = _AXES[type(tree).__name__]
+    out = {}
+    for name, leaf in tree._asdict().items():
+        names = axes[name]
+        xp = jnp if isinstance(leaf, jax.Array) else np
+        widths = []
+        for axis_name, current in zip(names, leaf.shape):
+            target = sizes.get(axis_name, current)
+            if target < current:
+                raise ValueError(f"pad_to: cannot shrink axis {axis_name} of {name} from {current} to {target}")
+            widths.append((0, target - current))
+        widths += [(0, 0)] * (leaf.ndim - len(names))
+        out[name] = xp.pad(leaf, widths, constant_values=_PAD_VALUES.get(name, 0))
+    return type(tree)(**out)
+
+
+_AXES = {
+    "FaceNeighborhood": {
+        "faces": ("F",),
+        "neighbors": ("F",),
+        "opposite": ("F",),
+        "mask": ("F",),
+        "face_mask": ("F",),
+        "vertex_faces": ("V", "M"),
+        "vertex_corners": ("V", "M"),
+        "vertex_faces_mask": ("V", "M"),
+        "vertex_mask": ("V",),
+    },
+    "VertexNeighborhood": {
+        "index": ("V", "K"),
+        "mask": ("V", "K"),
+        "log": ("V", "K"),
+        "transport": ("V", "K"),
+        "weight": ("V", "K"),
+        "area": ("V",),
+        "vertex_mask": ("V",),
+    },
+    "TangentFrames": {"normal": ("V",), "x": ("V",), "y": ("V",)},
+    "PoolingMap": {
+        "parent": ("Vf",),
+        "to_parent": ("Vf",),
+        "children": ("Vc", "M"),
+        "children_mask": ("Vc", "M"),
+        "children_weight": ("Vc", "M"),
+        "children_transport": ("Vc", "M"),
+    },
+}

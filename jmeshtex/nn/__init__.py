@@ -1,0 +1,3 @@
+"""Thin flax modules that only create parameters and call :mod:`jmeshtex.ops`."""
+
+# -- public names added by each module below this line --

@@ -1,0 +1,3 @@
+"""Testing helpers: procedural meshes, hypothesis strategies and the equivariance harness."""
+
+# -- public names added by each module below this line --
