@@ -1,0 +1,174 @@
+"""Shared benchmark harness: machine info, timing, ceilings measured in the same run, JSON + markdown.
+
+Every benchmark script reports each figure next to a ceiling measured in the same process (matmul
+GFLOP/s for compute-bound ops, copy bandwidth GB/s for memory-bound ones), warms up before timing,
+calls ``block_until_ready`` and reports compile time apart from run time.
+
+Usage in a script::
+
+    from _harness import Report, time_jax, time_host
+    report = Report("ops_field_conv")
+    report.add(name="field_conv fwd", size="30K", seconds=t, flops=n, bound="flops")
+    report.write()   # benchmarks/results/ops_field_conv.{json,md}
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import pathlib
+import platform
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+
+
+def machine_info() -> dict[str, Any]:
+    """Versions and machine facts printed at the top of every report."""
+    import flax
+    import optax
+
+    return {
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "jax": jax.__version__,
+        "jaxlib": jax.lib.__version__ if hasattr(jax.lib, "__version__") else "",
+        "flax": flax.__version__,
+        "optax": optax.__version__,
+        "numpy": np.__version__,
+        "devices": [str(d) for d in jax.devices()],
+        "x64": bool(jax.config.jax_enable_x64),
+    }
+
+
+@dataclasses.dataclass
+class Timing:
+    compile_s: float
+    run_s: float  # median over repeats
+    runs: list[float]
+
+
+def _block(x):
+    return jax.tree.map(lambda a: a.block_until_ready() if hasattr(a, "block_until_ready") else a, x)
+
+
+def time_jax(fn: Callable, *args, repeats: int = 5, min_time: float = 0.2) -> Timing:
+    """Time a jitted callable: first call (compile + run) apart from the median of later calls."""
+    t0 = time.perf_counter()
+    _block(fn(*args))
+    first = time.perf_counter() - t0
+    runs: list[float] = []
+    total = 0.0
+    while len(runs) < repeats or (total < min_time and len(runs) < 50):
+        t0 = time.perf_counter()
+        _block(fn(*args))
+        dt = time.perf_counter() - t0
+        runs.append(dt)
+        total += dt
+    run = statistics.median(runs)
+    return Timing(compile_s=max(first - run, 0.0), run_s=run, runs=runs)
+
+
+def time_host(fn: Callable, *args, repeats: int = 3) -> Timing:
+    """Time a host (NumPy) function: median of ``repeats`` calls after one warm-up call."""
+    t0 = time.perf_counter()
+    fn(*args)
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(max(repeats - 1, 0)):
+        t0 = time.perf_counter()
+        fn(*args)
+        runs.append(time.perf_counter() - t0)
+    runs = runs or [first]
+    return Timing(compile_s=0.0, run_s=statistics.median(runs), runs=[first, *runs])
+
+
+def matmul_ceiling(n: int = 2048, dtype=jnp.float32) -> float:
+    """Achieved GFLOP/s of a jitted ``n×n @ n×n`` matmul on the default device (the compute ceiling)."""
+    a = jnp.ones((n, n), dtype)
+    b = jnp.ones((n, n), dtype)
+    f = jax.jit(jnp.matmul)
+    t = time_jax(f, a, b, repeats=5)
+    return 2.0 * n**3 / t.run_s / 1e9
+
+
+def bandwidth_ceiling(mbytes: int = 256) -> float:
+    """Achieved GB/s of a jitted streaming ``y = 2x + 1`` (read + write) over ``mbytes`` of float32."""
+    n = mbytes * 2**20 // 4
+    x = jnp.ones((n,), jnp.float32)
+    f = jax.jit(lambda v: 2.0 * v + 1.0)
+    t = time_jax(f, x, repeats=5)
+    return 2 * n * 4 / t.run_s / 1e9
+
+
+class Report:
+    """Collects rows and writes ``results/<name>.json`` and ``results/<name>.md`` atomically."""
+
+    def __init__(self, name: str, *, ceilings: bool = True):
+        self.name = name
+        self.info = machine_info()
+        self.ceilings: dict[str, float] = {}
+        if ceilings:
+            self.ceilings["matmul_gflops"] = matmul_ceiling()
+            self.ceilings["bandwidth_gbs"] = bandwidth_ceiling()
+        self.rows: list[dict[str, Any]] = []
+        print(f"# {name}\n{json.dumps(self.info)}\nceilings: {self.ceilings}", flush=True)
+
+    def add(self, **row: Any) -> dict[str, Any]:
+        """Add a row; ``flops`` / ``bytes`` with ``seconds`` give achieved rates and % of ceiling."""
+        s = row.get("seconds")
+        if s and row.get("flops"):
+            row["gflops"] = row["flops"] / s / 1e9
+            if "matmul_gflops" in self.ceilings:
+                row["pct_matmul"] = 100.0 * row["gflops"] / self.ceilings["matmul_gflops"]
+        if s and row.get("bytes"):
+            row["gbs"] = row["bytes"] / s / 1e9
+            if "bandwidth_gbs" in self.ceilings:
+                row["pct_bandwidth"] = 100.0 * row["gbs"] / self.ceilings["bandwidth_gbs"]
+        self.rows.append(row)
+        print("  " + ", ".join(f"{k}={_fmt(v)}" for k, v in row.items()), flush=True)
+        return row
+
+    def write(self, directory: pathlib.Path | None = None) -> pathlib.Path:
+        out = pathlib.Path(directory) if directory else RESULTS
+        out.mkdir(parents=True, exist_ok=True)
+        payload = {"name": self.name, "machine": self.info, "ceilings": self.ceilings, "rows": self.rows}
+        _atomic_write(out / f"{self.name}.json", json.dumps(payload, indent=2, default=float))
+        _atomic_write(out / f"{self.name}.md", self.markdown())
+        print(f"wrote {out / self.name}.json and .md", flush=True)
+        return out / f"{self.name}.json"
+
+    def markdown(self) -> str:
+        keys: list[str] = []
+        for r in self.rows:
+            keys += [k for k in r if k not in keys]
+        lines = [f"# {self.name}", "", f"machine: `{json.dumps(self.info)}`", ""]
+        lines += [f"ceilings (same run): " + ", ".join(f"{k} = {_fmt(v)}" for k, v in self.ceilings.items()), ""]
+        lines += ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+        lines += ["| " + " | ".join(_fmt(r.get(k, "")) for k in keys) + " |" for r in self.rows]
+        return "\n".join(lines) + "\n"
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _atomic_write(path: pathlib.Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
