@@ -60,24 +60,13 @@ def icosphere(subdivisions: int = 2, radius: float = 1.0) -> tuple[np.ndarray, n
       >>> v.shape, f.shape
       ((42, 3), (80, 3))
     """
+    from ..geometry._subdivision import subdivide_midpoint  # lazy: geometry may import data
+
     v, f = icosahedron(1.0)
     for _ in range(subdivisions):
-        v, f = _midpoint_subdivide(v, f)
+        v, f = subdivide_midpoint(v, f)[:2]
         v /= np.linalg.norm(v, axis=1, keepdims=True)
     return v * radius, f
-
-
-def _midpoint_subdivide(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-    inv = inv.reshape(3, -1).T + len(v)  # midpoint ids of edges (01, 12, 20) per face
-    mids = 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]])
-    a, b, c = f.T
-    ab, bc, ca = inv.T
-    nf = np.concatenate(
-        [np.stack(t, 1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))]
-    )
-    return np.concatenate([v, mids]), nf
 
 
 def grid(

@@ -18,3 +18,12 @@ from ._types import VertexNeighborhood as VertexNeighborhood
 from ._types import pad_to as pad_to
 from ._types import to_jax as to_jax
 # -- public names added by each module below this line (one `from ._x import y as y` per name) --
+from ._subdivision import Subdivision as Subdivision
+from ._subdivision import mean_edge_length as mean_edge_length
+from ._subdivision import rescale_to_mean_edge as rescale_to_mean_edge
+from ._subdivision import subdivide_midpoint as subdivide_midpoint
+from ._subdivision import subdivide_uv as subdivide_uv
+from ._hks import LaplacianEigenpairs as LaplacianEigenpairs
+from ._hks import heat_kernel_signature as heat_kernel_signature
+from ._hks import hks_times as hks_times
+from ._hks import laplacian_eigenpairs as laplacian_eigenpairs

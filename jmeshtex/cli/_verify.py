@@ -1,0 +1,80 @@
+"""``jmeshtex verify``: run the equivariance registry and print operator × transform errors."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import sys
+import tempfile
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "verify",
+        help="check equivariance of every registered operator numerically",
+        description=(
+            "Run every registered operator under its transforms (rigid motions, gauge changes, "
+            "relabelling, exact folds, smooth isometries) in float64 and float32 and print the "
+            "maximum relative error, the bound, the observed convergence order and the verdict."
+        ),
+    )
+    p.add_argument("--json", type=pathlib.Path, help="also write the results as JSON to this path")
+    p.add_argument("--only", nargs="+", metavar="NAME", help="operators to check (default: all)")
+    p.add_argument("--transforms", nargs="+", metavar="T", help="transforms to check (default: all declared)")
+    p.add_argument("--dtype", choices=["both", "float64", "float32"], default="both")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--list", action="store_true", help="list registered operators and transforms")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+    from tqdm import tqdm
+
+    from .. import testing
+    from ..testing import _entries  # noqa: F401  (registers built-in entries)
+
+    if args.list:
+        for name, e in testing.REGISTRY.items():
+            print(f"{name:32s} {e.group:9s} {', '.join(e.transforms)}")
+        print("\ntransforms:")
+        for name, t in testing.CATALOGUE.items():
+            print(f"  {name:17s} {'exact ' if t.exact else 'smooth'} {t.doc}")
+        return 0
+    dtypes = {"both": (jnp.float64, jnp.float32), "float64": (jnp.float64,), "float32": (jnp.float32,)}
+    names = args.only or list(testing.REGISTRY)
+    transforms = args.transforms
+    total = sum(
+        len([t for t in (*testing.REGISTRY[n].transforms, *testing.REGISTRY[n].expect_fail)
+             if transforms is None or t in transforms]) * len(dtypes[args.dtype])
+        for n in names if n in testing.REGISTRY
+    )
+    bar = tqdm(total=total, desc="verify", unit="check", file=sys.stderr, disable=None)
+
+    def progress(msg: str) -> None:
+        bar.set_postfix_str(msg[:60])
+        bar.update(1)
+
+    results = testing.run_registry(names, dtypes=dtypes[args.dtype], seed=args.seed,
+                                   transforms=transforms, progress=progress)
+    bar.close()
+    print(testing.format_table(results))
+    failed = [r for r in results if r.passed is False]
+    print(f"\n{len(results)} checks: {sum(r.passed is True for r in results)} passed, "
+          f"{len(failed)} failed, {sum(r.passed is None for r in results)} reported")
+    if args.json:
+        _atomic_write(args.json, testing._registry.to_json(results))
+        print(f"wrote {args.json}")
+    return 1 if failed else 0
+
+
+def _atomic_write(path: pathlib.Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)

@@ -1,0 +1,175 @@
+"""Numerical equivariance checks for mesh operators, in the spirit of e3nn-jax's ``assert_equivariant``.
+
+An operator under test is a function ``fn(state, **inputs) -> Field`` of a
+:class:`~jmeshtex.testing.MeshState` (positions, faces, gauge — from which it builds whatever
+geometry it needs) and typed inputs. For a drawn transform :math:`T` (a
+:class:`~jmeshtex.testing.Realisation`) the equivariance error is
+
+.. math:: e = \\frac{\\lVert f(T\\cdot M, T\\cdot x) - T\\cdot f(M, x) \\rVert}
+                   {\\max(\\lVert T\\cdot f(M, x) \\rVert, \\epsilon)}
+
+over all output entries (Frobenius norm; complex values count real and imaginary parts).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._fields import Field
+from ._transforms import Realisation, Transform
+
+DEFAULT_TOLERANCE = {np.dtype("float64"): 1e-10, np.dtype("float32"): 1e-5}
+
+
+def relative_error(actual, expected) -> float:
+    """``‖actual − expected‖ / max(‖expected‖, tiny)`` over all leaves of two matching pytrees.
+
+    Example:
+      >>> relative_error(np.array([1.0, 2.0]), np.array([1.0, 2.0 + 1e-6])) < 1e-6
+      True
+    """
+    a = [np.asarray(x) for x in jax.tree.leaves(actual)]
+    b = [np.asarray(x) for x in jax.tree.leaves(expected)]
+    if len(a) != len(b) or any(x.shape != y.shape for x, y in zip(a, b)):
+        raise ValueError(
+            f"output structures differ: {[x.shape for x in a]} vs {[y.shape for y in b]}"
+        )
+    num = np.sqrt(sum(float(np.sum(np.abs(x.astype(np.complex128) - y) ** 2)) for x, y in zip(a, b)))
+    den = np.sqrt(sum(float(np.sum(np.abs(y.astype(np.complex128)) ** 2)) for y in b))
+    if not np.isfinite(num):
+        return float("inf")
+    return float(num / max(den, np.finfo(np.float64).tiny))
+
+
+def _to_device(field: Field, dtype) -> Field:
+    x = np.asarray(field.value)
+    if np.iscomplexobj(x):
+        target = jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
+    elif np.issubdtype(x.dtype, np.floating):
+        target = dtype
+    else:
+        return Field(field.kind, jnp.asarray(x))
+    return Field(field.kind, jnp.asarray(x, dtype=target))
+
+
+def equivariance_error(
+    fn: Callable[..., Field], realisation: Realisation, inputs: Mapping[str, Field]
+) -> float:
+    """Relative error of ``fn(T·M, T·x)`` against ``T·fn(M, x)`` for one drawn transform.
+
+    Args:
+      fn: ``fn(state, **values) -> Field``; builds its geometry from ``state``.
+      realisation: a drawn transform (``CATALOGUE[name].draw(...)``).
+      inputs: typed inputs on the source mesh, ``{name: Field(kind, value)}``.
+
+    Returns:
+      The relative error (0 for an exactly equivariant operator in exact arithmetic).
+
+    Example:
+      >>> import numpy as np
+      >>> from jmeshtex.data import icosahedron
+      >>> from jmeshtex.testing import CATALOGUE, MeshState, Field
+      >>> def centroid(state, x):  # mean position: equivariant to rigid motions
+      ...     return Field("invariant", state.points().mean(0) * 0 + x.sum())
+      >>> s = MeshState(*icosahedron())
+      >>> r = CATALOGUE["permute_vertices"].draw(s, np.random.default_rng(0))
+      >>> equivariance_error(centroid, r, {"x": Field("vertex_scalar", np.arange(12.0))}) < 1e-12
+      True
+    """
+    src_dtype = realisation.source.dtype
+    source_out = fn(realisation.source, **{k: _to_device(f, src_dtype).value for k, f in inputs.items()})
+    if not isinstance(source_out, Field):
+        raise TypeError(f"the operator must return a Field(kind, value), got {type(source_out)}")
+    mapped = {k: _to_device(realisation.map(f), src_dtype).value for k, f in inputs.items()}
+    target_out = fn(realisation.target, **mapped)
+    expected = realisation.map(Field(source_out.kind, np.asarray(source_out.value)))
+    return relative_error(np.asarray(target_out.value), expected.value)
+
+
+def assert_equivariant(
+    fn: Callable[..., Field],
+    realisation: Realisation,
+    inputs: Mapping[str, Field],
+    *,
+    atol: float = 0.0,
+    rtol: float | None = None,
+) -> float:
+    """Raise ``AssertionError`` unless :func:`equivariance_error` ≤ ``rtol`` (+ ``atol`` absolute).
+
+    ``rtol`` defaults to 1e-10 in float64 and 1e-5 in float32 (the source state's dtype).
+
+    Returns:
+      The measured relative error.
+    """
+    err = equivariance_error(fn, realisation, inputs)
+    tol = DEFAULT_TOLERANCE[np.dtype(realisation.source.dtype)] if rtol is None else rtol
+    if not err <= tol + atol:
+        raise AssertionError(
+            f"not equivariant under {realisation.name!r}: relative error {err:.3e} > tolerance {tol:.1e}"
+        )
+    return err
+
+
+@dataclasses.dataclass(frozen=True)
+class Convergence:
+    """Errors of a smooth-isometry family as the mesh is refined (resolution doubles each step).
+
+    Attributes:
+      resolutions: mesh resolutions n (cells per side); the spacing is ~1/n.
+      errors: relative equivariance error at each resolution.
+      ratios: ``errors[i] / errors[i+1]`` (≈ 4 for second-order convergence).
+      orders: ``log2`` of the ratios.
+      floor: True where both errors were at round-off level (no order to measure).
+    """
+
+    resolutions: tuple[int, ...]
+    errors: tuple[float, ...]
+    ratios: tuple[float, ...]
+    orders: tuple[float, ...]
+    floor: bool
+
+    @property
+    def order(self) -> float:
+        """The smallest observed order (the one the bound is checked on)."""
+        return float(min(self.orders)) if self.orders else float("nan")
+
+
+def convergence(
+    fn: Callable[..., Field],
+    transform: Transform,
+    make_inputs: Callable[[object, np.random.Generator], Mapping[str, Field]],
+    *,
+    resolutions: Sequence[int] = (8, 16, 32, 64),
+    dtype=jnp.float64,
+    seed: int = 0,
+    floor: float = 1e-12,
+) -> Convergence:
+    """Measure the convergence of the equivariance error of a smooth-isometry family.
+
+    Args:
+      fn: the operator, as in :func:`equivariance_error`.
+      transform: a ``family=True`` transform (``cylinder``, ``cone``, ``catenoid``).
+      make_inputs: ``(source_state, rng) -> inputs`` on each resolution's source mesh.
+      resolutions: doubling sequence of resolutions.
+      dtype: operator dtype (orders are only meaningful in float64).
+      seed: seed of the draws.
+      floor: errors below this are round-off; if every error is, ``floor=True`` and no order is
+        asserted (the operator is exactly invariant under the family).
+    """
+    if not transform.family:
+        raise ValueError(f"{transform.name!r} is not a family of meshes")
+    errors = []
+    for n in resolutions:
+        rng = np.random.default_rng(seed)
+        real = transform.draw(n, rng, dtype)
+        errors.append(equivariance_error(fn, real, make_inputs(real.source, rng)))
+    errs = np.asarray(errors)
+    at_floor = bool(np.all(errs < floor))
+    ratios = tuple(float(a / max(b, 1e-300)) for a, b in zip(errs[:-1], errs[1:]))
+    orders = tuple(float(np.log2(max(r, 1e-300))) for r in ratios)
+    return Convergence(tuple(resolutions), tuple(map(float, errs)), ratios, orders, at_floor)

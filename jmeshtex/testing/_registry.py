@@ -1,0 +1,291 @@
+"""The registry of equivariant operators and models, and the runner behind ``jmeshtex verify``.
+
+Every public operator or model that should be equivariant declares here its typed inputs, its output
+kind (through the :class:`Field` it returns) and the transforms under which it must commute. The
+runner draws each transform, measures the error in float64 and float32, and compares it with the
+bound of its class:
+
+- exact transforms (rigid, gauge, relabelling, exact folds): relative error ≤ 1e-10 (float64),
+  ≤ 1e-5 (float32);
+- smooth isometries (cylinder, cone, catenoid): the error must fall by a factor ≥ 3 per halving of
+  the mesh spacing over three refinements (observed order ≳ 1.6), checked in float64; float32 is
+  reported only (its round-off floor hides the order);
+- re-triangulation: reported, not asserted.
+
+Negative controls are registered with ``expect_fail``: deliberately broken operators that the named
+transforms must flag (the check passes when the error is *above* the bound).
+
+Register a new operator with :func:`register`::
+
+    register(Entry(name="my_op", apply=my_op_under_test, inputs={"x": (VERTEX_TANGENT, 4)},
+                   transforms=("rigid", "gauge", "permute_vertices", "fold", "cylinder")))
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._equivariance import DEFAULT_TOLERANCE, convergence, equivariance_error
+from ._fields import (
+    FACE_EDGE,
+    FACE_SCALAR,
+    FACE_VECTOR,
+    POINTS,
+    VERTEX_SCALAR,
+    VERTEX_TANGENT,
+    VERTEX_VECTOR,
+    Field,
+)
+from ._state import MeshState
+from ._transforms import CATALOGUE
+
+#: transforms every intrinsic vertex operator must commute with
+INTRINSIC = (
+    "rigid",
+    "reflection",
+    "gauge",
+    "permute_vertices",
+    "permute_faces",
+    "rotate_corners",
+    "fold",
+    "folds",
+    "hinge",
+    "cylinder",
+    "cone",
+    "catenoid",
+    "retriangulate",
+)
+#: transforms an extrinsic (3D) operator must commute with
+EXTRINSIC = ("rigid", "gauge", "permute_vertices", "permute_faces", "rotate_corners")
+
+
+@dataclasses.dataclass(frozen=True)
+class Entry:
+    """One registered operator.
+
+    Attributes:
+      name: unique name shown in reports.
+      apply: ``apply(state, params, **inputs) -> Field``; builds its geometry from ``state`` (a
+        :class:`MeshState`) so gauge and relabelling reach it.
+      inputs: ``{name: (kind, channels)}``; ``points`` inputs are the mesh's own positions.
+      transforms: names in :data:`~jmeshtex.testing.CATALOGUE` to check.
+      init: ``init(key, dtype) -> params`` (random parameters), or None.
+      expect_fail: negative control: transforms that must flag this operator.
+      group: ``"geometry"``, ``"ops"``, ``"models"`` or ``"negative"`` (report sections).
+      doc: one line for reports.
+      resolutions: mesh resolutions used for family transforms (smooth: a doubling sequence).
+    """
+
+    name: str
+    apply: Callable[..., Field]
+    inputs: Mapping[str, tuple[str, int]]
+    transforms: tuple[str, ...]
+    init: Callable | None = None
+    expect_fail: tuple[str, ...] = ()
+    group: str = "ops"
+    doc: str = ""
+    resolutions: tuple[int, ...] = (8, 16, 32, 64)
+
+
+REGISTRY: dict[str, Entry] = {}
+
+
+def register(entry: Entry) -> Entry:
+    """Add an entry to :data:`REGISTRY` (names must be unique; transforms must exist)."""
+    if entry.name in REGISTRY:
+        raise ValueError(f"an operator named {entry.name!r} is already registered")
+    unknown = [t for t in (*entry.transforms, *entry.expect_fail) if t not in CATALOGUE]
+    if unknown:
+        raise ValueError(f"{entry.name}: unknown transforms {unknown}; see jmeshtex.testing.CATALOGUE")
+    REGISTRY[entry.name] = entry
+    return entry
+
+
+def random_inputs(
+    entry_inputs: Mapping[str, tuple[str, int]], state: MeshState, rng: np.random.Generator
+) -> dict[str, Field]:
+    """Random typed inputs on ``state``'s mesh (standard normal; complex: unit variance)."""
+    V, F = state.num_vertices, state.num_faces
+    out = {}
+    for name, (kind, c) in entry_inputs.items():
+        if kind == POINTS:
+            value = state.vertices
+        elif kind == VERTEX_SCALAR:
+            value = rng.standard_normal((V, c))
+        elif kind == FACE_SCALAR:
+            value = rng.standard_normal((F, c))
+        elif kind == FACE_EDGE:
+            value = rng.standard_normal((F, 3, c))
+        elif kind == VERTEX_TANGENT:
+            value = (rng.standard_normal((V, c)) + 1j * rng.standard_normal((V, c))) / np.sqrt(2)
+        elif kind == VERTEX_VECTOR:
+            value = rng.standard_normal((V, c, 3))
+        elif kind == FACE_VECTOR:
+            value = rng.standard_normal((F, c, 3))
+        else:
+            raise ValueError(f"{name}: cannot draw random inputs of kind {kind!r}")
+        out[name] = Field(kind, value)
+    return out
+
+
+def sample_meshes(rng: np.random.Generator) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Irregular meshes for transforms that apply to any mesh: a closed bumpy sphere, an open sheet.
+
+    Both are smooth random deformations (no symmetric ties in distances or angles).
+    """
+    from ..data import grid, icosphere
+
+    v, f = icosphere(2)
+    c = rng.standard_normal((3, 3))
+    bump = 1.0 + 0.15 * np.tanh(v @ c[0]) * np.cos(2 * v @ c[1])
+    sphere = v * bump[:, None] + 0.02 * rng.standard_normal(v.shape)
+    g, gf = grid(7, 6, diagonals="alternate")
+    g = g + 0.03 * rng.standard_normal(g.shape) * np.array([1, 1, 0])
+    g[:, 2] = 0.3 * np.sin(2.5 * g[:, 0]) * np.cos(1.7 * g[:, 1])
+    return [("closed", sphere, f), ("open", g, gf)]
+
+
+@dataclasses.dataclass
+class CheckResult:
+    """One cell of the report: an operator under one transform in one dtype."""
+
+    entry: str
+    transform: str
+    dtype: str
+    error: float
+    tolerance: float | None
+    passed: bool | None  # None: reported only
+    check: str  # "exact", "order", "report"
+    order: float | None = None
+    ratios: tuple[float, ...] = ()
+    expect_fail: bool = False
+    detail: str = ""
+
+    def as_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        for k in ("error", "order", "tolerance"):
+            if isinstance(d[k], float) and not math.isfinite(d[k]):
+                d[k] = str(d[k])
+        return d
+
+
+def check(entry: Entry, transform_name: str, *, dtype=jnp.float64, seed: int = 0) -> CheckResult:
+    """Check one registered operator under one transform (see the module docstring for bounds)."""
+    transform = CATALOGUE[transform_name]
+    key = jax.random.key(seed)
+    params = entry.init(key, jnp.dtype(dtype)) if entry.init is not None else None
+
+    def fn(state, **inputs):
+        return entry.apply(state, params, **inputs)
+
+    expect_fail = transform_name in entry.expect_fail
+    tol = DEFAULT_TOLERANCE[np.dtype(dtype)]
+    name = np.dtype(dtype).name
+    smooth = transform.family and not transform.exact
+
+    if smooth and transform_name != "retriangulate" and np.dtype(dtype) == np.float64:
+        conv = convergence(
+            fn,
+            transform,
+            lambda s, rng: random_inputs(entry.inputs, s, rng),
+            resolutions=entry.resolutions,
+            dtype=dtype,
+            seed=seed,
+        )
+        if conv.floor:
+            passed = True
+        else:
+            passed = len(conv.ratios) >= 3 and all(r >= 3.0 for r in conv.ratios)
+        if expect_fail:
+            passed = not passed
+        return CheckResult(
+            entry.name, transform_name, name, conv.errors[-1], None, passed, "order",
+            order=None if conv.floor else conv.order, ratios=conv.ratios, expect_fail=expect_fail,
+            detail="round-off floor" if conv.floor else "",
+        )
+
+    errors = []
+    if transform.family:
+        rng = np.random.default_rng(seed)
+        real = transform.draw(entry.resolutions[1] if smooth else 8, rng, dtype)
+        errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, real.source, rng)))
+    else:
+        rng = np.random.default_rng(seed)
+        for _, v, f in sample_meshes(rng):
+            state = MeshState(v, f, dtype=dtype)
+            real = transform.draw(state, rng)
+            errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, state, rng)))
+    err = float(max(errors))
+    if smooth:  # float32 smooth isometries and re-triangulation: reported only
+        return CheckResult(entry.name, transform_name, name, err, None, None, "report",
+                           expect_fail=expect_fail)
+    passed = err <= tol
+    if expect_fail:
+        passed = not passed
+    return CheckResult(entry.name, transform_name, name, err, tol, passed, "exact",
+                       expect_fail=expect_fail)
+
+
+def run(
+    names: Iterable[str] | None = None,
+    *,
+    dtypes: Sequence = (jnp.float64, jnp.float32),
+    seed: int = 0,
+    transforms: Iterable[str] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> list[CheckResult]:
+    """Run the registry (all entries, or ``names``) under every declared transform and dtype."""
+    from . import _entries  # noqa: F401  (registers the built-in entries)
+
+    selected = list(REGISTRY) if names is None else list(names)
+    missing = [n for n in selected if n not in REGISTRY]
+    if missing:
+        raise KeyError(f"not registered: {missing}; registered: {sorted(REGISTRY)}")
+    wanted = None if transforms is None else set(transforms)
+    results = []
+    for n in selected:
+        entry = REGISTRY[n]
+        for t in (*entry.transforms, *(x for x in entry.expect_fail if x not in entry.transforms)):
+            if wanted is not None and t not in wanted:
+                continue
+            for dt in dtypes:
+                if progress is not None:
+                    progress(f"{n} × {t} ({np.dtype(dt).name})")
+                results.append(check(entry, t, dtype=dt, seed=seed))
+    return results
+
+
+def format_table(results: Sequence[CheckResult]) -> str:
+    """A fixed-width table: operator × transform → error, bound, verdict, observed order."""
+    head = f"{'operator':30s} {'transform':17s} {'dtype':8s} {'max rel err':>11s} {'bound':>9s} {'order':>6s}  verdict"
+    lines = [head, "-" * len(head)]
+    for r in results:
+        bound = f"{r.tolerance:.0e}" if r.tolerance is not None else ("ratio≥3" if r.check == "order" else "-")
+        order = f"{r.order:.2f}" if r.order is not None else ("exact" if r.detail else "")
+        if r.passed is None:
+            verdict = "reported"
+        elif r.expect_fail:
+            verdict = "flagged (ok)" if r.passed else "NOT FLAGGED"
+        else:
+            verdict = "pass" if r.passed else "FAIL"
+        lines.append(
+            f"{r.entry:30s} {r.transform:17s} {r.dtype:8s} {r.error:11.2e} {bound:>9s} {order:>6s}  {verdict}"
+        )
+    return "\n".join(lines)
+
+
+def to_json(results: Sequence[CheckResult]) -> str:
+    return json.dumps(
+        {
+            "results": [r.as_dict() for r in results],
+            "failed": sum(1 for r in results if r.passed is False),
+        },
+        indent=2,
+    )
