@@ -22,3 +22,8 @@ from ._transforms import CATALOGUE as CATALOGUE
 from ._transforms import Realisation as Realisation
 from ._transforms import Transform as Transform
 from ._transforms import random_rotation as random_rotation
+from ._field_strategies import features as features
+from ._field_strategies import gauges as gauges
+from ._field_strategies import rotations as rotations
+from ._transforms import gauge_change as gauge_change
+from ._transforms import rigid_motion as rigid_motion

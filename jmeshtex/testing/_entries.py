@@ -86,3 +86,80 @@ _GEOMETRY = [
 
 for _e in _GEOMETRY:
     register(_e)
+
+
+# ---------------------------------------------------------------------------------------------
+# negative controls: deliberately broken operators the harness must flag
+# ---------------------------------------------------------------------------------------------
+
+
+def _biased_linear(state, params, x):
+    """A complex linear layer *with a bias*: x ↦ x W + b. The bias does not rotate with the frame."""
+    w, b = params
+    return Field(VERTEX_TANGENT, x @ w.astype(x.dtype) + b.astype(x.dtype))
+
+
+def _init_biased_linear(key, dtype):
+    import jax
+
+    cdt = jnp.complex128 if dtype == jnp.float64 else jnp.complex64
+    k1, k2 = jax.random.split(key)
+    w = jax.random.normal(k1, (3, 3), dtype=cdt)
+    b = jax.random.normal(k2, (3,), dtype=cdt)
+    return w, b
+
+
+def _extrinsic_log_moment(state, params, s):
+    """The one-ring log-map moment with *extrinsic* angles (offsets projected on the tangent plane).
+
+    Angles measured by projection change when the surface bends (the vertex normal tilts at a fold),
+    although edge lengths do not: an isometry must flag it.
+    """
+    import numpy as np
+
+    from ..geometry import one_rings
+
+    def build():
+        v, f = state.vertices, state.faces
+        rings = one_rings(f, len(v))
+        fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        n = np.zeros_like(v)
+        for k in range(3):
+            np.add.at(n, f[:, k], fn)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        d = v[rings.ring] - v[:, None, :]
+        d = d - np.einsum("vkd,vd->vk", d, n)[..., None] * n[:, None, :]
+        x = d[:, 0] / np.linalg.norm(d[:, 0], axis=1, keepdims=True)
+        y = np.cross(n, x)
+        ang = np.arctan2(np.einsum("vkd,vd->vk", d, y), np.einsum("vkd,vd->vk", d, x))
+        r = np.linalg.norm(v[rings.ring] - v[:, None, :], axis=-1)
+        return rings.ring, (r * np.exp(1j * ang)) * rings.mask
+
+    ring, log = state.cached("extrinsic_log", build)
+    log = jnp.asarray(log, dtype=state.complex_dtype)
+    return Field(VERTEX_TANGENT, jnp.einsum("vk,vkc->vc", log, s[ring].astype(log.dtype)))
+
+
+def _first_edge_length(state, params, points):
+    """The length of each face's *first* edge: depends on the order of the face's vertices."""
+    from ._fields import FACE_SCALAR
+
+    f = jnp.asarray(state.faces)
+    e = points[f[:, 1]] - points[f[:, 0]]
+    return Field(FACE_SCALAR, jnp.sqrt(jnp.sum(e * e, axis=-1))[:, None])
+
+
+_NEGATIVE = [
+    Entry("negative.complex_bias", _biased_linear, {"x": (VERTEX_TANGENT, 3)},
+          ("permute_vertices", "fold"), init=_init_biased_linear, expect_fail=("gauge",),
+          group="negative", doc="complex linear layer with a bias: breaks gauge equivariance"),
+    Entry("negative.extrinsic_log", _extrinsic_log_moment, {"s": (VERTEX_SCALAR, 3)},
+          ("rigid",), expect_fail=("fold", "hinge"), group="negative",
+          doc="log map from projected (extrinsic) angles: breaks isometry invariance"),
+    Entry("negative.face_vertex_order", _first_edge_length, {"points": ("points", 3)},
+          ("rigid", "permute_faces"), expect_fail=("rotate_corners",), group="negative",
+          doc="per-face value from the first edge only: depends on the face's vertex order"),
+]
+
+for _e in _NEGATIVE:
+    register(_e)

@@ -200,17 +200,34 @@ class Transform:
 # --- transforms on any mesh ------------------------------------------------------------------
 
 
-def _rigid(state: MeshState, rng: np.random.Generator, *, proper: bool = True) -> Realisation:
-    R = random_rotation(rng, proper=proper)
-    t = rng.standard_normal(3)
+def rigid_motion(state: MeshState, rotation: np.ndarray, translation=None) -> Realisation:
+    """The realisation of ``x → R x + t`` applied to ``state`` (R may be improper).
+
+    Example:
+      >>> from jmeshtex.data import icosahedron
+      >>> r = rigid_motion(MeshState(*icosahedron()), np.diag([1.0, -1.0, -1.0]))
+      >>> r.name, r.target.vertices[0].round(3).tolist()
+      ('rigid', [-0.526, -0.851, -0.0])
+    """
+    R = np.asarray(rotation, dtype=np.float64)
+    t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
     target = state.with_(vertices=state.vertices @ R.T + t)
-    return _identity(state, target, "rigid" if proper else "reflection", rotation=R, translation=t)
+    name = "rigid" if np.linalg.det(R) > 0 else "reflection"
+    return _identity(state, target, name, rotation=R, translation=t)
+
+
+def gauge_change(state: MeshState, alpha: np.ndarray) -> Realisation:
+    """The realisation of turning every vertex frame p by ``alpha[p]`` (radians, counter-clockwise)."""
+    target = state.with_(gauge=state.gauge + np.asarray(alpha, dtype=np.float64))
+    return _identity(state, target, "gauge", rotation=np.eye(3), translation=np.zeros(3))
+
+
+def _rigid(state: MeshState, rng: np.random.Generator, *, proper: bool = True) -> Realisation:
+    return rigid_motion(state, random_rotation(rng, proper=proper), rng.standard_normal(3))
 
 
 def _gauge(state: MeshState, rng: np.random.Generator) -> Realisation:
-    alpha = rng.uniform(-np.pi, np.pi, state.num_vertices)
-    target = state.with_(gauge=state.gauge + alpha)
-    return _identity(state, target, "gauge", rotation=np.eye(3), translation=np.zeros(3))
+    return gauge_change(state, rng.uniform(-np.pi, np.pi, state.num_vertices))
 
 
 def _permute_vertices(state: MeshState, rng: np.random.Generator) -> Realisation:

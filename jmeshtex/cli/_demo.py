@@ -1,0 +1,237 @@
+"""``jmeshtex demo``: run the host geometry on procedural meshes and write a picture and a report.
+
+The demo is a list of :class:`Step` s. Each step reads and fills a shared dictionary (meshes, fields,
+panels), returns a one-line summary, and is timed; a step whose ``run`` is ``None`` is listed in the
+report as pending. Adding a geometry step is one line in :data:`STEPS` (plus its function).
+
+From Python::
+
+    from jmeshtex.cli._demo import run_demo
+    out = run_demo("my-demo", quick=True)      # -> the folder holding demo.png and report.txt
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import pathlib
+import platform
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .._errors import InputError
+
+DEFAULT_OUT = "jmeshtex-demo"
+PANEL_SIZE = (420, 380)
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One demo step: ``run(ctx) -> summary`` (``None`` while the function it shows is not written)."""
+
+    name: str
+    run: Callable[[dict[str, Any]], str] | None
+
+
+def _meshes(ctx: dict[str, Any]) -> str:
+    from .. import data
+
+    quick = ctx["quick"]
+    ctx["torus"] = data.torus(32, 16) if quick else data.torus(72, 36)
+    gv, gf = data.grid(6) if quick else data.grid(12)
+    gv[:, 2] = 0.12 * np.sin(2.0 * np.pi * gv[:, 0]) * np.cos(np.pi * gv[:, 1])  # a gentle bend to see
+    ctx["grid"] = (gv, gf)
+    return ", ".join(f"{name} {len(ctx[name][0])} V / {len(ctx[name][1])} F" for name in ("torus", "grid"))
+
+
+def _subdivide(ctx: dict[str, Any]) -> str:
+    from ..geometry import subdivide_midpoint
+
+    v, f = ctx["grid"]
+    fine = subdivide_midpoint(v, f)
+    ctx["grid"] = (fine.vertices, fine.faces)
+    return f"grid 1→4: {len(v)} → {len(fine.vertices)} V, {len(f)} → {len(fine.faces)} F"
+
+
+def _boundary(ctx: dict[str, Any]) -> str:
+    from ..geometry import boundary_loops
+
+    v, f = ctx["grid"]
+    loops = boundary_loops(f, len(v))
+    ctx["boundary"] = np.concatenate([np.stack([loop, np.roll(loop, -1)], axis=1) for loop in loops])
+    return f"grid: {len(loops)} boundary loop(s), {len(ctx['boundary'])} edges; torus: {len(boundary_loops(ctx['torus'][1]))}"
+
+
+def _hks(ctx: dict[str, Any]) -> str:
+    from ..geometry import heat_kernel_signature, hks_times, laplacian_eigenpairs
+
+    v, f = ctx["torus"]
+    ev = laplacian_eigenpairs(v, f, k=30 if ctx["quick"] else 100)
+    times = hks_times(ev.values)
+    hks = heat_kernel_signature(v, f, times=times, eigenpairs=ev)
+    column = 2  # a short time: the signature follows curvature (outer rim vs inner hole)
+    ctx["hks"], ctx["hks_time"] = hks[:, column], times[column]
+    return f"torus: {len(ev.values)} eigenpairs, λ_1 = {ev.values[1]:.4g}, HKS [{len(v)}, {len(times)}]"
+
+
+def _tangent_axes(ctx: dict[str, Any]) -> str:
+    from ..geometry import face_frame_to_world, trace_from_vertices
+
+    v, f = ctx["torus"]
+    n = len(v)
+    # exp_p(0 · e^{i0}) keeps the start wedge face and the gauge's x direction in its frame
+    start = trace_from_vertices(v, f, np.arange(n), np.ones(n, complex), 0.0)
+    ctx["x_axes"] = face_frame_to_world(v, f, start.face, start.direction)
+    ctx["x_axes_label"] = "gauge x-axes (via the tracer)"
+    return f"torus: {n} unit x-axes of the intrinsic vertex gauges"
+
+
+def _trace(ctx: dict[str, Any]) -> str:
+    from ..geometry import trace_from_vertices, tracer_geometry
+
+    v, f = ctx["torus"]
+    n_dirs = 8
+    vertex = np.repeat(np.arange(len(v)), n_dirs)
+    direction = np.exp(2j * np.pi * np.tile(np.arange(n_dirs), len(v)) / n_dirs)
+    mean_edge = float(np.linalg.norm(v[f] - v[np.roll(f, -1, axis=1)], axis=-1).mean())
+    geometry = tracer_geometry(v, f)
+    t0 = time.perf_counter()
+    result = trace_from_vertices(v, f, vertex, direction, 3.0 * mean_edge, geometry=geometry)
+    seconds = time.perf_counter() - t0
+    return f"torus: {len(vertex)} geodesics of 3 mean edges, {len(vertex) / max(seconds, 1e-9):,.0f} traces/s, {int(result.stopped.sum())} stopped"
+
+
+def _render(ctx: dict[str, Any]) -> str:
+    from ..render import render_grid, render_mesh
+
+    tv, tf = ctx["torus"]
+    gv, gf = ctx["grid"]
+    view = (35.0, -60.0)
+    panels, titles = [render_mesh(tv, tf, view=view, size=PANEL_SIZE)], [f"torus ({len(tv)} vertices)"]
+    if "hks" in ctx:
+        panels.append(render_mesh(tv, tf, scalars=np.log(ctx["hks"]), cmap="magma", view=view, size=PANEL_SIZE))
+        titles.append(f"log HKS, t = {ctx['hks_time']:.3g}")
+    if "x_axes" in ctx:
+        panels.append(render_mesh(tv, tf, vectors=ctx["x_axes"], max_arrows=600, view=(55.0, -60.0), size=PANEL_SIZE))
+        titles.append(ctx["x_axes_label"])
+    if "boundary" in ctx:
+        panels.append(render_mesh(gv, gf, edges=ctx["boundary"], view=(50.0, -60.0), size=PANEL_SIZE))
+        titles.append(f"grid ({len(gv)} vertices) and its boundary")
+    path = ctx["out"] / "demo.png"
+    render_grid(panels, path, titles=titles, columns=min(len(panels), 2))
+    ctx["png"] = path
+    return f"{len(panels)} panels → {path.name}"
+
+
+# The demo, in order. A pending step names the library functions it is waiting for.
+STEPS: list[Step] = [
+    Step("procedural meshes", _meshes),
+    Step("validate_mesh / mesh_statistics", None),
+    Step("subdivide_midpoint", _subdivide),
+    Step("boundary_loops", _boundary),
+    Step("one_ring_neighborhood (log maps + transport)", None),
+    Step("tangent_frames", None),
+    Step("geodesic_knn_neighborhood (k = 8)", None),
+    Step("mesh_hierarchy", None),
+    Step("heat_kernel_signature", _hks),
+    Step("trace_from_vertices (gauge x-axes)", _tangent_axes),
+    Step("trace_from_vertices (throughput)", _trace),
+    Step("sample_surface", None),
+    Step("render", _render),
+]
+
+
+def output_folder(out: str | os.PathLike, *, force: bool = False) -> pathlib.Path:
+    """The folder to write into: ``out`` if it is new, empty, or ``force``; else a fresh ``out/run-N``.
+
+    Example:
+      >>> import tempfile
+      >>> with tempfile.TemporaryDirectory() as d:
+      ...     first = output_folder(d)
+      ...     _ = (first / "report.txt").write_text("x")
+      ...     output_folder(d).name, output_folder(d, force=True) == first
+      ('run-1', True)
+    """
+    out = pathlib.Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} exists and is not a folder: pick another path")
+    if not out.exists() or force or not any(out.iterdir()):
+        return out
+    n = 1
+    while (out / f"run-{n}").exists():
+        n += 1
+    return out / f"run-{n}"
+
+
+def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force: bool = False,
+             progress: bool = True) -> pathlib.Path:
+    """Run every :data:`STEPS` entry, write ``demo.png`` and ``report.txt``; return the folder."""
+    from tqdm import tqdm
+
+    from .. import __version__
+
+    folder = output_folder(out, force=force)
+    folder.mkdir(parents=True, exist_ok=True)
+    ctx: dict[str, Any] = {"quick": quick, "out": folder}
+    t_start = time.perf_counter()
+    import jmeshtex.geometry  # noqa: F401  (imports are timed apart from the steps)
+    import jmeshtex.render  # noqa: F401
+
+    rows: list[tuple[str, float | None, str]] = [("imports", time.perf_counter() - t_start, "jmeshtex.geometry, jmeshtex.render")]
+    bar = tqdm(STEPS, desc="jmeshtex demo", unit="step", file=sys.stderr, disable=not progress, leave=False)
+    for step in bar:
+        bar.set_postfix_str(step.name[:40])
+        if step.run is None:
+            rows.append((step.name, None, "pending: not in the library yet"))
+            continue
+        t0 = time.perf_counter()
+        summary = step.run(ctx)
+        rows.append((step.name, time.perf_counter() - t0, summary))
+    total = time.perf_counter() - t_start
+
+    width = max(len(name) for name, _, _ in rows)
+    lines = [
+        f"jmeshtex {__version__} demo ({'quick' if quick else 'full'}), {time.strftime('%Y-%m-%d %H:%M:%S')}",
+        f"python {platform.python_version()}, {platform.platform()}, {os.cpu_count()} CPUs",
+        f"output: {folder.resolve()}",
+        "",
+        *(f"{name}: {len(ctx[name][0])} vertices, {len(ctx[name][1])} faces" for name in ("torus", "grid") if name in ctx),
+        "",
+        f"{'step':<{width}}  {'seconds':>8}  result",
+        *(f"{name:<{width}}  {'-' if s is None else f'{s:8.3f}':>8}  {summary}" for name, s, summary in rows),
+        "",
+        f"total: {total:.2f} s; pending steps: {sum(s is None for _, s, _ in rows)}",
+    ]
+    report = folder / "report.txt"
+    tmp = report.with_name(f".{report.name}.tmp")
+    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    os.replace(tmp, report)
+    return folder
+
+
+def _main(args: argparse.Namespace) -> int:
+    folder = run_demo(args.out, quick=args.quick, force=args.force, progress=not args.no_progress)
+    print(f"jmeshtex demo: wrote {folder / 'demo.png'} and {folder / 'report.txt'}")
+    print((folder / "report.txt").read_text(encoding="utf-8"), end="")
+    return 0
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "demo",
+        help="run the geometry on procedural meshes; write demo.png and report.txt",
+        description="Run the host geometry (subdivision, boundaries, HKS, tracer, ...) on a procedural "
+        "torus and grid, and write a picture (demo.png) and a timing report (report.txt). "
+        "An existing non-empty --out folder is never overwritten: the demo writes into a fresh "
+        "run-N subfolder unless --force is given.",
+    )
+    parser.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default: ./{DEFAULT_OUT})")
+    parser.add_argument("--quick", action="store_true", help="small meshes and spectra (a few seconds)")
+    parser.add_argument("--force", action="store_true", help="write into --out even if it is not empty")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(func=_main)

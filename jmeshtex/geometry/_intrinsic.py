@@ -1,0 +1,171 @@
+"""Intrinsic triangle geometry from edge lengths: corner angles, face areas, vertex areas.
+
+Everything downstream (one-ring log maps, transport, geodesic neighbourhoods, the hierarchy) is
+computed from the quantities here and therefore from edge lengths only, so it does not change when a
+surface is bent isometrically (DESIGN.md, "Geometric conventions").
+
+Edge ``k`` of face ``f`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``; corner ``k`` is the
+angle at ``faces[f, k]``, between edges ``k`` and ``k - 1``, opposite edge ``(k + 1) % 3``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._errors import (
+    DegenerateFaceError,
+    EmptyMeshError,
+    FaceIndexError,
+    InputError,
+    NonFiniteVertexError,
+    NonTriangleFaceError,
+)
+from .._types import Float, Int
+
+
+def edge_lengths(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> Float[np.ndarray, "F 3"]:
+    """Euclidean length of every face edge.
+
+    .. math:: \\ell_{f,k} = \\lVert x_{f_{k+1}} - x_{f_k} \\rVert
+
+    Args:
+      vertices: ``[V, 3]`` positions.
+      faces: ``[F, 3]`` vertex indices.
+
+    Returns:
+      ``[F, 3]`` float64 lengths; column k is the edge ``faces[:, k] -> faces[:, (k+1) % 3]``.
+
+    Example:
+      >>> from jmeshtex.data import single_triangle
+      >>> edge_lengths(*single_triangle()).round(4).tolist()
+      [[1.0, 1.4142, 1.0]]
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    return np.linalg.norm(v[np.roll(f, -1, axis=1)] - v[f], axis=-1)
+
+
+def corner_angles(lengths: Float[np.ndarray, "F 3"]) -> Float[np.ndarray, "F 3"]:
+    """Interior angle at every face corner from the three edge lengths (half-angle law).
+
+    The law of cosines ``arccos((b² + c² - a²) / 2bc)`` loses half the digits near 0 and π; the
+    half-angle form used here is accurate everywhere and needs no clipping of an ``arccos`` argument:
+
+    .. math:: \\alpha = 2\\,\\operatorname{atan2}\\big(\\sqrt{(s-b)(s-c)},\\ \\sqrt{s(s-a)}\\big),
+              \\quad s = (a+b+c)/2
+
+    with ``a`` the opposite edge. Lengths that violate the triangle inequality (a degenerate
+    intrinsic triangle) are clipped to angles 0 / π instead of producing NaN.
+
+    Args:
+      lengths: ``[F, 3]`` edge lengths as returned by :func:`edge_lengths`.
+
+    Returns:
+      ``[F, 3]`` angles in radians; column k is the angle at ``faces[:, k]``. Rows sum to π.
+
+    Example:
+      >>> import numpy as np
+      >>> corner_angles(np.array([[1.0, 2.0**0.5, 1.0]])) / np.pi  # the right isoceles triangle
+      array([[0.5 , 0.25, 0.25]])
+    """
+    lengths = np.asarray(lengths, dtype=np.float64)
+    # corner k sits between edges k and k-1 and faces edge k+1
+    a = np.roll(lengths, -1, axis=1)  # opposite
+    b = lengths
+    c = np.roll(lengths, 1, axis=1)
+    s_a = 0.5 * (b + c - a)
+    s_b = 0.5 * (a + c - b)
+    s_c = 0.5 * (a + b - c)
+    s = 0.5 * (a + b + c)
+    num = np.sqrt(np.maximum(s_b * s_c, 0.0))
+    den = np.sqrt(np.maximum(s * s_a, 0.0))
+    return 2.0 * np.arctan2(num, den)
+
+
+def face_areas(lengths: Float[np.ndarray, "F 3"]) -> Float[np.ndarray, " F"]:
+    """Triangle areas from edge lengths (Heron's formula in Kahan's stable ordering).
+
+    .. math:: A = \\tfrac14\\sqrt{(a+(b+c))\\,(c-(a-b))\\,(c+(a-b))\\,(a+(b-c))}, \\quad a \\ge b \\ge c
+
+    Args:
+      lengths: ``[F, 3]`` edge lengths.
+
+    Returns:
+      ``[F]`` areas (0 for degenerate or triangle-inequality-violating lengths, never NaN).
+
+    Example:
+      >>> import numpy as np
+      >>> float(face_areas(np.array([[3.0, 4.0, 5.0]]))[0])
+      6.0
+    """
+    srt = -np.sort(-np.asarray(lengths, dtype=np.float64), axis=1)
+    a, b, c = srt[:, 0], srt[:, 1], srt[:, 2]
+    prod = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c))
+    return 0.25 * np.sqrt(np.maximum(prod, 0.0))
+
+
+def vertex_areas(
+    faces: Int[np.ndarray, "F 3"], areas: Float[np.ndarray, " F"], num_vertices: int
+) -> Float[np.ndarray, " V"]:
+    """Barycentric vertex areas: a third of the area of every incident face.
+
+    .. math:: A_p = \\tfrac13 \\sum_{f \\ni p} A_f
+
+    Args:
+      faces: ``[F, 3]`` vertex indices.
+      areas: ``[F]`` face areas (e.g. :func:`face_areas`).
+      num_vertices: V; unreferenced vertices get area 0.
+
+    Returns:
+      ``[V]`` areas summing to the total surface area.
+
+    Example:
+      >>> import numpy as np
+      >>> vertex_areas(np.array([[0, 1, 2], [0, 2, 3]]), np.array([3.0, 6.0]), 4).tolist()
+      [3.0, 1.0, 3.0, 2.0]
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    weights = np.repeat(np.asarray(areas, dtype=np.float64) / 3.0, 3)
+    return np.bincount(f.ravel(), weights=weights, minlength=int(num_vertices))
+
+
+def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a triangle mesh for intrinsic geometry and return ``(float64 [V,3], int64 [F,3])``.
+
+    Raises a typed :mod:`jmeshtex._errors` exception naming the problem instead of letting an
+    ``IndexError`` or a NaN escape later: wrong shapes, no faces, indices out of range, non-finite
+    positions, zero-length edges or zero-area faces. Topology (manifoldness, orientation) is checked
+    by :func:`jmeshtex.geometry.one_rings`.
+
+    Example:
+      >>> import numpy as np
+      >>> v, f = check_mesh(np.eye(3), [[0, 1, 2]])
+      >>> v.dtype, f.dtype
+      (dtype('float64'), dtype('int64'))
+    """
+    v = np.asarray(vertices)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise InputError(f"vertices must have shape [V, 3], got {v.shape}")
+    if not (np.issubdtype(v.dtype, np.floating) or np.issubdtype(v.dtype, np.integer)):
+        raise InputError(f"vertices must be real numbers, got dtype {v.dtype}")
+    if f.size == 0 or v.shape[0] == 0:
+        raise EmptyMeshError()
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise NonTriangleFaceError(f"faces must be triangles with shape [F, 3], got {f.shape}")
+    if not np.issubdtype(f.dtype, np.integer):
+        if not np.issubdtype(f.dtype, np.floating) or np.any(f != np.round(f)):
+            raise InputError(f"faces must hold integer vertex indices, got dtype {f.dtype}")
+    v = v.astype(np.float64)
+    f = f.astype(np.int64)
+    bad = np.nonzero(np.any((f < 0) | (f >= len(v)), axis=1))[0]
+    if bad.size:
+        raise FaceIndexError(f"face indices out of range [0, {len(v)}) at faces", indices=bad)
+    bad = np.nonzero(~np.all(np.isfinite(v), axis=1))[0]
+    if bad.size:
+        raise NonFiniteVertexError(indices=bad)
+    lengths = edge_lengths(v, f)
+    bad = np.nonzero((face_areas(lengths) <= 0.0) | np.any(lengths <= 0.0, axis=1))[0]
+    if bad.size:
+        raise DegenerateFaceError(indices=bad)
+    return v, f

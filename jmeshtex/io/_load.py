@@ -1,0 +1,277 @@
+"""Read meshes (OBJ/PLY/OFF/GLB, through trimesh) and texture images into host-side records.
+
+trimesh is asked for the data exactly as stored (``process=False``: no merging, no reordering, no
+cleaning); the only change jmeshtex makes is the documented seam merge of :func:`load_mesh`.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import re
+import warnings
+
+import numpy as np
+
+from .._errors import MeshIOError
+from .._mesh import Mesh
+from ._save import MESH_SUFFIXES
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tga", ".tif", ".tiff", ".webp")
+
+
+def _readable_file(path: str | os.PathLike, what: str) -> pathlib.Path:
+    try:
+        path = pathlib.Path(path)
+    except TypeError:
+        raise MeshIOError(f"cannot read {what}: {path!r} is not a path") from None
+    if not path.exists():
+        raise MeshIOError(f"cannot read {what} {path}: no such file")
+    if path.is_dir():
+        raise MeshIOError(f"cannot read {what} {path}: it is a directory")
+    if not os.access(path, os.R_OK):
+        raise MeshIOError(f"cannot read {what} {path}: permission denied")
+    return path
+
+
+def _image_to_float(image) -> np.ndarray:
+    """A PIL image as float32 ``[H, W, C]`` in [0, 1] (C = 1, 2, 3 or 4), row 0 at the top."""
+    mode = image.mode
+    if mode in ("P", "PA"):
+        image = image.convert("RGBA" if (mode == "PA" or "transparency" in image.info) else "RGB")
+    elif mode == "1":
+        image = image.convert("L")
+    elif mode not in ("L", "LA", "RGB", "RGBA", "I", "F") and not mode.startswith("I;16"):
+        image = image.convert("RGBA" if "A" in mode else "RGB")  # CMYK, YCbCr, LAB, HSV, ...
+    arr = np.asarray(image)
+    if mode.startswith("I;16") or image.mode == "I":
+        out = arr.astype(np.float32) / np.float32(65535)
+    elif image.mode == "F":
+        out = arr.astype(np.float32)
+    else:
+        out = arr.astype(np.float32) / np.float32(255)
+    if out.ndim == 2:
+        out = out[:, :, None]
+    return np.ascontiguousarray(out)
+
+
+def load_texture(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file as a float32 texture ``[H, W, C]`` in [0, 1], row 0 at the top (v = 1).
+
+    8-bit images are divided by 255, 16-bit ones by 65535; palette images become RGB(A), grey
+    images keep one channel (two with alpha).
+
+    Args:
+      path: a PNG, JPEG, BMP, TGA, TIFF or WebP file.
+
+    Returns:
+      ``[H, W, C]`` float32.
+
+    Raises:
+      MeshIOError: missing, unreadable or not an image.
+
+    Example:
+      >>> import numpy as np, pathlib, tempfile
+      >>> from jmeshtex.io import save_png
+      >>> path = pathlib.Path(tempfile.mkdtemp()) / "t.png"
+      >>> save_png(np.zeros((4, 8, 3)), path)
+      >>> t = load_texture(path)
+      >>> t.shape, t.dtype
+      ((4, 8, 3), dtype('float32'))
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    path = _readable_file(path, "texture")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # e.g. PIL's DecompressionBombWarning: we read on purpose
+            with Image.open(path) as image:
+                image.load()
+                return _image_to_float(image)
+    except (OSError, UnidentifiedImageError, ValueError, SyntaxError) as err:
+        raise MeshIOError(f"cannot read texture {path}: {err}") from err
+
+
+def _trimesh_mesh(path: pathlib.Path):
+    import trimesh
+
+    suffix = path.suffix.lower()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # trimesh's internal deprecation noise
+            scene = trimesh.load_scene(str(path), file_type=suffix[1:], process=False)
+            parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+            if len(parts) > 1:
+                loaded = trimesh.util.concatenate(parts)
+            else:
+                loaded = parts[0] if parts else None
+    except MeshIOError:
+        raise
+    except Exception as err:  # trimesh raises anything from ValueError to IndexError on bad files
+        raise MeshIOError(f"cannot read mesh {path}: {type(err).__name__}: {err}") from err
+    if loaded is None:
+        raise MeshIOError(f"cannot read mesh {path}: the file contains no triangles")
+    return loaded
+
+
+def _lookup_rows(table: np.ndarray, query: np.ndarray) -> np.ndarray:
+    """For each row of ``query`` the lowest index of an exactly equal row of ``table``, or -1."""
+    rows = np.concatenate([table, query]) + 0.0
+    _, inverse = np.unique(rows, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    first = np.full(inverse.max() + 1, -1)
+    first[inverse[: len(table)][::-1]] = np.arange(len(table))[::-1]
+    return first[inverse[len(table) :]]
+
+
+def _raw_vertex_colors(loaded, path: pathlib.Path):
+    """Positions and colours as stored in a PLY/OBJ file, for textured meshes.
+
+    trimesh keeps either UVs or vertex colours in its visuals, so for a mesh with both the colours
+    are read from the raw PLY elements or the OBJ ``v x y z r g b`` lines and matched by position.
+    """
+    suffix = path.suffix.lower()
+    if suffix == ".ply":
+        data = loaded.metadata.get("_ply_raw", {}).get("vertex", {}).get("data")
+        names = getattr(getattr(data, "dtype", None), "names", None) or ()
+        if not {"x", "y", "z", "red", "green", "blue"} <= set(names):
+            return None
+        channels = ["red", "green", "blue"] + (["alpha"] if "alpha" in names else [])
+        positions = np.stack([data[k] for k in "xyz"], axis=1).astype(np.float64)
+        return positions, np.stack([data[k] for k in channels], axis=1)
+    if suffix == ".obj":
+        text = path.read_text(errors="replace")
+        lines = re.findall(r"^v[ \t]+([^\n#]*)", text, flags=re.MULTILINE)
+        if not lines or len(lines[0].split()) not in (6, 7):
+            return None
+        width = len(lines[0].split())
+        tokens = " ".join(lines).split()
+        if len(tokens) != width * len(lines):  # mixed rows: give up rather than guess
+            return None
+        try:
+            values = np.array(tokens, dtype=np.float64).reshape(-1, width)
+        except ValueError:
+            return None
+        return values[:, :3], values[:, 3:6]
+    return None
+
+
+def _visual_attributes(loaded, path: pathlib.Path):
+    """(uv per stored vertex or None, texture or None, vertex colours or None) from trimesh."""
+    import trimesh
+
+    n_vertices = len(loaded.vertices)
+    uv = texture = colors = None
+    visual = loaded.visual
+    if isinstance(visual, trimesh.visual.TextureVisuals):
+        if visual.uv is not None and len(visual.uv) == n_vertices:
+            uv = np.array(visual.uv, dtype=np.float64)
+        material = visual.material
+        image = getattr(material, "image", None)
+        if image is None:
+            image = getattr(material, "baseColorTexture", None)
+        if image is not None:
+            texture = _image_to_float(image)
+        raw = _raw_vertex_colors(loaded, path)
+        if raw is not None:
+            match = _lookup_rows(raw[0], np.asarray(loaded.vertices, dtype=np.float64))
+            if np.all(match >= 0):
+                colors = raw[1][match]
+    elif getattr(visual, "kind", None) == "vertex":
+        colors = np.asarray(visual.vertex_colors)
+    if colors is not None:
+        colors = np.asarray(colors)
+        if colors.dtype != np.uint8:  # OBJ colours are floats in [0, 1]
+            colors = np.round(np.clip(colors.astype(np.float64), 0, 1) * 255).astype(np.uint8)
+        if colors.shape[1] == 4 and np.all(colors[:, 3] == 255):
+            colors = colors[:, :3]  # fully opaque: RGB
+        colors = colors.astype(np.float32) / np.float32(255)
+    return uv, texture, colors
+
+
+def load_mesh(
+    path: str | os.PathLike,
+    *,
+    merge_seams: bool = True,
+    texture: str | os.PathLike | None = None,
+) -> Mesh:
+    """Read an OBJ, PLY, OFF or GLB file into a :class:`~jmeshtex.Mesh`.
+
+    Files store one vertex per (position, UV) pair, so textured meshes are split along UV seams.
+    With ``merge_seams`` (the default) vertices with exactly equal coordinates are merged into one
+    (lowest stored index first, in stored order), so geometry sees the closed surface, while
+    ``split_faces`` / ``split_to_merged`` keep the stored indexing and ``uv`` stays per corner
+    (``uv[f, k] = stored_uv[split_faces[f, k]]``). Exact equality is deliberate: seam copies repeat
+    the same numbers, and a tolerance would depend on scale and could weld distinct vertices.
+    Coincident vertices whose merge would pinch the surface (two parts touching at a point or along
+    an edge) are kept apart, as in :func:`~jmeshtex.geometry.prepare_mesh`. Nothing is validated
+    here: pass the result to :func:`~jmeshtex.geometry.prepare_mesh` or
+    :func:`~jmeshtex.geometry.validate_mesh`.
+
+    Args:
+      path: mesh file; the format follows the suffix (``.obj``, ``.ply``, ``.off``, ``.glb``).
+        Materials and textures referenced by the file are read from its folder.
+      merge_seams: merge exactly coincident vertices (see above); False keeps the stored vertices.
+      texture: an image to use as ``Mesh.texture`` instead of the one the file references (for
+        OBJs shipped without a material file).
+
+    Returns:
+      A :class:`~jmeshtex.Mesh`: float64 vertices, int64 faces, per-corner ``uv`` and a float32
+      ``texture`` ([H, W, C], row 0 = top = v 1) where present, float32 ``vertex_colors`` (RGB, or
+      RGBA if any alpha is below 1), ``name`` = the file's stem.
+
+    Raises:
+      MeshIOError: missing, unreadable, unsupported or triangle-free files, bad textures.
+
+    Example:
+      >>> import pathlib, tempfile
+      >>> path = pathlib.Path(tempfile.mkdtemp()) / "quad.obj"
+      >>> _ = path.write_text("v 0 0 0\\nv 1 0 0\\nv 1 1 0\\nv 0 1 0\\nf 1 2 3 4\\n")
+      >>> m = load_mesh(path)
+      >>> m.num_vertices, m.num_faces, m.name
+      (4, 2, 'quad')
+    """
+    path = _readable_file(path, "mesh")
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise MeshIOError(
+            f"cannot read mesh {path}: unsupported format {suffix or '(no suffix)'!r}; "
+            f"supported: {', '.join(MESH_SUFFIXES)}. Fix: convert it (e.g. with trimesh or Blender)"
+        )
+    loaded = _trimesh_mesh(path)
+    vertices = np.array(loaded.vertices, dtype=np.float64)
+    stored_faces = np.array(loaded.faces, dtype=np.int64)
+    if stored_faces.min() < 0 or stored_faces.max() >= len(vertices):
+        raise MeshIOError(f"cannot read mesh {path}: face indices outside the {len(vertices)} vertices")
+    uv, image, colors = _visual_attributes(loaded, path)
+    if texture is not None:
+        image = load_texture(texture)
+
+    rep = np.arange(len(vertices))
+    if merge_seams:
+        from ..geometry._validate import _coincident_vertex_map
+
+        finite = np.isfinite(vertices).all(axis=1)
+        if finite.all():  # NaN rows are never equal anyway; validation reports them later
+            rep, _ = _coincident_vertex_map(vertices, stored_faces)
+    keep = rep == np.arange(len(vertices))
+    if keep.all():
+        faces, split_faces, split_to_merged = stored_faces, None, None
+        merged_vertices = vertices
+    else:
+        new_id = np.cumsum(keep) - 1
+        split_to_merged = new_id[rep]
+        split_faces = stored_faces
+        faces = split_to_merged[stored_faces]
+        merged_vertices = vertices[keep]
+        colors = None if colors is None else colors[keep]
+    return Mesh(
+        vertices=merged_vertices,
+        faces=faces,
+        uv=None if uv is None else uv[stored_faces],
+        texture=image,
+        vertex_colors=colors,
+        split_faces=split_faces,
+        split_to_merged=split_to_merged,
+        name=path.stem,
+    )
