@@ -1,8 +1,9 @@
 """``jmeshtex demo``: run the host geometry on procedural meshes and write a picture and a report.
 
-The demo is a list of :class:`Step` s. Each step reads and fills a shared dictionary (meshes, fields,
-panels), returns a one-line summary, and is timed; a step whose ``run`` is ``None`` is listed in the
-report as pending. Adding a geometry step is one line in :data:`STEPS` (plus its function).
+The demo is a list of :class:`Step` s. Each step reads and fills a shared dictionary (meshes,
+fields), returns a one-line summary, and is timed; a step whose library functions do not exist yet
+is listed in the report as pending. Adding a geometry step is one line in :data:`STEPS` (plus its
+function); the last step renders whatever fields the others left.
 
 From Python::
 
@@ -32,10 +33,20 @@ PANEL_SIZE = (420, 380)
 
 @dataclasses.dataclass(frozen=True)
 class Step:
-    """One demo step: ``run(ctx) -> summary`` (``None`` while the function it shows is not written)."""
+    """One demo step: ``run(ctx) -> summary``.
+
+    It is pending (listed, not run) while ``run`` is None or one of the ``needs`` names is missing
+    from :mod:`jmeshtex.geometry`.
+    """
 
     name: str
     run: Callable[[dict[str, Any]], str] | None
+    needs: tuple[str, ...] = ()
+
+    def missing(self) -> list[str]:
+        import jmeshtex.geometry
+
+        return [n for n in self.needs if not hasattr(jmeshtex.geometry, n)]
 
 
 def _meshes(ctx: dict[str, Any]) -> str:
@@ -67,6 +78,60 @@ def _boundary(ctx: dict[str, Any]) -> str:
     return f"grid: {len(loops)} boundary loop(s), {len(ctx['boundary'])} edges; torus: {len(boundary_loops(ctx['torus'][1]))}"
 
 
+def _validate(ctx: dict[str, Any]) -> str:
+    from ..geometry import mesh_statistics, validate_mesh
+
+    parts = []
+    for name in ("torus", "grid"):
+        validate_mesh(*ctx[name])
+        st = mesh_statistics(ctx[name])
+        parts.append(f"{name}: valid, χ = {st.euler_characteristic}, genus {st.genus}, {st.boundary_loops} boundary loop(s)")
+    return "; ".join(parts)
+
+
+def _one_ring(ctx: dict[str, Any]) -> str:
+    from ..geometry import one_ring_neighborhood
+
+    v, f = ctx["torus"]
+    nb = one_ring_neighborhood(v, f)
+    degree = nb.mask.sum(axis=1)
+    return f"torus: K = {nb.index.shape[1]} slots, degree {degree.min()}–{degree.max()}, area {nb.area.sum():.4g}"
+
+
+def _frames(ctx: dict[str, Any]) -> str:
+    from ..geometry import tangent_frames
+
+    v, f = ctx["torus"]
+    frames = tangent_frames(v, f)
+    ctx["x_axes"], ctx["x_axes_label"] = frames.x, "tangent frames: x-axes"
+    return f"torus: {len(frames.x)} orthonormal frames"
+
+
+def _sample(ctx: dict[str, Any]) -> str:
+    from ..geometry import sample_surface
+
+    v, f = ctx["torus"]
+    samples = sample_surface(v, f, 10 * len(v), seed=0)
+    return f"torus: {len(samples.point)} area-uniform points"
+
+
+def _knn(ctx: dict[str, Any]) -> str:
+    from ..geometry import geodesic_knn_neighborhood
+
+    v, f = ctx["torus"]
+    nb = geodesic_knn_neighborhood(v, f, k=8)
+    radius = np.abs(nb.log[:, -1])
+    return f"torus: [{nb.index.shape[0]}, {nb.index.shape[1]}] slots, geodesic radius of slot 8: {radius.min():.3g}–{radius.max():.3g}"
+
+
+def _hierarchy(ctx: dict[str, Any]) -> str:
+    from ..geometry import mesh_hierarchy
+
+    v, f = ctx["torus"]
+    h = mesh_hierarchy(v, f)
+    return f"torus: {h.num_levels} levels, vertices " + " → ".join(str(len(x)) for x in h.vertices)
+
+
 def _hks(ctx: dict[str, Any]) -> str:
     from ..geometry import heat_kernel_signature, hks_times, laplacian_eigenpairs
 
@@ -86,22 +151,25 @@ def _tangent_axes(ctx: dict[str, Any]) -> str:
     n = len(v)
     # exp_p(0 · e^{i0}) keeps the start wedge face and the gauge's x direction in its frame
     start = trace_from_vertices(v, f, np.arange(n), np.ones(n, complex), 0.0)
-    ctx["x_axes"] = face_frame_to_world(v, f, start.face, start.direction)
-    ctx["x_axes_label"] = "gauge x-axes (via the tracer)"
-    return f"torus: {n} unit x-axes of the intrinsic vertex gauges"
+    axes = face_frame_to_world(v, f, start.face, start.direction)
+    if "x_axes" not in ctx:
+        ctx["x_axes"], ctx["x_axes_label"] = axes, "gauge x-axes (via the tracer)"
+        return f"torus: {n} unit x-axes of the intrinsic vertex gauges"
+    # the frames project the same reference edge onto the vertex tangent plane: a small angle apart
+    cos = np.sum(axes * ctx["x_axes"], axis=1) / np.linalg.norm(axes, axis=1)
+    return f"torus: tracer gauge vs tangent_frames x-axes, max angle {np.degrees(np.arccos(np.clip(cos, -1, 1))).max():.2f}°"
 
 
 def _trace(ctx: dict[str, Any]) -> str:
-    from ..geometry import trace_from_vertices, tracer_geometry
+    from ..geometry import mean_edge_length, trace_from_vertices, tracer_geometry
 
     v, f = ctx["torus"]
     n_dirs = 8
     vertex = np.repeat(np.arange(len(v)), n_dirs)
     direction = np.exp(2j * np.pi * np.tile(np.arange(n_dirs), len(v)) / n_dirs)
-    mean_edge = float(np.linalg.norm(v[f] - v[np.roll(f, -1, axis=1)], axis=-1).mean())
     geometry = tracer_geometry(v, f)
     t0 = time.perf_counter()
-    result = trace_from_vertices(v, f, vertex, direction, 3.0 * mean_edge, geometry=geometry)
+    result = trace_from_vertices(v, f, vertex, direction, 3.0 * mean_edge_length(v, f), geometry=geometry)
     seconds = time.perf_counter() - t0
     return f"torus: {len(vertex)} geodesics of 3 mean edges, {len(vertex) / max(seconds, 1e-9):,.0f} traces/s, {int(result.stopped.sum())} stopped"
 
@@ -124,24 +192,23 @@ def _render(ctx: dict[str, Any]) -> str:
         titles.append(f"grid ({len(gv)} vertices) and its boundary")
     path = ctx["out"] / "demo.png"
     render_grid(panels, path, titles=titles, columns=min(len(panels), 2))
-    ctx["png"] = path
     return f"{len(panels)} panels → {path.name}"
 
 
-# The demo, in order. A pending step names the library functions it is waiting for.
+# The demo, in order. A step is pending until the library functions it `needs` exist.
 STEPS: list[Step] = [
     Step("procedural meshes", _meshes),
-    Step("validate_mesh / mesh_statistics", None),
-    Step("subdivide_midpoint", _subdivide),
-    Step("boundary_loops", _boundary),
-    Step("one_ring_neighborhood (log maps + transport)", None),
-    Step("tangent_frames", None),
-    Step("geodesic_knn_neighborhood (k = 8)", None),
-    Step("mesh_hierarchy", None),
-    Step("heat_kernel_signature", _hks),
-    Step("trace_from_vertices (gauge x-axes)", _tangent_axes),
-    Step("trace_from_vertices (throughput)", _trace),
-    Step("sample_surface", None),
+    Step("validate_mesh / mesh_statistics", _validate, ("validate_mesh", "mesh_statistics")),
+    Step("subdivide_midpoint", _subdivide, ("subdivide_midpoint",)),
+    Step("boundary_loops", _boundary, ("boundary_loops",)),
+    Step("one_ring_neighborhood (log maps + transport)", _one_ring, ("one_ring_neighborhood",)),
+    Step("tangent_frames", _frames, ("tangent_frames",)),
+    Step("geodesic_knn_neighborhood (k = 8)", _knn, ("geodesic_knn_neighborhood",)),
+    Step("mesh_hierarchy", _hierarchy, ("mesh_hierarchy",)),
+    Step("heat_kernel_signature", _hks, ("heat_kernel_signature",)),
+    Step("trace_from_vertices (gauge x-axes)", _tangent_axes, ("trace_from_vertices", "face_frame_to_world")),
+    Step("trace_from_vertices (throughput)", _trace, ("trace_from_vertices", "tracer_geometry")),
+    Step("sample_surface", _sample, ("sample_surface",)),
     Step("render", _render),
 ]
 
@@ -179,15 +246,15 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
     folder.mkdir(parents=True, exist_ok=True)
     ctx: dict[str, Any] = {"quick": quick, "out": folder}
     t_start = time.perf_counter()
-    import jmeshtex.geometry  # noqa: F401  (imports are timed apart from the steps)
-    import jmeshtex.render  # noqa: F401
+    from .. import geometry, render  # noqa: F401  (imports are timed apart from the steps)
 
     rows: list[tuple[str, float | None, str]] = [("imports", time.perf_counter() - t_start, "jmeshtex.geometry, jmeshtex.render")]
     bar = tqdm(STEPS, desc="jmeshtex demo", unit="step", file=sys.stderr, disable=not progress, leave=False)
     for step in bar:
         bar.set_postfix_str(step.name[:40])
-        if step.run is None:
-            rows.append((step.name, None, "pending: not in the library yet"))
+        missing = step.missing()
+        if step.run is None or missing:
+            rows.append((step.name, None, f"pending: jmeshtex.geometry has no {', '.join(missing or step.needs)} yet"))
             continue
         t0 = time.perf_counter()
         summary = step.run(ctx)

@@ -95,7 +95,7 @@ def laplacian_eigenpairs(
 
 
 def hks_times(values: Float[Array, " k"], *, num: int = 8) -> Float[Array, " T"]:
-    """Log-spaced HKS times from the spectrum (Sun et al. 2009, §5).
+    """Log-spaced HKS times from the spectrum (the range Sun et al. 2009 use in their experiments).
 
     .. math:: t \\in [\\, 4 \\ln 10 / \\lambda_{\\max},\\ 4 \\ln 10 / \\lambda_1 \\,]
 
@@ -135,7 +135,7 @@ def heat_kernel_signature(
     k: int = 100,
     eigenpairs: LaplacianEigenpairs | None = None,
 ) -> Float[Array, "V T"]:
-    """Heat kernel signature of every vertex at several times (Sun et al. 2009, eq. 2 / §4).
+    """Heat kernel signature of every vertex at several times (Sun et al. 2009, the HKS definition).
 
     .. math:: \\mathrm{HKS}(x, t) = k_t(x, x) = \\sum_{i=0}^{k-1} e^{-\\lambda_i t}\\, \\varphi_i(x)^2
 

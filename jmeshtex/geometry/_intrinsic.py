@@ -12,15 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import (
-    DegenerateFaceError,
-    EmptyMeshError,
-    FaceIndexError,
-    InputError,
-    NonFiniteVertexError,
-    NonTriangleFaceError,
-)
 from .._types import Float, Int
+from ._validate import validate_mesh
 
 
 def edge_lengths(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> Float[np.ndarray, "F 3"]:
@@ -130,12 +123,11 @@ def vertex_areas(
 
 
 def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a triangle mesh for intrinsic geometry and return ``(float64 [V,3], int64 [F,3])``.
+    """Validate with :func:`~jmeshtex.geometry.validate_mesh`; return ``(float64 [V,3], int64 [F,3])``.
 
-    Raises a typed :mod:`jmeshtex._errors` exception naming the problem instead of letting an
-    ``IndexError`` or a NaN escape later: wrong shapes, no faces, indices out of range, non-finite
-    positions, zero-length edges or zero-area faces. Topology (manifoldness, orientation) is checked
-    by :func:`jmeshtex.geometry.one_rings`.
+    Intrinsic geometry needs finite positions, in-range indices, no zero-area faces and manifold,
+    consistently oriented triangles; a violation raises the typed error ``validate_mesh`` names
+    instead of an ``IndexError`` or a NaN later.
 
     Example:
       >>> import numpy as np
@@ -143,29 +135,5 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
       >>> v.dtype, f.dtype
       (dtype('float64'), dtype('int64'))
     """
-    v = np.asarray(vertices)
-    f = np.asarray(faces)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise InputError(f"vertices must have shape [V, 3], got {v.shape}")
-    if not (np.issubdtype(v.dtype, np.floating) or np.issubdtype(v.dtype, np.integer)):
-        raise InputError(f"vertices must be real numbers, got dtype {v.dtype}")
-    if f.size == 0 or v.shape[0] == 0:
-        raise EmptyMeshError()
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise NonTriangleFaceError(f"faces must be triangles with shape [F, 3], got {f.shape}")
-    if not np.issubdtype(f.dtype, np.integer):
-        if not np.issubdtype(f.dtype, np.floating) or np.any(f != np.round(f)):
-            raise InputError(f"faces must hold integer vertex indices, got dtype {f.dtype}")
-    v = v.astype(np.float64)
-    f = f.astype(np.int64)
-    bad = np.nonzero(np.any((f < 0) | (f >= len(v)), axis=1))[0]
-    if bad.size:
-        raise FaceIndexError(f"face indices out of range [0, {len(v)}) at faces", indices=bad)
-    bad = np.nonzero(~np.all(np.isfinite(v), axis=1))[0]
-    if bad.size:
-        raise NonFiniteVertexError(indices=bad)
-    lengths = edge_lengths(v, f)
-    bad = np.nonzero((face_areas(lengths) <= 0.0) | np.any(lengths <= 0.0, axis=1))[0]
-    if bad.size:
-        raise DegenerateFaceError(indices=bad)
-    return v, f
+    validate_mesh(vertices, faces)
+    return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)

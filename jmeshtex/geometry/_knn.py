@@ -49,7 +49,8 @@ def geodesic_knn_neighborhood(
     Slots are sorted by **path length** (the Dijkstra distance over edges, the quantity that selects
     them; ties by vertex index), not by ``|log|``: slot 0 is p itself (log 0, transport 1), slot j
     is no farther along edges than slot j+1. ``|log_p(q)|`` is a better geodesic distance estimate
-    than the path length (edge paths zig-zag, up to ~15 % longer on regular meshes) and is what
+    than the path length (edge paths zig-zag: 23 % longer than the exact geodesic at worst on
+    ``icosphere(3)``, 59 % on a coarse torus, against 0.2 % and 2 % for ``|log|``) and is what
     filters should use.
 
     Args:

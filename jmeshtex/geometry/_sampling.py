@@ -115,11 +115,11 @@ def sample_surface(
 
 
 def barycentric_interpolate(
-    values: Shaped[ArrayLike, "V *C"],
+    values: Shaped[ArrayLike, "V ..."],
     faces: Int[ArrayLike, "F 3"],
     face: Int[ArrayLike, " *N"],
     bary: Float[ArrayLike, "*N 3"],
-) -> Shaped[ArrayLike, "*N *C"]:
+) -> Shaped[ArrayLike, "..."]:
     """Interpolate per-vertex values at points given by face and barycentric coordinates.
 
     .. math:: x(p) = \\sum_{k=0}^{2} b_k\\, x_{F_{f,k}}

@@ -12,7 +12,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._errors import EmptyMeshError, FaceIndexError, InputError, NonFiniteVertexError, NonTriangleFaceError
+from .._errors import (
+    EmptyMeshError,
+    FaceIndexError,
+    InputError,
+    NonFiniteVertexError,
+    NonTriangleFaceError,
+)
 from .._types import Array, Float, Int
 
 

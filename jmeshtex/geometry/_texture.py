@@ -78,7 +78,7 @@ def sample_texture(
     *,
     mode: str = "bilinear",
     wrap: str = "clamp",
-) -> Shaped[ArrayLike, "*N *C"]:
+) -> Shaped[ArrayLike, "..."]:
     """Sample a texture image at texture coordinates.
 
     With texel coordinates ``x = u W − 0.5``, ``y = (1 − v) H − 0.5`` (module docstring):

@@ -15,7 +15,9 @@ unit face normal; :func:`face_frame_to_world` converts.
 **Vertex frame.** :func:`trace_from_vertices` takes directions in the intrinsic vertex gauge of
 DESIGN.md: the x-axis is the edge to slot 0 of :func:`~jmeshtex.geometry.one_rings`, angles grow
 counter-clockwise and corner angles are scaled to sum to 2π at interior vertices (not at boundary
-vertices), exactly like the one-ring log maps.
+vertices). The slot angles come from :func:`~jmeshtex.geometry.one_ring_angles`, the same source as
+the one-ring log maps (:func:`~jmeshtex.geometry.one_ring_neighborhood`), so
+``exp_p(log_p(q)) = q`` holds to rounding.
 
 All traces advance in lockstep: each iteration is a handful of vectorised NumPy operations over the
 traces that are still walking, one face crossing each.
@@ -28,15 +30,24 @@ from typing import NamedTuple
 import numpy as np
 from jaxtyping import Bool, Complex, Float, Int
 
-from .._errors import DegenerateFaceError, EmptyMeshError, FaceIndexError, InputError
-from .._errors import NonFiniteVertexError, NonTriangleFaceError
-from ._adjacency import face_neighborhood, one_rings
+from .._errors import (
+    DegenerateFaceError,
+    EmptyMeshError,
+    FaceIndexError,
+    InputError,
+    NonFiniteVertexError,
+    NonTriangleFaceError,
+)
+from ._adjacency import face_neighborhood
+from ._intrinsic import edge_lengths, face_areas
+from ._log_map import _angles_from_lengths, _wedge_corners
 
 # A ray is taken to leave a face through an edge only if it points outwards by more than this
 # cosine; rays (numerically) parallel to an edge walk along it instead of bouncing across it.
 _PARALLEL_COS = 1e-12
-# A walk that reaches an edge within this fraction of the mean altitude of its full length ends on
-# that edge instead of crossing it for a rounding-sized remainder.
+# A walk whose remaining length overshoots its exit edge by less than this fraction of the mean
+# altitude ends on that edge instead of crossing it for a rounding-sized remainder (which could
+# otherwise turn an exact arrival at a boundary vertex into a spurious boundary stop).
 _LENGTH_TOL = 1e-12
 # Directions at a boundary vertex this close (radians) to a boundary edge are snapped onto it.
 _ANGLE_TOL = 1e-10
@@ -87,11 +98,12 @@ class TracerGeometry(NamedTuple):
         frame is ``crossing · z + crossing_offset`` in the neighbour's frame (0 on a boundary).
       ring_faces: ``[V, K]`` int64 face of each one-ring wedge (counter-clockwise, padded with 0).
       ring_corner: ``[V, K]`` int64 which corner of that face the vertex is.
-      ring_angle_start: ``[V, K]`` float64 real (un-normalised) angle where each wedge starts,
-        measured from the slot-0 edge; ``inf`` on padded wedges.
-      angle_sum: ``[V]`` float64 sum of the corner angles at each vertex.
-      angle_scale: ``[V]`` float64 ``2π / angle_sum`` at interior vertices, 1 on the boundary: the
-        factor from real angles to the vertex frame's angles.
+      ring_theta: ``[V, K]`` float64 angle, in the vertex frame (normalised angles), where wedge j
+        starts: ``theta`` of :func:`~jmeshtex.geometry.one_ring_angles`; ``inf`` on padded wedges.
+      angle_range: ``[V]`` float64 angular extent of the vertex frame: 2π inside, the sum of the
+        corner angles on the boundary.
+      angle_scale: ``[V]`` float64 ``2π / Σ corner angles`` at interior vertices, 1 on the boundary:
+        vertex-frame angle = scale × Euclidean angle inside a wedge.
       boundary: ``[V]`` bool, True on boundary vertices.
     """
 
@@ -106,8 +118,8 @@ class TracerGeometry(NamedTuple):
     crossing_offset: Complex[np.ndarray, "F 3"]
     ring_faces: Int[np.ndarray, "V K"]
     ring_corner: Int[np.ndarray, "V K"]
-    ring_angle_start: Float[np.ndarray, "V K"]
-    angle_sum: Float[np.ndarray, " V"]
+    ring_theta: Float[np.ndarray, "V K"]
+    angle_range: Float[np.ndarray, " V"]
     angle_scale: Float[np.ndarray, " V"]
     boundary: Bool[np.ndarray, " V"]
 
@@ -143,10 +155,7 @@ def _face_layouts(lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ``lengths[:, k]`` is the length of edge k (corner k to corner k+1).
     """
     l0, l1, l2 = lengths.T
-    # Kahan's stable Heron formula: sides sorted a >= b >= c.
-    a, b, c = np.sort(lengths, axis=1)[:, ::-1].T
-    heron = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c))
-    double_area = 0.5 * np.sqrt(np.maximum(heron, 0.0))
+    double_area = 2.0 * face_areas(lengths)  # Kahan's stable Heron formula
     bad = np.nonzero(~(double_area > 0.0))[0]
     if bad.size:
         raise DegenerateFaceError(indices=bad)
@@ -156,13 +165,6 @@ def _face_layouts(lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         [np.zeros_like(l0), np.zeros_like(l0), y2], axis=1
     )
     return corners, double_area
-
-
-def _corner_angles(corners: np.ndarray) -> np.ndarray:
-    """Interior angle at each corner ``[F, 3]`` of a face laid out in 2D."""
-    to_next = np.roll(corners, -1, axis=1) - corners
-    to_prev = np.roll(corners, 1, axis=1) - corners
-    return np.angle(to_prev * np.conj(to_next))
 
 
 def tracer_geometry(
@@ -200,8 +202,7 @@ def tracer_geometry(
       [[-1, -1, -1]]
     """
     vertices, faces = _check_mesh(vertices, faces)
-    n_faces = len(faces)
-    lengths = np.linalg.norm(vertices[np.roll(faces, -1, axis=1)] - vertices[faces], axis=2)
+    lengths = edge_lengths(vertices, faces)
     corners, double_area = _face_layouts(lengths)
 
     # edge opposite corner k runs from corner k+1 to corner k+2; its inward unit normal is
@@ -233,15 +234,13 @@ def tracer_geometry(
     # corner k of f is corner m+1 of g: z_g = Q_{m+1} + crossing · (z_f − P_k)
     crossing_offset = np.where(has, flat[3 * g + (m + 1) % 3] - crossing * corners, 0j)
 
-    rings = one_rings(faces, len(vertices))
+    # the vertex gauge: the same slot angles as the one-ring log maps
+    rings, theta, angle_scale = _angles_from_lengths(faces, lengths, len(vertices))
     ring_faces = rings.wedge_faces.astype(np.int64)
-    ring_corner = np.argmax(faces[ring_faces] == np.arange(len(vertices))[:, None, None], axis=2)
-    wedge_angle = np.where(rings.wedge_mask, _corner_angles(corners)[ring_faces, ring_corner], 0.0)
-    angle_sum = wedge_angle.sum(axis=1)
-    start = np.cumsum(wedge_angle, axis=1) - wedge_angle
-    ring_angle_start = np.where(rings.wedge_mask, start, np.inf)
-    used = angle_sum > 0
-    angle_scale = np.where(rings.boundary | ~used, 1.0, 2.0 * np.pi / np.where(used, angle_sum, 1.0))
+    ring_corner = _wedge_corners(rings, faces).astype(np.int64)
+    ring_theta = np.where(rings.wedge_mask, theta, np.inf)
+    closing = theta[np.arange(len(vertices)), np.maximum(rings.degree - 1, 0)]
+    angle_range = np.where(rings.boundary, closing, np.where(rings.degree > 0, 2.0 * np.pi, 0.0))
     return TracerGeometry(
         vertices=vertices,
         faces=faces,
@@ -254,8 +253,8 @@ def tracer_geometry(
         crossing_offset=crossing_offset,
         ring_faces=ring_faces,
         ring_corner=ring_corner,
-        ring_angle_start=ring_angle_start,
-        angle_sum=angle_sum,
+        ring_theta=ring_theta,
+        angle_range=angle_range,
         angle_scale=angle_scale,
         boundary=np.asarray(rings.boundary, bool),
     )
@@ -352,7 +351,7 @@ def _walk(
         return np.compress(keep, idx), np.compress(keep, f), np.compress(keep, state, axis=1), keep
 
     steps = 0
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         while idx.size:
             if steps >= max_steps:
                 raise InputError(
@@ -574,11 +573,11 @@ def vertex_direction_to_face(
 ) -> tuple[Int[np.ndarray, " N"], Int[np.ndarray, " N"], Complex[np.ndarray, " N"], Bool[np.ndarray, " N"]]:
     """Find the one-ring wedge a vertex-frame direction points into, and re-express it there.
 
-    The vertex-frame angle ``φ = arg(direction)`` (normalised angles, DESIGN.md) becomes the real
-    angle ``ψ = φ · angle_sum / 2π`` at interior vertices (``ψ = φ`` on the boundary); the wedge is
-    the one whose real angular range ``[start_j, start_j + α_j)`` contains ψ, and the direction in
-    that face's frame is ``u_j · e^{i(ψ − start_j)}`` with ``u_j`` the unit edge vector from the
-    vertex to ring slot j in the face's layout.
+    The wedge j of vertex p is the one whose vertex-frame range ``[θ_pj, θ_p,j+1)`` (the slot angles
+    of :func:`~jmeshtex.geometry.one_ring_angles`) contains ``φ = arg(direction) mod 2π``; inside
+    it the direction makes the Euclidean angle ``(φ − θ_pj) / s_p`` with the edge from p to ring
+    slot j (``s_p`` the angle scale), so in the face's frame it is ``u_j · e^{i(φ − θ_pj)/s_p}``
+    with ``u_j`` that edge's unit vector in the face layout.
 
     Args:
       geometry: tables from :func:`tracer_geometry`.
@@ -599,25 +598,25 @@ def vertex_direction_to_face(
     """
     vertex = np.asarray(vertex, dtype=np.int64)
     phi = np.mod(np.angle(np.asarray(direction, dtype=np.complex128)), 2.0 * np.pi)
-    psi = phi / geometry.angle_scale[vertex]
-    starts = geometry.ring_angle_start[vertex]
-    slot = np.maximum((psi[:, None] >= starts).sum(axis=1) - 1, 0)
-    total = geometry.angle_sum[vertex]
+    starts = geometry.ring_theta[vertex]
+    slot = np.maximum((phi[:, None] >= starts).sum(axis=1) - 1, 0)
+    total = geometry.angle_range[vertex]
     boundary = geometry.boundary[vertex]
-    # past the last wedge of a boundary vertex: continue from whichever end wedge is nearer
-    to_first = boundary & (psi > total) & (2.0 * np.pi - psi < psi - total)
-    psi = np.where(to_first, psi - 2.0 * np.pi, psi)
+    # past the last wedge of a boundary vertex (scale 1): continue from the nearer end wedge
+    to_first = boundary & (phi > total) & (2.0 * np.pi - phi < phi - total)
+    phi = np.where(to_first, phi - 2.0 * np.pi, phi)
     slot = np.where(to_first, 0, slot)
     slot = np.minimum(slot, np.maximum(np.isfinite(starts).sum(axis=1) - 1, 0))
     # off the surface, beyond rounding of the angles; within rounding, snap onto the boundary edge
-    outside = boundary & ((psi > total + _ANGLE_TOL) | (psi < -_ANGLE_TOL))
-    psi = np.where(boundary & ~outside, np.clip(psi, 0.0, total), psi)
+    outside = boundary & ((phi > total + _ANGLE_TOL) | (phi < -_ANGLE_TOL))
+    phi = np.where(boundary & ~outside, np.clip(phi, 0.0, total), phi)
     face = geometry.ring_faces[vertex, slot]
     corner = geometry.ring_corner[vertex, slot]
     layout = geometry.corners[face]
     rows = np.arange(len(vertex))
     edge = layout[rows, (corner + 1) % 3] - layout[rows, corner]
-    face_dir = edge / np.abs(edge) * np.exp(1j * (psi - starts[rows, slot]))
+    inside = (phi - starts[rows, slot]) / geometry.angle_scale[vertex]
+    face_dir = edge / np.abs(edge) * np.exp(1j * inside)
     return face, corner, face_dir, outside
 
 
@@ -635,9 +634,9 @@ def trace_from_vertices(
 
     ``exp_p(r e^{iφ})``: the direction's angle φ is measured in p's intrinsic gauge (x-axis along
     the edge to slot 0 of :func:`~jmeshtex.geometry.one_rings`, corner angles scaled to sum to 2π at
-    interior vertices, unscaled on the boundary — the frame of the one-ring log maps), mapped back to
-    a real angle inside one wedge (:func:`vertex_direction_to_face`), and traced from that face with
-    :func:`trace_geodesics`. Hence ``exp_p(log_p(q)) = q`` for every one-ring neighbour q.
+    interior vertices, unscaled on the boundary — the frame of the one-ring log maps), turned into a
+    Euclidean angle inside one wedge (:func:`vertex_direction_to_face`), and traced from that face
+    as in :func:`trace_geodesics`. Hence ``exp_p(log_p(q)) = q`` for every one-ring neighbour q.
 
     At a boundary vertex a direction outside the surface's angular range ends at once with
     ``stopped=True`` and ``travelled=0`` (unless the length is 0).
@@ -673,7 +672,7 @@ def trace_from_vertices(
     bad = np.nonzero((vertex < 0) | (vertex >= n_vertices))[0]
     if bad.size:
         raise InputError(f"vertex out of range [0, {n_vertices}) at traces {bad[:10].tolist()}")
-    isolated = np.nonzero(geometry.angle_sum[vertex] <= 0)[0]
+    isolated = np.nonzero(geometry.angle_range[vertex] <= 0)[0]
     if isolated.size:
         raise InputError(
             f"vertices {np.unique(vertex[isolated])[:10].tolist()} belong to no face; "

@@ -97,8 +97,8 @@ def _coerce_faces(faces: Any) -> np.ndarray:
             f"{NonTriangleFaceError.what}; faces with {sorted(set(lengths[bad].tolist()))} corners",
             indices=bad,
         )
-    if f.size == 0:
-        f = f.reshape(0, 3)
+    if f.size == 0:  # no faces (np.asarray([]) is float64: any dtype will do)
+        return np.zeros((0, 3), np.int64)
     if f.ndim != 2 or f.shape[1] != 3:
         if f.ndim == 2:
             raise NonTriangleFaceError(

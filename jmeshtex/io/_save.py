@@ -276,7 +276,7 @@ def _encode_ply(mesh: Mesh, stem: str) -> dict[str, bytes]:
     header += [f"property {'double' if t == '<f8' else 'uchar'} {n}" for n, t in fields]
     header += [f"element face {len(stored_faces)}", "property list uchar int vertex_indices", "end_header"]
     vert = np.empty(len(to_vertex), dtype=fields)
-    for (name, _), col in zip(fields, columns):
+    for (name, _), col in zip(fields, columns, strict=True):
         vert[name] = col
     face = np.empty(len(stored_faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     face["n"] = 3

@@ -99,8 +99,10 @@ def render_mesh(
 
     v, f = check_mesh_arrays(vertices, faces)
     width, height = _check_size(size)
-    elev, azim = (float(x) for x in view)
+    elev, azim = _check_view(view)
     base = _base_colors(v, f, vertex_colors, face_colors, scalars, cmap, clim, uv, texture)
+    vec = None if vectors is None else _check_vectors(vectors, len(v))
+    e = None if edges is None else _check_edges(edges, len(v))
 
     normals = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
@@ -127,12 +129,9 @@ def render_mesh(
     ax.add_collection3d(
         Poly3DCollection(v[f], facecolors=colors, edgecolors=colors, linewidths=0.3, zsort="average", zorder=1)
     )
-    if vectors is not None:
-        _add_arrows(ax, v, f, unit, vectors, vector_scale, max_arrows, elev, azim)
-    if edges is not None:
-        e = np.asarray(edges)
-        if e.ndim != 2 or e.shape[1] != 2 or not np.issubdtype(e.dtype, np.integer) or ((e < 0) | (e >= len(v))).any():
-            raise InputError(f"edges must be integer vertex pairs [E, 2] in [0, {len(v)}), got shape {e.shape}")
+    if vec is not None:
+        _add_arrows(ax, v, f, unit, vec, vector_scale, max_arrows, elev, azim)
+    if e is not None:
         ax.add_collection3d(Line3DCollection(v[e], colors="#d62728", linewidths=1.6, zorder=3))
     if title is not None:
         fig.text(0.5, 1.0 - 0.5 * (1.0 - top), str(title), ha="center", va="center", fontsize=10)
@@ -246,6 +245,16 @@ def _check_size(size) -> tuple[int, int]:
     return width, height
 
 
+def _check_view(view) -> tuple[float, float]:
+    try:
+        elev, azim = (float(x) for x in view)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"view must be (elevation, azimuth) in degrees, got {view!r}") from err
+    if not (np.isfinite(elev) and np.isfinite(azim)):
+        raise InputError(f"view angles must be finite, got {view!r}")
+    return elev, azim
+
+
 def _direction(elev_deg: float, azim_deg: float) -> np.ndarray:
     """Unit vector from the origin towards a camera at (elevation, azimuth), matplotlib's convention."""
     e, a = np.radians(elev_deg), np.radians(azim_deg)
@@ -349,16 +358,27 @@ def _bilinear(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return top * (1 - fy) + bottom * fy
 
 
-def _add_arrows(ax, v, f, face_unit, vectors, vector_scale, max_arrows, elev, azim) -> None:
+def _check_vectors(vectors, n_vertices: int) -> np.ndarray:
     vec = np.asarray(vectors)
-    if vec.shape != v.shape or not np.issubdtype(vec.dtype, np.number) or np.iscomplexobj(vec):
+    if vec.shape != (n_vertices, 3) or not np.issubdtype(vec.dtype, np.number) or np.iscomplexobj(vec):
         raise InputError(
-            f"vectors must be real [V={len(v)}, 3] 3D tangent vectors (convert complex tangent "
+            f"vectors must be real [V={n_vertices}, 3] 3D tangent vectors (convert complex tangent "
             f"coordinates with the tangent frames first), got shape {vec.shape} ({vec.dtype})"
         )
     vec = vec.astype(np.float64)
     if not np.isfinite(vec).all():
         raise InputError("vectors hold NaN or infinite values")
+    return vec
+
+
+def _check_edges(edges, n_vertices: int) -> np.ndarray:
+    e = np.asarray(edges)
+    if e.ndim != 2 or e.shape[1] != 2 or not np.issubdtype(e.dtype, np.integer) or ((e < 0) | (e >= n_vertices)).any():
+        raise InputError(f"edges must be integer vertex pairs [E, 2] in [0, {n_vertices}), got shape {e.shape}")
+    return e
+
+
+def _add_arrows(ax, v, f, face_unit, vec, vector_scale, max_arrows, elev, azim) -> None:
     edge_len = np.linalg.norm(v[f] - v[np.roll(f, -1, axis=1)], axis=-1).mean()
     vertex_normal = np.zeros_like(v)
     np.add.at(vertex_normal, f.ravel(), np.repeat(face_unit, 3, axis=0))

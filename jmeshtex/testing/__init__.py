@@ -27,3 +27,8 @@ from ._field_strategies import gauges as gauges
 from ._field_strategies import rotations as rotations
 from ._transforms import gauge_change as gauge_change
 from ._transforms import rigid_motion as rigid_motion
+from ._strategies import BAD_MESH_KINDS as BAD_MESH_KINDS
+from ._strategies import bad_meshes as bad_meshes
+from ._strategies import valid_meshes as valid_meshes
+from ._isometries import fold_sheet as fold_sheet
+from ._isometries import hinge as hinge

@@ -5,8 +5,7 @@ from __future__ import annotations
 import matplotlib.image
 import pytest
 
-from jmeshtex.cli import main
-from jmeshtex.cli import _demo
+from jmeshtex.cli import _demo, main
 
 
 def test_quick_demo_writes_png_and_report(tmp_path, capsys):
@@ -25,7 +24,7 @@ def test_quick_demo_writes_png_and_report(tmp_path, capsys):
     assert "grid: 169 vertices, 288 faces" in report
     for step in _demo.STEPS:
         line = next(line for line in report.splitlines() if line.startswith(step.name))
-        if step.run is None:
+        if step.run is None or step.missing():
             assert "pending" in line
         else:
             seconds = float(line[len(step.name) :].split()[0])
@@ -34,7 +33,8 @@ def test_quick_demo_writes_png_and_report(tmp_path, capsys):
 
 
 def _only_meshes(monkeypatch):
-    monkeypatch.setattr(_demo, "STEPS", [_demo.Step("procedural meshes", _demo._meshes), _demo.Step("later", None)])
+    steps = [_demo.Step("procedural meshes", _demo._meshes), _demo.Step("later", _demo._meshes, ("no_such_fn",))]
+    monkeypatch.setattr(_demo, "STEPS", steps)
 
 
 def test_existing_non_empty_folder_is_not_overwritten(tmp_path, monkeypatch, capsys):
@@ -49,7 +49,8 @@ def test_existing_non_empty_folder_is_not_overwritten(tmp_path, monkeypatch, cap
     # --force writes into the folder itself
     assert main(["demo", "--out", str(tmp_path), "--quick", "--force", "--no-progress"]) == 0
     report = (tmp_path / "report.txt").read_text()
-    assert "procedural meshes" in report and "later" in report and "pending" in report
+    assert "procedural meshes" in report
+    assert "later" in report and "pending: jmeshtex.geometry has no no_such_fn yet" in report
 
 
 def test_out_is_a_file_gives_a_clear_error(tmp_path, capsys):

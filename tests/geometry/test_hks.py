@@ -50,6 +50,13 @@ def test_invariant_under_a_fold_of_a_flat_sheet():
     # different LAPACK/ARPACK build while still catching any extrinsic (angle-based) quantity,
     # which moves by ~1e-4 under this fold.
     np.testing.assert_allclose(h_fold, h_flat, rtol=1e-8)
+    # control: a 1 % stretch of the same part (not an isometry) moves the signature well above that
+    up = v[:, 1] > row_y + 1e-12
+    stretched = w.copy()
+    stretched[up, 1] = row_y + 1.01 * (w[up, 1] - row_y)
+    stretched[up, 2] = 1.01 * w[up, 2]
+    h_stretched = heat_kernel_signature(stretched, f, k=60)
+    assert np.max(np.abs(h_stretched - h_flat) / h_flat) > 1e-4
 
 
 def test_invariant_under_rigid_motion(rng):

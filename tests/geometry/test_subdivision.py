@@ -7,7 +7,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from jmeshtex import EmptyMeshError, FaceIndexError, InputError, NonFiniteVertexError, NonTriangleFaceError
+from jmeshtex import (
+    EmptyMeshError,
+    FaceIndexError,
+    InputError,
+    NonFiniteVertexError,
+    NonTriangleFaceError,
+)
 from jmeshtex.data import grid, icosahedron, icosphere, single_triangle, torus
 from jmeshtex.geometry import (
     boundary_edges,
@@ -38,7 +44,7 @@ def _face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 def _reference_subdivide(v: np.ndarray, f: np.ndarray):
     """Slow, loop-based midpoint subdivision with a dict of edges (independent reference)."""
     edge_id: dict[tuple[int, int], int] = {}
-    for a, b in sorted({tuple(sorted((int(x), int(y)))) for tri in f for x, y in zip(tri, np.roll(tri, -1))}):
+    for a, b in sorted({tuple(sorted((int(x), int(y)))) for tri in f for x, y in zip(tri, np.roll(tri, -1), strict=True)}):
         edge_id[(a, b)] = len(v) + len(edge_id)
     verts = [*v]
     for (a, b), _ in sorted(edge_id.items(), key=lambda kv: kv[1]):
@@ -109,17 +115,17 @@ def test_parent_maps():
     s = subdivide_midpoint(v, f)
     V = len(v)
     # each new vertex is the midpoint of an existing coarse edge, every coarse edge gets exactly one
-    coarse_edges = {tuple(sorted(e)) for tri in f.tolist() for e in zip(tri, tri[1:] + tri[:1])}
+    coarse_edges = {tuple(sorted(e)) for tri in f.tolist() for e in zip(tri, tri[1:] + tri[:1], strict=True)}
     assert {tuple(e) for e in s.edge_vertices.tolist()} == coarse_edges
     assert len(s.edge_vertices) == len(coarse_edges)
     np.testing.assert_allclose(s.vertices[V:], 0.5 * (v[s.edge_vertices[:, 0]] + v[s.edge_vertices[:, 1]]))
     np.testing.assert_array_equal(s.vertices[:V], v)
     # the new vertex is joined to both of its parents in the fine mesh
-    fine_edges = {tuple(sorted(e)) for tri in s.faces.tolist() for e in zip(tri, tri[1:] + tri[:1])}
+    fine_edges = {tuple(sorted(e)) for tri in s.faces.tolist() for e in zip(tri, tri[1:] + tri[:1], strict=True)}
     for i, (a, b) in enumerate(s.edge_vertices.tolist()):
         assert (a, V + i) in fine_edges and (b, V + i) in fine_edges
     # a fine face only uses its parent's corners and the midpoints of its parent's edges
-    for child, parent in zip(s.faces.tolist(), s.face_parent.tolist()):
+    for child, parent in zip(s.faces.tolist(), s.face_parent.tolist(), strict=True):
         corners = set(f[parent].tolist())
         for x in child:
             assert x in corners or set(s.edge_vertices[x - V].tolist()) <= corners

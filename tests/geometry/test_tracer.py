@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from jmeshtex import InputError
 from jmeshtex import geometry as G
@@ -76,7 +78,7 @@ def _reference_log_maps(v, f):
             out.append((p, q, np.linalg.norm(v[q] - v[p]) * np.exp(1j * theta * scale)))
             if j < n_wedges:
                 theta += angles[j]
-    p, q, log = zip(*out)
+    p, q, log = zip(*out, strict=True)
     return np.array(p), np.array(q), np.array(log)
 
 
@@ -114,6 +116,39 @@ def test_straight_lines_on_a_flat_grid(rng, diagonals):
     np.testing.assert_allclose(r.bary.sum(1), 1.0, atol=1e-14)
 
 
+_GRID = grid(4, diagonals="alternate")
+_GRID_TABLES = tracer_geometry(*_GRID)
+
+
+@given(
+    face=st.integers(0, len(_GRID[1]) - 1),
+    weights=st.tuples(*[st.sampled_from([0.0, 0.5, 1.0]) | st.floats(0.0, 1.0)] * 3).filter(
+        lambda w: sum(w) > 0.1),
+    angle=st.sampled_from(np.arange(8) * np.pi / 4) | st.floats(0.0, 2 * np.pi),
+    length=st.sampled_from([0.0, 0.25, 0.5 ** 0.5]) | st.floats(0.0, 1.6),
+)
+def test_straight_lines_on_a_flat_grid_property(face, weights, angle, length):
+    """Any start (corners, edges, boundary), any heading (along mesh lines, through vertices)."""
+    v, f = _GRID
+    bary = np.array([weights]) / sum(weights)
+    d = np.array([np.exp(1j * angle)])
+    r = trace_geodesics(v, f, np.array([face]), bary, d, np.array([length]), geometry=_GRID_TABLES)
+    start = _start_points(v, f, np.array([face]), bary)[0]
+    w = face_frame_to_world(v, f, np.array([face]), d)[0]
+    travelled = r.travelled[0]
+    assert 0.0 <= travelled <= length + 1e-15
+    np.testing.assert_allclose(r.point[0], start + travelled * w, atol=1e-12)
+    np.testing.assert_allclose(_start_points(v, f, r.face, r.bary)[0], r.point[0], atol=1e-12)
+    end = start + length * w
+    if np.all((end[:2] > 1e-9) & (end[:2] < 1 - 1e-9)):
+        assert not r.stopped[0] and travelled == length
+    if r.stopped[0]:
+        assert travelled < length
+        assert min(np.abs(r.point[0, :2]).min(), np.abs(r.point[0, :2] - 1).min()) < 1e-12
+    else:
+        assert travelled == length
+
+
 def test_boundary_stop_distances_are_exact():
     """From the centre of a unit square, the four axis directions hit the border at distance 0.5."""
     v, f = grid(4, diagonals="uniform")
@@ -148,7 +183,7 @@ def test_walks_through_vertices_and_along_edges_are_exact():
     np.testing.assert_allclose(r1.point, expected, atol=1e-12)
     # going down (y = 0.25 → 0) stops after 0.25; diagonals down stop at the border too
     np.testing.assert_array_equal(r1.stopped, heading[:, 1] * 0.3 < -0.25 + 1e-12)
-    for a, b in zip(r1, r2):  # deterministic
+    for a, b in zip(r1, r2, strict=True):  # deterministic
         np.testing.assert_array_equal(a, b)
 
 
@@ -231,18 +266,22 @@ def test_exp_of_log_is_the_neighbour(mesh):
     np.testing.assert_allclose(r.point, v[q], atol=1e-12)
 
 
-def test_exp_of_log_matches_the_log_map_module_when_present():
-    """One source of truth: if `one_ring_neighborhood` exists its logs must also land on q."""
-    v, f = torus(8, 6)
-    if not hasattr(G, "one_ring_neighborhood"):
-        # until jmeshtex.geometry._log_map lands, compare with the loop reference alone
-        p, q, log = _reference_log_maps(v, f)
-    else:
-        nb = G.one_ring_neighborhood(v, f)
-        p, k = np.nonzero(np.asarray(nb.mask))
-        q, log = np.asarray(nb.index)[p, k], np.asarray(nb.log)[p, k]
+@pytest.mark.parametrize("mesh", [lambda: torus(8, 6), _cut_sphere], ids=["torus", "cut-sphere"])
+def test_exp_of_log_with_the_log_map_module(mesh):
+    """One source of truth: the logs of `one_ring_neighborhood` land exactly on their neighbours."""
+    v, f = mesh()
+    nb = G.one_ring_neighborhood(v, f)
+    p, k = np.nonzero(nb.mask)
+    q, log = nb.index[p, k], nb.log[p, k]
+    # and they agree with the loop reference above
+    rp, rq, rlog = _reference_log_maps(v, f)
+    np.testing.assert_array_equal(rq, q)
+    np.testing.assert_allclose(rlog, log, atol=1e-12)
     r = trace_from_vertices(v, f, p, log, np.abs(log))
+    assert not r.stopped.any()
     np.testing.assert_allclose(r.point, v[q], atol=1e-12)
+    corner = np.argmax(f[r.face] == q[:, None], axis=1)
+    np.testing.assert_allclose(r.bary[np.arange(len(q)), corner], 1.0, atol=1e-12)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -258,7 +297,7 @@ def test_agrees_with_potpourri3d(rng):
     r = trace_geodesics(v, f, face, bary, direction, length)
     tracer = pp3d.GeodesicTracer(v, f)
     w = face_frame_to_world(v, f, face, direction) * length[:, None]
-    ends = np.array([tracer.trace_geodesic_from_face(int(a), b, c)[-1] for a, b, c in zip(face, bary, w)])
+    ends = np.array([tracer.trace_geodesic_from_face(int(a), b, c)[-1] for a, b, c in zip(face, bary, w, strict=True)])
     # both unfold the same polyhedral surface exactly; observed ~3e-15
     np.testing.assert_allclose(r.point, ends, atol=1e-9)
 
@@ -296,7 +335,7 @@ def test_geometry_reuse_and_scalar_length_give_the_same_result(rng):
     face, bary, direction = _random_starts(rng, f, 50)
     a = trace_geodesics(v, f, face, bary, direction, np.full(50, 0.4))
     b = trace_geodesics(v, f, face, bary, direction, 0.4, geometry=g)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
 
 

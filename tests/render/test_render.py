@@ -169,6 +169,7 @@ def test_render_grid_layout(tmp_path):
         ({"vectors": np.zeros((41, 3))}, r"vectors must be real \[V=42, 3\]"),
         ({"edges": np.array([[0, 42]])}, "edges must be integer vertex pairs"),
         ({"size": (4, 4)}, "between 16 and 8192"),
+        ({"view": (10.0, 20.0, 30.0)}, r"view must be \(elevation, azimuth\)"),
         ({"uv": np.zeros((80, 3, 2)), "texture": np.zeros((4, 4, 2))}, r"texture must be an image"),
     ],
 )
