@@ -79,7 +79,7 @@ def _normalize_or(a: np.ndarray, default: np.ndarray) -> np.ndarray:
     return np.where(ok, a / np.where(ok, norm, 1.0), default)
 
 
-def tangent_to_3d(z: Complex[ArrayLike, "V *S"], frames: TangentFrames) -> Float[ArrayLike, "V *S 3"]:
+def tangent_to_3d(z: Complex[ArrayLike, "V ..."], frames: TangentFrames) -> Float[ArrayLike, "V ... 3"]:
     """Tangent vectors (complex, per-vertex frames) to 3D vectors in the tangent planes.
 
     .. math:: v = \\operatorname{Re}(z)\\, x_p + \\operatorname{Im}(z)\\, y_p
@@ -110,7 +110,7 @@ def tangent_to_3d(z: Complex[ArrayLike, "V *S"], frames: TangentFrames) -> Float
     return xp.real(z)[..., None] * fx + xp.imag(z)[..., None] * fy
 
 
-def tangent_from_3d(v3: Float[ArrayLike, "V *S 3"], frames: TangentFrames) -> Complex[ArrayLike, "V *S"]:
+def tangent_from_3d(v3: Float[ArrayLike, "V ... 3"], frames: TangentFrames) -> Complex[ArrayLike, "V ..."]:
     """3D vectors to tangent vectors (complex) in each vertex's frame; the normal part is dropped.
 
     .. math:: z = \\langle v, x_p \\rangle + i\\, \\langle v, y_p \\rangle

@@ -1,16 +1,17 @@
 """Multiresolution mesh hierarchy with intrinsic, gauge-equivariant pooling maps.
 
-Decimation (our own, not ``igl.decimate`` / ``igl.qslim``): rounds of parallel *half-edge
-collapses* ``u → v`` in which u disappears and v keeps its position, so every coarse vertex is one
-of the fine vertices (``vertex_index``) and fine→coarse transport is well defined. Each round
-collapses, for a set of vertices pairwise at least three edges apart (their stars do not touch),
-the shortest admissible edge of each; rounds repeat until the level has ``ceil(ratio · V)``
-vertices. Admissible means: the link condition (the only common neighbours of u and v are the
-vertices opposite the edge), boundary vertices only slide along boundary edges, no vertex drops
-below degree 3 (2 on the boundary), and the new triangles are well shaped (every intrinsic angle
-and the angle at v in u's flattened star above ~1°). Half-edge collapses under these rules keep
-the surface a manifold with the same genus, boundary loops and components, for open meshes and any
-genus.
+Decimation (our own, not ``igl.decimate`` / ``igl.qslim``, whose quadric costs and midpoint
+placements are extrinsic and move vertices): rounds of parallel *half-edge collapses* ``u → v`` in
+which u disappears and v keeps its position, so every coarse vertex is one of the fine vertices
+(``vertex_index``) and fine→coarse transport is well defined. Each round collapses, for a set of
+vertices whose collapses do not interact (none changes a vertex of another's star), the shortest
+admissible edge of each; rounds repeat until the level has ``ceil(ratio · V)`` vertices.
+Admissible means: the link condition (the only common neighbours of u and v are the vertices
+opposite the edge), boundary vertices only slide along boundary edges, no vertex drops below degree
+3 (2 on the boundary) or rises above 12, and the new triangles are well shaped (every intrinsic
+angle and the angle at v in u's flattened star above ~1°). Half-edge collapses under these rules
+keep the surface a manifold with the same genus, boundary loops and components, for open meshes
+and any genus.
 
 Everything is intrinsic: every edge of every level carries ``log^0_a(b)`` and ``ρ^0_{b→a}`` in the
 *input* mesh's vertex frames, composed along input-mesh edge paths (a collapse ``u → v`` gives the

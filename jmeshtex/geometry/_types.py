@@ -138,7 +138,7 @@ def to_jax(tree: T, dtype=jnp.float32) -> T:
       (dtype('float32'), dtype('complex64'), dtype('int32'))
     """
     real = jnp.dtype(dtype)
-    cplx = jnp.result_type(real, jnp.complex64) if real == jnp.float64 else jnp.dtype(jnp.complex64)
+    cplx = jnp.dtype(jnp.complex128) if real == jnp.float64 else jnp.dtype(jnp.complex64)
 
     def convert(leaf):
         leaf_dtype = np.asarray(leaf).dtype if not isinstance(leaf, jax.Array) else leaf.dtype

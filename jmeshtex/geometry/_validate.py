@@ -219,8 +219,9 @@ def _corner_fans(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.n
         (np.ones(int(link.sum())), (cs[:-1][link], cs[1:][link])), shape=(3 * F, 3 * F)
     )
     n_labels, labels = _graph_components(graph, directed=False)
-    pairs = np.unique(a * n_labels + labels)
-    fans = np.bincount(pairs // n_labels, minlength=num_vertices)
+    fan_vertex = np.zeros(n_labels, np.int64)
+    fan_vertex[labels] = a  # links only join corners at the same vertex: one vertex per fan
+    fans = np.bincount(fan_vertex, minlength=num_vertices)
     return labels.astype(np.int64), fans
 
 
@@ -558,8 +559,9 @@ def prepare_mesh(
     """Make a valid :class:`~jmeshtex.Mesh` from a Mesh or ``(vertices, faces)``; report changes.
 
     Always: vertices no face uses are removed and exactly coincident referenced vertices are merged
-    (a group is kept apart where merging would pinch the surface, see
-    :func:`_coincident_vertex_map`), with a :class:`~jmeshtex.MeshRepairWarning` saying how many.
+    (except where merging would pinch the surface: parts that touch at a point or along an edge
+    are kept apart and listed in ``report.kept_apart_vertices``), with a
+    :class:`~jmeshtex.MeshRepairWarning` saying how many.
     With ``repair=True`` also, in this order: zero-area faces and repeated faces are dropped (the
     first copy is kept), faces are re-oriented consistently per edge-connected component (closed
     components: normals outward, by signed volume; open ones: the orientation most faces already

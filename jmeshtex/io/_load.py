@@ -1,7 +1,8 @@
 """Read meshes (OBJ/PLY/OFF/GLB, through trimesh) and texture images into host-side records.
 
-trimesh is asked for the data exactly as stored (``process=False``: no merging, no reordering, no
-cleaning); the only change jmeshtex makes is the documented seam merge of :func:`load_mesh`.
+trimesh reads the files with ``process=False`` (no merging, no cleaning; it still triangulates
+polygons and stores one vertex per distinct (position, UV) pair); the only change jmeshtex makes
+on top is the documented seam merge of :func:`load_mesh`.
 """
 
 from __future__ import annotations
@@ -15,9 +16,8 @@ import numpy as np
 
 from .._errors import MeshIOError
 from .._mesh import Mesh
-from ._save import MESH_SUFFIXES
-
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tga", ".tif", ".tiff", ".webp")
+from .._types import Float
+from ._save import MESH_SUFFIXES, _unique_rows
 
 
 def _readable_file(path: str | os.PathLike, what: str) -> pathlib.Path:
@@ -55,7 +55,7 @@ def _image_to_float(image) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def load_texture(path: str | os.PathLike) -> np.ndarray:
+def load_texture(path: str | os.PathLike) -> Float[np.ndarray, "H W C"]:
     """Read an image file as a float32 texture ``[H, W, C]`` in [0, 1], row 0 at the top (v = 1).
 
     8-bit images are divided by 255, 16-bit ones by 65535; palette images become RGB(A), grey
@@ -79,7 +79,7 @@ def load_texture(path: str | os.PathLike) -> np.ndarray:
       >>> t.shape, t.dtype
       ((4, 8, 3), dtype('float32'))
     """
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
 
     path = _readable_file(path, "texture")
     try:
@@ -88,7 +88,7 @@ def load_texture(path: str | os.PathLike) -> np.ndarray:
             with Image.open(path) as image:
                 image.load()
                 return _image_to_float(image)
-    except (OSError, UnidentifiedImageError, ValueError, SyntaxError) as err:
+    except Exception as err:  # PIL raises OSError, UnidentifiedImageError, SyntaxError, ...
         raise MeshIOError(f"cannot read texture {path}: {err}") from err
 
 
@@ -105,8 +105,6 @@ def _trimesh_mesh(path: pathlib.Path):
                 loaded = trimesh.util.concatenate(parts)
             else:
                 loaded = parts[0] if parts else None
-    except MeshIOError:
-        raise
     except Exception as err:  # trimesh raises anything from ValueError to IndexError on bad files
         raise MeshIOError(f"cannot read mesh {path}: {type(err).__name__}: {err}") from err
     if loaded is None:
@@ -116,9 +114,7 @@ def _trimesh_mesh(path: pathlib.Path):
 
 def _lookup_rows(table: np.ndarray, query: np.ndarray) -> np.ndarray:
     """For each row of ``query`` the lowest index of an exactly equal row of ``table``, or -1."""
-    rows = np.concatenate([table, query]) + 0.0
-    _, inverse = np.unique(rows, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
+    _, inverse = _unique_rows(np.concatenate([table, query]))
     first = np.full(inverse.max() + 1, -1)
     first[inverse[: len(table)][::-1]] = np.arange(len(table))[::-1]
     return first[inverse[len(table) :]]
@@ -156,6 +152,14 @@ def _raw_vertex_colors(loaded, path: pathlib.Path):
     return None
 
 
+def _is_placeholder(image) -> bool:
+    """trimesh invents a uniform 2×2 RGBA image (``color_image``) for UVs without a texture."""
+    if image.format is not None or image.size != (2, 2) or image.mode != "RGBA":
+        return False
+    pixels = np.asarray(image).reshape(4, 4)
+    return bool((pixels == pixels[0]).all())
+
+
 def _visual_attributes(loaded, path: pathlib.Path):
     """(uv per stored vertex or None, texture or None, vertex colours or None) from trimesh."""
     import trimesh
@@ -170,7 +174,7 @@ def _visual_attributes(loaded, path: pathlib.Path):
         image = getattr(material, "image", None)
         if image is None:
             image = getattr(material, "baseColorTexture", None)
-        if image is not None:
+        if image is not None and not _is_placeholder(image):
             texture = _image_to_float(image)
         raw = _raw_vertex_colors(loaded, path)
         if raw is not None:

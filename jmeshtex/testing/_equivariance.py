@@ -58,7 +58,11 @@ def _to_device(field: Field, dtype) -> Field:
 
 
 def equivariance_error(
-    fn: Callable[..., Field], realisation: Realisation, inputs: Mapping[str, Field]
+    fn: Callable[..., Field],
+    realisation: Realisation,
+    inputs: Mapping[str, Field],
+    *,
+    mask: np.ndarray | None = None,
 ) -> float:
     """Relative error of ``fn(T·M, T·x)`` against ``T·fn(M, x)`` for one drawn transform.
 
@@ -66,6 +70,8 @@ def equivariance_error(
       fn: ``fn(state, **values) -> Field``; builds its geometry from ``state``.
       realisation: a drawn transform (``CATALOGUE[name].draw(...)``).
       inputs: typed inputs on the source mesh, ``{name: Field(kind, value)}``.
+      mask: optional ``[V]`` or ``[F]`` boolean selection of the output rows (target labels) to
+        compare, e.g. the vertices whose discrete neighbourhood choice is the same on both meshes.
 
     Returns:
       The relative error (0 for an exactly equivariant operator in exact arithmetic).
@@ -88,7 +94,10 @@ def equivariance_error(
     mapped = {k: _to_device(realisation.map(f), src_dtype).value for k, f in inputs.items()}
     target_out = fn(realisation.target, **mapped)
     expected = realisation.map(Field(source_out.kind, np.asarray(source_out.value)))
-    return relative_error(np.asarray(target_out.value), expected.value)
+    actual, wanted = np.asarray(target_out.value), np.asarray(expected.value)
+    if mask is not None:
+        actual, wanted = actual[mask], wanted[mask]
+    return relative_error(actual, wanted)
 
 
 def assert_equivariant(
@@ -125,6 +134,8 @@ class Convergence:
       ratios: ``errors[i] / errors[i+1]`` (≈ 4 for second-order convergence).
       orders: ``log2`` of the ratios.
       floor: True where both errors were at round-off level (no order to measure).
+      excluded: per resolution, the fraction of vertices left out because a discrete choice
+        flipped (empty when the operator declares no ``selection``).
     """
 
     resolutions: tuple[int, ...]
@@ -132,6 +143,7 @@ class Convergence:
     ratios: tuple[float, ...]
     orders: tuple[float, ...]
     floor: bool
+    excluded: tuple[float, ...] = ()
 
     @property
     def order(self) -> float:
@@ -148,6 +160,7 @@ def convergence(
     dtype=jnp.float64,
     seed: int = 0,
     floor: float = 1e-12,
+    selection: Callable[[object], np.ndarray] | None = None,
 ) -> Convergence:
     """Measure the convergence of the equivariance error of a smooth-isometry family.
 
@@ -160,16 +173,29 @@ def convergence(
       seed: seed of the draws.
       floor: errors below this are round-off; if every error is, ``floor=True`` and no order is
         asserted (the operator is exactly invariant under the family).
+      selection: ``state -> [V, ...]`` a per-vertex signature of the operator's *discrete* choices
+        (e.g. which k nearest neighbours were selected). Such choices are discontinuous functions of
+        the metric: near a tie, an arbitrarily small bending flips them. Vertices whose signature
+        differs between the two meshes are left out of the comparison, and their fraction is
+        recorded in ``excluded``.
     """
     if not transform.family:
         raise ValueError(f"{transform.name!r} is not a family of meshes")
-    errors = []
+    errors, excluded = [], []
     for n in resolutions:
         rng = np.random.default_rng(seed)
         real = transform.draw(n, rng, dtype)
-        errors.append(equivariance_error(fn, real, make_inputs(real.source, rng)))
+        mask = None
+        if selection is not None:
+            a = np.asarray(selection(real.source))[real.vperm]
+            b = np.asarray(selection(real.target))
+            mask = np.all((a == b).reshape(len(b), -1), axis=1)
+            excluded.append(float(1.0 - mask.mean()))
+        errors.append(equivariance_error(fn, real, make_inputs(real.source, rng), mask=mask))
     errs = np.asarray(errors)
     at_floor = bool(np.all(errs < floor))
     ratios = tuple(float(a / max(b, 1e-300)) for a, b in zip(errs[:-1], errs[1:]))
     orders = tuple(float(np.log2(max(r, 1e-300))) for r in ratios)
-    return Convergence(tuple(resolutions), tuple(map(float, errs)), ratios, orders, at_floor)
+    return Convergence(
+        tuple(resolutions), tuple(map(float, errs)), ratios, orders, at_floor, tuple(excluded)
+    )

@@ -326,11 +326,24 @@ def _hinge(n: int, rng: np.random.Generator, dtype) -> Realisation:
 # --- smooth isometries (families) -------------------------------------------------------------
 
 
-def _cylinder(n: int, rng: np.random.Generator, dtype) -> Realisation:
-    """A unit square sheet rolled around a cylinder of radius 0.4 (a 2.5 rad arc)."""
+def _parameter_grid(n: int, rng: np.random.Generator, *, jitter: float = 0.2):
+    """An ``n × n`` grid on [0,1]² with interior vertices jittered by up to ``jitter·h``.
+
+    The jitter breaks the exact ties of a regular grid (equal path lengths, cocircular quads), at
+    which discrete choices such as k-NN selection or Delaunay flips would be decided by round-off.
+    """
     from ..data import grid
 
-    v, f = grid(n, n, diagonals="alternate")
+    g, f = grid(n, n, diagonals="alternate")
+    interior = (g[:, 0] > 0) & (g[:, 0] < 1) & (g[:, 1] > 0) & (g[:, 1] < 1)
+    g = g.copy()
+    g[interior, :2] += rng.uniform(-jitter, jitter, (int(interior.sum()), 2)) / n
+    return g, f
+
+
+def _cylinder(n: int, rng: np.random.Generator, dtype) -> Realisation:
+    """A unit square sheet rolled around a cylinder of radius 0.4 (a 2.5 rad arc)."""
+    v, f = _parameter_grid(n, rng)
     R = 0.4
     s, y = v[:, 0], v[:, 1]
     rolled = np.stack([R * np.sin(s / R), y, R - R * np.cos(s / R)], axis=1)
@@ -340,9 +353,7 @@ def _cylinder(n: int, rng: np.random.Generator, dtype) -> Realisation:
 
 def _cone(n: int, rng: np.random.Generator, dtype) -> Realisation:
     """A flat annular sector (radii 0.5–1.5, angle 2 rad) rolled onto a cone (sin of half-angle 0.51)."""
-    from ..data import grid
-
-    g, f = grid(n, n, diagonals="alternate")
+    g, f = _parameter_grid(n, rng)
     r = 0.5 + g[:, 0]
     phi = 2.0 * g[:, 1]
     flat = np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(r)], axis=1)
@@ -356,9 +367,7 @@ def _cone(n: int, rng: np.random.Generator, dtype) -> Realisation:
 
 def _catenoid(n: int, rng: np.random.Generator, dtype) -> Realisation:
     """The helicoid–catenoid family at θ = 0 (helicoid) and θ = π/2 (catenoid), same (u, v) grid."""
-    from ..data import grid
-
-    g, f = grid(n, n, diagonals="alternate")
+    g, f = _parameter_grid(n, rng)
     u = -2.0 + 4.0 * g[:, 0]  # a part of the helicoid that does not wrap around
     w = -0.8 + 1.6 * g[:, 1]
 

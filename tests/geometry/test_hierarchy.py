@@ -53,7 +53,7 @@ def test_levels_keep_topology_and_are_subsets(make, chi, loops, stretch):
     h = mesh_hierarchy(v, f, min_vertices=40)
     sizes = [len(x) for x in h.vertices]
     assert h.num_levels == len(h.pooling) + 1 >= 3
-    for n, m in zip(sizes[:-1], sizes[1:]):
+    for n, m in zip(sizes[:-1], sizes[1:], strict=True):
         assert m == math.ceil(0.5 * n)  # the target is reached exactly on these meshes
     assert math.ceil(0.5 * sizes[-1]) < 40 <= sizes[-1]
     np.testing.assert_array_equal(h.vertex_index[0], np.arange(len(v)))
@@ -131,7 +131,7 @@ def _relabelled(v, f, rng):
     perm = rng.permutation(len(v))  # new id of each old vertex
     old_id = np.argsort(perm)
     f2 = perm[f][rng.permutation(len(f))]
-    f2 = np.stack([np.roll(row, s) for row, s in zip(f2, rng.integers(0, 3, len(f2)))])
+    f2 = np.stack([np.roll(row, s) for row, s in zip(f2, rng.integers(0, 3, len(f2)), strict=True)])
     return v[old_id], f2, old_id
 
 
@@ -168,7 +168,7 @@ def test_exactly_gauge_equivariant_under_relabelling(rng):
         beta0 = gauge[0][0][ids_a]
         want = np.conj(beta0) * a.to_input_frame[level] * beta
         np.testing.assert_allclose(b.to_input_frame[level][to_b], want, rtol=0, atol=1e-12)
-    for level, (pa, pb) in enumerate(zip(a.pooling, b.pooling)):
+    for level, (pa, pb) in enumerate(zip(a.pooling, b.pooling, strict=True)):
         beta_f, to_b_f = gauge[level]
         beta_c, to_b_c = gauge[level + 1]
         np.testing.assert_array_equal(to_b_c[pa.parent], pb.parent[to_b_f])
@@ -187,10 +187,10 @@ def test_unchanged_under_folds():
         np.testing.assert_array_equal(a.vertex_index[level], b.vertex_index[level])
         np.testing.assert_allclose(b.lengths[level], a.lengths[level], rtol=0, atol=1e-12)
         np.testing.assert_allclose(b.to_input_frame[level], a.to_input_frame[level], rtol=0, atol=1e-12)
-        for x, y in zip(a.neighborhoods[level], b.neighborhoods[level]):
+        for x, y in zip(a.neighborhoods[level], b.neighborhoods[level], strict=True):
             np.testing.assert_allclose(y, x, rtol=0, atol=1e-12)
-    for pa, pb in zip(a.pooling, b.pooling):
-        for x, y in zip(pa, pb):
+    for pa, pb in zip(a.pooling, b.pooling, strict=True):
+        for x, y in zip(pa, pb, strict=True):
             np.testing.assert_allclose(y, x, rtol=0, atol=1e-12)
 
 
@@ -199,7 +199,7 @@ def test_several_components_and_boundaries():
     v = np.concatenate([v1, v2 + [3.0, 0, 0]])
     f = np.concatenate([f1, f2 + len(v1)])
     h = mesh_hierarchy(v, f, levels=3)
-    for fl, vl in zip(h.faces, h.vertices):
+    for fl, vl in zip(h.faces, h.vertices, strict=True):
         validate_mesh(vl, fl)
         assert connected_components(fl).max() == 1 and len(boundary_loops(fl)) == 1
         assert _euler(vl, fl) == 1
@@ -209,7 +209,7 @@ def test_level_zero_is_the_input_neighborhood():
     v, f = torus(12, 8)
     h = mesh_hierarchy(v, f, levels=2)
     ref = one_ring_neighborhood(v, f)
-    for x, y in zip(h.neighborhoods[0], ref):
+    for x, y in zip(h.neighborhoods[0], ref, strict=True):
         np.testing.assert_array_equal(x, y)
     assert np.all(h.to_input_frame[0] == 1)
 
@@ -238,7 +238,7 @@ def test_real_open_mesh_with_several_components(shared_data):
     v, f = mesh.vertices, mesh.faces
     h = mesh_hierarchy(v, f, levels=3)
     loops, parts = len(boundary_loops(f)), connected_components(f).max()
-    for vl, fl in zip(h.vertices, h.faces):
+    for vl, fl in zip(h.vertices, h.faces, strict=True):
         validate_mesh(vl, fl)
         assert len(boundary_loops(fl)) == loops and connected_components(fl).max() == parts
         assert _euler(vl, fl) == _euler(v, f)

@@ -15,7 +15,13 @@ from jmeshtex._errors import (
     NonTriangleFaceError,
 )
 from jmeshtex.data import grid, icosahedron, icosphere, single_triangle
-from jmeshtex.geometry import corner_angles, edge_lengths, face_areas, one_ring_neighborhood, vertex_areas
+from jmeshtex.geometry import (
+    corner_angles,
+    edge_lengths,
+    face_areas,
+    one_ring_neighborhood,
+    vertex_areas,
+)
 
 
 def _angles_from_positions(v, f):

@@ -25,7 +25,7 @@ def _reference(v, f, k):
     """Loop reference: full Dijkstra per vertex, walk each path and compose one-ring maps."""
     ring = one_ring_neighborhood(v, f)
     step = {}
-    for p, j in zip(*np.nonzero(ring.mask)):
+    for p, j in zip(*np.nonzero(ring.mask), strict=True):
         step[p, ring.index[p, j]] = (ring.log[p, j], ring.transport[p, j])
     dist, pred = dijkstra(_graph(ring), return_predecessors=True)
     out = {}
@@ -36,7 +36,7 @@ def _reference(v, f, k):
                 path.append(pred[p, path[-1]])
             path = path[::-1]
             log, tr = 0j, 1 + 0j
-            for m, r in zip(path[:-1], path[1:]):
+            for m, r in zip(path[:-1], path[1:], strict=True):
                 s_log, s_tr = step[m, r]
                 log, tr = log + tr * s_log, tr * s_tr
             out[p, q] = (log, tr, dist[p, q])
@@ -157,7 +157,7 @@ def test_knn_from_a_precomputed_one_ring_is_the_same():
     v, f = torus(8, 6)
     a = geodesic_knn_neighborhood(v, f, k=7)
     b = knn_from_one_ring(one_ring_neighborhood(v, f), 7)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
 
 

@@ -62,8 +62,8 @@ def test_matches_loop_reference(make, rng):
     log, transport, area = _reference(v, f)
     p, j, q = _slots(nb)
     assert len(p) == len(log)
-    np.testing.assert_allclose(nb.log[p, j], [log[a, b] for a, b in zip(p, q)], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(nb.transport[p, j], [transport[a, b] for a, b in zip(p, q)], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(nb.log[p, j], [log[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(nb.transport[p, j], [transport[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-12)
     np.testing.assert_allclose(nb.area, area, rtol=1e-12)
     np.testing.assert_allclose(nb.weight[p, j], area[q], rtol=1e-12)
     # padding contract
@@ -109,7 +109,7 @@ def test_gauge_consistency_per_edge(make, rng):
     v, f = _perturbed(make(), rng, 0.02)
     nb = one_ring_neighborhood(v, f)
     p, j, q = _slots(nb)
-    rev = np.array([np.nonzero(nb.index[b] == a)[0][0] for a, b in zip(p, q)])
+    rev = np.array([np.nonzero(nb.index[b] == a)[0][0] for a, b in zip(p, q, strict=True)])
     np.testing.assert_allclose(nb.transport[p, j] * nb.log[q, rev], -nb.log[p, j], rtol=0, atol=1e-14)
     np.testing.assert_allclose(nb.transport[p, j] * nb.transport[q, rev], 1.0, rtol=0, atol=1e-14)
     np.testing.assert_allclose(np.abs(nb.transport[nb.mask]), 1.0, rtol=0, atol=1e-15)
@@ -120,7 +120,7 @@ def _ring_holonomy(nb, p):
     d = int(nb.mask[p].sum())
     ring = nb.index[p, :d]
     h = 1.0 + 0j
-    for a, b in zip(ring, np.roll(ring, -1)):
+    for a, b in zip(ring, np.roll(ring, -1), strict=True):
         slot = np.nonzero(nb.index[b] == a)[0][0]  # ρ_{a→b} is stored in b's row
         h = nb.transport[b, slot] * h
     return h

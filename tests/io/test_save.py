@@ -67,6 +67,16 @@ def test_textured_round_trip(tmp_path, rng, suffix):
     np.testing.assert_array_equal(back.split_to_merged[back.split_faces], back.faces)
 
 
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".glb"])
+def test_uvs_without_texture_stay_without(tmp_path, rng, suffix):
+    """trimesh invents a grey 2x2 image for UVs without a texture; it must not come back."""
+    m = _seamed_sphere(rng).replace(texture=None)
+    save_mesh(m, tmp_path / f"u{suffix}")
+    back = load_mesh(tmp_path / f"u{suffix}")
+    assert back.texture is None and back.uv is not None
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"u{suffix}"]
+
+
 @pytest.mark.parametrize("suffix, channels", [(".obj", 3), (".ply", 3), (".ply", 4), (".glb", 3), (".glb", 4)])
 def test_vertex_color_round_trip(tmp_path, rng, suffix, channels):
     v, f = icosphere(1)
@@ -162,6 +172,8 @@ def test_formats_that_cannot_hold_data_warn(tmp_path, rng):
         save_mesh(Mesh(m.vertices, m.faces, vertex_colors=colors), tmp_path / "c.obj")
     with pytest.warns(UserWarning, match="colours are dropped"):
         save_mesh(m.replace(vertex_colors=colors), tmp_path / "c.glb")
+    with pytest.warns(UserWarning, match="texture but no UVs"):
+        save_mesh(m.replace(uv=None), tmp_path / "t.ply")
 
 
 def test_save_errors(tmp_path):
