@@ -9,7 +9,15 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ._fields import VERTEX_SCALAR, VERTEX_TANGENT, VERTEX_VECTOR, Field
+from ._fields import (
+    FACE_EDGE,
+    FACE_SCALAR,
+    POINTS,
+    VERTEX_SCALAR,
+    VERTEX_TANGENT,
+    VERTEX_VECTOR,
+    Field,
+)
 from ._registry import EXTRINSIC, INTRINSIC, Entry, register
 
 # ---------------------------------------------------------------------------------------------
@@ -99,6 +107,54 @@ for _e in _GEOMETRY:
 
 
 # ---------------------------------------------------------------------------------------------
+# face convolutions (DGTS)
+# ---------------------------------------------------------------------------------------------
+
+#: transforms of a face operator on positions: rigid motions and every relabelling
+FACE_OPS = ("rigid", "permute_vertices", "permute_faces", "rotate_corners")
+
+
+def _face_features(state, params, points):
+    from .. import ops
+
+    return Field(FACE_EDGE, ops.face_features(points, state.face_neighborhood()))
+
+
+def _face_conv_stack(state, params, points):
+    from .. import ops
+
+    nb = state.face_neighborhood()
+    return Field(FACE_SCALAR, ops.face_conv_stack(ops.face_features(points, nb), nb, params))
+
+
+def _init_face_conv_stack(key, dtype):
+    from .. import ops
+
+    return ops.init_face_conv_stack(key, (8, 8, 8, 4), dtype=dtype)
+
+
+def _face_to_vertex(state, params, points, d):
+    from .. import ops
+
+    out = ops.face_to_vertex_displacement(d, points, state.face_neighborhood())
+    return Field(VERTEX_VECTOR, out[:, None, :])
+
+
+_FACE = [
+    Entry("ops.face_features", _face_features, {"points": (POINTS, 3)}, FACE_OPS,
+          doc="DGTS edge features [F,3,4]: invariant to rigid motions, edges roll with corners"),
+    Entry("ops.face_conv_stack", _face_conv_stack, {"points": (POINTS, 3)}, FACE_OPS,
+          init=_init_face_conv_stack, doc="embedding + 3 face convolutions (instance norm, leaky ReLU)"),
+    Entry("ops.face_to_vertex_displacement", _face_to_vertex,
+          {"points": (POINTS, 3), "d": (FACE_SCALAR, 3)}, FACE_OPS,
+          doc="per-face coefficients in edge frames averaged to vertices: rotates with the mesh"),
+]
+
+for _e in _FACE:
+    register(_e)
+
+
+# ---------------------------------------------------------------------------------------------
 # negative controls: deliberately broken operators the harness must flag
 # ---------------------------------------------------------------------------------------------
 
@@ -150,13 +206,12 @@ def _extrinsic_log_moment(state, params, s):
     return Field(VERTEX_TANGENT, jnp.einsum("vk,vkc->vc", log, s[ring].astype(log.dtype)))
 
 
-def _first_edge_length(state, params, points):
-    """The length of each face's *first* edge: depends on the order of the face's vertices."""
-    from ._fields import FACE_SCALAR
+def _first_edge_features(state, params, points):
+    """DGTS edge features of each face's *first* edge only, where the real first layer takes a
+    symmetric max over the three edges: the result depends on the order of the face's vertices."""
+    from .. import ops
 
-    f = jnp.asarray(state.faces)
-    e = points[f[:, 1]] - points[f[:, 0]]
-    return Field(FACE_SCALAR, jnp.sqrt(jnp.sum(e * e, axis=-1))[:, None])
+    return Field(FACE_SCALAR, ops.face_features(points, state.face_neighborhood())[:, 0, :])
 
 
 _NEGATIVE = [
@@ -166,9 +221,9 @@ _NEGATIVE = [
     Entry("negative.extrinsic_log", _extrinsic_log_moment, {"s": (VERTEX_SCALAR, 3)},
           ("rigid",), expect_fail=("fold", "hinge"), group="negative",
           doc="log map from projected (extrinsic) angles: breaks isometry invariance"),
-    Entry("negative.face_vertex_order", _first_edge_length, {"points": ("points", 3)},
+    Entry("negative.face_vertex_order", _first_edge_features, {"points": (POINTS, 3)},
           ("rigid", "permute_faces"), expect_fail=("rotate_corners",), group="negative",
-          doc="per-face value from the first edge only: depends on the face's vertex order"),
+          doc="face features of the first edge only (no max over edges): depends on vertex order"),
 ]
 
 for _e in _NEGATIVE:

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import potpourri3d as pp3d
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from jmeshtex.data import grid, icosahedron, icosphere, torus
 from jmeshtex.geometry import (
@@ -15,7 +17,7 @@ from jmeshtex.geometry import (
     one_ring_neighborhood,
     one_rings,
 )
-from jmeshtex.testing import fold_sheet
+from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes, fold_sheet, valid_meshes
 
 
 def _reference(v, f):
@@ -245,3 +247,28 @@ def test_agrees_with_potpourri3d_on_a_sphere(rng):
     print(f"potpourri3d oracle, icosphere(4): log-map angle {log4:.2e} rad, transport {tr4:.2e} rad")
     # second order: each halving of the edge length divides the discrepancy by ~4
     assert log4 < log3 / 2.5 and tr4 < tr3 / 2.5
+
+
+@given(valid_meshes(max_vertices=120))
+def test_property_matches_reference_and_is_gauge_consistent(mesh):
+    v, f = mesh.vertices, mesh.faces
+    nb = one_ring_neighborhood(v, f)
+    log, transport, area = _reference(v, f)
+    p, j, q = _slots(nb)
+    scale = np.abs(nb.log[nb.mask]).max()
+    np.testing.assert_allclose(nb.log[p, j], [log[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-11 * scale)
+    np.testing.assert_allclose(nb.transport[p, j], [transport[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-11)
+    np.testing.assert_allclose(nb.area, area, rtol=1e-10)
+    rev = _reverse(nb, p, q)
+    np.testing.assert_allclose(nb.transport[p, j] * nb.log[q, rev], -nb.log[p, j], rtol=0, atol=1e-13 * scale)
+
+
+def _reverse(nb, p, q):
+    return np.argmax(nb.index[q] == p[:, None], axis=1)
+
+
+@given(st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))))
+def test_property_bad_meshes_raise_typed_errors(case):
+    kind, (v, f) = case
+    with pytest.raises(BAD_MESH_KINDS[kind]):
+        one_ring_neighborhood(v, f)
