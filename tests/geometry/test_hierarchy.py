@@ -9,6 +9,8 @@ import warnings
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given
+from hypothesis import strategies as st
 from scipy.sparse.csgraph import dijkstra
 
 from jmeshtex._errors import ConfigError, InputError
@@ -17,12 +19,14 @@ from jmeshtex.geometry import (
     DecimationError,
     boundary_loops,
     connected_components,
+    geodesic_knn_neighborhood,
     mesh_hierarchy,
     one_ring_neighborhood,
     prepare_mesh,
+    tangent_frames,
     validate_mesh,
 )
-from jmeshtex.testing import fold_sheet
+from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes, fold_sheet, valid_meshes
 
 
 def _euler(v, f):
@@ -243,3 +247,28 @@ def test_real_open_mesh_with_several_components(shared_data):
         assert len(boundary_loops(fl)) == loops and connected_components(fl).max() == parts
         assert _euler(vl, fl) == _euler(v, f)
     assert len(h.vertices[2]) == math.ceil(0.5 * math.ceil(0.5 * len(v)))
+
+
+@given(valid_meshes(min_vertices=40, max_vertices=250))
+def test_property_any_valid_mesh_decimates_with_its_topology(mesh):
+    v, f = mesh.vertices, mesh.faces
+    h = mesh_hierarchy(v, f, levels=3)
+    loops, parts = len(boundary_loops(f)), connected_components(f).max()
+    for level, (vl, fl) in enumerate(zip(h.vertices, h.faces, strict=True)):
+        validate_mesh(vl, fl)
+        assert _euler(vl, fl) == _euler(v, f)
+        assert len(boundary_loops(fl)) == loops and connected_components(fl).max() == parts
+        if level:
+            n = len(h.vertices[level - 1])
+            assert len(vl) <= n - (n - math.ceil(n / 2)) / 2
+    for pm in h.pooling:
+        np.testing.assert_allclose(np.abs(pm.to_parent), 1.0, atol=1e-13)
+        np.testing.assert_allclose(pm.children_weight.sum(axis=1), 1.0, rtol=1e-12)
+
+
+@given(st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))))
+def test_property_bad_meshes_raise_typed_errors(case):
+    kind, (v, f) = case
+    for build in (geodesic_knn_neighborhood, tangent_frames, lambda v, f: mesh_hierarchy(v, f, levels=2)):
+        with pytest.raises(BAD_MESH_KINDS[kind]):
+            build(v, f)

@@ -7,12 +7,14 @@ import igl
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given
+from hypothesis import strategies as st
 from scipy.sparse.csgraph import dijkstra
 
 from jmeshtex._errors import InputError
 from jmeshtex.data import grid, icosahedron, icosphere, single_triangle, torus
 from jmeshtex.geometry import geodesic_knn_neighborhood, knn_from_one_ring, one_ring_neighborhood
-from jmeshtex.testing import fold_sheet
+from jmeshtex.testing import fold_sheet, valid_meshes
 
 
 def _graph(ring):
@@ -166,3 +168,14 @@ def test_bad_k(k):
     v, f = icosahedron()
     with pytest.raises(InputError):
         geodesic_knn_neighborhood(v, f, k=k)
+
+
+@given(valid_meshes(max_vertices=150), st.integers(1, 20))
+def test_property_selection_is_the_k_nearest(mesh, k):
+    v, f = mesh.vertices, mesh.faces
+    nb = geodesic_knn_neighborhood(v, f, k=k)
+    dist = dijkstra(_graph(one_ring_neighborhood(v, f)))
+    want = np.sort(np.pad(dist, ((0, 0), (0, k)), constant_values=np.inf), axis=1)[:, :k]
+    got = np.where(nb.mask, dist[np.arange(len(v))[:, None], nb.index], np.inf)
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+    assert np.all(np.isfinite(nb.log)) and np.allclose(np.abs(nb.transport), 1, atol=1e-13)
