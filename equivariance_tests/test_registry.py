@@ -13,8 +13,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex.testing import REGISTRY, check
-from jmeshtex.testing import _entries  # noqa: F401  (registers the built-in entries)
+from jmeshtex.testing import check, load_entries
+
+REGISTRY = load_entries()
 
 CASES = [
     pytest.param(name, t, dt, id=f"{name}-{t}-{np.dtype(dt).name}")

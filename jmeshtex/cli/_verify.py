@@ -36,7 +36,7 @@ def _run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .. import testing
-    from ..testing import _entries  # noqa: F401  (registers built-in entries)
+    testing.load_entries()
 
     if args.list:
         for name, e in testing.REGISTRY.items():

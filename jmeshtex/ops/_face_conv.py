@@ -88,6 +88,12 @@ class FaceConvStackParams(NamedTuple):
     convs: tuple[FaceConvParams, ...]
 
 
+def _max3(x: Float[Array, "F 3 D"]) -> Float[Array, "F D"]:
+    """Max over axis 1 (size 3) as two elementwise maxima: ~10x faster backward than a reduce-max
+    on CPU (whose VJP builds equality masks and counts)."""
+    return jnp.maximum(jnp.maximum(x[:, 0], x[:, 1]), x[:, 2])
+
+
 def _check_vertices(vertices, nbhd: FaceNeighborhood, name: str) -> None:
     if vertices.ndim != 2 or vertices.shape[-1] != 3:
         raise InputError(f"{name}: vertices must have shape [V, 3], got {tuple(vertices.shape)}")
@@ -208,7 +214,7 @@ def face_edge_embed(features: Float[Array, "F 3 E"], params: FaceEmbedParams) ->
     b = params.bias.astype(features.dtype)
     F = features.shape[0]
     h = features.reshape(3 * F, E) @ w  # one GEMM over all edges
-    return jnp.max(h.reshape(F, 3, -1), axis=1) + b
+    return _max3(h.reshape(F, 3, -1)) + b
 
 
 def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvParams) -> Float[Array, "F D"]:
@@ -262,7 +268,7 @@ def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvPa
     big = jnp.asarray(jnp.finfo(dtype).max / 4, dtype)
     gathered = z_nbr[nbhd.neighbors] + ((mask - 1) * big)[..., None]  # [F, 3, D]
     has_nbr = jnp.max(mask, axis=1, keepdims=True)  # 0 for isolated faces
-    y = jnp.max(gathered, axis=1) * has_nbr + z_self + params.bias.astype(dtype)
+    y = _max3(gathered) * has_nbr + z_self + params.bias.astype(dtype)
     return y * nbhd.face_mask.astype(dtype)[:, None]
 
 

@@ -32,3 +32,4 @@ from ._strategies import bad_meshes as bad_meshes
 from ._strategies import valid_meshes as valid_meshes
 from ._isometries import fold_sheet as fold_sheet
 from ._isometries import hinge as hinge
+from ._registry import load_entries as load_entries

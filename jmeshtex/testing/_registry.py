@@ -100,6 +100,18 @@ class Entry:
 
 REGISTRY: dict[str, Entry] = {}
 
+#: modules whose import registers entries (the built-in ops and geometry, then each method's)
+ENTRY_MODULES = ["jmeshtex.testing._entries"]
+
+
+def load_entries() -> dict[str, Entry]:
+    """Import every module of :data:`ENTRY_MODULES` (registering its entries); return the registry."""
+    import importlib
+
+    for module in ENTRY_MODULES:
+        importlib.import_module(module)
+    return REGISTRY
+
 #: at most this fraction of vertices may be left out of a smooth-isometry comparison because a
 #: discrete choice (k-NN selection) flipped
 MAX_EXCLUDED = 0.1
@@ -255,8 +267,7 @@ def run(
     progress: Callable[[str], None] | None = None,
 ) -> list[CheckResult]:
     """Run the registry (all entries, or ``names``) under every declared transform and dtype."""
-    from . import _entries  # noqa: F401  (registers the built-in entries)
-
+    load_entries()
     selected = list(REGISTRY) if names is None else list(names)
     missing = [n for n in selected if n not in REGISTRY]
     if missing:
