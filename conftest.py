@@ -3,6 +3,7 @@
 - numerics are strict: float64 is available (x64 on) so that float32 *and* float64 paths are tested,
   dtype promotion is strict (no silent float32 -> float64 upcasts), and NaNs raise at their source;
 - every warning is an error (pyproject's ``filterwarnings``);
+- BLAS runs one thread per test worker (the workers already use every core);
 - the ``key`` fixture prints its seed; pin it with ``JMESHTEX_SEED=<int>`` to replay a failure;
 - hypothesis has a reproducible ``ci`` profile (fixed example count, derandomised), selected when
   ``CI`` is set, and a longer ``dev`` profile otherwise (``HYPOTHESIS_PROFILE`` overrides both).
@@ -18,11 +19,16 @@ import jax
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
+from threadpoolctl import threadpool_limits
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_debug_nans", True)
 jax.config.update("jax_platforms", "cpu")
+
+# pytest-xdist runs one worker per core; a multi-threaded BLAS in every worker oversubscribes the
+# cores and slows sparse eigensolves (HKS) 8-20x. One BLAS thread per worker.
+threadpool_limits(1)
 
 settings.register_profile(
     "ci",

@@ -11,7 +11,9 @@ Usage::
     python benchmarks/geometry.py                       # 5K, 20K, 80K
     python benchmarks/geometry.py --sizes 2000,8000 --out /tmp/bench
 
-Results: ``benchmarks/results/geometry.{json,md}`` (or ``--out``).
+Results: ``benchmarks/results/geometry.{json,md}`` (or ``--out``), with the load average and the BLAS
+thread settings of the run. On a busy machine set ``OPENBLAS_NUM_THREADS=1``: ARPACK (HKS) with
+spinning BLAS threads on oversubscribed cores runs several times slower (measured 10×+ at 5K).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
 import pathlib
 import sys
 import time
@@ -98,6 +101,9 @@ def main(argv: list[str] | None = None) -> int:
     sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
 
     report = Report("geometry")
+    # host timings on a shared machine depend on load and on BLAS threads (eigsh): record both
+    report.info["blas_threads_env"] = {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    report.info["loadavg_start"] = list(os.getloadavg())
     cases = [c for c in CASES if args.only is None or args.only in c.name]
     missing = {c.name: [n for n in c.needs if not hasattr(geometry, n)] for c in cases}
     for name, names in missing.items():
@@ -142,6 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     if skipped:
         report.add(name="skipped (not in jmeshtex.geometry yet)", size="", vertices="", faces="",
                    seconds=None, us_per_vertex=None, target=", ".join(skipped))
+    report.info["loadavg_end"] = list(os.getloadavg())
     report.write(args.out)
     return 0
 

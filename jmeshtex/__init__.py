@@ -7,6 +7,7 @@ modules) → methods (``dgts``, ``fl``, ``surfacecnn``, ``meshmatch``) → ``jme
 """
 
 from ._errors import ConfigError as ConfigError
+from ._errors import DecimationError as DecimationError
 from ._errors import DegenerateFaceError as DegenerateFaceError
 from ._errors import DuplicateFaceError as DuplicateFaceError
 from ._errors import EmptyMeshError as EmptyMeshError

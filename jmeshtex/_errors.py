@@ -99,5 +99,12 @@ class InconsistentOrientationError(MeshError):
     fix = "pass repair=True to re-orient faces consistently per component"
 
 
+class DecimationError(MeshError):
+    """A mesh cannot be decimated to the requested level (too small, or collapses ran out)."""
+
+    what = "the mesh cannot be decimated further"
+    fix = "ask for fewer levels, lower min_vertices, or use a finer mesh"
+
+
 class MeshRepairWarning(UserWarning):
     """A mesh was changed on load or validation (unreferenced / duplicate vertices, repairs)."""

@@ -56,6 +56,6 @@ from ._frames import tangent_from_3d as tangent_from_3d
 from ._frames import tangent_to_3d as tangent_to_3d
 from ._knn import geodesic_knn_neighborhood as geodesic_knn_neighborhood
 from ._knn import knn_from_one_ring as knn_from_one_ring
-from ._hierarchy import DecimationError as DecimationError
+from .._errors import DecimationError as DecimationError
 from ._hierarchy import MeshHierarchy as MeshHierarchy
 from ._hierarchy import mesh_hierarchy as mesh_hierarchy

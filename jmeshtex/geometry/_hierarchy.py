@@ -47,11 +47,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from .._errors import ConfigError, InputError, MeshError
+from .._errors import ConfigError, DecimationError, InputError
 from .._types import Float, Int
 from ._adjacency import one_rings
 from ._intrinsic import check_mesh, edge_lengths
-from ._knn import _quantized_lengths
+from ._knn import _quantization_step, _quantized_lengths
 from ._log_map import _neighborhood_from_lengths
 from ._types import PoolingMap, VertexNeighborhood
 
@@ -59,12 +59,6 @@ _MIN_ANGLE = 0.02  # radians: smallest angle allowed in a triangle created by a 
 _MAX_DEGREE = 12  # largest vertex degree a collapse may create (unless the level already has more)
 _CANDIDATES = 4  # shortest edges tried per vertex and round
 
-
-class DecimationError(MeshError):
-    """A mesh cannot be decimated to the requested level (too small, or collapses ran out)."""
-
-    what = "the mesh cannot be decimated further"
-    fix = "ask for fewer levels, lower min_vertices, or use a finer mesh"
 
 
 class MeshHierarchy(NamedTuple):
@@ -185,6 +179,7 @@ def mesh_hierarchy(
     out_nb = [nb0]
     out_align = [np.ones(n0, np.complex128)]
     pooling = []
+    stalled = ""
     while levels is None or len(out_levels) < levels:
         n = len(level.index)
         target = math.ceil(ratio * n)
@@ -193,12 +188,13 @@ def mesh_hierarchy(
         coarse, kept = _decimate(level, target, step)
         reached = len(coarse.index)
         if reached > n - (n - target) / 2 or reached < 4:
+            stalled = (
+                f"level {len(out_levels)} got only from {n} to {reached} vertices, not near the "
+                f"target {target} (ratio {ratio}): no admissible collapse is left"
+            )
             if levels is None:
                 break
-            raise DecimationError(
-                f"level {len(out_levels)} reached {reached} vertices from {n} but should get near "
-                f"{target} (ratio {ratio}); the mesh cannot be decimated to {levels} levels"
-            )
+            raise DecimationError(f"{stalled}; the mesh cannot be decimated to {levels} levels")
         lengths = _face_lengths(coarse)
         nb = _neighborhood_from_lengths(coarse.faces, lengths, reached)
         align = _frame_alignment(coarse, nb)
@@ -211,9 +207,9 @@ def mesh_hierarchy(
 
     if len(out_levels) == 1 and levels is None:
         raise DecimationError(
+            f"the mesh is too small to decimate: {stalled}" if stalled else
             f"the mesh is too small to decimate: {n0} vertices, and one level at ratio {ratio} "
-            f"would have {math.ceil(ratio * n0)} < min_vertices={min_vertices}",
-            indices=(),
+            f"would have {math.ceil(ratio * n0)} < min_vertices={min_vertices}"
         )
     return MeshHierarchy(
         vertices=tuple(v[lv.index] for lv in out_levels),
@@ -228,10 +224,6 @@ def mesh_hierarchy(
 
 # ---------------------------------------------------------------------------------------------
 # edge table helpers
-
-
-def _quantization_step(lengths: np.ndarray) -> float:
-    return float(np.max(lengths) / _quantized_lengths(np.array([np.max(lengths)]))[0])
 
 
 def _find(keys: np.ndarray, query: np.ndarray) -> np.ndarray:
@@ -296,7 +288,7 @@ def _select_collapses(rings, n, keys, log, step, need, max_degree):
     m, K = ring.shape
     rows = np.arange(m)[:, None]
     slot_log = np.where(mask, log[_find(keys, np.where(mask, u[:, None] * n + ring, -1))], 0.0)
-    slot_q = np.where(mask, np.rint(np.abs(slot_log) / step).astype(np.int64), np.iinfo(np.int64).max)
+    slot_q = np.where(mask, _quantized_lengths(np.abs(slot_log), step), np.iinfo(np.int64).max)
     j = np.lexsort((np.where(mask, ring, n), slot_q), axis=1)[:, : min(_CANDIDATES, K)]
     ok = mask[rows, j]
     w = ring[rows, j]
@@ -464,7 +456,7 @@ def _pooling_map(fine: _Level, fine_nb, fine_align, kept, coarse_align, step) ->
     """Voronoi parents by edge path in the fine level, transport composed along the path."""
     n = len(fine.index)
     a, b = fine.keys // n, fine.keys % n
-    weight = np.maximum(np.rint(np.abs(fine.log) / step), 1.0)  # integers: exact path sums, > 0
+    weight = _quantized_lengths(np.abs(fine.log), step).astype(np.float64)  # exact path sums, > 0
     graph = sp.csr_matrix((weight, (a, b)), shape=(n, n))
     dist, pred, source = dijkstra(graph, directed=True, indices=kept, min_only=True, return_predecessors=True)
     is_root = pred < 0

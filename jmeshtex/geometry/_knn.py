@@ -16,7 +16,7 @@ with discrete exponential maps", eq. 2, in the intrinsic form of Melvær & Reime
 
 Both use edge lengths only, so the result is unchanged when the surface is bent isometrically.
 
-Ties: path lengths are compared after rounding every edge length to a dyadic grid 2⁻⁴⁰ times the
+Ties: path lengths are compared after rounding every edge length to a dyadic grid ~2⁻⁴⁰ times the
 longest edge (:func:`_quantized_lengths`), so sums are exact and equal paths stay equal after a
 fold; ties are broken by vertex index. This makes the selected neighbours and paths bit-identical
 under isometric bending.
@@ -76,26 +76,44 @@ def geodesic_knn_neighborhood(
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise InputError(f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}")
     v, f = check_mesh(vertices, faces)
-    ring = _neighborhood_from_lengths(f, edge_lengths(v, f), len(v))
-    return knn_from_one_ring(ring, int(k))
+    return knn_from_one_ring(_neighborhood_from_lengths(f, edge_lengths(v, f), len(v)), int(k))
 
 
-def _quantized_lengths(lengths: np.ndarray) -> np.ndarray:
-    """Edge lengths as positive int64 multiples of a dyadic step 2^(⌊log2 max⌋ - 40).
+def _quantization_step(lengths: np.ndarray) -> float:
+    """The dyadic step ``≈ 2^-40 max`` that path lengths are rounded to (1 if no lengths).
+
+    The exponent is taken of ``1.1 × max`` so that a longest edge of a round length (a power of
+    two, as in unit grids) does not sit where rounding after a fold would flip the step.
+    """
+    top = float(np.max(lengths)) if np.size(lengths) else 0.0
+    return float(2.0 ** (np.floor(np.log2(1.1 * top)) - 40)) if top > 0 else 1.0
+
+
+def _quantized_lengths(lengths: np.ndarray, step: float | None = None) -> np.ndarray:
+    """Edge lengths as positive int64 multiples of ``step`` (default :func:`_quantization_step`).
 
     Sums of quantised lengths are exact, so equal paths compare equal after any perturbation of
     the lengths below ~1e-13 relative (e.g. rounding after an isometric fold).
     """
     lengths = np.asarray(lengths, dtype=np.float64)
-    if lengths.size == 0:
-        return np.zeros(0, np.int64)
-    top = float(np.max(lengths))
-    step = 2.0 ** (np.floor(np.log2(top)) - 40) if top > 0 else 1.0
+    step = _quantization_step(lengths) if step is None else step
     return np.maximum(np.rint(lengths / step), 1).astype(np.int64)
 
 
 def knn_from_one_ring(ring: VertexNeighborhood, k: int) -> VertexNeighborhood:
-    """k-NN neighbourhoods composed from a host one-ring neighbourhood (any intrinsic lengths).
+    """k-NN neighbourhoods composed from an existing host one-ring neighbourhood.
+
+    Same as :func:`geodesic_knn_neighborhood` (same formula, slot order and padding) but starting
+    from any one-ring :class:`VertexNeighborhood` whose ``|log|`` are the edge lengths, e.g. a
+    coarse level's ``MeshHierarchy.neighborhoods[l]`` (intrinsic lengths with no 3D positions
+    behind them), so k-NN log maps of every level share that level's frames.
+
+    Args:
+      ring: ``[V, K]`` one-ring neighbourhood (no self slot) in host NumPy arrays.
+      k: slots including the vertex itself (≥ 1).
+
+    Returns:
+      ``[V, k]`` :class:`VertexNeighborhood` in the frames of ``ring``.
 
     Example:
       >>> from jmeshtex.data import icosahedron
@@ -104,6 +122,9 @@ def knn_from_one_ring(ring: VertexNeighborhood, k: int) -> VertexNeighborhood:
       >>> nb.index[0].tolist()  # vertex 0 and its five neighbours, tied, by index
       [0, 1, 5, 7, 10, 11]
     """
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise InputError(f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}")
+    k = int(k)
     V = ring.index.shape[0]
     src, slot = np.nonzero(ring.mask)
     nbr = ring.index[src, slot].astype(np.int64)

@@ -144,7 +144,8 @@ def field_conv(
       >>> p = init_field_conv(jax.random.key(0), 3, 5)
       >>> x = jax.random.normal(jax.random.key(1), (2, 3), jnp.complex64)
       >>> y = field_conv(x, nb, p)
-      >>> y.shape, bool(jnp.allclose(field_conv(x * 1j, nb, p), y * 1j, atol=1e-5))
+      >>> turned = nb._replace(log=nb.log * 1j)  # every frame turned by -90°: x, log, y get a factor i
+      >>> y.shape, bool(jnp.allclose(field_conv(x * 1j, turned, p), y * 1j, atol=1e-5))
       ((2, 5), True)
     """
     check_complex(x, "field_conv", ndim_min=2)
@@ -166,7 +167,7 @@ def _check_shapes(x, nbhd: VertexNeighborhood, params: FieldConvParams, embeddin
     if x.ndim != 2:
         raise InputError(f"field_conv: x must be [V, C] (vmap for batches), got shape {x.shape}")
     shape = jnp.shape(nbhd.index)
-    if len(shape) != 2 or shape[0] != v:
+    if len(shape) != 2 or shape[0] != v or shape[1] < 1:
         raise InputError(
             f"field_conv: x has {v} vertices but nbhd.index has shape {shape}; pad x to the "
             "neighbourhood's V (jmeshtex.geometry.pad_to pads the neighbourhood)"

@@ -17,6 +17,7 @@ HWIO layout ``kernel[dy + 1, dx + 1, c, d]`` exactly as the VGG-16 weights of ``
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -148,7 +149,9 @@ def grouped_pool(x: Float[Array, "N C"], groups: PoolGroups, *, mode: str = "mea
         w = m / jnp.maximum(jnp.sum(m, axis=1, keepdims=True), 1)
         return jnp.sum(gathered * w[..., None], axis=1)
     big = jnp.asarray(jnp.finfo(dtype).max / 4, dtype)
-    pooled = jnp.max(gathered + ((m - 1) * big)[..., None], axis=1)
+    shifted = gathered + ((m - 1) * big)[..., None]
+    # a chain of elementwise maxima: on CPU its backward is ~10x cheaper than a reduce-max's
+    pooled = functools.reduce(jnp.maximum, [shifted[:, s] for s in range(shifted.shape[1])])
     return pooled * jnp.max(m, axis=1, keepdims=True)
 
 

@@ -179,3 +179,17 @@ def test_property_selection_is_the_k_nearest(mesh, k):
     got = np.where(nb.mask, dist[np.arange(len(v))[:, None], nb.index], np.inf)
     np.testing.assert_allclose(got, want, rtol=1e-9)
     assert np.all(np.isfinite(nb.log)) and np.allclose(np.abs(nb.transport), 1, atol=1e-13)
+
+
+def test_knn_on_a_coarse_hierarchy_level_uses_its_intrinsic_lengths():
+    from jmeshtex.geometry import mesh_hierarchy
+
+    v, f = grid(12)
+    h = mesh_hierarchy(v, f, levels=2)
+    nb = knn_from_one_ring(h.neighborhoods[1], 6)
+    z = (v[:, 0] + 1j * v[:, 1])[h.vertex_index[1]]
+    ring = h.neighborhoods[1]
+    frame = z[ring.index[:, 0]] - z
+    frame /= np.abs(frame)
+    # flat: the coarse level's composed maps are exact planar offsets in its own frames
+    np.testing.assert_allclose(nb.log, (z[nb.index] - z[:, None]) / frame[:, None], atol=1e-12)

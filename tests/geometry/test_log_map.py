@@ -272,3 +272,17 @@ def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case
     with pytest.raises(BAD_MESH_KINDS[kind]):
         one_ring_neighborhood(v, f)
+
+
+def test_unreferenced_vertices_get_empty_rings_and_zero_area():
+    from jmeshtex.geometry import geodesic_knn_neighborhood, tangent_frames
+
+    v, f = grid(2)
+    v = np.concatenate([v, [[5.0, 5.0, 5.0]]])  # validate_mesh allows unreferenced vertices
+    nb = one_ring_neighborhood(v, f)
+    assert not nb.mask[-1].any() and nb.area[-1] == 0 and np.all(nb.transport[-1] == 1)
+    knn = geodesic_knn_neighborhood(v, f, k=4)
+    assert knn.mask[-1].tolist() == [True, False, False, False] and knn.index[-1, 0] == 9
+    fr = tangent_frames(v, f)
+    np.testing.assert_allclose(np.cross(fr.normal[-1], fr.x[-1]), fr.y[-1])
+    assert one_ring_angles(v, f).scale[-1] == 1.0

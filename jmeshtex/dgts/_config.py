@@ -1,0 +1,191 @@
+"""Configuration of DGTS (Hertz et al. 2020): every choice of the pipeline is a field here.
+
+Two dataclasses, both frozen and JSON round-trippable (:meth:`to_dict` / :meth:`from_dict`):
+
+- :class:`PrepareConfig`: building the multi-scale training meshes (paper §3.3); defaults follow the
+  reference code's ``GtOptions`` (Adam lr 1e-4, Chamfer weights 0.4 / 0.6, normal weights 0.1,
+  edge-length spread 5e-3, local equilateral term 5e-4, uniform-Laplacian "gravity" 1e-2,
+  ``3000·(l + 1)`` samples at level ``l``) except the optimiser schedule: the reference alternates 3
+  regulariser steps with 2 Chamfer steps for 3000 iterations at lr 1e-4 (15000 small steps); we take
+  1000 steps on the weighted sum at lr 5e-3, which moves vertices as far in far less time.
+- :class:`TrainConfig`: the hierarchical WGAN-GP (paper §3.4); defaults follow the paper and the
+  reference ``TrainOption`` (7 layers, widths 32 → 128, Adam lr 5e-4, betas (0.5, 0.99), lr halved
+  every 500 iterations, 2 discriminator and 3 generator steps per iteration, γ = 5, gradient-penalty
+  weight 0.1, noise amplitude 0.1 mean edges, 2000 iterations per level).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from .._errors import ConfigError
+
+
+def _check(cond: bool, message: str) -> None:
+    if not cond:
+        raise ConfigError(message)
+
+
+class _Serialisable:
+    def to_dict(self) -> dict[str, Any]:
+        """The fields as a JSON-compatible dict (tuples become lists)."""
+        out = {}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]):
+        """Rebuild from :meth:`to_dict` output; unknown keys raise :class:`ConfigError`."""
+        names = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        unknown = sorted(set(data) - set(names))
+        if unknown:
+            raise ConfigError(f"{cls.__name__}: unknown fields {unknown}; known: {sorted(names)}")
+        kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        return cls(**kwargs)
+
+    def replace(self, **changes):
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+
+
+@dataclasses.dataclass(frozen=True)
+class PrepareConfig(_Serialisable):
+    """How the multi-scale training meshes are fitted (DGTS §3.3, reference ``GtOptions``).
+
+    At level ``l`` the template (subdivided ``l`` times, mean edge ≈ 1 in the level's frame) is fitted
+    to the reference by Adam on
+
+    .. math:: w_{st} d(S \\to T) + w_{ts} d(T \\to S) + w_{n,st} \\nu(S \\to T) + w_{n,ts}
+       \\nu(T \\to S) + w_e\\,\\mathrm{std}(|e|) + w_\\ell\\, \\overline{\\textstyle\\sum_k \\hat\\ell_k
+       \\log \\hat\\ell_k} + w_g\\, \\overline{|v - \\bar v_{\\mathcal N(v)}|_1}
+
+    (Chamfer terms on ``samples_per_level·(l+1)`` area-uniform samples, normal terms ``-n·n'``,
+    edge-length spread, negative entropy of each face's normalised edge lengths, uniform Laplacian).
+
+    Attributes:
+      num_levels: number of levels (meshes) to produce, ≥ 1.
+      iterations: Adam steps per level.
+      lr: Adam learning rate.
+      samples_per_level: surface samples at level 0; level ``l`` uses ``(l + 1)`` times as many.
+      weight_s2t, weight_t2s: Chamfer weights, template → reference and reference → template.
+      weight_normal_s2t, weight_normal_t2s: normal-agreement weights.
+      weight_edge_std: weight of the standard deviation of all edge lengths.
+      weight_edge_local: weight of the per-face equilateral (edge-entropy) term.
+      weight_laplacian: weight of the uniform-Laplacian smoothness ("gravity") term.
+      squared_chamfer: squared distances (False: plain distances, as the reference).
+      scale_factor: rescaling between levels (edges halve under subdivision; 2 restores them).
+      seed: seed of the surface sampling.
+    """
+
+    num_levels: int = 4
+    iterations: int = 1000
+    lr: float = 5e-3
+    samples_per_level: int = 3000
+    weight_s2t: float = 0.4
+    weight_t2s: float = 0.6
+    weight_normal_s2t: float = 0.1
+    weight_normal_t2s: float = 0.1
+    weight_edge_std: float = 5e-3
+    weight_edge_local: float = 5e-4
+    weight_laplacian: float = 1e-2
+    squared_chamfer: bool = False
+    scale_factor: float = 2.0
+    seed: int = 0
+
+    def __post_init__(self):
+        _check(int(self.num_levels) >= 1, f"num_levels must be >= 1, got {self.num_levels}")
+        _check(int(self.iterations) >= 0, f"iterations must be >= 0, got {self.iterations}")
+        _check(self.lr > 0, f"lr must be > 0, got {self.lr}")
+        _check(int(self.samples_per_level) >= 1, f"samples_per_level must be >= 1, got {self.samples_per_level}")
+        _check(self.scale_factor > 0, f"scale_factor must be > 0, got {self.scale_factor}")
+        for name in ("weight_s2t", "weight_t2s", "weight_normal_s2t", "weight_normal_t2s",
+                     "weight_edge_std", "weight_edge_local", "weight_laplacian"):
+            _check(getattr(self, name) >= 0, f"{name} must be >= 0, got {getattr(self, name)}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig(_Serialisable):
+    """The hierarchical WGAN-GP of DGTS (§3.4) with the reference code's defaults.
+
+    Widths: layer ``i`` (1 ≤ i ≤ num_layers − 2) of level ``l`` has
+    ``max(min(start_features·2^l, max_features) // 2^(i−1), min_features)`` channels; the first layer
+    embeds the 4 edge features, the last emits 3 displacement coefficients (generator) or 1 score
+    (discriminator). A level whose widths equal the previous level's starts from its weights.
+
+    Attributes:
+      num_layers: layers per network, counting the input (reference: 7, so 6 weight layers).
+      start_features, min_features, max_features: the width schedule above (32, 32, 128).
+      noise_amplitude: std of the Gaussian vertex noise, in mean edges of the level (0.1).
+      scale_factor: rescaling after each subdivision (2: the mean edge stays ≈ 1).
+      lr: Adam learning rate (5e-4), for both networks.
+      beta1, beta2: Adam betas (0.5, 0.99).
+      lr_decay: factor applied every ``lr_decay_every`` iterations (0.5 every 500).
+      lr_decay_every: iterations between decays.
+      discriminator_steps, generator_steps: updates per iteration (2, 3).
+      reconstruction_weight: γ, weight of the vertex MSE of the reconstruction (5).
+      penalty_weight: weight of the gradient penalty (0.1, as the reference code; the paper's
+        WGAN-GP default would be 10).
+      reconstruction_start: first level using the fixed noise z* for the reconstruction; below it
+        the reconstruction uses fresh noise (the reference uses 1).
+      iterations: training iterations per level (2000).
+      negative_slope: leaky-ReLU slope (0.2).
+      eps: instance-norm regulariser (1e-5).
+      seed: PRNG seed of initialisation, z* and the noise.
+    """
+
+    num_layers: int = 7
+    start_features: int = 32
+    min_features: int = 32
+    max_features: int = 128
+    noise_amplitude: float = 0.1
+    scale_factor: float = 2.0
+    lr: float = 5e-4
+    beta1: float = 0.5
+    beta2: float = 0.99
+    lr_decay: float = 0.5
+    lr_decay_every: int = 500
+    discriminator_steps: int = 2
+    generator_steps: int = 3
+    reconstruction_weight: float = 5.0
+    penalty_weight: float = 0.1
+    reconstruction_start: int = 1
+    iterations: int = 2000
+    negative_slope: float = 0.2
+    eps: float = 1e-5
+    seed: int = 0
+
+    def __post_init__(self):
+        _check(int(self.num_layers) >= 3, f"num_layers must be >= 3 (input, one hidden, output), got {self.num_layers}")
+        _check(1 <= self.min_features <= self.max_features,
+               f"need 1 <= min_features <= max_features, got {self.min_features}, {self.max_features}")
+        _check(self.start_features >= 1, f"start_features must be >= 1, got {self.start_features}")
+        _check(self.noise_amplitude >= 0, f"noise_amplitude must be >= 0, got {self.noise_amplitude}")
+        _check(self.lr > 0 and 0 <= self.beta1 < 1 and 0 <= self.beta2 < 1,
+               f"need lr > 0 and betas in [0, 1), got lr={self.lr}, betas=({self.beta1}, {self.beta2})")
+        _check(0 < self.lr_decay <= 1, f"lr_decay must be in (0, 1], got {self.lr_decay}")
+        _check(self.lr_decay_every >= 1, f"lr_decay_every must be >= 1, got {self.lr_decay_every}")
+        _check(self.discriminator_steps >= 0 and self.generator_steps >= 1,
+               "need discriminator_steps >= 0 and generator_steps >= 1, got "
+               f"{self.discriminator_steps}, {self.generator_steps}")
+        _check(self.iterations >= 0, f"iterations must be >= 0, got {self.iterations}")
+        _check(self.reconstruction_weight >= 0 and self.penalty_weight >= 0,
+               "reconstruction_weight and penalty_weight must be >= 0")
+        _check(self.scale_factor > 0, f"scale_factor must be > 0, got {self.scale_factor}")
+
+    def level_features(self, level: int, *, generator: bool) -> tuple[int, ...]:
+        """Output widths of the weight layers at ``level`` (embedding first, 3 or 1 last).
+
+        Example:
+          >>> TrainConfig().level_features(0, generator=True)
+          (32, 32, 32, 32, 32, 3)
+          >>> TrainConfig().level_features(2, generator=False)
+          (128, 64, 32, 32, 32, 1)
+        """
+        hidden = [
+            max(min(self.start_features * 2**level, self.max_features) // 2 ** (i - 1), self.min_features)
+            for i in range(1, self.num_layers - 1)
+        ]
+        return (*hidden, 3 if generator else 1)

@@ -1,0 +1,399 @@
+"""Multi-scale training meshes for DGTS (Hertz et al. 2020, §3.3, "Multiscale input shapes").
+
+A template (an icosphere, a torus, or any coarse mesh of the reference's topology) is fitted to the
+reference mesh level by level: fit (Adam on Chamfer + normals + regularisers), subdivide 1 → 4 at the
+edge midpoints, rescale ×2 so the mean edge stays ≈ 1, fit again. Every level therefore shares the
+template's connectivity (subdivided), which is what lets the generator's output be compared vertex by
+vertex with the level's mesh (the reconstruction loss) and face by face in the discriminator.
+
+Frames: the template is scaled so its mean edge is 1 ("level-0 frame"); level ``l`` lives in the
+level-0 frame times ``scale_factor**l``. ``scales[l]`` maps the reference's input coordinates to level
+``l``'s frame: ``v_l = (v_input − center) · scales[l]``.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import pathlib
+import tempfile
+from collections.abc import Callable
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from .._errors import InputError, MeshIOError
+from .._types import Array, Float, Int, PRNGKey
+from ..geometry import subdivide_midpoint, validate_mesh
+from ..ops import chamfer_distance
+from ..ops._util import safe_norm, safe_normalize
+from ._config import PrepareConfig
+
+
+class TrainingMeshes(NamedTuple):
+    """The multi-scale training meshes of one reference.
+
+    Attributes:
+      template: ``[V_0, 3]`` the template before fitting, in the level-0 frame (mean edge 1): the
+        generator's input during training.
+      vertices: one ``[V_l, 3]`` array per level, the fitted mesh in level ``l``'s frame.
+      faces: one ``[F_l, 3]`` int64 array per level (``faces[l + 1]`` subdivides ``faces[l]``).
+      edge_vertices: one ``[E_l, 2]`` array per level but the last: the coarse edge whose midpoint
+        is fine vertex ``V_l + e`` (:func:`jmeshtex.geometry.subdivide_midpoint`).
+      scales: ``[L]`` input-to-level scale factors (see the module docstring).
+      center: ``[3]`` the reference's bounding-box centre in input coordinates.
+    """
+
+    template: Float[np.ndarray, "V0 3"]
+    vertices: tuple[np.ndarray, ...]
+    faces: tuple[np.ndarray, ...]
+    edge_vertices: tuple[np.ndarray, ...]
+    scales: Float[np.ndarray, " L"]
+    center: Float[np.ndarray, " 3"]
+
+    @property
+    def num_levels(self) -> int:
+        return len(self.vertices)
+
+
+# ----------------------------------------------------------------------------------------------
+# atomic files (shared with _train)
+# ----------------------------------------------------------------------------------------------
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> pathlib.Path:
+    """Write ``data`` to a temporary file next to ``path`` and rename it over ``path``."""
+    path = pathlib.Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            pathlib.Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as err:
+        raise MeshIOError(f"cannot write {path}: {err}") from err
+    return path
+
+
+def atomic_save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> pathlib.Path:
+    """``np.savez`` to memory, then :func:`atomic_write_bytes`."""
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def load_npz(path: str | os.PathLike, what: str) -> dict[str, np.ndarray]:
+    """Read a whole ``.npz`` (no pickles) into a dict; a typed error names the file if it fails."""
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise MeshIOError(f"cannot read {what} {path}: no such file")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except (OSError, ValueError) as err:
+        raise MeshIOError(f"cannot read {what} {path}: {err}") from err
+
+
+def save_training_meshes(path: str | os.PathLike, meshes: TrainingMeshes) -> pathlib.Path:
+    """Write :class:`TrainingMeshes` to one ``.npz`` file, atomically."""
+    arrays = {"template": meshes.template, "scales": meshes.scales, "center": meshes.center}
+    for level, (v, f) in enumerate(zip(meshes.vertices, meshes.faces)):
+        arrays[f"vertices_{level}"] = v
+        arrays[f"faces_{level}"] = f
+    for level, e in enumerate(meshes.edge_vertices):
+        arrays[f"edges_{level}"] = e
+    return atomic_save_npz(path, arrays)
+
+
+def load_training_meshes(path: str | os.PathLike) -> TrainingMeshes:
+    """Read what :func:`save_training_meshes` wrote."""
+    data = load_npz(path, "training meshes")
+    try:
+        n = len(data["scales"])
+        return TrainingMeshes(
+            template=data["template"],
+            vertices=tuple(data[f"vertices_{i}"] for i in range(n)),
+            faces=tuple(data[f"faces_{i}"] for i in range(n)),
+            edge_vertices=tuple(data[f"edges_{i}"] for i in range(n - 1)),
+            scales=data["scales"],
+            center=data["center"],
+        )
+    except KeyError as err:
+        raise MeshIOError(f"{path} is not a DGTS training-mesh file (missing {err})") from err
+
+
+# ----------------------------------------------------------------------------------------------
+# fitting
+# ----------------------------------------------------------------------------------------------
+
+
+def unique_edges(faces: Int[np.ndarray, "F 3"]) -> Int[np.ndarray, "E 2"]:
+    """Undirected edges ``[E, 2]`` (sorted pairs, sorted rows) of a triangle mesh.
+
+    Example:
+      >>> unique_edges(np.array([[0, 1, 2], [2, 1, 3]])).tolist()
+      [[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]]
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    pairs = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)
+    return np.unique(np.sort(pairs, axis=1), axis=0)
+
+
+def sample_points(
+    key: PRNGKey, vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"], n: int
+) -> tuple[Float[Array, "n 3"], Float[Array, "n 3"]]:
+    """Area-uniform random points on a mesh with their face normals, inside ``jit``.
+
+    Faces are drawn with probability ``A_f / ΣA`` (not differentiated), barycentric coordinates by
+    the square-root rule; the points are differentiable in ``vertices``.
+
+    .. math:: p = (1 - \\sqrt{u})\\, a + \\sqrt{u}(1 - w)\\, b + \\sqrt{u}\\, w\\, c
+
+    Returns:
+      ``(points [n, 3], unit normals [n, 3])``, ``vertices``' dtype.
+
+    Example:
+      >>> from jmeshtex.data import single_triangle
+      >>> v, f = single_triangle()
+      >>> p, nrm = sample_points(jax.random.key(0), jnp.asarray(v), jnp.asarray(f), 5)
+      >>> p.shape, nrm[0].tolist()
+      ((5, 3), [0.0, 0.0, 1.0])
+    """
+    tri = vertices[faces]
+    cross = jnp.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = jax.lax.stop_gradient(safe_norm(cross))
+    k_face, k_uv = jax.random.split(key)
+    logits = jnp.log(area + jnp.finfo(vertices.dtype).tiny)
+    face = jax.random.categorical(k_face, logits, shape=(n,))
+    u, w = jax.random.uniform(k_uv, (2, n), vertices.dtype)
+    s = jnp.sqrt(u)
+    bary = jnp.stack([1 - s, s * (1 - w), s * w], axis=1)
+    points = jnp.einsum("nk,nkd->nd", bary, tri[face])
+    return points, safe_normalize(cross)[face]
+
+
+class _FitGeometry(NamedTuple):
+    faces: Int[Array, "F 3"]
+    edges: Int[Array, "E 2"]
+    degree: Float[Array, " V"]
+    target_vertices: Float[Array, "T 3"]
+    target_faces: Int[Array, "G 3"]
+
+
+def fitting_loss(
+    vertices: Float[Array, "V 3"], geo: _FitGeometry, key: PRNGKey, *, config: PrepareConfig, num_samples: int
+) -> tuple[Float[Array, ""], dict[str, Float[Array, ""]]]:
+    """The level-fitting objective of :class:`PrepareConfig` and its terms (see there)."""
+    k_s, k_t = jax.random.split(key)
+    ps, ns = sample_points(k_s, vertices, geo.faces, num_samples)
+    pt, nt = sample_points(k_t, geo.target_vertices, geo.target_faces, num_samples)
+    cd = chamfer_distance(ps, pt, p_normals=ns, q_normals=nt, squared=config.squared_chamfer, oriented=True)
+    e = vertices[geo.edges[:, 1]] - vertices[geo.edges[:, 0]]
+    length = safe_norm(e)
+    edge_std = jnp.sqrt(jnp.mean((length - jnp.mean(length)) ** 2) + 1e-12)
+    tri = vertices[geo.faces]
+    fl = safe_norm(jnp.roll(tri, -1, axis=1) - tri)  # [F, 3]
+    fl = fl / jnp.maximum(jnp.sum(fl, axis=1, keepdims=True), 1e-12)
+    edge_local = jnp.mean(jnp.sum(fl * jnp.log(jnp.maximum(fl, 1e-12)), axis=1))
+    V = vertices.shape[0]
+    nbr = jax.ops.segment_sum(vertices[geo.edges[:, 1]], geo.edges[:, 0], V) + jax.ops.segment_sum(
+        vertices[geo.edges[:, 0]], geo.edges[:, 1], V
+    )
+    lap = jnp.mean(jnp.sum(jnp.abs(vertices - nbr / jnp.maximum(geo.degree, 1)[:, None]), axis=1))
+    terms = {
+        "s2t": cd.p_to_q,
+        "t2s": cd.q_to_p,
+        "normal_s2t": cd.normal_p_to_q,
+        "normal_t2s": cd.normal_q_to_p,
+        "edge_std": edge_std,
+        "edge_local": edge_local,
+        "laplacian": lap,
+    }
+    c = config
+    loss = (
+        c.weight_s2t * terms["s2t"]
+        + c.weight_t2s * terms["t2s"]
+        + c.weight_normal_s2t * terms["normal_s2t"]
+        + c.weight_normal_t2s * terms["normal_t2s"]
+        + c.weight_edge_std * edge_std
+        + c.weight_edge_local * edge_local
+        + c.weight_laplacian * lap
+    )
+    return loss, terms
+
+
+def fit_level(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    target_vertices: Float[np.ndarray, "T 3"],
+    target_faces: Int[np.ndarray, "G 3"],
+    *,
+    config: PrepareConfig,
+    num_samples: int,
+    key: PRNGKey,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[Float[np.ndarray, "V 3"], dict[str, float]]:
+    """Fit one level's mesh to the reference with Adam (jit-compiled steps, float32).
+
+    Args:
+      vertices: ``[V, 3]`` initial positions (level frame).
+      faces: ``[F, 3]`` the level's triangles.
+      target_vertices, target_faces: the reference in the same frame.
+      config: weights, learning rate and number of iterations.
+      num_samples: surface samples drawn on each mesh per step.
+      key: PRNG key of the sampling.
+      progress: called with the number of steps done after each chunk of steps.
+
+    Returns:
+      ``(vertices [V, 3] float64, final loss terms)``.
+    """
+    edges = unique_edges(faces)
+    degree = np.bincount(edges.ravel(), minlength=len(vertices)).astype(np.float32)
+    geo = _FitGeometry(
+        jnp.asarray(faces, jnp.int32),
+        jnp.asarray(edges, jnp.int32),
+        jnp.asarray(degree),
+        jnp.asarray(target_vertices, jnp.float32),
+        jnp.asarray(target_faces, jnp.int32),
+    )
+    opt = optax.adam(config.lr)
+    chunk = 50
+
+    @jax.jit
+    def run_chunk(v, state, key, geo, n):
+        def body(i, carry):
+            v, state, _ = carry
+            (_, terms), g = jax.value_and_grad(
+                lambda x: fitting_loss(x, geo, jax.random.fold_in(key, i), config=config, num_samples=num_samples),
+                has_aux=True,
+            )(v)
+            updates, state = opt.update(g, state, v)
+            return optax.apply_updates(v, updates), state, terms
+
+        terms0 = jax.eval_shape(
+            lambda x: fitting_loss(x, geo, key, config=config, num_samples=num_samples)[1], v
+        )
+        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
+        return jax.lax.fori_loop(0, n, body, (v, state, zeros))
+
+    v = jnp.asarray(vertices, jnp.float32)
+    state = opt.init(v)
+    terms: dict = {}
+    done = 0
+    n_chunks = -(-int(config.iterations) // chunk)
+    for c in range(n_chunks):
+        n = min(chunk, int(config.iterations) - done)
+        v, state, terms = run_chunk(v, state, jax.random.fold_in(key, c), geo, jnp.int32(n))
+        done += n
+        if progress is not None:
+            progress(done)
+    return np.asarray(v, np.float64), {k: float(x) for k, x in terms.items()}
+
+
+def normalize_pair(
+    reference_vertices: Float[np.ndarray, "R 3"],
+    template_vertices: Float[np.ndarray, "V 3"],
+    template_faces: Int[np.ndarray, "F 3"],
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Put the reference and the template in the level-0 frame (as the reference code does).
+
+    Each is centred on its bounding box and scaled to a unit longest side; then both are scaled by
+    ``s`` so the template's mean edge is 1.
+
+    Returns:
+      ``(reference [R, 3], template [V, 3], scale, center)`` with
+      ``reference_out = (reference_in − center) · scale``.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> v, f = icosphere(1)
+      >>> r, t, s, c = normalize_pair(2 * v + 1, v, f)
+      >>> from jmeshtex.geometry import mean_edge_length
+      >>> round(mean_edge_length(t, f), 9), bool(np.allclose(r, t))
+      (1.0, True)
+    """
+    from ..geometry import mean_edge_length
+
+    def unit(v):
+        lo, hi = v.min(0), v.max(0)
+        extent = float((hi - lo).max())
+        if not extent > 0:
+            raise InputError("cannot normalise a mesh whose vertices all coincide")
+        return (lo + hi) / 2, extent
+
+    rc, rext = unit(reference_vertices)
+    tc, text = unit(template_vertices)
+    t = (template_vertices - tc) / text
+    s = 1.0 / mean_edge_length(t, template_faces)
+    return (reference_vertices - rc) * (s / rext), t * s, s / rext, rc
+
+
+def training_meshes(
+    reference: tuple[Float[np.ndarray, "R 3"], Int[np.ndarray, "G 3"]],
+    template: tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
+    *,
+    config: PrepareConfig = PrepareConfig(),
+    progress: Callable[[str, int, int], None] | None = None,
+) -> TrainingMeshes:
+    """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
+
+    For level ``l = 0 … L−1``: (``l > 0``) subdivide the previous level 1 → 4 at edge midpoints and
+    scale it and the reference by ``scale_factor``; fit with :func:`fit_level` on
+    ``samples_per_level·(l + 1)`` samples.
+
+    Args:
+      reference: ``(vertices, faces)`` of the textured reference (open or closed, any genus).
+      template: ``(vertices, faces)`` of a coarse mesh of the same topology (icosphere, torus, ...).
+      config: :class:`PrepareConfig`.
+      progress: ``progress(stage, done, total)`` callback (for progress bars).
+
+    Returns:
+      :class:`TrainingMeshes`.
+
+    Raises:
+      MeshError subclasses: an invalid reference or template (:func:`jmeshtex.geometry.validate_mesh`).
+
+    Example:
+      >>> from jmeshtex.data import icosphere, icosahedron
+      >>> tm = training_meshes(icosphere(2), icosahedron(), config=PrepareConfig(num_levels=2, iterations=50,
+      ...     samples_per_level=200))
+      >>> [f.shape[0] for f in tm.faces], round(float(tm.scales[1] / tm.scales[0]), 6)
+      ([20, 80], 2.0)
+    """
+    rv, rf = (np.asarray(a) for a in reference)
+    tv, tf = (np.asarray(a) for a in template)
+    validate_mesh(rv, rf)
+    validate_mesh(tv, tf)
+    rv = rv.astype(np.float64)
+    rf = rf.astype(np.int64)
+    f = tf.astype(np.int64)
+    target, v, scale, center = normalize_pair(rv, tv.astype(np.float64), f)
+    template_out = v.copy()
+    key = jax.random.key(config.seed)
+    verts, faces, edges, scales = [], [], [], []
+    for level in range(config.num_levels):
+        if level > 0:
+            sub = subdivide_midpoint(v, f)
+            v, f = sub.vertices * config.scale_factor, sub.faces
+            edges.append(sub.edge_vertices)
+            target = target * config.scale_factor
+            scale *= config.scale_factor
+        stage = f"level {level}"
+        cb = None if progress is None else (lambda done, stage=stage: progress(stage, done, config.iterations))
+        v, _ = fit_level(
+            v, f, target, rf, config=config, num_samples=config.samples_per_level * (level + 1),
+            key=jax.random.fold_in(key, level), progress=cb,
+        )
+        verts.append(v)
+        faces.append(f)
+        scales.append(scale)
+    return TrainingMeshes(template_out, tuple(verts), tuple(faces), tuple(edges), np.asarray(scales), center)

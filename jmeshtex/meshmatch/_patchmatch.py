@@ -1,0 +1,615 @@
+"""Coarse-to-fine PatchMatch between two meshes (MeshMatch, Chen et al. 2012 §4), jit-compiled.
+
+For every target vertex t the nearest-neighbour field (NNF) holds a source vertex ``s`` and a
+rotation ``k`` (target frame → source frame by ``2πk/A``). One iteration at a level is
+
+- **E-step**: for every target vertex at once, candidates are the current match, one *propagated*
+  match per one-ring neighbour q (q's match moved by p's offset from q, carried into the source
+  frame with q's rotation and the target transport: ``e^{iθ_q} log_q(p)``, snapped to the nearest
+  vertex of the source star), *random search* through the source hierarchy (hop up j levels from
+  the current match, come down through random children) and uniformly random source vertices.
+  Each candidate is scored at the best of the ``A`` cyclic rotations of the fans at once (cyclic
+  cross-correlation through a real DFT of the angular axis) plus the rotation-invariant shape term.
+- **M-step**: every target vertex's colour is the Gaussian-weighted vote of the source colours
+  its own and its neighbours' matches put at its position.
+
+Levels run from the coarsest to the finest; the NNF is upsampled through the parent maps; a final
+pass copies each target vertex's matched source colour (no blur).
+
+Patch distance (``w_r`` ring weights, ``φ`` shape features, ``σ²_c`` the source colour variance):
+
+.. math:: D(t, s) = \\min_k\\, \\frac{w_c}{R A C\\, \\sigma_c^2} \\sum_{i,a,c} w_i
+          \\bigl(F_t[i, a, c] - F_s[i, (a + k) \\bmod A, c]\\bigr)^2 + w_\\phi \\lVert\\phi_t - \\phi_s\\rVert^2
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from .._types import Float, Int
+from ..geometry import (
+    MeshHierarchy,
+    mesh_hierarchy,
+    one_ring_neighborhood,
+    tracer_geometry,
+)
+from ._config import MeshMatchConfig
+from ._fans import (
+    ancestors,
+    geodesic_fans,
+    hks_features,
+    hks_level,
+    shape_features,
+    smoother,
+)
+
+# ---------------------------------------------------------------------------------------------
+# host-side preparation
+
+
+@dataclasses.dataclass
+class Side:
+    """One mesh prepared for MeshMatch: its hierarchy and per-level host geometry.
+
+    Attributes:
+      hierarchy: :class:`~jmeshtex.geometry.MeshHierarchy`.
+      edge: per level mean edge length.
+      neighborhoods: per level one-ring :class:`~jmeshtex.geometry.VertexNeighborhood` of the
+        level mesh (the tracer's frames).
+      smoothers: per level :class:`~jmeshtex.meshmatch._fans.Smoother`.
+      tracers: per level :class:`~jmeshtex.geometry.TracerGeometry`.
+      log_hks: ``[V_0, T]`` log heat kernel signature.
+      features: ``[V_0, D]`` standardised shape features (plus affinities when given).
+      inverse: per level ``[V_0]`` position of each input vertex in that level (-1 if absent).
+      hks_times: ``[T]`` the HKS times used (pass them to the other mesh's :func:`prepare_side`).
+    """
+
+    hierarchy: MeshHierarchy
+    edge: list
+    neighborhoods: list
+    smoothers: list
+    tracers: list
+    log_hks: np.ndarray
+    features: np.ndarray
+    inverse: list
+    hks_times: np.ndarray
+
+    @property
+    def num_levels(self) -> int:
+        return self.hierarchy.num_levels
+
+
+def _mean_edge(v, f) -> float:
+    return float(np.linalg.norm(v[f] - v[np.roll(f, -1, axis=1)], axis=2).mean())
+
+
+def prepare_side(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    config: MeshMatchConfig,
+    *,
+    hks_times=None,
+    hierarchy: MeshHierarchy | None = None,
+) -> Side:
+    """Hierarchy, per-level one-rings / tracer tables / smoothers and the log HKS of one mesh.
+
+    Args:
+      vertices: ``[V, 3]`` positions.
+      faces: ``[F, 3]`` triangles.
+      config: :class:`MeshMatchConfig`.
+      hks_times: shared HKS times (default: from this mesh's spectrum).
+      hierarchy: reuse a hierarchy.
+
+    Returns:
+      :class:`Side` (shape features still without affinities).
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> side = prepare_side(*icosphere(3), MeshMatchConfig(min_vertices=100))
+      >>> side.num_levels, side.features.shape
+      (3, (642, 9))
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if hierarchy is None:
+        if config.levels == 1:
+            hierarchy = mesh_hierarchy(vertices, faces, levels=1)
+        else:
+            hierarchy = mesh_hierarchy(vertices, faces, levels=config.levels, min_vertices=config.min_vertices)
+    edge, nbs, sms, trs, inverse = [], [], [], [], []
+    n0 = len(vertices)
+    for level in range(hierarchy.num_levels):
+        v, f = hierarchy.vertices[level], hierarchy.faces[level]
+        edge.append(_mean_edge(v, f))
+        nbs.append(one_ring_neighborhood(v, f))
+        sms.append(smoother(f, len(v)))
+        trs.append(tracer_geometry(v, f))
+        inv = np.full(n0, -1, np.int64)
+        inv[hierarchy.vertex_index[level]] = np.arange(len(v))
+        inverse.append(inv)
+    level = hks_level(hierarchy, config.hks_max_vertices)
+    log_hks, times = hks_features(hierarchy, level=level, times=hks_times, num_times=config.hks_times,
+                              k=config.hks_eigenpairs)
+    features = shape_features(vertices, faces, log_hks, up=config.up)
+    return Side(hierarchy, edge, nbs, sms, trs, log_hks, features, inverse, times)
+
+
+# ---------------------------------------------------------------------------------------------
+# jitted kernels
+
+
+class LevelArrays(NamedTuple):
+    """JAX arrays of one side at one level (see :func:`level_arrays`)."""
+
+    nb_index: jax.Array  # [V, K]
+    nb_mask: jax.Array  # [V, K]
+    nb_log: jax.Array  # [V, K] complex
+    nb_transport: jax.Array  # [V, K] complex
+    fan_corners: jax.Array  # [V, R, A, 3]
+    fan_bary: jax.Array  # [V, R, A, 3]
+    sm_index: jax.Array  # [V, Ks]
+    sm_weight: jax.Array  # [V, Ks]
+    features: jax.Array  # [V, D]
+    colors: jax.Array  # [V, C] (source: level colours; target: unused zeros)
+    valid: jax.Array  # [V] bool (source: allowed matches)
+
+
+def _dft_mats(A: int, dtype):
+    m = np.arange(A // 2 + 1)
+    a = np.arange(A)
+    ang = 2 * np.pi * np.outer(a, m) / A  # [A, M]
+    cm = np.where((m == 0) | ((A % 2 == 0) & (m == A // 2)), 1.0, 2.0)
+    fwd_c, fwd_s = np.cos(ang), -np.sin(ang)
+    inv_r = (cm[:, None] * np.cos(ang.T)) / A  # [M, A]
+    inv_i = -(cm[:, None] * np.sin(ang.T)) / A
+    return tuple(jnp.asarray(x, dtype) for x in (fwd_c, fwd_s, inv_r, inv_i))
+
+
+def _fan_values(arr: LevelArrays, colors, steps: tuple[int, ...]):
+    """Pre-filtered fan samples ``[V, R, A, C]`` of per-vertex colours (as ``filtered_fans``)."""
+    lam = jnp.asarray(0.5, colors.dtype)
+    rings, current, done = [], colors, 0
+    for i, s in enumerate(steps):
+        for _ in range(s - done):
+            current = (1 - lam) * current + lam * jnp.einsum("vk,vkc->vc", arr.sm_weight, current[arr.sm_index])
+        done = max(done, s)
+        corners, bary = arr.fan_corners[:, i], arr.fan_bary[:, i]
+        rings.append(jnp.einsum("vak,vakc->vac", bary, current[corners]))
+    return jnp.stack(rings, axis=1)
+
+
+def fan_spectrum(fans, ring_weight, dtype=None):
+    """Real DFT of the angular axis of weighted fans: ``(re, im) [V, R·C, M]`` and energies ``[V]``.
+
+    .. math:: \\hat F[i c, m] = \\sum_a \\sqrt{w_i}\\, F[i, a, c]\\, e^{-2\\pi i m a / A}
+
+    Example:
+      >>> f = jnp.ones((2, 1, 4, 1))
+      >>> re, im, e = fan_spectrum(f, jnp.ones(1))
+      >>> np.round(re[0, 0], 6).tolist(), e.tolist()
+      ([4.0, -0.0, 0.0], [4.0, 4.0])
+    """
+    dtype = fans.dtype if dtype is None else dtype
+    V, R, A, C = fans.shape
+    x = fans * jnp.sqrt(ring_weight).astype(fans.dtype)[None, :, None, None]
+    x = jnp.transpose(x, (0, 1, 3, 2)).reshape(V, R * C, A)
+    fwd_c, fwd_s, _, _ = _dft_mats(A, dtype)
+    return x @ fwd_c, x @ fwd_s, jnp.sum(x * x, axis=(1, 2))
+
+
+def rotation_distances(t_re, t_im, t_energy, s_re, s_im, s_energy, num_angles: int):
+    """Squared fan distances at every cyclic shift k: ``‖T‖² + ‖S‖² − 2 Σ_a T[a] S[(a+k) mod A]``.
+
+    All arguments are spectra from :func:`fan_spectrum` (leading axes broadcast).
+
+    Example:
+      >>> t = jnp.arange(6.0).reshape(1, 1, 6, 1)
+      >>> s = jnp.roll(t, -2, axis=2)                       # S[a] = T[a + 2], so T[a] = S[a - 2]
+      >>> d = rotation_distances(*fan_spectrum(t, jnp.ones(1)), *fan_spectrum(s, jnp.ones(1)), 6)
+      >>> int(jnp.argmin(d[0])), float(jnp.round(d[0].min(), 6))
+      (4, 0.0)
+    """
+    _, _, inv_r, inv_i = _dft_mats(num_angles, t_re.dtype)
+    xr = jnp.sum(t_re * s_re + t_im * s_im, axis=-2)
+    xi = jnp.sum(t_re * s_im - t_im * s_re, axis=-2)
+    corr = xr @ inv_r + xi @ inv_i
+    return t_energy[..., None] + s_energy[..., None] - 2.0 * corr
+
+
+class _Src(NamedTuple):
+    arr: LevelArrays
+    re: jax.Array
+    im: jax.Array
+    energy: jax.Array
+    up: tuple  # per hop j: [V_m] ancestor at level m + j
+    down: tuple  # per hop j: (children [V_{m+j}, M], count [V_{m+j}]) into level m + j - 1
+    valid_index: jax.Array  # [Nv] valid source vertices
+    num_valid: jax.Array  # scalar
+
+
+def _candidate_cost(t_re, t_im, t_energy, t_feat, src: _Src, cand, A, color_scale, shape_weight):
+    d = rotation_distances(t_re, t_im, t_energy, src.re[cand], src.im[cand], src.energy[cand], A)
+    k = jnp.argmin(d, axis=1).astype(jnp.int32)
+    dc = jnp.maximum(jnp.min(d, axis=1), 0.0)
+    df = jnp.sum((t_feat - src.arr.features[cand]) ** 2, axis=1)
+    cost = color_scale * dc + shape_weight * df
+    cost = jnp.where(src.arr.valid[cand], cost, jnp.inf)
+    return cost, k
+
+
+def _offsets(tgt: LevelArrays, rot, A):
+    """``[V, K]`` each target vertex p's position in the source frame of its neighbour q's match."""
+    angle = (2 * np.pi / A) * rot.astype(tgt.nb_log.real.dtype)
+    turn = jax.lax.complex(jnp.cos(angle), jnp.sin(angle))
+    log_qp = -jnp.conj(tgt.nb_transport) * tgt.nb_log  # log_q(p) in q's frame
+    return turn[tgt.nb_index] * log_qp
+
+
+def _star(src_arr: LevelArrays, s):
+    """Source star of ``s`` [..]: vertices ``[.., 1+K]``, offsets (log) and mask, self first."""
+    idx = jnp.concatenate([s[..., None], src_arr.nb_index[s]], axis=-1)
+    log = jnp.concatenate([jnp.zeros(s.shape + (1,), src_arr.nb_log.dtype), src_arr.nb_log[s]], axis=-1)
+    mask = jnp.concatenate([jnp.ones(s.shape + (1,), bool), src_arr.nb_mask[s]], axis=-1)
+    return idx, log, mask
+
+
+def _star_nearest(src_arr, s, off):
+    idx, log, mask = _star(src_arr, s)
+    d = jnp.where(mask, jnp.abs(log - off[..., None]) ** 2, jnp.inf)
+    j = jnp.argmin(d, axis=-1)
+    return jnp.take_along_axis(idx, j[..., None], axis=-1)[..., 0]
+
+
+def _star_interp(src_arr, s, off, tau2):
+    idx, log, mask = _star(src_arr, s)
+    logits = jnp.where(mask, -(jnp.abs(log - off[..., None]) ** 2) / (2 * tau2), -jnp.inf)
+    w = jax.nn.softmax(logits, axis=-1)
+    return jnp.einsum("...k,...kc->...c", w, src_arr.colors[idx])
+
+
+def _vote(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, A, sigma2, tau2, pin):
+    off = _offsets(tgt, rot, A)  # [V, K]
+    sq = nnf[tgt.nb_index]  # [V, K]
+    cols = _star_interp(src_arr, sq, off, tau2)  # [V, K, C]
+    dist2 = jnp.abs(tgt.nb_log) ** 2
+    w = jnp.where(tgt.nb_mask, jnp.exp(-dist2 / (2 * sigma2)), 0.0).astype(cols.dtype)
+    own = src_arr.colors[nnf]
+    out = (own + jnp.einsum("vk,vkc->vc", w, cols)) / (1.0 + jnp.sum(w, axis=1, keepdims=True))
+    return jnp.where((pin >= 0)[:, None], src_arr.colors[jnp.maximum(pin, 0)], out)
+
+
+@functools.partial(jax.jit, static_argnames=("A", "steps", "hops", "globals_"))
+def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, shape_weight, sigma2,
+             tau2, pin, *, A, steps, hops, globals_):
+    """One PatchMatch iteration at a level: E-step (re-score, propagate, random search), M-step."""
+    t_re, t_im, t_energy = fan_spectrum(_fan_values(tgt, colors, steps), ring_weight)
+
+    def score(cand):
+        return _candidate_cost(t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight)
+
+    # candidates [N, V]: the current match, one propagated match per one-ring neighbour (from
+    # this iteration's start: Jacobi-style, so all vertices update at once), random search through
+    # the source hierarchy (up j levels, down through random children), uniform random vertices
+    off = _offsets(tgt, rot, A)  # [V, K]
+    prop = _star_nearest(src.arr, nnf[tgt.nb_index], off)  # [V, K]
+    prop = jnp.where(tgt.nb_mask, prop, nnf[:, None])
+    cands = [nnf[None], prop.T]
+    keys = jax.random.split(key, len(src.up) * (len(src.up) + 1) + globals_ + 1)
+    n = 0
+    for j in range(len(src.up)):
+        a = src.up[j][nnf]
+        for i in range(j, -1, -1):
+            children, count = src.down[i]
+            u = jax.random.uniform(keys[n], nnf.shape, dtype=jnp.float32)
+            n += 1
+            pick = jnp.minimum((u * count[a].astype(jnp.float32)).astype(jnp.int32), count[a] - 1)
+            a = children[a, pick]
+        cands.append(a[None])
+    for _ in range(globals_):
+        u = jax.random.uniform(keys[n], nnf.shape, dtype=jnp.float32)
+        n += 1
+        pick = jnp.minimum((u * src.num_valid.astype(jnp.float32)).astype(jnp.int32), src.num_valid - 1)
+        cands.append(src.valid_index[pick][None])
+    cands = jnp.concatenate(cands, axis=0).astype(jnp.int32)
+
+    def body(carry, cand):
+        best, best_cost, best_rot = carry
+        c, k = score(cand)
+        better = c < best_cost
+        return (jnp.where(better, cand, best), jnp.where(better, c, best_cost),
+                jnp.where(better, k, best_rot)), None
+
+    init = (nnf, jnp.full(nnf.shape, jnp.inf, t_energy.dtype), rot)
+    (best, best_cost, best_rot), _ = jax.lax.scan(body, init, cands)
+    old = nnf
+
+    best = jnp.where(pin >= 0, jnp.maximum(pin, 0), best)
+    best_rot = jnp.where(pin >= 0, 0, best_rot)
+    colors = _vote(tgt, src.arr, best, best_rot, A, sigma2, tau2, pin)
+    changed = jnp.sum(best != old)
+    return best, best_rot, jnp.where(pin >= 0, 0.0, best_cost), colors, changed
+
+
+@functools.partial(jax.jit, static_argnames=("A",))
+def _vote_jit(tgt, src_arr, nnf, rot, sigma2, tau2, pin, *, A):
+    return _vote(tgt, src_arr, nnf, rot, A, sigma2, tau2, pin)
+
+
+# ---------------------------------------------------------------------------------------------
+# driver
+
+
+class MeshMatchResult(NamedTuple):
+    """Output of :func:`meshmatch`.
+
+    Attributes:
+      colors: ``[Vt, C]`` final target colours: each vertex copies its matched source colour.
+      voted: ``[Vt, C]`` the last Gaussian-weighted vote at the finest level (smoother).
+      nnf: ``[Vt]`` matched source vertex (input indexing).
+      rotation: ``[Vt]`` rotation step k: target frame → source frame by ``2πk/A``.
+      cost: ``[Vt]`` patch distance of the match.
+      stats: per-level iterations, times and mean costs, and preprocessing times.
+    """
+
+    colors: np.ndarray
+    voted: np.ndarray
+    nnf: np.ndarray
+    rotation: np.ndarray
+    cost: np.ndarray
+    stats: dict
+
+
+def _level_pairing(source: Side, target: Side) -> list[int]:
+    hs, ht = np.log(np.asarray(source.edge)), np.log(np.asarray(target.edge))
+    return [int(np.argmin(np.abs(hs - h))) for h in ht]
+
+
+def _side_arrays(side: Side, level: int, radii, config, colors, valid, features, dtype):
+    h = side.hierarchy
+    v, f = h.vertices[level], h.faces[level]
+    fans = geodesic_fans(v, f, radii=radii, num_angles=config.num_angles, edge=side.edge[level],
+                         geometry=side.tracers[level])
+    nb, sm = side.neighborhoods[level], side.smoothers[level]
+    cdt = jnp.complex64 if dtype == jnp.float32 else jnp.complex128
+    arr = LevelArrays(
+        nb_index=jnp.asarray(nb.index, jnp.int32),
+        nb_mask=jnp.asarray(nb.mask),
+        nb_log=jnp.asarray(nb.log, cdt),
+        nb_transport=jnp.asarray(nb.transport, cdt),
+        fan_corners=jnp.asarray(fans.corners, jnp.int32),
+        fan_bary=jnp.asarray(fans.bary, dtype),
+        sm_index=jnp.asarray(sm.index, jnp.int32),
+        sm_weight=jnp.asarray(sm.weight, dtype),
+        features=jnp.asarray(features[h.vertex_index[level]], dtype),
+        colors=jnp.asarray(colors, dtype),
+        valid=jnp.asarray(valid),
+    )
+    return arr, tuple(int(s) for s in fans.steps)
+
+
+def _pool_colors(h: MeshHierarchy, colors: np.ndarray) -> list[np.ndarray]:
+    out = [np.asarray(colors, np.float64)]
+    for p in h.pooling:
+        c = out[-1]
+        out.append(np.einsum("vm,vmc->vc", p.children_weight, c[p.children]))
+    return out
+
+
+def meshmatch(
+    source_vertices: Float[np.ndarray, "Vs 3"],
+    source_faces: Int[np.ndarray, "Fs 3"],
+    source_colors: Float[np.ndarray, "Vs C"],
+    target_vertices: Float[np.ndarray, "Vt 3"],
+    target_faces: Int[np.ndarray, "Ft 3"],
+    *,
+    config: MeshMatchConfig | None = None,
+    seed: int = 0,
+    correspondences: Int[np.ndarray, "m 2"] | None = None,
+    source_mask: np.ndarray | None = None,
+    pin: Int[np.ndarray, " Vt"] | None = None,
+    progress: bool | Callable[[str], Any] = False,
+    prepared: tuple[Side, Side] | None = None,
+) -> MeshMatchResult:
+    """Transfer per-vertex signals from a source mesh to a target mesh by PatchMatch (MeshMatch).
+
+    .. math:: \\text{NNF}(t) = \\arg\\min_{s, k} D_k(t, s), \\qquad
+              c_t = \\frac{\\sum_{q \\in \\{t\\} \\cup N(t)} g_{tq}\\, c^{src}\\bigl(\\exp_{s_q}(e^{i\\theta_q}
+              \\log_q t)\\bigr)}{\\sum_q g_{tq}}
+
+    (Chen et al. 2012, §4: E-step / M-step; see the module docstring for ``D``.)
+
+    Args:
+      source_vertices, source_faces: the exemplar mesh.
+      source_colors: ``[Vs, C]`` per-vertex signal on the source (colours, displacements, ...).
+      target_vertices, target_faces: the mesh to synthesise on (same units as the source: the
+        texture keeps its world-space scale).
+      config: :class:`MeshMatchConfig` (default settings when None).
+      seed: PRNG seed of the random initialisation and search.
+      correspondences: ``[m, 2]`` (source vertex, target vertex) pairs; adds geodesic affinities.
+      source_mask: ``[Vs]`` bool, the source vertices a match may use (default all).
+      pin: ``[Vt]`` source vertex each target vertex must match (−1: free) — for painting by
+        example, where source and target are the same mesh.
+      progress: True for a tqdm bar per level, or a callable receiving one line per level.
+      prepared: ``(source_side, target_side)`` from :func:`prepare_side` to reuse preprocessing.
+
+    Returns:
+      :class:`MeshMatchResult`.
+
+    Raises:
+      InputError: shapes of colours, masks, pins; an empty source mask.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> v, f = icosphere(3)
+      >>> colors = 0.5 + 0.5 * np.sin(4 * v[:, :1])
+      >>> cfg = MeshMatchConfig(min_vertices=150, iterations=2, hks_eigenpairs=8, up=None)
+      >>> r = meshmatch(v, f, colors, v, f, config=cfg)
+      >>> r.colors.shape, bool(np.abs(r.colors - colors).mean() < 0.1)
+      ((642, 1), True)
+    """
+    config = MeshMatchConfig() if config is None else config
+    t_start = time.perf_counter()
+    sv, sf = np.asarray(source_vertices, np.float64), np.asarray(source_faces, np.int64)
+    tv, tf = np.asarray(target_vertices, np.float64), np.asarray(target_faces, np.int64)
+    colors = np.asarray(source_colors, np.float64)
+    if colors.ndim == 1:
+        colors = colors[:, None]
+    if colors.ndim != 2 or len(colors) != len(sv) or not np.all(np.isfinite(colors)):
+        raise InputError(f"source_colors must be finite [Vs={len(sv)}, C], got shape {colors.shape}")
+    valid0 = np.ones(len(sv), bool) if source_mask is None else np.asarray(source_mask, bool)
+    if valid0.shape != (len(sv),):
+        raise InputError(f"source_mask must have shape [Vs={len(sv)}], got {valid0.shape}")
+    if not valid0.any():
+        raise InputError("source_mask selects no source vertex: paint (mask) at least one region")
+    pin0 = None if pin is None else np.asarray(pin, np.int64)
+    if pin0 is not None and (pin0.shape != (len(tv),) or pin0.max(initial=-1) >= len(sv) or pin0.min(initial=0) < -1):
+        raise InputError(f"pin must be [Vt={len(tv)}] source vertices or -1, got shape {pin0.shape}")
+    dtype = jnp.float32 if config.dtype == "float32" else jnp.float64
+
+    timings: dict[str, float] = {}
+    if prepared is None:
+        t0 = time.perf_counter()
+        source = prepare_side(sv, sf, config)
+        same = sv.shape == tv.shape and sf.shape == tf.shape and np.array_equal(sv, tv) and np.array_equal(sf, tf)
+        target = source if same else prepare_side(tv, tf, config, hks_times=source.hks_times)
+        timings["prepare_s"] = time.perf_counter() - t0
+    else:
+        source, target = prepared
+    s_feat, t_feat = source.features, target.features
+    if correspondences is not None:
+        a_s, a_t = correspondence_affinities_for(source, target, correspondences)
+        w = math.sqrt(config.affinity_weight)
+        s_feat = np.concatenate([s_feat, w * a_s], axis=1)
+        t_feat = np.concatenate([t_feat, w * a_t], axis=1)
+
+    pairing = _level_pairing(source, target)
+    s_colors = _pool_colors(source.hierarchy, colors)
+    C = colors.shape[1]
+    R, A = config.num_radii, config.num_angles
+    ring_weight = jnp.ones(R, dtype) / R
+    key = jax.random.key(seed)
+
+    bar = None
+    report = progress if callable(progress) else None
+    if progress is True:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=target.num_levels, desc="meshmatch", unit="level")
+
+    level_stats = []
+    nnf = rot = None
+    fan_s = 0.0
+    prev_src_level = None
+    for level in range(target.num_levels - 1, -1, -1):
+        t_level = time.perf_counter()
+        m = pairing[level]
+        radii = config.radii(target.edge[level])
+        sh = source.hierarchy
+        valid_m = valid0[sh.vertex_index[m]]
+        if not valid_m.any():  # a tiny painted region may vanish at a coarse level
+            valid_m = np.ones_like(valid_m)
+        t0 = time.perf_counter()
+        s_arr, s_steps = _side_arrays(source, m, radii, config, s_colors[m], valid_m, s_feat, dtype)
+        Vt = len(target.hierarchy.vertices[level])
+        t_arr, t_steps = _side_arrays(target, level, radii, config, np.zeros((Vt, C)), np.ones(Vt, bool),
+                                      t_feat, dtype)
+        fan_s += time.perf_counter() - t0
+        # source spectra (fixed), random-search maps
+        s_fans = _fan_values(s_arr, s_arr.colors, s_steps)
+        s_re, s_im, s_energy = fan_spectrum(s_fans, ring_weight)
+        hops = min(config.random_search_levels, source.num_levels - 1 - m)
+        up = tuple(jnp.asarray(ancestors(sh, m, m + j + 1), jnp.int32) for j in range(hops))
+        down = tuple(
+            (jnp.asarray(sh.pooling[m + j].children, jnp.int32),
+             jnp.asarray(np.asarray(sh.pooling[m + j].children_mask).sum(1), jnp.int32))
+            for j in range(hops)
+        )
+        valid_index = np.nonzero(valid_m)[0]
+        src = _Src(s_arr, s_re, s_im, s_energy, up, down, jnp.asarray(valid_index, jnp.int32),
+                   jnp.asarray(len(valid_index), jnp.int32))
+        variance = float(np.var(s_colors[m][valid_m])) + 1e-8
+        color_scale = jnp.asarray(config.color_weight / (R * A * C * variance), dtype)
+        shape_weight = jnp.asarray(config.shape_weight_at(level), dtype)
+        sigma2 = jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype)
+        tau2 = jnp.asarray((0.5 * source.edge[m]) ** 2, dtype)
+        tvi = target.hierarchy.vertex_index[level]
+        if pin0 is None:
+            pin_l = jnp.full(Vt, -1, jnp.int32)
+        else:
+            p = pin0[tvi]
+            mapped = np.where(p >= 0, source.inverse[m][np.maximum(p, 0)], -1)
+            pin_l = jnp.asarray(np.where(mapped >= 0, mapped, -1), jnp.int32)
+
+        if nnf is None:  # coarsest level: random matches among the valid source vertices
+            key, sub = jax.random.split(key)
+            pick = jax.random.randint(sub, (Vt,), 0, len(valid_index))
+            nnf = jnp.asarray(valid_index, jnp.int32)[pick]
+            rot = jnp.zeros(Vt, jnp.int32)
+        else:  # upsample: each vertex starts from its parent's match, moved to this source level
+            parent = np.asarray(target.hierarchy.pooling[level].parent)
+            coarse = np.asarray(nnf)[parent]
+            fine = source.inverse[m][sh.vertex_index[prev_src_level][coarse]]
+            nnf = jnp.asarray(fine, jnp.int32)
+            rot = jnp.asarray(np.asarray(rot)[parent], jnp.int32)
+        colors_t = _vote_jit(t_arr, s_arr, nnf, rot, sigma2, tau2, pin_l, A=A)
+        its, changed = 0, Vt
+        cost = None
+        for _ in range(config.iterations):
+            key, sub = jax.random.split(key)
+            nnf, rot, cost, colors_t, changed = _iterate(
+                t_arr, src, nnf, rot, colors_t, sub, ring_weight, color_scale, shape_weight, sigma2, tau2,
+                pin_l, A=A, steps=t_steps, hops=hops, globals_=config.global_candidates,
+            )
+            its += 1
+            changed = int(changed)
+            if changed < config.tolerance * Vt:
+                break
+        cost_np = np.asarray(cost)
+        finite = np.isfinite(cost_np)
+        mean_cost = float(cost_np[finite].mean()) if finite.any() else float("inf")
+        level_stats.append({
+            "level": level, "source_level": m, "vertices": Vt, "iterations": its,
+            "changed": changed, "mean_cost": mean_cost, "seconds": time.perf_counter() - t_level,
+        })
+        line = f"level {level}: {Vt} vertices, {its} iterations, mean cost {mean_cost:.4g}, {changed} changed"
+        if bar is not None:
+            bar.set_postfix_str(line)
+            bar.update(1)
+        if report is not None:
+            report(line)
+        prev_src_level = m
+    if bar is not None:
+        bar.close()
+
+    m0 = pairing[0]
+    nnf_input = source.hierarchy.vertex_index[m0][np.asarray(nnf)]
+    voted = np.asarray(colors_t, np.float64)
+    final = colors[nnf_input]
+    timings["fans_s"] = fan_s
+    timings["total_s"] = time.perf_counter() - t_start
+    return MeshMatchResult(
+        colors=final,
+        voted=voted,
+        nnf=nnf_input,
+        rotation=np.asarray(rot),
+        cost=np.asarray(cost),
+        stats={"levels": level_stats, **timings},
+    )
+
+
+def correspondence_affinities_for(source: Side, target: Side, pairs):
+    """Affinities of :func:`~jmeshtex.meshmatch.correspondence_affinities` for prepared sides."""
+    from ._fans import correspondence_affinities
+
+    hs, ht = source.hierarchy, target.hierarchy
+    return correspondence_affinities(hs.vertices[0], hs.faces[0], ht.vertices[0], ht.faces[0], pairs)

@@ -1,0 +1,285 @@
+"""Field convolution: hand cases, a slow loop reference, exact gauge equivariance (and the printed
+eq. 34 as a negative control), padding, batching, jit, dtypes, zero features and gradients."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+from jmeshtex import ConfigError, InputError
+from jmeshtex.data import grid
+from jmeshtex.geometry import VertexNeighborhood, pad_to, to_jax
+from jmeshtex.ops import FieldConvParams, field_conv, init_field_conv
+
+_conv = jax.jit(field_conv, static_argnames=("delta",))
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def random_nbhd(rng, v, k, *, self_slot=True, p_pad=0.3):
+    """A valid random k-NN-like neighbourhood (host NumPy, float64), padded slots per the contract."""
+    index = rng.integers(0, v, (v, k))
+    mask = rng.random((v, k)) > p_pad
+    log = rng.uniform(0.2, 1.0, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
+    transport = np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
+    weight = rng.uniform(0.5, 1.5, (v, k))
+    if self_slot:
+        index[:, 0], mask[:, 0], log[:, 0], transport[:, 0] = np.arange(v), True, 0, 1
+    mask[:, 0] = True
+    index, log, transport, weight = (np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0)))
+    return VertexNeighborhood(
+        index=index.astype(np.int32), mask=mask, log=log, transport=transport, weight=weight,
+        area=rng.uniform(0.5, 1.5, v), vertex_mask=np.ones(v, bool),
+    )
+
+
+def grid_nbhd(n):
+    """The 3×3 stencil on the flat n×n grid of `jmeshtex.data.grid` (parallel diagonals): k-NN with a self
+    slot; log = planar offset, transport = 1, weight = barycentric vertex area."""
+    verts, faces = grid(n, diagonals="uniform")
+    v = len(verts)
+    e0, e1 = verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]]
+    fa = 0.5 * np.linalg.norm(np.cross(e0, e1), axis=1)
+    area = np.zeros(v)
+    np.add.at(area, faces.ravel(), np.repeat(fa / 3, 3))
+    pos = verts[:, 0] + 1j * verts[:, 1]
+    step = np.min(np.abs(pos[1:] - pos[0]))
+    ij = np.round(np.stack([pos.real, pos.imag], 1) / step).astype(int)
+    lookup = {tuple(t): i for i, t in enumerate(ij)}
+    offsets = [(0, 0)] + [(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1) if (a, b) != (0, 0)]
+    index = np.array([[lookup.get((i + a, j + b), -1) for a, b in offsets] for i, j in ij])  # host set-up only
+    mask = index >= 0
+    index = np.where(mask, index, 0)
+    log = np.where(mask, pos[index] - pos[:, None], 0)
+    return VertexNeighborhood(
+        index=index.astype(np.int32), mask=mask, log=log, transport=np.ones(index.shape, complex),
+        weight=np.where(mask, area[index], 0.0), area=area, vertex_mask=np.ones(v, bool),
+    )
+
+
+def crandn(rng, *shape):
+    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+
+
+def silu(t):
+    return t / (1 + np.exp(-t))
+
+
+def loop_reference(x, nb, params, emb=None, delta=1e-4, printed_eq34=False):
+    """Slow NumPy field convolution, one (vertex, slot, channel) at a time.
+
+    ``printed_eq34`` pairs log_p(q) with x̂_q in q's own frame (no transport inside the filter).
+    """
+    x = np.asarray(x, complex)
+    a_w, b, mix = (np.asarray(t) for t in params)
+    v, c = x.shape
+    y = np.zeros((v, mix.shape[2]), complex)
+    for p in range(v):
+        wsum = sum(nb.weight[p, k] for k in range(nb.index.shape[1]) if nb.mask[p, k])
+        for k in range(nb.index.shape[1]):
+            if not nb.mask[p, k]:
+                continue
+            q, rho, w = nb.index[p, k], nb.transport[p, k], nb.weight[p, k] / wsum
+            for ch in range(c):
+                u = rho * x[q, ch]
+                direction = x[q, ch] if printed_eq34 else u
+                a = nb.log[p, k] * np.conj(direction / np.sqrt(abs(direction) ** 2 + delta**2))
+                inp = np.concatenate([[a.real, a.imag], [] if emb is None else emb[p]])
+                phi = silu(inp @ a_w + b)
+                y[p] += w * u * (phi @ mix[ch])
+    return y
+
+
+def gauge_transform(x, nb, alpha):
+    """Rotate every frame p by alpha_p: features and logs by e^{-iα_p}, transports by e^{i(α_q − α_p)}."""
+    rot = np.exp(-1j * alpha)
+    return x * rot[:, None], nb._replace(
+        log=nb.log * rot[:, None], transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None]))
+    )
+
+
+def rel_err(a, b):
+    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
+
+
+# ----------------------------------------------------------------------------- exact cases
+
+
+def test_hand_case_single_transported_neighbour():
+    # vertex 0 sees vertex 1 one unit east; 1's frame is turned so that ρ = i; x_1 = 1 in 1's frame.
+    # u = i, û ≈ i, a = 1 · conj(i) = -i  =>  φ = SiLU(Im a) = SiLU(-1), y_0 = u φ.
+    nb = VertexNeighborhood(
+        index=np.array([[1], [0]], np.int32), mask=np.array([[True], [False]]),
+        log=np.array([[1.0 + 0j], [0j]]), transport=np.array([[1j], [1 + 0j]]),
+        weight=np.array([[2.0], [0.0]]), area=np.ones(2), vertex_mask=np.ones(2, bool),
+    )
+    params = FieldConvParams(np.array([[0.0], [1.0]]), np.zeros(1), np.ones((1, 1, 1), complex))
+    y = _conv(jnp.array([[0j], [1 + 0j]]), nb, params, delta=1e-9)
+    np.testing.assert_allclose(np.asarray(y), [[1j * silu(-1.0)], [0]], rtol=1e-12, atol=1e-15)
+
+
+def test_matches_loop_reference(rng):
+    nb = random_nbhd(rng, 7, 5)
+    x = crandn(rng, 7, 3)
+    x[2, 1] = 0  # one exact zero feature
+    emb = rng.standard_normal((7, 2))
+    for e in (None, emb):
+        params = init_field_conv(jax.random.key(1), 3, 4, hdim=6, embedding_features=0 if e is None else 2,
+                                 dtype=jnp.complex128)
+        got = _conv(jnp.asarray(x), nb, params, embedding=e)
+        assert rel_err(got, loop_reference(x, nb, params, e)) < 1e-12
+
+
+def test_flat_grid_constant_field_gives_constant_interior_output():
+    # on the flat grid every vertex away from the boundary sees the same stencil with the same areas,
+    # so a constant field (transport 1) must give the same output at all of them
+    nb = grid_nbhd(6)
+    params = init_field_conv(jax.random.key(2), 2, 3, hdim=4, dtype=jnp.complex128)
+    x = jnp.tile(jnp.array([[1 + 2j, -0.5j]]), (len(nb.area), 1))
+    y = np.asarray(_conv(x, nb, params))
+    interior = nb.mask[nb.index].all(axis=(1, 2))  # the whole stencil is interior
+    assert interior.sum() == 9
+    np.testing.assert_allclose(y[interior], np.broadcast_to(y[interior][0], y[interior].shape), rtol=1e-12)
+    assert rel_err(y, loop_reference(np.asarray(x), nb, params)) < 1e-12
+
+
+# ----------------------------------------------------------------------------- equivariance
+
+
+def _gauge_error(fn, x, nb, alpha, emb):
+    y = fn(x, nb, emb)
+    x2, nb2 = gauge_transform(x, nb, alpha)
+    y2 = fn(x2, nb2, emb)
+    return rel_err(y2, y * np.exp(-1j * alpha)[:, None])
+
+
+def test_gauge_equivariance_exact(rng):
+    nb = random_nbhd(rng, 9, 6)
+    x, emb = crandn(rng, 9, 3), rng.standard_normal((9, 2))
+    alpha = rng.uniform(-np.pi, np.pi, 9)
+    params = init_field_conv(jax.random.key(3), 3, 2, hdim=5, embedding_features=2, dtype=jnp.complex128)
+    err = _gauge_error(lambda a, n, e: np.asarray(_conv(jnp.asarray(a), n, params, embedding=e)), x, nb, alpha, emb)
+    assert err < 1e-12
+
+
+def test_printed_eq34_argument_is_not_gauge_equivariant(rng):
+    # negative control: the same harness flags the printed argument log_p(q)·conj(x̂_q), x̂_q in q's frame
+    nb = random_nbhd(rng, 6, 4)
+    x, emb = crandn(rng, 6, 2), rng.standard_normal((6, 1))
+    alpha = rng.uniform(-np.pi, np.pi, 6)
+    params = init_field_conv(jax.random.key(4), 2, 2, hdim=4, embedding_features=1, dtype=jnp.complex128)
+    gathering = _gauge_error(lambda a, n, e: loop_reference(a, n, params, e), x, nb, alpha, emb)
+    printed = _gauge_error(lambda a, n, e: loop_reference(a, n, params, e, printed_eq34=True), x, nb, alpha, emb)
+    assert gathering < 1e-12
+    assert printed > 1e-2
+
+
+# ----------------------------------------------------------------------------- padding, batching, jit
+
+
+def test_padding_invariance(rng):
+    nb = random_nbhd(rng, 6, 4)
+    params = init_field_conv(jax.random.key(5), 2, 3, hdim=4, embedding_features=1, dtype=jnp.complex128)
+    x, emb = crandn(rng, 6, 2), rng.standard_normal((6, 1))
+    y = _conv(jnp.asarray(x), nb, params, embedding=emb)
+    padded = pad_to(nb, {"V": 9, "K": 7})
+    x_pad = np.concatenate([x, 1e3 * crandn(rng, 3, 2)])  # garbage on padded vertices
+    emb_pad = np.concatenate([emb, 1e3 * rng.standard_normal((3, 1))])
+    y_pad = _conv(jnp.asarray(x_pad), padded, params, embedding=emb_pad)
+    assert rel_err(y_pad[:6], y) < 1e-13
+    # a padded vertex has no valid slot: its output is 0
+    np.testing.assert_array_equal(np.asarray(y_pad[6:]), 0)
+
+
+def test_vmap_over_padded_batch(rng):
+    nbs = [random_nbhd(rng, 5, 3), random_nbhd(rng, 8, 6)]
+    xs = [crandn(rng, 5, 2), crandn(rng, 8, 2)]
+    params = init_field_conv(jax.random.key(6), 2, 2, hdim=3, dtype=jnp.complex128)
+    batch = jax.tree.map(lambda *a: np.stack(a), *[pad_to(n, {"V": 8, "K": 6}) for n in nbs])
+    xb = np.stack([np.concatenate([xs[0], np.zeros((3, 2))]), xs[1]])
+    yb = jax.jit(jax.vmap(lambda a, n: field_conv(a, n, params)))(jnp.asarray(xb), batch)
+    for i, (n, a) in enumerate(zip(nbs, xs)):
+        assert rel_err(yb[i, : len(a)], _conv(jnp.asarray(a), n, params)) < 1e-13
+
+
+def test_jit_matches_eager_without_recompiling(rng):
+    nb = to_jax(random_nbhd(rng, 5, 3), jnp.float32)
+    params = init_field_conv(jax.random.key(7), 2, 2, hdim=3)
+    x1, x2 = (jnp.asarray(crandn(rng, 5, 2), jnp.complex64) for _ in range(2))
+    traces = []
+
+    def fn(a, n):
+        traces.append(1)
+        return field_conv(a, n, params)
+
+    jitted = jax.jit(fn)
+    np.testing.assert_allclose(jitted(x1, nb), field_conv(x1, nb, params), rtol=1e-5, atol=1e-6)
+    jitted(x2, nb)
+    assert len(traces) == 1  # traced once for both calls (the eager call does not go through fn)
+
+
+@pytest.mark.parametrize("real", [jnp.float32, jnp.float64])
+def test_dtype_follows_input(rng, real):
+    cplx = jnp.complex64 if real == jnp.float32 else jnp.complex128
+    nb = to_jax(random_nbhd(rng, 4, 3), real)
+    params = init_field_conv(jax.random.key(8), 2, 3, hdim=2, embedding_features=1)  # complex64 params
+    y = _conv(jnp.asarray(crandn(rng, 4, 2), cplx), nb, params, embedding=jnp.ones((4, 1), jnp.float32))
+    assert y.dtype == cplx
+
+
+# ----------------------------------------------------------------------------- zero features, gradients
+
+
+def test_zero_features_finite_values_and_gradients(rng):
+    nb = random_nbhd(rng, 5, 4)
+    params = init_field_conv(jax.random.key(9), 2, 2, hdim=3, embedding_features=1, dtype=jnp.complex128)
+    emb = rng.standard_normal((5, 1))
+    x0 = jnp.zeros((5, 2), jnp.complex128)
+    np.testing.assert_array_equal(np.asarray(_conv(x0, nb, params, embedding=emb)), 0)
+
+    def loss(x, p):
+        y = field_conv(x, nb, p, embedding=emb)
+        return jnp.sum(y.real * 0.3 - y.imag * 1.7)
+
+    gx, gp = jax.jit(jax.grad(loss, argnums=(0, 1)))(x0, params)
+    for g in jax.tree.leaves((gx, gp)):
+        assert np.all(np.isfinite(np.asarray(g)))
+    assert np.abs(np.asarray(gx)).max() > 0  # the output does depend on x at 0
+
+
+def test_check_grads_real_and_imaginary_parts(rng):
+    nb = random_nbhd(rng, 4, 3)
+    emb = rng.standard_normal((4, 1))
+    p = init_field_conv(jax.random.key(10), 2, 2, hdim=3, embedding_features=1, dtype=jnp.complex128)
+    x = crandn(rng, 4, 2)
+
+    def f(xr, xi, a_w, a_b, mr, mi):
+        y = field_conv(jax.lax.complex(xr, xi), nb, FieldConvParams(a_w, a_b, jax.lax.complex(mr, mi)), embedding=emb)
+        return jnp.concatenate([y.real, y.imag])
+
+    args = (x.real, x.imag, p.filter_weight, p.filter_bias, p.mix.real, p.mix.imag)
+    check_grads(jax.jit(f), args, order=2, modes=("fwd", "rev"), atol=1e-5, rtol=1e-5)
+
+
+# ----------------------------------------------------------------------------- errors
+
+
+def test_bad_inputs_raise_typed_errors(rng):
+    nb = random_nbhd(rng, 4, 3)
+    p = init_field_conv(jax.random.key(11), 2, 2, hdim=3, embedding_features=1)
+    x = jnp.asarray(crandn(rng, 4, 2), jnp.complex64)
+    with pytest.raises(InputError, match="complex"):
+        field_conv(x.real, nb, p, embedding=jnp.ones((4, 1)))
+    with pytest.raises(InputError, match="embedding=None"):
+        field_conv(x, nb, p)
+    with pytest.raises(InputError, match="embedding must have shape"):
+        field_conv(x, nb, p, embedding=jnp.ones((4, 2)))
+    with pytest.raises(InputError, match="vertices"):
+        field_conv(x[:3], nb, p, embedding=jnp.ones((3, 1)))
+    with pytest.raises(InputError, match="mix"):
+        field_conv(jnp.ones((4, 5), jnp.complex64), nb, p, embedding=jnp.ones((4, 1)))
+    with pytest.raises(ConfigError, match="delta"):
+        field_conv(x, nb, p, embedding=jnp.ones((4, 1)), delta=0.0)
