@@ -171,10 +171,10 @@ def sample_points(
     tri = vertices[faces]
     cross = jnp.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area = jax.lax.stop_gradient(safe_norm(cross))
-    k_face, k_uv = jax.random.split(key)
-    logits = jnp.log(area + jnp.finfo(vertices.dtype).tiny)
-    face = jax.random.categorical(k_face, logits, shape=(n,))
-    u, w = jax.random.uniform(k_uv, (2, n), vertices.dtype)
+    cdf = jnp.cumsum(area)
+    r, u, w = jax.random.uniform(key, (3, n), vertices.dtype)
+    # inverse CDF; side="right" never picks a zero-area face
+    face = jnp.minimum(jnp.searchsorted(cdf, r * cdf[-1], side="right", method="sort"), faces.shape[0] - 1)
     s = jnp.sqrt(u)
     bary = jnp.stack([1 - s, s * (1 - w), s * w], axis=1)
     points = jnp.einsum("nk,nkd->nd", bary, tri[face])

@@ -22,6 +22,7 @@ features, displacements and their gradients stay finite (:mod:`._util` safe norm
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -86,12 +87,6 @@ class FaceConvStackParams(NamedTuple):
 
     embed: FaceEmbedParams
     convs: tuple[FaceConvParams, ...]
-
-
-def _max3(x: Float[Array, "F 3 D"]) -> Float[Array, "F D"]:
-    """Max over axis 1 (size 3) as two elementwise maxima: ~10x faster backward than a reduce-max
-    on CPU (whose VJP builds equality masks and counts)."""
-    return jnp.maximum(jnp.maximum(x[:, 0], x[:, 1]), x[:, 2])
 
 
 def _check_vertices(vertices, nbhd: FaceNeighborhood, name: str) -> None:
@@ -213,8 +208,9 @@ def face_edge_embed(features: Float[Array, "F 3 E"], params: FaceEmbedParams) ->
     w = params.weight.astype(features.dtype)
     b = params.bias.astype(features.dtype)
     F = features.shape[0]
-    h = features.reshape(3 * F, E) @ w  # one GEMM over all edges
-    return _max3(h.reshape(F, 3, -1)) + b
+    h = (features.reshape(3 * F, E) @ w).reshape(F, 3, -1)  # one GEMM over all edges
+    # elementwise maxima: on CPU their backward is ~10x cheaper than a reduce-max's (measured)
+    return jnp.maximum(jnp.maximum(h[:, 0], h[:, 1]), h[:, 2]) + b
 
 
 def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvParams) -> Float[Array, "F D"]:
@@ -226,8 +222,8 @@ def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvPa
     where ``N(f)`` holds the faces across the edges of ``f`` that have one (``nbhd.mask``), so a
     boundary face takes the max over its one or two neighbours. Because the weights are shared by the
     neighbours, the GEMM runs first (``[F, C] @ [C, 2D]``, a third of the FLOPs of gathering
-    ``[x_j ; x_f]`` first) and only ``W_n^T x_j`` is gathered; the mask enters as an additive
-    ``-big`` before the max (no ``where``).
+    ``[x_j ; x_f]`` first) and only ``W_n^T x_j`` is gathered, one ``[F, D]`` slice per edge; the
+    mask enters as an additive ``-big`` before an elementwise max (no ``where``).
 
     Conventions: a face with no neighbour at all (an isolated triangle) gets ``W_s^T x_f + b``, the
     neighbour term being 0; padded faces (``face_mask`` False) give 0.
@@ -266,9 +262,12 @@ def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvPa
     z_nbr, z_self = z[:, :D], z[:, D:]
     mask = nbhd.mask.astype(dtype)
     big = jnp.asarray(jnp.finfo(dtype).max / 4, dtype)
-    gathered = z_nbr[nbhd.neighbors] + ((mask - 1) * big)[..., None]  # [F, 3, D]
+    penalty = (mask - 1) * big  # 0 for real neighbours, -big for missing ones
+    nbr_max = functools.reduce(
+        jnp.maximum, [z_nbr[nbhd.neighbors[:, k]] + penalty[:, k, None] for k in range(3)]
+    )
     has_nbr = jnp.max(mask, axis=1, keepdims=True)  # 0 for isolated faces
-    y = _max3(gathered) * has_nbr + z_self + params.bias.astype(dtype)
+    y = nbr_max * has_nbr + z_self + params.bias.astype(dtype)
     return y * nbhd.face_mask.astype(dtype)[:, None]
 
 

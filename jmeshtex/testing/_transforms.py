@@ -284,28 +284,16 @@ def _sheet(n: int, rng: np.random.Generator, *, jitter: float = 0.25):
     return v, f, ix, iy
 
 
-def _fold_about(v: np.ndarray, sel: np.ndarray, point: np.ndarray, axis: np.ndarray, angle: float):
-    """Rotate the selected vertices rigidly by ``angle`` about the line ``point + s·axis``."""
-    axis = axis / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    R = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
-    out = v.copy()
-    out[sel] = (v[sel] - point) @ R.T + point
-    return out
-
-
 def _folds(n_folds: int, name: str):
     def draw(n: int, rng: np.random.Generator, dtype) -> Realisation:
+        from ._isometries import fold_sheet
+
         v, f, ix, iy = _sheet(n, rng)
-        folded = v.copy()
-        # fold along distinct grid columns, from the right-most inward, so each fold moves the
-        # already-folded part rigidly with it
-        cols = np.sort(rng.choice(np.arange(2, n - 1), size=n_folds, replace=False))[::-1]
-        for c in cols:
-            sel = ix > c
-            line = folded[(ix == c) & (iy == 0)][0], folded[(ix == c) & (iy == n)][0]
-            angle = rng.uniform(0.3, 2.5) * rng.choice([-1.0, 1.0])
-            folded = _fold_about(folded, sel, line[0], line[1] - line[0], angle)
+        # fold along distinct grid columns (parallel lines: nested moving parts)
+        cols = rng.choice(np.arange(2, n - 1), size=n_folds, replace=False)
+        lines = [("x", float(v[(ix == c) & (iy == 0), 0][0])) for c in cols]
+        angles = rng.uniform(0.3, 2.5, n_folds) * rng.choice([-1.0, 1.0], n_folds)
+        folded = fold_sheet(v, f, lines=lines, angles=angles)
         source = MeshState(v, f, dtype=dtype)
         return _identity(source, source.with_(vertices=folded), name)
 
@@ -314,11 +302,13 @@ def _folds(n_folds: int, name: str):
 
 def _hinge(n: int, rng: np.random.Generator, dtype) -> Realisation:
     """A sheet whose top rows turn about a hinge row, like a lid on a box."""
+    from ._isometries import hinge
+
     v, f, ix, iy = _sheet(n, rng)
     r = int(rng.integers(2, n - 1))
-    line = v[(iy == r) & (ix == 0)][0], v[(iy == r) & (ix == n)][0]
-    angle = rng.uniform(0.5, 2.8)
-    moved = _fold_about(v, iy > r, line[0], line[1] - line[0], angle)
+    y = float(v[(iy == r) & (ix == 0), 1][0])
+    moved = hinge(v, f, moving=iy > r, axis_point=(0.0, y, 0.0), axis_direction=(1.0, 0.0, 0.0),
+                  angle=float(rng.uniform(0.5, 2.8)))
     source = MeshState(v, f, dtype=dtype)
     return _identity(source, source.with_(vertices=moved), "hinge")
 
