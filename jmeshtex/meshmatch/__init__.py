@@ -21,3 +21,10 @@ from ._patchmatch import fan_spectrum as fan_spectrum
 from ._patchmatch import meshmatch as meshmatch
 from ._patchmatch import prepare_side as prepare_side
 from ._patchmatch import rotation_distances as rotation_distances
+from ._transfer import TransferResult as TransferResult
+from ._transfer import bake_texture as bake_texture
+from ._transfer import detail_displacement as detail_displacement
+from ._transfer import paint_by_example as paint_by_example
+from ._transfer import transfer_displacement as transfer_displacement
+from ._transfer import transfer_texture as transfer_texture
+from ._transfer import vertex_colors_from_texture as vertex_colors_from_texture

@@ -30,6 +30,8 @@ class MeshMatchConfig:
         vertices and copied down to the finer levels through the parent maps (it is smooth).
       up: the "up" direction of the ``n · up`` shape feature, or None to leave the feature out.
       iterations: most PatchMatch iterations (E-step + M-step) per level.
+      coarse_iterations: most iterations at the coarsest level, which starts from a random field
+        (propagation moves good matches one ring per iteration there; the level is tiny).
       tolerance: a level stops early when fewer than this fraction of target vertices changed
         their match in an iteration.
       random_search_levels: how many hierarchy levels the random search hops up (then down again
@@ -43,23 +45,24 @@ class MeshMatchConfig:
     Example:
       >>> c = MeshMatchConfig(num_angles=12)
       >>> c.num_angles, c.shape_weight_at(5)
-      (12, 0.5)
+      (12, 3.0)
     """
 
     num_radii: int = 3
     num_angles: int = 18
-    fan_radius: float = 2.5
+    fan_radius: float = 4.0
     color_weight: float = 1.0
-    shape_weight: float | tuple[float, ...] = 0.5
+    shape_weight: float | tuple[float, ...] = 3.0
     affinity_weight: float = 1.0
     hks_times: int = 8
     hks_eigenpairs: int = 32
     hks_max_vertices: int = 4096
     up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
     iterations: int = 6
+    coarse_iterations: int = 30
     tolerance: float = 0.002
     random_search_levels: int = 3
-    global_candidates: int = 1
+    global_candidates: int = 4
     vote_sigma: float = 1.0
     min_vertices: int = 128
     levels: int | None = None
@@ -68,7 +71,7 @@ class MeshMatchConfig:
     def __post_init__(self):
         ints = {
             "num_radii": 1, "num_angles": 2, "hks_times": 1, "hks_eigenpairs": 2,
-            "hks_max_vertices": 16, "iterations": 1, "min_vertices": 8,
+            "hks_max_vertices": 16, "iterations": 1, "coarse_iterations": 1, "min_vertices": 8,
         }
         for name, low in ints.items():
             value = getattr(self, name)

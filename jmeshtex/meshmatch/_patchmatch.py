@@ -304,21 +304,20 @@ def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, sh
     prop = _star_nearest(src.arr, nnf[tgt.nb_index], off)  # [V, K]
     prop = jnp.where(tgt.nb_mask, prop, nnf[:, None])
     cands = [nnf[None], prop.T]
-    keys = jax.random.split(key, len(src.up) * (len(src.up) + 1) + globals_ + 1)
+    num_random = sum(j + 1 for j in range(len(src.up))) + globals_
+    uniform = jax.random.uniform(key, (max(num_random, 1),) + nnf.shape, dtype=jnp.float32)
     n = 0
     for j in range(len(src.up)):
         a = src.up[j][nnf]
         for i in range(j, -1, -1):
             children, count = src.down[i]
-            u = jax.random.uniform(keys[n], nnf.shape, dtype=jnp.float32)
+            pick = jnp.minimum((uniform[n] * count[a].astype(jnp.float32)).astype(jnp.int32), count[a] - 1)
             n += 1
-            pick = jnp.minimum((u * count[a].astype(jnp.float32)).astype(jnp.int32), count[a] - 1)
             a = children[a, pick]
         cands.append(a[None])
     for _ in range(globals_):
-        u = jax.random.uniform(keys[n], nnf.shape, dtype=jnp.float32)
+        pick = jnp.minimum((uniform[n] * src.num_valid.astype(jnp.float32)).astype(jnp.int32), src.num_valid - 1)
         n += 1
-        pick = jnp.minimum((u * src.num_valid.astype(jnp.float32)).astype(jnp.int32), src.num_valid - 1)
         cands.append(src.valid_index[pick][None])
     cands = jnp.concatenate(cands, axis=0).astype(jnp.int32)
 
@@ -340,9 +339,9 @@ def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, sh
     return best, best_rot, jnp.where(pin >= 0, 0.0, best_cost), colors, changed
 
 
-@functools.partial(jax.jit, static_argnames=("A",))
-def _vote_jit(tgt, src_arr, nnf, rot, sigma2, tau2, pin, *, A):
-    return _vote(tgt, src_arr, nnf, rot, A, sigma2, tau2, pin)
+@functools.partial(jax.jit, static_argnames=("steps",))
+def _source_spectrum(arr: LevelArrays, ring_weight, *, steps):
+    return fan_spectrum(_fan_values(arr, arr.colors, steps), ring_weight)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -377,8 +376,11 @@ def _level_pairing(source: Side, target: Side) -> list[int]:
 def _side_arrays(side: Side, level: int, radii, config, colors, valid, features, dtype):
     h = side.hierarchy
     v, f = h.vertices[level], h.faces[level]
+    # angle 0 half a step off the frame's x-axis (the edge to ring slot 0): no sample geodesic of a
+    # regular mesh then runs along an edge through vertices (an ambiguous straightest geodesic)
+    reference = np.full(len(v), np.exp(1j * np.pi / config.num_angles))
     fans = geodesic_fans(v, f, radii=radii, num_angles=config.num_angles, edge=side.edge[level],
-                         geometry=side.tracers[level])
+                         reference=reference, geometry=side.tracers[level])
     nb, sm = side.neighborhoods[level], side.smoothers[level]
     cdt = jnp.complex64 if dtype == jnp.float32 else jnp.complex128
     arr = LevelArrays(
@@ -449,13 +451,13 @@ def meshmatch(
       InputError: shapes of colours, masks, pins; an empty source mask.
 
     Example:
-      >>> from jmeshtex.data import icosphere
-      >>> v, f = icosphere(3)
-      >>> colors = 0.5 + 0.5 * np.sin(4 * v[:, :1])
-      >>> cfg = MeshMatchConfig(min_vertices=150, iterations=2, hks_eigenpairs=8, up=None)
-      >>> r = meshmatch(v, f, colors, v, f, config=cfg)
-      >>> r.colors.shape, bool(np.abs(r.colors - colors).mean() < 0.1)
-      ((642, 1), True)
+      >>> from jmeshtex.data import torus
+      >>> v, f = torus(24, 12)
+      >>> colors = 0.5 + 0.4 * np.sin(5 * np.arctan2(v[:, 1], v[:, 0]))[:, None]
+      >>> cfg = MeshMatchConfig(levels=2, iterations=3, hks_eigenpairs=8)
+      >>> r = meshmatch(v, f, colors, v, f, config=cfg)   # self-transfer
+      >>> r.colors.shape, bool(np.abs(r.colors - colors).mean() < 0.05)
+      ((288, 1), True)
     """
     config = MeshMatchConfig() if config is None else config
     t_start = time.perf_counter()
@@ -525,8 +527,7 @@ def meshmatch(
                                       t_feat, dtype)
         fan_s += time.perf_counter() - t0
         # source spectra (fixed), random-search maps
-        s_fans = _fan_values(s_arr, s_arr.colors, s_steps)
-        s_re, s_im, s_energy = fan_spectrum(s_fans, ring_weight)
+        s_re, s_im, s_energy = _source_spectrum(s_arr, ring_weight, steps=s_steps)
         hops = min(config.random_search_levels, source.num_levels - 1 - m)
         up = tuple(jnp.asarray(ancestors(sh, m, m + j + 1), jnp.int32) for j in range(hops))
         down = tuple(
@@ -555,19 +556,24 @@ def meshmatch(
             pick = jax.random.randint(sub, (Vt,), 0, len(valid_index))
             nnf = jnp.asarray(valid_index, jnp.int32)[pick]
             rot = jnp.zeros(Vt, jnp.int32)
+            colors_t = s_arr.colors[nnf]
         else:  # upsample: each vertex starts from its parent's match, moved to this source level
             parent = np.asarray(target.hierarchy.pooling[level].parent)
             coarse = np.asarray(nnf)[parent]
             fine = source.inverse[m][sh.vertex_index[prev_src_level][coarse]]
             nnf = jnp.asarray(fine, jnp.int32)
             rot = jnp.asarray(np.asarray(rot)[parent], jnp.int32)
-        colors_t = _vote_jit(t_arr, s_arr, nnf, rot, sigma2, tau2, pin_l, A=A)
+            colors_t = jnp.asarray(np.asarray(colors_t)[parent], dtype)
         its, changed = 0, Vt
         cost = None
-        for _ in range(config.iterations):
+        coarsest = level == target.num_levels - 1
+        budget = config.coarse_iterations if coarsest else config.iterations
+        for it in range(budget):
             key, sub = jax.random.split(key)
+            # the random start's colours mean nothing: its first E-step matches shape only
+            scale = color_scale * 0 if (coarsest and it == 0 and config.shape_weight_at(level) > 0) else color_scale
             nnf, rot, cost, colors_t, changed = _iterate(
-                t_arr, src, nnf, rot, colors_t, sub, ring_weight, color_scale, shape_weight, sigma2, tau2,
+                t_arr, src, nnf, rot, colors_t, sub, ring_weight, scale, shape_weight, sigma2, tau2,
                 pin_l, A=A, steps=t_steps, hops=hops, globals_=config.global_candidates,
             )
             its += 1

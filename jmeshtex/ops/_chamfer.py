@@ -74,21 +74,34 @@ def _check_mask(name: str, what: str, mask, n: int):
 
 
 def _nearest_index(points, targets, target_mask, chunk_size: int):
-    """Argmin over valid targets, chunked over ``points``; no gradient."""
+    """Argmin over valid targets, chunked over ``points``; no gradient.
+
+    Distances are formed coordinate by coordinate, ``Σ_k (p_k - q_k)²`` (exact, no cancellation,
+    and XLA fuses it into the reductions), and the argmin takes two plain reductions, a min and then
+    the lowest index attaining it: on CPU both vectorise, unlike a variadic argmin reduction
+    (measured ~1.5x faster than ``argmin(|q|² - 2 p·q)`` at 20K × 20K).
+    """
     points = jax.lax.stop_gradient(points)
     targets = jax.lax.stop_gradient(targets)
     N, D = points.shape
+    M = targets.shape[0]
     chunk = max(1, min(int(chunk_size), N))
     n_chunks = -(-N // chunk)
     padded = jnp.pad(points, ((0, n_chunks * chunk - N), (0, 0))).reshape(n_chunks, chunk, D)
-    # |p - q|^2 = |p|^2 - 2 p.q + |q|^2; |p|^2 is constant per row and does not move the argmin.
-    # Invalid targets get +inf so they are never chosen (the whole search is outside autodiff).
-    offset = jnp.sum(targets * targets, axis=1) + jnp.where(target_mask, 0, jnp.inf).astype(points.dtype)
+    # invalid targets get +inf so they are never chosen (the whole search is outside autodiff)
+    offset = jnp.where(target_mask, 0, jnp.inf).astype(points.dtype)
+    iota = jnp.arange(M, dtype=jnp.int32)
 
     def one_chunk(c):
-        return jnp.argmin(offset[None, :] - 2 * (c @ targets.T), axis=1).astype(jnp.int32)
+        d2 = offset[None, :]
+        for k in range(D):
+            diff = c[:, k, None] - targets[None, :, k]
+            d2 = d2 + diff * diff
+        best = jnp.min(d2, axis=1, keepdims=True)
+        return jnp.min(jnp.where(d2 <= best, iota[None, :], M), axis=1)
 
-    return jax.lax.map(one_chunk, padded).reshape(-1)[:N]
+    index = jax.lax.map(one_chunk, padded).reshape(-1)[:N]
+    return jnp.minimum(index, M - 1)  # NaN coordinates would give M: keep the gather in bounds
 
 
 def nearest_neighbor(
@@ -96,22 +109,24 @@ def nearest_neighbor(
     targets: Float[Array, "M D"],
     *,
     target_mask: Bool[Array, " M"] | None = None,
-    chunk_size: int = 1024,
+    chunk_size: int = 128,
 ) -> NearestNeighbors:
     """Nearest valid target of every point, by a chunked brute-force search.
 
     .. math:: j(i) = \\arg\\min_{j:\\, m_j} |p_i - q_j|^2,\\qquad d_i = |p_i - q_{j(i)}|^2
 
-    ``j`` is found without gradient through ``chunk_size × M`` blocks of ``|q|^2 - 2 p·q`` (one GEMM
-    per block); ``d`` is then recomputed from the coordinates with gradient. Ties break towards the
-    lowest index. If no target is valid, ``index`` is 0.
+    ``j`` is found without gradient, block by block (``chunk_size × M`` squared distances at a
+    time, formed coordinate-wise so the search is exact); ``d`` is then recomputed from the
+    coordinates with gradient. Ties break towards the lowest index. If no target is valid,
+    ``index`` is 0.
 
     Args:
       points: ``[N, D]`` query points.
       targets: ``[M, D]`` target points.
       target_mask: ``[M]`` True for real targets (default: all).
       chunk_size: query points per block; bounds peak memory to ``chunk_size × M`` values and does
-        not change the result.
+        not change the result. The default keeps a block in cache for ``M`` up to a few 10K
+        (fastest of 128 / 512 / 2048 at 20K × 20K on CPU, ``benchmarks/ops_chamfer.py``).
 
     Returns:
       :class:`NearestNeighbors` (``index [N]``, ``sq_distance [N]``).
@@ -144,7 +159,7 @@ def chamfer_distance(
     q_normals: Float[Array, "M D"] | None = None,
     squared: bool = True,
     oriented: bool = False,
-    chunk_size: int = 1024,
+    chunk_size: int = 128,
 ) -> ChamferDistance:
     """Bidirectional Chamfer distance with an optional normal-consistency term.
 
@@ -171,7 +186,7 @@ def chamfer_distance(
       p_normals, q_normals: ``[N, D]`` / ``[M, D]`` unit normals; give both or neither.
       squared: squared (default) or plain Euclidean distances.
       oriented: normal term ``1 - n·n'`` instead of ``1 - |n·n'|``.
-      chunk_size: points per search block.
+      chunk_size: points per search block (:func:`nearest_neighbor`); does not change the result.
 
     Returns:
       :class:`ChamferDistance`; ``.distance`` and ``.normal`` sum the two directions. A direction

@@ -70,9 +70,9 @@ def texel_conv(
     .. math:: s_{n,t} = \\sum_{j} w_{n,t,j}\\, x_{i_{n,t,j}},\\qquad
        y_n = m_n \\Big(\\sum_{t=0}^{8} K_t^\\top s_{n,t} + b\\Big),\\quad K_{3(dy+1)+(dx+1)} = K[dy+1, dx+1]
 
-    One dense gather-reduce builds ``s`` (``[N, 9, C]``) with the weights folded in, then a single
-    GEMM ``[N, 9C] @ [9C, D]`` applies the kernel (see the module docstring for the tap order and the
-    row direction).
+    Dense gathers build ``s`` (``[N, 9, C]``, one gather per interpolation slot ``j`` with its
+    weight folded in), then a single GEMM ``[N, 9C] @ [9C, D]`` applies the kernel (see the module
+    docstring for the tap order and the row direction).
 
     Args:
       x: ``[N, C]`` texel features.
