@@ -27,3 +27,11 @@ from ._train import LevelReport as LevelReport
 from ._train import gradient_penalty as gradient_penalty
 from ._train import load_model as load_model
 from ._train import train as train
+from ._transfer import TransferResult as TransferResult
+from ._transfer import interpolate as interpolate
+from ._transfer import normal_heights as normal_heights
+from ._transfer import transfer as transfer
+from ._transfer import vertex_normals as vertex_normals
+from ._demo import bumpy_sphere as bumpy_sphere
+from ._demo import demo_stage as demo_stage
+from ._demo import fibonacci_sphere as fibonacci_sphere

@@ -134,9 +134,16 @@ def field_conv(
       embedding: optional ``[V, E]`` real per-vertex scalars appended to the filter input
         (timestep or label embedding, eq. 35); broadcast a global one to ``[V, E]``.
       delta: ``δ > 0`` of the smoothed direction ``û``.
+      activation: the filter nonlinearity, ``"silu"`` (default, as the reference code) or
+        ``"relu"`` (piecewise-linear filters; about 3x faster on CPU, where the ``V·K·C·H``
+        sigmoid evaluations bound the SiLU version).
 
     Returns:
       ``[V, D]`` complex features in each vertex's frame, dtype of ``x``.
+
+    Differentiation: reverse mode (``jax.grad``, ``jax.vjp``, also nested) goes through a
+    hand-written VJP that recomputes the filter responses instead of storing ``V·K·C·H`` of them;
+    forward mode (``jax.jvp``, ``jax.jacfwd``) is not available for that reason.
 
     Example:
       >>> import numpy as np
@@ -252,17 +259,20 @@ def _filtered_sums(zr, zi, ar, ai, a_w, bias, activation):
     return _sums_impl(zr, zi, ar, ai, a_w, bias, activation)
 
 
-def _pre(ar, ai, a_w, bias, k, h=None):
-    """Filter pre-activation of slot k: ``[V, H, C]`` (all h) or ``[V, C]`` (one h)."""
-    if h is None:
-        return ar[:, k, None, :] * a_w[0][:, None] + ai[:, k, None, :] * a_w[1][:, None] + bias[:, :, None]
-    return ar[:, k, :] * a_w[0, h] + ai[:, k, :] * a_w[1, h] + bias[:, h, None]
+def _pre_slot(ar, ai, a_w, bias, k):
+    """Filter pre-activations of slot k for all responses: ``[V, H, C]``."""
+    return ar[:, k, None, :] * a_w[0][:, None] + ai[:, k, None, :] * a_w[1][:, None] + bias[:, :, None]
+
+
+def _pre_response(ar, ai, a_w, bias, h):
+    """Filter pre-activations of response h for all slots: ``[V, K, C]``."""
+    return ar * a_w[0, h] + ai * a_w[1, h] + bias[:, h, None, None]
 
 
 def _sums_impl(zr, zi, ar, ai, a_w, bias, activation):
     out_r = out_i = 0
     for k in range(zr.shape[1]):
-        phi = _act(_pre(ar, ai, a_w, bias, k), activation)  # [V, H, C]
+        phi = _act(_pre_slot(ar, ai, a_w, bias, k), activation)  # [V, H, C]
         out_r = out_r + zr[:, k, None, :] * phi
         out_i = out_i + zi[:, k, None, :] * phi
     return jnp.stack([out_r, out_i], axis=1)
@@ -276,41 +286,33 @@ def _sums_bwd(activation, res, g):
     """VJP of :func:`_filtered_sums`, recomputing the responses instead of storing them.
 
     With ``p = a_r A_0 + a_i A_1 + b``, ``φ = act(p)``, ``G_s = ∂L/∂S_s`` and
-    ``g_p = (G_r z_r + G_i z_i) act'(p)`` per ``(v, k, h, c)``:
-    ``∂z_s = Σ_h G_s φ``, ``∂a_r = Σ_h g_p A_0``, ``∂a_i = Σ_h g_p A_1`` (sums over h, unrolled,
-    written as ``[V, 2, K, C]``) and ``∂b = Σ_{k,c} g_p``, ``∂A_j = Σ_{v,k,c} g_p a_j`` (sum over k
-    unrolled into ``[V, 3, H, C]``, then a plain reduction over c and v).
+    ``g_p = (G_r z_r + G_i z_i) act'(p)`` per ``(v, k, h, c)``: ``∂z_s = Σ_h G_s φ``,
+    ``∂a_r = Σ_h g_p A_0``, ``∂a_i = Σ_h g_p A_1`` (the sum over h unrolled, each term ``[V, K, C]``)
+    and ``∂b = Σ_{k,c} g_p``, ``∂A_j = Σ_{v,k,c} g_p a_j`` (the sum over k unrolled into
+    ``[V, 3, H, C]``, then a plain reduction over c and v).
     """
     zr, zi, ar, ai, a_w, bias = res
     gr, gi = g[:, 0], g[:, 1]  # [V, H, C]
-    n_k, n_h = zr.shape[1], a_w.shape[1]
-
-    def slot_grads(k):
-        dzr = dzi = dar = dai = 0
-        for h in range(n_h):
-            phi, dphi = _act_and_grad(_pre(ar, ai, a_w, bias, k, h), activation)  # [V, C]
-            dzr = dzr + gr[:, h] * phi
-            dzi = dzi + gi[:, h] * phi
-            gp = (gr[:, h] * zr[:, k] + gi[:, h] * zi[:, k]) * dphi
-            dar = dar + gp * a_w[0, h]
-            dai = dai + gp * a_w[1, h]
-        return dzr, dzi, dar, dai
-
-    per_slot = [slot_grads(k) for k in range(n_k)]
-    dzr, dzi, dar, dai = (jnp.stack([s[j] for s in per_slot], axis=1) for j in range(4))
+    dzr = dzi = dar = dai = 0
+    for h in range(a_w.shape[1]):
+        phi, dphi = _act_and_grad(_pre_response(ar, ai, a_w, bias, h), activation)  # [V, K, C]
+        g_r, g_i = gr[:, None, h, :], gi[:, None, h, :]
+        dzr = dzr + g_r * phi
+        dzi = dzi + g_i * phi
+        gp = (g_r * zr + g_i * zi) * dphi
+        dar = dar + gp * a_w[0, h]
+        dai = dai + gp * a_w[1, h]
 
     p_one = p_ar = p_ai = 0  # Σ_k g_p · {1, a_r, a_i}: [V, H, C]
-    for k in range(n_k):
-        _, dphi = _act_and_grad(_pre(ar, ai, a_w, bias, k), activation)
+    for k in range(zr.shape[1]):
+        _, dphi = _act_and_grad(_pre_slot(ar, ai, a_w, bias, k), activation)
         gp = (gr * zr[:, k, None, :] + gi * zi[:, k, None, :]) * dphi
         p_one = p_one + gp
         p_ar = p_ar + gp * ar[:, k, None, :]
         p_ai = p_ai + gp * ai[:, k, None, :]
     partial = jax.lax.optimization_barrier(jnp.stack([p_one, p_ar, p_ai], axis=1))  # [V, 3, H, C]
     reduced = jnp.sum(partial, axis=3)  # [V, 3, H]
-    d_bias = reduced[:, 0]
-    d_a_w = jnp.sum(reduced[:, 1:], axis=0)  # [2, H]
-    return dzr, dzi, dar, dai, d_a_w, d_bias
+    return dzr, dzi, dar, dai, jnp.sum(reduced[:, 1:], axis=0), reduced[:, 0]
 
 
 _filtered_sums.defvjp(_sums_fwd, _sums_bwd)

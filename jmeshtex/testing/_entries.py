@@ -155,6 +155,160 @@ for _e in _FACE:
 
 
 # ---------------------------------------------------------------------------------------------
+# complex tangent-feature layers, field convolutions, tangent pooling (Mitchel et al.)
+# ---------------------------------------------------------------------------------------------
+
+#: a pointwise layer needs no geometry: gauge, relabelling and an isometry cover it
+POINTWISE = ("rigid", "gauge", "permute_vertices", "fold")
+#: transforms of operators on k-NN neighbourhoods (re-triangulation changes them: reported only)
+KNN_OPS = INTRINSIC
+
+
+def _ops():
+    from .. import ops
+
+    return ops
+
+
+def _cdtype(dtype):
+    return jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
+
+
+def _complex_linear(state, params, x):
+    from .. import ops
+
+    return Field(VERTEX_TANGENT, ops.complex_linear(x, params))
+
+
+def _vn(state, params, x):
+    from .. import ops
+
+    return Field(VERTEX_TANGENT, ops.vn_nonlinearity(x, params))
+
+
+def _frn(state, params, x):
+    from .. import ops
+
+    nb = state.one_ring()
+    return Field(VERTEX_TANGENT, ops.filter_response_norm(x, params, area=nb.area,
+                                                          vertex_mask=nb.vertex_mask))
+
+
+def _transported_set(state, x):
+    """Per vertex, the set {ρ_{q→p} x_q} over its k-NN neighbourhood, all in p's frame."""
+    nb = state.knn(8)
+    return nb.transport[..., None] * x[nb.index], nb.mask
+
+
+def _attention(state, params, x):
+    from .. import ops
+
+    xs, mask = _transported_set(state, x)
+    y = ops.complex_attention(xs, params, mask=mask)
+    return Field(VERTEX_TANGENT, y[:, 0])  # the vertex's own slot (slot 0 of a k-NN set)
+
+
+def _vn_transformer(state, params, x):
+    from .. import ops
+
+    xs, mask = _transported_set(state, x)
+    return Field(VERTEX_TANGENT, ops.vn_transformer_block(xs, params, mask=mask)[:, 0])
+
+
+def _field_conv(state, params, x):
+    from .. import ops
+
+    return Field(VERTEX_TANGENT, ops.field_conv(x, state.knn(8), params))
+
+
+def _field_conv_emb(state, params, x, e):
+    from .. import ops
+
+    return Field(VERTEX_TANGENT, ops.field_conv(x, state.knn(8), params, embedding=e))
+
+
+def _pooling_maps(state):
+    """The first pooling map of the state's hierarchy, re-expressed in the state's fine gauge.
+
+    Coarse frames keep their intrinsic gauge (any coarse gauge cancels in pool → unpool).
+    """
+    import numpy as np
+
+    from ..geometry import mesh_hierarchy, to_jax
+
+    def build():
+        h = mesh_hierarchy(state.vertices, state.faces, levels=2, min_vertices=16)
+        pm = h.pooling[0]
+        a = state.gauge
+        turn_child = np.exp(1j * a)
+        pm = pm._replace(
+            to_parent=pm.to_parent * turn_child,
+            children_transport=np.where(pm.children_mask, pm.children_transport * turn_child[pm.children],
+                                        pm.children_transport),
+        )
+        return to_jax(pm, state.dtype)
+
+    return state.cached("pooling", build)
+
+
+def _pool_unpool(state, params, x):
+    from .. import ops
+
+    pm = _pooling_maps(state)
+    return Field(VERTEX_TANGENT, ops.tangent_unpool(ops.tangent_pool(x, pm), pm))
+
+
+def _init(make):
+    def init(key, dtype):
+        return make(key, _cdtype(dtype), dtype)
+
+    return init
+
+
+_COMPLEX = [
+    Entry("ops.complex_linear", _complex_linear, {"x": (VERTEX_TANGENT, 4)}, POINTWISE,
+          init=_init(lambda k, c, r: _ops().init_complex_linear(k, 4, 3, dtype=c)),
+          doc="complex linear layer, no bias (supplement §9)"),
+    Entry("ops.vn_nonlinearity", _vn, {"x": (VERTEX_TANGENT, 4)}, POINTWISE,
+          init=_init(lambda k, c, r: _ops().init_vn(k, 4, 3, dtype=c)),
+          doc="vector-neuron nonlinearity (eq. 19)"),
+    Entry("ops.filter_response_norm", _frn, {"x": (VERTEX_TANGENT, 4)}, INTRINSIC,
+          init=_init(lambda k, c, r: _ops().init_frn(4, dtype=r)),
+          doc="area-weighted filter response normalisation (eq. 20)"),
+    Entry("ops.complex_attention", _attention, {"x": (VERTEX_TANGENT, 4)}, KNN_OPS,
+          init=_init(lambda k, c, r: _ops().init_complex_attention(
+              k, 4, num_heads=2, dtype=c)),
+          doc="complex attention over each vertex's transported k-NN set", selection=_knn_selection),
+    Entry("ops.vn_transformer_block", _vn_transformer, {"x": (VERTEX_TANGENT, 4)}, KNN_OPS,
+          init=_init(lambda k, c, r: _ops().init_vn_transformer_block(
+              k, 4, num_heads=2, dtype=c)),
+          doc="VN-Transformer block over each vertex's transported k-NN set", selection=_knn_selection),
+    Entry("ops.field_conv", _field_conv, {"x": (VERTEX_TANGENT, 4)}, KNN_OPS,
+          init=_init(lambda k, c, r: _ops().init_field_conv(k, 4, 3, hdim=8, dtype=c)),
+          doc="field convolution on k-NN (k=8) neighbourhoods (eq. 34, gauge-invariant form)",
+          selection=_knn_selection),
+    Entry("ops.field_conv_emb", _field_conv_emb, {"x": (VERTEX_TANGENT, 4), "e": (VERTEX_SCALAR, 2)},
+          KNN_OPS,
+          init=_init(lambda k, c, r: _ops().init_field_conv(
+              k, 4, 3, hdim=8, embedding_features=2, dtype=c)),
+          doc="field convolution with a per-vertex scalar embedding in the filters (eq. 35)",
+          selection=_knn_selection),
+    # The decimation is a greedy sequence of intrinsic edge collapses: exactly reproducible under
+    # relabelling and exact isometries, but not a continuous function of the metric (a smooth
+    # bending reorders the collapses and picks other coarse vertices: O(1) error at every
+    # resolution). The smooth family is measured and reported, not asserted.
+    Entry("ops.tangent_pool_unpool", _pool_unpool, {"x": (VERTEX_TANGENT, 3)},
+          ("rigid", "reflection", "gauge", "permute_vertices", "permute_faces", "rotate_corners",
+           "fold", "folds", "hinge"),
+          doc="transported mean pooling to a decimated level, then nearest unpooling",
+          report=("cylinder",)),
+]
+
+for _e in _COMPLEX:
+    register(_e)
+
+
+# ---------------------------------------------------------------------------------------------
 # negative controls: deliberately broken operators the harness must flag
 # ---------------------------------------------------------------------------------------------
 

@@ -84,6 +84,8 @@ class Entry:
       selection: ``state -> [V, ...]`` signature of discrete per-vertex choices (k-NN selection);
         vertices where it differs are left out of smooth-isometry comparisons and counted (see
         :func:`~jmeshtex.testing.convergence`).
+      report: transforms that are measured and reported but not asserted, each for a documented
+        reason (e.g. a greedy decimation that is not a continuous function of the metric).
     """
 
     name: str
@@ -96,6 +98,7 @@ class Entry:
     doc: str = ""
     resolutions: tuple[int, ...] = (8, 16, 32, 64)
     selection: Callable | None = None
+    report: tuple[str, ...] = ()
 
 
 REGISTRY: dict[str, Entry] = {}
@@ -121,7 +124,7 @@ def register(entry: Entry) -> Entry:
     """Add an entry to :data:`REGISTRY` (names must be unique; transforms must exist)."""
     if entry.name in REGISTRY:
         raise ValueError(f"an operator named {entry.name!r} is already registered")
-    unknown = [t for t in (*entry.transforms, *entry.expect_fail) if t not in CATALOGUE]
+    unknown = [t for t in (*entry.transforms, *entry.expect_fail, *entry.report) if t not in CATALOGUE]
     if unknown:
         raise ValueError(f"{entry.name}: unknown transforms {unknown}; see jmeshtex.testing.CATALOGUE")
     REGISTRY[entry.name] = entry
@@ -206,6 +209,7 @@ def check(entry: Entry, transform_name: str, *, dtype=jnp.float64, seed: int = 0
         return entry.apply(state, params, **inputs)
 
     expect_fail = transform_name in entry.expect_fail
+    report_only = transform_name in entry.report
     tol = DEFAULT_TOLERANCE[np.dtype(dtype)]
     name = np.dtype(dtype).name
     smooth = transform.family and not transform.exact
@@ -228,6 +232,8 @@ def check(entry: Entry, transform_name: str, *, dtype=jnp.float64, seed: int = 0
             passed = passed and (not conv.excluded or max(conv.excluded) <= MAX_EXCLUDED)
         if expect_fail:
             passed = not passed
+        if report_only:
+            passed = None
         return CheckResult(
             entry.name, transform_name, name, conv.errors[-1], None, passed, "order",
             order=None if conv.floor else conv.order, ratios=conv.ratios, expect_fail=expect_fail,
@@ -248,7 +254,7 @@ def check(entry: Entry, transform_name: str, *, dtype=jnp.float64, seed: int = 0
             real = transform.draw(state, rng)
             errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, state, rng)))
     err = float(max(errors))
-    if smooth:  # float32 smooth isometries and re-triangulation: reported only
+    if smooth or report_only:  # float32 smooth isometries, re-triangulation, declared reports
         return CheckResult(entry.name, transform_name, name, err, None, None, "report",
                            expect_fail=expect_fail)
     passed = err <= tol
@@ -276,7 +282,7 @@ def run(
     results = []
     for n in selected:
         entry = REGISTRY[n]
-        for t in (*entry.transforms, *(x for x in entry.expect_fail if x not in entry.transforms)):
+        for t in _transforms_of(entry):
             if wanted is not None and t not in wanted:
                 continue
             for dt in dtypes:
@@ -284,6 +290,11 @@ def run(
                     progress(f"{n} × {t} ({np.dtype(dt).name})")
                 results.append(check(entry, t, dtype=dt, seed=seed))
     return results
+
+
+def _transforms_of(entry: Entry) -> list[str]:
+    names = [*entry.transforms, *entry.expect_fail, *entry.report]
+    return list(dict.fromkeys(names))
 
 
 def format_table(results: Sequence[CheckResult]) -> str:
