@@ -314,9 +314,10 @@ for _e in _COMPLEX:
 
 
 def _biased_linear(state, params, x):
-    """A complex linear layer *with a bias*: x ↦ x W + b. The bias does not rotate with the frame."""
+    """:func:`jmeshtex.ops.complex_linear` *plus a bias*: x ↦ x W + b. The bias does not rotate
+    with the frame, which is why the real layer has none."""
     w, b = params
-    return Field(VERTEX_TANGENT, x @ w.astype(x.dtype) + b.astype(x.dtype))
+    return Field(VERTEX_TANGENT, _ops().complex_linear(x, w) + b.astype(x.dtype))
 
 
 def _init_biased_linear(key, dtype):

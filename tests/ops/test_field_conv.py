@@ -283,7 +283,7 @@ def test_check_grads_real_and_imaginary_parts(rng, activation):
         return jnp.concatenate([y.real, y.imag])
 
     args = (x.real, x.imag, p.filter_weight, p.filter_bias, p.mix.real, p.mix.imag, emb)
-    check_grads(f, args, order=2 if activation == "silu" else 1, modes=("rev",), atol=1e-5, rtol=1e-5)
+    check_grads(jax.jit(f), args, order=2 if activation == "silu" else 1, modes=("rev",), atol=1e-5, rtol=1e-5)
 
 
 # ----------------------------------------------------------------------------- errors
