@@ -1,9 +1,10 @@
 """``jmeshtex demo``: run the host geometry on procedural meshes and write a picture and a report.
 
 The demo is a list of :class:`Step` s. Each step reads and fills a shared dictionary (meshes,
-fields), returns a one-line summary, and is timed; a step whose library functions do not exist yet
-is listed in the report as pending. Adding a geometry step is one line in :data:`STEPS` (plus its
-function); the last step renders whatever fields the others left.
+fields), returns a one-line summary, and is timed. Adding a step is one line in :data:`STEPS` (plus
+its function): the geometry steps fill fields that the render step draws, the equivariance step
+runs a selection of ``jmeshtex verify``, and each method adds a stage that writes its own PNGs into
+a subfolder.
 
 From Python::
 
@@ -33,20 +34,10 @@ PANEL_SIZE = (420, 380)
 
 @dataclasses.dataclass(frozen=True)
 class Step:
-    """One demo step: ``run(ctx) -> summary``.
-
-    It is pending (listed, not run) while ``run`` is None or one of the ``needs`` names is missing
-    from :mod:`jmeshtex.geometry`.
-    """
+    """One demo step: ``run(ctx) -> summary`` (a one-line result for the report)."""
 
     name: str
-    run: Callable[[dict[str, Any]], str] | None
-    needs: tuple[str, ...] = ()
-
-    def missing(self) -> list[str]:
-        import jmeshtex.geometry
-
-        return [n for n in self.needs if not hasattr(jmeshtex.geometry, n)]
+    run: Callable[[dict[str, Any]], str]
 
 
 def _meshes(ctx: dict[str, Any]) -> str:
@@ -195,21 +186,56 @@ def _render(ctx: dict[str, Any]) -> str:
     return f"{len(panels)} panels → {path.name}"
 
 
-# The demo, in order. A step is pending until the library functions it `needs` exist.
+def _verify(ctx: dict[str, Any]) -> str:
+    """A selection of ``jmeshtex verify``: every registered operator under a gauge change, a
+    relabelling of face corners and an exact fold, in float64 (quick: two operators, gauge only)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+
+    from .. import testing
+    from ._verify import _atomic_write
+
+    testing.load_entries()
+    if ctx["quick"]:
+        names, transforms = ["ops.field_conv", "negative.complex_bias"], ["gauge"]
+    else:
+        names, transforms = None, ["gauge", "rotate_corners", "fold"]
+    results = testing.run_registry(names, dtypes=(jnp.float64,), transforms=transforms)
+    table = testing.format_table(results)
+    _atomic_write(ctx["out"] / "verify.txt", table + "\n")
+    failed = sum(r.passed is False for r in results)
+    if failed:
+        raise RuntimeError(f"equivariance check failed:\n{table}")
+    return f"{len(results)} checks ({', '.join(transforms)}), {failed} failed → verify.txt"
+
+
+def _meshmatch(ctx: dict[str, Any]) -> str:
+    from ..meshmatch._demo import demo_stage
+
+    summary = demo_stage(ctx["out"] / "meshmatch", quick=ctx["quick"])
+    return f"MeshMatch self-transfer: {summary.get('psnr_db', float('nan')):.1f} dB " \
+           f"(random field {summary.get('random_psnr_db', float('nan')):.1f} dB) → meshmatch/"
+
+
+# The demo, in order.
 STEPS: list[Step] = [
     Step("procedural meshes", _meshes),
-    Step("validate_mesh / mesh_statistics", _validate, ("validate_mesh", "mesh_statistics")),
-    Step("subdivide_midpoint", _subdivide, ("subdivide_midpoint",)),
-    Step("boundary_loops", _boundary, ("boundary_loops",)),
-    Step("one_ring_neighborhood (log maps + transport)", _one_ring, ("one_ring_neighborhood",)),
-    Step("tangent_frames", _frames, ("tangent_frames",)),
-    Step("geodesic_knn_neighborhood (k = 8)", _knn, ("geodesic_knn_neighborhood",)),
-    Step("mesh_hierarchy", _hierarchy, ("mesh_hierarchy",)),
-    Step("heat_kernel_signature", _hks, ("heat_kernel_signature",)),
-    Step("trace_from_vertices (gauge x-axes)", _tangent_axes, ("trace_from_vertices", "face_frame_to_world")),
-    Step("trace_from_vertices (throughput)", _trace, ("trace_from_vertices", "tracer_geometry")),
-    Step("sample_surface", _sample, ("sample_surface",)),
+    Step("validate_mesh / mesh_statistics", _validate),
+    Step("subdivide_midpoint", _subdivide),
+    Step("boundary_loops", _boundary),
+    Step("one_ring_neighborhood (log maps + transport)", _one_ring),
+    Step("tangent_frames", _frames),
+    Step("geodesic_knn_neighborhood (k = 8)", _knn),
+    Step("mesh_hierarchy", _hierarchy),
+    Step("heat_kernel_signature", _hks),
+    Step("trace_from_vertices (gauge x-axes)", _tangent_axes),
+    Step("trace_from_vertices (throughput)", _trace),
+    Step("sample_surface", _sample),
     Step("render", _render),
+    Step("equivariance (jmeshtex verify, selection)", _verify),
+    Step("MeshMatch", _meshmatch),
 ]
 
 
@@ -248,14 +274,10 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
     t_start = time.perf_counter()
     from .. import geometry, render  # noqa: F401  (imports are timed apart from the steps)
 
-    rows: list[tuple[str, float | None, str]] = [("imports", time.perf_counter() - t_start, "jmeshtex.geometry, jmeshtex.render")]
+    rows: list[tuple[str, float, str]] = [("imports", time.perf_counter() - t_start, "jmeshtex.geometry, jmeshtex.render")]
     bar = tqdm(STEPS, desc="jmeshtex demo", unit="step", file=sys.stderr, disable=not progress, leave=False)
     for step in bar:
         bar.set_postfix_str(step.name[:40])
-        missing = step.missing()
-        if step.run is None or missing:
-            rows.append((step.name, None, f"pending: jmeshtex.geometry has no {', '.join(missing or step.needs)} yet"))
-            continue
         t0 = time.perf_counter()
         summary = step.run(ctx)
         rows.append((step.name, time.perf_counter() - t0, summary))
@@ -270,9 +292,9 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
         *(f"{name}: {len(ctx[name][0])} vertices, {len(ctx[name][1])} faces" for name in ("torus", "grid") if name in ctx),
         "",
         f"{'step':<{width}}  {'seconds':>8}  result",
-        *(f"{name:<{width}}  {'-' if s is None else f'{s:8.3f}':>8}  {summary}" for name, s, summary in rows),
+        *(f"{name:<{width}}  {s:8.3f}  {summary}" for name, s, summary in rows),
         "",
-        f"total: {total:.2f} s; pending steps: {sum(s is None for _, s, _ in rows)}",
+        f"total: {total:.2f} s",
     ]
     report = folder / "report.txt"
     tmp = report.with_name(f".{report.name}.tmp")

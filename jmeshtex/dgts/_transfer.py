@@ -61,15 +61,21 @@ def vertex_normals(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F
 
 
 def normal_heights(
-    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"], *, smoothing: int = 20, step: float = 0.5
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    *,
+    smoothing: int = 10,
+    lam: float = 0.5,
+    mu: float = -0.53,
 ) -> Float[np.ndarray, " V"]:
     """Per-vertex height along the normal of a smoothed copy of the mesh, in mean edges.
 
     .. math:: h_i = \\frac{(v_i - \\bar v_i)\\cdot \\bar n_i}{\\bar\\ell},\\qquad
-       \\bar v = (I - \\tfrac{s}{2}\\,L)^{k} v
+       \\bar v = \\big((I + \\mu \\Delta)(I + \\lambda \\Delta)\\big)^{k} v
 
-    where ``L = I − D^{-1}A`` is the uniform graph Laplacian (``k = smoothing`` explicit steps of size
-    ``step``), ``n̄`` the smoothed mesh's vertex normals and ``ℓ̄`` the mean edge length. Bumps point
+    Taubin's shrink-free smoothing with the uniform graph Laplacian ``Δ = D^{-1}A − I``
+    (``k = smoothing`` pairs of steps), ``n̄`` the smoothed mesh's vertex normals and ``ℓ̄`` the mean
+    edge length. Bumps point
     outwards as positive heights; the distribution of ``h`` summarises a geometric texture.
 
     Example:
@@ -89,7 +95,8 @@ def normal_heights(
     avg = scipy.sparse.diags(1.0 / np.maximum(deg, 1)) @ a
     smooth = v.copy()
     for _ in range(int(smoothing)):  # iterations over the whole mesh, not per vertex
-        smooth = (1 - step) * smooth + step * (avg @ smooth)
+        smooth = smooth + lam * (avg @ smooth - smooth)
+        smooth = smooth + mu * (avg @ smooth - smooth)
     n = vertex_normals(smooth, f)
     ell = np.linalg.norm(v[pairs[:, 0]] - v[pairs[:, 1]], axis=1).mean()
     return np.einsum("vd,vd->v", v - smooth, n) / ell

@@ -48,7 +48,7 @@ def psnr(a, b) -> float:
       20.0
     """
     mse = float(np.mean((np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10.0 * np.log10(1.0 / mse)
+    return float("inf") if mse == 0 else float(10.0 * np.log10(1.0 / mse))
 
 
 def nnf_colors(source_vertices, nnf) -> np.ndarray:

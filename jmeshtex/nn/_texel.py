@@ -1,4 +1,4 @@
-"""Flax wrapper of the surface-CNN texel convolution (Kovács et al. 2024, §4.1)."""
+"""Flax wrapper of the surface-CNN texel convolution (Kovács et al. 2024)."""
 
 from __future__ import annotations
 

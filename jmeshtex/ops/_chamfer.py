@@ -1,5 +1,5 @@
 """Chamfer distance between point sets, memory-bounded and differentiable (the DGTS fitting loss,
-Hertz et al. 2020, §4; the reference code follows SO-Net's loss).
+Hertz et al. 2020; the reference code follows SO-Net's loss).
 
 Nearest neighbours are searched chunk by chunk over the query points with :func:`jax.lax.map`, so
 peak memory is ``chunk_size × M`` distances instead of ``N × M``. The search itself is not

@@ -221,9 +221,9 @@ def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvPa
 
     where ``N(f)`` holds the faces across the edges of ``f`` that have one (``nbhd.mask``), so a
     boundary face takes the max over its one or two neighbours. Because the weights are shared by the
-    neighbours, the GEMM runs first (``[F, C] @ [C, 2D]``, a third of the FLOPs of gathering
-    ``[x_j ; x_f]`` first) and only ``W_n^T x_j`` is gathered, one ``[F, D]`` slice per edge; the
-    mask enters as an additive ``-big`` before an elementwise max (no ``where``).
+    neighbours, the GEMMs run first (``[F, C] @ [C, D]`` twice, a third of the FLOPs of
+    gathering ``[x_j ; x_f]`` first) and only ``W_n^T x_j`` is gathered, one ``[F, D]`` slice per
+    edge; the mask enters as an additive ``-big`` before an elementwise max (no ``where``).
 
     Conventions: a face with no neighbour at all (an isolated triangle) gets ``W_s^T x_f + b``, the
     neighbour term being 0; padded faces (``face_mask`` False) give 0.
@@ -257,9 +257,8 @@ def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvPa
         )
     dtype = x.dtype
     w = params.weight.astype(dtype)
-    D = w.shape[1]
-    z = x @ jnp.concatenate([w[:C], w[C:]], axis=1)  # [F, 2D]: neighbour part | self part
-    z_nbr, z_self = z[:, :D], z[:, D:]
+    z_nbr = x @ w[:C]  # W_n^T x for every face, gathered below
+    z_self = x @ w[C:]
     mask = nbhd.mask.astype(dtype)
     big = jnp.asarray(jnp.finfo(dtype).max / 4, dtype)
     penalty = (mask - 1) * big  # 0 for real neighbours, -big for missing ones
@@ -377,7 +376,7 @@ def init_face_conv_stack(
     keys = jax.random.split(key, 2 * len(features))
     fan_ins = [in_features] + [2 * c for c in features[:-1]]
     layers = []
-    for i, (fan_in, out) in enumerate(zip(fan_ins, features)):
+    for i, (fan_in, out) in enumerate(zip(fan_ins, features, strict=True)):
         bound = 1.0 / math.sqrt(fan_in)
         w = jax.random.uniform(keys[2 * i], (fan_in, out), dtype, -bound, bound)
         b = jax.random.uniform(keys[2 * i + 1], (out,), dtype, -bound, bound)

@@ -1,5 +1,5 @@
 """Gram matrices of features, the texture statistic of neural texture synthesis (Gatys et al. 2015;
-used on mesh textures by Kovács et al. 2024, §4.2)."""
+used on mesh textures by Kovács et al. 2024)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Texel operators of a surface CNN (Kovács et al. 2024, "Surface-aware mesh texture synthesis with
-pre-trained 2D CNNs", §4).
+pre-trained 2D CNNs").
 
 A pre-trained 2D CNN runs on a mesh texture by replacing every 3×3 image neighbourhood with nine
 *taps* sampled on the surface around each texel (with the exponential map, built later by the
@@ -65,7 +65,7 @@ def texel_conv(
     kernel: Float[Array, "3 3 C D"],
     bias: Float[Array, " D"],
 ) -> Float[Array, "N D"]:
-    """A 3×3 convolution of a 2D CNN applied through precomputed surface taps (Kovács et al. §4.1).
+    """A 3×3 convolution of a 2D CNN applied through precomputed surface taps (Kovács et al. 2024).
 
     .. math:: s_{n,t} = \\sum_{j} w_{n,t,j}\\, x_{i_{n,t,j}},\\qquad
        y_n = m_n \\Big(\\sum_{t=0}^{8} K_t^\\top s_{n,t} + b\\Big),\\quad K_{3(dy+1)+(dx+1)} = K[dy+1, dx+1]

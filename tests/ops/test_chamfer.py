@@ -124,6 +124,18 @@ def test_masks_ignore_padded_points(rng):
     assert float(none.p_to_q) == 0.0 and float(none.q_to_p) == 0.0
 
 
+def test_rigid_motion_invariance(rng):
+    p, q = rng.standard_normal((15, 3)), rng.standard_normal((11, 3))
+    pn, qn = _unit(rng, 15), _unit(rng, 11)
+    a, r = np.linalg.qr(rng.standard_normal((3, 3)))
+    R = a * np.sign(np.diag(r))
+    t = rng.standard_normal(3)
+    base = _chamfer(*(jnp.asarray(x) for x in (p, q)), p_normals=jnp.asarray(pn), q_normals=jnp.asarray(qn))
+    moved = _chamfer(jnp.asarray(p @ R.T + t), jnp.asarray(q @ R.T + t),
+                     p_normals=jnp.asarray(pn @ R.T), q_normals=jnp.asarray(qn @ R.T))
+    np.testing.assert_allclose(moved, base, rtol=1e-12, atol=1e-14)
+
+
 def test_jit_eager_and_single_compilation(rng):
     p, q = jnp.asarray(rng.standard_normal((30, 3))), jnp.asarray(rng.standard_normal((20, 3)))
     traces = []
@@ -185,7 +197,7 @@ def test_finite_gradient_at_coincident_points():
     p = jnp.array([[0.0, 0, 0], [1, 0, 0]])
     q = jnp.array([[0.0, 0, 0], [1, 0, 0]])  # every distance is exactly 0
     for squared in (True, False):
-        g = jax.jit(jax.grad(lambda p, q: chamfer_distance(p, q, squared=squared).distance, (0, 1)))(p, q)
+        g = jax.jit(jax.grad(lambda p, q, s=squared: chamfer_distance(p, q, squared=s).distance, (0, 1)))(p, q)
         assert all(np.isfinite(np.asarray(x)).all() for x in g)
     n = jnp.array([[0.0, 0, 1], [1, 0, 0]])
     gn = jax.jit(jax.grad(lambda a: chamfer_distance(p, q, p_normals=a, q_normals=n[::-1] * 0).normal))(n)

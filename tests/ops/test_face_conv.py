@@ -200,7 +200,7 @@ def test_against_loop_references(kind, rng):
     nb = face_neighborhood(f)
     vj = jnp.asarray(v)
     fr = _frames(vj, nb)
-    for got, want in zip(fr, _frames_ref(v, f)):
+    for got, want in zip(fr, _frames_ref(v, f), strict=True):
         np.testing.assert_allclose(got, want, atol=1e-12)
     np.testing.assert_allclose(_features(vj, nb), _features_ref(v, f), atol=1e-12)
 
@@ -293,7 +293,7 @@ def test_jit_matches_eager_and_compiles_once(rng):
 
     jitted = jax.jit(raw)
     eager = raw(jnp.asarray(v), nb, params, d)
-    for got, want in zip(jitted(jnp.asarray(v), nb, params, d), eager):
+    for got, want in zip(jitted(jnp.asarray(v), nb, params, d), eager, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-13)
     jitted(jnp.asarray(v + 0.01), nb, params, d + 1)
     assert len(traces) == 2  # once eagerly, once for the compilation; the second call reuses it
@@ -336,7 +336,7 @@ def test_vmap_over_two_padded_meshes(rng):
     batch_d = jnp.stack([jnp.pad(jnp.asarray(d), ((0, F - len(d)), (0, 0))) for d in ds])
     params = init_face_conv_stack(jax.random.key(3), WIDTHS, dtype=jnp.float64)
     out = jax.vmap(_pipeline, in_axes=(0, 0, None, 0))(batch_v, batch_nb, params, batch_d)
-    for b, ((v, f), nb, d) in enumerate(zip(meshes, nbs, ds)):
+    for b, ((v, f), nb, d) in enumerate(zip(meshes, nbs, ds, strict=True)):
         single = _pipeline(jnp.asarray(v), nb, params, jnp.asarray(d))
         np.testing.assert_allclose(out[0][b, : len(f)], single[0], rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(out[1][b, : len(f)], single[1], rtol=1e-10, atol=1e-12)
@@ -359,7 +359,7 @@ def test_dtype_follows_input(dtype, rng):
     assert _norm(outs[1], nb.face_mask).dtype == dtype
     if dtype == jnp.float32:  # float32 agrees with float64 to float32 precision
         ref = _pipeline(jnp.asarray(v), face_neighborhood(f), params, jnp.asarray(d, jnp.float64))
-        for got, want in zip(outs, ref):
+        for got, want in zip(outs, ref, strict=True):
             # relative to the array's norm: instance norm divides by per-channel spreads
             err = np.linalg.norm(np.asarray(got, np.float64) - want) / np.linalg.norm(want)
             assert err < 1e-5

@@ -3,6 +3,8 @@ eq. 34 as a negative control), padding, batching, jit, dtypes, zero features and
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -20,8 +22,11 @@ _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
 V, K, C, D, H, E = 6, 4, 2, 3, 3, 1
 
 
-def params64(seed, e=E, c=C, d=D, h=H):
-    return init_field_conv(jax.random.key(seed), c, d, hdim=h, embedding_features=e, dtype=jnp.complex128)
+@functools.lru_cache(maxsize=None)
+def make_params(seed, e=E, c=C, d=D, h=H, dtype=jnp.complex128):
+    # under jit: the eager initialiser would compile every primitive separately (slow with debug_nans)
+    init = jax.jit(lambda key: init_field_conv(key, c, d, hdim=h, embedding_features=e, dtype=dtype))
+    return init(jax.random.key(seed))
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -135,7 +140,7 @@ def test_matches_loop_reference(rng, activation):
     x = crandn(rng, V, C)
     x[2, 1] = 0  # one exact zero feature
     emb = rng.standard_normal((V, E))
-    params = params64(1)
+    params = make_params(1)
     got = _conv(jnp.asarray(x), nb, params, embedding=emb, activation=activation)
     assert rel_err(got, loop_reference(x, nb, params, emb, activation=activation)) < 1e-12
 
@@ -143,7 +148,7 @@ def test_matches_loop_reference(rng, activation):
 def test_matches_loop_reference_without_embedding(rng):
     nb = random_nbhd(rng, V, K, self_slot=False)  # a one-ring-like neighbourhood: no self slot
     x = crandn(rng, V, C)
-    params = params64(12, e=0)
+    params = make_params(12, e=0)
     assert rel_err(_conv(jnp.asarray(x), nb, params), loop_reference(x, nb, params)) < 1e-12
 
 
@@ -151,7 +156,7 @@ def test_flat_grid_constant_field_gives_constant_interior_output():
     # on the flat grid every vertex away from the boundary sees the same stencil with the same areas,
     # so a constant field (transport 1) must give the same output at all of them
     nb = grid_nbhd(6)
-    params = params64(2, e=0)
+    params = make_params(2, e=0)
     x = jnp.tile(jnp.array([[1 + 2j, -0.5j]]), (len(nb.area), 1))
     y = np.asarray(_conv(x, nb, params))
     interior = nb.mask[nb.index].all(axis=(1, 2))  # the whole stencil is interior
@@ -175,7 +180,7 @@ def test_gauge_equivariance_exact(rng, activation):
     nb = random_nbhd(rng, V, K)
     x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
     alpha = rng.uniform(-np.pi, np.pi, V)
-    params = params64(3)
+    params = make_params(3)
 
     def fn(a, n, e):
         return np.asarray(_conv(jnp.asarray(a), n, params, embedding=e, activation=activation))
@@ -188,7 +193,7 @@ def test_printed_eq34_argument_is_not_gauge_equivariant(rng):
     nb = random_nbhd(rng, V, K)
     x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
     alpha = rng.uniform(-np.pi, np.pi, V)
-    params = params64(4)
+    params = make_params(4)
     gathering = _gauge_error(lambda a, n, e: loop_reference(a, n, params, e), x, nb, alpha, emb)
     printed = _gauge_error(lambda a, n, e: loop_reference(a, n, params, e, printed_eq34=True), x, nb, alpha, emb)
     assert gathering < 1e-12
@@ -200,7 +205,7 @@ def test_printed_eq34_argument_is_not_gauge_equivariant(rng):
 
 def test_padding_invariance(rng):
     nb = random_nbhd(rng, V, K)
-    params = params64(5)
+    params = make_params(5)
     x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
     y = _conv(jnp.asarray(x), nb, params, embedding=emb)
     padded = pad_to(nb, {"V": V + 3, "K": K + 3})
@@ -216,7 +221,7 @@ def test_vmap_over_padded_batch(rng):
     nbs = [random_nbhd(rng, V - 2, K - 1), random_nbhd(rng, V, K)]
     xs = [crandn(rng, V - 2, C), crandn(rng, V, C)]
     embs = [rng.standard_normal((V - 2, E)), rng.standard_normal((V, E))]
-    params = params64(6)
+    params = make_params(6)
     batch = jax.tree.map(lambda *a: np.stack(a), *[pad_to(n, {"V": V, "K": K}) for n in nbs])
     xb = np.stack([np.concatenate([xs[0], np.zeros((2, C))]), xs[1]])
     eb = np.stack([np.concatenate([embs[0], np.zeros((2, E))]), embs[1]])
@@ -226,17 +231,18 @@ def test_vmap_over_padded_batch(rng):
 
 
 def test_jit_matches_eager_without_recompiling(rng):
-    nb = to_jax(random_nbhd(rng, V, K), jnp.float32)
-    params = init_field_conv(jax.random.key(7), C, D, hdim=H)
-    x1, x2 = (jnp.asarray(crandn(rng, V, C), jnp.complex64) for _ in range(2))
+    # tiny shapes: the eager reference call compiles every primitive separately
+    nb = to_jax(random_nbhd(rng, 3, 2), jnp.float32)
+    p = make_params(7, e=0, c=1, d=2, h=2, dtype=jnp.complex64)
+    x1, x2 = (jnp.asarray(crandn(rng, 3, 1), jnp.complex64) for _ in range(2))
     traces = []
 
     def fn(a, n):
         traces.append(1)
-        return field_conv(a, n, params)
+        return field_conv(a, n, p)
 
     jitted = jax.jit(fn)
-    np.testing.assert_allclose(jitted(x1, nb), field_conv(x1, nb, params), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(jitted(x1, nb), field_conv(x1, nb, p), rtol=1e-5, atol=1e-6)
     jitted(x2, nb)
     assert len(traces) == 1  # traced once for both calls (the eager call does not go through fn)
 
@@ -245,8 +251,8 @@ def test_jit_matches_eager_without_recompiling(rng):
 def test_dtype_follows_input(rng, real):
     cplx = jnp.complex64 if real == jnp.float32 else jnp.complex128
     nb = to_jax(random_nbhd(rng, V, K), real)
-    params = init_field_conv(jax.random.key(8), C, D, hdim=H, embedding_features=E)  # complex64 params
-    y = _conv(jnp.asarray(crandn(rng, V, C), cplx), nb, params, embedding=jnp.ones((V, E), jnp.float32))
+    p = make_params(8, dtype=jnp.complex64)  # complex64 / float32 parameters
+    y = _conv(jnp.asarray(crandn(rng, V, C), cplx), nb, p, embedding=jnp.ones((V, E), jnp.float32))
     assert y.dtype == cplx
 
 
@@ -255,7 +261,7 @@ def test_dtype_follows_input(rng, real):
 
 def test_zero_features_finite_values_and_gradients(rng):
     nb = random_nbhd(rng, V, K)
-    params = params64(9)
+    params = make_params(9)
     emb = rng.standard_normal((V, E))
     x0 = jnp.zeros((V, C), jnp.complex128)
     np.testing.assert_array_equal(np.asarray(_conv(x0, nb, params, embedding=emb)), 0)
@@ -270,20 +276,38 @@ def test_zero_features_finite_values_and_gradients(rng):
     assert np.abs(np.asarray(gx)).max() > 0  # the output does depend on x at 0
 
 
-@pytest.mark.parametrize("activation", ["silu", "relu"])
-def test_check_grads_real_and_imaginary_parts(rng, activation):
-    # reverse mode only: the op has a hand-written VJP (no JVP rule); order 2 = grad of the VJP
-    nb = random_nbhd(rng, 4, 3)
-    p = init_field_conv(jax.random.key(10), 2, 2, hdim=3, embedding_features=1, dtype=jnp.complex128)
-    x, emb = crandn(rng, 4, 2), rng.standard_normal((4, 1))
+def _real_view(nb, activation):
+    """field_conv as a function of real arrays only (check_grads perturbs real and imaginary parts)."""
 
     def f(xr, xi, a_w, a_b, mr, mi, e):
         params = FieldConvParams(a_w, a_b, jax.lax.complex(mr, mi))
         y = field_conv(jax.lax.complex(xr, xi), nb, params, embedding=e, activation=activation)
         return jnp.concatenate([y.real, y.imag])
 
-    args = (x.real, x.imag, p.filter_weight, p.filter_bias, p.mix.real, p.mix.imag, emb)
-    check_grads(jax.jit(f), args, order=2 if activation == "silu" else 1, modes=("rev",), atol=1e-5, rtol=1e-5)
+    return f
+
+
+def _grad_args(rng):
+    p = make_params(10, c=2, d=2, h=3)
+    x, emb = crandn(rng, 4, 2), rng.standard_normal((4, 1))
+    return (x.real, x.imag, p.filter_weight, p.filter_bias, p.mix.real, p.mix.imag, emb)
+
+
+@pytest.mark.parametrize("activation", ["silu", "relu"])
+def test_check_grads_real_and_imaginary_parts(rng, activation):
+    # reverse mode only: the op has a hand-written VJP and no JVP rule
+    f = _real_view(random_nbhd(rng, 4, 3), activation)
+    check_grads(jax.jit(f), _grad_args(rng), order=1, modes=("rev",), atol=1e-5, rtol=1e-5)
+
+
+def test_check_grads_of_the_vjp(rng):
+    # second order through the hand-written VJP: finite differences of the gradient itself
+    f = _real_view(random_nbhd(rng, 4, 3), "silu")
+    args = _grad_args(rng)
+    w = rng.standard_normal(f(*args).shape)
+    grad = jax.jit(jax.grad(lambda *a: jnp.sum(w * f(*a)), argnums=tuple(range(7))))
+    check_grads(lambda *a: jnp.concatenate([g.ravel() for g in grad(*a)]), args, order=1, modes=("rev",),
+                atol=1e-5, rtol=1e-5)
 
 
 # ----------------------------------------------------------------------------- errors
@@ -291,7 +315,7 @@ def test_check_grads_real_and_imaginary_parts(rng, activation):
 
 def test_bad_inputs_raise_typed_errors(rng):
     nb = random_nbhd(rng, 4, 3)
-    p = init_field_conv(jax.random.key(11), 2, 2, hdim=3, embedding_features=1)
+    p = make_params(11, c=2, d=2, h=3, dtype=jnp.complex64)
     x = jnp.asarray(crandn(rng, 4, 2), jnp.complex64)
     with pytest.raises(InputError, match="complex"):
         field_conv(x.real, nb, p, embedding=jnp.ones((4, 1)))

@@ -18,7 +18,7 @@ def _gram_ref(x, mask):
     C = x.shape[1]
     g = np.zeros((C, C))
     n = 0
-    for row, m in zip(x, mask):
+    for row, m in zip(x, mask, strict=True):
         if m:
             g += np.outer(row, row)
             n += 1

@@ -179,7 +179,7 @@ def test_jit_eager_and_single_compilation(rng):
         return y, grouped_pool(y, groups), grouped_pool(y, groups, mode="max")
 
     jitted = jax.jit(fn)
-    for got, want in zip(jitted(x, taps, kernel, bias, groups), fn(x, taps, kernel, bias, groups)):
+    for got, want in zip(jitted(x, taps, kernel, bias, groups), fn(x, taps, kernel, bias, groups), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-15)
     jitted(x + 1, taps, kernel * 2, bias, groups)
     assert len(traces) == 2  # eager once, compiled once
@@ -202,7 +202,7 @@ def test_vmap_over_two_padded_textures(rng):
     taps = jax.tree.map(lambda *a: jnp.stack(a), *[pad_taps(image_texel_neighborhood(h, w)) for h, w in sizes])
     xs = jnp.stack([jnp.pad(jnp.asarray(i.reshape(-1, 2)), ((0, N - i.shape[0] * i.shape[1]), (0, 0))) for i in imgs])
     out = jax.jit(jax.vmap(texel_conv, in_axes=(0, 0, None, None)))(xs, taps, kernel, bias)
-    for b, ((h, w), img) in enumerate(zip(sizes, imgs)):
+    for b, ((h, w), img) in enumerate(zip(sizes, imgs, strict=True)):
         want = _lax_conv(jnp.asarray(img), kernel, bias).reshape(h * w, 3)
         np.testing.assert_allclose(out[b, : h * w], want, rtol=1e-12, atol=1e-13)
         np.testing.assert_array_equal(out[b, h * w :], 0)

@@ -1,0 +1,214 @@
+"""``jmeshtex dgts prepare|train|transfer|interpolate``: a thin layer over :mod:`jmeshtex.dgts`.
+
+- ``prepare --reference R --template T --levels L --out DIR``: multi-scale training meshes
+  (``DIR/training.npz``, ``DIR/level_XX.obj``, ``DIR/reference.obj``, ``DIR/levels.png``).
+- ``train DIR``: trains the hierarchy into ``DIR/model`` (resumes after the last complete level),
+  then writes a sample generated from the template (``DIR/model/sample.obj`` / ``.png``).
+- ``transfer --model DIR --target M --start-level l --samples n --out OUT``: ``OUT/sample_XX.obj``
+  and ``OUT/transfer.png`` (coloured by displacement along the normal).
+- ``interpolate --model DIR --target M --frames n --out OUT``: ``OUT/frame_XX.obj`` and
+  ``OUT/interpolate.png``.
+
+Meshes are files (``.obj``/``.ply``/``.off``/``.glb``) or procedural names: ``icosahedron``,
+``icosphere:N``, ``torus``, ``torus:NMAJOR:NMINOR``, ``bumpy-sphere``, ``grid:N``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+
+from .._errors import InputError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("dgts", help="DGTS: learn a geometric texture from one mesh, transfer it to any mesh",
+                       description="Deep Geometric Texture Synthesis (Hertz et al. 2020) on the CPU.")
+    dsub = p.add_subparsers(dest="dgts_command", metavar="STEP")
+
+    q = dsub.add_parser("prepare", help="fit a template to the reference at every level (training meshes)")
+    q.add_argument("--reference", required=True, help="reference mesh file or procedural name")
+    q.add_argument("--template", default="icosphere:1", help="template mesh file or name (default icosphere:1)")
+    q.add_argument("--levels", type=int, default=4, help="number of levels (default 4)")
+    q.add_argument("--iterations", type=int, default=None, help="Adam steps per level (default: PrepareConfig)")
+    q.add_argument("--samples", type=int, default=None, help="surface samples at level 0")
+    q.add_argument("--out", required=True, type=pathlib.Path, help="output folder")
+    q.add_argument("--no-progress", action="store_true", help="no progress bar")
+    q.set_defaults(func=_prepare)
+
+    t = dsub.add_parser("train", help="train the generator hierarchy (WGAN-GP), resumable")
+    t.add_argument("dir", type=pathlib.Path, metavar="DIR", help="folder written by `dgts prepare`")
+    t.add_argument("--iterations", type=int, default=None, help="iterations per level (default 2000)")
+    t.add_argument("--layers", type=int, default=None, help="layers per network (default 7)")
+    t.add_argument("--features", type=int, nargs=3, default=None, metavar=("START", "MIN", "MAX"),
+                   help="width schedule (default 32 32 128)")
+    t.add_argument("--levels", type=int, default=None, help="train only the first N levels")
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--no-progress", action="store_true", help="no progress bar")
+    t.set_defaults(func=_train)
+
+    for name, helptext in (("transfer", "synthesise the texture on a target mesh"),
+                           ("interpolate", "animate between two noises on a target mesh")):
+        r = dsub.add_parser(name, help=helptext)
+        r.add_argument("--model", required=True, type=pathlib.Path, help="folder of `dgts train` (or its model/)")
+        r.add_argument("--target", required=True, help="target mesh file or procedural name")
+        r.add_argument("--start-level", type=int, default=0, help="first generator level to run (default 0)")
+        if name == "transfer":
+            r.add_argument("--samples", type=int, default=1, help="number of samples (default 1)")
+        else:
+            r.add_argument("--frames", type=int, default=8, help="frames including both ends (default 8)")
+        r.add_argument("--seed", type=int, default=0)
+        r.add_argument("--out", required=True, type=pathlib.Path, help="output folder")
+        r.set_defaults(func=_transfer if name == "transfer" else _interpolate)
+    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
+
+
+def load_mesh_arg(spec: str):
+    """A mesh from a file path or a procedural name (see the module docstring)."""
+    from .. import data
+    from ..dgts import bumpy_sphere
+
+    parts = spec.split(":")
+    try:
+        nums = [int(x) for x in parts[1:]]
+    except ValueError as err:
+        raise InputError(f"bad procedural mesh {spec!r}: numbers expected after ':'") from err
+    named = {
+        "icosahedron": lambda: data.icosahedron(),
+        "icosphere": lambda: data.icosphere(*(nums or [1])),
+        "torus": lambda: data.torus(*(nums or [24, 12])),
+        "bumpy-sphere": lambda: bumpy_sphere(subdivisions=(nums or [4])[0]),
+        "grid": lambda: data.grid(*(nums or [8])),
+    }
+    if parts[0] in named and not pathlib.Path(spec).exists():
+        return named[parts[0]]()
+    from ..geometry import prepare_mesh
+    from ..io import load_mesh
+
+    path = pathlib.Path(spec)
+    if not path.exists():
+        raise InputError(f"{spec!r} is neither a mesh file nor one of the procedural names {sorted(named)}")
+    mesh, _ = prepare_mesh(load_mesh(path))
+    return mesh.vertices, mesh.faces
+
+
+def _bar(disable: bool):
+    from tqdm.auto import tqdm
+
+    state = {}
+
+    def progress(stage, done, total):
+        bar = state.get(stage)
+        if bar is None:
+            bar = state[stage] = tqdm(total=total, desc=f"prepare {stage}", unit="step", disable=disable)
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+
+    return progress
+
+
+def _prepare(args) -> int:
+    from ..dgts import PrepareConfig, save_training_meshes, training_meshes
+    from ..dgts._multiscale import atomic_write_bytes
+    from ..io import save_mesh
+    from ..render import render_grid, render_mesh
+
+    changes = {"num_levels": args.levels}
+    if args.iterations is not None:
+        changes["iterations"] = args.iterations
+    if args.samples is not None:
+        changes["samples_per_level"] = args.samples
+    config = PrepareConfig(**changes)
+    ref = load_mesh_arg(args.reference)
+    tmpl = load_mesh_arg(args.template)
+    tm = training_meshes(ref, tmpl, config=config, progress=_bar(args.no_progress))
+    out = args.out
+    save_training_meshes(out / "training.npz", tm)
+    atomic_write_bytes(out / "prepare.json", json.dumps(config.to_dict(), indent=2).encode())
+    save_mesh(ref, out / "reference.obj")
+    images = [render_mesh(*ref, size=(300, 300))]
+    for level, (v, f) in enumerate(zip(tm.vertices, tm.faces)):
+        save_mesh((v, f), out / f"level_{level:02d}.obj")
+        images.append(render_mesh(v, f, size=(300, 300)))
+    render_grid(images, out / "levels.png", titles=["reference"] + [f"level {i}" for i in range(tm.num_levels)])
+    print(f"wrote {out / 'training.npz'} ({tm.num_levels} levels, {[len(f) for f in tm.faces]} faces)")
+    return 0
+
+
+def _train(args) -> int:
+    import jax
+    import numpy as np
+
+    from ..dgts import TrainConfig, generate, hierarchy_geometry, load_training_meshes, train
+    from ..io import save_mesh
+    from ..render import render_mesh
+
+    tm = load_training_meshes(args.dir / "training.npz")
+    changes = {"seed": args.seed}
+    if args.iterations is not None:
+        changes["iterations"] = args.iterations
+    if args.layers is not None:
+        changes["num_layers"] = args.layers
+    if args.features is not None:
+        changes.update(zip(("start_features", "min_features", "max_features"), args.features))
+    config = TrainConfig(**changes)
+    out = args.dir / "model"
+    model, reports = train(tm, config, out_dir=out, num_levels=args.levels, progress=not args.no_progress)
+    for r in reports:
+        print(f"level {r.level}: {r.faces} faces, {r.iterations} it, compile {r.compile_seconds:.1f} s, "
+              f"{1000 * r.seconds_per_iteration:.1f} ms/it")
+    geos, faces = hierarchy_geometry(tm.faces[0], len(tm.template), model.num_levels)
+    sizes = [len(v) for v in tm.vertices[: model.num_levels]]
+    keys = jax.random.split(jax.random.key(args.seed), len(sizes))
+    zs = [config.noise_amplitude * jax.random.normal(k, (s, 3)).astype("float32") for k, s in zip(keys, sizes)]
+    v = np.asarray(generate(model.generators, jax.numpy.asarray(tm.template, "float32"), geos, zs,
+                            scale=config.scale_factor, negative_slope=config.negative_slope, eps=config.eps))
+    save_mesh((v.astype(float), faces[-1]), out / "sample.obj")
+    render_mesh(v, faces[-1], out / "sample.png", size=(400, 400), title="sample from the template")
+    print(f"wrote {out} ({model.num_levels} levels)")
+    return 0
+
+
+def _model_dir(path: pathlib.Path) -> pathlib.Path:
+    return path / "model" if (path / "model" / "state.json").exists() else path
+
+
+def _write_results(res, out: pathlib.Path, stem: str, title: str) -> None:
+    import numpy as np
+
+    from ..io import save_mesh
+    from ..render import render_grid, render_mesh
+
+    lim = float(np.abs(res.heights).max()) or 1.0
+    images = []
+    for i, (v, h) in enumerate(zip(res.vertices, res.heights)):
+        save_mesh((v, res.faces), out / f"{stem}_{i:02d}.obj")
+        images.append(render_mesh(v, res.faces, scalars=h, cmap="coolwarm", clim=(-lim, lim), size=(300, 300)))
+    render_grid(images, out / f"{title}.png", titles=[f"{stem} {i}" for i in range(len(images))])
+    print(f"wrote {len(images)} meshes and {out / (title + '.png')}")
+
+
+def _transfer(args) -> int:
+    import jax
+
+    from ..dgts import load_model, transfer
+
+    model = load_model(_model_dir(args.model))
+    v, f = load_mesh_arg(args.target)
+    res = transfer(model, v, f, start_level=args.start_level, num_samples=args.samples, key=jax.random.key(args.seed))
+    _write_results(res, args.out, "sample", "transfer")
+    return 0
+
+
+def _interpolate(args) -> int:
+    import jax
+
+    from ..dgts import interpolate, load_model
+
+    model = load_model(_model_dir(args.model))
+    v, f = load_mesh_arg(args.target)
+    res = interpolate(model, v, f, start_level=args.start_level, num_frames=args.frames, key=jax.random.key(args.seed))
+    _write_results(res, args.out, "frame", "interpolate")
+    return 0
