@@ -276,7 +276,8 @@ def fit_level(
                 lambda x: fitting_loss(x, geo, jax.random.fold_in(key, i), config=config, num_samples=num_samples),
                 has_aux=True,
             )(v)
-            updates, state = opt.update(g, state, v)
+            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+                updates, state = opt.update(g, state, v)
             return optax.apply_updates(v, updates), state, terms
 
         terms0 = jax.eval_shape(

@@ -167,7 +167,8 @@ def make_iteration(config: TrainConfig, level: int, num_vertices: Sequence[int])
             fake = jax.lax.stop_gradient(run(g, frozen, geos, template, noises(k_noise, dtype)))
             alpha = jax.random.uniform(k_alpha, (), dtype)
             (_, aux), grads = jax.value_and_grad(d_loss, has_aux=True)(d, fake, real, geos[-1].nbhd, alpha)
-            updates, state = opt_d.update(grads, state, d)
+            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+                updates, state = opt_d.update(grads, state, d)
             return optax.apply_updates(d, updates), state, aux
 
         d, opt_d_state, (s_real, s_fake, gp) = jax.lax.fori_loop(
@@ -180,7 +181,8 @@ def make_iteration(config: TrainConfig, level: int, num_vertices: Sequence[int])
             (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(
                 g, d, frozen, geos, template, real, z_star, k
             )
-            updates, state = opt_g.update(grads, state, g)
+            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+                updates, state = opt_g.update(grads, state, g)
             return optax.apply_updates(g, updates), state, aux
 
         g, opt_g_state, (adv, mse) = jax.lax.fori_loop(0, c.generator_steps, g_step, (g, opt.g, (zero, zero)))

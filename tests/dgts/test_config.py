@@ -1,0 +1,46 @@
+"""DGTS configuration: the reference code's width schedule, JSON round trip, typed errors."""
+
+from __future__ import annotations
+
+import pytest
+
+from jmeshtex import ConfigError
+from jmeshtex.dgts import PrepareConfig, TrainConfig
+
+
+def test_width_schedule_matches_the_reference_code():
+    c = TrainConfig()
+    # reference num_fe: max(min(32·2^l, 128) // 2^(i-1), 32) for i = 1..5, then 3 (G) or 1 (D)
+    assert c.level_features(0, generator=True) == (32, 32, 32, 32, 32, 3)
+    assert c.level_features(1, generator=True) == (64, 32, 32, 32, 32, 3)
+    assert c.level_features(2, generator=False) == (128, 64, 32, 32, 32, 1)
+    assert c.level_features(5, generator=True) == c.level_features(2, generator=True)
+
+
+def test_paper_defaults():
+    c = TrainConfig()
+    assert (c.lr, c.beta1, c.beta2, c.reconstruction_weight, c.penalty_weight) == (5e-4, 0.5, 0.99, 5.0, 0.1)
+    assert (c.discriminator_steps, c.generator_steps, c.lr_decay, c.lr_decay_every) == (2, 3, 0.5, 500)
+
+
+@pytest.mark.parametrize("cls", [PrepareConfig, TrainConfig])
+def test_json_round_trip(cls):
+    c = cls(seed=7)
+    assert cls.from_dict(c.to_dict()) == c
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: TrainConfig(num_layers=2),
+        lambda: TrainConfig(min_features=64, max_features=32),
+        lambda: TrainConfig(lr_decay=0.0),
+        lambda: TrainConfig(generator_steps=0),
+        lambda: PrepareConfig(num_levels=0),
+        lambda: PrepareConfig(weight_s2t=-1.0),
+        lambda: TrainConfig.from_dict({"no_such_field": 1}),
+    ],
+)
+def test_bad_values_raise_config_error(make):
+    with pytest.raises(ConfigError):
+        make()

@@ -1,0 +1,36 @@
+"""The DGTS generator and discriminator in the equivariance harness, plus a negative control."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import pytest
+
+from jmeshtex.dgts import _equivariance
+from jmeshtex.testing import Entry, Field, check
+
+
+@pytest.mark.parametrize("entry", _equivariance.ENTRIES, ids=lambda e: e.name)
+@pytest.mark.parametrize("dtype", [jnp.float64, jnp.float32])
+def test_registered_entries_pass_their_transforms(entry, dtype):
+    for t in entry.transforms:
+        result = check(entry, t, dtype=dtype)
+        assert result.passed, (t, result)
+
+
+def _world_frame_generator(state, params, points):
+    """Broken on purpose: reads the per-face coefficients as world vectors (no edge frames)."""
+    from jmeshtex.ops import face_conv_stack, face_features
+
+    nb = state.face_neighborhood()
+    d = face_conv_stack(face_features(points, nb), nb, params)
+    out = jnp.zeros_like(points).at[nb.faces[:, 0]].add(d)
+    return Field("vertex_vector", out[:, None, :])
+
+
+def test_a_world_frame_generator_is_flagged():
+    gen = _equivariance.ENTRIES[0]
+    bad = Entry("dgts.negative.world_frame", _world_frame_generator, gen.inputs, gen.transforms,
+                init=gen.init, expect_fail=("rigid",), group="negative")
+    result = check(bad, "rigid")
+    assert result.expect_fail and result.passed  # the error is above the bound
+    assert result.error > 1e-3

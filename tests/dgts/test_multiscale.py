@@ -1,0 +1,89 @@
+"""Multi-scale training meshes: frames, sampling, fitting, subdivision structure, files."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jmeshtex import MeshError, MeshIOError
+from jmeshtex.data import grid, icosahedron, icosphere
+from jmeshtex.dgts import PrepareConfig, fit_level, load_training_meshes, sample_points, save_training_meshes
+from jmeshtex.dgts._multiscale import normalize_pair, training_meshes, unique_edges
+from jmeshtex.geometry import mean_edge_length, subdivide_midpoint
+
+
+def test_unique_edges_counts_euler():
+    v, f = icosphere(2)
+    assert len(unique_edges(f)) == len(v) + len(f) - 2  # V - E + F = 2
+
+
+def test_sample_points_are_on_the_surface_and_area_uniform(key):
+    v, f = grid(4)  # unit square, z = 0
+    p, n = sample_points(key, jnp.asarray(v), jnp.asarray(f), 20000)
+    p = np.asarray(p)
+    assert np.all((p[:, :2] >= -1e-12) & (p[:, :2] <= 1 + 1e-12)) and np.all(p[:, 2] == 0)
+    np.testing.assert_allclose(np.abs(np.asarray(n)[:, 2]), 1.0)
+    # area-uniform on [0,1]^2: mean 1/2, variance 1/12 per axis (5 sigma bounds for 20000 samples)
+    np.testing.assert_allclose(p[:, :2].mean(0), 0.5, atol=5 * np.sqrt(1 / 12 / 20000))
+    frac_left_quarter = np.mean(p[:, 0] < 0.25)
+    assert abs(frac_left_quarter - 0.25) < 5 * np.sqrt(0.25 * 0.75 / 20000)
+
+
+def test_sample_points_never_picks_a_zero_area_face(key):
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]])
+    f = np.array([[0, 1, 2], [0, 1, 3]])  # the second face is degenerate (collinear)
+    p, _ = sample_points(key, jnp.asarray(v), jnp.asarray(f), 2000)
+    assert np.all(np.asarray(p)[:, 1] >= 0) and np.all(np.asarray(p)[:, 0] <= 1 + 1e-12)
+
+
+def test_normalize_pair_gives_unit_template_edges_and_maps_reference_consistently():
+    rv, _ = icosphere(2)
+    rv = 3.0 * rv + np.array([1.0, -2.0, 5.0])
+    tv, tf = icosahedron(0.7)
+    r, t, s, c = normalize_pair(rv, tv, tf)
+    assert mean_edge_length(t, tf) == pytest.approx(1.0, abs=1e-12)
+    np.testing.assert_allclose(r, (rv - c) * s, atol=1e-12)
+    np.testing.assert_allclose(r.max(0) - r.min(0), (t.max(0) - t.min(0)).max(), rtol=1e-12)  # both unit-cube fitted
+
+
+def test_fit_level_pulls_a_small_sphere_onto_a_large_one():
+    v, f = icosphere(1)
+    target = icosphere(3)
+    cfg = PrepareConfig(iterations=200, lr=2e-2, samples_per_level=500)
+    out, terms = fit_level(0.6 * v, f, *target, config=cfg, num_samples=500, key=jax.random.key(0))
+    before = np.abs(np.linalg.norm(0.6 * v, axis=1) - 1).mean()
+    after = np.abs(np.linalg.norm(out, axis=1) - 1).mean()
+    assert before == pytest.approx(0.4)
+    assert after < 0.15 * before  # residual: the Laplacian term pulls inwards, samples are discrete
+    assert set(terms) == {"s2t", "t2s", "normal_s2t", "normal_t2s", "edge_std", "edge_local", "laplacian"}
+
+
+def test_training_meshes_structure(tiny_meshes):
+    tm = tiny_meshes
+    assert tm.num_levels == 2 and len(tm.edge_vertices) == 1
+    sub = subdivide_midpoint(tm.vertices[0], tm.faces[0])
+    np.testing.assert_array_equal(sub.faces, tm.faces[1])
+    np.testing.assert_array_equal(sub.edge_vertices, tm.edge_vertices[0])
+    assert tm.scales[1] / tm.scales[0] == pytest.approx(2.0)
+    assert mean_edge_length(tm.template, tm.faces[0]) == pytest.approx(1.0)
+    for v, f in zip(tm.vertices, tm.faces):  # every level keeps a mean edge near 1 in its frame
+        assert 0.7 < mean_edge_length(v, f) < 1.3
+
+
+def test_save_load_round_trip(tmp_path, tiny_meshes):
+    path = save_training_meshes(tmp_path / "t.npz", tiny_meshes)
+    back = load_training_meshes(path)
+    for a, b in zip(back, tiny_meshes):
+        for x, y in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,)):
+            np.testing.assert_array_equal(x, y)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left over
+
+
+def test_errors(tmp_path):
+    with pytest.raises(MeshIOError, match="no such file"):
+        load_training_meshes(tmp_path / "missing.npz")
+    v, f = icosahedron()
+    with pytest.raises(MeshError):
+        training_meshes((v, f), (v, np.concatenate([f, f[:1]])), config=PrepareConfig(num_levels=1, iterations=0))

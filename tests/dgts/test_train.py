@@ -1,0 +1,61 @@
+"""WGAN-GP training: frozen earlier levels, warm starts, checkpoints that resume exactly."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from jmeshtex import ConfigError, MeshIOError
+from jmeshtex.dgts import load_model, train
+
+from .conftest import TINY
+
+
+def _leaves(tree):
+    return [np.asarray(x) for x in jax.tree.leaves(tree)]
+
+
+def test_levels_train_and_earlier_generators_stay_frozen(tiny_meshes, tiny_model):
+    level0_only, reports = train(tiny_meshes, TINY, num_levels=1, progress=False)
+    assert [r.level for r in reports] == [0]
+    # level 1 training must not touch generator 0 (stop_gradient + separate optimiser)
+    for a, b in zip(_leaves(level0_only.generators[0]), _leaves(tiny_model.generators[0])):
+        np.testing.assert_array_equal(a, b)
+    # equal widths: level 1 starts from level 0's weights and moves away from them
+    assert TINY.level_features(1, generator=True) == TINY.level_features(0, generator=True)
+    moved = [np.abs(a - b).max() for a, b in zip(_leaves(tiny_model.generators[1]), _leaves(tiny_model.generators[0]))]
+    assert 0 < max(moved) < 0.1  # two small Adam steps away from the warm start
+    assert all(np.isfinite(x).all() for x in _leaves(tiny_model))
+
+
+def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, tiny_model):
+    out = tmp_path / "run"
+    _, first = train(tiny_meshes, TINY, out_dir=out, num_levels=1, progress=False)
+    state = json.loads((out / "state.json").read_text())
+    assert state["completed_levels"] == 1 and (out / "level_00.npz").exists()
+    resumed, second = train(tiny_meshes, TINY, out_dir=out, progress=False)
+    assert [r.level for r in first] == [0] and [r.level for r in second] == [1]
+    for a, b in zip(_leaves(resumed.generators), _leaves(tiny_model.generators)):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    loaded = load_model(out)
+    assert loaded.num_levels == 2 and loaded.config == TINY
+    np.testing.assert_array_equal(loaded.z_star, tiny_model.z_star)
+    assert json.loads((out / "state.json").read_text())["completed_levels"] == 2
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # atomic writes left no temporaries
+
+
+def test_resume_with_another_config_is_refused(tmp_path, tiny_meshes):
+    out = tmp_path / "run"
+    train(tiny_meshes, TINY, out_dir=out, num_levels=1, progress=False)
+    with pytest.raises(ConfigError, match="different config"):
+        train(tiny_meshes, TINY.replace(lr=1e-3), out_dir=out, progress=False)
+
+
+def test_errors(tmp_path, tiny_meshes):
+    with pytest.raises(MeshIOError, match="state.json"):
+        load_model(tmp_path)
+    with pytest.raises(ConfigError, match="num_levels"):
+        train(tiny_meshes, TINY, num_levels=3, progress=False)
