@@ -14,8 +14,7 @@ local like on a real atlas. Measured, float32, jitted, compile time apart:
 
 FLOPs: the GEMM ``2·N·9C·D`` plus the bilinear gather-reduce ``2·N·9·J·C``; backward is 2× the
 GEMM plus the transposed gather. Bytes (minimum float32 traffic): read the features once, the
-indices and weights, write and read back the nine ``[N, C]`` sampled blocks (one per tap, each
-feeding its own ``[N, C] @ [C, D]`` GEMM), write the output.
+indices and weights, write and read back the ``[N, 9C]`` sampled block, write the output.
 """
 
 from __future__ import annotations

@@ -182,6 +182,7 @@ def _write_results(res, out: pathlib.Path, stem: str, title: str) -> None:
     from ..render import render_grid, render_mesh
 
     lim = float(np.abs(res.heights).max()) or 1.0
+    out.mkdir(parents=True, exist_ok=True)
     images = []
     for i, (v, h) in enumerate(zip(res.vertices, res.heights)):
         save_mesh((v, res.faces), out / f"{stem}_{i:02d}.obj")

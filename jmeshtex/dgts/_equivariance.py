@@ -28,7 +28,7 @@ def _generator(state, params, points):
 def _init_generator(key, dtype):
     from ..ops import init_face_conv_stack
 
-    return init_face_conv_stack(key, (16, 16, 8, 3), dtype=dtype)
+    return init_face_conv_stack(key, (8, 8, 3), dtype=dtype)
 
 
 def _discriminator(state, params, points):
@@ -40,7 +40,7 @@ def _discriminator(state, params, points):
 def _init_discriminator(key, dtype):
     from ..ops import init_face_conv_stack
 
-    return init_face_conv_stack(key, (16, 8, 1), dtype=dtype)
+    return init_face_conv_stack(key, (8, 1), dtype=dtype)
 
 
 ENTRIES = (

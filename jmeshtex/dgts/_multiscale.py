@@ -13,6 +13,7 @@ level-0 frame times ``scale_factor**l``. ``scales[l]`` maps the reference's inpu
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 import pathlib
@@ -230,6 +231,32 @@ def fitting_loss(
     )
     return loss, terms
 
+_CHUNK = 50
+
+
+@functools.lru_cache(maxsize=16)
+def _fit_runner(config: PrepareConfig, num_samples: int):
+    """A jit-compiled runner of up to ``_CHUNK`` Adam steps (cached per config and sample count)."""
+    opt = optax.adam(config.lr)
+
+    @jax.jit
+    def run_chunk(v, state, key, geo, n):
+        def body(i, carry):
+            v, state, _ = carry
+            (_, terms), g = jax.value_and_grad(
+                lambda x: fitting_loss(x, geo, jax.random.fold_in(key, i), config=config, num_samples=num_samples),
+                has_aux=True,
+            )(v)
+            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+                updates, state = opt.update(g, state, v)
+            return optax.apply_updates(v, updates), state, terms
+
+        terms0 = jax.eval_shape(lambda x: fitting_loss(x, geo, key, config=config, num_samples=num_samples)[1], v)
+        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
+        return jax.lax.fori_loop(0, n, body, (v, state, zeros))
+
+    return run_chunk, opt
+
 
 def fit_level(
     vertices: Float[np.ndarray, "V 3"],
@@ -265,27 +292,8 @@ def fit_level(
         jnp.asarray(target_vertices, jnp.float32),
         jnp.asarray(target_faces, jnp.int32),
     )
-    opt = optax.adam(config.lr)
-    chunk = 50
-
-    @jax.jit
-    def run_chunk(v, state, key, geo, n):
-        def body(i, carry):
-            v, state, _ = carry
-            (_, terms), g = jax.value_and_grad(
-                lambda x: fitting_loss(x, geo, jax.random.fold_in(key, i), config=config, num_samples=num_samples),
-                has_aux=True,
-            )(v)
-            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-                updates, state = opt.update(g, state, v)
-            return optax.apply_updates(v, updates), state, terms
-
-        terms0 = jax.eval_shape(
-            lambda x: fitting_loss(x, geo, key, config=config, num_samples=num_samples)[1], v
-        )
-        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
-        return jax.lax.fori_loop(0, n, body, (v, state, zeros))
-
+    run_chunk, opt = _fit_runner(config, int(num_samples))
+    chunk = _CHUNK
     v = jnp.asarray(vertices, jnp.float32)
     state = opt.init(v)
     terms: dict = {}

@@ -24,6 +24,7 @@ last complete level.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
 import pathlib
@@ -117,8 +118,10 @@ def gradient_penalty(
     return jnp.mean((norm - 1) ** 2)
 
 
-def make_iteration(config: TrainConfig, level: int, num_vertices: Sequence[int]):
-    """The jit-compiled training iteration of ``level``.
+@functools.lru_cache(maxsize=32)
+def make_iteration(config: TrainConfig, level: int, num_vertices: tuple[int, ...]):
+    """The jit-compiled training iteration of ``level`` (cached: the same config and sizes reuse
+    the compiled function, e.g. when training resumes in the same process).
 
     Returns ``step(g, d, opt, frozen, geos, template, real, z_star, key) -> (g, d, opt, losses)``.
     """
@@ -337,7 +340,7 @@ def train(
             g = gs[-1]
         if level > 0 and config.level_features(level, generator=False) == config.level_features(level - 1, generator=False):
             d = ds[-1]
-        step, opt_g, opt_d = make_iteration(config, level, V)
+        step, opt_g, opt_d = make_iteration(config, level, tuple(V))
         opt = _Opt(opt_g.init(g), opt_d.init(d))
         geos = geos_all[: level + 1]
         real = jnp.asarray(meshes.vertices[level], jnp.float32)

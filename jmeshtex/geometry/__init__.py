@@ -59,3 +59,4 @@ from ._knn import knn_from_one_ring as knn_from_one_ring
 from .._errors import DecimationError as DecimationError
 from ._hierarchy import MeshHierarchy as MeshHierarchy
 from ._hierarchy import mesh_hierarchy as mesh_hierarchy
+from ._validate import check_mesh_arrays as check_mesh_arrays

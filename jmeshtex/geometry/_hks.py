@@ -15,7 +15,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._types import Array, Float, Int
-from ._subdivision import check_mesh_arrays
+from ._validate import check_mesh_arrays
 
 # relative threshold under which an eigenvalue counts as zero (one per connected component); the
 # shift-invert solve returns the null space at ~1e-12 relative, the first non-zero mode is far above

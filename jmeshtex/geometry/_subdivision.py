@@ -13,13 +13,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .._errors import (
-    EmptyMeshError,
-    FaceIndexError,
     InputError,
-    NonFiniteVertexError,
-    NonTriangleFaceError,
 )
 from .._types import Array, Float, Int
+from ._validate import check_mesh_arrays
 
 
 class Subdivision(NamedTuple):
@@ -60,31 +57,6 @@ class Subdivision(NamedTuple):
             )
         mids = 0.5 * (values[self.edge_vertices[:, 0]] + values[self.edge_vertices[:, 1]])
         return np.concatenate([values, mids.astype(values.dtype, copy=False)])
-
-
-def check_mesh_arrays(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
-    """Cheap structural checks shared by host geometry: ``[V, 3]`` finite floats, ``[F, 3]`` valid ints.
-
-    Returns float64 vertices and int64 faces; raises typed errors naming the problem otherwise. This is
-    not full mesh validation (manifoldness, orientation, degenerate faces are not checked).
-    """
-    v = np.asarray(vertices)
-    f = np.asarray(faces)
-    if v.ndim != 2 or v.shape[1] != 3 or not np.issubdtype(v.dtype, np.number):
-        raise InputError(f"vertices must be a numeric array of shape [V, 3], got shape {v.shape} ({v.dtype})")
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise NonTriangleFaceError(f"faces must be triangles, shape [F, 3], got shape {f.shape}")
-    if len(v) == 0 or len(f) == 0:
-        raise EmptyMeshError(f"the mesh has no vertices or no faces (V={len(v)}, F={len(f)})")
-    if not np.issubdtype(f.dtype, np.integer):
-        raise InputError(f"faces must hold integer vertex indices, got dtype {f.dtype}")
-    bad_faces = np.nonzero(((f < 0) | (f >= len(v))).any(axis=1))[0]
-    if bad_faces.size:
-        raise FaceIndexError(f"face indices out of range [0, {len(v)}) at faces", indices=bad_faces)
-    bad_vertices = np.nonzero(~np.isfinite(v).all(axis=1))[0]
-    if bad_vertices.size:
-        raise NonFiniteVertexError(indices=bad_vertices)
-    return v.astype(np.float64, copy=False), f.astype(np.int64, copy=False)
 
 
 def _unique_edges(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.ndarray]:

@@ -32,15 +32,12 @@ from jaxtyping import Bool, Complex, Float, Int
 
 from .._errors import (
     DegenerateFaceError,
-    EmptyMeshError,
-    FaceIndexError,
     InputError,
-    NonFiniteVertexError,
-    NonTriangleFaceError,
 )
 from ._adjacency import face_neighborhood
 from ._intrinsic import edge_lengths, face_areas
 from ._log_map import _angles_from_lengths, _wedge_corners
+from ._validate import check_mesh_arrays
 
 # A ray is taken to leave a face through an edge only if it points outwards by more than this
 # cosine; rays (numerically) parallel to an edge walk along it instead of bouncing across it.
@@ -128,27 +125,6 @@ class TracerGeometry(NamedTuple):
 # tables
 
 
-def _check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
-    vertices = np.asarray(vertices, dtype=np.float64)
-    faces_in = np.asarray(faces)
-    if vertices.ndim != 2 or vertices.shape[1] != 3:
-        raise InputError(f"vertices must have shape [V, 3], got {vertices.shape}")
-    if faces_in.ndim != 2 or faces_in.shape[1] != 3:
-        raise NonTriangleFaceError(f"faces must be triangles, shape [F, 3], got {faces_in.shape}")
-    if len(vertices) == 0 or len(faces_in) == 0:
-        raise EmptyMeshError()
-    if not np.issubdtype(faces_in.dtype, np.integer):
-        raise InputError(f"faces must hold integer vertex indices, got dtype {faces_in.dtype}")
-    faces = faces_in.astype(np.int64)
-    bad = np.nonzero((faces < 0).any(1) | (faces >= len(vertices)).any(1))[0]
-    if bad.size:
-        raise FaceIndexError(indices=bad)
-    bad = np.nonzero(~np.isfinite(vertices).all(1))[0]
-    if bad.size:
-        raise NonFiniteVertexError(indices=bad)
-    return vertices, faces
-
-
 def _face_layouts(lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Corner positions ``[F, 3]`` (complex) and doubled areas ``[F]`` from edge lengths ``[F, 3]``.
 
@@ -201,7 +177,7 @@ def tracer_geometry(
       >>> g.neighbor.tolist()
       [[-1, -1, -1]]
     """
-    vertices, faces = _check_mesh(vertices, faces)
+    vertices, faces = check_mesh_arrays(vertices, faces)
     lengths = edge_lengths(vertices, faces)
     corners, double_area = _face_layouts(lengths)
 

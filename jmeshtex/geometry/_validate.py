@@ -122,7 +122,7 @@ def _check_indices(faces: np.ndarray, num_vertices: int) -> None:
     bad = np.nonzero(((faces < 0) | (faces >= num_vertices)).any(axis=1))[0]
     if bad.size:
         raise FaceIndexError(
-            f"face indices outside [0, {num_vertices}) (negative, or not below the number of "
+            f"face indices out of range [0, {num_vertices}) (negative, or not below the number of "
             "vertices) at faces",
             indices=bad,
         )
@@ -246,6 +246,24 @@ def _check_topology(vertices: np.ndarray, faces: np.ndarray, area_tol: float) ->
         raise NonManifoldVertexError(indices=bad)
 
 
+def check_mesh_arrays(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """The structural half of :func:`validate_mesh`: shapes, dtypes, index range, finiteness, emptiness.
+
+    For host geometry that accepts any triangle soup (subdivision, HKS, rendering, tracing): it does
+    not check manifoldness, orientation or degenerate faces. Returns copies as float64 ``[V, 3]``
+    and int64 ``[F, 3]``; raises the same typed errors as :func:`validate_mesh`.
+
+    Example:
+      >>> v, f = check_mesh_arrays([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+      >>> v.dtype, f.dtype
+      (dtype('float64'), dtype('int64'))
+    """
+    v = _coerce_vertices(vertices)
+    f = _coerce_faces(faces)
+    _check_basic(v, f)
+    return v, f
+
+
 def validate_mesh(
     vertices: Float[ArrayLike, "V 3"],
     faces: Int[ArrayLike, "F 3"],
@@ -284,9 +302,7 @@ def validate_mesh(
       ...
       jmeshtex._errors.DuplicateFaceError: duplicate faces (same three vertices), as (first, repeat) face pairs (count 1: (0, 20)). Fix: pass repair=True to drop the duplicates
     """
-    v = _coerce_vertices(vertices)
-    f = _coerce_faces(faces)
-    _check_basic(v, f)
+    v, f = check_mesh_arrays(vertices, faces)
     _check_topology(v, f, area_tol)
 
 

@@ -10,11 +10,11 @@ from jmeshtex.testing import Entry, Field, check
 
 
 @pytest.mark.parametrize("entry", _equivariance.ENTRIES, ids=lambda e: e.name)
-@pytest.mark.parametrize("dtype", [jnp.float64, jnp.float32])
-def test_registered_entries_pass_their_transforms(entry, dtype):
+def test_registered_entries_pass_their_transforms(entry):
     for t in entry.transforms:
-        result = check(entry, t, dtype=dtype)
+        result = check(entry, t, dtype=jnp.float64)
         assert result.passed, (t, result)
+    assert check(entry, "rigid", dtype=jnp.float32).passed  # float32 bound 1e-5
 
 
 def _world_frame_generator(state, params, points):

@@ -28,7 +28,7 @@ def test_levels_train_and_earlier_generators_stay_frozen(tiny_meshes, tiny_model
     assert TINY.level_features(1, generator=True) == TINY.level_features(0, generator=True)
     moved = [np.abs(a - b).max() for a, b in zip(_leaves(tiny_model.generators[1]), _leaves(tiny_model.generators[0]))]
     assert 0 < max(moved) < 0.1  # two small Adam steps away from the warm start
-    assert all(np.isfinite(x).all() for x in _leaves(tiny_model))
+    assert all(np.isfinite(x).all() for x in _leaves(tiny_model.generators))
 
 
 def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, tiny_model):

@@ -155,7 +155,7 @@ def test_index_errors_name_the_faces():
     f = f.copy()
     f[3, 1] = 12
     f[7, 0] = -1
-    with pytest.raises(FaceIndexError, match=r"outside \[0, 12\)") as info:
+    with pytest.raises(FaceIndexError, match=r"out of range \[0, 12\)") as info:
         validate_mesh(v, f)
     assert _items(info.value) == [3, 7]
     with pytest.raises(FaceIndexError):  # no vertices at all: indices fail before emptiness

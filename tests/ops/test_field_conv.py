@@ -14,7 +14,7 @@ from jax.test_util import check_grads
 from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid
 from jmeshtex.geometry import VertexNeighborhood, pad_to, to_jax
-from jmeshtex.ops import FieldConvParams, field_conv, init_field_conv
+from jmeshtex.ops import FieldConvParams, field_conv
 from jmeshtex.ops._field_conv import _filtered_sums, _sums_impl
 
 _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
@@ -25,9 +25,14 @@ V, K, C, D, H, E = 6, 4, 2, 3, 3, 1
 
 @functools.lru_cache(maxsize=None)
 def make_params(seed, e=E, c=C, d=D, h=H, dtype=jnp.complex128):
-    # under jit: the eager initialiser would compile every primitive separately (slow with debug_nans)
-    init = jax.jit(lambda key: init_field_conv(key, c, d, hdim=h, embedding_features=e, dtype=dtype))
-    return init(jax.random.key(seed))
+    """NumPy parameters distributed like init_field_conv (which has its own doctest): no compilation."""
+    rng = np.random.default_rng(seed)
+    real = np.float64 if dtype == jnp.complex128 else np.float32
+    return FieldConvParams(
+        filter_weight=(rng.standard_normal((2 + e, h)) / np.sqrt(2 + e)).astype(real),
+        filter_bias=rng.standard_normal(h).astype(real),
+        mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
+    )
 
 # ----------------------------------------------------------------------------- helpers
 

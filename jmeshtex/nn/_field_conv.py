@@ -1,0 +1,159 @@
+"""Flax modules for field convolutions: thin wrappers around :func:`jmeshtex.ops.field_conv`.
+
+Parameters are the fields of :class:`jmeshtex.ops.FieldConvParams` (``filter_weight``,
+``filter_bias``, ``mix``), drawn by :func:`jmeshtex.ops.init_field_conv`; see
+:mod:`jmeshtex.nn._complex` for the complex initialisation and the optax gradient convention.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+from ..ops._field_conv import field_conv, init_field_conv
+from ..ops._util import real_dtype
+from ._complex import FRN, ComplexDense, VNNonlinearity, pytree_params
+
+
+class FieldConv(nn.Module):
+    """Field convolution without embedding, :func:`jmeshtex.ops.field_conv` (2021; 2024 eq. 34).
+
+    Attributes:
+      features: output channels ``D``.
+      hdim: filter responses per input channel ``H``.
+      delta: ``δ`` of the smoothed feature direction.
+      activation: filter nonlinearity, ``"silu"`` or ``"relu"``.
+      param_dtype: complex dtype of the mix (the filter uses the matching real dtype).
+
+    Example:
+      >>> import numpy as np
+      >>> from jmeshtex.geometry import VertexNeighborhood
+      >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
+      ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
+      ...     np.ones(2), np.ones(2, bool))
+      >>> x = jnp.ones((2, 3), jnp.complex64)
+      >>> m = FieldConv(4, hdim=8)
+      >>> v = m.init(jax.random.key(0), x, nb)
+      >>> m.apply(v, x, nb).shape, v["params"]["mix"].shape
+      ((2, 4), (3, 8, 4))
+    """
+
+    features: int
+    hdim: int = 16
+    delta: float = 1e-4
+    activation: str = "silu"
+    param_dtype: Any = jnp.complex64
+
+    @nn.compact
+    def __call__(self, x, nbhd):
+        params = pytree_params(self, lambda key: init_field_conv(key, x.shape[-1], self.features, hdim=self.hdim, dtype=self.param_dtype))
+        return field_conv(x, nbhd, params, delta=self.delta, activation=self.activation)
+
+
+class FieldConvEmb(nn.Module):
+    """Field convolution with a scalar embedding appended to the filter input (2024 eq. 35).
+
+    Attributes:
+      features: output channels ``D``.
+      hdim: filter responses per input channel ``H``.
+      delta: ``δ`` of the smoothed feature direction.
+      activation: filter nonlinearity, ``"silu"`` or ``"relu"``.
+      param_dtype: complex dtype of the mix.
+
+    Call with ``embedding`` of shape ``[V, E]`` (per vertex, e.g. labels) or ``[E]`` (global, e.g. a
+    timestep embedding; broadcast to every vertex).
+
+    Example:
+      >>> import numpy as np
+      >>> from jmeshtex.geometry import VertexNeighborhood
+      >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
+      ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
+      ...     np.ones(2), np.ones(2, bool))
+      >>> x, t = jnp.ones((2, 3), jnp.complex64), jnp.array([0.1, 0.2, 0.3, 0.4])
+      >>> m = FieldConvEmb(4)
+      >>> v = m.init(jax.random.key(0), x, nb, t)
+      >>> m.apply(v, x, nb, t).shape, v["params"]["filter_weight"].shape
+      ((2, 4), (6, 16))
+    """
+
+    features: int
+    hdim: int = 16
+    delta: float = 1e-4
+    activation: str = "silu"
+    param_dtype: Any = jnp.complex64
+
+    @nn.compact
+    def __call__(self, x, nbhd, embedding):
+        embedding = _per_vertex(embedding, x)
+        params = pytree_params(
+            self,
+            lambda key: init_field_conv(
+                key, x.shape[-1], self.features, hdim=self.hdim, embedding_features=embedding.shape[-1],
+                dtype=self.param_dtype,
+            ),
+        )
+        return field_conv(x, nbhd, params, embedding=embedding, delta=self.delta, activation=self.activation)
+
+
+class FCResNetBlock(nn.Module):
+    """Field-convolution ResNet block with an embedding (the FLDM's FCResNet block, 2024 §4).
+
+    .. math:: y = r(x) + \\mathrm{FC}_{e}\\big(\\mathrm{VN}(\\mathrm{FRN}(\\mathrm{FC}(x)))\\big)
+
+    ``FC`` is :class:`FieldConv`, ``FRN`` the mesh-wide normalisation (areas and vertex mask from the
+    neighbourhood), ``VN`` the residual-form :class:`VNNonlinearity`, ``FC_e`` a :class:`FieldConvEmb`
+    whose filters also see ``e = SiLU(W₂ SiLU(W₁ embedding))`` (a real two-layer MLP, as in the
+    reference code), and ``r`` the identity when the widths agree, else a bias-free
+    :class:`ComplexDense`. Every piece is gauge-equivariant, so the block is.
+
+    Attributes:
+      features: output channels ``D``.
+      hdim: filter responses per input channel.
+      embedding_features: width ``E`` of the processed embedding fed to the filters; default ``D``.
+      delta: ``δ`` of the field convolutions' smoothed directions.
+      activation: filter nonlinearity of both convolutions.
+      param_dtype: complex dtype of the complex weights.
+
+    Example:
+      >>> import numpy as np
+      >>> from jmeshtex.geometry import VertexNeighborhood
+      >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
+      ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
+      ...     np.ones(2), np.ones(2, bool))
+      >>> x, t = jnp.ones((2, 3), jnp.complex64), jnp.array([0.5])
+      >>> m = FCResNetBlock(3, hdim=4)
+      >>> m.apply(m.init(jax.random.key(0), x, nb, t), x, nb, t).shape
+      (2, 3)
+    """
+
+    features: int
+    hdim: int = 16
+    embedding_features: int | None = None
+    delta: float = 1e-4
+    activation: str = "silu"
+    param_dtype: Any = jnp.complex64
+
+    @nn.compact
+    def __call__(self, x, nbhd, embedding):
+        width = self.features if self.embedding_features is None else self.embedding_features
+        rdt = real_dtype(x.dtype)
+        emb = jnp.asarray(embedding)
+        emb = jax.nn.silu(nn.Dense(width, dtype=rdt, name="embed_0")(emb))
+        emb = jax.nn.silu(nn.Dense(width, dtype=rdt, name="embed_1")(emb))
+        conv = dict(hdim=self.hdim, delta=self.delta, activation=self.activation, param_dtype=self.param_dtype)
+        h = FieldConv(self.features, name="conv_0", **conv)(x, nbhd)
+        h = FRN(name="norm")(h, area=nbhd.area, vertex_mask=nbhd.vertex_mask)
+        h = VNNonlinearity(param_dtype=self.param_dtype, name="act")(h)
+        h = FieldConvEmb(self.features, name="conv_1", **conv)(h, nbhd, emb)
+        res = x if x.shape[-1] == self.features else ComplexDense(self.features, self.param_dtype, name="skip")(x)
+        return h + res
+
+
+def _per_vertex(embedding, x):
+    emb = jnp.asarray(embedding).astype(real_dtype(x.dtype))
+    if emb.ndim == 1:
+        emb = jnp.broadcast_to(emb, (x.shape[0], emb.shape[0]))
+    return emb

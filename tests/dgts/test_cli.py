@@ -1,0 +1,40 @@
+"""`jmeshtex dgts prepare|train|transfer|interpolate`, run in-process on tiny settings."""
+
+from __future__ import annotations
+
+import matplotlib.image
+import numpy as np
+
+from jmeshtex.cli import main
+from jmeshtex.io import load_mesh
+
+
+def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model):
+    # same settings as the tiny fixtures (conftest), so the compiled steps are reused
+    d = tmp_path / "dgts"
+    assert main(["dgts", "prepare", "--reference", "icosphere:2", "--template", "icosahedron", "--levels", "2",
+                 "--iterations", "20", "--samples", "200", "--out", str(d), "--no-progress"]) == 0
+    for name in ("training.npz", "reference.obj", "level_00.obj", "level_01.obj", "levels.png", "prepare.json"):
+        assert (d / name).exists(), name
+    assert load_mesh(d / "level_01.obj").num_faces == 80
+    assert main(["dgts", "train", str(d), "--iterations", "2", "--layers", "3", "--features", "4", "4", "4", "--seed", "3",
+                 "--no-progress"]) == 0
+    assert (d / "model" / "state.json").exists() and (d / "model" / "sample.png").exists()
+    out = tmp_path / "out"
+    assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--samples", "2",
+                 "--out", str(out)]) == 0
+    m = load_mesh(out / "sample_01.obj")
+    assert m.num_faces == 4 * 96 and np.isfinite(m.vertices).all()
+    img = matplotlib.image.imread(out / "transfer.png")
+    assert (img[..., :3] < 0.9).any(axis=2).mean() > 0.05  # something was drawn
+    assert main(["dgts", "interpolate", "--model", str(d / "model"), "--target", "grid:4", "--frames", "3",
+                 "--start-level", "1", "--out", str(out)]) == 0
+    assert (out / "frame_02.obj").exists() and (out / "interpolate.png").exists()
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_errors_are_one_line_with_status_2(tmp_path, capsys):
+    assert main(["dgts", "transfer", "--model", str(tmp_path), "--target", "torus", "--out", str(tmp_path)]) == 2
+    assert "state.json" in capsys.readouterr().err
+    assert main(["dgts", "prepare", "--reference", "no-such-mesh.obj", "--out", str(tmp_path)]) == 2
+    assert "neither a mesh file" in capsys.readouterr().err
