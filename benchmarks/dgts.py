@@ -71,7 +71,7 @@ def main() -> None:
         x = jnp.asarray(v0, jnp.float32)
         params = tuple(model.generators[start:])
         zs = [0.1 * jax.random.normal(jax.random.key(i), (s, 3), jnp.float32) for i, s in enumerate(sizes)]
-        t = time_jax(lambda x, zs: _run_jit(model, x, geos, params, zs), x, zs, repeats=3)
+        t = time_jax(lambda x, zs, geos=geos, params=params: _run_jit(model, x, geos, params, zs), x, zs, repeats=3)
         report.add(name=f"transfer 20K faces, {n} level(s)", faces_in=len(f), faces_out=len(faces[-1]),
                    seconds=t.run_s, compile_s=t.compile_s, target_s=5.0)
     report.write()

@@ -129,7 +129,7 @@ def _prepare(args) -> int:
     atomic_write_bytes(out / "prepare.json", json.dumps(config.to_dict(), indent=2).encode())
     save_mesh(ref, out / "reference.obj")
     images = [render_mesh(*ref, size=(300, 300))]
-    for level, (v, f) in enumerate(zip(tm.vertices, tm.faces)):
+    for level, (v, f) in enumerate(zip(tm.vertices, tm.faces, strict=True)):
         save_mesh((v, f), out / f"level_{level:02d}.obj")
         images.append(render_mesh(v, f, size=(300, 300)))
     render_grid(images, out / "levels.png", titles=["reference"] + [f"level {i}" for i in range(tm.num_levels)])
@@ -152,7 +152,7 @@ def _train(args) -> int:
     if args.layers is not None:
         changes["num_layers"] = args.layers
     if args.features is not None:
-        changes.update(zip(("start_features", "min_features", "max_features"), args.features))
+        changes.update(zip(("start_features", "min_features", "max_features"), args.features, strict=True))
     config = TrainConfig(**changes)
     out = args.dir / "model"
     model, reports = train(tm, config, out_dir=out, num_levels=args.levels, progress=not args.no_progress)
@@ -162,7 +162,7 @@ def _train(args) -> int:
     geos, faces = hierarchy_geometry(tm.faces[0], len(tm.template), model.num_levels)
     sizes = [len(v) for v in tm.vertices[: model.num_levels]]
     keys = jax.random.split(jax.random.key(args.seed), len(sizes))
-    zs = [config.noise_amplitude * jax.random.normal(k, (s, 3)).astype("float32") for k, s in zip(keys, sizes)]
+    zs = [config.noise_amplitude * jax.random.normal(k, (s, 3)).astype("float32") for k, s in zip(keys, sizes, strict=True)]
     v = np.asarray(generate(model.generators, jax.numpy.asarray(tm.template, "float32"), geos, zs,
                             scale=config.scale_factor, negative_slope=config.negative_slope, eps=config.eps))
     save_mesh((v.astype(float), faces[-1]), out / "sample.obj")
@@ -184,7 +184,7 @@ def _write_results(res, out: pathlib.Path, stem: str, title: str) -> None:
     lim = float(np.abs(res.heights).max()) or 1.0
     out.mkdir(parents=True, exist_ok=True)
     images = []
-    for i, (v, h) in enumerate(zip(res.vertices, res.heights)):
+    for i, (v, h) in enumerate(zip(res.vertices, res.heights, strict=True)):
         save_mesh((v, res.faces), out / f"{stem}_{i:02d}.obj")
         images.append(render_mesh(v, res.faces, scalars=h, cmap="coolwarm", clim=(-lim, lim), size=(300, 300)))
     render_grid(images, out / f"{title}.png", titles=[f"{stem} {i}" for i in range(len(images))])

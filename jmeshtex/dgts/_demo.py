@@ -95,7 +95,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
         render_mesh(tm.vertices[-1], tm.faces[-1], size=size),
     ] + [
         render_mesh(v, res.faces, scalars=h, cmap="coolwarm", clim=(-lim, lim), size=size)
-        for v, h in zip(res.vertices, res.heights)
+        for v, h in zip(res.vertices, res.heights, strict=True)
     ]
     png = render_grid(images, out / "dgts.png", titles=["reference", f"training level {tm.num_levels - 1}",
                                                          "transfer 1", "transfer 2"], columns=4)

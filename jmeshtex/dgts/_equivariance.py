@@ -28,7 +28,7 @@ def _generator(state, params, points):
 def _init_generator(key, dtype):
     from ..ops import init_face_conv_stack
 
-    return init_face_conv_stack(key, (8, 8, 3), dtype=dtype)
+    return init_face_conv_stack(key, (8, 3), dtype=dtype)
 
 
 def _discriminator(state, params, points):

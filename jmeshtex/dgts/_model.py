@@ -21,7 +21,6 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import flax.linen as nn
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -220,7 +219,7 @@ def generate(
             "pass one of each per level"
         )
     v = vertices
-    for i, (p, g, z) in enumerate(zip(params, geometry, noise)):
+    for i, (p, g, z) in enumerate(zip(params, geometry, noise, strict=True)):
         v = v + generator_level(p, v, g.nbhd, z, negative_slope=negative_slope, eps=eps)
         if i + 1 < len(params):
             v = upsample(v, g.edge_vertices, scale=scale)

@@ -107,7 +107,7 @@ def load_npz(path: str | os.PathLike, what: str) -> dict[str, np.ndarray]:
 def save_training_meshes(path: str | os.PathLike, meshes: TrainingMeshes) -> pathlib.Path:
     """Write :class:`TrainingMeshes` to one ``.npz`` file, atomically."""
     arrays = {"template": meshes.template, "scales": meshes.scales, "center": meshes.center}
-    for level, (v, f) in enumerate(zip(meshes.vertices, meshes.faces)):
+    for level, (v, f) in enumerate(zip(meshes.vertices, meshes.faces, strict=True)):
         arrays[f"vertices_{level}"] = v
         arrays[f"faces_{level}"] = f
     for level, e in enumerate(meshes.edge_vertices):
@@ -350,7 +350,7 @@ def training_meshes(
     reference: tuple[Float[np.ndarray, "R 3"], Int[np.ndarray, "G 3"]],
     template: tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
     *,
-    config: PrepareConfig = PrepareConfig(),
+    config: PrepareConfig | None = None,
     progress: Callable[[str, int, int], None] | None = None,
 ) -> TrainingMeshes:
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
@@ -362,7 +362,7 @@ def training_meshes(
     Args:
       reference: ``(vertices, faces)`` of the textured reference (open or closed, any genus).
       template: ``(vertices, faces)`` of a coarse mesh of the same topology (icosphere, torus, ...).
-      config: :class:`PrepareConfig`.
+      config: :class:`PrepareConfig` (default: its defaults).
       progress: ``progress(stage, done, total)`` callback (for progress bars).
 
     Returns:
@@ -378,6 +378,7 @@ def training_meshes(
       >>> [f.shape[0] for f in tm.faces], round(float(tm.scales[1] / tm.scales[0]), 6)
       ([20, 80], 2.0)
     """
+    config = PrepareConfig() if config is None else config
     rv, rf = (np.asarray(a) for a in reference)
     tv, tf = (np.asarray(a) for a in template)
     validate_mesh(rv, rf)

@@ -29,7 +29,6 @@ import json
 import os
 import pathlib
 import time
-from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import jax
@@ -40,7 +39,13 @@ import optax
 from .._errors import ConfigError, InputError, MeshIOError
 from ..ops import FaceConvStackParams, face_features
 from ._config import TrainConfig
-from ._model import LevelGeometry, discriminator, discriminator_features, generate, hierarchy_geometry, init_level
+from ._model import (
+    discriminator,
+    discriminator_features,
+    generate,
+    hierarchy_geometry,
+    init_level,
+)
 from ._multiscale import TrainingMeshes, atomic_save_npz, atomic_write_bytes, load_npz
 
 STATE_FILE = "state.json"
@@ -218,7 +223,7 @@ def _load_params(path: pathlib.Path, config: TrainConfig, level: int):
             loaded = [jnp.asarray(data[f"{prefix}_{i:03d}"]) for i in range(len(leaves))]
         except KeyError as err:
             raise MeshIOError(f"{path}: incomplete DGTS checkpoint (missing {err})") from err
-        if any(a.shape != b.shape for a, b in zip(loaded, leaves)):
+        if any(a.shape != b.shape for a, b in zip(loaded, leaves, strict=True)):
             raise MeshIOError(f"{path}: parameter shapes do not match the config's widths at level {level}")
         out.append(jax.tree.unflatten(treedef, loaded))
     return out[0], out[1]
@@ -271,7 +276,7 @@ def _write_state(out_dir: pathlib.Path, config: TrainConfig, completed: int, rep
 
 def train(
     meshes: TrainingMeshes,
-    config: TrainConfig = TrainConfig(),
+    config: TrainConfig | None = None,
     *,
     out_dir: str | os.PathLike | None = None,
     num_levels: int | None = None,
@@ -281,7 +286,7 @@ def train(
 
     Args:
       meshes: from :func:`~jmeshtex.dgts.training_meshes`.
-      config: :class:`TrainConfig`.
+      config: :class:`TrainConfig` (default: its defaults, the paper's).
       out_dir: checkpoint folder; when it already holds a run, training resumes after its last
         complete level (its config must equal ``config``).
       num_levels: train only the first ``num_levels`` levels (default: all of ``meshes``).
@@ -297,11 +302,12 @@ def train(
       >>> from jmeshtex.data import icosahedron
       >>> from jmeshtex.dgts import PrepareConfig, training_meshes
       >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(num_levels=2, iterations=0))
-      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2)
+      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3)
       >>> model, reports = train(tm, cfg, progress=False)
       >>> model.num_levels, [r.faces for r in reports]
       (2, [20, 80])
     """
+    config = TrainConfig() if config is None else config
     total = meshes.num_levels if num_levels is None else int(num_levels)
     if not 1 <= total <= meshes.num_levels:
         raise ConfigError(f"num_levels must be in [1, {meshes.num_levels}] (the training meshes' levels), got {num_levels}")

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse
 
 from .._errors import InputError
-from .._types import Array, Float, Int, PRNGKey
+from .._types import Float, Int, PRNGKey
 from ..geometry import mean_edge_length, validate_mesh
 from ._model import generate, hierarchy_geometry, upsample
 from ._train import DGTSModel
@@ -135,7 +135,7 @@ def _run_jit(model: DGTSModel, v0, geos, params, zs):
 
 def _noises(key: PRNGKey, sizes: Sequence[int], amplitude: float) -> list[jax.Array]:
     keys = jax.random.split(key, len(sizes))
-    return [amplitude * jax.random.normal(k, (s, 3), jnp.float32) for k, s in zip(keys, sizes)]
+    return [amplitude * jax.random.normal(k, (s, 3), jnp.float32) for k, s in zip(keys, sizes, strict=True)]
 
 
 def _finish(model, out, v0, geos, faces_all, center, scale, n):
@@ -184,7 +184,7 @@ def transfer(
       >>> from jmeshtex.data import icosahedron, torus
       >>> from jmeshtex.dgts import TrainConfig, training_meshes, train, PrepareConfig
       >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(num_levels=2, iterations=0))
-      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=1)
+      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3)
       >>> model, _ = train(tm, cfg, progress=False)
       >>> res = transfer(model, *torus(8, 6), num_samples=2, key=jax.random.key(0))
       >>> res.vertices.shape, res.faces.shape
@@ -229,9 +229,10 @@ def interpolate(
     Example:
       >>> from jmeshtex.data import icosahedron
       >>> from jmeshtex.dgts import TrainConfig, training_meshes, train, PrepareConfig
-      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(num_levels=1, iterations=0))
-      >>> model, _ = train(tm, TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=1), progress=False)
-      >>> interpolate(model, *icosahedron(), num_frames=3, key=jax.random.key(0)).vertices.shape
+      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(num_levels=2, iterations=0))
+      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3)
+      >>> model, _ = train(tm, cfg, progress=False)
+      >>> interpolate(model, *icosahedron(), start_level=1, num_frames=3, key=jax.random.key(0)).vertices.shape
       (3, 12, 3)
     """
     if isinstance(num_frames, bool) or not isinstance(num_frames, (int, np.integer)) or num_frames < 2:
@@ -245,7 +246,7 @@ def interpolate(
     outs, noise = [], []
     for t in np.linspace(0.0, 1.0, int(num_frames)):
         w = np.float32(t)
-        zs = [(1 - w) * a + w * b for a, b in zip(za, zb)]
+        zs = [(1 - w) * a + w * b for a, b in zip(za, zb, strict=True)]
         outs.append(_run_jit(model, x, geos, params, zs))
         noise.append([np.asarray(z) for z in zs])
     verts, base, heights = _finish(model, outs, v0, geos, faces_all, center, scale, n)

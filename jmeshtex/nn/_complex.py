@@ -44,7 +44,8 @@ def pytree_params(module: nn.Module, init: Callable[[jax.Array], Any]) -> Any:
     """Create one flax parameter per array leaf of ``init(key)`` and return the same pytree.
 
     Leaves are named by their path in the pytree (NamedTuple fields joined with ``_``); ``None``
-    fields stay ``None``. Each leaf is drawn from ``init`` with its own flax RNG key.
+    fields stay ``None``. ``init`` runs once, at initialisation, with the module's ``"params"`` RNG;
+    at apply time the stored values are returned.
 
     Args:
       module: the calling module (inside its ``@nn.compact`` ``__call__``).
@@ -55,17 +56,14 @@ def pytree_params(module: nn.Module, init: Callable[[jax.Array], Any]) -> Any:
     """
     template = jax.eval_shape(init, jax.random.key(0))
     paths, treedef = jax.tree_util.tree_flatten_with_path(template)
+    values = [None] * len(paths)
+    if module.is_initializing():
+        values = jax.tree_util.tree_leaves(init(module.make_rng("params")))
     leaves = []
-    for path, _ in paths:
+    for (path, _), value in zip(paths, values):
         name = "_".join(str(getattr(p, "name", getattr(p, "idx", p))) for p in path)
-        leaves.append(module.param(name, lambda key, path=path: _at(init(key), path)))
+        leaves.append(module.param(name, lambda _key, value=value: value))
     return jax.tree_util.tree_unflatten(treedef, leaves)
-
-
-def _at(tree, path):
-    for p in path:
-        tree = getattr(tree, p.name) if hasattr(p, "name") else tree[p.idx]
-    return tree
 
 
 class ComplexDense(nn.Module):
@@ -155,8 +153,9 @@ class ComplexAttention(nn.Module):
     Example:
       >>> x = jnp.ones((2, 6, 4), jnp.complex64)
       >>> m = ComplexAttention(num_heads=2)
-      >>> m.apply(m.init(jax.random.key(0), x), x).shape
-      (2, 6, 4)
+      >>> variables = jax.eval_shape(m.init, jax.random.key(0), x)  # shapes only; m.init for values
+      >>> variables["params"]["query"].shape, jax.eval_shape(m.apply, variables, x).shape
+      ((4, 2, 2), (2, 6, 4))
     """
 
     num_heads: int
@@ -187,9 +186,9 @@ class VNTransformerBlock(nn.Module):
     Example:
       >>> x = jnp.ones((2, 6, 4), jnp.complex64)
       >>> m = VNTransformerBlock(num_heads=2)
-      >>> v = m.init(jax.random.key(0), x)
-      >>> m.apply(v, x).shape, "attention_query" in v["params"]
-      ((2, 6, 4), True)
+      >>> v = jax.eval_shape(m.init, jax.random.key(0), x)  # shapes only; m.init for values
+      >>> jax.eval_shape(m.apply, v, x).shape, sorted(v["params"])[:3]
+      ((2, 6, 4), ['attention_key', 'attention_norm', 'attention_out'])
     """
 
     num_heads: int

@@ -36,8 +36,8 @@ class FaceConvStack(nn.Module):
       >>> nb = face_neighborhood(f)
       >>> x = face_features(jnp.asarray(v, jnp.float32), nb)
       >>> model = FaceConvStack((16, 16, 3))
-      >>> variables = model.init(jax.random.key(0), x, nb)
-      >>> model.apply(variables, x, nb).shape
+      >>> variables = jax.jit(model.init)(jax.random.key(0), x, nb)
+      >>> jax.jit(model.apply)(variables, x, nb).shape
       (20, 3)
     """
 

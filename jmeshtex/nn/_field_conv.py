@@ -36,8 +36,8 @@ class FieldConv(nn.Module):
       ...     np.ones(2), np.ones(2, bool))
       >>> x = jnp.ones((2, 3), jnp.complex64)
       >>> m = FieldConv(4, hdim=8)
-      >>> v = m.init(jax.random.key(0), x, nb)
-      >>> m.apply(v, x, nb).shape, v["params"]["mix"].shape
+      >>> v = jax.eval_shape(m.init, jax.random.key(0), x, nb)  # shapes only; m.init for values
+      >>> jax.eval_shape(m.apply, v, x, nb).shape, v["params"]["mix"].shape
       ((2, 4), (3, 8, 4))
     """
 
@@ -74,8 +74,8 @@ class FieldConvEmb(nn.Module):
       ...     np.ones(2), np.ones(2, bool))
       >>> x, t = jnp.ones((2, 3), jnp.complex64), jnp.array([0.1, 0.2, 0.3, 0.4])
       >>> m = FieldConvEmb(4)
-      >>> v = m.init(jax.random.key(0), x, nb, t)
-      >>> m.apply(v, x, nb, t).shape, v["params"]["filter_weight"].shape
+      >>> v = jax.eval_shape(m.init, jax.random.key(0), x, nb, t)  # shapes only; m.init for values
+      >>> jax.eval_shape(m.apply, v, x, nb, t).shape, v["params"]["filter_weight"].shape
       ((2, 4), (6, 16))
     """
 
@@ -125,8 +125,9 @@ class FCResNetBlock(nn.Module):
       ...     np.ones(2), np.ones(2, bool))
       >>> x, t = jnp.ones((2, 3), jnp.complex64), jnp.array([0.5])
       >>> m = FCResNetBlock(3, hdim=4)
-      >>> m.apply(m.init(jax.random.key(0), x, nb, t), x, nb, t).shape
-      (2, 3)
+      >>> v = jax.eval_shape(m.init, jax.random.key(0), x, nb, t)  # shapes only; m.init for values
+      >>> jax.eval_shape(m.apply, v, x, nb, t).shape, sorted(v["params"])
+      ((2, 3), ['act', 'conv_0', 'conv_1', 'embed_0', 'embed_1', 'norm'])
     """
 
     features: int

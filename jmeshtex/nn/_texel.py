@@ -29,8 +29,8 @@ class TexelConv(nn.Module):
       >>> taps = image_texel_neighborhood(4, 4)
       >>> layer = TexelConv(8)
       >>> x = jnp.ones((16, 3), jnp.float32)
-      >>> variables = layer.init(jax.random.key(0), x, taps)
-      >>> variables["params"]["kernel"].shape, layer.apply(variables, x, taps).shape
+      >>> variables = jax.jit(layer.init)(jax.random.key(0), x, taps)
+      >>> variables["params"]["kernel"].shape, jax.jit(layer.apply)(variables, x, taps).shape
       ((3, 3, 3, 8), (16, 8))
     """
 

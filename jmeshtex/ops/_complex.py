@@ -54,16 +54,42 @@ def complex_lecun_normal(key: PRNGKey, shape: tuple[int, ...], *, fan_in: int, d
       >>> round(float(jnp.mean(jnp.abs(w) ** 2) * 256), 1)
       1.0
     """
+    return complex_lecun_blocks(key, [(tuple(shape), fan_in)], dtype=dtype)[0]
+
+
+def normal_blocks(key: PRNGKey, shapes, dtype) -> list[Array]:
+    """Standard normal arrays of the given shapes, cut from **one** draw.
+
+    Every ``jax.random`` call adds its own generator to the compiled program (~0.5 s of XLA:CPU
+    compile time each), so the ``init_*`` functions draw all their numbers at once.
+    """
+    sizes = [math.prod(s) for s in shapes]
+    flat = jax.random.normal(key, (sum(sizes),), dtype)
+    out, start = [], 0
+    for shape, n in zip(shapes, sizes):
+        out.append(flat[start : start + n].reshape(shape))
+        start += n
+    return out
+
+
+def complex_lecun_blocks(key: PRNGKey, specs, *, dtype=jnp.complex64, extra_real=()) -> list[Array]:
+    """Complex LeCun-normal arrays for ``specs = [(shape, fan_in), ...]`` (then standard normal real
+    arrays of the shapes in ``extra_real``), all from one draw."""
     dtype = complex_dtype(dtype)
-    ab = jax.random.normal(key, (2, *shape), real_dtype(dtype))
-    return jax.lax.complex(ab[0], ab[1]) * jnp.asarray(1.0 / math.sqrt(2.0 * fan_in), real_dtype(dtype)).astype(dtype)
+    rdt = real_dtype(dtype)
+    blocks = normal_blocks(key, [(2, *shape) for shape, _ in specs] + list(extra_real), rdt)
+    out = [
+        jax.lax.complex(b[0], b[1]) * jnp.asarray(1.0 / math.sqrt(2.0 * fan_in), rdt).astype(dtype)
+        for b, (_, fan_in) in zip(blocks, specs)
+    ]
+    return out + blocks[len(specs) :]
 
 
 def init_complex_linear(key: PRNGKey, in_features: int, out_features: int, *, dtype=jnp.complex64) -> Complex[Array, "C D"]:
     """Weights ``[in_features, out_features]`` for :func:`complex_linear` (:func:`complex_lecun_normal`).
 
     Example:
-      >>> init_complex_linear(jax.random.key(0), 3, 5).shape
+      >>> jax.eval_shape(lambda key: init_complex_linear(key, 3, 5), jax.random.key(0)).shape
       (3, 5)
     """
     return complex_lecun_normal(key, (in_features, out_features), fan_in=in_features, dtype=dtype)
@@ -127,14 +153,16 @@ def init_vn(key: PRNGKey, in_features: int, out_features: int | None = None, *, 
       dtype: complex dtype of the weights.
 
     Example:
-      >>> p = init_vn(jax.random.key(0), 4, 6)
+      >>> p = jax.eval_shape(lambda key: init_vn(key, 4, 6), jax.random.key(0))
       >>> p.weight.shape, p.direction.shape, init_vn(jax.random.key(0), 4).weight is None
       ((4, 6), (4, 6), True)
     """
-    kq, kk = jax.random.split(key)
     out = in_features if out_features is None else out_features
-    weight = None if out_features is None else init_complex_linear(kq, in_features, out, dtype=dtype)
-    return VNParams(weight=weight, direction=init_complex_linear(kk, in_features, out, dtype=dtype))
+    spec = ((in_features, out), in_features)
+    if out_features is None:
+        return VNParams(weight=None, direction=complex_lecun_blocks(key, [spec], dtype=dtype)[0])
+    weight, direction = complex_lecun_blocks(key, [spec, spec], dtype=dtype)
+    return VNParams(weight=weight, direction=direction)
 
 
 def vn_nonlinearity(x: Complex[Array, "... C"], params: VNParams, *, delta: float = 1e-6) -> Complex[Array, "... D"]:
@@ -351,7 +379,7 @@ def init_complex_attention(
       dtype: complex dtype.
 
     Example:
-      >>> p = init_complex_attention(jax.random.key(0), 8, num_heads=2)
+      >>> p = jax.eval_shape(lambda key: init_complex_attention(key, 8, num_heads=2), jax.random.key(0))
       >>> p.query.shape, p.out.shape
       ((8, 2, 4), (2, 4, 8))
     """
@@ -365,13 +393,10 @@ def init_complex_attention(
             )
         head_features = in_features // num_heads
     out_features = in_features if out_features is None else out_features
-    kq, kk, kv, ko = jax.random.split(key, 4)
     hf = (num_heads, head_features)
+    qkv = ((in_features, *hf), in_features)
     return ComplexAttentionParams(
-        query=complex_lecun_normal(kq, (in_features, *hf), fan_in=in_features, dtype=dtype),
-        key=complex_lecun_normal(kk, (in_features, *hf), fan_in=in_features, dtype=dtype),
-        value=complex_lecun_normal(kv, (in_features, *hf), fan_in=in_features, dtype=dtype),
-        out=complex_lecun_normal(ko, (*hf, out_features), fan_in=num_heads * head_features, dtype=dtype),
+        *complex_lecun_blocks(key, [qkv, qkv, qkv, ((*hf, out_features), num_heads * head_features)], dtype=dtype)
     )
 
 
@@ -408,11 +433,12 @@ def complex_attention(
       ``[..., S, D]`` complex, in the same frame as ``x``.
 
     Example:
-      >>> p = init_complex_attention(jax.random.key(0), 4, num_heads=2)
-      >>> x = jax.random.normal(jax.random.key(1), (3, 5, 4), jnp.complex64)
-      >>> y = complex_attention(x, p)
-      >>> y.shape, bool(jnp.allclose(complex_attention(x * 1j, p), y * 1j, atol=1e-5))
-      ((3, 5, 4), True)
+      >>> one = jnp.ones((1, 1, 1), jnp.complex64)  # one head, one channel: q = k = v = x
+      >>> p = ComplexAttentionParams(query=one, key=one, value=one, out=one)
+      >>> x = jnp.array([[1 + 0j], [1j]], jnp.complex64)  # a set of two elements
+      >>> y = complex_attention(x, p)  # element 0: logits Re(1·1) = 1, Re(1·conj(i)) = 0
+      >>> y[0, 0].round(4), bool(jnp.allclose(complex_attention(x * 1j, p), y * 1j))
+      (Array(0.7311+0.2689j, dtype=complex64), True)
     """
     check_complex(x, "complex_attention", ndim_min=2)
     s, c = x.shape[-2:]
@@ -489,19 +515,23 @@ def init_vn_transformer_block(
       dtype: complex dtype of the weights (gains use the matching real dtype).
 
     Example:
-      >>> p = init_vn_transformer_block(jax.random.key(0), 8, num_heads=2, mlp_features=16)
+      >>> init = lambda key: init_vn_transformer_block(key, 8, num_heads=2, mlp_features=16)
+      >>> p = jax.eval_shape(init, jax.random.key(0))
       >>> p.mlp_in.weight.shape, p.mlp_out.weight.shape
       ((8, 16), (16, 8))
     """
-    ka, ki, ko = jax.random.split(key, 3)
     hidden = features if mlp_features is None else mlp_features
+    shapes = jax.eval_shape(lambda k: init_complex_attention(k, features, num_heads=num_heads, dtype=dtype), key)
+    c, h, e = shapes.query.shape  # (and the ConfigError checks of init_complex_attention)
+    qkv, mlp_in, mlp_out = ((c, h, e), c), ((features, hidden), features), ((hidden, features), hidden)
+    w = complex_lecun_blocks(key, [qkv, qkv, qkv, ((h, e, features), h * e), mlp_in, mlp_in, mlp_out, mlp_out], dtype=dtype)
     ones = jnp.ones((features,), real_dtype(dtype))
     return VNTransformerParams(
         attention_norm=ones,
-        attention=init_complex_attention(ka, features, num_heads=num_heads, dtype=dtype),
+        attention=ComplexAttentionParams(*w[:4]),
         mlp_norm=ones,
-        mlp_in=init_vn(ki, features, hidden, dtype=dtype),
-        mlp_out=init_vn(ko, hidden, features, dtype=dtype),
+        mlp_in=VNParams(*w[4:6]),
+        mlp_out=VNParams(*w[6:8]),
     )
 
 
@@ -531,10 +561,10 @@ def vn_transformer_block(
       ``[..., S, C]`` complex.
 
     Example:
-      >>> p = init_vn_transformer_block(jax.random.key(0), 4, num_heads=2)
-      >>> x = jax.random.normal(jax.random.key(1), (2, 3, 4), jnp.complex64)
-      >>> vn_transformer_block(x, p).shape
-      (2, 3, 4)
+      >>> p = jax.eval_shape(lambda key: init_vn_transformer_block(key, 4, num_heads=2), jax.random.key(0))
+      >>> x = jnp.zeros((10, 3, 4), jnp.complex64)  # 10 vertices, a set of 3 per vertex, 4 channels
+      >>> jax.eval_shape(vn_transformer_block, x, p).shape
+      (10, 3, 4)
     """
     check_complex(x, "vn_transformer_block", ndim_min=2)
     u = x + complex_attention(complex_layer_norm(x, params.attention_norm, delta=delta), params.attention, mask=mask)

@@ -22,7 +22,6 @@ features, displacements and their gradients stay finite (:mod:`._util` safe norm
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -33,7 +32,7 @@ import jax.numpy as jnp
 from .._errors import InputError
 from .._types import Array, Bool, Float, PRNGKey
 from ..geometry._types import FaceNeighborhood
-from ._util import masked_mean, safe_norm, safe_normalize
+from ._util import elementwise_max, masked_mean, safe_norm, safe_normalize
 
 
 class EdgeFrames(NamedTuple):
@@ -209,8 +208,8 @@ def face_edge_embed(features: Float[Array, "F 3 E"], params: FaceEmbedParams) ->
     b = params.bias.astype(features.dtype)
     F = features.shape[0]
     h = (features.reshape(3 * F, E) @ w).reshape(F, 3, -1)  # one GEMM over all edges
-    # elementwise maxima: on CPU their backward is ~10x cheaper than a reduce-max's (measured)
-    return jnp.maximum(jnp.maximum(h[:, 0], h[:, 1]), h[:, 2]) + b
+    # an elementwise max of the three slices: on CPU its backward is ~10x cheaper than a reduce-max
+    return elementwise_max((h[:, 0], h[:, 1], h[:, 2])) + b
 
 
 def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvParams) -> Float[Array, "F D"]:
@@ -262,9 +261,7 @@ def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvPa
     mask = nbhd.mask.astype(dtype)
     big = jnp.asarray(jnp.finfo(dtype).max / 4, dtype)
     penalty = (mask - 1) * big  # 0 for real neighbours, -big for missing ones
-    nbr_max = functools.reduce(
-        jnp.maximum, [z_nbr[nbhd.neighbors[:, k]] + penalty[:, k, None] for k in range(3)]
-    )
+    nbr_max = elementwise_max(tuple(z_nbr[nbhd.neighbors[:, k]] + penalty[:, k, None] for k in range(3)))
     has_nbr = jnp.max(mask, axis=1, keepdims=True)  # 0 for isolated faces
     y = nbr_max * has_nbr + z_self + params.bias.astype(dtype)
     return y * nbhd.face_mask.astype(dtype)[:, None]
@@ -337,7 +334,7 @@ def face_conv_stack(
       >>> v, f = icosahedron()
       >>> nb = face_neighborhood(f)
       >>> p = init_face_conv_stack(jax.random.key(0), (8, 8, 3))
-      >>> face_conv_stack(face_features(jnp.asarray(v), nb), nb, p).shape
+      >>> jax.jit(face_conv_stack)(face_features(jnp.asarray(v), nb), nb, p).shape
       (20, 3)
     """
     h = face_edge_embed(features, params.embed)

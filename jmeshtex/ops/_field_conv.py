@@ -41,7 +41,7 @@ import jax.numpy as jnp
 from .._errors import ConfigError, InputError
 from .._types import Array, Complex, Float, PRNGKey
 from ..geometry._types import VertexNeighborhood
-from ._complex import complex_lecun_normal
+from ._complex import complex_lecun_blocks
 from ._util import check_complex, check_delta, complex_dtype, real_dtype
 
 
@@ -85,18 +85,17 @@ def init_field_conv(
       dtype: complex dtype of ``mix``; the filter uses the matching real dtype.
 
     Example:
-      >>> p = init_field_conv(jax.random.key(0), 4, 8, hdim=16, embedding_features=3)
+      >>> init = lambda key: init_field_conv(key, 4, 8, hdim=16, embedding_features=3)
+      >>> p = jax.eval_shape(init, jax.random.key(0))
       >>> p.filter_weight.shape, p.filter_bias.shape, p.mix.shape
       ((5, 16), (16,), (4, 16, 8))
     """
-    kw, kb, km = jax.random.split(key, 3)
     rdt = real_dtype(dtype)
     fan = 2 + embedding_features
-    return FieldConvParams(
-        filter_weight=jax.random.normal(kw, (fan, hdim), rdt) / jnp.asarray(math.sqrt(fan), rdt),
-        filter_bias=jax.random.normal(kb, (hdim,), rdt),
-        mix=complex_lecun_normal(km, (in_features, hdim, out_features), fan_in=in_features * hdim, dtype=dtype),
+    mix, weight, bias = complex_lecun_blocks(
+        key, [((in_features, hdim, out_features), in_features * hdim)], dtype=dtype, extra_real=[(fan, hdim), (hdim,)]
     )
+    return FieldConvParams(filter_weight=weight / jnp.asarray(math.sqrt(fan), rdt), filter_bias=bias, mix=mix)
 
 
 def field_conv(
@@ -150,11 +149,13 @@ def field_conv(
       >>> nb = VertexNeighborhood(index=np.array([[0, 1], [1, 0]]), mask=np.ones((2, 2), bool),
       ...     log=np.array([[0, 1], [0, -1]], complex), transport=np.ones((2, 2), complex),
       ...     weight=np.ones((2, 2)), area=np.ones(2), vertex_mask=np.ones(2, bool))
-      >>> p = init_field_conv(jax.random.key(0), 3, 5)
-      >>> x = jax.random.normal(jax.random.key(1), (2, 3), jnp.complex64)
-      >>> y = field_conv(x, nb, p)
+      >>> p = FieldConvParams(filter_weight=jnp.array([[1.0, 0.0], [0.0, 1.0]]), filter_bias=jnp.zeros(2),
+      ...                     mix=jnp.ones((3, 2, 5), jnp.complex64))  # C = 3, H = 2, D = 5
+      >>> x = jnp.array([[1 + 1j, 2, -1j], [0.5j, 1, 1]], jnp.complex64)
+      >>> conv = jax.jit(field_conv)
+      >>> y = conv(x, nb, p)
       >>> turned = nb._replace(log=nb.log * 1j)  # every frame turned by -90°: x, log, y get a factor i
-      >>> y.shape, bool(jnp.allclose(field_conv(x * 1j, turned, p), y * 1j, atol=1e-5))
+      >>> y.shape, bool(jnp.allclose(conv(x * 1j, turned, p), y * 1j, atol=1e-5))
       ((2, 5), True)
     """
     check_complex(x, "field_conv", ndim_min=2)

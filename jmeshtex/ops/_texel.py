@@ -17,7 +17,6 @@ HWIO layout ``kernel[dy + 1, dx + 1, c, d]`` exactly as the VGG-16 weights of ``
 
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -25,6 +24,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._types import Array, Bool, Float, Int
+from ._util import elementwise_max
 
 _MODES = ("mean", "max")
 
@@ -149,14 +149,14 @@ def grouped_pool(x: Float[Array, "N C"], groups: PoolGroups, *, mode: str = "mea
     dtype = x.dtype
     m = groups.mask.astype(dtype)
     S = groups.index.shape[1]
-    # one [G, C] gather per member slot (never [G, S, C]); the max is a chain of elementwise
-    # maxima, whose backward on CPU is ~10x cheaper than a reduce-max's (measured)
+    # one [G, C] gather per member slot (never [G, S, C]); the max is elementwise over the slots,
+    # whose backward on CPU is ~10x cheaper than a reduce-max's (measured)
     if mode == "mean":
         w = m / jnp.maximum(jnp.sum(m, axis=1, keepdims=True), 1)
         return sum(x[groups.index[:, s]] * w[:, s, None] for s in range(S))
     big = jnp.asarray(jnp.finfo(dtype).max / 4, dtype)
     penalty = (m - 1) * big
-    pooled = functools.reduce(jnp.maximum, [x[groups.index[:, s]] + penalty[:, s, None] for s in range(S)])
+    pooled = elementwise_max(tuple(x[groups.index[:, s]] + penalty[:, s, None] for s in range(S)))
     return pooled * jnp.max(m, axis=1, keepdims=True)
 
 

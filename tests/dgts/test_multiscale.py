@@ -9,7 +9,13 @@ import pytest
 
 from jmeshtex import MeshError, MeshIOError
 from jmeshtex.data import grid, icosahedron, icosphere
-from jmeshtex.dgts import PrepareConfig, fit_level, load_training_meshes, sample_points, save_training_meshes
+from jmeshtex.dgts import (
+    PrepareConfig,
+    fit_level,
+    load_training_meshes,
+    sample_points,
+    save_training_meshes,
+)
 from jmeshtex.dgts._multiscale import normalize_pair, training_meshes, unique_edges
 from jmeshtex.geometry import mean_edge_length, subdivide_midpoint
 
@@ -68,15 +74,15 @@ def test_training_meshes_structure(tiny_meshes):
     np.testing.assert_array_equal(sub.edge_vertices, tm.edge_vertices[0])
     assert tm.scales[1] / tm.scales[0] == pytest.approx(2.0)
     assert mean_edge_length(tm.template, tm.faces[0]) == pytest.approx(1.0)
-    for v, f in zip(tm.vertices, tm.faces):  # every level keeps a mean edge near 1 in its frame
+    for v, f in zip(tm.vertices, tm.faces, strict=True):  # every level keeps a mean edge near 1 in its frame
         assert 0.7 < mean_edge_length(v, f) < 1.3
 
 
 def test_save_load_round_trip(tmp_path, tiny_meshes):
     path = save_training_meshes(tmp_path / "t.npz", tiny_meshes)
     back = load_training_meshes(path)
-    for a, b in zip(back, tiny_meshes):
-        for x, y in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,)):
+    for a, b in zip(back, tiny_meshes, strict=True):
+        for x, y in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,), strict=True):
             np.testing.assert_array_equal(x, y)
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left over
 

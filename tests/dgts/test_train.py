@@ -22,11 +22,11 @@ def test_levels_train_and_earlier_generators_stay_frozen(tiny_meshes, tiny_model
     level0_only, reports = train(tiny_meshes, TINY, num_levels=1, progress=False)
     assert [r.level for r in reports] == [0]
     # level 1 training must not touch generator 0 (stop_gradient + separate optimiser)
-    for a, b in zip(_leaves(level0_only.generators[0]), _leaves(tiny_model.generators[0])):
+    for a, b in zip(_leaves(level0_only.generators[0]), _leaves(tiny_model.generators[0]), strict=True):
         np.testing.assert_array_equal(a, b)
     # equal widths: level 1 starts from level 0's weights and moves away from them
     assert TINY.level_features(1, generator=True) == TINY.level_features(0, generator=True)
-    moved = [np.abs(a - b).max() for a, b in zip(_leaves(tiny_model.generators[1]), _leaves(tiny_model.generators[0]))]
+    moved = [np.abs(a - b).max() for a, b in zip(_leaves(tiny_model.generators[1]), _leaves(tiny_model.generators[0]), strict=True)]
     assert 0 < max(moved) < 0.1  # two small Adam steps away from the warm start
     assert all(np.isfinite(x).all() for x in _leaves(tiny_model.generators))
 
@@ -38,7 +38,7 @@ def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, ti
     assert state["completed_levels"] == 1 and (out / "level_00.npz").exists()
     resumed, second = train(tiny_meshes, TINY, out_dir=out, progress=False)
     assert [r.level for r in first] == [0] and [r.level for r in second] == [1]
-    for a, b in zip(_leaves(resumed.generators), _leaves(tiny_model.generators)):
+    for a, b in zip(_leaves(resumed.generators), _leaves(tiny_model.generators), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
     loaded = load_model(out)
     assert loaded.num_levels == 2 and loaded.config == TINY

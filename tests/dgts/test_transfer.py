@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import jax
 import numpy as np
 import pytest
 
@@ -48,8 +47,8 @@ def test_interpolation_end_frames_replay_their_noise(tiny_model, key):
         v0, _, center, scale, n, geos, _, _ = _prepare_target(tiny_model, v, f, 0)
         out = np.asarray(_run_jit(tiny_model, v0.astype(np.float32), geos, tiny_model.generators, noise), np.float64)
         np.testing.assert_allclose(out / (scale * 2 ** (n - 1)) + center, res.vertices[frame], atol=1e-5)
-    mid = [0.5 * (a + b) for a, b in zip(res.noise[0], res.noise[-1])]
-    for a, b in zip(mid, res.noise[1]):
+    mid = [0.5 * (a + b) for a, b in zip(res.noise[0], res.noise[-1], strict=True)]
+    for a, b in zip(mid, res.noise[1], strict=True):
         np.testing.assert_allclose(a, b, atol=1e-6)
 
 

@@ -178,12 +178,14 @@ def test_gradients(rng):
     pn, qn = _unit(rng, 10), _unit(rng, 8)
 
     @jax.jit
-    def loss(p, q, pn, qn):
-        cd = chamfer_distance(p, q, p_normals=pn, q_normals=qn, chunk_size=4)
+    def loss(flat):  # one flat vector in: check_grads' eager pytree arithmetic stays cheap
+        p, q, pn, qn = jnp.split(flat, [30, 54, 84])
+        cd = chamfer_distance(p.reshape(10, 3), q.reshape(8, 3), p_normals=pn.reshape(10, 3),
+                              q_normals=qn.reshape(8, 3), chunk_size=4)
         return cd.distance + 0.5 * cd.normal
 
     args = tuple(jnp.asarray(a) for a in (p, q, pn, qn))
-    check_grads(loss, args, order=1, modes=["fwd", "rev"])
+    check_grads(loss, (jnp.concatenate([a.ravel() for a in args]),), order=1, modes=["fwd", "rev"])
     # analytic gradient of the squared term w.r.t. p: 2 (p - q_j)/N + Σ_{q: i(q) = p} 2 (p - q)/M
     gp = jax.jit(jax.grad(lambda p, q: chamfer_distance(p, q).distance))(args[0], args[1])
     d2 = ((p[:, None] - q[None]) ** 2).sum(-1)

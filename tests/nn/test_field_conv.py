@@ -1,0 +1,142 @@
+"""Flax field-convolution modules: apply == op, embeddings, the FCResNet block's gauge equivariance,
+padding invariance, residual path, init and jit."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jmeshtex.geometry import VertexNeighborhood, pad_to
+from jmeshtex.nn import FCResNetBlock, FieldConv, FieldConvEmb
+from jmeshtex.ops import FieldConvParams, complex_linear, field_conv
+
+V, K, C, E = 6, 4, 3, 2
+
+
+def crandn(rng, *shape):
+    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+
+
+def rel_err(a, b):
+    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
+
+
+def random_nbhd(rng, v=V, k=K):
+    """A valid random k-NN-like neighbourhood with a self slot and some padded slots."""
+    index = rng.integers(0, v, (v, k))
+    mask = rng.random((v, k)) > 0.3
+    index[:, 0], mask[:, 0] = np.arange(v), True
+    log = np.where(mask, rng.uniform(0.2, 1, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))), 0)
+    log[:, 0] = 0
+    transport = np.where(mask, np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))), 1)
+    transport[:, 0] = 1
+    return VertexNeighborhood(
+        index=np.where(mask, index, 0).astype(np.int32), mask=mask, log=log, transport=transport,
+        weight=np.where(mask, rng.uniform(0.5, 1.5, (v, k)), 0), area=rng.uniform(0.5, 1.5, v), vertex_mask=np.ones(v, bool),
+    )
+
+
+def filled(shapes, seed=0):
+    """Random values (complex where complex) in a variables structure obtained with eval_shape."""
+    rng = np.random.default_rng(seed)
+
+    def fill(s):
+        is_complex = jnp.issubdtype(s.dtype, jnp.complexfloating)
+        v = rng.standard_normal(s.shape) + (1j * rng.standard_normal(s.shape) if is_complex else 0)
+        return jnp.asarray(0.5 * v, s.dtype)
+
+    return jax.tree.map(fill, shapes)
+
+
+@functools.lru_cache(maxsize=None)
+def block_variables(features, dtype=jnp.complex128):
+    m = FCResNetBlock(features, hdim=3, embedding_features=2, param_dtype=dtype)
+    x, nb = jnp.zeros((V, C), dtype), random_nbhd(np.random.default_rng(0))
+    return filled(jax.eval_shape(m.init, jax.random.key(0), x, nb, jnp.zeros((V, E))))
+
+
+def test_field_conv_modules_apply_the_op(rng):
+    nb = random_nbhd(rng)
+    x = jnp.asarray(crandn(rng, V, C), jnp.complex128)
+    emb = rng.standard_normal((V, E))
+    plain, with_emb = FieldConv(5, hdim=3, activation="relu"), FieldConvEmb(5, hdim=3)
+    v1 = filled(jax.eval_shape(plain.init, jax.random.key(0), x, nb))
+    v2 = filled(jax.eval_shape(with_emb.init, jax.random.key(0), x, nb, emb), seed=1)
+    t = np.array([0.3, -1.2])  # a global embedding is broadcast to every vertex
+
+    @jax.jit
+    def run(v1, v2, x, emb):
+        p1, p2 = (FieldConvParams(**v["params"]) for v in (v1, v2))
+        return (plain.apply(v1, x, nb), field_conv(x, nb, p1, activation="relu"),
+                with_emb.apply(v2, x, nb, emb), field_conv(x, nb, p2, embedding=emb),
+                with_emb.apply(v2, x, nb, t), field_conv(x, nb, p2, embedding=jnp.tile(t, (V, 1))))
+
+    out = run(v1, v2, x, emb)
+    for got, want in zip(out[::2], out[1::2]):
+        assert rel_err(got, want) < 1e-13
+
+
+def test_block_is_gauge_equivariant(rng):
+    nb = random_nbhd(rng)
+    m = FCResNetBlock(C, hdim=3, embedding_features=2, param_dtype=jnp.complex128)
+    v = block_variables(C)
+    x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
+    alpha = rng.uniform(-np.pi, np.pi, V)
+    rot = np.exp(-1j * alpha)
+    nb2 = nb._replace(log=nb.log * rot[:, None], transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])))
+    f = jax.jit(m.apply)
+    assert rel_err(f(v, x * rot[:, None], nb2, emb), f(v, x, nb, emb) * rot[:, None]) < 1e-12
+
+
+def test_block_padding_invariance(rng):
+    nb = random_nbhd(rng)
+    m = FCResNetBlock(C, hdim=3, embedding_features=2, param_dtype=jnp.complex128)
+    v = block_variables(C)
+    x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
+    y = jax.jit(m.apply)(v, x, nb, emb)
+    padded = pad_to(nb, {"V": V + 2, "K": K + 1})  # padded vertices: vertex_mask False, area 0
+    x_pad = np.concatenate([x, 1e3 * crandn(rng, 2, C)])
+    emb_pad = np.concatenate([emb, 1e3 * rng.standard_normal((2, E))])
+    y_pad = jax.jit(m.apply)(v, x_pad, padded, emb_pad)
+    assert rel_err(y_pad[:V], y) < 1e-12
+
+
+def test_block_residual_path(rng):
+    nb = random_nbhd(rng)
+    x, t = jnp.asarray(crandn(rng, V, C)), np.array([0.5, 1.0])
+
+    def zero_last_conv(v):
+        params = dict(v["params"])
+        params["conv_1"] = {**params["conv_1"], "mix": jnp.zeros_like(params["conv_1"]["mix"])}
+        return {"params": params}
+
+    same = FCResNetBlock(C, hdim=3, embedding_features=2, param_dtype=jnp.complex128)
+    np.testing.assert_allclose(jax.jit(same.apply)(zero_last_conv(block_variables(C)), x, nb, t), x, rtol=1e-15)
+    wider = FCResNetBlock(5, hdim=3, embedding_features=2, param_dtype=jnp.complex128)
+    v = zero_last_conv(block_variables(5))
+    assert v["params"]["skip"]["kernel"].shape == (C, 5)
+    y = jax.jit(wider.apply)(v, x, nb, t)
+    assert rel_err(y, complex_linear(x, v["params"]["skip"]["kernel"])) < 1e-14
+
+
+def test_block_init_and_jit_without_recompiling(rng):
+    nb = random_nbhd(rng)
+    m = FCResNetBlock(4, hdim=2)
+    x = jnp.asarray(crandn(rng, V, C), jnp.complex64)
+    v = jax.jit(m.init)(jax.random.key(0), x, nb, jnp.zeros(1))
+    assert v["params"]["conv_0"]["mix"].dtype == jnp.complex64
+    assert v["params"]["conv_1"]["filter_weight"].shape == (2 + 4, 2)  # embedding_features defaults to D
+    traces = []
+
+    def apply(v, x, t):
+        traces.append(1)
+        return m.apply(v, x, nb, t)
+
+    f = jax.jit(apply)
+    y1 = f(v, x, jnp.array([0.1]))
+    y2 = f(v, x * 2, jnp.array([0.7]))
+    assert len(traces) == 1 and y1.dtype == jnp.complex64
+    assert np.all(np.isfinite(np.asarray(y2)))
