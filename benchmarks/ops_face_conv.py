@@ -45,6 +45,16 @@ def forward_bytes(F: int) -> float:
     return embed + (LAYERS - 1) * (per_conv + per_norm)
 
 
+def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dict:
+    """Which ceiling of this run bounds a row (FLOPs at matmul speed or bytes at copy bandwidth),
+    the time that bound allows, and the share of it reached."""
+    t_flops = flops / (report.ceilings["matmul_gflops"] * 1e9)
+    t_bytes = nbytes / (report.ceilings["bandwidth_gbs"] * 1e9)
+    bound_s = max(t_flops, t_bytes)
+    return {"bound": "flops" if t_flops >= t_bytes else "bytes", "bound_s": bound_s,
+            "pct_of_bound": 100.0 * bound_s / seconds}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[5, 6, 7], help="icosphere subdivision levels")
@@ -78,10 +88,12 @@ def main() -> None:
         repeats = 1 if F > 200_000 else 3 if F > 50_000 else 5  # keeps the default run ~3 min
         t = time_jax(fwd, vj, nb, params, repeats=repeats, min_time=0.0)
         report.add(name="stack fwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                   flops=dense_flops(F), bytes=forward_bytes(F), bound="flops")
+                   flops=dense_flops(F), bytes=forward_bytes(F),
+                   **roofline(report, dense_flops(F), forward_bytes(F), t.run_s))
         t = time_jax(fwd_bwd, params, vj, nb, repeats=repeats, min_time=0.0)
         report.add(name="stack fwd+bwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                   flops=3 * dense_flops(F), bytes=3 * forward_bytes(F), bound="flops")
+                   flops=3 * dense_flops(F), bytes=3 * forward_bytes(F),
+                   **roofline(report, 3 * dense_flops(F), 3 * forward_bytes(F), t.run_s))
         x = jnp.ones((F, WIDTH), jnp.float32)
         t = time_jax(gemms_only, x, repeats=repeats)
         report.add(name="GEMMs only (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,

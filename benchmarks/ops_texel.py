@@ -51,6 +51,16 @@ def bilinear_taps(size: int, *, seed: int = 0) -> TexelNeighborhood:
     return TexelNeighborhood(index, weight, np.ones(N, bool))
 
 
+def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dict:
+    """Which ceiling of this run bounds a row (FLOPs at matmul speed or bytes at copy bandwidth),
+    the time that bound allows, and the share of it reached."""
+    t_flops = flops / (report.ceilings["matmul_gflops"] * 1e9)
+    t_bytes = nbytes / (report.ceilings["bandwidth_gbs"] * 1e9)
+    bound_s = max(t_flops, t_bytes)
+    return {"bound": "flops" if t_flops >= t_bytes else "bytes", "bound_s": bound_s,
+            "pct_of_bound": 100.0 * bound_s / seconds}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--size", type=int, default=512, help="texture side in texels")
@@ -77,22 +87,26 @@ def main() -> None:
     fwd = jax.jit(texel_conv)
     t = time_jax(fwd, x, taps, kernel, bias)
     report.add(name="texel_conv fwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=gemm + gather, bytes=io + block, bound="flops")
+               flops=gemm + gather, bytes=io + block,
+               **roofline(report, gemm + gather, io + block, t.run_s))
     bwd = jax.jit(jax.grad(lambda x, k, taps: jnp.sum(texel_conv(x, taps, k, bias) ** 2), argnums=(0, 1)))
     t = time_jax(bwd, x, kernel, taps)
     report.add(name="texel_conv fwd+bwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=3 * gemm + 2 * gather, bytes=3 * (io + block), bound="flops")
+               flops=3 * gemm + 2 * gather, bytes=3 * (io + block),
+               **roofline(report, 3 * gemm + 2 * gather, 3 * (io + block), t.run_s))
 
     img = x.reshape(1, S, S, C)
     dense = jax.jit(lambda img, k: jax.lax.conv_general_dilated(
         img, k, (1, 1), "SAME", dimension_numbers=("NHWC", "HWIO", "NHWC")))
     t = time_jax(dense, img, kernel)
     report.add(name="lax.conv 3x3 (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=gemm, bytes=4.0 * (N * C + N * D), bound="flops")
+               flops=gemm, bytes=4.0 * (N * C + N * D),
+               **roofline(report, gemm, 4.0 * (N * C + N * D), t.run_s))
     dense_bwd = jax.jit(jax.grad(lambda img, k: jnp.sum(dense(img, k) ** 2), argnums=(0, 1)))
     t = time_jax(dense_bwd, img, kernel)
     report.add(name="lax.conv 3x3 fwd+bwd (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=3 * gemm, bytes=3 * 4.0 * (N * C + N * D), bound="flops")
+               flops=3 * gemm, bytes=3 * 4.0 * (N * C + N * D),
+               **roofline(report, 3 * gemm, 3 * 4.0 * (N * C + N * D), t.run_s))
 
     G = groups.index.shape[0]
     pool_bytes = 4.0 * (N * C + G * C) + G * 4 * (4 + 1)
@@ -100,15 +114,18 @@ def main() -> None:
         pool = jax.jit(lambda x, g, mode=mode: grouped_pool(x, g, mode=mode))
         t = time_jax(pool, x, groups)
         report.add(name=f"grouped_pool 2x2 {mode} fwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                   bytes=pool_bytes, bound="bytes")
+                   bytes=pool_bytes,
+                   **roofline(report, 0.0, pool_bytes, t.run_s))
         pool_bwd = jax.jit(jax.grad(lambda x, g, mode=mode: jnp.sum(grouped_pool(x, g, mode=mode) ** 2)))
         t = time_jax(pool_bwd, x, groups)
         report.add(name=f"grouped_pool 2x2 {mode} fwd+bwd", size=size, seconds=t.run_s,
-                   compile_s=t.compile_s, bytes=2 * pool_bytes + 4.0 * N * C, bound="bytes")
+                   compile_s=t.compile_s, bytes=2 * pool_bytes + 4.0 * N * C,
+                   **roofline(report, 0.0, 2 * pool_bytes + 4.0 * N * C, t.run_s))
     ceiling = jax.jit(lambda img: jax.lax.reduce_window(img, -jnp.inf, jax.lax.max, (1, 2, 2, 1), (1, 2, 2, 1), "VALID"))
     t = time_jax(ceiling, img)
     report.add(name="lax.reduce_window 2x2 max (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               bytes=4.0 * (N * C + G * C), bound="bytes")
+               bytes=4.0 * (N * C + G * C),
+               **roofline(report, 0.0, 4.0 * (N * C + G * C), t.run_s))
     report.write(args.out)
 
 

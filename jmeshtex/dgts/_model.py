@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import flax.linen as nn
+import jax  # noqa: F401  (the doctests use it)
 import jax.numpy as jnp
 import numpy as np
 

@@ -104,7 +104,11 @@ class Entry:
 REGISTRY: dict[str, Entry] = {}
 
 #: modules whose import registers entries (the built-in ops and geometry, then each method's)
-ENTRY_MODULES = ["jmeshtex.testing._entries", "jmeshtex.meshmatch._equivariance"]
+ENTRY_MODULES = [
+    "jmeshtex.testing._entries",
+    "jmeshtex.dgts._equivariance",
+    "jmeshtex.meshmatch._equivariance",
+]
 
 
 def load_entries() -> dict[str, Entry]:

@@ -303,7 +303,8 @@ def _grad_args(rng):
 def test_check_grads_real_and_imaginary_parts(rng, activation):
     # reverse mode only: the op has a hand-written VJP and no JVP rule
     f = _real_view(random_nbhd(rng, 4, 3), activation)
-    check_grads(jax.jit(f), _grad_args(rng), order=1, modes=("rev",), atol=1e-5, rtol=1e-5)
+    # small step: ReLU filters have kinks, which a step of 1e-6 reaches with probability ~1e-4
+    check_grads(jax.jit(f), _grad_args(rng), order=1, modes=("rev",), atol=1e-5, rtol=1e-5, eps=1e-6)
 
 
 @pytest.mark.parametrize("activation", ["silu", "relu"])
