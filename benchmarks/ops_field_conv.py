@@ -70,7 +70,7 @@ def run(sizes, activations, repeats: int) -> Report:
         for act in activations:
             fwd = jax.jit(lambda x, nb, p, act=act: field_conv(x, nb, p, activation=act))
 
-            def loss(x, p, nb, act=act):
+            def loss(x, p, nb, act=act, cot=cot):
                 y = field_conv(x, nb, p, activation=act)
                 return jnp.sum(y.real * cot.real + y.imag * cot.imag)
 
@@ -91,7 +91,7 @@ def _stages(report, x, nb, params, act, size, repeats):
     terms = jax.jit(lambda x, nb: _gather_terms(x, nb, 1e-4))
     t = time_jax(terms, x, nb, repeats=repeats)
     nbytes = 4.0 * v * K * C * (2 + 4) + 8.0 * v * C  # gather reads ~2 [V,K,C] f32, writes 4, plus x
-    report.add(name=f"  stage: gather + argument", size=size, seconds=t.run_s, bytes=nbytes)
+    report.add(name="  stage: gather + argument", size=size, seconds=t.run_s, bytes=nbytes)
     zr, zi, ar, ai = terms(x, nb)
     a_w = params.filter_weight
     bias = jnp.broadcast_to(params.filter_bias, (v, H))
@@ -109,7 +109,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 30000, 80000])
     ap.add_argument("--activations", nargs="+", default=["silu", "relu"], choices=["silu", "relu"])
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--no-write", action="store_true", help="print only")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()

@@ -60,7 +60,7 @@ def pytree_params(module: nn.Module, init: Callable[[jax.Array], Any]) -> Any:
     if module.is_initializing():
         values = jax.tree_util.tree_leaves(init(module.make_rng("params")))
     leaves = []
-    for (path, _), value in zip(paths, values):
+    for (path, _), value in zip(paths, values, strict=False):
         name = "_".join(str(getattr(p, "name", getattr(p, "idx", p))) for p in path)
         leaves.append(module.param(name, lambda _key, value=value: value))
     return jax.tree_util.tree_unflatten(treedef, leaves)

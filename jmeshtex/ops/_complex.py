@@ -66,7 +66,7 @@ def normal_blocks(key: PRNGKey, shapes, dtype) -> list[Array]:
     sizes = [math.prod(s) for s in shapes]
     flat = jax.random.normal(key, (sum(sizes),), dtype)
     out, start = [], 0
-    for shape, n in zip(shapes, sizes):
+    for shape, n in zip(shapes, sizes, strict=False):
         out.append(flat[start : start + n].reshape(shape))
         start += n
     return out
@@ -80,7 +80,7 @@ def complex_lecun_blocks(key: PRNGKey, specs, *, dtype=jnp.complex64, extra_real
     blocks = normal_blocks(key, [(2, *shape) for shape, _ in specs] + list(extra_real), rdt)
     out = [
         jax.lax.complex(b[0], b[1]) * jnp.asarray(1.0 / math.sqrt(2.0 * fan_in), rdt).astype(dtype)
-        for b, (_, fan_in) in zip(blocks, specs)
+        for b, (_, fan_in) in zip(blocks, specs, strict=False)
     ]
     return out + blocks[len(specs) :]
 

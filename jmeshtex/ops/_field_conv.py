@@ -107,7 +107,7 @@ def field_conv(
     delta: float = 1e-4,
     activation: str = "silu",
 ) -> Complex[Array, "V D"]:
-    """Field convolution of tangent features with MLP filters (2021 eq. 6; 2024 eq. 34–35).
+    """Field convolution of tangent features with MLP filters (Mitchel et al. 2021; 2024 eq. 34–35).
 
     .. math:: y_{pd} = \\sum_{c,h} M_{chd} \\sum_{q \\in N(p)} \\hat w_{pq}\\, \\rho_{q\\to p}\\,
        x_{qc}\\; \\varphi_h\\big(\\log_p(q)\\,\\overline{\\hat u_{pqc}},\\, e_p\\big)

@@ -1,7 +1,9 @@
-"""Small numerical helpers shared by the operators: safe norms and masked reductions.
+"""Small numerical helpers shared by the operators: safe norms, masked reductions, complex features.
 
 Every helper has finite values *and* finite gradients at exactly-zero inputs (DESIGN.md, "Zero
-vectors"), uses no Python loop, and keeps the input's dtype.
+vectors"), uses no Python loop, and keeps the input's dtype. The complex-feature helpers (dtype
+pairs, input checks, ``|z|²``, the smoothed direction ``z/sqrt(|z|² + δ²)``, complex GEMMs as one
+real GEMM, and :func:`conjugate_complex_grads` for optax) serve the tangent-feature layers.
 """
 
 from __future__ import annotations

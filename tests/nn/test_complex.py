@@ -69,7 +69,7 @@ def shapes(name):
     return jax.eval_shape(lambda key: module.init(key, jnp.zeros((5, C), jnp.complex64), **kwargs), jax.random.key(0))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def variables(name):
     """Random values in the module's variable structure (the real init is tested separately)."""
     rng = np.random.default_rng(0)

@@ -51,7 +51,7 @@ def filled(shapes, seed=0):
     return jax.tree.map(fill, shapes)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def block_variables(features, dtype=jnp.complex128):
     m = FCResNetBlock(features, hdim=3, embedding_features=2, param_dtype=dtype)
     x, nb = jnp.zeros((V, C), dtype), random_nbhd(np.random.default_rng(0))
@@ -75,7 +75,7 @@ def test_field_conv_modules_apply_the_op(rng):
                 with_emb.apply(v2, x, nb, t), field_conv(x, nb, p2, embedding=jnp.tile(t, (V, 1))))
 
     out = run(v1, v2, x, emb)
-    for got, want in zip(out[::2], out[1::2]):
+    for got, want in zip(out[::2], out[1::2], strict=False):
         assert rel_err(got, want) < 1e-13
 
 

@@ -100,7 +100,7 @@ def ref_attention(x, p, mask=None):
                 logits = np.array([np.sum(q[b + (s, h)] * np.conj(k[b + (t, h)])).real / np.sqrt(e) for t in valid])
                 a = np.exp(logits - logits.max())
                 a /= a.sum()
-                out[b + (s, h)] = sum(ai * v[b + (t, h)] for ai, t in zip(a, valid))
+                out[b + (s, h)] = sum(ai * v[b + (t, h)] for ai, t in zip(a, valid, strict=False))
     return ref_linear(out.reshape(x.shape[:-1] + (nh * f,)), np.asarray(p.out).reshape(nh * f, -1))
 
 
@@ -113,7 +113,7 @@ def ref_block(x, p, mask=None, delta=1e-6):
 # ----------------------------------------------------------------------------- the ops under test
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _params(name, dtype, seed=0):
     """Parameters as NumPy arrays (no JAX compilation: the init_* functions have their own doctests)."""
     rng = np.random.default_rng(seed)
@@ -297,11 +297,11 @@ def test_frn_vmap_over_padded_batch(rng):
     xs = [crandn(rng, n, C) for n in sizes]
     areas = [rng.uniform(0.5, 2.0, n) for n in sizes]
     pad = lambda a, n: np.concatenate([a, np.zeros((S - n,) + a.shape[1:], a.dtype)])  # noqa: E731
-    xb = np.stack([pad(x, n) for x, n in zip(xs, sizes)])
-    ab = np.stack([pad(a, n) for a, n in zip(areas, sizes)])
+    xb = np.stack([pad(x, n) for x, n in zip(xs, sizes, strict=False)])
+    ab = np.stack([pad(a, n) for a, n in zip(areas, sizes, strict=False)])
     mb = np.stack([np.arange(S) < n for n in sizes])
     yb = jax.jit(jax.vmap(lambda x, a, m: filter_response_norm(x, p, area=a, vertex_mask=m)))(xb, ab, mb)
-    for i, (x, a) in enumerate(zip(xs, areas)):
+    for i, (x, a) in enumerate(zip(xs, areas, strict=False)):
         assert rel_err(yb[i, : len(x)], filter_response_norm(x, p, area=a)) < 1e-14
 
 

@@ -257,10 +257,10 @@ def test_cyclic_vertex_order_invariance(rng):
     nb, nb_r = face_neighborhood(f), face_neighborhood(f_rolled)
     feats, feats_r = _features(vj, nb), _features(vj, nb_r)
     np.testing.assert_allclose(feats_r, np.roll(feats, 1, axis=1), atol=1e-12)
-    e = _params(rng, 4, 7, FaceEmbedParams)
+    e = _params(rng, 4, 5, FaceEmbedParams)  # the shapes of the loop-reference test
     np.testing.assert_allclose(_embed(feats_r, e), _embed(feats, e), atol=1e-12)
-    x = jnp.asarray(rng.standard_normal((len(f), 3)))
-    p = _params(rng, 6, 4)
+    x = jnp.asarray(rng.standard_normal((len(f), 4)))
+    p = _params(rng, 8, 6)
     np.testing.assert_allclose(_conv(x, nb_r, p), _conv(x, nb, p), atol=1e-12)
     d = jnp.asarray(rng.standard_normal((len(f), 3)))
     # displacements use the edge starting at each corner, which rotates with the vertex order
@@ -282,20 +282,24 @@ def _pipeline(v, nb, params, d):
 def test_jit_matches_eager_and_compiles_once(rng):
     v, f = _open_mesh(rng)
     nb = _to_jax(face_neighborhood(f))
-    params = init_face_conv_stack(jax.random.key(0), (4, 3), dtype=jnp.float64)  # every op once
-    d = jnp.asarray(rng.standard_normal((len(f), 3)))
+    F = len(f)
+    e = FaceEmbedParams(*(jnp.asarray(a) for a in _params(rng, 4, 5, FaceEmbedParams)))
+    p = FaceConvParams(*(jnp.asarray(a) for a in _params(rng, 10, 3)))
+    d = jnp.asarray(rng.standard_normal((F, 3)))
     traces = []
 
-    def raw(v, nb, params, d):  # the un-jitted ops
+    def raw(v, nb, e, p, d):  # every op once, un-jitted
         traces.append(1)
         feats = face_features(v, nb)
-        return feats, face_conv_stack(feats, nb, params), face_to_vertex_displacement(d, v, nb)
+        h = instance_norm(face_edge_embed(feats, e), nb.face_mask)
+        y = face_conv(h, nb, p)
+        return feats, h, y, face_to_vertex_displacement(y, v, nb) + face_to_vertex_displacement(d, v, nb)
 
     jitted = jax.jit(raw)
-    eager = raw(jnp.asarray(v), nb, params, d)
-    for got, want in zip(jitted(jnp.asarray(v), nb, params, d), eager, strict=True):
+    eager = raw(jnp.asarray(v), nb, e, p, d)
+    for got, want in zip(jitted(jnp.asarray(v), nb, e, p, d), eager, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-13)
-    jitted(jnp.asarray(v + 0.01), nb, params, d + 1)
+    jitted(jnp.asarray(v + 0.01), nb, e, p, d + 1)
     assert len(traces) == 2  # once eagerly, once for the compilation; the second call reuses it
 
 
@@ -319,7 +323,7 @@ def test_padding_invariance(rng):
     # face_conv alone with garbage features on padded faces
     x = rng.standard_normal((F, 4))
     x_pad = np.concatenate([x, 1e6 * rng.standard_normal((5, 4))])
-    p = _params(rng, 8, 3)
+    p = _params(rng, 8, 6)
     np.testing.assert_allclose(_conv(jnp.asarray(x_pad), nb_pad, p)[:F], _conv(jnp.asarray(x), nb, p), rtol=1e-12)
 
 

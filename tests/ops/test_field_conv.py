@@ -23,7 +23,7 @@ _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
 V, K, C, D, H, E = 6, 4, 2, 3, 3, 1
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def make_params(seed, e=E, c=C, d=D, h=H, dtype=jnp.complex128):
     """NumPy parameters distributed like init_field_conv (which has its own doctest): no compilation."""
     rng = np.random.default_rng(seed)
@@ -232,7 +232,7 @@ def test_vmap_over_padded_batch(rng):
     xb = np.stack([np.concatenate([xs[0], np.zeros((2, C))]), xs[1]])
     eb = np.stack([np.concatenate([embs[0], np.zeros((2, E))]), embs[1]])
     yb = jax.jit(jax.vmap(lambda a, n, e: field_conv(a, n, params, embedding=e)))(jnp.asarray(xb), batch, eb)
-    for i, (n, a, e) in enumerate(zip(nbs, xs, embs)):
+    for i, (n, a, e) in enumerate(zip(nbs, xs, embs, strict=False)):
         assert rel_err(yb[i, : len(a)], _conv(jnp.asarray(a), n, params, embedding=e)) < 1e-13
 
 
@@ -319,13 +319,13 @@ def test_hand_written_vjp_matches_autodiff_to_second_order(rng, activation):
 
     def second(core):  # d/d(args) of <v, grad loss>
         v = [np.cos(np.arange(a.size).reshape(a.shape)) for a in args]
-        return jax.grad(lambda *a: sum(jnp.sum(g * t) for g, t in zip(jax.grad(loss(core), argnums=range(6))(*a), v)),
+        return jax.grad(lambda *a: sum(jnp.sum(g * t) for g, t in zip(jax.grad(loss(core), argnums=range(6))(*a), v, strict=False)),
                         argnums=range(6))
 
     for order in (lambda core: jax.grad(loss(core), argnums=range(6)), second):
         got = jax.jit(order(_filtered_sums))(*args)
         want = jax.jit(order(_sums_impl))(*args)
-        for g, r in zip(got, want):
+        for g, r in zip(got, want, strict=False):
             np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
 
 

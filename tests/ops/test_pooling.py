@@ -102,7 +102,7 @@ def test_padding_invariance_and_vmap(rng):
     xcb = np.stack([np.concatenate([xcs[0], 1e3 * crandn(rng, VC - 3, C)]), xcs[1]])
     yb = jax.jit(jax.vmap(tangent_pool))(xb, batch)
     ub = jax.jit(jax.vmap(tangent_unpool))(xcb, batch)
-    for i, (pm, x, xc) in enumerate(zip(pms, xs, xcs)):
+    for i, (pm, x, xc) in enumerate(zip(pms, xs, xcs, strict=False)):
         assert rel_err(yb[i, : len(xc)], _pool(x, pm)) < 1e-14
         assert rel_err(ub[i, : len(x)], _unpool(xc, pm)) < 1e-14
     # padded coarse vertices (no children) pool to exactly 0
