@@ -160,7 +160,9 @@ def pad_to(tree: T, sizes: dict[str, int]) -> T:
     """Pad a neighbourhood pytree's leading / slot axes to larger static sizes.
 
     ``sizes`` maps axis names to target sizes: ``"V"`` (vertices), ``"F"`` (faces), ``"K"``
-    (slots of ``[V, K]`` fields), ``"M"`` (incident faces / children). Index fields are padded with 0,
+    (slots of ``[V, K]`` fields), ``"M"`` (incident faces / children); for the texel pytrees of
+    :mod:`jmeshtex.ops`: ``"N"`` (texels), ``"J"`` (texels per tap), ``"G"`` (groups), ``"S"`` (group
+    size). Index fields are padded with 0,
     masks with False, weights and logs with 0, transports with 1 — the padding contract.
 
     Args:
@@ -216,6 +218,13 @@ _AXES = {
         "vertex_mask": ("V",),
     },
     "TangentFrames": {"normal": ("V",), "x": ("V",), "y": ("V",)},
+    # texel ops (jmeshtex.ops): N texels, 9 taps of J texels each; G pooling groups of S texels
+    "TexelNeighborhood": {
+        "index": ("N", "T", "J"),
+        "weight": ("N", "T", "J"),
+        "texel_mask": ("N",),
+    },
+    "PoolGroups": {"index": ("G", "S"), "mask": ("G", "S")},
     "PoolingMap": {
         "parent": ("Vf",),
         "to_parent": ("Vf",),
