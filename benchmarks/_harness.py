@@ -155,7 +155,7 @@ class Report:
         for r in self.rows:
             keys += [k for k in r if k not in keys]
         lines = [f"# {self.name}", "", f"machine: `{json.dumps(self.info)}`", ""]
-        lines += [f"ceilings (same run): " + ", ".join(f"{k} = {_fmt(v)}" for k, v in self.ceilings.items()), ""]
+        lines += ["ceilings (same run): " + ", ".join(f"{k} = {_fmt(v)}" for k, v in self.ceilings.items()), ""]
         lines += ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
         lines += ["| " + " | ".join(_fmt(r.get(k, "")) for k in keys) + " |" for r in self.rows]
         return "\n".join(lines) + "\n"

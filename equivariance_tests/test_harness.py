@@ -14,6 +14,7 @@ from jmeshtex.testing import (
     REGISTRY,
     Field,
     MeshState,
+    _entries,  # noqa: F401
     assert_equivariant,
     check,
     convergence,
@@ -24,7 +25,6 @@ from jmeshtex.testing import (
     rigid_motion,
     rotations,
 )
-from jmeshtex.testing import _entries  # noqa: F401
 
 
 def _centroid_distance(state, x):

@@ -17,13 +17,11 @@ or JAX arrays. The aliases below are the union of both so one annotation serves 
 
 from __future__ import annotations
 
-from typing import Union
-
 import jax
 import numpy as np
-from jaxtyping import Array, Bool, Complex, Float, Int, Inexact, Num, Shaped
+from jaxtyping import Array, Bool, Complex, Float, Inexact, Int, Num, Shaped
 
-ArrayLike = Union[jax.Array, np.ndarray]
+ArrayLike = jax.Array | np.ndarray
 PRNGKey = jax.Array
 
 __all__ = [

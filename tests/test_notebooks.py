@@ -6,7 +6,6 @@ Notebooks are committed without outputs; this test runs them in a fresh kernel w
 from __future__ import annotations
 
 import json
-import os
 import pathlib
 
 import pytest

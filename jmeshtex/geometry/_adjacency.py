@@ -257,7 +257,7 @@ def boundary_loops(faces: np.ndarray, num_vertices: int | None = None) -> list[n
     edges = boundary_edges(faces, num_vertices)
     if len(edges) == 0:
         return []
-    nxt = dict(zip(edges[:, 0].tolist(), edges[:, 1].tolist()))
+    nxt = dict(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), strict=True))
     loops, seen = [], set()
     for start in sorted(nxt):
         if start in seen:

@@ -186,7 +186,7 @@ def pad_to(tree: T, sizes: dict[str, int]) -> T:
         names = axes[name]
         xp = jnp if isinstance(leaf, jax.Array) else np
         widths = []
-        for axis_name, current in zip(names, leaf.shape):
+        for axis_name, current in zip(names, leaf.shape, strict=False):
             target = sizes.get(axis_name, current)
             if target < current:
                 raise ValueError(f"pad_to: cannot shrink axis {axis_name} of {name} from {current} to {target}")

@@ -15,7 +15,7 @@ from ._registry import check as check
 from ._registry import format_table as format_table
 from ._registry import random_inputs as random_inputs
 from ._registry import register as register
-from ._registry import run as run_registry
+from ._registry import run_registry as run_registry
 from ._state import MeshState as MeshState
 from ._state import regauge_neighborhood as regauge_neighborhood
 from ._transforms import CATALOGUE as CATALOGUE

@@ -35,11 +35,11 @@ def relative_error(actual, expected) -> float:
     """
     a = [np.asarray(x) for x in jax.tree.leaves(actual)]
     b = [np.asarray(x) for x in jax.tree.leaves(expected)]
-    if len(a) != len(b) or any(x.shape != y.shape for x, y in zip(a, b)):
+    if len(a) != len(b) or any(x.shape != y.shape for x, y in zip(a, b, strict=True)):
         raise ValueError(
             f"output structures differ: {[x.shape for x in a]} vs {[y.shape for y in b]}"
         )
-    num = np.sqrt(sum(float(np.sum(np.abs(x.astype(np.complex128) - y) ** 2)) for x, y in zip(a, b)))
+    num = np.sqrt(sum(float(np.sum(np.abs(x.astype(np.complex128) - y) ** 2)) for x, y in zip(a, b, strict=True)))
     den = np.sqrt(sum(float(np.sum(np.abs(y.astype(np.complex128)) ** 2)) for y in b))
     if not np.isfinite(num):
         return float("inf")
@@ -194,7 +194,7 @@ def convergence(
         errors.append(equivariance_error(fn, real, make_inputs(real.source, rng), mask=mask))
     errs = np.asarray(errors)
     at_floor = bool(np.all(errs < floor))
-    ratios = tuple(float(a / max(b, 1e-300)) for a, b in zip(errs[:-1], errs[1:]))
+    ratios = tuple(float(a / max(b, 1e-300)) for a, b in zip(errs[:-1], errs[1:], strict=True))
     orders = tuple(float(np.log2(max(r, 1e-300))) for r in ratios)
     return Convergence(
         tuple(resolutions), tuple(map(float, errs)), ratios, orders, at_floor, tuple(excluded)

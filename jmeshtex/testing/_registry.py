@@ -268,7 +268,7 @@ def check(entry: Entry, transform_name: str, *, dtype=jnp.float64, seed: int = 0
                        expect_fail=expect_fail)
 
 
-def run(
+def run_registry(
     names: Iterable[str] | None = None,
     *,
     dtypes: Sequence = (jnp.float64, jnp.float32),

@@ -10,7 +10,7 @@ import pytest
 from jmeshtex import InputError, Mesh
 from jmeshtex.data import icosphere
 from jmeshtex.meshmatch import MeshMatchConfig, meshmatch, paint_by_example, transfer_displacement
-from jmeshtex.meshmatch._demo import demo_meshes, demo_stage, psnr
+from jmeshtex.meshmatch._demo import demo_meshes, demo_stage
 from jmeshtex.testing import CATALOGUE, MeshState
 
 
