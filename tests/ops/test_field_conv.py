@@ -307,10 +307,11 @@ def test_check_grads_real_and_imaginary_parts(rng, activation):
     check_grads(jax.jit(f), _grad_args(rng), order=1, modes=("rev",), atol=1e-5, rtol=1e-5, eps=1e-6)
 
 
-@pytest.mark.parametrize("activation", ["silu", "relu"])
-def test_hand_written_vjp_matches_autodiff_to_second_order(rng, activation):
+def test_hand_written_vjp_matches_autodiff_to_second_order(rng):
     # the filter-sum core against plain autodiff of its straightforward implementation: first order
-    # (VJP) and second order (reverse over the hand-written VJP)
+    # (VJP) and second order (reverse over the hand-written VJP). SiLU: the ReLU path shares the code
+    # and has no second-order terms; its first order is covered by check_grads above.
+    activation = "silu"
     args = [rng.standard_normal((3, 2, 2)) for _ in range(4)] + [rng.standard_normal((2, 3)), rng.standard_normal((3, 3))]
     w = rng.standard_normal((3, 2, 3, 2))
 
