@@ -5,4 +5,3 @@ from ._meshes import icosahedron as icosahedron
 from ._meshes import icosphere as icosphere
 from ._meshes import single_triangle as single_triangle
 from ._meshes import torus as torus
-# -- public names added by each module below this line --

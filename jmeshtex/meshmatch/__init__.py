@@ -6,7 +6,6 @@ PatchMatch finds for each target vertex the most similar source patch at the bes
 rotations, and a Gaussian-weighted vote synthesises the target's colours.
 """
 
-# -- public names added by each module below this line --
 from ._config import MeshMatchConfig as MeshMatchConfig
 from ._fans import GeodesicFans as GeodesicFans
 from ._fans import correspondence_affinities as correspondence_affinities

@@ -1,6 +1,5 @@
 """Off-screen rendering to PNG (matplotlib Agg): vertex colours, UV textures, scalar and tangent fields."""
 
-# -- public names added by each module below this line --
 from ._render import render_grid as render_grid
 from ._render import render_mesh as render_mesh
 from ._render import write_png as write_png

@@ -234,6 +234,16 @@ def test_vmap_over_padded_batch(rng):
     yb = jax.jit(jax.vmap(lambda a, n, e: field_conv(a, n, params, embedding=e)))(jnp.asarray(xb), batch, eb)
     for i, (n, a, e) in enumerate(zip(nbs, xs, embs, strict=False)):
         assert rel_err(yb[i, : len(a)], _conv(jnp.asarray(a), n, params, embedding=e)) < 1e-13
+    # and the parameter gradient of the batched loss is the sum of the per-mesh gradients
+    def batched(p):
+        y = jax.vmap(lambda a, n, e: field_conv(a, n, p, embedding=e))(jnp.asarray(xb), batch, eb)
+        return jnp.sum(jnp.abs(y[0, : V - 2]) ** 2) + jnp.sum(jnp.abs(y[1]) ** 2)
+
+    def separate(p):
+        return sum(jnp.sum(jnp.abs(field_conv(a, n, p, embedding=e)) ** 2) for n, a, e in zip(nbs, xs, embs, strict=True))
+
+    for g, r in zip(jax.tree.leaves(jax.jit(jax.grad(batched))(params)), jax.tree.leaves(jax.jit(jax.grad(separate))(params)), strict=True):
+        np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
 
 
 def test_jit_matches_eager_without_recompiling(rng):
