@@ -33,7 +33,6 @@ from ._log_map import one_ring_neighborhood as one_ring_neighborhood
 from ._sampling import SurfaceSamples as SurfaceSamples
 from ._sampling import barycentric_interpolate as barycentric_interpolate
 from ._sampling import sample_surface as sample_surface
-
 from ._subdivision import Subdivision as Subdivision
 from ._subdivision import mean_edge_length as mean_edge_length
 from ._subdivision import rescale_to_mean_edge as rescale_to_mean_edge
