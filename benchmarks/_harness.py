@@ -113,6 +113,16 @@ def bandwidth_ceiling(mbytes: int = 256) -> float:
     return 2 * n * 4 / t.run_s / 1e9
 
 
+def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dict:
+    """Which ceiling of this run bounds a row (FLOPs at matmul speed or bytes at copy bandwidth),
+    the time that bound allows, and the share of it reached."""
+    t_flops = flops / (report.ceilings["matmul_gflops"] * 1e9)
+    t_bytes = nbytes / (report.ceilings["bandwidth_gbs"] * 1e9)
+    bound_s = max(t_flops, t_bytes)
+    return {"bound": "flops" if t_flops >= t_bytes else "bytes", "bound_s": bound_s,
+            "pct_of_bound": 100.0 * bound_s / seconds}
+
+
 class Report:
     """Collects rows and writes ``results/<name>.json`` and ``results/<name>.md`` atomically."""
 

@@ -23,7 +23,7 @@ import argparse
 
 import jax
 import jax.numpy as jnp
-from _harness import Report, time_host, time_jax
+from _harness import Report, roofline, time_host, time_jax
 
 from jmeshtex.data import icosphere
 from jmeshtex.geometry import face_neighborhood
@@ -43,16 +43,6 @@ def forward_bytes(F: int) -> float:
     per_norm = F * 3 * C * 4
     embed = F * (3 * 4 + WIDTH) * 4
     return embed + (LAYERS - 1) * (per_conv + per_norm)
-
-
-def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dict:
-    """Which ceiling of this run bounds a row (FLOPs at matmul speed or bytes at copy bandwidth),
-    the time that bound allows, and the share of it reached."""
-    t_flops = flops / (report.ceilings["matmul_gflops"] * 1e9)
-    t_bytes = nbytes / (report.ceilings["bandwidth_gbs"] * 1e9)
-    bound_s = max(t_flops, t_bytes)
-    return {"bound": "flops" if t_flops >= t_bytes else "bytes", "bound_s": bound_s,
-            "pct_of_bound": 100.0 * bound_s / seconds}
 
 
 def main() -> None:

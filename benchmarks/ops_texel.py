@@ -24,7 +24,7 @@ import argparse
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _harness import Report, time_jax
+from _harness import Report, roofline, time_jax
 
 from jmeshtex.ops import TexelNeighborhood, grouped_pool, image_pool_groups, texel_conv
 
@@ -49,16 +49,6 @@ def bilinear_taps(size: int, *, seed: int = 0) -> TexelNeighborhood:
         index[..., j] = np.where(inside, rr * size + cc, 0)
         weight[..., j] = np.where(inside, w, 0)
     return TexelNeighborhood(index, weight, np.ones(N, bool))
-
-
-def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dict:
-    """Which ceiling of this run bounds a row (FLOPs at matmul speed or bytes at copy bandwidth),
-    the time that bound allows, and the share of it reached."""
-    t_flops = flops / (report.ceilings["matmul_gflops"] * 1e9)
-    t_bytes = nbytes / (report.ceilings["bandwidth_gbs"] * 1e9)
-    bound_s = max(t_flops, t_bytes)
-    return {"bound": "flops" if t_flops >= t_bytes else "bytes", "bound_s": bound_s,
-            "pct_of_bound": 100.0 * bound_s / seconds}
 
 
 def main() -> None:
