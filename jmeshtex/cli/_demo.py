@@ -190,25 +190,55 @@ def _verify(ctx: dict[str, Any]) -> str:
     """A selection of ``jmeshtex verify``: every registered operator under a gauge change, a
     relabelling of face corners and an exact fold, in float64 (quick: two operators, gauge only)."""
     import jax
-
-    jax.config.update("jax_enable_x64", True)
     import jax.numpy as jnp
 
     from .. import testing
     from ._verify import _atomic_write
 
-    testing.load_entries()
-    if ctx["quick"]:
-        names, transforms = ["ops.field_conv", "negative.complex_bias"], ["gauge"]
-    else:
-        names, transforms = None, ["gauge", "rotate_corners", "fold"]
-    results = testing.run_registry(names, dtypes=(jnp.float64,), transforms=transforms)
+    was_x64 = jax.config.jax_enable_x64
+    jax.config.update("jax_enable_x64", True)  # for this step only: the method stages run in float32
+    try:
+        testing.load_entries()
+        if ctx["quick"]:
+            names, transforms = ["ops.field_conv", "negative.complex_bias"], ["gauge"]
+        else:
+            names, transforms = None, ["gauge", "rotate_corners", "fold"]
+        results = testing.run_registry(names, dtypes=(jnp.float64,), transforms=transforms)
+    finally:
+        jax.config.update("jax_enable_x64", was_x64)
     table = testing.format_table(results)
     _atomic_write(ctx["out"] / "verify.txt", table + "\n")
     failed = sum(r.passed is False for r in results)
     if failed:
         raise RuntimeError(f"equivariance check failed:\n{table}")
     return f"{len(results)} checks ({', '.join(transforms)}), {failed} failed → verify.txt"
+
+
+def method_stage(module: str, folder: str) -> Callable[[dict[str, Any]], str]:
+    """A demo step that runs ``jmeshtex.<module>.demo_stage(out / folder, quick=...)``.
+
+    ``module`` names a method's demo module, e.g. ``"dgts._demo"``. Each method has a
+    ``demo_stage(out_dir, *, quick) -> dict`` that trains/runs a tiny
+    configuration on the embedded data and writes its PNGs into ``out_dir``; the dict's
+    ``"summary"`` (or else its scalar entries) becomes the report line.
+    """
+
+    def run(ctx: dict[str, Any]) -> str:
+        import importlib
+
+        stage = importlib.import_module(f"jmeshtex.{module}").demo_stage
+        result = stage(ctx["out"] / folder, quick=ctx["quick"])
+        if "summary" in result:
+            text = str(result["summary"])
+        else:
+            text = ", ".join(
+                f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                for k, v in result.items()
+                if isinstance(v, (int, float, str))
+            )
+        return f"{text} → {folder}/"
+
+    return run
 
 
 def _meshmatch(ctx: dict[str, Any]) -> str:
