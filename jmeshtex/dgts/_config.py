@@ -134,6 +134,10 @@ class TrainConfig(_Serialisable):
       negative_slope: leaky-ReLU slope (0.2).
       eps: instance-norm regulariser (1e-5).
       seed: PRNG seed of initialisation, z* and the noise.
+      shared_levels: levels ``0 … shared_levels − 1`` are padded (masked faces and vertices, which
+        change no output) to the size of level ``shared_levels − 1``, so that, when their widths
+        agree, they run one compiled training step instead of one each (0 or 1: no padding). Worth
+        it for small, equal-width configurations (tests, demo), where compilation dominates.
     """
 
     num_layers: int = 7
@@ -156,6 +160,7 @@ class TrainConfig(_Serialisable):
     negative_slope: float = 0.2
     eps: float = 1e-5
     seed: int = 0
+    shared_levels: int = 0
 
     def __post_init__(self):
         _check(int(self.num_layers) >= 3, f"num_layers must be >= 3 (input, one hidden, output), got {self.num_layers}")
@@ -174,6 +179,7 @@ class TrainConfig(_Serialisable):
         _check(self.reconstruction_weight >= 0 and self.penalty_weight >= 0,
                "reconstruction_weight and penalty_weight must be >= 0")
         _check(self.scale_factor > 0, f"scale_factor must be > 0, got {self.scale_factor}")
+        _check(self.shared_levels >= 0, f"shared_levels must be >= 0, got {self.shared_levels}")
 
     def level_features(self, level: int, *, generator: bool) -> tuple[int, ...]:
         """Output widths of the weight layers at ``level`` (embedding first, 3 or 1 last).

@@ -37,14 +37,20 @@ import numpy as np
 import optax
 
 from .._errors import ConfigError, InputError, MeshIOError
+from .._types import Array, Float
+from ..geometry import pad_to
+from ..geometry._types import FaceNeighborhood
 from ..ops import FaceConvStackParams, face_features
+from ..ops._util import masked_mean
 from ._config import TrainConfig
 from ._model import (
     discriminator,
     discriminator_features,
     generate,
+    generator_level,
     hierarchy_geometry,
     init_level,
+    upsample,
 )
 from ._multiscale import TrainingMeshes, atomic_save_npz, atomic_write_bytes, load_npz
 
@@ -99,10 +105,6 @@ def _optimizer(config: TrainConfig, steps_per_iteration: int) -> optax.GradientT
     return optax.adam(schedule, b1=config.beta1, b2=config.beta2)
 
 
-def _num_vertices(meshes: TrainingMeshes) -> list[int]:
-    return [len(v) for v in meshes.vertices]
-
-
 def gradient_penalty(
     d_params: FaceConvStackParams, real_features, fake_features, nbhd, alpha, *, negative_slope: float, eps: float
 ):
@@ -110,7 +112,8 @@ def gradient_penalty(
 
     .. math:: \\overline{(\\lVert \\nabla_{\\hat\\phi_f} \\textstyle\\sum_g D(\\hat\\phi)_g\\rVert_2 - 1)^2}
 
-    The norm is taken per face over its ``3 × 4`` features (the reference code's ``norm(dim=1)``).
+    The norm is taken per face over its ``3 × 4`` features (the reference code's ``norm(dim=1)``);
+    the mean runs over real faces only (``nbhd.face_mask``), so padded faces change nothing.
     """
     x = alpha * real_features + (1 - alpha) * fake_features
 
@@ -120,84 +123,162 @@ def gradient_penalty(
     g = jax.grad(total)(x)
     sq = jnp.sum(g * g, axis=(1, 2))
     norm = jnp.sqrt(sq + jnp.asarray(1e-12, sq.dtype))
-    return jnp.mean((norm - 1) ** 2)
+    return masked_mean((norm - 1) ** 2, nbhd.face_mask)
 
 
-@functools.lru_cache(maxsize=32)
-def make_iteration(config: TrainConfig, level: int, num_vertices: tuple[int, ...]):
-    """The jit-compiled training iteration of ``level`` (cached: the same config and sizes reuse
-    the compiled function, e.g. when training resumes in the same process).
+#: training iterations run by one compiled call (a ``fori_loop`` inside): fewer dispatches, and the
+#: frozen levels run once per chunk, batched over all its noise draws.
+CHUNK = 10
 
-    Returns ``step(g, d, opt, frozen, geos, template, real, z_star, key) -> (g, d, opt, losses)``.
+
+class LevelBatch(NamedTuple):
+    """Inputs of ``CHUNK`` training iterations of level ``L`` (``S = D + G`` fake meshes each).
+
+    Attributes:
+      fake_base: ``[K, S, V_L, 3]`` outputs of the frozen levels ``0 … L−1`` (subdivided and scaled
+        into level ``L``'s frame) for fresh noise; the template itself at level 0.
+      fake_noise: ``[K, S, V_L, 3]`` the level-``L`` noise of those fakes.
+      rec_base, rec_noise: ``[K, G, V_L, 3]`` the same for the reconstruction (``z*`` at level 0
+        and zero above from ``reconstruction_start`` on, fresh noise below it).
+      alpha: ``[K, D]`` gradient-penalty interpolation weights.
+    """
+
+    fake_base: Float[Array, "K S V 3"]
+    fake_noise: Float[Array, "K S V 3"]
+    rec_base: Float[Array, "K G V 3"]
+    rec_noise: Float[Array, "K G V 3"]
+    alpha: Float[Array, "K D"]
+
+
+@functools.partial(jax.jit, static_argnames=("config",))
+def _advance(params, vertices, noise, geometry, *, config: TrainConfig):
+    """One frozen level on a batch: ``s·U(v + G(v, z))`` for every row (forward only)."""
+    kw = {"negative_slope": config.negative_slope, "eps": config.eps}
+    out = jax.vmap(lambda v, z: v + generator_level(params, v, geometry.nbhd, z, **kw))(vertices, noise)
+    return jax.vmap(lambda v: upsample(v, geometry.edge_vertices, scale=config.scale_factor))(out)
+
+
+@functools.partial(jax.jit, static_argnames=("shape", "amplitude"))
+def _noise(key, fixed, *, shape: tuple[int, ...], amplitude: float):
+    """``[n + m, V, 3]``: ``n`` fresh Gaussian draws, then the ``m`` fixed rows ``fixed [m, V, 3]``."""
+    fresh = amplitude * jax.random.normal(key, shape, fixed.dtype)
+    return jnp.concatenate([fresh, fixed], axis=0)
+
+
+def level_batch(model_levels, geos, template, z_star, key, *, config: TrainConfig, chunk: int) -> LevelBatch:
+    """Draw the noise of ``chunk`` iterations of level ``L = len(model_levels)`` and run the frozen
+    levels ``0 … L−1`` on it (forward only).
+
+    All draws of the chunk (``chunk·(D + G)`` fakes, and the reconstruction) go through each frozen
+    level as one batch, level by level: the compiled level step depends only on that level's sizes
+    and on the batch size, so it is compiled once and reused by every later level and chunk.
+
+    Returns:
+      :class:`LevelBatch`; with ``L ≥ reconstruction_start`` the reconstruction is the one fixed
+      row (``z*`` at level 0, zero noise above), broadcast.
     """
     c = config
-    L = level
+    L = len(model_levels)
+    D, G = c.discriminator_steps, c.generator_steps
+    dtype = template.dtype
+    sizes = [int(g.nbhd.vertex_mask.shape[0]) for g in geos[: L + 1]]
+    fixed_rec = L >= c.reconstruction_start
+    n_fresh = chunk * (D + G) + (0 if fixed_rec else chunk * G)
+    keys = jax.random.split(key, L + 2)
+    v = jnp.broadcast_to(template, (n_fresh + int(fixed_rec), *template.shape))
+    zs = []
+    for level in range(L + 1):
+        fixed = jnp.zeros((int(fixed_rec), sizes[level], 3), dtype)
+        if level == 0 and fixed_rec:
+            fixed = z_star.astype(dtype)[None]
+        z = _noise(keys[level], fixed, shape=(n_fresh, sizes[level], 3), amplitude=float(c.noise_amplitude))
+        if level < L:
+            v = _advance(model_levels[level], v, z, geos[level], config=c)
+        zs.append(z)
+    z = zs[L]
+    n_fake = chunk * (D + G)
+    fake_base = v[:n_fake].reshape(chunk, D + G, sizes[L], 3)
+    fake_noise = z[:n_fake].reshape(chunk, D + G, sizes[L], 3)
+    if fixed_rec:
+        rec_base = jnp.broadcast_to(v[n_fake], (chunk, G, sizes[L], 3))
+        rec_noise = jnp.broadcast_to(z[n_fake], (chunk, G, sizes[L], 3))
+    else:
+        rec_base = v[n_fake:].reshape(chunk, G, sizes[L], 3)
+        rec_noise = z[n_fake:].reshape(chunk, G, sizes[L], 3)
+    alpha = jax.random.uniform(keys[L + 1], (chunk, D), dtype)
+    return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha)
+
+
+@functools.partial(jax.jit, static_argnames=("config",))
+def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: TrainConfig):
+    """``n ≤ K`` WGAN-GP iterations of one level on the inputs ``batch`` (one compiled call).
+
+    Each iteration: ``discriminator_steps`` critic updates, then ``generator_steps`` generator
+    updates (module docstring losses). Only level ``L``'s networks are in here: the frozen levels
+    are inputs (:func:`level_batch`), so every level compiles the same small program, and the
+    level-``L`` mesh may be padded (``nbhd.face_mask`` / ``vertex_mask``) without changing a loss.
+
+    Returns:
+      ``(g, d, opt, losses)`` with the losses of the last iteration.
+    """
+    c = config
+    kw = {"negative_slope": c.negative_slope, "eps": c.eps}
     opt_d = _optimizer(c, c.discriminator_steps)
     opt_g = _optimizer(c, c.generator_steps)
-    kw = {"negative_slope": c.negative_slope, "eps": c.eps}
+    vmask = nbhd.vertex_mask
 
-    def noises(key, dtype):
-        keys = jax.random.split(key, L + 1)
-        return [c.noise_amplitude * jax.random.normal(keys[i], (num_vertices[i], 3), dtype) for i in range(L + 1)]
+    def produce(g, base, z):
+        return base + generator_level(g, base, nbhd, z, **kw)
 
-    def run(g, frozen, geos, template, zs):
-        frozen = jax.lax.stop_gradient(frozen)
-        return generate((*frozen, g), template, geos, zs, scale=c.scale_factor, **kw)
-
-    def d_loss(d, fake, real, nbhd, alpha):
+    def d_loss(d, fake, alpha):
         real_f, fake_f = face_features(real, nbhd), face_features(fake, nbhd)
-        s_real = jnp.mean(discriminator_features(d, real_f, nbhd, **kw))
-        s_fake = jnp.mean(discriminator_features(d, fake_f, nbhd, **kw))
+        s_real = masked_mean(discriminator_features(d, real_f, nbhd, **kw), nbhd.face_mask)
+        s_fake = masked_mean(discriminator_features(d, fake_f, nbhd, **kw), nbhd.face_mask)
         gp = gradient_penalty(d, real_f, fake_f, nbhd, alpha, **kw)
-        return s_fake - s_real + c.penalty_weight * gp, (s_real, s_fake, gp)
+        return s_fake - s_real + c.penalty_weight * gp, jnp.stack([s_real, s_fake, gp])
 
-    def g_loss(g, d, frozen, geos, template, real, z_star, key):
-        k_fake, k_rec = jax.random.split(key)
-        dtype = template.dtype
-        fake = run(g, frozen, geos, template, noises(k_fake, dtype))
-        if L >= c.reconstruction_start:
-            zs = [z_star.astype(dtype)] + [0.0] * L
-        else:
-            zs = noises(k_rec, dtype)
-        rec = run(g, frozen, geos, template, zs)
-        adv = -jnp.mean(discriminator(d, fake, geos[-1].nbhd, **kw))
-        mse = jnp.mean((rec - real) ** 2)
-        return adv + c.reconstruction_weight * mse, (adv, mse)
+    def g_loss(g, d, bases, zs):
+        fake, rec = jax.vmap(produce, in_axes=(None, 0, 0))(g, bases, zs)
+        adv = -masked_mean(discriminator(d, fake, nbhd, **kw), nbhd.face_mask)
+        mse = masked_mean(jnp.mean((rec - real) ** 2, axis=1), vmask)
+        return adv + c.reconstruction_weight * mse, jnp.stack([adv, mse])
 
-    @jax.jit
-    def step(g, d, opt, frozen, geos, template, real, z_star, key):
-        dtype = template.dtype
-        zero = jnp.zeros((), dtype)
+    def update(opt, grads, state, params):
+        with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+            updates, state = opt.update(grads, state, params)
+        return optax.apply_updates(params, updates), state
 
-        def d_step(i, carry):
-            d, state, _ = carry
-            k_noise, k_alpha = jax.random.split(jax.random.fold_in(key, i))
-            fake = jax.lax.stop_gradient(run(g, frozen, geos, template, noises(k_noise, dtype)))
-            alpha = jax.random.uniform(k_alpha, (), dtype)
-            (_, aux), grads = jax.value_and_grad(d_loss, has_aux=True)(d, fake, real, geos[-1].nbhd, alpha)
-            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-                updates, state = opt_d.update(grads, state, d)
-            return optax.apply_updates(d, updates), state, aux
+    def iteration(i, carry):
+        g, d, opt, _ = carry
+        b = jax.tree.map(lambda x: x[i], batch)
+        D = c.discriminator_steps
 
-        d, opt_d_state, (s_real, s_fake, gp) = jax.lax.fori_loop(
-            0, c.discriminator_steps, d_step, (d, opt.d, (zero, zero, zero))
-        )
+        def d_step(carry, inputs):
+            d, state = carry
+            base, z, alpha = inputs
+            fake = jax.lax.stop_gradient(produce(g, base, z))
+            (_, aux), grads = jax.value_and_grad(d_loss, has_aux=True)(d, fake, alpha)
+            return update(opt_d, grads, state, d), aux
 
-        def g_step(i, carry):
-            g, state, _ = carry
-            k = jax.random.fold_in(key, c.discriminator_steps + i)
+        def g_step(carry, inputs):
+            g, state = carry
+            base, z, rbase, rz = inputs
             (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(
-                g, d, frozen, geos, template, real, z_star, k
+                g, d, jnp.stack([base, rbase]), jnp.stack([z, rz])
             )
-            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-                updates, state = opt_g.update(grads, state, g)
-            return optax.apply_updates(g, updates), state, aux
+            return update(opt_g, grads, state, g), aux
 
-        g, opt_g_state, (adv, mse) = jax.lax.fori_loop(0, c.generator_steps, g_step, (g, opt.g, (zero, zero)))
-        losses = {"d_real": s_real, "d_fake": s_fake, "penalty": gp, "g_adv": adv, "g_rec": mse}
-        return g, d, _Opt(opt_g_state, opt_d_state), losses
+        (d, sd), d_aux = jax.lax.scan(d_step, (d, opt.d), (b.fake_base[:D], b.fake_noise[:D], b.alpha))
+        (g, sg), g_aux = jax.lax.scan(g_step, (g, opt.g), (b.fake_base[D:], b.fake_noise[D:], b.rec_base, b.rec_noise))
+        last_d = d_aux[-1] if D else jnp.zeros(3, real.dtype)
+        return g, d, _Opt(sg, sd), jnp.concatenate([last_d, g_aux[-1]])
 
-    return step, opt_g, opt_d
+    g, d, opt, losses = jax.lax.fori_loop(0, n, iteration, (g, d, opt, jnp.zeros(5, real.dtype)))
+    return g, d, opt, dict(zip(LOSS_NAMES, losses, strict=True))
+
+
+#: the losses :func:`train_chunk` reports (critic on real / fake, penalty, generator adversarial / MSE)
+LOSS_NAMES = ("d_real", "d_fake", "penalty", "g_adv", "g_rec")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -311,9 +392,11 @@ def train(
     total = meshes.num_levels if num_levels is None else int(num_levels)
     if not 1 <= total <= meshes.num_levels:
         raise ConfigError(f"num_levels must be in [1, {meshes.num_levels}] (the training meshes' levels), got {num_levels}")
-    V = _num_vertices(meshes)
-    geos_all, faces = hierarchy_geometry(meshes.faces[0], V[0], total)
-    for level in range(total):
+    V = [len(v) for v in meshes.vertices]
+    # the padded sizes come from the training meshes, not from num_levels: resuming stays exact
+    n_geo = max(total, min(config.shared_levels, meshes.num_levels))
+    geos_all, faces = hierarchy_geometry(meshes.faces[0], V[0], n_geo)
+    for level in range(n_geo):
         if not np.array_equal(faces[level], meshes.faces[level]):
             raise InputError(f"training mesh level {level} is not the midpoint subdivision of level {level - 1}")
     key = jax.random.key(config.seed)
@@ -338,50 +421,54 @@ def train(
             atomic_save_npz(out / "z_star.npz", {"z_star": z_star})
     template = jnp.asarray(meshes.template, jnp.float32)
     z_star_j = jnp.asarray(z_star, jnp.float32)
+    padded = _padded_sizes(geos_all, config.shared_levels)
     for level in range(len(gs), total):
-        kg, kd = jax.random.split(jax.random.fold_in(k_init, level))
-        g = init_level(kg, config, level, generator=True)
-        d = init_level(kd, config, level, generator=False)
-        if level > 0 and config.level_features(level, generator=True) == config.level_features(level - 1, generator=True):
-            g = gs[-1]
-        if level > 0 and config.level_features(level, generator=False) == config.level_features(level - 1, generator=False):
-            d = ds[-1]
-        step, opt_g, opt_d = make_iteration(config, level, tuple(V))
-        opt = _Opt(opt_g.init(g), opt_d.init(d))
+        g, d = _initial_params(config, level, k_init, gs, ds)
+        opt = _Opt(_optimizer(config, config.generator_steps).init(g), _optimizer(config, config.discriminator_steps).init(d))
         geos = geos_all[: level + 1]
+        nbhd = geos[-1].nbhd
         real = jnp.asarray(meshes.vertices[level], jnp.float32)
         frozen = tuple(gs)
+        k_level = jax.random.fold_in(k_train, level)
         bar = None
         if progress:
             from tqdm.auto import tqdm
 
             bar = tqdm(total=config.iterations, desc=f"DGTS level {level + 1}/{total}", unit="it", leave=True)
+        n_chunks = -(-config.iterations // CHUNK)
         t_compile = 0.0
         t0 = time.perf_counter()
         losses: dict = {}
-        for it in range(config.iterations):
-            t_it = time.perf_counter()
-            g, d, opt, losses = step(g, d, opt, frozen, geos, template, real, z_star_j, jax.random.fold_in(jax.random.fold_in(k_train, level), it))
-            if it == 0:
-                jax.block_until_ready(g)
-                t_compile = time.perf_counter() - t_it
-                t0 = time.perf_counter()
+        for chunk in range(n_chunks):
+            n = min(CHUNK, config.iterations - chunk * CHUNK)
+            t_b = time.perf_counter()
+            batch = level_batch(frozen, geos, template, z_star_j, jax.random.fold_in(k_level, chunk), config=config,
+                                chunk=CHUNK)
+            if chunk == 0:  # the first chunk compiles the frozen levels (new shapes only)
+                jax.block_until_ready(batch)
+                t_b = time.perf_counter() - t_b
+            else:
+                t_b = 0.0
+            args = (g, d, opt, nbhd, real, batch, jnp.int32(n))
+            if level < len(padded):
+                args = _pad_level(args, padded[level])
+            step_fn, t_s = _compiled(train_chunk, args, {"config": config})
+            g, d, opt, losses = step_fn(*args)
+            t_compile += t_b + t_s
             if bar is not None:
-                bar.update(1)
-                if it % 20 == 0:
-                    bar.set_postfix(rec=f"{float(losses['g_rec']):.3g}", adv=f"{float(losses['g_adv']):.3g}")
+                bar.update(n)
+                bar.set_postfix(rec=f"{float(losses['g_rec']):.3g}", adv=f"{float(losses['g_adv']):.3g}")
         jax.block_until_ready(g)
         seconds = time.perf_counter() - t0
         if bar is not None:
             bar.close()
-        n_timed = max(config.iterations - 1, 1)
         report = LevelReport(
             level=level,
             iterations=config.iterations,
             faces=int(len(meshes.faces[level])),
             compile_seconds=t_compile,
-            seconds=seconds + t_compile,
-            seconds_per_iteration=seconds / n_timed if config.iterations > 1 else t_compile,
+            seconds=seconds,
+            seconds_per_iteration=(seconds - t_compile) / max(config.iterations, 1),
             losses={k: float(v) for k, v in losses.items()},
         )
         gs.append(g)
@@ -391,3 +478,67 @@ def train(
             _save_params(out / f"level_{level:02d}.npz", g, d)
             _write_state(out, config, level + 1, previous + reports, total)
     return DGTSModel(config, tuple(gs), tuple(ds), np.asarray(z_star)), reports
+
+
+def _padded_sizes(geos, shared_levels: int) -> list[dict[str, int]]:
+    """Target sizes (``F``, ``V``, ``M``) of the levels padded to share one step (``shared_levels``)."""
+    shared = geos[: min(int(shared_levels), len(geos))]
+    if len(shared) < 2:
+        return []
+    last = shared[-1].nbhd
+    size = {"F": int(last.faces.shape[0]), "V": int(last.vertex_mask.shape[0]),
+            "M": max(int(g.nbhd.vertex_faces.shape[1]) for g in shared)}
+    return [size] * len(shared)
+
+
+def pad_level(nbhd: FaceNeighborhood, real, batch: LevelBatch, size: dict[str, int]):
+    """Pad one level's training inputs to ``size`` (``F``, ``V``, ``M``): masked faces and vertices.
+
+    Padded vertices sit at the origin with zero noise and belong to no real face, padded faces are
+    masked out of every feature, norm and mean (:func:`train_chunk`), so training on the padded level
+    gives the same parameters as on the level itself (tested).
+    """
+    extra = size["V"] - int(real.shape[0])
+
+    def rows(x):
+        return jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(0, extra), (0, 0)])
+
+    batch = batch._replace(**{k: rows(getattr(batch, k)) for k in ("fake_base", "fake_noise", "rec_base", "rec_noise")})
+    return pad_to(nbhd, size), rows(real), batch
+
+
+def _pad_level(args, size):
+    g, d, opt, nbhd, real, batch, n = args
+    return (g, d, opt, *pad_level(nbhd, real, batch, size), n)
+
+
+def _initial_params(config: TrainConfig, level: int, key, gs: list, ds: list):
+    """Fresh parameters of ``level``, or the previous level's where the widths match (warm start)."""
+    out = []
+    for generator, previous, k in zip((True, False), (gs, ds), jax.random.split(jax.random.fold_in(key, level)),
+                                      strict=True):
+        same = level > 0 and config.level_features(level, generator=generator) == config.level_features(
+            level - 1, generator=generator)
+        out.append(previous[-1] if same else init_level(k, config, level, generator=generator))
+    return out[0], out[1]
+
+
+#: ahead-of-time compiled functions, keyed by function, static arguments and argument shapes
+_COMPILED: dict = {}
+
+
+def _compiled(fn, args: tuple, static: dict):
+    """``(compiled fn, compile seconds)``: ``fn`` lowered and compiled once per static arguments and
+    argument shapes/dtypes (so compile time is measured apart from run time)."""
+    leaves, treedef = jax.tree.flatten(args)
+    signature = (fn, tuple(sorted(static.items())), treedef,
+                 tuple((np.shape(x), jnp.result_type(x).name if hasattr(x, "dtype") else type(x)) for x in leaves))
+    hit = _COMPILED.get(signature)
+    if hit is not None:
+        return hit, 0.0
+    t = time.perf_counter()
+    compiled = fn.lower(*args, **static).compile()
+    if len(_COMPILED) >= 64:
+        _COMPILED.clear()
+    _COMPILED[signature] = compiled
+    return compiled, time.perf_counter() - t

@@ -59,3 +59,5 @@ from ._validate import check_mesh_arrays as check_mesh_arrays
 from ._validate import mesh_statistics as mesh_statistics
 from ._validate import prepare_mesh as prepare_mesh
 from ._validate import validate_mesh as validate_mesh
+from ._remesh import remesh as remesh
+from ._remesh import surface_correspondence as surface_correspondence

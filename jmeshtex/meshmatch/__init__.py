@@ -16,8 +16,10 @@ from ._fans import hks_features as hks_features
 from ._fans import sample_fans as sample_fans
 from ._fans import shape_features as shape_features
 from ._patchmatch import MeshMatchResult as MeshMatchResult
+from ._patchmatch import fan_distance_bound as fan_distance_bound
 from ._patchmatch import fan_spectrum as fan_spectrum
 from ._patchmatch import meshmatch as meshmatch
+from ._patchmatch import pad_level_arrays as pad_level_arrays
 from ._patchmatch import prepare_side as prepare_side
 from ._patchmatch import rotation_distances as rotation_distances
 from ._transfer import TransferResult as TransferResult

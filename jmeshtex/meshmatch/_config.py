@@ -22,7 +22,10 @@ class MeshMatchConfig:
         by the source colour variance).
       shape_weight: weight of the shape term (HKS and ``n · up``, each feature standardised), one
         value for every level or a tuple from the finest level to the coarsest (the last entry
-        repeats for further levels).
+        repeats for further levels). The default 30 lets the shape anchor where a patch goes: the
+        target's colours are synthesised, so with a weak shape term the coarse levels settle on a
+        coherent but shifted placement that finer levels cannot undo (benchmark torus: 15 dB
+        self-transfer PSNR at weight 3, 34 dB at 30).
       affinity_weight: weight of the correspondence affinities (only with correspondences).
       hks_times: number of log-spaced heat kernel signature times.
       hks_eigenpairs: Laplacian eigenpairs used for the HKS.
@@ -37,6 +40,13 @@ class MeshMatchConfig:
       random_search_levels: how many hierarchy levels the random search hops up (then down again
         at random); 0 turns the hierarchical search off.
       global_candidates: uniformly random source vertices tried per target vertex and iteration.
+      sweeps: propagation sweeps per iteration; each sweep propagates from the matches the previous
+        one found, so an iteration moves good matches ``sweeps`` rings (1 = Jacobi-style).
+      exact_candidates: per candidate set (random search + first sweep, then each further sweep)
+        only this many candidates, those with the smallest rotation-invariant lower bound of the
+        patch distance, get the exact rotation search.
+      bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
+        common shape and share one compiled PatchMatch step (0 turns the sharing off).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths.
       min_vertices: coarsest hierarchy level size (decimation stops below it).
       levels: number of hierarchy levels, or None for "down to ``min_vertices``".
@@ -45,14 +55,14 @@ class MeshMatchConfig:
     Example:
       >>> c = MeshMatchConfig(num_angles=12)
       >>> c.num_angles, c.shape_weight_at(5)
-      (12, 3.0)
+      (12, 30.0)
     """
 
     num_radii: int = 3
     num_angles: int = 18
     fan_radius: float = 4.0
     color_weight: float = 1.0
-    shape_weight: float | tuple[float, ...] = 3.0
+    shape_weight: float | tuple[float, ...] = 30.0
     affinity_weight: float = 1.0
     hks_times: int = 8
     hks_eigenpairs: int = 32
@@ -63,6 +73,9 @@ class MeshMatchConfig:
     tolerance: float = 0.002
     random_search_levels: int = 3
     global_candidates: int = 4
+    sweeps: int = 2
+    exact_candidates: int = 3
+    bucket_vertices: int = 4096
     vote_sigma: float = 1.0
     min_vertices: int = 128
     levels: int | None = None
@@ -72,12 +85,13 @@ class MeshMatchConfig:
         ints = {
             "num_radii": 1, "num_angles": 2, "hks_times": 1, "hks_eigenpairs": 2,
             "hks_max_vertices": 16, "iterations": 1, "coarse_iterations": 1, "min_vertices": 8,
+            "sweeps": 1, "exact_candidates": 1,
         }
         for name, low in ints.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ConfigError(f"MeshMatchConfig.{name} must be an integer >= {low}, got {value!r}")
-        for name in ("random_search_levels", "global_candidates"):
+        for name in ("random_search_levels", "global_candidates", "bucket_vertices"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ConfigError(f"MeshMatchConfig.{name} must be an integer >= 0, got {value!r}")

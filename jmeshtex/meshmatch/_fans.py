@@ -37,6 +37,7 @@ from ..geometry import (
     one_rings,
     tangent_frames,
     trace_from_vertices,
+    trace_geodesics,
     tracer_geometry,
 )
 
@@ -185,18 +186,33 @@ def geodesic_fans(
         edge = float(np.linalg.norm(vertices[f] - vertices[np.roll(f, -1, axis=1)], axis=2).mean())
     R, A = len(radii), int(num_angles)
     turn = np.exp(2j * np.pi * np.arange(A) / A)
-    direction = reference[:, None, None] * np.broadcast_to(turn, (R, A))[None]
-    length = np.broadcast_to(radii[None, :, None], (V, R, A))
-    vertex = np.broadcast_to(np.arange(V)[:, None, None], (V, R, A))
-    tr = trace_from_vertices(
-        vertices, faces, vertex.ravel(), direction.ravel(), length.ravel(), geometry=geometry
-    )
-    face = tr.face.reshape(V, R, A)
+    direction = (reference[:, None] * turn[None]).ravel()
+    vertex = np.repeat(np.arange(V), A)
+    if np.all(np.diff(radii) > 0):
+        # one straightest geodesic per angle, continued ring by ring from where the previous ring
+        # ended (same line, half the face crossings of tracing every ring from the vertex)
+        tr = trace_from_vertices(vertices, faces, vertex, direction, radii[0], geometry=geometry)
+        rings, stopped = [tr], tr.stopped
+        for i in range(1, R):
+            tr = trace_geodesics(vertices, faces, tr.face, tr.bary, tr.direction,
+                                 np.where(stopped, 0.0, radii[i] - radii[i - 1]), geometry=geometry)
+            stopped = stopped | tr.stopped
+            rings.append(tr._replace(stopped=stopped))
+        face = np.stack([t.face for t in rings], axis=1).reshape(V, A, R).transpose(0, 2, 1)
+        bary = np.stack([t.bary for t in rings], axis=1).reshape(V, A, R, 3).transpose(0, 2, 1, 3)
+        stop = np.stack([t.stopped for t in rings], axis=1).reshape(V, A, R).transpose(0, 2, 1)
+    else:
+        tr = trace_from_vertices(vertices, faces, np.repeat(vertex, R), np.repeat(direction, R),
+                                 np.tile(radii, V * A), geometry=geometry)
+        face = tr.face.reshape(V, A, R).transpose(0, 2, 1)
+        bary = tr.bary.reshape(V, A, R, 3).transpose(0, 2, 1, 3)
+        stop = tr.stopped.reshape(V, A, R).transpose(0, 2, 1)
+    face = np.ascontiguousarray(face)
     return GeodesicFans(
         face=face.astype(np.int32),
-        bary=tr.bary.reshape(V, R, A, 3),
+        bary=np.ascontiguousarray(bary),
         corners=geometry.faces[face].astype(np.int32),
-        stopped=tr.stopped.reshape(V, R, A),
+        stopped=np.ascontiguousarray(stop),
         radii=radii,
         steps=prefilter_steps(radii, A, edge),
     )

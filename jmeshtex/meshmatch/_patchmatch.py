@@ -226,25 +226,76 @@ def rotation_distances(t_re, t_im, t_energy, s_re, s_im, s_energy, num_angles: i
     return t_energy[..., None] + s_energy[..., None] - 2.0 * corr
 
 
+def _fan_summaries(re, im, num_angles: int):
+    """Rotation-invariant summaries ``[V, 2·R·C]`` of fan spectra: ring means and AC norms.
+
+    Per row (ring × channel) of a weighted fan ``x``: ``Σ_a x[a] / √A`` and ``‖x − mean(x)‖``
+    (Parseval on the spectrum). Their squared distance is a lower bound of the fan distance at
+    every rotation (see :func:`fan_distance_bound`).
+    """
+    M = re.shape[-1]
+    m = np.arange(M)
+    cm = np.where((m == 0) | ((num_angles % 2 == 0) & (m == num_angles // 2)), 0.0, 2.0) / num_angles
+    power = re * re + im * im
+    ac = jnp.sqrt(jnp.maximum(power @ jnp.asarray(cm, re.dtype), 0.0))
+    dc = re[..., 0] / jnp.asarray(math.sqrt(num_angles), re.dtype)
+    return jnp.concatenate([dc, ac], axis=-1)
+
+
+def fan_distance_bound(t_re, t_im, s_re, s_im, num_angles: int):
+    """Rotation-invariant lower bound of :func:`rotation_distances` (min over rotations).
+
+    Per row (ring × channel), with ``μ`` the angular mean and ``x̃ = x − μ``:
+
+    .. math:: \\min_k \\lVert T - S_{\\cdot + k} \\rVert^2 \\ge \\sum_{\\text{rows}}
+              A(\\mu_T - \\mu_S)^2 + \\bigl(\\lVert \\tilde T\\rVert - \\lVert \\tilde S\\rVert\\bigr)^2
+
+    (the mean and zero-mean parts are orthogonal; ``‖T̃ − S̃_k‖ ≥ |‖T̃‖ − ‖S̃‖|``). PatchMatch
+    pre-scores every candidate with this 2·R·C-number summary and computes the exact rotation
+    search only for the few best.
+
+    Example:
+      >>> t = jnp.arange(6.0).reshape(1, 1, 6, 1)
+      >>> s = jnp.roll(t, -2, axis=2) + 0.5
+      >>> ts, ss = fan_spectrum(t, jnp.ones(1)), fan_spectrum(s, jnp.ones(1))
+      >>> exact = rotation_distances(*ts, *ss, 6).min()
+      >>> bound = fan_distance_bound(ts[0], ts[1], ss[0], ss[1], 6)
+      >>> float(jnp.round(bound[0], 6)), float(jnp.round(exact, 6))     # shift only: bound is tight
+      (1.5, 1.5)
+    """
+    d = _fan_summaries(t_re, t_im, num_angles) - _fan_summaries(s_re, s_im, num_angles)
+    return jnp.sum(d * d, axis=-1)
+
+
 class _Src(NamedTuple):
     arr: LevelArrays
-    re: jax.Array
-    im: jax.Array
-    energy: jax.Array
-    up: tuple  # per hop j: [V_m] ancestor at level m + j
-    down: tuple  # per hop j: (children [V_{m+j}, M], count [V_{m+j}]) into level m + j - 1
-    valid_index: jax.Array  # [Nv] valid source vertices
+    pack: jax.Array  # [Vs, 2·RC·M + 1 + D]: re | im | energy | features, one row per vertex
+    summary: jax.Array  # [Vs, 2·RC] ring means and AC norms (lower-bound pre-scoring)
+    up: tuple  # per hop j: [Vs] ancestor at level min(m + j + 1, top)
+    down: tuple  # per hop j: (children [V, M], count [V]) from level m + j + 1 to m + j (identity above top)
+    valid_index: jax.Array  # [Nv] valid source vertices (padded with the first one)
     num_valid: jax.Array  # scalar
 
 
-def _candidate_cost(t_re, t_im, t_energy, t_feat, src: _Src, cand, A, color_scale, shape_weight):
-    d = rotation_distances(t_re, t_im, t_energy, src.re[cand], src.im[cand], src.energy[cand], A)
+def _source_pack(re, im, energy, features):
+    V = re.shape[0]
+    return jnp.concatenate([re.reshape(V, -1), im.reshape(V, -1), energy[:, None], features], axis=1)
+
+
+def _exact_cost(t_re, t_im, t_energy, t_feat, src: _Src, cand, A, color_scale, shape_weight):
+    """Exact patch distance of candidates ``cand [V]`` at the best rotation: ``(cost, k)``."""
+    V, RC, M = t_re.shape
+    row = src.pack[cand]
+    s_re = row[:, : RC * M].reshape(V, RC, M)
+    s_im = row[:, RC * M : 2 * RC * M].reshape(V, RC, M)
+    s_energy = row[:, 2 * RC * M]
+    s_feat = row[:, 2 * RC * M + 1 :]
+    d = rotation_distances(t_re, t_im, t_energy, s_re, s_im, s_energy, A)
     k = jnp.argmin(d, axis=1).astype(jnp.int32)
     dc = jnp.maximum(jnp.min(d, axis=1), 0.0)
-    df = jnp.sum((t_feat - src.arr.features[cand]) ** 2, axis=1)
+    df = jnp.sum((t_feat - s_feat) ** 2, axis=1)
     cost = color_scale * dc + shape_weight * df
-    cost = jnp.where(src.arr.valid[cand], cost, jnp.inf)
-    return cost, k
+    return jnp.where(src.arr.valid[cand], cost, jnp.inf), k
 
 
 def _offsets(tgt: LevelArrays, rot, A):
@@ -288,60 +339,112 @@ def _vote(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, A, sigma2, tau2, pin
     return jnp.where((pin >= 0)[:, None], src_arr.colors[jnp.maximum(pin, 0)], out)
 
 
-@functools.partial(jax.jit, static_argnames=("A", "steps", "hops", "globals_"))
-def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, shape_weight, sigma2,
-             tau2, pin, *, A, steps, hops, globals_):
-    """One PatchMatch iteration at a level: E-step (re-score, propagate, random search), M-step."""
-    t_re, t_im, t_energy = fan_spectrum(_fan_values(tgt, colors, steps), ring_weight)
+def _vertex_uniform(key, num_vertices: int, n: int):
+    """``[n, V]`` uniforms in [0, 1): vertex v's numbers depend only on ``(key, v)``, so padding
+    the vertex axis leaves every real vertex's random search unchanged."""
+    if n == 0:
+        return jnp.zeros((0, num_vertices), jnp.float32)
+    keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(num_vertices, dtype=jnp.uint32))
+    return jax.vmap(lambda k: jax.random.uniform(k, (n,), dtype=jnp.float32))(keys).T
 
-    def score(cand):
-        return _candidate_cost(t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight)
 
-    # candidates [N, V]: the current match, one propagated match per one-ring neighbour (from
-    # this iteration's start: Jacobi-style, so all vertices update at once), random search through
-    # the source hierarchy (up j levels, down through random children), uniform random vertices
-    off = _offsets(tgt, rot, A)  # [V, K]
-    prop = _star_nearest(src.arr, nnf[tgt.nb_index], off)  # [V, K]
-    prop = jnp.where(tgt.nb_mask, prop, nnf[:, None])
-    cands = [nnf[None], prop.T]
-    num_random = sum(j + 1 for j in range(len(src.up))) + globals_
-    uniform = jax.random.uniform(key, (max(num_random, 1),) + nnf.shape, dtype=jnp.float32)
-    n = 0
-    for j in range(len(src.up)):
+def _random_candidates(src: _Src, nnf, key, globals_: int):
+    """Random search: up j levels from the current match and down through random children; then
+    uniformly random valid source vertices. ``[H + globals_, V]``."""
+    H = len(src.up)
+    uniform = _vertex_uniform(key, nnf.shape[0], H * (H + 1) // 2 + globals_)
+    cands, n = [], 0
+    for j in range(H):
         a = src.up[j][nnf]
         for i in range(j, -1, -1):
             children, count = src.down[i]
             pick = jnp.minimum((uniform[n] * count[a].astype(jnp.float32)).astype(jnp.int32), count[a] - 1)
             n += 1
             a = children[a, pick]
-        cands.append(a[None])
+        cands.append(a)
     for _ in range(globals_):
         pick = jnp.minimum((uniform[n] * src.num_valid.astype(jnp.float32)).astype(jnp.int32), src.num_valid - 1)
         n += 1
-        cands.append(src.valid_index[pick][None])
-    cands = jnp.concatenate(cands, axis=0).astype(jnp.int32)
+        cands.append(src.valid_index[pick])
+    return cands
 
-    def body(carry, cand):
-        best, best_cost, best_rot = carry
-        c, k = score(cand)
-        better = c < best_cost
-        return (jnp.where(better, cand, best), jnp.where(better, c, best_cost),
-                jnp.where(better, k, best_rot)), None
 
-    init = (nnf, jnp.full(nnf.shape, jnp.inf, t_energy.dtype), rot)
-    (best, best_cost, best_rot), _ = jax.lax.scan(body, init, cands)
-    old = nnf
+@functools.partial(jax.jit, static_argnames=("A", "steps", "globals_", "sweeps", "exact"))
+def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, shape_weight, sigma2,
+             tau2, pin, *, A, steps, globals_, sweeps, exact):
+    """One PatchMatch iteration at a level: E-step (re-score, random search, propagation sweeps),
+    M-step (vote). Target vertices with ``tgt.valid`` False are padding (ignored in ``changed``).
+
+    Every candidate set is pre-scored with the rotation-invariant bound of
+    :func:`fan_distance_bound` (a few numbers per vertex) and only the ``exact`` best candidates get
+    the full rotation search; each propagation sweep starts from the matches the previous sweep
+    found, so one iteration moves good matches ``sweeps`` rings.
+    """
+    t_re, t_im, t_energy = fan_spectrum(_fan_values(tgt, colors, steps), ring_weight)
+    V = nnf.shape[0]
+    sc, sw = jnp.sqrt(color_scale), jnp.sqrt(shape_weight)
+    t_desc = jnp.concatenate([sc * _fan_summaries(t_re, t_im, A), sw * tgt.features], axis=1)
+    s_desc = jnp.concatenate([sc * src.summary, sw * src.arr.features], axis=1)
+
+    def exact_cost(cand):
+        return _exact_cost(t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight)
+
+    def consider(state, cands, allowed):
+        """Pre-score ``cands [N, V]``, exact-score the best ``exact`` of them, keep improvements."""
+        best, best_cost, best_rot = state
+        cands = jnp.stack(cands, axis=1)  # [V, N]
+        allowed = jnp.stack(allowed, axis=1) & (cands != best[:, None])
+        diff = t_desc[:, None, :] - s_desc[cands]
+        bound = jnp.sum(diff * diff, axis=-1)
+        bound = jnp.where(allowed & src.arr.valid[cands], bound, jnp.inf)
+        if cands.shape[1] > exact:
+            _, sel = jax.lax.top_k(-bound, exact)
+            cands = jnp.take_along_axis(cands, sel, axis=1)
+            bound = jnp.take_along_axis(bound, sel, axis=1)
+
+        def body(carry, xs):
+            b, bc, br = carry
+            cand, lb = xs
+            c, k = exact_cost(cand)
+            better = (c < bc) & jnp.isfinite(lb)  # an infinite bound marks a slot not to use
+            return (jnp.where(better, cand, b), jnp.where(better, c, bc), jnp.where(better, k, br)), None
+
+        state, _ = jax.lax.scan(body, (best, best_cost, best_rot), (cands.T, bound.T))
+        return state
+
+    cost0, rot0 = exact_cost(nnf)  # the current match under this iteration's target colours
+    state = (nnf, cost0, rot0)
+    randoms = _random_candidates(src, nnf, key, globals_)
+    pending = (randoms, [jnp.ones(V, bool)] * len(randoms))
+    for _ in range(sweeps):
+        best, _, best_rot = state
+        prop = _star_nearest(src.arr, best[tgt.nb_index], _offsets(tgt, best_rot, A))  # [V, K]
+        cands = pending[0] + list(prop.T)
+        allowed = pending[1] + list(tgt.nb_mask.T)
+        state = consider(state, cands, allowed)
+        pending = ([], [])
+    best, best_cost, best_rot = state
 
     best = jnp.where(pin >= 0, jnp.maximum(pin, 0), best)
     best_rot = jnp.where(pin >= 0, 0, best_rot)
     colors = _vote(tgt, src.arr, best, best_rot, A, sigma2, tau2, pin)
-    changed = jnp.sum(best != old)
+    changed = jnp.sum((best != nnf) & tgt.valid)
     return best, best_rot, jnp.where(pin >= 0, 0.0, best_cost), colors, changed
 
 
-@functools.partial(jax.jit, static_argnames=("steps",))
-def _source_spectrum(arr: LevelArrays, ring_weight, *, steps):
-    return fan_spectrum(_fan_values(arr, arr.colors, steps), ring_weight)
+@functools.partial(jax.jit, static_argnames=("steps", "num_angles"))
+def _source_tables(arr: LevelArrays, ring_weight, *, steps, num_angles):
+    re, im, energy = fan_spectrum(_fan_values(arr, arr.colors, steps), ring_weight)
+    return _source_pack(re, im, energy, arr.features), _fan_summaries(re, im, num_angles)
+
+
+def _make_src(arr: LevelArrays, up, down, valid_index, num_valid: int, ring_weight, *, steps, num_angles) -> _Src:
+    """Device-side source of one level: fan spectra packed per vertex, summaries, search maps."""
+    arr = jax.tree.map(jnp.asarray, arr)
+    pack, summary = _source_tables(arr, ring_weight, steps=steps, num_angles=num_angles)
+    return _Src(arr, pack, summary, tuple(jnp.asarray(u, jnp.int32) for u in up),
+                tuple((jnp.asarray(c, jnp.int32), jnp.asarray(n, jnp.int32)) for c, n in down),
+                jnp.asarray(valid_index, jnp.int32), jnp.asarray(num_valid, jnp.int32))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -374,6 +477,7 @@ def _level_pairing(source: Side, target: Side) -> list[int]:
 
 
 def _side_arrays(side: Side, level: int, radii, config, colors, valid, features, dtype):
+    """Host (NumPy) :class:`LevelArrays` of one side at one level, and the fans' pre-filter steps."""
     h = side.hierarchy
     v, f = h.vertices[level], h.faces[level]
     # angle 0 half a step off the frame's x-axis (the edge to ring slot 0): no sample geodesic of a
@@ -382,21 +486,102 @@ def _side_arrays(side: Side, level: int, radii, config, colors, valid, features,
     fans = geodesic_fans(v, f, radii=radii, num_angles=config.num_angles, edge=side.edge[level],
                          reference=reference, geometry=side.tracers[level])
     nb, sm = side.neighborhoods[level], side.smoothers[level]
-    cdt = jnp.complex64 if dtype == jnp.float32 else jnp.complex128
+    real = np.dtype(dtype)
+    cdt = np.complex64 if real == np.float32 else np.complex128
     arr = LevelArrays(
-        nb_index=jnp.asarray(nb.index, jnp.int32),
-        nb_mask=jnp.asarray(nb.mask),
-        nb_log=jnp.asarray(nb.log, cdt),
-        nb_transport=jnp.asarray(nb.transport, cdt),
-        fan_corners=jnp.asarray(fans.corners, jnp.int32),
-        fan_bary=jnp.asarray(fans.bary, dtype),
-        sm_index=jnp.asarray(sm.index, jnp.int32),
-        sm_weight=jnp.asarray(sm.weight, dtype),
-        features=jnp.asarray(features[h.vertex_index[level]], dtype),
-        colors=jnp.asarray(colors, dtype),
-        valid=jnp.asarray(valid),
+        nb_index=np.asarray(nb.index, np.int32),
+        nb_mask=np.asarray(nb.mask, bool),
+        nb_log=np.asarray(nb.log, cdt),
+        nb_transport=np.asarray(nb.transport, cdt),
+        fan_corners=np.asarray(fans.corners, np.int32),
+        fan_bary=np.asarray(fans.bary, real),
+        sm_index=np.asarray(sm.index, np.int32),
+        sm_weight=np.asarray(sm.weight, real),
+        features=np.asarray(features[h.vertex_index[level]], real),
+        colors=np.asarray(colors, real),
+        valid=np.asarray(valid, bool),
     )
     return arr, tuple(int(s) for s in fans.steps)
+
+
+def _pad_axis(x: np.ndarray, axis: int, size: int, fill=0) -> np.ndarray:
+    """``x`` padded with ``fill`` along ``axis`` to ``size`` (unchanged when already that long)."""
+    extra = size - x.shape[axis]
+    if extra < 0:
+        raise ValueError(f"cannot pad axis {axis} of {x.shape} down to {size}")
+    if extra == 0:
+        return x
+    shape = list(x.shape)
+    shape[axis] = extra
+    return np.concatenate([x, np.full(shape, fill, x.dtype)], axis=axis)
+
+
+def pad_level_arrays(arr: LevelArrays, *, num_vertices: int, ring: int, smooth_ring: int) -> LevelArrays:
+    """Pad one side's :class:`LevelArrays` to ``num_vertices`` rows and ``ring`` / ``smooth_ring``
+    neighbour slots (padded-neighbourhood contract: index 0, mask False, weight 0, transport 1;
+    padded vertices are not ``valid`` and no real vertex refers to them).
+
+    Levels padded to one shape share one compiled PatchMatch step; padding changes no real
+    vertex's result (tested).
+
+    Example:
+      >>> a = LevelArrays(*(np.zeros((3, 2), t) for t in (np.int32, bool, np.complex64, np.complex64)),
+      ...                 np.zeros((3, 1, 4, 3), np.int32), np.zeros((3, 1, 4, 3), np.float32),
+      ...                 np.zeros((3, 2), np.int32), np.full((3, 2), 0.5, np.float32),
+      ...                 np.zeros((3, 9), np.float32), np.zeros((3, 3), np.float32), np.ones(3, bool))
+      >>> p = pad_level_arrays(a, num_vertices=5, ring=4, smooth_ring=3)
+      >>> p.nb_index.shape, p.valid.tolist(), p.nb_transport[0].tolist()
+      ((5, 4), [True, True, True, False, False], [0j, 0j, (1+0j), (1+0j)])
+    """
+    V = num_vertices
+    fields = {}
+    for name, x in arr._asdict().items():
+        fill = 1 if name == "nb_transport" else 0
+        x = _pad_axis(np.asarray(x), 0, V, fill)
+        if name in ("nb_index", "nb_mask", "nb_log", "nb_transport"):
+            x = _pad_axis(x, 1, ring, fill)
+        elif name in ("sm_index", "sm_weight"):
+            x = _pad_axis(x, 1, smooth_ring, fill)
+        fields[name] = x
+    return LevelArrays(**fields)
+
+
+def _search_tables(h: MeshHierarchy, m: int, hops: int):
+    """Random-search maps of source level ``m`` with a fixed structure of ``hops`` hops.
+
+    ``up[j]``: each level-m vertex's ancestor at level ``min(m + j + 1, top)``; ``down[i]``:
+    ``(children, count)`` from level ``m + i + 1`` to ``m + i``, or the identity of the top level
+    where ``m + i + 1`` lies above it (so hops beyond the top repeat the top-level search). The
+    fixed structure lets every level share one compiled step.
+    """
+    top = h.num_levels - 1
+    up, down = [], []
+    for j in range(hops):
+        up.append(ancestors(h, m, min(m + j + 1, top)).astype(np.int32))
+    for i in range(hops):
+        if m + i + 1 <= top:
+            p = h.pooling[m + i]
+            down.append((np.asarray(p.children, np.int32), np.asarray(p.children_mask).sum(1).astype(np.int32)))
+        else:
+            n = len(h.vertices[top])
+            down.append((np.arange(n, dtype=np.int32)[:, None], np.ones(n, np.int32)))
+    return up, down
+
+
+def _bucket_dims(source: Side, target: Side, pairing, levels, hops: int) -> dict:
+    """Common padded sizes of the levels in ``levels`` (target and source rows, ring slots, children)."""
+    dims = {"Vt": 0, "Kt": 0, "Kst": 0, "Vs": 0, "Ks": 0, "Kss": 0, "down": [(0, 0)] * hops}
+    for level in levels:
+        m = pairing[level]
+        dims["Vt"] = max(dims["Vt"], len(target.hierarchy.vertices[level]))
+        dims["Kt"] = max(dims["Kt"], target.neighborhoods[level].index.shape[1])
+        dims["Kst"] = max(dims["Kst"], target.smoothers[level].index.shape[1])
+        dims["Vs"] = max(dims["Vs"], len(source.hierarchy.vertices[m]))
+        dims["Ks"] = max(dims["Ks"], source.neighborhoods[m].index.shape[1])
+        dims["Kss"] = max(dims["Kss"], source.smoothers[m].index.shape[1])
+        _, down = _search_tables(source.hierarchy, m, hops)
+        dims["down"] = [(max(a, c.shape[0]), max(b, c.shape[1])) for (a, b), (c, _) in zip(dims["down"], down)]
+    return dims
 
 
 def _pool_colors(h: MeshHierarchy, colors: np.ndarray) -> list[np.ndarray]:
@@ -509,14 +694,18 @@ def meshmatch(
         bar = tqdm(total=target.num_levels, desc="meshmatch", unit="level")
 
     level_stats = []
-    nnf = rot = None
+    nnf = rot = colors_t = None
     fan_s = 0.0
     prev_src_level = None
+    hops = config.random_search_levels
+    sh = source.hierarchy
+    # levels with at most `bucket_vertices` target vertices are padded to one shape: one compile
+    bucket = [lv for lv in range(target.num_levels) if len(target.hierarchy.vertices[lv]) <= config.bucket_vertices]
+    bucket_dims = _bucket_dims(source, target, pairing, bucket, hops) if len(bucket) > 1 else None
     for level in range(target.num_levels - 1, -1, -1):
         t_level = time.perf_counter()
         m = pairing[level]
         radii = config.radii(target.edge[level])
-        sh = source.hierarchy
         valid_m = valid0[sh.vertex_index[m]]
         if not valid_m.any():  # a tiny painted region may vanish at a coarse level
             valid_m = np.ones_like(valid_m)
@@ -525,19 +714,21 @@ def meshmatch(
         Vt = len(target.hierarchy.vertices[level])
         t_arr, t_steps = _side_arrays(target, level, radii, config, np.zeros((Vt, C)), np.ones(Vt, bool),
                                       t_feat, dtype)
+        up, down = _search_tables(sh, m, hops)
+        valid_index = np.nonzero(valid_m)[0].astype(np.int32)
+        num_valid = len(valid_index)
+        dims = bucket_dims if (bucket_dims is not None and level in bucket) else None
+        if dims is not None:
+            s_arr = pad_level_arrays(s_arr, num_vertices=dims["Vs"], ring=dims["Ks"], smooth_ring=dims["Kss"])
+            t_arr = pad_level_arrays(t_arr, num_vertices=dims["Vt"], ring=dims["Kt"], smooth_ring=dims["Kst"])
+            up = [_pad_axis(u, 0, dims["Vs"]) for u in up]
+            down = [(_pad_axis(_pad_axis(c, 0, n), 1, k), _pad_axis(cnt, 0, n, 1))
+                    for (c, cnt), (n, k) in zip(down, dims["down"])]
+            valid_index = _pad_axis(valid_index, 0, dims["Vs"], valid_index[0])
+        Vp = t_arr.nb_index.shape[0]
+        t_arr = jax.tree.map(jnp.asarray, t_arr)
         fan_s += time.perf_counter() - t0
-        # source spectra (fixed), random-search maps
-        s_re, s_im, s_energy = _source_spectrum(s_arr, ring_weight, steps=s_steps)
-        hops = min(config.random_search_levels, source.num_levels - 1 - m)
-        up = tuple(jnp.asarray(ancestors(sh, m, m + j + 1), jnp.int32) for j in range(hops))
-        down = tuple(
-            (jnp.asarray(sh.pooling[m + j].children, jnp.int32),
-             jnp.asarray(np.asarray(sh.pooling[m + j].children_mask).sum(1), jnp.int32))
-            for j in range(hops)
-        )
-        valid_index = np.nonzero(valid_m)[0]
-        src = _Src(s_arr, s_re, s_im, s_energy, up, down, jnp.asarray(valid_index, jnp.int32),
-                   jnp.asarray(len(valid_index), jnp.int32))
+        src = _make_src(s_arr, up, down, valid_index, num_valid, ring_weight, steps=s_steps, num_angles=A)
         variance = float(np.var(s_colors[m][valid_m])) + 1e-8
         color_scale = jnp.asarray(config.color_weight / (R * A * C * variance), dtype)
         shape_weight = jnp.asarray(config.shape_weight_at(level), dtype)
@@ -545,25 +736,28 @@ def meshmatch(
         tau2 = jnp.asarray((0.5 * source.edge[m]) ** 2, dtype)
         tvi = target.hierarchy.vertex_index[level]
         if pin0 is None:
-            pin_l = jnp.full(Vt, -1, jnp.int32)
+            pin_l = np.full(Vt, -1, np.int32)
         else:
             p = pin0[tvi]
             mapped = np.where(p >= 0, source.inverse[m][np.maximum(p, 0)], -1)
-            pin_l = jnp.asarray(np.where(mapped >= 0, mapped, -1), jnp.int32)
+            pin_l = np.where(mapped >= 0, mapped, -1).astype(np.int32)
+        pin_l = jnp.asarray(_pad_axis(pin_l, 0, Vp, -1))
 
         if nnf is None:  # coarsest level: random matches among the valid source vertices
             key, sub = jax.random.split(key)
-            pick = jax.random.randint(sub, (Vt,), 0, len(valid_index))
-            nnf = jnp.asarray(valid_index, jnp.int32)[pick]
-            rot = jnp.zeros(Vt, jnp.int32)
-            colors_t = s_arr.colors[nnf]
+            pick = np.asarray(jax.random.randint(sub, (Vt,), 0, num_valid))
+            nnf_h = valid_index[pick]
+            rot_h = np.zeros(Vt, np.int32)
+            colors_h = np.asarray(s_colors[m][nnf_h])
         else:  # upsample: each vertex starts from its parent's match, moved to this source level
             parent = np.asarray(target.hierarchy.pooling[level].parent)
-            coarse = np.asarray(nnf)[parent]
-            fine = source.inverse[m][sh.vertex_index[prev_src_level][coarse]]
-            nnf = jnp.asarray(fine, jnp.int32)
-            rot = jnp.asarray(np.asarray(rot)[parent], jnp.int32)
-            colors_t = jnp.asarray(np.asarray(colors_t)[parent], dtype)
+            coarse = nnf[parent]
+            nnf_h = source.inverse[m][sh.vertex_index[prev_src_level][coarse]].astype(np.int32)
+            rot_h = rot[parent]
+            colors_h = colors_t[parent]
+        nnf_j = jnp.asarray(_pad_axis(nnf_h.astype(np.int32), 0, Vp, valid_index[0]))
+        rot_j = jnp.asarray(_pad_axis(rot_h.astype(np.int32), 0, Vp))
+        colors_j = jnp.asarray(_pad_axis(np.asarray(colors_h), 0, Vp), dtype)
         its, changed = 0, Vt
         cost = None
         coarsest = level == target.num_levels - 1
@@ -572,19 +766,23 @@ def meshmatch(
             key, sub = jax.random.split(key)
             # the random start's colours mean nothing: its first E-step matches shape only
             scale = color_scale * 0 if (coarsest and it == 0 and config.shape_weight_at(level) > 0) else color_scale
-            nnf, rot, cost, colors_t, changed = _iterate(
-                t_arr, src, nnf, rot, colors_t, sub, ring_weight, scale, shape_weight, sigma2, tau2,
-                pin_l, A=A, steps=t_steps, hops=hops, globals_=config.global_candidates,
+            nnf_j, rot_j, cost, colors_j, changed = _iterate(
+                t_arr, src, nnf_j, rot_j, colors_j, sub, ring_weight, scale, shape_weight, sigma2, tau2,
+                pin_l, A=A, steps=t_steps, globals_=config.global_candidates, sweeps=config.sweeps,
+                exact=config.exact_candidates,
             )
             its += 1
             changed = int(changed)
             if changed < config.tolerance * Vt:
                 break
-        cost_np = np.asarray(cost)
+        nnf = np.asarray(nnf_j)[:Vt]
+        rot = np.asarray(rot_j)[:Vt]
+        colors_t = np.asarray(colors_j)[:Vt]
+        cost_np = np.asarray(cost)[:Vt]
         finite = np.isfinite(cost_np)
         mean_cost = float(cost_np[finite].mean()) if finite.any() else float("inf")
         level_stats.append({
-            "level": level, "source_level": m, "vertices": Vt, "iterations": its,
+            "level": level, "source_level": m, "vertices": Vt, "padded_vertices": Vp, "iterations": its,
             "changed": changed, "mean_cost": mean_cost, "seconds": time.perf_counter() - t_level,
         })
         line = f"level {level}: {Vt} vertices, {its} iterations, mean cost {mean_cost:.4g}, {changed} changed"
@@ -598,7 +796,7 @@ def meshmatch(
         bar.close()
 
     m0 = pairing[0]
-    nnf_input = source.hierarchy.vertex_index[m0][np.asarray(nnf)]
+    nnf_input = source.hierarchy.vertex_index[m0][nnf]
     voted = np.asarray(colors_t, np.float64)
     final = colors[nnf_input]
     timings["fans_s"] = fan_s
@@ -607,8 +805,8 @@ def meshmatch(
         colors=final,
         voted=voted,
         nnf=nnf_input,
-        rotation=np.asarray(rot),
-        cost=np.asarray(cost),
+        rotation=rot,
+        cost=cost_np,
         stats={"levels": level_stats, **timings},
     )
 

@@ -7,7 +7,8 @@ import pytest
 from jmeshtex.data import icosahedron, icosphere
 from jmeshtex.dgts import PrepareConfig, TrainConfig, train, training_meshes
 
-TINY = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3)
+TINY = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3,
+                   shared_levels=2)
 
 
 @pytest.fixture(scope="session")

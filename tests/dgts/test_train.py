@@ -59,3 +59,37 @@ def test_errors(tmp_path, tiny_meshes):
         load_model(tmp_path)
     with pytest.raises(ConfigError, match="num_levels"):
         train(tiny_meshes, TINY, num_levels=3, progress=False)
+
+
+def test_padded_levels_share_one_compiled_step(tiny_model):
+    """TINY pads level 0 to level 1's size (shared_levels=2): both levels run one compiled step."""
+    from jmeshtex.dgts import _train
+
+    steps = [k for k in _train._COMPILED if k[0] is _train.train_chunk and dict(k[1])["config"] == TINY]
+    assert len(steps) == 1
+    assert tiny_model.num_levels == 2
+
+
+def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
+    """The padding contract in float64: masked faces and vertices change no loss and no parameter."""
+    import jax.numpy as jnp
+
+    from jmeshtex.dgts import hierarchy_geometry, init_level
+    from jmeshtex.dgts._train import _Opt, _optimizer, level_batch, pad_level, train_chunk
+
+    cfg = TINY.replace(shared_levels=0)
+    geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 1)
+    g = init_level(jax.random.key(0), cfg, 0, generator=True, dtype=jnp.float64)
+    d = init_level(jax.random.key(1), cfg, 0, generator=False, dtype=jnp.float64)
+    opt = _Opt(_optimizer(cfg, cfg.generator_steps).init(g), _optimizer(cfg, cfg.discriminator_steps).init(d))
+    template = jnp.asarray(tiny_meshes.template)
+    real = jnp.asarray(tiny_meshes.vertices[0])
+    batch = level_batch((), geos, template, 0.1 * template, jax.random.key(2), config=cfg, chunk=1)
+    nb = geos[0].nbhd
+    size = {"F": nb.faces.shape[0] + 7, "V": real.shape[0] + 5, "M": nb.vertex_faces.shape[1] + 2}
+    plain = train_chunk(g, d, opt, nb, real, batch, jnp.int32(1), config=cfg)
+    padded = train_chunk(g, d, opt, *pad_level(nb, real, batch, size), jnp.int32(1), config=cfg)
+    for k in plain[3]:
+        assert float(padded[3][k]) == pytest.approx(float(plain[3][k]), rel=1e-10, abs=1e-12), k
+    for a, b in zip(_leaves(plain[:2]), _leaves(padded[:2]), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)

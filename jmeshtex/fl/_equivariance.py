@@ -1,0 +1,99 @@
+"""Registers the FL-VAE encoder and decoder in the equivariance harness (:mod:`jmeshtex.testing`).
+
+The one-ring samples of the registered operators come from the deterministic per-wedge rule of
+:func:`~jmeshtex.fl.one_ring_samples` (``rng=None``), so relabelling a mesh only reorders the sample
+set; colours at the samples are the barycentric interpolation of a random per-vertex colour field.
+
+- ``fl.encoder.mu``: μ is a tangent field — it turns with gauge changes (``μ_p e^{-iα_p}``) and is
+  unchanged by isometries and relabelling (everything is computed from edge lengths);
+- ``fl.encoder.log_sigma``: invariant (a vertex scalar);
+- ``fl.decoder``: decoded colours at each vertex and averaged over its samples, from a random latent
+  field: invariant scalars.
+
+Importing this module registers the entries (the lead adds it to ``ENTRY_MODULES``).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..testing import Entry, Field, register
+from ..testing._fields import VERTEX_SCALAR, VERTEX_TANGENT
+
+#: exact transforms asserted for every FL-VAE entry (1e-10 in float64)
+FL_TRANSFORMS = ("rigid", "gauge", "permute_vertices", "permute_faces", "rotate_corners", "fold", "folds",
+                 "hinge")
+#: smooth isometries: the decoder converges at order ~1.8 and is asserted; the encoder is reported
+#: only — its errors do fall with refinement (4e-4 at 48² on the cylinder) but the per-halving ratio
+#: dips below the harness's bound of 3 (observed 1.7–3.6): the attention softmax amplifies the
+#: O(h²) metric error unevenly across vertices. Re-triangulation moves the samples: reported only.
+SMOOTH = ("cylinder", "cone")
+
+
+def _config():
+    from ._config import FLVAEConfig
+
+    return FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
+
+
+def _init(key, dtype):
+    from ._vae import init_fl_vae
+
+    return init_fl_vae(key, _config(), dtype=dtype)
+
+
+def _samples(state):
+    """Deterministic one-ring samples in the state's gauge (host, cached per state)."""
+    from ._encoder import one_ring_samples
+
+    def build():
+        s = one_ring_samples(state.vertices, state.faces, 1, rng=None)
+        log = s.log * np.exp(-1j * state.gauge)[:, None]
+        return s._replace(log=log)
+
+    return state.cached("fl_samples", build)
+
+
+def _encode(state, params, c):
+    from ._vae import encode_samples
+
+    s = _samples(state)
+    corners = state.faces[s.face]  # [V, S, 3]
+    rgb = jnp.einsum("vsk,vskc->vsc", jnp.asarray(s.bary, state.dtype), jnp.asarray(c, state.dtype)[corners])
+    return encode_samples(params, _config(), jnp.asarray(s.log, state.complex_dtype), rgb, jnp.asarray(s.mask))
+
+
+def _encoder_mu(state, params, c):
+    return Field(VERTEX_TANGENT, _encode(state, params, c).mu)
+
+
+def _encoder_sigma(state, params, c):
+    return Field(VERTEX_SCALAR, _encode(state, params, c).log_sigma)
+
+
+def _decoder(state, params, z):
+    from ._vae import decode_points, decode_vertex_colors_from_latents
+
+    s = _samples(state)
+    cfg = _config()
+    pred = decode_points(params, cfg, z, jnp.asarray(s.log, state.complex_dtype))
+    m = jnp.asarray(s.mask, pred.dtype)[..., None]
+    mean = jnp.sum(pred * m, axis=1) / jnp.maximum(jnp.sum(m, axis=1), 1)
+    return Field(VERTEX_SCALAR, jnp.concatenate([decode_vertex_colors_from_latents(params, cfg, z), mean], axis=1))
+
+
+ENTRIES = (
+    Entry("fl.encoder.mu", _encoder_mu, {"c": (VERTEX_SCALAR, 3)}, FL_TRANSFORMS, init=_init, group="models",
+          report=(*SMOOTH, "retriangulate"), resolutions=(6, 12, 24, 48),
+          doc="FL-VAE encoder mean: tangent latents turn with the gauge, invariant to isometries"),
+    Entry("fl.encoder.log_sigma", _encoder_sigma, {"c": (VERTEX_SCALAR, 3)}, FL_TRANSFORMS, init=_init,
+          group="models", report=(*SMOOTH, "retriangulate"), resolutions=(6, 12, 24, 48),
+          doc="FL-VAE encoder log σ: invariant scalars"),
+    Entry("fl.decoder", _decoder, {"z": (VERTEX_TANGENT, 3)}, (*FL_TRANSFORMS, *SMOOTH), init=_init, group="models",
+          report=("retriangulate",), resolutions=(6, 12, 24, 48),
+          doc="FL-VAE decoder: colours at vertices and one-ring samples are gauge-invariant"),
+)
+
+for _entry in ENTRIES:
+    register(_entry)

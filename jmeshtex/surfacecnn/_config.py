@@ -1,0 +1,85 @@
+"""Hyper-parameters of surface-aware texture synthesis (Kovács, Hermosilla & Raidou, CGF 2024)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from .._errors import ConfigError
+
+BOUNDARY_MODES = ("zero", "clamp")
+POOL_MODES = ("mean", "max")
+
+
+@dataclasses.dataclass(frozen=True)
+class SurfaceCNNConfig:
+    """Settings of the precomputation and the Gram-matching optimisation.
+
+    The defaults are the paper's (and its reference tool's): Adam with learning rate 0.1, halved
+    every 200 steps, 500 steps, colours clipped to [0, 1] after every step, initial texel colours
+    uniform in [0, 0.2], average pooling, the Gram matrices of every ReLU and pooling output.
+
+    Attributes:
+      size: texture resolution (``size × size`` texels).
+      steps: optimisation steps.
+      learning_rate: Adam's initial learning rate.
+      halve_every: the learning rate is halved after every this many steps (200 → halved at 200
+        and 400).
+      init_low, init_high: range of the uniform initial colours (synthesis).
+      pool: ``"mean"`` (the paper's average pooling) or ``"max"`` (VGG's own).
+      boundary: what a tap whose geodesic walk hits a mesh boundary reads: ``"zero"`` (zero
+        padding, like a 2D CNN at the image border) or ``"clamp"`` (the texel where the walk
+        stopped).
+      layers: names of the feature maps whose Gram matrices are matched (``"relu1_1"``, ...,
+        ``"pool1"``, ...), or None for every ReLU and pooling output of the network.
+      content_layer: the feature map of the content term (style transfer).
+      content_weight: weight of the content term against the (layer-averaged) style term.
+      dtype: ``"float32"`` (default) or ``"float64"`` for the network and the optimisation.
+
+    Example:
+      >>> c = SurfaceCNNConfig(size=64, steps=10)
+      >>> c.learning_rate_at(0), c.learning_rate_at(450)
+      (0.1, 0.025)
+    """
+
+    size: int = 512
+    steps: int = 500
+    learning_rate: float = 0.1
+    halve_every: int = 200
+    init_low: float = 0.0
+    init_high: float = 0.2
+    pool: str = "mean"
+    boundary: str = "zero"
+    layers: tuple[str, ...] | None = None
+    content_layer: str = "relu4_2"
+    content_weight: float = 1.0
+    dtype: str = "float32"
+
+    def __post_init__(self):
+        for name, low in (("size", 4), ("steps", 0), ("halve_every", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ConfigError(f"SurfaceCNNConfig.{name} must be an integer >= {low}, got {value!r}")
+        for name in ("learning_rate", "content_weight", "init_low", "init_high"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ConfigError(f"SurfaceCNNConfig.{name} must be a finite number >= 0, got {value!r}")
+        if self.learning_rate <= 0:
+            raise ConfigError(f"SurfaceCNNConfig.learning_rate must be > 0, got {self.learning_rate!r}")
+        if not (0.0 <= self.init_low <= self.init_high <= 1.0):
+            raise ConfigError(
+                f"SurfaceCNNConfig needs 0 <= init_low <= init_high <= 1, got {self.init_low}, {self.init_high}"
+            )
+        if self.pool not in POOL_MODES:
+            raise ConfigError(f"SurfaceCNNConfig.pool must be one of {POOL_MODES}, got {self.pool!r}")
+        if self.boundary not in BOUNDARY_MODES:
+            raise ConfigError(f"SurfaceCNNConfig.boundary must be one of {BOUNDARY_MODES}, got {self.boundary!r}")
+        if self.layers is not None and (not isinstance(self.layers, tuple) or not self.layers
+                                        or not all(isinstance(n, str) for n in self.layers)):
+            raise ConfigError(f"SurfaceCNNConfig.layers must be None or a non-empty tuple of names, got {self.layers!r}")
+        if self.dtype not in ("float32", "float64"):
+            raise ConfigError(f"SurfaceCNNConfig.dtype must be 'float32' or 'float64', got {self.dtype!r}")
+
+    def learning_rate_at(self, step: int) -> float:
+        """The learning rate of (0-based) step ``step``: halved after every ``halve_every`` steps."""
+        return float(self.learning_rate * 0.5 ** (step // self.halve_every))

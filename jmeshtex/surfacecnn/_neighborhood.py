@@ -1,0 +1,263 @@
+"""3×3 exponential-map neighbourhoods of texels (Kovács et al. 2024, Sec. 4.2).
+
+Tap ``(dx, dy)`` of texel n walks the surface from the texel's point along ``dx·t + dy·d`` (its
+tangent frame, :class:`~jmeshtex.surfacecnn.TextureAtlas`) for ``|(dx, dy)|`` texel sizes (one
+texel, √2 on the diagonals) with the straightest-geodesic tracer
+(:func:`jmeshtex.geometry.trace_geodesics`, which crosses faces and UV seams: the walk happens on
+the merged surface, the end point is read in the UV chart of the face it ends in). The end point's
+UV then names the texels the tap reads:
+
+- ``bilinear``: the 4 texels around it with bilinear weights (``J = 4``); invalid texels (outside
+  every chart) are dropped and the weights renormalised;
+- ``nearest``: the texel whose square contains it (``J = 1``).
+
+If neither finds a valid texel (rounding on a chart border), the valid bilinear corner with the
+largest weight is used, else the centre texel. The centre tap reads the texel itself.
+
+**Failed walks.** A walk that reaches a mesh boundary before its full length stops there
+(``stopped``). Its tap then reads zero (``boundary="zero"``, the default: the same zero padding a
+2D CNN applies at the image border) or the texel where the walk stopped (``"clamp"``).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from jaxtyping import Bool, Float, Int
+
+from .._errors import InputError
+from ..geometry import trace_geodesics, tracer_geometry
+from ..geometry._tracer import TracerGeometry
+from ..ops import TexelNeighborhood
+from ._atlas import TextureAtlas
+from ._config import BOUNDARY_MODES
+
+#: tap t holds the offset (dx, dy) = (t % 3 - 1, t // 3 - 1) (jmeshtex.ops texel convention)
+TAP_DX = np.tile(np.arange(3) - 1, 3)
+TAP_DY = np.repeat(np.arange(3) - 1, 3)
+# an end point this far outside its start face (barycentric units) is still taken as inside it
+_INSIDE_TOL = -1e-12
+
+
+class TexelTaps(NamedTuple):
+    """Level-0 neighbourhoods of a texel atlas, both samplings from one set of traces.
+
+    Attributes:
+      bilinear: :class:`~jmeshtex.ops.TexelNeighborhood` with ``J = 4`` (first convolution).
+      nearest: :class:`~jmeshtex.ops.TexelNeighborhood` with ``J = 1`` (later convolutions).
+      end_uv: ``[N, 9, 2]`` float64 UV of every tap's end point (the texel's own centre UV for tap 4).
+      stopped: ``[N, 9]`` bool, True where the walk hit a mesh boundary.
+    """
+
+    bilinear: TexelNeighborhood
+    nearest: TexelNeighborhood
+    end_uv: Float[np.ndarray, "N 9 2"]
+    stopped: Bool[np.ndarray, "N 9"]
+
+
+def trace_taps(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    atlas: TextureAtlas,
+    start: Int[np.ndarray, " M"],
+    step: float,
+    *,
+    rotation: float | Float[np.ndarray, " M"] = 0.0,
+    fraction: float = 1.0,
+    geometry: TracerGeometry | None = None,
+) -> tuple[Float[np.ndarray, "M 8 2"], Bool[np.ndarray, "M 8"]]:
+    """Walk the 8 non-centre taps from texels ``start`` and return the end UVs and boundary stops.
+
+    .. math:: \\text{end}_{n,t} = \\exp_{p_n}\\!\\big(\\text{fraction}\\cdot \\text{step}\\,
+       e^{i\\alpha_n} (dx_t\\, t_n + dy_t\\, d_n)\\big)
+
+    Args:
+      vertices, faces: the mesh.
+      atlas: from :func:`~jmeshtex.surfacecnn.texture_atlas`.
+      start: ``[M]`` valid-texel numbers to walk from.
+      step: world length of one tap step (the texel size at level 0, ``2^l`` texel sizes at level l).
+      rotation: angle α (radians, scalar or ``[M]``) by which the tap frame is turned
+        counter-clockwise (0: the atlas frame); a gauge change of the frames.
+      fraction: scales every walk (the pyramid's overshoot correction walks back with it).
+      geometry: tracer tables.
+
+    Returns:
+      ``(end_uv [M, 8, 2], stopped [M, 8])`` for taps 0–3 and 5–8 (tap 4, the centre, is left out).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn import texture_atlas
+      >>> v, f = grid(2)
+      >>> atlas = texture_atlas(v, f, v[f][..., :2], size=4)
+      >>> end, stopped = trace_taps(v, f, atlas, np.array([5]), atlas.texel_size)
+      >>> (end[0, 4] * 8).round(6).tolist(), stopped[0].tolist()  # tap (dx, dy) = (1, 0)
+      ([5.0, 5.0], [False, False, False, False, False, False, False, False])
+    """
+    start = np.asarray(start, dtype=np.int64)
+    if geometry is None:
+        geometry = tracer_geometry(vertices, faces)
+    other = np.array([t for t in range(9) if t != 4])
+    offset = TAP_DX[other] + 1j * TAP_DY[other]  # [8] complex, in (t, d) coordinates
+    turn = np.exp(1j * np.broadcast_to(np.asarray(rotation, dtype=np.float64), start.shape))
+    t_dir = (atlas.tangent[start] * turn)[:, None]
+    d_dir = (atlas.down[start] * turn)[:, None]
+    unit = (offset.real[None, :] * t_dir + offset.imag[None, :] * d_dir) / np.abs(offset)[None, :]
+    length = np.broadcast_to(fraction * step * np.abs(offset)[None, :], unit.shape).ravel()
+    face = np.repeat(atlas.face[start], 8)
+    bary = np.repeat(atlas.bary[start], 8, axis=0)
+    unit = unit.ravel()
+    # fast path: walks that end inside their start face need no tracing (most, for texel-sized steps)
+    position = np.einsum("nk,nk->n", bary, np.take(geometry.corners, face, axis=0)) + unit * length
+    n0x, n0y, n1x, n1y, c0 = np.take(geometry.exit_table, face, axis=0).T
+    x, y = position.real, position.imag
+    end_bary = np.stack([n0x * x + n0y * y - c0, n1x * x + n1y * y, y], axis=1) / np.take(
+        geometry.altitude, face, axis=0)
+    inside = end_bary.min(axis=1) >= _INSIDE_TOL
+    end_bary = np.maximum(end_bary, 0.0)
+    end_bary /= end_bary.sum(axis=1, keepdims=True)
+    end_face = face.copy()
+    stopped = np.zeros(len(face), bool)
+    walk = np.nonzero(~inside)[0]
+    if walk.size:
+        result = trace_geodesics(vertices, faces, face[walk], bary[walk], unit[walk], length[walk],
+                                 geometry=geometry)
+        end_face[walk] = result.face
+        end_bary[walk] = result.bary
+        stopped[walk] = result.stopped
+    end_uv = _uv_of(atlas, end_face, end_bary)
+    return end_uv.reshape(len(start), 8, 2), stopped.reshape(len(start), 8)
+
+
+def _uv_of(atlas: TextureAtlas, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """UV ``[M, 2]`` of surface points (``uv_at`` with one gather per coordinate)."""
+    flat = atlas.uv.reshape(len(atlas.uv), 6)
+    rows = np.take(flat, face, axis=0)
+    return np.stack([np.einsum("nk,nk->n", bary, rows[:, 0::2]), np.einsum("nk,nk->n", bary, rows[:, 1::2])], 1)
+
+
+def uv_to_texels(
+    atlas: TextureAtlas, uv: Float[np.ndarray, "M 2"], fallback: Int[np.ndarray, " M"]
+) -> tuple[Int[np.ndarray, "M 4"], Float[np.ndarray, "M 4"], Int[np.ndarray, " M"]]:
+    """Bilinear corners (valid ones, renormalised) and the nearest valid texel of UV points.
+
+    With ``x = u S − 0.5``, ``y = (1 − v) S − 0.5`` (``u, v`` clamped to [0, 1]) the corners are
+    ``(⌊y⌋ + a, ⌊x⌋ + b)``, ``a, b ∈ {0, 1}``, with weights ``(1 − β, β) ⊗ (1 − α, α)`` (``α, β`` the
+    fractional parts); the nearest texel is the corner whose square contains the point. Invalid
+    corners are dropped and the weights renormalised; an invalid nearest texel is replaced by the
+    valid corner of largest weight. Points without any valid corner read ``fallback`` (weight 1).
+
+    Returns:
+      ``(index [M, 4], weight [M, 4], nearest [M])`` in valid-texel numbers (index 0 and weight 0 on
+      dropped corners).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn import texture_atlas
+      >>> v, f = grid(1)
+      >>> atlas = texture_atlas(v, f, v[f][..., :2], size=2)
+      >>> idx, w, near = uv_to_texels(atlas, np.array([[0.5, 0.5]]), np.array([0]))
+      >>> idx.tolist(), w.tolist(), near.tolist()
+      ([[0, 1, 2, 3]], [[0.25, 0.25, 0.25, 0.25]], [3])
+    """
+    size = atlas.size
+    x = np.clip(uv[:, 0], 0.0, 1.0) * size - 0.5
+    y = (1.0 - np.clip(uv[:, 1], 0.0, 1.0)) * size - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    ax, ay = x - x0, y - y0
+    # pixels with a border of invalid ones: corners at row/col -1 or size need no range checks
+    padded = np.full((size + 2, size + 2), -1, np.int64)
+    padded[1:-1, 1:-1] = atlas.index_of.reshape(size, size)
+    base = (y0.astype(np.int64) + 1) * (size + 2) + (x0.astype(np.int64) + 1)
+    index = np.take(padded.ravel(), base[:, None] + np.array([0, 1, size + 2, size + 3]))
+    bx, by = 1.0 - ax, 1.0 - ay
+    weight = np.stack([by * bx, by * ax, ay * bx, ay * ax], axis=1)
+    valid = index >= 0
+    weight *= valid
+    total = weight.sum(axis=1)
+    corner = 2 * (ay >= 0.5) + (ax >= 0.5)
+    rows = np.arange(len(uv))
+    nearest = index[rows, corner]
+    bad = nearest < 0
+    if bad.any():
+        best = index[rows[bad], np.argmax(weight[bad], axis=1)]
+        nearest[bad] = np.where(total[bad] > 0, best, np.asarray(fallback)[bad])
+    empty = total <= 0
+    weight /= np.where(empty, 1.0, total)[:, None]
+    index = np.where(valid, index, 0)
+    if empty.any():
+        index[empty] = 0
+        index[empty, 0] = nearest[empty]
+        weight[empty] = np.array([1.0, 0.0, 0.0, 0.0])
+    return index, weight, nearest
+
+
+def texel_taps(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    atlas: TextureAtlas,
+    *,
+    boundary: str = "zero",
+    rotation: float | Float[np.ndarray, " N"] = 0.0,
+    geometry: TracerGeometry | None = None,
+) -> TexelTaps:
+    """The 3×3 exp-map neighbourhood of every valid texel, as bilinear and as nearest taps.
+
+    See the module docstring for the walk, the UV → texel mapping and the failed-walk rule.
+
+    Args:
+      vertices, faces: the mesh.
+      atlas: from :func:`~jmeshtex.surfacecnn.texture_atlas`.
+      boundary: ``"zero"`` (default) or ``"clamp"``: what a tap whose walk hit a boundary reads.
+      rotation: turn every texel's tap frame by this angle (radians, scalar or ``[N]``); 0 keeps the
+        atlas frame. Turning by π/2 reads the texture rotated by 90° (the gauge check).
+      geometry: tracer tables (:func:`~jmeshtex.geometry.tracer_geometry`).
+
+    Returns:
+      :class:`TexelTaps`.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn import texture_atlas
+      >>> v, f = grid(2)
+      >>> atlas = texture_atlas(v, f, v[f][..., :2], size=4)
+      >>> taps = texel_taps(v, f, atlas)
+      >>> taps.nearest.index[5, :, 0].tolist()       # texel (row 1, col 1): rows 0-2, cols 0-2
+      [0, 1, 2, 4, 5, 6, 8, 9, 10]
+      >>> taps.nearest.weight[0, :, 0].tolist()      # the corner texel: zero padding off the sheet
+      [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0, 1.0]
+    """
+    if boundary not in BOUNDARY_MODES:
+        raise InputError(f"texel_taps: boundary must be one of {BOUNDARY_MODES}, got {boundary!r}")
+    N = atlas.num_texels
+    centre = np.arange(N)
+    end8, stop8 = trace_taps(vertices, faces, atlas, centre, atlas.texel_size, rotation=rotation, geometry=geometry)
+    idx8, w8, near8 = uv_to_texels(atlas, end8.reshape(-1, 2), np.repeat(centre, 8))
+    row, col = atlas.rows_cols()
+    own_uv = np.stack([(col + 0.5) / atlas.size, 1.0 - (row + 0.5) / atlas.size], axis=1)
+
+    def with_centre(a8, a4):
+        a8 = a8.reshape(N, 8, *a8.shape[1:])
+        return np.concatenate([a8[:, :4], a4[:, None], a8[:, 4:]], axis=1)
+
+    end_uv = with_centre(end8.reshape(-1, 2), own_uv)
+    stopped = with_centre(stop8.ravel(), np.zeros(N, bool))
+    own_index = np.zeros((N, 4), np.int64)
+    own_index[:, 0] = centre
+    index = with_centre(idx8, own_index)
+    weight = with_centre(w8, np.tile([1.0, 0.0, 0.0, 0.0], (N, 1)))
+    nearest = with_centre(near8, centre)
+    off = stopped if boundary == "zero" else np.zeros_like(stopped)
+    weight = np.where(off[..., None], 0.0, weight)
+    index = np.where(off[..., None], 0, index).astype(np.int32)
+    mask = np.ones(N, bool)
+    return TexelTaps(
+        bilinear=TexelNeighborhood(index=index, weight=weight, texel_mask=mask),
+        nearest=TexelNeighborhood(
+            index=np.where(off, 0, nearest).astype(np.int32)[..., None],
+            weight=(~off).astype(np.float64)[..., None],
+            texel_mask=mask,
+        ),
+        end_uv=end_uv,
+        stopped=stopped,
+    )

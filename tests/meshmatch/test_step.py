@@ -1,0 +1,164 @@
+"""The jitted PatchMatch step: lower-bound pre-scoring, propagation sweeps, padding, search maps."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jmeshtex.data import icosphere
+from jmeshtex.geometry import one_rings
+from jmeshtex.meshmatch import MeshMatchConfig, fan_distance_bound, fan_spectrum, prepare_side, rotation_distances
+from jmeshtex.meshmatch._fans import ancestors
+from jmeshtex.meshmatch._patchmatch import (
+    _iterate,
+    _make_src,
+    _pad_axis,
+    _random_candidates,
+    _search_tables,
+    _side_arrays,
+    pad_level_arrays,
+)
+
+
+def _bumpy(level=2):
+    v, f = icosphere(level)
+    r = 1 + 0.25 * np.sin(3 * v[:, 0] + 1) * np.cos(2 * v[:, 1]) + 0.15 * np.sin(4 * v[:, 2] + 0.5)
+    return v * r[:, None], f
+
+
+def test_fan_distance_bound_is_below_every_rotation_and_tight_for_shifts(rng):
+    A, R, C = 7, 2, 3
+    t = rng.standard_normal((50, R, A, C))
+    s = rng.standard_normal((50, R, A, C))
+    w = jnp.asarray([0.3, 0.7])
+    ts, ss = fan_spectrum(jnp.asarray(t), w), fan_spectrum(jnp.asarray(s), w)
+    bound = np.asarray(fan_distance_bound(ts[0], ts[1], ss[0], ss[1], A))
+    # slow reference: every cyclic shift, by loops
+    exact = np.array([[sum(w[i] * (t[n, i, a, c] - s[n, i, (a + k) % A, c]) ** 2
+                           for i in range(R) for a in range(A) for c in range(C)) for k in range(A)]
+                      for n in range(50)]).min(1)
+    np.testing.assert_allclose(np.asarray(rotation_distances(*ts, *ss, A)).min(1), exact, rtol=1e-10)
+    assert np.all(bound <= exact + 1e-10)
+    assert np.mean(bound / exact) > 0.2  # informative, not a trivial 0
+    # a rolled fan plus a constant per row: the bound is exact
+    shifted = np.roll(t, 3, axis=2) + rng.standard_normal((50, R, 1, C))
+    sh = fan_spectrum(jnp.asarray(shifted), w)
+    np.testing.assert_allclose(np.asarray(fan_distance_bound(ts[0], ts[1], sh[0], sh[1], A)),
+                               np.asarray(rotation_distances(*ts, *sh, A)).min(1), rtol=1e-9, atol=1e-9)
+
+
+def _level(cfg, colors, v, f):
+    """Source = target = (v, f) at level 0: host arrays, source tables, target colours."""
+    side = prepare_side(v, f, cfg)
+    radii = cfg.radii(side.edge[0])
+    s_arr, steps = _side_arrays(side, 0, radii, cfg, colors, np.ones(len(v), bool), side.features, np.float64)
+    t_arr, _ = _side_arrays(side, 0, radii, cfg, np.zeros_like(colors), np.ones(len(v), bool), side.features,
+                            np.float64)
+    up, down = _search_tables(side.hierarchy, 0, cfg.random_search_levels)
+    return side, s_arr, t_arr, steps, up, down
+
+
+def _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, Vp=None, dims=None):
+    V = len(nnf)
+    valid_index = np.arange(s_arr.nb_index.shape[0], dtype=np.int32)
+    if dims is not None:
+        s_arr = pad_level_arrays(s_arr, **dims)
+        t_arr = pad_level_arrays(t_arr, **dims)
+        up = [_pad_axis(u, 0, dims["num_vertices"]) for u in up]
+        down = [(_pad_axis(c, 0, dims["num_vertices"]), _pad_axis(n, 0, dims["num_vertices"], 1)) for c, n in down]
+        valid_index = _pad_axis(valid_index, 0, dims["num_vertices"], 0)
+    A = cfg.num_angles
+    ring_weight = jnp.ones(cfg.num_radii, jnp.float64) / cfg.num_radii
+    src = _make_src(s_arr, up, down, valid_index, V, ring_weight, steps=steps, num_angles=A)
+    Vp = t_arr.nb_index.shape[0]
+    scalar = lambda x: jnp.asarray(x, jnp.float64)  # noqa: E731
+    return _iterate(
+        jax.tree.map(jnp.asarray, t_arr), src, jnp.asarray(_pad_axis(nnf, 0, Vp)),
+        jnp.zeros(Vp, jnp.int32), jnp.asarray(_pad_axis(colors, 0, Vp)), key, ring_weight,
+        scalar(1.0 / (cfg.num_radii * A * colors.shape[1] * colors.var())), scalar(1.0), scalar(0.01),
+        scalar(0.01), jnp.full(Vp, -1, jnp.int32), A=A, steps=steps, globals_=cfg.global_candidates,
+        sweeps=cfg.sweeps, exact=cfg.exact_candidates,
+    )
+
+
+def _ring_distance(faces, V, start):
+    rings = one_rings(faces, V)
+    dist = np.full(V, -1)
+    dist[start] = 0
+    frontier = [start]
+    d = 0
+    while frontier:
+        d += 1
+        nxt = rings.ring[frontier][rings.mask[frontier]]
+        nxt = np.unique(nxt[dist[nxt] < 0])
+        dist[nxt] = d
+        frontier = list(nxt)
+    return dist
+
+
+@pytest.mark.parametrize("sweeps", [1, 2])
+def test_one_iteration_propagates_a_correct_match_sweeps_rings(sweeps, rng, key):
+    """Self-match with random colours and one seed vertex matched to itself, everything else to a
+    far vertex: one iteration (no random search) must fix exactly the ``sweeps``-ring disc."""
+    v, f = _bumpy(2)
+    colors = rng.uniform(0, 1, (len(v), 3))
+    cfg = MeshMatchConfig(levels=1, random_search_levels=0, global_candidates=0, sweeps=sweeps, exact_candidates=2)
+    _, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
+    seed_vertex = 7
+    dist = _ring_distance(f, len(v), seed_vertex)
+    far = int(np.argmax(dist))
+    nnf = np.full(len(v), far, np.int32)
+    nnf[seed_vertex] = seed_vertex
+    best, rot, cost, _, _ = _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key)
+    hit = np.asarray(best) == np.arange(len(v))
+    assert hit[dist <= sweeps].all()
+    assert np.asarray(rot)[dist <= sweeps].tolist() == [0] * int((dist <= sweeps).sum())
+    np.testing.assert_allclose(np.asarray(cost)[dist <= sweeps], 0.0, atol=1e-9)
+    assert hit[dist == sweeps + 1].mean() < 0.5  # information moved no further
+
+
+def test_padding_leaves_every_real_vertex_unchanged(rng, key):
+    v, f = _bumpy(2)
+    colors = rng.uniform(0, 1, (len(v), 3))
+    cfg = MeshMatchConfig(levels=3, min_vertices=40)
+    side, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
+    assert len(up) == cfg.random_search_levels  # structure fixed even above the hierarchy's top
+    nnf = rng.integers(0, len(v), len(v)).astype(np.int32)
+    plain = _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key)
+    K = t_arr.nb_index.shape[1]
+    dims = {"num_vertices": len(v) + 37, "ring": K + 3, "smooth_ring": t_arr.sm_index.shape[1] + 2}
+    padded = _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, dims=dims)
+    V = len(v)
+    np.testing.assert_array_equal(np.asarray(padded[0])[:V], np.asarray(plain[0]))
+    np.testing.assert_array_equal(np.asarray(padded[1])[:V], np.asarray(plain[1]))
+    np.testing.assert_allclose(np.asarray(padded[2])[:V], np.asarray(plain[2]), rtol=1e-10)
+    np.testing.assert_allclose(np.asarray(padded[3])[:V], np.asarray(plain[3]), rtol=1e-10)
+    assert int(padded[4]) == int(plain[4])  # padded vertices are not counted as changed
+    assert np.all(np.asarray(padded[0]) < V)  # nothing matches a padded source vertex
+
+
+def test_random_search_candidates_are_descendants_of_the_hop_ancestor(rng, key):
+    """Oracle for the hierarchical hop maps: the hop-j candidate of s is a level-m descendant of
+    s's ancestor at level min(m + j + 1, top), drawn through the children tables."""
+    v, f = _bumpy(3)
+    cfg = MeshMatchConfig(levels=3, min_vertices=100)
+    side = prepare_side(v, f, cfg)
+    h = side.hierarchy
+    for m in (0, 1, 2):
+        up, down = _search_tables(h, m, 4)
+        V = len(h.vertices[m])
+        arr, steps = _side_arrays(side, m, cfg.radii(side.edge[m]), cfg, np.zeros((V, 1)), np.ones(V, bool),
+                                  side.features, np.float64)
+        src = _make_src(arr, up, down, np.arange(V), V, jnp.ones(cfg.num_radii, jnp.float64), steps=steps,
+                        num_angles=cfg.num_angles)
+        s = jnp.asarray(rng.integers(0, V, 300).astype(np.int32))
+        cands = _random_candidates(src, s, key, 2)
+        assert len(cands) == 4 + 2
+        for j in range(4):
+            top = min(m + j + 1, h.num_levels - 1)
+            anc = ancestors(h, m, top)
+            np.testing.assert_array_equal(anc[np.asarray(cands[j])], anc[np.asarray(s)])
+        if m == 0:  # the deepest hop reaches far: candidates spread over the level
+            assert len(np.unique(np.asarray(cands[2]))) > 100

@@ -1,0 +1,54 @@
+"""``jmeshtex surfacecnn``: end-to-end runs writing texture, textured mesh, renders and summary."""
+
+import json
+
+import numpy as np
+import pytest
+
+from jmeshtex import Mesh
+from jmeshtex.cli._main import main
+from jmeshtex.data import icosphere
+from jmeshtex.io import load_mesh, save_mesh, save_png
+
+
+@pytest.fixture
+def files(tmp_path):
+    v, f = icosphere(1)
+    save_mesh(Mesh(v, f), tmp_path / "ball.obj")  # untextured: unwrapped with xatlas
+    rng = np.random.default_rng(0)
+    save_png(rng.uniform(size=(24, 24, 3)), tmp_path / "exemplar.png")
+    return tmp_path
+
+
+def test_synthesize_then_stylize(files, capsys):
+    out = files / "out"
+    rc = main(["surfacecnn", "synthesize", "--mesh", str(files / "ball.obj"), "--exemplar",
+               str(files / "exemplar.png"), "--size", "16", "--steps", "3", "--layers", "relu1_1",
+               "--out", str(out), "--quiet"])
+    assert rc == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["losses"]) == 3 and summary["size"] == 16
+    for name in ("texture.png", "textured.obj", "textured.png", "render_front.png", "surfacecnn.png"):
+        assert (out / name).is_file(), name
+    mesh = load_mesh(out / "textured.obj")
+    assert mesh.uv is not None and mesh.texture.shape[:2] == (16, 16)
+    assert "wrote" in capsys.readouterr().out
+    # the textured result has UVs and a texture: stylise it
+    out2 = files / "out2"
+    rc = main(["surfacecnn", "stylize", "--mesh", str(out / "textured.obj"), "--style", str(files / "exemplar.png"),
+               "--size", "16", "--steps", "2", "--layers", "relu1_1", "--content-layer", "relu1_2",
+               "--out", str(out2), "--quiet"])
+    assert rc == 0 and (out2 / "texture.png").is_file()
+
+
+def test_errors_are_one_line(files, capsys):
+    rc = main(["surfacecnn", "stylize", "--mesh", str(files / "ball.obj"), "--style", str(files / "exemplar.png"),
+               "--size", "16", "--steps", "1", "--out", str(files / "o"), "--quiet"])
+    assert rc == 2 and "content" in capsys.readouterr().err
+    rc = main(["surfacecnn", "synthesize", "--mesh", str(files / "ball.obj"), "--exemplar",
+               str(files / "exemplar.png"), "--layers", "relu9_1", "--size", "16", "--out", str(files / "o"),
+               "--quiet"])
+    assert rc == 2 and "unknown layer" in capsys.readouterr().err
+    rc = main(["surfacecnn", "synthesize", "--mesh", str(files / "ball.obj"), "--exemplar",
+               str(files / "exemplar.png"), "--vgg19", str(files / "vgg19.h5"), "--out", str(files / "o")])
+    assert rc == 2 and "vgg19.h5" in capsys.readouterr().err

@@ -1,0 +1,86 @@
+"""Gram-matching synthesis: a check that can fail (loss drops ≥ 10×, colours move to the exemplar)."""
+
+import jax
+import numpy as np
+import pytest
+import skimage.data
+import skimage.transform
+
+from jmeshtex._errors import ConfigError, InputError
+from jmeshtex.data import icosphere
+from jmeshtex.surfacecnn import (
+    SurfaceCNNConfig,
+    prepare_surface,
+    stylize_texture,
+    synthesize_texture,
+    unwrap_uv,
+)
+
+LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1")
+
+
+def _histogram(colors, bins=8):
+    h = np.stack([np.histogram(colors[:, c], bins=bins, range=(0, 1))[0] for c in range(3)]).astype(float)
+    return h / h.sum(axis=1, keepdims=True)
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    return skimage.transform.resize(skimage.data.chelsea()[100:260, 150:310], (48, 48), anti_aliasing=True)
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    v, f = icosphere(2)
+    return v, f, unwrap_uv(v, f)
+
+
+def test_gram_loss_drops_and_colours_move_to_the_exemplar(sphere, exemplar, key):
+    v, f, uv = sphere
+    config = SurfaceCNNConfig(size=32, steps=60)
+    result = synthesize_texture((v, f, uv), exemplar, config=config, key=key, layers=LAYERS, progress=False)
+    assert result.losses.shape == (60,) and np.all(np.isfinite(result.losses))
+    assert result.losses[0] / result.final_loss >= 10.0, (result.losses[0], result.final_loss)
+    init = np.asarray(jax.random.uniform(key, result.colors.shape, minval=0.0, maxval=0.2))
+    target = _histogram(exemplar.reshape(-1, 3))
+    before = np.abs(_histogram(init) - target).sum()
+    after = np.abs(_histogram(result.colors) - target).sum()
+    assert after < 0.5 * before, (before, after)
+    np.testing.assert_allclose(result.colors.mean(0), exemplar.reshape(-1, 3).mean(0), atol=0.1)
+    assert result.colors.min() >= 0 and result.colors.max() <= 1
+    assert result.texture.shape == (32, 32, 3) and result.texture.dtype == np.float32
+    assert result.mesh.texture is result.texture or np.array_equal(result.mesh.texture, result.texture)
+    np.testing.assert_array_equal(result.mesh.uv, uv)
+
+
+def test_learning_rate_schedule_and_config_errors():
+    c = SurfaceCNNConfig()
+    assert [c.learning_rate_at(s) for s in (0, 199, 200, 399, 400, 499)] == [0.1, 0.1, 0.05, 0.05, 0.025, 0.025]
+    assert (c.steps, c.init_low, c.init_high, c.pool) == (500, 0.0, 0.2, "mean")
+    for bad in ({"size": 2}, {"steps": -1}, {"learning_rate": 0.0}, {"pool": "sum"}, {"boundary": "wrap"},
+                {"init_low": 0.5, "init_high": 0.1}, {"layers": ()}, {"dtype": "float16"}):
+        with pytest.raises(ConfigError):
+            SurfaceCNNConfig(**bad)
+
+
+def test_stylize_keeps_content_and_bad_inputs(sphere, exemplar):
+    v, f, uv = sphere
+    config = SurfaceCNNConfig(size=32, steps=10, content_layer="relu2_1", content_weight=10.0)
+    surface = prepare_surface(v, f, uv, size=32, levels=1)
+    content = np.zeros((32, 32, 3))
+    content[:, :16] = [0.9, 0.1, 0.1]
+    content[:, 16:] = [0.1, 0.1, 0.9]
+    result = stylize_texture((v, f, uv), content, exemplar, config=config, layers=LAYERS, surface=surface,
+                             progress=False)
+    # the content term keeps the left/right colour split
+    col = surface.atlas.rows_cols()[1]
+    left, right = result.colors[col < 14].mean(0), result.colors[col >= 18].mean(0)
+    assert left[0] > right[0] and right[2] > left[2]
+    assert result.final_loss < result.losses[0]
+    with pytest.raises(InputError, match="no UVs"):
+        stylize_texture((v, f), content, exemplar, config=config, progress=False)
+    with pytest.raises(InputError, match="exemplar"):
+        synthesize_texture((v, f, uv), np.zeros((4, 4, 5)), config=config, key=jax.random.key(0), progress=False)
+    with pytest.raises(InputError, match="surface was prepared"):
+        synthesize_texture((v, f, uv), exemplar, config=SurfaceCNNConfig(size=64), key=jax.random.key(0),
+                           surface=surface, layers=LAYERS, progress=False)
