@@ -8,9 +8,12 @@ What is measured (float32, CPU, jit; compile time reported apart):
 - ``prepare level l``: seconds per Adam step of the multi-scale fitting (PrepareConfig defaults);
 - ``train level l``: seconds per WGAN-GP iteration (2 critic + 3 generator updates) with the
   default widths (TrainConfig: 7 layers, 32 → 128 channels), template icosphere(1) (80 faces) on
-  a bumpy sphere, ``--measure`` timed iterations after the compiling one; the total of the small
-  configuration (``levels × iterations``) and of the default one (``levels × 2000``) are projected
-  from these per-iteration times plus the measured compile times;
+  a bumpy sphere, over ``--measure`` iterations; compilation (ahead of time, per level: the
+  level's step and its newest frozen level) is timed apart. The totals of the small configuration
+  (``levels × iterations``) and of the default one (``levels × 2000``) are projected from these
+  per-iteration times plus the measured compile times plus the preparation as run here;
+- ``cpu_s``: process CPU seconds of the same span (all threads): with other jobs on the machine,
+  wall times grow but CPU seconds much less; ``load`` is the 1-minute load average at the start;
 - ``transfer 20K``: one sample on a 20480-face icosphere running the last generator (no
   subdivision) and the last two (one subdivision, 82K output faces), after compilation.
 """
@@ -18,6 +21,7 @@ What is measured (float32, CPU, jit; compile time reported apart):
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import jax
@@ -34,7 +38,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--iterations", type=int, default=300, help="iterations per level of the small config")
-    ap.add_argument("--measure", type=int, default=20, help="timed iterations per level (projection basis)")
+    ap.add_argument("--measure", type=int, default=30, help="timed iterations per level (projection basis)")
     ap.add_argument("--prepare-iterations", type=int, default=100)
     args = ap.parse_args()
     report = Report("dgts")
@@ -53,8 +57,12 @@ def main() -> None:
         report.add(name=f"prepare level {level}", faces=len(f), steps=args.prepare_iterations,
                    seconds_incl_compile=ends[f"level {level}"] - ends[f"level {level - 1}" if level else "start"])
 
-    cfg = TrainConfig(iterations=args.measure + 1)
+    cfg = TrainConfig(iterations=args.measure)
+    load = os.getloadavg()[0]
+    cpu0 = time.process_time()
     model, reports = train(tm, cfg, progress=False)
+    report.add(name="train (all levels, measured)", seconds=sum(r.seconds for r in reports),
+               cpu_s=time.process_time() - cpu0, load=load)
     small = default = 0.0
     for r in reports:
         report.add(name=f"train level {r.level}", faces=r.faces, seconds=r.seconds_per_iteration,

@@ -11,15 +11,52 @@
 
 Meshes are files (``.obj``/``.ply``/``.off``/``.glb``) or procedural names: ``icosahedron``,
 ``icosphere:N``, ``torus``, ``torus:NMAJOR:NMINOR``, ``bumpy-sphere``, ``grid:N``.
+
+Compiled programs are kept in JAX's persistent compilation cache, so a second ``train`` or
+``transfer`` with the same sizes skips most compilation: ``$JMESHTEX_JAX_CACHE`` (a folder; ``0`` or
+empty turns the cache off), by default ``$XDG_CACHE_HOME/jmeshtex/jax`` (``~/.cache/jmeshtex/jax``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 
 from .._errors import InputError
+
+
+def compilation_cache() -> pathlib.Path | None:
+    """Turn on JAX's persistent compilation cache in the folder the module docstring names.
+
+    Returns:
+      The folder, or None when ``JMESHTEX_JAX_CACHE`` is ``0`` or empty.
+    """
+    import jax
+
+    env = os.environ.get("JMESHTEX_JAX_CACHE")
+    if env is not None and env.strip() in ("", "0"):
+        return None
+    if env is None:
+        base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
+        folder = pathlib.Path(base) / "jmeshtex" / "jax"
+    else:
+        folder = pathlib.Path(env)
+    folder.mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(folder))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    return folder
+
+
+def _cached(func):
+    """A subcommand handler that enables the compilation cache first."""
+
+    def run(args):
+        compilation_cache()
+        return func(args)
+
+    return run
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,7 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--samples", type=int, default=None, help="surface samples at level 0")
     q.add_argument("--out", required=True, type=pathlib.Path, help="output folder")
     q.add_argument("--no-progress", action="store_true", help="no progress bar")
-    q.set_defaults(func=_prepare)
+    q.set_defaults(func=_cached(_prepare))
 
     t = dsub.add_parser("train", help="train the generator hierarchy (WGAN-GP), resumable")
     t.add_argument("dir", type=pathlib.Path, metavar="DIR", help="folder written by `dgts prepare`")
@@ -44,9 +81,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--features", type=int, nargs=3, default=None, metavar=("START", "MIN", "MAX"),
                    help="width schedule (default 32 32 128)")
     t.add_argument("--levels", type=int, default=None, help="train only the first N levels")
+    t.add_argument("--shared-levels", type=int, default=0, metavar="N",
+                   help="pad levels 0..N-1 to one size so equal-width levels share one compiled step (default 0)")
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
-    t.set_defaults(func=_train)
+    t.set_defaults(func=_cached(_train))
 
     for name, helptext in (("transfer", "synthesise the texture on a target mesh"),
                            ("interpolate", "animate between two noises on a target mesh")):
@@ -60,7 +99,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             r.add_argument("--frames", type=int, default=8, help="frames including both ends (default 8)")
         r.add_argument("--seed", type=int, default=0)
         r.add_argument("--out", required=True, type=pathlib.Path, help="output folder")
-        r.set_defaults(func=_transfer if name == "transfer" else _interpolate)
+        r.set_defaults(func=_cached(_transfer if name == "transfer" else _interpolate))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
@@ -146,7 +185,7 @@ def _train(args) -> int:
     from ..render import render_mesh
 
     tm = load_training_meshes(args.dir / "training.npz")
-    changes = {"seed": args.seed}
+    changes = {"seed": args.seed, "shared_levels": args.shared_levels}
     if args.iterations is not None:
         changes["iterations"] = args.iterations
     if args.layers is not None:

@@ -46,6 +46,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pool", choices=("mean", "max"), default="mean", help="pooling (default mean, as the paper)")
     p.add_argument("--vgg19", type=pathlib.Path, default=None, metavar="FILE",
                    help="use VGG-19 weights from a .npz or Keras .h5 file (the paper's network)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from DIR/checkpoint.npz of an interrupted run (written every 50 steps)")
     p.add_argument("--repair", action="store_true",
                    help="repair the mesh first (drop degenerate/duplicate faces, split bow-tie vertices, re-orient)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -87,6 +89,15 @@ def _setup(args):
     return mesh, config, weights
 
 
+def _checkpoint(args) -> pathlib.Path:
+    """``DIR/checkpoint.npz``; without ``--resume`` a stale one is removed so the run starts afresh."""
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / "checkpoint.npz"
+    if not args.resume:
+        path.unlink(missing_ok=True)
+    return path
+
+
 def _report(summary: dict, out: pathlib.Path) -> None:
     print(f"wrote {out / 'texture.png'}, {out / 'textured.obj'} and renders to {out}: loss "
           f"{summary['initial_loss']:.4g} -> {summary['final_loss']:.4g}, {summary['texels']} texels, "
@@ -102,7 +113,7 @@ def _synthesize(args: argparse.Namespace) -> int:
     mesh, config, weights = _setup(args)
     exemplar = _image(args.exemplar, args.max_image_size)
     result = synthesize_texture(mesh, exemplar, config=config, key=jax.random.key(args.seed), weights=weights,
-                                progress=not args.quiet)
+                                progress=not args.quiet, checkpoint=_checkpoint(args))
     summary = save_result(result, args.out, exemplar=exemplar, title="synthesised")
     _report(summary, args.out)
     return 0
@@ -116,7 +127,8 @@ def _stylize(args: argparse.Namespace) -> int:
     if mesh.texture is None:
         raise InputError(f"{args.mesh} references no texture; give the content texture with --content")
     style = _image(args.style, args.max_image_size)
-    result = stylize_texture(mesh, mesh.texture, style, config=config, weights=weights, progress=not args.quiet)
+    result = stylize_texture(mesh, mesh.texture, style, config=config, weights=weights, progress=not args.quiet,
+                             checkpoint=_checkpoint(args))
     summary = save_result(result, args.out, exemplar=style, title="stylised")
     _report(summary, args.out)
     return 0

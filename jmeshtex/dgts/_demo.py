@@ -55,8 +55,9 @@ def tiny_configs(quick: bool = True) -> tuple[PrepareConfig, TrainConfig]:
     """Small configurations that train in seconds on a laptop CPU (quick) or in a few minutes."""
     if quick:
         prep = PrepareConfig(num_levels=2, iterations=150, samples_per_level=800)
+        # equal widths at both levels and shared_levels=2: one compiled training step for both
         train = TrainConfig(num_layers=4, start_features=16, min_features=16, max_features=16, iterations=120,
-                            lr_decay_every=100)
+                            lr_decay_every=100, shared_levels=2)
     else:
         prep = PrepareConfig(num_levels=3, iterations=400, samples_per_level=1500)
         train = TrainConfig(num_layers=5, start_features=32, min_features=16, max_features=64, iterations=400,

@@ -238,7 +238,20 @@ def init_level(key: PRNGKey, config: TrainConfig, level: int, *, generator: bool
     return init_face_conv_stack(key, config.level_features(level, generator=generator), dtype=dtype)
 
 
-class Generator(nn.Module):
+class _FaceStackModule(nn.Module):
+    """Fields shared by the flax wrappers: widths, activation and norm settings, parameter dtype."""
+
+    features: Sequence[int]
+    negative_slope: float = 0.2
+    eps: float = 1e-5
+    param_dtype: jnp.dtype = jnp.float32
+
+    def stack(self) -> FaceConvStackParams:
+        """Create (or fetch) the ``"stack"`` parameter: a :class:`~jmeshtex.ops.FaceConvStackParams`."""
+        return self.param("stack", lambda key: init_face_conv_stack(key, self.features, dtype=self.param_dtype))
+
+
+class Generator(_FaceStackModule):
     """Thin flax wrapper of one generator level: creates ``"stack"`` and calls :func:`generator_level`.
 
     Example:
@@ -252,18 +265,12 @@ class Generator(nn.Module):
       (12, 3)
     """
 
-    features: Sequence[int]
-    negative_slope: float = 0.2
-    eps: float = 1e-5
-    param_dtype: jnp.dtype = jnp.float32
-
     @nn.compact
     def __call__(self, vertices, nbhd, noise=0.0):
-        params = self.param("stack", lambda key: init_face_conv_stack(key, self.features, dtype=self.param_dtype))
-        return generator_level(params, vertices, nbhd, noise, negative_slope=self.negative_slope, eps=self.eps)
+        return generator_level(self.stack(), vertices, nbhd, noise, negative_slope=self.negative_slope, eps=self.eps)
 
 
-class Discriminator(nn.Module):
+class Discriminator(_FaceStackModule):
     """Thin flax wrapper of one discriminator level: creates ``"stack"`` and calls :func:`discriminator`.
 
     Example:
@@ -276,12 +283,6 @@ class Discriminator(nn.Module):
       (20,)
     """
 
-    features: Sequence[int]
-    negative_slope: float = 0.2
-    eps: float = 1e-5
-    param_dtype: jnp.dtype = jnp.float32
-
     @nn.compact
     def __call__(self, vertices, nbhd):
-        params = self.param("stack", lambda key: init_face_conv_stack(key, self.features, dtype=self.param_dtype))
-        return discriminator(params, vertices, nbhd, negative_slope=self.negative_slope, eps=self.eps)
+        return discriminator(self.stack(), vertices, nbhd, negative_slope=self.negative_slope, eps=self.eps)

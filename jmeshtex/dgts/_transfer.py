@@ -151,6 +151,18 @@ def _finish(model, out, v0, geos, faces_all, center, scale, n):
     return [o / factor + center for o in outs], base / factor + center, heights
 
 
+def _synthesise(model: DGTSModel, vertices, faces, start_level: int, noises) -> TransferResult:
+    """Run the generators from ``start_level`` on the target once per noise list ``noises(sizes)``
+    returns (one ``[V_l, 3]`` array per level run), and map the results back to the target's frame."""
+    v0, _, center, scale, n, geos, faces_all, sizes = _prepare_target(model, vertices, faces, start_level)
+    params = tuple(model.generators[start_level:])
+    x = jnp.asarray(v0, jnp.float32)
+    draws = noises(sizes)
+    outs = [_run_jit(model, x, geos, params, zs) for zs in draws]
+    verts, base, heights = _finish(model, outs, v0, geos, faces_all, center, scale, n)
+    return TransferResult(np.stack(verts), faces_all[-1], base, heights, [[np.asarray(z) for z in zs] for zs in draws])
+
+
 def transfer(
     model: DGTSModel,
     vertices: Float[np.ndarray, "V 3"],
@@ -184,7 +196,8 @@ def transfer(
       >>> from jmeshtex.data import icosahedron, torus
       >>> from jmeshtex.dgts import TrainConfig, training_meshes, train, PrepareConfig
       >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(num_levels=2, iterations=0))
-      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3)
+      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3,
+      ...     shared_levels=2)
       >>> model, _ = train(tm, cfg, progress=False)
       >>> res = transfer(model, *torus(8, 6), num_samples=2, key=jax.random.key(0))
       >>> res.vertices.shape, res.faces.shape
@@ -192,16 +205,11 @@ def transfer(
     """
     if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
-    v0, f, center, scale, n, geos, faces_all, sizes = _prepare_target(model, vertices, faces, start_level)
-    params = tuple(model.generators[start_level:])
-    x = jnp.asarray(v0, jnp.float32)
-    outs, noise = [], []
-    for s in range(int(num_samples)):
-        zs = _noises(jax.random.fold_in(key, s), sizes, model.config.noise_amplitude)
-        outs.append(_run_jit(model, x, geos, params, zs))
-        noise.append([np.asarray(z) for z in zs])
-    verts, base, heights = _finish(model, outs, v0, geos, faces_all, center, scale, n)
-    return TransferResult(np.stack(verts), faces_all[-1], base, heights, noise)
+
+    def noises(sizes):
+        return [_noises(jax.random.fold_in(key, s), sizes, model.config.noise_amplitude) for s in range(int(num_samples))]
+
+    return _synthesise(model, vertices, faces, start_level, noises)
 
 
 def interpolate(
@@ -230,24 +238,20 @@ def interpolate(
       >>> from jmeshtex.data import icosahedron
       >>> from jmeshtex.dgts import TrainConfig, training_meshes, train, PrepareConfig
       >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(num_levels=2, iterations=0))
-      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3)
+      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3,
+      ...     shared_levels=2)
       >>> model, _ = train(tm, cfg, progress=False)
       >>> interpolate(model, *icosahedron(), start_level=1, num_frames=3, key=jax.random.key(0)).vertices.shape
       (3, 12, 3)
     """
     if isinstance(num_frames, bool) or not isinstance(num_frames, (int, np.integer)) or num_frames < 2:
         raise InputError(f"num_frames must be an int >= 2, got {num_frames!r}")
-    v0, f, center, scale, n, geos, faces_all, sizes = _prepare_target(model, vertices, faces, start_level)
-    params = tuple(model.generators[start_level:])
-    x = jnp.asarray(v0, jnp.float32)
-    ka, kb = jax.random.split(key)
-    za = _noises(ka, sizes, model.config.noise_amplitude)
-    zb = _noises(kb, sizes, model.config.noise_amplitude)
-    outs, noise = [], []
-    for t in np.linspace(0.0, 1.0, int(num_frames)):
-        w = np.float32(t)
-        zs = [(1 - w) * a + w * b for a, b in zip(za, zb, strict=True)]
-        outs.append(_run_jit(model, x, geos, params, zs))
-        noise.append([np.asarray(z) for z in zs])
-    verts, base, heights = _finish(model, outs, v0, geos, faces_all, center, scale, n)
-    return TransferResult(np.stack(verts), faces_all[-1], base, heights, noise)
+
+    def noises(sizes):
+        ka, kb = jax.random.split(key)
+        za = _noises(ka, sizes, model.config.noise_amplitude)
+        zb = _noises(kb, sizes, model.config.noise_amplitude)
+        weights = [np.float32(t) for t in np.linspace(0.0, 1.0, int(num_frames))]
+        return [[(1 - w) * a + w * b for a, b in zip(za, zb, strict=True)] for w in weights]
+
+    return _synthesise(model, vertices, faces, start_level, noises)

@@ -11,6 +11,7 @@ Diffusion (issue 7) builds on these.
 from ._colors import SurfaceColors as SurfaceColors
 from ._colors import surface_colors as surface_colors
 from ._config import FLVAEConfig as FLVAEConfig
+from ._decoder import decoder_features as decoder_features
 from ._encoder import OneRingSamples as OneRingSamples
 from ._encoder import one_ring_samples as one_ring_samples
 from ._vae import FieldLatents as FieldLatents

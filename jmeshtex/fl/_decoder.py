@@ -19,8 +19,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array, Complex, Float, Int, PRNGKey
-from ._encoder import _dense_init, mlp
+from .._types import Array, Complex, Float, Int
+from ._encoder import _dense_init, _dense_size, mlp
 
 
 def num_features(config) -> int:
@@ -29,10 +29,19 @@ def num_features(config) -> int:
     return d * d + (2 * d if config.decoder == "log" else 0)
 
 
-def init_decoder(key: PRNGKey, config, *, dtype=jnp.float32) -> tuple:
+def decoder_sizes(config) -> tuple[int, ...]:
+    """Layer widths of the decoder MLP, input to output."""
+    return (num_features(config), *([config.decoder_features] * (config.decoder_layers - 1)), 3)
+
+
+def init_decoder(draw, config, *, dtype=jnp.float32) -> tuple:
     """Random real dense layers of the decoder MLP (``decoder_layers`` layers, output 3)."""
-    sizes = (num_features(config), *([config.decoder_features] * (config.decoder_layers - 1)), 3)
-    return _dense_init(key, sizes, dtype)
+    return _dense_init(draw, decoder_sizes(config), dtype)
+
+
+def decoder_size(config) -> int:
+    """Number of standard normals :func:`init_decoder` draws."""
+    return _dense_size(decoder_sizes(config))
 
 
 def _invariants(mu: Complex[Array, "... d"]) -> Float[Array, "... D"]:

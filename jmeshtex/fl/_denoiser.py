@@ -24,6 +24,7 @@ finer mesh gives a smaller texture (textural scale follows resolution, §6.6).
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, NamedTuple
 
@@ -34,7 +35,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._types import Array, Complex, Float, Int, PRNGKey
-from ..geometry import PoolingMap, VertexNeighborhood, knn_from_one_ring, mesh_hierarchy, pad_to
+from ..geometry import PoolingMap, VertexNeighborhood, knn_from_one_ring, mean_edge_length, mesh_hierarchy, pad_to
 from ..nn import FRN, ComplexDense, FCResNetBlock, VNNonlinearity
 from ..ops import tangent_pool, tangent_unpool
 from ..ops._util import real_dtype
@@ -64,7 +65,7 @@ def denoiser_geometry(
 ) -> DenoiserGeometry:
     """Host-side k-NN neighbourhoods of the mesh and of one coarse level, and the pooling map.
 
-    Log maps (both levels) are divided by the mean edge length ``h`` of the mesh:
+    Log maps (both levels) are divided by the mean edge length ``h`` of the mesh (unique edges):
     ``log ← log / h`` (module docstring).
 
     Args:
@@ -83,7 +84,7 @@ def denoiser_geometry(
       ((162, 7), 7, (162,))
     """
     h = mesh_hierarchy(vertices, faces, levels=2, ratio=pool_ratio)
-    scale = float(np.mean(h.lengths[0]))
+    scale = mean_edge_length(vertices, faces)
     fine = knn_from_one_ring(h.neighborhoods[0], knn)
     coarse = knn_from_one_ring(h.neighborhoods[1], knn)
     fine = fine._replace(log=fine.log / scale)
@@ -203,7 +204,10 @@ def init_denoiser(
     z = jnp.zeros((v, config.latent_channels), dtype)
     labels = jnp.zeros((v,), jnp.int32) if config.num_labels else None
     geo = _as_jax(geo, dtype)
-    return Denoiser(config, param_dtype=dtype).init(key, z, jnp.zeros((), jnp.int32), geo, labels)["params"]
+    module = Denoiser(config, param_dtype=dtype)
+    # jitted: eager initialisation dispatches (and compiles) every small op of every block separately
+    init = jax.jit(lambda key, geo: module.init(key, z, jnp.zeros((), jnp.int32), geo, labels)["params"])
+    return init(key, geo)
 
 
 def _as_jax(geo: DenoiserGeometry, cdtype) -> DenoiserGeometry:
@@ -252,7 +256,13 @@ def denoise(
     """
     _check_inputs(config, z_t, geo, labels)
     geo = _as_jax(geo, z_t.dtype)
-    return Denoiser(config, param_dtype=z_t.dtype).apply({"params": params}, z_t, jnp.asarray(t), geo, labels)
+    return _apply(params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels)
+
+
+@functools.partial(jax.jit, static_argnames=("config",))
+def _apply(params, config, z_t, t, geo, labels):
+    # jitted once per config and shapes (eager use would dispatch every small op separately)
+    return Denoiser(config, param_dtype=z_t.dtype).apply({"params": params}, z_t, t, geo, labels)
 
 
 def denoiser_flops(config: FLDMConfig, v0: int, v1: int) -> float:

@@ -33,7 +33,7 @@ from .._errors import InputError
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ..geometry import corner_angles, edge_lengths, one_ring_angles
 from ..ops import complex_linear, vn_transformer_block
-from ..ops._complex import VNTransformerParams, complex_lecun_blocks, init_vn_transformer_block
+from ..ops._complex import VNTransformerParams
 from ..ops._util import real_dtype
 
 # ------------------------------------------------------------------------------------ host side
@@ -238,13 +238,36 @@ class EncoderParams(NamedTuple):
     sigma: tuple
 
 
-def _dense_init(key, sizes, dtype):
-    """LeCun-normal real dense layers ``[(W, b), ...]`` for widths ``sizes``."""
-    keys = jax.random.split(key, len(sizes) - 1)
+class _Draw:
+    """Slices of one standard-normal draw (each extra ``jax.random`` call costs ~1 s of compile time)."""
+
+    def __init__(self, key, total: int, dtype):
+        self.flat = jax.random.normal(key, (total,), dtype)
+        self.pos = 0
+
+    def take(self, shape) -> Array:
+        n = int(np.prod(shape))
+        out = self.flat[self.pos : self.pos + n].reshape(shape)
+        self.pos += n
+        return out
+
+
+def _dense_size(sizes) -> int:
+    return sum(a * b for a, b in zip(sizes[:-1], sizes[1:], strict=True))
+
+
+def _dense_init(draw: _Draw, sizes, dtype):
+    """LeCun-normal real dense layers ``((W, b), ...)`` for widths ``sizes`` (biases 0)."""
     return tuple(
-        (jax.random.normal(k, (a, b), dtype) / jnp.sqrt(jnp.asarray(a, dtype)), jnp.zeros((b,), dtype))
-        for k, a, b in zip(keys, sizes[:-1], sizes[1:], strict=True)
+        (draw.take((a, b)) * jnp.asarray(1.0 / np.sqrt(a), dtype), jnp.zeros((b,), dtype))
+        for a, b in zip(sizes[:-1], sizes[1:], strict=True)
     )
+
+
+def _complex_init(draw: _Draw, shape, fan_in: int, cdt):
+    re, im = draw.take(shape), draw.take(shape)
+    scale = jnp.asarray(1.0 / np.sqrt(2.0 * fan_in), re.dtype)
+    return jax.lax.complex(re * scale, im * scale).astype(cdt)
 
 
 def mlp(layers, x):
@@ -256,19 +279,37 @@ def mlp(layers, x):
     return x
 
 
-def init_encoder(key: PRNGKey, config, *, dtype=jnp.float32) -> EncoderParams:
+def _vnt_block(draw: _Draw, c: int, heads: int, cdt, rdt) -> VNTransformerParams:
+    from ..ops import ComplexAttentionParams, VNParams
+
+    e = c // heads
+    attention = ComplexAttentionParams(
+        query=_complex_init(draw, (c, heads, e), c, cdt), key=_complex_init(draw, (c, heads, e), c, cdt),
+        value=_complex_init(draw, (c, heads, e), c, cdt), out=_complex_init(draw, (heads, e, c), heads * e, cdt),
+    )
+    mlp_in = VNParams(_complex_init(draw, (c, c), c, cdt), _complex_init(draw, (c, c), c, cdt))
+    mlp_out = VNParams(_complex_init(draw, (c, c), c, cdt), _complex_init(draw, (c, c), c, cdt))
+    ones = jnp.ones((c,), rdt)
+    return VNTransformerParams(ones, attention, ones, mlp_in, mlp_out)
+
+
+def encoder_size(config) -> int:
+    """Number of standard normals :func:`init_encoder` draws."""
+    c, d = config.features, config.latent_dim
+    block = 2 * (4 * c * c + 4 * c * c)
+    return _dense_size((3, c, c, c)) + _dense_size((7, c, c)) + config.num_blocks * block + 2 * (c * d + c * c) + c * d
+
+
+def init_encoder(draw: _Draw, config, *, dtype=jnp.float32) -> EncoderParams:
     """Random :class:`EncoderParams` for ``config`` (an :class:`~jmeshtex.fl.FLVAEConfig`)."""
     c, d = config.features, config.latent_dim
     cdt = jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
-    k = jax.random.split(key, 5 + config.num_blocks)
-    sample_mlp = _dense_init(k[0], (3, c, c, c), dtype)
-    token_mlp = _dense_init(k[1], (7, c, c), dtype)
-    blocks = tuple(
-        init_vn_transformer_block(k[5 + i], c, num_heads=config.num_heads, mlp_features=c, dtype=cdt)
-        for i in range(config.num_blocks)
-    )
-    mean, sigma_dir = complex_lecun_blocks(k[2], [((c, d), c), ((c, c), c)], dtype=cdt)
-    w, b = _dense_init(k[3], (c, d), dtype)[0]
+    sample_mlp = _dense_init(draw, (3, c, c, c), dtype)
+    token_mlp = _dense_init(draw, (7, c, c), dtype)
+    blocks = tuple(_vnt_block(draw, c, config.num_heads, cdt, dtype) for _ in range(config.num_blocks))
+    mean = _complex_init(draw, (c, d), c, cdt)
+    sigma_dir = _complex_init(draw, (c, c), c, cdt)
+    w, b = _dense_init(draw, (c, d), dtype)[0]
     # start with small σ (log σ ≈ -2): the KL pulls it up as training allows
     sigma = (w * jnp.asarray(0.1, dtype), b - jnp.asarray(2.0, dtype))
     return EncoderParams(sample_mlp, token_mlp, blocks, mean, sigma_dir, sigma)

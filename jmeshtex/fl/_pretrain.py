@@ -14,6 +14,7 @@ Output folder: ``checkpoint.npz`` (parameters, optimiser state, step; written at
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
 import pathlib
@@ -68,8 +69,13 @@ def optimizer(config: FLVAEConfig) -> optax.GradientTransformation:
     return optax.chain(optax.clip_by_global_norm(config.grad_clip), optax.adam(schedule))
 
 
-def make_step(config: FLVAEConfig, opt: optax.GradientTransformation):
-    """The jitted training step ``(params, opt_state, batch, key) -> (params, opt_state, loss, l1)``."""
+@functools.lru_cache(maxsize=8)
+def make_step(config: FLVAEConfig):
+    """The jitted training step ``(params, opt_state, batch, key) -> (params, opt_state, loss, l1)``.
+
+    Cached per config, so repeated or resumed runs in one process compile once.
+    """
+    opt = optimizer(config)
 
     def loss_fn(params, batch, key):
         return vae_loss(params, config, batch["log"], batch["rgb"], batch["mask"], key=key,
@@ -173,6 +179,7 @@ def pretrain(
     images="builtin",
     progress: bool = True,
     dtype=jnp.float32,
+    stop_after: int | None = None,
 ) -> PretrainResult:
     """Train an FL-VAE on planar meshes over images; resumable, with atomic checkpoints.
 
@@ -185,9 +192,11 @@ def pretrain(
         ``[H, W, C]`` arrays.
       progress: show a tqdm bar with ETA and the running loss.
       dtype: real dtype of the parameters.
+      stop_after: run at most this many steps in this call (a time-boxed run; call again with the
+        same folder to continue). The schedule always follows ``config.steps``.
 
     Returns:
-      :class:`PretrainResult`.
+      :class:`PretrainResult`; the final ``fl_vae.npz`` is written only once ``config.steps`` are done.
 
     Example:
       >>> import numpy as np
@@ -214,7 +223,7 @@ def pretrain(
     if out is not None and (out / CHECKPOINT).is_file():
         params, opt_state, start, losses, l1s = _load_checkpoint(out, (params, opt_state), config)
         losses, l1s = losses[:start], l1s[:start]
-    step_fn = make_step(config, opt)
+    step_fn = make_step(config)
     num_vertices = config.batch_meshes * config.max_vertices
     base_key = jax.random.key(config.seed + 1)
     bar = None
@@ -224,7 +233,8 @@ def pretrain(
         bar = tqdm(total=config.steps, initial=start, desc="FL-VAE pretrain", unit="step")
     t_first = None
     t0 = time.perf_counter()
-    for step in range(start, config.steps):
+    end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
+    for step in range(start, end):
         rng = np.random.default_rng([config.seed, step])
         chosen = rng.choice(len(pool), size=min(config.batch_meshes, len(pool)), replace=False)
         batch = mesh_batch([pool[i] for i in chosen], config, rng, num_vertices=num_vertices, dtype=np_dtype)
@@ -239,15 +249,15 @@ def pretrain(
         if bar is not None:
             bar.update(1)
             bar.set_postfix(loss=f"{loss:.4f}", l1=f"{l1:.4f}")
-        if out is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == config.steps):
+        if out is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
             _save_checkpoint(out, params, opt_state, step + 1, losses, l1s, config)
             _atomic_write(out / LOG, json.dumps({"step": step + 1, "loss": losses, "l1": l1s}).encode())
     if bar is not None:
         bar.close()
-    done = config.steps - start
+    done = end - start
     seconds = time.perf_counter() - (t_first if t_first is not None else t0)
     rate = (done - 1) / seconds if done > 1 and seconds > 0 else float("nan")
-    if out is not None:
+    if out is not None and end == config.steps:
         save_fl_vae(out / FINAL, params, config, extra={"steps": config.steps,
                                                          "final_loss": float(np.mean(losses[-50:])) if losses else None,
                                                          "final_l1": float(np.mean(l1s[-50:])) if l1s else None})

@@ -34,9 +34,10 @@ from ._decoder import (
     decode_barycentric_raw,
     decode_points_raw,
     decoder_features,
+    decoder_size,
     init_decoder,
 )
-from ._encoder import EncoderParams, corner_logs, encode_samples_raw, init_encoder, one_ring_samples, ring_geometry
+from ._encoder import EncoderParams, _Draw, corner_logs, encoder_size, encode_samples_raw, init_encoder, one_ring_samples, ring_geometry
 
 WEIGHTS_DIR = pathlib.Path(__file__).parent / "weights"
 PRETRAINED_FILE = WEIGHTS_DIR / "fl_vae.npz"
@@ -89,8 +90,14 @@ def init_fl_vae(key: PRNGKey, config: FLVAEConfig, *, dtype=jnp.float32) -> FLVA
     """
     if not isinstance(config, FLVAEConfig):
         raise ConfigError(f"config must be an FLVAEConfig, got {type(config).__name__}")
-    k_enc, k_dec = jax.random.split(key)
-    return FLVAEParams(init_encoder(k_enc, config, dtype=dtype), init_decoder(k_dec, config, dtype=dtype))
+    return _init_jit(key, config, jnp.dtype(dtype))
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def _init_jit(key, config, dtype):
+    # one compiled program: op-by-op, every random draw of a new shape compiles its own kernel
+    draw = _Draw(key, encoder_size(config) + decoder_size(config), dtype)
+    return FLVAEParams(init_encoder(draw, config, dtype=dtype), init_decoder(draw, config, dtype=dtype))
 
 
 # ------------------------------------------------------------------------------------ pure parts
@@ -291,12 +298,12 @@ def vae_loss(
       (True, ['kl', 'l1'])
     """
     _check_samples(log_q, rgb, mask)
+    if config.decoder == "barycentric" and (corners is None or bary is None):
+        raise InputError("vae_loss with decoder='barycentric' needs corners and bary [V, S, 3]")
     lat = encode_samples(params, config, log_q, rgb, mask)
     z = sample_latents(lat, key)
     rdt = lat.log_sigma.dtype
     if config.decoder == "barycentric":
-        if corners is None or bary is None:
-            raise InputError("vae_loss with decoder='barycentric' needs corners and bary [V, S, 3]")
         v, s = log_q.shape
         pred = decode_barycentric_raw(params.decoder, config, z, jnp.reshape(corners, (v * s, 3)),
                                       jnp.reshape(bary, (v * s, 3))).reshape(v, s, 3)

@@ -34,7 +34,7 @@ class MeshMatchConfig:
       up: the "up" direction of the ``n · up`` shape feature, or None to leave the feature out.
       iterations: most PatchMatch iterations (E-step + M-step) per level.
       coarse_iterations: most iterations at the coarsest level, which starts from a random field
-        (propagation moves good matches one ring per iteration there; the level is tiny).
+        (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
       tolerance: a level stops early when fewer than this fraction of target vertices changed
         their match in an iteration.
       random_search_levels: how many hierarchy levels the random search hops up (then down again
@@ -46,7 +46,9 @@ class MeshMatchConfig:
         only this many candidates, those with the smallest rotation-invariant lower bound of the
         patch distance, get the exact rotation search.
       bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
-        common shape and share one compiled PatchMatch step (0 turns the sharing off).
+        common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
+        (see :func:`~jmeshtex.meshmatch._patchmatch.level_groups`); 0 pads nothing (every level
+        compiles its own step).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths.
       min_vertices: coarsest hierarchy level size (decimation stops below it).
       levels: number of hierarchy levels, or None for "down to ``min_vertices``".
@@ -74,7 +76,7 @@ class MeshMatchConfig:
     random_search_levels: int = 3
     global_candidates: int = 4
     sweeps: int = 2
-    exact_candidates: int = 3
+    exact_candidates: int = 2
     bucket_vertices: int = 4096
     vote_sigma: float = 1.0
     min_vertices: int = 128

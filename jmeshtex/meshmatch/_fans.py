@@ -140,7 +140,9 @@ def geodesic_fans(
     .. math:: s_p[i, a] = \\exp_p\\bigl(r_i\\, \\hat u_p\\, e^{2\\pi i a/A}\\bigr)
 
     (MeshMatch's geodesic fans, Chen et al. 2012 §3.1), traced intrinsically from each vertex in its
-    tangent frame (:func:`~jmeshtex.geometry.trace_from_vertices`).
+    tangent frame (:func:`~jmeshtex.geometry.trace_from_vertices`). With increasing radii one
+    geodesic per angle is traced and continued ring by ring from where the previous ring ended
+    (:func:`~jmeshtex.geometry.trace_geodesics`): the same straight line, half the face crossings.
 
     Args:
       vertices: ``[V, 3]`` positions.

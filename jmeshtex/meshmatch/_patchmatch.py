@@ -3,18 +3,25 @@
 For every target vertex t the nearest-neighbour field (NNF) holds a source vertex ``s`` and a
 rotation ``k`` (target frame → source frame by ``2πk/A``). One iteration at a level is
 
-- **E-step**: for every target vertex at once, candidates are the current match, one *propagated*
+- **E-step**, ``sweeps`` times per iteration (each sweep starts from the matches the previous one
+  found, so good matches travel ``sweeps`` rings per iteration): candidates are one *propagated*
   match per one-ring neighbour q (q's match moved by p's offset from q, carried into the source
   frame with q's rotation and the target transport: ``e^{iθ_q} log_q(p)``, snapped to the nearest
   vertex of the source star), *random search* through the source hierarchy (hop up j levels from
   the current match, come down through random children) and uniformly random source vertices.
-  Each candidate is scored at the best of the ``A`` cyclic rotations of the fans at once (cyclic
+  All of them are pre-scored with a rotation-invariant lower bound of the patch distance (ring
+  means and AC norms of the fans, :func:`fan_distance_bound`, plus the shape term: 27 numbers per
+  vertex); only the ``exact_candidates`` best (and, once per iteration, the current match) get
+  the exact score, at the best of the ``A`` cyclic rotations of the fans at once (cyclic
   cross-correlation through a real DFT of the angular axis) plus the rotation-invariant shape term.
 - **M-step**: every target vertex's colour is the Gaussian-weighted vote of the source colours
   its own and its neighbours' matches put at its position.
 
 Levels run from the coarsest to the finest; the NNF is upsampled through the parent maps; a final
-pass copies each target vertex's matched source colour (no blur).
+pass copies each target vertex's matched source colour (no blur). Levels are padded in groups
+(:func:`level_groups`: every level with at most ``bucket_vertices`` target vertices, then pairs of
+larger levels) to one shape each (:func:`pad_level_arrays`) so a group shares one compiled step;
+random numbers are hashed per vertex, so padding changes no real vertex.
 
 Patch distance (``w_r`` ring weights, ``φ`` shape features, ``σ²_c`` the source colour variance):
 
@@ -175,16 +182,23 @@ def _dft_mats(A: int, dtype):
     return tuple(jnp.asarray(x, dtype) for x in (fwd_c, fwd_s, inv_r, inv_i))
 
 
+def _gather(x, index):
+    """``x[index]`` along axis 0 for in-range ``index`` of any shape, as one flat clipped take
+    (about 2× faster on CPU than fancy indexing with a multi-dimensional index)."""
+    flat = jnp.take(x, index.reshape(-1), axis=0, mode="clip")
+    return flat.reshape(index.shape + x.shape[1:])
+
+
 def _fan_values(arr: LevelArrays, colors, steps: tuple[int, ...]):
     """Pre-filtered fan samples ``[V, R, A, C]`` of per-vertex colours (as ``filtered_fans``)."""
     lam = jnp.asarray(0.5, colors.dtype)
     rings, current, done = [], colors, 0
     for i, s in enumerate(steps):
         for _ in range(s - done):
-            current = (1 - lam) * current + lam * jnp.einsum("vk,vkc->vc", arr.sm_weight, current[arr.sm_index])
+            current = (1 - lam) * current + lam * jnp.einsum("vk,vkc->vc", arr.sm_weight, _gather(current, arr.sm_index))
         done = max(done, s)
         corners, bary = arr.fan_corners[:, i], arr.fan_bary[:, i]
-        rings.append(jnp.einsum("vak,vakc->vac", bary, current[corners]))
+        rings.append(jnp.einsum("vak,vakc->vac", bary, _gather(current, corners)))
     return jnp.stack(rings, axis=1)
 
 
@@ -285,7 +299,7 @@ def _source_pack(re, im, energy, features):
 def _exact_cost(t_re, t_im, t_energy, t_feat, src: _Src, cand, A, color_scale, shape_weight):
     """Exact patch distance of candidates ``cand [V]`` at the best rotation: ``(cost, k)``."""
     V, RC, M = t_re.shape
-    row = src.pack[cand]
+    row = _gather(src.pack, cand)
     s_re = row[:, : RC * M].reshape(V, RC, M)
     s_im = row[:, RC * M : 2 * RC * M].reshape(V, RC, M)
     s_energy = row[:, 2 * RC * M]
@@ -295,7 +309,7 @@ def _exact_cost(t_re, t_im, t_energy, t_feat, src: _Src, cand, A, color_scale, s
     dc = jnp.maximum(jnp.min(d, axis=1), 0.0)
     df = jnp.sum((t_feat - s_feat) ** 2, axis=1)
     cost = color_scale * dc + shape_weight * df
-    return jnp.where(src.arr.valid[cand], cost, jnp.inf), k
+    return jnp.where(_gather(src.arr.valid, cand), cost, jnp.inf), k
 
 
 def _offsets(tgt: LevelArrays, rot, A):
@@ -303,14 +317,14 @@ def _offsets(tgt: LevelArrays, rot, A):
     angle = (2 * np.pi / A) * rot.astype(tgt.nb_log.real.dtype)
     turn = jax.lax.complex(jnp.cos(angle), jnp.sin(angle))
     log_qp = -jnp.conj(tgt.nb_transport) * tgt.nb_log  # log_q(p) in q's frame
-    return turn[tgt.nb_index] * log_qp
+    return _gather(turn, tgt.nb_index) * log_qp
 
 
 def _star(src_arr: LevelArrays, s):
     """Source star of ``s`` [..]: vertices ``[.., 1+K]``, offsets (log) and mask, self first."""
-    idx = jnp.concatenate([s[..., None], src_arr.nb_index[s]], axis=-1)
-    log = jnp.concatenate([jnp.zeros(s.shape + (1,), src_arr.nb_log.dtype), src_arr.nb_log[s]], axis=-1)
-    mask = jnp.concatenate([jnp.ones(s.shape + (1,), bool), src_arr.nb_mask[s]], axis=-1)
+    idx = jnp.concatenate([s[..., None], _gather(src_arr.nb_index, s)], axis=-1)
+    log = jnp.concatenate([jnp.zeros(s.shape + (1,), src_arr.nb_log.dtype), _gather(src_arr.nb_log, s)], axis=-1)
+    mask = jnp.concatenate([jnp.ones(s.shape + (1,), bool), _gather(src_arr.nb_mask, s)], axis=-1)
     return idx, log, mask
 
 
@@ -325,27 +339,40 @@ def _star_interp(src_arr, s, off, tau2):
     idx, log, mask = _star(src_arr, s)
     logits = jnp.where(mask, -(jnp.abs(log - off[..., None]) ** 2) / (2 * tau2), -jnp.inf)
     w = jax.nn.softmax(logits, axis=-1)
-    return jnp.einsum("...k,...kc->...c", w, src_arr.colors[idx])
+    return jnp.einsum("...k,...kc->...c", w, _gather(src_arr.colors, idx))
 
 
 def _vote(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, A, sigma2, tau2, pin):
     off = _offsets(tgt, rot, A)  # [V, K]
-    sq = nnf[tgt.nb_index]  # [V, K]
+    sq = _gather(nnf, tgt.nb_index)  # [V, K]
     cols = _star_interp(src_arr, sq, off, tau2)  # [V, K, C]
     dist2 = jnp.abs(tgt.nb_log) ** 2
     w = jnp.where(tgt.nb_mask, jnp.exp(-dist2 / (2 * sigma2)), 0.0).astype(cols.dtype)
-    own = src_arr.colors[nnf]
+    own = _gather(src_arr.colors, nnf)
     out = (own + jnp.einsum("vk,vkc->vc", w, cols)) / (1.0 + jnp.sum(w, axis=1, keepdims=True))
     return jnp.where((pin >= 0)[:, None], src_arr.colors[jnp.maximum(pin, 0)], out)
 
 
+def _mix32(h):
+    """A 32-bit integer hash with good avalanche (``lowbias32``: xor-shift / multiply rounds)."""
+    h = h ^ (h >> 16)
+    h = h * jnp.uint32(0x7FEB352D)
+    h = h ^ (h >> 15)
+    h = h * jnp.uint32(0x846CA68B)
+    return h ^ (h >> 16)
+
+
 def _vertex_uniform(key, num_vertices: int, n: int):
     """``[n, V]`` uniforms in [0, 1): vertex v's numbers depend only on ``(key, v)``, so padding
-    the vertex axis leaves every real vertex's random search unchanged."""
-    if n == 0:
-        return jnp.zeros((0, num_vertices), jnp.float32)
-    keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(num_vertices, dtype=jnp.uint32))
-    return jax.vmap(lambda k: jax.random.uniform(k, (n,), dtype=jnp.float32))(keys).T
+    the vertex axis leaves every real vertex's random search unchanged.
+
+    A counter-based hash of (vertex, per-draw seed from ``key``): far cheaper to compile and run
+    than one threefry stream per vertex.
+    """
+    seed = jax.random.bits(key, (n, 1), jnp.uint32)
+    i = jnp.arange(num_vertices, dtype=jnp.uint32)[None, :]
+    h = _mix32(_mix32(i * jnp.uint32(0x9E3779B9) ^ seed) + seed)
+    return (h >> 8).astype(jnp.float32) * jnp.float32(2.0**-24)
 
 
 def _random_candidates(src: _Src, nnf, key, globals_: int):
@@ -372,16 +399,17 @@ def _random_candidates(src: _Src, nnf, key, globals_: int):
 @functools.partial(jax.jit, static_argnames=("A", "steps", "globals_", "sweeps", "exact"))
 def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, shape_weight, sigma2,
              tau2, pin, *, A, steps, globals_, sweeps, exact):
-    """One PatchMatch iteration at a level: E-step (re-score, random search, propagation sweeps),
-    M-step (vote). Target vertices with ``tgt.valid`` False are padding (ignored in ``changed``).
+    """One PatchMatch iteration at a level: E-step (``sweeps`` sweeps of re-scoring, random search
+    and propagation), M-step (vote). Target vertices with ``tgt.valid`` False are padding (ignored
+    in ``changed``).
 
-    Every candidate set is pre-scored with the rotation-invariant bound of
-    :func:`fan_distance_bound` (a few numbers per vertex) and only the ``exact`` best candidates get
-    the full rotation search; each propagation sweep starts from the matches the previous sweep
-    found, so one iteration moves good matches ``sweeps`` rings.
+    The current match is re-scored once; each sweep pre-scores its candidates with the
+    rotation-invariant bound of :func:`fan_distance_bound` (a few numbers per vertex) and gives
+    only the ``exact`` best the full rotation search; a sweep propagates from the matches the previous
+    sweep found, so one iteration moves good matches ``sweeps`` rings. The sweeps run in a
+    ``lax.scan``: one compiled body whatever their number.
     """
     t_re, t_im, t_energy = fan_spectrum(_fan_values(tgt, colors, steps), ring_weight)
-    V = nnf.shape[0]
     sc, sw = jnp.sqrt(color_scale), jnp.sqrt(shape_weight)
     t_desc = jnp.concatenate([sc * _fan_summaries(t_re, t_im, A), sw * tgt.features], axis=1)
     s_desc = jnp.concatenate([sc * src.summary, sw * src.arr.features], axis=1)
@@ -389,14 +417,17 @@ def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, sh
     def exact_cost(cand):
         return _exact_cost(t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight)
 
-    def consider(state, cands, allowed):
-        """Pre-score ``cands [N, V]``, exact-score the best ``exact`` of them, keep improvements."""
+    def sweep(state, key):
+        """Pre-score random-search and propagated candidates (from this sweep's start), exact-score
+        the ``exact`` best, keep improvements."""
         best, best_cost, best_rot = state
-        cands = jnp.stack(cands, axis=1)  # [V, N]
-        allowed = jnp.stack(allowed, axis=1) & (cands != best[:, None])
-        diff = t_desc[:, None, :] - s_desc[cands]
+        prop = _star_nearest(src.arr, _gather(best, tgt.nb_index), _offsets(tgt, best_rot, A))  # [V, K]
+        cands = jnp.stack(_random_candidates(src, best, key, globals_), axis=1) if num_random else prop[:, :0]
+        allowed = jnp.concatenate([jnp.ones(cands.shape, bool), tgt.nb_mask], axis=1)
+        cands = jnp.concatenate([cands, prop], axis=1)  # [V, N]
+        diff = t_desc[:, None, :] - _gather(s_desc, cands)
         bound = jnp.sum(diff * diff, axis=-1)
-        bound = jnp.where(allowed & src.arr.valid[cands], bound, jnp.inf)
+        bound = jnp.where(allowed & (cands != best[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf)
         if cands.shape[1] > exact:
             _, sel = jax.lax.top_k(-bound, exact)
             cands = jnp.take_along_axis(cands, sel, axis=1)
@@ -410,20 +441,13 @@ def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, sh
             return (jnp.where(better, cand, b), jnp.where(better, c, bc), jnp.where(better, k, br)), None
 
         state, _ = jax.lax.scan(body, (best, best_cost, best_rot), (cands.T, bound.T))
-        return state
+        return state, None
 
-    cost0, rot0 = exact_cost(nnf)  # the current match under this iteration's target colours
-    state = (nnf, cost0, rot0)
-    randoms = _random_candidates(src, nnf, key, globals_)
-    pending = (randoms, [jnp.ones(V, bool)] * len(randoms))
-    for _ in range(sweeps):
-        best, _, best_rot = state
-        prop = _star_nearest(src.arr, best[tgt.nb_index], _offsets(tgt, best_rot, A))  # [V, K]
-        cands = pending[0] + list(prop.T)
-        allowed = pending[1] + list(tgt.nb_mask.T)
-        state = consider(state, cands, allowed)
-        pending = ([], [])
-    best, best_cost, best_rot = state
+    num_random = len(src.up) + globals_
+    # the current match is re-scored once (its cost changes with the target's colours, which stay
+    # fixed during the sweeps)
+    cost0, rot0 = exact_cost(nnf)
+    (best, best_cost, best_rot), _ = jax.lax.scan(sweep, (nnf, cost0, rot0), jax.random.split(key, sweeps))
 
     best = jnp.where(pin >= 0, jnp.maximum(pin, 0), best)
     best_rot = jnp.where(pin >= 0, 0, best_rot)
@@ -568,6 +592,43 @@ def _search_tables(h: MeshHierarchy, m: int, hops: int):
     return up, down
 
 
+def level_groups(sizes, bucket_vertices: int, *, ratio: float = 2.5) -> list[list[int]]:
+    """Levels that are padded to one shape and share one compiled PatchMatch step.
+
+    All levels with at most ``bucket_vertices`` vertices form one group (they are cheap: padding
+    costs little, each compile saved costs seconds); from the finest level down, a larger level
+    joins the group of the level above it when that group's largest size is at most ``ratio``
+    times its own (with halving hierarchies: pairs of levels, the smaller padded to the larger: its
+    extra work, a few iterations at twice its size, costs less than a compile of the step).
+
+    Args:
+      sizes: vertex count per level, finest first.
+      bucket_vertices: the small-level bucket bound (0: no small-level bucket).
+      ratio: largest padding factor of a larger level.
+
+    Returns:
+      Groups of level indices (each list finest first); every level is in exactly one.
+
+    Example:
+      >>> level_groups([65536, 32768, 16384, 8192, 4096, 2048, 1024], 4096)
+      [[0, 1], [2, 3], [4, 5, 6]]
+      >>> level_groups([1000, 500, 250], 0)
+      [[0, 1], [2]]
+    """
+    small = [lv for lv, n in enumerate(sizes) if n <= bucket_vertices]
+    groups: list[list[int]] = []
+    for lv, n in enumerate(sizes):
+        if lv in small:
+            continue
+        if groups and sizes[groups[-1][0]] <= ratio * n and len(groups[-1]) < 2:
+            groups[-1].append(lv)
+        else:
+            groups.append([lv])
+    if small:
+        groups.append(small)
+    return groups
+
+
 def _bucket_dims(source: Side, target: Side, pairing, levels, hops: int) -> dict:
     """Common padded sizes of the levels in ``levels`` (target and source rows, ring slots, children)."""
     dims = {"Vt": 0, "Kt": 0, "Kst": 0, "Vs": 0, "Ks": 0, "Kss": 0, "down": [(0, 0)] * hops}
@@ -580,7 +641,7 @@ def _bucket_dims(source: Side, target: Side, pairing, levels, hops: int) -> dict
         dims["Ks"] = max(dims["Ks"], source.neighborhoods[m].index.shape[1])
         dims["Kss"] = max(dims["Kss"], source.smoothers[m].index.shape[1])
         _, down = _search_tables(source.hierarchy, m, hops)
-        dims["down"] = [(max(a, c.shape[0]), max(b, c.shape[1])) for (a, b), (c, _) in zip(dims["down"], down)]
+        dims["down"] = [(max(a, c.shape[0]), max(b, c.shape[1])) for (a, b), (c, _) in zip(dims["down"], down, strict=True)]
     return dims
 
 
@@ -699,9 +760,13 @@ def meshmatch(
     prev_src_level = None
     hops = config.random_search_levels
     sh = source.hierarchy
-    # levels with at most `bucket_vertices` target vertices are padded to one shape: one compile
-    bucket = [lv for lv in range(target.num_levels) if len(target.hierarchy.vertices[lv]) <= config.bucket_vertices]
-    bucket_dims = _bucket_dims(source, target, pairing, bucket, hops) if len(bucket) > 1 else None
+    # levels padded to a common shape share one compiled step (see `level_groups`)
+    group_dims = {}
+    sizes = [len(x) for x in target.hierarchy.vertices]
+    for group in level_groups(sizes, config.bucket_vertices) if config.bucket_vertices > 0 else []:
+        if len(group) > 1:
+            dims = _bucket_dims(source, target, pairing, group, hops)
+            group_dims.update({lv: dims for lv in group})
     for level in range(target.num_levels - 1, -1, -1):
         t_level = time.perf_counter()
         m = pairing[level]
@@ -717,13 +782,13 @@ def meshmatch(
         up, down = _search_tables(sh, m, hops)
         valid_index = np.nonzero(valid_m)[0].astype(np.int32)
         num_valid = len(valid_index)
-        dims = bucket_dims if (bucket_dims is not None and level in bucket) else None
+        dims = group_dims.get(level)
         if dims is not None:
             s_arr = pad_level_arrays(s_arr, num_vertices=dims["Vs"], ring=dims["Ks"], smooth_ring=dims["Kss"])
             t_arr = pad_level_arrays(t_arr, num_vertices=dims["Vt"], ring=dims["Kt"], smooth_ring=dims["Kst"])
             up = [_pad_axis(u, 0, dims["Vs"]) for u in up]
             down = [(_pad_axis(_pad_axis(c, 0, n), 1, k), _pad_axis(cnt, 0, n, 1))
-                    for (c, cnt), (n, k) in zip(down, dims["down"])]
+                    for (c, cnt), (n, k) in zip(down, dims["down"], strict=True)]
             valid_index = _pad_axis(valid_index, 0, dims["Vs"], valid_index[0])
         Vp = t_arr.nb_index.shape[0]
         t_arr = jax.tree.map(jnp.asarray, t_arr)

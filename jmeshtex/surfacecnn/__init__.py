@@ -18,16 +18,11 @@ from ._neighborhood import TexelTaps as TexelTaps
 from ._neighborhood import texel_taps as texel_taps
 from ._neighborhood import trace_taps as trace_taps
 from ._neighborhood import uv_to_texels as uv_to_texels
-from ._pyramid import TexelPyramid as TexelPyramid
-from ._pyramid import texel_pyramid as texel_pyramid
 from ._network import cnn_features_2d as cnn_features_2d
 from ._network import mesh_cnn_features as mesh_cnn_features
 from ._network import required_levels as required_levels
-from ._weights import VGG19_NAMES as VGG19_NAMES
-from ._weights import CNNWeights as CNNWeights
-from ._weights import layer_names as layer_names
-from ._weights import load_vgg19 as load_vgg19
-from ._weights import vgg16_weights as vgg16_weights
+from ._pyramid import TexelPyramid as TexelPyramid
+from ._pyramid import texel_pyramid as texel_pyramid
 from ._synthesis import Surface as Surface
 from ._synthesis import SynthesisResult as SynthesisResult
 from ._synthesis import default_layers as default_layers
@@ -37,3 +32,8 @@ from ._synthesis import save_result as save_result
 from ._synthesis import style_loss as style_loss
 from ._synthesis import stylize_texture as stylize_texture
 from ._synthesis import synthesize_texture as synthesize_texture
+from ._weights import VGG19_NAMES as VGG19_NAMES
+from ._weights import CNNWeights as CNNWeights
+from ._weights import layer_names as layer_names
+from ._weights import load_vgg19 as load_vgg19
+from ._weights import vgg16_weights as vgg16_weights

@@ -49,6 +49,8 @@ class TextureAtlas(NamedTuple):
       uv: ``[F, 3, 2]`` float64 per-corner texture coordinates used.
       texel_size: world length of one texel side: the median over UV triangles of
         ``sqrt(area_3D / area_texels)``.
+      local_size: ``[N]`` float64 the same ratio for the texel's own face (texel density varies
+        across an atlas: Spot's ranges over a factor of ~10).
     """
 
     size: int
@@ -62,6 +64,7 @@ class TextureAtlas(NamedTuple):
     frame: Float[np.ndarray, "N 3 3"]
     uv: Float[np.ndarray, "F 3 2"]
     texel_size: float
+    local_size: Float[np.ndarray, " N"]
 
     @property
     def num_texels(self) -> int:
@@ -114,20 +117,31 @@ def _candidates(tex: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.
     return tri, lo[tri, 1] + dy, lo[tri, 0] + dx
 
 
-def _overlaps(p: np.ndarray, col: np.ndarray, row: np.ndarray) -> np.ndarray:
-    """Separating-axis test of unit squares ``[col, col+1] × [row, row+1]`` against triangles ``p [M, 3, 2]``."""
-    centre = np.stack([col + 0.5, row + 0.5], axis=1)
-    q = p - centre[:, None, :]  # triangle relative to the square's centre
-    ok = np.ones(len(p), bool)
-    for axis in range(2):  # the square's own axes
-        ok &= (q[:, :, axis].min(axis=1) < 0.5 - _TOUCH) & (q[:, :, axis].max(axis=1) > -0.5 + _TOUCH)
-    edges = np.roll(q, -1, axis=1) - q
-    normals = np.stack([-edges[..., 1], edges[..., 0]], axis=-1)  # [M, 3, 2]
-    norm = np.linalg.norm(normals, axis=-1)
-    normals = normals / np.where(norm > 0, norm, 1.0)[..., None]
-    proj = np.einsum("mkd,mjd->mkj", normals, q)  # [M, axis k, vertex j]
-    half = 0.5 * (np.abs(normals[..., 0]) + np.abs(normals[..., 1]))
-    ok &= ((proj.min(axis=2) < half - _TOUCH) & (proj.max(axis=2) > -half + _TOUCH)).all(axis=1)
+def _overlap_table(tex: np.ndarray) -> np.ndarray:
+    """Per-triangle separating-axis constants ``[F, 19]``: inward edge normals (x, y), their edge and
+    apex projections, the unit square's half extent along them, and the bounding box."""
+    edge = np.roll(tex, -1, axis=1) - tex  # edge k: corner k -> k+1
+    normal = np.stack([-edge[..., 1], edge[..., 0]], axis=-1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-300)
+    det = edge[:, 0, 0] * edge[:, 1, 1] - edge[:, 0, 1] * edge[:, 1, 0]
+    normal *= np.where(det < 0, -1.0, 1.0)[:, None, None]  # inward for either orientation
+    at_edge = np.einsum("fkd,fkd->fk", normal, tex)
+    at_apex = np.einsum("fkd,fkd->fk", normal, np.roll(tex, -2, axis=1))
+    half = 0.5 * (np.abs(normal[..., 0]) + np.abs(normal[..., 1]))
+    return np.concatenate([normal[..., 0], normal[..., 1], at_edge, at_apex, half, tex.min(axis=1),
+                           tex.max(axis=1)], axis=1)
+
+
+def _overlaps(table: np.ndarray, col: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """Separating-axis test of unit squares ``[col, col+1] × [row, row+1]`` against triangles whose
+    :func:`_overlap_table` rows are ``table [M, 19]``: overlap with positive area on all five axes."""
+    cx, cy = col + 0.5, row + 0.5
+    nx, ny, at_edge, at_apex, half = (table[:, 3 * i:3 * i + 3] for i in range(5))
+    centre = nx * cx[:, None] + ny * cy[:, None]
+    ok = ((centre + half > at_edge + _TOUCH) & (centre - half < at_apex - _TOUCH)).all(axis=1)
+    lo, hi = table[:, 15:17], table[:, 17:19]
+    ok &= (cx - 0.5 < hi[:, 0] - _TOUCH) & (cx + 0.5 > lo[:, 0] + _TOUCH)
+    ok &= (cy - 0.5 < hi[:, 1] - _TOUCH) & (cy + 0.5 > lo[:, 1] + _TOUCH)
     return ok
 
 
@@ -221,7 +235,7 @@ def texture_atlas(
 
     tri, row, col = _candidates(tex[usable], size)
     tri = np.nonzero(usable)[0][tri]
-    keep = _overlaps(tex[tri], col, row)
+    keep = _overlaps(np.take(_overlap_table(tex), tri, axis=0), col, row)
     tri, row, col = tri[keep], row[keep], col[keep]
     if tri.size == 0:
         raise InputError(
@@ -261,12 +275,12 @@ def texture_atlas(
     dw = face_frame_to_world(vertices, faces, face, down)
     frame = np.stack([tw, dw, np.cross(tw, dw) * side[face][:, None]], axis=1)
 
-    area3 = 0.5 * np.abs((P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0]))
-    ratio = np.sqrt(area3[usable] / (0.5 * np.abs(tex_det[usable])))
-    texel_size = float(np.median(ratio))
+    area3 = 0.5 * np.abs(P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0])
+    ratio = np.sqrt(area3 / np.where(usable, 0.5 * np.abs(tex_det), 1.0))
+    texel_size = float(np.median(ratio[usable]))
     return TextureAtlas(
         size=size, texel=texel, index_of=index_of, face=face, bary=bary, point=point, tangent=tangent,
-        down=down, frame=frame, uv=uv, texel_size=texel_size,
+        down=down, frame=frame, uv=uv, texel_size=texel_size, local_size=ratio[face],
     )
 
 
@@ -285,7 +299,7 @@ def texels_to_image(
       >>> atlas = texture_atlas(v, f, v[f][..., :2] * 0.5, size=4)  # the lower-left quarter
       >>> img = texels_to_image(atlas, np.arange(atlas.num_texels, dtype=float)[:, None])
       >>> img[..., 0].tolist()
-      [[0.0, 0.0, 1.0, 1.0], [0.0, 0.0, 1.0, 1.0], [0.0, 0.0, 1.0, 1.0], [2.0, 2.0, 3.0, 3.0]]
+      [[0.0, 1.0, 1.0, 1.0], [0.0, 1.0, 1.0, 1.0], [0.0, 1.0, 1.0, 1.0], [2.0, 3.0, 3.0, 3.0]]
     """
     values = np.asarray(values)
     if values.ndim != 2 or len(values) != atlas.num_texels:

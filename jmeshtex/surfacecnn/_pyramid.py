@@ -7,8 +7,10 @@ level-``l`` adjacency graph restricted to the voxel, so a group never joins two 
 only pass through the same voxel (Kovács et al. 2024, Sec. 4.3). A node's *representative* is the
 member texel nearest to its centroid; its surface point and tangent frame anchor the node's walks.
 
-Two level-``l + 1`` nodes are adjacent when any of their members are (level 0: a texel and the
-texels its nearest taps read). The 3×3 neighbourhood of a level-``l + 1`` node walks ``2^{l+1} h``
+Two level-``l + 1`` nodes are adjacent when any of their members are. Level-0 adjacency joins a
+texel to the texels its nearest taps read (which links charts across UV seams) and to its valid
+8-neighbours in the image whose surface points lie within twice the local texel size (where the
+texel density is below the median, taps one median texel long may not leave their own texel). The 3×3 neighbourhood of a level-``l + 1`` node walks ``2^{l+1} h``
 (√2 times that on diagonals) from its representative, as at level 0, and reads the node containing
 the texel nearest the end point. **Overshoot correction**: if that node is neither the centre nor
 adjacent to it (the walk jumped over a neighbour, e.g. across a small group), the walk is retraced
@@ -74,6 +76,26 @@ def _undirected(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     key = np.sort(lo.astype(np.int64) * span + hi)  # 1-D keys sort far faster than rows
     key = key[np.concatenate([[True], key[1:] != key[:-1]])] if key.size else key
     return np.stack(np.divmod(key, span), axis=1)
+
+
+def _image_neighbors(atlas: TextureAtlas) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of valid texels that are 8-neighbours in the image and neighbours on the surface
+    (world distance at most twice their local texel size, so charts packed side by side stay apart)."""
+    size = atlas.size
+    row, col = atlas.rows_cols()
+    out_a, out_b = [], []
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        r, c = row + dr, col + dc
+        inside = (r < size) & (c >= 0) & (c < size)
+        j = np.full(len(row), -1)
+        j[inside] = atlas.index_of[r[inside] * size + c[inside]]
+        i = np.nonzero(j >= 0)[0]
+        j = j[i]
+        dist = np.linalg.norm(atlas.point[i] - atlas.point[j], axis=1)
+        near = dist <= 2.0 * np.maximum(atlas.local_size[i], atlas.local_size[j])
+        out_a.append(i[near])
+        out_b.append(j[near])
+    return np.concatenate(out_a), np.concatenate(out_b)
 
 
 def _group(labels: np.ndarray, num_groups: int) -> PoolGroups:
@@ -158,7 +180,8 @@ def texel_pyramid(
     reached0 = taps.nearest.index[..., 0].astype(np.int64)
     live = ~taps.stopped
     centre = np.broadcast_to(np.arange(N)[:, None], reached0.shape)
-    edges = _undirected(centre[live], reached0[live])
+    a, b = _image_neighbors(atlas)
+    edges = _undirected(np.concatenate([centre[live], a]), np.concatenate([reached0[live], b]))
 
     node_of_texel = [np.arange(N)]
     representative = [np.arange(N)]

@@ -28,8 +28,8 @@ from ..geometry import to_jax, tracer_geometry
 from ..ops import gram_matrix
 from ._atlas import TextureAtlas, image_to_texels, texels_to_image, texture_atlas
 from ._config import SurfaceCNNConfig
-from ._network import cnn_features_2d, mesh_cnn_features, required_levels
 from ._neighborhood import texel_taps
+from ._network import cnn_features_2d, mesh_cnn_features, required_levels
 from ._pyramid import TexelPyramid, texel_pyramid
 from ._weights import CNNWeights, layer_names, vgg16_weights
 
@@ -180,8 +180,55 @@ def _gram_term(feats: dict, targets: dict) -> Array:
     return sum(terms) / len(terms)
 
 
-def _optimize(x0, loss_fn, config: SurfaceCNNConfig, progress: bool, desc: str):
-    """Adam with the halving schedule, clipped to [0, 1] after every step; one jitted step."""
+def _save_checkpoint(path, x, state, step: int, losses, fingerprint) -> None:
+    import io
+    import pathlib
+
+    from ..io._save import _atomic_write
+
+    arrays = {"x": np.asarray(x), "step": np.asarray(step), "losses": np.asarray(losses, np.float64),
+              "fingerprint": np.asarray(fingerprint, np.float64)}
+    for i, leaf in enumerate(jax.tree.leaves(state)):
+        arrays[f"opt_{i:03d}"] = np.asarray(leaf)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    _atomic_write(pathlib.Path(path), buf.getvalue())
+
+
+def _load_checkpoint(path, x0, state0, fingerprint):
+    from .._errors import MeshIOError
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            saved = {k: data[k] for k in data.files}
+    except (OSError, ValueError) as err:
+        raise MeshIOError(f"cannot read surface-CNN checkpoint {path}: {err}") from err
+    leaves, treedef = jax.tree.flatten(state0)
+    try:
+        same = np.array_equal(saved["fingerprint"], np.asarray(fingerprint, np.float64))
+        x = saved["x"]
+        opt = [saved[f"opt_{i:03d}"] for i in range(len(leaves))]
+        step, losses = int(saved["step"]), list(saved["losses"])
+    except KeyError as err:
+        raise MeshIOError(f"{path}: incomplete surface-CNN checkpoint (missing {err})") from err
+    if not same or x.shape != x0.shape or any(a.shape != np.shape(b) for a, b in zip(opt, leaves, strict=True)):
+        raise InputError(
+            f"{path} is a checkpoint of a different run (texels, learning rate or task differ); delete it or "
+            "write this run elsewhere"
+        )
+    state = jax.tree.unflatten(treedef, [jnp.asarray(a, b.dtype) for a, b in zip(opt, leaves, strict=True)])
+    return jnp.asarray(x, x0.dtype), state, step, losses
+
+
+def _optimize(x0, loss_fn, config: SurfaceCNNConfig, progress: bool, desc: str, checkpoint=None,
+              checkpoint_every: int = 50, task: int = 0):
+    """Adam with the halving schedule, clipped to [0, 1] after every step; one jitted step.
+
+    With ``checkpoint`` the colours, the Adam state and the loss curve are written there atomically
+    every ``checkpoint_every`` steps and at the end; an existing checkpoint of the same run is resumed.
+    """
+    import pathlib
+
     boundaries = {k * config.halve_every: 0.5 for k in range(1, config.steps // config.halve_every + 1)}
     schedule = optax.piecewise_constant_schedule(config.learning_rate, boundaries)
     optimizer = optax.adam(schedule)
@@ -196,33 +243,43 @@ def _optimize(x0, loss_fn, config: SurfaceCNNConfig, progress: bool, desc: str):
 
     with jax.numpy_dtype_promotion("standard"):
         state = optimizer.init(x0)
-    x = x0
-    losses = []
+    x, start, losses = x0, 0, []
+    fingerprint = (x0.shape[0], config.learning_rate, config.halve_every, task)
+    if checkpoint is not None and pathlib.Path(checkpoint).is_file():
+        x, state, start, losses = _load_checkpoint(checkpoint, x0, state, fingerprint)
+        start = min(start, config.steps)
+        losses = losses[:start]
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=config.steps, desc=desc, unit="step", dynamic_ncols=True)
+        bar = tqdm(total=config.steps, initial=start, desc=desc, unit="step", dynamic_ncols=True)
     t0 = time.perf_counter()
     compile_s = 0.0
-    for i in range(config.steps):
+    for i in range(start, config.steps):
         x, state, loss = step(x, state)
         losses.append(loss)
-        if i == 0:
+        if i == start:
             jax.block_until_ready(x)
             compile_s = time.perf_counter() - t0
         if bar is not None:
             bar.update(1)
             if i % 10 == 0 or i == config.steps - 1:
                 bar.set_postfix(loss=f"{float(loss):.4g}")
+        if checkpoint is not None and (i + 1) % checkpoint_every == 0 and i + 1 < config.steps:
+            _save_checkpoint(checkpoint, x, state, i + 1, [float(v) for v in losses], fingerprint)
     jax.block_until_ready(x)
     total = time.perf_counter() - t0
     if bar is not None:
         bar.close()
     final = float(jax.jit(loss_fn)(x))
     losses = np.asarray([float(v) for v in losses], np.float64)
-    steady = (total - compile_s) / max(config.steps - 1, 1)
-    return x, losses, final, {"optimize_s": total, "first_step_s": compile_s, "step_s": steady}
+    if checkpoint is not None:
+        _save_checkpoint(checkpoint, x, state, config.steps, losses, fingerprint)
+    ran = config.steps - start
+    steady = (total - compile_s) / max(ran - 1, 1)
+    return x, losses, final, {"optimize_s": total, "first_step_s": compile_s, "step_s": steady,
+                              "resumed_at": start}
 
 
 def _mesh_parts(mesh) -> tuple[Mesh, np.ndarray, np.ndarray, np.ndarray | None]:
@@ -267,12 +324,14 @@ def synthesize_texture(
     mesh: Mesh | tuple,
     exemplar: Float[np.ndarray, "H W 3"],
     *,
-    config: SurfaceCNNConfig = SurfaceCNNConfig(),
+    config: SurfaceCNNConfig | None = None,
     key: jax.Array,
     weights: CNNWeights | None = None,
     layers: tuple[str, ...] | None = None,
     surface: Surface | None = None,
     progress: bool = True,
+    checkpoint=None,
+    checkpoint_every: int = 50,
 ) -> SynthesisResult:
     """Synthesise a texture for a mesh whose CNN Gram statistics match a 2D exemplar's.
 
@@ -284,12 +343,16 @@ def synthesize_texture(
       mesh: a :class:`~jmeshtex.Mesh` (its UVs are used; without UVs it is unwrapped with xatlas) or
         ``(vertices, faces[, uv])``.
       exemplar: ``[H, W, 3]`` RGB image in [0, 1] (or uint8).
-      config: :class:`~jmeshtex.surfacecnn.SurfaceCNNConfig`.
+      config: :class:`~jmeshtex.surfacecnn.SurfaceCNNConfig` (default: the paper's settings).
       key: PRNG key of the initial colours.
       weights: CNN weights (default: the embedded VGG-16, :func:`vgg16_weights`).
       layers: Gram layers (default ``config.layers``, else every ReLU and pool output).
       surface: a precomputed :class:`Surface` (:func:`prepare_surface`) to reuse.
       progress: show a tqdm bar with the loss.
+      checkpoint: a ``.npz`` path: colours, Adam state and losses are saved there atomically every
+        ``checkpoint_every`` steps and at the end; if it already holds this run (same texels, learning
+        rate and task), the optimisation resumes from it (a different run raises :class:`InputError`).
+      checkpoint_every: steps between checkpoints.
 
     Returns:
       :class:`SynthesisResult`.
@@ -303,6 +366,7 @@ def synthesize_texture(
       >>> r.texture.shape, bool(r.final_loss < r.losses[0])
       ((16, 16, 3), True)
     """
+    config = SurfaceCNNConfig() if config is None else config
     base, weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface)
     t0 = time.perf_counter()
     targets = gram_targets(_check_image(exemplar, "exemplar"), weights, layers=layers, pool=config.pool, dtype=dtype)
@@ -313,7 +377,8 @@ def synthesize_texture(
     def loss_fn(x):
         return style_loss(x, arrays, weights, targets, pool=config.pool)
 
-    x, losses, final, stats = _optimize(x0, loss_fn, config, progress, "surfacecnn synthesize")
+    x, losses, final, stats = _optimize(x0, loss_fn, config, progress, "surfacecnn synthesize", checkpoint,
+                                        checkpoint_every, task=0)
     return _result(base, surface, x, losses, final, {**stats, "targets_s": target_s})
 
 
@@ -322,11 +387,13 @@ def stylize_texture(
     content: Float[np.ndarray, "H W 3"],
     style: Float[np.ndarray, "H2 W2 3"],
     *,
-    config: SurfaceCNNConfig = SurfaceCNNConfig(),
+    config: SurfaceCNNConfig | None = None,
     weights: CNNWeights | None = None,
     layers: tuple[str, ...] | None = None,
     surface: Surface | None = None,
     progress: bool = True,
+    checkpoint=None,
+    checkpoint_every: int = 50,
 ) -> SynthesisResult:
     """Neural style transfer on a mesh texture: Gram term of ``style`` plus a content term.
 
@@ -341,7 +408,8 @@ def stylize_texture(
       mesh: a :class:`~jmeshtex.Mesh` with UVs (or ``(vertices, faces, uv)``).
       content: ``[H, W, 3]`` texture in the mesh's UV layout (resampled to ``config.size``).
       style: ``[H2, W2, 3]`` style image.
-      config, weights, layers, surface, progress: as in :func:`synthesize_texture`.
+      config, weights, layers, surface, progress, checkpoint, checkpoint_every: as in
+        :func:`synthesize_texture`.
 
     Returns:
       :class:`SynthesisResult`.
@@ -356,6 +424,7 @@ def stylize_texture(
       >>> r.colors.shape
       (256, 3)
     """
+    config = SurfaceCNNConfig() if config is None else config
     _, _, _, uv = _mesh_parts(mesh)
     if uv is None:
         raise InputError("stylize_texture: the mesh has no UVs, so a content texture cannot be placed on it; "
@@ -374,7 +443,8 @@ def stylize_texture(
         content_term = jnp.mean((feats[config.content_layer] - content_feats) ** 2)
         return _gram_term(feats, targets) + weight * content_term
 
-    x, losses, final, stats = _optimize(content_colors, loss_fn, config, progress, "surfacecnn stylize")
+    x, losses, final, stats = _optimize(content_colors, loss_fn, config, progress, "surfacecnn stylize",
+                                        checkpoint, checkpoint_every, task=1)
     return _result(base, surface, x, losses, final, stats)
 
 

@@ -9,8 +9,9 @@ from jmeshtex.cli import main
 from jmeshtex.io import load_mesh
 
 
-def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model):
+def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkeypatch):
     # same settings as the tiny fixtures (conftest), so the compiled steps are reused
+    monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")  # no persistent cache written by the tests
     d = tmp_path / "dgts"
     assert main(["dgts", "prepare", "--reference", "icosphere:2", "--template", "icosahedron", "--levels", "2",
                  "--iterations", "20", "--samples", "200", "--out", str(d), "--no-progress"]) == 0
@@ -18,7 +19,7 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model):
         assert (d / name).exists(), name
     assert load_mesh(d / "level_01.obj").num_faces == 80
     assert main(["dgts", "train", str(d), "--iterations", "2", "--layers", "3", "--features", "4", "4", "4", "--seed", "3",
-                 "--no-progress"]) == 0
+                 "--shared-levels", "2", "--no-progress"]) == 0
     assert (d / "model" / "state.json").exists() and (d / "model" / "sample.png").exists()
     out = tmp_path / "out"
     assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--samples", "2",
@@ -33,7 +34,25 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model):
     assert "wrote" in capsys.readouterr().out
 
 
-def test_errors_are_one_line_with_status_2(tmp_path, capsys):
+def test_compilation_cache_folder(tmp_path, monkeypatch):
+    from jmeshtex.cli._dgts import compilation_cache
+
+    monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")
+    assert compilation_cache() is None
+    monkeypatch.delenv("JMESHTEX_JAX_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    import jax
+
+    before = jax.config.jax_compilation_cache_dir
+    try:
+        assert compilation_cache() == tmp_path / "jmeshtex" / "jax" and (tmp_path / "jmeshtex" / "jax").is_dir()
+        assert jax.config.jax_compilation_cache_dir == str(tmp_path / "jmeshtex" / "jax")
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
+
+
+def test_errors_are_one_line_with_status_2(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")
     assert main(["dgts", "transfer", "--model", str(tmp_path), "--target", "torus", "--out", str(tmp_path)]) == 2
     assert "state.json" in capsys.readouterr().err
     assert main(["dgts", "prepare", "--reference", "no-such-mesh.obj", "--out", str(tmp_path)]) == 2

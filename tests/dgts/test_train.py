@@ -92,4 +92,6 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
     for k in plain[3]:
         assert float(padded[3][k]) == pytest.approx(float(plain[3][k]), rel=1e-10, abs=1e-12), k
     for a, b in zip(_leaves(plain[:2]), _leaves(padded[:2]), strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+        # Adam divides by |g| + 1e-8: gradient entries near 1e-8 turn float64 rounding (other summation
+        # order) into parameter differences of a few 1e-9 (lr 5e-4); the losses above agree to 1e-10
+        np.testing.assert_allclose(a, b, rtol=0, atol=5e-8)

@@ -8,8 +8,14 @@ import numpy as np
 import pytest
 
 from jmeshtex.data import icosphere
-from jmeshtex.geometry import one_rings
-from jmeshtex.meshmatch import MeshMatchConfig, fan_distance_bound, fan_spectrum, prepare_side, rotation_distances
+from jmeshtex.geometry import mesh_hierarchy, one_rings
+from jmeshtex.meshmatch import (
+    MeshMatchConfig,
+    fan_distance_bound,
+    fan_spectrum,
+    prepare_side,
+    rotation_distances,
+)
 from jmeshtex.meshmatch._fans import ancestors
 from jmeshtex.meshmatch._patchmatch import (
     _iterate,
@@ -18,6 +24,7 @@ from jmeshtex.meshmatch._patchmatch import (
     _random_candidates,
     _search_tables,
     _side_arrays,
+    _Src,
     pad_level_arrays,
 )
 
@@ -30,20 +37,21 @@ def _bumpy(level=2):
 
 def test_fan_distance_bound_is_below_every_rotation_and_tight_for_shifts(rng):
     A, R, C = 7, 2, 3
-    t = rng.standard_normal((50, R, A, C))
-    s = rng.standard_normal((50, R, A, C))
+    n = 12
+    t = rng.standard_normal((n, R, A, C))
+    s = rng.standard_normal((n, R, A, C))
     w = jnp.asarray([0.3, 0.7])
     ts, ss = fan_spectrum(jnp.asarray(t), w), fan_spectrum(jnp.asarray(s), w)
     bound = np.asarray(fan_distance_bound(ts[0], ts[1], ss[0], ss[1], A))
     # slow reference: every cyclic shift, by loops
     exact = np.array([[sum(w[i] * (t[n, i, a, c] - s[n, i, (a + k) % A, c]) ** 2
                            for i in range(R) for a in range(A) for c in range(C)) for k in range(A)]
-                      for n in range(50)]).min(1)
+                      for n in range(n)]).min(1)
     np.testing.assert_allclose(np.asarray(rotation_distances(*ts, *ss, A)).min(1), exact, rtol=1e-10)
     assert np.all(bound <= exact + 1e-10)
     assert np.mean(bound / exact) > 0.2  # informative, not a trivial 0
     # a rolled fan plus a constant per row: the bound is exact
-    shifted = np.roll(t, 3, axis=2) + rng.standard_normal((50, R, 1, C))
+    shifted = np.roll(t, 3, axis=2) + rng.standard_normal((n, R, 1, C))
     sh = fan_spectrum(jnp.asarray(shifted), w)
     np.testing.assert_allclose(np.asarray(fan_distance_bound(ts[0], ts[1], sh[0], sh[1], A)),
                                np.asarray(rotation_distances(*ts, *sh, A)).min(1), rtol=1e-9, atol=1e-9)
@@ -122,7 +130,7 @@ def test_one_iteration_propagates_a_correct_match_sweeps_rings(sweeps, rng, key)
 def test_padding_leaves_every_real_vertex_unchanged(rng, key):
     v, f = _bumpy(2)
     colors = rng.uniform(0, 1, (len(v), 3))
-    cfg = MeshMatchConfig(levels=3, min_vertices=40)
+    cfg = MeshMatchConfig(levels=2, min_vertices=40)
     side, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
     assert len(up) == cfg.random_search_levels  # structure fixed even above the hierarchy's top
     nnf = rng.integers(0, len(v), len(v)).astype(np.int32)
@@ -143,16 +151,13 @@ def test_random_search_candidates_are_descendants_of_the_hop_ancestor(rng, key):
     """Oracle for the hierarchical hop maps: the hop-j candidate of s is a level-m descendant of
     s's ancestor at level min(m + j + 1, top), drawn through the children tables."""
     v, f = _bumpy(3)
-    cfg = MeshMatchConfig(levels=3, min_vertices=100)
-    side = prepare_side(v, f, cfg)
-    h = side.hierarchy
-    for m in (0, 1, 2):
+    h = mesh_hierarchy(v, f, levels=3)
+    for m in (0, 2):  # 2 is the top: every hop repeats the top-level search (identity maps)
         up, down = _search_tables(h, m, 4)
         V = len(h.vertices[m])
-        arr, steps = _side_arrays(side, m, cfg.radii(side.edge[m]), cfg, np.zeros((V, 1)), np.ones(V, bool),
-                                  side.features, np.float64)
-        src = _make_src(arr, up, down, np.arange(V), V, jnp.ones(cfg.num_radii, jnp.float64), steps=steps,
-                        num_angles=cfg.num_angles)
+        src = _Src(None, None, None, tuple(jnp.asarray(u) for u in up),
+                   tuple((jnp.asarray(c), jnp.asarray(n)) for c, n in down), jnp.arange(V, dtype=jnp.int32),
+                   jnp.asarray(V, jnp.int32))
         s = jnp.asarray(rng.integers(0, V, 300).astype(np.int32))
         cands = _random_candidates(src, s, key, 2)
         assert len(cands) == 4 + 2
@@ -160,5 +165,26 @@ def test_random_search_candidates_are_descendants_of_the_hop_ancestor(rng, key):
             top = min(m + j + 1, h.num_levels - 1)
             anc = ancestors(h, m, top)
             np.testing.assert_array_equal(anc[np.asarray(cands[j])], anc[np.asarray(s)])
+        for c in cands:
+            assert 0 <= int(c.min()) and int(c.max()) < V
         if m == 0:  # the deepest hop reaches far: candidates spread over the level
             assert len(np.unique(np.asarray(cands[2]))) > 100
+
+
+def test_level_groups_share_a_step_and_change_no_result():
+    """Padding levels into shared shapes (default) gives the same transfer as no padding at all."""
+    from jmeshtex.meshmatch import meshmatch
+    from jmeshtex.meshmatch._patchmatch import level_groups
+
+    assert level_groups([400, 200, 100, 50], 100) == [[0, 1], [2, 3]]
+    assert level_groups([400, 150, 100], 0) == [[0], [1, 2]]  # 400 > 2.5 · 150: not paired
+    v, f = _bumpy(2)
+    colors = 0.5 + 0.4 * np.sin(4 * v[:, :3] + np.array([0.0, 1.0, 2.0]))
+    base = dict(levels=3, min_vertices=40, iterations=2, coarse_iterations=3, hks_eigenpairs=12)
+    padded = meshmatch(v, f, colors, v, f, config=MeshMatchConfig(bucket_vertices=100, **base))
+    plain = meshmatch(v, f, colors, v, f, config=MeshMatchConfig(bucket_vertices=0, **base))
+    stats = padded.stats["levels"]
+    assert [s["padded_vertices"] for s in stats] == [max(s["vertices"] for s in stats[:2])] * 2 + [162]
+    np.testing.assert_array_equal(padded.nnf, plain.nnf)
+    np.testing.assert_array_equal(padded.rotation, plain.rotation)
+    np.testing.assert_allclose(padded.cost, plain.cost, rtol=1e-5)

@@ -37,7 +37,7 @@ def test_rotating_frames_and_exemplar_together(seed):
         # texel (r, c) of the mesh sees what pixel (c, n - 1 - r) of the turned image sees
         r, c = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
         np.testing.assert_allclose(got[r, c], want[c, n - 1 - r], rtol=0, atol=1e-5 * np.abs(want).max())
-        # and without the frame rotation they differ (the check can fail)
+    # without the frame rotation the features differ (the check can fail)
     plain = texel_pyramid(v, f, atlas, levels=1)
     unturned = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), plain.network_arrays(), weights,
                                  layers=("relu1_1",))["relu1_1"]

@@ -49,7 +49,7 @@ def test_overshoot_walks_back_to_an_adjacent_group():
     no_backoff = texel_pyramid(v, f, atlas, levels=2, backoff=())
     for level in (1, 2):
         # without walking back, overshooting taps fall back to the centre group more often
-        def centre_reads(p):
+        def centre_reads(p, level=level):
             nb = p.nearest[level]
             return int(((nb.index[..., 0] == np.arange(len(nb.index))[:, None]) & (nb.weight[..., 0] > 0)).sum())
 

@@ -2,6 +2,7 @@
 
 import jax
 import numpy as np
+
 from jmeshtex.geometry import prepare_mesh, tracer_geometry
 from jmeshtex.io import load_mesh
 from jmeshtex.surfacecnn import (

@@ -65,12 +65,12 @@ def test_learning_rate_schedule_and_config_errors():
 
 def test_stylize_keeps_content_and_bad_inputs(sphere, exemplar):
     v, f, uv = sphere
-    config = SurfaceCNNConfig(size=32, steps=10, content_layer="relu2_1", content_weight=10.0)
-    surface = prepare_surface(v, f, uv, size=32, levels=1)
+    config = SurfaceCNNConfig(size=32, steps=8, learning_rate=0.02, content_layer="relu1_2", content_weight=10.0)
+    surface = prepare_surface(v, f, uv, size=32, levels=0)
     content = np.zeros((32, 32, 3))
     content[:, :16] = [0.9, 0.1, 0.1]
     content[:, 16:] = [0.1, 0.1, 0.9]
-    result = stylize_texture((v, f, uv), content, exemplar, config=config, layers=LAYERS, surface=surface,
+    result = stylize_texture((v, f, uv), content, exemplar, config=config, layers=("relu1_1",), surface=surface,
                              progress=False)
     # the content term keeps the left/right colour split
     col = surface.atlas.rows_cols()[1]
@@ -83,4 +83,23 @@ def test_stylize_keeps_content_and_bad_inputs(sphere, exemplar):
         synthesize_texture((v, f, uv), np.zeros((4, 4, 5)), config=config, key=jax.random.key(0), progress=False)
     with pytest.raises(InputError, match="surface was prepared"):
         synthesize_texture((v, f, uv), exemplar, config=SurfaceCNNConfig(size=64), key=jax.random.key(0),
-                           surface=surface, layers=LAYERS, progress=False)
+                           surface=surface, layers=("relu1_1",), progress=False)
+
+
+def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path):
+    from jmeshtex.data import grid
+
+    v, f = grid(2)
+    mesh = (v, f, v[f][..., :2])
+    ex = np.random.default_rng(0).uniform(size=(16, 16, 3))
+    kw = dict(key=jax.random.key(3), layers=("relu1_1",), progress=False)
+    full = synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=16, steps=10), **kw)
+    ckpt = tmp_path / "ckpt.npz"
+    synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=16, steps=6), checkpoint=ckpt, **kw)
+    resumed = synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=16, steps=10), checkpoint=ckpt,
+                                 checkpoint_every=3, **kw)
+    assert resumed.stats["resumed_at"] == 6
+    np.testing.assert_array_equal(resumed.losses, full.losses)
+    np.testing.assert_array_equal(resumed.colors, full.colors)
+    with pytest.raises(InputError, match="different run"):
+        synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=8, steps=10), checkpoint=ckpt, **kw)

@@ -1,0 +1,286 @@
+"""FLDM training data: re-triangulated copies of one mesh, their geometry, and their cached latents.
+
+Mitchel et al. (2024, §6.1) train the denoiser on many re-triangulations of the single input mesh so
+that it learns the texture and not the connectivity. For each copy ``i`` (:func:`copy_mesh`):
+
+1. :func:`jmeshtex.geometry.remesh` with ``seed = config.seed · 100003 + i`` (same surface, new
+   triangles; ``copy_vertices`` vertices);
+2. the denoiser's geometry (:func:`~jmeshtex.fl._denoiser.denoiser_geometry`: k-NN neighbourhoods of
+   the copy and of one coarse level, pooling map);
+3. its latents from an ``encode`` callable ``Mesh -> complex [V, d]`` — normally the FL-VAE reading
+   the *original* surface's colours at the copy's one-ring samples (:func:`fl_vae_encoder`), in the
+   copy's ``one_ring_neighborhood`` frames, which are the denoiser's fine frames;
+4. optional per-vertex labels, carried from the original by the closest surface point.
+
+Copies are cached on disk one ``.npz`` each (``copy_0000.npz`` …) next to ``data.json`` that records
+what they were built from; a rebuild with the same settings reuses them. All copies are then padded
+to one bucketed shape (``V₀``, ``V₁`` rounded up to a multiple of ``config.bucket``) and stacked.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import pathlib
+from collections.abc import Callable
+from typing import NamedTuple
+
+import jax
+import numpy as np
+
+from .._errors import ConfigError, InputError, MeshIOError
+from .._mesh import Mesh
+from ..geometry import PoolingMap, VertexNeighborhood, remesh, surface_correspondence
+from ._denoiser import DenoiserGeometry, denoiser_geometry, geometry_sizes, pad_geometry
+from ._diffusion import latent_scale
+from ._fldm_config import FLDMConfig
+
+DATA_FILE = "data.json"
+
+
+class FLDMData(NamedTuple):
+    """Stacked, padded training copies.
+
+    Attributes:
+      latents: ``[N, V₀, d]`` complex128 latents (unscaled; zero on padding).
+      geometry: :class:`DenoiserGeometry` with a leading ``[N]`` axis on every leaf.
+      labels: ``[N, V₀]`` int32 labels, or None.
+      num_vertices: ``[N]`` real vertex count of each copy.
+      scale: ``[d]`` per-channel latent scale (eq. 38–39) over all copies.
+      meshes: the copies as :class:`~jmeshtex.Mesh` (host, for rendering and checks).
+    """
+
+    latents: np.ndarray
+    geometry: DenoiserGeometry
+    labels: np.ndarray | None
+    num_vertices: np.ndarray
+    scale: np.ndarray
+    meshes: tuple[Mesh, ...]
+
+    @property
+    def num_copies(self) -> int:
+        return int(self.latents.shape[0])
+
+
+def fl_vae_encoder(params, vae_config, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], np.ndarray]:
+    """An ``encode`` callable: the FL-VAE means ``μ`` of a copy, colours read on ``original``'s surface.
+
+    Example:
+      >>> import jax
+      >>> from jmeshtex import Mesh
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.fl import FLVAEConfig, init_fl_vae
+      >>> v, f = grid(4)
+      >>> m = Mesh(v, f, vertex_colors=np.tile(v[:, :1], (1, 3)))
+      >>> c = FLVAEConfig(features=8, num_heads=2, num_blocks=1, num_samples=8, encode_chunk=16)
+      >>> enc = fl_vae_encoder(init_fl_vae(jax.random.key(0), c), c, m, key=jax.random.key(1))
+      >>> enc(m).shape
+      (25, 8)
+    """
+    from ._colors import surface_colors
+    from ._vae import encode_mesh
+
+    colors = surface_colors(original)
+    counter = [0]
+
+    def encode(copy: Mesh) -> np.ndarray:
+        counter[0] += 1
+        k = jax.random.fold_in(key, counter[0])
+        return np.asarray(encode_mesh(params, vae_config, copy, colors=colors, key=k).mu, np.complex128)
+
+    encode.identity = f"fl_vae:{_digest(jax.tree.leaves(params))}:{vae_config!r}"  # type: ignore[attr-defined]
+    return encode
+
+
+def _digest(arrays) -> str:
+    h = hashlib.sha1()
+    for a in arrays:
+        h.update(np.ascontiguousarray(np.asarray(a)).tobytes())
+    return h.hexdigest()[:16]
+
+
+def copy_seed(config: FLDMConfig, i: int) -> int:
+    """Seed of copy ``i``'s re-triangulation."""
+    return int(config.seed) * 100003 + int(i)
+
+
+def transfer_labels(original: Mesh, labels: np.ndarray, target: Mesh) -> np.ndarray:
+    """Per-vertex labels of ``original`` at ``target``'s vertices (largest barycentric corner of the
+    closest surface point).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> v, f = grid(3)
+      >>> transfer_labels(Mesh(v, f), (v[:, 0] > 0.5).astype(int), Mesh(v[:4], f[:1])).tolist()
+      [0, 0, 1, 1]
+    """
+    labels = np.asarray(labels)
+    if labels.shape != (original.num_vertices,) or not np.issubdtype(labels.dtype, np.integer):
+        raise InputError(f"labels must be integers [V] = ({original.num_vertices},), got {labels.dtype} {labels.shape}")
+    face, bary = surface_correspondence(original.vertices, original.faces, target.vertices)
+    corner = np.argmax(bary, axis=1)
+    return labels[original.faces[face, corner]].astype(np.int32)
+
+
+def copy_mesh(mesh: Mesh, config: FLDMConfig, i: int) -> Mesh:
+    """Re-triangulated copy ``i`` of ``mesh`` (``copy_vertices`` vertices, or the input's count)."""
+    n = config.copy_vertices or mesh.num_vertices
+    return remesh(mesh, n_vertices=int(n), seed=copy_seed(config, i))
+
+
+def _geometry_arrays(geo: DenoiserGeometry) -> dict[str, np.ndarray]:
+    out = {}
+    for part in ("fine", "coarse", "pool"):
+        for name, value in getattr(geo, part)._asdict().items():
+            out[f"{part}.{name}"] = np.asarray(value)
+    return out
+
+
+def _geometry_from(arrays: dict[str, np.ndarray]) -> DenoiserGeometry:
+    def part(cls, name):
+        return cls(**{f: arrays[f"{name}.{f}"] for f in cls._fields})
+
+    return DenoiserGeometry(part(VertexNeighborhood, "fine"), part(VertexNeighborhood, "coarse"), part(PoolingMap, "pool"))
+
+
+def _save_copy(path: pathlib.Path, copy: Mesh, geo: DenoiserGeometry, mu: np.ndarray, labels) -> None:
+    from ..dgts._multiscale import atomic_save_npz
+
+    arrays = {"vertices": copy.vertices, "faces": copy.faces, "mu": mu, **_geometry_arrays(geo)}
+    if labels is not None:
+        arrays["labels"] = labels
+    atomic_save_npz(path, arrays)
+
+
+def _load_copy(path: pathlib.Path):
+    from ..dgts._multiscale import load_npz
+
+    a = load_npz(path, "FLDM training copy")
+    try:
+        return Mesh(a["vertices"], a["faces"]), _geometry_from(a), a["mu"], a.get("labels")
+    except KeyError as err:
+        raise MeshIOError(f"{path}: incomplete FLDM training copy (missing {err}); delete it to rebuild") from err
+
+
+def _round_up(n: int, bucket: int) -> int:
+    return int(math.ceil(n / bucket) * bucket)
+
+
+def stack_copies(
+    copies: list[tuple[Mesh, DenoiserGeometry, np.ndarray, np.ndarray | None]], config: FLDMConfig
+) -> FLDMData:
+    """Pad every copy to the bucketed common shape and stack them (see the module docstring)."""
+    sizes = [geometry_sizes(g) for _, g, _, _ in copies]
+    V0 = _round_up(max(s["V0"] for s in sizes), config.bucket)
+    V1 = _round_up(max(s["V1"] for s in sizes), max(config.bucket // 4, 1))
+    M = max(s["M"] for s in sizes)
+    geos = [pad_geometry(g, V0=V0, V1=V1, M=M) for _, g, _, _ in copies]
+    geometry = jax.tree.map(lambda *xs: np.stack(xs), *geos)
+    d = copies[0][2].shape[1]
+    latents = np.zeros((len(copies), V0, d), np.complex128)
+    labels = None if copies[0][3] is None else np.zeros((len(copies), V0), np.int32)
+    for i, (m, _, mu, lab) in enumerate(copies):
+        latents[i, : m.num_vertices] = mu
+        if labels is not None:
+            labels[i, : m.num_vertices] = lab
+    nv = np.array([m.num_vertices for m, _, _, _ in copies])
+    mask = np.arange(V0)[None] < nv[:, None]
+    return FLDMData(latents, geometry, labels, nv, latent_scale(latents, mask), tuple(m for m, _, _, _ in copies))
+
+
+def build_dataset(
+    mesh: Mesh,
+    config: FLDMConfig,
+    *,
+    encode: Callable[[Mesh], np.ndarray],
+    labels: np.ndarray | None = None,
+    cache_dir: str | os.PathLike | None = None,
+    progress: bool = True,
+) -> FLDMData:
+    """Re-triangulated copies of ``mesh`` with geometry and latents, cached on disk, padded and stacked.
+
+    Args:
+      mesh: the textured (or vertex-coloured) input mesh.
+      config: :class:`FLDMConfig` (``n_copies``, ``copy_vertices``, ``knn``, ``pool_ratio``,
+        ``bucket``, ``seed``; ``num_labels`` when ``labels`` are given).
+      encode: ``Mesh -> complex [V, d]`` latents of a copy in its one-ring frames
+        (:func:`fl_vae_encoder`, or any stand-in with the same contract). An ``identity`` attribute,
+        if present, is recorded so that a cache built with another encoder is not reused.
+      labels: optional ``[V]`` int labels on ``mesh`` in ``[0, num_labels)``.
+      cache_dir: folder for ``copy_####.npz`` and ``data.json`` (None: no cache).
+      progress: tqdm bar.
+
+    Returns:
+      :class:`FLDMData`.
+
+    Raises:
+      ConfigError: labels given but ``num_labels`` is 0 (or labels out of range); latents with the
+        wrong channel count.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> cfg = FLDMConfig.tiny(n_copies=2, copy_vertices=60, latent_channels=1, bucket=32)
+      >>> enc = lambda m: m.vertices[:, :1] + 0j
+      >>> data = build_dataset(Mesh(*icosphere(1)), cfg, encode=enc, progress=False)
+      >>> data.latents.shape, data.num_vertices.tolist()
+      ((2, 64, 1), [60, 60])
+    """
+    from tqdm.auto import tqdm
+
+    if labels is not None:
+        if not config.num_labels:
+            raise ConfigError("labels given but config.num_labels is 0; set num_labels to the number of classes")
+        lab = np.asarray(labels)
+        if lab.size and (lab.min() < 0 or lab.max() >= config.num_labels):
+            raise ConfigError(f"labels must lie in [0, {config.num_labels}), got {lab.min()}..{lab.max()}")
+    elif config.num_labels:
+        raise ConfigError(f"config.num_labels={config.num_labels} but no labels were given")
+    cache = None if cache_dir is None else pathlib.Path(cache_dir)
+    meta = {
+        "mesh": _digest([mesh.vertices, mesh.faces]),
+        "labels": None if labels is None else _digest([np.asarray(labels)]),
+        "encoder": getattr(encode, "identity", None),
+        "copy_vertices": config.copy_vertices,
+        "knn": config.knn,
+        "pool_ratio": config.pool_ratio,
+        "seed": config.seed,
+        "latent_channels": config.latent_channels,
+    }
+    reuse = False
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        meta_path = cache / DATA_FILE
+        reuse = meta_path.is_file() and meta["encoder"] is not None and json.loads(meta_path.read_text()) == meta
+        if not reuse:
+            from ..dgts._multiscale import atomic_write_bytes
+
+            for old in cache.glob("copy_*.npz"):
+                old.unlink()
+            atomic_write_bytes(meta_path, json.dumps(meta, indent=2).encode())
+    copies = []
+    bar = tqdm(range(config.n_copies), desc="FLDM copies", unit="copy", disable=not progress)
+    for i in bar:
+        path = None if cache is None else cache / f"copy_{i:04d}.npz"
+        if path is not None and reuse and path.is_file():
+            copies.append(_load_copy(path))
+            continue
+        copy = copy_mesh(mesh, config, i)
+        geo = denoiser_geometry(copy.vertices, copy.faces, knn=config.knn, pool_ratio=config.pool_ratio)
+        mu = np.asarray(encode(copy))
+        if mu.shape != (copy.num_vertices, config.latent_channels) or not np.iscomplexobj(mu):
+            raise ConfigError(
+                f"encode returned {mu.dtype} {mu.shape}; expected complex [V, d] = ({copy.num_vertices}, "
+                f"{config.latent_channels}) (set latent_channels to the FL-VAE's latent_dim)"
+            )
+        lab = None if labels is None else transfer_labels(mesh, labels, copy)
+        if path is not None:
+            _save_copy(path, copy, geo, mu, lab)
+        copies.append((copy, geo, mu, lab))
+    return stack_copies(copies, config)
+
+
+def batch_geometry(data: FLDMData, index: np.ndarray) -> DenoiserGeometry:
+    """The geometry of some copies (leading axis ``len(index)``)."""
+    return jax.tree.map(lambda a: a[index], data.geometry)

@@ -1,0 +1,169 @@
+"""The FL-VAE end to end: init, KL, loss, mesh encoding/decoding, texture atlas, storage."""
+
+from __future__ import annotations
+
+import pathlib
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jmeshtex import InputError, Mesh, MeshIOError
+from jmeshtex.data import grid, icosphere
+from jmeshtex.fl import (
+    FieldLatents,
+    FLVAEConfig,
+    decode_texture,
+    decode_vertex_colors,
+    encode_mesh,
+    init_fl_vae,
+    kl_divergence,
+    load_fl_vae,
+    save_fl_vae,
+    vae_loss,
+)
+from jmeshtex.fl import _vae
+from jmeshtex.fl._vae import rasterize_uv
+from jmeshtex.geometry import one_ring_neighborhood
+
+SMALL = FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=12,
+                    encode_chunk=32)
+
+
+def test_kl_matches_the_closed_form_per_channel():
+    mu = jnp.asarray([[1.0 + 1.0j, 0.0]])
+    ls = jnp.asarray([[0.0, np.log(2.0)]])
+    # channel 0: σ=1, |μ|²=2 → 1 + 1 - 1 - 0 = 1; channel 1: σ=2 → 4 - 1 - 2 log 2
+    expected = (1.0 + (4.0 - 1.0 - 2 * np.log(2.0))) / 2
+    np.testing.assert_allclose(kl_divergence(FieldLatents(mu, ls)), [expected], rtol=1e-12)
+
+
+@pytest.mark.parametrize("decoder", ["log", "barycentric"])
+def test_loss_is_finite_with_finite_gradients_at_zero_inputs(key, decoder):
+    cfg = SMALL.replace(decoder=decoder)
+    params = init_fl_vae(key, cfg)
+    V, S = 4, 6
+    log = jnp.zeros((V, S), jnp.complex64)
+    rgb = jnp.zeros((V, S, 3), jnp.float32)
+    mask = jnp.ones((V, S), bool)
+    corners = jnp.zeros((V, S, 3), jnp.int32).at[..., 1].set(1).at[..., 2].set(2)
+    bary = jnp.full((V, S, 3), 1 / 3, jnp.float32)
+
+    def loss(p):
+        return vae_loss(p, cfg, log, rgb, mask, key=jax.random.key(0), corners=corners, bary=bary)[0]
+
+    value, grads = jax.jit(jax.value_and_grad(loss))(params)
+    assert np.isfinite(float(value))
+    assert all(np.isfinite(np.asarray(g)).all() for g in jax.tree.leaves(grads))
+
+
+def test_barycentric_loss_needs_corners(key):
+    params = init_fl_vae(key, SMALL.replace(decoder="barycentric"))
+    with pytest.raises(InputError, match="needs corners"):
+        vae_loss(params, SMALL.replace(decoder="barycentric"), jnp.zeros((1, 2), jnp.complex64),
+                 jnp.zeros((1, 2, 3), jnp.float32), jnp.ones((1, 2), bool), key=jax.random.key(0))
+
+
+def test_encode_mesh_gives_latents_in_the_one_ring_gauge(key):
+    v, f = icosphere(1)
+    mesh = Mesh(v, f, vertex_colors=0.5 + 0.5 * v)
+    params = init_fl_vae(key, SMALL, dtype=jnp.float64)
+    lat = encode_mesh(params, SMALL, mesh, key=jax.random.key(3))
+    assert lat.mu.shape == (len(v), 3) and lat.mu.dtype == jnp.complex128
+    again = encode_mesh(params, SMALL, mesh, key=jax.random.key(3))
+    np.testing.assert_array_equal(lat.mu, again.mu)  # the key fixes the samples
+    # relabel the vertices: same latents up to each vertex's frame rotation (the deterministic
+    # sampler would make this exact; with random samples the set differs, so only shapes/dtypes here)
+    nb = one_ring_neighborhood(v, f)
+    assert nb.log.shape[0] == lat.mu.shape[0]
+    colors = decode_vertex_colors(params, SMALL, mesh, lat.mu)
+    assert colors.shape == (len(v), 3) and float(colors.min()) >= 0 and float(colors.max()) <= 1
+
+
+def test_encode_mesh_reads_colours_of_another_triangulation(key):
+    v, f = grid(4)
+    tex = np.random.default_rng(0).random((8, 8, 3)).astype(np.float32)
+    textured = Mesh(v, f, uv=v[f][..., :2], texture=tex)
+    plain = Mesh(v, f[:, [0, 2, 1]][:, [0, 2, 1]])  # the same triangles, a different array object
+    params = init_fl_vae(key, SMALL)
+    from jmeshtex.fl import surface_colors
+
+    a = encode_mesh(params, SMALL, textured, key=jax.random.key(0))
+    b = encode_mesh(params, SMALL, plain, colors=surface_colors(textured), key=jax.random.key(0))
+    np.testing.assert_allclose(b.mu, a.mu, atol=1e-5)
+    with pytest.raises(InputError, match="neither a UV texture"):
+        encode_mesh(params, SMALL, plain, key=jax.random.key(0))
+
+
+def _loop_rasterize(uv, size):
+    """Slow reference: every texel centre tested against every UV triangle."""
+    covered = np.zeros((size, size), bool)
+    for j in range(size):
+        for i in range(size):
+            u, w = (i + 0.5) / size, 1 - (j + 0.5) / size
+            for tri in uv:
+                a, b, c = tri
+                den = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+                l1 = ((u - a[0]) * (c[1] - a[1]) - (w - a[1]) * (c[0] - a[0])) / den
+                l2 = ((b[0] - a[0]) * (w - a[1]) - (b[1] - a[1]) * (u - a[0])) / den
+                if min(l1, l2, 1 - l1 - l2) >= -1e-9:
+                    covered[j, i] = True
+    return covered
+
+
+def test_rasterize_covers_exactly_the_texels_inside_uv_triangles():
+    rng = np.random.default_rng(0)
+    uv = rng.random((5, 3, 2)) * 0.8 + 0.1
+    index, face, bary = rasterize_uv(uv, 16)
+    covered = np.zeros((16, 16), bool)
+    covered[index[:, 0], index[:, 1]] = True
+    np.testing.assert_array_equal(covered, _loop_rasterize(uv, 16))
+    # the barycentric coordinates reproduce the texel centre in UV space
+    centre = np.stack([(index[:, 1] + 0.5) / 16, 1 - (index[:, 0] + 0.5) / 16], 1)
+    np.testing.assert_allclose(np.einsum("nk,nkd->nd", bary, uv[face]), centre, atol=1e-9)
+
+
+@pytest.mark.parametrize("decoder", ["log", "barycentric"])
+def test_decode_texture_fills_the_used_texels_and_agrees_with_vertex_colours(key, decoder):
+    cfg = SMALL.replace(decoder=decoder)
+    v, f = grid(3)
+    # a UV atlas with a seam: the right half of the sheet is shifted in UV space
+    uv = v[f][..., :2] * 0.5
+    right = v[f][..., 0].mean(1) > 0.5
+    uv[right] += [0.4, 0.4]
+    mesh = Mesh(v, f, uv=uv)
+    params = init_fl_vae(key, cfg, dtype=jnp.float64)
+    mu = jnp.asarray(np.random.default_rng(1).standard_normal((len(v), 3)) * (1 + 1j))
+    tex, valid = decode_texture(params, cfg, mesh, mu, size=32)
+    index, _, _ = rasterize_uv(uv, 32)
+    assert valid.sum() == len(np.unique(index[:, 0] * 32 + index[:, 1]))
+    assert (tex[~valid] == 0).all() and tex.min() >= 0 and tex.max() <= 1
+    # at a vertex the blend reduces to that vertex's own prediction
+    from jmeshtex.fl import decode_points_in_faces
+
+    corner = decode_points_in_faces(params, cfg, mesh, mu, np.array([0]), np.array([[1.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(np.clip(corner[0], 0, 1), decode_vertex_colors(params, cfg, mesh, mu)[f[0, 0]], atol=1e-12)
+    with pytest.raises(InputError, match="UV coordinates"):
+        decode_texture(params, cfg, Mesh(v, f), mu, size=8)
+
+
+def test_save_and_load_round_trip_atomically(tmp_path: pathlib.Path, key):
+    params = init_fl_vae(key, SMALL)
+    path = save_fl_vae(tmp_path / "sub" / "m.npz", params, SMALL, extra={"step": 3})
+    loaded, cfg, extra = load_fl_vae(path, with_extra=True)
+    assert cfg == SMALL and extra == {"step": 3}
+    for a, b in zip(jax.tree.leaves(params), jax.tree.leaves(loaded), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert [p.name for p in (tmp_path / "sub").iterdir()] == ["m.npz"]  # no temporary files left
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    with pytest.raises(MeshIOError, match="cannot read FL-VAE model"):
+        load_fl_vae(tmp_path / "bad.npz")
+    with pytest.raises(MeshIOError, match="no such file"):
+        load_fl_vae(tmp_path / "missing.npz")
+
+
+def test_missing_pretrained_weights_are_a_typed_error(tmp_path, monkeypatch):
+    monkeypatch.setattr(_vae, "PRETRAINED_FILE", tmp_path / "none.npz")
+    with pytest.raises(MeshIOError, match="no pre-trained FL-VAE"):
+        _vae.load_pretrained()
