@@ -113,13 +113,13 @@ def main() -> None:
         x = jax.random.uniform(jax.random.key(0), (surface.atlas.num_texels, 3), jnp.float32, 0.0, 0.2)
         state = opt.init(x)
 
-        @jax.jit
-        def step(x, state, arrays=arrays, targets=targets, opt=opt):
+        def step(x, state, arrays, targets, opt=opt):
             loss, g = jax.value_and_grad(style_loss)(x, arrays, weights, targets)
             updates, state = opt.update(g, state, x)
             return jnp.clip(optax.apply_updates(x, updates), 0.0, 1.0), state, loss
 
-        t = time_jax(step, x, state, repeats=5, min_time=1.0)
+        # the arrays are arguments, not constants of the compiled program (as in the library)
+        t = time_jax(jax.jit(step, static_argnames="opt"), x, state, arrays, targets, repeats=5, min_time=1.0)
         flops = 3.0 * _conv_flops(surface, weights)  # forward + ~2× for the backward
         print(f"{name} {size}²: step {t.run_s:.3f} s (compile {t.compile_s:.1f} s)")
         report.add(name=f"optimisation step {name} (fwd+bwd VGG-16, 18 Gram layers, Adam)", size=f"{size}²",

@@ -17,6 +17,12 @@ from .._errors import ConfigError
 DECODERS = ("log", "barycentric")
 
 
+#: fields that do not change the model's function (data, optimiser, batching, chunking)
+_TRAINING_FIELDS = ("num_samples", "kl_weight", "min_vertices", "max_vertices", "max_image_size", "meshes_per_image",
+                    "batch_meshes", "steps", "lr", "final_lr_fraction", "warmup_steps", "grad_clip",
+                    "checkpoint_every", "encode_chunk", "seed")
+
+
 def _check(cond: bool, message: str) -> None:
     if not cond:
         raise ConfigError(message)
@@ -130,6 +136,17 @@ class FLVAEConfig:
         if unknown:
             raise ConfigError(f"FLVAEConfig: unknown fields {unknown}; known: {sorted(names)}")
         return cls(**data)
+
+    def model(self) -> FLVAEConfig:
+        """The same model with every data/training field at its default: a cache key for jitted
+        encoders and decoders (configs that differ only in training settings compile once).
+
+        Example:
+          >>> FLVAEConfig(steps=7, lr=0.1).model() == FLVAEConfig()
+          True
+        """
+        defaults = FLVAEConfig()
+        return self.replace(**{name: getattr(defaults, name) for name in _TRAINING_FIELDS})
 
     def replace(self, **changes) -> FLVAEConfig:
         """A copy with some fields changed (validated again)."""

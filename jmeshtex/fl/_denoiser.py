@@ -35,7 +35,14 @@ import numpy as np
 
 from .._errors import InputError
 from .._types import Array, Complex, Float, Int, PRNGKey
-from ..geometry import PoolingMap, VertexNeighborhood, knn_from_one_ring, mean_edge_length, mesh_hierarchy, pad_to
+from ..geometry import (
+    PoolingMap,
+    VertexNeighborhood,
+    knn_from_one_ring,
+    mean_edge_length,
+    mesh_hierarchy,
+    pad_to,
+)
 from ..nn import FRN, ComplexDense, FCResNetBlock, VNNonlinearity
 from ..ops import tangent_pool, tangent_unpool
 from ..ops._util import real_dtype

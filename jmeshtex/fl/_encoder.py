@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
-from .._types import Array, Bool, Complex, Float, Int, PRNGKey
+from .._types import Array, Bool, Complex, Float, Int
 from ..geometry import corner_angles, edge_lengths, one_ring_angles
 from ..ops import complex_linear, vn_transformer_block
 from ..ops._complex import VNTransformerParams

@@ -15,6 +15,9 @@ Importing this module registers the entries (the lead adds it to ``ENTRY_MODULES
 
 from __future__ import annotations
 
+import functools
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -55,9 +58,16 @@ def _samples(state):
     return state.cached("fl_samples", build)
 
 
-def _encode(state, params, c):
-    from ._vae import encode_samples
+@functools.lru_cache(maxsize=1)
+def _jitted():
+    """Jitted encoder/decoder (op-by-op dispatch under ``jax_debug_nans`` is ~50x slower)."""
+    from ._vae import decode_points, encode_samples
 
+    return jax.jit(encode_samples, static_argnums=1), jax.jit(decode_points, static_argnums=1)
+
+
+def _encode(state, params, c):
+    encode_samples = _jitted()[0]
     s = _samples(state)
     corners = state.faces[s.face]  # [V, S, 3]
     rgb = jnp.einsum("vsk,vskc->vsc", jnp.asarray(s.bary, state.dtype), jnp.asarray(c, state.dtype)[corners])
@@ -73,8 +83,9 @@ def _encoder_sigma(state, params, c):
 
 
 def _decoder(state, params, z):
-    from ._vae import decode_points, decode_vertex_colors_from_latents
+    from ._vae import decode_vertex_colors_from_latents
 
+    decode_points = _jitted()[1]
     s = _samples(state)
     cfg = _config()
     pred = decode_points(params, cfg, z, jnp.asarray(s.log, state.complex_dtype))

@@ -174,7 +174,7 @@ def _load_checkpoint(out: pathlib.Path, like, config: FLVAEConfig):
 
 def pretrain(
     out_dir: str | os.PathLike | None,
-    config: FLVAEConfig = FLVAEConfig(),
+    config: FLVAEConfig | None = None,
     *,
     images="builtin",
     progress: bool = True,
@@ -187,7 +187,7 @@ def pretrain(
       out_dir: folder for ``checkpoint.npz``, ``log.json`` and the final ``fl_vae.npz`` (None: keep
         nothing on disk). An existing checkpoint there is resumed (the config must match, except
         ``steps`` and ``checkpoint_every``).
-      config: :class:`~jmeshtex.fl.FLVAEConfig` (model, data and optimiser settings).
+      config: :class:`~jmeshtex.fl.FLVAEConfig` (model, data and optimiser settings); None = defaults.
       images: ``"builtin"`` (scikit-image's bundled images), a folder of images, or a list of
         ``[H, W, C]`` arrays.
       progress: show a tqdm bar with ETA and the running loss.
@@ -207,6 +207,7 @@ def pretrain(
       >>> r.losses.shape, bool(np.isfinite(r.losses).all())
       ((2,), True)
     """
+    config = FLVAEConfig() if config is None else config
     if not isinstance(config, FLVAEConfig):
         raise ConfigError(f"config must be an FLVAEConfig, got {type(config).__name__}")
     out = None if out_dir is None else pathlib.Path(out_dir)

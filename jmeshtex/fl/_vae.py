@@ -37,7 +37,16 @@ from ._decoder import (
     decoder_size,
     init_decoder,
 )
-from ._encoder import EncoderParams, _Draw, corner_logs, encoder_size, encode_samples_raw, init_encoder, one_ring_samples, ring_geometry
+from ._encoder import (
+    EncoderParams,
+    _Draw,
+    corner_logs,
+    encode_samples_raw,
+    encoder_size,
+    init_encoder,
+    one_ring_samples,
+    ring_geometry,
+)
 
 WEIGHTS_DIR = pathlib.Path(__file__).parent / "weights"
 PRETRAINED_FILE = WEIGHTS_DIR / "fl_vae.npz"
@@ -407,10 +416,11 @@ def _encode_arrays(params, config, log, rgb, mask) -> FieldLatents:
     for start in range(0, V, n):
         stop = min(start + n, V)
         pad = n - (stop - start)
-        def chunk(a, fill=0):  # noqa: E306
+        def chunk(a, fill=0, start=start, stop=stop, pad=pad):
             a = a[start:stop]
             return np.concatenate([a, np.full((pad, *a.shape[1:]), fill, a.dtype)]) if pad else a
-        mu, ls = _encode_chunk(params, config, jnp.asarray(chunk(log), cdt), jnp.asarray(chunk(rgb), rdt),
+
+        mu, ls = _encode_chunk(params, config.model(), jnp.asarray(chunk(log), cdt), jnp.asarray(chunk(rgb), rdt),
                                jnp.asarray(chunk(mask, False)))
         mus.append(mu[: stop - start])
         sigmas.append(ls[: stop - start])
@@ -519,9 +529,9 @@ def decode_points_in_faces(
         corners = jnp.asarray(faces[f], jnp.int32)
         if geom is not None:
             logs = np.stack([corner_logs(geom, f, np.full(len(f), k), b) for k in range(3)], axis=1)
-            res = _decode_texels_log(params, config, mu, corners, jnp.asarray(logs, cdt), jnp.asarray(b, rdt))
+            res = _decode_texels_log(params, config.model(), mu, corners, jnp.asarray(logs, cdt), jnp.asarray(b, rdt))
         else:
-            res = _decode_texels_bary(params, config, mu, corners, jnp.asarray(b, rdt))
+            res = _decode_texels_bary(params, config.model(), mu, corners, jnp.asarray(b, rdt))
         out[start:stop] = np.asarray(res)[: stop - start]
     return out
 

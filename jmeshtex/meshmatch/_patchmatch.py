@@ -396,6 +396,19 @@ def _random_candidates(src: _Src, nnf, key, globals_: int):
     return cands
 
 
+def _smallest(cands, bound, count: int):
+    """The ``count`` candidates with the smallest bounds per row, ``([V, count], [V, count])``
+    (repeated argmin: cheaper to compile and run on CPU than ``top_k`` for a handful)."""
+    slots = jnp.arange(bound.shape[1])[None, :]
+    picked_c, picked_b = [], []
+    for _ in range(count):
+        j = jnp.argmin(bound, axis=1)[:, None]
+        picked_c.append(jnp.take_along_axis(cands, j, axis=1))
+        picked_b.append(jnp.take_along_axis(bound, j, axis=1))
+        bound = jnp.where(slots == j, jnp.inf, bound)
+    return jnp.concatenate(picked_c, axis=1), jnp.concatenate(picked_b, axis=1)
+
+
 @functools.partial(jax.jit, static_argnames=("A", "steps", "globals_", "sweeps", "exact"))
 def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, shape_weight, sigma2,
              tau2, pin, *, A, steps, globals_, sweeps, exact):
@@ -429,9 +442,7 @@ def _iterate(tgt, src: _Src, nnf, rot, colors, key, ring_weight, color_scale, sh
         bound = jnp.sum(diff * diff, axis=-1)
         bound = jnp.where(allowed & (cands != best[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf)
         if cands.shape[1] > exact:
-            _, sel = jax.lax.top_k(-bound, exact)
-            cands = jnp.take_along_axis(cands, sel, axis=1)
-            bound = jnp.take_along_axis(bound, sel, axis=1)
+            cands, bound = _smallest(cands, bound, exact)
 
         def body(carry, xs):
             b, bc, br = carry

@@ -220,9 +220,13 @@ def _load_checkpoint(path, x0, state0, fingerprint):
     return jnp.asarray(x, x0.dtype), state, step, losses
 
 
-def _optimize(x0, loss_fn, config: SurfaceCNNConfig, progress: bool, desc: str, checkpoint=None,
+def _optimize(x0, loss_fn, aux, config: SurfaceCNNConfig, progress: bool, desc: str, checkpoint=None,
               checkpoint_every: int = 50, task: int = 0):
     """Adam with the halving schedule, clipped to [0, 1] after every step; one jitted step.
+
+    ``loss_fn(x, aux)``: the arrays (taps, groups, weights, targets) travel in ``aux`` as arguments
+    of the jitted step, never as constants baked into the compiled program (hundreds of MB at 1024²,
+    and XLA would try to constant-fold through them).
 
     With ``checkpoint`` the colours, the Adam state and the loss curve are written there atomically
     every ``checkpoint_every`` steps and at the end; an existing checkpoint of the same run is resumed.
@@ -234,8 +238,8 @@ def _optimize(x0, loss_fn, config: SurfaceCNNConfig, progress: bool, desc: str, 
     optimizer = optax.adam(schedule)
 
     @jax.jit
-    def step(x, state):
-        loss, grad = jax.value_and_grad(loss_fn)(x)
+    def step(x, state, aux):
+        loss, grad = jax.value_and_grad(loss_fn)(x, aux)
         with jax.numpy_dtype_promotion("standard"):
             updates, state = optimizer.update(grad, state, x)
             x = optax.apply_updates(x, updates)
@@ -257,7 +261,7 @@ def _optimize(x0, loss_fn, config: SurfaceCNNConfig, progress: bool, desc: str, 
     t0 = time.perf_counter()
     compile_s = 0.0
     for i in range(start, config.steps):
-        x, state, loss = step(x, state)
+        x, state, loss = step(x, state, aux)
         losses.append(loss)
         if i == start:
             jax.block_until_ready(x)
@@ -272,7 +276,7 @@ def _optimize(x0, loss_fn, config: SurfaceCNNConfig, progress: bool, desc: str, 
     total = time.perf_counter() - t0
     if bar is not None:
         bar.close()
-    final = float(jax.jit(loss_fn)(x))
+    final = float(jax.jit(loss_fn)(x, aux))
     losses = np.asarray([float(v) for v in losses], np.float64)
     if checkpoint is not None:
         _save_checkpoint(checkpoint, x, state, config.steps, losses, fingerprint)
@@ -374,10 +378,12 @@ def synthesize_texture(
     target_s = time.perf_counter() - t0
     x0 = jax.random.uniform(key, (surface.atlas.num_texels, 3), dtype, config.init_low, config.init_high)
 
-    def loss_fn(x):
+    def loss_fn(x, aux):
+        arrays, weights, targets = aux
         return style_loss(x, arrays, weights, targets, pool=config.pool)
 
-    x, losses, final, stats = _optimize(x0, loss_fn, config, progress, "surfacecnn synthesize", checkpoint,
+    x, losses, final, stats = _optimize(x0, loss_fn, (arrays, weights, targets), config, progress,
+                                        "surfacecnn synthesize", checkpoint,
                                         checkpoint_every, task=0)
     return _result(base, surface, x, losses, final, {**stats, "targets_s": target_s})
 
@@ -437,13 +443,15 @@ def stylize_texture(
                                       pool=config.pool)[config.content_layer]
     weight = jnp.asarray(config.content_weight, dtype)
 
-    def loss_fn(x):
+    def loss_fn(x, aux):
+        arrays, weights, targets, content_feats = aux
         feats = mesh_cnn_features(x, arrays, weights, layers=tuple(dict.fromkeys((*layers, config.content_layer))),
                                   pool=config.pool)
         content_term = jnp.mean((feats[config.content_layer] - content_feats) ** 2)
         return _gram_term(feats, targets) + weight * content_term
 
-    x, losses, final, stats = _optimize(content_colors, loss_fn, config, progress, "surfacecnn stylize",
+    aux = (arrays, weights, targets, content_feats)
+    x, losses, final, stats = _optimize(content_colors, loss_fn, aux, config, progress, "surfacecnn stylize",
                                         checkpoint, checkpoint_every, task=1)
     return _result(base, surface, x, losses, final, stats)
 

@@ -6,7 +6,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jmeshtex.fl import FLVAEConfig, decode_barycentric, decode_points, decoder_features, init_fl_vae
+from jmeshtex.fl import (
+    FLVAEConfig,
+    decode_barycentric,
+    decode_points,
+    decoder_features,
+    init_fl_vae,
+)
 from jmeshtex.fl._vae import decode_vertex_colors_from_latents
 
 LOG = FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)

@@ -14,6 +14,7 @@ from jmeshtex.data import grid, icosphere
 from jmeshtex.fl import (
     FieldLatents,
     FLVAEConfig,
+    _vae,
     decode_texture,
     decode_vertex_colors,
     encode_mesh,
@@ -23,7 +24,6 @@ from jmeshtex.fl import (
     save_fl_vae,
     vae_loss,
 )
-from jmeshtex.fl import _vae
 from jmeshtex.fl._vae import rasterize_uv
 from jmeshtex.geometry import one_ring_neighborhood
 

@@ -188,3 +188,16 @@ def test_level_groups_share_a_step_and_change_no_result():
     np.testing.assert_array_equal(padded.nnf, plain.nnf)
     np.testing.assert_array_equal(padded.rotation, plain.rotation)
     np.testing.assert_allclose(padded.cost, plain.cost, rtol=1e-5)
+
+
+def test_smallest_picks_the_lowest_bounds_in_order(rng):
+    from jmeshtex.meshmatch._patchmatch import _smallest
+
+    bound = rng.permutation(40).reshape(5, 8).astype(np.float64)
+    bound[2] = np.inf  # nothing allowed: the picks carry infinite bounds (never accepted)
+    cands = np.arange(40, dtype=np.int32).reshape(5, 8) + 100
+    c, b = _smallest(jnp.asarray(cands), jnp.asarray(bound), 3)
+    order = np.argsort(bound, axis=1, kind="stable")[:, :3]
+    np.testing.assert_array_equal(np.asarray(b), np.take_along_axis(bound, order, axis=1))
+    rows = [0, 1, 3, 4]
+    np.testing.assert_array_equal(np.asarray(c)[rows], np.take_along_axis(cands, order, axis=1)[rows])

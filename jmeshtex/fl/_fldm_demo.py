@@ -1,0 +1,232 @@
+"""A small FLDM run for ``jmeshtex demo``, the notebook and the learning check: a striped sphere.
+
+The exemplar is a unit sphere with latitudinal stripes, ``s(p) = ½ + ½ sin(ω p_z)``. To keep the
+check about the *diffusion model* (and fast, with no pre-trained FL-VAE needed), the latents come
+from a small analytic codec with the FL-VAE's contract (complex ``[V, d]`` in the one-ring frames):
+
+.. math:: z_{v,0} = (a + s_v)\\, \\hat g_v, \\qquad z_{v,1} = i\\,(a + 1 - s_v)\\, \\hat g_v
+
+with ``ĝ_v`` the unit tangent direction of the meridian (the stripes' gradient direction) in v's
+frame, and decoding ``s = ½ (|z_0| − a) + ½ (1 + a − |z_1|)`` clipped to [0, 1]. Magnitudes carry the
+colour, phases the stripes' orientation: a model must learn both the stripe statistics and a
+coherent direction field. With a trained FL-VAE (:func:`jmeshtex.fl.fl_vae_encoder`) the same
+pipeline runs on real textures (see ``benchmarks/fldm.py``).
+
+:func:`learning_check` trains a tiny model and compares the VGG Gram distance (texture statistics)
+of its samples' renders to the exemplar's render with that of an untrained model's samples, and
+measures the samples' pairwise LPIPS diversity.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._mesh import Mesh
+from .._types import Complex, Float
+
+OFFSET = 0.3  # the codec's ``a``: keeps |z| away from 0 where the direction is undefined
+VIEWS = ((20.0, -60.0), (-30.0, 60.0))
+
+
+def striped_sphere(*, subdivisions: int = 3, frequency: float = 9.0) -> Mesh:
+    """An icosphere with latitudinal stripes as vertex colours (dark blue / light yellow).
+
+    Example:
+      >>> m = striped_sphere(subdivisions=1)
+      >>> m.num_vertices, m.vertex_colors.shape
+      (42, (42, 3))
+    """
+    from ..data import icosphere
+
+    v, f = icosphere(subdivisions)
+    s = stripe_intensity(v, frequency=frequency)
+    return Mesh(v, f, vertex_colors=intensity_to_rgb(s).astype(np.float32), name="striped_sphere")
+
+
+def stripe_intensity(points: Float[np.ndarray, "N 3"], *, frequency: float = 9.0) -> Float[np.ndarray, " N"]:
+    """``s = ½ + ½ sin(ω z)`` in [0, 1]."""
+    return 0.5 + 0.5 * np.sin(frequency * np.asarray(points)[:, 2])
+
+
+def intensity_to_rgb(s: Float[np.ndarray, " N"]) -> Float[np.ndarray, "N 3"]:
+    """Map an intensity in [0, 1] to a dark-blue → light-yellow colour ramp."""
+    lo, hi = np.array([0.10, 0.15, 0.45]), np.array([0.98, 0.90, 0.55])
+    s = np.clip(np.asarray(s, np.float64), 0, 1)[:, None]
+    return (1 - s) * lo + s * hi
+
+
+def rgb_to_intensity(rgb: Float[np.ndarray, "N 3"]) -> Float[np.ndarray, " N"]:
+    """Inverse of :func:`intensity_to_rgb` (least squares along the ramp)."""
+    lo, hi = np.array([0.10, 0.15, 0.45]), np.array([0.98, 0.90, 0.55])
+    d = hi - lo
+    return np.clip((np.asarray(rgb, np.float64) - lo) @ d / (d @ d), 0, 1)
+
+
+def stripe_encoder(mesh: Mesh) -> Complex[np.ndarray, "V 2"]:
+    """The analytic codec's encoder (module docstring): colours of ``mesh`` → ``[V, 2]`` latents.
+
+    Reads ``mesh.vertex_colors`` (e.g. a :func:`~jmeshtex.geometry.remesh` copy, whose colours are
+    transferred from the exemplar). The meridian direction is expressed in the intrinsic one-ring
+    frames through :func:`~jmeshtex.geometry.tangent_frames` (whose x-axis is the same reference
+    edge).
+
+    Example:
+      >>> z = stripe_encoder(striped_sphere(subdivisions=1))
+      >>> z.shape, bool(np.allclose(stripe_decoder(z), rgb_to_intensity(striped_sphere(subdivisions=1).vertex_colors)))
+      ((42, 2), True)
+    """
+    from ..geometry import tangent_frames, tangent_from_3d
+
+    s = rgb_to_intensity(mesh.vertex_colors)
+    frames = tangent_frames(mesh.vertices, mesh.faces)
+    g = tangent_from_3d(np.broadcast_to([0.0, 0.0, 1.0], mesh.vertices.shape), frames)
+    mag = np.abs(g)
+    g = np.where(mag > 1e-6, g / np.maximum(mag, 1e-12), 1.0 + 0j)  # poles: any direction
+    z = np.stack([(OFFSET + s) * g, 1j * (OFFSET + 1 - s) * g], axis=1)
+    return z.astype(np.complex128)
+
+
+stripe_encoder.identity = f"stripe_codec:{OFFSET}"  # type: ignore[attr-defined]
+
+
+def stripe_decoder(z: Complex[np.ndarray, "V 2"]) -> Float[np.ndarray, " V"]:
+    """The analytic codec's decoder: latents → intensity in [0, 1] (gauge-invariant)."""
+    z = np.asarray(z)
+    s = 0.5 * (np.abs(z[:, 0]) - OFFSET) + 0.5 * (1 + OFFSET - np.abs(z[:, 1]))
+    return np.clip(s, 0.0, 1.0)
+
+
+def tiny_config(quick: bool = True):
+    """The demo / learning-check configuration (seconds on a CPU)."""
+    from ._fldm_config import FLDMConfig
+
+    if quick:
+        return FLDMConfig.tiny(latent_channels=2, n_copies=4, copy_vertices=500, train_steps=250, batch_size=2,
+                               learning_rate=3e-3, widths=(16, 32), hdim=8, num_train_steps=200, bucket=64)
+    return FLDMConfig.cpu(latent_channels=2, n_copies=8, copy_vertices=1500, train_steps=1500, num_train_steps=1000)
+
+
+def render_views(mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bool = False) -> np.ndarray:
+    """``[len(VIEWS), size, size, 3]`` renders (float in [0, 1]) of an intensity field on ``mesh``.
+
+    ``crop``: render at twice the size and keep the central half, where the sphere fills the frame
+    (texture statistics without background or silhouette, for the Gram distance).
+    """
+    from ..render import render_mesh
+
+    rgb = intensity_to_rgb(intensity)
+    full = 2 * size if crop else size
+    imgs = np.stack([render_mesh(mesh.vertices, mesh.faces, vertex_colors=rgb, view=v, size=(full, full))
+                     for v in VIEWS]).astype(np.float32) / 255.0
+    if crop:
+        a = size // 2
+        imgs = imgs[:, a : a + size, a : a + size]
+    return imgs
+
+
+def learning_check(*, quick: bool = True, n_samples: int = 2, seed: int = 0, progress: bool = False) -> dict:
+    """Train a tiny FLDM on the striped sphere and measure fidelity and diversity of its samples.
+
+    Returns:
+      ``{"gram_trained", "gram_untrained", "lpips_diversity", "losses", "seconds", ...}``: mean Gram
+      distance of sample renders to the exemplar's renders (trained and untrained model, same noise),
+      mean pairwise LPIPS between trained samples, the loss curve.
+    """
+    from ..metrics import gram_distance, load_vgg16, lpips
+    from ._denoiser import init_denoiser
+    from ._fldm_data import build_dataset
+    from ._fldm_sample import sample_fldm, sampling_geometry
+    from ._fldm_train import FLDMModel, train_fldm
+
+    t0 = time.perf_counter()
+    cfg = tiny_config(quick).replace(seed=seed)
+    exemplar = striped_sphere(subdivisions=3)
+    data = build_dataset(exemplar, cfg, encode=stripe_encoder, progress=progress)
+    result = train_fldm(data, cfg, progress=progress)
+    target = data.meshes[0]
+    geo = sampling_geometry(target, result.model)
+    untrained = FLDMModel(init_denoiser(jax.random.key(cfg.seed), cfg, geo), cfg, data.scale)
+    key = jax.random.key(seed + 7)
+    steps = 25
+    z_tr = sample_fldm(result.model, geo, key=key, n=n_samples, steps=steps)
+    z_un = sample_fldm(untrained, geo, key=key, n=n_samples, steps=steps)
+    weights = load_vgg16()
+    # the exemplar's stripes on the same copy the samples live on, central crops (texture only)
+    ref = render_views(target, rgb_to_intensity(target.vertex_colors), size=96, crop=True)
+    tr = [render_views(target, stripe_decoder(z), size=96, crop=True) for z in z_tr]
+    un = [render_views(target, stripe_decoder(z), size=96, crop=True) for z in z_un]
+
+    def gram(imgs):
+        return float(np.mean([np.asarray(gram_distance(jnp.asarray(i), jnp.asarray(ref), weights=weights)) for i in imgs]))
+
+    pairs = [(a, b) for a in range(n_samples) for b in range(a + 1, n_samples)]
+    div = float(np.mean([np.asarray(lpips(jnp.asarray(tr[a]), jnp.asarray(tr[b]), weights=weights)) for a, b in pairs])) if pairs else 0.0
+    return {
+        "gram_trained": gram(tr),
+        "gram_untrained": gram(un),
+        "lpips_diversity": div,
+        "losses": result.losses,
+        "seconds": time.perf_counter() - t0,
+        "model": result.model,
+        "target": target,
+        "samples": z_tr,
+        "untrained_samples": z_un,
+        "exemplar": exemplar,
+    }
+
+
+def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
+    """Run a tiny FLDM train + sample + inpaint + transfer, write ``fldm.png``, return a summary dict.
+
+    Panels: the exemplar, two samples on a training copy, an inpainting (upper half kept), and a
+    transfer to a finer re-triangulation (more vertices: smaller stripes, §6.6).
+
+    Returns:
+      ``{"png", "seconds", "loss_first", "loss_last", "summary"}``.
+    """
+    from ..geometry import remesh
+    from ..render import render_grid
+    from ._fldm_data import build_dataset
+    from ._fldm_sample import inpaint_fldm, sample_fldm
+    from ._fldm_train import train_fldm
+
+    t0 = time.perf_counter()
+    out = pathlib.Path(out_dir)
+    cfg = tiny_config(quick)
+    exemplar = striped_sphere(subdivisions=3)
+    data = build_dataset(exemplar, cfg, encode=stripe_encoder, progress=False)
+    result = train_fldm(data, cfg, progress=False)
+    model = result.model
+    target = data.meshes[0]
+    key = jax.random.key(0)
+    z = sample_fldm(model, target, key=key, n=2, steps=25)
+    known = stripe_encoder(target)
+    mask = target.vertices[:, 2] > 0
+    zi = inpaint_fldm(model, target, known, mask, key=key, steps=25)[0]
+    fine = remesh(exemplar, n_vertices=2 * target.num_vertices, seed=99)
+    zf = sample_fldm(model, fine, key=key, n=1, steps=25)[0]
+    view = VIEWS[0]
+    images = [
+        render_views(exemplar, rgb_to_intensity(exemplar.vertex_colors), size=256)[0],
+        render_views(target, stripe_decoder(z[0]), size=256)[0],
+        render_views(target, stripe_decoder(z[1]), size=256)[0],
+        render_views(target, stripe_decoder(zi), size=256)[0],
+        render_views(fine, stripe_decoder(zf), size=256)[0],
+    ]
+    del view
+    render_grid([(255 * i).astype(np.uint8) for i in images], out / "fldm.png",
+                titles=["exemplar", "sample 1", "sample 2", "inpaint (top kept)", f"transfer {fine.num_vertices} V"],
+                columns=5)
+    seconds = time.perf_counter() - t0
+    losses = result.losses
+    first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
+    summary = (f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
+               f"ε-loss {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, {seconds:.1f} s")
+    return {"png": str(out / "fldm.png"), "seconds": seconds, "loss_first": first, "loss_last": last,
+            "summary": summary}
