@@ -108,6 +108,7 @@ ENTRY_MODULES = [
     "jmeshtex.testing._entries",
     "jmeshtex.dgts._equivariance",
     "jmeshtex.meshmatch._equivariance",
+    "jmeshtex.surfacecnn._equivariance",
 ]
 
 
