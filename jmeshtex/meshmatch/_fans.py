@@ -391,8 +391,22 @@ def hks_features(
     values = values[ancestors(hierarchy, 0, level)]
     if level > 0:
         sm = smoother(hierarchy.faces[0], len(hierarchy.vertices[0]))
-        values = np.asarray(smooth(jnp.asarray(values), sm, 2 ** (2 * level)))
+        values = _smooth_host(values, sm, 2 ** (2 * level))
     return values, times
+
+
+def _smooth_host(values: np.ndarray, sm: Smoother, steps: int) -> np.ndarray:
+    """:func:`smooth` on the host in float64: one sparse matrix ``(1 − λ) I + λ W``, ``steps``
+    products (hundreds of steps cost a fraction of a second; eager JAX ops cost seconds)."""
+    V, K = sm.index.shape
+    rows = np.repeat(np.arange(V), K)
+    step = sp.csr_matrix((_SMOOTH_LAMBDA * np.asarray(sm.weight, np.float64).ravel(), (rows, sm.index.ravel())),
+                         shape=(V, V))
+    step = (step + (1.0 - _SMOOTH_LAMBDA) * sp.identity(V, format="csr")).tocsr()
+    values = np.asarray(values, np.float64)
+    for _ in range(int(steps)):
+        values = step @ values
+    return values
 
 
 def shape_features(

@@ -97,3 +97,14 @@ def test_bad_inputs_raise_typed_errors():
         MeshMatchConfig(up=(0.0, 0.0, 0.0))
     with pytest.raises(ConfigError, match="constant"):
         MeshMatchConfig(color_weight=0.0, shape_weight=0.0)
+
+
+def test_host_smoothing_matches_the_jax_smoother(rng):
+    """The HKS copy-down smooths hundreds of steps on the host (sparse); same result as `smooth`."""
+    from jmeshtex.meshmatch._fans import _smooth_host, smooth, smoother
+
+    v, f = icosphere(2)
+    x = rng.standard_normal((len(v), 3))
+    sm = smoother(f, len(v))
+    np.testing.assert_allclose(_smooth_host(x, sm, 9), np.asarray(smooth(jnp.asarray(x), sm, 9)), atol=1e-13)
+    np.testing.assert_array_equal(_smooth_host(x, sm, 0), x)
