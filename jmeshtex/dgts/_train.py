@@ -259,8 +259,9 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: TrainCon
         gp = gradient_penalty(d, real_f, fake_f, nbhd, alpha, **kw)
         return s_fake - s_real + c.penalty_weight * gp, jnp.stack([s_real, s_fake, gp])
 
-    def g_loss(g, d, bases, zs):
-        fake, rec = jax.vmap(produce, in_axes=(None, 0, 0))(g, bases, zs)
+    def g_loss(g, d, base, z, rec_base, rec_z):
+        # two calls, not a vmap over both: the vmapped gathers cost ~25 % more compile and run (CPU)
+        fake, rec = produce(g, base, z), produce(g, rec_base, rec_z)
         adv = -masked_mean(discriminator(d, fake, nbhd, **kw), nbhd.face_mask)
         mse = masked_mean(jnp.mean((rec - real) ** 2, axis=1), vmask)
         return adv + c.reconstruction_weight * mse, jnp.stack([adv, mse])
@@ -285,9 +286,7 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: TrainCon
         def g_step(carry, inputs):
             g, state = carry
             base, z, rbase, rz = inputs
-            (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(
-                g, d, jnp.stack([base, rbase]), jnp.stack([z, rz])
-            )
+            (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(g, d, base, z, rbase, rz)
             return update(opt_g, grads, state, g), aux
 
         (d, sd), d_aux = jax.lax.scan(d_step, (d, opt.d), (b.fake_base[:D], b.fake_noise[:D], b.alpha))
