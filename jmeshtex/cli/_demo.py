@@ -266,6 +266,7 @@ STEPS: list[Step] = [
     Step("render", _render),
     Step("equivariance (jmeshtex verify, selection)", _verify),
     Step("MeshMatch", _meshmatch),
+    Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts._demo", "dgts")),
     Step("surface-aware texture synthesis (VGG-16 on texels)", method_stage("surfacecnn._demo", "surfacecnn")),
 ]
 

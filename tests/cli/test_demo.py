@@ -30,7 +30,9 @@ def test_quick_demo_writes_png_and_report(tmp_path, capsys):
     # the equivariance selection ran and passed; the MeshMatch stage wrote its pictures
     assert "0 failed → verify.txt" in report
     assert "pass" in (out / "verify.txt").read_text()
-    assert list((out / "meshmatch").glob("*.png"))
+    # every method stage wrote its pictures into its own folder
+    for folder in ("meshmatch", "dgts", "surfacecnn"):
+        assert list((out / folder).glob("*.png")), folder
 
 
 def _only_meshes(monkeypatch):
