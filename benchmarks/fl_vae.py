@@ -59,8 +59,8 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     report = Report("fl_vae")
-    files = ([PRETRAINED_FILE, WEIGHTS_DIR / "fl_vae_barycentric.npz"] if args.models is None
-             else [pathlib.Path(p) for p in args.models.split(",")])
+    files = ([p for p in (PRETRAINED_FILE, WEIGHTS_DIR / "fl_vae_barycentric.npz") if p.exists()]
+             if args.models is None else [pathlib.Path(p) for p in args.models.split(",")])
     models = {}
     for path in files:
         params, config = load_fl_vae(path)

@@ -197,7 +197,11 @@ def _check_inputs(config: FLDMConfig, z, geo: DenoiserGeometry, labels) -> None:
 def init_denoiser(
     key: PRNGKey, config: FLDMConfig, geo: DenoiserGeometry, *, dtype=jnp.complex64
 ) -> dict:
-    """Random denoiser parameters (a flax ``params`` dict) for ``config`` on any geometry.
+    """Random denoiser parameters (a flax ``params`` dict) for ``config``; they fit every geometry.
+
+    ``geo`` is accepted for symmetry with :func:`denoise` but not needed: parameter shapes depend on
+    the configuration only, and initialisation runs (jitted once per config and dtype) on a fixed
+    small mesh.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -207,14 +211,25 @@ def init_denoiser(
       >>> sorted(params)[:3]
       ['down_0', 'lift', 'mid_0']
     """
+    del geo  # parameter shapes depend on the config only: initialise on one fixed small mesh
+    return _init(key, config, jnp.dtype(dtype))
+
+
+@functools.lru_cache(maxsize=4)
+def _init_geometry(knn: int) -> DenoiserGeometry:
+    from ..data import icosphere
+
+    return denoiser_geometry(*icosphere(1), knn=knn, pool_ratio=0.5)
+
+
+@functools.partial(jax.jit, static_argnames=("config", "dtype"))
+def _init(key, config: FLDMConfig, dtype):
+    # jitted: eager initialisation dispatches (and compiles) every small op of every block separately
+    geo = _as_jax(_init_geometry(config.knn), dtype)
     v = np.shape(geo.fine.index)[0]
     z = jnp.zeros((v, config.latent_channels), dtype)
     labels = jnp.zeros((v,), jnp.int32) if config.num_labels else None
-    geo = _as_jax(geo, dtype)
-    module = Denoiser(config, param_dtype=dtype)
-    # jitted: eager initialisation dispatches (and compiles) every small op of every block separately
-    init = jax.jit(lambda key, geo: module.init(key, z, jnp.zeros((), jnp.int32), geo, labels)["params"])
-    return init(key, geo)
+    return Denoiser(config, param_dtype=dtype).init(key, z, jnp.zeros((), jnp.int32), geo, labels)["params"]
 
 
 def _as_jax(geo: DenoiserGeometry, cdtype) -> DenoiserGeometry:

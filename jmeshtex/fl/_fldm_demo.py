@@ -107,7 +107,7 @@ def tiny_config(quick: bool = True):
     from ._fldm_config import FLDMConfig
 
     if quick:
-        return FLDMConfig.tiny(latent_channels=2, n_copies=4, copy_vertices=500, train_steps=250, batch_size=2,
+        return FLDMConfig.tiny(latent_channels=2, n_copies=4, copy_vertices=500, train_steps=800, batch_size=2,
                                learning_rate=3e-3, widths=(16, 32), hdim=8, num_train_steps=200, bucket=64)
     return FLDMConfig.cpu(latent_channels=2, n_copies=8, copy_vertices=1500, train_steps=1500, num_train_steps=1000)
 
@@ -199,6 +199,8 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
     cfg = tiny_config(quick)
+    if quick:  # a smoke run: a few seconds of training (the learning check trains 800 steps)
+        cfg = cfg.replace(n_copies=2, copy_vertices=300, train_steps=120)
     exemplar = striped_sphere(subdivisions=3)
     data = build_dataset(exemplar, cfg, encode=stripe_encoder, progress=False)
     result = train_fldm(data, cfg, progress=False)

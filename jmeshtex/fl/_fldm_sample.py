@@ -27,9 +27,13 @@ import numpy as np
 
 from .._errors import InputError
 from .._mesh import Mesh
-from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry
+from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, geometry_sizes, pad_geometry
 from ._diffusion import Inpaint, draw_sampling_noise, make_schedule, sample_from_noise
 from ._fldm_train import FLDMModel
+
+
+def _round_up(n: int, bucket: int) -> int:
+    return -(-int(n) // int(bucket)) * int(bucket)
 
 
 def sampling_geometry(mesh: Mesh, model: FLDMModel) -> DenoiserGeometry:
@@ -46,7 +50,7 @@ def _run(params, config, geo, labels, z_T, step_noise, known, mask, known_noise,
     def eps(z, t):
         return denoise(params, config, z, t, geo, labels=labels)
 
-    inpaint = None if known is None else Inpaint(known, mask)
+    inpaint = Inpaint(known, mask)
     return sample_from_noise(eps, schedule, z_T, step_noise, method=method, num_steps=num_steps, eta=eta,
                              inpaint=inpaint, inpaint_noise=known_noise)
 
@@ -119,15 +123,23 @@ def sample_fldm(
     V, d = geo.num_vertices, model.config.latent_channels
     lab = _check_labels(model, labels, V)
     scale = np.asarray(model.scale, np.float64)
-    kn = mk = None
     if (known is None) != (mask is None):
         raise InputError("inpainting needs both known [V, d] latents and mask [V]")
-    if known is not None:
-        known = np.asarray(known)
-        mask = np.asarray(mask, bool)
-        if known.shape != (V, d) or mask.shape != (V,):
-            raise InputError(f"known must be [V, d] = ({V}, {d}) and mask [V], got {known.shape} and {mask.shape}")
-        kn, mk = jnp.asarray(known * scale, dtype), jnp.asarray(mask)
+    if known is None:  # plain sampling is inpainting with an empty mask: one compiled program for both
+        known, mask = np.zeros((V, d), np.complex128), np.zeros(V, bool)
+    known = np.asarray(known)
+    mask = np.asarray(mask, bool)
+    if known.shape != (V, d) or mask.shape != (V,):
+        raise InputError(f"known must be [V, d] = ({V}, {d}) and mask [V], got {known.shape} and {mask.shape}")
+    # pad to bucketed sizes (padding never changes real outputs): nearby sizes share one compilation
+    sizes = geometry_sizes(geo)
+    b = model.config.bucket
+    Vp = _round_up(V, b)
+    geo = pad_geometry(geo, V0=Vp, V1=_round_up(sizes["V1"], max(b // 4, 1)), M=_round_up(sizes["M"], 4))
+    kn = jnp.asarray(np.pad(known * scale, ((0, Vp - V), (0, 0))), dtype)
+    mk = jnp.asarray(np.pad(mask, (0, Vp - V)))
+    if lab is not None:
+        lab = jnp.pad(lab, (0, Vp - V))
     from ..geometry import to_jax
 
     rdt = jnp.float64 if jnp.dtype(dtype) == jnp.complex128 else jnp.float32
@@ -137,11 +149,11 @@ def sample_fldm(
     out = []
     for i in tqdm(range(int(n)), desc="FLDM sample", unit="sample", disable=not progress):
         z_T, noise, known_noise = draw_sampling_noise(
-            jax.random.fold_in(key, i), (V, d), method=method, num_steps=steps,
-            num_train_steps=model.config.num_train_steps, inpaint=kn is not None, dtype=dtype)
+            jax.random.fold_in(key, i), (Vp, d), method=method, num_steps=steps,
+            num_train_steps=model.config.num_train_steps, inpaint=True, dtype=dtype)
         z = _run(params, model.config, geo_j, lab, z_T, noise, kn, mk, known_noise, method=method,
                  num_steps=int(steps), eta=float(eta))
-        out.append(np.asarray(z, np.complex128) / scale)
+        out.append(np.asarray(z, np.complex128)[:V] / scale)
     return np.stack(out)
 
 

@@ -16,6 +16,7 @@ and noise sequence (both derive from ``(seed, step)``). The finished model is ``
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import pathlib
@@ -75,10 +76,13 @@ def _data_sharding(batch: int):
     return (jax.sharding.NamedSharding(mesh, P("data")), jax.sharding.NamedSharding(mesh, P()), len(devices))
 
 
-def make_train_step(config: FLDMConfig, opt: optax.GradientTransformation):
+@functools.lru_cache(maxsize=16)
+def make_train_step(config: FLDMConfig):
     """The jitted step ``(params, opt_state, z0 [B,V,d], geo [B,…], labels [B,V]|None, key) ->
-    (params, opt_state, loss)``."""
+    (params, opt_state, loss)``; one per configuration (cached, so a resumed or repeated run in the
+    same process does not compile again)."""
     schedule = make_schedule(config.schedule, num_steps=config.num_train_steps)
+    opt = optimizer(config)
 
     def loss_fn(params, z0, geo, labels, t, eps):
         zt = q_sample(schedule, z0, t, eps)
@@ -240,7 +244,7 @@ def train_fldm(
             params, opt_state, start, losses = _load_checkpoint(out, params, opt_state, config)
     params = jax.device_put(params, replicated)
     opt_state = jax.device_put(opt_state, replicated)
-    step_fn = make_train_step(config, opt)
+    step_fn = make_train_step(config)
     end = config.train_steps if stop_after is None else min(config.train_steps, start + int(stop_after))
     base_key = jax.random.key(config.seed + 1)
     t0 = time.perf_counter()

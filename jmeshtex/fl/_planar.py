@@ -65,7 +65,7 @@ def builtin_images(*, max_size: int = 256, names: tuple[str, ...] = BUILTIN_IMAG
     Example:
       >>> imgs = builtin_images(max_size=64, names=("brick", "coffee"))
       >>> [im.shape for im in imgs]
-      [(64, 64, 3), (50, 75, 3)]
+      [(64, 64, 3), (40, 60, 3)]
     """
     import skimage.data
 

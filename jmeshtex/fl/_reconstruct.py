@@ -44,7 +44,7 @@ class Reconstruction:
 
 
 def atlas_metrics(texture: np.ndarray, target: np.ndarray, valid: np.ndarray, *, lpips: bool = True) -> dict:
-    """PSNR (dB), DSSIM and optionally LPIPS-VGG between two atlases over the used texels.
+    """PSNR (dB), DSSIM (atlases of at least 11×11 texels) and optionally LPIPS-VGG over the used texels.
 
     Unused texels are set to the same value (0) in both images before LPIPS, which sees whole
     images; PSNR and DSSIM are averaged over ``valid`` only.
@@ -57,10 +57,9 @@ def atlas_metrics(texture: np.ndarray, target: np.ndarray, valid: np.ndarray, *,
     """
     from .. import metrics
 
-    out = {
-        "psnr": float(metrics.psnr(texture, target, mask=valid)),
-        "dssim": float(metrics.dssim(texture, target, mask=valid)),
-    }
+    out = {"psnr": float(metrics.psnr(texture, target, mask=valid))}
+    if min(valid.shape) >= 11:
+        out["dssim"] = float(metrics.dssim(texture, target, mask=valid))
     if lpips:
         a = np.where(valid[..., None], texture, 0.0).astype(np.float32)[None]
         b = np.where(valid[..., None], target, 0.0).astype(np.float32)[None]
@@ -101,11 +100,11 @@ def reconstruct(
       >>> from jmeshtex.data import grid
       >>> from jmeshtex.fl import FLVAEConfig, init_fl_vae
       >>> v, f = grid(3)
-      >>> mesh = Mesh(v, f, uv=v[f][..., :2], texture=np.full((8, 8, 3), 0.5, np.float32))
+      >>> mesh = Mesh(v, f, uv=v[f][..., :2], texture=np.full((16, 16, 3), 0.5, np.float32))
       >>> c = FLVAEConfig(features=8, num_heads=2, num_blocks=1, num_samples=8)
       >>> r = reconstruct(init_fl_vae(jax.random.key(0), c), c, mesh, key=jax.random.key(1), lpips=False)
       >>> r.texture.shape, int(r.valid.sum()), sorted(r.metrics)
-      ((8, 8, 3), 64, ['dssim', 'psnr'])
+      ((16, 16, 3), 256, ['dssim', 'psnr'])
     """
     if not isinstance(mesh, Mesh) or mesh.uv is None or mesh.texture is None:
         raise InputError("reconstruct needs a textured reference mesh (Mesh with uv and texture); "

@@ -148,11 +148,12 @@ def encode_samples(
       >>> import jax, jax.numpy as jnp
       >>> c = FLVAEConfig(latent_dim=2, features=8, num_heads=2, num_blocks=1)
       >>> p = init_fl_vae(jax.random.key(0), c)
-      >>> log = jnp.exp(1j * jnp.linspace(0, 6, 5))[None].astype(jnp.complex64)
-      >>> z = encode_samples(p, c, log, jnp.full((1, 5, 3), 0.3), jnp.ones((1, 5), bool))
-      >>> turned = encode_samples(p, c, log * jnp.exp(-0.7j).astype(jnp.complex64), jnp.full((1, 5, 3), 0.3),
-      ...                         jnp.ones((1, 5), bool))
-      >>> bool(jnp.allclose(turned.mu, z.mu * jnp.exp(-0.7j), atol=1e-5))
+      >>> import numpy as np
+      >>> log = jnp.asarray(np.exp(1j * np.linspace(0, 6, 5))[None], jnp.complex64)
+      >>> rgb, mask = jnp.full((1, 5, 3), 0.3, jnp.float32), jnp.ones((1, 5), bool)
+      >>> turn = complex(np.exp(-0.7j))
+      >>> z, turned = encode_samples(p, c, log, rgb, mask), encode_samples(p, c, log * turn, rgb, mask)
+      >>> bool(jnp.allclose(turned.mu, z.mu * turn, atol=1e-5))
       True
     """
     _check_samples(log_q, rgb, mask)
@@ -248,7 +249,7 @@ def kl_divergence(latents: FieldLatents) -> Float[Array, " V"]:
 
     Example:
       >>> import jax.numpy as jnp
-      >>> kl_divergence(FieldLatents(jnp.zeros((2, 3), jnp.complex64), jnp.zeros((2, 3)))).tolist()
+      >>> kl_divergence(FieldLatents(jnp.zeros((2, 3), jnp.complex64), jnp.zeros((2, 3), jnp.float32))).tolist()
       [0.0, 0.0]
     """
     mu, ls = latents.mu, latents.log_sigma
@@ -301,7 +302,7 @@ def vae_loss(
       >>> import jax, jax.numpy as jnp
       >>> c = FLVAEConfig(latent_dim=2, features=8, num_heads=2, num_blocks=1)
       >>> p = init_fl_vae(jax.random.key(0), c)
-      >>> log = jnp.exp(1j * jnp.linspace(0, 6, 5))[None].astype(jnp.complex64)
+      >>> log = jnp.ones((1, 5), jnp.complex64)
       >>> loss, aux = vae_loss(p, c, log, jnp.full((1, 5, 3), 0.3), jnp.ones((1, 5), bool), key=jax.random.key(1))
       >>> bool(jnp.isfinite(loss)), sorted(aux)
       (True, ['kl', 'l1'])
@@ -659,20 +660,29 @@ def load_fl_vae(path: str | os.PathLike, *, with_extra: bool = False):
     return (params, config, meta.get("extra", {})) if with_extra else (params, config)
 
 
-def load_pretrained() -> tuple[FLVAEParams, FLVAEConfig]:
+def load_pretrained(*, decoder: str = "log") -> tuple[FLVAEParams, FLVAEConfig]:
     """The small FL-VAE shipped in ``jmeshtex/fl/weights`` (see its README for how it was trained).
 
+    Args:
+      decoder: ``"log"`` (the FL-VAE, default) or ``"barycentric"`` (the paper's ablation, trained
+        with the same data, steps and seed; used by ``benchmarks/fl_vae.py``).
+
     Raises:
+      ConfigError: unknown ``decoder``.
       MeshIOError: the package was installed without the weights file.
 
     Example:
       >>> params, config = load_pretrained()
-      >>> config.latent_dim
-      8
+      >>> config.latent_dim, config.decoder
+      (8, 'log')
     """
-    if not PRETRAINED_FILE.is_file():
+    files = {"log": PRETRAINED_FILE, "barycentric": WEIGHTS_DIR / "fl_vae_barycentric.npz"}
+    if decoder not in files:
+        raise ConfigError(f"decoder must be one of {sorted(files)}, got {decoder!r}")
+    path = files[decoder]
+    if not path.is_file():
         raise MeshIOError(
-            f"no pre-trained FL-VAE shipped at {PRETRAINED_FILE}. Fix: train one with "
+            f"no pre-trained FL-VAE shipped at {path}. Fix: train one with "
             "`jmeshtex fl pretrain --images builtin --out DIR` and load it with load_fl_vae(DIR/'fl_vae.npz')"
         )
-    return load_fl_vae(PRETRAINED_FILE)
+    return load_fl_vae(path)

@@ -125,6 +125,7 @@ def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
         sample_fldm(model, mesh, key=jax.random.key(0), known=known)
 
 
+@pytest.mark.slow
 def test_label_guided_training_and_sampling(sphere):
     cfg = CFG.replace(num_labels=2, n_copies=2, train_steps=2)
     labels = (sphere.vertices[:, 2] > 0).astype(np.int64)
@@ -140,6 +141,7 @@ def test_label_guided_training_and_sampling(sphere):
         sample_fldm(model, mesh, key=key, steps=3)
 
 
+@pytest.mark.slow
 def test_cli_train_sample_inpaint(tmp_path):
     from jmeshtex.cli._main import main
 

@@ -167,3 +167,14 @@ def test_missing_pretrained_weights_are_a_typed_error(tmp_path, monkeypatch):
     monkeypatch.setattr(_vae, "PRETRAINED_FILE", tmp_path / "none.npz")
     with pytest.raises(MeshIOError, match="no pre-trained FL-VAE"):
         _vae.load_pretrained()
+
+
+def test_shipped_models_load():
+    from jmeshtex import ConfigError
+
+    for decoder in ("log", "barycentric"):
+        params, config = _vae.load_pretrained(decoder=decoder)
+        assert config.decoder == decoder and config.latent_dim == 8 and config.steps == 600
+        assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(params))
+    with pytest.raises(ConfigError, match="decoder must be one of"):
+        _vae.load_pretrained(decoder="bary")

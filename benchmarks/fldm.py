@@ -1,0 +1,107 @@
+"""Benchmark: FLDM training steps/s at 5K and 30K vertices, DDIM-50 sampling time at 30K vertices.
+
+Run: ``.venv/bin/python benchmarks/fldm.py [--sizes 5000 30000] [--measure 3] [--full-ddim]``.
+Writes ``benchmarks/results/fldm.{json,md}``.
+
+What is measured (float32 / complex64, CPU, jit; compile time reported apart; random parameters and
+tangent-noise latents — timings do not depend on the values):
+
+- ``remesh``: host time of :func:`jmeshtex.geometry.remesh` to the size (one training copy), and of
+  the denoiser geometry (k-NN neighbourhoods of two levels + pooling map);
+- ``train``: seconds per optimiser step (ε-loss, Adam) for the paper denoiser (96/192 channels,
+  2+4+4 FCResNet blocks, batch 1) and the CPU preset (32/64, 1+2+2, ReLU filters, batch 2);
+  ``steps_per_s`` is its inverse;
+- ``denoise``: one denoiser evaluation, beside its FLOP count (:func:`denoiser_flops`) and the
+  matmul ceiling measured in the same run; ``ddim50_s`` is 50 evaluations (the sampler adds a few
+  element-wise ops per step), ``bound_s`` the time the matmul ceiling allows for those FLOPs;
+  ``--full-ddim`` also runs the whole jitted DDIM-50 loop once for the CPU preset at the largest size;
+- ``load``: the 1-minute load average at the start of each row (other jobs inflate wall times).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from _harness import Report, time_jax
+
+from jmeshtex import Mesh
+from jmeshtex.data import icosphere
+from jmeshtex.fl import FLDMConfig, denoise, denoiser_geometry, init_denoiser, sample_fldm
+from jmeshtex.fl._denoiser import denoiser_flops, geometry_sizes
+from jmeshtex.fl._fldm_data import stack_copies
+from jmeshtex.fl._fldm_train import FLDMModel, _batch, make_train_step, optimizer
+from jmeshtex.geometry import remesh, to_jax
+from jmeshtex.ops import tangent_noise
+
+
+def _load() -> float:
+    return os.getloadavg()[0]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 30000])
+    ap.add_argument("--measure", type=int, default=3, help="timed repeats of each step")
+    ap.add_argument("--presets", nargs="+", default=["paper", "cpu"])
+    ap.add_argument("--full-ddim", action="store_true")
+    args = ap.parse_args()
+    report = Report("fldm")
+    base = Mesh(*icosphere(6))  # 40962 vertices: both sizes are re-triangulations of it
+    for n in args.sizes:
+        t0 = time.perf_counter()
+        copy = remesh(base, n_vertices=n, seed=0)
+        report.add(name="remesh", vertices=n, seconds=time.perf_counter() - t0, load=_load())
+        t0 = time.perf_counter()
+        geo = denoiser_geometry(copy.vertices, copy.faces, knn=9, pool_ratio=0.25)
+        report.add(name="denoiser geometry", vertices=n, seconds=time.perf_counter() - t0, load=_load())
+        sizes = geometry_sizes(geo)
+        for preset in args.presets:
+            cfg = getattr(FLDMConfig, preset)(latent_channels=8, copy_vertices=n)
+            if preset == "paper":
+                cfg = cfg.replace(batch_size=1)
+            # training step on a batch of copies (the same copy repeated: timing only)
+            mu = np.asarray(tangent_noise(jax.random.key(0), (n, 8), dtype=jnp.complex128))
+            data = stack_copies([(copy, geo, mu, None)], cfg)
+            params = init_denoiser(jax.random.key(0), cfg, jax.tree.map(lambda a: a[0], data.geometry))
+            opt_state = optimizer(cfg).init(params)
+            step = make_train_step(cfg)
+            z0, g, lab = _batch(data, cfg, 0, cfg.batch_size, jnp.complex64)
+            key = jax.random.key(1)
+
+            def run(params=params, opt_state=opt_state, z0=z0, g=g, lab=lab, step=step, key=key):
+                return step(params, opt_state, z0, g, lab, key)[2]
+
+            load = _load()
+            t = time_jax(run, repeats=args.measure, min_time=0.0)
+            report.add(name=f"train {preset}", vertices=n, batch=cfg.batch_size, compile_s=t.compile_s,
+                       seconds=t.run_s, steps_per_s=1.0 / t.run_s, load=load)
+            # one denoiser evaluation, and DDIM-50 = 50 of them
+            gj = to_jax(geo, jnp.float32)
+            z = tangent_noise(jax.random.key(2), (n, 8))
+            fn = jax.jit(lambda p, z, cfg=cfg, gj=gj: denoise(p, cfg, z, jnp.array(500, jnp.int32), gj))
+            load = _load()
+            t = time_jax(fn, params, z, repeats=args.measure, min_time=0.0)
+            flops = denoiser_flops(cfg, sizes["V0"], sizes["V1"])
+            bound = flops / (report.ceilings["matmul_gflops"] * 1e9)
+            report.add(name=f"denoise {preset}", vertices=n, compile_s=t.compile_s, seconds=t.run_s, flops=flops,
+                       ddim50_s=50 * t.run_s, bound_s=50 * bound, x_bound=t.run_s / bound, load=load)
+            if args.full_ddim and preset == "cpu" and n == max(args.sizes):
+                model = FLDMModel(params, cfg, np.ones(8))
+                load = _load()
+                t0 = time.perf_counter()
+                sample_fldm(model, geo, key=jax.random.key(3), n=1, steps=50)
+                first = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                sample_fldm(model, geo, key=jax.random.key(4), n=1, steps=50)
+                report.add(name="ddim50 cpu (full loop)", vertices=n, compile_s=first - (time.perf_counter() - t0),
+                           seconds=time.perf_counter() - t0, load=load)
+    report.write()
+
+
+if __name__ == "__main__":
+    main()
