@@ -267,6 +267,7 @@ STEPS: list[Step] = [
     Step("equivariance (jmeshtex verify, selection)", _verify),
     Step("MeshMatch", _meshmatch),
     Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts._demo", "dgts")),
+    Step("Field Latents (FL-VAE encode/decode)", method_stage("fl._demo", "fl")),
     Step("surface-aware texture synthesis (VGG-16 on texels)", method_stage("surfacecnn._demo", "surfacecnn")),
 ]
 

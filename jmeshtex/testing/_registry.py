@@ -109,6 +109,7 @@ ENTRY_MODULES = [
     "jmeshtex.dgts._equivariance",
     "jmeshtex.meshmatch._equivariance",
     "jmeshtex.surfacecnn._equivariance",
+    "jmeshtex.fl._equivariance",
 ]
 
 
