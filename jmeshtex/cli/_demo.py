@@ -268,6 +268,7 @@ STEPS: list[Step] = [
     Step("MeshMatch", _meshmatch),
     Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts._demo", "dgts")),
     Step("Field Latents (FL-VAE encode/decode)", method_stage("fl._demo", "fl")),
+    Step("Field Latent Diffusion (tiny training, sampling)", method_stage("fl._fldm_demo", "fldm")),
     Step("surface-aware texture synthesis (VGG-16 on texels)", method_stage("surfacecnn._demo", "surfacecnn")),
 ]
 

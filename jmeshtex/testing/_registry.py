@@ -110,6 +110,7 @@ ENTRY_MODULES = [
     "jmeshtex.meshmatch._equivariance",
     "jmeshtex.surfacecnn._equivariance",
     "jmeshtex.fl._equivariance",
+    "jmeshtex.fl._fldm_equivariance",
 ]
 
 

@@ -31,7 +31,7 @@ def test_quick_demo_writes_png_and_report(tmp_path, capsys):
     assert "0 failed → verify.txt" in report
     assert "pass" in (out / "verify.txt").read_text()
     # every method stage wrote its pictures into its own folder
-    for folder in ("meshmatch", "dgts", "surfacecnn", "fl"):
+    for folder in ("meshmatch", "dgts", "surfacecnn", "fl", "fldm"):
         assert list((out / folder).glob("*.png")), folder
 
 
