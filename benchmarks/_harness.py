@@ -21,7 +21,6 @@ import pathlib
 import platform
 import statistics
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from typing import Any
@@ -29,6 +28,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from jmeshtex.io import atomic_write
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 
@@ -155,8 +156,8 @@ class Report:
         out = pathlib.Path(directory) if directory else RESULTS
         out.mkdir(parents=True, exist_ok=True)
         payload = {"name": self.name, "machine": self.info, "ceilings": self.ceilings, "rows": self.rows}
-        _atomic_write(out / f"{self.name}.json", json.dumps(payload, indent=2, default=float))
-        _atomic_write(out / f"{self.name}.md", self.markdown())
+        atomic_write(out / f"{self.name}.json", json.dumps(payload, indent=2, default=float))
+        atomic_write(out / f"{self.name}.md", self.markdown())
         print(f"wrote {out / self.name}.json and .md", flush=True)
         return out / f"{self.name}.json"
 
@@ -175,10 +176,3 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
     return str(v)
-
-
-def _atomic_write(path: pathlib.Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)

@@ -1,4 +1,4 @@
-"""``jmeshtex demo``: run the host geometry on procedural meshes and write a picture and a report.
+"""``jmeshtex demo``: run the host geometry and every method on embedded data; write PNGs and a report.
 
 The demo is a list of :class:`Step` s. Each step reads and fills a shared dictionary (meshes,
 fields), returns a one-line summary, and is timed. Adding a step is one line in :data:`STEPS` (plus
@@ -193,7 +193,7 @@ def _verify(ctx: dict[str, Any]) -> str:
     import jax.numpy as jnp
 
     from .. import testing
-    from ._verify import _atomic_write
+    from ..io import atomic_write
 
     was_x64 = jax.config.jax_enable_x64
     jax.config.update("jax_enable_x64", True)  # for this step only: the method stages run in float32
@@ -207,7 +207,7 @@ def _verify(ctx: dict[str, Any]) -> str:
     finally:
         jax.config.update("jax_enable_x64", was_x64)
     table = testing.format_table(results)
-    _atomic_write(ctx["out"] / "verify.txt", table + "\n")
+    atomic_write(ctx["out"] / "verify.txt", table + "\n")
     failed = sum(r.passed is False for r in results)
     if failed:
         raise RuntimeError(f"equivariance check failed:\n{table}")
@@ -347,9 +347,11 @@ def _main(args: argparse.Namespace) -> int:
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "demo",
-        help="run the geometry on procedural meshes; write demo.png and report.txt",
+        help="run the geometry and every method on embedded data; write PNGs and report.txt",
         description="Run the host geometry (subdivision, boundaries, HKS, tracer, ...) on a procedural "
-        "torus and grid, and write a picture (demo.png) and a timing report (report.txt). "
+        "torus and grid, an equivariance selection, and a tiny run of every method (MeshMatch, DGTS, "
+        "surface CNN, FL-VAE, FLDM) on procedural meshes and scikit-image images; write a picture "
+        "(demo.png), one folder of PNGs per method and a timing report (report.txt). "
         "An existing non-empty --out folder is never overwritten: the demo writes into a fresh "
         "run-N subfolder unless --force is given.",
     )

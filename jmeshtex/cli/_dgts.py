@@ -150,8 +150,7 @@ def _bar(disable: bool):
 
 def _prepare(args) -> int:
     from ..dgts import PrepareConfig, save_training_meshes, training_meshes
-    from ..dgts._multiscale import atomic_write_bytes
-    from ..io import save_mesh
+    from ..io import atomic_write, save_mesh
     from ..render import render_grid, render_mesh
 
     changes = {"num_levels": args.levels}
@@ -165,7 +164,7 @@ def _prepare(args) -> int:
     tm = training_meshes(ref, tmpl, config=config, progress=_bar(args.no_progress))
     out = args.out
     save_training_meshes(out / "training.npz", tm)
-    atomic_write_bytes(out / "prepare.json", json.dumps(config.to_dict(), indent=2).encode())
+    atomic_write(out / "prepare.json", json.dumps(config.to_dict(), indent=2).encode())
     save_mesh(ref, out / "reference.obj")
     images = [render_mesh(*ref, size=(300, 300))]
     for level, (v, f) in enumerate(zip(tm.vertices, tm.faces, strict=True)):

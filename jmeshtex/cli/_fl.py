@@ -97,8 +97,8 @@ def _encode(args) -> int:
     import jax
     import numpy as np
 
-    from ..dgts._multiscale import atomic_save_npz
     from ..fl import encode_mesh
+    from ..io import atomic_save_npz
 
     params, config = _model(args)
     mesh = _load(args)
@@ -126,8 +126,8 @@ def _reconstruct(args) -> int:
     side_by_side(mesh, result, args.out / "side_by_side.png")
     metrics = {**result.metrics, "latent_vertices": result.latent_mesh.num_vertices,
                "decoder": config.decoder, "texels": int(result.valid.sum())}
-    from ..dgts._multiscale import atomic_write_bytes
+    from ..io import atomic_write
 
-    atomic_write_bytes(args.out / "metrics.json", json.dumps(metrics, indent=2).encode())
+    atomic_write(args.out / "metrics.json", json.dumps(metrics, indent=2).encode())
     print(json.dumps(metrics, indent=2))
     return 0

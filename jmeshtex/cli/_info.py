@@ -36,8 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from .._errors import JmeshtexError
     from ..geometry import mesh_statistics, validate_mesh
-    from ..io import load_mesh
-    from ..io._save import _atomic_write
+    from ..io import atomic_write, load_mesh
 
     mesh = load_mesh(args.mesh, texture=args.texture)
     stats = mesh_statistics(mesh)
@@ -47,7 +46,7 @@ def _run(args: argparse.Namespace) -> int:
             print(line)
     if args.json is not None:
         record = {"path": str(args.mesh), **stats.to_dict()}
-        _atomic_write(args.json, (json.dumps(record, indent=2) + "\n").encode())
+        atomic_write(args.json, (json.dumps(record, indent=2) + "\n").encode())
         print(f"wrote {args.json}")
     if args.render is not None:
         _render(mesh, args.render)

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import os
 import pathlib
 import sys
-import tempfile
+
+from ..io import atomic_write
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -68,14 +68,6 @@ def _run(args: argparse.Namespace) -> int:
     print(f"\n{len(results)} checks: {sum(r.passed is True for r in results)} passed, "
           f"{len(failed)} failed, {sum(r.passed is None for r in results)} reported")
     if args.json:
-        _atomic_write(args.json, testing._registry.to_json(results))
+        atomic_write(args.json, testing._registry.to_json(results))
         print(f"wrote {args.json}")
     return 1 if failed else 0
-
-
-def _atomic_write(path: pathlib.Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)

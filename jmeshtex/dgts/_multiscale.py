@@ -14,10 +14,8 @@ level-0 frame times ``scale_factor**l``. ``scales[l]`` maps the reference's inpu
 from __future__ import annotations
 
 import functools
-import io
 import os
 import pathlib
-import tempfile
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -29,6 +27,7 @@ import optax
 from .._errors import InputError, MeshIOError
 from .._types import Array, Float, Int, PRNGKey
 from ..geometry import subdivide_midpoint, validate_mesh
+from ..io import atomic_save_npz
 from ..ops import chamfer_distance
 from ..ops._util import safe_norm, safe_normalize
 from ._config import PrepareConfig
@@ -63,33 +62,6 @@ class TrainingMeshes(NamedTuple):
 # ----------------------------------------------------------------------------------------------
 # atomic files (shared with _train)
 # ----------------------------------------------------------------------------------------------
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> pathlib.Path:
-    """Write ``data`` to a temporary file next to ``path`` and rename it over ``path``."""
-    path = pathlib.Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            pathlib.Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as err:
-        raise MeshIOError(f"cannot write {path}: {err}") from err
-    return path
-
-
-def atomic_save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> pathlib.Path:
-    """``np.savez`` to memory, then :func:`atomic_write_bytes`."""
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
-    return atomic_write_bytes(path, buf.getvalue())
 
 
 def load_npz(path: str | os.PathLike, what: str) -> dict[str, np.ndarray]:

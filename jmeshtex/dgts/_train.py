@@ -55,6 +55,7 @@ from .._errors import ConfigError, InputError, MeshIOError
 from .._types import Array, Float
 from ..geometry import pad_to
 from ..geometry._types import FaceNeighborhood
+from ..io import atomic_save_npz, atomic_write
 from ..ops import FaceConvStackParams, face_features
 from ..ops._util import masked_mean
 from ._config import TrainConfig
@@ -66,7 +67,7 @@ from ._model import (
     init_level,
     upsample,
 )
-from ._multiscale import TrainingMeshes, atomic_save_npz, atomic_write_bytes, load_npz
+from ._multiscale import TrainingMeshes, load_npz
 
 STATE_FILE = "state.json"
 
@@ -368,7 +369,7 @@ def _write_state(out_dir: pathlib.Path, config: TrainConfig, completed: int, rep
         "total_levels": total,
         "levels": [dataclasses.asdict(r) for r in reports],
     }
-    atomic_write_bytes(out_dir / STATE_FILE, json.dumps(state, indent=2).encode())
+    atomic_write(out_dir / STATE_FILE, json.dumps(state, indent=2).encode())
 
 
 # ----------------------------------------------------------------------------------------------

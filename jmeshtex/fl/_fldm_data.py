@@ -146,7 +146,7 @@ def _geometry_from(arrays: dict[str, np.ndarray]) -> DenoiserGeometry:
 
 
 def _save_copy(path: pathlib.Path, copy: Mesh, geo: DenoiserGeometry, mu: np.ndarray, labels) -> None:
-    from ..dgts._multiscale import atomic_save_npz
+    from ..io import atomic_save_npz
 
     arrays = {"vertices": copy.vertices, "faces": copy.faces, "mu": mu, **_geometry_arrays(geo)}
     if labels is not None:
@@ -254,11 +254,11 @@ def build_dataset(
         meta_path = cache / DATA_FILE
         reuse = meta_path.is_file() and meta["encoder"] is not None and json.loads(meta_path.read_text()) == meta
         if not reuse:
-            from ..dgts._multiscale import atomic_write_bytes
+            from ..io import atomic_write
 
             for old in cache.glob("copy_*.npz"):
                 old.unlink()
-            atomic_write_bytes(meta_path, json.dumps(meta, indent=2).encode())
+            atomic_write(meta_path, json.dumps(meta, indent=2).encode())
     copies = []
     bar = tqdm(range(config.n_copies), desc="FLDM copies", unit="copy", disable=not progress)
     for i in bar:

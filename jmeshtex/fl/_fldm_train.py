@@ -128,7 +128,7 @@ def _unflatten(like, arrays: list[np.ndarray]):
 
 
 def _save_checkpoint(out: pathlib.Path, params, opt_state, step: int, losses, config: FLDMConfig, scale) -> None:
-    from ..dgts._multiscale import atomic_save_npz, atomic_write_bytes
+    from ..io import atomic_save_npz, atomic_write
 
     arrays = {f"p{i}": a for i, a in enumerate(_flatten(params))}
     arrays.update({f"o{i}": a for i, a in enumerate(_flatten(opt_state))})
@@ -136,7 +136,7 @@ def _save_checkpoint(out: pathlib.Path, params, opt_state, step: int, losses, co
     arrays["losses"] = np.asarray(losses, np.float64)
     atomic_save_npz(out / CHECKPOINT_FILE, arrays)
     state = {"config": config.to_dict(), "scale": np.asarray(scale).tolist(), "step": step}
-    atomic_write_bytes(out / STATE_FILE, json.dumps(state, indent=2).encode())
+    atomic_write(out / STATE_FILE, json.dumps(state, indent=2).encode())
 
 
 def _load_checkpoint(out: pathlib.Path, params, opt_state, config: FLDMConfig):
@@ -158,14 +158,14 @@ def _load_checkpoint(out: pathlib.Path, params, opt_state, config: FLDMConfig):
 
 def save_fldm(path: str | os.PathLike, model: FLDMModel) -> pathlib.Path:
     """Write ``model.npz`` + ``model.json`` into the folder ``path`` (atomically)."""
-    from ..dgts._multiscale import atomic_save_npz, atomic_write_bytes
+    from ..io import atomic_save_npz, atomic_write
 
     out = pathlib.Path(path)
     arrays = {"/".join(str(getattr(k, "key", k)) for k in kp): np.asarray(v)
               for kp, v in jax.tree_util.tree_flatten_with_path(model.params)[0]}
     atomic_save_npz(out / MODEL_FILE, arrays)
     meta = {"config": model.config.to_dict(), "scale": np.asarray(model.scale).tolist()}
-    atomic_write_bytes(out / MODEL_JSON, json.dumps(meta, indent=2).encode())
+    atomic_write(out / MODEL_JSON, json.dumps(meta, indent=2).encode())
     return out
 
 

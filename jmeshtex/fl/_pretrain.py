@@ -27,12 +27,13 @@ import optax
 
 from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh
+from ..io import atomic_write
 from ..ops import conjugate_complex_grads
 from ._colors import surface_colors
 from ._config import FLVAEConfig
 from ._encoder import one_ring_samples
 from ._planar import builtin_images, folder_images, planar_pool
-from ._vae import FLVAEParams, _atomic_write, init_fl_vae, save_fl_vae, vae_loss
+from ._vae import FLVAEParams, init_fl_vae, save_fl_vae, vae_loss
 
 CHECKPOINT = "checkpoint.npz"
 LOG = "log.json"
@@ -149,7 +150,7 @@ def _save_checkpoint(out: pathlib.Path, params, opt_state, step: int, losses, l1
     arrays["config"] = np.frombuffer(json.dumps(config.to_dict()).encode(), np.uint8)
     buf = io.BytesIO()
     np.savez(buf, **arrays)
-    _atomic_write(out / CHECKPOINT, buf.getvalue())
+    atomic_write(out / CHECKPOINT, buf.getvalue())
 
 
 def _load_checkpoint(out: pathlib.Path, like, config: FLVAEConfig):
@@ -252,7 +253,7 @@ def pretrain(
             bar.set_postfix(loss=f"{loss:.4f}", l1=f"{l1:.4f}")
         if out is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
             _save_checkpoint(out, params, opt_state, step + 1, losses, l1s, config)
-            _atomic_write(out / LOG, json.dumps({"step": step + 1, "loss": losses, "l1": l1s}).encode())
+            atomic_write(out / LOG, json.dumps({"step": step + 1, "loss": losses, "l1": l1s}).encode())
     if bar is not None:
         bar.close()
     done = end - start

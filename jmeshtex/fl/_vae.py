@@ -16,7 +16,6 @@ import io
 import json
 import os
 import pathlib
-import tempfile
 from typing import NamedTuple
 
 import jax
@@ -26,6 +25,7 @@ import numpy as np
 from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
+from ..io import atomic_write
 from ._colors import SurfaceColors, surface_colors
 from ._config import FLVAEConfig
 from ._decoder import (
@@ -588,23 +588,6 @@ def decode_texture(
 # ------------------------------------------------------------------------------------- storage
 
 
-def _atomic_write(path: pathlib.Path, data: bytes) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            pathlib.Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as err:
-        raise MeshIOError(f"cannot write {path}: {err}") from err
-
-
 def save_fl_vae(path: str | os.PathLike, params: FLVAEParams, config: FLVAEConfig, *, extra: dict | None = None) -> pathlib.Path:
     """Write parameters and config to one ``.npz`` file atomically (temporary file + rename).
 
@@ -630,7 +613,7 @@ def save_fl_vae(path: str | os.PathLike, params: FLVAEParams, config: FLVAEConfi
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
     buf = io.BytesIO()
     np.savez(buf, **arrays)
-    _atomic_write(path, buf.getvalue())
+    atomic_write(path, buf.getvalue())
     return path
 
 

@@ -30,6 +30,8 @@ from ._knn import knn_from_one_ring as knn_from_one_ring
 from ._log_map import OneRingAngles as OneRingAngles
 from ._log_map import one_ring_angles as one_ring_angles
 from ._log_map import one_ring_neighborhood as one_ring_neighborhood
+from ._remesh import remesh as remesh
+from ._remesh import surface_correspondence as surface_correspondence
 from ._sampling import SurfaceSamples as SurfaceSamples
 from ._sampling import barycentric_interpolate as barycentric_interpolate
 from ._sampling import sample_surface as sample_surface
@@ -59,5 +61,3 @@ from ._validate import check_mesh_arrays as check_mesh_arrays
 from ._validate import mesh_statistics as mesh_statistics
 from ._validate import prepare_mesh as prepare_mesh
 from ._validate import validate_mesh as validate_mesh
-from ._remesh import remesh as remesh
-from ._remesh import surface_correspondence as surface_correspondence

@@ -29,11 +29,9 @@ files): run :func:`~jmeshtex.geometry.prepare_mesh` first to remove them.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import os
 import pathlib
-import tempfile
 import warnings
 from typing import Any
 
@@ -42,6 +40,7 @@ import numpy as np
 from .._errors import EmptyMeshError, InputError, MeshIOError, NonFiniteVertexError
 from .._mesh import Mesh
 from .._types import ArrayLike, Float
+from ._atomic import atomic_write
 
 MESH_SUFFIXES = (".obj", ".ply", ".off", ".glb")
 
@@ -51,44 +50,9 @@ MESH_SUFFIXES = (".obj", ".ply", ".off", ".glb")
 # ----------------------------------------------------------------------------------------------
 
 
-def _new_file_mode(path: pathlib.Path) -> int:
-    """Keep the permissions of a file being replaced, else the usual ``0o666 & ~umask``."""
-    with contextlib.suppress(OSError):
-        return path.stat().st_mode & 0o7777
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
 def _atomic_write(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``.
-
-    On any failure the temporary file is removed and the previous ``path`` (if any) is untouched;
-    ``OSError`` becomes :class:`~jmeshtex.MeshIOError`.
-    """
-    path = pathlib.Path(path)
-    folder = path.parent
-    if not folder.is_dir():
-        raise MeshIOError(f"cannot write {path}: folder {folder} does not exist. Fix: create it first")
-    if path.is_dir():
-        raise MeshIOError(f"cannot write {path}: it is a directory")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    except OSError as err:
-        raise MeshIOError(f"cannot write {path}: {err}") from err
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            os.fchmod(fh.fileno(), _new_file_mode(path))
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException as err:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        if isinstance(err, OSError):
-            raise MeshIOError(f"cannot write {path}: {err}") from err
-        raise
+    """Mesh files and their textures go into an existing folder only (see :func:`atomic_write`)."""
+    atomic_write(path, data, parents=False)
 
 
 # ----------------------------------------------------------------------------------------------

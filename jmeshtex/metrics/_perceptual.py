@@ -60,7 +60,7 @@ def lpips(
     feats = vgg16_features(weights, both, layers=LPIPS_LAYERS, normalize=False)
     b = img0.shape[0]
     total = jnp.zeros((b,), img0.dtype)
-    for name, lin in zip(LPIPS_LAYERS, weights.lpips_lin):
+    for name, lin in zip(LPIPS_LAYERS, weights.lpips_lin, strict=True):
         f = _unit_channels(feats[name])
         diff = (f[:b] - f[b:]) ** 2
         total = total + jnp.mean(diff @ lin.astype(diff.dtype), axis=(1, 2))

@@ -215,7 +215,7 @@ def vgg16_features(
     x = imagenet_normalize(images) if normalize else images
     out: dict[str, Array] = {}
     position = 0
-    for name, (kernel, bias) in zip(weights.names, weights.convs):
+    for name, (kernel, bias) in zip(weights.names, weights.convs, strict=True):
         if position > last:
             break
         x = _conv3x3(x, kernel, bias)

@@ -184,7 +184,7 @@ def _save_checkpoint(path, x, state, step: int, losses, fingerprint) -> None:
     import io
     import pathlib
 
-    from ..io._save import _atomic_write
+    from ..io import atomic_write
 
     arrays = {"x": np.asarray(x), "step": np.asarray(step), "losses": np.asarray(losses, np.float64),
               "fingerprint": np.asarray(fingerprint, np.float64)}
@@ -192,7 +192,7 @@ def _save_checkpoint(path, x, state, step: int, losses, fingerprint) -> None:
         arrays[f"opt_{i:03d}"] = np.asarray(leaf)
     buf = io.BytesIO()
     np.savez(buf, **arrays)
-    _atomic_write(pathlib.Path(path), buf.getvalue())
+    atomic_write(pathlib.Path(path), buf.getvalue())
 
 
 def _load_checkpoint(path, x0, state0, fingerprint):
@@ -486,8 +486,7 @@ def save_result(
     import pathlib
 
     from .. import render
-    from ..io import save_mesh, save_png
-    from ..io._save import _atomic_write
+    from ..io import atomic_write, save_mesh, save_png
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -509,5 +508,5 @@ def save_result(
                                     "surfacecnn.png", "summary.json")]
     summary = {**{k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in result.stats.items()},
                "losses": [float(x) for x in result.losses], "files": files}
-    _atomic_write(out / "summary.json", (json.dumps(summary, indent=2) + "\n").encode())
+    atomic_write(out / "summary.json", (json.dumps(summary, indent=2) + "\n").encode())
     return summary

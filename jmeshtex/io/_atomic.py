@@ -1,0 +1,96 @@
+"""Atomic file writes: every file jmeshtex writes goes through a temporary file in the same folder and
+``os.replace``, so a crash or a full disk never leaves a half-written output or destroys the
+previous version."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import pathlib
+import tempfile
+
+import numpy as np
+
+from .._errors import MeshIOError
+
+
+def _new_file_mode(path: pathlib.Path) -> int:
+    """Keep the permissions of a file being replaced, else the usual ``0o666 & ~umask``."""
+    with contextlib.suppress(OSError):
+        return path.stat().st_mode & 0o7777
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def atomic_write(path: str | os.PathLike, data: bytes | str, *, parents: bool = True) -> pathlib.Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``.
+
+    On any failure the temporary file is removed and the previous ``path`` (if any) is untouched.
+    A replaced file keeps its permissions. Text is written as UTF-8.
+
+    Args:
+      path: the file to (re)write.
+      data: bytes, or text.
+      parents: create missing parent folders (else a missing folder is an error naming the fix).
+
+    Returns:
+      ``path`` as a :class:`pathlib.Path`.
+
+    Raises:
+      MeshIOError: the folder is missing (``parents=False``), ``path`` is a folder, or the OS refused.
+
+    Example:
+      >>> import tempfile
+      >>> with tempfile.TemporaryDirectory() as d:
+      ...     p = atomic_write(pathlib.Path(d) / "sub" / "a.txt", "hello")
+      ...     p.read_text(), sorted(x.name for x in p.parent.iterdir())
+      ('hello', ['a.txt'])
+    """
+    path = pathlib.Path(path)
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    folder = path.parent
+    if path.is_dir():
+        raise MeshIOError(f"cannot write {path}: it is a directory")
+    if not folder.is_dir():
+        if not parents:
+            raise MeshIOError(f"cannot write {path}: folder {folder} does not exist. Fix: create it first")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise MeshIOError(f"cannot write {path}: {err}") from err
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as err:
+        raise MeshIOError(f"cannot write {path}: {err}") from err
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            os.fchmod(fh.fileno(), _new_file_mode(path))
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as err:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(err, OSError):
+            raise MeshIOError(f"cannot write {path}: {err}") from err
+        raise
+    return path
+
+
+def atomic_save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray], *, parents: bool = True) -> pathlib.Path:
+    """``np.savez`` (uncompressed, no pickles needed to read it back) written with :func:`atomic_write`.
+
+    Example:
+      >>> import tempfile
+      >>> with tempfile.TemporaryDirectory() as d:
+      ...     p = atomic_save_npz(pathlib.Path(d) / "x.npz", {"a": np.arange(3)})
+      ...     np.load(p)["a"].tolist()
+      [0, 1, 2]
+    """
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return atomic_write(path, buf.getvalue(), parents=parents)
