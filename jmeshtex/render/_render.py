@@ -8,9 +8,9 @@ per 10K faces. Every image is an RGB ``uint8`` array ``[H, W, 3]``; PNGs are wri
 
 from __future__ import annotations
 
+import io
 import os
 import pathlib
-import tempfile
 from collections.abc import Sequence
 
 import numpy as np
@@ -218,21 +218,16 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> pathlib.Path:
     """
     import matplotlib.image
 
+    from ..io import atomic_write
+
     path = pathlib.Path(path)
     image = _as_rgb(image, "image")
+    buf = io.BytesIO()
+    matplotlib.image.imsave(buf, image, format="png")
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                matplotlib.image.imsave(fh, image, format="png")
-            os.replace(tmp, path)
-        except BaseException:
-            pathlib.Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as err:
+        return atomic_write(path, buf.getvalue())
+    except MeshIOError as err:
         raise MeshIOError(f"cannot write PNG {path}: {err}") from err
-    return path
 
 
 def _check_size(size) -> tuple[int, int]:
