@@ -198,8 +198,8 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
-    cfg = tiny_config(quick)
-    if quick:  # a smoke run: a few seconds of training (the learning check trains 800 steps)
+    cfg = tiny_config(True)  # full: the learning check's configuration (800 steps, about a minute)
+    if quick:  # a smoke run: a few seconds of training
         cfg = cfg.replace(n_copies=2, copy_vertices=300, train_steps=120)
     exemplar = striped_sphere(subdivisions=3)
     data = build_dataset(exemplar, cfg, encode=stripe_encoder, progress=False)
