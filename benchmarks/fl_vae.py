@@ -39,8 +39,8 @@ from jmeshtex.fl._vae import (
     WEIGHTS_DIR,
     _encode_arrays,
     decode_points_in_faces,
-    rasterize_uv,
 )
+from jmeshtex.geometry import rasterize_uv
 
 SPOT = pathlib.Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "spot"
 PAPER = {"log": 22.38, "barycentric": 21.33}  # PSNR at 30K vertices, Google Scanned Objects
@@ -119,7 +119,8 @@ def main() -> None:
     report.add(table="throughput", what="encode Spot-30K total (sampling + encoder)", vertices=mesh.num_vertices,
                seconds=t_host + t_enc, load=load())
     if (SPOT / "spot_triangulated.obj").exists():
-        _, face, bary = rasterize_uv(spot.uv, args.atlas)
+        texels = rasterize_uv(spot.uv, args.atlas)
+        face, bary = texels.face, texels.bary
         from jmeshtex.geometry import surface_correspondence
 
         pts = np.einsum("nk,nkd->nd", bary, spot.vertices[spot.faces[face]])

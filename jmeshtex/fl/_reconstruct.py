@@ -16,10 +16,10 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh
 from .._types import PRNGKey
-from ..geometry import sample_texture, surface_correspondence
+from ..geometry import rasterize_uv, sample_texture, surface_correspondence
 from ._colors import SurfaceColors, surface_colors
 from ._config import FLVAEConfig
-from ._vae import FieldLatents, FLVAEParams, decode_points_in_faces, encode_mesh, rasterize_uv
+from ._vae import FieldLatents, FLVAEParams, decode_points_in_faces, encode_mesh
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,7 +113,8 @@ def reconstruct(
     size = int(mesh.texture.shape[0]) if size is None else int(size)
     target_mesh = mesh if latent_mesh is None else latent_mesh
     latents = encode_mesh(params, config, target_mesh, colors=colors, key=key)
-    index, face, bary = rasterize_uv(mesh.uv, size)
+    texels = rasterize_uv(mesh.uv, size)
+    face, bary = texels.face, texels.bary
     if latent_mesh is None:
         lface, lbary = face, bary
     else:
@@ -122,8 +123,8 @@ def reconstruct(
     colors_pred = decode_points_in_faces(params, config, target_mesh, latents.mu, lface, lbary)
     texture = np.zeros((size, size, 3))
     valid = np.zeros((size, size), bool)
-    texture[index[:, 0], index[:, 1]] = np.clip(colors_pred, 0.0, 1.0)
-    valid[index[:, 0], index[:, 1]] = True
+    texture[texels.row, texels.col] = np.clip(colors_pred, 0.0, 1.0)
+    valid[texels.row, texels.col] = True
     # target: the original texture at the same texel centres
     jj, ii = np.mgrid[0:size, 0:size]
     uv = np.stack([(ii + 0.5) / size, 1.0 - (jj + 0.5) / size], axis=-1)

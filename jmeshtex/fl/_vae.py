@@ -25,6 +25,7 @@ import numpy as np
 from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
+from ..geometry import rasterize_uv
 from ..io import atomic_write
 from ._colors import SurfaceColors, surface_colors
 from ._config import FLVAEConfig
@@ -454,48 +455,6 @@ def decode_vertex_colors(params: FLVAEParams, config: FLVAEConfig, mesh: Mesh, m
     return jnp.clip(decode_vertex_colors_from_latents(params, config, mu), 0.0, 1.0)
 
 
-def rasterize_uv(uv: Float[np.ndarray, "F 3 2"], size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Texels of a ``size × size`` atlas covered by UV triangles.
-
-    Returns ``(index [N, 2] (row, col), face [N], bary [N, 3])`` for every texel whose centre lies in
-    a UV triangle (one face per texel; on shared edges the last face wins). Vectorised over the
-    faces' bounding boxes.
-    """
-    uv = np.asarray(uv, dtype=np.float64)
-    # texel coordinates: x = u W - 0.5 (column), y = (1 - v) H - 0.5 (row); centres at integers
-    x = uv[..., 0] * size - 0.5
-    y = (1.0 - uv[..., 1]) * size - 0.5
-    x0 = np.clip(np.ceil(x.min(1) - 1e-9), 0, size - 1).astype(np.int64)
-    x1 = np.clip(np.floor(x.max(1) + 1e-9), 0, size - 1).astype(np.int64)
-    y0 = np.clip(np.ceil(y.min(1) - 1e-9), 0, size - 1).astype(np.int64)
-    y1 = np.clip(np.floor(y.max(1) + 1e-9), 0, size - 1).astype(np.int64)
-    w = np.maximum(x1 - x0 + 1, 0)
-    h = np.maximum(y1 - y0 + 1, 0)
-    valid = (x.max(1) >= -0.5) & (y.max(1) >= -0.5)
-    counts = np.where(valid, w * h, 0)
-    face = np.repeat(np.arange(len(uv)), counts)
-    start = np.cumsum(counts) - counts
-    off = np.arange(counts.sum()) - np.repeat(start, counts)
-    col = x0[face] + off % w[face]
-    row = y0[face] + off // w[face]
-    # barycentrics in texel space
-    ax, ay = x[face, 0], y[face, 0]
-    bx, by = x[face, 1] - ax, y[face, 1] - ay
-    cx, cy = x[face, 2] - ax, y[face, 2] - ay
-    px, py = col - ax, row - ay
-    den = bx * cy - by * cx
-    ok = np.abs(den) > 1e-14
-    den = np.where(ok, den, 1.0)
-    b1 = (px * cy - py * cx) / den
-    b2 = (bx * py - by * px) / den
-    b0 = 1.0 - b1 - b2
-    eps = 1e-9
-    inside = ok & (b0 >= -eps) & (b1 >= -eps) & (b2 >= -eps)
-    bary = np.clip(np.stack([b0, b1, b2], 1)[inside], 0.0, 1.0)
-    bary /= bary.sum(1, keepdims=True)
-    return np.stack([row[inside], col[inside]], 1), face[inside], bary
-
-
 @functools.partial(jax.jit, static_argnums=1)
 def _decode_texels_log(params, config, mu, corners, logs, bary):
     return blend_log_predictions(params.decoder, config, mu, corners, logs, bary)
@@ -576,12 +535,12 @@ def decode_texture(
         raise InputError(f"size must be a positive int, got {size!r}")
     if jnp.shape(mu) != (mesh.num_vertices, config.latent_dim):
         raise InputError(f"mu must have shape [V, d] = ({mesh.num_vertices}, {config.latent_dim}), got {jnp.shape(mu)}")
-    index, face, bary = rasterize_uv(mesh.uv, int(size))
-    colors = decode_points_in_faces(params, config, mesh, mu, face, bary)
+    texels = rasterize_uv(mesh.uv, int(size))  # texel centres in UV triangles
+    colors = decode_points_in_faces(params, config, mesh, mu, texels.face, texels.bary)
     tex = np.zeros((size, size, 3))
     valid = np.zeros((size, size), bool)
-    tex[index[:, 0], index[:, 1]] = np.clip(colors, 0.0, 1.0)
-    valid[index[:, 0], index[:, 1]] = True
+    tex[texels.row, texels.col] = np.clip(colors, 0.0, 1.0)  # a texel on a shared edge: last face wins
+    valid[texels.row, texels.col] = True
     return tex, valid
 
 

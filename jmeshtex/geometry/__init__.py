@@ -30,6 +30,8 @@ from ._knn import knn_from_one_ring as knn_from_one_ring
 from ._log_map import OneRingAngles as OneRingAngles
 from ._log_map import one_ring_angles as one_ring_angles
 from ._log_map import one_ring_neighborhood as one_ring_neighborhood
+from ._raster import Raster as Raster
+from ._raster import rasterize_uv as rasterize_uv
 from ._remesh import remesh as remesh
 from ._remesh import surface_correspondence as surface_correspondence
 from ._sampling import SurfaceSamples as SurfaceSamples

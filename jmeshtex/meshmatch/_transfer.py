@@ -20,7 +20,7 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh
 from .._types import Float, Int
-from ..geometry import sample_texture, tangent_frames
+from ..geometry import rasterize_uv, sample_texture, tangent_frames
 from ._config import MeshMatchConfig
 from ._fans import smooth, smoother
 from ._patchmatch import MeshMatchResult, meshmatch
@@ -76,10 +76,10 @@ def bake_texture(
 ) -> Float[np.ndarray, "H W C"]:
     """Fill a ``size × size`` texture by looking each texel centre up in a per-vertex field.
 
-    Each texel centre ``(u, v) = ((i + ½)/W, 1 − (j + ½)/H)`` is tested against the UV triangles
-    whose bounding boxes hold it (all face/texel pairs at once) and gets the barycentric
-    interpolation of the covering face's vertex colours; texels no triangle covers copy the nearest
-    covered texel (padding charts against bleeding).
+    Each texel whose centre ``(u, v) = ((i + ½)/W, 1 − (j + ½)/H)`` lies in a UV triangle
+    (:func:`~jmeshtex.geometry.rasterize_uv`, ``coverage="center"``) gets the barycentric
+    interpolation of the covering face's vertex colours (overlapping charts: the last face wins);
+    texels no triangle covers copy the nearest covered texel (padding charts against bleeding).
 
     Args:
       uv: ``[F, 3, 2]`` per-corner texture coordinates.
@@ -103,33 +103,8 @@ def bake_texture(
     colors = np.asarray(colors, np.float64)
     if uv.shape != (len(faces), 3, 2):
         raise InputError(f"uv must have shape [F={len(faces)}, 3, 2], got {uv.shape}")
-    # texel coordinates x = u W - 1/2 (column), y = (1 - v) H - 1/2 (row) of every corner
-    x = uv[..., 0] * size - 0.5
-    y = (1.0 - uv[..., 1]) * size - 0.5
-    c0 = np.clip(np.ceil(x.min(1)), 0, size - 1).astype(np.int64)
-    c1 = np.clip(np.floor(x.max(1)), -1, size - 1).astype(np.int64)
-    r0 = np.clip(np.ceil(y.min(1)), 0, size - 1).astype(np.int64)
-    r1 = np.clip(np.floor(y.max(1)), -1, size - 1).astype(np.int64)
-    nx, ny = np.maximum(c1 - c0 + 1, 0), np.maximum(r1 - r0 + 1, 0)
-    count = nx * ny
-    # every (face, texel in its bounding box) pair, flattened without a per-face loop
-    face = np.repeat(np.arange(len(faces)), count)
-    local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    col = c0[face] + local % np.maximum(nx[face], 1)
-    row = r0[face] + local // np.maximum(nx[face], 1)
-    ax, ay = x[face, 0], y[face, 0]
-    bx, by = x[face, 1] - ax, y[face, 1] - ay
-    cx, cy = x[face, 2] - ax, y[face, 2] - ay
-    px, py = col - ax, row - ay
-    den = bx * cy - by * cx
-    ok = np.abs(den) > 1e-12
-    den = np.where(ok, den, 1.0)
-    w1 = (px * cy - py * cx) / den
-    w2 = (bx * py - by * px) / den
-    bary = np.stack([1.0 - w1 - w2, w1, w2], axis=1)
-    inside = ok & (bary.min(axis=1) >= -1e-9)
-    face, row, col, bary = face[inside], row[inside], col[inside], np.clip(bary[inside], 0.0, 1.0)
-    bary /= bary.sum(axis=1, keepdims=True)
+    texels = rasterize_uv(uv, size)  # texel centres in UV triangles, barycentrics clipped
+    face, row, col, bary = texels.face, texels.row, texels.col, texels.bary
     out = np.zeros((size * size, colors.shape[1]))
     hit = np.zeros(size * size, bool)
     flat = row * size + col

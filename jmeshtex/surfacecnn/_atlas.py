@@ -1,10 +1,11 @@
 """The texel atlas of a surface CNN: which texels of a ``size × size`` texture lie on the mesh, where.
 
 A texel is *valid* when its square overlaps a triangle of the UV layout (a positive-area
-intersection, tested exactly with the separating-axis theorem). Its *surface point* is its centre
-mapped through the triangle that contains the centre in UV space or, where the centre lies outside
-every triangle (texels on chart borders), through the UV triangle nearest to it (the centre is
-snapped onto that triangle). Every valid texel also carries an orthonormal tangent frame: ``t``
+intersection, tested exactly with the separating-axis theorem by
+:func:`~jmeshtex.geometry.rasterize_uv` with ``coverage="overlap"``). Its *surface point* is its
+centre mapped through the triangle that contains the centre in UV space or, where the centre lies
+outside every triangle (texels on chart borders), through the UV triangle nearest to it (the centre
+is snapped onto that triangle). Every valid texel also carries an orthonormal tangent frame: ``t``
 along the direction in which the column index grows and ``d`` perpendicular to it, on the side
 where the row index grows (Kovács et al. 2024, Sec. 4). Texel coordinates follow
 :mod:`jmeshtex.geometry` (``_texture``): texel ``(row, col)`` is the square
@@ -21,11 +22,8 @@ import numpy as np
 from jaxtyping import Complex, Float, Int
 
 from .._errors import InputError, MeshError
-from ..geometry import tracer_geometry
+from ..geometry import rasterize_uv, tracer_geometry
 from ..geometry._tracer import TracerGeometry
-
-# a square and a triangle that only touch (overlap below this, in texel units) do not overlap
-_TOUCH = 1e-9
 
 
 class TextureAtlas(NamedTuple):
@@ -104,73 +102,6 @@ def unwrap_uv(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"])
     return uvs.astype(np.float64)[indices]
 
 
-def _candidates(tex: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All (triangle, row, col) whose texel square meets a triangle's bounding box."""
-    lo = np.clip(np.floor(tex.min(axis=1)).astype(np.int64), 0, size - 1)  # [F, 2] (x, y)
-    hi = np.clip(np.floor(tex.max(axis=1)).astype(np.int64), 0, size - 1)
-    nx, ny = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
-    count = nx * ny
-    tri = np.repeat(np.arange(len(tex)), count)
-    start = np.cumsum(count) - count
-    local = np.arange(count.sum()) - np.repeat(start, count)
-    dy, dx = np.divmod(local, np.repeat(nx, count))
-    return tri, lo[tri, 1] + dy, lo[tri, 0] + dx
-
-
-def _overlap_table(tex: np.ndarray) -> np.ndarray:
-    """Per-triangle separating-axis constants ``[F, 19]``: inward edge normals (x, y), their edge and
-    apex projections, the unit square's half extent along them, and the bounding box."""
-    edge = np.roll(tex, -1, axis=1) - tex  # edge k: corner k -> k+1
-    normal = np.stack([-edge[..., 1], edge[..., 0]], axis=-1)
-    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-300)
-    det = edge[:, 0, 0] * edge[:, 1, 1] - edge[:, 0, 1] * edge[:, 1, 0]
-    normal *= np.where(det < 0, -1.0, 1.0)[:, None, None]  # inward for either orientation
-    at_edge = np.einsum("fkd,fkd->fk", normal, tex)
-    at_apex = np.einsum("fkd,fkd->fk", normal, np.roll(tex, -2, axis=1))
-    half = 0.5 * (np.abs(normal[..., 0]) + np.abs(normal[..., 1]))
-    return np.concatenate([normal[..., 0], normal[..., 1], at_edge, at_apex, half, tex.min(axis=1),
-                           tex.max(axis=1)], axis=1)
-
-
-def _overlaps(table: np.ndarray, col: np.ndarray, row: np.ndarray) -> np.ndarray:
-    """Separating-axis test of unit squares ``[col, col+1] × [row, row+1]`` against triangles whose
-    :func:`_overlap_table` rows are ``table [M, 19]``: overlap with positive area on all five axes."""
-    cx, cy = col + 0.5, row + 0.5
-    nx, ny, at_edge, at_apex, half = (table[:, 3 * i:3 * i + 3] for i in range(5))
-    centre = nx * cx[:, None] + ny * cy[:, None]
-    ok = ((centre + half > at_edge + _TOUCH) & (centre - half < at_apex - _TOUCH)).all(axis=1)
-    lo, hi = table[:, 15:17], table[:, 17:19]
-    ok &= (cx - 0.5 < hi[:, 0] - _TOUCH) & (cx + 0.5 > lo[:, 0] + _TOUCH)
-    ok &= (cy - 0.5 < hi[:, 1] - _TOUCH) & (cy + 0.5 > lo[:, 1] + _TOUCH)
-    return ok
-
-
-def _closest_barycentric(p: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Barycentric coordinates ``[M, 3]`` of the point of triangle ``p [M, 3, 2]`` nearest ``x [M, 2]``
-    and the squared distance ``[M]`` (0 inside)."""
-    a, b, c = p[:, 0], p[:, 1], p[:, 2]
-    e1, e2, w = b - a, c - a, x - a
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    l1 = (w[:, 0] * e2[:, 1] - w[:, 1] * e2[:, 0]) / det
-    l2 = (e1[:, 0] * w[:, 1] - e1[:, 1] * w[:, 0]) / det
-    bary = np.stack([1.0 - l1 - l2, l1, l2], axis=1)
-    inside = bary.min(axis=1) >= 0.0
-    # nearest point on each edge k (corner k -> corner k+1), clamped to the segment
-    start = p
-    seg = np.roll(p, -1, axis=1) - p
-    t = np.einsum("mkd,mkd->mk", x[:, None, :] - start, seg) / np.maximum(np.einsum("mkd,mkd->mk", seg, seg), 1e-300)
-    t = np.clip(t, 0.0, 1.0)
-    nearest = start + t[..., None] * seg
-    dist2 = np.sum((nearest - x[:, None, :]) ** 2, axis=-1)
-    k = np.argmin(dist2, axis=1)
-    rows = np.arange(len(p))
-    tk = t[rows, k]
-    edge_bary = np.zeros_like(bary)
-    edge_bary[rows, k] = 1.0 - tk
-    edge_bary[rows, (k + 1) % 3] = tk
-    return np.where(inside[:, None], bary, edge_bary), np.where(inside, 0.0, dist2[rows, k])
-
-
 def texture_atlas(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],
@@ -233,19 +164,15 @@ def texture_atlas(
     tex_det = tex_edge1[:, 0] * tex_edge2[:, 1] - tex_edge1[:, 1] * tex_edge2[:, 0]
     usable = np.abs(tex_det) > 1e-12 * np.maximum(np.abs(tex_edge1).max(axis=1) * np.abs(tex_edge2).max(axis=1), 1e-300)
 
-    tri, row, col = _candidates(tex[usable], size)
-    tri = np.nonzero(usable)[0][tri]
-    keep = _overlaps(np.take(_overlap_table(tex), tri, axis=0), col, row)
-    tri, row, col = tri[keep], row[keep], col[keep]
-    if tri.size == 0:
+    texels = rasterize_uv(uv, size, coverage="overlap")
+    if texels.face.size == 0:
         raise InputError(
             f"texture_atlas: no texel of the {size}×{size} texture overlaps a UV triangle; check that the "
             "UVs lie in [0, 1]² and are not degenerate, or pass uv=None to unwrap with xatlas"
         )
-    centre = np.stack([col + 0.5, row + 0.5], axis=1)
-    bary, dist2 = _closest_barycentric(tex[tri], centre)
+    tri, row, col, bary, dist = texels.face, texels.row, texels.col, texels.bary, texels.distance
     pixel = row * size + col
-    order = np.lexsort((tri, dist2, pixel))  # per pixel: nearest triangle first, then lowest index
+    order = np.lexsort((tri, dist, pixel))  # per pixel: nearest triangle first, then lowest index
     pixel, tri, bary = pixel[order], tri[order], bary[order]
     first = np.ones(len(pixel), bool)
     first[1:] = pixel[1:] != pixel[:-1]

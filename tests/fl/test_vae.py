@@ -24,8 +24,7 @@ from jmeshtex.fl import (
     save_fl_vae,
     vae_loss,
 )
-from jmeshtex.fl._vae import rasterize_uv
-from jmeshtex.geometry import one_ring_neighborhood
+from jmeshtex.geometry import one_ring_neighborhood, rasterize_uv
 
 SMALL = FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=12,
                     encode_chunk=32)
@@ -115,7 +114,8 @@ def _loop_rasterize(uv, size):
 def test_rasterize_covers_exactly_the_texels_inside_uv_triangles():
     rng = np.random.default_rng(0)
     uv = rng.random((5, 3, 2)) * 0.8 + 0.1
-    index, face, bary = rasterize_uv(uv, 16)
+    r = rasterize_uv(uv, 16)
+    index, face, bary = np.stack([r.row, r.col], 1), r.face, r.bary
     covered = np.zeros((16, 16), bool)
     covered[index[:, 0], index[:, 1]] = True
     np.testing.assert_array_equal(covered, _loop_rasterize(uv, 16))
@@ -136,7 +136,8 @@ def test_decode_texture_fills_the_used_texels_and_agrees_with_vertex_colours(key
     params = init_fl_vae(key, cfg, dtype=jnp.float64)
     mu = jnp.asarray(np.random.default_rng(1).standard_normal((len(v), 3)) * (1 + 1j))
     tex, valid = decode_texture(params, cfg, mesh, mu, size=32)
-    index, _, _ = rasterize_uv(uv, 32)
+    r = rasterize_uv(uv, 32)
+    index = np.stack([r.row, r.col], 1)
     assert valid.sum() == len(np.unique(index[:, 0] * 32 + index[:, 1]))
     assert (tex[~valid] == 0).all() and tex.min() >= 0 and tex.max() <= 1
     # at a vertex the blend reduces to that vertex's own prediction
