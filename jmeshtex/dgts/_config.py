@@ -23,57 +23,12 @@ Two dataclasses, both frozen and JSON round-trippable (:meth:`to_dict` / :meth:`
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
-from typing import Any, ClassVar
 
-from .._errors import ConfigError
-
-
-def _check(cond: bool, message: str) -> None:
-    if not cond:
-        raise ConfigError(message)
-
-
-class _Serialisable:
-    """Validation by rules, JSON round trip and ``replace``, shared by both configs.
-
-    ``_RULES``: ``(field names separated by spaces, predicate, what the predicate requires)``; every
-    named field must satisfy its predicate, else :class:`ConfigError` names the field and the rule.
-    """
-
-    _RULES: ClassVar[tuple[tuple[str, Callable[[Any], bool], str], ...]] = ()
-
-    def __post_init__(self):
-        for names, ok, rule in self._RULES:
-            for name in names.split():
-                value = getattr(self, name)
-                _check(ok(value), f"{type(self).__name__}.{name} must be {rule}, got {value!r}")
-
-    def to_dict(self) -> dict[str, Any]:
-        """The fields as a JSON-compatible dict (tuples become lists)."""
-        out = {}
-        for f in dataclasses.fields(self):  # type: ignore[arg-type]
-            value = getattr(self, f.name)
-            out[f.name] = list(value) if isinstance(value, tuple) else value
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]):
-        """Rebuild from :meth:`to_dict` output; unknown keys raise :class:`ConfigError`."""
-        names = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-        unknown = sorted(set(data) - set(names))
-        if unknown:
-            raise ConfigError(f"{cls.__name__}: unknown fields {unknown}; known: {sorted(names)}")
-        kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
-        return cls(**kwargs)
-
-    def replace(self, **changes):
-        """A copy with some fields changed (validated again)."""
-        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+from .._config import ConfigBase, cross_rule, rule
 
 
 @dataclasses.dataclass(frozen=True)
-class PrepareConfig(_Serialisable):
+class PrepareConfig(ConfigBase):
     """How the multi-scale training meshes are fitted (DGTS §3.3, reference ``GtOptions``).
 
     At level ``l`` the template (subdivided ``l`` times, mean edge ≈ 1 in the level's frame) is fitted
@@ -117,15 +72,15 @@ class PrepareConfig(_Serialisable):
     seed: int = 0
 
     _RULES = (
-        ("num_levels samples_per_level", lambda x: x >= 1, ">= 1"),
-        ("iterations weight_s2t weight_t2s weight_normal_s2t weight_normal_t2s weight_edge_std weight_edge_local "
-         "weight_laplacian", lambda x: x >= 0, ">= 0"),
-        ("lr scale_factor", lambda x: x > 0, "> 0"),
+        rule("num_levels samples_per_level", lambda x: x >= 1, ">= 1"),
+        rule("iterations weight_s2t weight_t2s weight_normal_s2t weight_normal_t2s weight_edge_std weight_edge_local "
+             "weight_laplacian", lambda x: x >= 0, ">= 0"),
+        rule("lr scale_factor", lambda x: x > 0, "> 0"),
     )
 
 
 @dataclasses.dataclass(frozen=True)
-class TrainConfig(_Serialisable):
+class TrainConfig(ConfigBase):
     """The hierarchical WGAN-GP of DGTS (§3.4) with the reference code's defaults.
 
     Widths: layer ``i`` (1 ≤ i ≤ num_layers − 2) of level ``l`` has
@@ -181,19 +136,16 @@ class TrainConfig(_Serialisable):
     shared_levels: int = 0
 
     _RULES = (
-        ("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
-        ("start_features min_features lr_decay_every generator_steps", lambda x: x >= 1, ">= 1"),
-        ("noise_amplitude discriminator_steps iterations reconstruction_weight penalty_weight shared_levels",
-         lambda x: x >= 0, ">= 0"),
-        ("lr scale_factor", lambda x: x > 0, "> 0"),
-        ("beta1 beta2", lambda x: 0 <= x < 1, "in [0, 1)"),
-        ("lr_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
+        rule("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
+        rule("start_features min_features lr_decay_every generator_steps", lambda x: x >= 1, ">= 1"),
+        rule("noise_amplitude discriminator_steps iterations reconstruction_weight penalty_weight shared_levels",
+             lambda x: x >= 0, ">= 0"),
+        rule("lr scale_factor", lambda x: x > 0, "> 0"),
+        rule("beta1 beta2", lambda x: 0 <= x < 1, "in [0, 1)"),
+        rule("lr_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
+        cross_rule(lambda c: c.min_features <= c.max_features,
+                   "need min_features <= max_features, got {c.min_features}, {c.max_features}"),
     )
-
-    def __post_init__(self):
-        super().__post_init__()
-        _check(self.min_features <= self.max_features,
-               f"need min_features <= max_features, got {self.min_features}, {self.max_features}")
 
     def level_features(self, level: int, *, generator: bool) -> tuple[int, ...]:
         """Output widths of the weight layers at ``level`` (embedding first, 3 or 1 last).

@@ -9,9 +9,8 @@ the paper leaves open are chosen small enough to train on two CPU cores.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
-from .._errors import ConfigError
+from .._config import ConfigBase, cross_rule, rule
 
 #: decoder variants: the paper's log-coordinate neural field and its barycentric ablation (Table 1)
 DECODERS = ("log", "barycentric")
@@ -23,13 +22,8 @@ _TRAINING_FIELDS = ("num_samples", "kl_weight", "min_vertices", "max_vertices", 
                     "checkpoint_every", "encode_chunk", "seed")
 
 
-def _check(cond: bool, message: str) -> None:
-    if not cond:
-        raise ConfigError(message)
-
-
 @dataclasses.dataclass(frozen=True)
-class FLVAEConfig:
+class FLVAEConfig(ConfigBase):
     """Every hyper-parameter of the FL-VAE, its one-ring sampling and its planar pre-training.
 
     Model (paper §4, eq. 21–28):
@@ -100,42 +94,28 @@ class FLVAEConfig:
     encode_chunk: int = 2048
     seed: int = 0
 
-    def __post_init__(self):
-        _check(int(self.latent_dim) >= 1, f"latent_dim must be >= 1, got {self.latent_dim}")
-        _check(int(self.num_samples) >= 1, f"num_samples must be >= 1, got {self.num_samples}")
-        _check(int(self.features) >= 1 and int(self.num_heads) >= 1, "features and num_heads must be >= 1")
-        _check(self.features % self.num_heads == 0,
-               f"features ({self.features}) must be divisible by num_heads ({self.num_heads})")
-        _check(int(self.num_blocks) >= 0, f"num_blocks must be >= 0, got {self.num_blocks}")
-        _check(int(self.decoder_layers) >= 2, f"decoder_layers must be >= 2, got {self.decoder_layers}")
-        _check(int(self.decoder_features) >= 1, f"decoder_features must be >= 1, got {self.decoder_features}")
-        _check(self.decoder in DECODERS, f"decoder must be one of {DECODERS}, got {self.decoder!r}")
-        _check(self.kl_weight >= 0, f"kl_weight must be >= 0, got {self.kl_weight}")
-        _check(self.delta > 0, f"delta must be > 0, got {self.delta}")
-        _check(3 <= self.min_vertices <= self.max_vertices,
-               f"need 3 <= min_vertices <= max_vertices, got {self.min_vertices}, {self.max_vertices}")
-        _check(self.max_image_size >= 8, f"max_image_size must be >= 8, got {self.max_image_size}")
-        _check(self.meshes_per_image >= 1, f"meshes_per_image must be >= 1, got {self.meshes_per_image}")
-        _check(self.batch_meshes >= 1, f"batch_meshes must be >= 1, got {self.batch_meshes}")
-        _check(self.steps >= 0, f"steps must be >= 0, got {self.steps}")
-        _check(self.lr > 0 and 0 <= self.final_lr_fraction <= 1,
-               f"need lr > 0 and final_lr_fraction in [0, 1], got {self.lr}, {self.final_lr_fraction}")
-        _check(self.warmup_steps >= 0 and self.grad_clip > 0, "need warmup_steps >= 0 and grad_clip > 0")
-        _check(self.checkpoint_every >= 1, f"checkpoint_every must be >= 1, got {self.checkpoint_every}")
-        _check(self.encode_chunk >= 1, f"encode_chunk must be >= 1, got {self.encode_chunk}")
-
-    def to_dict(self) -> dict[str, Any]:
-        """The fields as a JSON-compatible dict."""
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> FLVAEConfig:
-        """Rebuild from :meth:`to_dict` output; unknown keys raise :class:`~jmeshtex.ConfigError`."""
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ConfigError(f"FLVAEConfig: unknown fields {unknown}; known: {sorted(names)}")
-        return cls(**data)
+    _MESSAGE = "{name} must be {must}, got {value}"
+    _RULES = (
+        rule("latent_dim num_samples", lambda x: int(x) >= 1, ">= 1"),
+        cross_rule(lambda c: int(c.features) >= 1 and int(c.num_heads) >= 1, "features and num_heads must be >= 1"),
+        cross_rule(lambda c: c.features % c.num_heads == 0,
+                   "features ({c.features}) must be divisible by num_heads ({c.num_heads})"),
+        rule("num_blocks", lambda x: int(x) >= 0, ">= 0"),
+        rule("decoder_layers", lambda x: int(x) >= 2, ">= 2"),
+        rule("decoder_features", lambda x: int(x) >= 1, ">= 1"),
+        rule("decoder", lambda x: x in DECODERS, f"one of {DECODERS}", message="{name} must be {must}, got {value!r}"),
+        rule("kl_weight", lambda x: x >= 0, ">= 0"),
+        rule("delta", lambda x: x > 0, "> 0"),
+        cross_rule(lambda c: 3 <= c.min_vertices <= c.max_vertices,
+                   "need 3 <= min_vertices <= max_vertices, got {c.min_vertices}, {c.max_vertices}"),
+        rule("max_image_size", lambda x: x >= 8, ">= 8"),
+        rule("meshes_per_image batch_meshes", lambda x: x >= 1, ">= 1"),
+        rule("steps", lambda x: x >= 0, ">= 0"),
+        cross_rule(lambda c: c.lr > 0 and 0 <= c.final_lr_fraction <= 1,
+                   "need lr > 0 and final_lr_fraction in [0, 1], got {c.lr}, {c.final_lr_fraction}"),
+        cross_rule(lambda c: c.warmup_steps >= 0 and c.grad_clip > 0, "need warmup_steps >= 0 and grad_clip > 0"),
+        rule("checkpoint_every encode_chunk", lambda x: x >= 1, ">= 1"),
+    )
 
     def model(self) -> FLVAEConfig:
         """The same model with every data/training field at its default: a cache key for jitted
@@ -147,7 +127,3 @@ class FLVAEConfig:
         """
         defaults = FLVAEConfig()
         return self.replace(**{name: getattr(defaults, name) for name in _TRAINING_FIELDS})
-
-    def replace(self, **changes) -> FLVAEConfig:
-        """A copy with some fields changed (validated again)."""
-        return dataclasses.replace(self, **changes)

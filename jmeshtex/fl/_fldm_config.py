@@ -12,19 +12,13 @@ diffusion schedule, the training data (re-triangulated copies) and the optimiser
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
-from .._errors import ConfigError
+from .._config import ConfigBase, is_int, rule
 from ._diffusion import SCHEDULES
 
 
-def _check(cond: bool, message: str) -> None:
-    if not cond:
-        raise ConfigError(message)
-
-
 @dataclasses.dataclass(frozen=True)
-class FLDMConfig:
+class FLDMConfig(ConfigBase):
     """Every choice of an FLDM run.
 
     Attributes:
@@ -47,6 +41,11 @@ class FLDMConfig:
       pool_ratio: coarse / fine vertex ratio of the U-Net's one downsampling.
       bucket: vertex counts are padded up to a multiple of this (limits recompiles).
       seed: seed of copies, initialisation and training noise.
+
+    Example:
+      >>> c = FLDMConfig.tiny()
+      >>> FLDMConfig.from_dict(c.to_dict()) == c
+      True
     """
 
     latent_channels: int = 4
@@ -69,25 +68,22 @@ class FLDMConfig:
     bucket: int = 256
     seed: int = 0
 
-    def __post_init__(self):
-        def pos_int(name, v):
-            _check(isinstance(v, int) and not isinstance(v, bool) and v >= 1, f"{name} must be a positive integer, got {v!r}")
-
-        for name in ("latent_channels", "hdim", "knn", "time_features", "num_train_steps", "batch_size",
-                     "train_steps", "checkpoint_every", "n_copies", "bucket"):
-            pos_int(name, getattr(self, name))
-        _check(len(self.widths) == 2 and all(isinstance(w, int) and w >= 1 for w in self.widths),
-               f"widths must be two positive integers (fine, coarse), got {self.widths!r}")
-        _check(len(self.blocks) == 3 and all(isinstance(b, int) and b >= 1 for b in self.blocks),
-               f"blocks must be three positive integers (down, middle, up), got {self.blocks!r}")
-        _check(self.activation in ("silu", "relu"), f"activation must be 'silu' or 'relu', got {self.activation!r}")
-        _check(self.schedule in SCHEDULES, f"schedule must be one of {SCHEDULES}, got {self.schedule!r}")
-        _check(isinstance(self.num_labels, int) and self.num_labels >= 0, f"num_labels must be >= 0, got {self.num_labels!r}")
-        _check(isinstance(self.copy_vertices, int) and (self.copy_vertices == 0 or self.copy_vertices >= 16),
-               f"copy_vertices must be 0 (keep the input's count) or >= 16, got {self.copy_vertices!r}")
-        _check(0.05 <= self.pool_ratio <= 0.75, f"pool_ratio must be in [0.05, 0.75], got {self.pool_ratio!r}")
-        _check(self.learning_rate > 0, f"learning_rate must be > 0, got {self.learning_rate!r}")
-        _check(self.num_train_steps >= 2, "num_train_steps must be >= 2")
+    _MESSAGE = "{name} must be {must}, got {value!r}"
+    _RULES = (
+        rule("latent_channels hdim knn time_features num_train_steps batch_size train_steps checkpoint_every n_copies "
+             "bucket", lambda x: is_int(x) and x >= 1, "a positive integer"),
+        rule("widths", lambda w: len(w) == 2 and all(isinstance(x, int) and x >= 1 for x in w),
+             "two positive integers (fine, coarse)"),
+        rule("blocks", lambda b: len(b) == 3 and all(isinstance(x, int) and x >= 1 for x in b),
+             "three positive integers (down, middle, up)"),
+        rule("activation", lambda x: x in ("silu", "relu"), "'silu' or 'relu'"),
+        rule("schedule", lambda x: x in SCHEDULES, f"one of {SCHEDULES}"),
+        rule("num_labels", lambda x: isinstance(x, int) and x >= 0, ">= 0"),
+        rule("copy_vertices", lambda x: isinstance(x, int) and (x == 0 or x >= 16), "0 (keep the input's count) or >= 16"),
+        rule("pool_ratio", lambda x: 0.05 <= x <= 0.75, "in [0.05, 0.75]"),
+        rule("learning_rate", lambda x: x > 0, "> 0"),
+        rule("num_train_steps", lambda x: x >= 2, ">= 2", message="{name} must be {must}"),
+    )
 
     @classmethod
     def paper(cls, **changes) -> FLDMConfig:
@@ -119,26 +115,3 @@ class FLDMConfig:
                     n_copies=4, copy_vertices=400, train_steps=200, batch_size=2, learning_rate=3e-3,
                     checkpoint_every=100, bucket=64)
         return cls(**{**base, **changes})
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-compatible dict (tuples become lists)."""
-        return {f.name: list(v) if isinstance(v := getattr(self, f.name), tuple) else v for f in dataclasses.fields(self)}
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> FLDMConfig:
-        """Inverse of :meth:`to_dict`; unknown keys raise :class:`ConfigError`.
-
-        Example:
-          >>> c = FLDMConfig.tiny()
-          >>> FLDMConfig.from_dict(c.to_dict()) == c
-          True
-        """
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ConfigError(f"FLDMConfig: unknown fields {unknown}; known: {sorted(names)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
-
-    def replace(self, **changes) -> FLDMConfig:
-        """A validated copy with some fields changed."""
-        return dataclasses.replace(self, **changes)

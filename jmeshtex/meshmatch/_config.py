@@ -5,11 +5,30 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from .._errors import ConfigError
+from .._config import ConfigBase, cross_rule, integers, is_finite_number, is_int, rule
+
+
+def _as_tuple(weight: float | tuple[float, ...]) -> tuple[float, ...]:
+    return weight if isinstance(weight, tuple) else (weight,)
+
+
+def _weights_ok(values: tuple[float, ...]) -> bool:
+    return bool(values) and all(is_finite_number(v) and v >= 0 for v in values)
+
+
+def _up_ok(up) -> bool:
+    if up is None:
+        return True
+    up = tuple(up)
+    return len(up) == 3 and all(math.isfinite(float(x)) for x in up) and not all(float(x) == 0 for x in up)
+
+
+#: a weight's message shows the value as the 1-tuple the tuple-valued shape_weight is checked as
+_WEIGHT_MESSAGE = "{cls}.{name} must be finite and >= 0, got ({value!r},)"
 
 
 @dataclasses.dataclass(frozen=True)
-class MeshMatchConfig:
+class MeshMatchConfig(ConfigBase):
     """Settings of a MeshMatch transfer. All lengths are in units of the level's mean edge length.
 
     Attributes:
@@ -85,40 +104,27 @@ class MeshMatchConfig:
     levels: int | None = None
     dtype: str = "float32"
 
-    def __post_init__(self):
-        ints = {
-            "num_radii": 1, "num_angles": 2, "hks_times": 1, "hks_eigenpairs": 2,
-            "hks_max_vertices": 16, "iterations": 1, "coarse_iterations": 1, "min_vertices": 8,
-            "sweeps": 1, "exact_candidates": 1,
-        }
-        for name, low in ints.items():
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ConfigError(f"MeshMatchConfig.{name} must be an integer >= {low}, got {value!r}")
-        for name in ("random_search_levels", "global_candidates", "bucket_vertices"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                raise ConfigError(f"MeshMatchConfig.{name} must be an integer >= 0, got {value!r}")
-        for name in ("fan_radius", "vote_sigma"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"MeshMatchConfig.{name} must be a positive number, got {value!r}")
-        weights = self.shape_weight if isinstance(self.shape_weight, tuple) else (self.shape_weight,)
-        for name, values in (("color_weight", (self.color_weight,)), ("shape_weight", weights),
-                             ("affinity_weight", (self.affinity_weight,)), ("tolerance", (self.tolerance,))):
-            if not values or not all(isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 for v in values):
-                raise ConfigError(f"MeshMatchConfig.{name} must be finite and >= 0, got {values!r}")
-        if self.color_weight == 0 and all(w == 0 for w in weights):
-            raise ConfigError("color_weight and shape_weight are all 0: the patch distance would be constant")
-        if self.up is not None:
-            up = tuple(self.up)
-            if len(up) != 3 or not all(math.isfinite(float(x)) for x in up) or all(float(x) == 0 for x in up):
-                raise ConfigError(f"MeshMatchConfig.up must be a non-zero 3-vector or None, got {self.up!r}")
-        if self.levels is not None and (isinstance(self.levels, bool) or not isinstance(self.levels, int)
-                                        or self.levels < 1):
-            raise ConfigError(f"MeshMatchConfig.levels must be None or an integer >= 1, got {self.levels!r}")
-        if self.dtype not in ("float32", "float64"):
-            raise ConfigError(f"MeshMatchConfig.dtype must be 'float32' or 'float64', got {self.dtype!r}")
+    _RULES = (
+        integers("num_radii", 1),
+        integers("num_angles", 2),
+        integers("hks_times", 1),
+        integers("hks_eigenpairs", 2),
+        integers("hks_max_vertices", 16),
+        integers("iterations coarse_iterations", 1),
+        integers("min_vertices", 8),
+        integers("sweeps exact_candidates", 1),
+        integers("random_search_levels global_candidates bucket_vertices", 0),
+        rule("fan_radius vote_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
+        rule("color_weight", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
+        cross_rule(lambda c: _weights_ok(_as_tuple(c.shape_weight)),
+                   lambda c: f"MeshMatchConfig.shape_weight must be finite and >= 0, got {_as_tuple(c.shape_weight)!r}"),
+        rule("affinity_weight tolerance", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
+        cross_rule(lambda c: c.color_weight != 0 or any(w != 0 for w in _as_tuple(c.shape_weight)),
+                   "color_weight and shape_weight are all 0: the patch distance would be constant"),
+        rule("up", _up_ok, "a non-zero 3-vector or None"),
+        rule("levels", lambda x: x is None or (is_int(x) and x >= 1), "None or an integer >= 1"),
+        rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
+    )
 
     def shape_weight_at(self, level: int) -> float:
         """The shape weight of hierarchy level ``level`` (0 = finest)."""

@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 
-from .._errors import ConfigError
+from .._config import ConfigBase, cross_rule, integers, is_finite_number, rule
 
 BOUNDARY_MODES = ("zero", "clamp")
 POOL_MODES = ("mean", "max")
 
 
 @dataclasses.dataclass(frozen=True)
-class SurfaceCNNConfig:
+class SurfaceCNNConfig(ConfigBase):
     """Settings of the precomputation and the Gram-matching optimisation.
 
     The defaults are the paper's (and its reference tool's): Adam with learning rate 0.1, halved
@@ -55,30 +54,21 @@ class SurfaceCNNConfig:
     content_weight: float = 1.0
     dtype: str = "float32"
 
-    def __post_init__(self):
-        for name, low in (("size", 4), ("steps", 0), ("halve_every", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ConfigError(f"SurfaceCNNConfig.{name} must be an integer >= {low}, got {value!r}")
-        for name in ("learning_rate", "content_weight", "init_low", "init_high"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ConfigError(f"SurfaceCNNConfig.{name} must be a finite number >= 0, got {value!r}")
-        if self.learning_rate <= 0:
-            raise ConfigError(f"SurfaceCNNConfig.learning_rate must be > 0, got {self.learning_rate!r}")
-        if not (0.0 <= self.init_low <= self.init_high <= 1.0):
-            raise ConfigError(
-                f"SurfaceCNNConfig needs 0 <= init_low <= init_high <= 1, got {self.init_low}, {self.init_high}"
-            )
-        if self.pool not in POOL_MODES:
-            raise ConfigError(f"SurfaceCNNConfig.pool must be one of {POOL_MODES}, got {self.pool!r}")
-        if self.boundary not in BOUNDARY_MODES:
-            raise ConfigError(f"SurfaceCNNConfig.boundary must be one of {BOUNDARY_MODES}, got {self.boundary!r}")
-        if self.layers is not None and (not isinstance(self.layers, tuple) or not self.layers
-                                        or not all(isinstance(n, str) for n in self.layers)):
-            raise ConfigError(f"SurfaceCNNConfig.layers must be None or a non-empty tuple of names, got {self.layers!r}")
-        if self.dtype not in ("float32", "float64"):
-            raise ConfigError(f"SurfaceCNNConfig.dtype must be 'float32' or 'float64', got {self.dtype!r}")
+    _RULES = (
+        integers("size", 4),
+        integers("steps", 0),
+        integers("halve_every", 1),
+        rule("learning_rate content_weight init_low init_high", lambda x: is_finite_number(x) and x >= 0,
+             "a finite number >= 0"),
+        rule("learning_rate", lambda x: x > 0, "> 0"),
+        cross_rule(lambda c: 0.0 <= c.init_low <= c.init_high <= 1.0,
+                   "{cls} needs 0 <= init_low <= init_high <= 1, got {c.init_low}, {c.init_high}"),
+        rule("pool", lambda x: x in POOL_MODES, f"one of {POOL_MODES}"),
+        rule("boundary", lambda x: x in BOUNDARY_MODES, f"one of {BOUNDARY_MODES}"),
+        rule("layers", lambda x: x is None or (isinstance(x, tuple) and len(x) > 0 and all(isinstance(n, str) for n in x)),
+             "None or a non-empty tuple of names"),
+        rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
+    )
 
     def learning_rate_at(self, step: int) -> float:
         """The learning rate of (0-based) step ``step``: halved after every ``halve_every`` steps."""

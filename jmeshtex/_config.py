@@ -1,0 +1,231 @@
+"""One mechanism for every configuration dataclass: declarative validation, a JSON round trip, ``replace``.
+
+A config is a frozen dataclass that derives from :class:`ConfigBase` and lists its checks in a
+``_RULES`` table, checked in order in ``__post_init__``; the first one broken raises
+:class:`~jmeshtex.ConfigError` with that rule's message. Two kinds of rule:
+
+- :func:`rule` (one value): every field named in ``names`` must satisfy ``ok(value)``;
+- :func:`cross_rule` (several values): the whole config must satisfy ``ok(config)``.
+
+Messages are ``str.format`` templates. A field rule's template sees ``{cls}`` (the class name),
+``{name}``, ``{value}``, ``{must}`` (the rule's requirement) and ``{c}`` (the config); without its
+own template it uses the class's ``_MESSAGE`` (default ``"{cls}.{name} must be {must}, got {value!r}"``).
+A cross rule's template sees ``{cls}`` and ``{c}`` (``"{c.lo} > {c.hi}"``), or it is a function of
+the config for messages that need computed values. A predicate that raises ``TypeError`` or
+``ValueError`` (a string where a number belongs, ``len`` of an int) counts as broken, so a wrongly
+typed value gets the rule's message too, never a bare built-in error.
+
+:meth:`ConfigBase.to_dict` writes plain JSON values (tuples become lists); :meth:`ConfigBase.from_dict`
+reads them back: lists become tuples for fields annotated with a tuple type, missing keys take their
+defaults (so older files and partial JSON still load) and unknown keys raise
+:class:`~jmeshtex.ConfigError` naming them.
+
+Example:
+  >>> import dataclasses
+  >>> @dataclasses.dataclass(frozen=True)
+  ... class Box(ConfigBase):
+  ...     size: tuple[int, int] = (2, 3)
+  ...     scale: float = 1.0
+  ...     _RULES = (
+  ...         rule("scale", lambda x: x > 0, "> 0"),
+  ...         cross_rule(lambda c: len(c.size) == 2, "{cls}.size must be two numbers, got {c.size!r}"),
+  ...     )
+  >>> Box().to_dict()
+  {'size': [2, 3], 'scale': 1.0}
+  >>> Box.from_dict({"size": [4, 5]})
+  Box(size=(4, 5), scale=1.0)
+  >>> Box(scale=0)
+  Traceback (most recent call last):
+  ...
+  jmeshtex._errors.ConfigError: Box.scale must be > 0, got 0
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import types
+import typing
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar, TypeVar, Union
+
+from ._errors import ConfigError
+
+#: a message template (``str.format``), or a function of the config for a cross rule
+Message = str | Callable[[Any], str]
+
+_C = TypeVar("_C", bound="ConfigBase")
+
+
+@dataclasses.dataclass(frozen=True)
+class Rule:
+    """One validation rule; build it with :func:`rule` or :func:`cross_rule`.
+
+    Attributes:
+      names: the fields checked one by one with ``ok(value)``; empty for a rule over the whole
+        config, checked with ``ok(config)``.
+      ok: the predicate; False, or a ``TypeError`` / ``ValueError`` raised by it, breaks the rule.
+      must: what the predicate requires, for the ``{must}`` of the message (field rules).
+      message: the message template, or a function of the config; None: the class's ``_MESSAGE``.
+    """
+
+    names: tuple[str, ...]
+    ok: Callable[[Any], bool]
+    must: str = ""
+    message: Message | None = None
+
+    def check(self, config: Any) -> None:
+        """Raise :class:`~jmeshtex.ConfigError` with this rule's message if ``config`` breaks it."""
+        cls = type(config).__name__
+        if not self.names:
+            if not _holds(self.ok, config):
+                message = self.message
+                raise ConfigError(message(config) if callable(message) else str(message).format(cls=cls, c=config))
+            return
+        template = self.message if self.message is not None else type(config)._MESSAGE
+        for name in self.names:
+            value = getattr(config, name)
+            if not _holds(self.ok, value):
+                raise ConfigError(template.format(cls=cls, name=name, value=value, must=self.must, c=config))
+
+
+def _holds(ok: Callable[[Any], bool], arg: Any) -> bool:
+    try:
+        return bool(ok(arg))
+    except (TypeError, ValueError):
+        return False
+
+
+def rule(names: str, ok: Callable[[Any], bool], must: str = "", *, message: str | None = None) -> Rule:
+    """A rule on single values: each field in ``names`` (separated by spaces) must satisfy ``ok``.
+
+    Args:
+      names: field names separated by spaces, e.g. ``"lr scale_factor"``.
+      ok: predicate of one value.
+      must: the requirement in words (``"> 0"``), the ``{must}`` of the message.
+      message: a template with ``{cls}``, ``{name}``, ``{value}``, ``{must}``, ``{c}``; None: the
+        class's ``_MESSAGE``.
+
+    Returns:
+      The rule, for a ``_RULES`` table.
+
+    Example:
+      >>> rule("lr scale_factor", lambda x: x > 0, "> 0").names
+      ('lr', 'scale_factor')
+    """
+    fields = tuple(names.split())
+    if not fields:
+        raise ConfigError("rule() needs at least one field name; use cross_rule() for a rule over the whole config")
+    return Rule(fields, ok, must, message)
+
+
+def cross_rule(ok: Callable[[Any], bool], message: Message) -> Rule:
+    """A rule over the whole config (several fields together): ``ok(config)`` must hold.
+
+    Args:
+      ok: predicate of the config.
+      message: a template with ``{cls}`` and ``{c}`` (the config: ``{c.min_size}``), or a function
+        of the config returning the message.
+
+    Returns:
+      The rule, for a ``_RULES`` table.
+
+    Example:
+      >>> r = cross_rule(lambda c: c.lo <= c.hi, "need lo <= hi, got {c.lo}, {c.hi}")
+      >>> r.names
+      ()
+    """
+    return Rule((), ok, "", message)
+
+
+def is_int(x: Any) -> bool:
+    """Whether ``x`` is an ``int`` and not a ``bool``.
+
+    Example:
+      >>> is_int(3), is_int(True), is_int(3.0)
+      (True, False, False)
+    """
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def is_finite_number(x: Any) -> bool:
+    """Whether ``x`` is an ``int`` or ``float`` and finite.
+
+    Example:
+      >>> is_finite_number(0.5), is_finite_number(float("inf")), is_finite_number("1")
+      (True, False, False)
+    """
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+def integers(names: str, low: int) -> Rule:
+    """A rule: each field in ``names`` must be an integer (not a bool) ``>= low``.
+
+    Example:
+      >>> integers("size steps", 1).must
+      'an integer >= 1'
+    """
+    return rule(names, lambda x: is_int(x) and x >= low, f"an integer >= {low}")
+
+
+class ConfigBase:
+    """Base of the frozen config dataclasses: rules checked on creation, JSON round trip, ``replace``.
+
+    Subclasses are ``@dataclasses.dataclass(frozen=True)`` and set ``_RULES`` (and ``_MESSAGE`` for
+    their own wording of field rules); see the module docstring.
+    """
+
+    _RULES: ClassVar[tuple[Rule, ...]] = ()
+    _MESSAGE: ClassVar[str] = "{cls}.{name} must be {must}, got {value!r}"
+
+    def __post_init__(self) -> None:
+        for r in self._RULES:
+            r.check(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields as a JSON-compatible dict (tuples become lists)."""
+        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+
+    @classmethod
+    def from_dict(cls: type[_C], data: Mapping[str, Any]) -> _C:
+        """Rebuild from :meth:`to_dict` output; missing keys take their defaults.
+
+        Raises:
+          ConfigError: ``data`` is not a mapping, has unknown keys, or holds invalid values.
+        """
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{cls.__name__}.from_dict needs a dict of fields (as written by to_dict), "
+                              f"got {type(data).__name__}")
+        _reject_unknown(cls, data)
+        tuples = _tuple_fields(cls)
+        return cls(**{k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in data.items()})
+
+    def replace(self: _C, **changes: Any) -> _C:
+        """A copy with some fields changed (validated again); unknown names raise ConfigError."""
+        _reject_unknown(type(self), changes)
+        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+
+
+def _reject_unknown(cls: type, data: Mapping[str, Any]) -> None:
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ConfigError(f"{cls.__name__}: unknown fields {unknown}; known: {sorted(names)}")
+
+
+def _plain(value: Any) -> Any:
+    return [_plain(v) for v in value] if isinstance(value, (tuple, list)) else value
+
+
+@functools.cache
+def _tuple_fields(cls: type) -> frozenset[str]:
+    hints = typing.get_type_hints(cls)
+    return frozenset(f.name for f in dataclasses.fields(cls) if _is_tuple_type(hints.get(f.name)))
+
+
+def _is_tuple_type(hint: Any) -> bool:
+    origin = typing.get_origin(hint)
+    if hint is tuple or origin is tuple:
+        return True
+    return origin in (Union, types.UnionType) and any(_is_tuple_type(a) for a in typing.get_args(hint))

@@ -1,0 +1,229 @@
+"""The shared config mechanism (`jmeshtex._config`): rules, JSON round trip, ``replace``."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+import re
+
+import numpy as np
+import pytest
+
+from jmeshtex import ConfigError
+from jmeshtex._config import ConfigBase, cross_rule, integers, is_finite_number, is_int, rule
+from jmeshtex.dgts import PrepareConfig, TrainConfig
+from jmeshtex.fl import FLDMConfig, FLVAEConfig
+from jmeshtex.meshmatch import MeshMatchConfig
+from jmeshtex.surfacecnn import SurfaceCNNConfig
+
+WEIGHTS = pathlib.Path(__file__).resolve().parents[1] / "jmeshtex" / "fl" / "weights"
+
+
+@dataclasses.dataclass(frozen=True)
+class Toy(ConfigBase):
+    """A config exercising every kind of rule and field the mechanism handles."""
+
+    steps: int = 10
+    lr: float = 0.1
+    widths: tuple[int, int] = (4, 8)
+    up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
+    mode: str = "a"
+    lo: float = 0.0
+    hi: float = 1.0
+
+    _RULES = (
+        integers("steps", 1),
+        rule("lr", lambda x: x > 0, "> 0"),
+        rule("widths", lambda w: len(w) == 2 and all(is_int(x) and x >= 1 for x in w), "two positive integers"),
+        rule("mode", lambda x: x in ("a", "b"), "'a' or 'b'", message="mode must be {must}, got {value!r}"),
+        cross_rule(lambda c: c.lo <= c.hi, "{cls} needs lo <= hi, got {c.lo}, {c.hi}"),
+        cross_rule(lambda c: c.widths[0] <= c.widths[1], lambda c: f"widths {c.widths} must not shrink, {{literal}}"),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Terse(ConfigBase):
+    """A config with its own wording of field rules (``_MESSAGE``)."""
+
+    a: int = 1
+    b: int = 1
+
+    _MESSAGE = "{name} must be {must}, got {value}"
+    _RULES = (rule("a b", lambda x: x >= 1, ">= 1"),)
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"steps": 0}, "Toy.steps must be an integer >= 1, got 0"),
+        ({"steps": True}, "Toy.steps must be an integer >= 1, got True"),
+        ({"lr": -1.0}, "Toy.lr must be > 0, got -1.0"),
+        ({"widths": (4, 0)}, "Toy.widths must be two positive integers, got (4, 0)"),
+        ({"mode": "c"}, "mode must be 'a' or 'b', got 'c'"),
+        ({"lo": 2.0}, "Toy needs lo <= hi, got 2.0, 1.0"),
+        # a callable message is used as it is (its braces are not a template)
+        ({"widths": (8, 4)}, "widths (8, 4) must not shrink, {literal}"),
+    ],
+)
+def test_a_broken_rule_raises_config_error_with_its_message(changes, message):
+    with pytest.raises(ConfigError) as err:
+        Toy(**changes)
+    assert str(err.value) == message
+    assert isinstance(err.value, ValueError)  # ConfigError is also a ValueError
+
+
+def test_rules_run_in_order_and_the_first_broken_one_is_reported():
+    with pytest.raises(ConfigError, match=r"^Toy\.steps "):
+        Toy(steps=0, lr=-1.0, lo=5.0)
+    with pytest.raises(ConfigError, match=r"^Toy\.lr "):
+        Toy(lr=-1.0, lo=5.0)
+    with pytest.raises(ConfigError, match="^b must be >= 1, got 0$"):
+        Terse(b=0)
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"lr": "fast"}, "Toy.lr must be > 0, got 'fast'"),  # '>' between str and int: TypeError
+        ({"widths": 5}, "Toy.widths must be two positive integers, got 5"),  # len(5): TypeError
+        ({"lo": None}, "Toy needs lo <= hi, got None, 1.0"),
+    ],
+)
+def test_a_wrongly_typed_value_gets_the_rules_message_not_a_builtin_error(changes, message):
+    with pytest.raises(ConfigError) as err:
+        Toy(**changes)
+    assert str(err.value) == message
+
+
+def test_a_cross_rule_sees_the_whole_config():
+    assert Toy(lo=0.5, hi=0.5).lo == 0.5
+    with pytest.raises(ConfigError, match=re.escape("Toy needs lo <= hi, got 0.6, 0.5")):
+        Toy(lo=0.6, hi=0.5)
+
+
+def test_json_round_trip_turns_tuples_into_lists_and_back():
+    c = Toy(steps=3, widths=(2, 5), up=(1.0, 0.0, 0.0), mode="b")
+    d = c.to_dict()
+    assert d == {"steps": 3, "lr": 0.1, "widths": [2, 5], "up": [1.0, 0.0, 0.0], "mode": "b", "lo": 0.0, "hi": 1.0}
+    back = Toy.from_dict(json.loads(json.dumps(d)))
+    assert back == c and isinstance(back.widths, tuple) and isinstance(back.up, tuple)
+    assert Toy.from_dict(Toy(up=None).to_dict()).up is None  # Optional tuple: None stays None
+
+
+def test_from_dict_fills_missing_keys_with_defaults():
+    assert Toy.from_dict({}) == Toy()
+    assert Toy.from_dict({"steps": 7}) == Toy(steps=7)
+
+
+def test_from_dict_converts_lists_only_for_tuple_fields():
+    # a list given for a non-tuple field is not silently turned into a tuple: the rule sees the list
+    with pytest.raises(ConfigError, match=re.escape("mode must be 'a' or 'b', got ['a']")):
+        Toy.from_dict({"mode": ["a"]})
+
+
+def test_from_dict_rejects_unknown_keys_and_names_them():
+    with pytest.raises(ConfigError) as err:
+        Toy.from_dict({"steps": 2, "zeta": 1, "alpha": 2})
+    assert str(err.value) == (
+        "Toy: unknown fields ['alpha', 'zeta']; known: ['hi', 'lo', 'lr', 'mode', 'steps', 'up', 'widths']"
+    )
+
+
+def test_from_dict_rejects_a_non_mapping():
+    with pytest.raises(ConfigError, match="Toy.from_dict needs a dict of fields"):
+        Toy.from_dict([("steps", 2)])  # type: ignore[arg-type]
+
+
+def test_from_dict_validates():
+    with pytest.raises(ConfigError, match=re.escape("Toy.lr must be > 0, got 0")):
+        Toy.from_dict({"lr": 0})
+
+
+def test_replace_validates_and_rejects_unknown_fields():
+    c = Toy()
+    assert c.replace(steps=4) == Toy(steps=4) and c == Toy()  # frozen: the original is unchanged
+    with pytest.raises(ConfigError, match=re.escape("Toy.steps must be an integer >= 1, got 0")):
+        c.replace(steps=0)
+    with pytest.raises(ConfigError, match=re.escape("Toy: unknown fields ['stpes']")):
+        c.replace(stpes=4)
+
+
+def test_configs_stay_hashable_and_comparable():
+    # configs are jit static arguments and cache keys: equal configs hash equally
+    assert hash(Toy()) == hash(Toy.from_dict(Toy().to_dict())) and Toy() != Toy(steps=2)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        Toy().steps = 3  # type: ignore[misc]
+
+
+def test_rule_needs_a_field_name():
+    with pytest.raises(ConfigError, match="cross_rule"):
+        rule("  ", lambda x: True, "anything")
+
+
+def test_predicates():
+    assert [is_int(x) for x in (0, -3, True, 1.0, "1", None)] == [True, True, False, False, False, False]
+    checks = [is_finite_number(x) for x in (0, 2.5, float("nan"), float("-inf"), "1", None)]
+    assert checks == [True, True, False, False, False, False]
+
+
+# --- every config of the library uses the mechanism -----------------------------------------------
+
+ALL = [PrepareConfig, TrainConfig, FLVAEConfig, FLDMConfig, MeshMatchConfig, SurfaceCNNConfig]
+
+
+@pytest.mark.parametrize("cls", ALL)
+def test_library_configs_round_trip_through_json(cls):
+    assert issubclass(cls, ConfigBase)
+    c = cls()
+    text = json.dumps(c.to_dict())
+    assert cls.from_dict(json.loads(text)) == c
+    assert cls.from_dict({}) == c
+    with pytest.raises(ConfigError, match=f"^{cls.__name__}: unknown fields \\['bogus'\\]"):
+        cls.from_dict({"bogus": 1})
+
+
+def test_tuple_valued_library_fields_come_back_as_tuples():
+    c = MeshMatchConfig(shape_weight=(1.0, 2.0), up=(0.0, 1.0, 0.0))
+    back = MeshMatchConfig.from_dict(json.loads(json.dumps(c.to_dict())))
+    assert back == c and back.shape_weight == (1.0, 2.0) and back.up == (0.0, 1.0, 0.0)
+    assert MeshMatchConfig.from_dict({"shape_weight": 5.0}).shape_weight == 5.0
+    s = SurfaceCNNConfig(layers=("relu1_1", "pool1"))
+    assert SurfaceCNNConfig.from_dict(json.loads(json.dumps(s.to_dict()))) == s
+    f = FLDMConfig.tiny()
+    assert FLDMConfig.from_dict(json.loads(json.dumps(f.to_dict()))).widths == (16, 32)
+
+
+@pytest.mark.parametrize("name", ["fl_vae.npz", "fl_vae_barycentric.npz"])
+def test_config_dicts_written_before_the_refactor_still_load(name):
+    # the shipped weights embed the FLVAEConfig dict their (older) to_dict wrote
+    with np.load(WEIGHTS / name, allow_pickle=False) as data:
+        stored = json.loads(data["meta"].tobytes().decode())["config"]
+    config = FLVAEConfig.from_dict(stored)
+    assert config.to_dict() == stored  # and today's to_dict writes the very same dict
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        # messages asserted elsewhere in the suite, word for word
+        (lambda: TrainConfig(min_features=64, max_features=32), "need min_features <= max_features, got 64, 32"),
+        (lambda: PrepareConfig(num_levels=0), "PrepareConfig.num_levels must be >= 1, got 0"),
+        (lambda: FLVAEConfig(decoder="bary"), "decoder must be one of ('log', 'barycentric'), got 'bary'"),
+        (lambda: FLVAEConfig(features=10, num_heads=4), "features (10) must be divisible by num_heads (4)"),
+        (lambda: FLDMConfig(widths=(4,)), "widths must be two positive integers (fine, coarse), got (4,)"),
+        (lambda: FLDMConfig(num_train_steps=1), "num_train_steps must be >= 2"),
+        (lambda: MeshMatchConfig(color_weight=-1.0), "MeshMatchConfig.color_weight must be finite and >= 0, got (-1.0,)"),
+        (lambda: MeshMatchConfig(shape_weight=(1.0, -1.0)),
+         "MeshMatchConfig.shape_weight must be finite and >= 0, got (1.0, -1.0)"),
+        (lambda: MeshMatchConfig(color_weight=0.0, shape_weight=(0.0, 0.0)),
+         "color_weight and shape_weight are all 0: the patch distance would be constant"),
+        (lambda: SurfaceCNNConfig(init_low=0.5, init_high=0.2),
+         "SurfaceCNNConfig needs 0 <= init_low <= init_high <= 1, got 0.5, 0.2"),
+        (lambda: SurfaceCNNConfig(size=True), "SurfaceCNNConfig.size must be an integer >= 4, got True"),
+    ],
+)
+def test_library_messages_are_unchanged(make, message):
+    with pytest.raises(ConfigError) as err:
+        make()
+    assert str(err.value) == message
