@@ -114,6 +114,28 @@ def bandwidth_ceiling(mbytes: int = 256) -> float:
     return 2 * n * 4 / t.run_s / 1e9
 
 
+def activation_ceiling(activation: str, *, n: int = 1 << 20, responses: int = 16) -> float:
+    """Achieved G evaluations/s of a filter activation (``"silu"`` or ``"relu"``) inside one fusion.
+
+    The shape of a field convolution's inner loop: ``Σ_h act(x·a_h + b_h)`` over ``responses``
+    ridge functions of ``n`` float32 inputs (4 MiB, cache-resident), so the figure is the
+    activation's arithmetic throughput, not memory bandwidth. A SiLU costs an exponential and a
+    division, which a FLOP count of multiply-adds does not see.
+    """
+    from jmeshtex.ops._field_conv import _act
+
+    x = jnp.linspace(-4.0, 4.0, n, dtype=jnp.float32)
+
+    def f(v):
+        acc = jnp.zeros_like(v)
+        for h in range(responses):
+            acc = acc + _act(v * (1.0 + 0.01 * h) + 0.1 * h, activation)
+        return acc
+
+    t = time_jax(jax.jit(f), x, repeats=5)
+    return n * responses / t.run_s / 1e9
+
+
 def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dict:
     """Which ceiling of this run bounds a row (FLOPs at matmul speed or bytes at copy bandwidth),
     the time that bound allows, and the share of it reached."""

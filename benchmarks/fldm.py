@@ -15,6 +15,12 @@ tangent-noise latents — timings do not depend on the values):
   matmul ceiling measured in the same run; ``ddim50_s`` is 50 evaluations (the sampler adds a few
   element-wise ops per step), ``bound_s`` the time the matmul ceiling allows for those FLOPs;
   ``--full-ddim`` also runs the whole jitted DDIM-50 loop once for the CPU preset at the largest size;
+  ``activations`` counts the filter nonlinearity's evaluations (:func:`denoiser_activations`), and
+  ``x_bound_act`` compares the time with a bound that adds them at the activation's own ceiling
+  (``silu_gevals`` / ``relu_gevals``, measured in the same run): a SiLU is an exponential and a
+  division, which the FLOP count does not see;
+- presets: ``paper`` (96/192, 2+4+4, SiLU filters as the reference), ``paper-relu`` (the same
+  network with ReLU filters), ``cpu``;
 - ``load``: the 1-minute load average at the start of each row (other jobs inflate wall times).
 """
 
@@ -27,12 +33,12 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _harness import Report, time_jax
+from _harness import Report, activation_ceiling, time_jax
 
 from jmeshtex import Mesh
 from jmeshtex.data import icosphere
 from jmeshtex.fl import FLDMConfig, denoise, denoiser_geometry, init_denoiser, sample_fldm
-from jmeshtex.fl._denoiser import denoiser_flops, geometry_sizes
+from jmeshtex.fl._denoiser import denoiser_activations, denoiser_flops, geometry_sizes
 from jmeshtex.fl._fldm_data import stack_copies
 from jmeshtex.fl._fldm_train import FLDMModel, _batch, make_train_step, optimizer
 from jmeshtex.geometry import remesh, to_jax
@@ -47,12 +53,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 30000])
     ap.add_argument("--measure", type=int, default=3, help="timed repeats of each step")
-    ap.add_argument("--presets", nargs="+", default=["paper", "cpu"])
+    ap.add_argument("--presets", nargs="+", default=["paper", "paper-relu", "cpu"])
     ap.add_argument("--full-ddim", action="store_true")
     ap.add_argument("--paper-train-max", type=int, default=5000,
                     help="largest size for the paper-size training step (30K needs ~56 GB on the CPU: skipped)")
     args = ap.parse_args()
     report = Report("fldm")
+    for act in ("silu", "relu"):  # the filter nonlinearity's own ceiling (FLOP counts do not see it)
+        report.ceilings[f"{act}_gevals"] = activation_ceiling(act)
+    print(f"activation ceilings: {report.ceilings}", flush=True)
     base = Mesh(*icosphere(6))  # 40962 vertices: both sizes are re-triangulations of it
     for n in args.sizes:
         t0 = time.perf_counter()
@@ -63,8 +72,11 @@ def main() -> None:
         report.add(name="denoiser geometry", vertices=n, seconds=time.perf_counter() - t0, load=_load())
         sizes = geometry_sizes(geo)
         for preset in args.presets:
-            cfg = getattr(FLDMConfig, preset)(latent_channels=8, copy_vertices=n)
-            if preset == "paper":
+            if preset == "paper-relu":  # the paper's widths and blocks with piecewise-linear filters
+                cfg = FLDMConfig.paper(latent_channels=8, copy_vertices=n, activation="relu")
+            else:
+                cfg = getattr(FLDMConfig, preset)(latent_channels=8, copy_vertices=n)
+            if preset.startswith("paper"):
                 cfg = cfg.replace(batch_size=1)
             # training step on a batch of copies (the same copy repeated: timing only)
             mu = np.asarray(tangent_noise(jax.random.key(0), (n, 8)), np.complex128)
@@ -78,7 +90,7 @@ def main() -> None:
             def run(params=params, opt_state=opt_state, z0=z0, g=g, lab=lab, step=step, key=key):
                 return step(params, opt_state, z0, g, lab, key)[2]
 
-            if preset == "paper" and n > args.paper_train_max:
+            if preset.startswith("paper") and n > args.paper_train_max:
                 report.add(name=f"train {preset}", vertices=n, batch=cfg.batch_size, note="skipped (memory)")
                 run = None
             load = _load()
@@ -94,8 +106,11 @@ def main() -> None:
             t = time_jax(fn, params, z, repeats=args.measure, min_time=0.0)
             flops = denoiser_flops(cfg, sizes["V0"], sizes["V1"])
             bound = flops / (report.ceilings["matmul_gflops"] * 1e9)
+            acts = denoiser_activations(cfg, sizes["V0"], sizes["V1"])
+            bound_act = bound + acts / (report.ceilings[f"{cfg.activation}_gevals"] * 1e9)
             report.add(name=f"denoise {preset}", vertices=n, compile_s=t.compile_s, seconds=t.run_s, flops=flops,
-                       ddim50_s=50 * t.run_s, bound_s=50 * bound, x_bound=t.run_s / bound, load=load)
+                       ddim50_s=50 * t.run_s, bound_s=50 * bound, x_bound=t.run_s / bound, activations=acts,
+                       x_bound_act=t.run_s / bound_act, load=load)
             if args.full_ddim and preset == "cpu" and n == max(args.sizes):
                 model = FLDMModel(params, cfg, np.ones(8))
                 load = _load()

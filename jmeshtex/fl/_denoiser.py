@@ -319,10 +319,30 @@ def denoiser_flops(config: FLDMConfig, v0: int, v1: int) -> float:
     return float(total)
 
 
+def denoiser_activations(config: FLDMConfig, v0: int, v1: int) -> float:
+    """Filter activations evaluated by one denoiser evaluation: ``Σ_conv V·k·C_in·H``.
+
+    Every field convolution evaluates its filter nonlinearity once per vertex, slot, input channel
+    and response; :func:`denoiser_flops` counts the multiply-adds around it but not the activation
+    itself (a SiLU is an exponential and a division).
+
+    Example:
+      >>> n = denoiser_activations(FLDMConfig.paper(), 30000, 7500)
+      >>> round(n / 1e9, 2)  # G evaluations
+      7.36
+    """
+    c0, c1 = config.widths
+    per = config.knn * config.hdim
+    fine = config.blocks[0] * 2 * c0 + (c1 + c0) + c0 + (config.blocks[2] - 1) * 2 * c0
+    coarse = c0 + c1 + (config.blocks[1] - 1) * 2 * c1
+    return float(per * (v0 * fine + v1 * coarse))
+
+
 __all__ = [
     "Denoiser",
     "DenoiserGeometry",
     "denoise",
+    "denoiser_activations",
     "denoiser_flops",
     "denoiser_geometry",
     "geometry_sizes",
