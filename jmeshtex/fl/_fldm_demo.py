@@ -14,7 +14,10 @@ pipeline runs on real textures (see ``benchmarks/fldm.py``).
 
 :func:`learning_check` trains a tiny model and compares the VGG Gram distance (texture statistics)
 of its samples' renders to the exemplar's render with that of an untrained model's samples, and
-measures the samples' pairwise LPIPS diversity.
+measures the samples' pairwise LPIPS diversity. ``learning_check(codec="fl_vae")`` runs the same
+check through the shipped FL-VAE instead of the analytic codec (encode the copies with
+:func:`~jmeshtex.fl.fl_vae_encoder`, decode sample latents with
+:func:`~jmeshtex.fl.decode_vertex_colors`).
 """
 
 from __future__ import annotations
@@ -118,9 +121,14 @@ def render_views(mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bo
     ``crop``: render at twice the size and keep the central half, where the sphere fills the frame
     (texture statistics without background or silhouette, for the Gram distance).
     """
+    return render_rgb_views(mesh, intensity_to_rgb(intensity), size=size, crop=crop)
+
+
+def render_rgb_views(mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool = False) -> np.ndarray:
+    """:func:`render_views` of per-vertex colours ``rgb [V, 3]`` in [0, 1] instead of an intensity."""
     from ..render import render_mesh
 
-    rgb = intensity_to_rgb(intensity)
+    rgb = np.asarray(rgb, np.float64)
     full = 2 * size if crop else size
     imgs = np.stack([render_mesh(mesh.vertices, mesh.faces, vertex_colors=rgb, view=v, size=(full, full))
                      for v in VIEWS]).astype(np.float32) / 255.0
@@ -130,14 +138,31 @@ def render_views(mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bo
     return imgs
 
 
-def learning_check(*, quick: bool = True, n_samples: int = 2, seed: int = 0, progress: bool = False) -> dict:
+def learning_check(
+    *, quick: bool = True, n_samples: int = 2, seed: int = 0, progress: bool = False, codec: str = "stripes"
+) -> dict:
     """Train a tiny FLDM on the striped sphere and measure fidelity and diversity of its samples.
 
+    Args:
+      quick: :func:`tiny_config` preset (True) or the larger CPU one.
+      n_samples: samples of the trained and of the untrained model (same noise).
+      seed: seed of the copies, the initialisation, training and sampling.
+      progress: tqdm bars.
+      codec: ``"stripes"``: the analytic codec of the module docstring (2 channels);
+        ``"fl_vae"``: the shipped FL-VAE (:func:`~jmeshtex.fl.load_pretrained`): copies encoded with
+        :func:`~jmeshtex.fl.fl_vae_encoder` (colours read on the exemplar), sample latents decoded with
+        :func:`~jmeshtex.fl.decode_vertex_colors` and the colours rendered.
+
     Returns:
-      ``{"gram_trained", "gram_untrained", "lpips_diversity", "losses", "seconds", ...}``: mean Gram
-      distance of sample renders to the exemplar's renders (trained and untrained model, same noise),
-      mean pairwise LPIPS between trained samples, the loss curve.
+      ``{"gram_trained", "gram_untrained", "gram_codec", "lpips_diversity", "losses", "seconds", ...}``:
+      mean Gram distance of sample renders to the exemplar's renders (trained and untrained model,
+      same noise; ``gram_codec``: the codec's own reconstruction of the exemplar on the same copy, the
+      floor the codec allows), mean pairwise LPIPS between trained samples, the loss curve.
+
+    Raises:
+      ConfigError: unknown ``codec``.
     """
+    from .._errors import ConfigError
     from ..metrics import gram_distance, load_vgg16, lpips
     from ._denoiser import init_denoiser
     from ._fldm_data import build_dataset
@@ -145,9 +170,27 @@ def learning_check(*, quick: bool = True, n_samples: int = 2, seed: int = 0, pro
     from ._fldm_train import FLDMModel, train_fldm
 
     t0 = time.perf_counter()
-    cfg = tiny_config(quick).replace(seed=seed)
     exemplar = striped_sphere(subdivisions=3)
-    data = build_dataset(exemplar, cfg, encode=stripe_encoder, progress=progress)
+    cfg = tiny_config(quick).replace(seed=seed)
+    if codec == "stripes":
+        encode = stripe_encoder
+
+        def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
+            return intensity_to_rgb(stripe_decoder(z))
+    elif codec == "fl_vae":
+        from ._fldm_data import fl_vae_encoder
+        from ._vae import decode_vertex_colors, load_pretrained
+
+        vae_params, vae_config = load_pretrained()
+        encode = fl_vae_encoder(vae_params, vae_config, exemplar, key=jax.random.key(seed + 3))
+        cfg = cfg.replace(latent_channels=vae_config.latent_dim)
+
+        def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
+            return np.asarray(decode_vertex_colors(vae_params, vae_config, mesh, jnp.asarray(z, jnp.complex64)),
+                              np.float64)
+    else:
+        raise ConfigError(f"codec must be 'stripes' or 'fl_vae', got {codec!r}")
+    data = build_dataset(exemplar, cfg, encode=encode, progress=progress)
     result = train_fldm(data, cfg, progress=progress)
     target = data.meshes[0]
     geo = sampling_geometry(target, result.model)
@@ -159,8 +202,9 @@ def learning_check(*, quick: bool = True, n_samples: int = 2, seed: int = 0, pro
     weights = load_vgg16()
     # the exemplar's stripes on the same copy the samples live on, central crops (texture only)
     ref = render_views(target, rgb_to_intensity(target.vertex_colors), size=96, crop=True)
-    tr = [render_views(target, stripe_decoder(z), size=96, crop=True) for z in z_tr]
-    un = [render_views(target, stripe_decoder(z), size=96, crop=True) for z in z_un]
+    tr = [render_rgb_views(target, decode(target, z), size=96, crop=True) for z in z_tr]
+    un = [render_rgb_views(target, decode(target, z), size=96, crop=True) for z in z_un]
+    rec = render_rgb_views(target, decode(target, data.latents[0, : target.num_vertices]), size=96, crop=True)
 
     def gram(imgs):
         return float(np.mean([np.asarray(gram_distance(jnp.asarray(i), jnp.asarray(ref), weights=weights)) for i in imgs]))
@@ -170,6 +214,7 @@ def learning_check(*, quick: bool = True, n_samples: int = 2, seed: int = 0, pro
     return {
         "gram_trained": gram(tr),
         "gram_untrained": gram(un),
+        "gram_codec": gram([rec]),
         "lpips_diversity": div,
         "losses": result.losses,
         "seconds": time.perf_counter() - t0,
@@ -178,6 +223,7 @@ def learning_check(*, quick: bool = True, n_samples: int = 2, seed: int = 0, pro
         "samples": z_tr,
         "untrained_samples": z_un,
         "exemplar": exemplar,
+        "codec": codec,
     }
 
 

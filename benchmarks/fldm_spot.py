@@ -1,0 +1,330 @@
+"""Benchmark: FLDM fidelity and diversity on Spot, with the shipped FL-VAE (issue 7).
+
+Run::
+
+    .venv/bin/python benchmarks/fldm_spot.py            # the CPU preset, about 15-20 min on 2 cores
+    .venv/bin/python benchmarks/fldm_spot.py --quick    # a smoke run (tiny model, ~1 min)
+
+Writes ``benchmarks/results/fldm_spot.{json,md}`` and ``fldm_spot.png`` (``--out`` to change the
+folder). The training copies and the resumable training checkpoint live under
+``benchmarks/results/_work/fldm_spot[_quick]/`` (git-ignored, ``--work`` to change): a re-run reuses
+the copies and resumes training where it stopped.
+
+What runs (Mitchel et al. 2024, §6.1 and §6.6):
+
+1. ``n_copies`` re-triangulations of Spot (``../shared/data/spot``, or ``$JMESHTEX_SHARED_DATA``)
+   with Spot's own vertex count (the texture scale follows mesh resolution, §6.6), encoded with the
+   shipped FL-VAE (:func:`jmeshtex.fl.load_pretrained` + :func:`jmeshtex.fl.fl_vae_encoder`);
+2. :func:`jmeshtex.fl.train_fldm` (ε-loss, Adam) with the :meth:`FLDMConfig.cpu` denoiser;
+3. ``n`` samples with DDIM-50 on Spot itself, decoded to Spot's UV atlas
+   (:func:`jmeshtex.fl.decode_samples`); the same noise through the *untrained* denoiser (same
+   initialisation as training started from);
+4. renders at fixed views (Spot turned y-up → z-up, one midpoint subdivision so that the face-flat
+   renderer shows the texture at about the image's resolution) of: the exemplar (Spot's own texture),
+   the FL-VAE reconstruction of the exemplar (encode Spot → decode its atlas: the fidelity the codec
+   allows), the mean colour of the exemplar (a texture-free baseline), the trained and the untrained
+   samples.
+
+Table (one row per source):
+
+- ``fidelity_gram``: mean over views (and samples) of the VGG Gram distance
+  (:func:`jmeshtex.metrics.gram_distance`, relu1_1…relu4_1) between the source's render and the
+  exemplar's render from the same view — lower is closer to the exemplar's texture statistics
+  (stands in for SIFID, which has no offline weights);
+- ``diversity_lpips``: mean over views and sample pairs of LPIPS-VGG between two samples' renders
+  from the same view (higher = more diverse);
+- ``*_std``: the standard deviation of the per-sample (per-pair) figures.
+
+Timing rows give every stage's wall time with the 1-minute load average when it ended: ``(this
+call)`` for the run that wrote the table, ``(when built)`` for the cached dataset and training as
+measured by the calls that did that work (kept in ``<work>/timings.json``). ``--ddpm`` adds a row of
+DDPM-1000 samples of the trained model (same noise seed; about a minute per sample on 2 cores). The
+config used is printed below the table. The ceilings line (matmul GFLOP/s, copy GB/s) is kept for the
+format; it bounds the training and sampling timings, not the quality figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from _harness import RESULTS, Report
+
+HERE = pathlib.Path(__file__).resolve().parent
+SHARED = HERE.parent / ".." / "shared" / "data"
+VIEWS = ((15.0, 35.0), (15.0, 125.0), (15.0, 215.0), (15.0, 305.0))
+
+
+def _load() -> float:
+    return os.getloadavg()[0]
+
+
+def spot_path() -> pathlib.Path:
+    """Spot's folder, or exit with a message that says where it was looked for."""
+    base = pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED))
+    spot = base / "spot"
+    for name in ("spot_triangulated.obj", "spot_texture.png"):
+        if not (spot / name).is_file():
+            sys.exit(f"fldm_spot: {spot / name} not found. This benchmark needs Spot (../shared/data/spot "
+                     "with spot_triangulated.obj and spot_texture.png); point JMESHTEX_SHARED_DATA at the "
+                     "folder that holds spot/.")
+    return spot
+
+
+def presets(quick: bool, latent_dim: int, n_vertices: int):
+    """``(FLDMConfig, run settings)`` of the full benchmark or the ``--quick`` smoke run."""
+    from jmeshtex.fl import FLDMConfig
+
+    if quick:
+        cfg = FLDMConfig.tiny(latent_channels=latent_dim, widths=(8, 16), hdim=2, n_copies=2, copy_vertices=400,
+                              train_steps=3, checkpoint_every=2, num_train_steps=100, bucket=256)
+        run = dict(samples=2, views=VIEWS[:2], size=96, atlas=128, ddim_steps=3, subdivide=0)
+    else:
+        cfg = FLDMConfig.cpu(latent_channels=latent_dim, n_copies=16, copy_vertices=n_vertices, train_steps=500,
+                             checkpoint_every=50)
+        run = dict(samples=6, views=VIEWS, size=256, atlas=512, ddim_steps=50, subdivide=1)
+    return cfg, run
+
+
+class SpotReport(Report):
+    """:class:`Report` with the configuration in the JSON and notes below the markdown table."""
+
+    notes: list[str] = []
+    config: dict = {}
+
+    def markdown(self) -> str:
+        return super().markdown() + "\n" + "\n".join(self.notes) + "\n"
+
+    def write(self, directory: pathlib.Path | None = None) -> pathlib.Path:
+        from jmeshtex.io import atomic_write
+
+        out = pathlib.Path(directory) if directory else RESULTS
+        payload = {"name": self.name, "machine": self.info, "ceilings": self.ceilings, "config": self.config,
+                   "rows": self.rows}
+        atomic_write(out / f"{self.name}.json", json.dumps(payload, indent=2, default=float))
+        atomic_write(out / f"{self.name}.md", self.markdown())
+        print(f"wrote {out / self.name}.json and .md", flush=True)
+        return out / f"{self.name}.json"
+
+
+def fill_unused(texture: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Give every unused texel the colour of the nearest used one (no dark seams when rendering)."""
+    from scipy.ndimage import distance_transform_edt
+
+    if valid.all() or not valid.any():
+        return texture
+    _, (rows, cols) = distance_transform_edt(~valid, return_indices=True)
+    return texture[rows, cols]
+
+
+def render_mesh_of(spot, subdivide: int):
+    """``(vertices z-up, faces, uv)`` of Spot for rendering, midpoint-subdivided ``subdivide`` times."""
+    from jmeshtex.geometry import subdivide_midpoint, subdivide_uv
+
+    v, f, uv = np.asarray(spot.vertices, np.float64), spot.faces, spot.uv
+    for _ in range(subdivide):
+        s = subdivide_midpoint(v, f)
+        v, f, uv = s.vertices, s.faces, subdivide_uv(uv)
+    v = np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)  # Spot is y-up, the renderer z-up
+    return v, f, uv
+
+
+def render_views(geom, texture: np.ndarray, views, size: int) -> np.ndarray:
+    """``[len(views), size, size, 3]`` float32 renders in [0, 1] of Spot with ``texture``."""
+    from jmeshtex.render import render_mesh
+
+    v, f, uv = geom
+    return np.stack([render_mesh(v, f, uv=uv, texture=texture, view=view, size=(size, size))
+                     for view in views]).astype(np.float32) / 255.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="tiny smoke settings (about a minute)")
+    ap.add_argument("--out", type=pathlib.Path, default=RESULTS, help="folder for fldm_spot.{json,md,png}")
+    ap.add_argument("--work", type=pathlib.Path, default=None, help="cache folder (copies, checkpoints)")
+    ap.add_argument("--steps", type=int, default=None, help="training steps (default: the preset's)")
+    ap.add_argument("--samples", type=int, default=None, help="samples per model (default: the preset's)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--ddpm", action="store_true", help="also DDPM-1000 samples of the trained model (slow)")
+    args = ap.parse_args(argv)
+    t_start = time.perf_counter()
+    spot_dir = spot_path()  # fail before the heavy imports
+
+    from jmeshtex.fl import (
+        FLDMModel,
+        build_dataset,
+        decode_samples,
+        encode_mesh,
+        fl_vae_encoder,
+        init_denoiser,
+        load_pretrained,
+        sample_fldm,
+        train_fldm,
+    )
+    from jmeshtex.fl._fldm_sample import sampling_geometry
+    from jmeshtex.io import load_mesh
+    from jmeshtex.metrics import gram_distance, load_vgg16, lpips
+    from jmeshtex.render import render_grid
+
+    name = "fldm_spot"
+    report = SpotReport(name, ceilings=not args.quick)
+    work = args.work or RESULTS / "_work" / (name + ("_quick" if args.quick else ""))
+    spot = load_mesh(spot_dir / "spot_triangulated.obj", texture=spot_dir / "spot_texture.png")
+    vae_params, vae_cfg = load_pretrained()
+    cfg, run = presets(args.quick, vae_cfg.latent_dim, spot.num_vertices)
+    cfg = cfg.replace(seed=args.seed, **({} if args.steps is None else {"train_steps": args.steps}))
+    n = run["samples"] if args.samples is None else args.samples
+    views, size = run["views"], run["size"]
+    timings: dict[str, tuple[float, float]] = {}
+
+    def stage(label: str, t0: float) -> None:
+        timings[label] = (time.perf_counter() - t0, _load())
+        print(f"[{label}] {timings[label][0]:.1f} s, load {timings[label][1]:.2f}", flush=True)
+
+    # 1. training copies (cached)
+    t0 = time.perf_counter()
+    encode = fl_vae_encoder(vae_params, vae_cfg, spot, key=jax.random.key(args.seed))
+    data = build_dataset(spot, cfg, encode=encode, cache_dir=work / "data", progress=False)
+    stage("dataset", t0)
+    # the cost of the cached work, as measured by the calls that did it (a re-run only loads it)
+    record_path = work / "timings.json"
+    record = json.loads(record_path.read_text()) if record_path.is_file() else {}
+    if any(p.stat().st_mtime >= time.time() - timings["dataset"][0] for p in (work / "data").glob("copy_*.npz")):
+        record["dataset"] = {"seconds": timings["dataset"][0], "load": timings["dataset"][1]}
+
+    # 2. training (resumable)
+    t0 = time.perf_counter()
+    result = train_fldm(data, cfg, out_dir=work / "train", progress=not args.quick)
+    stage("train", t0)
+    if result.steps_done:
+        old = record.get("train", {}) if record.get("train", {}).get("steps", 0) < cfg.train_steps else {}
+        record["train"] = {"seconds": old.get("seconds", 0.0) + result.seconds,
+                           "steps": old.get("steps", 0) + result.steps_done, "load": timings["train"][1]}
+    from jmeshtex.io import atomic_write
+
+    atomic_write(record_path, json.dumps(record, indent=2))
+    losses = np.asarray(result.losses)
+    k = max(1, min(50, len(losses) // 5))
+    loss_first, loss_last = float(np.mean(losses[:k])), float(np.mean(losses[-k:]))
+
+    # 3. samples on Spot itself, trained and untrained (same noise)
+    t0 = time.perf_counter()
+    geo = sampling_geometry(spot, result.model)
+    untrained = FLDMModel(init_denoiser(jax.random.key(cfg.seed), cfg, geo), cfg, data.scale)
+    key = jax.random.key(args.seed + 7)
+    z_tr = sample_fldm(result.model, geo, key=key, n=n, steps=run["ddim_steps"])
+    z_un = sample_fldm(untrained, geo, key=key, n=n, steps=run["ddim_steps"])
+    z_ddpm = sample_fldm(result.model, geo, key=key, n=n, method="ddpm") if args.ddpm else None
+    stage("sample", t0)
+
+    # 4. decode to Spot's atlas; the FL-VAE reconstruction of the exemplar; the mean colour
+    t0 = time.perf_counter()
+
+    def atlases(latents):
+        return [fill_unused(d["texture"], d["valid"]) for d in decode_samples(vae_params, vae_cfg, spot, latents,
+                                                                              size=run["atlas"])]
+
+    recon_mu = np.asarray(encode_mesh(vae_params, vae_cfg, spot, key=jax.random.key(args.seed)).mu)
+    tex = {"reconstruction": atlases(recon_mu[None]), "trained": atlases(z_tr), "untrained": atlases(z_un)}
+    if z_ddpm is not None:
+        tex["trained DDPM-1000"] = atlases(z_ddpm)
+    mean_colour = np.broadcast_to(spot.texture[..., :3].reshape(-1, 3).mean(0), (8, 8, 3))
+    tex["mean colour"] = [np.array(mean_colour)]
+    stage("decode", t0)
+
+    # 5. renders at fixed views
+    t0 = time.perf_counter()
+    geom = render_mesh_of(spot, run["subdivide"])
+    ref = render_views(geom, spot.texture[..., :3], views, size)
+    renders = {src: [render_views(geom, t, views, size) for t in ts] for src, ts in tex.items()}
+    stage("render", t0)
+
+    # 6. metrics
+    t0 = time.perf_counter()
+    weights = load_vgg16()
+    ref_j = jnp.asarray(ref)
+
+    def gram(imgs: np.ndarray) -> float:
+        return float(np.mean(np.asarray(gram_distance(jnp.asarray(imgs), ref_j, weights=weights))))
+
+    def diversity(rs: list[np.ndarray]) -> list[float]:
+        return [float(np.mean(np.asarray(lpips(jnp.asarray(rs[a]), jnp.asarray(rs[b]), weights=weights))))
+                for a in range(len(rs)) for b in range(a + 1, len(rs))]
+
+    rows = [("exemplar (vs itself)", [ref], "Spot's own texture; the metric's zero")]
+    rows += [("FL-VAE reconstruction", renders["reconstruction"], "encode Spot → decode its atlas")]
+    rows += [("mean colour", renders["mean colour"], "texture-free baseline")]
+    rows += [(f"trained samples (DDIM-{run['ddim_steps']})", renders["trained"], f"{n} samples, {len(losses)} steps")]
+    if "trained DDPM-1000" in renders:
+        rows += [("trained samples (DDPM-1000)", renders["trained DDPM-1000"], f"{n} samples")]
+    rows += [(f"untrained samples (DDIM-{run['ddim_steps']})", renders["untrained"], "same noise, initial weights")]
+    quality = []
+    for source, rs, what in rows:
+        g = [gram(r) for r in rs]
+        d = diversity(rs) if len(rs) > 1 else []
+        quality.append(dict(table="quality", source=source, n=len(rs), fidelity_gram=float(np.mean(g)),
+                            fidelity_gram_std=float(np.std(g)),
+                            diversity_lpips=float(np.mean(d)) if d else "",
+                            diversity_lpips_std=float(np.std(d)) if d else "", what=what))
+    stage("metrics", t0)
+
+    # 7. the PNG grid (first view): exemplar, reconstruction, samples, untrained samples
+    t0 = time.perf_counter()
+    images = [ref[0], renders["reconstruction"][0][0]] + [r[0] for r in renders["trained"]]
+    images += [r[0] for r in renders["untrained"]]
+    titles = ["exemplar", "FL-VAE recon."] + [f"sample {i + 1}" for i in range(n)]
+    titles += [f"untrained {i + 1}" for i in range(n)]
+    args.out.mkdir(parents=True, exist_ok=True)
+    render_grid([(255 * np.clip(i, 0, 1)).astype(np.uint8) for i in images], args.out / f"{name}.png",
+                titles=titles, columns=2 + n if n <= 6 else None)
+    stage("png", t0)
+
+    for row in quality:
+        report.add(**row, load=round(_load(), 2))
+    tr = record.get("train", {})
+    report.add(table="training", source="ε-loss", n=len(losses), loss_first=loss_first, loss_last=loss_last,
+               seconds=tr.get("seconds", ""), steps_per_s=tr["steps"] / tr["seconds"] if tr.get("seconds") else "",
+               load=round(tr["load"], 2) if "load" in tr else "",
+               what=f"mean ε-loss of the first / last {k} steps; seconds: the optimiser loop over all calls")
+    for label in ("dataset", "train"):
+        if label in record:
+            report.add(table="timing", source=f"{label} (when built)", seconds=record[label]["seconds"],
+                       load=round(record[label]["load"], 2), what="measured by the call that did the work")
+    for label, (seconds, load) in timings.items():
+        report.add(table="timing", source=f"{label} (this call)", seconds=seconds, load=round(load, 2))
+    total = time.perf_counter() - t_start
+    report.add(table="timing", source="total (this call)", seconds=total, load=round(_load(), 2))
+    vae_desc = {k: getattr(vae_cfg, k) for k in ("latent_dim", "num_samples", "features", "decoder")}
+    report.config = {"fldm_config": cfg.to_dict(), "run": {**run, "views": [list(v) for v in views],
+                                "samples": n, "seed": args.seed, "quick": args.quick},
+                                "fl_vae": vae_desc, "spot_vertices": spot.num_vertices}
+    by_source = {r["source"]: r["fidelity_gram"] for r in quality}
+    ratio = by_source[rows[3][0]] / max(by_source[rows[-1][0]], 1e-12)
+    report.config["trained_over_untrained_gram"] = ratio
+    report.notes = [
+        f"trained / untrained fidelity_gram (same noise): {ratio:.3f}",
+        "",
+        f"config ({'--quick' if args.quick else 'full'}): `{json.dumps(cfg.to_dict())}`",
+        "",
+        f"run: {n} samples, DDIM-{run['ddim_steps']} (η = 0) on Spot ({spot.num_vertices} vertices), atlas "
+        f"{run['atlas']}², {len(views)} views {list(views)} at {size}², {run['subdivide']} midpoint subdivision(s) "
+        f"for rendering; FL-VAE `{vae_desc}`; seed {args.seed}.",
+        "",
+        "fidelity_gram: mean VGG Gram distance (relu1_1…relu4_1) of each render to the exemplar's render from "
+        "the same view (lower = closer texture statistics); diversity_lpips: mean LPIPS-VGG between two samples' "
+        "renders from the same view, over all pairs (higher = more diverse).",
+    ]
+    report.write(args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
