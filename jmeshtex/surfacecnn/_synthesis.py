@@ -503,6 +503,9 @@ def save_result(
         titles.insert(0, "exemplar")
     panels.append(result.texture)
     titles.append("texture (UV layout)")
+    height = max(np.shape(v)[0] for v in views)  # small images enlarged (nearest, integer factor) to the renders'
+    panels = [np.repeat(np.repeat(pn, max(1, height // np.shape(pn)[0]), 0), max(1, height // np.shape(pn)[0]), 1)
+              for pn in panels]
     render.render_grid(panels, out / "surfacecnn.png", titles=titles, columns=len(panels))
     files = [str(out / n) for n in ("texture.png", "textured.obj", "render_front.png", "render_back.png",
                                     "surfacecnn.png", "summary.json")]
