@@ -157,6 +157,8 @@ class Report:
             self.ceilings["matmul_gflops"] = matmul_ceiling()
             self.ceilings["bandwidth_gbs"] = bandwidth_ceiling()
         self.rows: list[dict[str, Any]] = []
+        self.config: dict[str, Any] = {}  # what the run used, written to the JSON when set
+        self.notes: list[str] = []  # lines below the markdown table
         print(f"# {name}\n{json.dumps(self.info)}\nceilings: {self.ceilings}", flush=True)
 
     def add(self, **row: Any) -> dict[str, Any]:
@@ -177,7 +179,8 @@ class Report:
     def write(self, directory: pathlib.Path | None = None) -> pathlib.Path:
         out = pathlib.Path(directory) if directory else RESULTS
         out.mkdir(parents=True, exist_ok=True)
-        payload = {"name": self.name, "machine": self.info, "ceilings": self.ceilings, "rows": self.rows}
+        payload = {"name": self.name, "machine": self.info, "ceilings": self.ceilings,
+                   **({"config": self.config} if self.config else {}), "rows": self.rows}
         atomic_write(out / f"{self.name}.json", json.dumps(payload, indent=2, default=float))
         atomic_write(out / f"{self.name}.md", self.markdown())
         print(f"wrote {out / self.name}.json and .md", flush=True)
@@ -191,6 +194,8 @@ class Report:
         lines += ["ceilings (same run): " + ", ".join(f"{k} = {_fmt(v)}" for k, v in self.ceilings.items()), ""]
         lines += ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
         lines += ["| " + " | ".join(_fmt(r.get(k, "")) for k in keys) + " |" for r in self.rows]
+        if self.notes:
+            lines += ["", *self.notes]
         return "\n".join(lines) + "\n"
 
 

@@ -93,37 +93,6 @@ def presets(quick: bool, latent_dim: int, n_vertices: int):
     return cfg, run
 
 
-class SpotReport(Report):
-    """:class:`Report` with the configuration in the JSON and notes below the markdown table."""
-
-    notes: list[str] = []
-    config: dict = {}
-
-    def markdown(self) -> str:
-        return super().markdown() + "\n" + "\n".join(self.notes) + "\n"
-
-    def write(self, directory: pathlib.Path | None = None) -> pathlib.Path:
-        from jmeshtex.io import atomic_write
-
-        out = pathlib.Path(directory) if directory else RESULTS
-        payload = {"name": self.name, "machine": self.info, "ceilings": self.ceilings, "config": self.config,
-                   "rows": self.rows}
-        atomic_write(out / f"{self.name}.json", json.dumps(payload, indent=2, default=float))
-        atomic_write(out / f"{self.name}.md", self.markdown())
-        print(f"wrote {out / self.name}.json and .md", flush=True)
-        return out / f"{self.name}.json"
-
-
-def fill_unused(texture: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Give every unused texel the colour of the nearest used one (no dark seams when rendering)."""
-    from scipy.ndimage import distance_transform_edt
-
-    if valid.all() or not valid.any():
-        return texture
-    _, (rows, cols) = distance_transform_edt(~valid, return_indices=True)
-    return texture[rows, cols]
-
-
 def render_mesh_of(spot, subdivide: int):
     """``(vertices z-up, faces, uv)`` of Spot for rendering, midpoint-subdivided ``subdivide`` times."""
     from jmeshtex.geometry import subdivide_midpoint, subdivide_uv
@@ -170,12 +139,13 @@ def main(argv: list[str] | None = None) -> int:
         train_fldm,
     )
     from jmeshtex.fl._fldm_sample import sampling_geometry
+    from jmeshtex.geometry import fill_unused_texels
     from jmeshtex.io import load_mesh
     from jmeshtex.metrics import gram_distance, load_vgg16, lpips
     from jmeshtex.render import render_grid
 
     name = "fldm_spot"
-    report = SpotReport(name, ceilings=not args.quick)
+    report = Report(name, ceilings=not args.quick)
     work = args.work or RESULTS / "_work" / (name + ("_quick" if args.quick else ""))
     spot = load_mesh(spot_dir / "spot_triangulated.obj", texture=spot_dir / "spot_texture.png")
     vae_params, vae_cfg = load_pretrained()
@@ -229,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
 
     def atlases(latents):
-        return [fill_unused(d["texture"], d["valid"]) for d in decode_samples(vae_params, vae_cfg, spot, latents,
+        return [fill_unused_texels(d["texture"], d["valid"]) for d in decode_samples(vae_params, vae_cfg, spot, latents,
                                                                               size=run["atlas"])]
 
     recon_mu = np.asarray(encode_mesh(vae_params, vae_cfg, spot, key=jax.random.key(args.seed)).mu)

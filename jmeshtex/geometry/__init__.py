@@ -31,6 +31,7 @@ from ._log_map import OneRingAngles as OneRingAngles
 from ._log_map import one_ring_angles as one_ring_angles
 from ._log_map import one_ring_neighborhood as one_ring_neighborhood
 from ._raster import Raster as Raster
+from ._raster import fill_unused_texels as fill_unused_texels
 from ._raster import rasterize_uv as rasterize_uv
 from ._remesh import remesh as remesh
 from ._remesh import surface_correspondence as surface_correspondence

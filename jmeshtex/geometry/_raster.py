@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from jaxtyping import Float, Int
+from jaxtyping import Bool, Float, Int
 
 from .._errors import InputError
 
@@ -101,6 +101,35 @@ def rasterize_uv(uv: Float[np.ndarray, "F 3 2"], size: int, *, coverage: str = "
     if coverage == "center":
         return _center(tex, usable, size)
     return _overlap(tex, usable, size)
+
+
+def fill_unused_texels(image: Float[np.ndarray, "H W C"], used: Bool[np.ndarray, "H W"]) -> np.ndarray:
+    """Give every unused texel of an atlas the value of the nearest used one (Euclidean, in texels).
+
+    Keeps texture filtering and mip-mapping from reading background colour across chart borders.
+    The image is returned unchanged when every texel, or none, is used.
+
+    Args:
+      image: ``[H, W, C]`` atlas.
+      used: ``[H, W]`` True where a texel belongs to a chart.
+
+    Returns:
+      ``[H, W, C]`` image, same dtype.
+
+    Example:
+      >>> img = np.array([[[1.0], [0.0], [0.0]]])
+      >>> fill_unused_texels(img, np.array([[True, False, False]]))[..., 0].tolist()
+      [[1.0, 1.0, 1.0]]
+    """
+    used = np.asarray(used, bool)
+    if used.shape != np.shape(image)[:2]:
+        raise InputError(f"fill_unused_texels: used must be [H, W] = {np.shape(image)[:2]}, got {used.shape}")
+    if used.all() or not used.any():
+        return image
+    from scipy.ndimage import distance_transform_edt
+
+    _, (rows, cols) = distance_transform_edt(~used, return_indices=True)
+    return image[rows, cols]
 
 
 def _check(uv, size, coverage) -> np.ndarray:

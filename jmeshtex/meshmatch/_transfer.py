@@ -20,7 +20,7 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh
 from .._types import Float, Int
-from ..geometry import rasterize_uv, sample_texture, tangent_frames
+from ..geometry import fill_unused_texels, rasterize_uv, sample_texture, tangent_frames
 from ._config import MeshMatchConfig
 from ._fans import smooth, smoother
 from ._patchmatch import MeshMatchResult, meshmatch
@@ -96,8 +96,6 @@ def bake_texture(
       >>> np.round(tex[0, :, 0], 3).tolist()             # top row: u = 1/8 .. 7/8
       [0.125, 0.375, 0.625, 0.875]
     """
-    from scipy import ndimage
-
     uv = np.asarray(uv, np.float64)
     faces = np.asarray(faces, np.int64)
     colors = np.asarray(colors, np.float64)
@@ -110,12 +108,7 @@ def bake_texture(
     flat = row * size + col
     out[flat] = np.einsum("nk,nkc->nc", bary, colors[faces[face]])  # overlapping charts: last wins
     hit[flat] = True
-    image = out.reshape(size, size, -1)
-    filled = hit.reshape(size, size)
-    if filled.any() and not filled.all():
-        _, (rows, cols) = ndimage.distance_transform_edt(~filled, return_indices=True)
-        image = image[rows, cols]
-    return image.astype(np.float32)
+    return fill_unused_texels(out.reshape(size, size, -1), hit.reshape(size, size)).astype(np.float32)
 
 
 def _colors_of(mesh: Mesh, colors) -> np.ndarray:

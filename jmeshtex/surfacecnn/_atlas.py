@@ -22,7 +22,7 @@ import numpy as np
 from jaxtyping import Complex, Float, Int
 
 from .._errors import InputError, MeshError
-from ..geometry import rasterize_uv, tracer_geometry
+from ..geometry import fill_unused_texels, rasterize_uv, tracer_geometry
 from ..geometry._tracer import TracerGeometry
 
 
@@ -237,12 +237,8 @@ def texels_to_image(
     image = np.zeros((size * size, values.shape[1]), values.dtype)
     image[atlas.texel] = values
     image = image.reshape(size, size, -1)
-    if fill == "nearest" and atlas.num_texels < size * size:
-        from scipy.ndimage import distance_transform_edt
-
-        invalid = (atlas.index_of < 0).reshape(size, size)
-        _, (rr, cc) = distance_transform_edt(invalid, return_indices=True)
-        image = image[rr, cc]
+    if fill == "nearest":
+        image = fill_unused_texels(image, (atlas.index_of >= 0).reshape(size, size))
     return image
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from jmeshtex import InputError
-from jmeshtex.geometry import Raster, rasterize_uv
+from jmeshtex.geometry import Raster, fill_unused_texels, rasterize_uv
 
 # the unit square split along its diagonal u = v (one triangle counter-clockwise, one clockwise)
 SQUARE = np.array([[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]], [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0]]])
@@ -210,3 +210,15 @@ def test_non_finite_uv_names_the_faces(bad):
     uv[3, 1, 0] = bad
     with pytest.raises(InputError, match=r"NaN or infinite at faces \[3\]"):
         rasterize_uv(uv, 4)
+
+
+def test_fill_unused_texels_takes_the_nearest_used_value():
+    img = np.zeros((3, 4, 1))
+    img[0, 0, 0], img[2, 3, 0] = 1.0, 2.0
+    used = np.zeros((3, 4), bool)
+    used[0, 0] = used[2, 3] = True
+    out = fill_unused_texels(img, used)[..., 0]
+    assert out.tolist() == [[1, 1, 1, 2], [1, 1, 2, 2], [1, 2, 2, 2]]
+    assert fill_unused_texels(img, np.zeros((3, 4), bool)) is img  # nothing used: unchanged
+    with pytest.raises(InputError, match=r"used must be \[H, W\]"):
+        fill_unused_texels(img, np.ones((4, 3), bool))
