@@ -36,7 +36,7 @@ from _harness import Report, time_jax  # noqa: E402
 
 from jmeshtex.geometry import VertexNeighborhood  # noqa: E402
 from jmeshtex.ops import field_conv, init_field_conv  # noqa: E402
-from jmeshtex.ops._field_conv import _filtered_sums, _gather_terms, _mix_block  # noqa: E402
+from jmeshtex.ops._field_conv import _filtered_sums, _gather_terms, _mix_halves  # noqa: E402
 
 K, C, D, H = 8, 96, 96, 16
 
@@ -99,9 +99,9 @@ def _stages(report, x, nb, params, act, size, repeats):
     t = time_jax(sums, zr, zi, ar, ai, a_w[:2], bias, repeats=repeats)
     report.add(name=f"  stage: filter sums ({act})", size=size, seconds=t.run_s,
                filter_gevals=v * K * C * H / t.run_s / 1e9)
-    s = sums(zr, zi, ar, ai, a_w[:2], bias).reshape(v, -1)
-    block = _mix_block(params.mix)
-    t = time_jax(jax.jit(jnp.matmul), s, block, repeats=repeats)
+    s_r, s_i = (s.reshape(v, -1) for s in sums(zr, zi, ar, ai, a_w[:2], bias))
+    m_r, m_i = _mix_halves(params.mix)
+    t = time_jax(jax.jit(lambda s_r, s_i, m_r, m_i: s_r @ m_r + s_i @ m_i), s_r, s_i, m_r, m_i, repeats=repeats)
     report.add(name="  stage: mix GEMM", size=size, seconds=t.run_s, flops=8.0 * v * C * H * D)
 
 

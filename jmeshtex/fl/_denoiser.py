@@ -303,7 +303,7 @@ def denoiser_flops(config: FLDMConfig, v0: int, v1: int) -> float:
 
     def conv(v, c, d):
         filt = v * k * c * h * 2 * 2  # filter pre-activation (2 inputs) per slot/channel/response
-        sums = v * k * c * h * 2 * 4  # complex feature × real response, accumulated
+        sums = v * k * c * h * 2 * 2  # complex feature × real response, accumulated: 2 multiply-adds
         mix = v * c * h * d * 8  # complex matmul
         return filt + sums + mix
 
