@@ -224,11 +224,10 @@ def _slot_geometry(nbhd: VertexNeighborhood, rdt):
     return jnp.asarray(nbhd.index), (w,) + tuple(jnp.asarray(p).astype(rdt) for p in parts)
 
 
-def _gather_terms(xri, index, slots, delta: float):
+def _gather_terms(xr, xi, index, slots, delta: float):
     """Weighted transported features ``z = ŵ u`` and filter arguments ``a``, as real ``[V, K, C]``.
 
-    ``xri``: ``[V, 2C]`` real and imaginary parts of the features side by side (one gather);
-    ``index``, ``slots`` from
+    ``xr, xi``: ``[V, C]`` real and imaginary parts of the features; ``index``, ``slots`` from
     :func:`_slot_geometry` (or a block of vertices of them).
 
     The filter arguments end in a division by the full-size ``|u|_δ`` on purpose: XLA treats a
@@ -236,11 +235,10 @@ def _gather_terms(xri, index, slots, delta: float):
     filter-sum reduction that reads each of them H times. (Written as a product with ``rsqrt``,
     they fuse, and the reduction compiles to scalar code: SiLU filters 5x slower at 30K vertices.)
     """
-    rdt = xri.dtype
+    rdt = xr.dtype
     w, tr, ti, lr, li = (a[..., None] for a in slots)
-    c = xri.shape[1] // 2
-    xq = jnp.take(xri, index, axis=0, mode="clip")  # [V, K, 2C]
-    xqr, xqi = xq[..., :c], xq[..., c:]
+    xqr = jnp.take(xr, index, axis=0, mode="clip")  # [V, K, C]
+    xqi = jnp.take(xi, index, axis=0, mode="clip")
     ur = tr * xqr - ti * xqi  # u = ρ x_q, in p's frame
     ui = tr * xqi + ti * xqr
     norm = jnp.sqrt(ur * ur + ui * ui + jnp.asarray(delta * delta, rdt))
@@ -249,9 +247,9 @@ def _gather_terms(xri, index, slots, delta: float):
     return w * ur, w * ui, ar, ai
 
 
-def _conv_terms_to_output(xri, index, slots, a_w, bias, m_r, m_i, delta, activation, sums):
+def _conv_terms_to_output(xr, xi, index, slots, a_w, bias, m_r, m_i, delta, activation, sums):
     """Gather, filter sums and mix for a range of vertices: real ``[B, 2D]`` (real, imaginary blocks)."""
-    zr, zi, ar, ai = _gather_terms(xri, index, slots, delta)
+    zr, zi, ar, ai = _gather_terms(xr, xi, index, slots, delta)
     s_r, s_i = sums(zr, zi, ar, ai, a_w, bias, activation)
     b = s_r.shape[0]
     return s_r.reshape(b, -1) @ m_r + s_i.reshape(b, -1) @ m_i
@@ -275,30 +273,25 @@ _BLOCK = 512  # vertices per block; 128-2048 within 20% at 30K vertices, C = 96
 def _conv_blocked(x, index, slots, a_w, bias, mix, delta, activation):
     v, d = x.shape[0], mix.shape[2]
     m_r, m_i = _mix_halves(mix)
-    xri = _real_parts(x)
+    xr, xi = x.real, x.imag
     per_vertex = (index, slots, bias)
     if v <= _BLOCK:
-        y = _conv_terms_to_output(xri, index, slots, a_w, bias, m_r, m_i, delta, activation, _sums_impl)
+        y = _conv_terms_to_output(xr, xi, index, slots, a_w, bias, m_r, m_i, delta, activation, _sums_impl)
     else:
         def body(i, out):
             start = jnp.minimum(i * _BLOCK, v - _BLOCK)  # the last block overlaps the one before it
             idx, sl, b = jax.tree.map(lambda a: jax.lax.dynamic_slice_in_dim(a, start, _BLOCK, axis=0), per_vertex)
-            y = _conv_terms_to_output(xri, idx, sl, a_w, b, m_r, m_i, delta, activation, _sums_impl)
+            y = _conv_terms_to_output(xr, xi, idx, sl, a_w, b, m_r, m_i, delta, activation, _sums_impl)
             return jax.lax.dynamic_update_slice_in_dim(out, y, start, axis=0)
 
-        y = jax.lax.fori_loop(0, -(-v // _BLOCK), body, jnp.zeros((v, 2 * d), xri.dtype))
+        y = jax.lax.fori_loop(0, -(-v // _BLOCK), body, jnp.zeros((v, 2 * d), xr.dtype))
     return jax.lax.complex(y[:, :d], y[:, d:])
-
-
-def _real_parts(x):
-    """``[V, C]`` complex → ``[V, 2C]`` real: real parts, then imaginary parts."""
-    return jnp.concatenate([x.real, x.imag], axis=1)
 
 
 def _conv_whole(x, slots, a_w, bias, mix, index, delta, activation):
     d = mix.shape[2]
     m_r, m_i = _mix_halves(mix)
-    y = _conv_terms_to_output(_real_parts(x), index, slots, a_w, bias, m_r, m_i, delta, activation, _filtered_sums)
+    y = _conv_terms_to_output(x.real, x.imag, index, slots, a_w, bias, m_r, m_i, delta, activation, _filtered_sums)
     return jax.lax.complex(y[:, :d], y[:, d:])
 
 
