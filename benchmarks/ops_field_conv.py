@@ -36,7 +36,7 @@ from _harness import Report, time_jax  # noqa: E402
 
 from jmeshtex.geometry import VertexNeighborhood  # noqa: E402
 from jmeshtex.ops import field_conv, init_field_conv  # noqa: E402
-from jmeshtex.ops._field_conv import _filtered_sums, _gather_terms, _mix_halves  # noqa: E402
+from jmeshtex.ops._field_conv import _filtered_sums, _gather_terms, _mix_halves, _slot_geometry  # noqa: E402
 
 K, C, D, H = 8, 96, 96, 16
 
@@ -88,7 +88,7 @@ def run(sizes, activations, repeats: int) -> Report:
 
 def _stages(report, x, nb, params, act, size, repeats):
     v = x.shape[0]
-    terms = jax.jit(lambda x, nb: _gather_terms(x, nb, 1e-4))
+    terms = jax.jit(lambda x, nb: _gather_terms(x.real, x.imag, *_slot_geometry(nb, jnp.float32), 1e-4, blocked=False))
     t = time_jax(terms, x, nb, repeats=repeats)
     nbytes = 4.0 * v * K * C * (2 + 4) + 8.0 * v * C  # gather reads ~2 [V,K,C] f32, writes 4, plus x
     report.add(name="  stage: gather + argument", size=size, seconds=t.run_s, bytes=nbytes)
