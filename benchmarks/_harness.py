@@ -119,8 +119,8 @@ def activation_ceiling(activation: str, *, n: int = 1 << 20, responses: int = 16
 
     The shape of a field convolution's inner loop: ``Σ_h act(x·a_h + b_h)`` over ``responses``
     ridge functions of ``n`` float32 inputs (4 MiB, cache-resident), so the figure is the
-    activation's arithmetic throughput, not memory bandwidth. A SiLU costs an exponential and a
-    division, which a FLOP count of multiply-adds does not see.
+    activation's arithmetic throughput, not memory bandwidth. A SiLU costs a tanh (a rational
+    function with a division), which a FLOP count of multiply-adds does not see.
     """
     from jmeshtex.ops._field_conv import _act
 
