@@ -323,8 +323,9 @@ _ACTIVATIONS = ("silu", "relu")
 def _sigmoid(p):
     """``σ(p) = (1 + tanh(p/2)) / 2``: the logistic function through XLA's fast tanh.
 
-    The same function as ``jax.nn.sigmoid`` (to float32 rounding, max abs error 1e-7); XLA:CPU
-    evaluates its rational tanh about 1.3x faster than ``1 / (1 + exp(-p))``.
+    The same function as ``jax.nn.sigmoid`` (float32 absolute error 1.6e-7 on [-30, 30], against
+    0.9e-7 for ``jax.nn.sigmoid``); XLA:CPU evaluates its rational tanh about 1.3x faster than
+    ``1 / (1 + exp(-p))``.
     """
     half = jnp.asarray(0.5, p.dtype)
     return half + half * jnp.tanh(half * p)
@@ -373,7 +374,8 @@ def _responses(ar, ai, a_w, bias, activation):
     """Filter responses ``φ = act(a_r A_0 + a_i A_1 + b)`` of every slot: ``[V, K, H, C]``.
 
     SiLU as ``q (1 + tanh q)`` with ``q = p / 2`` and the halving folded into the weights: the same
-    function as ``p σ(p)``, two vector operations fewer per response than :func:`_act`.
+    function as ``p σ(p)``, two vector operations fewer per response than :func:`_act` (float32
+    absolute error 2.8e-6 on [-30, 30], against 1.9e-6 for ``jax.nn.silu``).
     """
     if activation == "silu":
         half = jnp.asarray(0.5, ar.dtype)
