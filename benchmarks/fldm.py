@@ -53,6 +53,18 @@ def _load() -> float:
     return os.getloadavg()[0]
 
 
+def _timed_between_ceilings(report: Report, activation: str, measure):
+    """``measure()`` between two fresh ceiling measurements; its result and the highest matmul and
+    activation ceilings of the run's first and these two (the machine is shared, with steal time up
+    to a third: one low ceiling would flatter the ratio)."""
+    before = matmul_ceiling(), activation_ceiling(activation)
+    result = measure()
+    after = matmul_ceiling(), activation_ceiling(activation)
+    matmul = max(report.ceilings["matmul_gflops"], before[0], after[0])
+    act = max(report.ceilings[f"{activation}_gevals"], before[1], after[1])
+    return result, matmul, act
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 30000])
@@ -107,21 +119,19 @@ def main() -> None:
             z = tangent_noise(jax.random.key(2), (n, 8))
             fn = jax.jit(lambda p, z, cfg=cfg, gj=gj: denoise(p, cfg, z, jnp.array(500, jnp.int32), gj))
             load = _load()
-            before = matmul_ceiling(), activation_ceiling(cfg.activation)
-            t = time_jax(fn, params, z, repeats=args.measure, min_time=0.0)
-            # the machine is shared (steal time up to a third): each ceiling is the highest of the run's
-            # first measurement and two taken right around this row, the time the best repeat
-            ceiling = max(report.ceilings["matmul_gflops"], before[0], matmul_ceiling())
-            act_ceiling = max(report.ceilings[f"{cfg.activation}_gevals"], before[1], activation_ceiling(cfg.activation))
+            t, ceiling, act_ceiling = _timed_between_ceilings(
+                report, cfg.activation,
+                lambda fn=fn, z=z: time_jax(fn, params, z, repeats=args.measure, min_time=0.0))
             best = min(t.runs)
             flops = denoiser_flops(cfg, sizes["V0"], sizes["V1"])
             bound = flops / (ceiling * 1e9)
             acts = denoiser_activations(cfg, sizes["V0"], sizes["V1"])
             bound_act = bound + acts / (act_ceiling * 1e9)
-            report.add(name=f"denoise {preset}", vertices=n, compile_s=t.compile_s, seconds=t.run_s, best_s=best,
-                       flops=flops, row_ceiling=ceiling, row_act_ceiling=act_ceiling, ddim50_s=50 * t.run_s, bound_s=50 * bound,
-                       x_bound=best / bound, x_bound_median=t.run_s / bound, activations=acts,
-                       x_bound_act=best / bound_act, load=load)
+            report.add(name=f"denoise {preset}", vertices=n, compile_s=t.compile_s, seconds=t.run_s,
+                       best_s=best, flops=flops, row_ceiling=ceiling, row_act_ceiling=act_ceiling,
+                       ddim50_s=50 * t.run_s, bound_s=50 * bound, x_bound=best / bound,
+                       x_bound_median=t.run_s / bound, activations=acts, x_bound_act=best / bound_act,
+                       load=load)
             if args.full_ddim and preset == "cpu" and n == max(args.sizes):
                 model = FLDMModel(params, cfg, np.ones(8))
                 load = _load()
