@@ -2,13 +2,15 @@
 
 Run::
 
-    .venv/bin/python benchmarks/fldm_spot.py            # the CPU preset, about 15-20 min on 2 cores
+    .venv/bin/python benchmarks/fldm_spot.py            # the CPU preset (v-prediction), ~50 min on 2 cores
+    .venv/bin/python benchmarks/fldm_spot.py --prediction epsilon   # the same with the paper's ε-prediction
     .venv/bin/python benchmarks/fldm_spot.py --quick    # a smoke run (tiny model, ~1 min)
 
-Writes ``benchmarks/results/fldm_spot.{json,md}`` and ``fldm_spot.png`` (``--out`` to change the
-folder). The training copies and the resumable training checkpoint live under
+Writes ``benchmarks/results/fldm_spot.{json,md}`` and ``fldm_spot.png`` (``fldm_spot_epsilon.*``
+with ``--prediction epsilon``; ``--out`` to change the folder). The training copies and the resumable
+training checkpoints (``train_v/``, ``train_epsilon/``) live under
 ``benchmarks/results/_work/fldm_spot[_quick]/`` (git-ignored, ``--work`` to change): a re-run reuses
-the copies and resumes training where it stopped.
+the copies and resumes training where it stopped (``--steps N`` trains on to ``N``).
 
 What runs (Mitchel et al. 2024, §6.1 and §6.6):
 
@@ -33,7 +35,10 @@ Table (one row per source):
   (stands in for SIFID, which has no offline weights);
 - ``diversity_lpips``: mean over views and sample pairs of LPIPS-VGG between two samples' renders
   from the same view (higher = more diverse);
-- ``*_std``: the standard deviation of the per-sample (per-pair) figures.
+- ``*_std``: the standard deviation of the per-sample (per-pair) figures;
+- ``latent_rms``: root mean square modulus of the sampled latents as the model sees them (scaled,
+  eq. 38–39): the training latents' is 1 by construction, so a value far from 1 flags samples
+  whose magnitude drifted (what ε-prediction with this small denoiser does).
 
 Timing rows give every stage's wall time with the 1-minute load average when it ended: ``(this
 call)`` for the run that wrote the table, ``(when built)`` for the cached dataset and training as
@@ -78,16 +83,18 @@ def spot_path() -> pathlib.Path:
     return spot
 
 
-def presets(quick: bool, latent_dim: int, n_vertices: int):
+def presets(quick: bool, latent_dim: int, n_vertices: int, prediction: str = "v"):
     """``(FLDMConfig, run settings)`` of the full benchmark or the ``--quick`` smoke run."""
     from jmeshtex.fl import FLDMConfig
 
     if quick:
         cfg = FLDMConfig.tiny(latent_channels=latent_dim, widths=(8, 16), hdim=2, n_copies=2, copy_vertices=400,
+                              prediction=prediction,
                               train_steps=3, checkpoint_every=2, num_train_steps=100, bucket=256)
         run = dict(samples=2, views=VIEWS[:2], size=96, atlas=128, ddim_steps=3, subdivide=0)
     else:
-        cfg = FLDMConfig.cpu(latent_channels=latent_dim, n_copies=16, copy_vertices=n_vertices, train_steps=500,
+        cfg = FLDMConfig.cpu(latent_channels=latent_dim, n_copies=16, copy_vertices=n_vertices, train_steps=4000,
+                             prediction=prediction,
                              checkpoint_every=50)
         run = dict(samples=6, views=VIEWS, size=256, atlas=512, ddim_steps=50, subdivide=1)
     return cfg, run
@@ -123,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=None, help="samples per model (default: the preset's)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--ddpm", action="store_true", help="also DDPM-1000 samples of the trained model (slow)")
+    ap.add_argument("--prediction", choices=("v", "epsilon"), default="v",
+                    help="what the denoiser predicts (default: the CPU preset's v)")
     args = ap.parse_args(argv)
     t_start = time.perf_counter()
     spot_dir = spot_path()  # fail before the heavy imports
@@ -144,12 +153,12 @@ def main(argv: list[str] | None = None) -> int:
     from jmeshtex.metrics import gram_distance, load_vgg16, lpips
     from jmeshtex.render import render_grid
 
-    name = "fldm_spot"
+    name = "fldm_spot" + ("" if args.prediction == "v" else f"_{args.prediction}")
     report = Report(name, ceilings=not args.quick)
-    work = args.work or RESULTS / "_work" / (name + ("_quick" if args.quick else ""))
+    work = args.work or RESULTS / "_work" / ("fldm_spot" + ("_quick" if args.quick else ""))
     spot = load_mesh(spot_dir / "spot_triangulated.obj", texture=spot_dir / "spot_texture.png")
     vae_params, vae_cfg = load_pretrained()
-    cfg, run = presets(args.quick, vae_cfg.latent_dim, spot.num_vertices)
+    cfg, run = presets(args.quick, vae_cfg.latent_dim, spot.num_vertices, args.prediction)
     cfg = cfg.replace(seed=args.seed, **({} if args.steps is None else {"train_steps": args.steps}))
     n = run["samples"] if args.samples is None else args.samples
     views, size = run["views"], run["size"]
@@ -172,11 +181,12 @@ def main(argv: list[str] | None = None) -> int:
 
     # 2. training (resumable)
     t0 = time.perf_counter()
-    result = train_fldm(data, cfg, out_dir=work / "train", progress=not args.quick)
+    train_key = f"train_{cfg.prediction}"
+    result = train_fldm(data, cfg, out_dir=work / train_key, progress=not args.quick)
     stage("train", t0)
     if result.steps_done:
-        old = record.get("train", {}) if record.get("train", {}).get("steps", 0) < cfg.train_steps else {}
-        record["train"] = {"seconds": old.get("seconds", 0.0) + result.seconds,
+        old = record.get(train_key, {}) if record.get(train_key, {}).get("steps", 0) < cfg.train_steps else {}
+        record[train_key] = {"seconds": old.get("seconds", 0.0) + result.seconds,
                            "steps": old.get("steps", 0) + result.steps_done, "load": timings["train"][1]}
     from jmeshtex.io import atomic_write
 
@@ -236,6 +246,12 @@ def main(argv: list[str] | None = None) -> int:
     if "trained DDPM-1000" in renders:
         rows += [("trained samples (DDPM-1000)", renders["trained DDPM-1000"], f"{n} samples")]
     rows += [(f"untrained samples (DDIM-{run['ddim_steps']})", renders["untrained"], "same noise, initial weights")]
+    def latent_rms(z: np.ndarray) -> float:  # per sample over vertices and channels, then the mean
+        return float(np.mean(np.sqrt(np.mean(np.abs(z * data.scale) ** 2, axis=(1, 2)))))
+
+    rms = {rows[3][0]: latent_rms(z_tr), rows[-1][0]: latent_rms(z_un)}
+    if z_ddpm is not None:
+        rms[rows[4][0]] = latent_rms(z_ddpm)
     quality = []
     for source, rs, what in rows:
         g = [gram(r) for r in rs]
@@ -243,7 +259,8 @@ def main(argv: list[str] | None = None) -> int:
         quality.append(dict(table="quality", source=source, n=len(rs), fidelity_gram=float(np.mean(g)),
                             fidelity_gram_std=float(np.std(g)),
                             diversity_lpips=float(np.mean(d)) if d else "",
-                            diversity_lpips_std=float(np.std(d)) if d else "", what=what))
+                            diversity_lpips_std=float(np.std(d)) if d else "", latent_rms=rms.get(source, ""),
+                            what=what))
     stage("metrics", t0)
 
     # 7. the PNG grid (first view): exemplar, reconstruction, samples, untrained samples
@@ -259,15 +276,16 @@ def main(argv: list[str] | None = None) -> int:
 
     for row in quality:
         report.add(**row, load=round(_load(), 2))
-    tr = record.get("train", {})
-    report.add(table="training", source="ε-loss", n=len(losses), loss_first=loss_first, loss_last=loss_last,
+    tr = record.get(train_key, {})
+    loss_name = {"epsilon": "ε-loss", "v": "v-loss"}[cfg.prediction]
+    report.add(table="training", source=loss_name, n=len(losses), loss_first=loss_first, loss_last=loss_last,
                seconds=tr.get("seconds", ""), steps_per_s=tr["steps"] / tr["seconds"] if tr.get("seconds") else "",
                load=round(tr["load"], 2) if "load" in tr else "",
-               what=f"mean ε-loss of the first / last {k} steps; seconds: the optimiser loop over all calls")
-    for label in ("dataset", "train"):
-        if label in record:
-            report.add(table="timing", source=f"{label} (when built)", seconds=record[label]["seconds"],
-                       load=round(record[label]["load"], 2), what="measured by the call that did the work")
+               what=f"mean {loss_name} of the first / last {k} steps; seconds: the optimiser loop over all calls")
+    for label, key in (("dataset", "dataset"), ("train", train_key)):
+        if key in record:
+            report.add(table="timing", source=f"{label} (when built)", seconds=record[key]["seconds"],
+                       load=round(record[key]["load"], 2), what="measured by the call that did the work")
     for label, (seconds, load) in timings.items():
         report.add(table="timing", source=f"{label} (this call)", seconds=seconds, load=round(load, 2))
     total = time.perf_counter() - t_start

@@ -44,6 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--copies", type=int, default=None, help="re-triangulated copies")
     t.add_argument("--vertices", type=int, default=None, help="vertices per copy")
     t.add_argument("--steps", type=int, default=None, help="training steps")
+    t.add_argument("--prediction", choices=("epsilon", "v"), default=None,
+                   help="what the denoiser predicts (default: the preset's; cpu: v, paper: epsilon)")
     t.add_argument("--codec", choices=("fl-vae", "stripes"), default="fl-vae", help="latent encoder/decoder")
     t.add_argument("--vae", default=None, help="FL-VAE file (default: the shipped pre-trained one)")
     t.add_argument("--seed", type=int, default=0)
@@ -129,7 +131,8 @@ def _train(args) -> int:
     changes = {"latent_channels": d, "seed": args.seed}
     if labels is not None:
         changes["num_labels"] = int(np.max(labels)) + 1
-    for field, value in (("n_copies", args.copies), ("copy_vertices", args.vertices), ("train_steps", args.steps)):
+    for field, value in (("n_copies", args.copies), ("copy_vertices", args.vertices), ("train_steps", args.steps),
+                         ("prediction", args.prediction)):
         if value is not None:
             changes[field] = value
     config = getattr(FLDMConfig, args.preset)(**changes)

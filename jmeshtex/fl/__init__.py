@@ -22,9 +22,11 @@ from ._diffusion import Schedule as Schedule
 from ._diffusion import ddim_step as ddim_step
 from ._diffusion import ddpm_step as ddpm_step
 from ._diffusion import draw_sampling_noise as draw_sampling_noise
+from ._diffusion import epsilon_from_output as epsilon_from_output
 from ._diffusion import epsilon_loss as epsilon_loss
 from ._diffusion import latent_scale as latent_scale
 from ._diffusion import make_schedule as make_schedule
+from ._diffusion import prediction_target as prediction_target
 from ._diffusion import q_sample as q_sample
 from ._diffusion import sample_from_noise as sample_from_noise
 from ._encoder import OneRingSamples as OneRingSamples

@@ -7,6 +7,13 @@ step below commutes with frame rotations as long as the denoiser does.
 
 - forward process (eq. 8): ``z_t = √ᾱ_t z_0 + √(1 − ᾱ_t) ε``;
 - training loss (eq. 10): ``E ‖ε − ε_θ(z_t, t)‖²`` over real vertices and channels;
+- what the network predicts (:data:`PREDICTIONS`): ``"epsilon"``, the paper's ``ε_θ`` (eq. 10), or
+  ``"v"`` (Salimans & Ho 2022), ``v = √ᾱ_t ε − √(1 − ᾱ_t) z_0``, read back as
+  ``ε̂ = √(1 − ᾱ_t) z_t + √ᾱ_t v̂``. The v-loss is the ε-loss plus the ``z_0``-loss,
+  ``|v − v̂|² = |ε − ε̂|² + |z_0 − ẑ_0|²``: at high noise the ε-loss is blind to an error that the
+  samplers amplify by ``√((1 − ᾱ_t)/ᾱ_t)`` (156 at ``t = T−1`` of the linear schedule) in
+  ``ẑ_0``, and a small denoiser's ε-residual of a few percent there drives the samples' magnitude
+  several times past the data's (measured on Spot, ``benchmarks/results/fldm_spot*.md``);
 - latent scaling (eq. 38–39): per channel ``s_c = (E_v |μ_vc|²)^{-1/2}`` so that the scaled latents
   have ``E|z|² = 1`` like the noise; the sampler divides by ``s`` before decoding;
 - ancestral DDPM (eq. 11, 29–31):
@@ -34,6 +41,7 @@ from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ..ops import tangent_noise
 
 SCHEDULES = ("linear", "cosine")
+PREDICTIONS = ("epsilon", "v")
 
 
 class Schedule(NamedTuple):
@@ -151,6 +159,72 @@ def epsilon_loss(
         return jnp.mean(err)
     w = vertex_mask.astype(err.dtype)[..., None]
     return jnp.sum(err * w) / jnp.maximum(jnp.sum(w) * err.shape[-1], 1.0)
+
+
+def _check_prediction(prediction: str) -> None:
+    if prediction not in PREDICTIONS:
+        raise ConfigError(f"prediction must be one of {PREDICTIONS}, got {prediction!r}")
+
+
+def prediction_target(
+    schedule: Schedule, prediction: str, z0: Complex[Array, "*B V C"], t: Int[Array, "*B"],
+    noise: Complex[Array, "*B V C"],
+) -> Complex[Array, "*B V C"]:
+    """What the network is trained to output for ``z_t = q_sample(schedule, z0, t, noise)``.
+
+    .. math:: \\text{epsilon: } \\varepsilon,\\qquad
+       \\text{v: } v = \\sqrt{\\bar\\alpha_t}\\,\\varepsilon - \\sqrt{1 - \\bar\\alpha_t}\\, z_0
+
+    Args:
+      schedule: the noise schedule.
+      prediction: ``"epsilon"`` or ``"v"``.
+      z0: clean (scaled) latents; optional leading batch.
+      t: timesteps, shape of the batch dimensions (or a scalar).
+      noise: the ``ε`` that made ``z_t``.
+
+    Returns:
+      The target, same shape as ``z0``; the loss is :func:`epsilon_loss` (masked mean ``|·|²``) of
+      the network output against it.
+
+    Example:
+      >>> s = make_schedule("linear")
+      >>> z0, e = jnp.ones((2, 1), jnp.complex64), 1j * jnp.ones((2, 1), jnp.complex64)
+      >>> bool(jnp.allclose(prediction_target(s, "v", z0, jnp.array(999), e), -z0, atol=0.01))  # v ≈ −z0 at high noise
+      True
+    """
+    _check_prediction(prediction)
+    if prediction == "epsilon":
+        return noise.astype(z0.dtype)
+    a = _coef(np.sqrt(schedule.alpha_bars), t, z0)
+    b = _coef(np.sqrt(1.0 - schedule.alpha_bars), t, z0)
+    return a * noise.astype(z0.dtype) - b * z0
+
+
+def epsilon_from_output(
+    schedule: Schedule, prediction: str, z_t: Complex[Array, "*B V C"], t: Int[Array, "*B"],
+    output: Complex[Array, "*B V C"],
+) -> Complex[Array, "*B V C"]:
+    """The noise estimate ``ε̂`` from the network's output, for the samplers.
+
+    .. math:: \\text{epsilon: } \\hat\\varepsilon = \\text{output},\\qquad
+       \\text{v: } \\hat\\varepsilon = \\sqrt{1 - \\bar\\alpha_t}\\, z_t + \\sqrt{\\bar\\alpha_t}\\, \\hat v
+
+    Per-timestep scalars only, so it commutes with gauge changes and isometries like the network.
+
+    Example:
+      >>> s = make_schedule("linear", num_steps=100)
+      >>> z0, e = jnp.ones((2, 1), jnp.complex64), 0.5j * jnp.ones((2, 1), jnp.complex64)
+      >>> t = jnp.array(40)
+      >>> v = prediction_target(s, "v", z0, t, e)
+      >>> bool(jnp.allclose(epsilon_from_output(s, "v", q_sample(s, z0, t, e), t, v), e, atol=1e-6))
+      True
+    """
+    _check_prediction(prediction)
+    if prediction == "epsilon":
+        return output.astype(z_t.dtype)
+    a = _coef(np.sqrt(schedule.alpha_bars), t, z_t)
+    b = _coef(np.sqrt(1.0 - schedule.alpha_bars), t, z_t)
+    return b * z_t + a * output.astype(z_t.dtype)
 
 
 def latent_scale(

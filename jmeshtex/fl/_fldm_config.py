@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 
 from .._config import ConfigBase, is_int, rule
-from ._diffusion import SCHEDULES
+from ._diffusion import PREDICTIONS, SCHEDULES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,6 +31,9 @@ class FLDMConfig(ConfigBase):
       time_features: width of the sinusoidal timestep embedding.
       num_labels: label classes for label-guided generation (0: unconditional).
       schedule: ``"linear"`` or ``"cosine"``.
+      prediction: what the denoiser outputs: ``"epsilon"`` (paper, eq. 10) or ``"v"``
+        (:func:`jmeshtex.fl.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
+        over-shoots the latents' magnitude several times when sampled).
       num_train_steps: diffusion steps ``T``.
       learning_rate: Adam learning rate.
       batch_size: mesh copies per step (split over devices).
@@ -57,6 +60,7 @@ class FLDMConfig(ConfigBase):
     time_features: int = 32
     num_labels: int = 0
     schedule: str = "linear"
+    prediction: str = "epsilon"
     num_train_steps: int = 1000
     learning_rate: float = 2e-4
     batch_size: int = 4
@@ -78,6 +82,7 @@ class FLDMConfig(ConfigBase):
              "three positive integers (down, middle, up)"),
         rule("activation", lambda x: x in ("silu", "relu"), "'silu' or 'relu'"),
         rule("schedule", lambda x: x in SCHEDULES, f"one of {SCHEDULES}"),
+        rule("prediction", lambda x: x in PREDICTIONS, f"one of {PREDICTIONS}"),
         rule("num_labels", lambda x: isinstance(x, int) and x >= 0, ">= 0"),
         rule("copy_vertices", lambda x: isinstance(x, int) and (x == 0 or x >= 16), "0 (keep the input's count) or >= 16"),
         rule("pool_ratio", lambda x: 0.05 <= x <= 0.75, "in [0.05, 0.75]"),
@@ -97,8 +102,8 @@ class FLDMConfig(ConfigBase):
 
     @classmethod
     def cpu(cls, **changes) -> FLDMConfig:
-        """A CPU preset: 32/64 channels, 1+2+2 blocks, ReLU filters, 32 copies of 5K vertices."""
-        base = dict(widths=(32, 64), blocks=(1, 2, 2), hdim=8, activation="relu", n_copies=32,
+        """A CPU preset: 32/64 channels, 1+2+2 blocks, ReLU filters, v-prediction, 32 copies of 5K vertices."""
+        base = dict(widths=(32, 64), blocks=(1, 2, 2), hdim=8, activation="relu", prediction="v", n_copies=32,
                     copy_vertices=5000, train_steps=3000, batch_size=2, learning_rate=1e-3)
         return cls(**{**base, **changes})
 

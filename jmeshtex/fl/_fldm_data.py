@@ -216,8 +216,8 @@ def build_dataset(
       :class:`FLDMData`.
 
     Raises:
-      ConfigError: labels given but ``num_labels`` is 0 (or labels out of range); latents with the
-        wrong channel count.
+      ConfigError: ``encode`` not callable; labels given but ``num_labels`` is 0 (or labels out of
+        range); latents with the wrong channel count.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -229,6 +229,8 @@ def build_dataset(
     """
     from tqdm.auto import tqdm
 
+    if not callable(encode):  # checked before the cache is touched: a stale cache is cleared below
+        raise ConfigError(f"encode must be a callable Mesh -> complex [V, d] (e.g. fl_vae_encoder), got {encode!r}")
     if labels is not None:
         if not config.num_labels:
             raise ConfigError("labels given but config.num_labels is 0; set num_labels to the number of classes")

@@ -28,7 +28,7 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh
 from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, geometry_sizes, pad_geometry
-from ._diffusion import Inpaint, draw_sampling_noise, make_schedule, sample_from_noise
+from ._diffusion import Inpaint, draw_sampling_noise, epsilon_from_output, make_schedule, sample_from_noise
 from ._fldm_train import FLDMModel
 
 
@@ -48,7 +48,7 @@ def _run(params, config, geo, labels, z_T, step_noise, known, mask, known_noise,
     schedule = make_schedule(config.schedule, num_steps=config.num_train_steps)
 
     def eps(z, t):
-        return denoise(params, config, z, t, geo, labels=labels)
+        return epsilon_from_output(schedule, config.prediction, z, t, denoise(params, config, z, t, geo, labels=labels))
 
     inpaint = Inpaint(known, mask)
     return sample_from_noise(eps, schedule, z_T, step_noise, method=method, num_steps=num_steps, eta=eta,

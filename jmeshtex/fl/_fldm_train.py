@@ -3,7 +3,8 @@
 One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}`` and tangent noise
 ``ε`` per copy, form ``z_t = √ᾱ_t s·μ + √(1−ᾱ_t) ε`` (eq. 8, ``s`` the per-channel scale of eq. 38–39)
 and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam; complex gradients conjugated first,
-DESIGN.md). The step is one ``jax.jit`` over ``vmap``-ed copies; the batch axis is sharded over every
+DESIGN.md), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
+(:func:`~jmeshtex.fl.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies; the batch axis is sharded over every
 available device with :mod:`jax.sharding` (parameters replicated), so the same code runs on one CPU
 or on several accelerators (the batch is rounded up to a multiple of the device count).
 
@@ -31,7 +32,7 @@ import optax
 from .._errors import ConfigError, MeshIOError
 from ..ops import conjugate_complex_grads, tangent_noise
 from ._denoiser import denoise, init_denoiser
-from ._diffusion import epsilon_loss, make_schedule, q_sample
+from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
 from ._fldm_config import FLDMConfig
 from ._fldm_data import FLDMData, batch_geometry
 
@@ -90,7 +91,7 @@ def make_train_step(config: FLDMConfig):
             pred = jax.vmap(lambda z, tt, g: denoise(params, config, z, tt, g))(zt, t, geo)
         else:
             pred = jax.vmap(lambda z, tt, g, lab: denoise(params, config, z, tt, g, labels=lab))(zt, t, geo, labels)
-        return epsilon_loss(pred, eps, geo.fine.vertex_mask)
+        return epsilon_loss(pred, prediction_target(schedule, config.prediction, z0, t, eps), geo.fine.vertex_mask)
 
     @jax.jit
     def step(params, opt_state, z0, geo, labels, key):

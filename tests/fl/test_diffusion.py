@@ -14,9 +14,11 @@ from jmeshtex.fl._diffusion import (
     ddim_step,
     ddpm_step,
     draw_sampling_noise,
+    epsilon_from_output,
     epsilon_loss,
     latent_scale,
     make_schedule,
+    prediction_target,
     q_sample,
     sample_from_noise,
     timestep_sequence,
@@ -87,6 +89,49 @@ def test_oracle_denoiser_recovers_the_data(method):
                                        dtype=jnp.complex128)
     out = sample_from_noise(oracle, s, zT, steps, method=method, num_steps=10)
     np.testing.assert_allclose(out, z0, atol=1e-9)
+
+
+@pytest.mark.parametrize("schedule", ["linear", "cosine"])
+def test_v_prediction_reads_back_the_noise_and_splits_the_loss(schedule):
+    """v = √ᾱ ε − √(1−ᾱ) z0 gives back ε exactly, and for any output v̂ the v-loss is the ε-loss plus
+    the z0-loss of the estimates it implies: |v − v̂|² = |ε − ε̂|² + |z0 − ẑ0|²."""
+    s = make_schedule(schedule, num_steps=100)
+    z0 = tangent_noise(jax.random.key(10), (3, 9, 2), dtype=jnp.complex128)
+    eps = tangent_noise(jax.random.key(11), (3, 9, 2), dtype=jnp.complex128)
+    t = jnp.array([0, 37, 98])
+    zt = q_sample(s, z0, t, eps)
+    v = prediction_target(s, "v", z0, t, eps)
+    np.testing.assert_allclose(epsilon_from_output(s, "v", zt, t, v), eps, atol=1e-12)
+    np.testing.assert_array_equal(prediction_target(s, "epsilon", z0, t, eps), eps)
+    np.testing.assert_array_equal(epsilon_from_output(s, "epsilon", zt, t, 2 * eps), 2 * eps)
+    v_hat = v + tangent_noise(jax.random.key(12), v.shape, dtype=v.dtype)
+    e_hat = epsilon_from_output(s, "v", zt, t, v_hat)
+    ab = s.alpha_bars[np.asarray(t)][:, None, None]
+    z0_hat = (np.asarray(zt) - np.sqrt(1 - ab) * np.asarray(e_hat)) / np.sqrt(ab)
+    lhs = np.abs(np.asarray(v - v_hat)) ** 2
+    rhs = np.abs(np.asarray(eps - e_hat)) ** 2 + np.abs(np.asarray(z0) - z0_hat) ** 2
+    np.testing.assert_allclose(lhs, rhs, rtol=1e-9)
+    with pytest.raises(ConfigError, match="prediction"):
+        prediction_target(s, "x0", z0, t, eps)
+    with pytest.raises(ConfigError, match="prediction"):
+        epsilon_from_output(s, "score", zt, t, v)
+
+
+@pytest.mark.parametrize("method", ["ddim", "ddpm"])
+def test_v_oracle_through_the_conversion_recovers_the_data(method):
+    """The samplers driven by a v-oracle (read back with epsilon_from_output) land on z0."""
+    s = make_schedule("cosine", num_steps=60)
+    z0 = tangent_noise(jax.random.key(13), (6, 2), dtype=jnp.complex128)
+    ab = jnp.asarray(s.alpha_bars).astype(jnp.complex128)
+
+    def v_oracle(z, t):
+        eps = (z - jnp.sqrt(ab[t]) * z0) / jnp.sqrt(1 - ab[t])
+        return epsilon_from_output(s, "v", z, t, prediction_target(s, "v", z0, t, eps))
+
+    zT, steps, _ = draw_sampling_noise(jax.random.key(14), (6, 2), method=method, num_steps=10, num_train_steps=60,
+                                       dtype=jnp.complex128)
+    out = sample_from_noise(v_oracle, s, zT, steps, method=method, num_steps=10)
+    np.testing.assert_allclose(out, z0, atol=1e-8)
 
 
 def _ddpm_gaussian_variance(s, v):
@@ -164,17 +209,23 @@ def test_sampling_is_reproducible_with_a_fixed_key():
     assert bool(jnp.all(a == b)) and not bool(jnp.allclose(a, c))
 
 
-def test_sampler_commutes_with_a_gauge_change_of_its_noise():
-    """An equivariant denoiser (here: a per-vertex complex-linear map) and noise rotated by e^{-iα}
-    give the sample rotated by e^{-iα}."""
+@pytest.mark.parametrize("prediction", ["epsilon", "v"])
+def test_sampler_commutes_with_a_gauge_change_of_its_noise(prediction):
+    """An equivariant denoiser (here: a per-vertex complex-linear map), read as ε or as v, and noise
+    rotated by e^{-iα} give the sample rotated by e^{-iα}."""
     s = make_schedule("linear", num_steps=20)
     w = jnp.array([[0.3 + 0.1j, -0.2j], [0.05, 0.4 - 0.3j]])
     zT, steps, _ = draw_sampling_noise(jax.random.key(13), (11, 2), method="ddpm", num_steps=0, num_train_steps=20,
                                        dtype=jnp.complex128)
     turn = jnp.exp(-1j * jnp.linspace(0.0, 5.0, 11).astype(jnp.complex128))[:, None]
-    a = sample_from_noise(lambda z, t: z @ w, s, zT, steps, method="ddpm")
-    b = sample_from_noise(lambda z, t: z @ w, s, zT * turn, steps * turn, method="ddpm")
+
+    def denoise(z, t):
+        return epsilon_from_output(s, prediction, z, t, z @ w)
+
+    a = sample_from_noise(denoise, s, zT, steps, method="ddpm")
+    b = sample_from_noise(denoise, s, zT * turn, steps * turn, method="ddpm")
     np.testing.assert_allclose(b, a * turn, rtol=1e-12, atol=1e-13)
+    assert float(jnp.max(jnp.abs(a))) > 0.1  # not a trivial (vanishing) sample
 
 
 def test_latent_scale_and_loss():

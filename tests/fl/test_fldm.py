@@ -71,6 +71,9 @@ def test_cache_is_reused_and_invalidated(tmp_path, sphere):
     build_dataset(sphere, CFG.replace(seed=5), encode=enc, cache_dir=tmp_path, progress=False)
     assert len(calls) == 6  # another seed: rebuilt
     assert json.loads((tmp_path / "data.json").read_text())["seed"] == 5
+    with pytest.raises(ConfigError, match="encode must be a callable"):
+        build_dataset(sphere, CFG.replace(seed=5), encode=None, cache_dir=tmp_path, progress=False)
+    assert len(list(tmp_path.glob("copy_*.npz"))) == 3  # a bad call leaves the cache as it was
 
 
 def test_labels_are_carried_to_the_copies(sphere):
@@ -100,6 +103,23 @@ def test_training_lowers_the_loss_and_resumes_exactly(tmp_path, data, trained):
     assert loaded.config == CFG and np.allclose(loaded.scale, data.scale)
     with pytest.raises(ConfigError, match="another configuration"):
         train_fldm(data, CFG.replace(hdim=5), out_dir=tmp_path, progress=False)
+
+
+def test_v_prediction_is_trained_saved_and_sampled_through(tmp_path, data, trained):
+    """prediction="v" changes the training target (same init, batches and noise as the ε run, other
+    losses), survives save/load, and the sampler reads the output through it."""
+    cfg = CFG.replace(prediction="v")
+    res = train_fldm(data, cfg, out_dir=tmp_path, progress=False)
+    assert np.isfinite(res.losses).all() and not np.allclose(res.losses, trained.losses)
+    model = load_fldm(tmp_path)
+    assert model.config.prediction == "v"
+    mesh = data.meshes[0]
+    as_v = sample_fldm(model, mesh, key=jax.random.key(0), n=1, steps=5)
+    as_eps = sample_fldm(model._replace(config=cfg.replace(prediction="epsilon")), mesh, key=jax.random.key(0), n=1,
+                         steps=5)
+    assert np.isfinite(as_v).all() and not np.allclose(as_v, as_eps)
+    with pytest.raises(ConfigError, match="prediction"):
+        CFG.replace(prediction="x0")
 
 
 def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
