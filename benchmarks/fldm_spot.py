@@ -17,7 +17,8 @@ What runs (Mitchel et al. 2024, §6.1 and §6.6):
 1. ``n_copies`` re-triangulations of Spot (``../shared/data/spot``, or ``$JMESHTEX_SHARED_DATA``)
    with Spot's own vertex count (the texture scale follows mesh resolution, §6.6), encoded with the
    shipped FL-VAE (:func:`jmeshtex.fl.load_pretrained` + :func:`jmeshtex.fl.fl_vae_encoder`);
-2. :func:`jmeshtex.fl.train_fldm` (ε-loss, Adam) with the :meth:`FLDMConfig.cpu` denoiser;
+2. :func:`jmeshtex.fl.train_fldm` (v-loss, or the paper's ε-loss with ``--prediction epsilon``; Adam)
+   with the :meth:`FLDMConfig.cpu` denoiser;
 3. ``n`` samples with DDIM-50 on Spot itself, decoded to Spot's UV atlas
    (:func:`jmeshtex.fl.decode_samples`); the same noise through the *untrained* denoiser (same
    initialisation as training started from);

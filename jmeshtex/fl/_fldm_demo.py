@@ -275,6 +275,6 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     losses = result.losses
     first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
     summary = (f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
-               f"ε-loss {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, {seconds:.1f} s")
+               f"{'ε' if cfg.prediction == 'epsilon' else 'v'}-loss {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, {seconds:.1f} s")
     return {"png": str(out / "fldm.png"), "seconds": seconds, "loss_first": first, "loss_last": last,
             "summary": summary}

@@ -1,4 +1,4 @@
-"""Training the FLDM denoiser with the ε-loss on a batch of mesh copies, data-parallel and resumable.
+"""Training the FLDM denoiser with the ε-loss (or v-loss) on a batch of mesh copies, data-parallel and resumable.
 
 One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}`` and tangent noise
 ``ε`` per copy, form ``z_t = √ᾱ_t s·μ + √(1−ᾱ_t) ε`` (eq. 8, ``s`` the per-channel scale of eq. 38–39)

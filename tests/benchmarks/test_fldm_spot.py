@@ -42,6 +42,8 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
     for s in ("trained samples (DDIM-3)", "untrained samples (DDIM-3)"):
         assert rows[s]["n"] == 2
         assert math.isfinite(rows[s]["diversity_lpips"]) and rows[s]["diversity_lpips"] > 0, rows[s]
+        assert math.isfinite(rows[s]["latent_rms"]) and rows[s]["latent_rms"] > 0, rows[s]
+    assert payload["config"]["fldm_config"]["prediction"] == "v"
     train = next(r for r in payload["rows"] if r["table"] == "training")
     assert train["n"] == payload["config"]["fldm_config"]["train_steps"] == 3
     assert math.isfinite(train["loss_first"]) and math.isfinite(train["loss_last"])
@@ -51,7 +53,7 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
     md = (tmp_path / "fldm_spot.md").read_text()
     assert "FL-VAE reconstruction" in md and "config (--quick)" in md
     assert (tmp_path / "fldm_spot.png").stat().st_size > 1000
-    assert (tmp_path / "work" / "train" / "model.npz").is_file()  # the checkpoint folder a re-run resumes
+    assert (tmp_path / "work" / "train_v" / "model.npz").is_file()  # the checkpoint folder a re-run resumes
 
 
 def test_missing_spot_exits_with_a_clear_message(tmp_path):

@@ -170,8 +170,9 @@ def test_cli_train_sample_inpaint(tmp_path):
                "--vertices", "60", "--steps", "2", "--out", str(out), "--no-progress"])
     assert rc == 2  # icosphere has no colours to read: a clear error, no traceback
     rc = main(["fldm", "train", "--mesh", "striped-sphere", "--codec", "stripes", "--preset", "tiny", "--copies", "2",
-               "--vertices", "60", "--steps", "2", "--out", str(out), "--no-progress"])
+               "--vertices", "60", "--steps", "2", "--prediction", "v", "--out", str(out), "--no-progress"])
     assert rc == 0 and (out / "model.npz").exists() and (out / "data" / "copy_0001.npz").exists()
+    assert load_fldm(out).config.prediction == "v"  # the tiny preset's own is epsilon
     rc = main(["fldm", "sample", "--model", str(out), "--vertices", "70", "--steps", "3", "--n", "2",
                "--out", str(tmp_path / "s"), "--no-progress"])
     assert rc == 0 and len(list((tmp_path / "s").glob("sample_*.png"))) == 2
