@@ -121,7 +121,7 @@ def main() -> None:
             load = _load()
             t, ceiling, act_ceiling = _timed_between_ceilings(
                 report, cfg.activation,
-                lambda fn=fn, z=z: time_jax(fn, params, z, repeats=args.measure, min_time=0.0))
+                lambda fn=fn, z=z, params=params: time_jax(fn, params, z, repeats=args.measure, min_time=0.0))
             best = min(t.runs)
             flops = denoiser_flops(cfg, sizes["V0"], sizes["V1"])
             bound = flops / (ceiling * 1e9)

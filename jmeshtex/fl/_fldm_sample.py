@@ -28,7 +28,13 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh
 from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, geometry_sizes, pad_geometry
-from ._diffusion import Inpaint, draw_sampling_noise, epsilon_from_output, make_schedule, sample_from_noise
+from ._diffusion import (
+    Inpaint,
+    draw_sampling_noise,
+    epsilon_from_output,
+    make_schedule,
+    sample_from_noise,
+)
 from ._fldm_train import FLDMModel
 
 

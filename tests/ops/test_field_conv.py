@@ -14,8 +14,7 @@ from jax.test_util import check_grads
 from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid
 from jmeshtex.geometry import VertexNeighborhood, pad_to, to_jax
-from jmeshtex.ops import FieldConvParams, field_conv
-from jmeshtex.ops import _field_conv
+from jmeshtex.ops import FieldConvParams, _field_conv, field_conv
 from jmeshtex.ops._field_conv import _filtered_sums, _sums_impl
 
 _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
