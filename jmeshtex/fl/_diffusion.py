@@ -107,6 +107,11 @@ def _coef(values: np.ndarray, t, like: Array) -> Array:
     return v.reshape(v.shape + (1,) * (like.ndim - v.ndim)).astype(like.dtype)
 
 
+def _signal_noise(schedule: Schedule, t, like: Array) -> tuple[Array, Array]:
+    """``(√ᾱ_t, √(1 − ᾱ_t))`` broadcastable against ``like``."""
+    return _coef(np.sqrt(schedule.alpha_bars), t, like), _coef(np.sqrt(1.0 - schedule.alpha_bars), t, like)
+
+
 def q_sample(
     schedule: Schedule, z0: Complex[Array, "*B V C"], t: Int[Array, "*B"], noise: Complex[Array, "*B V C"]
 ) -> Complex[Array, "*B V C"]:
@@ -130,8 +135,7 @@ def q_sample(
       >>> bool(jnp.abs(zt).max() < 0.01)
       True
     """
-    a = _coef(np.sqrt(schedule.alpha_bars), t, z0)
-    b = _coef(np.sqrt(1.0 - schedule.alpha_bars), t, z0)
+    a, b = _signal_noise(schedule, t, z0)
     return a * z0 + b * noise.astype(z0.dtype)
 
 
@@ -195,8 +199,7 @@ def prediction_target(
     _check_prediction(prediction)
     if prediction == "epsilon":
         return noise.astype(z0.dtype)
-    a = _coef(np.sqrt(schedule.alpha_bars), t, z0)
-    b = _coef(np.sqrt(1.0 - schedule.alpha_bars), t, z0)
+    a, b = _signal_noise(schedule, t, z0)
     return a * noise.astype(z0.dtype) - b * z0
 
 
@@ -222,8 +225,7 @@ def epsilon_from_output(
     _check_prediction(prediction)
     if prediction == "epsilon":
         return output.astype(z_t.dtype)
-    a = _coef(np.sqrt(schedule.alpha_bars), t, z_t)
-    b = _coef(np.sqrt(1.0 - schedule.alpha_bars), t, z_t)
+    a, b = _signal_noise(schedule, t, z_t)
     return b * z_t + a * output.astype(z_t.dtype)
 
 
