@@ -90,13 +90,12 @@ def presets(quick: bool, latent_dim: int, n_vertices: int, prediction: str = "v"
 
     if quick:
         cfg = FLDMConfig.tiny(latent_channels=latent_dim, widths=(8, 16), hdim=2, n_copies=2, copy_vertices=400,
-                              prediction=prediction,
-                              train_steps=3, checkpoint_every=2, num_train_steps=100, bucket=256)
+                              train_steps=3, checkpoint_every=2, num_train_steps=100, bucket=256,
+                              prediction=prediction)
         run = dict(samples=2, views=VIEWS[:2], size=96, atlas=128, ddim_steps=3, subdivide=0)
     else:
         cfg = FLDMConfig.cpu(latent_channels=latent_dim, n_copies=16, copy_vertices=n_vertices, train_steps=4000,
-                             prediction=prediction,
-                             checkpoint_every=50)
+                             checkpoint_every=50, prediction=prediction)
         run = dict(samples=6, views=VIEWS, size=256, atlas=512, ddim_steps=50, subdivide=1)
     return cfg, run
 
@@ -148,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         sample_fldm,
         train_fldm,
     )
+    from jmeshtex.fl._diffusion import LOSS_NAMES
     from jmeshtex.fl._fldm_sample import sampling_geometry
     from jmeshtex.geometry import fill_unused_texels
     from jmeshtex.io import load_mesh
@@ -240,28 +240,28 @@ def main(argv: list[str] | None = None) -> int:
         return [float(np.mean(np.asarray(lpips(jnp.asarray(rs[a]), jnp.asarray(rs[b]), weights=weights))))
                 for a in range(len(rs)) for b in range(a + 1, len(rs))]
 
-    rows = [("exemplar (vs itself)", [ref], "Spot's own texture; the metric's zero")]
-    rows += [("FL-VAE reconstruction", renders["reconstruction"], "encode Spot → decode its atlas")]
-    rows += [("mean colour", renders["mean colour"], "texture-free baseline")]
-    rows += [(f"trained samples (DDIM-{run['ddim_steps']})", renders["trained"], f"{n} samples, {len(losses)} steps")]
-    if "trained DDPM-1000" in renders:
-        rows += [("trained samples (DDPM-1000)", renders["trained DDPM-1000"], f"{n} samples")]
-    rows += [(f"untrained samples (DDIM-{run['ddim_steps']})", renders["untrained"], "same noise, initial weights")]
     def latent_rms(z: np.ndarray) -> float:  # per sample over vertices and channels, then the mean
         return float(np.mean(np.sqrt(np.mean(np.abs(z * data.scale) ** 2, axis=(1, 2)))))
 
-    rms = {rows[3][0]: latent_rms(z_tr), rows[-1][0]: latent_rms(z_un)}
+    # (source, renders, what, sampled latents or None)
+    trained = f"trained samples (DDIM-{run['ddim_steps']})"
+    untrained = f"untrained samples (DDIM-{run['ddim_steps']})"
+    rows = [("exemplar (vs itself)", [ref], "Spot's own texture; the metric's zero", None)]
+    rows += [("FL-VAE reconstruction", renders["reconstruction"], "encode Spot → decode its atlas", None)]
+    rows += [("mean colour", renders["mean colour"], "texture-free baseline", None)]
+    rows += [(trained, renders["trained"], f"{n} samples, {len(losses)} steps", z_tr)]
     if z_ddpm is not None:
-        rms[rows[4][0]] = latent_rms(z_ddpm)
+        rows += [("trained samples (DDPM-1000)", renders["trained DDPM-1000"], f"{n} samples", z_ddpm)]
+    rows += [(untrained, renders["untrained"], "same noise, initial weights", z_un)]
     quality = []
-    for source, rs, what in rows:
+    for source, rs, what, z in rows:
         g = [gram(r) for r in rs]
         d = diversity(rs) if len(rs) > 1 else []
         quality.append(dict(table="quality", source=source, n=len(rs), fidelity_gram=float(np.mean(g)),
                             fidelity_gram_std=float(np.std(g)),
                             diversity_lpips=float(np.mean(d)) if d else "",
-                            diversity_lpips_std=float(np.std(d)) if d else "", latent_rms=rms.get(source, ""),
-                            what=what))
+                            diversity_lpips_std=float(np.std(d)) if d else "",
+                            latent_rms=latent_rms(z) if z is not None else "", what=what))
     stage("metrics", t0)
 
     # 7. the PNG grid (first view): exemplar, reconstruction, samples, untrained samples
@@ -278,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     for row in quality:
         report.add(**row, load=round(_load(), 2))
     tr = record.get(train_key, {})
-    loss_name = {"epsilon": "ε-loss", "v": "v-loss"}[cfg.prediction]
+    loss_name = LOSS_NAMES[cfg.prediction]
     report.add(table="training", source=loss_name, n=len(losses), loss_first=loss_first, loss_last=loss_last,
                seconds=tr.get("seconds", ""), steps_per_s=tr["steps"] / tr["seconds"] if tr.get("seconds") else "",
                load=round(tr["load"], 2) if "load" in tr else "",
@@ -296,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
                                 "samples": n, "seed": args.seed, "quick": args.quick},
                                 "fl_vae": vae_desc, "spot_vertices": spot.num_vertices}
     by_source = {r["source"]: r["fidelity_gram"] for r in quality}
-    ratio = by_source[rows[3][0]] / max(by_source[rows[-1][0]], 1e-12)
+    ratio = by_source[trained] / max(by_source[untrained], 1e-12)
     report.config["trained_over_untrained_gram"] = ratio
     report.notes = [
         f"trained / untrained fidelity_gram (same noise): {ratio:.3f}",

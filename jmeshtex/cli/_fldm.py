@@ -26,6 +26,7 @@ import numpy as np
 from .._errors import InputError, MeshIOError
 
 PRESETS = ("tiny", "cpu", "paper")
+PREDICTIONS = ("epsilon", "v")  # jmeshtex.fl.PREDICTIONS, spelled out so that --help needs no JAX
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -44,7 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--copies", type=int, default=None, help="re-triangulated copies")
     t.add_argument("--vertices", type=int, default=None, help="vertices per copy")
     t.add_argument("--steps", type=int, default=None, help="training steps")
-    t.add_argument("--prediction", choices=("epsilon", "v"), default=None,
+    t.add_argument("--prediction", choices=PREDICTIONS, default=None,
                    help="what the denoiser predicts (default: the preset's; cpu: v, paper: epsilon)")
     t.add_argument("--codec", choices=("fl-vae", "stripes"), default="fl-vae", help="latent encoder/decoder")
     t.add_argument("--vae", default=None, help="FL-VAE file (default: the shipped pre-trained one)")

@@ -42,6 +42,7 @@ from ..ops import tangent_noise
 
 SCHEDULES = ("linear", "cosine")
 PREDICTIONS = ("epsilon", "v")
+LOSS_NAMES = {"epsilon": "ε-loss", "v": "v-loss"}  #: how reports name each prediction's loss
 
 
 class Schedule(NamedTuple):
@@ -193,7 +194,8 @@ def prediction_target(
     Example:
       >>> s = make_schedule("linear")
       >>> z0, e = jnp.ones((2, 1), jnp.complex64), 1j * jnp.ones((2, 1), jnp.complex64)
-      >>> bool(jnp.allclose(prediction_target(s, "v", z0, jnp.array(999), e), -z0, atol=0.01))  # v ≈ −z0 at high noise
+      >>> v = prediction_target(s, "v", z0, jnp.array(999), e)
+      >>> bool(jnp.allclose(v, -z0, atol=0.01))  # v ≈ −z0 at high noise
       True
     """
     _check_prediction(prediction)

@@ -238,6 +238,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     """
     from ..geometry import remesh
     from ..render import render_grid
+    from ._diffusion import LOSS_NAMES
     from ._fldm_data import build_dataset
     from ._fldm_sample import inpaint_fldm, sample_fldm
     from ._fldm_train import train_fldm
@@ -275,6 +276,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     losses = result.losses
     first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
     summary = (f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
-               f"{'ε' if cfg.prediction == 'epsilon' else 'v'}-loss {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, {seconds:.1f} s")
+               f"{LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
+               f"{seconds:.1f} s")
     return {"png": str(out / "fldm.png"), "seconds": seconds, "loss_first": first, "loss_last": last,
             "summary": summary}

@@ -1,11 +1,11 @@
-"""Training the FLDM denoiser with the ε-loss (or v-loss) on a batch of mesh copies, data-parallel and resumable.
+"""Training the FLDM denoiser (ε- or v-loss) on a batch of mesh copies, data-parallel and resumable.
 
 One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}`` and tangent noise
 ``ε`` per copy, form ``z_t = √ᾱ_t s·μ + √(1−ᾱ_t) ε`` (eq. 8, ``s`` the per-channel scale of eq. 38–39)
 and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam; complex gradients conjugated first,
 DESIGN.md), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
-(:func:`~jmeshtex.fl.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies; the batch axis is sharded over every
-available device with :mod:`jax.sharding` (parameters replicated), so the same code runs on one CPU
+(:func:`~jmeshtex.fl.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies; the
+batch axis is sharded over every available device with :mod:`jax.sharding` (parameters replicated), so the same code runs on one CPU
 or on several accelerators (the batch is rounded up to a multiple of the device count).
 
 Checkpoints: every ``checkpoint_every`` steps ``checkpoint.npz`` (parameters, optimiser state, step,

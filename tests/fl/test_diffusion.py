@@ -252,3 +252,10 @@ def test_argument_errors():
         sample_from_noise(lambda z, t: z, s, z, z[None], method="ddpm")
     with pytest.raises(ConfigError, match="sampling steps"):
         timestep_sequence(10, 11)
+
+
+def test_the_cli_spells_out_the_predictions():
+    from jmeshtex.cli._fldm import PREDICTIONS as CLI_PREDICTIONS
+    from jmeshtex.fl._diffusion import PREDICTIONS
+
+    assert CLI_PREDICTIONS == PREDICTIONS
