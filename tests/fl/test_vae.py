@@ -95,35 +95,6 @@ def test_encode_mesh_reads_colours_of_another_triangulation(key):
         encode_mesh(params, SMALL, plain, key=jax.random.key(0))
 
 
-def _loop_rasterize(uv, size):
-    """Slow reference: every texel centre tested against every UV triangle."""
-    covered = np.zeros((size, size), bool)
-    for j in range(size):
-        for i in range(size):
-            u, w = (i + 0.5) / size, 1 - (j + 0.5) / size
-            for tri in uv:
-                a, b, c = tri
-                den = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-                l1 = ((u - a[0]) * (c[1] - a[1]) - (w - a[1]) * (c[0] - a[0])) / den
-                l2 = ((b[0] - a[0]) * (w - a[1]) - (b[1] - a[1]) * (u - a[0])) / den
-                if min(l1, l2, 1 - l1 - l2) >= -1e-9:
-                    covered[j, i] = True
-    return covered
-
-
-def test_rasterize_covers_exactly_the_texels_inside_uv_triangles():
-    rng = np.random.default_rng(0)
-    uv = rng.random((5, 3, 2)) * 0.8 + 0.1
-    r = rasterize_uv(uv, 16)
-    index, face, bary = np.stack([r.row, r.col], 1), r.face, r.bary
-    covered = np.zeros((16, 16), bool)
-    covered[index[:, 0], index[:, 1]] = True
-    np.testing.assert_array_equal(covered, _loop_rasterize(uv, 16))
-    # the barycentric coordinates reproduce the texel centre in UV space
-    centre = np.stack([(index[:, 1] + 0.5) / 16, 1 - (index[:, 0] + 0.5) / 16], 1)
-    np.testing.assert_allclose(np.einsum("nk,nkd->nd", bary, uv[face]), centre, atol=1e-9)
-
-
 @pytest.mark.parametrize("decoder", ["log", "barycentric"])
 def test_decode_texture_fills_the_used_texels_and_agrees_with_vertex_colours(key, decoder):
     cfg = SMALL.replace(decoder=decoder)
