@@ -384,9 +384,9 @@ def _responses(ar, ai, a_w, bias, activation):
     Why ``jnp.tanh`` and not a cheaper formula (measured, jaxlib 0.10.2, AVX-512 CPU): the filter-sum
     fusion is vectorised over channels only once LLVM has fully unrolled its slot loop, and the
     unroller sees XLA's tanh as a single call. A clamped rational tanh written in ``jnp`` (12 vector
-    operations against about 20, 1.3x faster filter sums on materialised inputs) makes the slot body
-    too large to unroll for ``K ≥ 7`` slots, and the convolution compiles to scalar code (3x
-    slower at ``K = 9``). ``1 / (1 + exp(-p))`` stays vectorised but is 1.5x slower than tanh here.
+    operations against about 20; filter sums 1.15-1.3x faster on materialised inputs) makes the
+    slot body too large to unroll for ``K ≥ 7`` slots, and the convolution compiles to scalar code (3x
+    slower at ``K = 9``). ``p σ(p)`` through ``jax.nn.sigmoid`` stays vectorised but is 1.5x slower.
     """
     if activation == "silu":
         half = jnp.asarray(0.5, ar.dtype)
