@@ -63,6 +63,8 @@ import jax.numpy as jnp
 import numpy as np
 from _harness import RESULTS, Report
 
+from jmeshtex.fl._diffusion import LOSS_NAMES, PREDICTIONS
+
 HERE = pathlib.Path(__file__).resolve().parent
 SHARED = HERE.parent / ".." / "shared" / "data"
 VIEWS = ((15.0, 35.0), (15.0, 125.0), (15.0, 215.0), (15.0, 305.0))
@@ -130,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=None, help="samples per model (default: the preset's)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--ddpm", action="store_true", help="also DDPM-1000 samples of the trained model (slow)")
-    ap.add_argument("--prediction", choices=("v", "epsilon"), default="v",
+    ap.add_argument("--prediction", choices=PREDICTIONS, default="v",
                     help="what the denoiser predicts (default: the CPU preset's v)")
     args = ap.parse_args(argv)
     t_start = time.perf_counter()
@@ -147,7 +149,6 @@ def main(argv: list[str] | None = None) -> int:
         sample_fldm,
         train_fldm,
     )
-    from jmeshtex.fl._diffusion import LOSS_NAMES
     from jmeshtex.fl._fldm_sample import sampling_geometry
     from jmeshtex.geometry import fill_unused_texels
     from jmeshtex.io import load_mesh

@@ -5,8 +5,9 @@ One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}
 and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam; complex gradients conjugated first,
 DESIGN.md), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
 (:func:`~jmeshtex.fl.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies; the
-batch axis is sharded over every available device with :mod:`jax.sharding` (parameters replicated), so the same code runs on one CPU
-or on several accelerators (the batch is rounded up to a multiple of the device count).
+batch axis is sharded over every available device with :mod:`jax.sharding` (parameters
+replicated), so the same code runs on one CPU or on several accelerators (the batch is rounded up
+to a multiple of the device count).
 
 Checkpoints: every ``checkpoint_every`` steps ``checkpoint.npz`` (parameters, optimiser state, step,
 losses) and ``state.json`` are written atomically (temporary file + rename); calling
