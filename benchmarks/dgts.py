@@ -30,7 +30,8 @@ import numpy as np
 from _harness import Report, time_jax
 
 from jmeshtex.data import icosphere
-from jmeshtex.dgts import PrepareConfig, TrainConfig, bumpy_sphere, train, training_meshes
+from jmeshtex.dgts import PrepareConfig, TrainConfig, train, training_meshes
+from jmeshtex.data import bumpy_sphere
 from jmeshtex.dgts._transfer import _prepare_target, _run_jit
 
 

@@ -41,10 +41,10 @@ from _harness import Report, activation_ceiling, matmul_ceiling, time_jax
 
 from jmeshtex import Mesh
 from jmeshtex.data import icosphere
-from jmeshtex.fl import FLDMConfig, denoise, denoiser_geometry, init_denoiser, sample_fldm
-from jmeshtex.fl._denoiser import denoiser_activations, denoiser_flops, geometry_sizes
-from jmeshtex.fl._fldm_data import stack_copies
-from jmeshtex.fl._fldm_train import FLDMModel, _batch, make_train_step, optimizer
+from jmeshtex.fldm import FLDMConfig, denoise, denoiser_geometry, init_denoiser, sample_fldm
+from jmeshtex.fldm._data import stack_copies
+from jmeshtex.fldm._denoiser import denoiser_activations, denoiser_flops, geometry_sizes
+from jmeshtex.fldm._train import FLDMModel, _batch, make_train_step, optimizer
 from jmeshtex.geometry import remesh, to_jax
 from jmeshtex.ops import tangent_noise
 

@@ -63,7 +63,7 @@ import jax.numpy as jnp
 import numpy as np
 from _harness import RESULTS, Report
 
-from jmeshtex.fl._diffusion import LOSS_NAMES, PREDICTIONS
+from jmeshtex.fldm._diffusion import LOSS_NAMES, PREDICTIONS
 
 HERE = pathlib.Path(__file__).resolve().parent
 SHARED = HERE.parent / ".." / "shared" / "data"
@@ -88,7 +88,7 @@ def spot_path() -> pathlib.Path:
 
 def presets(quick: bool, latent_dim: int, n_vertices: int, prediction: str = "v"):
     """``(FLDMConfig, run settings)`` of the full benchmark or the ``--quick`` smoke run."""
-    from jmeshtex.fl import FLDMConfig
+    from jmeshtex.fldm import FLDMConfig
 
     if quick:
         cfg = FLDMConfig.tiny(latent_channels=latent_dim, widths=(8, 16), hdim=2, n_copies=2, copy_vertices=400,
@@ -138,18 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     t_start = time.perf_counter()
     spot_dir = spot_path()  # fail before the heavy imports
 
-    from jmeshtex.fl import (
-        FLDMModel,
-        build_dataset,
-        decode_samples,
-        encode_mesh,
-        fl_vae_encoder,
-        init_denoiser,
-        load_pretrained,
-        sample_fldm,
-        train_fldm,
-    )
-    from jmeshtex.fl._fldm_sample import sampling_geometry
+    from jmeshtex.fldm import FLDMModel, build_dataset, decode_samples, fl_vae_encoder, init_denoiser, sample_fldm, train_fldm
+    from jmeshtex.fl import encode_mesh, load_pretrained
+    from jmeshtex.fldm._sample import sampling_geometry
     from jmeshtex.geometry import fill_unused_texels
     from jmeshtex.io import load_mesh
     from jmeshtex.metrics import gram_distance, load_vgg16, lpips

@@ -29,9 +29,9 @@ import numpy as np
 from _harness import Report
 
 import jmeshtex.meshmatch._patchmatch as pm
+from jmeshtex.cli._stages.meshmatch import psnr
 from jmeshtex.data import torus
 from jmeshtex.meshmatch import MeshMatchConfig, meshmatch, prepare_side
-from jmeshtex.meshmatch._demo import psnr
 
 
 def _torus(n_major, n_minor):

@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 from jmeshtex.testing import check, load_entries
-from jmeshtex.testing._registry import _transforms_of
+from jmeshtex.testing import transforms_of
 
 REGISTRY = load_entries()
 
 CASES = [
     pytest.param(name, t, dt, id=f"{name}-{t}-{np.dtype(dt).name}")
     for name, entry in REGISTRY.items()
-    for t in _transforms_of(entry)
+    for t in transforms_of(entry)
     for dt in (jnp.float64, jnp.float32)
 ]
 

@@ -23,5 +23,13 @@ from ._errors import NonManifoldEdgeError as NonManifoldEdgeError
 from ._errors import NonManifoldVertexError as NonManifoldVertexError
 from ._errors import NonTriangleFaceError as NonTriangleFaceError
 from ._mesh import Mesh as Mesh
+from ._neighborhoods import FaceNeighborhood as FaceNeighborhood
+from ._neighborhoods import PoolGroups as PoolGroups
+from ._neighborhoods import PoolingMap as PoolingMap
+from ._neighborhoods import TangentFrames as TangentFrames
+from ._neighborhoods import TexelNeighborhood as TexelNeighborhood
+from ._neighborhoods import VertexNeighborhood as VertexNeighborhood
+from ._neighborhoods import pad_to as pad_to
+from ._neighborhoods import to_jax as to_jax
 
 __version__ = "0.1.0"

@@ -57,6 +57,14 @@ class Mesh:
     def has_texture(self) -> bool:
         return self.texture is not None
 
+    def __iter__(self):
+        """Unpack as the ``(vertices, faces)`` pair: ``v, f = mesh``.
+
+        Host geometry functions take that pair; unpacking lets a ``Mesh`` stand wherever one is
+        expected (``geometry.face_areas(*mesh)``), and ``Mesh(*mesh)`` keeps the geometry only.
+        """
+        return iter((self.vertices, self.faces))
+
     def replace(self, **changes) -> Mesh:
         """A copy with some fields replaced (the original is never modified)."""
         return dataclasses.replace(self, **changes)

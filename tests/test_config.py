@@ -13,7 +13,8 @@ import pytest
 from jmeshtex import ConfigError
 from jmeshtex._config import ConfigBase, cross_rule, integers, is_finite_number, is_int, rule
 from jmeshtex.dgts import PrepareConfig, TrainConfig
-from jmeshtex.fl import FLDMConfig, FLVAEConfig
+from jmeshtex.fldm import FLDMConfig
+from jmeshtex.fl import FLVAEConfig
 from jmeshtex.meshmatch import MeshMatchConfig
 from jmeshtex.surfacecnn import SurfaceCNNConfig
 

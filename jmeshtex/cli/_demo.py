@@ -214,19 +214,19 @@ def _verify(ctx: dict[str, Any]) -> str:
     return f"{len(results)} checks ({', '.join(transforms)}), {failed} failed → verify.txt"
 
 
-def method_stage(module: str, folder: str) -> Callable[[dict[str, Any]], str]:
-    """A demo step that runs ``jmeshtex.<module>.demo_stage(out / folder, quick=...)``.
+def method_stage(folder: str) -> Callable[[dict[str, Any]], str]:
+    """A demo step that runs ``jmeshtex.cli._stages.<folder>.demo_stage(out / folder, quick=...)``.
 
-    ``module`` names a method's demo module, e.g. ``"dgts._demo"``. Each method has a
+    ``folder`` names a method (``"dgts"``): its stage module in ``jmeshtex/cli/_stages/`` has a
     ``demo_stage(out_dir, *, quick) -> dict`` that trains/runs a tiny
     configuration on the embedded data and writes its PNGs into ``out_dir``; the dict's
     ``"summary"`` (or else its scalar entries) becomes the report line.
     """
 
     def run(ctx: dict[str, Any]) -> str:
-        import importlib
+        from . import _stages
 
-        stage = importlib.import_module(f"jmeshtex.{module}").demo_stage
+        stage = getattr(_stages, folder).demo_stage
         result = stage(ctx["out"] / folder, quick=ctx["quick"])
         if "summary" in result:
             text = str(result["summary"])
@@ -242,7 +242,7 @@ def method_stage(module: str, folder: str) -> Callable[[dict[str, Any]], str]:
 
 
 def _meshmatch(ctx: dict[str, Any]) -> str:
-    from ..meshmatch._demo import demo_stage
+    from ._stages.meshmatch import demo_stage
 
     summary = demo_stage(ctx["out"] / "meshmatch", quick=ctx["quick"])
     return f"MeshMatch self-transfer: {summary.get('psnr_db', float('nan')):.1f} dB " \
@@ -266,10 +266,10 @@ STEPS: list[Step] = [
     Step("render", _render),
     Step("equivariance (jmeshtex verify, selection)", _verify),
     Step("MeshMatch", _meshmatch),
-    Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts._demo", "dgts")),
-    Step("Field Latents (FL-VAE encode/decode)", method_stage("fl._demo", "fl")),
-    Step("Field Latent Diffusion (tiny training, sampling)", method_stage("fl._fldm_demo", "fldm")),
-    Step("surface-aware texture synthesis (VGG-16 on texels)", method_stage("surfacecnn._demo", "surfacecnn")),
+    Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts")),
+    Step("Field Latents (FL-VAE encode/decode)", method_stage("fl")),
+    Step("Field Latent Diffusion (tiny training, sampling)", method_stage("fldm")),
+    Step("surface-aware texture synthesis (VGG-16 on texels)", method_stage("surfacecnn")),
 ]
 
 

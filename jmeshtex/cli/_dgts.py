@@ -106,7 +106,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def load_mesh_arg(spec: str):
     """A mesh from a file path or a procedural name (see the module docstring)."""
     from .. import data
-    from ..dgts import bumpy_sphere
+    from ..data import bumpy_sphere
 
     parts = spec.split(":")
     try:

@@ -11,7 +11,7 @@
 
 Latent codec: ``--codec fl-vae`` (default) uses ``--vae PATH`` (an ``fl_vae.npz``) or the shipped
 pre-trained FL-VAE; ``--codec stripes`` is the analytic codec of the demo (vertex colours on a
-blue/yellow ramp, :mod:`jmeshtex.fl._fldm_demo`). Meshes are files or the procedural names of
+blue/yellow ramp, :mod:`jmeshtex.cli._stages.fldm`). Meshes are files or the procedural names of
 ``jmeshtex dgts`` plus ``striped-sphere``.
 """
 
@@ -77,7 +77,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _load_mesh(spec: str):
     from .._mesh import Mesh
-    from ..fl._fldm_demo import striped_sphere
+    from ._stages.fldm import striped_sphere
 
     if spec == "striped-sphere":
         return striped_sphere(subdivisions=3)
@@ -96,15 +96,14 @@ def _codec(kind: str, vae: str | None, original, *, seed: int):
     import jax
 
     if kind == "stripes":
-        from ..fl._fldm_demo import intensity_to_rgb, stripe_decoder, stripe_encoder
+        from ._stages.fldm import intensity_to_rgb, stripe_decoder, stripe_encoder
 
         def decode(mesh, latents, size):
             return [{"vertex_colors": intensity_to_rgb(stripe_decoder(z))} for z in latents]
 
         return stripe_encoder, decode, 2
     from ..fl import load_fl_vae, load_pretrained
-    from ..fl._fldm_data import fl_vae_encoder
-    from ..fl._fldm_sample import decode_samples
+    from ..fldm import decode_samples, fl_vae_encoder
 
     params, cfg = load_pretrained() if vae is None else load_fl_vae(vae)
     encode = fl_vae_encoder(params, cfg, original, key=jax.random.key(seed))
@@ -116,9 +115,7 @@ def _codec(kind: str, vae: str | None, original, *, seed: int):
 
 
 def _train(args) -> int:
-    from ..fl._fldm_config import FLDMConfig
-    from ..fl._fldm_data import build_dataset
-    from ..fl._fldm_train import train_fldm
+    from ..fldm import FLDMConfig, build_dataset, train_fldm
 
     mesh = _load_mesh(args.mesh)
     if args.texture:
@@ -162,8 +159,7 @@ def _target(args, meta):
 def _run_sampling(args, *, inpaint: bool) -> int:
     import jax
 
-    from ..fl._fldm_sample import render_samples, sample_fldm
-    from ..fl._fldm_train import load_fldm
+    from ..fldm import load_fldm, render_samples, sample_fldm
 
     model = load_fldm(args.model)
     meta_path = args.model / "fldm.json"

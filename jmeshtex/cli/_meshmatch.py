@@ -82,7 +82,7 @@ def _load_mask(path: pathlib.Path, num_vertices: int):
 def _write_outputs(out: pathlib.Path, source, target_mesh, match, title: str) -> dict:
     from .. import render
     from ..io import save_mesh
-    from ..meshmatch._demo import nnf_colors
+    from ._stages.meshmatch import nnf_colors
 
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)

@@ -36,7 +36,7 @@ def _run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .. import testing
-    from ..testing._registry import _transforms_of
+    from ..testing import transforms_of
     testing.load_entries()
 
     if args.list:
@@ -50,7 +50,7 @@ def _run(args: argparse.Namespace) -> int:
     names = args.only or list(testing.REGISTRY)
     transforms = args.transforms
     total = sum(
-        len([t for t in _transforms_of(testing.REGISTRY[n])
+        len([t for t in transforms_of(testing.REGISTRY[n])
              if transforms is None or t in transforms]) * len(dtypes[args.dtype])
         for n in names if n in testing.REGISTRY
     )

@@ -1,16 +1,19 @@
 """Procedural meshes: the package's embedded default geometry (no files, no network).
 
 All meshes are consistently oriented (counter-clockwise seen from outside / from +z), manifold, and
-returned as ``(vertices [V, 3] float64, faces [F, 3] int64)``; wrap them in :class:`jmeshtex.Mesh`
-where a record is needed.
+returned as a :class:`jmeshtex.Mesh` (vertices ``[V, 3]`` float64, faces ``[F, 3]`` int64) named after
+the builder. A ``Mesh`` unpacks as its ``(vertices, faces)`` pair, so ``v, f = icosphere(2)`` works
+too.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .._mesh import Mesh
 
-def single_triangle() -> tuple[np.ndarray, np.ndarray]:
+
+def single_triangle() -> Mesh:
     """The right triangle (0,0,0), (1,0,0), (0,1,0) in the z = 0 plane.
 
     Example:
@@ -19,10 +22,10 @@ def single_triangle() -> tuple[np.ndarray, np.ndarray]:
       ((3, 3), [[0, 1, 2]])
     """
     v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    return v, np.array([[0, 1, 2]], dtype=np.int64)
+    return Mesh(v, np.array([[0, 1, 2]], dtype=np.int64), name="single_triangle")
 
 
-def icosahedron(radius: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def icosahedron(radius: float = 1.0) -> Mesh:
     """The regular icosahedron inscribed in a sphere of ``radius`` (12 vertices, 20 faces).
 
     Every edge has length ``radius / sin(2π/5)``; every vertex has 5 neighbours at equal angles.
@@ -47,10 +50,10 @@ def icosahedron(radius: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
          [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]],
         dtype=np.int64,
     )
-    return v, f
+    return Mesh(v, f, name="icosahedron")
 
 
-def icosphere(subdivisions: int = 2, radius: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def icosphere(subdivisions: int = 2, radius: float = 1.0) -> Mesh:
     """A geodesic sphere: the icosahedron midpoint-subdivided ``subdivisions`` times, projected.
 
     ``V = 10·4^s + 2``, ``F = 20·4^s``.
@@ -60,13 +63,13 @@ def icosphere(subdivisions: int = 2, radius: float = 1.0) -> tuple[np.ndarray, n
       >>> v.shape, f.shape
       ((42, 3), (80, 3))
     """
-    from ..geometry._subdivision import subdivide_midpoint  # lazy: geometry may import data
+    from ..geometry import subdivide_midpoint  # lazy: geometry may import data
 
     v, f = icosahedron(1.0)
     for _ in range(subdivisions):
         v, f = subdivide_midpoint(v, f)[:2]
         v /= np.linalg.norm(v, axis=1, keepdims=True)
-    return v * radius, f
+    return Mesh(v * radius, f, name="icosphere")
 
 
 def grid(
@@ -75,7 +78,7 @@ def grid(
     *,
     size: tuple[float, float] = (1.0, 1.0),
     diagonals: str = "alternate",
-) -> tuple[np.ndarray, np.ndarray]:
+) -> Mesh:
     """A flat triangulated rectangle in the z = 0 plane with ``nx × ny`` cells.
 
     Args:
@@ -109,12 +112,12 @@ def grid(
     flip = ((i + j) % 2 == 1) if diagonals == "alternate" else np.zeros_like(i, bool)
     t1 = np.where(flip[:, None], np.stack([v00, v10, v01], 1), np.stack([v00, v10, v11], 1))
     t2 = np.where(flip[:, None], np.stack([v10, v11, v01], 1), np.stack([v00, v11, v01], 1))
-    return v, np.concatenate([t1, t2]).astype(np.int64)
+    return Mesh(v, np.concatenate([t1, t2]).astype(np.int64), name="grid")
 
 
 def torus(
     n_major: int = 24, n_minor: int = 12, *, major_radius: float = 1.0, minor_radius: float = 0.35
-) -> tuple[np.ndarray, np.ndarray]:
+) -> Mesh:
     """A torus of revolution around z (genus 1), triangulated with alternating diagonals.
 
     Unlike ``trimesh.creation.torus`` no cotangent weight vanishes identically (no split quads with
@@ -141,4 +144,4 @@ def torus(
     odd = (i % 2 == 1)[:, None]
     t1 = np.where(odd, np.stack([a, b, d], 1), np.stack([a, b, c], 1))
     t2 = np.where(odd, np.stack([b, c, d], 1), np.stack([a, c, d], 1))
-    return v, np.concatenate([t1, t2]).astype(np.int64)
+    return Mesh(v, np.concatenate([t1, t2]).astype(np.int64), name="torus")

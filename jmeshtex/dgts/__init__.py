@@ -7,9 +7,6 @@ Pipeline: :func:`training_meshes` (multi-scale fitting of a template to the refe
 
 from ._config import PrepareConfig as PrepareConfig
 from ._config import TrainConfig as TrainConfig
-from ._demo import bumpy_sphere as bumpy_sphere
-from ._demo import demo_stage as demo_stage
-from ._demo import fibonacci_sphere as fibonacci_sphere
 from ._model import Discriminator as Discriminator
 from ._model import Generator as Generator
 from ._model import LevelGeometry as LevelGeometry

@@ -26,9 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
+from .._neighborhoods import FaceNeighborhood
 from .._types import Array, Float, Int, PRNGKey
 from ..geometry import face_neighborhood, subdivide_midpoint, to_jax
-from ..geometry._types import FaceNeighborhood
 from ..ops import (
     FaceConvStackParams,
     face_conv_stack,
@@ -63,7 +63,7 @@ def hierarchy_geometry(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> geos, faces = hierarchy_geometry(icosahedron()[1], 12, 3)
+      >>> geos, faces = hierarchy_geometry(icosahedron().faces, 12, 3)
       >>> [f.shape[0] for f in faces], [g.edge_vertices.shape[0] for g in geos]
       ([20, 80, 320], [30, 120, 0])
     """

@@ -27,9 +27,8 @@ import optax
 from .._errors import InputError, MeshIOError
 from .._types import Array, Float, Int, PRNGKey
 from ..geometry import subdivide_midpoint, validate_mesh
-from ..io import atomic_save_npz
-from ..ops import chamfer_distance
-from ..ops._util import safe_norm, safe_normalize
+from ..io import atomic_save_npz, load_npz
+from ..ops import chamfer_distance, safe_norm, safe_normalize
 from ._config import PrepareConfig
 
 
@@ -62,18 +61,6 @@ class TrainingMeshes(NamedTuple):
 # ----------------------------------------------------------------------------------------------
 # atomic files (shared with _train)
 # ----------------------------------------------------------------------------------------------
-
-
-def load_npz(path: str | os.PathLike, what: str) -> dict[str, np.ndarray]:
-    """Read a whole ``.npz`` (no pickles) into a dict; a typed error names the file if it fails."""
-    path = pathlib.Path(path)
-    if not path.is_file():
-        raise MeshIOError(f"cannot read {what} {path}: no such file")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
-    except (OSError, ValueError) as err:
-        raise MeshIOError(f"cannot read {what} {path}: {err}") from err
 
 
 def save_training_meshes(path: str | os.PathLike, meshes: TrainingMeshes) -> pathlib.Path:

@@ -52,12 +52,11 @@ import numpy as np
 import optax
 
 from .._errors import ConfigError, InputError, MeshIOError
+from .._neighborhoods import FaceNeighborhood
 from .._types import Array, Float
 from ..geometry import pad_to
-from ..geometry._types import FaceNeighborhood
-from ..io import atomic_save_npz, atomic_write
-from ..ops import FaceConvStackParams, face_features
-from ..ops._util import masked_mean
+from ..io import atomic_save_npz, atomic_write, load_npz
+from ..ops import FaceConvStackParams, face_features, masked_mean
 from ._config import TrainConfig
 from ._model import (
     discriminator,
@@ -67,7 +66,7 @@ from ._model import (
     init_level,
     upsample,
 )
-from ._multiscale import TrainingMeshes, load_npz
+from ._multiscale import TrainingMeshes
 
 STATE_FILE = "state.json"
 

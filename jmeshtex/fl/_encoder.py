@@ -32,9 +32,7 @@ import numpy as np
 from .._errors import InputError
 from .._types import Array, Bool, Complex, Float, Int
 from ..geometry import corner_angles, edge_lengths, one_ring_angles
-from ..ops import complex_linear, vn_transformer_block
-from ..ops._complex import VNTransformerParams
-from ..ops._util import real_dtype
+from ..ops import VNTransformerParams, complex_linear, real_dtype, vn_transformer_block
 
 # ------------------------------------------------------------------------------------ host side
 

@@ -6,6 +6,12 @@ numbers in per-vertex frames; log maps and transport are intrinsic (edge lengths
 """
 
 from .._errors import DecimationError as DecimationError
+from .._neighborhoods import FaceNeighborhood as FaceNeighborhood
+from .._neighborhoods import PoolingMap as PoolingMap
+from .._neighborhoods import TangentFrames as TangentFrames
+from .._neighborhoods import VertexNeighborhood as VertexNeighborhood
+from .._neighborhoods import pad_to as pad_to
+from .._neighborhoods import to_jax as to_jax
 from ._adjacency import OneRings as OneRings
 from ._adjacency import boundary_edges as boundary_edges
 from ._adjacency import boundary_loops as boundary_loops
@@ -52,12 +58,6 @@ from ._tracer import trace_from_vertices as trace_from_vertices
 from ._tracer import trace_geodesics as trace_geodesics
 from ._tracer import tracer_geometry as tracer_geometry
 from ._tracer import vertex_direction_to_face as vertex_direction_to_face
-from ._types import FaceNeighborhood as FaceNeighborhood
-from ._types import PoolingMap as PoolingMap
-from ._types import TangentFrames as TangentFrames
-from ._types import VertexNeighborhood as VertexNeighborhood
-from ._types import pad_to as pad_to
-from ._types import to_jax as to_jax
 from ._validate import MeshStatistics as MeshStatistics
 from ._validate import RepairReport as RepairReport
 from ._validate import check_mesh_arrays as check_mesh_arrays

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._errors import InconsistentOrientationError, NonManifoldEdgeError, NonManifoldVertexError
-from ._types import FaceNeighborhood
+from .._neighborhoods import FaceNeighborhood
 
 
 class OneRings(NamedTuple):

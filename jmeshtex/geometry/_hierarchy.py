@@ -48,12 +48,12 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from .._errors import ConfigError, DecimationError, InputError
+from .._neighborhoods import PoolingMap, VertexNeighborhood
 from .._types import Float, Int
 from ._adjacency import one_rings
 from ._intrinsic import check_mesh, edge_lengths
 from ._knn import _quantization_step, _quantized_lengths
 from ._log_map import _neighborhood_from_lengths
-from ._types import PoolingMap, VertexNeighborhood
 
 _MIN_ANGLE = 0.02  # radians: smallest angle allowed in a triangle created by a collapse
 _MAX_DEGREE = 12  # largest vertex degree a collapse may create (unless the level already has more)

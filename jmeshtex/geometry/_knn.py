@@ -27,10 +27,10 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import InputError
+from .._neighborhoods import VertexNeighborhood
 from .._types import Float, Int
 from ._intrinsic import check_mesh, edge_lengths
 from ._log_map import _neighborhood_from_lengths
-from ._types import VertexNeighborhood
 
 _INF = np.iinfo(np.int64).max // 4
 

@@ -27,10 +27,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._neighborhoods import VertexNeighborhood
 from .._types import Float, Int
 from ._adjacency import OneRings, one_rings
 from ._intrinsic import check_mesh, corner_angles, edge_lengths, face_areas, vertex_areas
-from ._types import VertexNeighborhood
 
 
 class OneRingAngles(NamedTuple):

@@ -183,7 +183,7 @@ def rescale_to_mean_edge(
     Example:
       >>> from jmeshtex.data import grid
       >>> v, s = rescale_to_mean_edge(*grid(4), target=2.0)
-      >>> round(mean_edge_length(v, grid(4)[1]), 12), s > 1
+      >>> round(mean_edge_length(v, grid(4).faces), 12), s > 1
       (2.0, True)
     """
     if not (np.isfinite(target) and target > 0):

@@ -94,3 +94,29 @@ def atomic_save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray], *, p
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     return atomic_write(path, buf.getvalue(), parents=parents)
+
+
+def load_npz(path: str | os.PathLike, what: str) -> dict[str, np.ndarray]:
+    """Read a whole ``.npz`` (no pickles) into a dict; a typed error names the file if it fails.
+
+    Args:
+      path: the file.
+      what: what the file holds, for the error message (``"training meshes"``).
+
+    Raises:
+      MeshIOError: the file is missing or not a readable ``.npz``.
+
+    Example:
+      >>> import tempfile, numpy as np
+      >>> p = atomic_save_npz(tempfile.mkdtemp() + "/a.npz", {"x": np.arange(3)})
+      >>> load_npz(p, "example")["x"].tolist()
+      [0, 1, 2]
+    """
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise MeshIOError(f"cannot read {what} {path}: no such file")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except (OSError, ValueError) as err:
+        raise MeshIOError(f"cannot read {what} {path}: {err}") from err

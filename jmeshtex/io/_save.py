@@ -328,7 +328,7 @@ def save_mesh(mesh: Mesh | tuple, path: str | os.PathLike) -> None:
       >>> path = pathlib.Path(tempfile.mkdtemp()) / "ico.off"
       >>> save_mesh(Mesh(*icosahedron()), path)
       >>> m = load_mesh(path)
-      >>> m.num_vertices, m.num_faces, bool((m.vertices == icosahedron()[0]).all())
+      >>> m.num_vertices, m.num_faces, bool((m.vertices == icosahedron().vertices).all())
       (12, 20, True)
     """
     path = pathlib.Path(path)

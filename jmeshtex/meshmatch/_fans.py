@@ -96,7 +96,7 @@ def smoother(faces: Int[np.ndarray, "F 3"], num_vertices: int) -> Smoother:
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> s = smoother(icosahedron()[1], 12)
+      >>> s = smoother(icosahedron().faces, 12)
       >>> s.index.shape, float(s.weight.sum(1).min())
       ((12, 5), 1.0)
     """

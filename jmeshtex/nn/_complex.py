@@ -26,7 +26,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from ..ops._complex import (
+from ..ops import (
     complex_attention,
     complex_linear,
     filter_response_norm,

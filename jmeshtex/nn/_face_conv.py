@@ -7,9 +7,9 @@ from collections.abc import Sequence
 import flax.linen as nn
 import jax.numpy as jnp
 
+from .._neighborhoods import FaceNeighborhood
 from .._types import Array, Float
-from ..geometry._types import FaceNeighborhood
-from ..ops._face_conv import FaceConvStackParams, face_conv_stack, init_face_conv_stack
+from ..ops import FaceConvStackParams, face_conv_stack, init_face_conv_stack
 
 
 class FaceConvStack(nn.Module):

@@ -13,8 +13,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from ..ops._field_conv import field_conv, init_field_conv
-from ..ops._util import real_dtype
+from ..ops import field_conv, init_field_conv, real_dtype
 from ._complex import FRN, ComplexDense, VNNonlinearity, pytree_params
 
 

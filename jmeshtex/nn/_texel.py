@@ -5,8 +5,9 @@ from __future__ import annotations
 import flax.linen as nn
 import jax.numpy as jnp
 
+from .._neighborhoods import TexelNeighborhood
 from .._types import Array, Float
-from ..ops._texel import TexelNeighborhood, texel_conv
+from ..ops import texel_conv
 
 
 class TexelConv(nn.Module):

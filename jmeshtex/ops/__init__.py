@@ -1,5 +1,7 @@
 """Pure, jit/vmap/grad-safe operators over padded neighbourhood arrays (parameters passed explicitly)."""
 
+from .._neighborhoods import PoolGroups as PoolGroups
+from .._neighborhoods import TexelNeighborhood as TexelNeighborhood
 from ._chamfer import ChamferDistance as ChamferDistance
 from ._chamfer import NearestNeighbors as NearestNeighbors
 from ._chamfer import chamfer_distance as chamfer_distance
@@ -37,12 +39,16 @@ from ._field_conv import field_conv as field_conv
 from ._field_conv import init_field_conv as init_field_conv
 from ._gram import gram_matrix as gram_matrix
 from ._noise import tangent_noise as tangent_noise
+from ._numerics import complex_dtype as complex_dtype
+from ._numerics import conjugate_complex_grads as conjugate_complex_grads
+from ._numerics import elementwise_max as elementwise_max
+from ._numerics import masked_mean as masked_mean
+from ._numerics import real_dtype as real_dtype
+from ._numerics import safe_norm as safe_norm
+from ._numerics import safe_normalize as safe_normalize
 from ._pooling import tangent_pool as tangent_pool
 from ._pooling import tangent_unpool as tangent_unpool
-from ._texel import PoolGroups as PoolGroups
-from ._texel import TexelNeighborhood as TexelNeighborhood
 from ._texel import grouped_pool as grouped_pool
 from ._texel import image_pool_groups as image_pool_groups
 from ._texel import image_texel_neighborhood as image_texel_neighborhood
 from ._texel import texel_conv as texel_conv
-from ._util import conjugate_complex_grads as conjugate_complex_grads

@@ -17,7 +17,7 @@ import jax.numpy as jnp
 
 from .._errors import InputError
 from .._types import Array, Bool, Float, Int
-from ._util import masked_mean, safe_norm
+from ._numerics import masked_mean, safe_norm
 
 
 class NearestNeighbors(NamedTuple):

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 
 from .._errors import ConfigError, InputError
 from .._types import Array, Bool, Complex, Float, PRNGKey
-from ._util import abs2, check_complex, check_delta, complex_dtype, complex_matmul, real_dtype
+from ._numerics import abs2, check_complex, check_delta, complex_dtype, complex_matmul, real_dtype
 
 # ----------------------------------------------------------------------------------------- init
 

@@ -30,9 +30,9 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import InputError
+from .._neighborhoods import FaceNeighborhood
 from .._types import Array, Bool, Float, PRNGKey
-from ..geometry._types import FaceNeighborhood
-from ._util import elementwise_max, masked_mean, safe_norm, safe_normalize
+from ._numerics import elementwise_max, masked_mean, safe_norm, safe_normalize
 
 
 class EdgeFrames(NamedTuple):

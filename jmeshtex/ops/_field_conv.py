@@ -39,10 +39,10 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import ConfigError, InputError
+from .._neighborhoods import VertexNeighborhood
 from .._types import Array, Complex, Float, PRNGKey
-from ..geometry._types import VertexNeighborhood
 from ._complex import complex_lecun_blocks
-from ._util import check_complex, check_delta, complex_dtype, real_dtype
+from ._numerics import check_complex, check_delta, complex_dtype, real_dtype
 
 
 class FieldConvParams(NamedTuple):

@@ -14,9 +14,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from .._errors import InputError
+from .._neighborhoods import PoolingMap
 from .._types import Array, Complex
-from ..geometry._types import PoolingMap
-from ._util import check_complex, real_dtype
+from ._numerics import check_complex, real_dtype
 
 
 def tangent_pool(x: Complex[Array, "Vf C"], pm: PoolingMap) -> Complex[Array, "Vc C"]:

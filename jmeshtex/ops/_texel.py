@@ -17,46 +17,15 @@ HWIO layout ``kernel[dy + 1, dx + 1, c, d]`` exactly as the VGG-16 weights of ``
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
-from .._types import Array, Bool, Float, Int
-from ._util import elementwise_max
+from .._neighborhoods import PoolGroups, TexelNeighborhood
+from .._types import Array, Float
+from ._numerics import elementwise_max
 
 _MODES = ("mean", "max")
-
-
-class TexelNeighborhood(NamedTuple):
-    """Nine sampling taps per texel, each a weighted sum of ``J`` texels.
-
-    Padding contract: a padded slot has index 0 and weight 0; a padded texel has ``texel_mask``
-    False (its output is 0). A tap that falls off the surface (or off the image) has all-zero
-    weights, i.e. zero padding.
-
-    Attributes:
-      index: ``[N, 9, J]`` int32 texels each tap interpolates (``J = 4`` bilinear, 1 nearest).
-      weight: ``[N, 9, J]`` interpolation weights (summing to 1 for a tap on the surface, 0 off it).
-      texel_mask: ``[N]`` True for real texels.
-    """
-
-    index: Int[Array, "N 9 J"]
-    weight: Float[Array, "N 9 J"]
-    texel_mask: Bool[Array, " N"]
-
-
-class PoolGroups(NamedTuple):
-    """Groups of texels pooled into one coarser texel.
-
-    Attributes:
-      index: ``[G, S]`` int32 fine texels of each group, 0 on padding.
-      mask: ``[G, S]`` True for real members.
-    """
-
-    index: Int[Array, "G S"]
-    mask: Bool[Array, "G S"]
 
 
 def texel_conv(

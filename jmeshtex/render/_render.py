@@ -17,7 +17,7 @@ import numpy as np
 
 from .._errors import InputError, MeshIOError
 from .._types import Array, Float, Int, Num
-from ..geometry._validate import check_mesh_arrays
+from ..geometry import check_mesh_arrays
 
 _DEFAULT_COLOR = np.array([0.78, 0.80, 0.86])
 _AMBIENT, _DIFFUSE = 0.35, 0.65

@@ -14,7 +14,8 @@ from ._atlas import texels_to_image as texels_to_image
 from ._atlas import texture_atlas as texture_atlas
 from ._atlas import unwrap_uv as unwrap_uv
 from ._config import SurfaceCNNConfig as SurfaceCNNConfig
-from ._demo import demo_stage as demo_stage
+from ._neighborhood import TAP_DX as TAP_DX
+from ._neighborhood import TAP_DY as TAP_DY
 from ._neighborhood import TexelTaps as TexelTaps
 from ._neighborhood import texel_taps as texel_taps
 from ._neighborhood import trace_taps as trace_taps

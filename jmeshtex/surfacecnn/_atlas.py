@@ -22,8 +22,7 @@ import numpy as np
 from jaxtyping import Complex, Float, Int
 
 from .._errors import InputError, MeshError
-from ..geometry import fill_unused_texels, rasterize_uv, tracer_geometry
-from ..geometry._tracer import TracerGeometry
+from ..geometry import TracerGeometry, fill_unused_texels, rasterize_uv, tracer_geometry
 
 
 class TextureAtlas(NamedTuple):

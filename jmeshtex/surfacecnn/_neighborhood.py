@@ -27,8 +27,7 @@ import numpy as np
 from jaxtyping import Bool, Float, Int
 
 from .._errors import InputError
-from ..geometry import trace_geodesics, tracer_geometry
-from ..geometry._tracer import TracerGeometry
+from ..geometry import TracerGeometry, trace_geodesics, tracer_geometry
 from ..ops import TexelNeighborhood
 from ._atlas import TextureAtlas
 from ._config import BOUNDARY_MODES

@@ -29,8 +29,7 @@ from jaxtyping import Float, Int
 from scipy.sparse.csgraph import connected_components
 
 from .._errors import InputError
-from ..geometry import tracer_geometry
-from ..geometry._tracer import TracerGeometry
+from ..geometry import TracerGeometry, tracer_geometry
 from ..ops import PoolGroups, TexelNeighborhood
 from ._atlas import TextureAtlas
 from ._config import BOUNDARY_MODES

@@ -103,24 +103,17 @@ class Entry:
 
 REGISTRY: dict[str, Entry] = {}
 
-#: modules whose import registers entries (the built-in ops and geometry, then each method's)
-ENTRY_MODULES = [
-    "jmeshtex.testing._entries",
-    "jmeshtex.dgts._equivariance",
-    "jmeshtex.meshmatch._equivariance",
-    "jmeshtex.surfacecnn._equivariance",
-    "jmeshtex.fl._equivariance",
-    "jmeshtex.fl._fldm_equivariance",
-]
-
-
 def load_entries() -> dict[str, Entry]:
-    """Import every module of :data:`ENTRY_MODULES` (registering its entries); return the registry."""
-    import importlib
+    """Register every built-in entry (ops and geometry, then each method's) and return the registry.
 
-    for module in ENTRY_MODULES:
-        importlib.import_module(module)
+    The registrations live in :mod:`jmeshtex.testing._entries` and ``jmeshtex/testing/_methods/``;
+    importing them adds their entries to :data:`REGISTRY` (once: a module is imported only once).
+    """
+    from . import _entries  # noqa: F401
+    from ._methods import dgts, fl, fldm, meshmatch, surfacecnn  # noqa: F401
+
     return REGISTRY
+
 
 #: at most this fraction of vertices may be left out of a smooth-isometry comparison because a
 #: discrete choice (k-NN selection) flipped
@@ -289,7 +282,7 @@ def run_registry(
     results = []
     for n in selected:
         entry = REGISTRY[n]
-        for t in _transforms_of(entry):
+        for t in transforms_of(entry):
             if wanted is not None and t not in wanted:
                 continue
             for dt in dtypes:
@@ -299,7 +292,7 @@ def run_registry(
     return results
 
 
-def _transforms_of(entry: Entry) -> list[str]:
+def transforms_of(entry: Entry) -> list[str]:
     names = [*entry.transforms, *entry.expect_fail, *entry.report]
     return list(dict.fromkeys(names))
 

@@ -12,7 +12,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from ..geometry._types import VertexNeighborhood, to_jax
+from .._neighborhoods import VertexNeighborhood, to_jax
 
 
 def regauge_neighborhood(nbhd: VertexNeighborhood, alpha: np.ndarray) -> VertexNeighborhood:

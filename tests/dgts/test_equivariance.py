@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import pytest
 
-from jmeshtex.dgts import _equivariance
+from jmeshtex.testing._methods import dgts as _equivariance
 from jmeshtex.testing import Entry, Field, check
 
 

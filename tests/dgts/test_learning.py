@@ -13,9 +13,10 @@ import jax
 import numpy as np
 from scipy.stats import wasserstein_distance
 
+from jmeshtex.cli._stages.dgts import tiny_configs
 from jmeshtex.data import icosphere, torus
-from jmeshtex.dgts import bumpy_sphere, normal_heights, train, training_meshes, transfer
-from jmeshtex.dgts._demo import tiny_configs
+from jmeshtex.data import bumpy_sphere
+from jmeshtex.dgts import normal_heights, train, training_meshes, transfer
 
 
 def test_trained_texture_is_closer_to_the_reference_than_untrained_or_noise():

@@ -10,8 +10,7 @@ import pytest
 
 from jmeshtex import ConfigError, MeshIOError
 from jmeshtex.dgts import load_model, train
-
-from .conftest import TINY
+from tests.dgts.conftest import TINY
 
 
 def _leaves(tree):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import pytest
 
-from jmeshtex.fl import _equivariance
+from jmeshtex.testing._methods import fl as _equivariance
 from jmeshtex.testing import Entry, Field, check
 
 

@@ -121,7 +121,7 @@ _GRID_TABLES = tracer_geometry(*_GRID)
 
 
 @given(
-    face=st.integers(0, len(_GRID[1]) - 1),
+    face=st.integers(0, _GRID.num_faces - 1),
     weights=st.tuples(*[st.sampled_from([0.0, 0.5, 1.0]) | st.floats(0.0, 1.0)] * 3).filter(
         lambda w: sum(w) > 0.1),
     angle=st.sampled_from(np.arange(8) * np.pi / 4) | st.floats(0.0, 2 * np.pi),

@@ -484,9 +484,9 @@ def _cylinder(n: int = 8, rows: int = 3) -> tuple[np.ndarray, np.ndarray]:
         (lambda: torus(8, 5), dict(components=1, boundary_loops=0, euler_characteristic=0, genus=1, closed=True)),
         (lambda: grid(3, 2), dict(components=1, boundary_loops=1, euler_characteristic=1, genus=0, closed=False, edges=23)),
         (_cylinder, dict(components=1, boundary_loops=2, euler_characteristic=0, genus=0, closed=False)),
-        (lambda: (torus(8, 5)[0], torus(8, 5)[1][1:]), dict(boundary_loops=1, euler_characteristic=-1, genus=1)),
+        (lambda: (torus(8, 5).vertices, torus(8, 5).faces[1:]), dict(boundary_loops=1, euler_characteristic=-1, genus=1)),
         (
-            lambda: (np.concatenate([icosphere(1)[0], torus(6, 4)[0] + 4]), np.concatenate([icosphere(1)[1], torus(6, 4)[1] + 42])),
+            lambda: (np.concatenate([icosphere(1).vertices, torus(6, 4).vertices + 4]), np.concatenate([icosphere(1).faces, torus(6, 4).faces + 42])),
             dict(components=2, euler_characteristic=2, genus=1, closed=True),
         ),
     ],

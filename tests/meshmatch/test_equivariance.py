@@ -10,7 +10,7 @@ from jmeshtex.testing import REGISTRY, check
 
 @pytest.mark.parametrize("transform", ["rigid", "gauge", "permute_vertices", "fold"])
 def test_fan_descriptor_is_invariant(transform):
-    import jmeshtex.meshmatch._equivariance  # noqa: F401  (registers the entry)
+    import jmeshtex.testing._methods.meshmatch  # noqa: F401  (registers the entry)
 
     result = check(REGISTRY["meshmatch.fan_descriptor"], transform, dtype=jnp.float64)
     assert result.passed, result

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from jmeshtex import InputError, Mesh
+from jmeshtex.cli._stages.meshmatch import demo_meshes, demo_stage
 from jmeshtex.data import icosphere
 from jmeshtex.meshmatch import MeshMatchConfig, meshmatch, paint_by_example, transfer_displacement
-from jmeshtex.meshmatch._demo import demo_meshes, demo_stage
 from jmeshtex.testing import CATALOGUE, MeshState
 
 

@@ -429,7 +429,7 @@ def test_check_grads(rng):
 
 
 def test_elementwise_max_derivative_goes_to_the_first_maximum(rng):
-    from jmeshtex.ops._util import elementwise_max
+    from jmeshtex.ops import elementwise_max
 
     a, b, c = jnp.array([1.0, 2.0, 3.0]), jnp.array([1.0, 5.0, 3.0]), jnp.array([0.0, 5.0, 3.0])
     np.testing.assert_array_equal(elementwise_max((a, b, c)), [1.0, 5.0, 3.0])

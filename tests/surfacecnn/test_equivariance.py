@@ -59,7 +59,7 @@ def test_quarter_turn_permutes_taps_on_a_curved_mesh():
 
 @pytest.mark.parametrize("transform", ["rigid", "gauge", "permute_vertices", "fold"])
 def test_first_layer_entry_is_invariant(transform):
-    import jmeshtex.surfacecnn._equivariance  # noqa: F401  (registers the entry)
+    import jmeshtex.testing._methods.surfacecnn  # noqa: F401  (registers the entry)
 
     result = check(REGISTRY["surfacecnn.first_layer"], transform, dtype=jnp.float64)
     assert result.passed, result

@@ -44,9 +44,8 @@ from ..geometry import (
     pad_to,
 )
 from ..nn import FRN, ComplexDense, FCResNetBlock, VNNonlinearity
-from ..ops import tangent_pool, tangent_unpool
-from ..ops._util import real_dtype
-from ._fldm_config import FLDMConfig
+from ..ops import real_dtype, tangent_pool, tangent_unpool
+from ._config import FLDMConfig
 
 
 class DenoiserGeometry(NamedTuple):

@@ -16,7 +16,7 @@ def demo_mesh(quick: bool = True):
       >>> m.num_vertices, m.texture.shape
       (600, (100, 150, 3))
     """
-    from ._planar import builtin_images, planar_mesh
+    from ...fl import builtin_images, planar_mesh
 
     image = builtin_images(max_size=150 if quick else 300, names=("coffee",))[0]
     mesh = planar_mesh(image, 600 if quick else 3000, rng=np.random.default_rng(0))
@@ -42,9 +42,8 @@ def demo_stage(out_dir, *, quick: bool) -> dict:
     """
     import jax
 
-    from ..render import write_png
-    from ._reconstruct import reconstruct, side_by_side
-    from ._vae import load_pretrained
+    from ...fl import load_pretrained, reconstruct, side_by_side
+    from ...render import write_png
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

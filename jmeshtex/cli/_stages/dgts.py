@@ -11,44 +11,8 @@ import time
 import jax
 import numpy as np
 
-from .._types import Float, Int
-from ._config import PrepareConfig, TrainConfig
-
-
-def fibonacci_sphere(n: int) -> Float[np.ndarray, "n 3"]:
-    """``n`` nearly uniform unit vectors on the Fibonacci (golden-angle) lattice.
-
-    Example:
-      >>> p = fibonacci_sphere(10)
-      >>> p.shape, bool(np.allclose(np.linalg.norm(p, axis=1), 1))
-      ((10, 3), True)
-    """
-    i = np.arange(n) + 0.5
-    z = 1 - 2 * i / n
-    phi = np.pi * (1 + 5**0.5) * i
-    r = np.sqrt(1 - z * z)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-def bumpy_sphere(
-    *, subdivisions: int = 4, bumps: int = 40, height: float = 0.12, width: float = 0.12
-) -> tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]]:
-    """A unit icosphere with Gaussian bumps centred on a Fibonacci lattice (a procedural texture).
-
-    .. math:: v \\mapsto v\\,\\Big(1 + h \\sum_j \\exp\\big(-\\tfrac{\\lVert v - c_j\\rVert^2}{2 w^2}\\big)\\Big)
-
-    Example:
-      >>> v, f = bumpy_sphere(subdivisions=2, bumps=12)
-      >>> v.shape, f.shape, bool(np.linalg.norm(v, axis=1).max() > 1.1)
-      ((162, 3), (320, 3), True)
-    """
-    from ..data import icosphere
-
-    v, f = icosphere(subdivisions)
-    c = fibonacci_sphere(bumps)
-    d2 = np.sum((v[:, None, :] - c[None]) ** 2, axis=-1)
-    r = 1 + height * np.exp(-d2 / (2 * width**2)).sum(axis=1)
-    return v * r[:, None], f
+from ...data import bumpy_sphere
+from ...dgts import PrepareConfig, TrainConfig
 
 
 def tiny_configs(quick: bool = True) -> tuple[PrepareConfig, TrainConfig]:
@@ -75,11 +39,9 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     Returns:
       ``{"png": path, "seconds": ..., "levels": ..., "faces": ..., "w1_trained": ..., "summary": str}``.
     """
-    from ..data import icosphere, torus
-    from ..render import render_grid, render_mesh
-    from ._multiscale import training_meshes
-    from ._train import train
-    from ._transfer import normal_heights, transfer
+    from ...data import icosphere, torus
+    from ...dgts import normal_heights, train, training_meshes, transfer
+    from ...render import render_grid, render_mesh
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)

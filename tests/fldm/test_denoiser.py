@@ -10,8 +10,9 @@ import pytest
 
 from jmeshtex._errors import ConfigError, InputError
 from jmeshtex.data import grid, icosphere
-from jmeshtex.fl import _fldm_equivariance
-from jmeshtex.fl._denoiser import (
+from jmeshtex.testing._methods import fldm as _fldm_equivariance
+from jmeshtex.fldm._config import FLDMConfig
+from jmeshtex.fldm._denoiser import (
     denoise,
     denoiser_flops,
     denoiser_geometry,
@@ -20,7 +21,6 @@ from jmeshtex.fl._denoiser import (
     pad_geometry,
     timestep_embedding,
 )
-from jmeshtex.fl._fldm_config import FLDMConfig
 from jmeshtex.geometry import mean_edge_length, one_ring_neighborhood
 from jmeshtex.ops import tangent_noise
 from jmeshtex.testing import check

@@ -1,6 +1,6 @@
 """Padded neighbourhood pytrees: the contract between host-side geometry and pure JAX ops.
 
-Every builder in :mod:`jmeshtex.geometry` returns one of these NamedTuples of arrays with static
+Every builder in :mod:`jmeshtex.geometry` (and the texel builders of :mod:`jmeshtex.surfacecnn`) returns one of these NamedTuples of arrays with static
 shapes. They are pytrees, so they pass through ``jax.jit`` / ``vmap`` as arguments, and can be padded
 to common sizes with :func:`pad_to` and stacked for batches.
 
@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array, Bool, Complex, Float, Int
+from ._types import Array, Bool, Complex, Float, Int
 
 
 class FaceNeighborhood(NamedTuple):
@@ -119,6 +119,36 @@ class PoolingMap(NamedTuple):
     children_transport: Complex[Array, "Vc M"]
 
 
+class TexelNeighborhood(NamedTuple):
+    """Nine sampling taps per texel, each a weighted sum of ``J`` texels.
+
+    Padding contract: a padded slot has index 0 and weight 0; a padded texel has ``texel_mask``
+    False (its output is 0). A tap that falls off the surface (or off the image) has all-zero
+    weights, i.e. zero padding.
+
+    Attributes:
+      index: ``[N, 9, J]`` int32 texels each tap interpolates (``J = 4`` bilinear, 1 nearest).
+      weight: ``[N, 9, J]`` interpolation weights (summing to 1 for a tap on the surface, 0 off it).
+      texel_mask: ``[N]`` True for real texels.
+    """
+
+    index: Int[Array, "N 9 J"]
+    weight: Float[Array, "N 9 J"]
+    texel_mask: Bool[Array, " N"]
+
+
+class PoolGroups(NamedTuple):
+    """Groups of texels pooled into one coarser texel.
+
+    Attributes:
+      index: ``[G, S]`` int32 fine texels of each group, 0 on padding.
+      mask: ``[G, S]`` True for real members.
+    """
+
+    index: Int[Array, "G S"]
+    mask: Bool[Array, "G S"]
+
+
 T = TypeVar("T")
 
 
@@ -160,8 +190,7 @@ def pad_to(tree: T, sizes: dict[str, int]) -> T:
     """Pad a neighbourhood pytree's leading / slot axes to larger static sizes.
 
     ``sizes`` maps axis names to target sizes: ``"V"`` (vertices), ``"F"`` (faces), ``"K"``
-    (slots of ``[V, K]`` fields), ``"M"`` (incident faces / children); for the texel pytrees of
-    :mod:`jmeshtex.ops`: ``"N"`` (texels), ``"J"`` (texels per tap), ``"G"`` (groups), ``"S"`` (group
+    (slots of ``[V, K]`` fields), ``"M"`` (incident faces / children); for the texel pytrees: ``"N"`` (texels), ``"J"`` (texels per tap), ``"G"`` (groups), ``"S"`` (group
     size). Index fields are padded with 0,
     masks with False, weights and logs with 0, transports with 1 — the padding contract.
 
@@ -218,7 +247,7 @@ _AXES = {
         "vertex_mask": ("V",),
     },
     "TangentFrames": {"normal": ("V",), "x": ("V",), "y": ("V",)},
-    # texel ops (jmeshtex.ops): N texels, 9 taps of J texels each; G pooling groups of S texels
+    # texel neighbourhoods: N texels, 9 taps of J texels each; G pooling groups of S texels
     "TexelNeighborhood": {
         "index": ("N", "T", "J"),
         "weight": ("N", "T", "J"),

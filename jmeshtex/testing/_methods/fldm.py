@@ -21,11 +21,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..testing import Entry, Field, register
-from ..testing._fields import VERTEX_SCALAR, VERTEX_TANGENT
-from ..testing._state import regauge_neighborhood
-from ._diffusion import make_schedule, sample_from_noise
-from ._fldm_config import FLDMConfig
+from ...fldm import FLDMConfig, make_schedule, sample_from_noise
+from .. import Entry, Field, register
+from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
+from .._state import regauge_neighborhood
 
 #: transforms the FLDM networks must commute with (smooth bending of the decimation: reported)
 FLDM_TRANSFORMS = ("rigid", "reflection", "gauge", "permute_vertices", "permute_faces", "rotate_corners",
@@ -41,8 +40,8 @@ TIMESTEP = 37
 
 def _geometry(state):
     """Denoiser geometry of the state's mesh, fine frames turned to the state's gauge."""
-    from ..geometry import to_jax
-    from ._denoiser import denoiser_geometry
+    from ...fldm import denoiser_geometry
+    from ...geometry import to_jax
 
     def build():
         geo = denoiser_geometry(state.vertices, state.faces, knn=CONFIG.knn, pool_ratio=0.5)
@@ -61,8 +60,8 @@ def _geometry(state):
 
 def _init_for(config):
     def init(key, dtype):
-        from ..data import icosahedron
-        from ._denoiser import denoiser_geometry, init_denoiser
+        from ...data import icosahedron
+        from ...fldm import denoiser_geometry, init_denoiser
 
         cdt = jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
         geo = denoiser_geometry(*icosahedron(), knn=config.knn, pool_ratio=0.5)
@@ -74,14 +73,14 @@ def _init_for(config):
 
 
 def _denoiser(state, params, z):
-    from ._denoiser import denoise
+    from ...fldm import denoise
 
     out = denoise(params, CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state))
     return Field(VERTEX_TANGENT, out)
 
 
 def _denoiser_labels(state, params, z, s):
-    from ._denoiser import denoise
+    from ...fldm import denoise
 
     labels = jnp.argmax(s, axis=1).astype(jnp.int32)
     out = denoise(params, LABEL_CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state), labels=labels)
@@ -89,7 +88,7 @@ def _denoiser_labels(state, params, z, s):
 
 
 def _sampler(state, params, z_T, noise):
-    from ._denoiser import denoise
+    from ...fldm import denoise
 
     geo = _geometry(state)
     V, C = z_T.shape

@@ -12,9 +12,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from ..testing import Entry, Field, register
-from ..testing._fields import VERTEX_SCALAR, VERTEX_TANGENT
-from ._fans import fan_descriptor
+from ...meshmatch import fan_descriptor
+from .. import Entry, Field, register
+from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 
 #: ring radii (world units) of the registered fan: small against the harness meshes (unit size)
 RADII = (0.06, 0.12)

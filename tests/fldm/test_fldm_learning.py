@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from jmeshtex._errors import ConfigError
-from jmeshtex.fl._fldm_demo import learning_check
+from jmeshtex.cli._stages.fldm import learning_check
 
 
 @pytest.mark.slow

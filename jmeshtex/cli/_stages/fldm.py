@@ -30,45 +30,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._mesh import Mesh
-from .._types import Complex, Float
+from ..._mesh import Mesh
+from ..._types import Complex, Float
+from ...data import intensity_to_rgb, rgb_to_intensity, striped_sphere
 
 OFFSET = 0.3  # the codec's ``a``: keeps |z| away from 0 where the direction is undefined
 VIEWS = ((20.0, -60.0), (-30.0, 60.0))
-
-
-def striped_sphere(*, subdivisions: int = 3, frequency: float = 9.0) -> Mesh:
-    """An icosphere with latitudinal stripes as vertex colours (dark blue / light yellow).
-
-    Example:
-      >>> m = striped_sphere(subdivisions=1)
-      >>> m.num_vertices, m.vertex_colors.shape
-      (42, (42, 3))
-    """
-    from ..data import icosphere
-
-    v, f = icosphere(subdivisions)
-    s = stripe_intensity(v, frequency=frequency)
-    return Mesh(v, f, vertex_colors=intensity_to_rgb(s).astype(np.float32), name="striped_sphere")
-
-
-def stripe_intensity(points: Float[np.ndarray, "N 3"], *, frequency: float = 9.0) -> Float[np.ndarray, " N"]:
-    """``s = ½ + ½ sin(ω z)`` in [0, 1]."""
-    return 0.5 + 0.5 * np.sin(frequency * np.asarray(points)[:, 2])
-
-
-def intensity_to_rgb(s: Float[np.ndarray, " N"]) -> Float[np.ndarray, "N 3"]:
-    """Map an intensity in [0, 1] to a dark-blue → light-yellow colour ramp."""
-    lo, hi = np.array([0.10, 0.15, 0.45]), np.array([0.98, 0.90, 0.55])
-    s = np.clip(np.asarray(s, np.float64), 0, 1)[:, None]
-    return (1 - s) * lo + s * hi
-
-
-def rgb_to_intensity(rgb: Float[np.ndarray, "N 3"]) -> Float[np.ndarray, " N"]:
-    """Inverse of :func:`intensity_to_rgb` (least squares along the ramp)."""
-    lo, hi = np.array([0.10, 0.15, 0.45]), np.array([0.98, 0.90, 0.55])
-    d = hi - lo
-    return np.clip((np.asarray(rgb, np.float64) - lo) @ d / (d @ d), 0, 1)
 
 
 def stripe_encoder(mesh: Mesh) -> Complex[np.ndarray, "V 2"]:
@@ -84,7 +51,7 @@ def stripe_encoder(mesh: Mesh) -> Complex[np.ndarray, "V 2"]:
       >>> z.shape, bool(np.allclose(stripe_decoder(z), rgb_to_intensity(striped_sphere(subdivisions=1).vertex_colors)))
       ((42, 2), True)
     """
-    from ..geometry import tangent_frames, tangent_from_3d
+    from ...geometry import tangent_frames, tangent_from_3d
 
     s = rgb_to_intensity(mesh.vertex_colors)
     frames = tangent_frames(mesh.vertices, mesh.faces)
@@ -107,7 +74,7 @@ def stripe_decoder(z: Complex[np.ndarray, "V 2"]) -> Float[np.ndarray, " V"]:
 
 def tiny_config(quick: bool = True):
     """The demo / learning-check configuration (seconds on a CPU)."""
-    from ._fldm_config import FLDMConfig
+    from ...fldm import FLDMConfig
 
     if quick:
         return FLDMConfig.tiny(latent_channels=2, n_copies=4, copy_vertices=500, train_steps=800, batch_size=2,
@@ -126,7 +93,7 @@ def render_views(mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bo
 
 def render_rgb_views(mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool = False) -> np.ndarray:
     """:func:`render_views` of per-vertex colours ``rgb [V, 3]`` in [0, 1] instead of an intensity."""
-    from ..render import render_mesh
+    from ...render import render_mesh
 
     rgb = np.asarray(rgb, np.float64)
     full = 2 * size if crop else size
@@ -162,12 +129,16 @@ def learning_check(
     Raises:
       ConfigError: unknown ``codec``.
     """
-    from .._errors import ConfigError
-    from ..metrics import gram_distance, load_vgg16, lpips
-    from ._denoiser import init_denoiser
-    from ._fldm_data import build_dataset
-    from ._fldm_sample import sample_fldm, sampling_geometry
-    from ._fldm_train import FLDMModel, train_fldm
+    from ..._errors import ConfigError
+    from ...fldm import (
+        FLDMModel,
+        build_dataset,
+        init_denoiser,
+        sample_fldm,
+        sampling_geometry,
+        train_fldm,
+    )
+    from ...metrics import gram_distance, load_vgg16, lpips
 
     t0 = time.perf_counter()
     exemplar = striped_sphere(subdivisions=3)
@@ -178,8 +149,8 @@ def learning_check(
         def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
             return intensity_to_rgb(stripe_decoder(z))
     elif codec == "fl_vae":
-        from ._fldm_data import fl_vae_encoder
-        from ._vae import decode_vertex_colors, load_pretrained
+        from ...fl import decode_vertex_colors, load_pretrained
+        from ...fldm import fl_vae_encoder
 
         vae_params, vae_config = load_pretrained()
         encode = fl_vae_encoder(vae_params, vae_config, exemplar, key=jax.random.key(seed + 3))
@@ -236,12 +207,9 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     Returns:
       ``{"png", "seconds", "loss_first", "loss_last", "summary"}``.
     """
-    from ..geometry import remesh
-    from ..render import render_grid
-    from ._diffusion import LOSS_NAMES
-    from ._fldm_data import build_dataset
-    from ._fldm_sample import inpaint_fldm, sample_fldm
-    from ._fldm_train import train_fldm
+    from ...fldm import LOSS_NAMES, build_dataset, inpaint_fldm, sample_fldm, train_fldm
+    from ...geometry import remesh
+    from ...render import render_grid
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)

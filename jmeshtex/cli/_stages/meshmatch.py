@@ -19,8 +19,8 @@ def demo_meshes(quick: bool = True):
       >>> sv.shape, tv.shape, truth.shape
       ((642, 3), (2562, 3), (2562, 3))
     """
-    from ..data import icosphere
-    from ..geometry import subdivide_midpoint
+    from ...data import icosphere
+    from ...geometry import subdivide_midpoint
 
     v, f = icosphere(3 if quick else 4)
     fine = subdivide_midpoint(v, f)
@@ -78,9 +78,8 @@ def demo_stage(out_dir, *, quick: bool) -> dict:
       >>> import tempfile
       >>> out = demo_stage(tempfile.mkdtemp(), quick=True)  # doctest: +SKIP
     """
-    from .. import render
-    from ._config import MeshMatchConfig
-    from ._patchmatch import meshmatch
+    from ... import render
+    from ...meshmatch import MeshMatchConfig, meshmatch
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -42,9 +42,8 @@ def demo_stage(out_dir, *, quick: bool) -> dict:
     """
     import jax
 
-    from ..data import torus
-    from ._config import SurfaceCNNConfig
-    from ._synthesis import save_result, synthesize_texture
+    from ...data import torus
+    from ...surfacecnn import SurfaceCNNConfig, save_result, synthesize_texture
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -102,7 +102,7 @@ def make_schedule(kind: str = "linear", *, num_steps: int = 1000) -> Schedule:
 
 def _coef(values: np.ndarray, t, like: Array) -> Array:
     """``values[t]`` as a real array broadcastable against ``like`` ([B] or scalar t)."""
-    from ..ops._util import real_dtype
+    from ..ops import real_dtype
 
     v = jnp.asarray(values, dtype=real_dtype(like.dtype))[t]
     return v.reshape(v.shape + (1,) * (like.ndim - v.ndim)).astype(like.dtype)
@@ -325,7 +325,7 @@ def ddim_step(
       >>> bool(jnp.allclose(ddim_step(s, zt, jnp.array(30), jnp.array(-1), e, e), z0))
       True
     """
-    from ..ops._util import real_dtype
+    from ..ops import real_dtype
 
     ab = jnp.asarray(np.concatenate([schedule.alpha_bars, [1.0]]), real_dtype(z_t.dtype))  # [-1] -> 1.0
     a_t, a_p = ab[t], ab[t_prev]

@@ -17,11 +17,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..geometry import trace_from_vertices
-from ..ops import TexelNeighborhood, texel_conv
-from ..testing import Entry, Field, register
-from ..testing._fields import VERTEX_SCALAR, VERTEX_TANGENT
-from ._neighborhood import TAP_DX, TAP_DY
+from ...geometry import trace_from_vertices
+from ...ops import TexelNeighborhood, texel_conv
+from ...surfacecnn import TAP_DX, TAP_DY
+from .. import Entry, Field, register
+from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 
 #: world length of one tap step on the harness meshes (unit size)
 STEP = 0.05

@@ -35,7 +35,7 @@ from ._diffusion import (
     make_schedule,
     sample_from_noise,
 )
-from ._fldm_train import FLDMModel
+from ._train import FLDMModel
 
 
 def _round_up(n: int, bucket: int) -> int:
@@ -112,8 +112,8 @@ def sample_fldm(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fl._denoiser import init_denoiser
-      >>> from jmeshtex.fl._fldm_config import FLDMConfig
+      >>> from jmeshtex.fldm._denoiser import init_denoiser
+      >>> from jmeshtex.fldm._config import FLDMConfig
       >>> cfg = FLDMConfig.tiny(latent_channels=2, num_train_steps=20)
       >>> mesh = Mesh(*icosphere(1))
       >>> geo = denoiser_geometry(mesh.vertices, mesh.faces, knn=cfg.knn, pool_ratio=cfg.pool_ratio)
@@ -181,7 +181,7 @@ def decode_samples(vae_params, vae_config, mesh: Mesh, latents: np.ndarray, *, s
       One dict per sample: ``{"texture": [size, size, 3], "valid": [size, size]}`` or
       ``{"vertex_colors": [V, 3]}`` (float in [0, 1]).
     """
-    from ._vae import decode_texture, decode_vertex_colors
+    from ..fl import decode_texture, decode_vertex_colors
 
     out = []
     for mu in np.asarray(latents):

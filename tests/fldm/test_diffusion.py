@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from jmeshtex._errors import ConfigError, InputError
-from jmeshtex.fl._diffusion import (
+from jmeshtex.fldm._diffusion import (
     Inpaint,
     ddim_step,
     ddpm_step,
@@ -256,6 +256,6 @@ def test_argument_errors():
 
 def test_the_cli_spells_out_the_predictions():
     from jmeshtex.cli._fldm import PREDICTIONS as CLI_PREDICTIONS
-    from jmeshtex.fl._diffusion import PREDICTIONS
+    from jmeshtex.fldm._diffusion import PREDICTIONS
 
     assert CLI_PREDICTIONS == PREDICTIONS

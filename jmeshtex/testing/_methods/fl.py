@@ -21,8 +21,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..testing import Entry, Field, register
-from ..testing._fields import VERTEX_SCALAR, VERTEX_TANGENT
+from .. import Entry, Field, register
+from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 
 #: exact transforms asserted for every FL-VAE entry (1e-10 in float64)
 FL_TRANSFORMS = ("rigid", "gauge", "permute_vertices", "permute_faces", "rotate_corners", "fold", "folds",
@@ -35,20 +35,20 @@ SMOOTH = ("cylinder", "cone")
 
 
 def _config():
-    from ._config import FLVAEConfig
+    from ...fl import FLVAEConfig
 
     return FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
 
 
 def _init(key, dtype):
-    from ._vae import init_fl_vae
+    from ...fl import init_fl_vae
 
     return init_fl_vae(key, _config(), dtype=dtype)
 
 
 def _samples(state):
     """Deterministic one-ring samples in the state's gauge (host, cached per state)."""
-    from ._encoder import one_ring_samples
+    from ...fl import one_ring_samples
 
     def build():
         s = one_ring_samples(state.vertices, state.faces, 1, rng=None)
@@ -61,7 +61,7 @@ def _samples(state):
 @functools.lru_cache(maxsize=1)
 def _jitted():
     """Jitted encoder/decoder (op-by-op dispatch under ``jax_debug_nans`` is ~50x slower)."""
-    from ._vae import decode_points, encode_samples
+    from ...fl import decode_points, encode_samples
 
     return jax.jit(encode_samples, static_argnums=1), jax.jit(decode_points, static_argnums=1)
 
@@ -83,7 +83,7 @@ def _encoder_sigma(state, params, c):
 
 
 def _decoder(state, params, z):
-    from ._vae import decode_vertex_colors_from_latents
+    from ...fl import decode_vertex_colors_from_latents
 
     decode_points = _jitted()[1]
     s = _samples(state)

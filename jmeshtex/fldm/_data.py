@@ -33,9 +33,9 @@ import numpy as np
 from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh
 from ..geometry import PoolingMap, VertexNeighborhood, remesh, surface_correspondence
+from ._config import FLDMConfig
 from ._denoiser import DenoiserGeometry, denoiser_geometry, geometry_sizes, pad_geometry
 from ._diffusion import latent_scale
-from ._fldm_config import FLDMConfig
 
 DATA_FILE = "data.json"
 
@@ -79,8 +79,7 @@ def fl_vae_encoder(params, vae_config, original: Mesh, *, key: jax.Array) -> Cal
       >>> enc(m).shape
       (25, 8)
     """
-    from ._colors import surface_colors
-    from ._vae import encode_mesh
+    from ..fl import encode_mesh, surface_colors
 
     colors = surface_colors(original)
     counter = [0]
@@ -155,7 +154,7 @@ def _save_copy(path: pathlib.Path, copy: Mesh, geo: DenoiserGeometry, mu: np.nda
 
 
 def _load_copy(path: pathlib.Path):
-    from ..dgts._multiscale import load_npz
+    from ..io import load_npz
 
     a = load_npz(path, "FLDM training copy")
     try:

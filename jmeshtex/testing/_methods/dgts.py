@@ -11,34 +11,34 @@ Importing this module registers both entries (the lead adds it to ``ENTRY_MODULE
 
 from __future__ import annotations
 
-from ..testing import Entry, Field, register
-from ..testing._fields import FACE_SCALAR, POINTS, VERTEX_VECTOR
+from .. import Entry, Field, register
+from .._fields import FACE_SCALAR, POINTS, VERTEX_VECTOR
 
 #: transforms of a face-based operator on positions: rigid motions and every relabelling
 DGTS_TRANSFORMS = ("rigid", "permute_vertices", "permute_faces", "rotate_corners")
 
 
 def _generator(state, params, points):
-    from ._model import generator_level
+    from ...dgts import generator_level
 
     out = generator_level(params, points, state.face_neighborhood())
     return Field(VERTEX_VECTOR, out[:, None, :])
 
 
 def _init_generator(key, dtype):
-    from ..ops import init_face_conv_stack
+    from ...ops import init_face_conv_stack
 
     return init_face_conv_stack(key, (8, 3), dtype=dtype)
 
 
 def _discriminator(state, params, points):
-    from ._model import discriminator
+    from ...dgts import discriminator
 
     return Field(FACE_SCALAR, discriminator(params, points, state.face_neighborhood())[:, None])
 
 
 def _init_discriminator(key, dtype):
-    from ..ops import init_face_conv_stack
+    from ...ops import init_face_conv_stack
 
     return init_face_conv_stack(key, (8, 1), dtype=dtype)
 

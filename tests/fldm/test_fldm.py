@@ -11,17 +11,10 @@ import pytest
 
 from jmeshtex import Mesh
 from jmeshtex._errors import ConfigError, InputError
+from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere
 from jmeshtex.data import torus
-from jmeshtex.fl import (
-    FLDMConfig,
-    build_dataset,
-    inpaint_fldm,
-    load_fldm,
-    sample_fldm,
-    train_fldm,
-)
-from jmeshtex.fl._fldm_data import copy_mesh, transfer_labels
-from jmeshtex.fl._fldm_demo import stripe_encoder, striped_sphere
+from jmeshtex.fldm import FLDMConfig, build_dataset, inpaint_fldm, load_fldm, sample_fldm, train_fldm
+from jmeshtex.fldm._data import copy_mesh, transfer_labels
 
 CFG = FLDMConfig.tiny(latent_channels=2, n_copies=3, copy_vertices=80, train_steps=4, checkpoint_every=2,
                       widths=(6, 8), hdim=4, knn=7, num_train_steps=50, bucket=32, batch_size=2)

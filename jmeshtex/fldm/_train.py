@@ -32,10 +32,10 @@ import optax
 
 from .._errors import ConfigError, MeshIOError
 from ..ops import conjugate_complex_grads, tangent_noise
+from ._config import FLDMConfig
+from ._data import FLDMData, batch_geometry
 from ._denoiser import denoise, init_denoiser
 from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
-from ._fldm_config import FLDMConfig
-from ._fldm_data import FLDMData, batch_geometry
 
 CHECKPOINT_FILE = "checkpoint.npz"
 STATE_FILE = "state.json"
@@ -142,7 +142,7 @@ def _save_checkpoint(out: pathlib.Path, params, opt_state, step: int, losses, co
 
 
 def _load_checkpoint(out: pathlib.Path, params, opt_state, config: FLDMConfig):
-    from ..dgts._multiscale import load_npz
+    from ..io import load_npz
 
     state = json.loads((out / STATE_FILE).read_text())
     saved = FLDMConfig.from_dict(state["config"])
@@ -177,7 +177,7 @@ def load_fldm(path: str | os.PathLike) -> FLDMModel:
     Raises:
       MeshIOError: missing or unreadable files.
     """
-    from ..dgts._multiscale import load_npz
+    from ..io import load_npz
 
     out = pathlib.Path(path)
     if not (out / MODEL_JSON).is_file():
@@ -219,7 +219,7 @@ def train_fldm(
     Example:
       >>> from jmeshtex import Mesh
       >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fl._fldm_data import build_dataset
+      >>> from jmeshtex.fldm._data import build_dataset
       >>> cfg = FLDMConfig.tiny(n_copies=2, copy_vertices=60, latent_channels=1, train_steps=2, bucket=32)
       >>> data = build_dataset(Mesh(*icosphere(1)), cfg, encode=lambda m: m.vertices[:, :1] + 0j, progress=False)
       >>> r = train_fldm(data, cfg, progress=False)

@@ -1,0 +1,1 @@
+"""Equivariance registrations of each method (imported by :func:`jmeshtex.testing.load_entries`)."""
