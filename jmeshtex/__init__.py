@@ -6,6 +6,7 @@ modules) → methods (``dgts``, ``fl``, ``surfacecnn``, ``meshmatch``) → ``jme
 ``jmeshtex.testing`` holds the equivariance harness and hypothesis strategies.
 """
 
+from ._errors import CheckpointMismatchError as CheckpointMismatchError
 from ._errors import ConfigError as ConfigError
 from ._errors import DecimationError as DecimationError
 from ._errors import DegenerateFaceError as DegenerateFaceError
@@ -23,6 +24,7 @@ from ._errors import NonManifoldEdgeError as NonManifoldEdgeError
 from ._errors import NonManifoldVertexError as NonManifoldVertexError
 from ._errors import NonTriangleFaceError as NonTriangleFaceError
 from ._mesh import Mesh as Mesh
+from ._mesh import as_mesh as as_mesh
 from ._neighborhoods import FaceNeighborhood as FaceNeighborhood
 from ._neighborhoods import PoolGroups as PoolGroups
 from ._neighborhoods import PoolingMap as PoolingMap
@@ -31,5 +33,6 @@ from ._neighborhoods import TexelNeighborhood as TexelNeighborhood
 from ._neighborhoods import VertexNeighborhood as VertexNeighborhood
 from ._neighborhoods import pad_to as pad_to
 from ._neighborhoods import to_jax as to_jax
+from ._train_result import TrainResult as TrainResult
 
 __version__ = "0.1.0"

@@ -29,6 +29,10 @@ class MeshIOError(JmeshtexError, OSError):
     """A mesh, texture or checkpoint file cannot be read or written."""
 
 
+class CheckpointMismatchError(MeshIOError):
+    """A checkpoint folder holds a different run (config or data differ) and cannot be resumed."""
+
+
 class MeshError(JmeshtexError, ValueError):
     """A mesh is invalid. ``indices`` holds the offending vertex/face/edge indices (may be empty)."""
 

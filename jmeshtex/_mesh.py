@@ -68,3 +68,32 @@ class Mesh:
     def replace(self, **changes) -> Mesh:
         """A copy with some fields replaced (the original is never modified)."""
         return dataclasses.replace(self, **changes)
+
+
+def as_mesh(mesh: Mesh | tuple, *, what: str = "mesh") -> Mesh:
+    """``mesh`` as a :class:`Mesh`: a ``Mesh`` is returned as it is, a ``(vertices, faces)`` pair wrapped.
+
+    Every method function that takes a mesh goes through this, so a ``Mesh`` and a pair are both
+    accepted everywhere; anything else raises :class:`~jmeshtex.InputError` naming the argument.
+
+    Args:
+      mesh: a :class:`Mesh`, or a pair ``(vertices [V, 3], faces [F, 3])``.
+      what: the argument's name, for the error message.
+
+    Example:
+      >>> import numpy as np
+      >>> as_mesh((np.eye(3), np.array([[0, 1, 2]]))).num_faces
+      1
+    """
+    from ._errors import InputError
+
+    if isinstance(mesh, Mesh):
+        return mesh
+    if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
+        v, f = (np.asarray(x) for x in mesh)
+        if v.ndim == 2 and v.shape[-1] == 3 and f.ndim == 2 and f.shape[-1] == 3:
+            return Mesh(v.astype(np.float64), f.astype(np.int64))
+        raise InputError(f"{what}: a (vertices, faces) pair needs shapes [V, 3] and [F, 3], got "
+                         f"{v.shape} and {f.shape}")
+    raise InputError(f"{what} must be a jmeshtex.Mesh or a (vertices, faces) pair, got {type(mesh).__name__}"
+                     " (load a file with jmeshtex.io.load_mesh, or build one with jmeshtex.data)")

@@ -18,6 +18,8 @@ from ._adjacency import boundary_loops as boundary_loops
 from ._adjacency import connected_components as connected_components
 from ._adjacency import face_neighborhood as face_neighborhood
 from ._adjacency import one_rings as one_rings
+from ._edges import mean_edge_length as mean_edge_length
+from ._edges import unique_edges as unique_edges
 from ._frames import tangent_frames as tangent_frames
 from ._frames import tangent_from_3d as tangent_from_3d
 from ._frames import tangent_to_3d as tangent_to_3d
@@ -36,6 +38,7 @@ from ._knn import knn_from_one_ring as knn_from_one_ring
 from ._log_map import OneRingAngles as OneRingAngles
 from ._log_map import one_ring_angles as one_ring_angles
 from ._log_map import one_ring_neighborhood as one_ring_neighborhood
+from ._normals import vertex_normals as vertex_normals
 from ._raster import Raster as Raster
 from ._raster import fill_unused_texels as fill_unused_texels
 from ._raster import rasterize_uv as rasterize_uv
@@ -45,7 +48,6 @@ from ._sampling import SurfaceSamples as SurfaceSamples
 from ._sampling import barycentric_interpolate as barycentric_interpolate
 from ._sampling import sample_surface as sample_surface
 from ._subdivision import Subdivision as Subdivision
-from ._subdivision import mean_edge_length as mean_edge_length
 from ._subdivision import rescale_to_mean_edge as rescale_to_mean_edge
 from ._subdivision import subdivide_midpoint as subdivide_midpoint
 from ._subdivision import subdivide_uv as subdivide_uv

@@ -36,11 +36,11 @@ import numpy as np
 from .._errors import ConfigError, DecimationError, InputError
 from .._mesh import Mesh
 from .._types import Float, Int
+from ._edges import unique_edges
 from ._hierarchy import _decimate, _Level
 from ._intrinsic import edge_lengths
 from ._knn import _quantization_step
 from ._log_map import _neighborhood_from_lengths
-from ._subdivision import _unique_edges
 from ._texture import sample_texture, uv_at
 from ._validate import validate_mesh
 
@@ -50,7 +50,7 @@ __all__ = ["remesh", "surface_correspondence"]
 def _random_split(v: np.ndarray, f: np.ndarray, rng: np.random.Generator, jitter: float):
     """One 1-to-4 split with every new vertex at a random point of its edge (stays on the surface)."""
     n = len(v)
-    edges, face_edges = _unique_edges(f, n)
+    edges, face_edges = unique_edges(f, n, face_edges=True)
     t = rng.uniform(0.5 - jitter, 0.5 + jitter, size=(len(edges), 1))
     mids = (1.0 - t) * v[edges[:, 0]] + t * v[edges[:, 1]]
     a, b, c = f.T

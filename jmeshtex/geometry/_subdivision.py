@@ -16,6 +16,7 @@ from .._errors import (
     InputError,
 )
 from .._types import Array, Float, Int
+from ._edges import mean_edge_length, unique_edges
 from ._validate import check_mesh_arrays
 
 
@@ -59,15 +60,6 @@ class Subdivision(NamedTuple):
         return np.concatenate([values, mids.astype(values.dtype, copy=False)])
 
 
-def _unique_edges(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.ndarray]:
-    """Sorted unique undirected edges ``[E, 2]`` and, per face, the ids of edges (ab, bc, ca) ``[F, 3]``."""
-    a, b = faces, np.roll(faces, -1, axis=1)
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    keys, inverse = np.unique(lo * num_vertices + hi, return_inverse=True)
-    edges = np.stack([keys // num_vertices, keys % num_vertices], axis=1)
-    return edges, inverse.reshape(faces.shape)
-
-
 def subdivide_midpoint(
     vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"]
 ) -> Subdivision:
@@ -101,7 +93,7 @@ def subdivide_midpoint(
     """
     v, f = check_mesh_arrays(vertices, faces)
     n_vertices, n_faces = len(v), len(f)
-    edges, face_edges = _unique_edges(f, n_vertices)
+    edges, face_edges = unique_edges(f, n_vertices, face_edges=True)
     mids = 0.5 * (v[edges[:, 0]] + v[edges[:, 1]])
     a, b, c = f.T
     ab, bc, ca = (face_edges + n_vertices).T
@@ -146,22 +138,6 @@ def subdivide_uv(uv: Float[Array, "F 3 2"]) -> Float[Array, "4F 3 2"]:
     )
 
 
-def mean_edge_length(vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"]) -> float:
-    """Mean length of the mesh's undirected edges (each edge counted once, boundary edges included).
-
-    Example:
-      >>> from jmeshtex.data import single_triangle
-      >>> round(mean_edge_length(*single_triangle()), 6)  # (1 + 1 + sqrt 2) / 3
-      1.138071
-    """
-    return _mean_edge_length(*check_mesh_arrays(vertices, faces))
-
-
-def _mean_edge_length(v: np.ndarray, f: np.ndarray) -> float:
-    edges, _ = _unique_edges(f, len(v))
-    return float(np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1).mean())
-
-
 def rescale_to_mean_edge(
     vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"], target: float = 1.0
 ) -> tuple[Float[Array, "V 3"], float]:
@@ -189,7 +165,7 @@ def rescale_to_mean_edge(
     if not (np.isfinite(target) and target > 0):
         raise InputError(f"target mean edge length must be a positive number, got {target}")
     v, f = check_mesh_arrays(vertices, faces)
-    mean = _mean_edge_length(v, f)
+    mean = mean_edge_length(v, f)
     if mean == 0.0:
         raise InputError("cannot rescale: every edge has zero length (all vertices coincide)")
     scale = float(target) / mean
