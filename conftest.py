@@ -3,6 +3,12 @@
 - numerics are strict: float64 is available (x64 on) so that float32 *and* float64 paths are tested,
   dtype promotion is strict (no silent float32 -> float64 upcasts), and NaNs raise at their source;
 - every warning is an error (pyproject's ``filterwarnings``);
+- signatures are checked at run time: jaxtyping + beartype instrument ``jmeshtex.ops`` and
+  ``jmeshtex.geometry`` as they are imported (below, before anything imports jmeshtex), so a wrong
+  shape, dtype or pytree between functions fails at the call, naming the argument. ``int`` passes
+  for ``float`` (PEP 484's numeric tower). Tests marked ``unchecked`` switch the checks off, because
+  they pass ill-typed arguments on purpose to test the typed errors the functions raise themselves;
+  ``JMESHTEX_TYPECHECK=0`` switches them off for a whole run;
 - BLAS runs one thread per test worker (the workers already use every core);
 - the ``key`` fixture prints its seed; pin it with ``JMESHTEX_SEED=<int>`` to replay a failure;
 - hypothesis has a reproducible ``ci`` profile (fixed example count, derandomised), selected when
@@ -14,6 +20,15 @@ from __future__ import annotations
 import os
 import pathlib
 import random
+import sys
+
+if os.environ.get("JMESHTEX_TYPECHECK", "1") != "0":
+    from jaxtyping import install_import_hook
+
+    _CHECKED = ["jmeshtex.ops", "jmeshtex.geometry"]
+    if any(name in sys.modules for name in _CHECKED):  # the hook only sees modules imported after it
+        raise RuntimeError(f"conftest.py: {_CHECKED} were imported before their type-check hook")
+    install_import_hook(_CHECKED, "beartype.beartype(conf=beartype.BeartypeConf(is_pep484_tower=True))")
 
 import jax
 import numpy as np
@@ -48,6 +63,22 @@ settings.register_profile(
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci" if os.environ.get("CI") else "dev"))
 
 _SEED_ENV = "JMESHTEX_SEED"
+
+
+@pytest.fixture(autouse=True)
+def _runtime_type_checks(request: pytest.FixtureRequest):
+    """jaxtyping's run-time checks stay on, except for tests marked ``unchecked``."""
+    if request.node.get_closest_marker("unchecked") is None:
+        yield
+        return
+    import jaxtyping
+
+    before = jaxtyping.config.jaxtyping_disable
+    jaxtyping.config.update("jaxtyping_disable", True)
+    try:
+        yield
+    finally:
+        jaxtyping.config.update("jaxtyping_disable", before)
 
 
 @pytest.fixture

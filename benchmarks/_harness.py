@@ -118,22 +118,23 @@ def activation_ceiling(activation: str, *, n: int = 1 << 20, responses: int = 16
     """Achieved G evaluations/s of a filter activation (``"silu"`` or ``"relu"``) inside one fusion.
 
     The shape of a field convolution's inner loop, through the responses function the evaluation
-    path uses: ``Σ_h act(x·a_h + b_h)`` over ``responses`` ridge functions of ``n`` float32 inputs
-    (4 MiB, cache-resident), so the figure is the activation's arithmetic throughput, not memory
-    bandwidth. A SiLU costs a tanh (a rational function with a division), which a FLOP count of
+    path uses (:func:`jmeshtex.ops.field_conv_responses`): ``Σ_h act(x·a_h + b_h)`` over
+    ``responses`` ridge functions of ``n`` float32 inputs (4 MiB, cache-resident), so the figure is
+    the activation's arithmetic throughput, not memory bandwidth. A SiLU costs a tanh (a rational function with a division), which a FLOP count of
     multiply-adds does not see.
     """
-    from jmeshtex.ops._field_conv import _responses
+    from jmeshtex.ops import FieldConvParams, field_conv_responses
 
     x = jnp.linspace(-4.0, 4.0, n, dtype=jnp.float32).reshape(n, 1, 1)  # [V, K, C] = [n, 1, 1]
     zero = jnp.zeros_like(x)
+    mix = jnp.zeros((1, 1, 1), jnp.complex64)  # not used by the responses
 
     def f(v):
         acc = jnp.zeros_like(v)
         for h in range(responses):  # one ridge function a_h x + b_h per response, summed unrolled
-            a_w = jnp.array([[1.0 + 0.01 * h], [0.0]], jnp.float32)
-            bias = jnp.full((n, 1), 0.1 * h, jnp.float32)
-            acc = acc + _responses(v, zero, a_w, bias, activation)[:, :, 0]
+            p = FieldConvParams(filter_weight=jnp.array([[1.0 + 0.01 * h], [0.0]], jnp.float32),
+                                filter_bias=jnp.full((1,), 0.1 * h, jnp.float32), mix=mix)
+            acc = acc + field_conv_responses(v, zero, p, activation=activation)[:, :, 0]
         return acc
 
     t = time_jax(jax.jit(f), x, repeats=5)

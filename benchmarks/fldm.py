@@ -11,7 +11,7 @@ tangent-noise latents — timings do not depend on the values):
 - ``train``: seconds per optimiser step (ε-loss, Adam) for the paper denoiser (96/192 channels,
   2+4+4 FCResNet blocks, batch 1) and the CPU preset (32/64, 1+2+2, ReLU filters, batch 2);
   ``steps_per_s`` is its inverse;
-- ``denoise``: one denoiser evaluation, beside its FLOP count (:func:`denoiser_flops`) and the
+- ``denoise``: one denoiser evaluation, beside its FLOP count (``fldm.denoiser_flops``) and the
   matmul ceiling measured in the same run: ``row_ceiling`` is the highest of the run's first
   ceiling and two more measured right before and after the row (this machine is shared, with steal
   time up to a third, so a single ceiling can be low and flatter the ratio); ``seconds`` is the
@@ -19,7 +19,7 @@ tangent-noise latents — timings do not depend on the values):
   case), ``x_bound_median`` the median's ratio; ``ddim50_s`` is 50 median evaluations (the sampler
   adds a few element-wise ops per step), ``bound_s`` the time the ceiling allows for 50;
   ``--full-ddim`` also runs the whole jitted DDIM-50 loop once for the CPU preset at the largest size;
-  ``activations`` counts the filter nonlinearity's evaluations (:func:`denoiser_activations`), and
+  ``activations`` counts the filter nonlinearity's evaluations (``fldm.denoiser_activations``), and
   ``x_bound_act`` compares the best time with a bound that adds them at the activation's own
   ceiling (``silu_gevals`` / ``relu_gevals``; ``row_act_ceiling`` taken like ``row_ceiling``): a
   SiLU costs a tanh (a rational function with a division), which the FLOP count does not see;
@@ -39,12 +39,8 @@ import jax.numpy as jnp
 import numpy as np
 from _harness import Report, activation_ceiling, matmul_ceiling, time_jax
 
-from jmeshtex import Mesh
+from jmeshtex import fldm
 from jmeshtex.data import icosphere
-from jmeshtex.fldm import FLDMConfig, denoise, denoiser_geometry, init_denoiser, sample_fldm
-from jmeshtex.fldm._data import stack_copies
-from jmeshtex.fldm._denoiser import denoiser_activations, denoiser_flops, geometry_sizes
-from jmeshtex.fldm._train import FLDMModel, _batch, make_train_step, optimizer
 from jmeshtex.geometry import remesh, to_jax
 from jmeshtex.ops import tangent_noise
 
@@ -78,29 +74,29 @@ def main() -> None:
     for act in ("silu", "relu"):  # the filter nonlinearity's own ceiling (FLOP counts do not see it)
         report.ceilings[f"{act}_gevals"] = activation_ceiling(act)
     print(f"activation ceilings: {report.ceilings}", flush=True)
-    base = Mesh(*icosphere(6))  # 40962 vertices: both sizes are re-triangulations of it
+    base = icosphere(6)  # 40962 vertices: both sizes are re-triangulations of it
     for n in args.sizes:
         t0 = time.perf_counter()
         copy = remesh(base, n_vertices=n, seed=0)
         report.add(name="remesh", vertices=n, seconds=time.perf_counter() - t0, load=_load())
         t0 = time.perf_counter()
-        geo = denoiser_geometry(copy.vertices, copy.faces, knn=9, pool_ratio=0.25)
+        geo = fldm.denoiser_geometry(copy, knn=9, pool_ratio=0.25)
         report.add(name="denoiser geometry", vertices=n, seconds=time.perf_counter() - t0, load=_load())
-        sizes = geometry_sizes(geo)
+        sizes = fldm.geometry_sizes(geo)
         for preset in args.presets:
             if preset == "paper-relu":  # the paper's widths and blocks with piecewise-linear filters
-                cfg = FLDMConfig.paper(latent_channels=8, copy_vertices=n, activation="relu")
+                cfg = fldm.Config.paper(latent_channels=8, copy_vertices=n, activation="relu")
             else:
-                cfg = getattr(FLDMConfig, preset)(latent_channels=8, copy_vertices=n)
+                cfg = getattr(fldm.Config, preset)(latent_channels=8, copy_vertices=n)
             if preset.startswith("paper"):
                 cfg = cfg.replace(batch_size=1)
             # training step on a batch of copies (the same copy repeated: timing only)
             mu = np.asarray(tangent_noise(jax.random.key(0), (n, 8)), np.complex128)
-            data = stack_copies([(copy, geo, mu, None)], cfg)
-            params = init_denoiser(jax.random.key(0), cfg, jax.tree.map(lambda a: a[0], data.geometry))
-            opt_state = optimizer(cfg).init(params)
-            step = make_train_step(cfg)
-            z0, g, lab = _batch(data, cfg, 0, cfg.batch_size, jnp.complex64)
+            data = fldm.stack_copies([(copy, geo, mu, None)], cfg)
+            params = fldm.init_denoiser(jax.random.key(0), cfg)
+            opt_state = fldm.optimizer(cfg).init(params)
+            step = fldm.make_train_step(cfg)
+            z0, g, lab = fldm.training_batch(data, 0, cfg.batch_size, key=jax.random.key(5), dtype=jnp.complex64)
             key = jax.random.key(1)
 
             def run(params=params, opt_state=opt_state, z0=z0, g=g, lab=lab, step=step, key=key):
@@ -117,15 +113,15 @@ def main() -> None:
             # one denoiser evaluation, and DDIM-50 = 50 of them
             gj = to_jax(geo, jnp.float32)
             z = tangent_noise(jax.random.key(2), (n, 8))
-            fn = jax.jit(lambda p, z, cfg=cfg, gj=gj: denoise(p, cfg, z, jnp.array(500, jnp.int32), gj))
+            fn = jax.jit(lambda p, z, cfg=cfg, gj=gj: fldm.denoise(p, cfg, z, jnp.array(500, jnp.int32), gj))
             load = _load()
             t, ceiling, act_ceiling = _timed_between_ceilings(
                 report, cfg.activation,
                 lambda fn=fn, z=z, params=params: time_jax(fn, params, z, repeats=args.measure, min_time=0.0))
             best = min(t.runs)
-            flops = denoiser_flops(cfg, sizes["V0"], sizes["V1"])
+            flops = fldm.denoiser_flops(cfg, sizes["V0"], sizes["V1"])
             bound = flops / (ceiling * 1e9)
-            acts = denoiser_activations(cfg, sizes["V0"], sizes["V1"])
+            acts = fldm.denoiser_activations(cfg, sizes["V0"], sizes["V1"])
             bound_act = bound + acts / (act_ceiling * 1e9)
             report.add(name=f"denoise {preset}", vertices=n, compile_s=t.compile_s, seconds=t.run_s,
                        best_s=best, flops=flops, row_ceiling=ceiling, row_act_ceiling=act_ceiling,
@@ -133,13 +129,13 @@ def main() -> None:
                        x_bound_median=t.run_s / bound, activations=acts, x_bound_act=best / bound_act,
                        load=load)
             if args.full_ddim and preset == "cpu" and n == max(args.sizes):
-                model = FLDMModel(params, cfg, np.ones(8))
+                model = fldm.Model(params, cfg, np.ones(8))
                 load = _load()
                 t0 = time.perf_counter()
-                sample_fldm(model, geo, key=jax.random.key(3), n=1, steps=50)
+                fldm.sample(model, geo, key=jax.random.key(3), n=1, steps=50)
                 first = time.perf_counter() - t0
                 t0 = time.perf_counter()
-                sample_fldm(model, geo, key=jax.random.key(4), n=1, steps=50)
+                fldm.sample(model, geo, key=jax.random.key(4), n=1, steps=50)
                 second = time.perf_counter() - t0
                 report.add(name="ddim50 cpu (full loop)", vertices=n, first_call_s=first, seconds=second, load=load)
     report.write()

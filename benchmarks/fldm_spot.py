@@ -1,4 +1,4 @@
-"""Benchmark: FLDM fidelity and diversity on Spot, with the shipped FL-VAE (issue 7).
+"""Benchmark: FLDM fidelity and diversity on Spot, with the shipped FL-VAE.
 
 Run::
 
@@ -10,18 +10,19 @@ Writes ``benchmarks/results/fldm_spot.{json,md}`` and ``fldm_spot.png`` (``fldm_
 with ``--prediction epsilon``; ``--out`` to change the folder). The training copies and the resumable
 training checkpoints (``train_v/``, ``train_epsilon/``) live under
 ``benchmarks/results/_work/fldm_spot[_quick]/`` (git-ignored, ``--work`` to change): a re-run reuses
-the copies and resumes training where it stopped (``--steps N`` trains on to ``N``).
+the copies and resumes training where it stopped (``--steps N`` trains on to ``N``). ``--seed`` makes
+the ``jax.random.key`` every random choice derives from.
 
 What runs (Mitchel et al. 2024, §6.1 and §6.6):
 
 1. ``n_copies`` re-triangulations of Spot (``../shared/data/spot``, or ``$JMESHTEX_SHARED_DATA``)
    with Spot's own vertex count (the texture scale follows mesh resolution, §6.6), encoded with the
-   shipped FL-VAE (:func:`jmeshtex.fl.load_pretrained` + :func:`jmeshtex.fl.fl_vae_encoder`);
-2. :func:`jmeshtex.fl.train_fldm` (v-loss, or the paper's ε-loss with ``--prediction epsilon``; Adam)
-   with the :meth:`FLDMConfig.cpu` denoiser;
+   shipped FL-VAE (``jmeshtex.fl.load_pretrained`` + ``jmeshtex.fldm.fl_vae_encoder``);
+2. ``jmeshtex.fldm.train`` (v-loss, or the paper's ε-loss with ``--prediction epsilon``; Adam)
+   with the ``fldm.Config.cpu`` denoiser;
 3. ``n`` samples with DDIM-50 on Spot itself, decoded to Spot's UV atlas
-   (:func:`jmeshtex.fl.decode_samples`); the same noise through the *untrained* denoiser (same
-   initialisation as training started from);
+   (``jmeshtex.fldm.decode_samples``); the same noise through the *untrained* denoiser
+   (``jmeshtex.fldm.init``: the initialisation training started from);
 4. renders at fixed views (Spot turned y-up → z-up, one midpoint subdivision so that the face-flat
    renderer shows the texture at about the image's resolution) of: the exemplar (Spot's own texture),
    the FL-VAE reconstruction of the exemplar (encode Spot → decode its atlas: the fidelity the codec
@@ -63,7 +64,7 @@ import jax.numpy as jnp
 import numpy as np
 from _harness import RESULTS, Report
 
-from jmeshtex.fldm._diffusion import LOSS_NAMES, PREDICTIONS
+from jmeshtex.fldm import LOSS_NAMES, PREDICTIONS
 
 HERE = pathlib.Path(__file__).resolve().parent
 SHARED = HERE.parent / ".." / "shared" / "data"
@@ -87,17 +88,17 @@ def spot_path() -> pathlib.Path:
 
 
 def presets(quick: bool, latent_dim: int, n_vertices: int, prediction: str = "v"):
-    """``(FLDMConfig, run settings)`` of the full benchmark or the ``--quick`` smoke run."""
-    from jmeshtex.fldm import FLDMConfig
+    """``(fldm.Config, run settings)`` of the full benchmark or the ``--quick`` smoke run."""
+    from jmeshtex import fldm
 
     if quick:
-        cfg = FLDMConfig.tiny(latent_channels=latent_dim, widths=(8, 16), hdim=2, n_copies=2, copy_vertices=400,
-                              train_steps=3, checkpoint_every=2, num_train_steps=100, bucket=256,
-                              prediction=prediction)
+        cfg = fldm.Config.tiny(latent_channels=latent_dim, widths=(8, 16), hdim=2, n_copies=2, copy_vertices=400,
+                               steps=3, checkpoint_every=2, diffusion_steps=100, bucket=256,
+                               prediction=prediction)
         run = dict(samples=2, views=VIEWS[:2], size=96, atlas=128, ddim_steps=3, subdivide=0)
     else:
-        cfg = FLDMConfig.cpu(latent_channels=latent_dim, n_copies=16, copy_vertices=n_vertices, train_steps=4000,
-                             checkpoint_every=50, prediction=prediction)
+        cfg = fldm.Config.cpu(latent_channels=latent_dim, n_copies=16, copy_vertices=n_vertices, steps=4000,
+                              checkpoint_every=50, prediction=prediction)
         run = dict(samples=6, views=VIEWS, size=256, atlas=512, ddim_steps=50, subdivide=1)
     return cfg, run
 
@@ -138,9 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     t_start = time.perf_counter()
     spot_dir = spot_path()  # fail before the heavy imports
 
-    from jmeshtex.fldm import FLDMModel, build_dataset, decode_samples, fl_vae_encoder, init_denoiser, sample_fldm, train_fldm
-    from jmeshtex.fl import encode_mesh, load_pretrained
-    from jmeshtex.fldm._sample import sampling_geometry
+    from jmeshtex import fl, fldm
     from jmeshtex.geometry import fill_unused_texels
     from jmeshtex.io import load_mesh
     from jmeshtex.metrics import gram_distance, load_vgg16, lpips
@@ -150,9 +149,10 @@ def main(argv: list[str] | None = None) -> int:
     report = Report(name, ceilings=not args.quick)
     work = args.work or RESULTS / "_work" / ("fldm_spot" + ("_quick" if args.quick else ""))
     spot = load_mesh(spot_dir / "spot_triangulated.obj", texture=spot_dir / "spot_texture.png")
-    vae_params, vae_cfg = load_pretrained()
-    cfg, run = presets(args.quick, vae_cfg.latent_dim, spot.num_vertices, args.prediction)
-    cfg = cfg.replace(seed=args.seed, **({} if args.steps is None else {"train_steps": args.steps}))
+    vae = fl.load_pretrained()
+    cfg, run = presets(args.quick, vae.config.latent_dim, spot.num_vertices, args.prediction)
+    cfg = cfg.replace(**({} if args.steps is None else {"steps": args.steps}))
+    k_codec, k_data, k_train, k_sample = jax.random.split(jax.random.key(args.seed), 4)
     n = run["samples"] if args.samples is None else args.samples
     views, size = run["views"], run["size"]
     timings: dict[str, tuple[float, float]] = {}
@@ -163,8 +163,8 @@ def main(argv: list[str] | None = None) -> int:
 
     # 1. training copies (cached)
     t0 = time.perf_counter()
-    encode = fl_vae_encoder(vae_params, vae_cfg, spot, key=jax.random.key(args.seed))
-    data = build_dataset(spot, cfg, encode=encode, cache_dir=work / "data", progress=False)
+    encode = fldm.fl_vae_encoder(vae, spot, key=k_codec)
+    data = fldm.build_dataset(spot, cfg, encode=encode, key=k_data, cache_dir=work / "data", progress=False)
     stage("dataset", t0)
     # the cost of the cached work, as measured by the calls that did it (a re-run only loads it)
     record_path = work / "timings.json"
@@ -175,37 +175,37 @@ def main(argv: list[str] | None = None) -> int:
     # 2. training (resumable)
     t0 = time.perf_counter()
     train_key = f"train_{cfg.prediction}"
-    result = train_fldm(data, cfg, out_dir=work / train_key, progress=not args.quick)
+    result = fldm.train(data, cfg, key=k_train, checkpoint_dir=work / train_key, progress=not args.quick)
     stage("train", t0)
-    if result.steps_done:
-        old = record.get(train_key, {}) if record.get(train_key, {}).get("steps", 0) < cfg.train_steps else {}
+    steps_done = result.steps - (result.resumed_from or 0)  # in this call
+    if steps_done:
+        old = record.get(train_key, {}) if record.get(train_key, {}).get("steps", 0) < cfg.steps else {}
         record[train_key] = {"seconds": old.get("seconds", 0.0) + result.seconds,
-                           "steps": old.get("steps", 0) + result.steps_done, "load": timings["train"][1]}
+                             "steps": old.get("steps", 0) + steps_done, "load": timings["train"][1]}
     from jmeshtex.io import atomic_write
 
     atomic_write(record_path, json.dumps(record, indent=2))
-    losses = np.asarray(result.losses)
+    losses = np.asarray(result.losses["loss"])
     k = max(1, min(50, len(losses) // 5))
     loss_first, loss_last = float(np.mean(losses[:k])), float(np.mean(losses[-k:]))
 
     # 3. samples on Spot itself, trained and untrained (same noise)
     t0 = time.perf_counter()
-    geo = sampling_geometry(spot, result.model)
-    untrained = FLDMModel(init_denoiser(jax.random.key(cfg.seed), cfg, geo), cfg, data.scale)
-    key = jax.random.key(args.seed + 7)
-    z_tr = sample_fldm(result.model, geo, key=key, n=n, steps=run["ddim_steps"])
-    z_un = sample_fldm(untrained, geo, key=key, n=n, steps=run["ddim_steps"])
-    z_ddpm = sample_fldm(result.model, geo, key=key, n=n, method="ddpm") if args.ddpm else None
+    geo = fldm.sampling_geometry(spot, result.model)
+    untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
+    z_tr = fldm.sample(result.model, geo, key=k_sample, n=n, steps=run["ddim_steps"])
+    z_un = fldm.sample(untrained, geo, key=k_sample, n=n, steps=run["ddim_steps"])
+    z_ddpm = fldm.sample(result.model, geo, key=k_sample, n=n, method="ddpm") if args.ddpm else None
     stage("sample", t0)
 
     # 4. decode to Spot's atlas; the FL-VAE reconstruction of the exemplar; the mean colour
     t0 = time.perf_counter()
 
     def atlases(latents):
-        return [fill_unused_texels(d["texture"], d["valid"]) for d in decode_samples(vae_params, vae_cfg, spot, latents,
-                                                                              size=run["atlas"])]
+        decoded = fldm.decode_samples(vae, spot, latents, size=run["atlas"])
+        return [fill_unused_texels(d["texture"], d["valid"]) for d in decoded]
 
-    recon_mu = np.asarray(encode_mesh(vae_params, vae_cfg, spot, key=jax.random.key(args.seed)).mu)
+    recon_mu = np.asarray(fl.encode(vae, spot, key=k_codec).mu)
     tex = {"reconstruction": atlases(recon_mu[None]), "trained": atlases(z_tr), "untrained": atlases(z_un)}
     if z_ddpm is not None:
         tex["trained DDPM-1000"] = atlases(z_ddpm)
@@ -283,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         report.add(table="timing", source=f"{label} (this call)", seconds=seconds, load=round(load, 2))
     total = time.perf_counter() - t_start
     report.add(table="timing", source="total (this call)", seconds=total, load=round(_load(), 2))
-    vae_desc = {k: getattr(vae_cfg, k) for k in ("latent_dim", "num_samples", "features", "decoder")}
+    vae_desc = {k: getattr(vae.config, k) for k in ("latent_dim", "num_samples", "features", "decoder")}
     report.config = {"fldm_config": cfg.to_dict(), "run": {**run, "views": [list(v) for v in views],
                                 "samples": n, "seed": args.seed, "quick": args.quick},
                                 "fl_vae": vae_desc, "spot_vertices": spot.num_vertices}

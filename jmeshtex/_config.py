@@ -7,7 +7,8 @@ A config is a frozen dataclass that derives from :class:`ConfigBase` and lists i
 - :func:`rule` (one value): every field named in ``names`` must satisfy ``ok(value)``;
 - :func:`cross_rule` (several values): the whole config must satisfy ``ok(config)``.
 
-Messages are ``str.format`` templates. A field rule's template sees ``{cls}`` (the class name),
+Messages are ``str.format`` templates. A field rule's template sees ``{cls}`` (the class name, with
+its method package for a library config: ``dgts.Config``),
 ``{name}``, ``{value}``, ``{must}`` (the rule's requirement) and ``{c}`` (the config); without its
 own template it uses the class's ``_MESSAGE`` (default ``"{cls}.{name} must be {must}, got {value!r}"``).
 A cross rule's template sees ``{cls}`` and ``{c}`` (``"{c.lo} > {c.hi}"``), or it is a function of
@@ -77,7 +78,7 @@ class Rule:
 
     def check(self, config: Any) -> None:
         """Raise :class:`~jmeshtex.ConfigError` with this rule's message if ``config`` breaks it."""
-        cls = type(config).__name__
+        cls = display_name(type(config))
         if not self.names:
             if not _holds(self.ok, config):
                 message = self.message
@@ -95,6 +96,20 @@ def _holds(ok: Callable[[Any], bool], arg: Any) -> bool:
         return bool(ok(arg))
     except (TypeError, ValueError):
         return False
+
+
+def display_name(cls: type) -> str:
+    """A config class's name in messages: ``meshmatch.Config`` for a method's config, else the class name.
+
+    Example:
+      >>> from jmeshtex.dgts import Config
+      >>> display_name(Config)
+      'dgts.Config'
+    """
+    parts = cls.__module__.split(".")
+    if len(parts) > 1 and parts[0] == "jmeshtex" and not parts[1].startswith("_"):
+        return f"{parts[1]}.{cls.__qualname__}"
+    return cls.__qualname__
 
 
 def rule(names: str, ok: Callable[[Any], bool], must: str = "", *, message: str | None = None) -> Rule:
@@ -195,7 +210,7 @@ class ConfigBase:
           ConfigError: ``data`` is not a mapping, has unknown keys, or holds invalid values.
         """
         if not isinstance(data, Mapping):
-            raise ConfigError(f"{cls.__name__}.from_dict needs a dict of fields (as written by to_dict), "
+            raise ConfigError(f"{display_name(cls)}.from_dict needs a dict of fields (as written by to_dict), "
                               f"got {type(data).__name__}")
         _reject_unknown(cls, data)
         tuples = _tuple_fields(cls)
@@ -211,7 +226,7 @@ def _reject_unknown(cls: type, data: Mapping[str, Any]) -> None:
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - names)
     if unknown:
-        raise ConfigError(f"{cls.__name__}: unknown fields {unknown}; known: {sorted(names)}")
+        raise ConfigError(f"{display_name(cls)}: unknown fields {unknown}; known: {sorted(names)}")
 
 
 def _plain(value: Any) -> Any:

@@ -86,7 +86,7 @@ class TangentFrames(NamedTuple):
     """Extrinsic orthonormal frames per vertex, used only to convert tangent vectors to/from 3D.
 
     ``x`` is the reference one-ring edge projected onto the tangent plane, so the complex angle of a
-    tangent vector measured from ``x`` agrees with the intrinsic gauge of :class:`VertexNeighborhood`.
+    tangent vector measured from ``x`` agrees with the intrinsic gauge of :class:`~jmeshtex.VertexNeighborhood`.
 
     Attributes:
       normal: ``[V, 3]`` unit angle-weighted vertex normals.
@@ -158,7 +158,7 @@ def to_jax(tree: T, dtype=jnp.float32) -> T:
     Integer and boolean leaves keep their kind (integers become int32).
 
     Args:
-      tree: any pytree of NumPy/JAX arrays, e.g. a :class:`VertexNeighborhood`.
+      tree: any pytree of NumPy/JAX arrays, e.g. a :class:`~jmeshtex.VertexNeighborhood`.
       dtype: ``jnp.float32`` (default) or ``jnp.float64`` (needs ``jax_enable_x64``).
 
     Example:
@@ -195,7 +195,7 @@ def pad_to(tree: T, sizes: dict[str, int]) -> T:
     masks with False, weights and logs with 0, transports with 1 — the padding contract.
 
     Args:
-      tree: a :class:`VertexNeighborhood` or :class:`FaceNeighborhood`.
+      tree: a :class:`~jmeshtex.VertexNeighborhood` or :class:`~jmeshtex.FaceNeighborhood`.
       sizes: target sizes; each must be at least the current size.
 
     Returns:

@@ -18,7 +18,7 @@ M = TypeVar("M")
 
 @dataclasses.dataclass(frozen=True)
 class TrainResult(Generic[M]):
-    """What ``dgts.train``, ``fl.train``, ``fldm.train`` and ``surfacecnn.train`` return.
+    """What ``dgts.train``, ``fl.train`` and ``fldm.train`` return.
 
     Attributes:
       model: the method's ``Model`` (parameters bundled with their config), ready for ``save`` and

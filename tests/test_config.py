@@ -11,12 +11,21 @@ import numpy as np
 import pytest
 
 from jmeshtex import ConfigError
-from jmeshtex._config import ConfigBase, cross_rule, integers, is_finite_number, is_int, rule
-from jmeshtex.dgts import PrepareConfig, TrainConfig
-from jmeshtex.fldm import FLDMConfig
-from jmeshtex.fl import FLVAEConfig
-from jmeshtex.meshmatch import MeshMatchConfig
-from jmeshtex.surfacecnn import SurfaceCNNConfig
+from jmeshtex._config import (
+    ConfigBase,
+    cross_rule,
+    display_name,
+    integers,
+    is_finite_number,
+    is_int,
+    rule,
+)
+from jmeshtex.dgts import Config as DGTSConfig
+from jmeshtex.dgts import PrepareConfig
+from jmeshtex.fl import Config as FLVAEConfig
+from jmeshtex.fldm import Config as FLDMConfig
+from jmeshtex.meshmatch import Config as MeshMatchConfig
+from jmeshtex.surfacecnn import Config as SurfaceCNNConfig
 
 WEIGHTS = pathlib.Path(__file__).resolve().parents[1] / "jmeshtex" / "fl" / "weights"
 
@@ -170,7 +179,7 @@ def test_predicates():
 
 # --- every config of the library uses the mechanism -----------------------------------------------
 
-ALL = [PrepareConfig, TrainConfig, FLVAEConfig, FLDMConfig, MeshMatchConfig, SurfaceCNNConfig]
+ALL = [PrepareConfig, DGTSConfig, FLVAEConfig, FLDMConfig, MeshMatchConfig, SurfaceCNNConfig]
 
 
 @pytest.mark.parametrize("cls", ALL)
@@ -180,7 +189,7 @@ def test_library_configs_round_trip_through_json(cls):
     text = json.dumps(c.to_dict())
     assert cls.from_dict(json.loads(text)) == c
     assert cls.from_dict({}) == c
-    with pytest.raises(ConfigError, match=f"^{cls.__name__}: unknown fields \\['bogus'\\]"):
+    with pytest.raises(ConfigError, match=f"^{re.escape(display_name(cls))}: unknown fields \\['bogus'\\]"):
         cls.from_dict({"bogus": 1})
 
 
@@ -197,7 +206,7 @@ def test_tuple_valued_library_fields_come_back_as_tuples():
 
 @pytest.mark.parametrize("name", ["fl_vae.npz", "fl_vae_barycentric.npz"])
 def test_config_dicts_written_before_the_refactor_still_load(name):
-    # the shipped weights embed the FLVAEConfig dict their (older) to_dict wrote
+    # the shipped weights embed the fl.Config dict of their training run (field names migrated in place)
     with np.load(WEIGHTS / name, allow_pickle=False) as data:
         stored = json.loads(data["meta"].tobytes().decode())["config"]
     config = FLVAEConfig.from_dict(stored)
@@ -208,20 +217,20 @@ def test_config_dicts_written_before_the_refactor_still_load(name):
     "make, message",
     [
         # messages asserted elsewhere in the suite, word for word
-        (lambda: TrainConfig(min_features=64, max_features=32), "need min_features <= max_features, got 64, 32"),
-        (lambda: PrepareConfig(num_levels=0), "PrepareConfig.num_levels must be >= 1, got 0"),
+        (lambda: DGTSConfig(min_features=64, max_features=32), "need min_features <= max_features, got 64, 32"),
+        (lambda: PrepareConfig(levels=0), "dgts.PrepareConfig.levels must be >= 1, got 0"),
         (lambda: FLVAEConfig(decoder="bary"), "decoder must be one of ('log', 'barycentric'), got 'bary'"),
         (lambda: FLVAEConfig(features=10, num_heads=4), "features (10) must be divisible by num_heads (4)"),
         (lambda: FLDMConfig(widths=(4,)), "widths must be two positive integers (fine, coarse), got (4,)"),
-        (lambda: FLDMConfig(num_train_steps=1), "num_train_steps must be >= 2"),
-        (lambda: MeshMatchConfig(color_weight=-1.0), "MeshMatchConfig.color_weight must be finite and >= 0, got (-1.0,)"),
+        (lambda: FLDMConfig(diffusion_steps=1), "diffusion_steps must be >= 2"),
+        (lambda: MeshMatchConfig(color_weight=-1.0), "meshmatch.Config.color_weight must be finite and >= 0, got (-1.0,)"),
         (lambda: MeshMatchConfig(shape_weight=(1.0, -1.0)),
-         "MeshMatchConfig.shape_weight must be finite and >= 0, got (1.0, -1.0)"),
+         "meshmatch.Config.shape_weight must be finite and >= 0, got (1.0, -1.0)"),
         (lambda: MeshMatchConfig(color_weight=0.0, shape_weight=(0.0, 0.0)),
          "color_weight and shape_weight are all 0: the patch distance would be constant"),
         (lambda: SurfaceCNNConfig(init_low=0.5, init_high=0.2),
-         "SurfaceCNNConfig needs 0 <= init_low <= init_high <= 1, got 0.5, 0.2"),
-        (lambda: SurfaceCNNConfig(size=True), "SurfaceCNNConfig.size must be an integer >= 4, got True"),
+         "surfacecnn.Config needs 0 <= init_low <= init_high <= 1, got 0.5, 0.2"),
+        (lambda: SurfaceCNNConfig(size=True), "surfacecnn.Config.size must be an integer >= 4, got True"),
     ],
 )
 def test_library_messages_are_unchanged(make, message):

@@ -1,11 +1,15 @@
-"""``jmeshtex fl pretrain|encode|reconstruct``: the FL-VAE of Field Latents (a thin layer over
+"""``jmeshtex fl train|encode|reconstruct``: the FL-VAE of Field Latents (a thin layer over
 :mod:`jmeshtex.fl`).
 
-- ``pretrain`` trains an FL-VAE on planar meshes over images (``--images builtin`` = scikit-image's
-  bundled images, or a folder), resumable in ``--out``;
+- ``train`` (alias ``pretrain``) trains an FL-VAE on planar meshes over images (``--images builtin``
+  = scikit-image's bundled images, or a folder): ``--out/fl_vae.npz``, resumable from
+  ``--out/checkpoints``;
 - ``encode`` writes a mesh's latents (``mu``, ``log_sigma``) to an ``.npz``;
 - ``reconstruct`` encodes a textured mesh (optionally remeshed to ``--vertices``) and writes the
   reconstructed texture atlas PNG, a side-by-side render and ``metrics.json`` (PSNR, DSSIM, LPIPS).
+
+Every mesh argument is a file or a procedural spec (``icosphere:3``, ``striped-sphere``, ...;
+:func:`~jmeshtex.cli._common.load_mesh_spec`); ``--seed`` makes the ``key`` of the library call.
 """
 
 from __future__ import annotations
@@ -14,65 +18,60 @@ import argparse
 import json
 import pathlib
 
+from ._common import add_common, cached, load_mesh_spec
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("fl", help="Field Latents VAE: pre-train, encode, reconstruct textures",
+    p = sub.add_parser("fl", help="Field Latents VAE: train, encode, reconstruct textures",
                        description="FL-VAE (Mitchel et al. 2024): textures as tangent-vector latents at vertices.")
     inner = p.add_subparsers(dest="fl_command", metavar="ACTION")
 
-    t = inner.add_parser("pretrain", help="train an FL-VAE on planar meshes over images")
+    t = inner.add_parser("train", aliases=["pretrain"], help="train an FL-VAE on planar meshes over images")
     t.add_argument("--images", default="builtin", metavar="DIR|builtin",
                    help="folder of PNG/JPEG images, or 'builtin' (scikit-image's bundled images)")
-    t.add_argument("--out", type=pathlib.Path, required=True, metavar="DIR",
-                   help="output folder (checkpoint.npz, log.json, fl_vae.npz); an existing run there resumes")
-    t.add_argument("--steps", type=int, default=None, help="optimiser steps (default: FLVAEConfig.steps)")
+    add_common(t, out="output folder (fl_vae.npz, checkpoints/); an existing run there resumes")
+    t.add_argument("--steps", type=int, default=None, help="optimiser steps (default: Config.steps)")
     t.add_argument("--decoder", choices=("log", "barycentric"), default=None,
                    help="decoder variant (barycentric = the paper's ablation)")
     t.add_argument("--config", type=pathlib.Path, default=None, metavar="JSON",
-                   help="FLVAEConfig fields as JSON (overridden by --steps/--decoder/--seed)")
-    t.add_argument("--seed", type=int, default=None, help="PRNG seed")
-    t.add_argument("--quiet", action="store_true", help="no progress bar")
-    t.set_defaults(func=_pretrain)
+                   help="jmeshtex.fl.Config fields as JSON (overridden by --steps/--decoder)")
+    t.set_defaults(func=cached(_train))
 
     e = inner.add_parser("encode", help="encode a mesh's texture or vertex colours as latents")
     _mesh_args(e)
-    e.add_argument("--out", type=pathlib.Path, required=True, metavar="FILE.npz", help="latents file")
-    e.set_defaults(func=_encode)
+    add_common(e, out="latents file (.npz)", quiet=False)
+    e.set_defaults(func=cached(_encode))
 
     r = inner.add_parser("reconstruct", help="encode + decode a textured mesh's atlas, with metrics")
     _mesh_args(r)
-    r.add_argument("--out", type=pathlib.Path, required=True, metavar="DIR", help="output folder")
+    add_common(r, out="output folder", quiet=False)
     r.add_argument("--size", type=int, default=None, help="atlas side in texels (default: the texture's)")
     r.add_argument("--vertices", type=int, default=None,
                    help="remesh to about this many vertices first (latents on the remeshed surface)")
     r.add_argument("--no-lpips", action="store_true", help="skip LPIPS (a VGG-16 pass)")
-    r.set_defaults(func=_reconstruct)
+    r.set_defaults(func=cached(_reconstruct))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _mesh_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--mesh", type=pathlib.Path, required=True, metavar="M", help="mesh file (OBJ, PLY, OFF, GLB)")
+    p.add_argument("--mesh", required=True, metavar="M",
+                   help="mesh file (OBJ, PLY, OFF, GLB) or procedural spec (icosphere:3, striped-sphere, ...)")
     p.add_argument("--texture", type=pathlib.Path, default=None, metavar="T", help="texture image of the mesh")
     p.add_argument("--model", type=pathlib.Path, default=None, metavar="FILE.npz",
-                   help="FL-VAE file from `fl pretrain` (default: the shipped pre-trained model)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the one-ring sampling (default 0)")
+                   help="FL-VAE file from `fl train` (default: the shipped pre-trained model)")
 
 
 def _model(args):
-    from ..fl import load_fl_vae, load_pretrained
+    from ..fl import load, load_pretrained
 
-    return load_pretrained() if args.model is None else load_fl_vae(args.model)
-
-
-def _load(args):
-    from ..io import load_mesh
-
-    return load_mesh(args.mesh, texture=args.texture)
+    return load_pretrained() if args.model is None else load(args.model)
 
 
-def _pretrain(args) -> int:
+def _train(args) -> int:
+    import jax
+
     from .._errors import MeshIOError
-    from ..fl import FLVAEConfig, pretrain
+    from ..fl import Config, save, train
 
     data = {}
     if args.config is not None:
@@ -80,15 +79,19 @@ def _pretrain(args) -> int:
             data = json.loads(args.config.read_text())
         except (OSError, ValueError) as err:
             raise MeshIOError(f"cannot read config {args.config}: {err}") from err
-    for name in ("steps", "decoder", "seed"):
+    for name in ("steps", "decoder"):
         if getattr(args, name) is not None:
             data[name] = getattr(args, name)
-    config = FLVAEConfig.from_dict(data)
-    result = pretrain(args.out, config, images=args.images, progress=not args.quiet)
-    summary = {"out": str(args.out / "fl_vae.npz"), "steps": config.steps,
-               "final_loss": float(result.losses[-50:].mean()) if len(result.losses) else None,
-               "final_l1": float(result.l1[-50:].mean()) if len(result.l1) else None,
-               "steps_per_second": result.steps_per_second}
+    config = Config.from_dict(data)
+    result = train(config, key=jax.random.key(args.seed), images=args.images, progress=not args.quiet,
+                   checkpoint_dir=args.out / "checkpoints")
+    loss, l1 = result.losses["loss"], result.losses["l1"]
+    summary = {"out": str(args.out / "fl_vae.npz"), "steps": result.steps,
+               "final_loss": float(loss[-50:].mean()) if len(loss) else None,
+               "final_l1": float(l1[-50:].mean()) if len(l1) else None,
+               "steps_per_second": result.extra["steps_per_second"]}
+    save(result.model, args.out / "fl_vae.npz",
+         extra={k: summary[k] for k in ("steps", "final_loss", "final_l1")} | {"seed": args.seed})
     print(json.dumps(summary, indent=2))
     return 0
 
@@ -97,15 +100,15 @@ def _encode(args) -> int:
     import jax
     import numpy as np
 
-    from ..fl import encode_mesh
+    from ..fl import encode
     from ..io import atomic_save_npz
 
-    params, config = _model(args)
-    mesh = _load(args)
-    lat = encode_mesh(params, config, mesh, key=jax.random.key(args.seed))
+    model = _model(args)
+    mesh = load_mesh_spec(args.mesh, texture=args.texture)
+    lat = encode(model, mesh, key=jax.random.key(args.seed))
     atomic_save_npz(args.out, {"mu": np.asarray(lat.mu), "log_sigma": np.asarray(lat.log_sigma),
                                "vertices": mesh.vertices, "faces": mesh.faces})
-    print(json.dumps({"out": str(args.out), "vertices": mesh.num_vertices, "latent_dim": config.latent_dim}))
+    print(json.dumps({"out": str(args.out), "vertices": mesh.num_vertices, "latent_dim": model.config.latent_dim}))
     return 0
 
 
@@ -114,20 +117,18 @@ def _reconstruct(args) -> int:
 
     from ..fl import reconstruct, side_by_side
     from ..geometry import remesh
-    from ..render import write_png
+    from ..io import atomic_write, save_png
 
-    params, config = _model(args)
-    mesh = _load(args)
+    model = _model(args)
+    mesh = load_mesh_spec(args.mesh, texture=args.texture)
     latent_mesh = None if args.vertices is None else remesh(mesh, n_vertices=args.vertices, seed=args.seed)
-    result = reconstruct(params, config, mesh, key=jax.random.key(args.seed), size=args.size,
+    result = reconstruct(model, mesh, key=jax.random.key(args.seed), size=args.size,
                          latent_mesh=latent_mesh, lpips=not args.no_lpips)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_png(args.out / "reconstructed_texture.png", (result.texture * 255).round().astype("uint8"))
+    save_png(result.texture, args.out / "reconstructed_texture.png")
     side_by_side(mesh, result, args.out / "side_by_side.png")
     metrics = {**result.metrics, "latent_vertices": result.latent_mesh.num_vertices,
-               "decoder": config.decoder, "texels": int(result.valid.sum())}
-    from ..io import atomic_write
-
+               "decoder": model.config.decoder, "texels": int(result.valid.sum())}
     atomic_write(args.out / "metrics.json", json.dumps(metrics, indent=2).encode())
     print(json.dumps(metrics, indent=2))
     return 0

@@ -2,9 +2,11 @@
 :mod:`jmeshtex.meshmatch`).
 
 ``transfer`` synthesises the source's colours (vertex colours or UV texture) on the target and
-writes the textured target, renders of source, target and the nearest-neighbour field, and a JSON
-summary; ``paint`` completes a partly painted mesh from its painted region (a mask file: a ``.npy``
-bool array per vertex, or a text file of painted vertex indices).
+writes the textured target, renders of source, target and the nearest-neighbour field, a JSON
+summary and the result itself (:func:`jmeshtex.meshmatch.save`: read it back with
+:func:`jmeshtex.meshmatch.load`); ``paint`` completes a partly painted mesh from its painted region
+(a mask file: a ``.npy`` bool array per vertex, or a text file of painted vertex indices). Mesh
+arguments are files or procedural names (``icosphere:3``, ``torus``, ...).
 """
 
 from __future__ import annotations
@@ -13,40 +15,48 @@ import argparse
 import json
 import pathlib
 
+from ._common import add_common, cached, load_mesh_spec
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("meshmatch", help="PatchMatch texture transfer between meshes (MeshMatch)",
                        description="MeshMatch (Chen et al. 2012): non-parametric texture transfer.")
     inner = p.add_subparsers(dest="meshmatch_command", metavar="ACTION")
     t = inner.add_parser("transfer", help="transfer a source mesh's texture onto a target mesh")
-    t.add_argument("--source", type=pathlib.Path, required=True, metavar="S", help="textured source mesh")
+    t.add_argument("--source", required=True, metavar="S",
+                   help="textured source mesh (a file, or a procedural name such as striped-sphere:3)")
     t.add_argument("--source-texture", type=pathlib.Path, metavar="T", help="texture image of the source")
-    t.add_argument("--target", type=pathlib.Path, required=True, metavar="M", help="target mesh")
+    t.add_argument("--target", required=True, metavar="M", help="target mesh (a file or a procedural name)")
     t.add_argument("--correspondences", type=pathlib.Path, metavar="FILE",
                    help="text file of 'source_vertex target_vertex' pairs, one per line")
-    _common(t)
-    t.set_defaults(func=_transfer)
+    _options(t)
+    t.set_defaults(func=cached(_transfer))
     q = inner.add_parser("paint", help="complete a partly painted mesh by example")
-    q.add_argument("--mesh", type=pathlib.Path, required=True, metavar="M", help="mesh with colours or texture")
+    q.add_argument("--mesh", required=True, metavar="M",
+                   help="mesh with colours or texture (a file or a procedural name)")
     q.add_argument("--mask", type=pathlib.Path, required=True, metavar="MASK",
                    help=".npy bool per vertex, or a text file of painted vertex indices")
     q.add_argument("--texture", type=pathlib.Path, metavar="T", help="texture image of the mesh")
-    _common(q)
-    q.set_defaults(func=_paint)
+    _options(q)
+    q.set_defaults(func=cached(_paint))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=pathlib.Path, required=True, metavar="DIR", help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
-    p.add_argument("--iterations", type=int, default=None, help="PatchMatch iterations per level")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+def _options(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    p.add_argument("--steps", type=int, default=None, help="PatchMatch iterations per level (Config.steps)")
 
 
 def _config(args):
-    from ..meshmatch import MeshMatchConfig
+    from ..meshmatch import Config
 
-    return MeshMatchConfig() if args.iterations is None else MeshMatchConfig(iterations=args.iterations)
+    return Config() if args.steps is None else Config(steps=args.steps)
+
+
+def _key(args):
+    import jax
+
+    return jax.random.key(args.seed)
 
 
 def _load_pairs(path: pathlib.Path):
@@ -79,10 +89,12 @@ def _load_mask(path: pathlib.Path, num_vertices: int):
         raise MeshIOError(f"cannot read mask {path}: {err}") from err
 
 
-def _write_outputs(out: pathlib.Path, source, target_mesh, match, title: str) -> dict:
+def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
     from .. import render
     from ..io import save_mesh
-    from ._stages.meshmatch import nnf_colors
+    from ..meshmatch import nnf_colors, save
+
+    target_mesh, match = result.mesh, result.match
 
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)
@@ -93,11 +105,12 @@ def _write_outputs(out: pathlib.Path, source, target_mesh, match, title: str) ->
         render.render_mesh(target_mesh.vertices, target_mesh.faces, out / "target.png", size=size, title=title,
                            vertex_colors=target_mesh.vertex_colors),
         render.render_mesh(target_mesh.vertices, target_mesh.faces, out / "nnf.png", size=size,
-                           title="nearest-neighbour field", vertex_colors=nnf_colors(source.vertices, match.nnf)),
+                           title="nearest-neighbour field", vertex_colors=nnf_colors(source, match.nnf)),
     ]
     render.render_grid(images, out / "meshmatch.png", columns=3)
     mesh_path = out / ("target.obj" if target_mesh.uv is not None else "target.ply")
     save_mesh(target_mesh.replace(name="target"), mesh_path)
+    save(result, out)
     summary = {"mesh": str(mesh_path), "renders": [str(out / n) for n in ("source.png", "target.png", "nnf.png", "meshmatch.png")],
                **{k: v for k, v in match.stats.items()}}
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
@@ -110,28 +123,26 @@ def _progress(args):
 
 def _transfer(args: argparse.Namespace) -> int:
     from ..geometry import validate_mesh
-    from ..io import load_mesh
-    from ..meshmatch import transfer_texture
+    from ..meshmatch import transfer
 
-    source = load_mesh(args.source, texture=args.source_texture)
-    target = load_mesh(args.target)
+    source = load_mesh_spec(args.source, texture=args.source_texture)
+    target = load_mesh_spec(args.target)
     for mesh in (source, target):
         validate_mesh(mesh.vertices, mesh.faces)  # a clear typed error before any work
     pairs = _load_pairs(args.correspondences) if args.correspondences else None
-    result = transfer_texture(source, target, config=_config(args), correspondences=pairs, seed=args.seed,
+    result = transfer(source, target, key=_key(args), config=_config(args), correspondences=pairs,
                               progress=_progress(args))
-    summary = _write_outputs(args.out, source, result.mesh, result.match, "target (transferred)")
+    summary = _write_outputs(args.out, source, result, "target (transferred)")
     print(f"wrote {summary['mesh']} and renders to {args.out} in {result.match.stats['total_s']:.1f} s")
     return 0
 
 
 def _paint(args: argparse.Namespace) -> int:
-    from ..io import load_mesh
     from ..meshmatch import paint_by_example
 
-    mesh = load_mesh(args.mesh, texture=args.texture)
+    mesh = load_mesh_spec(args.mesh, texture=args.texture)
     mask = _load_mask(args.mask, mesh.num_vertices)
-    result = paint_by_example(mesh, mask, config=_config(args), seed=args.seed, progress=_progress(args))
-    summary = _write_outputs(args.out, mesh, result.mesh, result.match, "painted by example")
+    result = paint_by_example(mesh, mask, key=_key(args), config=_config(args), progress=_progress(args))
+    summary = _write_outputs(args.out, mesh, result, "painted by example")
     print(f"wrote {summary['mesh']} and renders to {args.out}")
     return 0

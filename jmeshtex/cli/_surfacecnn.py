@@ -3,8 +3,12 @@ CNN run on the mesh (a thin layer over :mod:`jmeshtex.surfacecnn`).
 
 ``synthesize`` optimises a texture in the mesh's UV layout (unwrapped with xatlas when the mesh has
 no UVs) whose VGG Gram statistics match an exemplar image; ``stylize`` transfers the style of an
-image onto the mesh's existing texture. Both write the texture PNG, a textured OBJ, renders and a
-JSON summary, and show a progress bar with the loss.
+image onto the mesh's existing texture. Both write the result folder of
+:func:`jmeshtex.surfacecnn.save` (texture PNG, textured OBJ, renders, ``result.npz``, a JSON summary)
+and show a progress bar with the loss (``--quiet``: none).
+
+Every mesh argument is a file or a procedural spec (``icosphere:3``, ``torus``, ...;
+:func:`~jmeshtex.cli._common.load_mesh_spec`); ``--seed`` makes the ``key`` of the library call.
 """
 
 from __future__ import annotations
@@ -12,33 +16,38 @@ from __future__ import annotations
 import argparse
 import pathlib
 
+from ._common import add_common, cached, load_mesh_spec
+
+#: the folder under ``--out`` that holds the resumable checkpoints
+CHECKPOINTS = "checkpoints"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("surfacecnn", help="texture synthesis with a pre-trained 2D CNN run on the mesh",
                        description="Surface-aware mesh texture synthesis (Kovács et al. 2024).")
     inner = p.add_subparsers(dest="surfacecnn_command", metavar="ACTION")
     s = inner.add_parser("synthesize", help="synthesise a texture matching an exemplar image")
-    s.add_argument("--mesh", type=pathlib.Path, required=True, metavar="M", help="mesh file (UVs optional)")
+    s.add_argument("--mesh", required=True, metavar="M",
+                   help="mesh file (UVs optional) or procedural spec (icosphere:3, torus, ...)")
     s.add_argument("--exemplar", type=pathlib.Path, required=True, metavar="IMG", help="exemplar image")
-    _common(s)
-    s.set_defaults(func=_synthesize)
+    _options(s)
+    s.set_defaults(func=cached(_synthesize))
     t = inner.add_parser("stylize", help="transfer an image's style onto the mesh's texture")
-    t.add_argument("--mesh", type=pathlib.Path, required=True, metavar="M", help="mesh file with UVs")
+    t.add_argument("--mesh", required=True, metavar="M", help="mesh file with UVs")
     t.add_argument("--content", type=pathlib.Path, metavar="T",
                    help="content texture in the mesh's UV layout (default: the texture the mesh file references)")
     t.add_argument("--style", type=pathlib.Path, required=True, metavar="IMG", help="style image")
     t.add_argument("--content-weight", type=float, default=1.0, help="weight of the content term (default 1)")
     t.add_argument("--content-layer", default="relu4_2", help="feature map of the content term (default relu4_2)")
-    _common(t)
-    t.set_defaults(func=_stylize)
+    _options(t)
+    t.set_defaults(func=cached(_stylize))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=pathlib.Path, required=True, metavar="DIR", help="output folder")
+def _options(p: argparse.ArgumentParser) -> None:
+    add_common(p, out="output folder (texture, textured mesh, renders, result.npz, checkpoints/)")
     p.add_argument("--size", type=int, default=512, help="texture resolution (default 512)")
     p.add_argument("--steps", type=int, default=500, help="optimisation steps (default 500)")
-    p.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
     p.add_argument("--max-image-size", type=int, default=512,
                    help="exemplar/style images are downscaled to at most this many pixels per side (default 512)")
     p.add_argument("--layers", default=None,
@@ -47,10 +56,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vgg19", type=pathlib.Path, default=None, metavar="FILE",
                    help="use VGG-19 weights from a .npz or Keras .h5 file (the paper's network)")
     p.add_argument("--resume", action="store_true",
-                   help="continue from DIR/checkpoint.npz of an interrupted run (written every 50 steps)")
+                   help=f"continue from DIR/{CHECKPOINTS}/ of an interrupted run (written every 50 steps)")
     p.add_argument("--repair", action="store_true",
                    help="repair the mesh first (drop degenerate/duplicate faces, split bow-tie vertices, re-orient)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _image(path: pathlib.Path, max_size: int):
@@ -73,10 +81,10 @@ def _image(path: pathlib.Path, max_size: int):
 
 def _setup(args):
     from ..geometry import prepare_mesh, validate_mesh
-    from ..io import load_mesh
-    from ..surfacecnn import SurfaceCNNConfig, load_vgg19
+    from ..metrics import load_vgg19
+    from ..surfacecnn import Config
 
-    mesh = load_mesh(args.mesh, texture=getattr(args, "content", None))
+    mesh = load_mesh_spec(args.mesh, texture=getattr(args, "content", None))
     if args.repair:
         mesh, _ = prepare_mesh(mesh, repair=True)
     validate_mesh(mesh.vertices, mesh.faces)  # a clear typed error for a broken mesh before any work
@@ -84,17 +92,18 @@ def _setup(args):
     extra = {}
     if hasattr(args, "content_weight"):
         extra = {"content_weight": args.content_weight, "content_layer": args.content_layer}
-    config = SurfaceCNNConfig(size=args.size, steps=args.steps, pool=args.pool, layers=layers, **extra)
+    config = Config(size=args.size, steps=args.steps, pool=args.pool, layers=layers, **extra)
     weights = load_vgg19(args.vgg19) if args.vgg19 else None
     return mesh, config, weights
 
 
 def _checkpoint(args) -> pathlib.Path:
-    """``DIR/checkpoint.npz``; without ``--resume`` a stale one is removed so the run starts afresh."""
-    args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "checkpoint.npz"
-    if not args.resume:
-        path.unlink(missing_ok=True)
+    """``DIR/checkpoints``; without ``--resume`` a stale one is removed so the run starts afresh."""
+    import shutil
+
+    path = args.out / CHECKPOINTS
+    if not args.resume and path.is_dir():
+        shutil.rmtree(path)
     return path
 
 
@@ -108,27 +117,29 @@ def _report(summary: dict, out: pathlib.Path) -> None:
 def _synthesize(args: argparse.Namespace) -> int:
     import jax
 
-    from ..surfacecnn import save_result, synthesize_texture
+    from ..surfacecnn import save, synthesize
 
     mesh, config, weights = _setup(args)
     exemplar = _image(args.exemplar, args.max_image_size)
-    result = synthesize_texture(mesh, exemplar, config=config, key=jax.random.key(args.seed), weights=weights,
-                                progress=not args.quiet, checkpoint=_checkpoint(args))
-    summary = save_result(result, args.out, exemplar=exemplar, title="synthesised")
+    result = synthesize(mesh, exemplar, config, key=jax.random.key(args.seed), weights=weights,
+                        progress=not args.quiet, checkpoint=_checkpoint(args))
+    summary = save(result, args.out, exemplar=exemplar, title="synthesised")
     _report(summary, args.out)
     return 0
 
 
 def _stylize(args: argparse.Namespace) -> int:
+    import jax
+
     from .._errors import InputError
-    from ..surfacecnn import save_result, stylize_texture
+    from ..surfacecnn import save, stylize
 
     mesh, config, weights = _setup(args)
     if mesh.texture is None:
         raise InputError(f"{args.mesh} references no texture; give the content texture with --content")
     style = _image(args.style, args.max_image_size)
-    result = stylize_texture(mesh, mesh.texture, style, config=config, weights=weights, progress=not args.quiet,
-                             checkpoint=_checkpoint(args))
-    summary = save_result(result, args.out, exemplar=style, title="stylised")
+    result = stylize(mesh, mesh.texture, style, config, key=jax.random.key(args.seed), weights=weights,
+                     progress=not args.quiet, checkpoint=_checkpoint(args))
+    summary = save(result, args.out, exemplar=style, title="stylised")
     _report(summary, args.out)
     return 0

@@ -7,6 +7,7 @@ import pathlib
 import sys
 
 from ..io import atomic_write
+from ._common import add_common
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,8 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--only", nargs="+", metavar="NAME", help="operators to check (default: all)")
     p.add_argument("--transforms", nargs="+", metavar="T", help="transforms to check (default: all declared)")
     p.add_argument("--dtype", choices=["both", "float64", "float32"], default="both")
-    p.add_argument("--seed", type=int, default=0)
     p.add_argument("--list", action="store_true", help="list registered operators and transforms")
+    add_common(p, out=None)
     p.set_defaults(func=_run)
 
 
@@ -54,7 +55,7 @@ def _run(args: argparse.Namespace) -> int:
              if transforms is None or t in transforms]) * len(dtypes[args.dtype])
         for n in names if n in testing.REGISTRY
     )
-    bar = tqdm(total=total, desc="verify", unit="check", file=sys.stderr, disable=None)
+    bar = tqdm(total=total, desc="verify", unit="check", file=sys.stderr, disable=True if args.quiet else None)
 
     def progress(msg: str) -> None:
         bar.set_postfix_str(msg[:60])
@@ -68,6 +69,6 @@ def _run(args: argparse.Namespace) -> int:
     print(f"\n{len(results)} checks: {sum(r.passed is True for r in results)} passed, "
           f"{len(failed)} failed, {sum(r.passed is None for r in results)} reported")
     if args.json:
-        atomic_write(args.json, testing._registry.to_json(results))
+        atomic_write(args.json, testing.to_json(results))
         print(f"wrote {args.json}")
     return 1 if failed else 0

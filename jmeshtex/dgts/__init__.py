@@ -1,34 +1,53 @@
 """DGTS: learn a geometric texture from one mesh and transfer it to any mesh (Hertz et al. 2020).
 
-Pipeline: :func:`training_meshes` (multi-scale fitting of a template to the reference, §3.3) →
-:func:`train` (hierarchical WGAN-GP, §3.4, resumable checkpoints) → :func:`transfer` /
-:func:`interpolate` (any target mesh, open or closed, any genus, no re-meshing).
+Pipeline: :func:`training_meshes` (multi-scale fitting of a template to the reference, §3.3,
+configured by :class:`PrepareConfig`) → :func:`train` (hierarchical WGAN-GP, §3.4, configured by
+:class:`Config`, resumable checkpoints; returns a :class:`~jmeshtex.TrainResult` holding a
+:class:`Model`) → :func:`save` / :func:`load` → :func:`transfer` / :func:`interpolate` (any target
+mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`).
+
+Example:
+  >>> import jax
+  >>> from jmeshtex import dgts
+  >>> from jmeshtex.data import icosahedron, icosphere, torus
+  >>> meshes = dgts.training_meshes(icosphere(2), icosahedron(), config=dgts.PrepareConfig(levels=2, steps=5),
+  ...                               key=jax.random.key(0), progress=False)
+  >>> config = dgts.Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2)
+  >>> result = dgts.train(meshes, config, key=jax.random.key(1), progress=False)
+  >>> out = dgts.transfer(result.model, torus(8, 6), key=jax.random.key(2))
+  >>> out.vertices.shape
+  (1, 192, 3)
 """
 
+from .._train_result import TrainResult as TrainResult
+from ._config import Config as Config
 from ._config import PrepareConfig as PrepareConfig
-from ._config import TrainConfig as TrainConfig
-from ._model import Discriminator as Discriminator
-from ._model import Generator as Generator
-from ._model import LevelGeometry as LevelGeometry
-from ._model import discriminator as discriminator
-from ._model import generate as generate
-from ._model import generator_level as generator_level
-from ._model import hierarchy_geometry as hierarchy_geometry
-from ._model import init_level as init_level
-from ._model import upsample as upsample
+from ._model import Model as Model
+from ._model import load as load
+from ._model import save as save
 from ._multiscale import TrainingMeshes as TrainingMeshes
 from ._multiscale import fit_level as fit_level
 from ._multiscale import load_training_meshes as load_training_meshes
 from ._multiscale import sample_points as sample_points
 from ._multiscale import save_training_meshes as save_training_meshes
 from ._multiscale import training_meshes as training_meshes
-from ._train import DGTSModel as DGTSModel
+from ._networks import Discriminator as Discriminator
+from ._networks import Generator as Generator
+from ._networks import LevelGeometry as LevelGeometry
+from ._networks import discriminator as discriminator
+from ._networks import generate as generate
+from ._networks import generator_level as generator_level
+from ._networks import hierarchy_geometry as hierarchy_geometry
+from ._networks import init_level as init_level
+from ._networks import upsample as upsample
+from ._train import LOSS_NAMES as LOSS_NAMES
 from ._train import LevelReport as LevelReport
 from ._train import gradient_penalty as gradient_penalty
-from ._train import load_model as load_model
 from ._train import train as train
-from ._transfer import TransferResult as TransferResult
+from ._transfer import DGTSTransfer as DGTSTransfer
+from ._transfer import TransferPlan as TransferPlan
 from ._transfer import interpolate as interpolate
 from ._transfer import normal_heights as normal_heights
+from ._transfer import plan_transfer as plan_transfer
+from ._transfer import run_plan as run_plan
 from ._transfer import transfer as transfer
-from ._transfer import vertex_normals as vertex_normals

@@ -7,17 +7,20 @@ Two dataclasses, both frozen and JSON round-trippable (:meth:`to_dict` / :meth:`
   edge-length spread 5e-3, local equilateral term 5e-4, uniform-Laplacian "gravity" 1e-2,
   ``3000·(l + 1)`` samples at level ``l``) except the optimiser schedule: the reference alternates 3
   regulariser steps with 2 Chamfer steps for 3000 iterations at lr 1e-4 (15000 small steps); we take
-  1000 steps on the weighted sum at lr 5e-3, which moves vertices as far in far less time.
+  1000 steps on the weighted sum at learning rate 5e-3, which moves vertices as far in far less time.
   Decision (kept on purpose): for small steps, alternating blocks of steps on two losses follows the
   gradient flow of their step-count-weighted sum (a splitting scheme, error O(lr)), so the joint
   step reaches the same kind of fit; the one real difference is that Adam then normalises each
   loss's gradient on its own, which re-weights the reference's terms away from their nominal
   weights. The fitted meshes are only the GAN's training data and the fit is tested directly
   (distance to the reference surface, mean edge per level), so the nominal weights are used as given.
-- :class:`TrainConfig`: the hierarchical WGAN-GP (paper §3.4); defaults follow the paper and the
-  reference ``TrainOption`` (7 layers, widths 32 → 128, Adam lr 5e-4, betas (0.5, 0.99), lr halved
-  every 500 iterations, 2 discriminator and 3 generator steps per iteration, γ = 5, gradient-penalty
-  weight 0.1, noise amplitude 0.1 mean edges, 2000 iterations per level).
+- :class:`Config`: the hierarchical WGAN-GP (paper §3.4); defaults follow the paper and the
+  reference ``TrainOption`` (7 layers, widths 32 → 128, Adam learning rate 5e-4, betas (0.5, 0.99),
+  learning rate halved every 500 steps, 2 discriminator and 3 generator updates per step, γ = 5,
+  gradient-penalty weight 0.1, noise amplitude 0.1 mean edges, 2000 steps per level).
+
+Neither holds a seed: randomness comes from the ``key`` argument of :func:`~jmeshtex.dgts.training_meshes`
+and :func:`~jmeshtex.dgts.train`.
 """
 
 from __future__ import annotations
@@ -42,9 +45,9 @@ class PrepareConfig(ConfigBase):
     edge-length spread, negative entropy of each face's normalised edge lengths, uniform Laplacian).
 
     Attributes:
-      num_levels: number of levels (meshes) to produce, ≥ 1.
-      iterations: Adam steps per level.
-      lr: Adam learning rate.
+      levels: number of levels (meshes) to produce, ≥ 1.
+      steps: Adam steps per level.
+      learning_rate: Adam learning rate.
       samples_per_level: surface samples at level 0; level ``l`` uses ``(l + 1)`` times as many.
       weight_s2t, weight_t2s: Chamfer weights, template → reference and reference → template.
       weight_normal_s2t, weight_normal_t2s: normal-agreement weights.
@@ -53,12 +56,15 @@ class PrepareConfig(ConfigBase):
       weight_laplacian: weight of the uniform-Laplacian smoothness ("gravity") term.
       squared_chamfer: squared distances (False: plain distances, as the reference).
       scale_factor: rescaling between levels (edges halve under subdivision; 2 restores them).
-      seed: seed of the surface sampling.
+
+    Example:
+      >>> PrepareConfig(levels=2, steps=50).samples_per_level
+      3000
     """
 
-    num_levels: int = 4
-    iterations: int = 1000
-    lr: float = 5e-3
+    levels: int = 4
+    steps: int = 1000
+    learning_rate: float = 5e-3
     samples_per_level: int = 3000
     weight_s2t: float = 0.4
     weight_t2s: float = 0.6
@@ -69,18 +75,17 @@ class PrepareConfig(ConfigBase):
     weight_laplacian: float = 1e-2
     squared_chamfer: bool = False
     scale_factor: float = 2.0
-    seed: int = 0
 
     _RULES = (
-        rule("num_levels samples_per_level", lambda x: x >= 1, ">= 1"),
-        rule("iterations weight_s2t weight_t2s weight_normal_s2t weight_normal_t2s weight_edge_std weight_edge_local "
+        rule("levels samples_per_level", lambda x: x >= 1, ">= 1"),
+        rule("steps weight_s2t weight_t2s weight_normal_s2t weight_normal_t2s weight_edge_std weight_edge_local "
              "weight_laplacian", lambda x: x >= 0, ">= 0"),
-        rule("lr scale_factor", lambda x: x > 0, "> 0"),
+        rule("learning_rate scale_factor", lambda x: x > 0, "> 0"),
     )
 
 
 @dataclasses.dataclass(frozen=True)
-class TrainConfig(ConfigBase):
+class Config(ConfigBase):
     """The hierarchical WGAN-GP of DGTS (§3.4) with the reference code's defaults.
 
     Widths: layer ``i`` (1 ≤ i ≤ num_layers − 2) of level ``l`` has
@@ -93,24 +98,30 @@ class TrainConfig(ConfigBase):
       start_features, min_features, max_features: the width schedule above (32, 32, 128).
       noise_amplitude: std of the Gaussian vertex noise, in mean edges of the level (0.1).
       scale_factor: rescaling after each subdivision (2: the mean edge stays ≈ 1).
-      lr: Adam learning rate (5e-4), for both networks.
+      learning_rate: Adam learning rate (5e-4), for both networks.
       beta1, beta2: Adam betas (0.5, 0.99).
-      lr_decay: factor applied every ``lr_decay_every`` iterations (0.5 every 500).
-      lr_decay_every: iterations between decays.
-      discriminator_steps, generator_steps: updates per iteration (2, 3).
+      learning_rate_decay: factor applied to the learning rate every ``learning_rate_decay_every``
+        steps (0.5 every 500).
+      learning_rate_decay_every: steps between decays.
+      discriminator_steps, generator_steps: critic and generator updates per step (2, 3).
       reconstruction_weight: γ, weight of the vertex MSE of the reconstruction (5).
       penalty_weight: weight of the gradient penalty (0.1, as the reference code; the paper's
         WGAN-GP default would be 10).
       reconstruction_start: first level using the fixed noise z* for the reconstruction; below it
         the reconstruction uses fresh noise (the reference uses 1).
-      iterations: training iterations per level (2000).
+      steps: training steps per level (2000); one step is ``discriminator_steps`` critic updates
+        followed by ``generator_steps`` generator updates.
       negative_slope: leaky-ReLU slope (0.2).
       eps: instance-norm regulariser (1e-5).
-      seed: PRNG seed of initialisation, z* and the noise.
       shared_levels: levels ``0 … shared_levels − 1`` are padded (masked faces and vertices, which
         change no output) to the size of level ``shared_levels − 1``, so that, when their widths
         agree, they run one compiled training step instead of one each (0 or 1: no padding). Worth
         it for small, equal-width configurations (tests, demo), where compilation dominates.
+
+    Example:
+      >>> c = Config(steps=300, learning_rate=1e-3)
+      >>> Config.from_dict(c.to_dict()) == c, c.level_features(0, generator=False)[-1]
+      (True, 1)
     """
 
     num_layers: int = 7
@@ -119,30 +130,29 @@ class TrainConfig(ConfigBase):
     max_features: int = 128
     noise_amplitude: float = 0.1
     scale_factor: float = 2.0
-    lr: float = 5e-4
+    learning_rate: float = 5e-4
     beta1: float = 0.5
     beta2: float = 0.99
-    lr_decay: float = 0.5
-    lr_decay_every: int = 500
+    learning_rate_decay: float = 0.5
+    learning_rate_decay_every: int = 500
     discriminator_steps: int = 2
     generator_steps: int = 3
     reconstruction_weight: float = 5.0
     penalty_weight: float = 0.1
     reconstruction_start: int = 1
-    iterations: int = 2000
+    steps: int = 2000
     negative_slope: float = 0.2
     eps: float = 1e-5
-    seed: int = 0
     shared_levels: int = 0
 
     _RULES = (
         rule("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
-        rule("start_features min_features lr_decay_every generator_steps", lambda x: x >= 1, ">= 1"),
-        rule("noise_amplitude discriminator_steps iterations reconstruction_weight penalty_weight shared_levels",
+        rule("start_features min_features learning_rate_decay_every generator_steps", lambda x: x >= 1, ">= 1"),
+        rule("noise_amplitude discriminator_steps steps reconstruction_weight penalty_weight shared_levels",
              lambda x: x >= 0, ">= 0"),
-        rule("lr scale_factor", lambda x: x > 0, "> 0"),
+        rule("learning_rate scale_factor", lambda x: x > 0, "> 0"),
         rule("beta1 beta2", lambda x: 0 <= x < 1, "in [0, 1)"),
-        rule("lr_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
+        rule("learning_rate_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
         cross_rule(lambda c: c.min_features <= c.max_features,
                    "need min_features <= max_features, got {c.min_features}, {c.max_features}"),
     )
@@ -151,9 +161,9 @@ class TrainConfig(ConfigBase):
         """Output widths of the weight layers at ``level`` (embedding first, 3 or 1 last).
 
         Example:
-          >>> TrainConfig().level_features(0, generator=True)
+          >>> Config().level_features(0, generator=True)
           (32, 32, 32, 32, 32, 3)
-          >>> TrainConfig().level_features(2, generator=False)
+          >>> Config().level_features(2, generator=False)
           (128, 64, 32, 32, 32, 1)
         """
         hidden = [

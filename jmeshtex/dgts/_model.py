@@ -1,288 +1,150 @@
-"""DGTS generator and discriminator of one level, and the generator hierarchy (Hertz et al. 2020, §3.2–3.4).
+"""A trained DGTS hierarchy (:class:`Model`) and its files (:func:`save`, :func:`load`).
 
-Pure functions over plain parameter pytrees (:class:`~jmeshtex.ops.FaceConvStackParams`), plus thin
-flax modules (:class:`Generator`, :class:`Discriminator`) that only create those parameters.
-
-One generator level (paper §3.4, "noise before" variant of the reference code):
-
-.. math:: \\tilde v = v + z,\\qquad d = G_\\theta\\big(\\phi(\\tilde v)\\big) \\in \\mathbb R^{F\\times 3},
-   \\qquad v' = v + \\Pi_v(d)
-
-with ``z`` Gaussian vertex noise, ``φ`` the rigid-invariant face features of the *noisy* mesh
-(:func:`~jmeshtex.ops.face_features`), ``G`` a face-convolution stack and ``Π_v`` the average over a
-vertex's faces of the per-face coefficients expressed in the *clean* mesh's edge frames
-(:func:`~jmeshtex.ops.face_to_vertex_displacement`). Between levels the mesh is subdivided at edge
-midpoints and scaled by ``scale_factor`` (2), which keeps the mean edge ≈ 1 at every level.
+A model folder is written with :class:`jmeshtex.io.Checkpoints` (orbax; atomic: an interrupted save
+leaves no half-written model): the parameter arrays as one pytree, the config and the number of
+levels as its JSON record. (Training checkpoints, :func:`~jmeshtex.dgts.train`'s ``checkpoint_dir``,
+use the same mechanism with the optimiser state added; they are not model folders.)
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import NamedTuple
+import dataclasses
+import functools
+import os
+import pathlib
+from typing import Any
 
-import flax.linen as nn
-import jax  # noqa: F401  (the doctests use it)
-import jax.numpy as jnp
+import jax
 import numpy as np
 
-from .._errors import InputError
-from .._neighborhoods import FaceNeighborhood
-from .._types import Array, Float, Int, PRNGKey
-from ..geometry import face_neighborhood, subdivide_midpoint, to_jax
-from ..ops import (
-    FaceConvStackParams,
-    face_conv_stack,
-    face_features,
-    face_to_vertex_displacement,
-    init_face_conv_stack,
+from .._errors import MeshIOError
+from ..io import Checkpoints
+from ..ops import FaceConvStackParams
+from ._config import Config
+from ._networks import init_level
+
+#: the ``kind`` recorded with a model folder
+MODEL_KIND = "jmeshtex.dgts.Model"
+
+
+@functools.partial(
+    jax.tree_util.register_dataclass,
+    data_fields=["generators", "discriminators", "z_star"],
+    meta_fields=["config"],
 )
-from ._config import TrainConfig
+@dataclasses.dataclass(frozen=True, eq=False)
+class Model:
+    """A trained (or partly trained) DGTS hierarchy: the parameters bundled with their config.
 
-
-class LevelGeometry(NamedTuple):
-    """Static connectivity of one level of a hierarchy (a pytree of JAX arrays).
+    A pytree: the parameters and ``z_star`` are its leaves, ``config`` is static.
 
     Attributes:
-      nbhd: the level's :class:`~jmeshtex.geometry.FaceNeighborhood`.
-      edge_vertices: ``[E, 2]`` coarse edges whose midpoints become the next level's new vertices
-        (``[0, 2]`` at the last level).
-    """
-
-    nbhd: FaceNeighborhood
-    edge_vertices: Int[Array, "E 2"]
-
-
-def hierarchy_geometry(
-    faces: Int[np.ndarray, "F 3"], num_vertices: int, num_levels: int
-) -> tuple[tuple[LevelGeometry, ...], tuple[np.ndarray, ...]]:
-    """Connectivity of ``num_levels`` levels obtained by repeated midpoint subdivision of ``faces``.
-
-    Returns:
-      ``(geometries, faces_per_level)``; geometry ``l`` holds the face neighbourhood of level ``l`` and
-      the subdivision edges from level ``l`` to ``l + 1``.
+      config: the :class:`~jmeshtex.dgts.Config` it was trained with (widths, activation, noise
+        amplitude, scale factor: everything :func:`~jmeshtex.dgts.transfer` needs).
+      generators: one :class:`~jmeshtex.ops.FaceConvStackParams` per trained level, coarsest first.
+      discriminators: the matching critics (kept to warm-start the next level).
+      z_star: ``[V_0, 3]`` float32 fixed reconstruction noise of the coarsest level.
 
     Example:
-      >>> from jmeshtex.data import icosahedron
-      >>> geos, faces = hierarchy_geometry(icosahedron().faces, 12, 3)
-      >>> [f.shape[0] for f in faces], [g.edge_vertices.shape[0] for g in geos]
-      ([20, 80, 320], [30, 120, 0])
+      >>> import jax.numpy as jnp
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> g = init_level(c, 0, generator=True, key=jax.random.key(0))
+      >>> d = init_level(c, 0, generator=False, key=jax.random.key(1))
+      >>> m = Model(c, (g,), (d,), np.zeros((12, 3), np.float32))
+      >>> m.num_levels, len(jax.tree.leaves(m))
+      (1, 9)
     """
-    f = np.asarray(faces, dtype=np.int64)
-    V = int(num_vertices)
-    dummy = np.zeros((V, 3))
-    geos, all_faces = [], []
-    for level in range(num_levels):
-        nb = face_neighborhood(f, V)
-        if level + 1 < num_levels:
-            sub = subdivide_midpoint(dummy, f)
-            edges, nf = sub.edge_vertices, sub.faces
-        else:
-            edges, nf = np.zeros((0, 2), np.int64), None
-        geos.append(LevelGeometry(to_jax(nb), jnp.asarray(edges, jnp.int32)))
-        all_faces.append(f)
-        if nf is not None:
-            V += len(edges)
-            dummy = np.zeros((V, 3))
-            f = nf
-    return tuple(geos), tuple(all_faces)
+
+    config: Config
+    generators: tuple[FaceConvStackParams, ...]
+    discriminators: tuple[FaceConvStackParams, ...]
+    z_star: np.ndarray
+
+    @property
+    def num_levels(self) -> int:
+        """Number of trained levels."""
+        return len(self.generators)
+
+    def replace(self, **changes: Any) -> Model:
+        """A copy with some fields replaced."""
+        return dataclasses.replace(self, **changes)
 
 
-def upsample(vertices: Float[Array, "V 3"], edge_vertices: Int[Array, "E 2"], *, scale: float = 2.0) -> Float[Array, "V+E 3"]:
-    """Midpoint subdivision of the positions followed by a uniform rescale (between DGTS levels).
-
-    .. math:: v' = s\\,[\\,v;\\ \\tfrac12(v_{e_0} + v_{e_1})\\,]
-
-    Example:
-      >>> upsample(jnp.array([[0.0, 0, 0], [1.0, 0, 0]]), jnp.array([[0, 1]])).tolist()
-      [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
-    """
-    mids = 0.5 * (vertices[edge_vertices[:, 0]] + vertices[edge_vertices[:, 1]])
-    return jnp.concatenate([vertices, mids], axis=0) * jnp.asarray(scale, vertices.dtype)
+def model_state(model: Model) -> dict:
+    """The array pytree stored for ``model``."""
+    return {"generators": tuple(model.generators), "discriminators": tuple(model.discriminators),
+            "z_star": np.asarray(model.z_star, np.float32)}
 
 
-def generator_level(
-    params: FaceConvStackParams,
-    vertices: Float[Array, "V 3"],
-    nbhd: FaceNeighborhood,
-    noise: Float[Array, "V 3"] | float = 0.0,
-    *,
-    negative_slope: float = 0.2,
-    eps: float = 1e-5,
-) -> Float[Array, "V 3"]:
-    """Per-vertex displacement produced by one DGTS generator level (module docstring formula).
+def model_like(config: Config, levels: int, num_vertices: int) -> dict:
+    """The structure, shapes and dtypes of :func:`model_state` for ``levels`` levels (for restoring)."""
+    key = jax.random.key(0)
+    return {
+        "generators": tuple(init_level(config, i, generator=True, key=key) for i in range(levels)),
+        "discriminators": tuple(init_level(config, i, generator=False, key=key) for i in range(levels)),
+        "z_star": np.zeros((num_vertices, 3), np.float32),
+    }
+
+
+def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
+    """Write ``model`` into the folder ``path``, atomically (read it back with :func:`load`).
 
     Args:
-      params: the level's face-convolution stack (last width 3).
-      vertices: ``[V, 3]`` clean positions (level frame, mean edge ≈ 1).
-      nbhd: the level's face neighbourhood.
-      noise: ``[V, 3]`` vertex noise added before the features are computed (0: none).
-      negative_slope, eps: leaky-ReLU slope and instance-norm regulariser.
+      model: a :class:`Model` (``train(...).model``).
+      path: the folder; created if needed, a model already there is replaced.
 
     Returns:
-      ``[V, 3]`` world-frame displacement ``Π_v(d)``; rotates with rigid motions of ``vertices``
-      (and ``noise``), independent of vertex and face labelling.
+      The folder.
 
     Example:
-      >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.geometry import face_neighborhood
-      >>> v, f = icosahedron()
-      >>> p = init_face_conv_stack(jax.random.key(0), (8, 8, 3))
-      >>> generator_level(p, jnp.asarray(v, jnp.float32), face_neighborhood(f)).shape
-      (12, 3)
+      >>> import tempfile
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> g = init_level(c, 0, generator=True, key=jax.random.key(0))
+      >>> d = init_level(c, 0, generator=False, key=jax.random.key(1))
+      >>> folder = save(Model(c, (g,), (d,), np.zeros((12, 3), np.float32)), tempfile.mkdtemp())
+      >>> load(folder).num_levels
+      1
     """
-    if params.convs and params.convs[-1].weight.shape[-1] != 3:
-        raise InputError("generator_level: the last layer must have 3 outputs (displacement coefficients)")
-    noisy = vertices + jnp.asarray(noise, vertices.dtype)
-    d = face_conv_stack(face_features(noisy, nbhd), nbhd, params, negative_slope=negative_slope, eps=eps)
-    return face_to_vertex_displacement(d, vertices, nbhd)
+    folder = pathlib.Path(path)
+    meta = {"kind": MODEL_KIND, "config": model.config.to_dict(), "levels": model.num_levels,
+            "num_vertices": int(np.shape(model.z_star)[0])}
+    with Checkpoints(folder, keep=1) as ckpt:
+        ckpt.save(model.num_levels, model_state(model), meta=meta)
+    return folder
 
 
-def discriminator_features(
-    params: FaceConvStackParams,
-    features: Float[Array, "F 3 4"],
-    nbhd: FaceNeighborhood,
-    *,
-    negative_slope: float = 0.2,
-    eps: float = 1e-5,
-) -> Float[Array, " F"]:
-    """Per-face critic scores of a patch discriminator, from face features (used by the penalty).
-
-    Example:
-      >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.geometry import face_neighborhood
-      >>> v, f = icosahedron()
-      >>> nb = face_neighborhood(f)
-      >>> p = init_face_conv_stack(jax.random.key(0), (8, 8, 1))
-      >>> discriminator_features(p, face_features(jnp.asarray(v), nb), nb).shape
-      (20,)
-    """
-    return face_conv_stack(features, nbhd, params, negative_slope=negative_slope, eps=eps)[:, 0]
-
-
-def discriminator(
-    params: FaceConvStackParams,
-    vertices: Float[Array, "V 3"],
-    nbhd: FaceNeighborhood,
-    *,
-    negative_slope: float = 0.2,
-    eps: float = 1e-5,
-) -> Float[Array, " F"]:
-    """Per-face critic scores of a mesh (DGTS's patch discriminator: each face sees its receptive field).
-
-    .. math:: D(v)_f = \\mathrm{stack}_\\psi\\big(\\phi(v)\\big)_f
-
-    Example:
-      >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.geometry import face_neighborhood
-      >>> v, f = icosahedron()
-      >>> p = init_face_conv_stack(jax.random.key(0), (8, 8, 1))
-      >>> discriminator(p, jnp.asarray(v), face_neighborhood(f)).shape
-      (20,)
-    """
-    return discriminator_features(params, face_features(vertices, nbhd), nbhd, negative_slope=negative_slope, eps=eps)
-
-
-def generate(
-    params: Sequence[FaceConvStackParams],
-    vertices: Float[Array, "V 3"],
-    geometry: Sequence[LevelGeometry],
-    noise: Sequence[Float[Array, "Vl 3"] | float],
-    *,
-    scale: float = 2.0,
-    negative_slope: float = 0.2,
-    eps: float = 1e-5,
-) -> Float[Array, "Vn 3"]:
-    """Run generator levels one after another, subdividing in between (DGTS inference, §3.4).
-
-    .. math:: v_{l+1} = s\\, U_l\\big(v_l + G_l(v_l, z_l)\\big)
+def load(path: str | os.PathLike) -> Model:
+    """Read a :class:`Model` from a folder written by :func:`save`.
 
     Args:
-      params: one parameter set per level to run (``len(params) = n``).
-      vertices: ``[V, 3]`` input of the first level run, in its frame.
-      geometry: the matching :class:`LevelGeometry` per level run.
-      noise: per level, ``[V_l, 3]`` noise or a scalar 0.
-      scale: rescaling after each subdivision.
+      path: the folder.
 
     Returns:
-      ``[V_n, 3]`` output of the last level (not subdivided after it), in its frame.
+      The :class:`Model`.
+
+    Raises:
+      MeshIOError: the folder holds no DGTS model, or its files are damaged.
 
     Example:
-      >>> from jmeshtex.data import icosahedron
-      >>> v, f = icosahedron()
-      >>> geos, _ = hierarchy_geometry(f, 12, 2)
-      >>> ps = [init_face_conv_stack(jax.random.key(i), (8, 3)) for i in range(2)]
-      >>> generate(ps, jnp.asarray(v, jnp.float32), geos, [0.0, 0.0]).shape
-      (42, 3)
+      >>> import tempfile
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
+      >>> ds = tuple(init_level(c, i, generator=False, key=jax.random.key(i)) for i in range(2))
+      >>> folder = save(Model(c, gs, ds, np.zeros((12, 3), np.float32)), tempfile.mkdtemp())
+      >>> model = load(folder)
+      >>> model.num_levels, model.config == c
+      (2, True)
     """
-    if not (len(params) == len(geometry) == len(noise)):
-        raise InputError(
-            f"generate: got {len(params)} parameter sets, {len(geometry)} geometries and {len(noise)} noises; "
-            "pass one of each per level"
-        )
-    v = vertices
-    for i, (p, g, z) in enumerate(zip(params, geometry, noise, strict=True)):
-        v = v + generator_level(p, v, g.nbhd, z, negative_slope=negative_slope, eps=eps)
-        if i + 1 < len(params):
-            v = upsample(v, g.edge_vertices, scale=scale)
-    return v
-
-
-def init_level(key: PRNGKey, config: TrainConfig, level: int, *, generator: bool, dtype=jnp.float32) -> FaceConvStackParams:
-    """Fresh parameters of one level's generator or discriminator (widths from the config).
-
-    Example:
-      >>> p = init_level(jax.random.key(0), TrainConfig(), 1, generator=True)
-      >>> p.embed.weight.shape, p.convs[-1].weight.shape
-      ((4, 64), (64, 3))
-    """
-    return init_face_conv_stack(key, config.level_features(level, generator=generator), dtype=dtype)
-
-
-class _FaceStackModule(nn.Module):
-    """Fields shared by the flax wrappers: widths, activation and norm settings, parameter dtype."""
-
-    features: Sequence[int]
-    negative_slope: float = 0.2
-    eps: float = 1e-5
-    param_dtype: jnp.dtype = jnp.float32
-
-    def stack(self) -> FaceConvStackParams:
-        """Create (or fetch) the ``"stack"`` parameter: a :class:`~jmeshtex.ops.FaceConvStackParams`."""
-        return self.param("stack", lambda key: init_face_conv_stack(key, self.features, dtype=self.param_dtype))
-
-
-class Generator(_FaceStackModule):
-    """Thin flax wrapper of one generator level: creates ``"stack"`` and calls :func:`generator_level`.
-
-    Example:
-      >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.geometry import face_neighborhood
-      >>> v, f = icosahedron()
-      >>> nb, x = face_neighborhood(f), jnp.asarray(v, jnp.float32)
-      >>> m = Generator((8, 8, 3))
-      >>> variables = m.init(jax.random.key(0), x, nb)
-      >>> m.apply(variables, x, nb).shape
-      (12, 3)
-    """
-
-    @nn.compact
-    def __call__(self, vertices, nbhd, noise=0.0):
-        return generator_level(self.stack(), vertices, nbhd, noise, negative_slope=self.negative_slope, eps=self.eps)
-
-
-class Discriminator(_FaceStackModule):
-    """Thin flax wrapper of one discriminator level: creates ``"stack"`` and calls :func:`discriminator`.
-
-    Example:
-      >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.geometry import face_neighborhood
-      >>> v, f = icosahedron()
-      >>> nb, x = face_neighborhood(f), jnp.asarray(v, jnp.float32)
-      >>> m = Discriminator((8, 8, 1))
-      >>> m.apply(m.init(jax.random.key(0), x, nb), x, nb).shape
-      (20,)
-    """
-
-    @nn.compact
-    def __call__(self, vertices, nbhd):
-        return discriminator(self.stack(), vertices, nbhd, negative_slope=self.negative_slope, eps=self.eps)
+    folder = pathlib.Path(path)
+    with Checkpoints(folder, keep=1) as ckpt:
+        if ckpt.latest_step() is None:
+            raise MeshIOError(f"{folder} holds no DGTS model: write one with jmeshtex.dgts.save "
+                              "(or `jmeshtex dgts train`)")
+        meta = ckpt.read_meta()
+        if meta.get("kind") != MODEL_KIND:
+            raise MeshIOError(f"{folder} holds a checkpoint of {meta.get('kind')!r}, not a DGTS model "
+                              "(a training checkpoint_dir is not a model: save train(...).model)")
+        config = Config.from_dict(meta["config"])
+        state, _ = ckpt.restore(model_like(config, int(meta["levels"]), int(meta["num_vertices"])))
+    return Model(config, tuple(state["generators"]), tuple(state["discriminators"]),
+                 np.asarray(state["z_star"], np.float32))

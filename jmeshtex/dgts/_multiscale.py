@@ -25,8 +25,9 @@ import numpy as np
 import optax
 
 from .._errors import InputError, MeshIOError
+from .._mesh import Mesh, as_mesh
 from .._types import Array, Float, Int, PRNGKey
-from ..geometry import subdivide_midpoint, validate_mesh
+from ..geometry import mean_edge_length, subdivide_midpoint, unique_edges, validate_mesh
 from ..io import atomic_save_npz, load_npz
 from ..ops import chamfer_distance, safe_norm, safe_normalize
 from ._config import PrepareConfig
@@ -55,16 +56,39 @@ class TrainingMeshes(NamedTuple):
 
     @property
     def num_levels(self) -> int:
+        """Number of levels L."""
         return len(self.vertices)
 
+    def mesh(self, level: int) -> Mesh:
+        """The fitted mesh of ``level`` (negative: from the finest) as a :class:`~jmeshtex.Mesh`, in
+        the level's frame."""
+        return Mesh(np.asarray(self.vertices[level], np.float64), np.asarray(self.faces[level], np.int64))
+
 
 # ----------------------------------------------------------------------------------------------
-# atomic files (shared with _train)
+# files
 # ----------------------------------------------------------------------------------------------
 
 
-def save_training_meshes(path: str | os.PathLike, meshes: TrainingMeshes) -> pathlib.Path:
-    """Write :class:`TrainingMeshes` to one ``.npz`` file, atomically."""
+def save_training_meshes(meshes: TrainingMeshes, path: str | os.PathLike) -> pathlib.Path:
+    """Write :class:`TrainingMeshes` to one ``.npz`` file, atomically.
+
+    Args:
+      meshes: what :func:`training_meshes` built.
+      path: the file (``.npz``); its folder is created.
+
+    Returns:
+      The path written.
+
+    Example:
+      >>> import tempfile, pathlib
+      >>> from jmeshtex.data import icosahedron
+      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
+      ...                      key=jax.random.key(0))
+      >>> path = save_training_meshes(tm, pathlib.Path(tempfile.mkdtemp()) / "training.npz")
+      >>> [len(f) for f in load_training_meshes(path).faces]
+      [20, 80]
+    """
     arrays = {"template": meshes.template, "scales": meshes.scales, "center": meshes.center}
     for level, (v, f) in enumerate(zip(meshes.vertices, meshes.faces, strict=True)):
         arrays[f"vertices_{level}"] = v
@@ -75,7 +99,11 @@ def save_training_meshes(path: str | os.PathLike, meshes: TrainingMeshes) -> pat
 
 
 def load_training_meshes(path: str | os.PathLike) -> TrainingMeshes:
-    """Read what :func:`save_training_meshes` wrote."""
+    """Read what :func:`save_training_meshes` wrote.
+
+    Raises:
+      MeshIOError: no such file, or not a DGTS training-mesh file.
+    """
     data = load_npz(path, "training meshes")
     try:
         n = len(data["scales"])
@@ -96,27 +124,22 @@ def load_training_meshes(path: str | os.PathLike) -> TrainingMeshes:
 # ----------------------------------------------------------------------------------------------
 
 
-def unique_edges(faces: Int[np.ndarray, "F 3"]) -> Int[np.ndarray, "E 2"]:
-    """Undirected edges ``[E, 2]`` (sorted pairs, sorted rows) of a triangle mesh.
-
-    Example:
-      >>> unique_edges(np.array([[0, 1, 2], [2, 1, 3]])).tolist()
-      [[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]]
-    """
-    f = np.asarray(faces, dtype=np.int64)
-    pairs = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)
-    return np.unique(np.sort(pairs, axis=1), axis=0)
-
-
 def sample_points(
-    key: PRNGKey, vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"], n: int
+    vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"], n: int, *, key: PRNGKey
 ) -> tuple[Float[Array, "n 3"], Float[Array, "n 3"]]:
     """Area-uniform random points on a mesh with their face normals, inside ``jit``.
 
     Faces are drawn with probability ``A_f / ΣA`` (not differentiated), barycentric coordinates by
-    the square-root rule; the points are differentiable in ``vertices``.
+    the square-root rule; the points are differentiable in ``vertices``. A pure JAX function of the
+    mesh's arrays (``sample_points(*mesh, n, key=key)`` for a :class:`~jmeshtex.Mesh`).
 
     .. math:: p = (1 - \\sqrt{u})\\, a + \\sqrt{u}(1 - w)\\, b + \\sqrt{u}\\, w\\, c
+
+    Args:
+      vertices: ``[V, 3]`` positions (JAX or NumPy).
+      faces: ``[F, 3]`` triangles.
+      n: number of points (static).
+      key: PRNG key of the draw.
 
     Returns:
       ``(points [n, 3], unit normals [n, 3])``, ``vertices``' dtype.
@@ -124,7 +147,7 @@ def sample_points(
     Example:
       >>> from jmeshtex.data import single_triangle
       >>> v, f = single_triangle()
-      >>> p, nrm = sample_points(jax.random.key(0), jnp.asarray(v), jnp.asarray(f), 5)
+      >>> p, nrm = sample_points(jnp.asarray(v), jnp.asarray(f), 5, key=jax.random.key(0))
       >>> p.shape, nrm[0].tolist()
       ((5, 3), [0.0, 0.0, 1.0])
     """
@@ -150,12 +173,12 @@ class _FitGeometry(NamedTuple):
 
 
 def fitting_loss(
-    vertices: Float[Array, "V 3"], geo: _FitGeometry, key: PRNGKey, *, config: PrepareConfig, num_samples: int
+    vertices: Float[Array, "V 3"], geo: _FitGeometry, *, key: PRNGKey, config: PrepareConfig, num_samples: int
 ) -> tuple[Float[Array, ""], dict[str, Float[Array, ""]]]:
     """The level-fitting objective of :class:`PrepareConfig` and its terms (see there)."""
     k_s, k_t = jax.random.split(key)
-    ps, ns = sample_points(k_s, vertices, geo.faces, num_samples)
-    pt, nt = sample_points(k_t, geo.target_vertices, geo.target_faces, num_samples)
+    ps, ns = sample_points(vertices, geo.faces, num_samples, key=k_s)
+    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
     cd = chamfer_distance(ps, pt, p_normals=ns, q_normals=nt, squared=config.squared_chamfer, oriented=True)
     e = vertices[geo.edges[:, 1]] - vertices[geo.edges[:, 0]]
     length = safe_norm(e)
@@ -196,21 +219,21 @@ _CHUNK = 50
 @functools.lru_cache(maxsize=16)
 def _fit_runner(config: PrepareConfig, num_samples: int):
     """A jit-compiled runner of up to ``_CHUNK`` Adam steps (cached per config and sample count)."""
-    opt = optax.adam(config.lr)
+    opt = optax.adam(config.learning_rate)
 
     @jax.jit
     def run_chunk(v, state, key, geo, n):
         def body(i, carry):
             v, state, _ = carry
             (_, terms), g = jax.value_and_grad(
-                lambda x: fitting_loss(x, geo, jax.random.fold_in(key, i), config=config, num_samples=num_samples),
+                lambda x: fitting_loss(x, geo, key=jax.random.fold_in(key, i), config=config, num_samples=num_samples),
                 has_aux=True,
             )(v)
             with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
                 updates, state = opt.update(g, state, v)
             return optax.apply_updates(v, updates), state, terms
 
-        terms0 = jax.eval_shape(lambda x: fitting_loss(x, geo, key, config=config, num_samples=num_samples)[1], v)
+        terms0 = jax.eval_shape(lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v)
         zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
         return jax.lax.fori_loop(0, n, body, (v, state, zeros))
 
@@ -218,31 +241,38 @@ def _fit_runner(config: PrepareConfig, num_samples: int):
 
 
 def fit_level(
-    vertices: Float[np.ndarray, "V 3"],
-    faces: Int[np.ndarray, "F 3"],
-    target_vertices: Float[np.ndarray, "T 3"],
-    target_faces: Int[np.ndarray, "G 3"],
+    mesh: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
+    target: Mesh | tuple[Float[np.ndarray, "T 3"], Int[np.ndarray, "G 3"]],
     *,
     config: PrepareConfig,
     num_samples: int,
     key: PRNGKey,
     progress: Callable[[int], None] | None = None,
 ) -> tuple[Float[np.ndarray, "V 3"], dict[str, float]]:
-    """Fit one level's mesh to the reference with Adam (jit-compiled steps, float32).
+    """Fit one level's mesh to the reference with Adam (``config.steps`` jit-compiled steps, float32).
 
     Args:
-      vertices: ``[V, 3]`` initial positions (level frame).
-      faces: ``[F, 3]`` the level's triangles.
-      target_vertices, target_faces: the reference in the same frame.
-      config: weights, learning rate and number of iterations.
+      mesh: the level's initial mesh (level frame): :class:`~jmeshtex.Mesh` or ``(vertices [V, 3],
+        faces [F, 3])``; only the positions move.
+      target: the reference in the same frame (Mesh or pair).
+      config: weights, learning rate and number of steps.
       num_samples: surface samples drawn on each mesh per step.
       key: PRNG key of the sampling.
       progress: called with the number of steps done after each chunk of steps.
 
     Returns:
       ``(vertices [V, 3] float64, final loss terms)``.
+
+    Example:
+      >>> from jmeshtex.data import icosahedron, icosphere
+      >>> v, terms = fit_level(icosahedron(), icosphere(2), config=PrepareConfig(steps=10), num_samples=100,
+      ...                      key=jax.random.key(0))
+      >>> v.shape, sorted(terms)[:2]
+      ((12, 3), ['edge_local', 'edge_std'])
     """
-    edges = unique_edges(faces)
+    vertices, faces = as_mesh(mesh, what="fit_level: mesh")
+    target_vertices, target_faces = as_mesh(target, what="fit_level: target")
+    edges = unique_edges(faces, len(vertices))
     degree = np.bincount(edges.ravel(), minlength=len(vertices)).astype(np.float32)
     geo = _FitGeometry(
         jnp.asarray(faces, jnp.int32),
@@ -257,9 +287,9 @@ def fit_level(
     state = opt.init(v)
     terms: dict = {}
     done = 0
-    n_chunks = -(-int(config.iterations) // chunk)
+    n_chunks = -(-int(config.steps) // chunk)
     for c in range(n_chunks):
-        n = min(chunk, int(config.iterations) - done)
+        n = min(chunk, int(config.steps) - done)
         v, state, terms = run_chunk(v, state, jax.random.fold_in(key, c), geo, jnp.int32(n))
         done += n
         if progress is not None:
@@ -285,11 +315,9 @@ def normalize_pair(
       >>> from jmeshtex.data import icosphere
       >>> v, f = icosphere(1)
       >>> r, t, s, c = normalize_pair(2 * v + 1, v, f)
-      >>> from jmeshtex.geometry import mean_edge_length
       >>> round(mean_edge_length(t, f), 9), bool(np.allclose(r, t))
       (1.0, True)
     """
-    from ..geometry import mean_edge_length
 
     def unit(v):
         lo, hi = v.min(0), v.max(0)
@@ -306,11 +334,12 @@ def normalize_pair(
 
 
 def training_meshes(
-    reference: tuple[Float[np.ndarray, "R 3"], Int[np.ndarray, "G 3"]],
-    template: tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
+    reference: Mesh | tuple[Float[np.ndarray, "R 3"], Int[np.ndarray, "G 3"]],
+    template: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
     *,
+    key: PRNGKey,
     config: PrepareConfig | None = None,
-    progress: Callable[[str, int, int], None] | None = None,
+    progress: bool | Callable[[str, int, int], None] = True,
 ) -> TrainingMeshes:
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
 
@@ -319,37 +348,41 @@ def training_meshes(
     ``samples_per_level·(l + 1)`` samples.
 
     Args:
-      reference: ``(vertices, faces)`` of the textured reference (open or closed, any genus).
-      template: ``(vertices, faces)`` of a coarse mesh of the same topology (icosphere, torus, ...).
+      reference: the textured reference (open or closed, any genus): a :class:`~jmeshtex.Mesh` or
+        a ``(vertices [R, 3], faces [G, 3])`` pair.
+      template: a coarse mesh of the same topology (icosphere, torus, ...), Mesh or pair.
+      key: PRNG key of the surface sampling.
       config: :class:`PrepareConfig` (default: its defaults).
-      progress: ``progress(stage, done, total)`` callback (for progress bars).
+      progress: True: a tqdm bar per level; False: none; a callable: called as
+        ``progress(stage, done, total)`` instead (``stage`` is ``"level l"``).
 
     Returns:
       :class:`TrainingMeshes`.
 
     Raises:
-      MeshError subclasses: an invalid reference or template (:func:`jmeshtex.geometry.validate_mesh`).
+      InputError: ``reference`` or ``template`` is not a mesh.
+      MeshError: (a subclass) an invalid reference or template (:func:`jmeshtex.geometry.validate_mesh`).
 
     Example:
       >>> from jmeshtex.data import icosphere, icosahedron
-      >>> tm = training_meshes(icosphere(2), icosahedron(), config=PrepareConfig(num_levels=2, iterations=50,
-      ...     samples_per_level=200))
+      >>> tm = training_meshes(icosphere(2), icosahedron(), config=PrepareConfig(levels=2, steps=50,
+      ...     samples_per_level=200), key=jax.random.key(0), progress=False)
       >>> [f.shape[0] for f in tm.faces], round(float(tm.scales[1] / tm.scales[0]), 6)
       ([20, 80], 2.0)
     """
     config = PrepareConfig() if config is None else config
-    rv, rf = (np.asarray(a) for a in reference)
-    tv, tf = (np.asarray(a) for a in template)
+    rv, rf = as_mesh(reference, what="training_meshes: reference")
+    tv, tf = as_mesh(template, what="training_meshes: template")
     validate_mesh(rv, rf)
     validate_mesh(tv, tf)
-    rv = rv.astype(np.float64)
-    rf = rf.astype(np.int64)
-    f = tf.astype(np.int64)
-    target, v, scale, center = normalize_pair(rv, tv.astype(np.float64), f)
+    rv = np.asarray(rv, np.float64)
+    rf = np.asarray(rf, np.int64)
+    f = np.asarray(tf, np.int64)
+    target, v, scale, center = normalize_pair(rv, np.asarray(tv, np.float64), f)
     template_out = v.copy()
-    key = jax.random.key(config.seed)
+    report = _progress_bars("prepare") if progress is True else (progress or None)
     verts, faces, edges, scales = [], [], [], []
-    for level in range(config.num_levels):
+    for level in range(config.levels):
         if level > 0:
             sub = subdivide_midpoint(v, f)
             v, f = sub.vertices * config.scale_factor, sub.faces
@@ -357,12 +390,29 @@ def training_meshes(
             target = target * config.scale_factor
             scale *= config.scale_factor
         stage = f"level {level}"
-        cb = None if progress is None else (lambda done, stage=stage: progress(stage, done, config.iterations))
+        cb = None if report is None else (lambda done, stage=stage: report(stage, done, config.steps))
         v, _ = fit_level(
-            v, f, target, rf, config=config, num_samples=config.samples_per_level * (level + 1),
+            (v, f), (target, rf), config=config, num_samples=config.samples_per_level * (level + 1),
             key=jax.random.fold_in(key, level), progress=cb,
         )
         verts.append(v)
         faces.append(f)
         scales.append(scale)
     return TrainingMeshes(template_out, tuple(verts), tuple(faces), tuple(edges), np.asarray(scales), center)
+
+
+def _progress_bars(what: str) -> Callable[[str, int, int], None]:
+    """A ``progress(stage, done, total)`` callback drawing one tqdm bar per stage."""
+    from tqdm.auto import tqdm
+
+    bars: dict = {}
+
+    def progress(stage: str, done: int, total: int) -> None:
+        bar = bars.get(stage)
+        if bar is None:
+            bar = bars[stage] = tqdm(total=total, desc=f"{what} {stage}", unit="step")
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+
+    return progress

@@ -1,4 +1,4 @@
-"""Hierarchical WGAN-GP training of DGTS (Hertz et al. 2020, §3.4), resumable per level.
+"""Hierarchical WGAN-GP training of DGTS (Hertz et al. 2020, §3.4), resumable.
 
 Levels are trained one after another. At level ``L`` the input template runs through the frozen
 generators ``0 … L−1`` (subdividing and rescaling in between) and the trainable generator ``L``; a
@@ -10,39 +10,41 @@ patch discriminator scores every face of the result against the level-``L`` trai
 
 .. math:: \\mathcal L_G = -\\overline{D(G(z))} + \\gamma\\, \\mathrm{MSE}\\big(G(z^*, 0, …, 0), x_L\\big)
 
-(gradient penalty on interpolated face features, one ``α ~ U(0, 1)`` per critic step, per-face
+(gradient penalty on interpolated face features, one ``α ~ U(0, 1)`` per critic update, per-face
 gradient norms; reconstruction with the fixed noise ``z*`` at the coarsest level and zero noise
-above). Adam with step decay; ``discriminator_steps`` critic updates then ``generator_steps``
-generator updates per iteration.
+above). Adam with step decay; one training step is ``discriminator_steps`` critic updates then
+``generator_steps`` generator updates.
 
 How it runs (compilation dominated the first version: each level compiled a step that unrolled
 every frozen generator three times, 265 s of 872 s in the small benchmark):
 
 - the frozen levels ``0 … L−1`` only make inputs for level ``L``; :func:`level_batch` runs them
-  forward, level by level, on all noise draws of ``CHUNK`` iterations at once (one compiled
+  forward, level by level, on all noise draws of ``CHUNK`` steps at once (one compiled
   function per frozen level, reused by every later level since the batch size does not change);
-- :func:`train_chunk` holds level ``L``'s generator and critic only, and runs ``CHUNK`` iterations
+- :func:`train_chunk` holds level ``L``'s generator and critic only, and runs ``CHUNK`` steps
   per call (``fori_loop``), so every level compiles one program of the same size;
-- ``TrainConfig.shared_levels`` pads the small levels (masked faces and vertices, the
+- ``Config.shared_levels`` pads the small levels (masked faces and vertices, the
   padded-neighbourhood contract: no loss or update changes, tested) to one size so equal-width
   levels reuse one compiled step (tests, demo);
-- compilation is ahead of time (``lower().compile()``), timed apart from the iterations
+- compilation is ahead of time (``lower().compile()``), timed apart from the steps
   (:class:`LevelReport`), and cached per shapes in the process; the CLI also enables JAX's
   persistent compilation cache (``jmeshtex dgts --help``).
 
-Checkpoints (``out_dir``): after each level ``level_XX.npz`` (generator and discriminator
-parameters) and then ``state.json`` (config, completed levels, timings) are written atomically, with
-``z_star.npz`` before the first level; :func:`train` with the same ``out_dir`` resumes after the
-last complete level.
+Checkpoints (``checkpoint_dir``, :class:`jmeshtex.io.Checkpoints`): after every level, and every
+``checkpoint_every`` steps within a level, the parameters of the completed levels, ``z*``, the
+current level's networks and optimiser states and the loss histories are saved, numbered by the
+steps done in all. :func:`train` with the same folder resumes from the newest one and gives the same
+parameters as a run that was never interrupted (the noise of every chunk is drawn from the key and
+the chunk's index). The folder is tied to the config, the key and the training meshes: another
+run there raises :class:`~jmeshtex.CheckpointMismatchError`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import json
+import hashlib
 import os
-import pathlib
 import time
 from typing import Any, NamedTuple
 
@@ -51,14 +53,17 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._errors import ConfigError, InputError, MeshIOError
+from .._errors import ConfigError, InputError
 from .._neighborhoods import FaceNeighborhood
-from .._types import Array, Float
+from .._train_result import TrainResult
+from .._types import Array, Float, PRNGKey
 from ..geometry import pad_to
-from ..io import atomic_save_npz, atomic_write, load_npz
+from ..io import Checkpoints
 from ..ops import FaceConvStackParams, face_features, masked_mean
-from ._config import TrainConfig
-from ._model import (
+from ._config import Config
+from ._model import Model, model_like, model_state
+from ._multiscale import TrainingMeshes
+from ._networks import (
     discriminator,
     discriminator_features,
     generator_level,
@@ -66,49 +71,33 @@ from ._model import (
     init_level,
     upsample,
 )
-from ._multiscale import TrainingMeshes
 
-STATE_FILE = "state.json"
-
-
-class DGTSModel(NamedTuple):
-    """A trained (or partly trained) DGTS hierarchy.
-
-    Attributes:
-      config: the :class:`TrainConfig` it was trained with.
-      generators: one parameter set per trained level, coarsest first.
-      discriminators: the matching discriminators (kept to warm-start and resume).
-      z_star: ``[V_0, 3]`` the fixed reconstruction noise of the coarsest level.
-    """
-
-    config: TrainConfig
-    generators: tuple[FaceConvStackParams, ...]
-    discriminators: tuple[FaceConvStackParams, ...]
-    z_star: np.ndarray
-
-    @property
-    def num_levels(self) -> int:
-        return len(self.generators)
+#: the ``kind`` recorded with every training checkpoint
+CHECKPOINT_KIND = "jmeshtex.dgts.train"
 
 
 @dataclasses.dataclass
 class LevelReport:
-    """What training one level measured (seconds and final losses).
+    """What training one level measured (seconds and final losses), in ``train(...).extra["levels"]``.
 
     Attributes:
+      level: the level, 0 the coarsest.
+      steps: training steps of the level (``Config.steps``).
+      faces: faces of the level's mesh.
       compile_seconds: compilation of the level's step and of its newest frozen level (the first
         chunk's frozen-level pass is counted here too), 0 where the process had compiled them.
-      seconds: wall time of the whole level, compilation included.
-      seconds_per_iteration: ``(seconds − compile_seconds) / iterations``.
-      losses: the last iteration's losses (:data:`LOSS_NAMES`).
+      seconds: wall time of the level in the call that finished it, compilation included (a level
+        resumed from a checkpoint counts only the steps after the checkpoint).
+      seconds_per_step: ``(seconds − compile_seconds) / steps run``.
+      losses: the last step's losses (``LOSS_NAMES``).
     """
 
     level: int
-    iterations: int
+    steps: int
     faces: int
     compile_seconds: float
     seconds: float
-    seconds_per_iteration: float
+    seconds_per_step: float
     losses: dict[str, float]
 
 
@@ -117,25 +106,55 @@ class _Opt(NamedTuple):
     d: Any
 
 
-def _optimizer(config: TrainConfig, steps_per_iteration: int) -> optax.GradientTransformation:
+def _optimizer(config: Config, updates_per_step: int) -> optax.GradientTransformation:
     schedule = optax.exponential_decay(
-        config.lr,
-        transition_steps=config.lr_decay_every * max(steps_per_iteration, 1),
-        decay_rate=config.lr_decay,
+        config.learning_rate,
+        transition_steps=config.learning_rate_decay_every * max(updates_per_step, 1),
+        decay_rate=config.learning_rate_decay,
         staircase=True,
     )
     return optax.adam(schedule, b1=config.beta1, b2=config.beta2)
 
 
 def gradient_penalty(
-    d_params: FaceConvStackParams, real_features, fake_features, nbhd, alpha, *, negative_slope: float, eps: float
-):
+    d_params: FaceConvStackParams,
+    real_features: Float[Array, "F 3 4"],
+    fake_features: Float[Array, "F 3 4"],
+    nbhd: FaceNeighborhood,
+    alpha: Float[Array, ""],
+    *,
+    negative_slope: float,
+    eps: float,
+) -> Float[Array, ""]:
     """WGAN-GP term on features interpolated between a real and a fake mesh (same connectivity).
 
-    .. math:: \\overline{(\\lVert \\nabla_{\\hat\\phi_f} \\textstyle\\sum_g D(\\hat\\phi)_g\\rVert_2 - 1)^2}
+    .. math:: \\overline{(\\lVert \\nabla_{\\hat\\phi_f} \\textstyle\\sum_g D(\\hat\\phi)_g\\rVert_2 - 1)^2},
+       \\quad \\hat\\phi = \\alpha\\,\\phi_{\\text{real}} + (1 - \\alpha)\\,\\phi_{\\text{fake}}
 
     The norm is taken per face over its ``3 × 4`` features (the reference code's ``norm(dim=1)``);
     the mean runs over real faces only (``nbhd.face_mask``), so padded faces change nothing.
+
+    Args:
+      d_params: the critic's face-convolution stack (last width 1).
+      real_features, fake_features: ``[F, 3, 4]`` face features (:func:`~jmeshtex.ops.face_features`)
+        of the real and the generated mesh.
+      nbhd: their face neighbourhood.
+      alpha: interpolation weight in ``[0, 1]``.
+      negative_slope, eps: leaky-ReLU slope and instance-norm regulariser of the critic.
+
+    Returns:
+      The scalar penalty.
+
+    Example:
+      >>> from jmeshtex.data import icosahedron
+      >>> from jmeshtex.geometry import face_neighborhood
+      >>> from jmeshtex.ops import init_face_conv_stack
+      >>> v, f = icosahedron()
+      >>> nb = face_neighborhood(f)
+      >>> phi = face_features(jnp.asarray(v, jnp.float32), nb)
+      >>> d = init_face_conv_stack(jax.random.key(0), (8, 1))
+      >>> gradient_penalty(d, phi, 1.1 * phi, nb, jnp.float32(0.5), negative_slope=0.2, eps=1e-5).shape
+      ()
     """
     x = alpha * real_features + (1 - alpha) * fake_features
 
@@ -148,13 +167,13 @@ def gradient_penalty(
     return masked_mean((norm - 1) ** 2, nbhd.face_mask)
 
 
-#: training iterations run by one compiled call (a ``fori_loop`` inside): fewer dispatches, and the
+#: training steps run by one compiled call (a ``fori_loop`` inside): fewer dispatches, and the
 #: frozen levels run once per chunk, batched over all its noise draws.
 CHUNK = 10
 
 
 class LevelBatch(NamedTuple):
-    """Inputs of ``CHUNK`` training iterations of level ``L`` (``S = D + G`` fake meshes each).
+    """Inputs of ``CHUNK`` training steps of level ``L`` (``S = D + G`` fake meshes each).
 
     Attributes:
       fake_base: ``[K, S, V_L, 3]`` outputs of the frozen levels ``0 … L−1`` (subdivided and scaled
@@ -173,7 +192,7 @@ class LevelBatch(NamedTuple):
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
-def _advance(params, vertices, noise, geometry, *, config: TrainConfig):
+def _advance(params, vertices, noise, geometry, *, config: Config):
     """One frozen level on a batch: ``s·U(v + G(v, z))`` for every row (forward only)."""
     kw = {"negative_slope": config.negative_slope, "eps": config.eps}
     out = jax.vmap(lambda v, z: v + generator_level(params, v, geometry.nbhd, z, **kw))(vertices, noise)
@@ -187,8 +206,8 @@ def _noise(key, fixed, *, shape: tuple[int, ...], amplitude: float):
     return jnp.concatenate([fresh, fixed], axis=0)
 
 
-def level_batch(model_levels, geos, template, z_star, key, *, config: TrainConfig, chunk: int) -> LevelBatch:
-    """Draw the noise of ``chunk`` iterations of level ``L = len(model_levels)`` and run the frozen
+def level_batch(model_levels, geos, template, z_star, key, *, config: Config, chunk: int) -> LevelBatch:
+    """Draw the noise of ``chunk`` steps of level ``L = len(model_levels)`` and run the frozen
     levels ``0 … L−1`` on it (forward only).
 
     All draws of the chunk (``chunk·(D + G)`` fakes, and the reconstruction) go through each frozen
@@ -232,16 +251,17 @@ def level_batch(model_levels, geos, template, z_star, key, *, config: TrainConfi
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
-def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: TrainConfig):
-    """``n ≤ K`` WGAN-GP iterations of one level on the inputs ``batch`` (one compiled call).
+def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: Config):
+    """``n ≤ K`` WGAN-GP steps of one level on the inputs ``batch`` (one compiled call).
 
-    Each iteration: ``discriminator_steps`` critic updates, then ``generator_steps`` generator
+    Each step: ``discriminator_steps`` critic updates, then ``generator_steps`` generator
     updates (module docstring losses). Only level ``L``'s networks are in here: the frozen levels
     are inputs (:func:`level_batch`), so every level compiles the same small program, and the
     level-``L`` mesh may be padded (``nbhd.face_mask`` / ``vertex_mask``) without changing a loss.
 
     Returns:
-      ``(g, d, opt, losses)`` with the losses of the last iteration.
+      ``(g, d, opt, losses)``; ``losses[name]`` is ``[K]``, the step's losses for the first ``n``
+      entries (the last critic and generator update of each step) and 0 after them.
     """
     c = config
     kw = {"negative_slope": c.negative_slope, "eps": c.eps}
@@ -271,8 +291,8 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: TrainCon
             updates, state = opt.update(grads, state, params)
         return optax.apply_updates(params, updates), state
 
-    def iteration(i, carry):
-        g, d, opt, _ = carry
+    def step(i, carry):
+        g, d, opt, history = carry
         b = jax.tree.map(lambda x: x[i], batch)
         D = c.discriminator_steps
 
@@ -292,13 +312,16 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: TrainCon
         (d, sd), d_aux = jax.lax.scan(d_step, (d, opt.d), (b.fake_base[:D], b.fake_noise[:D], b.alpha))
         (g, sg), g_aux = jax.lax.scan(g_step, (g, opt.g), (b.fake_base[D:], b.fake_noise[D:], b.rec_base, b.rec_noise))
         last_d = d_aux[-1] if D else jnp.zeros(3, real.dtype)
-        return g, d, _Opt(sg, sd), jnp.concatenate([last_d, g_aux[-1]])
+        return g, d, _Opt(sg, sd), history.at[i].set(jnp.concatenate([last_d, g_aux[-1]]))
 
-    g, d, opt, losses = jax.lax.fori_loop(0, n, iteration, (g, d, opt, jnp.zeros(5, real.dtype)))
-    return g, d, opt, dict(zip(LOSS_NAMES, losses, strict=True))
+    K = batch.alpha.shape[0]
+    history = jnp.zeros((K, len(LOSS_NAMES)), real.dtype)
+    g, d, opt, history = jax.lax.fori_loop(0, n, step, (g, d, opt, history))
+    return g, d, opt, {name: history[:, i] for i, name in enumerate(LOSS_NAMES)}
 
 
-#: the losses :func:`train_chunk` reports (critic on real / fake, penalty, generator adversarial / MSE)
+#: the losses :func:`train_chunk` reports per step (critic on real / fake, penalty, generator
+#: adversarial / reconstruction MSE); the keys of ``train(...).losses``
 LOSS_NAMES = ("d_real", "d_fake", "penalty", "g_adv", "g_rec")
 
 
@@ -307,68 +330,32 @@ LOSS_NAMES = ("d_real", "d_fake", "penalty", "g_adv", "g_rec")
 # ----------------------------------------------------------------------------------------------
 
 
-def _save_params(path: pathlib.Path, g: FaceConvStackParams, d: FaceConvStackParams) -> None:
-    arrays = {}
-    for prefix, tree in (("g", g), ("d", d)):
-        for i, leaf in enumerate(jax.tree.leaves(tree)):
-            arrays[f"{prefix}_{i:03d}"] = np.asarray(leaf)
-    atomic_save_npz(path, arrays)
+def _fingerprint(meshes: TrainingMeshes, config: Config, key: PRNGKey) -> dict:
+    """What a checkpoint folder is tied to: the config, the key and a hash of the training meshes."""
+    h = hashlib.sha256()
+    for a in (meshes.template, *meshes.vertices, *meshes.faces):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.shape, a.dtype.str)).encode())
+        h.update(a.tobytes())
+    return {"config": config.to_dict(), "key": np.asarray(jax.random.key_data(key)).tolist(),
+            "meshes": h.hexdigest()}
 
 
-def _load_params(path: pathlib.Path, config: TrainConfig, level: int):
-    data = load_npz(path, "DGTS checkpoint")
-    out = []
-    for prefix, generator in (("g", True), ("d", False)):
-        like = init_level(jax.random.key(0), config, level, generator=generator)
-        leaves, treedef = jax.tree.flatten(like)
-        try:
-            loaded = [jnp.asarray(data[f"{prefix}_{i:03d}"]) for i in range(len(leaves))]
-        except KeyError as err:
-            raise MeshIOError(f"{path}: incomplete DGTS checkpoint (missing {err})") from err
-        if any(a.shape != b.shape for a, b in zip(loaded, leaves, strict=True)):
-            raise MeshIOError(f"{path}: parameter shapes do not match the config's widths at level {level}")
-        out.append(jax.tree.unflatten(treedef, loaded))
-    return out[0], out[1]
+def _level_state(config: Config, level: int, g, d) -> dict:
+    """The state of a level in progress: its networks and their optimiser states."""
+    return {"g": g, "d": d, "opt": _Opt(_optimizer(config, config.generator_steps).init(g),
+                                        _optimizer(config, config.discriminator_steps).init(d))}
 
 
-def _read_state(out_dir: pathlib.Path) -> dict | None:
-    path = out_dir / STATE_FILE
-    if not path.is_file():
-        return None
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError) as err:
-        raise MeshIOError(f"cannot read training state {path}: {err}") from err
-
-
-def load_model(out_dir: str | os.PathLike) -> DGTSModel:
-    """Load the levels completed so far from a training folder (see the module docstring).
-
-    Raises:
-      MeshIOError: no ``state.json`` there, or damaged files.
-    """
-    out_dir = pathlib.Path(out_dir)
-    state = _read_state(out_dir)
-    if state is None:
-        raise MeshIOError(f"{out_dir} holds no DGTS model ({STATE_FILE} is missing): run `jmeshtex dgts train` first")
-    config = TrainConfig.from_dict(state["config"])
-    gs, ds = [], []
-    for level in range(int(state["completed_levels"])):
-        g, d = _load_params(out_dir / f"level_{level:02d}.npz", config, level)
-        gs.append(g)
-        ds.append(d)
-    z_star = load_npz(out_dir / "z_star.npz", "reconstruction noise")["z_star"]
-    return DGTSModel(config, tuple(gs), tuple(ds), z_star)
-
-
-def _write_state(out_dir: pathlib.Path, config: TrainConfig, completed: int, reports: list[LevelReport], total: int) -> None:
-    state = {
-        "config": config.to_dict(),
-        "completed_levels": completed,
-        "total_levels": total,
-        "levels": [dataclasses.asdict(r) for r in reports],
-    }
-    atomic_write(out_dir / STATE_FILE, json.dumps(state, indent=2).encode())
+def _checkpoint_like(config: Config, meta: dict, num_vertices: int) -> dict:
+    """The structure, shapes and dtypes of the checkpoint ``meta`` describes (for restoring)."""
+    like = {"model": model_like(config, int(meta["completed_levels"]), num_vertices)}
+    if meta["level_steps"]:
+        level = int(meta["completed_levels"])
+        key = jax.random.key(0)
+        like["current"] = _level_state(config, level, init_level(config, level, generator=True, key=key),
+                                       init_level(config, level, generator=False, key=key))
+    return like
 
 
 # ----------------------------------------------------------------------------------------------
@@ -378,128 +365,193 @@ def _write_state(out_dir: pathlib.Path, config: TrainConfig, completed: int, rep
 
 def train(
     meshes: TrainingMeshes,
-    config: TrainConfig | None = None,
+    config: Config | None = None,
     *,
-    out_dir: str | os.PathLike | None = None,
-    num_levels: int | None = None,
+    key: PRNGKey,
+    levels: int | None = None,
     progress: bool = True,
-) -> tuple[DGTSModel, list[LevelReport]]:
+    checkpoint_dir: str | os.PathLike | None = None,
+    checkpoint_every: int | None = None,
+) -> TrainResult[Model]:
     """Train the DGTS hierarchy on multi-scale training meshes, level by level (§3.4).
 
     Args:
       meshes: from :func:`~jmeshtex.dgts.training_meshes`.
-      config: :class:`TrainConfig` (default: its defaults, the paper's).
-      out_dir: checkpoint folder; when it already holds a run, training resumes after its last
-        complete level (its config must equal ``config``).
-      num_levels: train only the first ``num_levels`` levels (default: all of ``meshes``).
+      config: :class:`~jmeshtex.dgts.Config` (default: its defaults, the paper's).
+      key: PRNG key of the initialisation, ``z*`` and every noise draw.
+      levels: train only the first ``levels`` levels (default: all of ``meshes``).
       progress: show a tqdm progress bar with ETA per level.
+      checkpoint_dir: checkpoint folder (module docstring); when it already holds checkpoints of
+        this run (same config, key and meshes), training resumes from the newest.
+      checkpoint_every: also checkpoint every this many steps within a level (rounded up to a
+        multiple of ``CHUNK``); None: only after each level. Needs ``checkpoint_dir``.
 
     Returns:
-      ``(model, reports)``: the model and one :class:`LevelReport` per level trained in this call.
+      :class:`~jmeshtex.TrainResult`: ``model`` (a :class:`~jmeshtex.dgts.Model` of ``levels``
+      levels), ``losses[name]`` (``LOSS_NAMES``) of every step done, level after level (level
+      ``l``'s at ``[l·steps, (l+1)·steps)``), ``steps`` (steps done in all levels), ``seconds``,
+      ``resumed_from`` (the checkpoint step resumed from, or None) and ``extra["levels"]``: one
+      :class:`LevelReport` per completed level.
 
     Raises:
-      ConfigError: resuming with a different config, or more levels than ``meshes`` has.
+      ConfigError: ``levels`` outside ``[1, meshes.num_levels]``; ``checkpoint_every`` without a
+        folder or below 1.
+      InputError: training meshes whose levels are not successive midpoint subdivisions.
+      CheckpointMismatchError: ``checkpoint_dir`` holds a run with another config, key or meshes.
 
     Example:
       >>> from jmeshtex.data import icosahedron
       >>> from jmeshtex.dgts import PrepareConfig, training_meshes
-      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(num_levels=2, iterations=0))
-      >>> cfg = TrainConfig(num_layers=3, start_features=4, min_features=4, max_features=4, iterations=2, seed=3,
-      ...     shared_levels=2)
-      >>> model, reports = train(tm, cfg, progress=False)
-      >>> model.num_levels, [r.faces for r in reports]
-      (2, [20, 80])
+      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
+      ...                      key=jax.random.key(0))
+      >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
+      >>> result = train(tm, cfg, key=jax.random.key(3), progress=False)
+      >>> result.model.num_levels, result.steps, result.losses["g_rec"].shape
+      (2, 4, (4,))
+      >>> [r.faces for r in result.extra["levels"]]
+      [20, 80]
     """
-    config = TrainConfig() if config is None else config
-    total = meshes.num_levels if num_levels is None else int(num_levels)
-    if not 1 <= total <= meshes.num_levels:
-        raise ConfigError(f"num_levels must be in [1, {meshes.num_levels}] (the training meshes' levels), got {num_levels}")
+    t_start = time.perf_counter()
+    config = Config() if config is None else config
+    total = meshes.num_levels if levels is None else levels
+    if isinstance(total, bool) or not isinstance(total, (int, np.integer)) or not 1 <= total <= meshes.num_levels:
+        raise ConfigError(f"levels must be an int in [1, {meshes.num_levels}] (the training meshes' levels), "
+                          f"got {levels!r}")
+    total = int(total)
+    if checkpoint_every is not None and (checkpoint_dir is None or int(checkpoint_every) < 1):
+        raise ConfigError(f"checkpoint_every={checkpoint_every!r} needs a checkpoint_dir and a value >= 1")
+    every = None if checkpoint_every is None else -(-int(checkpoint_every) // CHUNK)  # in chunks
     V = [len(v) for v in meshes.vertices]
-    # the padded sizes come from the training meshes, not from num_levels: resuming stays exact
+    # the padded sizes come from the training meshes, not from `levels`: resuming stays exact
     n_geo = max(total, min(config.shared_levels, meshes.num_levels))
     geos_all, faces = hierarchy_geometry(meshes.faces[0], V[0], n_geo)
     for level in range(n_geo):
         if not np.array_equal(faces[level], meshes.faces[level]):
             raise InputError(f"training mesh level {level} is not the midpoint subdivision of level {level - 1}")
-    key = jax.random.key(config.seed)
     k_init, k_z, k_train = jax.random.split(key, 3)
+    S = config.steps
     gs: list = []
     ds: list = []
+    history: dict[str, list[float]] = {name: [] for name in LOSS_NAMES}
     reports: list[LevelReport] = []
-    previous: list[LevelReport] = []
     z_star = np.asarray(config.noise_amplitude * jax.random.normal(k_z, (V[0], 3), jnp.float32))
-    out = pathlib.Path(out_dir) if out_dir is not None else None
-    if out is not None:
-        state = _read_state(out)
-        if state is not None:
-            saved = TrainConfig.from_dict(state["config"])
-            if saved != config:
-                diff = {k: (v, getattr(config, k)) for k, v in saved.to_dict().items() if config.to_dict()[k] != v}
-                raise ConfigError(f"{out} holds a run with a different config (saved, given): {diff}; use a new folder")
-            model = load_model(out)
-            gs, ds, z_star = list(model.generators), list(model.discriminators), model.z_star
-            previous = [LevelReport(**r) for r in state.get("levels", [])]
-        else:
-            atomic_save_npz(out / "z_star.npz", {"z_star": z_star})
+    current = None  # the restored state of a level in progress, and its steps done
+    current_steps = 0
+    resumed_from = None
+    ckpt = None
+    if checkpoint_dir is not None:
+        ckpt = Checkpoints(checkpoint_dir, fingerprint=_fingerprint(meshes, config, key))
+        step = ckpt.latest_step()
+        if step is not None:
+            meta = ckpt.read_meta(step)
+            if meta.get("kind") != CHECKPOINT_KIND:
+                raise InputError(f"{checkpoint_dir} holds {meta.get('kind')!r}, not DGTS training checkpoints")
+            state, meta = ckpt.restore(_checkpoint_like(config, meta, V[0]), step=step)
+            gs, ds = list(state["model"]["generators"]), list(state["model"]["discriminators"])
+            z_star = np.asarray(state["model"]["z_star"], np.float32)
+            current = state.get("current")
+            current_steps = int(meta["level_steps"])
+            history = {name: list(meta["losses"][name]) for name in LOSS_NAMES}
+            reports = [LevelReport(**r) for r in meta["levels"]]
+            resumed_from = step
     template = jnp.asarray(meshes.template, jnp.float32)
     z_star_j = jnp.asarray(z_star, jnp.float32)
     padded = _padded_sizes(geos_all, config.shared_levels)
-    for level in range(len(gs), total):
-        g, d = _initial_params(config, level, k_init, gs, ds)
-        opt = _Opt(_optimizer(config, config.generator_steps).init(g), _optimizer(config, config.discriminator_steps).init(d))
-        geos = geos_all[: level + 1]
-        nbhd = geos[-1].nbhd
-        real = jnp.asarray(meshes.vertices[level], jnp.float32)
-        frozen = tuple(gs)
-        k_level = jax.random.fold_in(k_train, level)
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
 
-            bar = tqdm(total=config.iterations, desc=f"DGTS level {level + 1}/{total}", unit="it", leave=True)
-        n_chunks = -(-config.iterations // CHUNK)
-        t_compile = 0.0
-        t0 = time.perf_counter()
-        losses: dict = {}
-        for chunk in range(n_chunks):
-            n = min(CHUNK, config.iterations - chunk * CHUNK)
-            t_b = time.perf_counter()
-            batch = level_batch(frozen, geos, template, z_star_j, jax.random.fold_in(k_level, chunk), config=config,
-                                chunk=CHUNK)
-            if chunk == 0:  # the first chunk compiles the frozen levels (new shapes only)
-                jax.block_until_ready(batch)
-                t_b = time.perf_counter() - t_b
+    def save(level: int, done: int, g=None, d=None, opt=None) -> None:
+        state = {"model": model_state(Model(config, tuple(gs), tuple(ds), z_star))}
+        if g is not None:
+            state["current"] = {"g": g, "d": d, "opt": opt}
+        meta = {"kind": CHECKPOINT_KIND, "config": config.to_dict(), "completed_levels": len(gs),
+                "level_steps": 0 if g is None else done, "losses": history,
+                "levels": [dataclasses.asdict(r) for r in reports]}
+        ckpt.save(level * S + done, state, meta=meta)
+
+    try:
+        for level in range(len(gs), total):
+            if current is not None:
+                g, d, opt = current["g"], current["d"], current["opt"]
+                start, current = current_steps, None
             else:
-                t_b = 0.0
-            args = (g, d, opt, nbhd, real, batch, jnp.int32(n))
-            if level < len(padded):
-                args = _pad_level(args, padded[level])
-            step_fn, t_s = _compiled(train_chunk, args, {"config": config})
-            g, d, opt, losses = step_fn(*args)
-            t_compile += t_b + t_s
+                g, d = _initial_params(config, level, k_init, gs, ds)
+                opt = _Opt(_optimizer(config, config.generator_steps).init(g),
+                           _optimizer(config, config.discriminator_steps).init(d))
+                start = 0
+            geos = geos_all[: level + 1]
+            nbhd = geos[-1].nbhd
+            real = jnp.asarray(meshes.vertices[level], jnp.float32)
+            frozen = tuple(gs)
+            k_level = jax.random.fold_in(k_train, level)
+            bar = None
+            if progress:
+                from tqdm.auto import tqdm
+
+                bar = tqdm(total=S, initial=start, desc=f"DGTS level {level + 1}/{total}", unit="step", leave=True)
+            n_chunks = -(-S // CHUNK)
+            t_compile = 0.0
+            t0 = time.perf_counter()
+            chunk_losses: list = []
+            for chunk in range(start // CHUNK, n_chunks):
+                n = min(CHUNK, S - chunk * CHUNK)
+                t_b = time.perf_counter()
+                batch = level_batch(frozen, geos, template, z_star_j, jax.random.fold_in(k_level, chunk),
+                                    config=config, chunk=CHUNK)
+                first = chunk == start // CHUNK
+                if first:  # the first chunk compiles the frozen levels (new shapes only)
+                    jax.block_until_ready(batch)
+                    t_b = time.perf_counter() - t_b
+                else:
+                    t_b = 0.0
+                args = (g, d, opt, nbhd, real, batch, jnp.int32(n))
+                if level < len(padded):
+                    args = _pad_level(args, padded[level])
+                step_fn, t_s = _compiled(train_chunk, args, {"config": config})
+                g, d, opt, losses = step_fn(*args)
+                chunk_losses.append({k: v[:n] for k, v in losses.items()})
+                t_compile += t_b + t_s
+                if bar is not None:
+                    bar.update(n)
+                    bar.set_postfix(rec=f"{float(losses['g_rec'][n - 1]):.3g}",
+                                    adv=f"{float(losses['g_adv'][n - 1]):.3g}")
+                done = chunk * CHUNK + n
+                if ckpt is not None and every is not None and (chunk + 1) % every == 0 and done < S:
+                    _extend(history, chunk_losses)
+                    chunk_losses = []
+                    save(level, done, g, d, opt)
+            jax.block_until_ready(g)
+            _extend(history, chunk_losses)
+            seconds = time.perf_counter() - t0
             if bar is not None:
-                bar.update(n)
-                bar.set_postfix(rec=f"{float(losses['g_rec']):.3g}", adv=f"{float(losses['g_adv']):.3g}")
-        jax.block_until_ready(g)
-        seconds = time.perf_counter() - t0
-        if bar is not None:
-            bar.close()
-        report = LevelReport(
-            level=level,
-            iterations=config.iterations,
-            faces=int(len(meshes.faces[level])),
-            compile_seconds=t_compile,
-            seconds=seconds,
-            seconds_per_iteration=(seconds - t_compile) / max(config.iterations, 1),
-            losses={k: float(v) for k, v in losses.items()},
-        )
-        gs.append(g)
-        ds.append(d)
-        reports.append(report)
-        if out is not None:
-            _save_params(out / f"level_{level:02d}.npz", g, d)
-            _write_state(out, config, level + 1, previous + reports, total)
-    return DGTSModel(config, tuple(gs), tuple(ds), np.asarray(z_star)), reports
+                bar.close()
+            ran = S - start
+            reports.append(LevelReport(
+                level=level,
+                steps=S,
+                faces=int(len(meshes.faces[level])),
+                compile_seconds=t_compile,
+                seconds=seconds,
+                seconds_per_step=(seconds - t_compile) / max(ran, 1),
+                losses={k: v[-1] for k, v in history.items()} if S else {},
+            ))
+            gs.append(g)
+            ds.append(d)
+            if ckpt is not None:
+                save(level + 1, 0)
+    finally:
+        if ckpt is not None:
+            ckpt.close()
+    model = Model(config, tuple(gs[:total]), tuple(ds[:total]), z_star)
+    losses = {k: np.asarray(v[: total * S], np.float64) for k, v in history.items()}
+    return TrainResult(model=model, losses=losses, steps=min(len(gs), total) * S,
+                       seconds=time.perf_counter() - t_start, resumed_from=resumed_from,
+                       extra={"levels": reports[:total]})
+
+
+def _extend(history: dict[str, list[float]], chunk_losses: list[dict]) -> None:
+    """Append the per-step losses of some chunks (device arrays) to the host-side histories."""
+    for losses in jax.device_get(chunk_losses):
+        for k, v in losses.items():
+            history[k].extend(float(x) for x in np.asarray(v))
 
 
 def _padded_sizes(geos, shared_levels: int) -> list[dict[str, int]]:
@@ -534,14 +586,14 @@ def _pad_level(args, size):
     return (g, d, opt, *pad_level(nbhd, real, batch, size), n)
 
 
-def _initial_params(config: TrainConfig, level: int, key, gs: list, ds: list):
+def _initial_params(config: Config, level: int, key, gs: list, ds: list):
     """Fresh parameters of ``level``, or the previous level's where the widths match (warm start)."""
     out = []
     for generator, previous, k in zip((True, False), (gs, ds), jax.random.split(jax.random.fold_in(key, level)),
                                       strict=True):
         same = level > 0 and config.level_features(level, generator=generator) == config.level_features(
             level - 1, generator=generator)
-        out.append(previous[-1] if same else init_level(k, config, level, generator=generator))
+        out.append(previous[-1] if same else init_level(config, level, generator=generator, key=k))
     return out[0], out[1]
 
 

@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 
 from .._errors import InputError
-from .._mesh import Mesh
+from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
 from ..geometry import sample_texture, uv_at
 
@@ -148,8 +148,7 @@ def surface_colors(mesh: Mesh) -> SurfaceColors:
       >>> surface_colors(Mesh(np.eye(3), np.array([[0, 1, 2]]), vertex_colors=np.ones((3, 3)))).source
       'vertex_colors'
     """
-    if not isinstance(mesh, Mesh):
-        raise InputError(f"surface_colors expects a jmeshtex.Mesh, got {type(mesh).__name__}")
+    mesh = as_mesh(mesh, what="mesh")
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if mesh.texture is not None and mesh.uv is not None:

@@ -18,12 +18,12 @@ DECODERS = ("log", "barycentric")
 
 #: fields that do not change the model's function (data, optimiser, batching, chunking)
 _TRAINING_FIELDS = ("num_samples", "kl_weight", "min_vertices", "max_vertices", "max_image_size", "meshes_per_image",
-                    "batch_meshes", "steps", "lr", "final_lr_fraction", "warmup_steps", "grad_clip",
-                    "checkpoint_every", "encode_chunk", "seed")
+                    "batch_size", "steps", "learning_rate", "final_lr_fraction", "warmup_steps", "grad_clip",
+                    "checkpoint_every", "encode_chunk")
 
 
 @dataclasses.dataclass(frozen=True)
-class FLVAEConfig(ConfigBase):
+class Config(ConfigBase):
     """Every hyper-parameter of the FL-VAE, its one-ring sampling and its planar pre-training.
 
     Model (paper §4, eq. 21–28):
@@ -50,21 +50,23 @@ class FLVAEConfig(ConfigBase):
         (farthest-point samples over the image, then Delaunay).
       max_image_size: images are downscaled (by an integer stride) so their longer side is at most this.
       meshes_per_image: planar meshes drawn per image into the training pool.
-      batch_meshes: planar meshes per optimiser step (their vertices are concatenated).
+      batch_size: planar meshes per optimiser step (their vertices are concatenated).
       steps: optimiser steps.
-      lr: peak Adam learning rate (cosine decay to ``lr · final_lr_fraction``).
+      learning_rate: peak Adam learning rate (cosine decay to ``learning_rate · final_lr_fraction``).
       final_lr_fraction: the cosine schedule's floor.
       warmup_steps: linear warm-up steps.
       grad_clip: global gradient-norm clip.
       checkpoint_every: steps between checkpoints.
-      encode_chunk: vertices per jitted encoder call in :func:`~jmeshtex.fl.encode_mesh`.
-      seed: PRNG seed of initialisation, meshes and samples.
+      encode_chunk: vertices per jitted encoder call in :func:`~jmeshtex.fl.encode`.
+
+    Randomness (initialisation, training meshes, one-ring samples) comes from the ``key`` given to
+    :func:`~jmeshtex.fl.train` and the task functions, never from the config.
 
     Example:
-      >>> c = FLVAEConfig()
+      >>> c = Config()
       >>> c.latent_dim, c.num_samples, c.decoder_layers, c.kl_weight
       (8, 64, 5, 0.01)
-      >>> FLVAEConfig.from_dict(c.to_dict()) == c
+      >>> Config.from_dict(c.to_dict()) == c
       True
     """
 
@@ -84,15 +86,14 @@ class FLVAEConfig(ConfigBase):
     max_vertices: int = 192
     max_image_size: int = 256
     meshes_per_image: int = 8
-    batch_meshes: int = 2
+    batch_size: int = 2
     steps: int = 2000
-    lr: float = 2e-3
+    learning_rate: float = 2e-3
     final_lr_fraction: float = 0.05
     warmup_steps: int = 50
     grad_clip: float = 1.0
     checkpoint_every: int = 250
     encode_chunk: int = 2048
-    seed: int = 0
 
     _MESSAGE = "{name} must be {must}, got {value}"
     _RULES = (
@@ -109,21 +110,22 @@ class FLVAEConfig(ConfigBase):
         cross_rule(lambda c: 3 <= c.min_vertices <= c.max_vertices,
                    "need 3 <= min_vertices <= max_vertices, got {c.min_vertices}, {c.max_vertices}"),
         rule("max_image_size", lambda x: x >= 8, ">= 8"),
-        rule("meshes_per_image batch_meshes", lambda x: x >= 1, ">= 1"),
+        rule("meshes_per_image batch_size", lambda x: x >= 1, ">= 1"),
         rule("steps", lambda x: x >= 0, ">= 0"),
-        cross_rule(lambda c: c.lr > 0 and 0 <= c.final_lr_fraction <= 1,
-                   "need lr > 0 and final_lr_fraction in [0, 1], got {c.lr}, {c.final_lr_fraction}"),
+        cross_rule(lambda c: c.learning_rate > 0 and 0 <= c.final_lr_fraction <= 1,
+                   "need learning_rate > 0 and final_lr_fraction in [0, 1], got {c.learning_rate}, "
+                   "{c.final_lr_fraction}"),
         cross_rule(lambda c: c.warmup_steps >= 0 and c.grad_clip > 0, "need warmup_steps >= 0 and grad_clip > 0"),
         rule("checkpoint_every encode_chunk", lambda x: x >= 1, ">= 1"),
     )
 
-    def model(self) -> FLVAEConfig:
-        """The same model with every data/training field at its default: a cache key for jitted
+    def architecture(self) -> Config:
+        """The same network with every data/training field at its default: a cache key for jitted
         encoders and decoders (configs that differ only in training settings compile once).
 
         Example:
-          >>> FLVAEConfig(steps=7, lr=0.1).model() == FLVAEConfig()
+          >>> Config(steps=7, learning_rate=0.1).architecture() == Config()
           True
         """
-        defaults = FLVAEConfig()
+        defaults = Config()
         return self.replace(**{name: getattr(defaults, name) for name in _TRAINING_FIELDS})

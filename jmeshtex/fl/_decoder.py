@@ -56,7 +56,7 @@ def decoder_features(config, mu: Complex[Array, "... d"], log_q: Complex[Array, 
     """The decoder's gauge-invariant input ``φ(z, q)`` (module docstring).
 
     Args:
-      config: :class:`~jmeshtex.fl.FLVAEConfig`.
+      config: :class:`~jmeshtex.fl.Config`.
       mu: ``[..., d]`` complex latents (broadcast against ``log_q``).
       log_q: ``[...]`` complex normalised log coordinates in the same frame as ``mu`` (log mode),
         or None (barycentric mode: invariants only).
@@ -66,8 +66,8 @@ def decoder_features(config, mu: Complex[Array, "... d"], log_q: Complex[Array, 
 
     Example:
       >>> import jax.numpy as jnp
-      >>> from jmeshtex.fl import FLVAEConfig
-      >>> c = FLVAEConfig(latent_dim=2)
+      >>> from jmeshtex.fl import Config
+      >>> c = Config(latent_dim=2)
       >>> f = decoder_features(c, jnp.array([1j, 1.0]), jnp.array(1j))
       >>> f.tolist()  # |z|², Re/Im z0 z̄1, Re/Im log·z̄
       [1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0]

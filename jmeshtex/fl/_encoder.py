@@ -37,6 +37,13 @@ from ..ops import VNTransformerParams, complex_linear, real_dtype, vn_transforme
 # ------------------------------------------------------------------------------------ host side
 
 
+def _numpy_rng(key) -> np.random.Generator:
+    """A NumPy generator seeded with a JAX key's data (host-side sampling driven by ``key=``)."""
+    data = jax.random.key_data(key) if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key) else key
+    return np.random.default_rng(np.asarray(data, dtype=np.uint32).ravel().tolist())
+
+
+
 class RingGeometry(NamedTuple):
     """Per-vertex frames and per-corner wedge data for intrinsic log maps of points in faces.
 
@@ -155,7 +162,7 @@ def one_ring_samples(
       faces: ``[F, 3]`` consistently oriented manifold triangles.
       num_samples: ``S`` samples per vertex (random mode).
       rng: a ``numpy.random.Generator``, or None for the deterministic rule.
-      geometry: a precomputed :func:`ring_geometry` (else built here).
+      geometry: a precomputed ``ring_geometry`` (else built here).
       chunk: vertices per vectorised batch (bounds memory).
 
     Returns:
@@ -299,7 +306,7 @@ def encoder_size(config) -> int:
 
 
 def init_encoder(draw: _Draw, config, *, dtype=jnp.float32) -> EncoderParams:
-    """Random :class:`EncoderParams` for ``config`` (an :class:`~jmeshtex.fl.FLVAEConfig`)."""
+    """Random ``EncoderParams`` for ``config`` (an :class:`~jmeshtex.fl.Config`)."""
     c, d = config.features, config.latent_dim
     cdt = jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
     sample_mlp = _dense_init(draw, (3, c, c, c), dtype)

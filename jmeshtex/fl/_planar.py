@@ -159,7 +159,26 @@ def planar_mesh(image: Float[np.ndarray, "H W 3"], num_vertices: int, *, rng: np
 def planar_pool(
     images: list[np.ndarray], *, per_image: int, min_vertices: int, max_vertices: int, rng: np.random.Generator
 ) -> list[Mesh]:
-    """``per_image`` planar meshes of random resolution in ``[min_vertices, max_vertices]`` per image."""
+    """``per_image`` planar meshes of random resolution in ``[min_vertices, max_vertices]`` per image.
+
+    The training pool of :func:`~jmeshtex.fl.train` (supplement §9.1): :func:`planar_mesh` over each
+    image, image by image.
+
+    Args:
+      images: ``[H, W, 3]`` RGB images in [0, 1] (e.g. :func:`builtin_images`).
+      per_image: meshes per image.
+      min_vertices, max_vertices: range of the (uniformly drawn) vertex count of each mesh.
+      rng: random generator (resolutions and points).
+
+    Returns:
+      ``len(images) * per_image`` textured :class:`~jmeshtex.Mesh` objects.
+
+    Example:
+      >>> pool = planar_pool([np.zeros((8, 8, 3))], per_image=2, min_vertices=10, max_vertices=12,
+      ...                    rng=np.random.default_rng(0))
+      >>> len(pool), all(10 <= m.num_vertices <= 12 for m in pool)
+      (2, True)
+    """
     if not images:
         raise InputError("no training images given")
     return [

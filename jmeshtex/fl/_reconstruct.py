@@ -10,16 +10,18 @@ in the atlas over the used texels: PSNR, DSSIM and LPIPS-VGG (:mod:`jmeshtex.met
 from __future__ import annotations
 
 import dataclasses
+import os
+import pathlib
 
 import numpy as np
 
 from .._errors import InputError
-from .._mesh import Mesh
+from .._mesh import Mesh, as_mesh
 from .._types import PRNGKey
 from ..geometry import rasterize_uv, sample_texture, surface_correspondence
+from ._codec import _check_model, decode_points_in_faces, encode
 from ._colors import SurfaceColors, surface_colors
-from ._config import FLVAEConfig
-from ._vae import FieldLatents, FLVAEParams, decode_points_in_faces, encode_mesh
+from ._model import FieldLatents, Model
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,19 +70,18 @@ def atlas_metrics(texture: np.ndarray, target: np.ndarray, valid: np.ndarray, *,
 
 
 def reconstruct(
-    params: FLVAEParams,
-    config: FLVAEConfig,
+    model: Model,
     mesh: Mesh,
     *,
     key: PRNGKey,
     size: int | None = None,
-    latent_mesh: Mesh | None = None,
+    latent_mesh: Mesh | tuple | None = None,
     lpips: bool = True,
 ) -> Reconstruction:
     """Encode a textured mesh and reconstruct its UV atlas from the latent means.
 
     Args:
-      params, config: the FL-VAE (e.g. :func:`~jmeshtex.fl.load_pretrained`).
+      model: the FL-VAE (:class:`~jmeshtex.fl.Model`, e.g. :func:`~jmeshtex.fl.load_pretrained`).
       mesh: a textured :class:`~jmeshtex.Mesh` (``uv`` and ``texture``): the reference.
       key: PRNG key of the one-ring sampling.
       size: atlas side in texels (default: the texture's height).
@@ -98,21 +99,25 @@ def reconstruct(
       >>> import jax, numpy as np
       >>> from jmeshtex import Mesh
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.fl import FLVAEConfig, init_fl_vae
+      >>> from jmeshtex.fl import Config, init
       >>> v, f = grid(3)
       >>> mesh = Mesh(v, f, uv=v[f][..., :2], texture=np.full((16, 16, 3), 0.5, np.float32))
-      >>> c = FLVAEConfig(features=8, num_heads=2, num_blocks=1, num_samples=8)
-      >>> r = reconstruct(init_fl_vae(jax.random.key(0), c), c, mesh, key=jax.random.key(1), lpips=False)
+      >>> model = init(Config(features=8, num_heads=2, num_blocks=1, num_samples=8), key=jax.random.key(0))
+      >>> r = reconstruct(model, mesh, key=jax.random.key(1), lpips=False)
       >>> r.texture.shape, int(r.valid.sum()), sorted(r.metrics)
       ((16, 16, 3), 256, ['dssim', 'psnr'])
     """
-    if not isinstance(mesh, Mesh) or mesh.uv is None or mesh.texture is None:
+    model = _check_model(model)
+    mesh = as_mesh(mesh, what="mesh")
+    if mesh.uv is None or mesh.texture is None:
         raise InputError("reconstruct needs a textured reference mesh (Mesh with uv and texture); "
                          "load it with jmeshtex.io.load_mesh(path, texture=...)")
     colors: SurfaceColors = surface_colors(mesh)
     size = int(mesh.texture.shape[0]) if size is None else int(size)
+    if latent_mesh is not None:
+        latent_mesh = as_mesh(latent_mesh, what="latent_mesh")
     target_mesh = mesh if latent_mesh is None else latent_mesh
-    latents = encode_mesh(params, config, target_mesh, colors=colors, key=key)
+    latents = encode(model, target_mesh, colors=colors, key=key)
     texels = rasterize_uv(mesh.uv, size)
     face, bary = texels.face, texels.bary
     if latent_mesh is None:
@@ -120,7 +125,7 @@ def reconstruct(
     else:
         points = np.einsum("nk,nkd->nd", bary, np.asarray(mesh.vertices, np.float64)[mesh.faces[face]])
         lface, lbary = surface_correspondence(latent_mesh.vertices, latent_mesh.faces, points)
-    colors_pred = decode_points_in_faces(params, config, target_mesh, latents.mu, lface, lbary)
+    colors_pred = decode_points_in_faces(model, target_mesh, latents, lface, lbary)
     texture = np.zeros((size, size, 3))
     valid = np.zeros((size, size), bool)
     texture[texels.row, texels.col] = np.clip(colors_pred, 0.0, 1.0)
@@ -134,14 +139,38 @@ def reconstruct(
 
 
 def side_by_side(
-    mesh: Mesh, result: Reconstruction, path=None, *, view=(15.0, 35.0), size=(384, 384), y_up: bool = True
+    mesh: Mesh, result: Reconstruction, path: str | os.PathLike | None = None, *, view=(15.0, 35.0),
+    size=(384, 384), y_up: bool = True,
 ) -> np.ndarray:
     """Render the reference with its original and with the reconstructed texture, side by side.
 
-    ``y_up``: the mesh's up axis is +y (as Spot and most OBJ files); the renderer's is +z.
-    """
-    from ..render import render_mesh, write_png
+    Args:
+      mesh: the textured reference given to :func:`reconstruct`.
+      result: its :class:`Reconstruction`.
+      path: where to write the image as a PNG (:func:`jmeshtex.io.save_png`; folders are created);
+        None: only return it.
+      view: ``(elevation, azimuth)`` of the camera in degrees.
+      size: ``(height, width)`` of each of the two renders.
+      y_up: the mesh's up axis is +y (as Spot and most OBJ files); the renderer's is +z.
 
+    Returns:
+      ``[H, 2 W, 3]`` image: the original left, the reconstruction (with its PSNR) right.
+
+    Example:
+      >>> import jax, numpy as np
+      >>> from jmeshtex import Mesh
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.fl import Config, init
+      >>> v, f = grid(2)
+      >>> mesh = Mesh(v, f, uv=v[f][..., :2], texture=np.full((8, 8, 3), 0.5, np.float32))
+      >>> r = reconstruct(init(Config(num_samples=4), key=jax.random.key(0)), mesh, key=jax.random.key(1), lpips=False)
+      >>> side_by_side(mesh, r, y_up=False, size=(32, 32)).shape
+      (32, 64, 3)
+    """
+    from ..io import save_png
+    from ..render import render_mesh
+
+    mesh = as_mesh(mesh, what="mesh")
     if mesh.uv is None:
         raise InputError("side_by_side needs the reference mesh with UVs")
     v = np.asarray(mesh.vertices, np.float64)
@@ -153,6 +182,6 @@ def side_by_side(
                         title=f"FL-VAE ({result.metrics.get('psnr', float('nan')):.2f} dB)")
     image = np.concatenate([left, right], axis=1)
     if path is not None:
-        write_png(path, image)
+        pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
+        save_png(image, path)
     return image
-

@@ -1,18 +1,42 @@
 """Field Latent Diffusion (Mitchel, Esteves, Makadia, CVPR 2024, §5–6): a diffusion model on FL-VAE latents.
 
 The denoiser is a U-Net of field convolutions over tangent-vector features (:mod:`jmeshtex.ops`),
-trained on latents of many remeshed copies of one textured mesh (:func:`build_dataset`); the
-samplers (DDPM, DDIM) generate new latents on any mesh, which :mod:`jmeshtex.fl` decodes to colours.
-Inpainting, label guidance and generative transfer reuse the same denoiser.
+trained on latents of many re-triangulated copies of one textured mesh (:func:`build_dataset`); the
+samplers (DDPM, DDIM) generate new latents on any mesh, which :mod:`jmeshtex.fl` decodes to colours
+(:func:`decode_samples`). Inpainting, label guidance and generative transfer reuse the same denoiser.
+
+The method's shape is that of every jmeshtex method:
+
+- :class:`Config` (frozen, validated, ``to_dict`` / ``from_dict``; presets ``paper``, ``cpu``, ``tiny``);
+- :func:`build_dataset` (a :class:`~jmeshtex.Mesh` and an ``encode`` callable in, a :class:`Dataset` out);
+- :func:`train` (resumable, returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`),
+  :func:`save` / :func:`load`;
+- the task verbs :func:`sample` and :func:`inpaint` (a mesh and ``key=`` in, latents out).
+
+Example:
+  >>> import jax
+  >>> from jmeshtex import fldm
+  >>> from jmeshtex.data import icosphere
+  >>> config = fldm.Config.tiny(latent_channels=1, n_copies=2, copy_vertices=40, steps=2, bucket=32)
+  >>> data = fldm.build_dataset(icosphere(1), config, encode=lambda m: m.vertices[:, :1] + 0j,
+  ...                           key=jax.random.key(0), progress=False)
+  >>> result = fldm.train(data, config, key=jax.random.key(1), progress=False)
+  >>> fldm.sample(result.model, icosphere(1), key=jax.random.key(2), n=2, steps=3).shape
+  (2, 42, 1)
 """
 
-from ._config import FLDMConfig as FLDMConfig
-from ._data import FLDMData as FLDMData
+from .._train_result import TrainResult as TrainResult
+from ._config import Config as Config
+from ._data import Dataset as Dataset
 from ._data import build_dataset as build_dataset
 from ._data import fl_vae_encoder as fl_vae_encoder
+from ._data import stack_copies as stack_copies
 from ._denoiser import DenoiserGeometry as DenoiserGeometry
 from ._denoiser import denoise as denoise
+from ._denoiser import denoiser_activations as denoiser_activations
+from ._denoiser import denoiser_flops as denoiser_flops
 from ._denoiser import denoiser_geometry as denoiser_geometry
+from ._denoiser import geometry_sizes as geometry_sizes
 from ._denoiser import init_denoiser as init_denoiser
 from ._denoiser import pad_geometry as pad_geometry
 from ._diffusion import LOSS_NAMES as LOSS_NAMES
@@ -30,12 +54,17 @@ from ._diffusion import make_schedule as make_schedule
 from ._diffusion import prediction_target as prediction_target
 from ._diffusion import q_sample as q_sample
 from ._diffusion import sample_from_noise as sample_from_noise
+from ._diffusion import timestep_sequence as timestep_sequence
 from ._sample import decode_samples as decode_samples
-from ._sample import inpaint_fldm as inpaint_fldm
+from ._sample import inpaint as inpaint
 from ._sample import render_samples as render_samples
-from ._sample import sample_fldm as sample_fldm
+from ._sample import sample as sample
 from ._sample import sampling_geometry as sampling_geometry
-from ._train import FLDMModel as FLDMModel
-from ._train import load_fldm as load_fldm
-from ._train import save_fldm as save_fldm
-from ._train import train_fldm as train_fldm
+from ._train import Model as Model
+from ._train import init as init
+from ._train import load as load
+from ._train import make_train_step as make_train_step
+from ._train import optimizer as optimizer
+from ._train import save as save
+from ._train import train as train
+from ._train import training_batch as training_batch

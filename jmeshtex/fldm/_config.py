@@ -1,12 +1,12 @@
 """Configuration of Field Latent Diffusion (Mitchel, Esteves, Makadia, CVPR 2024, §5–6, supp. §8.2).
 
-One frozen, JSON round-trippable dataclass :class:`FLDMConfig` holds the denoiser's architecture, the
+One frozen, JSON round-trippable dataclass :class:`Config` holds the denoiser's architecture, the
 diffusion schedule, the training data (re-triangulated copies) and the optimiser. Presets:
 
-- :meth:`FLDMConfig.paper`: the paper's denoiser (96 / 192 channels, 2 + 4 + 4 FCResNet blocks),
+- :meth:`Config.paper`: the paper's denoiser (96 / 192 channels, 2 + 4 + 4 FCResNet blocks),
   500 copies of ~30K vertices, linear schedule, T = 1000;
-- :meth:`FLDMConfig.cpu`: a CPU-sized denoiser (32 / 64 channels, 1 + 2 + 2 blocks);
-- :meth:`FLDMConfig.tiny`: tests, demos and notebooks (16 / 32 channels, 1 + 1 + 1 blocks, few copies).
+- :meth:`Config.cpu`: a CPU-sized denoiser (32 / 64 channels, 1 + 2 + 2 blocks);
+- :meth:`Config.tiny`: tests, demos and notebooks (16 / 32 channels, 1 + 1 + 1 blocks, few copies).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from ._diffusion import PREDICTIONS, SCHEDULES
 
 
 @dataclasses.dataclass(frozen=True)
-class FLDMConfig(ConfigBase):
+class Config(ConfigBase):
     """Every choice of an FLDM run.
 
     Attributes:
@@ -32,22 +32,24 @@ class FLDMConfig(ConfigBase):
       num_labels: label classes for label-guided generation (0: unconditional).
       schedule: ``"linear"`` or ``"cosine"``.
       prediction: what the denoiser outputs: ``"epsilon"`` (paper, eq. 10) or ``"v"``
-        (:func:`jmeshtex.fl.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
+        (:func:`~jmeshtex.fldm.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
         over-shoots the latents' magnitude several times when sampled).
-      num_train_steps: diffusion steps ``T``.
+      diffusion_steps: diffusion steps ``T`` of the noise schedule.
       learning_rate: Adam learning rate.
       batch_size: mesh copies per step (split over devices).
-      train_steps: optimiser steps of :func:`train_fldm`.
+      steps: optimiser steps of :func:`~jmeshtex.fldm.train`.
       checkpoint_every: steps between checkpoints.
       n_copies: re-triangulated copies of the input mesh.
       copy_vertices: vertices per copy (0: the input's count).
       pool_ratio: coarse / fine vertex ratio of the U-Net's one downsampling.
       bucket: vertex counts are padded up to a multiple of this (limits recompiles).
-      seed: seed of copies, initialisation and training noise.
+
+    Randomness (copies, initialisation, training noise) comes from the ``key`` of
+    :func:`~jmeshtex.fldm.build_dataset` and :func:`~jmeshtex.fldm.train`, not from the config.
 
     Example:
-      >>> c = FLDMConfig.tiny()
-      >>> FLDMConfig.from_dict(c.to_dict()) == c
+      >>> c = Config.tiny()
+      >>> Config.from_dict(c.to_dict()) == c
       True
     """
 
@@ -61,20 +63,19 @@ class FLDMConfig(ConfigBase):
     num_labels: int = 0
     schedule: str = "linear"
     prediction: str = "epsilon"
-    num_train_steps: int = 1000
+    diffusion_steps: int = 1000
     learning_rate: float = 2e-4
     batch_size: int = 4
-    train_steps: int = 20000
+    steps: int = 20000
     checkpoint_every: int = 500
     n_copies: int = 500
     copy_vertices: int = 30000
     pool_ratio: float = 0.25
     bucket: int = 256
-    seed: int = 0
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
     _RULES = (
-        rule("latent_channels hdim knn time_features num_train_steps batch_size train_steps checkpoint_every n_copies "
+        rule("latent_channels hdim knn time_features diffusion_steps batch_size steps checkpoint_every n_copies "
              "bucket", lambda x: is_int(x) and x >= 1, "a positive integer"),
         rule("widths", lambda w: len(w) == 2 and all(isinstance(x, int) and x >= 1 for x in w),
              "two positive integers (fine, coarse)"),
@@ -87,36 +88,36 @@ class FLDMConfig(ConfigBase):
         rule("copy_vertices", lambda x: isinstance(x, int) and (x == 0 or x >= 16), "0 (keep the input's count) or >= 16"),
         rule("pool_ratio", lambda x: 0.05 <= x <= 0.75, "in [0.05, 0.75]"),
         rule("learning_rate", lambda x: x > 0, "> 0"),
-        rule("num_train_steps", lambda x: x >= 2, ">= 2", message="{name} must be {must}"),
+        rule("diffusion_steps", lambda x: x >= 2, ">= 2", message="{name} must be {must}"),
     )
 
     @classmethod
-    def paper(cls, **changes) -> FLDMConfig:
+    def paper(cls, **changes) -> Config:
         """The paper's denoiser and data (96/192 channels, 2+4+4 blocks, 500 copies of 30K vertices).
 
         Example:
-          >>> FLDMConfig.paper().widths, FLDMConfig.paper().blocks
+          >>> Config.paper().widths, Config.paper().blocks
           ((96, 192), (2, 4, 4))
         """
         return cls(**changes)
 
     @classmethod
-    def cpu(cls, **changes) -> FLDMConfig:
+    def cpu(cls, **changes) -> Config:
         """A CPU preset: 32/64 channels, 1+2+2 blocks, ReLU filters, v-prediction, 32 copies of 5K vertices."""
         base = dict(widths=(32, 64), blocks=(1, 2, 2), hdim=8, activation="relu", prediction="v", n_copies=32,
-                    copy_vertices=5000, train_steps=3000, batch_size=2, learning_rate=1e-3)
+                    copy_vertices=5000, steps=3000, batch_size=2, learning_rate=1e-3)
         return cls(**{**base, **changes})
 
     @classmethod
-    def tiny(cls, **changes) -> FLDMConfig:
+    def tiny(cls, **changes) -> Config:
         """Tests, demos and notebooks: 16/32 channels, 1+1+1 blocks, 4 copies of 400 vertices.
 
         Example:
-          >>> c = FLDMConfig.tiny(latent_channels=2)
+          >>> c = Config.tiny(latent_channels=2)
           >>> c.widths, c.n_copies, c.latent_channels
           ((16, 32), 4, 2)
         """
         base = dict(widths=(16, 32), blocks=(1, 1, 1), hdim=4, knn=7, activation="relu", time_features=16,
-                    n_copies=4, copy_vertices=400, train_steps=200, batch_size=2, learning_rate=3e-3,
+                    n_copies=4, copy_vertices=400, steps=200, batch_size=2, learning_rate=3e-3,
                     checkpoint_every=100, bucket=64)
         return cls(**{**base, **changes})

@@ -3,9 +3,9 @@
 Mitchel et al. (2024, §6.1) train the denoiser on many re-triangulations of the single input mesh so
 that it learns the texture and not the connectivity. For each copy ``i`` (:func:`copy_mesh`):
 
-1. :func:`jmeshtex.geometry.remesh` with ``seed = config.seed · 100003 + i`` (same surface, new
+1. :func:`jmeshtex.geometry.remesh` with a seed drawn from ``(key, i)`` (same surface, new
    triangles; ``copy_vertices`` vertices);
-2. the denoiser's geometry (:func:`~jmeshtex.fl._denoiser.denoiser_geometry`: k-NN neighbourhoods of
+2. the denoiser's geometry (:func:`~jmeshtex.fldm.denoiser_geometry`: k-NN neighbourhoods of
    the copy and of one coarse level, pooling map);
 3. its latents from an ``encode`` callable ``Mesh -> complex [V, d]`` — normally the FL-VAE reading
    the *original* surface's colours at the copy's one-ring samples (:func:`fl_vae_encoder`), in the
@@ -31,17 +31,18 @@ import jax
 import numpy as np
 
 from .._errors import ConfigError, InputError, MeshIOError
-from .._mesh import Mesh
+from .._mesh import Mesh, as_mesh
 from ..geometry import PoolingMap, VertexNeighborhood, remesh, surface_correspondence
-from ._config import FLDMConfig
+from ._config import Config
 from ._denoiser import DenoiserGeometry, denoiser_geometry, geometry_sizes, pad_geometry
 from ._diffusion import latent_scale
+from ._keys import host_seed, key_ints
 
 DATA_FILE = "data.json"
 
 
-class FLDMData(NamedTuple):
-    """Stacked, padded training copies.
+class Dataset(NamedTuple):
+    """Stacked, padded training copies (what :func:`build_dataset` returns and :func:`train` reads).
 
     Attributes:
       latents: ``[N, V₀, d]`` complex128 latents (unscaled; zero on padding).
@@ -61,35 +62,48 @@ class FLDMData(NamedTuple):
 
     @property
     def num_copies(self) -> int:
+        """How many copies the data set holds."""
         return int(self.latents.shape[0])
 
 
-def fl_vae_encoder(params, vae_config, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], np.ndarray]:
+def fl_vae_encoder(vae, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], np.ndarray]:
     """An ``encode`` callable: the FL-VAE means ``μ`` of a copy, colours read on ``original``'s surface.
+
+    Args:
+      vae: the FL-VAE (:class:`jmeshtex.fl.Model`, e.g. :func:`jmeshtex.fl.load_pretrained`).
+      original: the textured (or vertex-coloured) :class:`~jmeshtex.Mesh` the copies are made from.
+      key: PRNG key; the ``n``-th call encodes with ``fold_in(key, n)``.
+
+    Returns:
+      ``encode(copy: Mesh) -> complex128 [V, d]`` (``d = vae.config.latent_dim``), with an
+      ``identity`` attribute naming the weights (so that :func:`build_dataset` does not reuse a
+      cache built with another encoder).
 
     Example:
       >>> import jax
-      >>> from jmeshtex import Mesh
+      >>> from jmeshtex import Mesh, fl
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.fl import FLVAEConfig, init_fl_vae
       >>> v, f = grid(4)
       >>> m = Mesh(v, f, vertex_colors=np.tile(v[:, :1], (1, 3)))
-      >>> c = FLVAEConfig(features=8, num_heads=2, num_blocks=1, num_samples=8, encode_chunk=16)
-      >>> enc = fl_vae_encoder(init_fl_vae(jax.random.key(0), c), c, m, key=jax.random.key(1))
+      >>> vae = fl.init(fl.Config(features=8, num_heads=2, num_blocks=1, num_samples=8, encode_chunk=16),
+      ...               key=jax.random.key(0))
+      >>> enc = fl_vae_encoder(vae, m, key=jax.random.key(1))
       >>> enc(m).shape
       (25, 8)
     """
-    from ..fl import encode_mesh, surface_colors
+    from .. import fl
 
-    colors = surface_colors(original)
+    if not isinstance(vae, fl.Model):
+        raise InputError(f"fl_vae_encoder: expected a jmeshtex.fl.Model (fl.load_pretrained()), got {type(vae).__name__}")
+    colors = fl.surface_colors(as_mesh(original, what="original"))
     counter = [0]
 
     def encode(copy: Mesh) -> np.ndarray:
         counter[0] += 1
         k = jax.random.fold_in(key, counter[0])
-        return np.asarray(encode_mesh(params, vae_config, copy, colors=colors, key=k).mu, np.complex128)
+        return np.asarray(fl.encode(vae, copy, colors=colors, key=k).mu, np.complex128)
 
-    encode.identity = f"fl_vae:{_digest(jax.tree.leaves(params))}:{vae_config!r}"  # type: ignore[attr-defined]
+    encode.identity = f"fl_vae:{_digest(jax.tree.leaves(vae.params))}:{vae.config!r}"  # type: ignore[attr-defined]
     return encode
 
 
@@ -100,9 +114,9 @@ def _digest(arrays) -> str:
     return h.hexdigest()[:16]
 
 
-def copy_seed(config: FLDMConfig, i: int) -> int:
-    """Seed of copy ``i``'s re-triangulation."""
-    return int(config.seed) * 100003 + int(i)
+def copy_seed(key: jax.Array, i: int) -> int:
+    """Seed of copy ``i``'s re-triangulation (a function of ``key`` and ``i``)."""
+    return host_seed(key, i)
 
 
 def transfer_labels(original: Mesh, labels: np.ndarray, target: Mesh) -> np.ndarray:
@@ -115,6 +129,7 @@ def transfer_labels(original: Mesh, labels: np.ndarray, target: Mesh) -> np.ndar
       >>> transfer_labels(Mesh(v, f), (v[:, 0] > 0.5).astype(int), Mesh(v[:4], f[:1])).tolist()
       [0, 0, 1, 1]
     """
+    original, target = as_mesh(original, what="original"), as_mesh(target)
     labels = np.asarray(labels)
     if labels.shape != (original.num_vertices,) or not np.issubdtype(labels.dtype, np.integer):
         raise InputError(f"labels must be integers [V] = ({original.num_vertices},), got {labels.dtype} {labels.shape}")
@@ -123,10 +138,11 @@ def transfer_labels(original: Mesh, labels: np.ndarray, target: Mesh) -> np.ndar
     return labels[original.faces[face, corner]].astype(np.int32)
 
 
-def copy_mesh(mesh: Mesh, config: FLDMConfig, i: int) -> Mesh:
+def copy_mesh(mesh: Mesh, config: Config, i: int, *, key: jax.Array) -> Mesh:
     """Re-triangulated copy ``i`` of ``mesh`` (``copy_vertices`` vertices, or the input's count)."""
+    mesh = as_mesh(mesh)
     n = config.copy_vertices or mesh.num_vertices
-    return remesh(mesh, n_vertices=int(n), seed=copy_seed(config, i))
+    return remesh(mesh, n_vertices=int(n), seed=copy_seed(key, i))
 
 
 def _geometry_arrays(geo: DenoiserGeometry) -> dict[str, np.ndarray]:
@@ -168,9 +184,27 @@ def _round_up(n: int, bucket: int) -> int:
 
 
 def stack_copies(
-    copies: list[tuple[Mesh, DenoiserGeometry, np.ndarray, np.ndarray | None]], config: FLDMConfig
-) -> FLDMData:
-    """Pad every copy to the bucketed common shape and stack them (see the module docstring)."""
+    copies: list[tuple[Mesh, DenoiserGeometry, np.ndarray, np.ndarray | None]], config: Config
+) -> Dataset:
+    """Pad every copy to the bucketed common shape and stack them (see the module docstring).
+
+    Args:
+      copies: one ``(mesh, geometry, latents [V, d], labels [V] or None)`` per copy (labels all
+        given or all None).
+      config: :class:`Config` (``bucket``).
+
+    Returns:
+      :class:`Dataset`; ``V₀`` and ``V₁`` rounded up to a multiple of ``bucket`` (``bucket // 4``
+      for the coarse level).
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> m = icosphere(1)
+      >>> g = denoiser_geometry(m, knn=7)
+      >>> d = stack_copies([(m, g, np.ones((42, 1), complex), None)], Config.tiny(bucket=32))
+      >>> d.latents.shape, d.num_vertices.tolist(), d.scale.tolist()
+      ((1, 64, 1), [42], [1.0])
+    """
     sizes = [geometry_sizes(g) for _, g, _, _ in copies]
     V0 = _round_up(max(s["V0"] for s in sizes), config.bucket)
     V1 = _round_up(max(s["V1"] for s in sizes), max(config.bucket // 4, 1))
@@ -186,33 +220,35 @@ def stack_copies(
             labels[i, : m.num_vertices] = lab
     nv = np.array([m.num_vertices for m, _, _, _ in copies])
     mask = np.arange(V0)[None] < nv[:, None]
-    return FLDMData(latents, geometry, labels, nv, latent_scale(latents, mask), tuple(m for m, _, _, _ in copies))
+    return Dataset(latents, geometry, labels, nv, latent_scale(latents, mask), tuple(m for m, _, _, _ in copies))
 
 
 def build_dataset(
     mesh: Mesh,
-    config: FLDMConfig,
+    config: Config,
     *,
     encode: Callable[[Mesh], np.ndarray],
+    key: jax.Array,
     labels: np.ndarray | None = None,
     cache_dir: str | os.PathLike | None = None,
     progress: bool = True,
-) -> FLDMData:
+) -> Dataset:
     """Re-triangulated copies of ``mesh`` with geometry and latents, cached on disk, padded and stacked.
 
     Args:
-      mesh: the textured (or vertex-coloured) input mesh.
-      config: :class:`FLDMConfig` (``n_copies``, ``copy_vertices``, ``knn``, ``pool_ratio``,
-        ``bucket``, ``seed``; ``num_labels`` when ``labels`` are given).
+      mesh: the textured (or vertex-coloured) input :class:`~jmeshtex.Mesh`.
+      config: :class:`Config` (``n_copies``, ``copy_vertices``, ``knn``, ``pool_ratio``,
+        ``bucket``; ``num_labels`` when ``labels`` are given).
       encode: ``Mesh -> complex [V, d]`` latents of a copy in its one-ring frames
         (:func:`fl_vae_encoder`, or any stand-in with the same contract). An ``identity`` attribute,
         if present, is recorded so that a cache built with another encoder is not reused.
+      key: PRNG key of the re-triangulations (the same key gives the same copies).
       labels: optional ``[V]`` int labels on ``mesh`` in ``[0, num_labels)``.
       cache_dir: folder for ``copy_####.npz`` and ``data.json`` (None: no cache).
       progress: tqdm bar.
 
     Returns:
-      :class:`FLDMData`.
+      :class:`Dataset`.
 
     Raises:
       ConfigError: ``encode`` not callable; labels given but ``num_labels`` is 0 (or labels out of
@@ -220,14 +256,16 @@ def build_dataset(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> cfg = FLDMConfig.tiny(n_copies=2, copy_vertices=60, latent_channels=1, bucket=32)
+      >>> import jax
+      >>> cfg = Config.tiny(n_copies=2, copy_vertices=60, latent_channels=1, bucket=32)
       >>> enc = lambda m: m.vertices[:, :1] + 0j
-      >>> data = build_dataset(Mesh(*icosphere(1)), cfg, encode=enc, progress=False)
+      >>> data = build_dataset(icosphere(1), cfg, encode=enc, key=jax.random.key(0), progress=False)
       >>> data.latents.shape, data.num_vertices.tolist()
       ((2, 64, 1), [60, 60])
     """
     from tqdm.auto import tqdm
 
+    mesh = as_mesh(mesh)
     if not callable(encode):  # checked before the cache is touched: a stale cache is cleared below
         raise ConfigError(f"encode must be a callable Mesh -> complex [V, d] (e.g. fl_vae_encoder), got {encode!r}")
     if labels is not None:
@@ -246,7 +284,7 @@ def build_dataset(
         "copy_vertices": config.copy_vertices,
         "knn": config.knn,
         "pool_ratio": config.pool_ratio,
-        "seed": config.seed,
+        "key": key_ints(key),
         "latent_channels": config.latent_channels,
     }
     reuse = False
@@ -267,8 +305,8 @@ def build_dataset(
         if path is not None and reuse and path.is_file():
             copies.append(_load_copy(path))
             continue
-        copy = copy_mesh(mesh, config, i)
-        geo = denoiser_geometry(copy.vertices, copy.faces, knn=config.knn, pool_ratio=config.pool_ratio)
+        copy = copy_mesh(mesh, config, i, key=key)
+        geo = denoiser_geometry(copy, knn=config.knn, pool_ratio=config.pool_ratio)
         mu = np.asarray(encode(copy))
         if mu.shape != (copy.num_vertices, config.latent_channels) or not np.iscomplexobj(mu):
             raise ConfigError(
@@ -282,6 +320,6 @@ def build_dataset(
     return stack_copies(copies, config)
 
 
-def batch_geometry(data: FLDMData, index: np.ndarray) -> DenoiserGeometry:
+def batch_geometry(data: Dataset, index: np.ndarray) -> DenoiserGeometry:
     """The geometry of some copies (leading axis ``len(index)``)."""
     return jax.tree.map(lambda a: a[index], data.geometry)

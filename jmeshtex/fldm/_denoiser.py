@@ -17,7 +17,7 @@ Geometry (:class:`DenoiserGeometry`, built on the host by :func:`denoiser_geomet
 neighbourhoods of the input mesh and of one coarser level of :func:`jmeshtex.geometry.mesh_hierarchy`,
 and the pooling map between them. Fine frames are those of
 :func:`jmeshtex.geometry.one_ring_neighborhood` — the FL-VAE's latent gauge — so latents from
-:func:`jmeshtex.fl.encode_mesh` go in unchanged. Log maps are divided by the fine level's mean edge
+:func:`jmeshtex.fl.encode` go in unchanged. Log maps are divided by the fine level's mean edge
 length: the filters see distances in units of the mesh resolution, so sampling a trained model on a
 finer mesh gives a smaller texture (textural scale follows resolution, §6.6).
 """
@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
+from .._mesh import Mesh, as_mesh
 from .._types import Array, Complex, Float, Int, PRNGKey
 from ..geometry import (
     PoolingMap,
@@ -45,7 +46,7 @@ from ..geometry import (
 )
 from ..nn import FRN, ComplexDense, FCResNetBlock, VNNonlinearity
 from ..ops import real_dtype, tangent_pool, tangent_unpool
-from ._config import FLDMConfig
+from ._config import Config
 
 
 class DenoiserGeometry(NamedTuple):
@@ -67,7 +68,7 @@ class DenoiserGeometry(NamedTuple):
 
 
 def denoiser_geometry(
-    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"], *, knn: int = 9, pool_ratio: float = 0.25
+    mesh: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]], *, knn: int = 9, pool_ratio: float = 0.25
 ) -> DenoiserGeometry:
     """Host-side k-NN neighbourhoods of the mesh and of one coarse level, and the pooling map.
 
@@ -75,8 +76,8 @@ def denoiser_geometry(
     ``log ← log / h`` (module docstring).
 
     Args:
-      vertices: ``[V, 3]``.
-      faces: ``[F, 3]`` manifold triangles (open or closed, any genus).
+      mesh: a :class:`~jmeshtex.Mesh` (or a ``(vertices [V, 3], faces [F, 3])`` pair) of manifold
+        triangles, open or closed, any genus.
       knn: slots per neighbourhood including the vertex itself.
       pool_ratio: coarse / fine vertex ratio.
 
@@ -85,10 +86,12 @@ def denoiser_geometry(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> g = denoiser_geometry(*icosphere(2), knn=7, pool_ratio=0.25)
+      >>> g = denoiser_geometry(icosphere(2), knn=7, pool_ratio=0.25)
       >>> g.fine.index.shape, g.coarse.index.shape[1], g.pool.parent.shape
       ((162, 7), 7, (162,))
     """
+    mesh = as_mesh(mesh)
+    vertices, faces = mesh.vertices, mesh.faces
     h = mesh_hierarchy(vertices, faces, levels=2, ratio=pool_ratio)
     scale = mean_edge_length(vertices, faces)
     fine = knn_from_one_ring(h.neighborhoods[0], knn)
@@ -99,7 +102,17 @@ def denoiser_geometry(
 
 
 def geometry_sizes(geo: DenoiserGeometry) -> dict[str, int]:
-    """``{"V0", "V1", "M"}`` sizes of a geometry (for bucketing)."""
+    """The sizes of a geometry, for bucketing and FLOP counts.
+
+    Returns:
+      ``{"V0": fine vertices, "V1": coarse vertices, "M": most fine children of a coarse vertex}``.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> s = geometry_sizes(denoiser_geometry(icosphere(1), knn=5, pool_ratio=0.5))
+      >>> s["V0"], 0 < s["V1"] < 42
+      (42, True)
+    """
     return {"V0": int(np.shape(geo.fine.index)[0]), "V1": int(np.shape(geo.coarse.index)[0]),
             "M": int(np.shape(geo.pool.children)[1])}
 
@@ -109,7 +122,7 @@ def pad_geometry(geo: DenoiserGeometry, *, V0: int, V1: int, M: int) -> Denoiser
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> g = pad_geometry(denoiser_geometry(*icosphere(1), knn=5), V0=50, V1=20, M=12)
+      >>> g = pad_geometry(denoiser_geometry(icosphere(1), knn=5), V0=50, V1=20, M=12)
       >>> g.fine.index.shape, g.coarse.index.shape, g.pool.children.shape
       ((50, 5), (20, 5), (20, 12))
     """
@@ -140,11 +153,11 @@ class Denoiser(nn.Module):
     """The U-Net as a flax module; use :func:`init_denoiser` / :func:`denoise` (pure functions).
 
     Attributes:
-      config: :class:`FLDMConfig` (widths, blocks, hdim, activation, time_features, num_labels).
+      config: :class:`Config` (widths, blocks, hdim, activation, time_features, num_labels).
       param_dtype: complex dtype of the complex weights.
     """
 
-    config: FLDMConfig
+    config: Config
     param_dtype: Any = jnp.complex64
 
     @nn.compact
@@ -178,7 +191,7 @@ class Denoiser(nn.Module):
         return out * jnp.asarray(geo.fine.vertex_mask).astype(out.dtype)[:, None]
 
 
-def _check_inputs(config: FLDMConfig, z, geo: DenoiserGeometry, labels) -> None:
+def _check_inputs(config: Config, z, geo: DenoiserGeometry, labels) -> None:
     if z.ndim != 2 or not jnp.issubdtype(z.dtype, jnp.complexfloating):
         raise InputError(f"denoiser: z must be complex [V, d] (vmap for batches), got {z.dtype} {z.shape}")
     if z.shape[1] != config.latent_channels:
@@ -194,7 +207,7 @@ def _check_inputs(config: FLDMConfig, z, geo: DenoiserGeometry, labels) -> None:
 
 
 def init_denoiser(
-    key: PRNGKey, config: FLDMConfig, geo: DenoiserGeometry, *, dtype=jnp.complex64
+    key: PRNGKey, config: Config, geo: DenoiserGeometry | None = None, *, dtype=jnp.complex64
 ) -> dict:
     """Random denoiser parameters (a flax ``params`` dict) for ``config``; they fit every geometry.
 
@@ -202,11 +215,16 @@ def init_denoiser(
     the configuration only, and initialisation runs (jitted once per config and dtype) on a fixed
     small mesh.
 
+    Args:
+      key: PRNG key of the initialisation.
+      config: the :class:`Config` (architecture fields).
+      geo: unused (any geometry, or None).
+      dtype: complex dtype of the complex weights.
+
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> cfg = FLDMConfig.tiny(latent_channels=2)
-      >>> geo = denoiser_geometry(*icosphere(1), knn=cfg.knn)
-      >>> params = init_denoiser(jax.random.key(0), cfg, geo)
+      >>> cfg = Config.tiny(latent_channels=2)
+      >>> params = init_denoiser(jax.random.key(0), cfg)
       >>> sorted(params)[:3]
       ['down_0', 'lift', 'mid_0']
     """
@@ -218,11 +236,11 @@ def init_denoiser(
 def _init_geometry(knn: int) -> DenoiserGeometry:
     from ..data import icosphere
 
-    return denoiser_geometry(*icosphere(1), knn=knn, pool_ratio=0.5)
+    return denoiser_geometry(icosphere(1), knn=knn, pool_ratio=0.5)
 
 
 @functools.partial(jax.jit, static_argnames=("config", "dtype"))
-def _init(key, config: FLDMConfig, dtype):
+def _init(key, config: Config, dtype):
     # jitted: eager initialisation dispatches (and compiles) every small op of every block separately
     geo = _as_jax(_init_geometry(config.knn), dtype)
     v = np.shape(geo.fine.index)[0]
@@ -240,7 +258,7 @@ def _as_jax(geo: DenoiserGeometry, cdtype) -> DenoiserGeometry:
 
 def denoise(
     params: dict,
-    config: FLDMConfig,
+    config: Config,
     z_t: Complex[Array, "V d"],
     t: Int[Array, ""],
     geo: DenoiserGeometry,
@@ -257,7 +275,7 @@ def denoise(
 
     Args:
       params: from :func:`init_denoiser` (or training).
-      config: the :class:`FLDMConfig`.
+      config: the :class:`Config`.
       z_t: ``[V, d]`` noisy latents in the fine frames of ``geo``.
       t: scalar int timestep.
       geo: :class:`DenoiserGeometry` (NumPy or JAX).
@@ -268,8 +286,8 @@ def denoise(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> cfg = FLDMConfig.tiny(latent_channels=2)
-      >>> geo = denoiser_geometry(*icosphere(1), knn=cfg.knn)
+      >>> cfg = Config.tiny(latent_channels=2)
+      >>> geo = denoiser_geometry(icosphere(1), knn=cfg.knn)
       >>> params = init_denoiser(jax.random.key(0), cfg, geo)
       >>> z = jnp.ones((42, 2), jnp.complex64)
       >>> denoise(params, cfg, z, jnp.array(10), geo).shape
@@ -286,14 +304,19 @@ def _apply(params, config, z_t, t, geo, labels):
     return Denoiser(config, param_dtype=z_t.dtype).apply({"params": params}, z_t, t, geo, labels)
 
 
-def denoiser_flops(config: FLDMConfig, v0: int, v1: int) -> float:
+def denoiser_flops(config: Config, v0: int, v1: int) -> float:
     """Approximate real FLOPs of one denoiser evaluation (multiply-adds × 2; complex × 4).
 
     Counts the field convolutions' filter responses and slot sums (``V·k·C·H``) and their complex
     mixes (``V·C·H·D``), and the complex linear layers; norms, VN and pooling are lower order.
 
+    Args:
+      config: the :class:`Config` (widths, blocks, knn, hdim, latent_channels).
+      v0: fine vertices (``geometry_sizes(geo)["V0"]``).
+      v1: coarse vertices (``geometry_sizes(geo)["V1"]``).
+
     Example:
-      >>> f = denoiser_flops(FLDMConfig.paper(), 30000, 7500)
+      >>> f = denoiser_flops(Config.paper(), 30000, 7500)
       >>> 1e10 < f < 1e13
       True
     """
@@ -318,15 +341,20 @@ def denoiser_flops(config: FLDMConfig, v0: int, v1: int) -> float:
     return float(total)
 
 
-def denoiser_activations(config: FLDMConfig, v0: int, v1: int) -> float:
+def denoiser_activations(config: Config, v0: int, v1: int) -> float:
     """Filter activations evaluated by one denoiser evaluation: ``Σ_conv V·k·C_in·H``.
 
     Every field convolution evaluates its filter nonlinearity once per vertex, slot, input channel
     and response; :func:`denoiser_flops` counts the multiply-adds around it but not the activation
     itself (a SiLU is an exponential and a division).
 
+    Args:
+      config: the :class:`Config`.
+      v0: fine vertices.
+      v1: coarse vertices.
+
     Example:
-      >>> n = denoiser_activations(FLDMConfig.paper(), 30000, 7500)
+      >>> n = denoiser_activations(Config.paper(), 30000, 7500)
       >>> round(n / 1e9, 2)  # G evaluations
       7.36
     """
@@ -335,19 +363,4 @@ def denoiser_activations(config: FLDMConfig, v0: int, v1: int) -> float:
     fine = config.blocks[0] * 2 * c0 + (c1 + c0) + c0 + (config.blocks[2] - 1) * 2 * c0
     coarse = c0 + c1 + (config.blocks[1] - 1) * 2 * c1
     return float(per * (v0 * fine + v1 * coarse))
-
-
-__all__ = [
-    "Denoiser",
-    "DenoiserGeometry",
-    "denoise",
-    "denoiser_activations",
-    "denoiser_flops",
-    "denoiser_geometry",
-    "geometry_sizes",
-    "init_denoiser",
-    "pad_geometry",
-    "timestep_embedding",
-]
-
 

@@ -338,16 +338,20 @@ def ddim_step(
     return jnp.sqrt(a_p) * z0 + direction * eps_pred + sigma * noise.astype(z_t.dtype)
 
 
-def timestep_sequence(num_train_steps: int, num_sample_steps: int) -> np.ndarray:
+def timestep_sequence(diffusion_steps: int, sample_steps: int) -> np.ndarray:
     """Evenly spaced decreasing timesteps for DDIM, from ``T−1`` down to 0.
+
+    Args:
+      diffusion_steps: ``T``.
+      sample_steps: how many timesteps to visit (``1 … T``).
 
     Example:
       >>> timestep_sequence(1000, 4).tolist()
       [999, 666, 333, 0]
     """
-    if not 1 <= num_sample_steps <= num_train_steps:
-        raise ConfigError(f"sampling steps must be in [1, {num_train_steps}], got {num_sample_steps}")
-    return np.round(np.linspace(num_train_steps - 1, 0, num_sample_steps)).astype(np.int32)
+    if not 1 <= sample_steps <= diffusion_steps:
+        raise ConfigError(f"sampling steps must be in [1, {diffusion_steps}], got {sample_steps}")
+    return np.round(np.linspace(diffusion_steps - 1, 0, sample_steps)).astype(np.int32)
 
 
 class Inpaint(NamedTuple):
@@ -440,18 +444,27 @@ def sample_from_noise(
 
 
 def draw_sampling_noise(
-    key: PRNGKey, shape: tuple[int, int], *, method: str, num_steps: int, num_train_steps: int,
+    key: PRNGKey, shape: tuple[int, int], *, method: str, num_steps: int, diffusion_steps: int,
     inpaint: bool = False, dtype=jnp.complex64,
 ) -> tuple[Array, Array, Array | None]:
     """Tangent noise for :func:`sample_from_noise`: ``(z_T, step_noise, inpaint_noise or None)``.
 
+    Args:
+      key: PRNG key; the same key gives the same noise.
+      shape: ``(V, C)`` of one latent field.
+      method: ``"ddpm"`` (``diffusion_steps`` steps of noise) or ``"ddim"`` (``num_steps``).
+      num_steps: DDIM steps (ignored by DDPM).
+      diffusion_steps: ``T`` of the schedule.
+      inpaint: also draw the noise of the known region.
+      dtype: complex dtype.
+
     Example:
       >>> zT, steps, known = draw_sampling_noise(jax.random.key(0), (5, 2), method="ddim", num_steps=3,
-      ...                                        num_train_steps=100)
+      ...                                        diffusion_steps=100)
       >>> zT.shape, steps.shape, known
       ((5, 2), (3, 5, 2), None)
     """
-    s = num_train_steps if method == "ddpm" else num_steps
+    s = diffusion_steps if method == "ddpm" else num_steps
     k0, k1, k2 = jax.random.split(key, 3)
     z_T = tangent_noise(k0, shape, dtype=dtype)
     steps = tangent_noise(k1, (s, *shape), dtype=dtype)

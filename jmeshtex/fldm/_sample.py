@@ -6,9 +6,9 @@ mesh (*generative transfer*, §6.6). The denoiser's filters see log maps in unit
 mean edge length, so the resolution of the target mesh sets the textural scale: the same model on a
 mesh with twice the vertex density gives a texture about √2 times smaller in world units.
 
-- :func:`sample_fldm`: ``n`` samples with DDIM (default, 50 steps) or ancestral DDPM (all ``T``);
+- :func:`sample`: ``n`` samples with DDIM (default, 50 steps) or ancestral DDPM (all ``T``);
   label-guided when the model was trained with labels (pass a per-vertex ``labels`` map);
-- :func:`inpaint_fldm`: keeps given latents where ``mask`` is True (eq. 14);
+- :func:`inpaint`: keeps given latents where ``mask`` is True (eq. 14);
 - :func:`decode_samples`: FL-VAE decoding to a UV atlas (meshes with UVs) or vertex colours;
 - :func:`render_samples`: one PNG per sample (:func:`jmeshtex.render.render_mesh`).
 
@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
-from .._mesh import Mesh
+from .._mesh import Mesh, as_mesh
 from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, geometry_sizes, pad_geometry
 from ._diffusion import (
     Inpaint,
@@ -35,23 +35,32 @@ from ._diffusion import (
     make_schedule,
     sample_from_noise,
 )
-from ._train import FLDMModel
+from ._train import Model
 
 
 def _round_up(n: int, bucket: int) -> int:
     return -(-int(n) // int(bucket)) * int(bucket)
 
 
-def sampling_geometry(mesh: Mesh, model: FLDMModel) -> DenoiserGeometry:
-    """The denoiser geometry of ``mesh`` with the model's ``knn`` and ``pool_ratio``."""
-    if not isinstance(mesh, Mesh):
-        raise InputError(f"expected a jmeshtex.Mesh, got {type(mesh).__name__}")
-    return denoiser_geometry(mesh.vertices, mesh.faces, knn=model.config.knn, pool_ratio=model.config.pool_ratio)
+def sampling_geometry(mesh: Mesh, model: Model) -> DenoiserGeometry:
+    """The denoiser geometry of ``mesh`` with the model's ``knn`` and ``pool_ratio``.
+
+    Build it once to sample several times on the same mesh (:func:`sample` accepts it as ``target``).
+
+    Args:
+      mesh: a :class:`~jmeshtex.Mesh` (or a ``(vertices, faces)`` pair).
+      model: the :class:`Model` to sample with.
+
+    Returns:
+      :class:`DenoiserGeometry` (:func:`denoiser_geometry`).
+    """
+    mesh = as_mesh(mesh, what="target")
+    return denoiser_geometry(mesh, knn=model.config.knn, pool_ratio=model.config.pool_ratio)
 
 
 @functools.partial(jax.jit, static_argnames=("config", "method", "num_steps", "eta"))
 def _run(params, config, geo, labels, z_T, step_noise, known, mask, known_noise, *, method, num_steps, eta):
-    schedule = make_schedule(config.schedule, num_steps=config.num_train_steps)
+    schedule = make_schedule(config.schedule, num_steps=config.diffusion_steps)
 
     def eps(z, t):
         return epsilon_from_output(schedule, config.prediction, z, t, denoise(params, config, z, t, geo, labels=labels))
@@ -61,7 +70,7 @@ def _run(params, config, geo, labels, z_T, step_noise, known, mask, known_noise,
                              inpaint=inpaint, inpaint_noise=known_noise)
 
 
-def _check_labels(model: FLDMModel, labels, V: int):
+def _check_labels(model: Model, labels, V: int):
     if model.config.num_labels:
         if labels is None:
             raise InputError(f"this model is label-guided (num_labels={model.config.num_labels}); pass labels [V] int")
@@ -74,8 +83,8 @@ def _check_labels(model: FLDMModel, labels, V: int):
     return None
 
 
-def sample_fldm(
-    model: FLDMModel,
+def sample(
+    model: Model,
     target: Mesh | DenoiserGeometry,
     *,
     key: jax.Array,
@@ -95,8 +104,9 @@ def sample_fldm(
        \\qquad \\mu = z_0 / s
 
     Args:
-      model: a trained :class:`FLDMModel`.
-      target: the mesh to sample on (any mesh: generative transfer) or its prebuilt geometry.
+      model: a trained :class:`Model`.
+      target: the :class:`~jmeshtex.Mesh` to sample on (any mesh: generative transfer; a
+        ``(vertices, faces)`` pair also works) or its prebuilt geometry (:func:`sampling_geometry`).
       key: PRNG key; the same key gives the same samples.
       n: number of samples.
       method: ``"ddim"`` (``steps`` steps, ``eta``) or ``"ddpm"`` (all ``T`` steps, ancestral).
@@ -112,14 +122,12 @@ def sample_fldm(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fldm._denoiser import init_denoiser
-      >>> from jmeshtex.fldm._config import FLDMConfig
-      >>> cfg = FLDMConfig.tiny(latent_channels=2, num_train_steps=20)
-      >>> mesh = Mesh(*icosphere(1))
-      >>> geo = denoiser_geometry(mesh.vertices, mesh.faces, knn=cfg.knn, pool_ratio=cfg.pool_ratio)
-      >>> model = FLDMModel(init_denoiser(jax.random.key(0), cfg, geo), cfg, np.ones(2))
-      >>> a = sample_fldm(model, geo, key=jax.random.key(1), n=2, steps=4)
-      >>> b = sample_fldm(model, geo, key=jax.random.key(1), n=2, steps=4)
+      >>> from jmeshtex.fldm import Config, init_denoiser
+      >>> cfg = Config.tiny(latent_channels=2, diffusion_steps=20)
+      >>> model = Model(init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
+      >>> geo = sampling_geometry(icosphere(1), model)
+      >>> a = sample(model, geo, key=jax.random.key(1), n=2, steps=4)
+      >>> b = sample(model, geo, key=jax.random.key(1), n=2, steps=4)
       >>> a.shape, bool(np.array_equal(a, b))
       ((2, 42, 2), True)
     """
@@ -156,41 +164,60 @@ def sample_fldm(
     for i in tqdm(range(int(n)), desc="FLDM sample", unit="sample", disable=not progress):
         z_T, noise, known_noise = draw_sampling_noise(
             jax.random.fold_in(key, i), (Vp, d), method=method, num_steps=steps,
-            num_train_steps=model.config.num_train_steps, inpaint=True, dtype=dtype)
+            diffusion_steps=model.config.diffusion_steps, inpaint=True, dtype=dtype)
         z = _run(params, model.config, geo_j, lab, z_T, noise, kn, mk, known_noise, method=method,
                  num_steps=int(steps), eta=float(eta))
         out.append(np.asarray(z, np.complex128)[:V] / scale)
     return np.stack(out)
 
 
-def inpaint_fldm(
-    model: FLDMModel, mesh: Mesh, known: np.ndarray, mask: np.ndarray, *, key: jax.Array, n: int = 1, **kwargs
+def inpaint(
+    model: Model, mesh: Mesh, known: np.ndarray, mask: np.ndarray, *, key: jax.Array, n: int = 1, **kwargs
 ) -> np.ndarray:
     """Inpaint: sample the latents where ``mask`` is False, keep ``known`` where it is True (eq. 14).
 
-    A thin wrapper of :func:`sample_fldm` (same keyword arguments); the returned latents equal
+    A thin wrapper of :func:`sample` (same keyword arguments); the returned latents equal
     ``known`` exactly on the mask.
-    """
-    return sample_fldm(model, mesh, key=key, n=n, known=known, mask=mask, **kwargs)
 
-
-def decode_samples(vae_params, vae_config, mesh: Mesh, latents: np.ndarray, *, size: int = 256) -> list[dict]:
-    """Decode latent samples with the FL-VAE: a texture atlas if ``mesh`` has UVs, else vertex colours.
+    Args:
+      model: a trained :class:`Model`.
+      mesh: the :class:`~jmeshtex.Mesh` (or its :func:`sampling_geometry`).
+      known: ``[V, d]`` unscaled latents (e.g. the FL-VAE's encoding of the mesh's own colours).
+      mask: ``[V]`` True where ``known`` is kept.
+      key: PRNG key; the same key gives the same inpaintings.
+      n: number of inpaintings.
+      **kwargs: :func:`sample`'s other keywords (``method``, ``steps``, ``eta``, ``labels``, ...).
 
     Returns:
-      One dict per sample: ``{"texture": [size, size, 3], "valid": [size, size]}`` or
+      ``[n, V, d]`` complex128 latents.
+    """
+    return sample(model, mesh, key=key, n=n, known=known, mask=mask, **kwargs)
+
+
+def decode_samples(vae, mesh: Mesh, latents: np.ndarray, *, size: int = 256) -> list[dict]:
+    """Decode latent samples with the FL-VAE: a texture atlas if ``mesh`` has UVs, else vertex colours.
+
+    Args:
+      vae: the FL-VAE (:class:`jmeshtex.fl.Model`) the training latents were encoded with.
+      mesh: the :class:`~jmeshtex.Mesh` the latents live on.
+      latents: ``[n, V, d]`` unscaled latents (:func:`sample`).
+      size: atlas size in texels (meshes with UVs).
+
+    Returns:
+      A list with a dict per sample, ``{"texture": [size, size, 3], "valid": [size, size]}`` or
       ``{"vertex_colors": [V, 3]}`` (float in [0, 1]).
     """
     from ..fl import decode_texture, decode_vertex_colors
 
+    mesh = as_mesh(mesh)
     out = []
     for mu in np.asarray(latents):
         mu_j = jnp.asarray(mu, jnp.complex64)
         if mesh.uv is not None:
-            tex, valid = decode_texture(vae_params, vae_config, mesh, mu_j, size=size)
+            tex, valid = decode_texture(vae, mesh, mu_j, size=size)
             out.append({"texture": np.asarray(tex), "valid": np.asarray(valid)})
         else:
-            out.append({"vertex_colors": np.asarray(decode_vertex_colors(vae_params, vae_config, mesh, mu_j))})
+            out.append({"vertex_colors": np.asarray(decode_vertex_colors(vae, mesh, mu_j))})
     return out
 
 
@@ -198,8 +225,19 @@ def render_samples(
     mesh: Mesh, decoded: list[dict], out_dir: str | os.PathLike, *, prefix: str = "sample",
     views: tuple[tuple[float, float], ...] = ((25.0, -60.0),), size: tuple[int, int] = (384, 384),
 ) -> list[pathlib.Path]:
-    """Write one PNG per sample and view (``{prefix}_{i:02d}_{view}.png``); returns the paths."""
+    """Write one PNG per sample and view (``{prefix}_{i:02d}_{view}.png``); returns the paths.
+
+    Args:
+      mesh: the :class:`~jmeshtex.Mesh` the samples live on.
+      decoded: :func:`decode_samples` output.
+      out_dir: the folder.
+      prefix: file name prefix.
+      views: ``(elevation, azimuth)`` degrees of each view.
+      size: image size in pixels.
+    """
     from ..render import render_mesh
+
+    mesh = as_mesh(mesh)
 
     out = pathlib.Path(out_dir)
     paths = []

@@ -4,16 +4,24 @@ One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}
 ``ε`` per copy, form ``z_t = √ᾱ_t s·μ + √(1−ᾱ_t) ε`` (eq. 8, ``s`` the per-channel scale of eq. 38–39)
 and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam; complex gradients conjugated first,
 DESIGN.md), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
-(:func:`~jmeshtex.fl.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies; the
+(:func:`~jmeshtex.fldm.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies; the
 batch axis is sharded over every available device with :mod:`jax.sharding` (parameters
 replicated), so the same code runs on one CPU or on several accelerators (the batch is rounded up
 to a multiple of the device count).
 
-Checkpoints: every ``checkpoint_every`` steps ``checkpoint.npz`` (parameters, optimiser state, step,
-losses) and ``state.json`` are written atomically (temporary file + rename); calling
-:func:`train_fldm` again with the same folder resumes after the last checkpoint with the same batch
-and noise sequence (both derive from ``(seed, step)``). The finished model is ``model.npz`` +
-``model.json`` (:func:`save_fldm` / :func:`load_fldm`).
+Randomness: :func:`train`'s ``key`` is split three ways, into the initialisation (the model
+:func:`init` returns for the same key), the batch draws (which copies, a NumPy generator seeded
+from the key and the step) and the step noise (``fold_in(key, step)``). Every step's batch and
+noise is a function of ``(key, step)`` alone.
+
+Checkpoints (``checkpoint_dir``): every ``checkpoint_every`` steps and after the last one, the
+parameters, the optimiser state and the losses so far go to a :class:`jmeshtex.io.Checkpoints`
+folder (atomic; the newest two kept), fingerprinted with the run's settings (the config apart from
+``steps`` and ``checkpoint_every``, the key, the dtype, the data's shape and scale). Calling
+:func:`train` again with the same folder resumes after the newest step and gives the same
+parameters and losses as an uninterrupted run; a folder written by another run raises
+:class:`~jmeshtex.CheckpointMismatchError`. The finished model is written with :func:`save`
+(``model.npz`` + ``model.json``) and read back with :func:`load`.
 """
 
 from __future__ import annotations
@@ -30,44 +38,40 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._errors import ConfigError, MeshIOError
+from .._errors import ConfigError, InputError, MeshIOError
+from .._train_result import TrainResult
 from ..ops import conjugate_complex_grads, tangent_noise
-from ._config import FLDMConfig
-from ._data import FLDMData, batch_geometry
-from ._denoiser import denoise, init_denoiser
+from ._config import Config
+from ._data import Dataset, batch_geometry
+from ._denoiser import DenoiserGeometry, denoise, init_denoiser
 from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
+from ._keys import host_rng, key_ints
 
-CHECKPOINT_FILE = "checkpoint.npz"
-STATE_FILE = "state.json"
 MODEL_FILE = "model.npz"
 MODEL_JSON = "model.json"
 
 
-class FLDMModel(NamedTuple):
-    """A trained (or freshly initialised) FLDM.
+class Model(NamedTuple):
+    """A trained (or freshly initialised) FLDM: the denoiser's parameters with their config and scale.
 
     Attributes:
-      params: denoiser parameters (flax ``params`` dict).
-      config: the :class:`FLDMConfig`.
-      scale: ``[d]`` latent scale ``s`` (train on ``s·μ``, decode ``z/s``).
+      params: denoiser parameters (flax ``params`` dict, :func:`init_denoiser`).
+      config: the :class:`Config`.
+      scale: ``[d]`` latent scale ``s`` (train on ``s·μ``, decode ``z/s``; eq. 38–39).
     """
 
     params: dict
-    config: FLDMConfig
+    config: Config
     scale: np.ndarray
 
 
-class TrainResult(NamedTuple):
-    """What :func:`train_fldm` returns: the model, the loss per step and timings."""
+def optimizer(config: Config) -> optax.GradientTransformation:
+    """The optimiser of :func:`train`: Adam at ``config.learning_rate`` after global-norm clipping at 1.
 
-    model: FLDMModel
-    losses: np.ndarray
-    steps_done: int
-    seconds: float
-
-
-def optimizer(config: FLDMConfig) -> optax.GradientTransformation:
-    """Adam with global-norm clipping at 1."""
+    Example:
+      >>> opt = optimizer(Config.tiny())
+      >>> state = opt.init({"w": jnp.zeros(3)})
+    """
     return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(config.learning_rate))
 
 
@@ -79,11 +83,34 @@ def _data_sharding(batch: int):
 
 
 @functools.lru_cache(maxsize=16)
-def make_train_step(config: FLDMConfig):
-    """The jitted step ``(params, opt_state, z0 [B,V,d], geo [B,…], labels [B,V]|None, key) ->
-    (params, opt_state, loss)``; one per configuration (cached, so a resumed or repeated run in the
-    same process does not compile again)."""
-    schedule = make_schedule(config.schedule, num_steps=config.num_train_steps)
+def make_train_step(config: Config):
+    """The jitted optimiser step of :func:`train` (module docstring), one per configuration.
+
+    Cached, so a resumed or repeated run in the same process does not compile again.
+
+    Args:
+      config: the :class:`Config` (schedule, prediction, ``diffusion_steps``, learning rate).
+
+    Returns:
+      ``step(params, opt_state, z0 [B, V, d], geo [B, …], labels [B, V] or None, key) ->
+      (params, opt_state, loss)``: ``z0`` the scaled latents and ``geo`` the geometry of a batch
+      (:func:`training_batch`), ``opt_state`` from ``optimizer(config).init(params)``, ``key`` the
+      step's noise key.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> from jmeshtex.fldm import build_dataset
+      >>> cfg = Config.tiny(latent_channels=1, n_copies=1, copy_vertices=0, bucket=32)
+      >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
+      ...                      key=jax.random.key(0), progress=False)
+      >>> params = init_denoiser(jax.random.key(1), cfg)
+      >>> z0, geo, labels = training_batch(data, 0, 2, key=jax.random.key(2))
+      >>> step = make_train_step(cfg)
+      >>> params, opt_state, loss = step(params, optimizer(cfg).init(params), z0, geo, labels, jax.random.key(3))
+      >>> bool(jnp.isfinite(loss))
+      True
+    """
+    schedule = make_schedule(config.schedule, num_steps=config.diffusion_steps)
     opt = optimizer(config)
 
     def loss_fn(params, z0, geo, labels, t, eps):
@@ -97,7 +124,7 @@ def make_train_step(config: FLDMConfig):
     @jax.jit
     def step(params, opt_state, z0, geo, labels, key):
         kt, ke = jax.random.split(key)
-        t = jax.random.randint(kt, (z0.shape[0],), 0, config.num_train_steps)
+        t = jax.random.randint(kt, (z0.shape[0],), 0, config.diffusion_steps)
         eps = tangent_noise(ke, z0.shape, dtype=z0.dtype)
         loss, grads = jax.value_and_grad(loss_fn)(params, z0, geo, labels, t, eps)
         grads = conjugate_complex_grads(grads)
@@ -109,59 +136,113 @@ def make_train_step(config: FLDMConfig):
     return step
 
 
-def _batch(data: FLDMData, config: FLDMConfig, step: int, size: int, cdtype):
-    rng = np.random.default_rng([config.seed, step])
+def training_batch(
+    data: Dataset, step: int, size: int, *, key: jax.Array, dtype=jnp.complex64
+) -> tuple[np.ndarray, DenoiserGeometry, np.ndarray | None]:
+    """The copies of training step ``step``: a function of ``(key, step)`` (drawn without
+    replacement when the data set has enough copies).
+
+    Args:
+      data: the :class:`Dataset`.
+      step: the optimiser step.
+      size: batch size.
+      key: PRNG key of the batch draws.
+      dtype: complex dtype of the latents.
+
+    Returns:
+      ``(z0 [size, V₀, d] scaled latents, geometry with a leading [size] axis, labels [size, V₀] or
+      None)``, host arrays for :func:`make_train_step`'s step.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> from jmeshtex.fldm import build_dataset
+      >>> cfg = Config.tiny(latent_channels=1, n_copies=3, copy_vertices=30, bucket=32)
+      >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
+      ...                      key=jax.random.key(0), progress=False)
+      >>> z0, geo, labels = training_batch(data, 5, 2, key=jax.random.key(1))
+      >>> z0.shape, geo.fine.index.shape[0], labels
+      ((2, 32, 1), 2, None)
+    """
+    rng = host_rng(key, step)
     idx = rng.choice(data.num_copies, size=size, replace=data.num_copies < size)
-    z0 = (data.latents[idx] * data.scale).astype(cdtype)
+    z0 = (data.latents[idx] * data.scale).astype(dtype)
     geo = batch_geometry(data, idx)
     labels = None if data.labels is None else data.labels[idx]
     return z0, geo, labels
 
 
-def _flatten(tree) -> list[np.ndarray]:
-    return [np.asarray(x) for x in jax.tree.leaves(tree)]
+def _split(key: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """``(init, batch, noise)`` keys of a run (module docstring)."""
+    k_init, k_batch, k_noise = jax.random.split(key, 3)
+    return k_init, k_batch, k_noise
 
 
-def _unflatten(like, arrays: list[np.ndarray]):
-    leaves, treedef = jax.tree.flatten(like)
-    if len(leaves) != len(arrays):
-        raise MeshIOError(f"checkpoint holds {len(arrays)} arrays, the model needs {len(leaves)}")
-    return jax.tree.unflatten(treedef, [jnp.asarray(a, dtype=x.dtype).reshape(x.shape) for a, x in zip(arrays, leaves, strict=True)])
+def _check_data(data: Dataset, config: Config) -> None:
+    if not isinstance(data, Dataset):
+        raise InputError(f"expected a jmeshtex.fldm.Dataset (from build_dataset), got {type(data).__name__}")
+    if data.latents.shape[-1] != config.latent_channels:
+        raise ConfigError(f"data has {data.latents.shape[-1]} latent channels, config.latent_channels={config.latent_channels}")
+    if (data.labels is None) != (config.num_labels == 0):
+        raise ConfigError("labels in the data and config.num_labels must agree (both set or both absent)")
 
 
-def _save_checkpoint(out: pathlib.Path, params, opt_state, step: int, losses, config: FLDMConfig, scale) -> None:
+def init(data: Dataset, config: Config, *, key: jax.Array, dtype=jnp.complex64) -> Model:
+    """The untrained model that ``train(data, config, key=key)`` starts from.
+
+    A baseline for a trained model's samples (same noise, initial weights).
+
+    Args:
+      data: the :class:`Dataset` (its latent scale goes into the model).
+      config: the :class:`Config`.
+      key: the key that is (or would be) given to :func:`train`.
+      dtype: complex dtype of the parameters.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> from jmeshtex.fldm import build_dataset
+      >>> cfg = Config.tiny(latent_channels=1, n_copies=1, copy_vertices=0, bucket=32)
+      >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
+      ...                      key=jax.random.key(0), progress=False)
+      >>> model = init(data, cfg, key=jax.random.key(1))
+      >>> model.config == cfg, sorted(model.params)[:2]
+      (True, ['down_0', 'lift'])
+    """
+    _check_data(data, config)
+    return Model(init_denoiser(_split(key)[0], config, dtype=dtype), config, np.asarray(data.scale))
+
+
+def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
+    """What a checkpoint must have been written by to be resumed (module docstring)."""
+    settings = {k: v for k, v in config.to_dict().items() if k not in ("steps", "checkpoint_every")}
+    return {"config": settings, "key": key_ints(key), "dtype": jnp.dtype(dtype).name,
+            "data": {"shape": list(data.latents.shape), "scale": np.asarray(data.scale, np.float64).tolist()}}
+
+
+def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
+    """Write ``model.npz`` (parameters) + ``model.json`` (config, scale) into the folder ``path``, atomically.
+
+    Args:
+      model: the :class:`Model` (e.g. ``train(...).model``).
+      path: the folder (created if needed).
+
+    Returns:
+      The folder.
+
+    Example:
+      >>> import tempfile
+      >>> from jmeshtex.data import icosphere
+      >>> from jmeshtex.fldm import build_dataset
+      >>> cfg = Config.tiny(latent_channels=1, n_copies=1, copy_vertices=0, bucket=32)
+      >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
+      ...                      key=jax.random.key(0), progress=False)
+      >>> folder = save(init(data, cfg, key=jax.random.key(1)), tempfile.mkdtemp())
+      >>> load(folder).config == cfg
+      True
+    """
     from ..io import atomic_save_npz, atomic_write
 
-    arrays = {f"p{i}": a for i, a in enumerate(_flatten(params))}
-    arrays.update({f"o{i}": a for i, a in enumerate(_flatten(opt_state))})
-    arrays["step"] = np.array(step)
-    arrays["losses"] = np.asarray(losses, np.float64)
-    atomic_save_npz(out / CHECKPOINT_FILE, arrays)
-    state = {"config": config.to_dict(), "scale": np.asarray(scale).tolist(), "step": step}
-    atomic_write(out / STATE_FILE, json.dumps(state, indent=2).encode())
-
-
-def _load_checkpoint(out: pathlib.Path, params, opt_state, config: FLDMConfig):
-    from ..io import load_npz
-
-    state = json.loads((out / STATE_FILE).read_text())
-    saved = FLDMConfig.from_dict(state["config"])
-    if saved.replace(train_steps=config.train_steps, checkpoint_every=config.checkpoint_every) != config:
-        raise ConfigError(
-            f"{out} holds a run with another configuration ({saved}); use a new folder or the same config"
-        )
-    a = load_npz(out / CHECKPOINT_FILE, "FLDM checkpoint")
-    n_p = len(jax.tree.leaves(params))
-    n_o = len(jax.tree.leaves(opt_state))
-    params = _unflatten(params, [a[f"p{i}"] for i in range(n_p)])
-    opt_state = _unflatten(opt_state, [a[f"o{i}"] for i in range(n_o)])
-    return params, opt_state, int(a["step"]), list(a["losses"])
-
-
-def save_fldm(path: str | os.PathLike, model: FLDMModel) -> pathlib.Path:
-    """Write ``model.npz`` + ``model.json`` into the folder ``path`` (atomically)."""
-    from ..io import atomic_save_npz, atomic_write
-
+    if not isinstance(model, Model):
+        raise InputError(f"save(model, path): expected a jmeshtex.fldm.Model first, got {type(model).__name__}")
     out = pathlib.Path(path)
     arrays = {"/".join(str(getattr(k, "key", k)) for k in kp): np.asarray(v)
               for kp, v in jax.tree_util.tree_flatten_with_path(model.params)[0]}
@@ -171,8 +252,14 @@ def save_fldm(path: str | os.PathLike, model: FLDMModel) -> pathlib.Path:
     return out
 
 
-def load_fldm(path: str | os.PathLike) -> FLDMModel:
-    """Read a model written by :func:`save_fldm` / :func:`train_fldm`.
+def load(path: str | os.PathLike) -> Model:
+    """Read a model written by :func:`save`.
+
+    Args:
+      path: the folder that holds ``model.npz`` and ``model.json``.
+
+    Returns:
+      The :class:`Model` (parameters as JAX arrays with their saved dtypes).
 
     Raises:
       MeshIOError: missing or unreadable files.
@@ -191,78 +278,92 @@ def load_fldm(path: str | os.PathLike) -> FLDMModel:
         for p in parents:
             node = node.setdefault(p, {})
         node[leaf] = jnp.asarray(value)
-    return FLDMModel(params, FLDMConfig.from_dict(meta["config"]), np.asarray(meta["scale"], np.float64))
+    return Model(params, Config.from_dict(meta["config"]), np.asarray(meta["scale"], np.float64))
 
 
-def train_fldm(
-    data: FLDMData,
-    config: FLDMConfig,
+def train(
+    data: Dataset,
+    config: Config,
     *,
-    out_dir: str | os.PathLike | None = None,
+    key: jax.Array,
     progress: bool = True,
+    checkpoint_dir: str | os.PathLike | None = None,
     stop_after: int | None = None,
     dtype=jnp.complex64,
-) -> TrainResult:
-    """Train the denoiser on the copies of ``data`` for ``config.train_steps`` steps (resumable).
+) -> TrainResult[Model]:
+    """Train the denoiser on the copies of ``data`` for ``config.steps`` steps (resumable).
 
     Args:
-      data: :func:`~jmeshtex.fl.build_dataset` output.
-      config: the :class:`FLDMConfig` the data was built with.
-      out_dir: checkpoint folder (None: nothing on disk). An existing checkpoint is resumed.
+      data: :func:`build_dataset` output.
+      config: the :class:`Config` the data was built with.
+      key: PRNG key of the initialisation, the batches and the noise (module docstring).
       progress: tqdm bar with ETA and the running loss.
+      checkpoint_dir: :class:`~jmeshtex.io.Checkpoints` folder (None: nothing on disk). A
+        checkpoint of the same run there is resumed.
       stop_after: run at most this many steps in this call (continue later from the checkpoint).
       dtype: complex dtype of parameters and latents.
 
     Returns:
-      :class:`TrainResult`; ``model.npz`` is written once all steps are done.
+      :class:`~jmeshtex.TrainResult` with the :class:`Model`, ``losses["loss"]`` (one per step
+      done, resumed ones included), ``steps`` (done in total) and ``resumed_from`` (the
+      checkpoint step this call started from, or None).
+
+    Raises:
+      ConfigError: the data's channels or labels do not match the config.
+      CheckpointMismatchError: ``checkpoint_dir`` holds a checkpoint of another run.
 
     Example:
-      >>> from jmeshtex import Mesh
       >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fldm._data import build_dataset
-      >>> cfg = FLDMConfig.tiny(n_copies=2, copy_vertices=60, latent_channels=1, train_steps=2, bucket=32)
-      >>> data = build_dataset(Mesh(*icosphere(1)), cfg, encode=lambda m: m.vertices[:, :1] + 0j, progress=False)
-      >>> r = train_fldm(data, cfg, progress=False)
-      >>> r.losses.shape, bool(np.isfinite(r.losses).all())
-      ((2,), True)
+      >>> from jmeshtex.fldm import build_dataset
+      >>> cfg = Config.tiny(n_copies=2, copy_vertices=60, latent_channels=1, steps=2, bucket=32)
+      >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
+      ...                      key=jax.random.key(0), progress=False)
+      >>> r = train(data, cfg, key=jax.random.key(1), progress=False)
+      >>> r.steps, r.losses["loss"].shape, bool(np.isfinite(r.losses["loss"]).all())
+      (2, (2,), True)
     """
     from tqdm.auto import tqdm
 
-    if data.latents.shape[-1] != config.latent_channels:
-        raise ConfigError(f"data has {data.latents.shape[-1]} latent channels, config.latent_channels={config.latent_channels}")
-    if (data.labels is None) != (config.num_labels == 0):
-        raise ConfigError("labels in the data and config.num_labels must agree (both set or both absent)")
+    from ..io import Checkpoints
+
+    _check_data(data, config)
     batch_sharding, replicated, n_dev = _data_sharding(config.batch_size)
     batch = int(np.ceil(config.batch_size / n_dev) * n_dev)
     opt = optimizer(config)
-    geo0 = jax.tree.map(lambda a: a[0], data.geometry)
-    params = init_denoiser(jax.random.key(config.seed), config, geo0, dtype=dtype)
+    k_init, k_batch, k_noise = _split(key)
+    params = init_denoiser(k_init, config, dtype=dtype)
     opt_state = opt.init(params)
-    start, losses = 0, []
-    out = None if out_dir is None else pathlib.Path(out_dir)
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        if (out / CHECKPOINT_FILE).is_file() and (out / STATE_FILE).is_file():
-            params, opt_state, start, losses = _load_checkpoint(out, params, opt_state, config)
+    start, losses, resumed = 0, [], None
+    ckpt = None
+    if checkpoint_dir is not None:
+        ckpt = Checkpoints(checkpoint_dir, keep=2, fingerprint=_fingerprint(data, config, key, dtype))
+        resumed = ckpt.latest_step()
+        if resumed is not None:
+            state, meta = ckpt.restore({"params": params, "opt_state": opt_state})
+            params, opt_state = state["params"], state["opt_state"]
+            start, losses = resumed, [float(x) for x in meta["losses"]]
     params = jax.device_put(params, replicated)
     opt_state = jax.device_put(opt_state, replicated)
     step_fn = make_train_step(config)
-    end = config.train_steps if stop_after is None else min(config.train_steps, start + int(stop_after))
-    base_key = jax.random.key(config.seed + 1)
+    end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
+    end = max(end, start)
     t0 = time.perf_counter()
-    bar = tqdm(range(start, end), initial=start, total=config.train_steps, desc="FLDM train", unit="step",
+    bar = tqdm(range(start, end), initial=start, total=config.steps, desc="FLDM train", unit="step",
                disable=not progress)
-    for step in bar:
-        z0, geo, labels = _batch(data, config, step, batch, dtype)
-        z0, geo, labels = jax.device_put((z0, geo, labels), batch_sharding)
-        params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, jax.random.fold_in(base_key, step))
-        losses.append(float(loss))
-        if progress:
-            bar.set_postfix(loss=f"{np.mean(losses[-20:]):.4f}")
-        if out is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
-            _save_checkpoint(out, params, opt_state, step + 1, losses, config, data.scale)
+    try:
+        for step in bar:
+            z0, geo, labels = training_batch(data, step, batch, key=k_batch, dtype=dtype)
+            z0, geo, labels = jax.device_put((z0, geo, labels), batch_sharding)
+            params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, jax.random.fold_in(k_noise, step))
+            losses.append(float(loss))
+            if progress:
+                bar.set_postfix(loss=f"{np.mean(losses[-20:]):.4f}")
+            if ckpt is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
+                ckpt.save(step + 1, {"params": params, "opt_state": opt_state}, meta={"losses": losses})
+    finally:
+        if ckpt is not None:
+            ckpt.close()
     seconds = time.perf_counter() - t0
-    model = FLDMModel(jax.device_get(params), config, np.asarray(data.scale))
-    if out is not None and end == config.train_steps:
-        save_fldm(out, model)
-    return TrainResult(model, np.asarray(losses), end - start, seconds)
+    model = Model(jax.device_get(params), config, np.asarray(data.scale))
+    return TrainResult(model=model, losses={"loss": np.asarray(losses, np.float64)}, steps=end, seconds=seconds,
+                       resumed_from=resumed)

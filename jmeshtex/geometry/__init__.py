@@ -44,9 +44,13 @@ from ._raster import fill_unused_texels as fill_unused_texels
 from ._raster import rasterize_uv as rasterize_uv
 from ._remesh import remesh as remesh
 from ._remesh import surface_correspondence as surface_correspondence
+from ._repair import RepairReport as RepairReport
+from ._repair import prepare_mesh as prepare_mesh
 from ._sampling import SurfaceSamples as SurfaceSamples
 from ._sampling import barycentric_interpolate as barycentric_interpolate
 from ._sampling import sample_surface as sample_surface
+from ._statistics import MeshStatistics as MeshStatistics
+from ._statistics import mesh_statistics as mesh_statistics
 from ._subdivision import Subdivision as Subdivision
 from ._subdivision import rescale_to_mean_edge as rescale_to_mean_edge
 from ._subdivision import subdivide_midpoint as subdivide_midpoint
@@ -60,9 +64,5 @@ from ._tracer import trace_from_vertices as trace_from_vertices
 from ._tracer import trace_geodesics as trace_geodesics
 from ._tracer import tracer_geometry as tracer_geometry
 from ._tracer import vertex_direction_to_face as vertex_direction_to_face
-from ._validate import MeshStatistics as MeshStatistics
-from ._validate import RepairReport as RepairReport
 from ._validate import check_mesh_arrays as check_mesh_arrays
-from ._validate import mesh_statistics as mesh_statistics
-from ._validate import prepare_mesh as prepare_mesh
 from ._validate import validate_mesh as validate_mesh

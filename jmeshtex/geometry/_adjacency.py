@@ -88,10 +88,11 @@ def face_neighborhood(faces: np.ndarray, num_vertices: int | None = None) -> Fac
       num_vertices: V (defaults to ``faces.max() + 1``).
 
     Returns:
-      :class:`~jmeshtex.geometry.FaceNeighborhood` with int32 indices.
+      :class:`~jmeshtex.FaceNeighborhood` with int32 indices.
 
     Raises:
-      NonManifoldEdgeError, InconsistentOrientationError.
+      MeshError: a non-manifold edge (``NonManifoldEdgeError``) or inconsistent orientation
+        (``InconsistentOrientationError``).
 
     Example:
       >>> import numpy as np

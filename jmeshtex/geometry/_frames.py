@@ -42,7 +42,7 @@ def tangent_frames(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F
       faces: ``[F, 3]`` consistently oriented manifold triangles.
 
     Returns:
-      :class:`~jmeshtex.geometry.TangentFrames` ``(normal, x, y)``, each ``[V, 3]`` float64.
+      :class:`~jmeshtex.TangentFrames` ``(normal, x, y)``, each ``[V, 3]`` float64.
 
     Example:
       >>> from jmeshtex.data import grid

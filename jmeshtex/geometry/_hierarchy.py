@@ -70,11 +70,11 @@ class MeshHierarchy(NamedTuple):
       vertex_index: per level ``[V_ℓ]`` index of each vertex in the input mesh (level 0: arange).
       lengths: per level ``[F_ℓ, 3]`` intrinsic edge lengths (edge k of face f runs from corner k
         to corner k+1): input lengths at level 0, composed geodesic-path lengths above.
-      neighborhoods: per level the intrinsic one-ring :class:`VertexNeighborhood` whose frames the
+      neighborhoods: per level the intrinsic one-ring :class:`~jmeshtex.VertexNeighborhood` whose frames the
         pooling maps use.
       to_input_frame: per level ``[V_ℓ]`` unit complex ``a^ℓ``: a tangent vector x in a vertex's
         level-ℓ frame is ``a^ℓ x`` in the same vertex's input (level-0) frame (1 at level 0).
-      pooling: ``levels - 1`` :class:`PoolingMap` from level ℓ (fine) to ℓ+1 (coarse). Children
+      pooling: ``levels - 1`` :class:`~jmeshtex.PoolingMap` from level ℓ (fine) to ℓ+1 (coarse). Children
         are sorted by path distance (the parent's own fine copy first); ``children_weight`` are
         intrinsic vertex areas normalised to sum to 1 per parent, so a weighted sum averages.
     """
@@ -136,7 +136,7 @@ def mesh_hierarchy(
     Raises:
       DecimationError: the mesh is too small for one coarse level (``levels`` None) or for the
         requested number of levels.
-      InputError / ConfigError: bad arguments, unreferenced vertices; MeshError subclasses for
+      InputError: bad arguments, unreferenced vertices (ConfigError for bad settings); MeshError subclasses for
         malformed meshes.
 
     Example:

@@ -9,12 +9,13 @@ HKS as a per-vertex descriptor.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
 
 from .._errors import InputError
-from .._types import Array, Float, Int
+from .._types import ArrayLike, Float, Int
 from ._validate import check_mesh_arrays
 
 # relative threshold under which an eigenvalue counts as zero (one per connected component); the
@@ -32,14 +33,14 @@ class LaplacianEigenpairs(NamedTuple):
       mass: ``[V]`` lumped vertex areas (the diagonal of M).
     """
 
-    values: Float[Array, " k"]
-    vectors: Float[Array, "V k"]
-    mass: Float[Array, " V"]
+    values: Float[ArrayLike, " k"]
+    vectors: Float[ArrayLike, "V k"]
+    mass: Float[ArrayLike, " V"]
 
 
 def laplacian_eigenpairs(
-    vertices: Float[Array, "V 3"],
-    faces: Int[Array, "F 3"],
+    vertices: Float[ArrayLike, "V 3"],
+    faces: Int[ArrayLike, "F 3"],
     *,
     k: int = 100,
     mollify_factor: float = 1e-5,
@@ -103,7 +104,7 @@ def laplacian_eigenpairs(
     return LaplacianEigenpairs(values=np.maximum(values, 0.0), vectors=vectors, mass=mass)
 
 
-def hks_times(values: Float[Array, " k"], *, num: int = 8) -> Float[Array, " T"]:
+def hks_times(values: Float[ArrayLike, " k"], *, num: int = 8) -> Float[ArrayLike, " T"]:
     """Log-spaced HKS times from the spectrum (the range Sun et al. 2009 use in their experiments).
 
     .. math:: t \\in [\\, 4 \\ln 10 / \\lambda_{\\max},\\ 4 \\ln 10 / \\lambda_1 \\,]
@@ -137,13 +138,13 @@ def hks_times(values: Float[Array, " k"], *, num: int = 8) -> Float[Array, " T"]
 
 
 def heat_kernel_signature(
-    vertices: Float[Array, "V 3"],
-    faces: Int[Array, "F 3"],
+    vertices: Float[ArrayLike, "V 3"],
+    faces: Int[ArrayLike, "F 3"],
     *,
-    times: Float[Array, " T"] | None = None,
+    times: Float[ArrayLike, " T"] | Sequence[float] | None = None,
     k: int = 100,
     eigenpairs: LaplacianEigenpairs | None = None,
-) -> Float[Array, "V T"]:
+) -> Float[ArrayLike, "V T"]:
     """Heat kernel signature of every vertex at several times (Sun et al. 2009, the HKS definition).
 
     .. math:: \\mathrm{HKS}(x, t) = k_t(x, x) = \\sum_{i=0}^{k-1} e^{-\\lambda_i t}\\, \\varphi_i(x)^2

@@ -61,7 +61,7 @@ def geodesic_knn_neighborhood(
         weight 0).
 
     Returns:
-      :class:`~jmeshtex.geometry.VertexNeighborhood` ``[V, k]``; ``weight`` is the barycentric
+      :class:`~jmeshtex.VertexNeighborhood` ``[V, k]``; ``weight`` is the barycentric
       area of each neighbour, ``area`` that of p.
 
     Example:
@@ -104,7 +104,7 @@ def knn_from_one_ring(ring: VertexNeighborhood, k: int) -> VertexNeighborhood:
     """k-NN neighbourhoods composed from an existing host one-ring neighbourhood.
 
     Same as :func:`geodesic_knn_neighborhood` (same formula, slot order and padding) but starting
-    from any one-ring :class:`VertexNeighborhood` whose ``|log|`` are the edge lengths, e.g. a
+    from any one-ring :class:`~jmeshtex.VertexNeighborhood` whose ``|log|`` are the edge lengths, e.g. a
     coarse level's ``MeshHierarchy.neighborhoods[l]`` (intrinsic lengths with no 3D positions
     behind them), so k-NN log maps of every level share that level's frames.
 
@@ -113,7 +113,7 @@ def knn_from_one_ring(ring: VertexNeighborhood, k: int) -> VertexNeighborhood:
       k: slots including the vertex itself (≥ 1).
 
     Returns:
-      ``[V, k]`` :class:`VertexNeighborhood` in the frames of ``ring``.
+      ``[V, k]`` :class:`~jmeshtex.VertexNeighborhood` in the frames of ``ring``.
 
     Example:
       >>> from jmeshtex.data import icosahedron

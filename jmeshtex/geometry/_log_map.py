@@ -71,7 +71,7 @@ def one_ring_angles(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "
       :class:`OneRingAngles` ``(rings, theta [V, K], scale [V])``.
 
     Raises:
-      MeshError subclasses for malformed or non-manifold input.
+      MeshError: (a subclass) malformed or non-manifold input.
 
     Example:
       >>> import numpy as np
@@ -99,7 +99,7 @@ def one_ring_neighborhood(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndar
       faces: ``[F, 3]`` consistently oriented manifold triangles.
 
     Returns:
-      :class:`~jmeshtex.geometry.VertexNeighborhood` with ``K`` = maximum degree: ``index`` the
+      :class:`~jmeshtex.VertexNeighborhood` with ``K`` = maximum degree: ``index`` the
       counter-clockwise one-ring (slot 0 = gauge reference edge, no self slot), ``log`` in p's
       frame, ``transport`` from q's frame to p's, ``weight`` the barycentric area of q, ``area``
       the barycentric area of p. Padding: index 0, mask False, log 0, transport 1, weight 0.

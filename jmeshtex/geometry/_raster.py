@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from jaxtyping import Bool, Float, Int
+from jaxtyping import Bool, Float, Int, Real
 
 from .._errors import InputError
 
@@ -51,7 +51,7 @@ class Raster(NamedTuple):
     distance: Float[np.ndarray, " N"]
 
 
-def rasterize_uv(uv: Float[np.ndarray, "F 3 2"], size: int, *, coverage: str = "center") -> Raster:
+def rasterize_uv(uv: Real[np.ndarray, "F 3 2"], size: int, *, coverage: str = "center") -> Raster:
     """Texels of a ``size × size`` atlas covered by UV triangles, with barycentric coordinates.
 
     With corners ``P_k = (u_k · size, (1 − v_k) · size)`` in the texel plane and texel centres

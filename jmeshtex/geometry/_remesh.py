@@ -145,7 +145,7 @@ def remesh(
       the input's vertex colours or sampled from its texture, else None; ``name`` + ``"_remesh"``).
 
     Raises:
-      InputError / ConfigError: bad arguments. MeshError subclasses: invalid input mesh.
+      InputError: bad arguments (ConfigError for bad settings); a MeshError subclass for an invalid mesh.
       DecimationError: the decimation stalled more than 2 % above ``n_vertices``.
 
     Example:

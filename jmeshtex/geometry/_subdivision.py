@@ -15,7 +15,7 @@ import numpy as np
 from .._errors import (
     InputError,
 )
-from .._types import Array, Float, Int
+from .._types import ArrayLike, Float, Int
 from ._edges import mean_edge_length, unique_edges
 from ._validate import check_mesh_arrays
 
@@ -36,10 +36,10 @@ class Subdivision(NamedTuple):
       face_parent: ``[4F]`` coarse face of each fine face (int64).
     """
 
-    vertices: Float[Array, "Vf 3"]
-    faces: Int[Array, "Ff 3"]
-    edge_vertices: Int[Array, "E 2"]
-    face_parent: Int[Array, " Ff"]
+    vertices: Float[ArrayLike, "Vf 3"]
+    faces: Int[ArrayLike, "Ff 3"]
+    edge_vertices: Int[ArrayLike, "E 2"]
+    face_parent: Int[ArrayLike, " Ff"]
 
     def upsample(self, values: np.ndarray) -> np.ndarray:
         """Carry per-vertex values ``[V, ...]`` to the fine mesh: new vertices get the parents' mean.
@@ -61,7 +61,7 @@ class Subdivision(NamedTuple):
 
 
 def subdivide_midpoint(
-    vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"]
+    vertices: Float[ArrayLike, "V 3"], faces: Int[ArrayLike, "F 3"]
 ) -> Subdivision:
     """Split every triangle into four at its edge midpoints (DGTS, Hertz et al. 2020, §3.3).
 
@@ -81,7 +81,8 @@ def subdivide_midpoint(
       :class:`Subdivision` with the fine mesh and the parent maps (numbering documented there).
 
     Raises:
-      InputError, NonTriangleFaceError, EmptyMeshError, FaceIndexError, NonFiniteVertexError.
+      MeshError: (``NonTriangleFaceError``, ``EmptyMeshError``, ``FaceIndexError``,
+        ``NonFiniteVertexError``) malformed input; InputError for other bad arguments.
 
     Example:
       >>> from jmeshtex.data import single_triangle
@@ -108,7 +109,7 @@ def subdivide_midpoint(
     )
 
 
-def subdivide_uv(uv: Float[Array, "F 3 2"]) -> Float[Array, "4F 3 2"]:
+def subdivide_uv(uv: Float[ArrayLike, "F 3 2"]) -> Float[ArrayLike, "4*F 3 2"]:
     """Per-corner texture coordinates of the faces :func:`subdivide_midpoint` makes.
 
     Each child corner gets the mean of its parent face's two corner UVs (or the corner's own UV), so
@@ -139,8 +140,8 @@ def subdivide_uv(uv: Float[Array, "F 3 2"]) -> Float[Array, "4F 3 2"]:
 
 
 def rescale_to_mean_edge(
-    vertices: Float[Array, "V 3"], faces: Int[Array, "F 3"], target: float = 1.0
-) -> tuple[Float[Array, "V 3"], float]:
+    vertices: Float[ArrayLike, "V 3"], faces: Int[ArrayLike, "F 3"], target: float = 1.0
+) -> tuple[Float[ArrayLike, "V 3"], float]:
     """Scale a mesh about the origin so that its mean edge length is ``target``.
 
     .. math:: v' = s\\, v, \\qquad s = \\text{target} / \\overline{\\lVert v_i - v_j \\rVert}

@@ -488,7 +488,7 @@ def trace_geodesics(
       length: ``[N]`` (or a scalar) geodesic distance to walk, ``>= 0``.
       geometry: tables from :func:`tracer_geometry` for this mesh, to skip rebuilding them.
       max_steps: most face crossings any trace may make (default: a generous bound from the
-        lengths and the smallest altitude); exceeding it raises :class:`InputError`.
+        lengths and the smallest altitude); exceeding it raises :class:`~jmeshtex.InputError`.
 
     Returns:
       :class:`TraceResult` with end face, barycentric coordinates, 3D point, boundary flag,

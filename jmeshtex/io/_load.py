@@ -1,8 +1,10 @@
 """Read meshes (OBJ/PLY/OFF/GLB, through trimesh) and texture images into host-side records.
 
 trimesh reads the files with ``process=False`` (no merging, no cleaning; it still triangulates
-polygons and stores one vertex per distinct (position, UV) pair); the only change jmeshtex makes
-on top is the documented seam merge of :func:`load_mesh`.
+polygons and stores one vertex per distinct (position, UV) pair); the only changes jmeshtex makes
+on top are the documented seam merge of :func:`load_mesh` and, for files with polygon faces, a
+:class:`~jmeshtex.MeshRepairWarning` saying how many were split (or, with ``strict=True``, a
+:class:`~jmeshtex.NonTriangleFaceError`).
 """
 
 from __future__ import annotations
@@ -14,8 +16,9 @@ import warnings
 
 import numpy as np
 
-from .._errors import MeshIOError
+from .._errors import MeshIOError, MeshRepairWarning, NonTriangleFaceError
 from .._mesh import Mesh
+from .._mesh_arrays import coincident_vertex_map
 from .._types import Float
 from ._save import MESH_SUFFIXES, _unique_rows
 
@@ -112,6 +115,70 @@ def _trimesh_mesh(path: pathlib.Path):
     return loaded
 
 
+def _face_sizes(loaded, path: pathlib.Path) -> np.ndarray:
+    """Corners of every face record in the file, in file order (empty if the file cannot tell).
+
+    trimesh fan-triangulates polygons without saying so: an ``n``-gon becomes ``n - 2`` triangles.
+    OBJ ``f`` lines and OFF face lines are counted from the text, PLY faces from trimesh's raw
+    elements; glTF primitives are triangles by definition.
+    """
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".obj":
+            text = path.read_text(errors="replace")
+            lines = re.findall(r"^[ \t]*f[ \t]+([^\n#]*)", text, flags=re.MULTILINE)
+            return np.array([len(line.split()) for line in lines], np.int64)
+        if suffix == ".off":
+            lines = [line.split("#")[0].split() for line in path.read_text(errors="replace").splitlines()]
+            tokens = [t for t in lines if t]
+            head = tokens[0][1:] if tokens[0][0].upper().endswith("OFF") else tokens[0]
+            body = tokens[1:]
+            if not head:
+                head, body = body[0], body[1:]
+            nv, nf = int(head[0]), int(head[1])
+            return np.array([int(t[0]) for t in body[nv : nv + nf]], np.int64)
+        if suffix == ".ply":
+            data = loaded.metadata.get("_ply_raw", {}).get("face", {}).get("data")
+            if data is None:
+                return np.zeros(0, np.int64)
+            names = data.keys() if isinstance(data, dict) else (data.dtype.names or ())
+            field = next((n for n in ("vertex_indices", "vertex_index") if n in names), None)
+            if field is None:
+                return np.zeros(0, np.int64)
+            lists = data[field]
+            if lists.dtype.names:  # binary: (count, indices) records
+                return np.asarray(lists[lists.dtype.names[0]], np.int64).reshape(-1)
+            if lists.dtype == object:  # ragged ASCII lists
+                return np.array([len(x) for x in lists], np.int64)
+            return np.full(len(lists), lists.shape[1] if lists.ndim == 2 else 3, np.int64)
+    except (ValueError, IndexError, TypeError, AttributeError, KeyError, OSError):
+        pass  # trimesh read the file; a layout this count does not know is no reason to fail
+    return np.zeros(0, np.int64)
+
+
+def _check_polygons(loaded, path: pathlib.Path, *, strict: bool) -> None:
+    """Warn (or, ``strict``, raise) when the file's polygon faces were split into triangles."""
+    sizes = _face_sizes(loaded, path)
+    polygons = np.nonzero(sizes > 3)[0]
+    if polygons.size == 0:
+        return
+    corners = " or ".join(map(str, sorted(set(sizes[polygons].tolist()))))
+    triangles = int((sizes[polygons] - 2).sum())
+    faces = f"{polygons.size} polygon face{'s' if polygons.size > 1 else ''} ({corners} corners)"
+    if strict:
+        raise NonTriangleFaceError(
+            f"cannot read mesh {path} with strict=True: {faces} among its {len(sizes)} faces; "
+            "polygons at file faces",
+            indices=polygons,
+        )
+    warnings.warn(
+        f"load_mesh: {path.name}: split {faces} into {triangles} triangles "
+        "(pass strict=True to refuse polygons)",
+        MeshRepairWarning,
+        stacklevel=3,
+    )
+
+
 def _lookup_rows(table: np.ndarray, query: np.ndarray) -> np.ndarray:
     """For each row of ``query`` the lowest index of an exactly equal row of ``table``, or -1."""
     _, inverse = _unique_rows(np.concatenate([table, query]))
@@ -198,6 +265,7 @@ def load_mesh(
     *,
     merge_seams: bool = True,
     texture: str | os.PathLike | None = None,
+    strict: bool = False,
 ) -> Mesh:
     """Read an OBJ, PLY, OFF or GLB file into a :class:`~jmeshtex.Mesh`.
 
@@ -208,9 +276,10 @@ def load_mesh(
     (``uv[f, k] = stored_uv[split_faces[f, k]]``). Exact equality is deliberate: seam copies repeat
     the same numbers, and a tolerance would depend on scale and could weld distinct vertices.
     Coincident vertices whose merge would pinch the surface (two parts touching at a point or along
-    an edge) are kept apart, as in :func:`~jmeshtex.geometry.prepare_mesh`. Nothing is validated
-    here: pass the result to :func:`~jmeshtex.geometry.prepare_mesh` or
-    :func:`~jmeshtex.geometry.validate_mesh`.
+    an edge) are kept apart, as in :func:`~jmeshtex.geometry.prepare_mesh`. Polygon faces (quads,
+    n-gons) are fan-triangulated, an ``n``-gon into ``n - 2`` triangles, with a
+    :class:`~jmeshtex.MeshRepairWarning` that says how many. Nothing is validated here: pass the
+    result to :func:`~jmeshtex.geometry.prepare_mesh` or :func:`~jmeshtex.geometry.validate_mesh`.
 
     Args:
       path: mesh file; the format follows the suffix (``.obj``, ``.ply``, ``.off``, ``.glb``).
@@ -218,6 +287,7 @@ def load_mesh(
       merge_seams: merge exactly coincident vertices (see above); False keeps the stored vertices.
       texture: an image to use as ``Mesh.texture`` instead of the one the file references (for
         OBJs shipped without a material file).
+      strict: refuse polygon faces (raise) instead of splitting them into triangles with a warning.
 
     Returns:
       A :class:`~jmeshtex.Mesh`: float64 vertices, int64 faces, per-corner ``uv`` and a float32
@@ -226,14 +296,24 @@ def load_mesh(
 
     Raises:
       MeshIOError: missing, unreadable, unsupported or triangle-free files, bad textures.
+      NonTriangleFaceError: ``strict=True`` and the file has polygon faces (``err.indices`` are
+        their positions among the file's faces).
+
+    Warns:
+      MeshRepairWarning: polygon faces were split into triangles.
 
     Example:
-      >>> import pathlib, tempfile
+      >>> import pathlib, tempfile, warnings
+      >>> from jmeshtex import MeshRepairWarning
       >>> path = pathlib.Path(tempfile.mkdtemp()) / "quad.obj"
       >>> _ = path.write_text("v 0 0 0\\nv 1 0 0\\nv 1 1 0\\nv 0 1 0\\nf 1 2 3 4\\n")
-      >>> m = load_mesh(path)
+      >>> with warnings.catch_warnings(record=True) as caught:
+      ...     warnings.simplefilter("always", MeshRepairWarning)
+      ...     m = load_mesh(path)
       >>> m.num_vertices, m.num_faces, m.name
       (4, 2, 'quad')
+      >>> print(caught[0].message)
+      load_mesh: quad.obj: split 1 polygon face (4 corners) into 2 triangles (pass strict=True to refuse polygons)
     """
     path = _readable_file(path, "mesh")
     suffix = path.suffix.lower()
@@ -243,6 +323,7 @@ def load_mesh(
             f"supported: {', '.join(MESH_SUFFIXES)}. Fix: convert it (e.g. with trimesh or Blender)"
         )
     loaded = _trimesh_mesh(path)
+    _check_polygons(loaded, path, strict=strict)
     vertices = np.array(loaded.vertices, dtype=np.float64)
     stored_faces = np.array(loaded.faces, dtype=np.int64)
     if stored_faces.min() < 0 or stored_faces.max() >= len(vertices):
@@ -253,11 +334,9 @@ def load_mesh(
 
     rep = np.arange(len(vertices))
     if merge_seams:
-        from ..geometry._validate import _coincident_vertex_map
-
         finite = np.isfinite(vertices).all(axis=1)
         if finite.all():  # NaN rows are never equal anyway; validation reports them later
-            rep, _ = _coincident_vertex_map(vertices, stored_faces)
+            rep, _ = coincident_vertex_map(vertices, stored_faces)
     keep = rep == np.arange(len(vertices))
     if keep.all():
         faces, split_faces, split_to_merged = stored_faces, None, None

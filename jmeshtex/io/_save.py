@@ -39,6 +39,7 @@ import numpy as np
 
 from .._errors import EmptyMeshError, InputError, MeshIOError, NonFiniteVertexError
 from .._mesh import Mesh
+from .._mesh_arrays import check_indices, coerce_faces, coerce_vertices
 from .._types import ArrayLike, Float
 from ._atomic import atomic_write
 
@@ -85,19 +86,21 @@ def _png_bytes(pixels: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def save_png(image: Float[ArrayLike, "H W C"], path: str | os.PathLike) -> None:
+def save_png(image: Float[ArrayLike, "H W C"], path: str | os.PathLike, *, parents: bool = False) -> None:
     """Write an image as an 8-bit PNG, atomically.
 
     Row 0 is the top of the image (for textures: v = 1). Floats are clipped to [0, 1] and rounded to
     multiples of 1/255; ``uint8`` is written as is. C = 1 (grey), 2 (grey + alpha), 3 (RGB) or
-    4 (RGBA).
+    4 (RGBA). The PNG is encoded in memory, written to a temporary file in the destination folder
+    and moved over ``path``, so a reader never sees a half-written file.
 
     Args:
       image: ``[H, W]`` or ``[H, W, C]`` floats in [0, 1], or ``uint8``.
-      path: destination ``.png``; its folder must exist.
+      path: destination ``.png``.
+      parents: create missing parent folders (default: the folder must exist).
 
     Raises:
-      InputError: wrong shape or dtype, NaN/inf values.
+      InputError: wrong shape or dtype, NaN/inf values, a suffix other than ``.png``.
       MeshIOError: the file cannot be written (the previous file, if any, is left intact).
 
     Example:
@@ -112,7 +115,7 @@ def save_png(image: Float[ArrayLike, "H W C"], path: str | os.PathLike) -> None:
     path = pathlib.Path(path)
     if path.suffix.lower() != ".png":
         raise InputError(f"save_png writes PNG files; {path} does not end in .png")
-    _atomic_write(path, _png_bytes(pixels))
+    atomic_write(path, _png_bytes(pixels), parents=parents)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -121,8 +124,6 @@ def save_png(image: Float[ArrayLike, "H W C"], path: str | os.PathLike) -> None:
 
 
 def _checked_mesh(mesh: Mesh | tuple) -> Mesh:
-    from ..geometry._validate import _check_indices, _coerce_faces, _coerce_vertices
-
     if not isinstance(mesh, Mesh):
         try:
             vertices, faces = mesh
@@ -131,9 +132,9 @@ def _checked_mesh(mesh: Mesh | tuple) -> Mesh:
                 f"save_mesh expects a jmeshtex.Mesh or a (vertices, faces) pair, got {type(mesh).__name__}"
             ) from None
         mesh = Mesh(vertices, faces)
-    v = _coerce_vertices(mesh.vertices)
-    f = _coerce_faces(mesh.faces)
-    _check_indices(f, len(v))
+    v = coerce_vertices(mesh.vertices)
+    f = coerce_faces(mesh.faces)
+    check_indices(f, len(v))
     bad = np.nonzero(~np.isfinite(v).all(axis=1))[0]
     if bad.size:
         raise NonFiniteVertexError(indices=bad)

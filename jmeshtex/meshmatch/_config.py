@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from .._config import ConfigBase, cross_rule, integers, is_finite_number, is_int, rule
+from .._config import ConfigBase, cross_rule, display_name, integers, is_finite_number, is_int, rule
 
 
 def _as_tuple(weight: float | tuple[float, ...]) -> tuple[float, ...]:
@@ -28,7 +28,7 @@ _WEIGHT_MESSAGE = "{cls}.{name} must be finite and >= 0, got ({value!r},)"
 
 
 @dataclasses.dataclass(frozen=True)
-class MeshMatchConfig(ConfigBase):
+class Config(ConfigBase):
     """Settings of a MeshMatch transfer. All lengths are in units of the level's mean edge length.
 
     Attributes:
@@ -53,8 +53,8 @@ class MeshMatchConfig(ConfigBase):
       hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
         vertices and copied down to the finer levels through the parent maps (it is smooth).
       up: the "up" direction of the ``n · up`` shape feature, or None to leave the feature out.
-      iterations: most PatchMatch iterations (E-step + M-step) per level.
-      coarse_iterations: most iterations at the coarsest level, which starts from a random field
+      steps: most PatchMatch iterations (E-step + M-step) per level.
+      coarse_steps: most iterations at the coarsest level, which starts from a random field
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
       tolerance: a level stops early when fewer than this fraction of target vertices changed
         their match in an iteration.
@@ -68,7 +68,7 @@ class MeshMatchConfig(ConfigBase):
         patch distance, get the exact rotation search.
       bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
         common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
-        (see :func:`~jmeshtex.meshmatch._patchmatch.level_groups`); 0 pads nothing (every level
+        (see :func:`~jmeshtex.meshmatch.level_groups`); 0 pads nothing (every level
         compiles its own step).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths.
       min_vertices: coarsest hierarchy level size (decimation stops below it).
@@ -76,7 +76,7 @@ class MeshMatchConfig(ConfigBase):
       dtype: ``"float32"`` (default, the fast path) or ``"float64"`` for the jitted steps.
 
     Example:
-      >>> c = MeshMatchConfig(num_angles=12)
+      >>> c = Config(num_angles=12)
       >>> c.num_angles, c.shape_weight_at(5)
       (12, 30.0)
     """
@@ -91,8 +91,8 @@ class MeshMatchConfig(ConfigBase):
     hks_eigenpairs: int = 32
     hks_max_vertices: int = 4096
     up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
-    iterations: int = 6
-    coarse_iterations: int = 30
+    steps: int = 6
+    coarse_steps: int = 30
     tolerance: float = 0.002
     random_search_levels: int = 3
     global_candidates: int = 4
@@ -110,14 +110,14 @@ class MeshMatchConfig(ConfigBase):
         integers("hks_times", 1),
         integers("hks_eigenpairs", 2),
         integers("hks_max_vertices", 16),
-        integers("iterations coarse_iterations", 1),
+        integers("steps coarse_steps", 1),
         integers("min_vertices", 8),
         integers("sweeps exact_candidates", 1),
         integers("random_search_levels global_candidates bucket_vertices", 0),
         rule("fan_radius vote_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
         rule("color_weight", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(lambda c: _weights_ok(_as_tuple(c.shape_weight)),
-                   lambda c: f"MeshMatchConfig.shape_weight must be finite and >= 0, got {_as_tuple(c.shape_weight)!r}"),
+                   lambda c: f"{display_name(type(c))}.shape_weight must be finite and >= 0, got {_as_tuple(c.shape_weight)!r}"),
         rule("affinity_weight tolerance", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(lambda c: c.color_weight != 0 or any(w != 0 for w in _as_tuple(c.shape_weight)),
                    "color_weight and shape_weight are all 0: the patch distance would be constant"),

@@ -8,31 +8,37 @@ All three reduce to :func:`~jmeshtex.meshmatch.meshmatch` on per-vertex signals:
   nearest covered one, which pads charts against bleeding);
 - painting by example matches the whole mesh against its painted part and keeps the paint;
 - detail transfer moves the signed normal offset of the source from its smoothed self.
+
+Each returns a :class:`MeshMatchTransfer`: the synthesised target mesh and the match behind it.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
-from .._mesh import Mesh
+from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
 from ..geometry import fill_unused_texels, rasterize_uv, sample_texture, tangent_frames
-from ._config import MeshMatchConfig
+from ._config import Config
 from ._fans import smooth, smoother
-from ._patchmatch import MeshMatchResult, meshmatch
+from ._match import MeshMatchResult, meshmatch
 
 
-class TransferResult(NamedTuple):
-    """A synthesised target.
+class MeshMatchTransfer(NamedTuple):
+    """A synthesised target: what :func:`transfer`, :func:`paint_by_example` and
+    :func:`transfer_displacement` return (write it with :func:`~jmeshtex.meshmatch.save`).
 
     Attributes:
       mesh: the target :class:`~jmeshtex.Mesh` with ``vertex_colors`` set (and ``texture`` filled
-        when the target has UVs).
-      match: the :class:`MeshMatchResult` (nearest-neighbour field, rotations, costs, timings).
+        when the target has UVs), or with displaced ``vertices`` (displacement transfer).
+      match: the :class:`~jmeshtex.meshmatch.MeshMatchResult` (nearest-neighbour field,
+        rotations, costs, timings).
     """
 
     mesh: Mesh
@@ -43,6 +49,15 @@ def vertex_colors_from_texture(mesh: Mesh) -> Float[np.ndarray, "V C"]:
     """Per-vertex colours read from a UV texture: the mean of the texture at the vertex's corners.
 
     .. math:: c_v = \\frac{1}{|\\{(f,k): F_{fk} = v\\}|} \\sum_{(f, k):\\, F_{fk} = v} T(uv_{fk})
+
+    Args:
+      mesh: a :class:`~jmeshtex.Mesh` with ``uv`` ``[F, 3, 2]`` and ``texture`` ``[H, W, C]``.
+
+    Returns:
+      ``[V, min(C, 3)]`` float64 colours.
+
+    Raises:
+      InputError: the mesh has no UV texture.
 
     Example:
       >>> from jmeshtex.data import grid
@@ -68,8 +83,7 @@ def vertex_colors_from_texture(mesh: Mesh) -> Float[np.ndarray, "V C"]:
 
 
 def bake_texture(
-    uv: Float[np.ndarray, "F 3 2"],
-    faces: Int[np.ndarray, "F 3"],
+    mesh: Mesh,
     colors: Float[np.ndarray, "V C"],
     *,
     size: int = 512,
@@ -82,22 +96,28 @@ def bake_texture(
     texels no triangle covers copy the nearest covered texel (padding charts against bleeding).
 
     Args:
-      uv: ``[F, 3, 2]`` per-corner texture coordinates.
-      faces: ``[F, 3]`` triangles.
+      mesh: a :class:`~jmeshtex.Mesh` with ``uv`` (``[F, 3, 2]`` per-corner texture coordinates).
       colors: ``[V, C]`` per-vertex values.
       size: texture width and height.
 
     Returns:
       ``[size, size, C]`` float32 image, row 0 at the top (v = 1).
 
+    Raises:
+      InputError: the mesh has no UVs, or they do not have shape ``[F, 3, 2]``.
+
     Example:
-      >>> uv = np.array([[[0, 0], [1, 0], [0, 1]], [[1, 0], [1, 1], [0, 1]]], float)
-      >>> tex = bake_texture(uv, np.array([[0, 1, 2], [1, 3, 2]]), np.array([[0.0], [1.0], [0.0], [1.0]]), size=4)
+      >>> v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+      >>> f = np.array([[0, 1, 2], [1, 3, 2]])
+      >>> square = Mesh(v, f, uv=v[f][..., :2])
+      >>> tex = bake_texture(square, np.array([[0.0], [1.0], [0.0], [1.0]]), size=4)
       >>> np.round(tex[0, :, 0], 3).tolist()             # top row: u = 1/8 .. 7/8
       [0.125, 0.375, 0.625, 0.875]
     """
-    uv = np.asarray(uv, np.float64)
-    faces = np.asarray(faces, np.int64)
+    if not isinstance(mesh, Mesh) or mesh.uv is None:
+        raise InputError("bake_texture needs a jmeshtex.Mesh with uv (per-corner texture coordinates)")
+    uv = np.asarray(mesh.uv, np.float64)
+    faces = np.asarray(mesh.faces, np.int64)
     colors = np.asarray(colors, np.float64)
     if uv.shape != (len(faces), 3, 2):
         raise InputError(f"uv must have shape [F={len(faces)}, 3, 2], got {uv.shape}")
@@ -124,17 +144,18 @@ def _colors_of(mesh: Mesh, colors) -> np.ndarray:
     )
 
 
-def transfer_texture(
-    source: Mesh,
-    target: Mesh,
+
+def transfer(
+    source: Mesh | tuple,
+    target: Mesh | tuple,
     *,
-    config: MeshMatchConfig | None = None,
+    key: jax.Array,
+    config: Config | None = None,
     source_colors: Float[np.ndarray, "Vs C"] | None = None,
     correspondences: Int[np.ndarray, "m 2"] | None = None,
     texture_size: int = 512,
-    seed: int = 0,
-    progress=False,
-) -> TransferResult:
+    progress: bool | Callable[[str], Any] = False,
+) -> MeshMatchTransfer:
     """Transfer a source mesh's colours (vertex colours or UV texture) onto a target mesh.
 
     .. math:: c_t = c^{src}_{\\text{NNF}(t)}
@@ -143,73 +164,80 @@ def transfer_texture(
     UVs also gets a baked texture (:func:`bake_texture`).
 
     Args:
-      source: exemplar with ``vertex_colors`` or ``uv`` + ``texture`` (or pass ``source_colors``).
-      target: mesh to texture (same units as the source).
-      config: :class:`MeshMatchConfig`.
+      source: exemplar :class:`~jmeshtex.Mesh` with ``vertex_colors`` or ``uv`` + ``texture`` (or
+        pass ``source_colors``); ``Vs`` vertices.
+      target: mesh to texture (same units as the source), ``Vt`` vertices.
+      key: a ``jax.random`` key for the random initialisation and search.
+      config: :class:`~jmeshtex.meshmatch.Config` (default settings when None).
       source_colors: ``[Vs, C]`` per-vertex colours overriding the source's own.
       correspondences: ``[m, 2]`` (source vertex, target vertex) pairs.
       texture_size: size of the baked texture for a target with UVs.
-      seed: PRNG seed.
-      progress: see :func:`meshmatch`.
+      progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
 
     Returns:
-      :class:`TransferResult`.
+      :class:`MeshMatchTransfer` whose mesh carries ``[Vt, 3]`` float32 vertex colours in [0, 1].
 
     Example:
+      >>> import jax
       >>> from jmeshtex.data import torus
       >>> v, f = torus(24, 12)
       >>> colors = 0.5 + 0.4 * np.sin(5 * np.arctan2(v[:, 1], v[:, 0]))[:, None] * np.ones(3)
-      >>> out = transfer_texture(Mesh(v, f, vertex_colors=colors), Mesh(v, f),
-      ...                        config=MeshMatchConfig(levels=2, iterations=3, hks_eigenpairs=8))
+      >>> out = transfer(Mesh(v, f, vertex_colors=colors), Mesh(v, f), key=jax.random.key(0),
+      ...                        config=Config(levels=2, steps=3, hks_eigenpairs=8))
       >>> out.mesh.vertex_colors.shape
       (288, 3)
     """
+    source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
     colors = _colors_of(source, source_colors)
-    result = meshmatch(source.vertices, source.faces, colors, target.vertices, target.faces,
-                       config=config, seed=seed, correspondences=correspondences, progress=progress)
+    result = meshmatch(source, colors, target, key=key, config=config, correspondences=correspondences,
+                       progress=progress)
     out = np.clip(result.colors, 0.0, 1.0).astype(np.float32)
     mesh = target.replace(vertex_colors=out)
     if target.uv is not None:
-        mesh = mesh.replace(texture=bake_texture(target.uv, target.faces, out, size=texture_size))
-    return TransferResult(mesh, result)
+        mesh = mesh.replace(texture=bake_texture(target, out, size=texture_size))
+    return MeshMatchTransfer(mesh, result)
 
 
 def paint_by_example(
-    mesh: Mesh,
+    mesh: Mesh | tuple,
     mask: np.ndarray,
     *,
+    key: jax.Array,
     colors: Float[np.ndarray, "V C"] | None = None,
-    config: MeshMatchConfig | None = None,
-    seed: int = 0,
-    progress=False,
-) -> TransferResult:
+    config: Config | None = None,
+    progress: bool | Callable[[str], Any] = False,
+) -> MeshMatchTransfer:
     """Propagate the painted part of a mesh (``mask``) to the unpainted part, by example.
 
     The mesh is matched against itself with matches restricted to painted vertices; painted
     vertices are pinned to themselves, so they keep their colour exactly.
 
     Args:
-      mesh: the mesh, with vertex colours or a UV texture (or ``colors``).
+      mesh: the :class:`~jmeshtex.Mesh`, with vertex colours or a UV texture (or ``colors``).
       mask: ``[V]`` bool, True where the user painted (the example), or integer vertex indices.
+      key: a ``jax.random`` key.
       colors: ``[V, C]`` colours overriding the mesh's own.
-      config, seed, progress: as :func:`meshmatch`.
+      config: :class:`~jmeshtex.meshmatch.Config` (default settings when None).
+      progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
 
     Returns:
-      :class:`TransferResult` whose mesh carries the completed vertex colours.
+      :class:`MeshMatchTransfer` whose mesh carries the completed ``[V, 3]`` vertex colours.
 
     Raises:
       InputError: an empty or complete mask, wrong shapes.
 
     Example:
+      >>> import jax
       >>> from jmeshtex.data import torus
       >>> v, f = torus(24, 12)
       >>> colors = 0.5 + 0.4 * np.sin(5 * np.arctan2(v[:, 1], v[:, 0]))[:, None] * np.ones(3)
       >>> painted = v[:, 0] > 0
-      >>> out = paint_by_example(Mesh(v, f, vertex_colors=colors), painted,
-      ...                        config=MeshMatchConfig(levels=2, iterations=2, hks_eigenpairs=8))
+      >>> out = paint_by_example(Mesh(v, f, vertex_colors=colors), painted, key=jax.random.key(0),
+      ...                        config=Config(levels=2, steps=2, hks_eigenpairs=8))
       >>> bool(np.allclose(out.mesh.vertex_colors[painted], colors[painted], atol=1e-6))
       True
     """
+    mesh = as_mesh(mesh)
     V = mesh.num_vertices
     mask = np.asarray(mask)
     if mask.dtype != bool:
@@ -228,62 +256,76 @@ def paint_by_example(
         raise InputError("the mask paints every vertex: nothing is left to synthesise")
     base = _colors_of(mesh, colors)
     pin = np.where(mask, np.arange(V), -1)
-    result = meshmatch(mesh.vertices, mesh.faces, base, mesh.vertices, mesh.faces, config=config,
-                       seed=seed, source_mask=mask, pin=pin, progress=progress)
+    result = meshmatch(mesh, base, mesh, key=key, config=config, source_mask=mask, pin=pin, progress=progress)
     out = np.where(mask[:, None], base, result.colors)
-    return TransferResult(mesh.replace(vertex_colors=np.clip(out, 0.0, 1.0).astype(np.float32)), result)
+    return MeshMatchTransfer(mesh.replace(vertex_colors=np.clip(out, 0.0, 1.0).astype(np.float32)), result)
 
 
-def detail_displacement(
-    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"], *, steps: int = 10
-) -> Float[np.ndarray, " V"]:
+def detail_displacement(mesh: Mesh | tuple, *, smoothing_steps: int = 10) -> Float[np.ndarray, " V"]:
     """Signed geometric detail: the offset from the smoothed surface along the vertex normal.
 
     .. math:: d_v = (x_v - (S^n x)_v) \\cdot n_v
 
+    with ``S`` one explicit one-ring smoothing step (:func:`~jmeshtex.meshmatch.smooth`) and
+    ``n`` the angle-weighted vertex normal.
+
+    Args:
+      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices [V, 3], faces [F, 3])``.
+      smoothing_steps: ``n``, the smoothing steps that define the base surface.
+
+    Returns:
+      ``[V]`` float64 signed offsets.
+
     Example:
       >>> from jmeshtex.data import grid
-      >>> v, f = grid(8)
-      >>> float(np.abs(detail_displacement(v, f)).max())      # flat: no detail
+      >>> float(np.abs(detail_displacement(grid(8))).max())      # flat: no detail
       0.0
     """
-    v = np.asarray(vertices, np.float64)
-    smooth_v = np.asarray(smooth(jnp.asarray(v), smoother(faces, len(v)), steps))
-    normal = tangent_frames(v, faces).normal
+    mesh = as_mesh(mesh)
+    v = np.asarray(mesh.vertices, np.float64)
+    smooth_v = np.asarray(smooth(jnp.asarray(v), smoother(mesh.faces, len(v)), smoothing_steps))
+    normal = tangent_frames(v, mesh.faces).normal
     return np.einsum("vd,vd->v", v - smooth_v, normal)
 
 
 def transfer_displacement(
-    source_vertices: Float[np.ndarray, "Vs 3"],
-    source_faces: Int[np.ndarray, "Fs 3"],
-    target_vertices: Float[np.ndarray, "Vt 3"],
-    target_faces: Int[np.ndarray, "Ft 3"],
+    source: Mesh | tuple,
+    target: Mesh | tuple,
     *,
-    config: MeshMatchConfig | None = None,
-    steps: int = 10,
-    seed: int = 0,
-    progress=False,
-) -> tuple[Float[np.ndarray, "Vt 3"], MeshMatchResult]:
+    key: jax.Array,
+    config: Config | None = None,
+    smoothing_steps: int = 10,
+    progress: bool | Callable[[str], Any] = False,
+) -> MeshMatchTransfer:
     """Transfer geometric detail (normal displacements) from source to target by MeshMatch.
 
     The source's :func:`detail_displacement` is the transferred signal; the target moves along its
     normals by the synthesised displacement: ``x'_t = x_t + d_t n_t``.
 
+    Args:
+      source: the :class:`~jmeshtex.Mesh` whose detail is copied.
+      target: the mesh that receives it, ``Vt`` vertices.
+      key: a ``jax.random`` key.
+      config: :class:`~jmeshtex.meshmatch.Config` (default settings when None).
+      smoothing_steps: smoothing steps of :func:`detail_displacement`.
+      progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
+
     Returns:
-      ``(new target vertices [Vt, 3], MeshMatchResult)``.
+      :class:`MeshMatchTransfer` whose mesh is the target with displaced ``[Vt, 3]`` vertices.
 
     Example:
+      >>> import jax
       >>> from jmeshtex.data import grid
       >>> v, f = grid(12)
       >>> bumpy = v.copy(); bumpy[:, 2] = 0.02 * np.sin(20 * v[:, 0])
-      >>> new_v, _ = transfer_displacement(bumpy, f, v, f,
-      ...                                  config=MeshMatchConfig(levels=1, iterations=2, up=None))
-      >>> new_v.shape, bool(np.abs(new_v[:, 2]).max() > 0.001)
+      >>> out = transfer_displacement(Mesh(bumpy, f), Mesh(v, f), key=jax.random.key(0),
+      ...                             config=Config(levels=1, steps=2, up=None))
+      >>> out.mesh.vertices.shape, bool(np.abs(out.mesh.vertices[:, 2]).max() > 0.001)
       ((169, 3), True)
     """
-    d = detail_displacement(source_vertices, source_faces, steps=steps)
-    result = meshmatch(source_vertices, source_faces, d[:, None], target_vertices, target_faces,
-                       config=config, seed=seed, progress=progress)
-    tv = np.asarray(target_vertices, np.float64)
-    normal = tangent_frames(tv, target_faces).normal
-    return tv + result.colors[:, :1] * normal, result
+    source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
+    d = detail_displacement(source, smoothing_steps=smoothing_steps)
+    result = meshmatch(source, d[:, None], target, key=key, config=config, progress=progress)
+    tv = np.asarray(target.vertices, np.float64)
+    normal = tangent_frames(tv, target.faces).normal
+    return MeshMatchTransfer(target.replace(vertices=tv + result.colors[:, :1] * normal), result)

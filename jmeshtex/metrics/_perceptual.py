@@ -1,4 +1,4 @@
-"""Perceptual metrics built on the pre-trained VGG-16: LPIPS (Zhang et al. 2018) and the Gram-matrix
+"""Perceptual metrics built on a pre-trained VGG: LPIPS (Zhang et al. 2018) and the Gram-matrix
 texture distance (Gatys et al. 2015). Pure JAX; jit them with the weights as an argument."""
 
 from __future__ import annotations
@@ -9,7 +9,8 @@ import jax.numpy as jnp
 from .._errors import InputError
 from .._types import Array, Float
 from ..ops import gram_matrix
-from ._vgg import LPIPS_LAYERS, VGGWeights, load_vgg16, vgg16_features
+from ._vgg import LPIPS_LAYERS, VGGWeights, vgg_features
+from ._vgg_load import load_vgg16
 
 _LPIPS_SHIFT = (-0.030, -0.088, -0.188)
 _LPIPS_SCALE = (0.458, 0.448, 0.450)
@@ -57,7 +58,7 @@ def lpips(
     shift = jnp.asarray(_LPIPS_SHIFT, img0.dtype)
     scale = jnp.asarray(_LPIPS_SCALE, img0.dtype)
     both = (jnp.concatenate([img0, img1]) * 2 - 1 - shift) / scale
-    feats = vgg16_features(weights, both, layers=LPIPS_LAYERS, normalize=False)
+    feats = vgg_features(both, weights, layers=LPIPS_LAYERS, normalize=False)
     b = img0.shape[0]
     total = jnp.zeros((b,), img0.dtype)
     for name, lin in zip(LPIPS_LAYERS, weights.lpips_lin, strict=True):
@@ -98,7 +99,7 @@ def gram_distance(
     _check_images(img0, img1, "gram_distance")
     weights = load_vgg16() if weights is None else weights
     b = img0.shape[0]
-    feats = vgg16_features(weights, jnp.concatenate([img0, img1]), layers=layers)
+    feats = vgg_features(jnp.concatenate([img0, img1]), weights, layers=layers)
     total = jnp.zeros((b,), img0.dtype)
     for name in layers:
         f = feats[name]

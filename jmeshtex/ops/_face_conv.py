@@ -31,7 +31,7 @@ import jax.numpy as jnp
 
 from .._errors import InputError
 from .._neighborhoods import FaceNeighborhood
-from .._types import Array, Bool, Float, PRNGKey
+from .._types import Array, ArrayLike, Bool, Float, PRNGKey
 from ._numerics import elementwise_max, masked_mean, safe_norm, safe_normalize
 
 
@@ -45,10 +45,10 @@ class EdgeFrames(NamedTuple):
       z: ``[F, 3, 3]`` the unit face normal (the same for the three edges).
     """
 
-    origin: Float[Array, "F 3 3"]
-    x: Float[Array, "F 3 3"]
-    y: Float[Array, "F 3 3"]
-    z: Float[Array, "F 3 3"]
+    origin: Float[ArrayLike, "F 3 3"]
+    x: Float[ArrayLike, "F 3 3"]
+    y: Float[ArrayLike, "F 3 3"]
+    z: Float[ArrayLike, "F 3 3"]
 
 
 class FaceEmbedParams(NamedTuple):
@@ -59,8 +59,8 @@ class FaceEmbedParams(NamedTuple):
       bias: ``[C]``.
     """
 
-    weight: Float[Array, "E C"]
-    bias: Float[Array, " C"]
+    weight: Float[ArrayLike, "E C"]
+    bias: Float[ArrayLike, " C"]
 
 
 class FaceConvParams(NamedTuple):
@@ -72,8 +72,8 @@ class FaceConvParams(NamedTuple):
       bias: ``[D]``.
     """
 
-    weight: Float[Array, "C2 D"]
-    bias: Float[Array, " D"]
+    weight: Float[ArrayLike, "C2 D"]
+    bias: Float[ArrayLike, " D"]
 
 
 class FaceConvStackParams(NamedTuple):
@@ -101,7 +101,7 @@ def _check_vertices(vertices, nbhd: FaceNeighborhood, name: str) -> None:
         )
 
 
-def edge_frames(vertices: Float[Array, "V 3"], nbhd: FaceNeighborhood) -> EdgeFrames:
+def edge_frames(vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood) -> EdgeFrames:
     """The three edge frames of every face used by DGTS features and displacements.
 
     .. math:: o_k = \\tfrac12 (v_k + v_{k+1}),\\quad x_k = \\frac{v_{k+1} - v_k}{|v_{k+1} - v_k|},
@@ -134,7 +134,7 @@ def edge_frames(vertices: Float[Array, "V 3"], nbhd: FaceNeighborhood) -> EdgeFr
     return EdgeFrames(origin=0.5 * (tri + nxt), x=x, y=y, z=z)
 
 
-def face_features(vertices: Float[Array, "V 3"], nbhd: FaceNeighborhood) -> Float[Array, "F 3 4"]:
+def face_features(vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood) -> Float[Array, "F 3 4"]:
     """Rigid-motion-invariant input features of every face, one row of 4 per edge (DGTS §3.1).
 
     For edge ``k`` of face ``f`` with frame :func:`edge_frames` ``(o_k, x_k, y_k, z)`` and ``p`` the
@@ -144,7 +144,7 @@ def face_features(vertices: Float[Array, "V 3"], nbhd: FaceNeighborhood) -> Floa
        \\ (p - o_k)\\cdot z\\big)
 
     On a boundary edge there is no neighbouring face; the neighbourhood pytree already substitutes
-    the face's *own* opposite vertex ``v_{k+2}`` (:class:`~jmeshtex.geometry.FaceNeighborhood`), so
+    the face's *own* opposite vertex ``v_{k+2}`` (:class:`~jmeshtex.FaceNeighborhood`), so
     the feature describes the face itself (its ``z`` coordinate is 0). The reference code uses the
     edge midpoint there instead (all three coordinates 0).
 
@@ -176,7 +176,7 @@ def face_features(vertices: Float[Array, "V 3"], nbhd: FaceNeighborhood) -> Floa
     return feats * nbhd.face_mask.astype(feats.dtype)[:, None, None]
 
 
-def face_edge_embed(features: Float[Array, "F 3 E"], params: FaceEmbedParams) -> Float[Array, "F C"]:
+def face_edge_embed(features: Float[ArrayLike, "F 3 E"], params: FaceEmbedParams) -> Float[Array, "F C"]:
     """First DGTS layer: a linear map shared by the three edges, then the max over edges (§3.2).
 
     .. math:: h_f = \\max_{k \\in \\{0,1,2\\}} \\big(W^\\top \\phi_{f,k} + b\\big)
@@ -212,7 +212,7 @@ def face_edge_embed(features: Float[Array, "F 3 E"], params: FaceEmbedParams) ->
     return elementwise_max((h[:, 0], h[:, 1], h[:, 2])) + b
 
 
-def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvParams) -> Float[Array, "F D"]:
+def face_conv(x: Float[ArrayLike, "F C"], nbhd: FaceNeighborhood, params: FaceConvParams) -> Float[Array, "F D"]:
     """Symmetric DGTS face convolution: a shared linear map per neighbour, max over neighbours (§3.2).
 
     .. math:: y_f = \\max_{j \\in \\mathcal N(f)} \\big(W^\\top [x_j ; x_f] + b\\big)
@@ -268,7 +268,7 @@ def face_conv(x: Float[Array, "F C"], nbhd: FaceNeighborhood, params: FaceConvPa
 
 
 def instance_norm(
-    x: Float[Array, "F C"], mask: Bool[Array, " F"], *, eps: float = 1e-5
+    x: Float[ArrayLike, "F C"], mask: Bool[ArrayLike, " F"], *, eps: float | Float[Array, ""] = 1e-5
 ) -> Float[Array, "F C"]:
     """Mask-aware instance normalisation over faces, per channel, without affine parameters.
 
@@ -301,7 +301,7 @@ def instance_norm(
 
 
 def face_conv_stack(
-    features: Float[Array, "F 3 E"],
+    features: Float[ArrayLike, "F 3 E"],
     nbhd: FaceNeighborhood,
     params: FaceConvStackParams,
     *,
@@ -384,7 +384,7 @@ def init_face_conv_stack(
 
 
 def face_to_vertex_displacement(
-    d: Float[Array, "F 3"], vertices: Float[Array, "V 3"], nbhd: FaceNeighborhood
+    d: Float[ArrayLike, "F 3"], vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood
 ) -> Float[Array, "V 3"]:
     """Per-face displacement coefficients in edge frames, averaged onto the vertices (DGTS §3.2).
 

@@ -40,8 +40,8 @@ import jax.numpy as jnp
 
 from .._errors import ConfigError, InputError
 from .._neighborhoods import VertexNeighborhood
-from .._types import Array, Complex, Float, PRNGKey
-from ._complex import complex_lecun_blocks
+from .._types import Array, ArrayLike, Complex, Float, PRNGKey
+from ._complex_init import complex_lecun_blocks
 from ._numerics import check_complex, check_delta, complex_dtype, real_dtype
 
 
@@ -55,9 +55,9 @@ class FieldConvParams(NamedTuple):
       mix: ``[C, H, D]`` complex: the dense layer from the ``C·H`` filtered sums to ``D`` outputs.
     """
 
-    filter_weight: Float[Array, "I H"]
-    filter_bias: Float[Array, " H"]
-    mix: Complex[Array, "C H D"]
+    filter_weight: Float[ArrayLike, "I H"]
+    filter_bias: Float[ArrayLike, " H"]
+    mix: Complex[ArrayLike, "C H D"]
 
 
 def init_field_conv(
@@ -99,11 +99,11 @@ def init_field_conv(
 
 
 def field_conv(
-    x: Complex[Array, "V C"],
+    x: Complex[ArrayLike, "V C"],
     nbhd: VertexNeighborhood,
     params: FieldConvParams,
     *,
-    embedding: Float[Array, "V E"] | None = None,
+    embedding: Float[ArrayLike, "V E"] | None = None,
     delta: float = 1e-4,
     activation: str = "silu",
 ) -> Complex[Array, "V D"]:
@@ -126,7 +126,7 @@ def field_conv(
 
     Args:
       x: ``[V, C]`` complex tangent features, each in its own vertex's frame.
-      nbhd: padded :class:`~jmeshtex.geometry.VertexNeighborhood` (one-ring or k-NN; a k-NN self
+      nbhd: padded :class:`~jmeshtex.VertexNeighborhood` (one-ring or k-NN; a k-NN self
         slot has ``log = 0`` and contributes ``x_p φ(0)``). Padded slots and vertices contribute
         nothing; a vertex with no valid slot gets 0.
       params: :class:`FieldConvParams` (cast to ``x``'s dtype).

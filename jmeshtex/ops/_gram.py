@@ -6,10 +6,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from .._errors import InputError
-from .._types import Array, Bool, Float
+from .._types import Array, ArrayLike, Bool, Float
 
 
-def gram_matrix(x: Float[Array, "N C"], mask: Bool[Array, " N"] | None = None) -> Float[Array, "C C"]:
+def gram_matrix(x: Float[ArrayLike, "N C"], mask: Bool[ArrayLike, " N"] | None = None) -> Float[Array, "C C"]:
     """Channel-by-channel second moments of features over the valid entries.
 
     .. math:: G_{cd} = \\frac{1}{\\sum_n m_n} \\sum_n m_n\\, x_{nc}\\, x_{nd}

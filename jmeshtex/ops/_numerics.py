@@ -14,10 +14,10 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import ConfigError, InputError
-from .._types import Array, Bool, Complex, Float, Inexact
+from .._types import Array, ArrayLike, Bool, Complex, Float, Inexact
 
 
-def safe_norm(x: Inexact[Array, "..."], *, axis: int = -1, keepdims: bool = False) -> Float[Array, "..."]:
+def safe_norm(x: Inexact[ArrayLike, "..."], *, axis: int = -1, keepdims: bool = False) -> Float[Array, "..."]:
     """Euclidean norm along ``axis`` with a zero (not NaN) gradient at ``x = 0``.
 
     .. math:: \\|x\\| = \\sqrt{\\textstyle\\sum_i |x_i|^2}, \\qquad \\nabla\\|x\\| := 0 \\text{ at } x = 0
@@ -45,7 +45,7 @@ def safe_norm(x: Inexact[Array, "..."], *, axis: int = -1, keepdims: bool = Fals
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, sq, 1)), 0)
 
 
-def safe_normalize(x: Float[Array, "... D"], *, axis: int = -1) -> Float[Array, "... D"]:
+def safe_normalize(x: Float[ArrayLike, "... D"], *, axis: int = -1) -> Float[Array, "... D"]:
     """``x / |x|`` along ``axis``, with the zero vector mapped to zero (finite value and gradient).
 
     Example:
@@ -60,7 +60,7 @@ def safe_normalize(x: Float[Array, "... D"], *, axis: int = -1) -> Float[Array, 
 
 
 def masked_mean(
-    x: Inexact[Array, "N ..."], mask: Bool[Array, " N"] | Float[Array, " N"], *, axis: int = 0
+    x: Inexact[ArrayLike, "N ..."], mask: Bool[ArrayLike, " N"] | Float[ArrayLike, " N"], *, axis: int = 0
 ) -> Inexact[Array, "..."]:
     """Mean of ``x`` over ``axis`` counting only entries where ``mask`` is set (0 if none is).
 
@@ -135,8 +135,10 @@ def check_delta(delta: float, name: str) -> float:
     return value
 
 
-def abs2(z: Inexact[Array, "..."]) -> Float[Array, "..."]:
+def abs2(z: Inexact[ArrayLike, "..."]) -> Float[ArrayLike, "..."]:
     """Squared modulus ``|z|² = Re(z)² + Im(z)²`` as a real array (smooth everywhere, also at 0).
+
+    Elementwise arithmetic only, so a NumPy input gives a NumPy output.
 
     Example:
       >>> abs2(jnp.array([3 + 4j])).tolist()
@@ -147,7 +149,7 @@ def abs2(z: Inexact[Array, "..."]) -> Float[Array, "..."]:
     return z * z
 
 
-def safe_unit(z: Complex[Array, "..."], *, delta: float) -> Complex[Array, "..."]:
+def safe_unit(z: Complex[ArrayLike, "..."], *, delta: float) -> Complex[Array, "..."]:
     """Smoothed direction of a tangent vector, ``z / sqrt(|z|² + δ²)``.
 
     .. math:: \\hat z = \\frac{z}{\\sqrt{|z|^2 + \\delta^2}}
@@ -170,7 +172,7 @@ def safe_unit(z: Complex[Array, "..."], *, delta: float) -> Complex[Array, "..."
     return z * jax.lax.rsqrt(abs2(z) + jnp.asarray(delta * delta, real_dtype(z.dtype))).astype(z.dtype)
 
 
-def complex_matmul(x: Complex[Array, "... C"], w: Complex[Array, "C D"]) -> Complex[Array, "... D"]:
+def complex_matmul(x: Complex[ArrayLike, "... C"], w: Complex[ArrayLike, "C D"]) -> Complex[Array, "... D"]:
     """``x @ w`` for complex operands, computed as one real GEMM on stacked parts.
 
     .. math:: [\\Re x,\\ \\Im x] \\begin{bmatrix} \\Re W & \\Im W \\\\ -\\Im W & \\Re W \\end{bmatrix}
@@ -233,7 +235,7 @@ def conjugate_complex_grads(grads):
 
 
 @jax.custom_jvp
-def elementwise_max(xs: tuple[Float[Array, "..."], ...]) -> Float[Array, "..."]:
+def elementwise_max(xs: tuple[Float[ArrayLike, "..."], ...]) -> Float[Array, "..."]:
     """Elementwise maximum of a tuple of same-shape arrays, with a lean derivative.
 
     .. math:: y = \\max_k x_k,\\qquad \\dot y = \\dot x_{k^*},\\quad k^* = \\min\\{k : x_k = y\\}

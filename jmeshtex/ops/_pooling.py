@@ -2,7 +2,7 @@
 
 Features at the fine level live in fine vertices' frames, features at the coarse level in coarse
 vertices' frames. Moving a tangent vector between the two levels therefore needs the parallel
-transport stored in the :class:`~jmeshtex.geometry.PoolingMap` (built on the host by the hierarchy
+transport stored in the :class:`~jmeshtex.PoolingMap` (built on the host by the hierarchy
 builder): ``children_transport`` / ``to_parent`` take coordinates in a child's frame to its parent's
 frame. Both ops are gauge-equivariant: rotating the frame of a fine vertex by ``β_f`` and of a coarse
 vertex by ``α_P`` changes the transports to ``τ e^{i(β_f − α_P)}`` and the features to
@@ -15,11 +15,11 @@ import jax.numpy as jnp
 
 from .._errors import InputError
 from .._neighborhoods import PoolingMap
-from .._types import Array, Complex
+from .._types import Array, ArrayLike, Complex
 from ._numerics import check_complex, real_dtype
 
 
-def tangent_pool(x: Complex[Array, "Vf C"], pm: PoolingMap) -> Complex[Array, "Vc C"]:
+def tangent_pool(x: Complex[ArrayLike, "Vf C"], pm: PoolingMap) -> Complex[Array, "Vc C"]:
     """Area-weighted mean of the children's features, transported into the parent's frame.
 
     .. math:: y_P = \\frac{\\sum_{f \\in \\mathrm{ch}(P)} w_f\\, \\tau_{f\\to P}\\, x_f}
@@ -30,7 +30,7 @@ def tangent_pool(x: Complex[Array, "Vf C"], pm: PoolingMap) -> Complex[Array, "V
 
     Args:
       x: ``[Vf, C]`` complex features at the fine level, each in its fine vertex's frame.
-      pm: the :class:`~jmeshtex.geometry.PoolingMap` between the two levels (possibly padded).
+      pm: the :class:`~jmeshtex.PoolingMap` between the two levels (possibly padded).
 
     Returns:
       ``[Vc, C]`` complex features, each in its coarse vertex's frame; dtype of ``x``.
@@ -54,7 +54,7 @@ def tangent_pool(x: Complex[Array, "Vf C"], pm: PoolingMap) -> Complex[Array, "V
     return jnp.einsum("pm,pmc->pc", coef, xc)
 
 
-def tangent_unpool(x: Complex[Array, "Vc C"], pm: PoolingMap) -> Complex[Array, "Vf C"]:
+def tangent_unpool(x: Complex[ArrayLike, "Vc C"], pm: PoolingMap) -> Complex[Array, "Vf C"]:
     """Nearest-parent upsampling: each fine vertex copies its parent's feature into its own frame.
 
     .. math:: y_f = \\overline{\\tau_{f\\to P(f)}}\\; x_{P(f)}
@@ -64,7 +64,7 @@ def tangent_unpool(x: Complex[Array, "Vc C"], pm: PoolingMap) -> Complex[Array, 
 
     Args:
       x: ``[Vc, C]`` complex features at the coarse level, each in its coarse vertex's frame.
-      pm: the :class:`~jmeshtex.geometry.PoolingMap` between the two levels.
+      pm: the :class:`~jmeshtex.PoolingMap` between the two levels.
 
     Returns:
       ``[Vf, C]`` complex features in the fine vertices' frames; dtype of ``x``.

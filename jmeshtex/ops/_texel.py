@@ -22,17 +22,17 @@ import numpy as np
 
 from .._errors import InputError
 from .._neighborhoods import PoolGroups, TexelNeighborhood
-from .._types import Array, Float
+from .._types import Array, ArrayLike, Float
 from ._numerics import elementwise_max
 
 _MODES = ("mean", "max")
 
 
 def texel_conv(
-    x: Float[Array, "N C"],
+    x: Float[ArrayLike, "N C"],
     taps: TexelNeighborhood,
-    kernel: Float[Array, "3 3 C D"],
-    bias: Float[Array, " D"],
+    kernel: Float[ArrayLike, "3 3 C D"],
+    bias: Float[ArrayLike, " D"],
 ) -> Float[Array, "N D"]:
     """A 3×3 convolution of a 2D CNN applied through precomputed surface taps (Kovács et al. 2024).
 
@@ -47,7 +47,7 @@ def texel_conv(
 
     Args:
       x: ``[N, C]`` texel features.
-      taps: :class:`TexelNeighborhood` with ``index / weight [N, 9, J]``.
+      taps: :class:`~jmeshtex.TexelNeighborhood` with ``index / weight [N, 9, J]``.
       kernel: ``[3, 3, C, D]`` HWIO kernel (cast to ``x``'s dtype).
       bias: ``[D]``.
 
@@ -84,7 +84,7 @@ def texel_conv(
     return y * taps.texel_mask.astype(dtype)[:, None]
 
 
-def grouped_pool(x: Float[Array, "N C"], groups: PoolGroups, *, mode: str = "mean") -> Float[Array, "G C"]:
+def grouped_pool(x: Float[ArrayLike, "N C"], groups: PoolGroups, *, mode: str = "mean") -> Float[Array, "G C"]:
     """Average or max pooling over precomputed texel groups (the surface CNN's pooling layers).
 
     .. math:: y_g = \\frac{1}{|S_g|}\\sum_{i \\in S_g} x_i \\quad\\text{or}\\quad y_g = \\max_{i \\in S_g} x_i
@@ -94,7 +94,7 @@ def grouped_pool(x: Float[Array, "N C"], groups: PoolGroups, *, mode: str = "mea
 
     Args:
       x: ``[N, C]`` fine texel features.
-      groups: :class:`PoolGroups` ``[G, S]``.
+      groups: :class:`~jmeshtex.PoolGroups` ``[G, S]``.
       mode: ``"mean"`` or ``"max"``.
 
     Returns:
@@ -140,7 +140,7 @@ def image_texel_neighborhood(height: int, width: int) -> TexelNeighborhood:
       height, width: image size in texels.
 
     Returns:
-      :class:`TexelNeighborhood` with ``J = 1`` (int32 indices, float64 weights, all texels real).
+      :class:`~jmeshtex.TexelNeighborhood` with ``J = 1`` (int32 indices, float64 weights, all texels real).
 
     Example:
       >>> nb = image_texel_neighborhood(2, 3)

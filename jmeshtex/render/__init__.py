@@ -2,4 +2,3 @@
 
 from ._render import render_grid as render_grid
 from ._render import render_mesh as render_mesh
-from ._render import write_png as write_png

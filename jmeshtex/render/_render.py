@@ -3,21 +3,21 @@
 A rendered mesh is a :class:`~mpl_toolkits.mplot3d.art3d.Poly3DCollection` of flat-shaded triangles
 that matplotlib depth-sorts back to front (painter's algorithm, ``zsort="average"``). It is meant
 for looking at results (figures, demos, notebooks, test artefacts), not for speed: about a second
-per 10K faces. Every image is an RGB ``uint8`` array ``[H, W, 3]``; PNGs are written atomically.
+per 10K faces. Every image is an RGB ``uint8`` array ``[H, W, 3]``; PNGs are written atomically
+with :func:`jmeshtex.io.save_png`.
 """
 
 from __future__ import annotations
 
-import io
 import os
-import pathlib
 from collections.abc import Sequence
 
 import numpy as np
 
-from .._errors import InputError, MeshIOError
+from .._errors import InputError
 from .._types import Array, Float, Int, Num
 from ..geometry import check_mesh_arrays
+from ..io import save_png
 
 _DEFAULT_COLOR = np.array([0.78, 0.80, 0.86])
 _AMBIENT, _DIFFUSE = 0.35, 0.65
@@ -138,7 +138,7 @@ def render_mesh(
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if path is not None:
-        write_png(path, image)
+        save_png(image, path, parents=True)
     return image
 
 
@@ -202,32 +202,8 @@ def render_grid(
     canvas.draw()
     panel = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if path is not None:
-        write_png(path, panel)
+        save_png(panel, path, parents=True)
     return panel
-
-
-def write_png(path: str | os.PathLike, image: np.ndarray) -> pathlib.Path:
-    """Write an image as a PNG atomically (temporary file in the same folder, then ``os.replace``).
-
-    Example:
-      >>> import tempfile, pathlib
-      >>> with tempfile.TemporaryDirectory() as d:
-      ...     p = write_png(pathlib.Path(d) / "a" / "x.png", np.zeros((4, 5, 3), np.uint8))
-      ...     p.name, p.exists()
-      ('x.png', True)
-    """
-    import matplotlib.image
-
-    from ..io import atomic_write
-
-    path = pathlib.Path(path)
-    image = _as_rgb(image, "image")
-    buf = io.BytesIO()
-    matplotlib.image.imsave(buf, image, format="png")
-    try:
-        return atomic_write(path, buf.getvalue())
-    except MeshIOError as err:
-        raise MeshIOError(f"cannot write PNG {path}: {err}") from err
 
 
 def _check_size(size) -> tuple[int, int]:

@@ -219,6 +219,14 @@ def texels_to_image(
     keeps bilinear lookups and mip-maps from bleeding background into the charts' borders) or 0
     (``fill="zero"``).
 
+    Args:
+      atlas: the :class:`TextureAtlas`.
+      values: ``[N, C]`` one row per valid texel (atlas order).
+      fill: ``"nearest"`` or ``"zero"`` for the invalid pixels.
+
+    Returns:
+      ``[size, size, C]`` image, row 0 at the top (v = 1), dtype of ``values``.
+
     Example:
       >>> from jmeshtex.data import grid
       >>> v, f = grid(1)
@@ -243,6 +251,13 @@ def texels_to_image(
 
 def image_to_texels(atlas: TextureAtlas, image: Float[np.ndarray, "H W C"]) -> Float[np.ndarray, "N C"]:
     """Read a texture image at the valid texels (resampled bilinearly when its size differs).
+
+    Args:
+      atlas: the :class:`TextureAtlas`.
+      image: ``[H, W, C]`` texture in the mesh's UV layout, row 0 at the top (v = 1).
+
+    Returns:
+      ``[N, C]`` values at the valid texels' centres (atlas order).
 
     Example:
       >>> from jmeshtex.data import grid

@@ -11,7 +11,7 @@ POOL_MODES = ("mean", "max")
 
 
 @dataclasses.dataclass(frozen=True)
-class SurfaceCNNConfig(ConfigBase):
+class Config(ConfigBase):
     """Settings of the precomputation and the Gram-matching optimisation.
 
     The defaults are the paper's (and its reference tool's): Adam with learning rate 0.1, halved
@@ -36,7 +36,7 @@ class SurfaceCNNConfig(ConfigBase):
       dtype: ``"float32"`` (default) or ``"float64"`` for the network and the optimisation.
 
     Example:
-      >>> c = SurfaceCNNConfig(size=64, steps=10)
+      >>> c = Config(size=64, steps=10)
       >>> c.learning_rate_at(0), c.learning_rate_at(450)
       (0.1, 0.025)
     """

@@ -43,8 +43,8 @@ class TexelTaps(NamedTuple):
     """Level-0 neighbourhoods of a texel atlas, both samplings from one set of traces.
 
     Attributes:
-      bilinear: :class:`~jmeshtex.ops.TexelNeighborhood` with ``J = 4`` (first convolution).
-      nearest: :class:`~jmeshtex.ops.TexelNeighborhood` with ``J = 1`` (later convolutions).
+      bilinear: :class:`~jmeshtex.TexelNeighborhood` with ``J = 4`` (first convolution).
+      nearest: :class:`~jmeshtex.TexelNeighborhood` with ``J = 1`` (later convolutions).
       end_uv: ``[N, 9, 2]`` float64 UV of every tap's end point (the texel's own centre UV for tap 4).
       stopped: ``[N, 9]`` bool, True where the walk hit a mesh boundary.
     """

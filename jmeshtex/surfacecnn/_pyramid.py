@@ -40,10 +40,10 @@ class TexelPyramid(NamedTuple):
     """Everything a mesh CNN needs besides the weights (host NumPy arrays).
 
     Attributes:
-      bilinear: level-0 :class:`~jmeshtex.ops.TexelNeighborhood`, ``J = 4`` (first convolution).
-      nearest: per level ``0..L`` a ``J = 1`` :class:`~jmeshtex.ops.TexelNeighborhood` over that
+      bilinear: level-0 :class:`~jmeshtex.TexelNeighborhood`, ``J = 4`` (first convolution).
+      nearest: per level ``0..L`` a ``J = 1`` :class:`~jmeshtex.TexelNeighborhood` over that
         level's nodes.
-      pools: per level ``0..L-1`` the :class:`~jmeshtex.ops.PoolGroups` that pool level ``l`` into
+      pools: per level ``0..L-1`` the :class:`~jmeshtex.PoolGroups` that pool level ``l`` into
         level ``l + 1``.
       node_of_texel: per level ``0..L`` an ``[N]`` int64 array: the level's node of every texel.
       representative: per level an ``[N_l]`` int64 array: the representative texel of every node.

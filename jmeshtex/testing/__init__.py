@@ -21,6 +21,7 @@ from ._registry import load_entries as load_entries
 from ._registry import random_inputs as random_inputs
 from ._registry import register as register
 from ._registry import run_registry as run_registry
+from ._registry import to_json as to_json
 from ._registry import transforms_of as transforms_of
 from ._state import MeshState as MeshState
 from ._state import regauge_neighborhood as regauge_neighborhood

@@ -48,7 +48,7 @@ EXTRINSIC_KINDS = (VERTEX_VECTOR, FACE_VECTOR, POINTS)
 
 
 class Field(NamedTuple):
-    """A value tagged with its kind (one of :data:`KINDS`).
+    """A value tagged with its kind (one of ``KINDS``).
 
     Example:
       >>> import numpy as np

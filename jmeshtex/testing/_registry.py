@@ -75,7 +75,7 @@ class Entry:
       apply: ``apply(state, params, **inputs) -> Field``; builds its geometry from ``state`` (a
         :class:`MeshState`) so gauge and relabelling reach it.
       inputs: ``{name: (kind, channels)}``; ``points`` inputs are the mesh's own positions.
-      transforms: names in :data:`~jmeshtex.testing.CATALOGUE` to check.
+      transforms: names in ``CATALOGUE`` to check.
       init: ``init(key, dtype) -> params`` (random parameters), or None.
       expect_fail: negative control: transforms that must flag this operator.
       group: ``"geometry"``, ``"ops"``, ``"models"`` or ``"negative"`` (report sections).
@@ -106,8 +106,8 @@ REGISTRY: dict[str, Entry] = {}
 def load_entries() -> dict[str, Entry]:
     """Register every built-in entry (ops and geometry, then each method's) and return the registry.
 
-    The registrations live in :mod:`jmeshtex.testing._entries` and ``jmeshtex/testing/_methods/``;
-    importing them adds their entries to :data:`REGISTRY` (once: a module is imported only once).
+    The registrations live in ``jmeshtex/testing/_entries.py`` and ``jmeshtex/testing/_methods/``;
+    importing them adds their entries to ``REGISTRY`` (once: a module is imported only once).
     """
     from . import _entries  # noqa: F401
     from ._methods import dgts, fl, fldm, meshmatch, surfacecnn  # noqa: F401
@@ -121,7 +121,7 @@ MAX_EXCLUDED = 0.1
 
 
 def register(entry: Entry) -> Entry:
-    """Add an entry to :data:`REGISTRY` (names must be unique; transforms must exist)."""
+    """Add an entry to ``REGISTRY`` (names must be unique; transforms must exist)."""
     if entry.name in REGISTRY:
         raise ValueError(f"an operator named {entry.name!r} is already registered")
     unknown = [t for t in (*entry.transforms, *entry.expect_fail, *entry.report) if t not in CATALOGUE]
@@ -318,6 +318,13 @@ def format_table(results: Sequence[CheckResult]) -> str:
 
 
 def to_json(results: Sequence[CheckResult]) -> str:
+    """The results of :func:`run_registry` as JSON: ``{"results": [...], "failed": n}`` (``jmeshtex verify --json``).
+
+    Example:
+      >>> import json
+      >>> json.loads(to_json([]))
+      {'results': [], 'failed': 0}
+    """
     return json.dumps(
         {
             "results": [r.as_dict() for r in results],

@@ -22,7 +22,7 @@ def regauge_neighborhood(nbhd: VertexNeighborhood, alpha: np.ndarray) -> VertexN
               \\rho_{q\\to p} \\to \\rho_{q\\to p}\\, e^{i(\\alpha_q - \\alpha_p)}
 
     Args:
-      nbhd: host :class:`~jmeshtex.geometry.VertexNeighborhood` (NumPy).
+      nbhd: host :class:`~jmeshtex.VertexNeighborhood` (NumPy).
       alpha: ``[V]`` frame rotation angles (radians, counter-clockwise).
 
     Example:
@@ -113,15 +113,15 @@ class MeshState:
 
     # -- JAX geometry in this state's dtype ---------------------------------------------------
     def one_ring(self) -> VertexNeighborhood:
-        """One-ring :class:`~jmeshtex.geometry.VertexNeighborhood` as JAX arrays in ``dtype``."""
+        """One-ring :class:`~jmeshtex.VertexNeighborhood` as JAX arrays in ``dtype``."""
         return self._cached("one_ring", lambda: to_jax(self.host_one_ring(), self.dtype))
 
     def knn(self, k: int = 8) -> VertexNeighborhood:
-        """k-NN geodesic :class:`~jmeshtex.geometry.VertexNeighborhood` as JAX arrays in ``dtype``."""
+        """k-NN geodesic :class:`~jmeshtex.VertexNeighborhood` as JAX arrays in ``dtype``."""
         return self._cached(("knn", k), lambda: to_jax(self.host_knn(k), self.dtype))
 
     def face_neighborhood(self):
-        """:class:`~jmeshtex.geometry.FaceNeighborhood` as JAX arrays."""
+        """:class:`~jmeshtex.FaceNeighborhood` as JAX arrays."""
         from ..geometry import face_neighborhood
 
         return self._cached(

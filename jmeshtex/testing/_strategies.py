@@ -3,7 +3,7 @@
 :func:`valid_meshes` draws closed (icosphere, torus) or open (flat grid, Delaunay height field)
 meshes, smoothly deformed, rigidly moved, scaled and relabelled, all of which pass
 :func:`jmeshtex.geometry.validate_mesh`. :func:`bad_meshes` draws ``(vertices, faces)`` that break
-exactly one validation rule; :data:`BAD_MESH_KINDS` maps each kind to the typed error it must
+exactly one validation rule; ``BAD_MESH_KINDS`` maps each kind to the typed error it must
 raise.
 
 Hypothesis draws the kind, the sizes and an integer seed; the geometry comes from a NumPy
@@ -130,7 +130,7 @@ def valid_meshes(
     Kinds: ``"icosphere"`` (closed, genus 0), ``"torus"`` (closed, genus 1), ``"grid"`` (flat open
     sheet, either diagonal pattern) and ``"delaunay"`` (Delaunay triangulation of jittered random
     points in the unit square, lifted to a smooth height field). Each is then smoothly deformed
-    (a diffeomorphism, see :func:`_smooth_deformation`), rotated, scaled by 0.1–10, translated and
+    (a diffeomorphism, see ``_smooth_deformation``), rotated, scaled by 0.1–10, translated and
     its vertices, faces and face corners permuted (orientation kept).
 
     Args:
@@ -236,7 +236,7 @@ def bad_meshes(kind: str, *, max_vertices: int = 100) -> st.SearchStrategy[tuple
     - ``"non_manifold_vertex"``: a separate triangle attached at one existing vertex (a bow-tie).
 
     Args:
-      kind: a key of :data:`BAD_MESH_KINDS`.
+      kind: a key of ``BAD_MESH_KINDS``.
       max_vertices: size bound of the underlying valid meshes.
 
     Returns:

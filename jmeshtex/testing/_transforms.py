@@ -1,7 +1,7 @@
 """The transform catalogue of the equivariance harness.
 
 A :class:`Transform` draws a concrete :class:`Realisation`: a source mesh state, a target mesh state,
-and the map that carries every kind of value (:mod:`jmeshtex.testing._fields`) from the source to the
+and the map that carries every kind of value (``jmeshtex/testing/_fields.py``) from the source to the
 target. An operator ``fn`` is equivariant under the transform when ``fn(target, T·x) = T·fn(source, x)``.
 
 =====================  =====  =============================================================
@@ -118,7 +118,7 @@ class Realisation:
         return np.arctan2(np.einsum("ij,ij->i", n, np.cross(u, w)), np.einsum("ij,ij->i", u, w))
 
     def map(self, field: Field) -> Field:
-        """Carry a source value to the target (see :mod:`jmeshtex.testing._fields` for the rules)."""
+        """Carry a source value to the target (see ``jmeshtex/testing/_fields.py`` for the rules)."""
         kind, x = field
         if not self.acts_on(kind):
             raise ValueError(f"transform {self.name!r} has no action on {kind!r} values")

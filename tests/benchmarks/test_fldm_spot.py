@@ -45,7 +45,7 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
         assert math.isfinite(rows[s]["latent_rms"]) and rows[s]["latent_rms"] > 0, rows[s]
     assert payload["config"]["fldm_config"]["prediction"] == "v"
     train = next(r for r in payload["rows"] if r["table"] == "training")
-    assert train["n"] == payload["config"]["fldm_config"]["train_steps"] == 3
+    assert train["n"] == payload["config"]["fldm_config"]["steps"] == 3
     assert math.isfinite(train["loss_first"]) and math.isfinite(train["loss_last"])
     timing = {r["source"] for r in payload["rows"] if r["table"] == "timing"}
     assert {f"{s} (this call)" for s in ("dataset", "train", "sample", "decode", "render", "metrics", "total")} <= timing
@@ -53,7 +53,10 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
     md = (tmp_path / "fldm_spot.md").read_text()
     assert "FL-VAE reconstruction" in md and "config (--quick)" in md
     assert (tmp_path / "fldm_spot.png").stat().st_size > 1000
-    assert (tmp_path / "work" / "train_v" / "model.npz").is_file()  # the checkpoint folder a re-run resumes
+    from jmeshtex.io import Checkpoints
+
+    with Checkpoints(tmp_path / "work" / "train_v") as ckpt:  # the checkpoint folder a re-run resumes
+        assert ckpt.latest_step() == 3
 
 
 def test_missing_spot_exits_with_a_clear_message(tmp_path):

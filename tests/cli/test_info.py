@@ -63,7 +63,7 @@ def test_invalid_mesh_prints_the_typed_error_and_exits_2(tmp_path, capsys):
 @pytest.mark.parametrize(
     "name, content, message",
     [
-        ("missing.obj", None, "no such file"),
+        ("missing.obj", None, "neither a mesh file nor one of the procedural names"),
         ("junk.ply", b"not a ply file", "cannot read mesh"),
         ("mesh.stl", b"solid x\n", "unsupported format"),
     ],
@@ -99,8 +99,24 @@ def test_info_is_listed_in_help(capsys):
 @pytest.mark.shared_data
 def test_suzanne_is_reported_invalid(shared_data, capsys):
     assert main(["info", str(shared_data / "suzanne.obj")]) == 2
-    err = capsys.readouterr().err
-    assert "duplicate faces" in err and "(269, 270)" in err
+    captured = capsys.readouterr()
+    assert "duplicate faces" in captured.err and "(269, 270)" in captured.err
+    assert "note: suzanne.obj: split 468 polygon faces (4 corners) into 936 triangles" in captured.out
+
+
+def test_a_quad_file_says_its_polygons_were_split(tmp_path, capsys):
+    path = tmp_path / "quad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert _row(out, "verdict") == "valid" and _row(out, "faces") == "2"
+    assert "  note: quad.obj: split 1 polygon face (4 corners) into 2 triangles" in out.splitlines()[-1]
+
+
+def test_procedural_meshes_are_accepted(capsys):
+    assert main(["info", "icosphere:1"]) == 0
+    out = capsys.readouterr().out
+    assert (_row(out, "vertices"), _row(out, "faces")) == ("42", "80") and "note:" not in out
 
 
 @pytest.mark.shared_data

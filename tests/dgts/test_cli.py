@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import jax
 import matplotlib.image
 import numpy as np
 
 from jmeshtex.cli import main
+from jmeshtex.dgts import load
 from jmeshtex.io import load_mesh
+from tests.dgts.conftest import TINY
 
 
 def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkeypatch):
@@ -14,13 +17,22 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
     monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")  # no persistent cache written by the tests
     d = tmp_path / "dgts"
     assert main(["dgts", "prepare", "--reference", "icosphere:2", "--template", "icosahedron", "--levels", "2",
-                 "--iterations", "20", "--samples", "200", "--out", str(d), "--no-progress"]) == 0
+                 "--steps", "20", "--samples", "200", "--out", str(d), "--quiet"]) == 0
     for name in ("training.npz", "reference.obj", "level_00.obj", "level_01.obj", "levels.png", "prepare.json"):
         assert (d / name).exists(), name
     assert load_mesh(d / "level_01.obj").num_faces == 80
-    assert main(["dgts", "train", str(d), "--iterations", "2", "--layers", "3", "--features", "4", "4", "4", "--seed", "3",
-                 "--shared-levels", "2", "--no-progress"]) == 0
-    assert (d / "model" / "state.json").exists() and (d / "model" / "sample.png").exists()
+    assert main(["dgts", "train", str(d), "--steps", "2", "--layers", "3", "--features", "4", "4", "4", "--seed", "3",
+                 "--shared-levels", "2", "--quiet"]) == 0
+    assert (d / "sample.png").exists() and (d / "checkpoints").is_dir()
+    model = load(d / "model")
+    assert model.num_levels == 2 and model.config == TINY
+    # the prepared meshes and the model are the fixtures' (same settings, same keys)
+    for a, b in zip(jax.tree.leaves(model), jax.tree.leaves(tiny_model), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert "resumed" not in capsys.readouterr().out
+    assert main(["dgts", "train", str(d), "--steps", "2", "--layers", "3", "--features", "4", "4", "4", "--seed", "3",
+                 "--shared-levels", "2", "--quiet"]) == 0
+    assert "resumed from checkpoint step 4" in capsys.readouterr().out  # a second run resumes, nothing to do
     out = tmp_path / "out"
     assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--samples", "2",
                  "--out", str(out)]) == 0
@@ -35,7 +47,7 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
 
 
 def test_compilation_cache_folder(tmp_path, monkeypatch):
-    from jmeshtex.cli._dgts import compilation_cache
+    from jmeshtex.cli._common import compilation_cache
 
     monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")
     assert compilation_cache() is None
@@ -54,6 +66,6 @@ def test_compilation_cache_folder(tmp_path, monkeypatch):
 def test_errors_are_one_line_with_status_2(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")
     assert main(["dgts", "transfer", "--model", str(tmp_path), "--target", "torus", "--out", str(tmp_path)]) == 2
-    assert "state.json" in capsys.readouterr().err
+    assert "holds no DGTS model" in capsys.readouterr().err
     assert main(["dgts", "prepare", "--reference", "no-such-mesh.obj", "--out", str(tmp_path)]) == 2
     assert "neither a mesh file" in capsys.readouterr().err

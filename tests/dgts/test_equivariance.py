@@ -5,8 +5,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 import pytest
 
-from jmeshtex.testing._methods import dgts as _equivariance
 from jmeshtex.testing import Entry, Field, check
+from jmeshtex.testing._methods import dgts as _equivariance
 
 
 @pytest.mark.parametrize("entry", _equivariance.ENTRIES, ids=lambda e: e.name)

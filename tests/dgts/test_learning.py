@@ -14,27 +14,27 @@ import numpy as np
 from scipy.stats import wasserstein_distance
 
 from jmeshtex.cli._stages.dgts import tiny_configs
-from jmeshtex.data import icosphere, torus
-from jmeshtex.data import bumpy_sphere
+from jmeshtex.data import bumpy_sphere, icosphere, torus
 from jmeshtex.dgts import normal_heights, train, training_meshes, transfer
 
 
 def test_trained_texture_is_closer_to_the_reference_than_untrained_or_noise():
     prep, cfg = tiny_configs(quick=True)
-    tm = training_meshes(bumpy_sphere(subdivisions=3), icosphere(1), config=prep)
-    trained, _ = train(tm, cfg, progress=False)
-    untrained, _ = train(tm, cfg.replace(iterations=0), progress=False)
-    h_ref = normal_heights(tm.vertices[-1], tm.faces[-1])
+    tm = training_meshes(bumpy_sphere(subdivisions=3), icosphere(1), config=prep, key=jax.random.key(0),
+                         progress=False)
+    trained = train(tm, cfg, key=jax.random.key(0), progress=False).model
+    untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
+    h_ref = normal_heights(tm.mesh(-1))
     target = torus(16, 8)
     key = jax.random.key(1)
-    res = transfer(trained, *target, num_samples=2, key=key)
-    res_u = transfer(untrained, *target, num_samples=2, key=key)
+    res = transfer(trained, target, num_samples=2, key=key)
+    res_u = transfer(untrained, target, num_samples=2, key=key)
     edge = np.linalg.norm(res.base[res.faces[:, 0]] - res.base[res.faces[:, 1]], axis=1).mean()
     rng = np.random.default_rng(0)
     noisy = [res.base + rng.standard_normal(res.base.shape) * h_ref.std() * edge for _ in range(2)]
 
     def w1(meshes):
-        return float(np.mean([wasserstein_distance(h_ref, normal_heights(v, res.faces)) for v in meshes]))
+        return float(np.mean([wasserstein_distance(h_ref, normal_heights((v, res.faces))) for v in meshes]))
 
     w_trained, w_untrained, w_noise = w1(res.vertices), w1(res_u.vertices), w1(noisy)
     print(f"W1 trained {w_trained:.4f}, untrained {w_untrained:.4f}, noise {w_noise:.4f}")

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex import MeshError, MeshIOError
+from jmeshtex import InputError, Mesh, MeshError, MeshIOError
 from jmeshtex.data import grid, icosahedron, icosphere
 from jmeshtex.dgts import (
     PrepareConfig,
@@ -15,9 +15,10 @@ from jmeshtex.dgts import (
     load_training_meshes,
     sample_points,
     save_training_meshes,
+    training_meshes,
 )
-from jmeshtex.dgts._multiscale import normalize_pair, training_meshes, unique_edges
-from jmeshtex.geometry import mean_edge_length, subdivide_midpoint
+from jmeshtex.dgts._multiscale import normalize_pair
+from jmeshtex.geometry import mean_edge_length, subdivide_midpoint, unique_edges
 
 
 def test_unique_edges_counts_euler():
@@ -27,7 +28,7 @@ def test_unique_edges_counts_euler():
 
 def test_sample_points_are_on_the_surface_and_area_uniform(key):
     v, f = grid(4)  # unit square, z = 0
-    p, n = sample_points(key, jnp.asarray(v), jnp.asarray(f), 20000)
+    p, n = sample_points(jnp.asarray(v), jnp.asarray(f), 20000, key=key)
     p = np.asarray(p)
     assert np.all((p[:, :2] >= -1e-12) & (p[:, :2] <= 1 + 1e-12)) and np.all(p[:, 2] == 0)
     np.testing.assert_allclose(np.abs(np.asarray(n)[:, 2]), 1.0)
@@ -40,7 +41,7 @@ def test_sample_points_are_on_the_surface_and_area_uniform(key):
 def test_sample_points_never_picks_a_zero_area_face(key):
     v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]])
     f = np.array([[0, 1, 2], [0, 1, 3]])  # the second face is degenerate (collinear)
-    p, _ = sample_points(key, jnp.asarray(v), jnp.asarray(f), 2000)
+    p, _ = sample_points(jnp.asarray(v), jnp.asarray(f), 2000, key=key)
     assert np.all(np.asarray(p)[:, 1] >= 0) and np.all(np.asarray(p)[:, 0] <= 1 + 1e-12)
 
 
@@ -57,8 +58,8 @@ def test_normalize_pair_gives_unit_template_edges_and_maps_reference_consistentl
 def test_fit_level_pulls_a_small_sphere_onto_a_large_one():
     v, f = icosphere(1)
     target = icosphere(3)
-    cfg = PrepareConfig(iterations=200, lr=2e-2, samples_per_level=500)
-    out, terms = fit_level(0.6 * v, f, *target, config=cfg, num_samples=500, key=jax.random.key(0))
+    cfg = PrepareConfig(steps=200, learning_rate=2e-2, samples_per_level=500)
+    out, terms = fit_level((0.6 * v, f), target, config=cfg, num_samples=500, key=jax.random.key(0))
     before = np.abs(np.linalg.norm(0.6 * v, axis=1) - 1).mean()
     after = np.abs(np.linalg.norm(out, axis=1) - 1).mean()
     assert before == pytest.approx(0.4)
@@ -78,8 +79,27 @@ def test_training_meshes_structure(tiny_meshes):
         assert 0.7 < mean_edge_length(v, f) < 1.3
 
 
+def test_training_meshes_take_a_mesh_or_a_pair_and_follow_their_key(tiny_meshes):
+    cfg = PrepareConfig(levels=2, steps=20, samples_per_level=200)  # the fixture's settings
+    reference, template = icosphere(2), icosahedron()
+    assert isinstance(reference, Mesh) and isinstance(template, Mesh)
+    calls = []
+    from_mesh = training_meshes(reference, template, config=cfg, key=jax.random.key(0),
+                                progress=lambda *a: calls.append(a))
+    from_pair = training_meshes((reference.vertices, reference.faces), (template.vertices, template.faces),
+                                config=cfg, key=jax.random.key(0), progress=False)
+    other_key = training_meshes(reference, template, config=cfg, key=jax.random.key(1), progress=False)
+    for level in range(2):
+        np.testing.assert_array_equal(from_mesh.vertices[level], from_pair.vertices[level])
+        np.testing.assert_array_equal(from_mesh.vertices[level], tiny_meshes.vertices[level])
+        assert isinstance(from_mesh.mesh(level), Mesh)
+        np.testing.assert_array_equal(from_mesh.mesh(level).faces, from_mesh.faces[level])
+    assert not np.allclose(other_key.vertices[1], from_mesh.vertices[1])  # the key drives the sampling
+    assert calls[-1] == ("level 1", 20, 20) and ("level 0", 20, 20) in calls
+
+
 def test_save_load_round_trip(tmp_path, tiny_meshes):
-    path = save_training_meshes(tmp_path / "t.npz", tiny_meshes)
+    path = save_training_meshes(tiny_meshes, tmp_path / "t.npz")
     back = load_training_meshes(path)
     for a, b in zip(back, tiny_meshes, strict=True):
         for x, y in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,), strict=True):
@@ -92,4 +112,7 @@ def test_errors(tmp_path):
         load_training_meshes(tmp_path / "missing.npz")
     v, f = icosahedron()
     with pytest.raises(MeshError):
-        training_meshes((v, f), (v, np.concatenate([f, f[:1]])), config=PrepareConfig(num_levels=1, iterations=0))
+        training_meshes((v, f), (v, np.concatenate([f, f[:1]])), config=PrepareConfig(levels=1, steps=0),
+                        key=jax.random.key(0), progress=False)
+    with pytest.raises(InputError, match="reference"):
+        training_meshes(v, (v, f), config=PrepareConfig(levels=1, steps=0), key=jax.random.key(0))

@@ -2,26 +2,50 @@
 
 from __future__ import annotations
 
-import json
+import shutil
 
 import jax
 import numpy as np
 import pytest
 
-from jmeshtex import ConfigError, MeshIOError
-from jmeshtex.dgts import load_model, train
-from tests.dgts.conftest import TINY
+from jmeshtex import CheckpointMismatchError, ConfigError, MeshIOError, TrainResult
+from jmeshtex.dgts import LOSS_NAMES, LevelReport, Model, load, save, train
+from jmeshtex.io import Checkpoints
+from tests.dgts.conftest import TINY, TINY_KEY
 
 
 def _leaves(tree):
     return [np.asarray(x) for x in jax.tree.leaves(tree)]
 
 
+def _assert_same_model(a: Model, b: Model):
+    assert a.num_levels == b.num_levels and a.config == b.config
+    for x, y in zip(_leaves(a), _leaves(b), strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_train_returns_a_train_result_with_per_step_losses(tiny_result):
+    r = tiny_result
+    assert isinstance(r, TrainResult) and isinstance(r.model, Model)
+    assert r.steps == 2 * TINY.steps and r.resumed_from is None and r.seconds > 0
+    assert set(r.losses) == set(LOSS_NAMES)
+    for name, values in r.losses.items():
+        assert values.shape == (2 * TINY.steps,) and np.isfinite(values).all(), name
+    reports = r.extra["levels"]
+    assert [type(x) for x in reports] == [LevelReport, LevelReport]
+    assert [x.level for x in reports] == [0, 1] and [x.faces for x in reports] == [20, 80]
+    # each level's report ends with the last of its steps in the history
+    for x in reports:
+        end = (x.level + 1) * TINY.steps - 1
+        assert x.losses == {k: float(v[end]) for k, v in r.losses.items()}
+    assert r.final_loss("g_rec") == r.losses["g_rec"][-1]
+
+
 def test_levels_train_and_earlier_generators_stay_frozen(tiny_meshes, tiny_model):
-    level0_only, reports = train(tiny_meshes, TINY, num_levels=1, progress=False)
-    assert [r.level for r in reports] == [0]
+    level0_only = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), levels=1, progress=False)
+    assert [r.level for r in level0_only.extra["levels"]] == [0]
     # level 1 training must not touch generator 0 (stop_gradient + separate optimiser)
-    for a, b in zip(_leaves(level0_only.generators[0]), _leaves(tiny_model.generators[0]), strict=True):
+    for a, b in zip(_leaves(level0_only.model.generators[0]), _leaves(tiny_model.generators[0]), strict=True):
         np.testing.assert_array_equal(a, b)
     # equal widths: level 1 starts from level 0's weights and moves away from them
     assert TINY.level_features(1, generator=True) == TINY.level_features(0, generator=True)
@@ -30,34 +54,70 @@ def test_levels_train_and_earlier_generators_stay_frozen(tiny_meshes, tiny_model
     assert all(np.isfinite(x).all() for x in _leaves(tiny_model.generators))
 
 
-def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, tiny_model):
+def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, tiny_result):
     out = tmp_path / "run"
-    _, first = train(tiny_meshes, TINY, out_dir=out, num_levels=1, progress=False)
-    state = json.loads((out / "state.json").read_text())
-    assert state["completed_levels"] == 1 and (out / "level_00.npz").exists()
-    resumed, second = train(tiny_meshes, TINY, out_dir=out, progress=False)
-    assert [r.level for r in first] == [0] and [r.level for r in second] == [1]
-    for a, b in zip(_leaves(resumed.generators), _leaves(tiny_model.generators), strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
-    loaded = load_model(out)
-    assert loaded.num_levels == 2 and loaded.config == TINY
-    np.testing.assert_array_equal(loaded.z_star, tiny_model.z_star)
-    assert json.loads((out / "state.json").read_text())["completed_levels"] == 2
-    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # atomic writes left no temporaries
+    first = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, levels=1, progress=False)
+    assert Checkpoints(out).steps() == [TINY.steps]  # one level done
+    resumed = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, progress=False)
+    assert first.resumed_from is None and resumed.resumed_from == TINY.steps
+    assert [r.level for r in first.extra["levels"]] == [0] and [r.level for r in resumed.extra["levels"]] == [0, 1]
+    _assert_same_model(resumed.model, tiny_result.model)
+    np.testing.assert_array_equal(resumed.model.z_star, tiny_result.model.z_star)
+    for name in LOSS_NAMES:
+        np.testing.assert_array_equal(resumed.losses[name], tiny_result.losses[name])
+    assert resumed.steps == tiny_result.steps
+    assert Checkpoints(out).steps() == [TINY.steps, 2 * TINY.steps]
+    assert not [p for p in out.rglob("*") if "tmp" in p.name]  # atomic writes left no temporaries
 
 
-def test_resume_with_another_config_is_refused(tmp_path, tiny_meshes):
+def test_resume_within_a_level_is_exact(tmp_path, tiny_meshes):
+    """Checkpoints every chunk: an interrupted level resumes from its last chunk, bit for bit."""
+    from jmeshtex.dgts._train import CHUNK
+
+    cfg = TINY.replace(steps=3 * CHUNK)
+    key = jax.random.key(7)
+    whole = train(tiny_meshes, cfg, key=key, progress=False)
     out = tmp_path / "run"
-    train(tiny_meshes, TINY, out_dir=out, num_levels=1, progress=False)
-    with pytest.raises(ConfigError, match="different config"):
-        train(tiny_meshes, TINY.replace(lr=1e-3), out_dir=out, progress=False)
+    train(tiny_meshes, cfg, key=key, checkpoint_dir=out, checkpoint_every=CHUNK, levels=1, progress=False)
+    # keep only the mid-level checkpoint of level 0 (step 2·CHUNK), as if the run had stopped there
+    assert Checkpoints(out).steps() == [2 * CHUNK, 3 * CHUNK]
+    shutil.rmtree(out / str(3 * CHUNK))
+    resumed = train(tiny_meshes, cfg, key=key, checkpoint_dir=out, checkpoint_every=CHUNK, progress=False)
+    assert resumed.resumed_from == 2 * CHUNK
+    _assert_same_model(resumed.model, whole.model)
+    for name in LOSS_NAMES:
+        np.testing.assert_array_equal(resumed.losses[name], whole.losses[name])
+
+
+def test_resume_with_another_config_or_key_is_refused(tmp_path, tiny_meshes):
+    out = tmp_path / "run"
+    train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, levels=1, progress=False)
+    with pytest.raises(CheckpointMismatchError, match="config"):
+        train(tiny_meshes, TINY.replace(learning_rate=1e-3), key=jax.random.key(TINY_KEY), checkpoint_dir=out,
+              progress=False)
+    with pytest.raises(CheckpointMismatchError, match="key"):
+        train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY + 1), checkpoint_dir=out, progress=False)
+
+
+def test_save_load_round_trip(tmp_path, tiny_model):
+    folder = save(tiny_model, tmp_path / "model")
+    back = load(folder)
+    _assert_same_model(back, tiny_model)
+    np.testing.assert_array_equal(back.z_star, tiny_model.z_star)
+    save(tiny_model, folder)  # saving again replaces the model
+    _assert_same_model(load(folder), tiny_model)
 
 
 def test_errors(tmp_path, tiny_meshes):
-    with pytest.raises(MeshIOError, match="state.json"):
-        load_model(tmp_path)
-    with pytest.raises(ConfigError, match="num_levels"):
-        train(tiny_meshes, TINY, num_levels=3, progress=False)
+    with pytest.raises(MeshIOError, match="holds no DGTS model"):
+        load(tmp_path)
+    train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=tmp_path / "ckpt", levels=1, progress=False)
+    with pytest.raises(MeshIOError, match="not a DGTS model"):
+        load(tmp_path / "ckpt")  # a training checkpoint folder is not a model folder
+    with pytest.raises(ConfigError, match="levels"):
+        train(tiny_meshes, TINY, key=jax.random.key(0), levels=3, progress=False)
+    with pytest.raises(ConfigError, match="checkpoint_every"):
+        train(tiny_meshes, TINY, key=jax.random.key(0), checkpoint_every=10, progress=False)
 
 
 def test_padded_levels_share_one_compiled_step(tiny_model):
@@ -78,8 +138,8 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
 
     cfg = TINY.replace(shared_levels=0)
     geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 1)
-    g = init_level(jax.random.key(0), cfg, 0, generator=True, dtype=jnp.float64)
-    d = init_level(jax.random.key(1), cfg, 0, generator=False, dtype=jnp.float64)
+    g = init_level(cfg, 0, generator=True, key=jax.random.key(0), dtype=jnp.float64)
+    d = init_level(cfg, 0, generator=False, key=jax.random.key(1), dtype=jnp.float64)
     opt = _Opt(_optimizer(cfg, cfg.generator_steps).init(g), _optimizer(cfg, cfg.discriminator_steps).init(d))
     template = jnp.asarray(tiny_meshes.template)
     real = jnp.asarray(tiny_meshes.vertices[0])
@@ -88,8 +148,10 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
     size = {"F": nb.faces.shape[0] + 7, "V": real.shape[0] + 5, "M": nb.vertex_faces.shape[1] + 2}
     plain = train_chunk(g, d, opt, nb, real, batch, jnp.int32(1), config=cfg)
     padded = train_chunk(g, d, opt, *pad_level(nb, real, batch, size), jnp.int32(1), config=cfg)
+    assert set(plain[3]) == set(LOSS_NAMES)
     for k in plain[3]:
-        assert float(padded[3][k]) == pytest.approx(float(plain[3][k]), rel=1e-10, abs=1e-12), k
+        np.testing.assert_allclose(np.asarray(padded[3][k]), np.asarray(plain[3][k]), rtol=1e-10, atol=1e-12,
+                                   err_msg=k)
     for a, b in zip(_leaves(plain[:2]), _leaves(padded[:2]), strict=True):
         # Adam divides by |g| + 1e-8: gradient entries near 1e-8 turn float64 rounding (other summation
         # order) into parameter differences of a few 1e-9 (lr 5e-4); the losses above agree to 1e-10

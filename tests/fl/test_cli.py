@@ -1,19 +1,20 @@
-"""`jmeshtex fl pretrain|encode|reconstruct`, run in-process on tiny settings."""
+"""`jmeshtex fl train|encode|reconstruct`, run in-process on tiny settings."""
 
 from __future__ import annotations
 
 import json
 
+import jax
 import matplotlib.image
 import numpy as np
 
-from jmeshtex import Mesh
+from jmeshtex import Mesh, fl
 from jmeshtex.cli import main
-from jmeshtex.data import grid
-from jmeshtex.io import save_mesh, save_png
+from jmeshtex.data import grid, striped_sphere
+from jmeshtex.io import Checkpoints, save_mesh, save_png
 
 TINY = {"latent_dim": 3, "features": 8, "num_heads": 2, "num_blocks": 1, "num_samples": 8, "decoder_features": 16,
-        "min_vertices": 10, "max_vertices": 14, "meshes_per_image": 1, "batch_meshes": 1, "max_image_size": 16,
+        "min_vertices": 10, "max_vertices": 14, "meshes_per_image": 1, "batch_size": 1, "max_image_size": 16,
         "warmup_steps": 0, "checkpoint_every": 1}
 
 
@@ -25,11 +26,20 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
         save_png(rng.random((16, 16, 3)).astype(np.float32), images / f"im{i}.png")
     (tmp_path / "config.json").write_text(json.dumps(TINY))
     run = tmp_path / "run"
-    assert main(["fl", "pretrain", "--images", str(images), "--out", str(run), "--steps", "2",
-                 "--config", str(tmp_path / "config.json"), "--quiet"]) == 0
-    assert (run / "fl_vae.npz").exists() and (run / "checkpoint.npz").exists()
+    assert main(["fl", "train", "--images", str(images), "--out", str(run), "--steps", "2",
+                 "--config", str(tmp_path / "config.json"), "--quiet", "--seed", "3"]) == 0
+    assert (run / "fl_vae.npz").exists() and Checkpoints(run / "checkpoints").latest_step() == 2
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 2 and np.isfinite(summary["final_loss"])
+    model, extra = fl.load(run / "fl_vae.npz", with_extra=True)
+    assert model.config.latent_dim == 3 and model.config.batch_size == 1 and extra["seed"] == 3
+    # the CLI is the library call with key = jax.random.key(--seed)
+    direct = fl.train(model.config, key=jax.random.key(3), images=str(images), progress=False)
+    np.testing.assert_allclose(summary["final_loss"], direct.losses["loss"].mean(), rtol=1e-12)
+    # `pretrain` is the same subcommand; the finished run is resumed, not redone
+    assert main(["fl", "pretrain", "--images", str(images), "--out", str(run), "--steps", "2",
+                 "--config", str(tmp_path / "config.json"), "--quiet", "--seed", "3"]) == 0
+    assert json.loads(capsys.readouterr().out)["final_loss"] == summary["final_loss"]
 
     v, f = grid(4)
     mesh = Mesh(v, f, uv=v[f][..., :2], texture=rng.random((16, 16, 3)).astype(np.float32), name="sheet")
@@ -40,6 +50,12 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
                  "--model", str(run / "fl_vae.npz"), "--out", str(tmp_path / "lat.npz")]) == 0
     with np.load(tmp_path / "lat.npz") as data:
         assert data["mu"].shape == (25, 3) and np.iscomplexobj(data["mu"])
+    # a procedural mesh spec (vertex colours), and the shipped model by default
+    assert main(["fl", "encode", "--mesh", "striped-sphere:2", "--out", str(tmp_path / "sphere.npz"), "--seed", "1"]) == 0
+    with np.load(tmp_path / "sphere.npz") as data:
+        assert data["mu"].shape == (162, 8)
+        expected = fl.encode(fl.load_pretrained(), striped_sphere(subdivisions=2), key=jax.random.key(1)).mu
+        np.testing.assert_array_equal(data["mu"], expected)
     capsys.readouterr()
 
     out = tmp_path / "recon"

@@ -7,15 +7,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from jmeshtex.fl import (
-    FLVAEConfig,
+    Config,
     decode_barycentric,
     decode_points,
+    decode_vertex_colors_from_latents,
     decoder_features,
-    init_fl_vae,
+    init,
 )
-from jmeshtex.fl._vae import decode_vertex_colors_from_latents
 
-LOG = FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
+LOG = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
 BARY = LOG.replace(decoder="barycentric")
 
 
@@ -37,7 +37,7 @@ def test_features_are_the_hermitian_invariants_and_positional_terms(rng):
 
 
 def test_decoded_colours_are_invariant_to_a_gauge_change(key, rng):
-    params = init_fl_vae(key, LOG, dtype=jnp.float64)
+    params = init(LOG, key=key, dtype=jnp.float64).params
     mu = _latents(rng, 6)
     log = _latents(rng, 6, 10)
     turn = jnp.asarray(np.exp(1j * rng.uniform(0, 2 * np.pi, 6)))[:, None]
@@ -50,7 +50,7 @@ def test_decoded_colours_are_invariant_to_a_gauge_change(key, rng):
 
 
 def test_blending_at_a_corner_is_that_vertex_prediction(key, rng):
-    params = init_fl_vae(key, LOG, dtype=jnp.float64)
+    params = init(LOG, key=key, dtype=jnp.float64).params
     mu = _latents(rng, 3)
     corners = jnp.asarray([[0, 1, 2]])
     logs = jnp.asarray([[0.0, 0.4 + 0.1j, -0.2 + 0.5j]])
@@ -64,7 +64,7 @@ def test_blending_at_a_corner_is_that_vertex_prediction(key, rng):
 
 
 def test_barycentric_ablation_interpolates_invariants_not_colours(key, rng):
-    params = init_fl_vae(key, BARY, dtype=jnp.float64)
+    params = init(BARY, key=key, dtype=jnp.float64).params
     mu = _latents(rng, 3)
     corners = jnp.asarray([[0, 1, 2]])
     at_vertex = decode_barycentric(params, BARY, mu, corners, jnp.asarray([[0.0, 1.0, 0.0]]))

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from jmeshtex.data import grid, icosphere
-from jmeshtex.fl import FLVAEConfig, encode_samples, init_fl_vae, one_ring_samples
+from jmeshtex.fl import Config, encode_samples, init, one_ring_samples
 from jmeshtex.fl._encoder import corner_logs, ring_geometry
 from jmeshtex.geometry import one_ring_neighborhood
 
-SMALL = FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
+SMALL = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
 #: jitted once per test session (op-by-op dispatch under jax_debug_nans is ~50x slower)
 encode = jax.jit(encode_samples, static_argnums=1)
 
@@ -73,7 +73,7 @@ def _inputs(rng, V=5, S=12):
 
 
 def test_mu_turns_with_the_gauge_and_sigma_is_invariant(key, rng):
-    params = init_fl_vae(key, SMALL, dtype=jnp.float64)
+    params = init(SMALL, key=key, dtype=jnp.float64).params
     log, rgb, mask = _inputs(rng)
     turn = jnp.asarray(np.exp(-1j * rng.uniform(0, 2 * np.pi, log.shape[0])))
     a = encode(params, SMALL, log, rgb, mask)
@@ -84,7 +84,7 @@ def test_mu_turns_with_the_gauge_and_sigma_is_invariant(key, rng):
 
 
 def test_samples_form_a_set_and_padding_changes_nothing(key, rng):
-    params = init_fl_vae(key, SMALL, dtype=jnp.float64)
+    params = init(SMALL, key=key, dtype=jnp.float64).params
     log, rgb, mask = _inputs(rng)
     a = encode(params, SMALL, log, rgb, mask)
     perm = rng.permutation(log.shape[1])
@@ -100,7 +100,7 @@ def test_samples_form_a_set_and_padding_changes_nothing(key, rng):
 
 
 def test_jit_compiles_once_and_gradients_are_finite_at_zero(key):
-    params = init_fl_vae(key, SMALL, dtype=jnp.float32)
+    params = init(SMALL, key=key, dtype=jnp.float32).params
     f = jax.jit(lambda p, log, rgb, m: encode_samples(p, SMALL, log, rgb, m).mu)
     log = jnp.zeros((4, 6), jnp.complex64)
     rgb = jnp.zeros((4, 6, 3), jnp.float32)
@@ -119,7 +119,7 @@ def test_jit_compiles_once_and_gradients_are_finite_at_zero(key):
 def test_bad_shapes_are_typed_errors(key):
     from jmeshtex import InputError
 
-    params = init_fl_vae(key, SMALL)
+    params = init(SMALL, key=key).params
     with pytest.raises(InputError, match="log_q must be a complex"):
         encode(params, SMALL, jnp.zeros((2, 3)), jnp.zeros((2, 3, 3)), jnp.ones((2, 3), bool))
     with pytest.raises(InputError, match="rgb must have shape"):

@@ -10,15 +10,15 @@ import pytest
 from jmeshtex import InputError, Mesh
 from jmeshtex.data import grid
 from jmeshtex.fl import (
-    FLVAEConfig,
+    Config,
     atlas_metrics,
     decode_texture,
-    init_fl_vae,
+    init,
     reconstruct,
     side_by_side,
 )
 
-SMALL = FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=8,
+SMALL = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=8,
                     encode_chunk=64)
 
 
@@ -31,9 +31,9 @@ def _sheet():
 
 def test_reconstruction_on_the_mesh_itself_is_decode_texture(key):
     mesh = _sheet()
-    params = init_fl_vae(key, SMALL)
-    r = reconstruct(params, SMALL, mesh, key=jax.random.key(0), lpips=False)
-    tex, valid = decode_texture(params, SMALL, mesh, r.latents.mu, size=16)
+    model = init(SMALL, key=key)
+    r = reconstruct(model, mesh, key=jax.random.key(0), lpips=False)
+    tex, valid = decode_texture(model, mesh, r.latents.mu, size=16)
     np.testing.assert_array_equal(valid, r.valid)
     np.testing.assert_allclose(tex, r.texture, atol=1e-6)
     # the target is the original texture at the texel centres (the atlas has the texture's size)
@@ -46,12 +46,12 @@ def test_latents_on_a_retriangulated_copy(key):
     mesh = _sheet()
     v, f = grid(7)  # another triangulation of the same square
     latent = Mesh(v, f)
-    params = init_fl_vae(key, SMALL)
-    r = reconstruct(params, SMALL, mesh, key=jax.random.key(0), latent_mesh=latent, size=16, lpips=False)
+    model = init(SMALL, key=key)
+    r = reconstruct(model, mesh, key=jax.random.key(0), latent_mesh=latent, size=16, lpips=False)
     assert r.latents.mu.shape == (64, 3) and r.latent_mesh is latent
     assert r.valid.all() and np.isfinite(r.texture).all()
     with pytest.raises(InputError, match="textured reference"):
-        reconstruct(params, SMALL, latent, key=jax.random.key(0))
+        reconstruct(model, latent, key=jax.random.key(0))
 
 
 def test_metrics_and_render(tmp_path):
@@ -63,8 +63,8 @@ def test_metrics_and_render(tmp_path):
     worse = atlas_metrics(a, np.clip(a + 0.1, 0, 1), valid, lpips=False)
     assert 15 < worse["psnr"] < 25 and worse["dssim"] > 0
     mesh = _sheet()
-    params = init_fl_vae(jax.random.key(0), SMALL)
-    r = reconstruct(params, SMALL, mesh, key=jax.random.key(0), lpips=False)
+    model = init(SMALL, key=jax.random.key(0))
+    r = reconstruct(model, mesh, key=jax.random.key(0), lpips=False)
     img = side_by_side(mesh, r, tmp_path / "sbs.png", y_up=False, size=(64, 64))
     assert img.shape[1] == 128 and (tmp_path / "sbs.png").exists()
     assert jnp.iscomplexobj(r.latents.mu)

@@ -12,21 +12,25 @@ import pytest
 from jmeshtex import InputError, Mesh, MeshIOError
 from jmeshtex.data import grid, icosphere
 from jmeshtex.fl import (
+    Config,
     FieldLatents,
-    FLVAEConfig,
-    _vae,
+    Model,
+    decode_points_in_faces,
     decode_texture,
     decode_vertex_colors,
-    encode_mesh,
-    init_fl_vae,
+    encode,
+    init,
     kl_divergence,
-    load_fl_vae,
-    save_fl_vae,
+    load,
+    load_pretrained,
+    save,
+    surface_colors,
     vae_loss,
 )
+from jmeshtex.fl._io import _PRETRAINED
 from jmeshtex.geometry import one_ring_neighborhood, rasterize_uv
 
-SMALL = FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=12,
+SMALL = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=12,
                     encode_chunk=32)
 
 
@@ -41,7 +45,7 @@ def test_kl_matches_the_closed_form_per_channel():
 @pytest.mark.parametrize("decoder", ["log", "barycentric"])
 def test_loss_is_finite_with_finite_gradients_at_zero_inputs(key, decoder):
     cfg = SMALL.replace(decoder=decoder)
-    params = init_fl_vae(key, cfg)
+    params = init(cfg, key=key).params
     V, S = 4, 6
     log = jnp.zeros((V, S), jnp.complex64)
     rgb = jnp.zeros((V, S, 3), jnp.float32)
@@ -58,7 +62,7 @@ def test_loss_is_finite_with_finite_gradients_at_zero_inputs(key, decoder):
 
 
 def test_barycentric_loss_needs_corners(key):
-    params = init_fl_vae(key, SMALL.replace(decoder="barycentric"))
+    params = init(SMALL.replace(decoder="barycentric"), key=key).params
     with pytest.raises(InputError, match="needs corners"):
         vae_loss(params, SMALL.replace(decoder="barycentric"), jnp.zeros((1, 2), jnp.complex64),
                  jnp.zeros((1, 2, 3), jnp.float32), jnp.ones((1, 2), bool), key=jax.random.key(0))
@@ -67,16 +71,17 @@ def test_barycentric_loss_needs_corners(key):
 def test_encode_mesh_gives_latents_in_the_one_ring_gauge(key):
     v, f = icosphere(1)
     mesh = Mesh(v, f, vertex_colors=0.5 + 0.5 * v)
-    params = init_fl_vae(key, SMALL, dtype=jnp.float64)
-    lat = encode_mesh(params, SMALL, mesh, key=jax.random.key(3))
+    model = init(SMALL, key=key, dtype=jnp.float64)
+    lat = encode(model, mesh, key=jax.random.key(3))
     assert lat.mu.shape == (len(v), 3) and lat.mu.dtype == jnp.complex128
-    again = encode_mesh(params, SMALL, mesh, key=jax.random.key(3))
+    again = encode(model, mesh, key=jax.random.key(3))
     np.testing.assert_array_equal(lat.mu, again.mu)  # the key fixes the samples
     # relabel the vertices: same latents up to each vertex's frame rotation (the deterministic
     # sampler would make this exact; with random samples the set differs, so only shapes/dtypes here)
     nb = one_ring_neighborhood(v, f)
     assert nb.log.shape[0] == lat.mu.shape[0]
-    colors = decode_vertex_colors(params, SMALL, mesh, lat.mu)
+    colors = decode_vertex_colors(model, mesh, lat.mu)
+    np.testing.assert_array_equal(decode_vertex_colors(model, mesh, lat), colors)  # FieldLatents: its means
     assert colors.shape == (len(v), 3) and float(colors.min()) >= 0 and float(colors.max()) <= 1
 
 
@@ -85,14 +90,16 @@ def test_encode_mesh_reads_colours_of_another_triangulation(key):
     tex = np.random.default_rng(0).random((8, 8, 3)).astype(np.float32)
     textured = Mesh(v, f, uv=v[f][..., :2], texture=tex)
     plain = Mesh(v, f[:, [0, 2, 1]][:, [0, 2, 1]])  # the same triangles, a different array object
-    params = init_fl_vae(key, SMALL)
-    from jmeshtex.fl import surface_colors
-
-    a = encode_mesh(params, SMALL, textured, key=jax.random.key(0))
-    b = encode_mesh(params, SMALL, plain, colors=surface_colors(textured), key=jax.random.key(0))
+    model = init(SMALL, key=key)
+    a = encode(model, textured, key=jax.random.key(0))
+    b = encode(model, plain, colors=surface_colors(textured), key=jax.random.key(0))
     np.testing.assert_allclose(b.mu, a.mu, atol=1e-5)
     with pytest.raises(InputError, match="neither a UV texture"):
-        encode_mesh(params, SMALL, plain, key=jax.random.key(0))
+        encode(model, plain, key=jax.random.key(0))
+    with pytest.raises(InputError, match="neither a UV texture"):  # a (V, F) pair is a mesh too
+        encode(model, (v, f), key=jax.random.key(0))
+    with pytest.raises(InputError, match="expected a jmeshtex.fl.Model"):
+        encode(model.params, textured, key=jax.random.key(0))
 
 
 @pytest.mark.parametrize("decoder", ["log", "barycentric"])
@@ -104,49 +111,52 @@ def test_decode_texture_fills_the_used_texels_and_agrees_with_vertex_colours(key
     right = v[f][..., 0].mean(1) > 0.5
     uv[right] += [0.4, 0.4]
     mesh = Mesh(v, f, uv=uv)
-    params = init_fl_vae(key, cfg, dtype=jnp.float64)
+    model = init(cfg, key=key, dtype=jnp.float64)
     mu = jnp.asarray(np.random.default_rng(1).standard_normal((len(v), 3)) * (1 + 1j))
-    tex, valid = decode_texture(params, cfg, mesh, mu, size=32)
+    tex, valid = decode_texture(model, mesh, mu, size=32)
     r = rasterize_uv(uv, 32)
     index = np.stack([r.row, r.col], 1)
     assert valid.sum() == len(np.unique(index[:, 0] * 32 + index[:, 1]))
     assert (tex[~valid] == 0).all() and tex.min() >= 0 and tex.max() <= 1
     # at a vertex the blend reduces to that vertex's own prediction
-    from jmeshtex.fl import decode_points_in_faces
-
-    corner = decode_points_in_faces(params, cfg, mesh, mu, np.array([0]), np.array([[1.0, 0.0, 0.0]]))
-    np.testing.assert_allclose(np.clip(corner[0], 0, 1), decode_vertex_colors(params, cfg, mesh, mu)[f[0, 0]], atol=1e-12)
+    corner = decode_points_in_faces(model, mesh, mu, np.array([0]), np.array([[1.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(np.clip(corner[0], 0, 1), decode_vertex_colors(model, mesh, mu)[f[0, 0]], atol=1e-12)
     with pytest.raises(InputError, match="UV coordinates"):
-        decode_texture(params, cfg, Mesh(v, f), mu, size=8)
+        decode_texture(model, Mesh(v, f), mu, size=8)
+    with pytest.raises(InputError, match="latents must have shape"):
+        decode_texture(model, mesh, mu[:-1], size=8)
 
 
 def test_save_and_load_round_trip_atomically(tmp_path: pathlib.Path, key):
-    params = init_fl_vae(key, SMALL)
-    path = save_fl_vae(tmp_path / "sub" / "m.npz", params, SMALL, extra={"step": 3})
-    loaded, cfg, extra = load_fl_vae(path, with_extra=True)
-    assert cfg == SMALL and extra == {"step": 3}
-    for a, b in zip(jax.tree.leaves(params), jax.tree.leaves(loaded), strict=True):
+    model = init(SMALL, key=key)
+    path = save(model, tmp_path / "sub" / "m.npz", extra={"step": 3})
+    loaded, extra = load(path, with_extra=True)
+    assert isinstance(loaded, Model) and loaded.config == SMALL and extra == {"step": 3}
+    for a, b in zip(jax.tree.leaves(model.params), jax.tree.leaves(loaded.params), strict=True):
         np.testing.assert_array_equal(a, b)
+        assert a.dtype == b.dtype
     assert [p.name for p in (tmp_path / "sub").iterdir()] == ["m.npz"]  # no temporary files left
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(MeshIOError, match="cannot read FL-VAE model"):
-        load_fl_vae(tmp_path / "bad.npz")
+        load(tmp_path / "bad.npz")
     with pytest.raises(MeshIOError, match="no such file"):
-        load_fl_vae(tmp_path / "missing.npz")
+        load(tmp_path / "missing.npz")
 
 
 def test_missing_pretrained_weights_are_a_typed_error(tmp_path, monkeypatch):
-    monkeypatch.setattr(_vae, "PRETRAINED_FILE", tmp_path / "none.npz")
+    monkeypatch.setitem(_PRETRAINED, "log", tmp_path / "none.npz")
     with pytest.raises(MeshIOError, match="no pre-trained FL-VAE"):
-        _vae.load_pretrained()
+        load_pretrained()
 
 
 def test_shipped_models_load():
     from jmeshtex import ConfigError
 
     for decoder in ("log", "barycentric"):
-        params, config = _vae.load_pretrained(decoder=decoder)
+        model = load_pretrained(decoder=decoder)
+        config = model.config
         assert config.decoder == decoder and config.latent_dim == 8 and config.steps == 600
-        assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(params))
+        assert config.learning_rate == 2e-3 and config.batch_size == 2  # the stored config, new field names
+        assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(model.params))
     with pytest.raises(ConfigError, match="decoder must be one of"):
-        _vae.load_pretrained(decoder="bary")
+        load_pretrained(decoder="bary")

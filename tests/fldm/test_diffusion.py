@@ -85,7 +85,7 @@ def test_oracle_denoiser_recovers_the_data(method):
     def oracle(z, t):
         return (z - jnp.sqrt(ab[t]) * z0) / jnp.sqrt(1 - ab[t])
 
-    zT, steps, _ = draw_sampling_noise(jax.random.key(5), (6, 2), method=method, num_steps=10, num_train_steps=60,
+    zT, steps, _ = draw_sampling_noise(jax.random.key(5), (6, 2), method=method, num_steps=10, diffusion_steps=60,
                                        dtype=jnp.complex128)
     out = sample_from_noise(oracle, s, zT, steps, method=method, num_steps=10)
     np.testing.assert_allclose(out, z0, atol=1e-9)
@@ -128,7 +128,7 @@ def test_v_oracle_through_the_conversion_recovers_the_data(method):
         eps = (z - jnp.sqrt(ab[t]) * z0) / jnp.sqrt(1 - ab[t])
         return epsilon_from_output(s, "v", z, t, prediction_target(s, "v", z0, t, eps))
 
-    zT, steps, _ = draw_sampling_noise(jax.random.key(14), (6, 2), method=method, num_steps=10, num_train_steps=60,
+    zT, steps, _ = draw_sampling_noise(jax.random.key(14), (6, 2), method=method, num_steps=10, diffusion_steps=60,
                                        dtype=jnp.complex128)
     out = sample_from_noise(v_oracle, s, zT, steps, method=method, num_steps=10)
     np.testing.assert_allclose(out, z0, atol=1e-8)
@@ -158,14 +158,14 @@ def test_gaussian_data_with_the_exact_denoiser_gives_the_data_distribution():
     def exact(z, t):
         return jnp.sqrt(1 - ab[t]) * z / (ab[t] * v + 1 - ab[t])
 
-    zT, steps, _ = draw_sampling_noise(jax.random.key(6), (4000, 2), method="ddpm", num_steps=0, num_train_steps=100,
+    zT, steps, _ = draw_sampling_noise(jax.random.key(6), (4000, 2), method="ddpm", num_steps=0, diffusion_steps=100,
                                        dtype=jnp.complex128)
     out = sample_from_noise(exact, s, zT, steps, method="ddpm")
     power = float(jnp.mean(jnp.abs(out) ** 2))
     assert abs(power - expect) < 0.04 * expect, (power, expect)  # 8000 samples: std of the estimate ~1.1 %
     assert abs(complex(jnp.mean(out ** 2))) < 0.1 * v  # circular: no preferred direction
     # DDIM with η=1 on a sub-sequence samples (nearly) the same law
-    zT, steps, _ = draw_sampling_noise(jax.random.key(7), (4000, 2), method="ddim", num_steps=50, num_train_steps=100,
+    zT, steps, _ = draw_sampling_noise(jax.random.key(7), (4000, 2), method="ddim", num_steps=50, diffusion_steps=100,
                                        dtype=jnp.complex128)
     out = sample_from_noise(exact, s, zT, steps, method="ddim", num_steps=50, eta=1.0)
     assert abs(float(jnp.mean(jnp.abs(out) ** 2)) - v) < 0.15 * v
@@ -187,7 +187,7 @@ def test_inpainting_keeps_the_known_latents_exactly():
     z0 = tangent_noise(jax.random.key(10), (V, C), dtype=jnp.complex128)
     mask = jnp.arange(V) % 3 == 0
     for method in ("ddim", "ddpm"):
-        zT, steps, known = draw_sampling_noise(jax.random.key(11), (V, C), method=method, num_steps=8, num_train_steps=40,
+        zT, steps, known = draw_sampling_noise(jax.random.key(11), (V, C), method=method, num_steps=8, diffusion_steps=40,
                                                inpaint=True, dtype=jnp.complex128)
         out = sample_from_noise(lambda z, t: 0.3 * z, s, zT, steps, method=method, num_steps=8,
                                 inpaint=Inpaint(z0, mask), inpaint_noise=known)
@@ -201,7 +201,7 @@ def test_sampling_is_reproducible_with_a_fixed_key():
     s = make_schedule("cosine", num_steps=30)
 
     def run(key):
-        zT, steps, _ = draw_sampling_noise(key, (9, 2), method="ddim", num_steps=5, num_train_steps=30)
+        zT, steps, _ = draw_sampling_noise(key, (9, 2), method="ddim", num_steps=5, diffusion_steps=30)
         return sample_from_noise(lambda z, t: jnp.tanh(z.real).astype(z.dtype) * 0.5, s, zT, steps,
                                  method="ddim", num_steps=5, eta=0.7)
 
@@ -215,7 +215,7 @@ def test_sampler_commutes_with_a_gauge_change_of_its_noise(prediction):
     rotated by e^{-iα} give the sample rotated by e^{-iα}."""
     s = make_schedule("linear", num_steps=20)
     w = jnp.array([[0.3 + 0.1j, -0.2j], [0.05, 0.4 - 0.3j]])
-    zT, steps, _ = draw_sampling_noise(jax.random.key(13), (11, 2), method="ddpm", num_steps=0, num_train_steps=20,
+    zT, steps, _ = draw_sampling_noise(jax.random.key(13), (11, 2), method="ddpm", num_steps=0, diffusion_steps=20,
                                        dtype=jnp.complex128)
     turn = jnp.exp(-1j * jnp.linspace(0.0, 5.0, 11).astype(jnp.complex128))[:, None]
 

@@ -9,15 +9,17 @@ import jax
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh
+from jmeshtex import CheckpointMismatchError, TrainResult
 from jmeshtex._errors import ConfigError, InputError
 from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere
 from jmeshtex.data import torus
-from jmeshtex.fldm import FLDMConfig, build_dataset, inpaint_fldm, load_fldm, sample_fldm, train_fldm
+from jmeshtex.fldm import Config, build_dataset, inpaint, load, sample, save, train
 from jmeshtex.fldm._data import copy_mesh, transfer_labels
 
-CFG = FLDMConfig.tiny(latent_channels=2, n_copies=3, copy_vertices=80, train_steps=4, checkpoint_every=2,
-                      widths=(6, 8), hdim=4, knn=7, num_train_steps=50, bucket=32, batch_size=2)
+CFG = Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, steps=4, checkpoint_every=2,
+                  widths=(6, 8), hdim=4, knn=7, diffusion_steps=50, bucket=32, batch_size=2)
+DATA_KEY = jax.random.key(0)
+TRAIN_KEY = jax.random.key(1)
 
 
 @pytest.fixture(scope="module")
@@ -27,12 +29,12 @@ def sphere():
 
 @pytest.fixture(scope="module")
 def data(sphere):
-    return build_dataset(sphere, CFG, encode=stripe_encoder, progress=False)
+    return build_dataset(sphere, CFG, encode=stripe_encoder, key=DATA_KEY, progress=False)
 
 
 @pytest.fixture(scope="module")
 def trained(data):
-    return train_fldm(data, CFG, progress=False)
+    return train(data, CFG, key=TRAIN_KEY, progress=False)
 
 
 def test_copies_are_distinct_retriangulations_padded_to_one_bucket(sphere, data):
@@ -45,8 +47,9 @@ def test_copies_are_distinct_retriangulations_padded_to_one_bucket(sphere, data)
     # latents are the encoder's on each copy; the scale gives unit mean |z|² (eq. 38–39)
     np.testing.assert_allclose(data.latents[1, :80], stripe_encoder(data.meshes[1]), rtol=1e-12)
     np.testing.assert_allclose((np.abs(data.latents[:, :80] * data.scale) ** 2).mean((0, 1)), 1.0, rtol=1e-10)
-    # copies are deterministic in (seed, index)
-    assert np.array_equal(copy_mesh(sphere, CFG, 1).faces, data.meshes[1].faces)
+    # copies are deterministic in (key, index), and another key gives other copies
+    assert np.array_equal(copy_mesh(sphere, CFG, 1, key=DATA_KEY).faces, data.meshes[1].faces)
+    assert not np.array_equal(copy_mesh(sphere, CFG, 1, key=jax.random.key(5)).vertices, data.meshes[1].vertices)
 
 
 def test_cache_is_reused_and_invalidated(tmp_path, sphere):
@@ -57,59 +60,76 @@ def test_cache_is_reused_and_invalidated(tmp_path, sphere):
         return stripe_encoder(m)
 
     enc.identity = "counting"
-    a = build_dataset(sphere, CFG, encode=enc, cache_dir=tmp_path, progress=False)
-    b = build_dataset(sphere, CFG, encode=enc, cache_dir=tmp_path, progress=False)
+    a = build_dataset(sphere, CFG, encode=enc, key=DATA_KEY, cache_dir=tmp_path, progress=False)
+    b = build_dataset(sphere, CFG, encode=enc, key=DATA_KEY, cache_dir=tmp_path, progress=False)
     assert len(calls) == 3 and np.array_equal(a.latents, b.latents)
     assert sorted(p.name for p in tmp_path.glob("copy_*.npz")) == ["copy_0000.npz", "copy_0001.npz", "copy_0002.npz"]
-    build_dataset(sphere, CFG.replace(seed=5), encode=enc, cache_dir=tmp_path, progress=False)
-    assert len(calls) == 6  # another seed: rebuilt
-    assert json.loads((tmp_path / "data.json").read_text())["seed"] == 5
+    other = jax.random.key(5)
+    build_dataset(sphere, CFG, encode=enc, key=other, cache_dir=tmp_path, progress=False)
+    assert len(calls) == 6  # another key: rebuilt
+    assert json.loads((tmp_path / "data.json").read_text())["key"] == jax.random.key_data(other).tolist()
     with pytest.raises(ConfigError, match="encode must be a callable"):
-        build_dataset(sphere, CFG.replace(seed=5), encode=None, cache_dir=tmp_path, progress=False)
+        build_dataset(sphere, CFG, encode=None, key=other, cache_dir=tmp_path, progress=False)
     assert len(list(tmp_path.glob("copy_*.npz"))) == 3  # a bad call leaves the cache as it was
 
 
 def test_labels_are_carried_to_the_copies(sphere):
     labels = (sphere.vertices[:, 2] > 0).astype(np.int64)
-    copy = copy_mesh(sphere, CFG, 0)
+    copy = copy_mesh(sphere, CFG, 0, key=DATA_KEY)
     got = transfer_labels(sphere, labels, copy)
     far = np.abs(copy.vertices[:, 2]) > 0.3  # away from the label boundary: exact
     assert np.array_equal(got[far], (copy.vertices[far, 2] > 0).astype(np.int32))
     with pytest.raises(ConfigError, match="num_labels"):
-        build_dataset(sphere, CFG, encode=stripe_encoder, labels=labels, progress=False)
+        build_dataset(sphere, CFG, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False)
     with pytest.raises(ConfigError, match="no labels"):
-        build_dataset(sphere, CFG.replace(num_labels=2), encode=stripe_encoder, progress=False)
+        build_dataset(sphere, CFG.replace(num_labels=2), encode=stripe_encoder, key=DATA_KEY, progress=False)
     with pytest.raises(ConfigError, match="latent_channels"):
-        build_dataset(sphere, CFG.replace(latent_channels=3), encode=stripe_encoder, progress=False)
+        build_dataset(sphere, CFG.replace(latent_channels=3), encode=stripe_encoder, key=DATA_KEY, progress=False)
 
 
-def test_training_lowers_the_loss_and_resumes_exactly(tmp_path, data, trained):
-    assert trained.losses.shape == (4,) and np.isfinite(trained.losses).all()
-    part = train_fldm(data, CFG, out_dir=tmp_path, progress=False, stop_after=2)
-    assert part.steps_done == 2 and not (tmp_path / "model.npz").exists()
-    rest = train_fldm(data, CFG, out_dir=tmp_path, progress=False)
-    assert rest.steps_done == 2 and (tmp_path / "model.npz").exists()
-    np.testing.assert_allclose(rest.losses, trained.losses, rtol=1e-5)
+def test_training_resumes_exactly_as_an_uninterrupted_run(tmp_path, data, trained):
+    assert isinstance(trained, TrainResult) and trained.steps == 4 and trained.resumed_from is None
+    assert trained.losses["loss"].shape == (4,) and np.isfinite(trained.losses["loss"]).all()
+    ckpt = tmp_path / "ckpt"
+    part = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False, stop_after=1)
+    assert part.steps == 1 and part.resumed_from is None
+    part = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False, stop_after=2)
+    assert part.steps == 3 and part.resumed_from == 1  # off the checkpoint_every grid: the last step is kept
+    rest = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False)
+    assert rest.steps == 4 and rest.resumed_from == 3
+    # bit-identical: the same step function on the same state, batches and noise from (key, step)
+    np.testing.assert_array_equal(rest.losses["loss"], trained.losses["loss"])
     for a, b in zip(jax.tree.leaves(rest.model.params), jax.tree.leaves(trained.model.params), strict=True):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-6)
-    loaded = load_fldm(tmp_path)
-    assert loaded.config == CFG and np.allclose(loaded.scale, data.scale)
-    with pytest.raises(ConfigError, match="another configuration"):
-        train_fldm(data, CFG.replace(hdim=5), out_dir=tmp_path, progress=False)
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    again = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False)  # done: nothing more to do
+    assert again.steps == 4 and again.resumed_from == 4
+    np.testing.assert_array_equal(again.losses["loss"], trained.losses["loss"])
+    # a folder of another run is never resumed by mistake
+    with pytest.raises(CheckpointMismatchError, match="config"):
+        train(data, CFG.replace(hdim=5), key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False)
+    with pytest.raises(CheckpointMismatchError, match="key"):
+        train(data, CFG, key=jax.random.key(9), checkpoint_dir=ckpt, progress=False)
+    # another key is another run
+    other = train(data, CFG, key=jax.random.key(9), progress=False)
+    assert not np.allclose(other.losses["loss"], trained.losses["loss"])
+    save(rest.model, tmp_path / "model")
+    loaded = load(tmp_path / "model")
+    assert loaded.config == CFG and np.array_equal(loaded.scale, data.scale)
 
 
 def test_v_prediction_is_trained_saved_and_sampled_through(tmp_path, data, trained):
     """prediction="v" changes the training target (same init, batches and noise as the ε run, other
     losses), survives save/load, and the sampler reads the output through it."""
     cfg = CFG.replace(prediction="v")
-    res = train_fldm(data, cfg, out_dir=tmp_path, progress=False)
-    assert np.isfinite(res.losses).all() and not np.allclose(res.losses, trained.losses)
-    model = load_fldm(tmp_path)
+    res = train(data, cfg, key=TRAIN_KEY, progress=False)
+    loss, eps_loss = res.losses["loss"], trained.losses["loss"]
+    assert np.isfinite(loss).all() and not np.allclose(loss, eps_loss)
+    model = load(save(res.model, tmp_path))
     assert model.config.prediction == "v"
     mesh = data.meshes[0]
-    as_v = sample_fldm(model, mesh, key=jax.random.key(0), n=1, steps=5)
-    as_eps = sample_fldm(model._replace(config=cfg.replace(prediction="epsilon")), mesh, key=jax.random.key(0), n=1,
-                         steps=5)
+    as_v = sample(model, mesh, key=jax.random.key(0), n=1, steps=5)
+    as_eps = sample(model._replace(config=cfg.replace(prediction="epsilon")), mesh, key=jax.random.key(0), n=1,
+                    steps=5)
     assert np.isfinite(as_v).all() and not np.allclose(as_v, as_eps)
     with pytest.raises(ConfigError, match="prediction"):
         CFG.replace(prediction="x0")
@@ -118,40 +138,42 @@ def test_v_prediction_is_trained_saved_and_sampled_through(tmp_path, data, train
 def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
     model = trained.model
     mesh = data.meshes[0]
-    a = sample_fldm(model, mesh, key=jax.random.key(0), n=2, steps=5)
-    b = sample_fldm(model, mesh, key=jax.random.key(0), n=2, steps=5)
-    c = sample_fldm(model, mesh, key=jax.random.key(1), n=1, steps=5)
+    a = sample(model, mesh, key=jax.random.key(0), n=2, steps=5)
+    b = sample(model, (mesh.vertices, mesh.faces), key=jax.random.key(0), n=2, steps=5)  # a (V, F) pair works too
+    c = sample(model, mesh, key=jax.random.key(1), n=1, steps=5)
     assert a.shape == (2, 80, 2) and np.array_equal(a, b) and not np.allclose(a[0], c[0])
     assert not np.allclose(a[0], a[1])
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
-    z = inpaint_fldm(model, mesh, known, mask, key=jax.random.key(2), steps=5)
+    z = inpaint(model, mesh, known, mask, key=jax.random.key(2), steps=5)
     # exact up to the float32 round trip of the scale
     np.testing.assert_allclose(z[0][mask], known[mask], rtol=1e-6, atol=1e-6)
     assert not np.allclose(z[0][~mask], known[~mask], atol=1e-2)
     # generative transfer: any mesh, any size
-    t = sample_fldm(model, Mesh(*torus(12, 6)), key=jax.random.key(3), n=1, steps=5, method="ddim")
+    t = sample(model, torus(12, 6), key=jax.random.key(3), n=1, steps=5, method="ddim")
     assert t.shape == (1, 72, 2) and np.isfinite(t).all()
     with pytest.raises(InputError, match="unconditional"):
-        sample_fldm(model, mesh, key=jax.random.key(0), labels=np.zeros(80, int))
+        sample(model, mesh, key=jax.random.key(0), labels=np.zeros(80, int))
     with pytest.raises(InputError, match="both"):
-        sample_fldm(model, mesh, key=jax.random.key(0), known=known)
+        sample(model, mesh, key=jax.random.key(0), known=known)
+    with pytest.raises(InputError, match="target must be a jmeshtex.Mesh"):
+        sample(model, "sphere.obj", key=jax.random.key(0))
 
 
 @pytest.mark.slow
 def test_label_guided_training_and_sampling(sphere):
-    cfg = CFG.replace(num_labels=2, n_copies=2, train_steps=2)
+    cfg = CFG.replace(num_labels=2, n_copies=2, steps=2)
     labels = (sphere.vertices[:, 2] > 0).astype(np.int64)
-    data = build_dataset(sphere, cfg, encode=stripe_encoder, labels=labels, progress=False)
+    data = build_dataset(sphere, cfg, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False)
     assert data.labels.shape == (2, 96) and set(np.unique(data.labels[:, :80])) == {0, 1}
-    model = train_fldm(data, cfg, progress=False).model
+    model = train(data, cfg, key=TRAIN_KEY, progress=False).model
     mesh = data.meshes[0]
     key = jax.random.key(0)
-    z0 = sample_fldm(model, mesh, key=key, steps=3, labels=np.zeros(80, int))
-    z1 = sample_fldm(model, mesh, key=key, steps=3, labels=np.ones(80, int))
+    z0 = sample(model, mesh, key=key, steps=3, labels=np.zeros(80, int))
+    z1 = sample(model, mesh, key=key, steps=3, labels=np.ones(80, int))
     assert not np.allclose(z0, z1)  # the label map reaches the filters
     with pytest.raises(InputError, match="label-guided"):
-        sample_fldm(model, mesh, key=key, steps=3)
+        sample(model, mesh, key=key, steps=3)
 
 
 @pytest.mark.slow
@@ -160,22 +182,22 @@ def test_cli_train_sample_inpaint(tmp_path):
 
     out = tmp_path / "model"
     rc = main(["fldm", "train", "--mesh", "icosphere:2", "--codec", "stripes", "--preset", "tiny", "--copies", "2",
-               "--vertices", "60", "--steps", "2", "--out", str(out), "--no-progress"])
+               "--vertices", "60", "--steps", "2", "--out", str(out), "--quiet"])
     assert rc == 2  # icosphere has no colours to read: a clear error, no traceback
     rc = main(["fldm", "train", "--mesh", "striped-sphere", "--codec", "stripes", "--preset", "tiny", "--copies", "2",
-               "--vertices", "60", "--steps", "2", "--prediction", "v", "--out", str(out), "--no-progress"])
+               "--vertices", "60", "--steps", "2", "--prediction", "v", "--out", str(out), "--quiet"])
     assert rc == 0 and (out / "model.npz").exists() and (out / "data" / "copy_0001.npz").exists()
-    assert load_fldm(out).config.prediction == "v"  # the tiny preset's own is epsilon
+    assert load(out).config.prediction == "v"  # the tiny preset's own is epsilon
     rc = main(["fldm", "sample", "--model", str(out), "--vertices", "70", "--steps", "3", "--n", "2",
-               "--out", str(tmp_path / "s"), "--no-progress"])
+               "--out", str(tmp_path / "s"), "--quiet"])
     assert rc == 0 and len(list((tmp_path / "s").glob("sample_*.png"))) == 2
     assert np.load(tmp_path / "s" / "latents.npz")["latents"].shape == (2, 70, 2)
     mesh = striped_sphere(subdivisions=3)
     np.save(tmp_path / "mask.npy", mesh.vertices[:, 2] > 0)
     rc = main(["fldm", "inpaint", "--model", str(out), "--mask", str(tmp_path / "mask.npy"), "--steps", "3",
-               "--n", "1", "--out", str(tmp_path / "i"), "--no-progress"])
+               "--n", "1", "--out", str(tmp_path / "i"), "--quiet"])
     assert rc == 0 and len(list((tmp_path / "i").glob("inpaint_*.png"))) == 1
     np.save(tmp_path / "bad.npy", np.ones(5, bool))
     rc = main(["fldm", "inpaint", "--model", str(out), "--mask", str(tmp_path / "bad.npy"), "--out",
-               str(tmp_path / "j"), "--no-progress"])
+               str(tmp_path / "j"), "--quiet"])
     assert rc == 2

@@ -218,6 +218,7 @@ def test_level_zero_is_the_input_neighborhood():
     assert np.all(h.to_input_frame[0] == 1)
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_errors():
     v, f = icosahedron()
     with pytest.raises(DecimationError, match="too small"):
@@ -267,6 +268,7 @@ def test_property_any_valid_mesh_decimates_with_its_topology(mesh):
 
 
 @given(st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))))
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case
     for build in (geodesic_knn_neighborhood, tangent_frames, lambda v, f: mesh_hierarchy(v, f, levels=2)):

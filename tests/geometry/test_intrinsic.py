@@ -112,6 +112,7 @@ def test_vertex_areas_sum_to_total_and_match_the_neighborhood():
         (np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]]), np.array([[0, 1, 2]]), DegenerateFaceError),
     ],
 )
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises_typed_errors(vertices, faces, error):
     with pytest.raises(error):
         one_ring_neighborhood(vertices, faces)

@@ -164,6 +164,7 @@ def test_knn_from_a_precomputed_one_ring_is_the_same():
 
 
 @pytest.mark.parametrize("k", [0, -3, 2.5, True, "8"])
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_k(k):
     v, f = icosahedron()
     with pytest.raises(InputError):

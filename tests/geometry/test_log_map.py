@@ -268,6 +268,7 @@ def _reverse(nb, p, q):
 
 
 @given(st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))))
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case
     with pytest.raises(BAD_MESH_KINDS[kind]):

@@ -199,6 +199,7 @@ def test_degenerate_empty_and_outside_layouts_cover_nothing(coverage):
         (SQUARE, 4, {"coverage": "corner"}, "coverage must be one of"),
     ],
 )
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises_input_error(uv, size, kwargs, match):
     with pytest.raises(InputError, match=match):
         rasterize_uv(uv, size, **kwargs)
@@ -220,5 +221,10 @@ def test_fill_unused_texels_takes_the_nearest_used_value():
     out = fill_unused_texels(img, used)[..., 0]
     assert out.tolist() == [[1, 1, 1, 2], [1, 1, 2, 2], [1, 2, 2, 2]]
     assert fill_unused_texels(img, np.zeros((3, 4), bool)) is img  # nothing used: unchanged
+
+
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
+def test_fill_unused_texels_rejects_a_mask_of_another_shape():
+    img = np.zeros((3, 4, 1))
     with pytest.raises(InputError, match=r"used must be \[H, W\]"):
         fill_unused_texels(img, np.ones((4, 3), bool))

@@ -98,6 +98,7 @@ def test_surface_correspondence_recovers_points():
     np.testing.assert_allclose(np.einsum("nk,nkd->nd", got_b, v[f[got_f]]), pts, atol=1e-12)
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_errors():
     v, f = icosphere(1)
     with pytest.raises(InputError, match="jmeshtex.Mesh"):

@@ -99,6 +99,7 @@ def test_seed_and_rng_are_deterministic():
         (dict(seed=1, vertices=np.zeros((4, 3))), InputError, "total area"),
     ],
 )
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_sample_surface_rejects_bad_input(kwargs, error, match):
     args = dict(vertices=np.eye(4, 3), faces=np.array([[0, 1, 2]]), n=3)
     for name in ("vertices", "faces", "n"):
@@ -157,6 +158,7 @@ def test_interpolation_in_jax_jit_grad_and_dtype(rng):
     assert fn._cache_size() == 1  # no recompilation for the same shapes
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_interpolation_rejects_bad_input():
     v, f = grid(2)
     with pytest.raises(InputError, match="bary must have shape"):

@@ -163,6 +163,10 @@ def test_subdivide_uv_keeps_seams():
     np.testing.assert_allclose(fine[3 * 2 + 0], [[0.5, 0.0], [0.5, 0.5], [0.0, 0.5]])
     np.testing.assert_allclose(fine[3 * 2 + 1], [[6.0, 5.0], [6.0, 6.0], [5.0, 6.0]])
     np.testing.assert_allclose(fine[1 * 2 + 1], [[6.0, 5.0], [7.0, 5.0], [6.0, 6.0]])
+
+
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
+def test_subdivide_uv_rejects_bad_shapes():
     with pytest.raises(InputError, match=r"\[F, 3, 2\]"):
         subdivide_uv(np.zeros((2, 3)))
 
@@ -207,6 +211,7 @@ def test_flat_grids_property(nx, ny, uniform, levels):
         (np.eye(3), np.array([[0.0, 1.0, 2.0]]), InputError, "integer"),
     ],
 )
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises_typed_errors(vertices, faces, error, match):
     with pytest.raises(error, match=match):
         subdivide_midpoint(vertices, faces)

@@ -182,6 +182,7 @@ def test_uv_at_then_sample_texture_on_a_mesh(rng):
         (lambda: uv_at(np.zeros((2, 3, 2)), np.array([0]), np.ones((2, 3))), "bary must have shape"),
     ],
 )
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises(call, match):
     with pytest.raises(InputError, match=match):
         call()

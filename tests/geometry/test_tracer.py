@@ -368,6 +368,7 @@ def test_directions_off_the_surface_at_a_boundary_vertex_stop_at_once():
         (dict(max_steps=1, length=np.array([5.0])), "max_steps"),
     ],
 )
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_trace_geodesics_rejects_bad_input(kwargs, match):
     v, f = torus(6, 4)
     args = dict(start_face=np.array([0]), start_bary=np.array([[0.2, 0.3, 0.5]]),

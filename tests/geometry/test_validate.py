@@ -132,6 +132,7 @@ def test_valid_meshes_of_every_kind_pass():
     validate_mesh(v.tolist(), f.tolist())
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_shape_errors():
     v, f = icosahedron()
     with pytest.raises(InputError, match=r"shape \[V, 3\], got \(12, 2\)"):
@@ -446,8 +447,12 @@ def test_prepare_mesh_rejects_inconsistent_attributes():
         prepare_mesh(Mesh(v, f, split_faces=f, split_to_merged=np.roll(np.arange(12), 1)))
     with pytest.raises(InputError, match="together"):
         prepare_mesh(Mesh(v, f, split_faces=f))
+
+
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
+def test_prepare_mesh_rejects_what_is_no_mesh():
     with pytest.raises(InputError, match="pair"):
-        prepare_mesh(v)
+        prepare_mesh(icosahedron().vertices)
 
 
 def test_report_str_lists_changes():

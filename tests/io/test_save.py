@@ -230,3 +230,11 @@ def test_png_clips_and_rejects(tmp_path):
     with pytest.raises(InputError, match=".png"):
         save_png(np.zeros((2, 2)), tmp_path / "n.jpg")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["g.png"]
+
+
+def test_png_folder_must_exist_unless_parents(tmp_path):
+    with pytest.raises(MeshIOError, match="does not exist"):
+        save_png(np.zeros((2, 2)), tmp_path / "new" / "a.png")
+    assert not (tmp_path / "new").exists()
+    save_png(np.zeros((2, 2)), tmp_path / "new" / "deeper" / "a.png", parents=True)
+    assert load_texture(tmp_path / "new" / "deeper" / "a.png").shape == (2, 2, 1)

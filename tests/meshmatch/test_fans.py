@@ -11,7 +11,7 @@ import pytest
 from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid, icosphere
 from jmeshtex.meshmatch import (
-    MeshMatchConfig,
+    Config,
     correspondence_affinities,
     fan_descriptor,
     fan_spectrum,
@@ -23,7 +23,7 @@ from jmeshtex.meshmatch import (
 
 def test_fan_samples_lie_on_circles_of_a_flat_grid():
     v, f = grid(10)
-    fans = geodesic_fans(v, f, radii=[0.1, 0.2, 0.3], num_angles=8)
+    fans = geodesic_fans((v, f), radii=[0.1, 0.2, 0.3], num_angles=8)
     centre = 60  # (0.6, 0.5): every ring stays inside the unit square
     xy = sample_fans(fans, v[:, :2])[centre]  # [R, A, 2]
     d = xy - v[centre, :2]
@@ -41,8 +41,8 @@ def test_turning_the_reference_by_whole_steps_rolls_the_fan(k, rng):
     x = jnp.asarray(rng.standard_normal((len(v), 2)))
     A = 8
     ref = np.exp(1j * rng.uniform(0, 2 * np.pi, len(v)))
-    a = fan_descriptor(v, f, x, radii=[0.15, 0.3], num_angles=A, reference=ref)
-    b = fan_descriptor(v, f, x, radii=[0.15, 0.3], num_angles=A, reference=ref * np.exp(2j * np.pi * k / A))
+    a = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=ref)
+    b = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=ref * np.exp(2j * np.pi * k / A))
     np.testing.assert_allclose(np.asarray(b), np.roll(np.asarray(a), -k, axis=2), atol=1e-9)
 
 
@@ -66,8 +66,8 @@ def test_rotation_search_finds_the_shift(rng):
     A = 12
     k = rng.integers(0, A, len(v))
     base = np.exp(1j * rng.uniform(0, 2 * np.pi, len(v)))  # generic: no trace runs along an edge
-    src = fan_descriptor(v, f, x, radii=[0.15, 0.3], num_angles=A, reference=base)
-    tgt = fan_descriptor(v, f, x, radii=[0.15, 0.3], num_angles=A, reference=base * np.exp(2j * np.pi * k / A))
+    src = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=base)
+    tgt = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=base * np.exp(2j * np.pi * k / A))
     w = jnp.ones(2)
     d = rotation_distances(*fan_spectrum(tgt, w), *fan_spectrum(src, w), A)
     np.testing.assert_array_equal(np.asarray(jnp.argmin(d, axis=1)), k)
@@ -77,7 +77,7 @@ def test_rotation_search_finds_the_shift(rng):
 def test_affinities_agree_for_identical_meshes_and_differ_elsewhere():
     v, f = icosphere(2)
     pairs = np.array([[0, 0], [20, 20], [90, 90]])
-    a, b = correspondence_affinities(v, f, v, f, pairs)
+    a, b = correspondence_affinities((v, f), (v, f), pairs)
     np.testing.assert_allclose(a, b, atol=1e-8)
     assert a.shape == (len(v), 3) and np.all((a >= 0) & (a <= 1 / np.sqrt(3) + 1e-12))
     assert np.allclose(a[0, 0], 1 / np.sqrt(3))  # a correspondence point has affinity 1 to itself
@@ -86,22 +86,27 @@ def test_affinities_agree_for_identical_meshes_and_differ_elsewhere():
 def test_bad_inputs_raise_typed_errors():
     v, f = grid(3)
     with pytest.raises(InputError, match="radii"):
-        geodesic_fans(v, f, radii=[-1.0])
+        geodesic_fans((v, f), radii=[-1.0])
     with pytest.raises(InputError, match="reference"):
-        geodesic_fans(v, f, radii=[0.1], reference=np.zeros(len(v)))
+        geodesic_fans((v, f), radii=[0.1], reference=np.zeros(len(v)))
     with pytest.raises(InputError, match="correspondences"):
-        correspondence_affinities(v, f, v, f, np.array([0, 1]))
+        correspondence_affinities((v, f), (v, f), np.array([0, 1]))
+    with pytest.raises(InputError, match="mesh must be a jmeshtex.Mesh"):
+        geodesic_fans(v, radii=[0.1])
     with pytest.raises(ConfigError, match="num_angles"):
-        MeshMatchConfig(num_angles=1)
+        Config(num_angles=1)
     with pytest.raises(ConfigError, match="up"):
-        MeshMatchConfig(up=(0.0, 0.0, 0.0))
+        Config(up=(0.0, 0.0, 0.0))
     with pytest.raises(ConfigError, match="constant"):
-        MeshMatchConfig(color_weight=0.0, shape_weight=0.0)
+        Config(color_weight=0.0, shape_weight=0.0)
+    with pytest.raises(ConfigError, match="unknown fields \\['iterations'\\]"):
+        Config.from_dict({"iterations": 3})  # renamed: steps
 
 
 def test_host_smoothing_matches_the_jax_smoother(rng):
     """The HKS copy-down smooths hundreds of steps on the host (sparse); same result as `smooth`."""
-    from jmeshtex.meshmatch._fans import _smooth_host, smooth, smoother
+    from jmeshtex.meshmatch import smooth, smoother
+    from jmeshtex.meshmatch._fans import _smooth_host
 
     v, f = icosphere(2)
     x = rng.standard_normal((len(v), 3))

@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import json
 
+import jax
 import numpy as np
 import pytest
 
 from jmeshtex import InputError, Mesh
 from jmeshtex.cli._stages.meshmatch import demo_meshes, demo_stage
 from jmeshtex.data import icosphere
-from jmeshtex.meshmatch import MeshMatchConfig, meshmatch, paint_by_example, transfer_displacement
+from jmeshtex.meshmatch import Config, load, meshmatch, paint_by_example, transfer_displacement
 from jmeshtex.testing import CATALOGUE, MeshState
+
+KEY = jax.random.key(0)
 
 
 def _bumpy_sphere(level=2):
@@ -37,8 +40,8 @@ def test_relabelled_target_is_matched_with_the_frame_rotation():
     rng = np.random.default_rng(3)
     real = CATALOGUE["permute_vertices"].draw(MeshState(v, f), rng)
     colors = 0.5 + 0.4 * np.sin(5 * v[:, :3] + np.array([0.0, 1.0, 2.0]))
-    cfg = MeshMatchConfig(levels=1, coarse_iterations=25)
-    r = meshmatch(v, f, colors, real.target.vertices, real.target.faces, config=cfg)
+    cfg = Config(levels=1, coarse_steps=25)
+    r = meshmatch((v, f), colors, (real.target.vertices, real.target.faces), key=KEY, config=cfg)
     hit = r.nnf == real.vperm
     assert hit.mean() > 0.95
     A = cfg.num_angles
@@ -51,19 +54,19 @@ def test_paint_by_example_keeps_paint_and_copies_only_painted():
     v, f = _bumpy_sphere(2)
     colors = np.stack([0.5 + 0.4 * np.sin(8 * v[:, 0]), 0.5 + 0.0 * v[:, 1], 0.5 + 0.4 * np.cos(8 * v[:, 2])], 1)
     painted = v[:, 2] > -0.1
-    out = paint_by_example(Mesh(v, f, vertex_colors=colors), painted,
-                           config=MeshMatchConfig(levels=1, iterations=4, coarse_iterations=4))
+    out = paint_by_example(Mesh(v, f, vertex_colors=colors), painted, key=KEY,
+                           config=Config(levels=1, steps=4, coarse_steps=4))
     np.testing.assert_allclose(out.mesh.vertex_colors[painted], colors[painted], atol=1e-6)
     assert painted[out.match.nnf].all()  # every match is a painted vertex
     with pytest.raises(InputError, match="paints no vertex"):
-        paint_by_example(Mesh(v, f, vertex_colors=colors), np.zeros(len(v), bool))
+        paint_by_example(Mesh(v, f, vertex_colors=colors), np.zeros(len(v), bool), key=KEY)
 
 
 def test_displacement_transfer_moves_along_normals():
     v, f = _bumpy_sphere(2)
     smooth_v = v / np.linalg.norm(v, axis=1, keepdims=True)
-    new_v, r = transfer_displacement(v, f, smooth_v, f, config=MeshMatchConfig(levels=1, iterations=2, coarse_iterations=4))
-    moved = new_v - smooth_v
+    out = transfer_displacement((v, f), Mesh(smooth_v, f), key=KEY, config=Config(levels=1, steps=2, coarse_steps=4))
+    moved = out.mesh.vertices - smooth_v
     assert np.abs(moved).max() > 1e-3
     normal = smooth_v  # the unit sphere's normals
     cos = np.abs(np.einsum("vd,vd->v", moved, normal)) / np.maximum(np.linalg.norm(moved, axis=1), 1e-300)
@@ -73,25 +76,45 @@ def test_displacement_transfer_moves_along_normals():
 def test_bad_inputs():
     v, f = icosphere(1)
     with pytest.raises(InputError, match="source_colors"):
-        meshmatch(v, f, np.ones((3, 3)), v, f)
+        meshmatch((v, f), np.ones((3, 3)), (v, f), key=KEY)
     with pytest.raises(InputError, match="source_mask"):
-        meshmatch(v, f, np.ones((len(v), 3)), v, f, source_mask=np.zeros(len(v), bool))
+        meshmatch((v, f), np.ones((len(v), 3)), (v, f), key=KEY, source_mask=np.zeros(len(v), bool))
+    with pytest.raises(InputError, match="target must be a jmeshtex.Mesh"):
+        meshmatch((v, f), np.ones((len(v), 3)), v, key=KEY)
 
 
 def test_cli_transfer_writes_mesh_renders_and_summary(tmp_path):
     from jmeshtex.cli import main
     from jmeshtex.io import save_mesh
 
-    sv, sf, sc, tv, tf, _ = demo_meshes(quick=True)
-    save_mesh(Mesh(sv, sf, vertex_colors=sc.astype(np.float32)), tmp_path / "src.ply")
-    save_mesh(Mesh(tv, tf), tmp_path / "tgt.ply")
+    source, target, _ = demo_meshes(quick=True)
+    save_mesh(source.replace(vertex_colors=source.vertex_colors.astype(np.float32)), tmp_path / "src.ply")
+    save_mesh(target, tmp_path / "tgt.ply")
     out = tmp_path / "out"
     code = main(["meshmatch", "transfer", "--source", str(tmp_path / "src.ply"), "--target",
-                 str(tmp_path / "tgt.ply"), "--out", str(out), "--quiet", "--iterations", "2"])
+                 str(tmp_path / "tgt.ply"), "--out", str(out), "--quiet", "--steps", "2", "--seed", "3"])
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
     assert len(summary["levels"]) >= 2
+    assert all(level["steps"] <= 2 for level in summary["levels"][1:])  # --steps: finer levels only
     for name in ("source.png", "target.png", "nnf.png", "target.ply"):
         assert (out / name).stat().st_size > 500
+    back = load(out)  # the CLI also writes the result itself
+    assert back.mesh.num_vertices == target.num_vertices and back.match.stats == summary_stats(summary)
     assert main(["meshmatch", "paint", "--mesh", str(tmp_path / "src.ply"), "--mask", str(tmp_path / "none.txt"),
                  "--out", str(out)]) == 2  # missing mask file: a clear error, exit status 2
+
+
+def summary_stats(summary: dict) -> dict:
+    """The match statistics inside a CLI summary (the summary adds the file names)."""
+    return {k: v for k, v in summary.items() if k not in ("mesh", "renders")}
+
+
+def test_cli_takes_procedural_mesh_names(tmp_path):
+    from jmeshtex.cli import main
+
+    out = tmp_path / "out"
+    code = main(["meshmatch", "transfer", "--source", "striped-sphere:3", "--target", "icosphere:3",
+                 "--out", str(out), "--quiet", "--steps", "1"])
+    assert code == 0
+    assert load(out).mesh.vertex_colors.shape == (642, 3)

@@ -10,22 +10,24 @@ import pytest
 from jmeshtex.data import icosphere
 from jmeshtex.geometry import mesh_hierarchy, one_rings
 from jmeshtex.meshmatch import (
-    MeshMatchConfig,
+    Config,
     fan_distance_bound,
     fan_spectrum,
+    level_groups,
+    pad_level_arrays,
     prepare_side,
     rotation_distances,
 )
-from jmeshtex.meshmatch._fans import ancestors
-from jmeshtex.meshmatch._patchmatch import (
-    _iterate,
-    _make_src,
-    _pad_axis,
+from jmeshtex.meshmatch._features import ancestors
+from jmeshtex.meshmatch._prepare import level_arrays, pad_axis, search_tables
+from jmeshtex.meshmatch._search import (
+    SearchOptions,
+    Source,
+    StepWeights,
     _random_candidates,
-    _search_tables,
-    _side_arrays,
-    _Src,
-    pad_level_arrays,
+    _smallest,
+    iterate,
+    make_source,
 )
 
 
@@ -49,7 +51,17 @@ def test_fan_distance_bound_is_below_every_rotation_and_tight_for_shifts(rng):
                       for n in range(n)]).min(1)
     np.testing.assert_allclose(np.asarray(rotation_distances(*ts, *ss, A)).min(1), exact, rtol=1e-10)
     assert np.all(bound <= exact + 1e-10)
-    assert np.mean(bound / exact) > 0.2  # informative, not a trivial 0
+    # informative, not a trivial 0: exactly the documented bound, per row (ring i, channel c)
+    # w_i [A (mean_T - mean_S)^2 + (|T - mean_T| - |S - mean_S|)^2], by loops (holds for every draw,
+    # unlike a threshold on the ratio bound / exact, whose distribution reaches below any fixed value)
+    formula, wn = np.zeros(n), np.asarray(w)
+    for m in range(n):
+        for i in range(R):
+            for c in range(C):
+                tr, sr = t[m, i, :, c], s[m, i, :, c]
+                mt, ms = tr.mean(), sr.mean()
+                formula[m] += wn[i] * (A * (mt - ms) ** 2 + (np.linalg.norm(tr - mt) - np.linalg.norm(sr - ms)) ** 2)
+    np.testing.assert_allclose(bound, formula, rtol=1e-10, atol=1e-12)
     # a rolled fan plus a constant per row: the bound is exact
     shifted = np.roll(t, 3, axis=2) + rng.standard_normal((n, R, 1, C))
     sh = fan_spectrum(jnp.asarray(shifted), w)
@@ -59,12 +71,12 @@ def test_fan_distance_bound_is_below_every_rotation_and_tight_for_shifts(rng):
 
 def _level(cfg, colors, v, f):
     """Source = target = (v, f) at level 0: host arrays, source tables, target colours."""
-    side = prepare_side(v, f, cfg)
+    side = prepare_side((v, f), cfg)
     radii = cfg.radii(side.edge[0])
-    s_arr, steps = _side_arrays(side, 0, radii, cfg, colors, np.ones(len(v), bool), side.features, np.float64)
-    t_arr, _ = _side_arrays(side, 0, radii, cfg, np.zeros_like(colors), np.ones(len(v), bool), side.features,
+    s_arr, steps = level_arrays(side, 0, radii, cfg, colors, np.ones(len(v), bool), side.features, np.float64)
+    t_arr, _ = level_arrays(side, 0, radii, cfg, np.zeros_like(colors), np.ones(len(v), bool), side.features,
                             np.float64)
-    up, down = _search_tables(side.hierarchy, 0, cfg.random_search_levels)
+    up, down = search_tables(side.hierarchy, 0, cfg.random_search_levels)
     return side, s_arr, t_arr, steps, up, down
 
 
@@ -74,20 +86,20 @@ def _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, Vp=None, dims=No
     if dims is not None:
         s_arr = pad_level_arrays(s_arr, **dims)
         t_arr = pad_level_arrays(t_arr, **dims)
-        up = [_pad_axis(u, 0, dims["num_vertices"]) for u in up]
-        down = [(_pad_axis(c, 0, dims["num_vertices"]), _pad_axis(n, 0, dims["num_vertices"], 1)) for c, n in down]
-        valid_index = _pad_axis(valid_index, 0, dims["num_vertices"], 0)
+        up = [pad_axis(u, 0, dims["num_vertices"]) for u in up]
+        down = [(pad_axis(c, 0, dims["num_vertices"]), pad_axis(n, 0, dims["num_vertices"], 1)) for c, n in down]
+        valid_index = pad_axis(valid_index, 0, dims["num_vertices"], 0)
     A = cfg.num_angles
     ring_weight = jnp.ones(cfg.num_radii, jnp.float64) / cfg.num_radii
-    src = _make_src(s_arr, up, down, valid_index, V, ring_weight, steps=steps, num_angles=A)
+    src = make_source(s_arr, up, down, valid_index, V, ring_weight, steps=steps, num_angles=A)
     Vp = t_arr.nb_index.shape[0]
     scalar = lambda x: jnp.asarray(x, jnp.float64)  # noqa: E731
-    return _iterate(
-        jax.tree.map(jnp.asarray, t_arr), src, jnp.asarray(_pad_axis(nnf, 0, Vp)),
-        jnp.zeros(Vp, jnp.int32), jnp.asarray(_pad_axis(colors, 0, Vp)), key, ring_weight,
-        scalar(1.0 / (cfg.num_radii * A * colors.shape[1] * colors.var())), scalar(1.0), scalar(0.01),
-        scalar(0.01), jnp.full(Vp, -1, jnp.int32), A=A, steps=steps, globals_=cfg.global_candidates,
-        sweeps=cfg.sweeps, exact=cfg.exact_candidates,
+    weights = StepWeights(ring_weight, scalar(1.0 / (cfg.num_radii * A * colors.shape[1] * colors.var())),
+                          scalar(1.0), scalar(0.01), scalar(0.01))
+    return iterate(
+        jax.tree.map(jnp.asarray, t_arr), src, jnp.asarray(pad_axis(nnf, 0, Vp)),
+        jnp.zeros(Vp, jnp.int32), jnp.asarray(pad_axis(colors, 0, Vp)), key, weights,
+        jnp.full(Vp, -1, jnp.int32), options=SearchOptions.of(cfg, steps),
     )
 
 
@@ -112,7 +124,7 @@ def test_one_iteration_propagates_a_correct_match_sweeps_rings(sweeps, rng, key)
     far vertex: one iteration (no random search) must fix exactly the ``sweeps``-ring disc."""
     v, f = _bumpy(2)
     colors = rng.uniform(0, 1, (len(v), 3))
-    cfg = MeshMatchConfig(levels=1, random_search_levels=0, global_candidates=0, sweeps=sweeps, exact_candidates=2)
+    cfg = Config(levels=1, random_search_levels=0, global_candidates=0, sweeps=sweeps, exact_candidates=2)
     _, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
     seed_vertex = 7
     dist = _ring_distance(f, len(v), seed_vertex)
@@ -130,7 +142,7 @@ def test_one_iteration_propagates_a_correct_match_sweeps_rings(sweeps, rng, key)
 def test_padding_leaves_every_real_vertex_unchanged(rng, key):
     v, f = _bumpy(2)
     colors = rng.uniform(0, 1, (len(v), 3))
-    cfg = MeshMatchConfig(levels=2, min_vertices=40)
+    cfg = Config(levels=2, min_vertices=40)
     side, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
     assert len(up) == cfg.random_search_levels  # structure fixed even above the hierarchy's top
     nnf = rng.integers(0, len(v), len(v)).astype(np.int32)
@@ -153,9 +165,9 @@ def test_random_search_candidates_are_descendants_of_the_hop_ancestor(rng, key):
     v, f = _bumpy(3)
     h = mesh_hierarchy(v, f, levels=3)
     for m in (0, 2):  # 2 is the top: every hop repeats the top-level search (identity maps)
-        up, down = _search_tables(h, m, 4)
+        up, down = search_tables(h, m, 4)
         V = len(h.vertices[m])
-        src = _Src(None, None, None, tuple(jnp.asarray(u) for u in up),
+        src = Source(None, None, None, tuple(jnp.asarray(u) for u in up),
                    tuple((jnp.asarray(c), jnp.asarray(n)) for c, n in down), jnp.arange(V, dtype=jnp.int32),
                    jnp.asarray(V, jnp.int32))
         s = jnp.asarray(rng.integers(0, V, 300).astype(np.int32))
@@ -174,15 +186,15 @@ def test_random_search_candidates_are_descendants_of_the_hop_ancestor(rng, key):
 def test_level_groups_share_a_step_and_change_no_result():
     """Padding levels into shared shapes (default) gives the same transfer as no padding at all."""
     from jmeshtex.meshmatch import meshmatch
-    from jmeshtex.meshmatch._patchmatch import level_groups
 
     assert level_groups([400, 200, 100, 50], 100) == [[0, 1], [2, 3]]
     assert level_groups([400, 150, 100], 0) == [[0], [1, 2]]  # 400 > 2.5 · 150: not paired
     v, f = _bumpy(2)
     colors = 0.5 + 0.4 * np.sin(4 * v[:, :3] + np.array([0.0, 1.0, 2.0]))
-    base = dict(levels=3, min_vertices=40, iterations=2, coarse_iterations=3, hks_eigenpairs=12)
-    padded = meshmatch(v, f, colors, v, f, config=MeshMatchConfig(bucket_vertices=100, **base))
-    plain = meshmatch(v, f, colors, v, f, config=MeshMatchConfig(bucket_vertices=0, **base))
+    base = dict(levels=3, min_vertices=40, steps=2, coarse_steps=3, hks_eigenpairs=12)
+    key = jax.random.key(0)
+    padded = meshmatch((v, f), colors, (v, f), key=key, config=Config(bucket_vertices=100, **base))
+    plain = meshmatch((v, f), colors, (v, f), key=key, config=Config(bucket_vertices=0, **base))
     stats = padded.stats["levels"]
     assert [s["padded_vertices"] for s in stats] == [max(s["vertices"] for s in stats[:2])] * 2 + [162]
     np.testing.assert_array_equal(padded.nnf, plain.nnf)
@@ -191,8 +203,6 @@ def test_level_groups_share_a_step_and_change_no_result():
 
 
 def test_smallest_picks_the_lowest_bounds_in_order(rng):
-    from jmeshtex.meshmatch._patchmatch import _smallest
-
     bound = rng.permutation(40).reshape(5, 8).astype(np.float64)
     bound[2] = np.inf  # nothing allowed: the picks carry infinite bounds (never accepted)
     cands = np.arange(40, dtype=np.int32).reshape(5, 8) + 100

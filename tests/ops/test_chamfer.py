@@ -206,6 +206,7 @@ def test_finite_gradient_at_coincident_points():
     assert np.isfinite(np.asarray(gn)).all()  # |cos| at cos = 0
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises_typed_errors():
     p = jnp.zeros((4, 3))
     with pytest.raises(InputError, match="same dimension"):

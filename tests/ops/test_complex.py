@@ -345,6 +345,7 @@ def test_attention_vmap_matches_loop(rng):
 # ----------------------------------------------------------------------------- errors
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_inputs_raise_typed_errors():
     x = jnp.ones((2, C), jnp.complex64)
     attention = _params("attention", jnp.complex64)

@@ -446,6 +446,7 @@ def test_elementwise_max_derivative_goes_to_the_first_maximum(rng):
 # ----------------------------------------------------------------------------- errors
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises_typed_errors(rng):
     v, f = _closed_mesh(rng)
     nb = face_neighborhood(f)

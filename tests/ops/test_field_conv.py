@@ -14,7 +14,15 @@ from jax.test_util import check_grads
 from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid
 from jmeshtex.geometry import VertexNeighborhood, pad_to, to_jax
-from jmeshtex.ops import FieldConvParams, _field_conv, field_conv
+from jmeshtex.ops import (
+    FieldConvParams,
+    _field_conv,
+    field_conv,
+    field_conv_filter_sums,
+    field_conv_mix,
+    field_conv_responses,
+    field_conv_terms,
+)
 from jmeshtex.ops._field_conv import _filtered_sums, _sums_impl
 
 _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
@@ -149,6 +157,23 @@ def test_matches_loop_reference(rng, activation):
     params = make_params(1)
     got = _conv(jnp.asarray(x), nb, params, embedding=emb, activation=activation)
     assert rel_err(got, loop_reference(x, nb, params, emb, activation=activation)) < 1e-12
+
+
+@pytest.mark.parametrize("activation", ["silu", "relu"])
+def test_public_stages_compose_to_field_conv(rng, activation):
+    """terms -> filter sums -> mix is field_conv, and the filter sums are Σ_k z φ with the responses."""
+    nb = random_nbhd(rng, V, K)
+    x = jnp.asarray(crandn(rng, V, C))
+    emb = rng.standard_normal((V, E))
+    params = make_params(3)
+    terms = field_conv_terms(x, nb)
+    sums = field_conv_filter_sums(terms, params, embedding=emb, activation=activation)
+    y = field_conv_mix(sums, params)
+    assert rel_err(y, _conv(x, nb, params, embedding=emb, activation=activation)) < 1e-12
+    phi = field_conv_responses(terms.arg_real, terms.arg_imag, params, embedding=emb, activation=activation)
+    assert phi.shape == (V, K, H, C)
+    np.testing.assert_allclose(sums[0], jnp.einsum("vkc,vkhc->vhc", terms.z_real, phi), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(sums[1], jnp.einsum("vkc,vkhc->vhc", terms.z_imag, phi), rtol=1e-12, atol=1e-14)
 
 
 def test_matches_loop_reference_without_embedding(rng):
@@ -379,6 +404,7 @@ def test_hand_written_vjp_matches_autodiff_to_second_order(rng):
 # ----------------------------------------------------------------------------- errors
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_inputs_raise_typed_errors(rng):
     nb = random_nbhd(rng, 4, 3)
     p = make_params(11, c=2, d=2, h=3, dtype=jnp.complex64)

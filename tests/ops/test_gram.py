@@ -32,7 +32,9 @@ def test_exact_and_loop_reference(rng):
     mask = rng.random(17) < 0.6
     g = np.asarray(_gram(jnp.asarray(y), jnp.asarray(mask)))
     np.testing.assert_allclose(g, _gram_ref(y, mask), rtol=1e-12)
-    np.testing.assert_allclose(g, g.T, rtol=1e-14)  # GEMM blocking may differ in the last bit
+    # GEMM blocking may differ in the last bit; an entry near 0 carries the rounding of the large
+    # products summed into it, so the bound is relative to the largest entry (seed 78 needs it)
+    np.testing.assert_allclose(g, g.T, rtol=1e-14, atol=1e-14 * np.abs(g).max())
     assert np.linalg.eigvalsh(g).min() > -1e-12
     np.testing.assert_allclose(gram_matrix(jnp.asarray(y)), _gram_ref(y, np.ones(17)), rtol=1e-12)
 
@@ -75,6 +77,7 @@ def test_dtype_and_gradients(dtype, rng):
     assert np.isfinite(np.asarray(g)).all() and g.dtype == dtype
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises_typed_errors():
     with pytest.raises(InputError, match=r"\[N, C\]"):
         gram_matrix(jnp.ones(3))

@@ -148,6 +148,7 @@ def test_gradients_at_random_and_zero_features(rng, op):
         check_grads(f, (point.real, point.imag), order=1, modes=("fwd", "rev"))
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_inputs_raise_typed_errors(rng):
     pm = random_map(rng)
     with pytest.raises(InputError, match="complex"):

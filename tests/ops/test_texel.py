@@ -243,6 +243,7 @@ def test_gradients(rng):
     assert np.isfinite(np.asarray(g)).all()
 
 
+@pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_bad_input_raises_typed_errors():
     taps = image_texel_neighborhood(2, 2)
     x = jnp.ones((4, 3))

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh
+from jmeshtex import Mesh, surfacecnn
 from jmeshtex.cli._main import main
 from jmeshtex.data import icosphere
 from jmeshtex.io import load_mesh, save_mesh, save_png
@@ -28,6 +28,7 @@ def test_synthesize_then_stylize(files, capsys):
     assert rc == 0
     summary = json.loads((out / "summary.json").read_text())
     assert len(summary["losses"]) == 3 and summary["size"] == 16
+    assert (out / "checkpoints").is_dir() and surfacecnn.load(out).losses.tolist() == summary["losses"]
     for name in ("texture.png", "textured.obj", "textured.png", "render_front.png", "surfacecnn.png"):
         assert (out / name).is_file(), name
     mesh = load_mesh(out / "textured.obj")
@@ -52,3 +53,19 @@ def test_errors_are_one_line(files, capsys):
     rc = main(["surfacecnn", "synthesize", "--mesh", str(files / "ball.obj"), "--exemplar",
                str(files / "exemplar.png"), "--vgg19", str(files / "vgg19.h5"), "--out", str(files / "o")])
     assert rc == 2 and "vgg19.h5" in capsys.readouterr().err
+
+
+def test_procedural_mesh_seed_and_resume(files):
+    """``--mesh`` takes a procedural spec; ``--seed`` is the key; ``--resume`` continues the checkpoints."""
+    args = ["surfacecnn", "synthesize", "--mesh", "icosphere:1", "--exemplar", str(files / "exemplar.png"),
+            "--size", "8", "--layers", "relu1_1", "--quiet"]
+    assert main([*args, "--steps", "4", "--seed", "1", "--out", str(files / "a")]) == 0
+    assert main([*args, "--steps", "4", "--seed", "2", "--out", str(files / "b")]) == 0
+    a, b = surfacecnn.load(files / "a"), surfacecnn.load(files / "b")
+    assert a.mesh.num_vertices == 42 and not np.array_equal(a.colors, b.colors)
+    # resuming run "a" (4 steps done) to 6 steps gives the uninterrupted 6-step run
+    assert main([*args, "--steps", "6", "--seed", "1", "--out", str(files / "a"), "--resume"]) == 0
+    assert main([*args, "--steps", "6", "--seed", "1", "--out", str(files / "c")]) == 0
+    resumed, fresh = surfacecnn.load(files / "a"), surfacecnn.load(files / "c")
+    assert resumed.stats["resumed_at"] == 4 and fresh.stats["resumed_at"] == 0
+    np.testing.assert_array_equal(resumed.colors, fresh.colors)

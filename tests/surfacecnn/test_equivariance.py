@@ -5,14 +5,13 @@ import numpy as np
 import pytest
 
 from jmeshtex.data import grid, icosphere
+from jmeshtex.metrics import load_vgg16, vgg_features
 from jmeshtex.surfacecnn import (
-    cnn_features_2d,
     mesh_cnn_features,
     texel_pyramid,
     texel_taps,
     texture_atlas,
     unwrap_uv,
-    vgg16_weights,
 )
 from jmeshtex.testing import REGISTRY, check
 
@@ -26,10 +25,10 @@ def test_rotating_frames_and_exemplar_together(seed):
     atlas = texture_atlas(v, f, v[f][..., :2], size=size)
     pyr = texel_pyramid(v, f, atlas, levels=1, rotation=np.pi / 2)
     image = np.random.default_rng(seed).uniform(size=(size, size, 3)).astype(np.float32)
-    weights = vgg16_weights()
+    weights = load_vgg16()
     mesh = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=LAYERS)
     turned = np.rot90(image, k=-1)  # R[i, j] = I[H - 1 - j, i]
-    flat = cnn_features_2d(jnp.asarray(turned.copy()[None]), weights, layers=LAYERS)
+    flat = vgg_features(jnp.asarray(turned.copy()[None]), weights, layers=LAYERS, pool="mean", ceil_mode=True)
     for name in LAYERS:
         want = np.asarray(flat[name][0])
         n = want.shape[0]

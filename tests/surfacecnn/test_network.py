@@ -7,15 +7,14 @@ import pytest
 
 from jmeshtex._errors import InputError
 from jmeshtex.data import grid
+from jmeshtex.metrics import load_vgg16, vgg_features
 from jmeshtex.ops import PoolGroups, grouped_pool
 from jmeshtex.surfacecnn import (
-    cnn_features_2d,
-    layer_names,
+    default_layers,
     mesh_cnn_features,
     required_levels,
     texel_pyramid,
     texture_atlas,
-    vgg16_weights,
 )
 from jmeshtex.surfacecnn._network import _pool_groups
 
@@ -33,12 +32,12 @@ def sheet():
 @pytest.mark.parametrize("pool", ["mean", "max"])
 def test_mesh_cnn_equals_2d_cnn_on_a_flat_sheet(sheet, seed, pool):
     size, pyr = sheet
-    weights = vgg16_weights()
+    weights = load_vgg16()
     image = np.random.default_rng(seed).uniform(size=(size, size, 3)).astype(np.float32)
     layers = LAYERS if pool == "mean" else LAYERS[:4]  # max pooling: the first pooled block suffices
     mesh = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=layers,
                              pool=pool)
-    flat = cnn_features_2d(jnp.asarray(image[None]), weights, layers=layers, pool=pool)
+    flat = vgg_features(jnp.asarray(image[None]), weights, layers=layers, pool=pool, ceil_mode=True)
     for name in layers:
         want = np.asarray(flat[name][0])
         got = np.asarray(mesh[name]).reshape(want.shape)
@@ -68,7 +67,7 @@ def test_segment_pooling_equals_grouped_pooling(rng):
 
 def test_jit_and_gradients(sheet):
     size, pyr = sheet
-    weights = vgg16_weights()
+    weights = load_vgg16()
     arrays = jax.tree.map(jnp.asarray, pyr.network_arrays())
 
     @jax.jit
@@ -84,8 +83,8 @@ def test_jit_and_gradients(sheet):
 
 def test_layer_bookkeeping_and_errors(sheet):
     _, pyr = sheet
-    weights = vgg16_weights()
-    names = layer_names(weights)
+    weights = load_vgg16()
+    names = default_layers(weights)
     assert names.count("pool5") == 1 and len(names) == 13 + 5
     assert required_levels(weights, ("relu1_1",)) == 0
     assert required_levels(weights, ("pool2", "relu1_1")) == 2
@@ -101,11 +100,11 @@ def test_float64_is_exact_to_rounding():
     v, f = grid(2)
     size = 8
     pyr = texel_pyramid(v, f, texture_atlas(v, f, v[f][..., :2], size=size), levels=1)
-    weights = jax.tree.map(lambda a: jnp.asarray(a, jnp.float64), vgg16_weights())
+    weights = jax.tree.map(lambda a: jnp.asarray(a, jnp.float64), load_vgg16())
     image = np.random.default_rng(0).uniform(size=(size, size, 3))
     layers = ("relu1_2", "pool1", "relu2_1")
     mesh = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=layers)
-    flat = cnn_features_2d(jnp.asarray(image[None]), weights, layers=layers)
+    flat = vgg_features(jnp.asarray(image[None]), weights, layers=layers, pool="mean", ceil_mode=True)
     for name in layers:
         want = np.asarray(flat[name][0]).reshape(-1, flat[name].shape[-1])
         assert mesh[name].dtype == jnp.float64

@@ -5,13 +5,7 @@ import numpy as np
 
 from jmeshtex.geometry import prepare_mesh, tracer_geometry
 from jmeshtex.io import load_mesh
-from jmeshtex.surfacecnn import (
-    SurfaceCNNConfig,
-    synthesize_texture,
-    texel_pyramid,
-    texel_taps,
-    texture_atlas,
-)
+from jmeshtex.surfacecnn import Config, synthesize, texel_pyramid, texel_taps, texture_atlas
 
 
 def test_spot_closed_surface_taps_never_stop_and_cross_seams(shared_data):
@@ -37,7 +31,7 @@ def test_untextured_cow_is_unwrapped_and_synthesised(shared_data):
     mesh, report = prepare_mesh(load_mesh(shared_data / "cow.obj"), repair=True)  # splits one bow-tie vertex
     assert mesh.uv is None
     ex = np.random.default_rng(0).uniform(size=(16, 16, 3)) * [1.0, 0.5, 0.2]
-    result = synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=32, steps=15), key=jax.random.key(0),
-                                layers=("relu1_1", "relu1_2"), progress=False)
+    result = synthesize(mesh, ex, Config(size=32, steps=15), key=jax.random.key(0), layers=("relu1_1", "relu1_2"),
+                        progress=False)
     assert result.mesh.uv.shape == (mesh.num_faces, 3, 2)
     assert result.final_loss < 0.5 * result.losses[0]

@@ -6,15 +6,10 @@ import pytest
 import skimage.data
 import skimage.transform
 
+from jmeshtex import CheckpointMismatchError, Mesh
 from jmeshtex._errors import ConfigError, InputError
 from jmeshtex.data import icosphere
-from jmeshtex.surfacecnn import (
-    SurfaceCNNConfig,
-    prepare_surface,
-    stylize_texture,
-    synthesize_texture,
-    unwrap_uv,
-)
+from jmeshtex.surfacecnn import Config, prepare_surface, stylize, synthesize, unwrap_uv
 
 LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1")
 
@@ -32,13 +27,12 @@ def exemplar():
 @pytest.fixture(scope="module")
 def sphere():
     v, f = icosphere(2)
-    return v, f, unwrap_uv(v, f)
+    return Mesh(v, f, uv=unwrap_uv(v, f))
 
 
 def test_gram_loss_drops_and_colours_move_to_the_exemplar(sphere, exemplar, key):
-    v, f, uv = sphere
-    config = SurfaceCNNConfig(size=32, steps=60)
-    result = synthesize_texture((v, f, uv), exemplar, config=config, key=key, layers=LAYERS, progress=False)
+    config = Config(size=32, steps=60)
+    result = synthesize(sphere, exemplar, config, key=key, layers=LAYERS, progress=False)
     assert result.losses.shape == (60,) and np.all(np.isfinite(result.losses))
     assert result.losses[0] / result.final_loss >= 10.0, (result.losses[0], result.final_loss)
     init = np.asarray(jax.random.uniform(key, result.colors.shape, minval=0.0, maxval=0.2))
@@ -50,56 +44,80 @@ def test_gram_loss_drops_and_colours_move_to_the_exemplar(sphere, exemplar, key)
     assert result.colors.min() >= 0 and result.colors.max() <= 1
     assert result.texture.shape == (32, 32, 3) and result.texture.dtype == np.float32
     assert result.mesh.texture is result.texture or np.array_equal(result.mesh.texture, result.texture)
-    np.testing.assert_array_equal(result.mesh.uv, uv)
+    np.testing.assert_array_equal(result.mesh.uv, sphere.uv)
 
 
 def test_learning_rate_schedule_and_config_errors():
-    c = SurfaceCNNConfig()
+    c = Config()
     assert [c.learning_rate_at(s) for s in (0, 199, 200, 399, 400, 499)] == [0.1, 0.1, 0.05, 0.05, 0.025, 0.025]
     assert (c.steps, c.init_low, c.init_high, c.pool) == (500, 0.0, 0.2, "mean")
     for bad in ({"size": 2}, {"steps": -1}, {"learning_rate": 0.0}, {"pool": "sum"}, {"boundary": "wrap"},
                 {"init_low": 0.5, "init_high": 0.1}, {"layers": ()}, {"dtype": "float16"}):
         with pytest.raises(ConfigError):
-            SurfaceCNNConfig(**bad)
+            Config(**bad)
 
 
 def test_stylize_keeps_content_and_bad_inputs(sphere, exemplar):
-    v, f, uv = sphere
-    config = SurfaceCNNConfig(size=32, steps=8, learning_rate=0.02, content_layer="relu1_2", content_weight=10.0)
-    surface = prepare_surface(v, f, uv, size=32, levels=0)
+    config = Config(size=32, steps=8, learning_rate=0.02, content_layer="relu1_2", content_weight=10.0)
+    surface = prepare_surface(sphere, size=32, levels=0)
     content = np.zeros((32, 32, 3))
     content[:, :16] = [0.9, 0.1, 0.1]
     content[:, 16:] = [0.1, 0.1, 0.9]
-    result = stylize_texture((v, f, uv), content, exemplar, config=config, layers=("relu1_1",), surface=surface,
-                             progress=False)
+    result = stylize(sphere, content, exemplar, config, layers=("relu1_1",), surface=surface, progress=False)
     # the content term keeps the left/right colour split
     col = surface.atlas.rows_cols()[1]
     left, right = result.colors[col < 14].mean(0), result.colors[col >= 18].mean(0)
     assert left[0] > right[0] and right[2] > left[2]
     assert result.final_loss < result.losses[0]
     with pytest.raises(InputError, match="no UVs"):
-        stylize_texture((v, f), content, exemplar, config=config, progress=False)
+        stylize((sphere.vertices, sphere.faces), content, exemplar, config, progress=False)
     with pytest.raises(InputError, match="exemplar"):
-        synthesize_texture((v, f, uv), np.zeros((4, 4, 5)), config=config, key=jax.random.key(0), progress=False)
+        synthesize(sphere, np.zeros((4, 4, 5)), config, key=jax.random.key(0), progress=False)
     with pytest.raises(InputError, match="surface was prepared"):
-        synthesize_texture((v, f, uv), exemplar, config=SurfaceCNNConfig(size=64), key=jax.random.key(0),
-                           surface=surface, layers=("relu1_1",), progress=False)
+        synthesize(sphere, exemplar, Config(size=64), key=jax.random.key(0), surface=surface, layers=("relu1_1",),
+                   progress=False)
 
 
-def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path):
+def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch):
     from jmeshtex.data import grid
+    from jmeshtex.io import Checkpoints
 
     v, f = grid(2)
-    mesh = (v, f, v[f][..., :2])
+    mesh = Mesh(v, f, uv=v[f][..., :2])
     ex = np.random.default_rng(0).uniform(size=(16, 16, 3))
     kw = dict(key=jax.random.key(3), layers=("relu1_1",), progress=False)
-    full = synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=16, steps=10), **kw)
-    ckpt = tmp_path / "ckpt.npz"
-    synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=16, steps=6), checkpoint=ckpt, **kw)
-    resumed = synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=16, steps=10), checkpoint=ckpt,
-                                 checkpoint_every=3, **kw)
+    full = synthesize(mesh, ex, Config(size=16, steps=10), **kw)
+    # a shorter run, then a longer one continuing from its last checkpoint
+    ckpt = tmp_path / "ckpt"
+    synthesize(mesh, ex, Config(size=16, steps=6), checkpoint=ckpt, **kw)
+    resumed = synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, checkpoint_every=3, **kw)
     assert resumed.stats["resumed_at"] == 6
     np.testing.assert_array_equal(resumed.losses, full.losses)
     np.testing.assert_array_equal(resumed.colors, full.colors)
-    with pytest.raises(InputError, match="different run"):
-        synthesize_texture(mesh, ex, config=SurfaceCNNConfig(size=8, steps=10), checkpoint=ckpt, **kw)
+    assert Checkpoints(ckpt).steps() == [9, 10]
+    # a run killed right after its step-4 checkpoint resumes from step 4
+    killed = tmp_path / "killed"
+    save = Checkpoints.save
+
+    def save_then_die(self, step, state, **meta):
+        save(self, step, state, **meta)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Checkpoints, "save", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=killed, checkpoint_every=4, **kw)
+    monkeypatch.setattr(Checkpoints, "save", save)
+    assert Checkpoints(killed).steps() == [4]
+    again = synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=killed, checkpoint_every=4, **kw)
+    assert again.stats["resumed_at"] == 4
+    np.testing.assert_array_equal(again.losses, full.losses)
+    np.testing.assert_array_equal(again.colors, full.colors)
+    # a different run is refused: texels, exemplar, key
+    with pytest.raises(CheckpointMismatchError, match="different run.*texels"):
+        synthesize(mesh, ex, Config(size=8, steps=10), checkpoint=ckpt, **kw)
+    with pytest.raises(CheckpointMismatchError, match="data"):
+        synthesize(mesh, ex[::-1], Config(size=16, steps=10), checkpoint=ckpt, **kw)
+    with pytest.raises(CheckpointMismatchError, match="key"):
+        synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, **{**kw, "key": jax.random.key(4)})
+    with pytest.raises(InputError, match="past this run"):
+        synthesize(mesh, ex, Config(size=16, steps=5), checkpoint=ckpt, **kw)

@@ -43,16 +43,17 @@ def demo_stage(out_dir, *, quick: bool) -> dict:
     import jax
 
     from ...fl import load_pretrained, reconstruct, side_by_side
-    from ...render import write_png
+    from ...io import save_png
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    params, config = load_pretrained()
+    model = load_pretrained()
+    config = model.config
     mesh = demo_mesh(quick)
-    result = reconstruct(params, config, mesh, key=jax.random.key(0), lpips=not quick)
+    result = reconstruct(model, mesh, key=jax.random.key(0), lpips=not quick)
     files = [out / "fl_texture.png", out / "fl.png"]
-    write_png(files[0], (result.texture * 255).round().astype(np.uint8))
+    save_png(result.texture, files[0])
     side_by_side(mesh, result, files[1], y_up=False, view=(60.0, -90.0))
     seconds = time.perf_counter() - t0
     m = result.metrics

@@ -9,14 +9,14 @@ from a small analytic codec with the FL-VAE's contract (complex ``[V, d]`` in th
 with ``ĝ_v`` the unit tangent direction of the meridian (the stripes' gradient direction) in v's
 frame, and decoding ``s = ½ (|z_0| − a) + ½ (1 + a − |z_1|)`` clipped to [0, 1]. Magnitudes carry the
 colour, phases the stripes' orientation: a model must learn both the stripe statistics and a
-coherent direction field. With a trained FL-VAE (:func:`jmeshtex.fl.fl_vae_encoder`) the same
-pipeline runs on real textures (see ``benchmarks/fldm.py``).
+coherent direction field. With a trained FL-VAE (:func:`jmeshtex.fldm.fl_vae_encoder`) the same
+pipeline runs on real textures (see ``benchmarks/fldm_spot.py``).
 
 :func:`learning_check` trains a tiny model and compares the VGG Gram distance (texture statistics)
 of its samples' renders to the exemplar's render with that of an untrained model's samples, and
 measures the samples' pairwise LPIPS diversity. ``learning_check(codec="fl_vae")`` runs the same
 check through the shipped FL-VAE instead of the analytic codec (encode the copies with
-:func:`~jmeshtex.fl.fl_vae_encoder`, decode sample latents with
+:func:`~jmeshtex.fldm.fl_vae_encoder`, decode sample latents with
 :func:`~jmeshtex.fl.decode_vertex_colors`).
 """
 
@@ -74,12 +74,12 @@ def stripe_decoder(z: Complex[np.ndarray, "V 2"]) -> Float[np.ndarray, " V"]:
 
 def tiny_config(quick: bool = True):
     """The demo / learning-check configuration (seconds on a CPU)."""
-    from ...fldm import FLDMConfig
+    from ...fldm import Config
 
     if quick:
-        return FLDMConfig.tiny(latent_channels=2, n_copies=4, copy_vertices=500, train_steps=800, batch_size=2,
-                               learning_rate=3e-3, widths=(16, 32), hdim=8, num_train_steps=200, bucket=64)
-    return FLDMConfig.cpu(latent_channels=2, n_copies=8, copy_vertices=1500, train_steps=1500, num_train_steps=1000)
+        return Config.tiny(latent_channels=2, n_copies=4, copy_vertices=500, steps=800, batch_size=2,
+                           learning_rate=3e-3, widths=(16, 32), hdim=8, diffusion_steps=200, bucket=64)
+    return Config.cpu(latent_channels=2, n_copies=8, copy_vertices=1500, steps=1500, diffusion_steps=1000)
 
 
 def render_views(mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bool = False) -> np.ndarray:
@@ -106,18 +106,19 @@ def render_rgb_views(mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool
 
 
 def learning_check(
-    *, quick: bool = True, n_samples: int = 2, seed: int = 0, progress: bool = False, codec: str = "stripes"
+    *, quick: bool = True, n_samples: int = 2, key: jax.Array | None = None, progress: bool = False,
+    codec: str = "stripes",
 ) -> dict:
     """Train a tiny FLDM on the striped sphere and measure fidelity and diversity of its samples.
 
     Args:
       quick: :func:`tiny_config` preset (True) or the larger CPU one.
       n_samples: samples of the trained and of the untrained model (same noise).
-      seed: seed of the copies, the initialisation, training and sampling.
+      key: PRNG key of the copies, the initialisation, training and sampling (default ``key(0)``).
       progress: tqdm bars.
       codec: ``"stripes"``: the analytic codec of the module docstring (2 channels);
         ``"fl_vae"``: the shipped FL-VAE (:func:`~jmeshtex.fl.load_pretrained`): copies encoded with
-        :func:`~jmeshtex.fl.fl_vae_encoder` (colours read on the exemplar), sample latents decoded with
+        :func:`~jmeshtex.fldm.fl_vae_encoder` (colours read on the exemplar), sample latents decoded with
         :func:`~jmeshtex.fl.decode_vertex_colors` and the colours rendered.
 
     Returns:
@@ -129,20 +130,15 @@ def learning_check(
     Raises:
       ConfigError: unknown ``codec``.
     """
+    from ... import fldm
     from ..._errors import ConfigError
-    from ...fldm import (
-        FLDMModel,
-        build_dataset,
-        init_denoiser,
-        sample_fldm,
-        sampling_geometry,
-        train_fldm,
-    )
     from ...metrics import gram_distance, load_vgg16, lpips
 
     t0 = time.perf_counter()
+    key = jax.random.key(0) if key is None else key
+    k_codec, k_data, k_train, k_sample = jax.random.split(key, 4)
     exemplar = striped_sphere(subdivisions=3)
-    cfg = tiny_config(quick).replace(seed=seed)
+    cfg = tiny_config(quick)
     if codec == "stripes":
         encode = stripe_encoder
 
@@ -150,26 +146,23 @@ def learning_check(
             return intensity_to_rgb(stripe_decoder(z))
     elif codec == "fl_vae":
         from ...fl import decode_vertex_colors, load_pretrained
-        from ...fldm import fl_vae_encoder
 
-        vae_params, vae_config = load_pretrained()
-        encode = fl_vae_encoder(vae_params, vae_config, exemplar, key=jax.random.key(seed + 3))
-        cfg = cfg.replace(latent_channels=vae_config.latent_dim)
+        vae = load_pretrained()
+        encode = fldm.fl_vae_encoder(vae, exemplar, key=k_codec)
+        cfg = cfg.replace(latent_channels=vae.config.latent_dim)
 
         def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
-            return np.asarray(decode_vertex_colors(vae_params, vae_config, mesh, jnp.asarray(z, jnp.complex64)),
-                              np.float64)
+            return np.asarray(decode_vertex_colors(vae, mesh, jnp.asarray(z, jnp.complex64)), np.float64)
     else:
         raise ConfigError(f"codec must be 'stripes' or 'fl_vae', got {codec!r}")
-    data = build_dataset(exemplar, cfg, encode=encode, progress=progress)
-    result = train_fldm(data, cfg, progress=progress)
+    data = fldm.build_dataset(exemplar, cfg, encode=encode, key=k_data, progress=progress)
+    result = fldm.train(data, cfg, key=k_train, progress=progress)
     target = data.meshes[0]
-    geo = sampling_geometry(target, result.model)
-    untrained = FLDMModel(init_denoiser(jax.random.key(cfg.seed), cfg, geo), cfg, data.scale)
-    key = jax.random.key(seed + 7)
+    geo = fldm.sampling_geometry(target, result.model)
+    untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
     steps = 25
-    z_tr = sample_fldm(result.model, geo, key=key, n=n_samples, steps=steps)
-    z_un = sample_fldm(untrained, geo, key=key, n=n_samples, steps=steps)
+    z_tr = fldm.sample(result.model, geo, key=k_sample, n=n_samples, steps=steps)
+    z_un = fldm.sample(untrained, geo, key=k_sample, n=n_samples, steps=steps)
     weights = load_vgg16()
     # the exemplar's stripes on the same copy the samples live on, central crops (texture only)
     ref = render_views(target, rgb_to_intensity(target.vertex_colors), size=96, crop=True)
@@ -187,7 +180,7 @@ def learning_check(
         "gram_untrained": gram(un),
         "gram_codec": gram([rec]),
         "lpips_diversity": div,
-        "losses": result.losses,
+        "losses": result.losses["loss"],
         "seconds": time.perf_counter() - t0,
         "model": result.model,
         "target": target,
@@ -207,7 +200,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     Returns:
       ``{"png", "seconds", "loss_first", "loss_last", "summary"}``.
     """
-    from ...fldm import LOSS_NAMES, build_dataset, inpaint_fldm, sample_fldm, train_fldm
+    from ... import fldm
     from ...geometry import remesh
     from ...render import render_grid
 
@@ -215,19 +208,19 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     out = pathlib.Path(out_dir)
     cfg = tiny_config(True)  # full: the learning check's configuration (800 steps, about a minute)
     if quick:  # a smoke run: a few seconds of training
-        cfg = cfg.replace(n_copies=2, copy_vertices=300, train_steps=120)
+        cfg = cfg.replace(n_copies=2, copy_vertices=300, steps=120)
     exemplar = striped_sphere(subdivisions=3)
-    data = build_dataset(exemplar, cfg, encode=stripe_encoder, progress=False)
-    result = train_fldm(data, cfg, progress=False)
+    k_data, k_train, key = jax.random.split(jax.random.key(0), 3)
+    data = fldm.build_dataset(exemplar, cfg, encode=stripe_encoder, key=k_data, progress=False)
+    result = fldm.train(data, cfg, key=k_train, progress=False)
     model = result.model
     target = data.meshes[0]
-    key = jax.random.key(0)
-    z = sample_fldm(model, target, key=key, n=2, steps=25)
+    z = fldm.sample(model, target, key=key, n=2, steps=25)
     known = stripe_encoder(target)
     mask = target.vertices[:, 2] > 0
-    zi = inpaint_fldm(model, target, known, mask, key=key, steps=25)[0]
+    zi = fldm.inpaint(model, target, known, mask, key=key, steps=25)[0]
     fine = remesh(exemplar, n_vertices=2 * target.num_vertices, seed=99)
-    zf = sample_fldm(model, fine, key=key, n=1, steps=25)[0]
+    zf = fldm.sample(model, fine, key=key, n=1, steps=25)[0]
     view = VIEWS[0]
     images = [
         render_views(exemplar, rgb_to_intensity(exemplar.vertex_colors), size=256)[0],
@@ -241,10 +234,10 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
                 titles=["exemplar", "sample 1", "sample 2", "inpaint (top kept)", f"transfer {fine.num_vertices} V"],
                 columns=5)
     seconds = time.perf_counter() - t0
-    losses = result.losses
+    losses = result.losses["loss"]
     first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
     summary = (f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
-               f"{LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
+               f"{fldm.LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
                f"{seconds:.1f} s")
     return {"png": str(out / "fldm.png"), "seconds": seconds, "loss_first": first, "loss_last": last,
             "summary": summary}

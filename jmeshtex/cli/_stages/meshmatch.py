@@ -11,14 +11,16 @@ import numpy as np
 def demo_meshes(quick: bool = True):
     """A bumpy sphere with a procedural colour field (source) and its subdivided copy (target).
 
-    Returns ``(source_vertices, source_faces, source_colors, target_vertices, target_faces,
-    target_truth)``: the truth is the same colour field evaluated at the target's vertices.
+    Returns:
+      ``(source, target, truth)``: the source :class:`~jmeshtex.Mesh` with ``vertex_colors``, the
+      target mesh (4× the vertices) and ``[Vt, 3]`` the same colour field at the target's vertices.
 
     Example:
-      >>> sv, sf, sc, tv, tf, truth = demo_meshes(quick=True)
-      >>> sv.shape, tv.shape, truth.shape
-      ((642, 3), (2562, 3), (2562, 3))
+      >>> source, target, truth = demo_meshes(quick=True)
+      >>> source.vertex_colors.shape, target.num_vertices, truth.shape
+      ((642, 3), 2562, (2562, 3))
     """
+    from ... import Mesh
     from ...data import icosphere
     from ...geometry import subdivide_midpoint
 
@@ -37,30 +39,8 @@ def demo_meshes(quick: bool = True):
             0.5 + 0.3 * np.cos(4 * p[:, 0] + 3 * p[:, 1]),
         ], axis=1)
 
-    return bumpy(v), f, colour(v), bumpy(tv), fine.faces, colour(tv)
-
-
-def psnr(a, b) -> float:
-    """Peak signal-to-noise ratio of colours in [0, 1]: ``10 log10(1 / MSE)`` (dB).
-
-    Example:
-      >>> round(psnr(np.zeros(4), np.full(4, 0.1)), 6)
-      20.0
-    """
-    mse = float(np.mean((np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2))
-    return float("inf") if mse == 0 else float(10.0 * np.log10(1.0 / mse))
-
-
-def nnf_colors(source_vertices, nnf) -> np.ndarray:
-    """Colour-code a nearest-neighbour field: each target vertex shows its match's source position.
-
-    Example:
-      >>> nnf_colors(np.array([[0.0, 0, 0], [1, 2, 3]]), np.array([1, 0])).tolist()
-      [[1.0, 1.0, 1.0], [0.0, 0.0, 0.0]]
-    """
-    v = np.asarray(source_vertices, np.float64)
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    return ((v - lo) / np.where(hi > lo, hi - lo, 1.0))[np.asarray(nnf)]
+    source = Mesh(bumpy(v), f, vertex_colors=colour(v), name="source")
+    return source, Mesh(bumpy(tv), fine.faces, name="target"), colour(tv)
 
 
 def demo_stage(out_dir, *, quick: bool) -> dict:
@@ -78,30 +58,34 @@ def demo_stage(out_dir, *, quick: bool) -> dict:
       >>> import tempfile
       >>> out = demo_stage(tempfile.mkdtemp(), quick=True)  # doctest: +SKIP
     """
+    import jax
+
     from ... import render
-    from ...meshmatch import MeshMatchConfig, meshmatch
+    from ...meshmatch import Config, meshmatch, nnf_colors
+    from ...metrics import psnr
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    sv, sf, sc, tv, tf, truth = demo_meshes(quick)
-    result = meshmatch(sv, sf, sc, tv, tf, config=MeshMatchConfig(), seed=0)
+    source, target, truth = demo_meshes(quick)
+    sc = source.vertex_colors
+    result = meshmatch(source, sc, target, key=jax.random.key(0), config=Config())
     rng = np.random.default_rng(0)
-    random_colors = sc[rng.integers(0, len(sv), len(tv))]
+    random_colors = sc[rng.integers(0, source.num_vertices, target.num_vertices)]
     size = (320, 300)
     images = [
-        render.render_mesh(sv, sf, out / "meshmatch_source.png", vertex_colors=sc, size=size, title="source"),
-        render.render_mesh(tv, tf, out / "meshmatch_target.png", vertex_colors=np.clip(result.colors, 0, 1),
+        render.render_mesh(*source, out / "meshmatch_source.png", vertex_colors=sc, size=size, title="source"),
+        render.render_mesh(*target, out / "meshmatch_target.png", vertex_colors=np.clip(result.colors, 0, 1),
                            size=size, title="target (transferred)"),
-        render.render_mesh(tv, tf, out / "meshmatch_nnf.png", vertex_colors=nnf_colors(sv, result.nnf),
+        render.render_mesh(*target, out / "meshmatch_nnf.png", vertex_colors=nnf_colors(source, result.nnf),
                            size=size, title="nearest-neighbour field"),
     ]
     render.render_grid(images, out / "meshmatch.png", columns=3)
     seconds = time.perf_counter() - t0
     value, baseline = psnr(result.colors, truth), psnr(random_colors, truth)
     return {
-        "summary": (f"MeshMatch self-transfer {len(sv)} → {len(tv)} vertices: PSNR {value:.1f} dB "
-                    f"(random field {baseline:.1f} dB), {seconds:.1f} s"),
+        "summary": (f"MeshMatch self-transfer {source.num_vertices} → {target.num_vertices} vertices: PSNR "
+                    f"{value:.1f} dB (random field {baseline:.1f} dB), {seconds:.1f} s"),
         "psnr_db": value,
         "random_psnr_db": baseline,
         "seconds": seconds,

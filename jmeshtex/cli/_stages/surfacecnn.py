@@ -29,7 +29,8 @@ def demo_stage(out_dir, *, quick: bool) -> dict:
     """Synthesise a 128² texture on an xatlas-unwrapped torus; write renders and summarise.
 
     Args:
-      out_dir: folder for ``texture.png``, ``textured.obj``, the renders and ``surfacecnn.png``.
+      out_dir: the result folder of :func:`jmeshtex.surfacecnn.save` (``texture.png``,
+        ``textured.obj``, the renders, ``surfacecnn.png``, ``result.npz``).
       quick: 40 steps on the first three VGG-16 blocks (< 30 s on 2 cores); otherwise 150 steps on
         every ReLU and pool output.
 
@@ -42,18 +43,17 @@ def demo_stage(out_dir, *, quick: bool) -> dict:
     """
     import jax
 
+    from ... import surfacecnn
     from ...data import torus
-    from ...surfacecnn import SurfaceCNNConfig, save_result, synthesize_texture
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    v, f = torus(48, 24)
     exemplar = demo_exemplar()
-    config = SurfaceCNNConfig(size=128, steps=40 if quick else 150)
-    result = synthesize_texture((v, f, None), exemplar, config=config, key=jax.random.key(0),
-                                layers=QUICK_LAYERS if quick else None, progress=False)
-    summary = save_result(result, out, exemplar=exemplar, title="surface CNN")
+    config = surfacecnn.Config(size=128, steps=40 if quick else 150)
+    result = surfacecnn.synthesize(torus(48, 24), exemplar, config, key=jax.random.key(0),
+                                   layers=QUICK_LAYERS if quick else None, progress=False)
+    summary = surfacecnn.save(result, out, exemplar=exemplar, title="surface CNN")
     seconds = time.perf_counter() - t0
     drop = float(result.losses[0] / max(result.final_loss, 1e-30))
     return {

@@ -6,7 +6,7 @@
   corners exactly (edge features, symmetric max over edges and neighbours, instance norm over faces).
 - ``dgts.discriminator``: per-face scores, invariant to rigid motions and relabellings.
 
-Importing this module registers both entries (the lead adds it to ``ENTRY_MODULES``).
+Importing this module registers both entries.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ set; colours at the samples are the barycentric interpolation of a random per-ve
 - ``fl.decoder``: decoded colours at each vertex and averaged over its samples, from a random latent
   field: invariant scalars.
 
-Importing this module registers the entries (the lead adds it to ``ENTRY_MODULES``).
+Importing this module registers the entries (:func:`jmeshtex.testing.load_entries` imports it).
 """
 
 from __future__ import annotations
@@ -35,15 +35,15 @@ SMOOTH = ("cylinder", "cone")
 
 
 def _config():
-    from ...fl import FLVAEConfig
+    from ...fl import Config
 
-    return FLVAEConfig(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
+    return Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
 
 
 def _init(key, dtype):
-    from ...fl import init_fl_vae
+    from ...fl import init
 
-    return init_fl_vae(key, _config(), dtype=dtype)
+    return init(_config(), key=key, dtype=dtype).params
 
 
 def _samples(state):

@@ -1,18 +1,18 @@
 """Registers the FLDM denoiser and sampler in the equivariance harness (:mod:`jmeshtex.testing`).
 
-- ``fl.fldm_denoiser``: ``ε̂(z_t, t)`` at a fixed timestep: tangent latents in, tangent noise out.
+- ``fldm.denoiser``: ``ε̂(z_t, t)`` at a fixed timestep: tangent latents in, tangent noise out.
   Equivariant to gauge changes, relabelling, rigid motions and exact isometries (folds, hinges);
   the coarse level comes from a greedy decimation, which is not a continuous function of the metric,
   so smooth bendings (cylinder) are reported, not asserted (as for ``ops.tangent_pool_unpool``).
-- ``fl.fldm_denoiser_labels``: the same with a per-vertex label map in the filters (labels are the
+- ``fldm.denoiser_labels``: the same with a per-vertex label map in the filters (labels are the
   argmax of a random scalar field, so they follow relabelling and are unchanged by isometries).
-- ``fl.fldm_sampler``: *distributional* equivariance. A sampler is a random map; with every random
+- ``fldm.sampler``: *distributional* equivariance. A sampler is a random map; with every random
   draw made an input (initial noise ``z_T`` and the per-step noise of a stochastic DDIM, η = 0.5),
   it is a deterministic map from noise to samples. Tangent noise has the same law in every gauge,
   so pushing the same noise forward by a transform (what the harness does to tangent inputs) must
   give the transformed sample: that is the statement "samples commute with the transform".
 
-Importing this module registers the entries (the lead adds it to ``ENTRY_MODULES``).
+Importing this module registers the entries (:func:`jmeshtex.testing.load_entries` does).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...fldm import FLDMConfig, make_schedule, sample_from_noise
+from ...fldm import Config, make_schedule, sample_from_noise
 from .. import Entry, Field, register
 from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 from .._state import regauge_neighborhood
@@ -31,7 +31,7 @@ FLDM_TRANSFORMS = ("rigid", "reflection", "gauge", "permute_vertices", "permute_
                    "fold", "folds", "hinge")
 FLDM_REPORT = ("cylinder",)
 
-CONFIG = FLDMConfig.tiny(latent_channels=2, widths=(4, 6), hdim=4, knn=7, activation="silu", time_features=8)
+CONFIG = Config.tiny(latent_channels=2, widths=(4, 6), hdim=4, knn=7, activation="silu", time_features=8)
 LABEL_CONFIG = CONFIG.replace(num_labels=3)
 SAMPLER_STEPS = 3
 SAMPLER_SCHEDULE = make_schedule("linear", num_steps=50)
@@ -44,7 +44,7 @@ def _geometry(state):
     from ...geometry import to_jax
 
     def build():
-        geo = denoiser_geometry(state.vertices, state.faces, knn=CONFIG.knn, pool_ratio=0.5)
+        geo = denoiser_geometry((state.vertices, state.faces), knn=CONFIG.knn, pool_ratio=0.5)
         fine = regauge_neighborhood(geo.fine, state.gauge)
         pm = geo.pool
         turn = np.exp(1j * state.gauge)
@@ -64,7 +64,7 @@ def _init_for(config):
         from ...fldm import denoiser_geometry, init_denoiser
 
         cdt = jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
-        geo = denoiser_geometry(*icosahedron(), knn=config.knn, pool_ratio=0.5)
+        geo = denoiser_geometry(icosahedron(), knn=config.knn, pool_ratio=0.5)
         params = init_denoiser(key, config, geo, dtype=cdt)
         # random (not unit) FRN gains so the check is not blind to any channel
         return jax.tree.map(lambda p: p * (1.0 + 0.5 * jnp.cos(jnp.arange(p.size).reshape(p.shape)).astype(p.dtype)), params)
@@ -102,16 +102,16 @@ def _sampler(state, params, z_T, noise):
 
 
 ENTRIES = (
-    register(Entry("fl.fldm_denoiser", _denoiser, {"z": (VERTEX_TANGENT, CONFIG.latent_channels)}, FLDM_TRANSFORMS,
-                   init=_init_for(CONFIG), group="models", report=FLDM_REPORT,
+    register(Entry("fldm.denoiser", _denoiser, {"z": (VERTEX_TANGENT, CONFIG.latent_channels)}, FLDM_TRANSFORMS,
+                   init=_init_for(CONFIG), group="fldm", report=FLDM_REPORT,
                    doc="FLDM U-Net ε̂(z_t, t): field convs with timestep in the filters, pool/unpool")),
-    register(Entry("fl.fldm_denoiser_labels", _denoiser_labels,
+    register(Entry("fldm.denoiser_labels", _denoiser_labels,
                    {"z": (VERTEX_TANGENT, CONFIG.latent_channels), "s": (VERTEX_SCALAR, 3)}, FLDM_TRANSFORMS,
-                   init=_init_for(LABEL_CONFIG), group="models", report=FLDM_REPORT,
+                   init=_init_for(LABEL_CONFIG), group="fldm", report=FLDM_REPORT,
                    doc="FLDM U-Net with a per-vertex label map (argmax of s) in the filters")),
-    register(Entry("fl.fldm_sampler", _sampler,
+    register(Entry("fldm.sampler", _sampler,
                    {"z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
                     "noise": (VERTEX_TANGENT, CONFIG.latent_channels * SAMPLER_STEPS)},
-                   FLDM_TRANSFORMS, init=_init_for(CONFIG), group="models", report=FLDM_REPORT,
+                   FLDM_TRANSFORMS, init=_init_for(CONFIG), group="fldm", report=FLDM_REPORT,
                    doc="DDIM sampler (3 steps, η=0.5) as a map of its noise: samples commute with transforms")),
 )

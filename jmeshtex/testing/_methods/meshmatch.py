@@ -24,7 +24,7 @@ NUM_ANGLES = 6
 def _fan(state, params, x, u):
     """Fans ``[V, R·A·C]`` of colours ``x`` with angle 0 along ``u`` (state gauge → intrinsic)."""
     ref = np.asarray(u)[:, 0].astype(np.complex128) * np.exp(1j * state.gauge)
-    fans = fan_descriptor(state.vertices, state.faces, jnp.asarray(x), radii=RADII, num_angles=NUM_ANGLES,
+    fans = fan_descriptor((state.vertices, state.faces), jnp.asarray(x), radii=RADII, num_angles=NUM_ANGLES,
                           reference=ref)
     return Field(VERTEX_SCALAR, fans.reshape(fans.shape[0], -1))
 

@@ -9,9 +9,9 @@ import pytest
 
 from jmeshtex.data import grid, icosahedron
 from jmeshtex.dgts import (
+    Config,
     Discriminator,
     Generator,
-    TrainConfig,
     discriminator,
     generate,
     generator_level,
@@ -89,8 +89,8 @@ def test_gradient_penalty_of_a_linear_critic_is_exact():
 
 
 def test_init_level_widths_and_flax_wrappers_agree():
-    c = TrainConfig(num_layers=4, start_features=8, min_features=4, max_features=16)
-    g = init_level(jax.random.key(0), c, 1, generator=True)
+    c = Config(num_layers=4, start_features=8, min_features=4, max_features=16)
+    g = init_level(c, 1, generator=True, key=jax.random.key(0))
     assert [g.embed.weight.shape[1]] + [x.weight.shape[1] for x in g.convs] == list(c.level_features(1, generator=True))
     v, f = icosahedron()
     nb, x = face_neighborhood(f), jnp.asarray(v, jnp.float32)

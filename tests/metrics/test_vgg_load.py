@@ -1,4 +1,4 @@
-"""Weight loaders: the embedded VGG-16 and VGG-19 from a user .npz (Keras and PyTorch layouts)."""
+"""Weight loaders: the embedded VGG-16 and VGG-19 from a user .npz / .h5 (Keras and PyTorch layouts)."""
 
 import importlib.util
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from jmeshtex._errors import ConfigError, MeshIOError
-from jmeshtex.surfacecnn import VGG19_NAMES, cnn_features_2d, load_vgg19, vgg16_weights
+from jmeshtex.metrics import VGG19_NAMES, load_vgg16, load_vgg19, vgg_features
 
 _CHANNELS = [(3, 4), (4, 4), (4, 6), (6, 6)] + [(6, 6)] * 12
 
@@ -43,7 +43,8 @@ def test_vgg19_npz_round_trip(tmp_path, rng, scheme):
     want = ([255.0 - 103.939, 127.5 - 116.779, 0.0 - 123.68] if scheme == "keras"
             else (np.array([0.0, 0.5, 1.0]) - [0.485, 0.456, 0.406]) / [0.229, 0.224, 0.225])
     np.testing.assert_allclose(w.preprocess(x)[0], want, rtol=1e-5)
-    out = cnn_features_2d(jnp.full((1, 8, 8, 3), 0.5, jnp.float32), w, layers=("pool3", "relu4_4"))
+    out = vgg_features(jnp.full((1, 8, 8, 3), 0.5, jnp.float32), w, layers=("pool3", "relu4_4"), pool="mean",
+                       ceil_mode=True)
     assert out["pool3"].shape == (1, 1, 1, 6) and out["relu4_4"].shape == (1, 1, 1, 6)
 
 
@@ -79,6 +80,6 @@ def test_h5_needs_h5py_and_names_the_fix(tmp_path, rng):
 
 
 def test_vgg16_is_the_embedded_torchvision_network():
-    w = vgg16_weights()
+    w = load_vgg16()
     assert len(w.convs) == 13 and w.pools_after[-1] == "conv5_3" and not w.bgr
     assert w.convs[0][0].shape == (3, 3, 3, 64) and w.convs[0][0].dtype == jnp.float32

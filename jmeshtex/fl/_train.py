@@ -1,0 +1,298 @@
+"""Training the FL-VAE on planar meshes laid over images (paper supplement §9.1).
+
+Each step draws ``batch_size`` planar meshes from a pool (random resolutions), samples every
+one-ring afresh on the host, and takes one jitted Adam step on :func:`~jmeshtex.fl.vae_loss`
+(cosine-decayed learning rate with warm-up, global-norm clipping, complex gradients conjugated
+before the update — DESIGN.md). All randomness derives from the ``key`` given to :func:`train`:
+the initialisation and the pool from two of its splits, step ``t``'s meshes, samples and
+reparameterisation noise from ``t`` folded into two others, so a run resumed from a checkpoint
+continues exactly as an uninterrupted one would.
+
+Checkpoints (``checkpoint_dir``): :class:`jmeshtex.io.Checkpoints` steps holding the parameters
+and the optimiser state, with the loss history in their record, every ``checkpoint_every`` steps
+and at the end of each call; :func:`train` with the same folder resumes.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from .._errors import ConfigError, InputError
+from .._mesh import Mesh
+from .._train_result import TrainResult
+from .._types import PRNGKey
+from ..io import Checkpoints
+from ..ops import conjugate_complex_grads
+from ._colors import surface_colors
+from ._config import Config
+from ._encoder import _numpy_rng, one_ring_samples
+from ._loss import vae_loss
+from ._model import Model, init
+from ._planar import _to_rgb01, builtin_images, downscale, folder_images, planar_pool
+
+#: config fields a resumed run may change (the schedule follows ``steps``; ``checkpoint_every`` only
+#: says how often state is written)
+_RESUMABLE_CHANGES = ("steps", "checkpoint_every")
+
+
+def optimizer(config: Config) -> optax.GradientTransformation:
+    """Adam with linear warm-up and cosine decay to ``learning_rate · final_lr_fraction``, after norm clipping.
+
+    Args:
+      config: :class:`~jmeshtex.fl.Config` (``learning_rate``, ``warmup_steps``, ``steps``,
+        ``final_lr_fraction``, ``grad_clip``).
+
+    Returns:
+      An optax transformation over :class:`~jmeshtex.fl.FLVAEParams` (complex gradients must be
+      conjugated first: :func:`make_train_step` does).
+
+    Example:
+      >>> import jax
+      >>> from jmeshtex.fl import init
+      >>> model = init(Config(features=8, num_heads=2), key=jax.random.key(0))
+      >>> state = optimizer(Config()).init(model.params)
+    """
+    schedule = optax.warmup_cosine_decay_schedule(
+        init_value=0.0, peak_value=config.learning_rate, warmup_steps=config.warmup_steps,
+        decay_steps=max(config.steps, config.warmup_steps + 1),
+        end_value=config.learning_rate * config.final_lr_fraction,
+    )
+    return optax.chain(optax.clip_by_global_norm(config.grad_clip), optax.adam(schedule))
+
+
+@functools.lru_cache(maxsize=8)
+def make_train_step(config: Config):
+    """The jitted training step ``(params, opt_state, batch, key) -> (params, opt_state, loss, l1)``.
+
+    One :func:`~jmeshtex.fl.vae_loss` gradient, complex gradients conjugated, one
+    :func:`optimizer` update. Cached per config, so repeated or resumed runs in one process compile
+    once.
+
+    Args:
+      config: :class:`~jmeshtex.fl.Config` (static).
+
+    Returns:
+      The step function; ``batch`` is a :func:`mesh_batch` dict, ``key`` the reparameterisation key.
+
+    Example:
+      >>> import jax, numpy as np
+      >>> from jmeshtex.fl import init, planar_mesh
+      >>> c = Config(features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16)
+      >>> params = init(c, key=jax.random.key(0)).params
+      >>> rng = np.random.default_rng(0)
+      >>> batch = mesh_batch([planar_mesh(rng.random((8, 8, 3)), 10, rng=rng)], c, rng, num_vertices=12)
+      >>> params, state, loss, l1 = make_train_step(c)(params, optimizer(c).init(params), batch, jax.random.key(1))
+      >>> bool(np.isfinite(loss))
+      True
+    """
+    opt = optimizer(config)
+
+    def loss_fn(params, batch, key):
+        return vae_loss(params, config, batch["log"], batch["rgb"], batch["mask"], key=key,
+                        corners=batch["corners"], bary=batch["bary"], vertex_mask=batch["vertex_mask"])
+
+    @jax.jit
+    def step(params, opt_state, batch, key):
+        (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key)
+        grads = conjugate_complex_grads(grads)
+        with jax.numpy_dtype_promotion("standard"):
+            updates, opt_state = opt.update(grads, opt_state, params)
+            params = optax.apply_updates(params, updates)
+        return params, opt_state, loss, aux["l1"]
+
+    return step
+
+
+def mesh_batch(meshes: list[Mesh], config: Config, rng: np.random.Generator, *, num_vertices: int, dtype=np.float32) -> dict:
+    """One training batch: one-ring samples of several meshes, concatenated and padded to ``num_vertices``.
+
+    Args:
+      meshes: textured (or vertex-coloured) meshes, e.g. from :func:`~jmeshtex.fl.planar_pool`.
+      config: :class:`~jmeshtex.fl.Config` (``num_samples``).
+      rng: generator of the one-ring samples.
+      num_vertices: padded size ``N`` (at least the meshes' total vertex count; a fixed size
+        keeps the jitted step from recompiling).
+      dtype: real dtype of the arrays (``float32`` or ``float64``).
+
+    Returns:
+      A dict of arrays ``log [N, S]``, ``rgb [N, S, 3]``, ``mask [N, S]``, ``corners [N, S, 3]``
+      (global vertex ids of each sample's face), ``bary [N, S, 3]``, ``vertex_mask [N]``.
+
+    Example:
+      >>> import numpy as np
+      >>> from jmeshtex.fl import planar_mesh
+      >>> rng = np.random.default_rng(0)
+      >>> meshes = [planar_mesh(rng.random((8, 8, 3)), 10, rng=rng) for _ in range(2)]
+      >>> b = mesh_batch(meshes, Config(num_samples=4), rng, num_vertices=24)
+      >>> b["log"].shape, int(b["vertex_mask"].sum())
+      ((24, 4), 20)
+    """
+    S = config.num_samples
+    logs, rgbs, masks, corners, barys = [], [], [], [], []
+    offset = 0
+    for mesh in meshes:
+        s = one_ring_samples(mesh.vertices, mesh.faces, S, rng=rng)
+        logs.append(s.log)
+        rgbs.append(surface_colors(mesh).at_barycentric(s.face, s.bary))
+        masks.append(s.mask)
+        corners.append(np.asarray(mesh.faces)[s.face] + offset)
+        barys.append(s.bary)
+        offset += mesh.num_vertices
+    if offset > num_vertices:
+        raise InputError(f"batch has {offset} vertices, more than the padded size {num_vertices}")
+    pad = num_vertices - offset
+
+    def cat(parts, fill=0):
+        a = np.concatenate(parts)
+        return np.concatenate([a, np.full((pad, *a.shape[1:]), fill, a.dtype)]) if pad else a
+
+    cdt = np.complex64 if dtype == np.float32 else np.complex128
+    return {
+        "log": cat(logs).astype(cdt), "rgb": cat(rgbs).astype(dtype), "mask": cat(masks, False),
+        "corners": cat(corners).astype(np.int32), "bary": cat(barys).astype(dtype),
+        "vertex_mask": np.arange(num_vertices) < offset,
+    }
+
+
+def _load_images(images, max_size: int) -> list[np.ndarray]:
+    if images is None or (isinstance(images, str) and images == "builtin"):
+        return builtin_images(max_size=max_size)
+    if isinstance(images, (str, os.PathLike)):
+        return folder_images(images, max_size=max_size)
+    if isinstance(images, (list, tuple)) and images:
+        return [downscale(_to_rgb01(im), max_size) for im in images]
+    raise InputError(f"images must be None or 'builtin', a folder path or a non-empty list of arrays, "
+                     f"got {type(images).__name__}")
+
+
+def _key_data(key: PRNGKey) -> list[int]:
+    data = jax.random.key_data(key) if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key) else key
+    return np.asarray(data, dtype=np.uint32).ravel().tolist()
+
+
+def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) -> dict:
+    """What a checkpoint must have been written for to be resumed by this call."""
+    digest = hashlib.sha256()
+    for im in images:
+        digest.update(repr(im.shape).encode())
+        digest.update(np.ascontiguousarray(im, np.float64).tobytes())
+    fixed = {k: v for k, v in config.to_dict().items() if k not in _RESUMABLE_CHANGES}
+    return {"config": fixed, "key": _key_data(key), "images": digest.hexdigest(), "dtype": jnp.dtype(dtype).name}
+
+
+def train(
+    config: Config,
+    *,
+    key: PRNGKey,
+    images=None,
+    progress: bool = True,
+    checkpoint_dir: str | os.PathLike | None = None,
+    dtype=jnp.float32,
+    stop_after: int | None = None,
+) -> TrainResult[Model]:
+    """Train an FL-VAE on planar meshes over images; resumable from checkpoints.
+
+    Args:
+      config: :class:`~jmeshtex.fl.Config` (model, data and optimiser settings).
+      key: PRNG key of the initialisation, the planar meshes, the one-ring samples and the
+        reparameterisation noise (module docstring).
+      images: None or ``"builtin"`` (scikit-image's bundled images), a folder of images, or a list
+        of ``[H, W, C]`` arrays.
+      progress: show a tqdm bar with ETA and the running loss.
+      checkpoint_dir: folder of :class:`jmeshtex.io.Checkpoints` (None: keep nothing on disk). The
+        newest checkpoint there is resumed; it must have been written with the same config
+        (``steps`` and ``checkpoint_every`` may differ), key, images and dtype, else
+        :class:`~jmeshtex.CheckpointMismatchError`.
+      dtype: real dtype of the parameters.
+      stop_after: run at most this many steps in this call (a time-boxed run; call again with the
+        same folder to continue). The schedule always follows ``config.steps``.
+
+    Returns:
+      :class:`~jmeshtex.TrainResult` with the :class:`~jmeshtex.fl.Model` in ``.model``; ``losses``
+      has ``"loss"`` (total) and ``"l1"`` (reconstruction term) per step, resumed steps included;
+      ``extra["steps_per_second"]`` is this call's throughput after the first (compiling) step.
+      Save the model with :func:`~jmeshtex.fl.save`.
+
+    Raises:
+      FloatingPointError: the loss became non-finite (lower ``learning_rate``).
+
+    Example:
+      >>> import jax, numpy as np
+      >>> img = np.indices((16, 16)).sum(0)[..., None].repeat(3, -1) % 2 * 1.0
+      >>> c = Config(features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16,
+      ...            min_vertices=10, max_vertices=12, meshes_per_image=1, batch_size=1, steps=2)
+      >>> r = train(c, key=jax.random.key(0), images=[img], progress=False)
+      >>> r.steps, r.losses["loss"].shape, bool(np.isfinite(r.losses["loss"]).all())
+      (2, (2,), True)
+    """
+    t_call = time.perf_counter()
+    if not isinstance(config, Config):
+        raise ConfigError(f"config must be a jmeshtex.fl.Config, got {type(config).__name__}")
+    np_dtype = np.float64 if jnp.dtype(dtype) == jnp.float64 else np.float32
+    k_init, k_pool, k_data, k_noise = jax.random.split(key, 4)
+    loaded = _load_images(images, config.max_image_size)
+    pool = planar_pool(loaded, per_image=config.meshes_per_image, min_vertices=config.min_vertices,
+                       max_vertices=config.max_vertices, rng=_numpy_rng(k_pool))
+    opt = optimizer(config)
+    params = init(config, key=k_init, dtype=dtype).params
+    opt_state = opt.init(params)
+    start, losses, l1s, resumed_from = 0, [], [], None
+    ckpt = None
+    if checkpoint_dir is not None:
+        ckpt = Checkpoints(checkpoint_dir, fingerprint=_fingerprint(config, key, loaded, dtype))
+        if ckpt.latest_step() is not None:
+            state, meta = ckpt.restore({"params": params, "opt_state": opt_state})
+            params, opt_state = state["params"], state["opt_state"]
+            start = resumed_from = ckpt.latest_step()
+            losses, l1s = list(meta["loss"])[:start], list(meta["l1"])[:start]
+    step_fn = make_train_step(config)
+    num_vertices = config.batch_size * config.max_vertices
+    bar = None
+    if progress and start < config.steps:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=config.steps, initial=start, desc="FL-VAE train", unit="step")
+    t_first = None
+    end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
+    try:
+        for step in range(start, end):
+            rng = _numpy_rng(jax.random.fold_in(k_data, step))
+            chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
+            batch = mesh_batch([pool[i] for i in chosen], config, rng, num_vertices=num_vertices, dtype=np_dtype)
+            params, opt_state, loss, l1 = step_fn(params, opt_state, batch, jax.random.fold_in(k_noise, step))
+            loss, l1 = float(loss), float(l1)
+            if not np.isfinite(loss):
+                raise FloatingPointError(f"FL-VAE training diverged at step {step} (loss {loss}); lower learning_rate")
+            losses.append(loss)
+            l1s.append(l1)
+            if t_first is None:
+                t_first = time.perf_counter()
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(loss=f"{loss:.4f}", l1=f"{l1:.4f}")
+            if ckpt is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
+                ckpt.save(step + 1, {"params": params, "opt_state": opt_state}, meta={"loss": losses, "l1": l1s})
+    finally:
+        if bar is not None:
+            bar.close()
+        if ckpt is not None:
+            ckpt.close()
+    done = end - start
+    seconds = time.perf_counter() - t_first if t_first is not None else 0.0
+    rate = (done - 1) / seconds if done > 1 and seconds > 0 else float("nan")
+    return TrainResult(
+        model=Model(params, config),
+        losses={"loss": np.asarray(losses), "l1": np.asarray(l1s)},
+        steps=len(losses),
+        seconds=time.perf_counter() - t_call,
+        resumed_from=resumed_from,
+        extra={"steps_per_second": rate},
+    )

@@ -1,0 +1,399 @@
+"""Coarse-to-fine PatchMatch between two meshes (MeshMatch, Chen et al. 2012 §4): the driver.
+
+:func:`meshmatch` prepares both meshes (:func:`~jmeshtex.meshmatch.prepare_side`), then runs the
+levels from the coarsest to the finest: the coarsest starts from random matches, every finer level
+from its parents' matches (upsampled through the parent maps); each level runs up to ``steps``
+PatchMatch iterations (the jitted E-step + M-step of ``jmeshtex/meshmatch/_search.py``) and stops
+early when few matches change. A final pass copies each target vertex's matched source colour (no
+blur). Levels are padded in groups (:func:`~jmeshtex.meshmatch.level_groups`: every level with at
+most ``bucket_vertices`` target vertices, then pairs of larger levels) to one shape each, so a
+group shares one compiled step.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from .._mesh import Mesh, as_mesh
+from .._types import Float, Int
+from ._config import Config
+from ._prepare import (
+    LevelArrays,
+    Side,
+    bucket_dims,
+    level_arrays,
+    level_groups,
+    level_pairing,
+    pad_axis,
+    pad_level_arrays,
+    pool_colors,
+    prepare_side,
+    search_tables,
+    side_affinities,
+)
+from ._search import SearchOptions, Source, StepWeights, iterate, make_source
+
+
+class MeshMatchResult(NamedTuple):
+    """Output of :func:`meshmatch`: the nearest-neighbour field and the signal it carries.
+
+    Attributes:
+      colors: ``[Vt, C]`` final target colours: each vertex copies its matched source colour.
+      voted: ``[Vt, C]`` the last Gaussian-weighted vote at the finest level (smoother).
+      nnf: ``[Vt]`` matched source vertex (input indexing).
+      rotation: ``[Vt]`` rotation step k: target frame → source frame by ``2πk/A``.
+      cost: ``[Vt]`` patch distance of the match.
+      stats: ``"levels"``: per level (coarsest first) ``level``, ``source_level``, ``vertices``,
+        ``padded_vertices``, ``padded_source_vertices``, ``steps`` (iterations run), ``changed``
+        (matches changed by the last one), ``mean_cost``, ``seconds``, ``iteration_seconds`` and
+        ``iteration_cpu_seconds`` (wall and process CPU time of each iteration; the first of a
+        group of levels includes compiling the step); ``prepare_s`` (when not given ``prepared``),
+        ``fans_s`` (fan tracing and upload), ``total_s``.
+    """
+
+    colors: np.ndarray
+    voted: np.ndarray
+    nnf: np.ndarray
+    rotation: np.ndarray
+    cost: np.ndarray
+    stats: dict
+
+
+def nnf_colors(source: Mesh | tuple, nnf: Int[np.ndarray, " Vt"]) -> Float[np.ndarray, "Vt 3"]:
+    """Colour-code a nearest-neighbour field: each target vertex shows its match's source position.
+
+    .. math:: c_t = \\frac{x_{\\text{NNF}(t)} - x_{\\min}}{x_{\\max} - x_{\\min}}
+
+    (per axis, over the source's bounding box), so a correct transfer between similar shapes shows
+    a smooth rainbow and misplaced patches stand out.
+
+    Args:
+      source: the source :class:`~jmeshtex.Mesh` or ``(vertices [Vs, 3], faces)``.
+      nnf: ``[Vt]`` matched source vertex per target vertex (:attr:`MeshMatchResult.nnf`).
+
+    Returns:
+      ``[Vt, 3]`` float64 colours in ``[0, 1]``.
+
+    Example:
+      >>> nnf_colors((np.array([[0.0, 0, 0], [1, 2, 3], [0, 2, 0]]), np.array([[0, 1, 2]])),
+      ...            np.array([1, 0])).tolist()
+      [[1.0, 1.0, 1.0], [0.0, 0.0, 0.0]]
+    """
+    v = np.asarray(as_mesh(source, what="source").vertices, np.float64)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    return ((v - lo) / np.where(hi > lo, hi - lo, 1.0))[np.asarray(nnf)]
+
+
+def meshmatch(
+    source: Mesh | tuple,
+    source_colors: Float[np.ndarray, "Vs C"],
+    target: Mesh | tuple,
+    *,
+    key: jax.Array,
+    config: Config | None = None,
+    correspondences: Int[np.ndarray, "m 2"] | None = None,
+    source_mask: np.ndarray | None = None,
+    pin: Int[np.ndarray, " Vt"] | None = None,
+    progress: bool | Callable[[str], Any] = False,
+    prepared: tuple[Side, Side] | None = None,
+) -> MeshMatchResult:
+    """Transfer per-vertex signals from a source mesh to a target mesh by PatchMatch (MeshMatch).
+
+    .. math:: \\text{NNF}(t) = \\arg\\min_{s, k} D_k(t, s), \\qquad
+              c_t = \\frac{\\sum_{q \\in \\{t\\} \\cup N(t)} g_{tq}\\, c^{src}\\bigl(\\exp_{s_q}(e^{i\\theta_q}
+              \\log_q t)\\bigr)}{\\sum_q g_{tq}}
+
+    (Chen et al. 2012, §4: E-step / M-step; ``D`` is the patch distance of
+    ``jmeshtex/meshmatch/_search.py``: fan distance at the best of ``A`` rotations plus the shape
+    term.)
+
+    Args:
+      source: the exemplar :class:`~jmeshtex.Mesh` (or ``(vertices [Vs, 3], faces [Fs, 3])``).
+      source_colors: ``[Vs, C]`` per-vertex signal on the source (colours, displacements, ...).
+      target: the mesh to synthesise on (same units as the source: the texture keeps its
+        world-space scale).
+      key: a ``jax.random`` key for the random initialisation and search.
+      config: :class:`~jmeshtex.meshmatch.Config` (default settings when None).
+      correspondences: ``[m, 2]`` (source vertex, target vertex) pairs; adds geodesic affinities.
+      source_mask: ``[Vs]`` bool, the source vertices a match may use (default all).
+      pin: ``[Vt]`` source vertex each target vertex must match (−1: free) — for painting by
+        example, where source and target are the same mesh.
+      progress: True for a tqdm bar per level, or a callable receiving one line per level.
+      prepared: ``(source_side, target_side)`` from :func:`~jmeshtex.meshmatch.prepare_side` to
+        reuse preprocessing.
+
+    Returns:
+      :class:`MeshMatchResult`.
+
+    Raises:
+      InputError: shapes of colours, masks, pins; an empty source mask; a mesh that is neither a
+        ``Mesh`` nor a pair.
+
+    Example:
+      >>> import jax
+      >>> from jmeshtex import Mesh
+      >>> from jmeshtex.data import icosphere
+      >>> v, f = icosphere(2)
+      >>> v = v * (1 + 0.25 * np.sin(3 * v[:, :1] + 1) * np.cos(2 * v[:, 1:2]))   # no symmetry left
+      >>> colors = 0.5 + 0.4 * np.sin(5 * v[:, :3])
+      >>> r = meshmatch(Mesh(v, f), colors, Mesh(v, f), key=jax.random.key(0),
+      ...               config=Config(levels=1, coarse_steps=25))
+      >>> r.colors.shape, bool(np.abs(r.colors - colors).mean() < 0.05)      # self-transfer
+      ((162, 3), True)
+    """
+    config = Config() if config is None else config
+    source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
+    t_start = time.perf_counter()
+    colors, valid, pins = _checked_signals(source, target, source_colors, source_mask, pin)
+    timings: dict[str, float] = {}
+    if prepared is None:
+        t0 = time.perf_counter()
+        s_side = prepare_side(source, config)
+        same = (source.vertices.shape == target.vertices.shape and source.faces.shape == target.faces.shape
+                and np.array_equal(source.vertices, target.vertices) and np.array_equal(source.faces, target.faces))
+        t_side = s_side if same else prepare_side(target, config, hks_times=s_side.hks_times)
+        timings["prepare_s"] = time.perf_counter() - t0
+    else:
+        s_side, t_side = prepared
+    s_feat, t_feat = s_side.features, t_side.features
+    if correspondences is not None:
+        a_s, a_t = side_affinities(s_side, t_side, correspondences)
+        w = math.sqrt(config.affinity_weight)
+        s_feat = np.concatenate([s_feat, w * a_s], axis=1)
+        t_feat = np.concatenate([t_feat, w * a_t], axis=1)
+    result = match_levels(s_side, t_side, colors, config, key=key, features=(s_feat, t_feat),
+                          source_mask=valid, pin=pins, progress=progress)
+    stats = {"levels": result.stats["levels"], **timings, "fans_s": result.stats["fans_s"],
+             "total_s": time.perf_counter() - t_start}
+    return result._replace(stats=stats)
+
+
+def _checked_signals(source: Mesh, target: Mesh, source_colors, source_mask, pin):
+    """The source signal ``[Vs, C]``, the source mask ``[Vs]`` and the pins ``[Vt]`` (or None), checked."""
+    Vs, Vt = source.num_vertices, target.num_vertices
+    colors = np.asarray(source_colors, np.float64)
+    if colors.ndim == 1:
+        colors = colors[:, None]
+    if colors.ndim != 2 or len(colors) != Vs or not np.all(np.isfinite(colors)):
+        raise InputError(f"source_colors must be finite [Vs={Vs}, C], got shape {colors.shape}")
+    valid = np.ones(Vs, bool) if source_mask is None else np.asarray(source_mask, bool)
+    if valid.shape != (Vs,):
+        raise InputError(f"source_mask must have shape [Vs={Vs}], got {valid.shape}")
+    if not valid.any():
+        raise InputError("source_mask selects no source vertex: paint (mask) at least one region")
+    pins = None if pin is None else np.asarray(pin, np.int64)
+    if pins is not None and (pins.shape != (Vt,) or pins.max(initial=-1) >= Vs or pins.min(initial=0) < -1):
+        raise InputError(f"pin must be [Vt={Vt}] source vertices or -1, got shape {pins.shape}")
+    return colors, valid, pins
+
+
+class _Level(NamedTuple):
+    """Everything one level's iterations read (device arrays) and its sizes."""
+
+    tgt: LevelArrays
+    src: Source
+    pin: jax.Array
+    weights: StepWeights
+    options: SearchOptions
+    num_target: int
+    num_padded: int
+    num_padded_source: int
+    valid_index: np.ndarray
+    num_valid: int
+
+
+def _group_dims(source: Side, target: Side, pairing, config: Config) -> dict:
+    """Per target level in a group of more than one level, the group's common padded sizes."""
+    dims_of = {}
+    if config.bucket_vertices > 0:
+        sizes = [len(x) for x in target.hierarchy.vertices]
+        for group in level_groups(sizes, config.bucket_vertices):
+            if len(group) > 1:
+                dims = bucket_dims(source, target, pairing, group, config.random_search_levels)
+                dims_of.update({lv: dims for lv in group})
+    return dims_of
+
+
+def _level_inputs(source: Side, target: Side, level: int, m: int, colors, features, source_mask, pin,
+                  config: Config, dtype, dims) -> tuple[_Level, float]:
+    """Trace both sides' fans at target level ``level`` / source level ``m``, pad them to ``dims``
+    (None: no padding), build the device-side source; also returns the seconds spent on the fans."""
+    t0 = time.perf_counter()
+    s_feat, t_feat = features
+    sh = source.hierarchy
+    R, A, C = config.num_radii, config.num_angles, colors.shape[1]
+    radii = config.radii(target.edge[level])
+    valid_m = source_mask[sh.vertex_index[m]]
+    if not valid_m.any():  # a tiny painted region may vanish at a coarse level
+        valid_m = np.ones_like(valid_m)
+    s_arr, s_steps = level_arrays(source, m, radii, config, colors, valid_m, s_feat, dtype)
+    Vt = len(target.hierarchy.vertices[level])
+    t_arr, t_steps = level_arrays(target, level, radii, config, np.zeros((Vt, C)), np.ones(Vt, bool), t_feat, dtype)
+    up, down = search_tables(sh, m, config.random_search_levels)
+    valid_index = np.nonzero(valid_m)[0].astype(np.int32)
+    num_valid = len(valid_index)
+    if dims is not None:
+        s_arr = pad_level_arrays(s_arr, num_vertices=dims["Vs"], ring=dims["Ks"], smooth_ring=dims["Kss"])
+        t_arr = pad_level_arrays(t_arr, num_vertices=dims["Vt"], ring=dims["Kt"], smooth_ring=dims["Kst"])
+        up = [pad_axis(u, 0, dims["Vs"]) for u in up]
+        down = [(pad_axis(pad_axis(c, 0, n), 1, k), pad_axis(cnt, 0, n, 1))
+                for (c, cnt), (n, k) in zip(down, dims["down"], strict=True)]
+        valid_index = pad_axis(valid_index, 0, dims["Vs"], valid_index[0])
+    Vp = t_arr.nb_index.shape[0]
+    t_arr = jax.tree.map(jnp.asarray, t_arr)
+    fan_seconds = time.perf_counter() - t0
+
+    ring_weight = jnp.ones(R, dtype) / R
+    src = make_source(s_arr, up, down, valid_index, num_valid, ring_weight, steps=s_steps, num_angles=A)
+    variance = float(np.var(colors[valid_m])) + 1e-8
+    weights = StepWeights(
+        ring_weight=ring_weight,
+        color_scale=jnp.asarray(config.color_weight / (R * A * C * variance), dtype),
+        shape_weight=jnp.asarray(config.shape_weight_at(level), dtype),
+        sigma2=jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype),
+        tau2=jnp.asarray((0.5 * source.edge[m]) ** 2, dtype),
+    )
+    if pin is None:
+        pin_l = np.full(Vt, -1, np.int32)
+    else:
+        p = pin[target.hierarchy.vertex_index[level]]
+        mapped = np.where(p >= 0, source.inverse[m][np.maximum(p, 0)], -1)
+        pin_l = np.where(mapped >= 0, mapped, -1).astype(np.int32)
+    level_in = _Level(t_arr, src, jnp.asarray(pad_axis(pin_l, 0, Vp, -1)), weights,
+                      SearchOptions.of(config, t_steps), Vt, Vp, s_arr.nb_index.shape[0], valid_index, num_valid)
+    return level_in, fan_seconds
+
+
+class _Progress:
+    """A tqdm bar per level (``progress=True``) or one line per level to a callable."""
+
+    def __init__(self, progress: bool | Callable[[str], Any], total: int):
+        self.report = progress if callable(progress) else None
+        self.bar = None
+        if progress is True:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=total, desc="meshmatch", unit="level")
+
+    def level(self, line: str) -> None:
+        if self.bar is not None:
+            self.bar.set_postfix_str(line)
+            self.bar.update(1)
+        if self.report is not None:
+            self.report(line)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def match_levels(
+    source: Side,
+    target: Side,
+    colors: Float[np.ndarray, "Vs C"],
+    config: Config,
+    *,
+    key: jax.Array,
+    features: tuple[np.ndarray, np.ndarray],
+    source_mask: np.ndarray,
+    pin: np.ndarray | None,
+    progress: bool | Callable[[str], Any] = False,
+) -> MeshMatchResult:
+    """Coarse-to-fine PatchMatch of prepared sides (the loop of :func:`meshmatch`).
+
+    Args:
+      source, target: :class:`~jmeshtex.meshmatch.Side` of each mesh.
+      colors: ``[Vs, C]`` float64 source signal.
+      config: :class:`~jmeshtex.meshmatch.Config`.
+      key: PRNG key.
+      features: ``([Vs, D], [Vt, D])`` shape features (with affinities when there are
+        correspondences).
+      source_mask: ``[Vs]`` bool, the source vertices a match may use.
+      pin: ``[Vt]`` int64 source vertex each target vertex must match (-1: free), or None.
+      progress: as :func:`meshmatch`.
+
+    Returns:
+      :class:`MeshMatchResult` whose ``stats`` holds ``levels`` and ``fans_s``.
+    """
+    dtype = jnp.float32 if config.dtype == "float32" else jnp.float64
+    pairing = level_pairing(source, target)
+    s_colors = pool_colors(source.hierarchy, colors)
+    dims_of = _group_dims(source, target, pairing, config)
+    bar = _Progress(progress, target.num_levels)
+    sh = source.hierarchy
+    level_stats, fan_s = [], 0.0
+    nnf = rot = colors_t = cost_np = None
+    prev_src_level = None
+    for level in range(target.num_levels - 1, -1, -1):
+        t_level = time.perf_counter()
+        m = pairing[level]
+        lv, seconds = _level_inputs(source, target, level, m, s_colors[m], features, source_mask, pin, config,
+                                    dtype, dims_of.get(level))
+        fan_s += seconds
+        Vt, Vp = lv.num_target, lv.num_padded
+        if nnf is None:  # coarsest level: random matches among the valid source vertices
+            key, sub = jax.random.split(key)
+            pick = np.asarray(jax.random.randint(sub, (Vt,), 0, lv.num_valid))
+            nnf_h = lv.valid_index[pick]
+            rot_h = np.zeros(Vt, np.int32)
+            colors_h = np.asarray(s_colors[m][nnf_h])
+        else:  # upsample: each vertex starts from its parent's match, moved to this source level
+            parent = np.asarray(target.hierarchy.pooling[level].parent)
+            nnf_h = source.inverse[m][sh.vertex_index[prev_src_level][nnf[parent]]].astype(np.int32)
+            rot_h = rot[parent]
+            colors_h = colors_t[parent]
+        nnf_j = jnp.asarray(pad_axis(nnf_h.astype(np.int32), 0, Vp, lv.valid_index[0]))
+        rot_j = jnp.asarray(pad_axis(rot_h.astype(np.int32), 0, Vp))
+        colors_j = jnp.asarray(pad_axis(np.asarray(colors_h), 0, Vp), dtype)
+        coarsest = level == target.num_levels - 1
+        budget = config.coarse_steps if coarsest else config.steps
+        wall, cpu = [], []
+        changed, cost = Vt, None
+        for it in range(budget):
+            t0, c0 = time.perf_counter(), time.process_time()
+            key, sub = jax.random.split(key)
+            weights = lv.weights
+            if coarsest and it == 0 and config.shape_weight_at(level) > 0:
+                # the random start's colours mean nothing: its first E-step matches shape only
+                weights = weights._replace(color_scale=weights.color_scale * 0)
+            nnf_j, rot_j, cost, colors_j, changed = iterate(lv.tgt, lv.src, nnf_j, rot_j, colors_j, sub, weights,
+                                                            lv.pin, options=lv.options)
+            changed = int(changed)
+            wall.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+            if changed < config.tolerance * Vt:
+                break
+        nnf = np.asarray(nnf_j)[:Vt]
+        rot = np.asarray(rot_j)[:Vt]
+        colors_t = np.asarray(colors_j)[:Vt]
+        cost_np = np.asarray(cost)[:Vt]
+        finite = np.isfinite(cost_np)
+        mean_cost = float(cost_np[finite].mean()) if finite.any() else float("inf")
+        level_stats.append({
+            "level": level, "source_level": m, "vertices": Vt, "padded_vertices": Vp,
+            "padded_source_vertices": lv.num_padded_source, "steps": len(wall), "changed": changed,
+            "mean_cost": mean_cost, "seconds": time.perf_counter() - t_level, "iteration_seconds": wall,
+            "iteration_cpu_seconds": cpu,
+        })
+        bar.level(f"level {level}: {Vt} vertices, {len(wall)} iterations, mean cost {mean_cost:.4g}, "
+                  f"{changed} changed")
+        prev_src_level = m
+    bar.close()
+
+    nnf_input = sh.vertex_index[pairing[0]][nnf]
+    return MeshMatchResult(
+        colors=colors[nnf_input],
+        voted=np.asarray(colors_t, np.float64),
+        nnf=nnf_input,
+        rotation=rot,
+        cost=cost_np,
+        stats={"levels": level_stats, "fans_s": fan_s},
+    )
