@@ -45,6 +45,11 @@ jax.config.update("jax_platforms", "cpu")
 # cores and slows sparse eigensolves (HKS) 8-20x. One BLAS thread per worker.
 threadpool_limits(1)
 
+# The CLI turns on JAX's persistent compilation cache (~/.cache/jmeshtex/jax). Tests that call the CLI
+# in-process must not share one cache folder between xdist workers and other runs (a half-written
+# entry read by another process crashed a worker): the suite runs with the cache off.
+os.environ["JMESHTEX_JAX_CACHE"] = "0"
+
 settings.register_profile(
     "ci",
     max_examples=20,

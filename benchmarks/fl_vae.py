@@ -65,7 +65,7 @@ def main() -> None:
         spot = load_mesh(SPOT / "spot_triangulated.obj", texture=SPOT / "spot_texture.png")
         for n in sizes:
             t0 = time.perf_counter()
-            latent = remesh(spot, n_vertices=n, seed=0)
+            latent = remesh(spot, n_vertices=n, key=jax.random.key(0))
             t_remesh = time.perf_counter() - t0
             for decoder, model in models.items():
                 t0 = time.perf_counter()
@@ -83,7 +83,7 @@ def main() -> None:
     config = model.config
     n = max(sizes)
     if (SPOT / "spot_triangulated.obj").exists():
-        mesh = remesh(spot, n_vertices=n, seed=1)
+        mesh = remesh(spot, n_vertices=n, key=jax.random.key(1))
         colors = fl.surface_colors(spot)
     else:
         from jmeshtex import Mesh

@@ -77,7 +77,7 @@ def main() -> None:
     base = icosphere(6)  # 40962 vertices: both sizes are re-triangulations of it
     for n in args.sizes:
         t0 = time.perf_counter()
-        copy = remesh(base, n_vertices=n, seed=0)
+        copy = remesh(base, n_vertices=n, key=jax.random.key(0))
         report.add(name="remesh", vertices=n, seconds=time.perf_counter() - t0, load=_load())
         t0 = time.perf_counter()
         geo = fldm.denoiser_geometry(copy, knn=9, pool_ratio=0.25)

@@ -1,9 +1,12 @@
 """jmeshtex: learning and transferring textures on triangle meshes with pure, jit-compiled JAX.
 
-Layers (see the README): ``jmeshtex.io`` (files) → ``jmeshtex.geometry`` (host-side NumPy geometry,
-padded neighbourhood pytrees) → ``jmeshtex.ops`` (pure JAX operators) → ``jmeshtex.nn`` (thin flax
-modules) → methods (``dgts``, ``fl``, ``surfacecnn``, ``meshmatch``) → ``jmeshtex.cli``.
-``jmeshtex.testing`` holds the equivariance harness and hypothesis strategies.
+Layers (see the README): ``jmeshtex.io`` (files, checkpoints) → the padded-neighbourhood contract
+(:class:`~jmeshtex.FaceNeighborhood`, :class:`~jmeshtex.VertexNeighborhood`, ... exported here) → ``jmeshtex.geometry``
+(host-side NumPy geometry) → ``jmeshtex.ops`` (pure JAX operators) → ``jmeshtex.nn`` (thin flax
+modules) → methods (``dgts``, ``fl``, ``fldm``, ``surfacecnn``, ``meshmatch``) → ``jmeshtex.cli``.
+``jmeshtex.data`` holds procedural meshes, ``jmeshtex.testing`` the equivariance harness. The root
+holds what every layer shares: :class:`Mesh` and :func:`as_mesh`, the typed errors, and
+:class:`TrainResult`.
 """
 
 from ._errors import CheckpointMismatchError as CheckpointMismatchError

@@ -47,8 +47,8 @@ def _meshes(ctx: dict[str, Any]) -> str:
     ctx["torus"] = data.torus(32, 16) if quick else data.torus(72, 36)
     gv, gf = data.grid(6) if quick else data.grid(12)
     gv[:, 2] = 0.12 * np.sin(2.0 * np.pi * gv[:, 0]) * np.cos(np.pi * gv[:, 1])  # a gentle bend to see
-    ctx["grid"] = (gv, gf)
-    return ", ".join(f"{name} {len(ctx[name][0])} V / {len(ctx[name][1])} F" for name in ("torus", "grid"))
+    ctx["grid"] = data.grid(6).replace(vertices=gv, faces=gf)
+    return ", ".join(f"{name} {ctx[name].num_vertices} V / {ctx[name].num_faces} F" for name in ("torus", "grid"))
 
 
 def _subdivide(ctx: dict[str, Any]) -> str:
@@ -56,7 +56,7 @@ def _subdivide(ctx: dict[str, Any]) -> str:
 
     v, f = ctx["grid"]
     fine = subdivide_midpoint(v, f)
-    ctx["grid"] = (fine.vertices, fine.faces)
+    ctx["grid"] = ctx["grid"].replace(vertices=fine.vertices, faces=fine.faces)
     return f"grid 1→4: {len(v)} → {len(fine.vertices)} V, {len(f)} → {len(fine.faces)} F"
 
 
@@ -66,7 +66,7 @@ def _boundary(ctx: dict[str, Any]) -> str:
     v, f = ctx["grid"]
     loops = boundary_loops(f, len(v))
     ctx["boundary"] = np.concatenate([np.stack([loop, np.roll(loop, -1)], axis=1) for loop in loops])
-    return f"grid: {len(loops)} boundary loop(s), {len(ctx['boundary'])} edges; torus: {len(boundary_loops(ctx['torus'][1]))}"
+    return f"grid: {len(loops)} boundary loop(s), {len(ctx['boundary'])} edges; torus: {len(boundary_loops(ctx['torus'].faces))}"
 
 
 def _validate(ctx: dict[str, Any]) -> str:
@@ -99,10 +99,12 @@ def _frames(ctx: dict[str, Any]) -> str:
 
 
 def _sample(ctx: dict[str, Any]) -> str:
+    import jax
+
     from ..geometry import sample_surface
 
     v, f = ctx["torus"]
-    samples = sample_surface(v, f, 10 * len(v), seed=0)
+    samples = sample_surface(v, f, 10 * len(v), key=jax.random.key(0))
     return f"torus: {len(samples.point)} area-uniform points"
 
 
@@ -323,7 +325,7 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
         f"python {platform.python_version()}, {platform.platform()}, {os.cpu_count()} CPUs",
         f"output: {folder.resolve()}",
         "",
-        *(f"{name}: {len(ctx[name][0])} vertices, {len(ctx[name][1])} faces" for name in ("torus", "grid") if name in ctx),
+        *(f"{name}: {ctx[name].num_vertices} vertices, {ctx[name].num_faces} faces" for name in ("torus", "grid") if name in ctx),
         "",
         f"{'step':<{width}}  {'seconds':>8}  result",
         *(f"{name:<{width}}  {s:8.3f}  {summary}" for name, s, summary in rows),

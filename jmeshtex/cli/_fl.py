@@ -121,7 +121,7 @@ def _reconstruct(args) -> int:
 
     model = _model(args)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
-    latent_mesh = None if args.vertices is None else remesh(mesh, n_vertices=args.vertices, seed=args.seed)
+    latent_mesh = None if args.vertices is None else remesh(mesh, n_vertices=args.vertices, key=jax.random.key(args.seed))
     result = reconstruct(model, mesh, key=jax.random.key(args.seed), size=args.size,
                          latent_mesh=latent_mesh, lpips=not args.no_lpips)
     args.out.mkdir(parents=True, exist_ok=True)

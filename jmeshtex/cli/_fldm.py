@@ -139,12 +139,14 @@ def _train(args) -> int:
 
 
 def _target(args, meta):
+    import jax
+
     from ..geometry import remesh
 
     original = _load_mesh(meta["mesh"], meta.get("texture"))
     mesh = original if args.mesh is None else _load_mesh(args.mesh)
     if args.vertices is not None:
-        mesh = remesh(mesh, n_vertices=args.vertices, seed=args.seed)
+        mesh = remesh(mesh, n_vertices=args.vertices, key=jax.random.key(args.seed))
     return original, mesh
 
 

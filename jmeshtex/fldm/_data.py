@@ -32,11 +32,11 @@ import numpy as np
 
 from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh, as_mesh
+from .._random import key_ints
 from ..geometry import PoolingMap, VertexNeighborhood, remesh, surface_correspondence
 from ._config import Config
 from ._denoiser import DenoiserGeometry, denoiser_geometry, geometry_sizes, pad_geometry
 from ._diffusion import latent_scale
-from ._keys import host_seed, key_ints
 
 DATA_FILE = "data.json"
 
@@ -114,11 +114,6 @@ def _digest(arrays) -> str:
     return h.hexdigest()[:16]
 
 
-def copy_seed(key: jax.Array, i: int) -> int:
-    """Seed of copy ``i``'s re-triangulation (a function of ``key`` and ``i``)."""
-    return host_seed(key, i)
-
-
 def transfer_labels(original: Mesh, labels: np.ndarray, target: Mesh) -> np.ndarray:
     """Per-vertex labels of ``original`` at ``target``'s vertices (largest barycentric corner of the
     closest surface point).
@@ -142,7 +137,7 @@ def copy_mesh(mesh: Mesh, config: Config, i: int, *, key: jax.Array) -> Mesh:
     """Re-triangulated copy ``i`` of ``mesh`` (``copy_vertices`` vertices, or the input's count)."""
     mesh = as_mesh(mesh)
     n = config.copy_vertices or mesh.num_vertices
-    return remesh(mesh, n_vertices=int(n), seed=copy_seed(key, i))
+    return remesh(mesh, n_vertices=int(n), key=jax.random.fold_in(key, i))
 
 
 def _geometry_arrays(geo: DenoiserGeometry) -> dict[str, np.ndarray]:

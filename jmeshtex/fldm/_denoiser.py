@@ -55,7 +55,7 @@ class DenoiserGeometry(NamedTuple):
     Attributes:
       fine: ``[V₀, k]`` k-NN neighbourhoods of the mesh (frames of ``one_ring_neighborhood``).
       coarse: ``[V₁, k]`` k-NN neighbourhoods of the coarse level.
-      pool: :class:`~jmeshtex.geometry.PoolingMap` fine → coarse.
+      pool: :class:`~jmeshtex.PoolingMap` fine → coarse.
     """
 
     fine: VertexNeighborhood

@@ -39,13 +39,13 @@ import numpy as np
 import optax
 
 from .._errors import ConfigError, InputError, MeshIOError
+from .._random import host_rng, key_ints
 from .._train_result import TrainResult
 from ..ops import conjugate_complex_grads, tangent_noise
 from ._config import Config
 from ._data import Dataset, batch_geometry
 from ._denoiser import DenoiserGeometry, denoise, init_denoiser
 from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
-from ._keys import host_rng, key_ints
 
 MODEL_FILE = "model.npz"
 MODEL_JSON = "model.json"

@@ -7,16 +7,16 @@ both of which keep every vertex exactly on the input surface:
 
 1. **Random refinement.** ``k`` rounds of 1-to-4 splits in which the new vertex of edge ``(i, j)``
    is placed at ``(1 - t) v_i + t v_j`` with ``t ~ U[0.5 - jitter, 0.5 + jitter]`` (per edge, from
-   ``seed``). Every edge of a refined mesh lies inside a face (or along an edge) of the input, so
+   ``key``). Every edge of a refined mesh lies inside a face (or along an edge) of the input, so
    every refined vertex lies on the input surface, and the refined mesh has the input's topology
    (the same genus, boundary loops and components). ``k`` is the smallest number of rounds that
-   gives at least ``oversample · n_vertices`` vertices (and at least one round, so that two seeds
+   gives at least ``oversample · n_vertices`` vertices (and at least one round, so that two keys
    give different meshes even when ``n_vertices`` is close to ``V``).
 2. **Decimation** by the half-edge collapses of :func:`jmeshtex.geometry.mesh_hierarchy` (shortest
    admissible edge first, link condition, boundary vertices slide along the boundary only,
    degree ≤ 12, every new angle above ~1°), down to ``n_vertices``. Shortest-edge-first collapses
    even out the edge lengths, so the result is close to isotropic; the random split positions make
-   the surviving vertex set and its connectivity depend on ``seed``. Half-edge collapses keep the
+   the surviving vertex set and its connectivity depend on ``key``. Half-edge collapses keep the
    surviving vertices where they are, so the output vertices are a subset of the refined ones —
    on the input surface — and the topology is the input's.
 
@@ -35,6 +35,7 @@ import numpy as np
 
 from .._errors import ConfigError, DecimationError, InputError
 from .._mesh import Mesh
+from .._random import check_key, host_rng
 from .._types import Float, Int
 from ._edges import unique_edges
 from ._hierarchy import _decimate, _Level
@@ -118,7 +119,7 @@ def remesh(
     mesh: Mesh,
     *,
     n_vertices: int,
-    seed: int,
+    key,
     oversample: float = 3.0,
     jitter: float = 0.3,
 ) -> Mesh:
@@ -128,14 +129,14 @@ def remesh(
     ``(i, j)`` at ``(1 - t) v_i + t v_j``, ``t ~ U[½ − jitter, ½ + jitter]``), then shortest-edge
     half-edge collapses down to ``n_vertices`` (module docstring; the copies of Mitchel et al. 2024,
     §6.1). Every output vertex lies on the input surface; genus, boundary loops and components are
-    kept; the output passes :func:`validate_mesh`. Different seeds give different triangulations.
+    kept; the output passes :func:`validate_mesh`. Different keys give different triangulations.
 
     Args:
       mesh: a valid, consistently oriented manifold :class:`~jmeshtex.Mesh` (open or closed, any
         genus) whose vertices all belong to faces.
       n_vertices: target vertex count (≥ 4 per connected component); reached exactly unless no
         admissible collapse is left within 2 % of it (then an error).
-      seed: seed of the split positions.
+      key: a :func:`jax.random.key`; the split positions are drawn from it.
       oversample: refined vertex count over ``n_vertices`` before decimating (≥ 1.5); larger gives
         more isotropic triangles at a higher cost.
       jitter: half-width of the split-position distribution, in ``[0, 0.45]``.
@@ -149,9 +150,10 @@ def remesh(
       DecimationError: the decimation stalled more than 2 % above ``n_vertices``.
 
     Example:
+      >>> import jax
       >>> from jmeshtex import Mesh
       >>> from jmeshtex.data import icosphere
-      >>> m = remesh(Mesh(*icosphere(2)), n_vertices=300, seed=0)
+      >>> m = remesh(Mesh(*icosphere(2)), n_vertices=300, key=jax.random.key(0))
       >>> m.num_vertices, m.num_faces  # closed genus 0: F = 2V - 4
       (300, 596)
     """
@@ -159,8 +161,7 @@ def remesh(
         raise InputError(f"remesh expects a jmeshtex.Mesh, got {type(mesh).__name__}; wrap arrays as Mesh(v, f)")
     if isinstance(n_vertices, bool) or not isinstance(n_vertices, (int, np.integer)) or n_vertices < 4:
         raise ConfigError(f"n_vertices must be an integer >= 4, got {n_vertices!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise InputError(f"seed must be an int, got {type(seed).__name__}")
+    check_key(key)
     if not (isinstance(oversample, (int, float)) and oversample >= 1.5):
         raise ConfigError(f"oversample must be a number >= 1.5, got {oversample!r}")
     if not (isinstance(jitter, (int, float)) and 0.0 <= jitter <= 0.45):
@@ -176,7 +177,7 @@ def remesh(
             "(jmeshtex.io loaders and prepare_mesh do)"
         )
 
-    rng = np.random.default_rng(int(seed))
+    rng = host_rng(key)
     rounds = max(1, math.ceil(math.log(oversample * n_vertices / len(v0), 4))) if len(v0) else 1
     v, f = v0, f0
     for _ in range(rounds):

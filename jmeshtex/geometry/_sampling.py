@@ -10,6 +10,7 @@ import numpy as np
 from jaxtyping import Float, Int, Shaped
 
 from .._errors import EmptyMeshError, FaceIndexError, InputError, NonTriangleFaceError
+from .._random import check_key, host_rng
 from .._types import ArrayLike
 
 
@@ -27,19 +28,17 @@ class SurfaceSamples(NamedTuple):
     point: Float[np.ndarray, "N 3"]
 
 
-def _generator(seed, rng) -> np.random.Generator:
-    if (seed is None) == (rng is None):
+def _generator(key, rng) -> np.random.Generator:
+    if (key is None) == (rng is None):
         raise InputError(
-            "pass exactly one of seed= (an int) or rng= (a numpy.random.Generator); jmeshtex uses "
-            "no global random state"
+            "pass exactly one of key= (a jax.random.key) or rng= (a numpy.random.Generator); jmeshtex "
+            "uses no global random state"
         )
     if rng is not None:
         if not isinstance(rng, np.random.Generator):
             raise InputError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         return rng
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise InputError(f"seed must be an int, got {type(seed).__name__}")
-    return np.random.default_rng(int(seed))
+    return host_rng(check_key(key))
 
 
 def sample_surface(
@@ -47,7 +46,7 @@ def sample_surface(
     faces: Int[np.ndarray, "F 3"],
     n: int,
     *,
-    seed: int | None = None,
+    key=None,
     rng: np.random.Generator | None = None,
 ) -> SurfaceSamples:
     """Draw ``n`` points uniformly with respect to surface area.
@@ -62,25 +61,26 @@ def sample_surface(
       vertices: ``[V, 3]`` positions.
       faces: ``[F, 3]`` triangles; zero-area faces are never drawn.
       n: number of points, ``>= 0``.
-      seed: an integer seed (give this or ``rng``).
+      key: a :func:`jax.random.key` to draw from (give this or ``rng``).
       rng: a ``numpy.random.Generator`` to draw from (advanced in place).
 
     Returns:
       :class:`SurfaceSamples` ``(face [N], bary [N, 3], point [N, 3])``.
 
     Raises:
-      InputError: bad ``n``, neither or both of ``seed`` / ``rng``, a mesh of zero total area.
+      InputError: bad ``n``, neither or both of ``key`` / ``rng``, a mesh of zero total area.
       FaceIndexError, NonTriangleFaceError, EmptyMeshError: a malformed mesh.
 
     Example:
       >>> from jmeshtex.data import grid
-      >>> s = sample_surface(*grid(2), 4, seed=0)
+      >>> import jax
+      >>> s = sample_surface(*grid(2), 4, key=jax.random.key(0))
       >>> s.point.shape, bool(np.all((s.point[:, :2] >= 0) & (s.point[:, :2] <= 1)))
       ((4, 3), True)
       >>> bool(np.allclose(s.bary.sum(1), 1.0))
       True
     """
-    generator = _generator(seed, rng)
+    generator = _generator(key, rng)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces_in = np.asarray(faces)
     if vertices.ndim != 2 or vertices.shape[1] != 3:

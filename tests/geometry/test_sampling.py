@@ -34,7 +34,7 @@ def test_faces_are_drawn_in_proportion_to_area(seed):
     v, f = _uneven_mesh()
     area = _areas(v, f)
     assert area[4] == 0.0
-    s = sample_surface(v, f, 40_000, seed=seed)
+    s = sample_surface(v, f, 40_000, key=jax.random.key(seed))
     counts = np.bincount(s.face, minlength=len(f))
     assert counts[4] == 0  # a zero-area face is never drawn
     expected = 40_000 * area[:4] / area.sum()
@@ -45,7 +45,7 @@ def test_faces_are_drawn_in_proportion_to_area(seed):
 
 def test_points_are_uniform_inside_each_face(seed):
     v, f = single_triangle()
-    s = sample_surface(v, f, 20_000, seed=seed)
+    s = sample_surface(v, f, 20_000, key=jax.random.key(seed))
     # each barycentric coordinate of a uniform point in a triangle is Beta(1, 2): CDF 1 − (1 − t)²
     for k in range(3):
         assert stats.kstest(s.bary[:, k], lambda t: 1 - (1 - np.clip(t, 0, 1)) ** 2).pvalue > ALPHA
@@ -62,7 +62,7 @@ def test_points_are_uniform_inside_each_face(seed):
 
 def test_points_lie_on_their_faces_and_on_the_sphere(seed):
     v, f = icosphere(1)
-    s = sample_surface(v, f, 500, seed=seed)
+    s = sample_surface(v, f, 500, key=jax.random.key(seed))
     assert s.face.dtype == np.int32 and s.bary.dtype == np.float64
     assert s.bary.min() >= 0.0
     np.testing.assert_allclose(s.bary.sum(1), 1.0, atol=1e-15)
@@ -72,9 +72,9 @@ def test_points_lie_on_their_faces_and_on_the_sphere(seed):
 
 def test_seed_and_rng_are_deterministic():
     v, f = grid(3)
-    a = sample_surface(v, f, 50, seed=7)
-    b = sample_surface(v, f, 50, seed=7)
-    c = sample_surface(v, f, 50, seed=8)
+    a = sample_surface(v, f, 50, key=jax.random.key(7))
+    b = sample_surface(v, f, 50, key=jax.random.key(7))
+    c = sample_surface(v, f, 50, key=jax.random.key(8))
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
     assert not np.array_equal(a.point, c.point)
@@ -83,20 +83,20 @@ def test_seed_and_rng_are_deterministic():
     np.testing.assert_array_equal(d.point, a.point)
     e = sample_surface(v, f, 50, rng=rng)  # the generator advanced
     assert not np.array_equal(e.point, d.point)
-    assert sample_surface(v, f, 0, seed=1).point.shape == (0, 3)
+    assert sample_surface(v, f, 0, key=jax.random.key(1)).point.shape == (0, 3)
 
 
 @pytest.mark.parametrize(
     "kwargs, error, match",
     [
-        (dict(), InputError, "exactly one of seed"),
-        (dict(seed=1, rng=np.random.default_rng(1)), InputError, "exactly one of seed"),
-        (dict(seed=1.5), InputError, "seed must be an int"),
+        (dict(), InputError, "exactly one of key"),
+        (dict(key=jax.random.key(1), rng=np.random.default_rng(1)), InputError, "exactly one of key"),
+        (dict(key=1), InputError, "must be a JAX PRNG key"),
         (dict(rng=1), InputError, "Generator"),
-        (dict(seed=1, n=-1), InputError, "non-negative"),
-        (dict(seed=1, faces=np.array([[0, 1, 9]])), FaceIndexError, "out of range"),
-        (dict(seed=1, faces=np.array([[0, 1, 2, 3]])), NonTriangleFaceError, "triangles"),
-        (dict(seed=1, vertices=np.zeros((4, 3))), InputError, "total area"),
+        (dict(key=jax.random.key(1), n=-1), InputError, "non-negative"),
+        (dict(key=jax.random.key(1), faces=np.array([[0, 1, 9]])), FaceIndexError, "out of range"),
+        (dict(key=jax.random.key(1), faces=np.array([[0, 1, 2, 3]])), NonTriangleFaceError, "triangles"),
+        (dict(key=jax.random.key(1), vertices=np.zeros((4, 3))), InputError, "total area"),
     ],
 )
 @pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors

@@ -219,7 +219,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     known = stripe_encoder(target)
     mask = target.vertices[:, 2] > 0
     zi = fldm.inpaint(model, target, known, mask, key=key, steps=25)[0]
-    fine = remesh(exemplar, n_vertices=2 * target.num_vertices, seed=99)
+    fine = remesh(exemplar, n_vertices=2 * target.num_vertices, key=jax.random.key(99))
     zf = fldm.sample(model, fine, key=key, n=1, steps=25)[0]
     view = VIEWS[0]
     images = [
