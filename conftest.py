@@ -49,6 +49,9 @@ threadpool_limits(1)
 # in-process must not share one cache folder between xdist workers and other runs (a half-written
 # entry read by another process crashed a worker): the suite runs with the cache off.
 os.environ["JMESHTEX_JAX_CACHE"] = "0"
+# ... and a test that sets a cache folder (the CLI's cache-folder test) must not switch it on for the
+# rest of its worker either: once used, JAX keeps the cache for the process.
+jax.config.update("jax_enable_compilation_cache", False)
 
 settings.register_profile(
     "ci",

@@ -106,7 +106,7 @@ def test_errors():
         remesh((v, f), n_vertices=10, key=jax.random.key(0))
     with pytest.raises(ConfigError, match="n_vertices"):
         remesh(Mesh(v, f), n_vertices=2, key=jax.random.key(0))
-    with pytest.raises(InputError, match="seed"):
+    with pytest.raises(InputError, match="must be a JAX PRNG key"):
         remesh(Mesh(v, f), n_vertices=10, key=1.5)
     with pytest.raises(ConfigError, match="jitter"):
         remesh(Mesh(v, f), n_vertices=10, key=jax.random.key(0), jitter=0.6)
