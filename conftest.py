@@ -10,6 +10,8 @@
   they pass ill-typed arguments on purpose to test the typed errors the functions raise themselves;
   ``JMESHTEX_TYPECHECK=0`` switches them off for a whole run;
 - BLAS runs one thread per test worker (the workers already use every core);
+- a worker's JAX compilation caches are cleared when its memory mappings near the kernel's limit
+  (``_bounded_memory_maps``; XLA:CPU segfaults compiling past it);
 - the ``key`` fixture prints its seed; pin it with ``JMESHTEX_SEED=<int>`` to replay a failure;
 - hypothesis has a reproducible ``ci`` profile (fixed example count, derandomised), selected when
   ``CI`` is set, and a longer ``dev`` profile otherwise (``HYPOTHESIS_PROFILE`` overrides both).
@@ -87,6 +89,43 @@ def _runtime_type_checks(request: pytest.FixtureRequest):
         yield
     finally:
         jaxtyping.config.update("jaxtyping_disable", before)
+
+
+# Every executable XLA:CPU compiles holds ~3 memory mappings (its JIT-linked code and data) until
+# JAX drops it from its caches. A test worker compiles tens of thousands of executables in one run;
+# past the kernel's per-process limit (vm.max_map_count, 65530 by default) LLVM's next mmap fails
+# and the compile segfaults (measured: a worker at ~60K mappings after ~18 min crashed compiling the
+# FLDM sampler's scan; the count grows ~1K per 20 s). The caches are cleared once a worker nears it.
+_MAPS_LIMIT = 0.6
+
+
+def _max_map_count() -> int:
+    try:
+        return int(pathlib.Path("/proc/sys/vm/max_map_count").read_text())
+    except (OSError, ValueError):
+        return 0
+
+
+_MAX_MAPS = _max_map_count()
+
+
+def _memory_maps() -> int:
+    try:
+        with open("/proc/self/maps", "rb") as f:
+            return sum(1 for _ in f)
+    except OSError:
+        return 0
+
+
+@pytest.fixture(autouse=True)
+def _bounded_memory_maps():
+    """Clear JAX's compilation caches after a test that leaves the worker near the mapping limit."""
+    yield
+    if _MAX_MAPS and _memory_maps() > _MAPS_LIMIT * _MAX_MAPS:
+        import gc
+
+        jax.clear_caches()
+        gc.collect()
 
 
 @pytest.fixture
