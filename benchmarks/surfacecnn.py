@@ -15,10 +15,18 @@ The machine is shared; record ``uptime`` with the numbers and re-run on a quiet 
 precomputation is single-threaded NumPy, so its process CPU time (``cpu_s``) approximates the wall
 time of a quiet machine.
 
+Quality section (``--quality``): on Spot (its own UVs) and an xatlas-unwrapped icosphere, the
+surface CNN (global, smooth and — as the ablation — UV frames) against UV-space 2D synthesis (the
+same Gram optimisation on the flat texture image): the protocol's SIFID-VGG / Gram of 4 renders
+against the exemplar with its flat and permuted baselines, the seam ratio, and the frames' turn
+across seam edges. Writes ``results/surfacecnn.quality.{md,json}`` and renders to
+``/tmp/round2/surfacecnn_png/``.
+
 Usage::
 
     python benchmarks/surfacecnn.py                       # precompute 512,1024; steps 256,512
     python benchmarks/surfacecnn.py --precompute 512 --steps 256
+    python benchmarks/surfacecnn.py --quality --size 96 --quality-steps 150
 """
 
 from __future__ import annotations
@@ -126,5 +134,116 @@ def main() -> None:
     report.write(pathlib.Path(args.out) if args.out else None)
 
 
+# ---------------------------------------------------------------------------------------------
+# quality: surface CNN against UV-space 2D synthesis, seams, frame jumps
+
+QUALITY_LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1", "relu2_2", "pool2", "relu3_1")
+PNG_DIR = pathlib.Path("/tmp/round2/surfacecnn_png")
+
+
+def _quality_meshes():
+    from jmeshtex import Mesh
+    from jmeshtex.data import icosphere
+    from jmeshtex.surfacecnn import unwrap_uv
+
+    out = []
+    spot = pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED)) / "spot" / "spot_triangulated.obj"
+    if spot.is_file():
+        from jmeshtex.io import load_mesh
+
+        out.append(("spot (own UVs)", load_mesh(spot), "y"))
+    v, f = icosphere(3)
+    out.append(("icosphere3 + xatlas", Mesh(v, f, uv=unwrap_uv(v, f)), "z"))
+    return out
+
+
+def _exemplar(n: int) -> np.ndarray:
+    import skimage.data
+    import skimage.transform
+
+    brick = skimage.data.brick().astype(np.float64) / 255.0
+    brick = skimage.transform.resize(brick, (n, n), anti_aliasing=True)
+    return np.repeat(brick[..., None], 3, axis=2)
+
+
+def quality(size: int, steps: int, out: pathlib.Path | None) -> None:
+    import json
+
+    from jmeshtex import render
+    from jmeshtex.geometry import tracer_geometry
+    from jmeshtex.metrics import Protocol, baseline_table
+    from jmeshtex.surfacecnn import frame_seam_turn, seam_ratio, synthesize, synthesize_uv
+
+    PNG_DIR.mkdir(parents=True, exist_ok=True)
+    exemplar = _exemplar(96)
+    config = Config(size=size, steps=steps, layers=QUALITY_LAYERS)
+    levels = required_levels(load_vgg16(), QUALITY_LAYERS)
+    rows, lines = [], []
+    for name, mesh, up in _quality_meshes():
+        g = tracer_geometry(mesh.vertices, mesh.faces)
+        turns = {fr: frame_seam_turn(mesh, frames=fr, geometry=g) for fr in ("uv", "global", "smooth")}
+        protocol = Protocol(azimuths=4, elevations=(20.0,), size=192, up=up)
+        panels = [("exemplar", exemplar)]
+        for method, frames in (("surface CNN, global frames", "global"), ("surface CNN, smooth frames", "smooth"),
+                               ("surface CNN, uv frames", "uv"), ("UV-space 2D synthesis", "global")):
+            t0 = time.perf_counter()
+            surface = prepare_surface(mesh, size=size, levels=levels, boundary=config.boundary, frames=frames)
+            if method.startswith("UV"):
+                r = synthesize_uv(mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False)
+            else:
+                r = synthesize(mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False)
+            seconds = time.perf_counter() - t0
+            seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=g)
+            table = baseline_table(mesh, key=jax.random.key(1), uv=surface.atlas.uv, texture=r.texture,
+                                   exemplar=exemplar, protocol=protocol, metrics=("sifid", "gram"))
+            row = {"mesh": name, "method": method, "size": size, "steps": steps, "seconds": seconds,
+                   "seam_ratio": seams["ratio"], "seam_pairs": seams["seam_pairs"],
+                   **{f"{k}_{m}": v for k, vals in table.rows.items() for m, v in vals.items() if m != "views"}}
+            rows.append(row)
+            print(json.dumps(row))
+            views = render.render_views(mesh, protocol.cameras(mesh), uv=surface.atlas.uv, texture=r.texture)
+            tag = name.split()[0] + "_" + method.replace(" ", "_").replace(",", "")
+            render.figure([(f"view {i}", im) for i, im in enumerate(views)] + [("texture", r.texture)],
+                          columns=5, title=f"{name}: {method}", path=PNG_DIR / f"{tag}.png")
+            panels.append((method, views[0]))
+        render.figure(panels, columns=len(panels), title=name, path=PNG_DIR / f"{name.split()[0]}_compare.png")
+        for fr, t in turns.items():
+            rows.append({"mesh": name, "frames": fr, "seam_edges": len(t), "turn_max_deg": float(np.degrees(t.max())),
+                         "turn_median_deg": float(np.degrees(np.median(t)))})
+            print(json.dumps(rows[-1]))
+    lines.append("| mesh | method | seam ratio | sifid | gram | flat sifid | flat gram | permuted sifid | "
+                 "permuted gram | s |")
+    lines.append("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for r in rows:
+        if "method" in r:
+            lines.append(f"| {r['mesh']} | {r['method']} | {r['seam_ratio']:.3f} | {r['result_sifid']:.4g} | "
+                         f"{r['result_gram']:.4g} | {r['flat_sifid']:.4g} | {r['flat_gram']:.4g} | "
+                         f"{r['permuted_sifid']:.4g} | {r['permuted_gram']:.4g} | {r['seconds']:.0f} |")
+    lines += ["", "| mesh | frames | seam edges | max turn (°) | median turn (°) |", "| --- | --- | --- | --- | --- |"]
+    for r in rows:
+        if "frames" in r:
+            lines.append(f"| {r['mesh']} | {r['frames']} | {r['seam_edges']} | {r['turn_max_deg']:.3g} | "
+                         f"{r['turn_median_deg']:.3g} |")
+    note = (f"\nsize {size}², {steps} steps, Gram layers {', '.join(QUALITY_LAYERS)} (VGG-16, embedded), exemplar "
+            "skimage brick 96², protocol: 4 views at elevation 20°, 192² (sifid/gram: VGG-16 features, not "
+            "Inception). Seam ratio: mean colour difference across UV chart seams / inside charts (1 = seamless).")
+    text = "\n".join(lines) + "\n" + note + "\n"
+    print(text)
+    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    (directory / "surfacecnn.quality.md").write_text(text)
+    (directory / "surfacecnn.quality.json").write_text(json.dumps(rows, indent=1) + "\n")
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    if "--quality" in sys.argv:
+        qp = argparse.ArgumentParser()
+        qp.add_argument("--quality", action="store_true")
+        qp.add_argument("--size", type=int, default=96)
+        qp.add_argument("--quality-steps", type=int, default=150)
+        qp.add_argument("--out", default=None)
+        qa = qp.parse_args()
+        quality(qa.size, qa.quality_steps, pathlib.Path(qa.out) if qa.out else None)
+    else:
+        main()

@@ -57,6 +57,26 @@ def add_common(p: argparse.ArgumentParser, *, out: str | None = "output folder",
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+#: the values ``--up`` takes (the same as ``jmeshtex.render.UP_AXES``)
+UP_CHOICES = ("x", "y", "z", "-x", "-y", "-z")
+
+
+def add_up(p: argparse.ArgumentParser, *, default: str = "z") -> None:
+    """Add ``--up``: the mesh's up axis for renders (pass it on as ``up=`` to :mod:`jmeshtex.render`).
+
+    Most OBJ files are Y-up (``--up y``); jmeshtex's procedural meshes are Z-up (the default).
+
+    Example:
+      >>> p = argparse.ArgumentParser()
+      >>> add_up(p)
+      >>> p.parse_args(["--up", "y"]).up, p.parse_args([]).up
+      ('y', 'z')
+    """
+    p.add_argument("--up", default=default, choices=UP_CHOICES, metavar="AXIS",
+                   help=f"up axis of the mesh in renders: {'|'.join(UP_CHOICES)} (default {default}; "
+                        "most OBJ files are y)")
+
+
 def procedural_mesh(spec: str):
     """The :mod:`jmeshtex.data` mesh a procedural spec names, or None if ``spec`` names none.
 

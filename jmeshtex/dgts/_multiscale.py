@@ -180,6 +180,24 @@ def fitting_loss(
     ps, ns = sample_points(vertices, geo.faces, num_samples, key=k_s)
     pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
     cd = chamfer_distance(ps, pt, p_normals=ns, q_normals=nt, squared=config.squared_chamfer, oriented=True)
+    reg, reg_terms = regularizer_loss(vertices, geo, config=config)
+    terms = {"s2t": cd.p_to_q, "t2s": cd.q_to_p, "normal_s2t": cd.normal_p_to_q, "normal_t2s": cd.normal_q_to_p,
+             **reg_terms}
+    c = config
+    loss = (
+        c.weight_s2t * terms["s2t"]
+        + c.weight_t2s * terms["t2s"]
+        + c.weight_normal_s2t * terms["normal_s2t"]
+        + c.weight_normal_t2s * terms["normal_t2s"]
+        + reg
+    )
+    return loss, terms
+
+
+def regularizer_loss(
+    vertices: Float[Array, "V 3"], geo: _FitGeometry, *, config: PrepareConfig
+) -> tuple[Float[Array, ""], dict[str, Float[Array, ""]]]:
+    """The triangulation regularisers of :class:`PrepareConfig` (edge spread, edge entropy, Laplacian)."""
     e = vertices[geo.edges[:, 1]] - vertices[geo.edges[:, 0]]
     length = safe_norm(e)
     edge_std = jnp.sqrt(jnp.mean((length - jnp.mean(length)) ** 2) + 1e-12)
@@ -192,26 +210,9 @@ def fitting_loss(
         vertices[geo.edges[:, 0]], geo.edges[:, 1], V
     )
     lap = jnp.mean(jnp.sum(jnp.abs(vertices - nbr / jnp.maximum(geo.degree, 1)[:, None]), axis=1))
-    terms = {
-        "s2t": cd.p_to_q,
-        "t2s": cd.q_to_p,
-        "normal_s2t": cd.normal_p_to_q,
-        "normal_t2s": cd.normal_q_to_p,
-        "edge_std": edge_std,
-        "edge_local": edge_local,
-        "laplacian": lap,
-    }
     c = config
-    loss = (
-        c.weight_s2t * terms["s2t"]
-        + c.weight_t2s * terms["t2s"]
-        + c.weight_normal_s2t * terms["normal_s2t"]
-        + c.weight_normal_t2s * terms["normal_t2s"]
-        + c.weight_edge_std * edge_std
-        + c.weight_edge_local * edge_local
-        + c.weight_laplacian * lap
-    )
-    return loss, terms
+    loss = c.weight_edge_std * edge_std + c.weight_edge_local * edge_local + c.weight_laplacian * lap
+    return loss, {"edge_std": edge_std, "edge_local": edge_local, "laplacian": lap}
 
 _CHUNK = 50
 
@@ -281,6 +282,12 @@ def fit_level(
         jnp.asarray(target_vertices, jnp.float32),
         jnp.asarray(target_faces, jnp.int32),
     )
+    if config.schedule == "official":
+        from ._official_fit import fit_official
+
+        v, terms = fit_official(jnp.asarray(vertices, jnp.float32), geo, config=config, num_samples=int(num_samples),
+                                key=key, progress=progress)
+        return np.asarray(v, np.float64), terms
     run_chunk, opt = _fit_runner(config, int(num_samples))
     chunk = _CHUNK
     v = jnp.asarray(vertices, jnp.float32)

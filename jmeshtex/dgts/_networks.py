@@ -124,6 +124,7 @@ def generator_level(
     *,
     negative_slope: float = 0.2,
     eps: float = 1e-5,
+    y_sign: float = 1.0,
 ) -> Float[Array, "V 3"]:
     """Per-vertex displacement produced by one DGTS generator level (module docstring formula).
 
@@ -133,6 +134,9 @@ def generator_level(
       nbhd: the level's face neighbourhood.
       noise: ``[V, 3]`` vertex noise added before the features are computed (0: none).
       negative_slope, eps: leaky-ReLU slope and instance-norm regulariser.
+      y_sign: sign of the in-plane coefficient ``d_y`` (static): 1 for jmeshtex's axis ``y = n × x``,
+        −1 for the official code's ``y = x × n`` (:attr:`Config.y_sign`; the sign cannot be folded
+        into the last layer's weights because a max over neighbours follows them).
 
     Returns:
       ``[V, 3]`` world-frame displacement ``Π_v(d)``; rotates with rigid motions of ``vertices``
@@ -150,6 +154,8 @@ def generator_level(
         raise InputError("generator_level: the last layer must have 3 outputs (displacement coefficients)")
     noisy = vertices + jnp.asarray(noise, vertices.dtype)
     d = face_conv_stack(face_features(noisy, nbhd), nbhd, params, negative_slope=negative_slope, eps=eps)
+    if float(y_sign) != 1.0:
+        d = d * jnp.asarray([1.0, float(y_sign), 1.0], d.dtype)
     return face_to_vertex_displacement(d, vertices, nbhd)
 
 
@@ -216,7 +222,9 @@ def generate(
     scale: float = 2.0,
     negative_slope: float = 0.2,
     eps: float = 1e-5,
-) -> Float[Array, "Vn 3"]:
+    y_sign: float = 1.0,
+    per_level: bool = False,
+) -> Float[Array, "Vn 3"] | tuple[Float[Array, "Vl 3"], ...]:
     """Run generator levels one after another, subdividing in between (DGTS inference, §3.4).
 
     .. math:: v_{l+1} = s\\, U_l\\big(v_l + G_l(v_l, z_l)\\big)
@@ -227,9 +235,13 @@ def generate(
       geometry: the matching :class:`LevelGeometry` per level run.
       noise: per level, ``[V_l, 3]`` noise or a scalar 0.
       scale: rescaling after each subdivision.
+      negative_slope, eps, y_sign: as :func:`generator_level`.
+      per_level: also return every level's output (the growing output of the paper's Fig. 6).
 
     Returns:
-      ``[V_n, 3]`` output of the last level (not subdivided after it), in its frame.
+      ``[V_n, 3]`` output of the last level (not subdivided after it), in its frame; with
+      ``per_level`` the tuple of every level's output ``v_l + G_l(v_l, z_l)`` (in level ``l``'s
+      frame, before subdivision), the last one being that output.
 
     Example:
       >>> from jmeshtex.data import icosahedron
@@ -245,11 +257,13 @@ def generate(
             "pass one of each per level"
         )
     v = vertices
+    outputs = []
     for i, (p, g, z) in enumerate(zip(params, geometry, noise, strict=True)):
-        v = v + generator_level(p, v, g.nbhd, z, negative_slope=negative_slope, eps=eps)
+        v = v + generator_level(p, v, g.nbhd, z, negative_slope=negative_slope, eps=eps, y_sign=y_sign)
+        outputs.append(v)
         if i + 1 < len(params):
             v = upsample(v, g.edge_vertices, scale=scale)
-    return v
+    return tuple(outputs) if per_level else v
 
 
 def init_level(

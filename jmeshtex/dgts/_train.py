@@ -195,7 +195,8 @@ class LevelBatch(NamedTuple):
 def _advance(params, vertices, noise, geometry, *, config: Config):
     """One frozen level on a batch: ``s·U(v + G(v, z))`` for every row (forward only)."""
     kw = {"negative_slope": config.negative_slope, "eps": config.eps}
-    out = jax.vmap(lambda v, z: v + generator_level(params, v, geometry.nbhd, z, **kw))(vertices, noise)
+    out = jax.vmap(lambda v, z: v + generator_level(params, v, geometry.nbhd, z, **kw, y_sign=config.y_sign))(
+        vertices, noise)
     return jax.vmap(lambda v: upsample(v, geometry.edge_vertices, scale=config.scale_factor))(out)
 
 
@@ -270,7 +271,7 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: Config):
     vmask = nbhd.vertex_mask
 
     def produce(g, base, z):
-        return base + generator_level(g, base, nbhd, z, **kw)
+        return base + generator_level(g, base, nbhd, z, **kw, y_sign=c.y_sign)
 
     def d_loss(d, fake, alpha):
         real_f, fake_f = face_features(real, nbhd), face_features(fake, nbhd)
@@ -372,6 +373,7 @@ def train(
     progress: bool = True,
     checkpoint_dir: str | os.PathLike | None = None,
     checkpoint_every: int | None = None,
+    snapshot_every: int | None = None,
 ) -> TrainResult[Model]:
     """Train the DGTS hierarchy on multi-scale training meshes, level by level (§3.4).
 
@@ -385,13 +387,18 @@ def train(
         this run (same config, key and meshes), training resumes from the newest.
       checkpoint_every: also checkpoint every this many steps within a level (rounded up to a
         multiple of ``CHUNK``); None: only after each level. Needs ``checkpoint_dir``.
+      snapshot_every: every this many steps (rounded up to a multiple of ``CHUNK``) and at the end
+        of each level, record the level's current output: one sample (the chunk's first fresh
+        noise draw through the frozen levels and the current generator) and the reconstruction,
+        both ``[V_l, 3]`` float64 in level ``l``'s frame, in ``extra["snapshots"]`` as dicts
+        ``{"level", "step", "sample", "reconstruction"}`` (training progress, for figures). None: none.
 
     Returns:
       :class:`~jmeshtex.TrainResult`: ``model`` (a :class:`~jmeshtex.dgts.Model` of ``levels``
       levels), ``losses[name]`` (``LOSS_NAMES``) of every step done, level after level (level
       ``l``'s at ``[l·steps, (l+1)·steps)``), ``steps`` (steps done in all levels), ``seconds``,
       ``resumed_from`` (the checkpoint step resumed from, or None) and ``extra["levels"]``: one
-      :class:`LevelReport` per completed level.
+      :class:`LevelReport` per completed level (and ``extra["snapshots"]`` with ``snapshot_every``).
 
     Raises:
       ConfigError: ``levels`` outside ``[1, meshes.num_levels]``; ``checkpoint_every`` without a
@@ -421,6 +428,10 @@ def train(
     if checkpoint_every is not None and (checkpoint_dir is None or int(checkpoint_every) < 1):
         raise ConfigError(f"checkpoint_every={checkpoint_every!r} needs a checkpoint_dir and a value >= 1")
     every = None if checkpoint_every is None else -(-int(checkpoint_every) // CHUNK)  # in chunks
+    if snapshot_every is not None and (isinstance(snapshot_every, bool) or int(snapshot_every) < 1):
+        raise ConfigError(f"snapshot_every must be an int >= 1, got {snapshot_every!r}")
+    snap_every = None if snapshot_every is None else -(-int(snapshot_every) // CHUNK)  # in chunks
+    snapshots: list[dict] = []
     V = [len(v) for v in meshes.vertices]
     # the padded sizes come from the training meshes, not from `levels`: resuming stays exact
     n_geo = max(total, min(config.shared_levels, meshes.num_levels))
@@ -514,6 +525,11 @@ def train(
                     bar.set_postfix(rec=f"{float(losses['g_rec'][n - 1]):.3g}",
                                     adv=f"{float(losses['g_adv'][n - 1]):.3g}")
                 done = chunk * CHUNK + n
+                if snap_every is not None and ((chunk + 1) % snap_every == 0 or done == S):
+                    sample, rec = _snapshot(g, nbhd, batch.fake_base[0, 0], batch.fake_noise[0, 0],
+                                            batch.rec_base[0, 0], batch.rec_noise[0, 0], config=config)
+                    snapshots.append({"level": level, "step": done, "sample": np.asarray(sample, np.float64),
+                                      "reconstruction": np.asarray(rec, np.float64)})
                 if ckpt is not None and every is not None and (chunk + 1) % every == 0 and done < S:
                     _extend(history, chunk_losses)
                     chunk_losses = []
@@ -544,7 +560,14 @@ def train(
     losses = {k: np.asarray(v[: total * S], np.float64) for k, v in history.items()}
     return TrainResult(model=model, losses=losses, steps=min(len(gs), total) * S,
                        seconds=time.perf_counter() - t_start, resumed_from=resumed_from,
-                       extra={"levels": reports[:total]})
+                       extra={"levels": reports[:total], **({"snapshots": snapshots} if snap_every else {})})
+
+
+@functools.partial(jax.jit, static_argnames=("config",))
+def _snapshot(g, nbhd, base, z, rec_base, rec_z, *, config: Config):
+    """The current generator's sample and reconstruction on one row of a :class:`LevelBatch`."""
+    kw = {"negative_slope": config.negative_slope, "eps": config.eps, "y_sign": config.y_sign}
+    return base + generator_level(g, base, nbhd, z, **kw), rec_base + generator_level(g, rec_base, nbhd, rec_z, **kw)
 
 
 def _extend(history: dict[str, list[float]], chunk_losses: list[dict]) -> None:

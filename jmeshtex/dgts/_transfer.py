@@ -1,5 +1,21 @@
 """Transfer a learned DGTS texture to any mesh, and interpolate between noises (Hertz et al. 2020, §3.4, §4).
 
+Inference modes (all through one jit-compiled pass that also returns every level's output, the
+growing mesh of the paper's Fig. 6, ``per_level=True``):
+
+- :func:`transfer`: fresh noise at every level run; ``zero_noise_from=k`` sets the noise of levels
+  ``≥ k`` to zero (the official ``animate``; deterministic from the start level on when
+  ``k ≤ start_level``);
+- :func:`reconstruct`: the template through all levels with the reconstruction noise (``z*`` at
+  level 0, zero above): the training meshes' reconstruction;
+- :func:`conditional`: generation from the template at scale ``k`` (Fig. 5): the reconstruction's
+  noise below level ``k``, fresh noise from ``k`` on, so levels ``< k`` reproduce the reconstruction;
+- :func:`interpolate`: frames between two noise draws.
+
+Output size: ``F_out = F_target · 4^{L − 1 − start}``; with ``start_level=None`` :func:`transfer`
+and :func:`interpolate` take the first start level whose output fits ``max_faces``
+(:func:`choose_start_level`; default 500 000) and raise :class:`FaceBudgetError` when none does.
+
 The target is scaled about its centroid so its mean edge is 1 (the frame the generators were trained
 in), the generators ``start_level … L−1`` run on it with fresh Gaussian vertex noise, subdividing 1 → 4
 and rescaling ×2 between levels, and the result is mapped back to the target's coordinates. No
@@ -9,7 +25,7 @@ genus work (boundary edges are handled by the face neighbourhood's substitute op
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import jax
@@ -25,6 +41,10 @@ from ._model import Model
 from ._networks import LevelGeometry, generate, hierarchy_geometry, upsample
 
 
+class FaceBudgetError(InputError):
+    """The output of a transfer would exceed the face budget (``max_faces``) even from the last level."""
+
+
 class DGTSTransfer(NamedTuple):
     """Meshes produced by :func:`transfer` and :func:`interpolate` (all in the target's coordinates).
 
@@ -36,6 +56,10 @@ class DGTSTransfer(NamedTuple):
         the output's level frame (for colouring).
       noise: per sample, the list of per-level noises used (``[V_l, 3]`` float32 arrays; replay or
         interpolate with them through :func:`run_plan`).
+      start_level: the first generator level run (chosen by the face budget when not given).
+      level_vertices: with ``per_level=True``, one ``[S, V_l, 3]`` float64 array per level run:
+        that level's output (target coordinates, before subdivision); else empty.
+      level_faces: the matching ``[F_l, 3]`` triangles; else empty.
     """
 
     vertices: np.ndarray
@@ -43,6 +67,9 @@ class DGTSTransfer(NamedTuple):
     base: np.ndarray
     heights: np.ndarray
     noise: list
+    start_level: int = 0
+    level_vertices: tuple = ()
+    level_faces: tuple = ()
 
     def mesh(self, sample: int = 0) -> Mesh:
         """Sample (or frame) ``sample`` as a :class:`~jmeshtex.Mesh`."""
@@ -61,6 +88,7 @@ class TransferPlan(NamedTuple):
       center: ``[3]`` the target's centroid (input coordinates).
       factor: input-to-output scale: the output's frame is ``(x − center) · factor``.
       start_level: the first generator run.
+      scale_factor: the rescaling between levels (``Config.scale_factor``).
     """
 
     vertices: Float[Array, "V 3"]
@@ -70,10 +98,18 @@ class TransferPlan(NamedTuple):
     center: Float[np.ndarray, " 3"]
     factor: float
     start_level: int
+    scale_factor: float = 2.0
 
-    def to_target(self, vertices: Float[Array, "Vn 3"]) -> Float[np.ndarray, "Vn 3"]:
-        """Output positions of :func:`run_plan` back in the target's coordinates (float64)."""
-        return np.asarray(vertices, np.float64) / self.factor + self.center
+    def to_target(self, vertices: Float[Array, "Vn 3"], level: int | None = None) -> Float[np.ndarray, "Vn 3"]:
+        """Output positions of :func:`run_plan` back in the target's coordinates (float64).
+
+        ``level``: the index (into ``sizes``) of the level run the positions come from; default the
+        last (the frames grow by ``scale_factor`` per level).
+        """
+        factor = self.factor
+        if level is not None:
+            factor = self.factor / self.scale_factor ** (len(self.sizes) - 1 - int(level))
+        return np.asarray(vertices, np.float64) / factor + self.center
 
 
 def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -> TransferPlan:
@@ -123,12 +159,13 @@ def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -
         sizes.append(sizes[-1] + int(g.edge_vertices.shape[0]))
     factor = scale * model.config.scale_factor ** (n - 1)
     return TransferPlan(jnp.asarray((v - center) * scale, jnp.float32), geos, faces_all, tuple(sizes), center,
-                        float(factor), int(start_level))
+                        float(factor), int(start_level), float(model.config.scale_factor))
 
 
-@jax.jit(static_argnums=(0, 1, 2))
-def _generate_jit(scale, negative_slope, eps, v0, geos, params, zs):
-    return generate(params, v0, geos, zs, scale=scale, negative_slope=negative_slope, eps=eps)
+@jax.jit(static_argnums=(0, 1, 2, 3, 4))
+def _generate_jit(scale, negative_slope, eps, y_sign, per_level, v0, geos, params, zs):
+    return generate(params, v0, geos, zs, scale=scale, negative_slope=negative_slope, eps=eps, y_sign=y_sign,
+                    per_level=per_level)
 
 
 def run_plan(model: Model, plan: TransferPlan, noise: Sequence[Float[Array, "Vl 3"] | float]) -> Float[Array, "Vn 3"]:
@@ -159,7 +196,69 @@ def run_plan(model: Model, plan: TransferPlan, noise: Sequence[Float[Array, "Vl 
         raise InputError(f"run_plan: got {len(noise)} noises for {len(plan.sizes)} levels")
     c = model.config
     params = tuple(model.generators[plan.start_level:])
-    return _generate_jit(c.scale_factor, c.negative_slope, c.eps, plan.vertices, plan.geometry, params, tuple(noise))
+    return _generate_jit(c.scale_factor, c.negative_slope, c.eps, c.y_sign, False, plan.vertices, plan.geometry,
+                         params, tuple(noise))
+
+
+def output_faces(model: Model, num_faces: int, start_level: int) -> int:
+    """Faces of a transfer's output: ``F · 4^{L − 1 − start}`` (midpoint subdivision 1 → 4 per level).
+
+    Example:
+      >>> from jmeshtex.dgts import Config, init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(3))
+      >>> output_faces(Model(c, gs, gs, np.zeros((12, 3), np.float32)), 100, 0)
+      1600
+    """
+    return int(num_faces) * 4 ** (model.num_levels - 1 - int(start_level))
+
+
+def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000) -> int:
+    """The first start level whose transfer output stays within ``max_faces`` faces.
+
+    .. math:: s = \\min\\{\\,s \\in [0, L) : F \\cdot 4^{L-1-s} \\le F_{\\max}\\,\\}
+
+    Args:
+      model: the trained model (``L`` levels).
+      num_faces: faces of the target.
+      max_faces: the face budget of the output.
+
+    Returns:
+      The start level.
+
+    Raises:
+      FaceBudgetError: even the last level alone (no subdivision, ``F`` faces) exceeds the budget.
+      InputError: an untrained model or a budget below 1.
+
+    Example:
+      >>> from jmeshtex.dgts import Config, init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(5))
+      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))
+      >>> choose_start_level(model, 20_000), choose_start_level(model, 20_000, max_faces=2_000_000)
+      (2, 1)
+    """
+    L = model.num_levels
+    if L == 0:
+        raise InputError("the model has no trained level: train it first")
+    if isinstance(max_faces, bool) or not isinstance(max_faces, (int, np.integer)) or max_faces < 1:
+        raise InputError(f"max_faces must be a positive int, got {max_faces!r}")
+    for start in range(L):
+        if output_faces(model, num_faces, start) <= max_faces:
+            return start
+    raise FaceBudgetError(f"the target has {num_faces} faces: even from the last level (no subdivision) the output "
+                          f"exceeds max_faces={max_faces}; decimate the target or raise max_faces")
+
+
+def _resolve_start(model: Model, target, start_level: int | None, max_faces: int | None) -> int:
+    _, f = as_mesh(target, what="target")
+    F = int(np.shape(f)[0])
+    if start_level is None:
+        return choose_start_level(model, F, max_faces=500_000 if max_faces is None else max_faces)
+    if max_faces is not None and 0 <= start_level < model.num_levels and output_faces(model, F, start_level) > max_faces:
+        raise FaceBudgetError(f"start_level={start_level} on {F} faces gives {output_faces(model, F, start_level)} "
+                              f"faces, over max_faces={max_faces}; use start_level=None to choose one that fits")
+    return start_level
 
 
 def _noises(key: PRNGKey, sizes: Sequence[int], amplitude: float) -> list[jax.Array]:
@@ -167,22 +266,41 @@ def _noises(key: PRNGKey, sizes: Sequence[int], amplitude: float) -> list[jax.Ar
     return [amplitude * jax.random.normal(k, (s, 3), jnp.float32) for k, s in zip(keys, sizes, strict=True)]
 
 
-def _synthesise(model: Model, target, start_level: int, noises: Callable) -> DGTSTransfer:
-    """Run the generators from ``start_level`` on the target once per noise list ``noises(sizes)``
-    returns (one ``[V_l, 3]`` array per level run), and map the results back to the target's frame."""
-    plan = plan_transfer(model, target, start_level=start_level)
-    draws = noises(plan.sizes)
-    outs = [run_plan(model, plan, zs) for zs in draws]
+def _synthesise(model: Model, plan: TransferPlan, draws: Sequence[Sequence], *, per_level: bool) -> DGTSTransfer:
+    """Run the generators of ``plan`` once per noise list in ``draws`` (one ``[V_l, 3]`` array per level
+    run) and map the results back to the target's frame."""
+    c = model.config
+    params = tuple(model.generators[plan.start_level:])
+    outs = [_generate_jit(c.scale_factor, c.negative_slope, c.eps, c.y_sign, True, plan.vertices, plan.geometry,
+                          params, tuple(jnp.asarray(z, jnp.float32) for z in zs)) for zs in draws]
     base = plan.vertices
     for g in plan.geometry[:-1]:
-        base = upsample(base, g.edge_vertices, scale=model.config.scale_factor)
+        base = upsample(base, g.edge_vertices, scale=c.scale_factor)
     base = np.asarray(base, np.float64)
     nrm = vertex_normals(base, plan.faces[-1])
-    outs = [np.asarray(o, np.float64) for o in outs]
-    heights = np.stack([np.einsum("vd,vd->v", o - base, nrm) for o in outs])
-    vertices = np.stack([plan.to_target(o) for o in outs])
+    last = [np.asarray(o[-1], np.float64) for o in outs]
+    heights = np.stack([np.einsum("vd,vd->v", o - base, nrm) for o in last])
+    vertices = np.stack([plan.to_target(o) for o in last])
+    levels: tuple = ()
+    if per_level:
+        levels = tuple(np.stack([plan.to_target(o[i], level=i) for o in outs]) for i in range(len(plan.sizes)))
     return DGTSTransfer(vertices, plan.faces[-1], plan.to_target(base), heights,
-                        [[np.asarray(z) for z in zs] for zs in draws])
+                        [[np.asarray(z, np.float32) for z in zs] for zs in draws], plan.start_level,
+                        levels, tuple(plan.faces) if per_level else ())
+
+
+def _zero_above(draws: list, plan: TransferPlan, zero_noise_from: int | None) -> list:
+    if zero_noise_from is None:
+        return draws
+    k = int(zero_noise_from)
+    return [[np.zeros_like(np.asarray(z)) if plan.start_level + i >= k else z for i, z in enumerate(zs)]
+            for zs in draws]
+
+
+def _check_level(name: str, value, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+        raise InputError(f"{name} must be an int in [{low}, {high}], got {value!r}")
+    return int(value)
 
 
 def transfer(
@@ -190,8 +308,11 @@ def transfer(
     target: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
     *,
     key: PRNGKey,
-    start_level: int = 0,
+    start_level: int | None = None,
     num_samples: int = 1,
+    max_faces: int | None = 500_000,
+    zero_noise_from: int | None = None,
+    per_level: bool = False,
 ) -> DGTSTransfer:
     """Synthesise the learned texture on a target mesh, ``num_samples`` times with different noise.
 
@@ -204,15 +325,22 @@ def transfer(
         placement; open or closed, any genus).
       key: PRNG key of the noise.
       start_level: first generator to run (0: coarsest); the target is treated as a level-``start``
-        mesh, so ``L − start_level − 1`` subdivisions follow.
+        mesh, so ``L − start_level − 1`` subdivisions follow. None: the first level whose output
+        fits ``max_faces`` (:func:`choose_start_level`; the result's ``start_level`` says which).
       num_samples: independent noise draws.
+      max_faces: face budget of the output (checked for an explicit ``start_level`` too); None: no
+        budget (with ``start_level=None`` then 500 000).
+      zero_noise_from: zero noise at levels ``≥`` this (None: noise everywhere); with
+        ``zero_noise_from ≤ start_level`` the output does not depend on ``key``.
+      per_level: also return every level's output (``level_vertices``, ``level_faces``: Fig. 6).
 
     Returns:
       :class:`DGTSTransfer` in the target's coordinates.
 
     Raises:
-      InputError: a bad ``start_level`` or ``num_samples``, an untrained model, a target that is
-        not a mesh.
+      FaceBudgetError: the output would exceed ``max_faces`` (an :class:`~jmeshtex.InputError`).
+      InputError: a bad ``start_level``, ``num_samples`` or ``zero_noise_from``, an untrained model,
+        a target that is not a mesh.
       MeshError: (a subclass) an invalid target.
 
     Example:
@@ -223,16 +351,117 @@ def transfer(
       >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
       >>> model = train(tm, cfg, key=jax.random.key(3), progress=False).model
       >>> res = transfer(model, torus(8, 6), num_samples=2, key=jax.random.key(0))
-      >>> res.vertices.shape, res.faces.shape
-      ((2, 192, 3), (384, 3))
+      >>> res.vertices.shape, res.faces.shape, res.start_level
+      ((2, 192, 3), (384, 3), 0)
+      >>> transfer(model, torus(8, 6), max_faces=200, key=jax.random.key(0)).start_level  # 96 faces fit
+      1
     """
     if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
+    if zero_noise_from is not None:
+        _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
+    start = _resolve_start(model, target, start_level, max_faces)
+    plan = plan_transfer(model, target, start_level=start)
+    draws = [_noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude) for s in range(int(num_samples))]
+    return _synthesise(model, plan, _zero_above(draws, plan, zero_noise_from), per_level=per_level)
 
-    def noises(sizes):
-        return [_noises(jax.random.fold_in(key, s), sizes, model.config.noise_amplitude) for s in range(int(num_samples))]
 
-    return _synthesise(model, target, start_level, noises)
+def _reconstruction_noise(model: Model, sizes: Sequence[int]) -> list[np.ndarray]:
+    """``z*`` at level 0 and zero above (the noise of the training reconstruction)."""
+    z = np.asarray(model.z_star, np.float32)
+    if z.shape != (sizes[0], 3):
+        raise InputError(f"the template has {sizes[0]} vertices but the model's z* has {z.shape[0]} rows: pass the "
+                         "training template (TrainingMeshes.template with faces[0])")
+    return [z] + [np.zeros((s, 3), np.float32) for s in sizes[1:]]
+
+
+def conditional(
+    model: Model,
+    template: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
+    *,
+    level: int,
+    key: PRNGKey,
+    num_samples: int = 1,
+    per_level: bool = False,
+) -> DGTSTransfer:
+    """Generation conditioned on the training shape at scale ``level`` (the paper's Fig. 5).
+
+    The template runs through every level; levels ``< level`` get the reconstruction noise (``z*``
+    at level 0, zero above), levels ``≥ level`` fresh noise. The coarse shape up to ``level − 1`` is
+    therefore the reconstruction's and only finer detail varies between samples.
+
+    Args:
+      model: a trained model.
+      template: the training template (``Mesh(meshes.template, meshes.faces[0])``): its vertex
+        count must match ``model.z_star``.
+      level: first level with fresh noise, in ``[0, L]`` (``L``: no fresh noise, the
+        reconstruction itself; 0: an unconditional sample).
+      key: PRNG key of the fresh noise.
+      num_samples: independent draws.
+      per_level: also return every level's output.
+
+    Returns:
+      :class:`DGTSTransfer` in the template's coordinates.
+
+    Raises:
+      InputError: a bad ``level`` or a template that does not match ``z*``.
+
+    Example:
+      >>> from jmeshtex.data import icosahedron
+      >>> from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes
+      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
+      ...                      key=jax.random.key(0))
+      >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
+      >>> model = train(tm, cfg, key=jax.random.key(3), progress=False).model
+      >>> out = conditional(model, (tm.template, tm.faces[0]), level=1, num_samples=2, per_level=True,
+      ...                   key=jax.random.key(0))
+      >>> bool(np.array_equal(out.level_vertices[0][0], out.level_vertices[0][1]))  # level 0: reconstruction
+      True
+    """
+    L = model.num_levels
+    k = _check_level("level", level, 0, L)
+    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
+        raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
+    plan = plan_transfer(model, template, start_level=0)
+    rec = _reconstruction_noise(model, plan.sizes)
+    draws = []
+    for s in range(int(num_samples)):
+        fresh = _noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude)
+        draws.append([rec[i] if i < k else fresh[i] for i in range(L)])
+    return _synthesise(model, plan, draws, per_level=per_level)
+
+
+def reconstruct(
+    model: Model,
+    template: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
+    *,
+    per_level: bool = True,
+) -> DGTSTransfer:
+    """The training reconstruction: the template through every level with ``z*`` at level 0, zero above.
+
+    Deterministic (no key). Level ``l``'s output times ``scale_factor**l`` is the reconstruction
+    the generator ``l`` was trained to match against ``meshes.vertices[l]`` (template coordinates
+    are the level-0 frame).
+
+    Args:
+      model: a trained model.
+      template: the training template (vertex count of ``model.z_star``).
+      per_level: return every level's output (default True).
+
+    Returns:
+      :class:`DGTSTransfer` with one sample.
+
+    Example:
+      >>> from jmeshtex.data import icosahedron
+      >>> from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes
+      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
+      ...                      key=jax.random.key(0))
+      >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
+      >>> model = train(tm, cfg, key=jax.random.key(3), progress=False).model
+      >>> [v.shape for v in reconstruct(model, (tm.template, tm.faces[0])).level_vertices]
+      [(1, 12, 3), (1, 42, 3)]
+    """
+    return conditional(model, template, level=model.num_levels, key=jax.random.key(0), per_level=per_level)
 
 
 def interpolate(
@@ -240,15 +469,16 @@ def interpolate(
     target: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
     *,
     key: PRNGKey,
-    start_level: int = 0,
+    start_level: int | None = None,
     num_frames: int = 8,
+    max_faces: int | None = 500_000,
 ) -> DGTSTransfer:
     """Frames of a latent interpolation between two noise draws (the reference code's animation).
 
     .. math:: z(t) = (1 - t)\\, z_a + t\\, z_b,\\qquad t = 0, \\tfrac{1}{N-1}, \\ldots, 1
 
     Args:
-      model, target, start_level: as :func:`transfer`.
+      model, target, start_level, max_faces: as :func:`transfer`.
       key: PRNG key of ``z_a`` and ``z_b``.
       num_frames: frames including both ends (≥ 2).
 
@@ -268,15 +498,14 @@ def interpolate(
     """
     if isinstance(num_frames, bool) or not isinstance(num_frames, (int, np.integer)) or num_frames < 2:
         raise InputError(f"num_frames must be an int >= 2, got {num_frames!r}")
-
-    def noises(sizes):
-        ka, kb = jax.random.split(key)
-        za = _noises(ka, sizes, model.config.noise_amplitude)
-        zb = _noises(kb, sizes, model.config.noise_amplitude)
-        weights = [np.float32(t) for t in np.linspace(0.0, 1.0, int(num_frames))]
-        return [[(1 - w) * a + w * b for a, b in zip(za, zb, strict=True)] for w in weights]
-
-    return _synthesise(model, target, start_level, noises)
+    start = _resolve_start(model, target, start_level, max_faces)
+    plan = plan_transfer(model, target, start_level=start)
+    ka, kb = jax.random.split(key)
+    za = _noises(ka, plan.sizes, model.config.noise_amplitude)
+    zb = _noises(kb, plan.sizes, model.config.noise_amplitude)
+    weights = [np.float32(t) for t in np.linspace(0.0, 1.0, int(num_frames))]
+    draws = [[(1 - w) * a + w * b for a, b in zip(za, zb, strict=True)] for w in weights]
+    return _synthesise(model, plan, draws, per_level=False)
 
 
 def normal_heights(

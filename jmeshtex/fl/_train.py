@@ -8,6 +8,16 @@ the initialisation and the pool from two of its splits, step ``t``'s meshes, sam
 reparameterisation noise from ``t`` folded into two others, so a run resumed from a checkpoint
 continues exactly as an uninterrupted one would.
 
+Data parallel (``mesh=`` / ``devices=``, default every device JAX sees): the batch's vertex axis
+(the concatenated one-rings of the step's meshes, padded to a multiple of the device count) is split
+over the mesh's ``"data"`` axis, parameters and optimiser state are replicated, and XLA all-reduces
+the gradients (``jmeshtex.parallel``). Each vertex's encoder and log decoder read only its own
+one-ring, so the split costs no communication but the gradient reduction; the barycentric decoder
+gathers corner latents across devices. A step on ``D`` devices equals the one-device step up to
+float round-off whenever ``batch_size · max_vertices`` is a multiple of ``D`` (else the padding, and
+with it the noise's shape, differs). Under ``jmeshtex.parallel.initialize`` every process
+builds the same global batch from the key and feeds its devices their slices.
+
 Checkpoints (``checkpoint_dir``): :class:`jmeshtex.io.Checkpoints` steps holding the parameters
 and the optimiser state, with the loss history in their record, every ``checkpoint_every`` steps
 and at the end of each call; :func:`train` with the same folder resumes.
@@ -31,6 +41,14 @@ from .._train_result import TrainResult
 from .._types import PRNGKey
 from ..io import Checkpoints
 from ..ops import conjugate_complex_grads
+from ..parallel import (
+    batch_multiple,
+    data_parallel,
+    fetch,
+    is_multiprocess,
+    replicate,
+    resolve_mesh,
+)
 from ._colors import surface_colors
 from ._config import Config
 from ._encoder import _numpy_rng, one_ring_samples
@@ -69,15 +87,18 @@ def optimizer(config: Config) -> optax.GradientTransformation:
 
 
 @functools.lru_cache(maxsize=8)
-def make_train_step(config: Config):
+def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
     """The jitted training step ``(params, opt_state, batch, key) -> (params, opt_state, loss, l1)``.
 
     One :func:`~jmeshtex.fl.vae_loss` gradient, complex gradients conjugated, one
-    :func:`optimizer` update. Cached per config, so repeated or resumed runs in one process compile
-    once.
+    :func:`optimizer` update. Cached per config and mesh, so repeated or resumed runs in one process
+    compile once.
 
     Args:
       config: :class:`~jmeshtex.fl.Config` (static).
+      mesh: None (a plain :func:`jax.jit`), or a :class:`jax.sharding.Mesh` with a ``"data"`` axis:
+        the batch's vertex axis is split over it, everything else replicated
+        (``jmeshtex.parallel.data_parallel``).
 
     Returns:
       The step function; ``batch`` is a :func:`mesh_batch` dict, ``key`` the reparameterisation key.
@@ -99,7 +120,6 @@ def make_train_step(config: Config):
         return vae_loss(params, config, batch["log"], batch["rgb"], batch["mask"], key=key,
                         corners=batch["corners"], bary=batch["bary"], vertex_mask=batch["vertex_mask"])
 
-    @jax.jit
     def step(params, opt_state, batch, key):
         (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key)
         grads = conjugate_complex_grads(grads)
@@ -108,7 +128,9 @@ def make_train_step(config: Config):
             params = optax.apply_updates(params, updates)
         return params, opt_state, loss, aux["l1"]
 
-    return step
+    if mesh is None:
+        return jax.jit(step)
+    return data_parallel(step, mesh, batch_argnums=(2,))
 
 
 def mesh_batch(meshes: list[Mesh], config: Config, rng: np.random.Generator, *, num_vertices: int, dtype=np.float32) -> dict:
@@ -197,6 +219,8 @@ def train(
     checkpoint_dir: str | os.PathLike | None = None,
     dtype=jnp.float32,
     stop_after: int | None = None,
+    mesh: jax.sharding.Mesh | None = None,
+    devices=None,
 ) -> TrainResult[Model]:
     """Train an FL-VAE on planar meshes over images; resumable from checkpoints.
 
@@ -214,15 +238,22 @@ def train(
       dtype: real dtype of the parameters.
       stop_after: run at most this many steps in this call (a time-boxed run; call again with the
         same folder to continue). The schedule always follows ``config.steps``.
+      mesh: the :class:`jax.sharding.Mesh` to train on (a ``"data"`` axis splits the batch; module
+        docstring). None: ``jmeshtex.parallel.data_mesh(devices)``.
+      devices: the devices of the default mesh (None: every device; ``jax.devices()[:1]`` trains
+        on one). Not with ``mesh``.
 
     Returns:
       :class:`~jmeshtex.TrainResult` with the :class:`~jmeshtex.fl.Model` in ``.model``; ``losses``
       has ``"loss"`` (total) and ``"l1"`` (reconstruction term) per step, resumed steps included;
       ``extra["steps_per_second"]`` is this call's throughput after the first (compiling) step.
-      Save the model with :func:`~jmeshtex.fl.save`.
+      Save the model with :func:`~jmeshtex.fl.save`. The model's parameters are on the default
+      device (whatever mesh trained them), and a checkpoint written on one mesh resumes on another.
 
     Raises:
       FloatingPointError: the loss became non-finite (lower ``learning_rate``).
+      ConfigError: ``mesh`` and ``devices`` both given, or ``checkpoint_dir`` in a multi-process
+        run (not supported yet).
 
     Example:
       >>> import jax, numpy as np
@@ -237,24 +268,29 @@ def train(
     if not isinstance(config, Config):
         raise ConfigError(f"config must be a jmeshtex.fl.Config, got {type(config).__name__}")
     np_dtype = np.float64 if jnp.dtype(dtype) == jnp.float64 else np.float32
+    mesh = resolve_mesh(mesh, devices)
+    if checkpoint_dir is not None and is_multiprocess():
+        raise ConfigError("fl.train: checkpoint_dir with several processes (jax.distributed) is not supported "
+                          "yet; train without checkpoints, or in one process")
     k_init, k_pool, k_data, k_noise = jax.random.split(key, 4)
     loaded = _load_images(images, config.max_image_size)
     pool = planar_pool(loaded, per_image=config.meshes_per_image, min_vertices=config.min_vertices,
                        max_vertices=config.max_vertices, rng=_numpy_rng(k_pool))
     opt = optimizer(config)
     params = init(config, key=k_init, dtype=dtype).params
-    opt_state = opt.init(params)
+    params, opt_state = replicate((params, opt.init(params)), mesh)
     start, losses, l1s, resumed_from = 0, [], [], None
     ckpt = None
     if checkpoint_dir is not None:
         ckpt = Checkpoints(checkpoint_dir, fingerprint=_fingerprint(config, key, loaded, dtype))
         if ckpt.latest_step() is not None:
             state, meta = ckpt.restore({"params": params, "opt_state": opt_state})
-            params, opt_state = state["params"], state["opt_state"]
+            params, opt_state = replicate((state["params"], state["opt_state"]), mesh)
             start = resumed_from = ckpt.latest_step()
             losses, l1s = list(meta["loss"])[:start], list(meta["l1"])[:start]
-    step_fn = make_train_step(config)
-    num_vertices = config.batch_size * config.max_vertices
+    step_fn = make_train_step(config, mesh)
+    per = batch_multiple(mesh)
+    num_vertices = -(-config.batch_size * config.max_vertices // per) * per
     bar = None
     if progress and start < config.steps:
         from tqdm.auto import tqdm
@@ -268,7 +304,7 @@ def train(
             chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
             batch = mesh_batch([pool[i] for i in chosen], config, rng, num_vertices=num_vertices, dtype=np_dtype)
             params, opt_state, loss, l1 = step_fn(params, opt_state, batch, jax.random.fold_in(k_noise, step))
-            loss, l1 = float(loss), float(l1)
+            loss, l1 = (float(x) for x in fetch((loss, l1)))
             if not np.isfinite(loss):
                 raise FloatingPointError(f"FL-VAE training diverged at step {step} (loss {loss}); lower learning_rate")
             losses.append(loss)
@@ -289,7 +325,7 @@ def train(
     seconds = time.perf_counter() - t_first if t_first is not None else 0.0
     rate = (done - 1) / seconds if done > 1 and seconds > 0 else float("nan")
     return TrainResult(
-        model=Model(params, config),
+        model=Model(jax.tree.map(jnp.asarray, fetch(params)), config),
         losses={"loss": np.asarray(losses), "l1": np.asarray(l1s)},
         steps=len(losses),
         seconds=time.perf_counter() - t_call,

@@ -62,6 +62,7 @@ from ._sample import sample as sample
 from ._sample import sampling_geometry as sampling_geometry
 from ._train import Model as Model
 from ._train import init as init
+from ._train import learning_rate_schedule as learning_rate_schedule
 from ._train import load as load
 from ._train import make_train_step as make_train_step
 from ._train import optimizer as optimizer

@@ -3,10 +3,18 @@
 One frozen, JSON round-trippable dataclass :class:`Config` holds the denoiser's architecture, the
 diffusion schedule, the training data (re-triangulated copies) and the optimiser. Presets:
 
-- :meth:`Config.paper`: the paper's denoiser (96 / 192 channels, 2 + 4 + 4 FCResNet blocks),
-  500 copies of ~30K vertices, linear schedule, T = 1000;
+- :meth:`Config.paper`: the paper's denoiser as the released labelled configuration
+  (google-research ``mesh_diffusion/sin_mesh_ddm/configs/default.py`` and
+  ``default_train_labeled.py``): 96 / 192 channels, 2 + 4 + 4 FCResNet blocks, ``hdim`` 16,
+  two-hidden-layer filters, ``mlp_layers`` 2, ``k_conv`` 8, ε-prediction, Adam 5e-4 with 1000
+  warm-up steps and cosine decay to 1e-5; 500 copies of ~30K vertices, T = 1000;
 - :meth:`Config.cpu`: a CPU-sized denoiser (32 / 64 channels, 1 + 2 + 2 blocks);
 - :meth:`Config.tiny`: tests, demos and notebooks (16 / 32 channels, 1 + 1 + 1 blocks, few copies).
+
+``knn`` counts the vertex itself: the reference keeps the first ``k_conv = 8`` columns of a
+nearest-neighbour list built by its unpublished preprocessing, and a sorted nearest-neighbour list
+starts with the vertex itself (distance 0), so ``knn = 8`` here is the vertex and its 7 nearest
+neighbours (an assumption; the released code does not show the list's construction).
 """
 
 from __future__ import annotations
@@ -25,7 +33,10 @@ class Config(ConfigBase):
       latent_channels: ``d``, complex latent channels per vertex (the FL-VAE's).
       widths: channels at the fine and the coarse level of the U-Net (paper: 96, 192).
       blocks: FCResNet blocks ``(down, middle, up)`` (paper: 2, 4, 4).
-      hdim: filter responses per input channel of each field convolution.
+      hdim: filter responses per input channel of each field convolution (filter MLP width).
+      mlp_layers: (norm → vector neuron) layers before each field convolution (reference: 1 by
+        default, 2 in the released labelled configuration).
+      filter_layers: hidden layers of the filter MLPs, 1 or 2 (reference: 2).
       knn: neighbourhood size of the field convolutions (slots including the vertex itself).
       activation: filter nonlinearity, ``"silu"`` (paper) or ``"relu"`` (faster on CPU).
       time_features: width of the sinusoidal timestep embedding.
@@ -35,7 +46,13 @@ class Config(ConfigBase):
         (:func:`~jmeshtex.fldm.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
         over-shoots the latents' magnitude several times when sampled).
       diffusion_steps: diffusion steps ``T`` of the noise schedule.
-      learning_rate: Adam learning rate.
+      learning_rate: Adam peak learning rate.
+      lr_schedule: ``"cosine"`` (linear warm-up from 0 over ``warmup_steps``, then cosine decay
+        to ``end_learning_rate`` at ``steps``; the reference's) or ``"constant"``.
+      warmup_steps: warm-up steps of the cosine schedule (capped at ``steps // 2``).
+      end_learning_rate: final learning rate of the cosine schedule.
+      ema_decay: decay of an exponential moving average of the weights kept during training and
+        returned as the model (0: no EMA, the trained weights themselves).
       batch_size: mesh copies per step (split over devices).
       steps: optimiser steps of :func:`~jmeshtex.fldm.train`.
       checkpoint_every: steps between checkpoints.
@@ -57,14 +74,20 @@ class Config(ConfigBase):
     widths: tuple[int, int] = (96, 192)
     blocks: tuple[int, int, int] = (2, 4, 4)
     hdim: int = 16
-    knn: int = 9
+    mlp_layers: int = 2
+    filter_layers: int = 2
+    knn: int = 8
     activation: str = "silu"
     time_features: int = 32
     num_labels: int = 0
     schedule: str = "linear"
     prediction: str = "epsilon"
     diffusion_steps: int = 1000
-    learning_rate: float = 2e-4
+    learning_rate: float = 5e-4
+    lr_schedule: str = "cosine"
+    warmup_steps: int = 1000
+    end_learning_rate: float = 1e-5
+    ema_decay: float = 0.0
     batch_size: int = 4
     steps: int = 20000
     checkpoint_every: int = 500
@@ -82,6 +105,12 @@ class Config(ConfigBase):
         rule("blocks", lambda b: len(b) == 3 and all(isinstance(x, int) and x >= 1 for x in b),
              "three positive integers (down, middle, up)"),
         rule("activation", lambda x: x in ("silu", "relu"), "'silu' or 'relu'"),
+        rule("mlp_layers", lambda x: is_int(x) and x >= 1, "a positive integer"),
+        rule("filter_layers", lambda x: x in (1, 2), "1 or 2"),
+        rule("lr_schedule", lambda x: x in ("cosine", "constant"), "'cosine' or 'constant'"),
+        rule("warmup_steps", lambda x: is_int(x) and x >= 0, "an integer >= 0"),
+        rule("end_learning_rate", lambda x: x >= 0, ">= 0"),
+        rule("ema_decay", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("schedule", lambda x: x in SCHEDULES, f"one of {SCHEDULES}"),
         rule("prediction", lambda x: x in PREDICTIONS, f"one of {PREDICTIONS}"),
         rule("num_labels", lambda x: isinstance(x, int) and x >= 0, ">= 0"),
@@ -93,19 +122,21 @@ class Config(ConfigBase):
 
     @classmethod
     def paper(cls, **changes) -> Config:
-        """The paper's denoiser and data (96/192 channels, 2+4+4 blocks, 500 copies of 30K vertices).
+        """The paper's denoiser and data (module docstring): the defaults.
 
         Example:
-          >>> Config.paper().widths, Config.paper().blocks
-          ((96, 192), (2, 4, 4))
+          >>> c = Config.paper()
+          >>> c.widths, c.blocks, c.hdim, c.filter_layers, c.mlp_layers, c.knn, c.prediction
+          ((96, 192), (2, 4, 4), 16, 2, 2, 8, 'epsilon')
         """
         return cls(**changes)
 
     @classmethod
     def cpu(cls, **changes) -> Config:
         """A CPU preset: 32/64 channels, 1+2+2 blocks, ReLU filters, v-prediction, 32 copies of 5K vertices."""
-        base = dict(widths=(32, 64), blocks=(1, 2, 2), hdim=8, activation="relu", prediction="v", n_copies=32,
-                    copy_vertices=5000, steps=3000, batch_size=2, learning_rate=1e-3)
+        base = dict(widths=(32, 64), blocks=(1, 2, 2), hdim=8, mlp_layers=1, filter_layers=2, activation="relu",
+                    prediction="v", n_copies=32, copy_vertices=5000, steps=3000, batch_size=2, learning_rate=1e-3,
+                    warmup_steps=100)
         return cls(**{**base, **changes})
 
     @classmethod
@@ -117,7 +148,7 @@ class Config(ConfigBase):
           >>> c.widths, c.n_copies, c.latent_channels
           ((16, 32), 4, 2)
         """
-        base = dict(widths=(16, 32), blocks=(1, 1, 1), hdim=4, knn=7, activation="relu", time_features=16,
-                    n_copies=4, copy_vertices=400, steps=200, batch_size=2, learning_rate=3e-3,
-                    checkpoint_every=100, bucket=64)
+        base = dict(widths=(16, 32), blocks=(1, 1, 1), hdim=4, mlp_layers=1, filter_layers=1, knn=7,
+                    activation="relu", time_features=16, n_copies=4, copy_vertices=400, steps=200, batch_size=2,
+                    learning_rate=3e-3, warmup_steps=20, checkpoint_every=100, bucket=64)
         return cls(**{**base, **changes})

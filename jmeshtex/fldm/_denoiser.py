@@ -2,16 +2,20 @@
 
 .. code-block:: text
 
-    z_t [V, d] ─ lift ─ FCResNet×down (C₀, fine k-NN) ─┬─ pool (transported mean) ─ FCResNet×mid (C₁, coarse k-NN)
-                                                       │                                    │
-                                                       └─────── concat ◄── unpool (nearest) ┘
-                                     ─ FCResNet×up (C₀, fine) ─ FRN ─ VN ─ linear ─► ε̂ [V, d]
+    z_t [V, d] ─ lift ─ FCRes×down (C₀, fine k-NN) ─┬─ pool (transported mean) ─ FCRes×mid (C₁, coarse k-NN)
+                                                    │                                   │
+                                                    └── concat ◄── unpool (nearest) ────┘
+                                ─ merge (linear) ─ FCRes×up (C₀, fine) ─ linear ─► ε̂ [V, d]
 
-Every FCResNet block (:class:`jmeshtex.nn.FCResNetBlock`) is a field convolution, FRN, a vector-neuron
-nonlinearity and a second field convolution whose filters take the embedding (eq. 35): the
-sinusoidal timestep embedding, concatenated with a one-hot per-vertex label for label-guided
-generation. Complex linear layers have no bias. Every piece is gauge-equivariant, so the denoiser is:
-rotating every frame of the input rotates the output by the same angles.
+Every block (:class:`~jmeshtex.fldm._blocks.FCResBlock`, the reference's ``FCEResBlock``) is a linear
+(complex dense) residual plus (norm → vector neuron) × ``mlp_layers`` → field convolution →
+(norm → VN) × ``mlp_layers`` → field convolution whose filters see, per channel, the processed
+timestep (⊕ one-hot label) embedding (eq. 35; the reference's ``FieldConvEmb``). Filters are one- or
+two-hidden-layer MLPs of the gauge-invariant argument. The output layer is linear, with no norm or
+nonlinearity after the last block: with the linear residuals, the output follows the scale of
+``z_t`` (at high noise ε̂ ≈ z_t must be reachable), as in the reference's ``fc_unet_2``. Complex
+linear layers have no bias. Every piece is gauge-equivariant, so the denoiser is: rotating every
+frame of the input rotates the output by the same angles.
 
 Geometry (:class:`DenoiserGeometry`, built on the host by :func:`denoiser_geometry`): k-NN
 neighbourhoods of the input mesh and of one coarser level of :func:`jmeshtex.geometry.mesh_hierarchy`,
@@ -44,8 +48,9 @@ from ..geometry import (
     mesh_hierarchy,
     pad_to,
 )
-from ..nn import FRN, ComplexDense, FCResNetBlock, VNNonlinearity
+from ..nn import ComplexDense
 from ..ops import real_dtype, tangent_pool, tangent_unpool
+from ._blocks import FCResBlock
 from ._config import Config
 
 
@@ -153,42 +158,54 @@ class Denoiser(nn.Module):
     """The U-Net as a flax module; use :func:`init_denoiser` / :func:`denoise` (pure functions).
 
     Attributes:
-      config: :class:`Config` (widths, blocks, hdim, activation, time_features, num_labels).
+      config: :class:`Config` (widths, blocks, hdim, mlp_layers, filter_layers, activation,
+        time_features, num_labels).
       param_dtype: complex dtype of the complex weights.
+      argument: filter argument of every field convolution (``"untransported"``: the reference's
+        form, for the equivariance harness's negative control only).
     """
 
     config: Config
     param_dtype: Any = jnp.complex64
+    argument: str = "transported"
 
     @nn.compact
     def __call__(self, z, t, geo: DenoiserGeometry, labels=None):
         cfg = self.config
         c0, c1 = cfg.widths
         rdt = real_dtype(z.dtype)
-        v0, v1 = z.shape[0], geo.coarse.index.shape[0]
+        width = 4 * c0  # the reference's embedding width (fc_unet_2: 4 x the fine features)
         temb = timestep_embedding(t, cfg.time_features, dtype=rdt)
-        emb0 = jnp.broadcast_to(temb, (v0, temb.shape[0]))
-        emb1 = jnp.broadcast_to(temb, (v1, temb.shape[0]))
         if cfg.num_labels:
+            v0, v1 = z.shape[0], geo.coarse.index.shape[0]
             onehot = jax.nn.one_hot(labels, cfg.num_labels, dtype=rdt)
             own = jnp.asarray(geo.pool.children)[:, 0]  # each coarse vertex's own fine copy
-            emb0 = jnp.concatenate([emb0, onehot], axis=1)
-            emb1 = jnp.concatenate([emb1, onehot[own]], axis=1)
-        block = dict(hdim=cfg.hdim, activation=cfg.activation, param_dtype=self.param_dtype)
+            emb0 = jnp.concatenate([jnp.broadcast_to(temb, (v0, temb.shape[0])), onehot], axis=1)
+            emb1 = jnp.concatenate([jnp.broadcast_to(temb, (v1, temb.shape[0])), onehot[own]], axis=1)
+            emb0, emb1 = (_embedding_mlp(e, width, rdt, f"embed_{lvl}") for lvl, e in ((0, emb0), (1, emb1)))
+        else:
+            emb0 = emb1 = _embedding_mlp(temb, width, rdt, "embed")
+        block = dict(hdim=cfg.hdim, mlp_layers=cfg.mlp_layers, filter_layers=cfg.filter_layers,
+                     activation=cfg.activation, argument=self.argument, param_dtype=self.param_dtype)
         h = ComplexDense(c0, self.param_dtype, name="lift")(z)
         for i in range(cfg.blocks[0]):
-            h = FCResNetBlock(c0, name=f"down_{i}", **block)(h, geo.fine, emb0)
+            h = FCResBlock(c0, name=f"down_{i}", **block)(h, geo.fine, emb0)
         skip = h
         h = tangent_pool(h, geo.pool)
         for i in range(cfg.blocks[1]):
-            h = FCResNetBlock(c1, name=f"mid_{i}", **block)(h, geo.coarse, emb1)
+            h = FCResBlock(c1, name=f"mid_{i}", **block)(h, geo.coarse, emb1)
         h = jnp.concatenate([tangent_unpool(h, geo.pool), skip], axis=1)
+        h = ComplexDense(c0, self.param_dtype, name="merge")(h)
         for i in range(cfg.blocks[2]):
-            h = FCResNetBlock(c0, name=f"up_{i}", **block)(h, geo.fine, emb0)
-        h = FRN(name="out_norm", param_dtype=rdt)(h, area=geo.fine.area, vertex_mask=geo.fine.vertex_mask)
-        h = VNNonlinearity(param_dtype=self.param_dtype, name="out_act")(h)
-        out = ComplexDense(z.shape[-1], self.param_dtype, name="out")(h)
+            h = FCResBlock(c0, name=f"up_{i}", **block)(h, geo.fine, emb0)
+        out = ComplexDense(z.shape[-1], self.param_dtype, name="out")(h)  # linear output (no norm, no VN)
         return out * jnp.asarray(geo.fine.vertex_mask).astype(out.dtype)[:, None]
+
+
+def _embedding_mlp(e, width: int, rdt, prefix: str):
+    """``SiLU(SiLU(e W₁ + b₁) W₂ + b₂)``, the reference's shared embedding MLP (per level with labels)."""
+    e = jax.nn.silu(nn.Dense(width, dtype=rdt, param_dtype=rdt, name=f"{prefix}_0")(e))
+    return jax.nn.silu(nn.Dense(width, dtype=rdt, param_dtype=rdt, name=f"{prefix}_1")(e))
 
 
 def _check_inputs(config: Config, z, geo: DenoiserGeometry, labels) -> None:
@@ -264,6 +281,7 @@ def denoise(
     geo: DenoiserGeometry,
     *,
     labels: Int[Array, " V"] | None = None,
+    filter_argument: str = "transported",
 ) -> Complex[Array, "V d"]:
     """Predict the noise ``ε̂_θ(z_t, t)`` of tangent latents on one (possibly padded) mesh.
 
@@ -280,9 +298,14 @@ def denoise(
       t: scalar int timestep.
       geo: :class:`DenoiserGeometry` (NumPy or JAX).
       labels: ``[V]`` int labels in ``[0, num_labels)`` when the config is label-guided.
+      filter_argument: ``"transported"`` (default, gauge-equivariant) or ``"untransported"``: the
+        reference code's filter argument (``get_rel_pos``: the log map paired with the neighbour's
+        feature direction in the neighbour's own frame), which is **not** gauge-equivariant with
+        these log maps; it exists for the equivariance harness's negative control
+        (``fldm.denoiser_reference_argument``).
 
     Returns:
-      ``[V, d]`` predicted noise, dtype of ``z_t``.
+      ``[V, d]`` predicted noise (or ``v̂`` for a v-prediction config), dtype of ``z_t``.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -295,13 +318,13 @@ def denoise(
     """
     _check_inputs(config, z_t, geo, labels)
     geo = _as_jax(geo, z_t.dtype)
-    return _apply(params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels)
+    return _apply(params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels, filter_argument)
 
 
-@functools.partial(jax.jit, static_argnames=("config",))
-def _apply(params, config, z_t, t, geo, labels):
+@functools.partial(jax.jit, static_argnames=("config", "argument"))
+def _apply(params, config, z_t, t, geo, labels, argument="transported"):
     # jitted once per config and shapes (eager use would dispatch every small op separately)
-    return Denoiser(config, param_dtype=z_t.dtype).apply({"params": params}, z_t, t, geo, labels)
+    return Denoiser(config, param_dtype=z_t.dtype, argument=argument).apply({"params": params}, z_t, t, geo, labels)
 
 
 def denoiser_flops(config: Config, v0: int, v1: int) -> float:

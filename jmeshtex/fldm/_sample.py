@@ -8,7 +8,7 @@ mesh with twice the vertex density gives a texture about √2 times smaller in w
 
 - :func:`sample`: ``n`` samples with DDIM (default, 50 steps) or ancestral DDPM (all ``T``);
   label-guided when the model was trained with labels (pass a per-vertex ``labels`` map);
-- :func:`inpaint`: keeps given latents where ``mask`` is True (eq. 14);
+- :func:`inpaint`: keeps given latents where ``mask`` is True (eq. 14), ancestral DDPM by default;
 - :func:`decode_samples`: FL-VAE decoding to a UV atlas (meshes with UVs) or vertex colours;
 - :func:`render_samples`: one PNG per sample (:func:`jmeshtex.render.render_mesh`).
 
@@ -176,7 +176,10 @@ def inpaint(
 ) -> np.ndarray:
     """Inpaint: sample the latents where ``mask`` is False, keep ``known`` where it is True (eq. 14).
 
-    A thin wrapper of :func:`sample` (same keyword arguments); the returned latents equal
+    A thin wrapper of :func:`sample` (same keyword arguments) whose default sampler is ancestral
+    DDPM over all ``T`` steps (the paper's: at every step the kept region is replaced by the known
+    latents noised to that step's level, and the fresh noise of each ancestral step lets the
+    generated region settle against it; ``method="ddim"`` is faster). The returned latents equal
     ``known`` exactly on the mask.
 
     Args:
@@ -191,6 +194,7 @@ def inpaint(
     Returns:
       ``[n, V, d]`` complex128 latents.
     """
+    kwargs.setdefault("method", "ddpm")
     return sample(model, mesh, key=key, n=n, known=known, mask=mask, **kwargs)
 
 

@@ -18,6 +18,10 @@ from ._adjacency import boundary_loops as boundary_loops
 from ._adjacency import connected_components as connected_components
 from ._adjacency import face_neighborhood as face_neighborhood
 from ._adjacency import one_rings as one_rings
+from ._direction_field import connection_laplacian as connection_laplacian
+from ._direction_field import global_direction_field as global_direction_field
+from ._direction_field import project_direction as project_direction
+from ._direction_field import smoothest_direction_field as smoothest_direction_field
 from ._edges import mean_edge_length as mean_edge_length
 from ._edges import unique_edges as unique_edges
 from ._frames import tangent_frames as tangent_frames

@@ -21,6 +21,10 @@ signal.
 """
 
 from ._config import Config as Config
+from ._displacement import base_surface as base_surface
+from ._displacement import detail_displacement as detail_displacement
+from ._displacement import taubin_smooth as taubin_smooth
+from ._displacement import transfer_displacement as transfer_displacement
 from ._fans import GeodesicFans as GeodesicFans
 from ._fans import Smoother as Smoother
 from ._fans import fan_descriptor as fan_descriptor
@@ -48,8 +52,6 @@ from ._spectrum import fan_spectrum as fan_spectrum
 from ._spectrum import rotation_distances as rotation_distances
 from ._transfer import MeshMatchTransfer as MeshMatchTransfer
 from ._transfer import bake_texture as bake_texture
-from ._transfer import detail_displacement as detail_displacement
 from ._transfer import paint_by_example as paint_by_example
 from ._transfer import transfer as transfer
-from ._transfer import transfer_displacement as transfer_displacement
 from ._transfer import vertex_colors_from_texture as vertex_colors_from_texture

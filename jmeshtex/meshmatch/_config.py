@@ -16,11 +16,20 @@ def _weights_ok(values: tuple[float, ...]) -> bool:
     return bool(values) and all(is_finite_number(v) and v >= 0 for v in values)
 
 
+#: the axis names ``Config.up`` accepts besides a 3-vector
+UP_AXES = ("x", "y", "z", "-x", "-y", "-z")
+
+
 def _up_ok(up) -> bool:
     if up is None:
         return True
-    up = tuple(up)
-    return len(up) == 3 and all(math.isfinite(float(x)) for x in up) and not all(float(x) == 0 for x in up)
+    if isinstance(up, str):
+        return up.strip().lower() in UP_AXES
+    try:
+        up = tuple(float(x) for x in up)
+    except (TypeError, ValueError):
+        return False
+    return len(up) == 3 and all(math.isfinite(x) for x in up) and not all(x == 0 for x in up)
 
 
 #: a weight's message shows the value as the 1-tuple the tuple-valued shape_weight is checked as
@@ -52,7 +61,9 @@ class Config(ConfigBase):
       hks_eigenpairs: Laplacian eigenpairs used for the HKS.
       hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
         vertices and copied down to the finer levels through the parent maps (it is smooth).
-      up: the "up" direction of the ``n · up`` shape feature, or None to leave the feature out.
+      up: the "up" direction of the ``n · up`` shape feature: a 3-vector or an axis name
+        ``"x"|"y"|"z"|"-x"|"-y"|"-z"`` (``"y"`` for Y-up models, as OBJ files are usually
+        authored), or None to leave the feature out. Source and target must share it.
       steps: most PatchMatch iterations (E-step + M-step) per level.
       coarse_steps: most iterations at the coarsest level, which starts from a random field
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
@@ -71,8 +82,17 @@ class Config(ConfigBase):
         (see :func:`~jmeshtex.meshmatch.level_groups`); 0 pads nothing (every level
         compiles its own step).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths.
+      interp_sigma: standard deviation of the Gaussian that reads a source colour at an offset
+        inside the matched vertex's star (the vote's resampling), in the source level's mean edge
+        lengths. At 0.5 a vertex read at its own position keeps only about 55 % of its own colour
+        (six neighbours one edge away weigh ``e⁻²`` each): the vote blurs by about an edge.
       min_vertices: coarsest hierarchy level size (decimation stops below it).
       levels: number of hierarchy levels, or None for "down to ``min_vertices``".
+      max_scale_ratio: the largest ratio of the source's and the target's bounding-box diagonals
+        :func:`~jmeshtex.meshmatch.meshmatch` accepts (either way) before it raises an
+        :class:`~jmeshtex.InputError`: fans and levels are paired in world units, so meshes in
+        different units (a ×100 mismatch) otherwise pair the wrong levels silently. None turns
+        the check off (a small exemplar patch on a large mesh, on purpose).
       dtype: ``"float32"`` (default, the fast path) or ``"float64"`` for the jitted steps.
 
     Example:
@@ -90,7 +110,7 @@ class Config(ConfigBase):
     hks_times: int = 8
     hks_eigenpairs: int = 32
     hks_max_vertices: int = 4096
-    up: tuple[float, float, float] | None = (0.0, 0.0, 1.0)
+    up: tuple[float, float, float] | str | None = (0.0, 0.0, 1.0)
     steps: int = 6
     coarse_steps: int = 30
     tolerance: float = 0.002
@@ -100,8 +120,10 @@ class Config(ConfigBase):
     exact_candidates: int = 2
     bucket_vertices: int = 4096
     vote_sigma: float = 1.0
+    interp_sigma: float = 0.5
     min_vertices: int = 128
     levels: int | None = None
+    max_scale_ratio: float | None = 2.0
     dtype: str = "float32"
 
     _RULES = (
@@ -114,17 +136,36 @@ class Config(ConfigBase):
         integers("min_vertices", 8),
         integers("sweeps exact_candidates", 1),
         integers("random_search_levels global_candidates bucket_vertices", 0),
-        rule("fan_radius vote_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
+        rule("fan_radius vote_sigma interp_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
         rule("color_weight", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(lambda c: _weights_ok(_as_tuple(c.shape_weight)),
                    lambda c: f"{display_name(type(c))}.shape_weight must be finite and >= 0, got {_as_tuple(c.shape_weight)!r}"),
         rule("affinity_weight tolerance", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(lambda c: c.color_weight != 0 or any(w != 0 for w in _as_tuple(c.shape_weight)),
                    "color_weight and shape_weight are all 0: the patch distance would be constant"),
-        rule("up", _up_ok, "a non-zero 3-vector or None"),
+        rule("up", _up_ok, "a non-zero 3-vector, one of x, y, z, -x, -y, -z, or None"),
+        rule("max_scale_ratio", lambda x: x is None or (is_finite_number(x) and x >= 1), "None or a number >= 1"),
         rule("levels", lambda x: x is None or (is_int(x) and x >= 1), "None or an integer >= 1"),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
     )
+
+    def up_vector(self) -> tuple[float, float, float] | None:
+        """``up`` as a unit 3-vector (axis names resolved), or None.
+
+        Example:
+          >>> Config(up="-y").up_vector()
+          (0.0, -1.0, 0.0)
+        """
+        if self.up is None:
+            return None
+        if isinstance(self.up, str):
+            name = self.up.strip().lower()
+            vec = [0.0, 0.0, 0.0]
+            vec["xyz".index(name[-1])] = -1.0 if name.startswith("-") else 1.0
+            return tuple(vec)
+        vec = [float(x) for x in self.up]
+        norm = math.sqrt(sum(x * x for x in vec))
+        return tuple(x / norm for x in vec)
 
     def shape_weight_at(self, level: int) -> float:
         """The shape weight of hierarchy level ``level`` (0 = finest)."""

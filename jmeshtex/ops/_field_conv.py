@@ -53,11 +53,19 @@ class FieldConvParams(NamedTuple):
         filter argument), rows ``2..`` on the per-vertex embedding (``E = 0`` without one).
       filter_bias: ``[H]`` real.
       mix: ``[C, H, D]`` complex: the dense layer from the ``C·H`` filtered sums to ``D`` outputs.
+      channel_weight: ``[H]`` real or None: the first filter layer's row for a *per-channel* scalar
+        input ``e_{pc}`` (``channel_embedding`` of :func:`field_conv`; the reference's
+        ``FieldConvEmb``, where each channel's filter sees its own embedding value).
+      hidden_weight, hidden_bias: ``[H, H]`` and ``[H]`` real or None: a second hidden filter layer
+        ``φ ← act(φ W₂ + b₂)`` (the reference's two-hidden-layer filters); None: one hidden layer.
     """
 
     filter_weight: Float[ArrayLike, "I H"]
     filter_bias: Float[ArrayLike, " H"]
     mix: Complex[ArrayLike, "C H D"]
+    channel_weight: Float[ArrayLike, " H"] | None = None
+    hidden_weight: Float[ArrayLike, "H H"] | None = None
+    hidden_bias: Float[ArrayLike, " H"] | None = None
 
 
 def init_field_conv(
@@ -67,6 +75,8 @@ def init_field_conv(
     *,
     hdim: int = 16,
     embedding_features: int = 0,
+    channel_embedding: bool = False,
+    hidden_layers: int = 1,
     dtype=jnp.complex64,
 ) -> FieldConvParams:
     """Random :class:`FieldConvParams`.
@@ -82,6 +92,11 @@ def init_field_conv(
       out_features: ``D``.
       hdim: ``H``, filter responses per input channel.
       embedding_features: ``E``, width of the optional per-vertex embedding (0: none).
+      channel_embedding: add ``channel_weight`` (``N(0, 1/(3 + E))``; the first layer's fan-in is
+        then ``3 + E``) for a per-channel embedding.
+      hidden_layers: 1 (default) or 2 hidden filter layers; the second has LeCun-normal
+        ``hidden_weight`` (``N(0, 1/H)``) and zero ``hidden_bias``. The extra parameters are drawn
+        from ``fold_in(key, 1)``, so the one-layer parameters are the same for every choice.
       dtype: complex dtype of ``mix``; the filter uses the matching real dtype.
 
     Example:
@@ -89,13 +104,28 @@ def init_field_conv(
       >>> p = jax.eval_shape(init, jax.random.key(0))
       >>> p.filter_weight.shape, p.filter_bias.shape, p.mix.shape
       ((5, 16), (16,), (4, 16, 8))
+      >>> p2 = jax.eval_shape(lambda key: init_field_conv(key, 4, 8, hdim=16, hidden_layers=2,
+      ...                     channel_embedding=True), jax.random.key(0))
+      >>> p2.channel_weight.shape, p2.hidden_weight.shape
+      ((16,), (16, 16))
     """
+    if hidden_layers not in (1, 2):
+        raise ConfigError(f"init_field_conv: hidden_layers must be 1 or 2, got {hidden_layers!r}")
     rdt = real_dtype(dtype)
-    fan = 2 + embedding_features
+    fan = 2 + embedding_features + int(bool(channel_embedding))
     mix, weight, bias = complex_lecun_blocks(
-        key, [((in_features, hdim, out_features), in_features * hdim)], dtype=dtype, extra_real=[(fan, hdim), (hdim,)]
+        key, [((in_features, hdim, out_features), in_features * hdim)], dtype=dtype, extra_real=[(2 + embedding_features, hdim), (hdim,)]
     )
-    return FieldConvParams(filter_weight=weight / jnp.asarray(math.sqrt(fan), rdt), filter_bias=bias, mix=mix)
+    inv = jnp.asarray(1.0 / math.sqrt(fan), rdt)
+    extra = {}
+    if channel_embedding or hidden_layers == 2:
+        draw = jax.random.normal(jax.random.fold_in(key, 1), (hdim * (1 + hdim),), rdt)
+        if channel_embedding:
+            extra["channel_weight"] = draw[:hdim] * inv
+        if hidden_layers == 2:
+            extra["hidden_weight"] = draw[hdim:].reshape(hdim, hdim) / jnp.asarray(math.sqrt(hdim), rdt)
+            extra["hidden_bias"] = jnp.zeros((hdim,), rdt)
+    return FieldConvParams(filter_weight=weight * inv, filter_bias=bias, mix=mix, **extra)
 
 
 def field_conv(
@@ -104,8 +134,10 @@ def field_conv(
     params: FieldConvParams,
     *,
     embedding: Float[ArrayLike, "V E"] | None = None,
+    channel_embedding: Float[ArrayLike, "V C"] | None = None,
     delta: float = 1e-4,
     activation: str = "silu",
+    argument: str = "transported",
 ) -> Complex[Array, "V D"]:
     """Field convolution of tangent features with MLP filters (Mitchel et al. 2021; 2024 eq. 34–35).
 
@@ -132,10 +164,26 @@ def field_conv(
       params: :class:`FieldConvParams` (cast to ``x``'s dtype).
       embedding: optional ``[V, E]`` real per-vertex scalars appended to the filter input
         (timestep or label embedding, eq. 35); broadcast a global one to ``[V, E]``.
+      channel_embedding: optional ``[V, C]`` real per-vertex, per-*channel* scalars: channel ``c``'s
+        filter sees ``e_{pc}`` as a third input, ``φ_h(a, e_p, e_{pc})`` with the first layer's row
+        ``params.channel_weight`` (the reference's ``FieldConvEmb``, which conditions each channel's
+        filter on its own timestep/label embedding value). Requires ``channel_weight``.
       delta: ``δ > 0`` of the smoothed direction ``û``.
       activation: the filter nonlinearity, ``"silu"`` (default, as the reference code) or
         ``"relu"`` (piecewise-linear filters; about 1.35x faster on CPU at the paper size, where
         the ``V·K·C·H`` sigmoid evaluations take a quarter of the SiLU version's time).
+      argument: ``"transported"`` (default): the gauge-invariant ``log_p(q) · conj(û_{pqc})``
+        above. ``"untransported"``: ``log_p(q) · conj(x̂_q)`` with ``x̂_q`` in *q's* frame, the
+        form of the seed paper's eq. 34 and of the reference code's ``get_rel_pos``; it moves by
+        ``e^{i(α_q − α_p)}`` under a gauge change, so the output is **not** equivariant (kept for
+        the equivariance harness's negative control).
+
+    A per-channel embedding with one-hidden-layer filters runs the fast path (per-channel
+    pre-activation offsets). Two-hidden-layer filters (``params.hidden_weight``) or the
+    untransported argument run a general path: per block of vertices, responses
+    ``[B, K, C, H]`` through the MLP, summed against the transported features, under
+    ``jax.checkpoint`` (reverse mode recomputes each block instead of storing its responses;
+    forward mode works too).
 
     Returns:
       ``[V, D]`` complex features in each vertex's frame, dtype of ``x``.
@@ -163,7 +211,10 @@ def field_conv(
     delta = check_delta(delta, "field_conv")
     if activation not in _ACTIVATIONS:
         raise ConfigError(f"field_conv: activation must be one of {_ACTIVATIONS}, got {activation!r}")
+    if argument not in _ARGUMENTS:
+        raise ConfigError(f"field_conv: argument must be one of {_ARGUMENTS}, got {argument!r}")
     v, c, h, d, n_emb = _check_shapes(x, nbhd, params, embedding)
+    _check_extra(params, channel_embedding, v, c, h)
     rdt = real_dtype(x.dtype)
     a_w = params.filter_weight.astype(rdt)
     bias = jnp.broadcast_to(params.filter_bias.astype(rdt), (v, h))
@@ -171,7 +222,108 @@ def field_conv(
         bias = bias + jnp.asarray(embedding).astype(rdt) @ a_w[2:]
     index, slots = _slot_geometry(nbhd, rdt)
     mix = params.mix.astype(complex_dtype(x.dtype))
-    return _conv(x, index, slots, a_w[:2], bias, mix, delta, activation)
+    if params.hidden_weight is None and argument == "transported":
+        if channel_embedding is not None:  # per-channel pre-activation offsets [V, H, C]
+            cw = params.channel_weight.astype(rdt)
+            bias = bias[:, :, None] + cw[None, :, None] * jnp.asarray(channel_embedding).astype(rdt)[:, None, :]
+        return _conv(x, index, slots, a_w[:2], bias, mix, delta, activation)
+    channel = None
+    if channel_embedding is not None:
+        channel = (jnp.asarray(channel_embedding).astype(rdt), params.channel_weight.astype(rdt))
+    hidden = None
+    if params.hidden_weight is not None:
+        hidden = (params.hidden_weight.astype(rdt), params.hidden_bias.astype(rdt))
+    return _conv_general(x, index, slots, a_w[:2], bias, mix, channel, hidden, delta=delta, activation=activation,
+                         transported=argument == "transported")
+
+
+_ARGUMENTS = ("transported", "untransported")
+
+
+def _check_extra(params: FieldConvParams, channel_embedding, v: int, c: int, h: int) -> None:
+    if (params.hidden_weight is None) != (params.hidden_bias is None):
+        raise InputError("field_conv: hidden_weight and hidden_bias must be given together")
+    if params.hidden_weight is not None and (jnp.shape(params.hidden_weight) != (h, h) or jnp.shape(params.hidden_bias) != (h,)):
+        raise InputError(f"field_conv: hidden_weight must be [H, H] = ({h}, {h}) and hidden_bias [H], got "
+                         f"{jnp.shape(params.hidden_weight)} and {jnp.shape(params.hidden_bias)}")
+    if channel_embedding is None:
+        if params.channel_weight is not None:
+            raise InputError("field_conv: params has a channel_weight but channel_embedding=None; pass [V, C]")
+        return
+    if params.channel_weight is None or jnp.shape(params.channel_weight) != (h,):
+        raise InputError(f"field_conv: channel_embedding needs params.channel_weight of shape [H] = ({h},) "
+                         "(init_field_conv(..., channel_embedding=True))")
+    if jnp.shape(channel_embedding) != (v, c):
+        raise InputError(f"field_conv: channel_embedding must be [V, C] = ({v}, {c}), got {jnp.shape(channel_embedding)}")
+    if not jnp.issubdtype(jnp.result_type(channel_embedding), jnp.floating):
+        raise InputError(f"field_conv: channel_embedding must be real, got {jnp.result_type(channel_embedding)}")
+
+
+def _general_block(xqr, xqi, slots, bias, channel, a_w, hidden, m_r, m_i, delta, activation, transported):
+    """One block of the general path: gathered ``x_q`` ``[B, K, C]`` → real ``[B, 2D]`` outputs."""
+    w, tr, ti, lr, li = (a[..., None] for a in slots)
+    ur = tr * xqr - ti * xqi
+    ui = tr * xqi + ti * xqr
+    dr, di = (ur, ui) if transported else (xqr, xqi)
+    inv = jax.lax.rsqrt(dr * dr + di * di + jnp.asarray(delta * delta, xqr.dtype))
+    ar, ai = (lr * dr + li * di) * inv, (li * dr - lr * di) * inv  # [B, K, C]
+    pre = ar[..., None] * a_w[0] + ai[..., None] * a_w[1] + bias[:, None, None, :]  # [B, K, C, H]
+    if channel is not None:
+        emb, cw = channel
+        pre = pre + emb[:, None, :, None] * cw
+    phi = _act(pre, activation)
+    if hidden is not None:
+        hw, hb = hidden
+        phi = _act(phi @ hw + hb, activation)
+    zr, zi = w * ur, w * ui
+    s_r = jnp.sum(zr[..., None] * phi, axis=1)  # [B, C, H]
+    s_i = jnp.sum(zi[..., None] * phi, axis=1)
+    b = s_r.shape[0]
+    return s_r.reshape(b, -1) @ m_r + s_i.reshape(b, -1) @ m_i
+
+
+def _act(p, activation):
+    """SiLU as ``q (1 + tanh q)``, ``q = p / 2`` (the same function, through XLA's fast tanh; see
+    :func:`_responses`), or ReLU."""
+    if activation == "silu":
+        q = p * jnp.asarray(0.5, p.dtype)
+        return q + q * jnp.tanh(q)
+    return jnp.maximum(p, 0)
+
+
+def _conv_general(x, index, slots, a_w, bias, mix, channel, hidden, *, delta, activation, transported):
+    """The general path (two-layer filters, per-channel embedding, untransported argument), blocked."""
+    v, c = x.shape
+    d = mix.shape[2]
+    m = mix.reshape(c * mix.shape[1], d)  # rows ordered (c, h) like the block's sums
+    m_r = jnp.concatenate([m.real, m.imag], axis=1)
+    m_i = jnp.concatenate([-m.imag, m.real], axis=1)
+    xqr = jnp.take(x.real, index, axis=0, mode="clip")  # [V, K, C]
+    xqi = jnp.take(x.imag, index, axis=0, mode="clip")
+    per_vertex = (xqr, xqi, slots, bias, None if channel is None else channel[0])
+    block = min(_GENERAL_BLOCK, v)
+    n_blocks = -(-v // block)
+    pad = n_blocks * block - v
+
+    def to_blocks(a):
+        a = jnp.pad(a, [(0, pad)] + [(0, 0)] * (a.ndim - 1))
+        return a.reshape(n_blocks, block, *a.shape[1:])
+
+    cw = None if channel is None else channel[1]
+
+    def body(args):
+        xr_b, xi_b, sl_b, b_b, e_b = args
+        ch = None if e_b is None else (e_b, cw)
+        return _general_block(xr_b, xi_b, sl_b, b_b, ch, a_w, hidden, m_r, m_i, delta, activation, transported)
+
+    if n_blocks == 1:  # small meshes: one block, no loop (fast to compile; residuals are small)
+        return _as_complex(body(per_vertex))
+    blocks = jax.tree.map(to_blocks, per_vertex)
+    y = jax.lax.map(jax.checkpoint(body), blocks).reshape(n_blocks * block, 2 * d)[:v]
+    return _as_complex(y)
+
+
+_GENERAL_BLOCK = 1024  # vertices per block of the general path
 
 
 def _check_shapes(x, nbhd: VertexNeighborhood, params: FieldConvParams, embedding):
@@ -364,14 +516,19 @@ def _filtered_sums(zr, zi, ar, ai, a_w, bias, activation):
     return _sums_impl(zr, zi, ar, ai, a_w, bias, activation)
 
 
+def _bias3(bias):
+    """The pre-activation offsets as ``[V, H, C]`` or ``[V, H, 1]`` (per channel with a channel embedding)."""
+    return bias[:, :, None] if bias.ndim == 2 else bias
+
+
 def _pre_slot(ar, ai, a_w, bias, k):
     """Filter pre-activations of slot k for all responses: ``[V, H, C]``."""
-    return ar[:, k, None, :] * a_w[0][:, None] + ai[:, k, None, :] * a_w[1][:, None] + bias[:, :, None]
+    return ar[:, k, None, :] * a_w[0][:, None] + ai[:, k, None, :] * a_w[1][:, None] + _bias3(bias)
 
 
 def _pre_response(ar, ai, a_w, bias, h):
     """Filter pre-activations of response h for all slots: ``[V, K, C]``."""
-    return ar * a_w[0, h] + ai * a_w[1, h] + bias[:, h, None, None]
+    return ar * a_w[0, h] + ai * a_w[1, h] + _bias3(bias)[:, None, h, :]
 
 
 def _responses(ar, ai, a_w, bias, activation):
@@ -391,7 +548,7 @@ def _responses(ar, ai, a_w, bias, activation):
     if activation == "silu":
         half = jnp.asarray(0.5, ar.dtype)
         a_w, bias = a_w * half, bias * half
-    p = ar[:, :, None, :] * a_w[0][:, None] + ai[:, :, None, :] * a_w[1][:, None] + bias[:, None, :, None]
+    p = ar[:, :, None, :] * a_w[0][:, None] + ai[:, :, None, :] * a_w[1][:, None] + _bias3(bias)[:, None]
     return p + p * jnp.tanh(p) if activation == "silu" else jnp.maximum(p, 0)
 
 
@@ -437,7 +594,13 @@ def _sums_bwd(activation, res, g):
         p_ai = p_ai + gp * ai[:, k, None, :]
     partial = jax.lax.optimization_barrier(jnp.stack([p_one, p_ar, p_ai], axis=1))  # [V, 3, H, C]
     reduced = jnp.sum(partial, axis=3)  # [V, 3, H]
-    return dzr, dzi, dar, dai, jnp.sum(reduced[:, 1:], axis=0), reduced[:, 0]
+    if bias.ndim == 2:
+        dbias = reduced[:, 0]
+    elif bias.shape[2] == 1:
+        dbias = reduced[:, 0, :, None]
+    else:  # per-channel offsets: no sum over c
+        dbias = p_one
+    return dzr, dzi, dar, dai, jnp.sum(reduced[:, 1:], axis=0), dbias
 
 
 _filtered_sums.defvjp(_sums_fwd, _sums_bwd)

@@ -5,9 +5,19 @@ intersection, tested exactly with the separating-axis theorem by
 :func:`~jmeshtex.geometry.rasterize_uv` with ``coverage="overlap"``). Its *surface point* is its
 centre mapped through the triangle that contains the centre in UV space or, where the centre lies
 outside every triangle (texels on chart borders), through the UV triangle nearest to it (the centre
-is snapped onto that triangle). Every valid texel also carries an orthonormal tangent frame: ``t``
-along the direction in which the column index grows and ``d`` perpendicular to it, on the side
-where the row index grows (Kovács et al. 2024, Sec. 4). Texel coordinates follow
+is snapped onto that triangle). Every valid texel also carries an orthonormal tangent frame
+``(t, d)``: the exemplar's growing column is read along ``t``, its growing row along ``d``.
+
+**Frames** (``frames=``). The texture is laid out by the UV charts, but the frames must not be: a
+frame taken from the UV layout (``"uv"``: ``t`` = growing texel column of the face's chart) jumps at
+every chart seam, so an oriented exemplar turns at every seam. ``"global"`` (default; Kovács et al.
+2024, Sec. 4.2, and their reference tool) interpolates the per-vertex field
+:func:`~jmeshtex.geometry.global_direction_field` of a world vector (``frame_vector``) at the
+texel's surface point and projects it on the face plane; ``"smooth"`` does the same with the
+smoothest field :func:`~jmeshtex.geometry.smoothest_direction_field` (Knöppel et al. 2013), whose
+singularities the geometry places. Both depend only on the surface, so they are continuous across
+UV seams. ``d = −i·t`` (``t`` turned clockwise seen from outside) so the exemplar is not mirrored;
+the reference tool uses ``n × t`` (mirrored). ``"uv"`` is kept as the ablation. Texel coordinates follow
 :mod:`jmeshtex.geometry` (``_texture``): texel ``(row, col)`` is the square
 ``[col, col + 1] × [row, row + 1]`` of ``(x, y) = (u W, (1 − v) H)``, row 0 at the top (v = 1).
 
@@ -22,7 +32,17 @@ import numpy as np
 from jaxtyping import Complex, Float, Int
 
 from .._errors import InputError, MeshError
-from ..geometry import TracerGeometry, fill_unused_texels, rasterize_uv, tracer_geometry
+from ..geometry import (
+    TracerGeometry,
+    face_frame_to_world,
+    fill_unused_texels,
+    global_direction_field,
+    project_direction,
+    rasterize_uv,
+    smoothest_direction_field,
+    tracer_geometry,
+)
+from ._config import FRAME_MODES
 
 
 class TextureAtlas(NamedTuple):
@@ -38,10 +58,10 @@ class TextureAtlas(NamedTuple):
       face: ``[N]`` int64 mesh face of the texel's surface point.
       bary: ``[N, 3]`` float64 barycentric coordinates of the surface point in ``face``.
       point: ``[N, 3]`` float64 surface point (world).
-      tangent: ``[N]`` complex128 unit direction of growing column (``t``), in ``face``'s local
-        frame (:mod:`jmeshtex.geometry` tracer convention).
-      down: ``[N]`` complex128 unit direction of growing row (``d``), ``±i·t`` (the sign follows
-        the UV chart's orientation, so mirrored charts work).
+      tangent: ``[N]`` complex128 unit direction ``t`` along which the exemplar's columns grow, in
+        ``face``'s local frame (:mod:`jmeshtex.geometry` tracer convention).
+      down: ``[N]`` complex128 unit direction ``d`` of growing exemplar row: ``−i·t`` for surface
+        frames; for ``frames="uv"`` ``±i·t`` following the chart's orientation (mirrored charts).
       frame: ``[N, 3, 3]`` float64 world frame rows ``(t, d, n)`` (n the face normal).
       uv: ``[F, 3, 2]`` float64 per-corner texture coordinates used.
       texel_size: world length of one texel side: the median over UV triangles of
@@ -101,12 +121,136 @@ def unwrap_uv(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"])
     return uvs.astype(np.float64)[indices]
 
 
+def uv_face_tangents(geometry: TracerGeometry, uv: Float[np.ndarray, "F 3 2"]) -> tuple[np.ndarray, np.ndarray]:
+    """The UV layout's frame of every face: the direction of growing texel column, and the chart side.
+
+    From the Jacobian of the map face plane (tracer layout) → texel coordinates ``(u, 1 − v)``:
+    ``t ∝ ∂p/∂col`` and ``side = sign Im(conj(t) · ∂p/∂row)``: −1 where growing row is ``−i·t`` (a
+    chart laid out with u right and v up), +1 on mirrored charts. Faces with a degenerate UV
+    triangle get ``t = 1``.
+
+    Args:
+      geometry: :func:`~jmeshtex.geometry.tracer_geometry` tables.
+      uv: ``[F, 3, 2]`` per-corner UVs.
+
+    Returns:
+      ``(t [F] complex128 unit in each face's frame, side [F] float64 ±1)``.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.geometry import tracer_geometry
+      >>> v, f = grid(1)
+      >>> t, side = uv_face_tangents(tracer_geometry(v, f), v[f][..., :2])
+      >>> side.tolist()                                # rows grow downwards: −i·t
+      [-1.0, -1.0]
+    """
+    tex = np.stack([uv[..., 0], 1.0 - uv[..., 1]], axis=-1)
+    e1, e2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    usable = np.abs(det) > 1e-12 * np.maximum(np.abs(e1).max(axis=1) * np.abs(e2).max(axis=1), 1e-300)
+    corners = geometry.corners
+    dp = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1)
+    P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
+    Q = np.stack([e1, e2], axis=2)  # [F, 2 (col, row), 2 (edge)]
+    M = P @ np.linalg.inv(np.where(usable[:, None, None], Q, np.eye(2)))  # face-plane step per (col, row)
+    t = M[:, 0, 0] + 1j * M[:, 1, 0]
+    r = M[:, 0, 1] + 1j * M[:, 1, 1]
+    t = np.where(usable, t / np.where(np.abs(t) > 0, np.abs(t), 1.0), 1.0 + 0j)
+    side = np.sign((np.conj(t) * r).imag)
+    return t, np.where(side == 0, 1.0, side)
+
+
+def vertex_directions(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    *,
+    frames: str = "global",
+    frame_vector=(1.0, 0.0, 0.0),
+) -> Float[np.ndarray, "V 3"]:
+    """The per-vertex direction field the texel frames follow (``frames`` ``"global"`` or ``"smooth"``).
+
+    ``"global"``: :func:`~jmeshtex.geometry.global_direction_field` of ``frame_vector`` (the paper's
+    construction); ``"smooth"``: :func:`~jmeshtex.geometry.smoothest_direction_field` started from
+    ``frame_vector`` (Knöppel et al. 2013).
+
+    Returns:
+      ``[V, 3]`` unit tangent vectors.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> vertex_directions(*grid(1))[0].tolist()
+      [1.0, 0.0, 0.0]
+    """
+    p = np.asarray(frame_vector, dtype=np.float64)
+    if frames == "global":
+        return global_direction_field(vertices, faces, primary=p, secondary=_second(p))
+    if frames == "smooth":
+        return smoothest_direction_field(vertices, faces, primary=p)
+    raise InputError(f"vertex_directions: frames must be 'global' or 'smooth', got {frames!r}")
+
+
+def _second(p: np.ndarray) -> np.ndarray:
+    """The fallback vector where a face is orthogonal to ``p``: the axis least along ``p`` (y for the
+    default x, as in the reference tool)."""
+    p = np.asarray(p, dtype=np.float64)
+    if p.shape != (3,) or not np.isfinite(p).all() or not np.any(p):
+        raise InputError(f"frame_vector must be a finite non-zero 3-vector, got {p!r}")
+    return np.eye(3)[np.argmin(np.abs(p))]
+
+
+def surface_tangents(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    field: Float[np.ndarray, "V 3"],
+    face: Int[np.ndarray, " N"],
+    bary: Float[np.ndarray, "N 3"],
+    *,
+    frame_vector=(1.0, 0.0, 0.0),
+) -> np.ndarray:
+    """Unit tangents at surface points: the vertex field interpolated, projected on the face plane.
+
+    .. math:: t = \\Pi_{n_f} \\textstyle\\sum_k b_k\\, t_{v_k} \\,/\\, \\lVert\\cdot\\rVert
+
+    (the reference tool's construction); where it vanishes, the projection of ``frame_vector``.
+
+    Args:
+      vertices, faces: the mesh.
+      field: ``[V, 3]`` vertex directions (:func:`vertex_directions`).
+      face: ``[N]`` faces of the points.
+      bary: ``[N, 3]`` barycentric coordinates in them.
+      frame_vector: the fallback's global vector.
+
+    Returns:
+      ``[N]`` complex128 unit tangents in each face's local frame (tracer convention).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> v, f = grid(1)
+      >>> surface_tangents(v, f, vertex_directions(v, f), np.array([0]), np.array([[1, 1, 1]]) / 3).round(6)
+      array([1.+0.j])
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    tri = vertices[np.asarray(faces)[face]]
+    x = tri[:, 1] - tri[:, 0]
+    n = np.cross(x, tri[:, 2] - tri[:, 0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    y = np.cross(n, x)
+    p = np.asarray(frame_vector, dtype=np.float64)
+    interp = np.einsum("nk,nkd->nd", bary, field[np.asarray(faces)[face]])
+    t = project_direction(interp, n, primary=p, secondary=_second(p))
+    z = np.sum(t * x, axis=1) + 1j * np.sum(t * y, axis=1)
+    return z / np.abs(z)
+
+
 def texture_atlas(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],
     uv: Float[np.ndarray, "F 3 2"] | None,
     *,
     size: int,
+    frames: str = "global",
+    frame_vector=(1.0, 0.0, 0.0),
     geometry: TracerGeometry | None = None,
 ) -> TextureAtlas:
     """Valid texels, surface points, world texel size and tangent frames of a ``size²`` texture.
@@ -116,9 +260,9 @@ def texture_atlas(
     triangle overlap with positive area (separating axes: the square's two and the triangle's three
     edge normals). The surface point of a valid texel is the centre ``c`` mapped through the triangle
     containing it, or through the overlapping triangle whose closest point to ``c`` is nearest (snap).
-    The tangent frame of a face comes from the Jacobian of its map from the face plane to texel
-    coordinates: ``t ∝ ∂p/∂x`` (growing column), and ``d = ±i·t`` towards growing row. The world
-    texel size is
+    The tangent frame follows ``frames`` (module docstring): a surface direction field interpolated
+    at the point (``"global"``, ``"smooth"``), or the Jacobian of the face's map from its plane to
+    texel coordinates, ``t ∝ ∂p/∂x`` (``"uv"``, :func:`uv_face_tangents`). The world texel size is
 
     .. math:: h = \\operatorname{median}_f \\sqrt{A^{3D}_f / A^{tex}_f}
 
@@ -129,13 +273,15 @@ def texture_atlas(
       faces: ``[F, 3]`` consistently oriented, manifold triangles.
       uv: ``[F, 3, 2]`` per-corner UVs (``Mesh.uv``), or None to unwrap with :func:`unwrap_uv`.
       size: texture resolution.
+      frames: ``"global"`` (default), ``"smooth"`` or ``"uv"`` (module docstring).
+      frame_vector: the world vector of the ``"global"`` field (start of the ``"smooth"`` one).
       geometry: :func:`~jmeshtex.geometry.tracer_geometry` tables, to skip rebuilding them.
 
     Returns:
       :class:`TextureAtlas`.
 
     Raises:
-      InputError: bad ``size`` or ``uv`` shape / values; no valid texel.
+      InputError: bad ``size``, ``frames`` or ``uv`` shape / values; no valid texel.
 
     Example:
       >>> from jmeshtex.data import grid
@@ -180,26 +326,25 @@ def texture_atlas(
     index_of[texel] = np.arange(len(texel))
     point = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
 
-    # per-face frame: Jacobian of face-plane (tracer layout, complex) -> texel coordinates
+    if frames not in FRAME_MODES:
+        raise InputError(f"texture_atlas: frames must be one of {FRAME_MODES}, got {frames!r}")
     corners = geometry.corners
     dp = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1)  # [F, 2] complex
     P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
-    Q = np.stack([tex_edge1, tex_edge2], axis=2)  # [F, 2 (col, row), 2 (edge)]
-    safe_Q = np.where(usable[:, None, None], Q, np.eye(2))
-    M = P @ np.linalg.inv(safe_Q)  # face-plane displacement per unit (col, row)
-    t = M[:, 0, 0] + 1j * M[:, 1, 0]
-    r = M[:, 0, 1] + 1j * M[:, 1, 1]
-    t = t / np.where(np.abs(t) > 0, np.abs(t), 1.0)
-    side = np.sign((np.conj(t) * r).imag)
-    side = np.where(side == 0, 1.0, side)
-    tangent = t[face]
-    down = (1j * side)[face] * tangent
-
-    from ..geometry import face_frame_to_world
+    t, side = uv_face_tangents(geometry, uv)
+    if frames == "uv":
+        tangent = t[face]
+        down = (1j * side)[face] * tangent
+        normal_sign = side[face][:, None]
+    else:
+        field = vertex_directions(vertices, faces, frames=frames, frame_vector=frame_vector)
+        tangent = surface_tangents(vertices, faces, field, face, bary, frame_vector=frame_vector)
+        down = -1j * tangent  # t turned clockwise seen from outside: the exemplar is not mirrored
+        normal_sign = -1.0
 
     tw = face_frame_to_world(vertices, faces, face, tangent)
     dw = face_frame_to_world(vertices, faces, face, down)
-    frame = np.stack([tw, dw, np.cross(tw, dw) * side[face][:, None]], axis=1)
+    frame = np.stack([tw, dw, np.cross(tw, dw) * normal_sign], axis=1)
 
     area3 = 0.5 * np.abs(P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0])
     ratio = np.sqrt(area3 / np.where(usable, 0.5 * np.abs(tex_det), 1.0))

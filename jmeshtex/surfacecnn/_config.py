@@ -6,7 +6,9 @@ import dataclasses
 
 from .._config import ConfigBase, cross_rule, integers, is_finite_number, rule
 
-BOUNDARY_MODES = ("zero", "clamp")
+BOUNDARY_MODES = ("opposite", "zero", "clamp")
+FRAME_MODES = ("global", "smooth", "uv")
+EXEMPLAR_PADDING = ("centre", "zero")
 POOL_MODES = ("mean", "max")
 
 
@@ -14,9 +16,15 @@ POOL_MODES = ("mean", "max")
 class Config(ConfigBase):
     """Settings of the precomputation and the Gram-matching optimisation.
 
-    The defaults are the paper's (and its reference tool's): Adam with learning rate 0.1, halved
-    every 200 steps, 500 steps, colours clipped to [0, 1] after every step, initial texel colours
-    uniform in [0, 0.2], average pooling, the Gram matrices of every ReLU and pooling output.
+    The defaults are the paper's (and its reference tool's, ``texture_synthesis.py`` /
+    ``style_transfer.py`` / ``src/tmscnn.rs``): Adam with learning rate 0.1, halved every 200 steps,
+    500 steps, colours clipped to [0, 1] after every step, initial texel colours uniform in
+    [0, 0.2], average pooling; synthesis matches the Gram matrices of every ReLU and pooling output
+    (the reference's 21 ``block*_conv*``/``block*_pool`` layers), style transfer those of
+    ``relu1_1 … relu5_1`` (``block{1..5}_conv1``) plus a content term at ``relu4_2``
+    (``block4_conv2``) weighted 1000 for VGG-19 with Caffe preprocessing. Tangent frames follow a
+    global vector projected on the surface, failed boundary walks read the opposite tap, exemplar
+    taps outside the image read the centre pixel.
 
     Attributes:
       size: texture resolution (``size × size`` texels).
@@ -26,13 +34,29 @@ class Config(ConfigBase):
         and 400).
       init_low, init_high: range of the uniform initial colours (synthesis).
       pool: ``"mean"`` (the paper's average pooling) or ``"max"`` (VGG's own).
-      boundary: what a tap whose geodesic walk hits a mesh boundary reads: ``"zero"`` (zero
-        padding, like a 2D CNN at the image border) or ``"clamp"`` (the texel where the walk
+      boundary: what a tap whose geodesic walk hits a mesh boundary reads: ``"opposite"`` (the
+        reference's rule: the opposite tap if its walk succeeded, else the centre), ``"zero"``
+        (zero padding, like a 2D CNN at the image border) or ``"clamp"`` (the texel where the walk
         stopped).
+      frames: tangent frames of the texels (:func:`~jmeshtex.surfacecnn.texture_atlas`):
+        ``"global"`` (the paper's: ``frame_vector`` projected on the surface), ``"smooth"`` (the
+        smoothest direction field, Knöppel et al. 2013) or ``"uv"`` (the UV layout's; jumps at
+        chart seams — an ablation).
+      frame_vector: the world vector of the ``"global"`` frames (reference: x, fallback y).
+      exemplar_padding: what the 2D network reads for exemplar taps outside the image:
+        ``"centre"`` (the reference's: the centre pixel) or ``"zero"`` (``"SAME"`` zero padding).
       layers: names of the feature maps whose Gram matrices are matched (``"relu1_1"``, ...,
-        ``"pool1"``, ...), or None for every ReLU and pooling output of the network.
+        ``"pool1"``, ...), or None for the task's default (synthesis: every ReLU and pooling output;
+        style transfer: the first ReLU of every block).
       content_layer: the feature map of the content term (style transfer).
-      content_weight: weight of the content term against the (layer-averaged) style term.
+      content_weight: weight of the content term against the (layer-averaged) style term, or None
+        for the reference's 1000 rescaled to the network's input scale
+        (:func:`~jmeshtex.surfacecnn.default_content_weight`: 1000 for Caffe-preprocessed VGG-19,
+        ≈0.30 for the embedded torchvision VGG-16).
+      network: ``"vgg16"`` (the embedded torchvision weights, always available) or ``"vgg19"``
+        (the paper's; needs ``weights_path``, read by :func:`jmeshtex.metrics.load_vgg19` with Caffe
+        preprocessing). A ``weights=`` argument of the task verbs overrides both.
+      weights_path: the VGG-19 weights file (``.npz`` or Keras ``.h5``).
       dtype: ``"float32"`` (default) or ``"float64"`` for the network and the optimisation.
 
     Example:
@@ -48,23 +72,39 @@ class Config(ConfigBase):
     init_low: float = 0.0
     init_high: float = 0.2
     pool: str = "mean"
-    boundary: str = "zero"
+    boundary: str = "opposite"
+    frames: str = "global"
+    frame_vector: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    exemplar_padding: str = "centre"
     layers: tuple[str, ...] | None = None
     content_layer: str = "relu4_2"
-    content_weight: float = 1.0
+    content_weight: float | None = None
+    network: str = "vgg16"
+    weights_path: str | None = None
     dtype: str = "float32"
 
     _RULES = (
         integers("size", 4),
         integers("steps", 0),
         integers("halve_every", 1),
-        rule("learning_rate content_weight init_low init_high", lambda x: is_finite_number(x) and x >= 0,
+        rule("learning_rate init_low init_high", lambda x: is_finite_number(x) and x >= 0,
              "a finite number >= 0"),
+        rule("content_weight", lambda x: x is None or (is_finite_number(x) and x >= 0), "None or a finite number >= 0"),
         rule("learning_rate", lambda x: x > 0, "> 0"),
         cross_rule(lambda c: 0.0 <= c.init_low <= c.init_high <= 1.0,
                    "{cls} needs 0 <= init_low <= init_high <= 1, got {c.init_low}, {c.init_high}"),
         rule("pool", lambda x: x in POOL_MODES, f"one of {POOL_MODES}"),
         rule("boundary", lambda x: x in BOUNDARY_MODES, f"one of {BOUNDARY_MODES}"),
+        rule("frames", lambda x: x in FRAME_MODES, f"one of {FRAME_MODES}"),
+        rule("frame_vector", lambda x: len(x) == 3 and all(is_finite_number(a) for a in x) and any(x),
+             "three finite numbers, not all zero"),
+        rule("exemplar_padding", lambda x: x in EXEMPLAR_PADDING, f"one of {EXEMPLAR_PADDING}"),
+        rule("network", lambda x: x in ("vgg16", "vgg19"), "'vgg16' or 'vgg19'"),
+        rule("weights_path", lambda x: x is None or isinstance(x, str), "None or a path string"),
+        cross_rule(lambda c: c.network != "vgg19" or c.weights_path is not None,
+                   "{cls}(network='vgg19') needs weights_path: the paper's Keras ImageNet VGG-19 "
+                   "(e.g. vgg19_weights_tf_dim_ordering_tf_kernels_notop.h5, or an .npz of its arrays) "
+                   "cannot ship with jmeshtex; give its file, or use network='vgg16' (embedded)"),
         rule("layers", lambda x: x is None or (isinstance(x, tuple) and len(x) > 0 and all(isinstance(n, str) for n in x)),
              "None or a non-empty tuple of names"),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),

@@ -15,8 +15,11 @@ If neither finds a valid texel (rounding on a chart border), the valid bilinear 
 largest weight is used, else the centre texel. The centre tap reads the texel itself.
 
 **Failed walks.** A walk that reaches a mesh boundary before its full length stops there
-(``stopped``). Its tap then reads zero (``boundary="zero"``, the default: the same zero padding a
-2D CNN applies at the image border) or the texel where the walk stopped (``"clamp"``).
+(``stopped``). Its tap then reads what the opposite tap (``8 − t``) reads if that walk succeeded,
+else the centre (``boundary="opposite"``, the reference tool's rule and
+:class:`~jmeshtex.surfacecnn.Config`'s default; :func:`opposite_source`), zero (``"zero"``, this
+function's default: the zero padding a 2D CNN applies at the image border, which makes a flat
+sheet reproduce the 2D network exactly) or the texel where the walk stopped (``"clamp"``).
 """
 
 from __future__ import annotations
@@ -191,6 +194,32 @@ def uv_to_texels(
     return index, weight, nearest
 
 
+def opposite_source(stopped: Bool[np.ndarray, "N 9"]) -> Int[np.ndarray, "N 9"]:
+    """Which tap each tap reads under the reference tool's boundary rule (``boundary="opposite"``).
+
+    A tap whose walk hit a mesh boundary reads the point-mirrored tap ``8 − t`` (the tap on the
+    opposite side of the centre) when that walk succeeded, else the centre tap 4; every other tap
+    reads itself (Kovács et al.'s reference tool, ``create_curved_neighborhoods``).
+
+    Args:
+      stopped: ``[N, 9]`` True where tap t's walk stopped at a boundary (False at the centre).
+
+    Returns:
+      ``[N, 9]`` int64 tap numbers.
+
+    Example:
+      >>> s = np.zeros((1, 9), bool)
+      >>> s[0, [0, 1, 7]] = True                     # taps (−1, −1), (0, −1) and (0, 1) failed
+      >>> opposite_source(s)[0].tolist()
+      [8, 4, 2, 3, 4, 5, 6, 4, 8]
+    """
+    stopped = np.asarray(stopped, bool)
+    taps = np.broadcast_to(np.arange(9), stopped.shape)
+    mirrored = 8 - taps
+    replacement = np.where(np.take_along_axis(stopped, mirrored, axis=1), 4, mirrored)
+    return np.where(stopped, replacement, taps)
+
+
 def texel_taps(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],
@@ -207,7 +236,8 @@ def texel_taps(
     Args:
       vertices, faces: the mesh.
       atlas: from :func:`~jmeshtex.surfacecnn.texture_atlas`.
-      boundary: ``"zero"`` (default) or ``"clamp"``: what a tap whose walk hit a boundary reads.
+      boundary: ``"zero"`` (default), ``"opposite"`` or ``"clamp"``: what a tap whose walk hit a
+        boundary reads (module docstring).
       rotation: turn every texel's tap frame by this angle (radians, scalar or ``[N]``); 0 keeps the
         atlas frame. Turning by π/2 reads the texture rotated by 90° (the gauge check).
       geometry: tracer tables (:func:`~jmeshtex.geometry.tracer_geometry`).
@@ -246,6 +276,10 @@ def texel_taps(
     index = with_centre(idx8, own_index)
     weight = with_centre(w8, np.tile([1.0, 0.0, 0.0, 0.0], (N, 1)))
     nearest = with_centre(near8, centre)
+    if boundary == "opposite":
+        source = opposite_source(stopped)
+        rows = np.arange(N)[:, None]
+        index, weight, nearest = index[rows, source], weight[rows, source], nearest[rows, source]
     off = stopped if boundary == "zero" else np.zeros_like(stopped)
     weight = np.where(off[..., None], 0.0, weight)
     index = np.where(off[..., None], 0, index).astype(np.int32)

@@ -15,8 +15,9 @@ texel density is below the median, taps one median texel long may not leave thei
 the texel nearest the end point. **Overshoot correction**: if that node is neither the centre nor
 adjacent to it (the walk jumped over a neighbour, e.g. across a small group), the walk is retraced
 at ``backoff`` fractions of its length, longest first, and the first adjacent node reached is used;
-if none is, the tap reads the centre node itself. Walks stopped by a mesh boundary read zero
-(``boundary="zero"``) or the node where they stopped (``"clamp"``).
+if none is, the tap reads the centre node itself. Walks stopped by a mesh boundary read what the
+opposite tap reads, else the centre (``boundary="opposite"``), zero (``"zero"``) or the node where
+they stopped (``"clamp"``).
 """
 
 from __future__ import annotations
@@ -33,7 +34,11 @@ from ..geometry import TracerGeometry, tracer_geometry
 from ..ops import PoolGroups, TexelNeighborhood
 from ._atlas import TextureAtlas
 from ._config import BOUNDARY_MODES
-from ._neighborhood import TexelTaps, texel_taps, trace_taps, uv_to_texels
+from ._neighborhood import TexelTaps, opposite_source, texel_taps, trace_taps, uv_to_texels
+
+#: overshoot back-off: the reference tool samples each coarse walk at 8 points, k/8 of its length, and
+#: takes the last one that reaches an adjacent group; the full length is tried first
+BACKOFF = (0.875, 0.75, 0.625, 0.5, 0.375, 0.25, 0.125)
 
 
 class TexelPyramid(NamedTuple):
@@ -127,7 +132,7 @@ def texel_pyramid(
     levels: int,
     boundary: str = "zero",
     rotation: float | Float[np.ndarray, " N"] = 0.0,
-    backoff: tuple[float, ...] = (0.75, 0.5, 0.25),
+    backoff: tuple[float, ...] = BACKOFF,
     taps: TexelTaps | None = None,
     geometry: TracerGeometry | None = None,
 ) -> TexelPyramid:
@@ -139,10 +144,11 @@ def texel_pyramid(
       vertices, faces: the mesh.
       atlas: from :func:`~jmeshtex.surfacecnn.texture_atlas`.
       levels: number of pooling levels (VGG: 4 or 5).
-      boundary: ``"zero"`` or ``"clamp"`` (see :func:`~jmeshtex.surfacecnn.texel_taps`).
+      boundary: ``"zero"``, ``"opposite"`` or ``"clamp"`` (see :func:`~jmeshtex.surfacecnn.texel_taps`).
       rotation: tap-frame rotation per texel (radians, scalar or ``[N]``); coarse nodes use their
         representative's.
-      backoff: walk-length fractions tried, in order, when a coarse walk overshoots.
+      backoff: walk-length fractions tried, in order, when a coarse walk overshoots (default
+        :data:`BACKOFF`: 7/8 … 1/8, the reference tool's 8 sample positions).
       taps: level-0 taps if already computed (:func:`~jmeshtex.surfacecnn.texel_taps`).
       geometry: tracer tables.
 
@@ -256,6 +262,8 @@ def _coarse_taps(vertices, faces, atlas, rep, of_texel, edges, step, rotation, b
     node = np.where(ok, node, centre[:, None])  # no adjacent group within reach: replicate the centre
     node = np.concatenate([node[:, :4], centre[:, None], node[:, 4:]], axis=1)
     stopped = np.concatenate([stopped[:, :4], np.zeros((G, 1), bool), stopped[:, 4:]], axis=1)
+    if boundary == "opposite":
+        node = np.take_along_axis(node, opposite_source(stopped), axis=1)
     off = stopped if boundary == "zero" else np.zeros_like(stopped)
     return TexelNeighborhood(
         index=np.where(off, 0, node).astype(np.int32)[..., None],

@@ -33,12 +33,14 @@ def save(
     exemplar: np.ndarray | None = None,
     title: str = "surface CNN",
     render_size: tuple[int, int] = (420, 400),
+    views_azimuths: int = 4,
 ) -> dict:
     """Write a synthesis result to a folder (created if needed); :func:`load` reads it back.
 
     Files in ``path``: ``result.npz`` (the arrays :func:`load` reads); ``texture.png`` (UV layout);
     ``textured.obj`` (+ ``textured.mtl``, ``textured.png``); ``render_front.png``,
-    ``render_back.png``, ``surfacecnn.png`` (exemplar and both views side by side);
+    ``render_back.png``, ``surfacecnn.png`` (exemplar and both views side by side); ``views.png``
+    (``views_azimuths`` views around the object from :func:`jmeshtex.render.orbit_cameras`);
     ``summary.json`` (timings, sizes, the loss curve). Every file is written atomically.
 
     Args:
@@ -47,6 +49,7 @@ def save(
       exemplar: ``[H, W, 3]`` image shown first in ``surfacecnn.png`` (optional).
       title: title of the renders.
       render_size: ``(width, height)`` of each render in pixels.
+      views_azimuths: number of orbit views in ``views.png``.
 
     Returns:
       The summary dict (also in ``summary.json``), with the paths written under ``"files"``.
@@ -92,8 +95,12 @@ def save(
     panels = [np.repeat(np.repeat(pn, max(1, height // np.shape(pn)[0]), 0), max(1, height // np.shape(pn)[0]), 1)
               for pn in panels]
     save_png(render.render_grid(panels, titles=titles, columns=len(panels)), out / "surfacecnn.png")
+    cameras = render.orbit_cameras(m, azimuths=views_azimuths, elevations=(20.0,), size=(256, 256))
+    orbit = render.render_views(m, cameras, uv=m.uv, texture=result.texture)
+    render.figure([(f"azimuth {360 * i / views_azimuths:.0f}°", img) for i, img in enumerate(orbit)],
+                  columns=views_azimuths, title=title, path=out / "views.png")
     files = [str(out / n) for n in (RESULT_FILE, "texture.png", "textured.obj", "render_front.png",
-                                    "render_back.png", "surfacecnn.png", "summary.json")]
+                                    "render_back.png", "surfacecnn.png", "views.png", "summary.json")]
     summary = {**{k: (float(v) if isinstance(v, float) else v) for k, v in stats.items()},
                "losses": [float(x) for x in result.losses], "files": files}
     atomic_write(out / "summary.json", (json.dumps(summary, indent=2) + "\n").encode())

@@ -11,7 +11,7 @@ from .._mesh import Mesh, as_mesh
 from ..geometry import tracer_geometry
 from ._atlas import TextureAtlas, texture_atlas
 from ._neighborhood import texel_taps
-from ._pyramid import TexelPyramid, texel_pyramid
+from ._pyramid import BACKOFF, TexelPyramid, texel_pyramid
 
 
 class Surface(NamedTuple):
@@ -33,8 +33,11 @@ def prepare_surface(
     *,
     size: int,
     levels: int,
-    boundary: str = "zero",
+    boundary: str = "opposite",
     rotation: float | np.ndarray = 0.0,
+    frames: str = "global",
+    frame_vector=(1.0, 0.0, 0.0),
+    backoff: tuple[float, ...] = BACKOFF,
 ) -> Surface:
     """Atlas, level-0 taps and the pooling pyramid of a mesh (the whole host precomputation).
 
@@ -44,8 +47,11 @@ def prepare_surface(
         with xatlas.
       size: texture resolution (``size × size`` texels).
       levels: pooling levels (:func:`~jmeshtex.surfacecnn.required_levels`).
-      boundary: failed-walk rule (:func:`~jmeshtex.surfacecnn.texel_taps`).
+      boundary: failed-walk rule (:func:`~jmeshtex.surfacecnn.texel_taps`; default the reference's
+        ``"opposite"``, as :class:`~jmeshtex.surfacecnn.Config`).
       rotation: tap-frame rotation (radians, scalar or per texel).
+      frames, frame_vector: the tangent frames (:func:`~jmeshtex.surfacecnn.texture_atlas`).
+      backoff: overshoot back-off fractions (:func:`~jmeshtex.surfacecnn.texel_pyramid`).
 
     Returns:
       :class:`Surface`.
@@ -62,11 +68,12 @@ def prepare_surface(
     vertices, faces = mesh.vertices, mesh.faces
     t0 = time.perf_counter()
     geometry = tracer_geometry(vertices, faces)
-    atlas = texture_atlas(vertices, faces, mesh.uv, size=size, geometry=geometry)
+    atlas = texture_atlas(vertices, faces, mesh.uv, size=size, frames=frames, frame_vector=frame_vector,
+                          geometry=geometry)
     t1 = time.perf_counter()
     taps = texel_taps(vertices, faces, atlas, boundary=boundary, rotation=rotation, geometry=geometry)
     t2 = time.perf_counter()
     pyramid = texel_pyramid(vertices, faces, atlas, levels=levels, boundary=boundary, rotation=rotation,
-                            taps=taps, geometry=geometry)
+                            backoff=backoff, taps=taps, geometry=geometry)
     t3 = time.perf_counter()
     return Surface(atlas, pyramid, {"atlas": t1 - t0, "taps": t2 - t1, "pyramid": t3 - t2})

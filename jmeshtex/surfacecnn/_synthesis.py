@@ -21,11 +21,18 @@ from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float
 from ..geometry import to_jax
-from ..metrics import VGGWeights, load_vgg16
+from ..metrics import VGGWeights, load_vgg16, load_vgg19
 from ._atlas import image_to_texels, texels_to_image
 from ._config import Config
 from ._image import as_rgb
-from ._loss import default_layers, gram_targets, gram_term, style_loss
+from ._loss import (
+    default_content_weight,
+    default_layers,
+    gram_targets,
+    gram_term,
+    style_loss,
+    style_transfer_layers,
+)
 from ._network import mesh_cnn_features, required_levels
 from ._optimize import optimize_colors
 from ._surface import Surface, prepare_surface
@@ -63,12 +70,29 @@ def _digest(*images: np.ndarray) -> str:
     return h.hexdigest()[:16]
 
 
-def _setup(mesh: Mesh, config: Config, weights, layers, surface, extra_layers=()):
-    weights = load_vgg16() if weights is None else weights
-    layers = default_layers(weights) if (layers or config.layers) is None else tuple(layers or config.layers)
+def network_weights(config: Config) -> VGGWeights:
+    """The CNN ``config`` names: the embedded VGG-16, or VGG-19 from ``config.weights_path`` (Caffe
+    preprocessing, the paper's network).
+
+    Example:
+      >>> network_weights(Config()).names[:2]
+      ('conv1_1', 'conv1_2')
+    """
+    if config.network == "vgg19":
+        return load_vgg19(config.weights_path, preprocess="caffe")
+    return load_vgg16()
+
+
+def _setup(mesh: Mesh, config: Config, weights, layers, surface, extra_layers=(), task="synthesize"):
+    weights = network_weights(config) if weights is None else weights
+    if (layers or config.layers) is None:
+        layers = default_layers(weights) if task == "synthesize" else style_transfer_layers(weights)
+    else:
+        layers = tuple(layers or config.layers)
     levels = required_levels(weights, tuple(layers) + tuple(extra_layers))
     if surface is None:
-        surface = prepare_surface(mesh, size=config.size, levels=levels, boundary=config.boundary)
+        surface = prepare_surface(mesh, size=config.size, levels=levels, boundary=config.boundary,
+                                  frames=config.frames, frame_vector=config.frame_vector)
     elif surface.pyramid.levels < levels or surface.atlas.size != config.size:
         raise InputError(
             f"surface was prepared with size {surface.atlas.size} and {surface.pyramid.levels} levels; this run "
@@ -84,7 +108,9 @@ def _fingerprint(task: str, config: Config, surface: Surface, layers, data: str,
     """What a checkpoint must share with this run to be resumed (the step count may grow)."""
     return {"task": task, "texels": surface.atlas.num_texels, "size": config.size,
             "learning_rate": config.learning_rate, "halve_every": config.halve_every, "pool": config.pool,
-            "dtype": config.dtype, "layers": list(layers), "data": data, **extra}
+            "dtype": config.dtype, "layers": list(layers), "data": data, "frames": config.frames,
+            "frame_vector": list(config.frame_vector), "boundary": config.boundary,
+            "exemplar_padding": config.exemplar_padding, **extra}
 
 
 def _result(mesh: Mesh, surface: Surface, x, losses, final, stats) -> SynthesisResult:
@@ -122,7 +148,8 @@ def synthesize(
       exemplar: ``[H, W, 3]`` RGB image in [0, 1] (or uint8).
       config: :class:`~jmeshtex.surfacecnn.Config` (default: the paper's settings).
       key: PRNG key of the initial colours.
-      weights: CNN weights (default: the embedded VGG-16, :func:`jmeshtex.metrics.load_vgg16`).
+      weights: CNN weights (default: ``config.network``, :func:`network_weights`; the embedded
+        VGG-16 unless VGG-19's file is given).
       layers: Gram layers (default ``config.layers``, else every ReLU and pool output).
       surface: a precomputed :class:`~jmeshtex.surfacecnn.Surface` to reuse.
       progress: show a tqdm bar with the loss.
@@ -151,7 +178,8 @@ def synthesize(
     image = as_rgb(exemplar, "exemplar")
     weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface)
     t0 = time.perf_counter()
-    targets = gram_targets(image, weights, layers=layers, pool=config.pool, dtype=dtype)
+    targets = gram_targets(image, weights, layers=layers, pool=config.pool, padding=config.exemplar_padding,
+                           dtype=dtype)
     targets = jax.block_until_ready(targets)
     target_s = time.perf_counter() - t0
     x0 = jax.random.uniform(key, (surface.atlas.num_texels, 3), dtype, config.init_low, config.init_high)
@@ -197,7 +225,8 @@ def stylize(
       content: ``[H, W, 3]`` texture in the mesh's UV layout (resampled to ``config.size``), e.g.
         ``mesh.texture``.
       style: ``[H2, W2, 3]`` style image.
-      config: :class:`~jmeshtex.surfacecnn.Config` (``content_layer``, ``content_weight``).
+      config: :class:`~jmeshtex.surfacecnn.Config` (``content_layer``, ``content_weight``; the style
+        layers default to ``relu1_1 … relu5_1``, :func:`~jmeshtex.surfacecnn.style_transfer_layers`).
       key: accepted for the common task-verb signature; style transfer starts from the content
         texture and draws no random numbers, so the result does not depend on it.
       weights, layers, surface, progress, checkpoint, checkpoint_every: as in
@@ -226,12 +255,14 @@ def stylize(
                          "use synthesize or give a mesh with UVs")
     content_image, style_image = as_rgb(content, "content"), as_rgb(style, "style")
     weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface,
-                                                     extra_layers=(config.content_layer,))
+                                                     extra_layers=(config.content_layer,), task="stylize")
     content_colors = jnp.asarray(image_to_texels(surface.atlas, content_image), dtype)
-    targets = gram_targets(style_image, weights, layers=layers, pool=config.pool, dtype=dtype)
+    targets = gram_targets(style_image, weights, layers=layers, pool=config.pool,
+                           padding=config.exemplar_padding, dtype=dtype)
     content_feats = mesh_cnn_features(content_colors, arrays, weights, layers=(config.content_layer,),
                                       pool=config.pool)[config.content_layer]
-    weight = jnp.asarray(config.content_weight, dtype)
+    content_weight = default_content_weight(weights) if config.content_weight is None else config.content_weight
+    weight = jnp.asarray(content_weight, dtype)
 
     def loss_fn(x, aux):
         arrays, weights, targets, content_feats = aux
@@ -242,7 +273,7 @@ def stylize(
 
     aux = (arrays, weights, targets, content_feats)
     fingerprint = _fingerprint("stylize", config, surface, layers, _digest(content_image, style_image),
-                               content_layer=config.content_layer, content_weight=config.content_weight)
+                               content_layer=config.content_layer, content_weight=content_weight)
     x, losses, final, stats = optimize_colors(content_colors, loss_fn, aux, config, progress=progress,
                                               desc="surfacecnn stylize", checkpoint=checkpoint,
                                               checkpoint_every=checkpoint_every, fingerprint=fingerprint)

@@ -38,6 +38,13 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
                  "--out", str(out)]) == 0
     m = load_mesh(out / "sample_01.obj")
     assert m.num_faces == 4 * 96 and np.isfinite(m.vertices).all()
+    assert "start level 0 (chosen for --max-faces 500000): 96 target faces -> 384" in capsys.readouterr().out
+    assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--max-faces", "383",
+                 "--zero-noise-from", "0", "--out", str(tmp_path / "budget")]) == 0
+    assert "start level 1 (chosen for --max-faces 383): 96 target faces -> 96" in capsys.readouterr().out
+    assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--max-faces", "95",
+                 "--out", str(tmp_path / "budget")]) == 2
+    assert "max_faces=95" in capsys.readouterr().err
     img = matplotlib.image.imread(out / "transfer.png")
     assert (img[..., :3] < 0.9).any(axis=2).mean() > 0.05  # something was drawn
     assert main(["dgts", "interpolate", "--model", str(d / "model"), "--target", "grid:4", "--frames", "3",

@@ -145,10 +145,15 @@ def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
     assert not np.allclose(a[0], a[1])
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
-    z = inpaint(model, mesh, known, mask, key=jax.random.key(2), steps=5)
+    z = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=5)
     # exact up to the float32 round trip of the scale
     np.testing.assert_allclose(z[0][mask], known[mask], rtol=1e-6, atol=1e-6)
     assert not np.allclose(z[0][~mask], known[~mask], atol=1e-2)
+    # inpainting samples with ancestral DDPM (all T steps) unless told otherwise
+    z_default = inpaint(model, mesh, known, mask, key=jax.random.key(2))
+    z_ddpm = sample(model, mesh, key=jax.random.key(2), known=known, mask=mask, method="ddpm")
+    np.testing.assert_array_equal(z_default, z_ddpm)
+    assert not np.allclose(z_default, z)
     # generative transfer: any mesh, any size
     t = sample(model, torus(12, 6), key=jax.random.key(3), n=1, steps=5, method="ddim")
     assert t.shape == (1, 72, 2) and np.isfinite(t).all()

@@ -100,7 +100,7 @@ def loop_reference(x, nb, params, emb=None, delta=1e-4, printed_eq34=False, acti
     ``printed_eq34`` pairs log_p(q) with x̂_q in q's own frame (no transport inside the filter).
     """
     x = np.asarray(x, complex)
-    a_w, b, mix = (np.asarray(t) for t in params)
+    a_w, b, mix = (np.asarray(t) for t in params[:3])
     v, c = x.shape
     y = np.zeros((v, mix.shape[2]), complex)
     for p in range(v):

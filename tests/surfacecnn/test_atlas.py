@@ -100,10 +100,15 @@ def test_mirrored_chart_flips_the_row_direction():
     v, f = grid(2)
     uv = v[f][..., :2].copy()
     uv[..., 0] = 1 - uv[..., 0]  # mirrored in u: growing column is -x, growing row still -y
-    atlas = texture_atlas(v, f, uv, size=8)
+    atlas = texture_atlas(v, f, uv, size=8, frames="uv")
     np.testing.assert_allclose(atlas.frame[:, 0], np.tile([-1.0, 0, 0], (64, 1)), atol=1e-14)
     np.testing.assert_allclose(atlas.frame[:, 1], np.tile([0.0, -1, 0], (64, 1)), atol=1e-14)
     np.testing.assert_allclose(atlas.frame[:, 2], np.tile([0.0, 0, 1], (64, 1)), atol=1e-14)
+    # surface frames do not see the UV layout: the global vector x, and d = t turned clockwise
+    surface = texture_atlas(v, f, uv, size=8)
+    np.testing.assert_allclose(surface.frame[:, 0], np.tile([1.0, 0, 0], (64, 1)), atol=1e-14)
+    np.testing.assert_allclose(surface.frame[:, 1], np.tile([0.0, -1, 0], (64, 1)), atol=1e-14)
+    np.testing.assert_allclose(surface.frame[:, 2], np.tile([0.0, 0, 1], (64, 1)), atol=1e-14)
 
 
 def test_unwrap_covers_every_face_with_a_nondegenerate_chart():

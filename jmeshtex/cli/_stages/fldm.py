@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._mesh import Mesh
+from ..._random import host_rng
 from ..._types import Complex, Float
 from ...data import intensity_to_rgb, rgb_to_intensity, striped_sphere
 
@@ -122,10 +123,12 @@ def learning_check(
         :func:`~jmeshtex.fl.decode_vertex_colors` and the colours rendered.
 
     Returns:
-      ``{"gram_trained", "gram_untrained", "gram_codec", "lpips_diversity", "losses", "seconds", ...}``:
-      mean Gram distance of sample renders to the exemplar's renders (trained and untrained model,
-      same noise; ``gram_codec``: the codec's own reconstruction of the exemplar on the same copy, the
-      floor the codec allows), mean pairwise LPIPS between trained samples, the loss curve.
+      ``{"gram_trained", "gram_untrained", "gram_codec", "gram_flat", "gram_shuffled",
+      "lpips_diversity", "losses", "seconds", ...}``: mean Gram distance of sample renders to the
+      exemplar's renders (trained and untrained model, same noise; ``gram_codec``: the codec's own
+      reconstruction of the exemplar on the same copy, the floor the codec allows; ``gram_flat``: the
+      exemplar's mean colour everywhere; ``gram_shuffled``: the copy's training latents permuted over
+      vertices, decoded), mean pairwise LPIPS between trained samples, the loss curve.
 
     Raises:
       ConfigError: unknown ``codec``.
@@ -168,7 +171,14 @@ def learning_check(
     ref = render_views(target, rgb_to_intensity(target.vertex_colors), size=96, crop=True)
     tr = [render_rgb_views(target, decode(target, z), size=96, crop=True) for z in z_tr]
     un = [render_rgb_views(target, decode(target, z), size=96, crop=True) for z in z_un]
-    rec = render_rgb_views(target, decode(target, data.latents[0, : target.num_vertices]), size=96, crop=True)
+    z_copy = data.latents[0, : target.num_vertices]
+    rec = render_rgb_views(target, decode(target, z_copy), size=96, crop=True)
+    # baselines: a flat colour (the exemplar's mean) and the training latents shuffled over vertices
+    # (the right marginal, no spatial structure)
+    flat = render_rgb_views(target, np.broadcast_to(np.mean(decode(target, z_copy), axis=0), (target.num_vertices, 3)),
+                            size=96, crop=True)
+    perm = host_rng(k_sample, 1).permutation(target.num_vertices)
+    shuffled = render_rgb_views(target, decode(target, z_copy[perm]), size=96, crop=True)
 
     def gram(imgs):
         return float(np.mean([np.asarray(gram_distance(jnp.asarray(i), jnp.asarray(ref), weights=weights)) for i in imgs]))
@@ -179,6 +189,8 @@ def learning_check(
         "gram_trained": gram(tr),
         "gram_untrained": gram(un),
         "gram_codec": gram([rec]),
+        "gram_flat": gram([flat]),
+        "gram_shuffled": gram([shuffled]),
         "lpips_diversity": div,
         "losses": result.losses["loss"],
         "seconds": time.perf_counter() - t0,
@@ -218,7 +230,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
     z = fldm.sample(model, target, key=key, n=2, steps=25)
     known = stripe_encoder(target)
     mask = target.vertices[:, 2] > 0
-    zi = fldm.inpaint(model, target, known, mask, key=key, steps=25)[0]
+    zi = fldm.inpaint(model, target, known, mask, key=key, method="ddim", steps=25)[0]
     fine = remesh(exemplar, n_vertices=2 * target.num_vertices, key=jax.random.key(99))
     zf = fldm.sample(model, fine, key=key, n=1, steps=25)[0]
     view = VIEWS[0]

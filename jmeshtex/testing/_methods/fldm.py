@@ -6,6 +6,11 @@
   so smooth bendings (cylinder) are reported, not asserted (as for ``ops.tangent_pool_unpool``).
 - ``fldm.denoiser_labels``: the same with a per-vertex label map in the filters (labels are the
   argmax of a random scalar field, so they follow relabelling and are unchanged by isometries).
+- ``fldm.denoiser_reference_argument`` (negative control): the same denoiser with the reference
+  code's filter argument (``get_rel_pos``: ``log_p(q)`` paired with the neighbour's feature
+  direction in the *neighbour's* frame, untransported). With log maps in ``p``'s frame that argument
+  moves by ``e^{i(α_q − α_p)}`` under a gauge change, so the harness must flag ``gauge``; vertex
+  permutations (which keep every frame) must still pass.
 - ``fldm.sampler``: *distributional* equivariance. A sampler is a random map; with every random
   draw made an input (initial noise ``z_T`` and the per-step noise of a stochastic DDIM, η = 0.5),
   it is a deterministic map from noise to samples. Tangent noise has the same law in every gauge,
@@ -31,7 +36,8 @@ FLDM_TRANSFORMS = ("rigid", "reflection", "gauge", "permute_vertices", "permute_
                    "fold", "folds", "hinge")
 FLDM_REPORT = ("cylinder",)
 
-CONFIG = Config.tiny(latent_channels=2, widths=(4, 6), hdim=4, knn=7, activation="silu", time_features=8)
+CONFIG = Config.tiny(latent_channels=2, widths=(4, 6), hdim=4, knn=7, mlp_layers=2, filter_layers=2, activation="silu",
+                     time_features=8)
 LABEL_CONFIG = CONFIG.replace(num_labels=3)
 SAMPLER_STEPS = 3
 SAMPLER_SCHEDULE = make_schedule("linear", num_steps=50)
@@ -87,6 +93,14 @@ def _denoiser_labels(state, params, z, s):
     return Field(VERTEX_TANGENT, out)
 
 
+def _denoiser_reference_argument(state, params, z):
+    from ...fldm import denoise
+
+    out = denoise(params, CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state),
+                  filter_argument="untransported")
+    return Field(VERTEX_TANGENT, out)
+
+
 def _sampler(state, params, z_T, noise):
     from ...fldm import denoise
 
@@ -109,6 +123,10 @@ ENTRIES = (
                    {"z": (VERTEX_TANGENT, CONFIG.latent_channels), "s": (VERTEX_SCALAR, 3)}, FLDM_TRANSFORMS,
                    init=_init_for(LABEL_CONFIG), group="fldm", report=FLDM_REPORT,
                    doc="FLDM U-Net with a per-vertex label map (argmax of s) in the filters")),
+    register(Entry("fldm.denoiser_reference_argument", _denoiser_reference_argument,
+                   {"z": (VERTEX_TANGENT, CONFIG.latent_channels)}, ("permute_vertices",),
+                   init=_init_for(CONFIG), expect_fail=("gauge",), group="negative",
+                   doc="FLDM U-Net with the reference code's untransported filter argument: breaks gauge")),
     register(Entry("fldm.sampler", _sampler,
                    {"z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
                     "noise": (VERTEX_TANGENT, CONFIG.latent_channels * SAMPLER_STEPS)},

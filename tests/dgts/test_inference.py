@@ -1,0 +1,83 @@
+"""Inference modes: face budget, zero noise above a level, conditional generation, per-level output."""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pytest
+
+from jmeshtex import Mesh
+from jmeshtex.data import icosphere, torus
+from jmeshtex.dgts import (
+    FaceBudgetError,
+    choose_start_level,
+    conditional,
+    output_faces,
+    reconstruct,
+    transfer,
+)
+
+
+def test_start_level_follows_the_face_budget(tiny_model):
+    target = torus(8, 6)  # 96 faces; two levels: 384 from level 0, 96 from level 1
+    assert output_faces(tiny_model, 96, 0) == 384
+    assert transfer(tiny_model, target, key=jax.random.key(0)).start_level == 0
+    res = transfer(tiny_model, target, max_faces=383, key=jax.random.key(0))
+    assert res.start_level == 1 and len(res.faces) == 96
+    assert choose_start_level(tiny_model, 96, max_faces=384) == 0
+    with pytest.raises(FaceBudgetError, match="max_faces"):
+        transfer(tiny_model, target, max_faces=95, key=jax.random.key(0))
+    with pytest.raises(FaceBudgetError, match="start_level=0"):
+        transfer(tiny_model, target, start_level=0, max_faces=383, key=jax.random.key(0))
+    assert len(transfer(tiny_model, target, start_level=0, max_faces=None, key=jax.random.key(0)).faces) == 384
+
+
+def test_zero_noise_from_the_start_level_is_deterministic(tiny_model):
+    target = icosphere(1)
+    a = transfer(tiny_model, target, zero_noise_from=0, key=jax.random.key(0))
+    b = transfer(tiny_model, target, zero_noise_from=0, key=jax.random.key(1))
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    assert all(not np.any(z) for z in a.noise[0])
+    # zero noise above level 1 only: level 0 still draws noise, so keys differ, level-1 noise is 0
+    c = transfer(tiny_model, target, zero_noise_from=1, key=jax.random.key(0))
+    d = transfer(tiny_model, target, zero_noise_from=1, key=jax.random.key(1))
+    assert not np.any(c.noise[0][1]) and np.any(c.noise[0][0])
+    assert not np.allclose(c.vertices, d.vertices)
+
+
+def test_per_level_output_grows_and_ends_in_the_result(tiny_model):
+    res = transfer(tiny_model, icosphere(1), num_samples=2, per_level=True, key=jax.random.key(0))
+    assert [v.shape for v in res.level_vertices] == [(2, 42, 3), (2, 162, 3)]
+    assert [len(f) for f in res.level_faces] == [80, 320]
+    np.testing.assert_allclose(res.level_vertices[-1], res.vertices, rtol=0, atol=1e-12)
+    # each level's output lies where the target lies (same coordinates, not the level's frame)
+    for v in res.level_vertices:
+        assert abs(np.linalg.norm(v[0], axis=1).mean() - 1.0) < 0.3
+
+
+def test_conditional_generation_reproduces_the_reconstruction_below_its_level(tiny_model, tiny_meshes):
+    template = Mesh(tiny_meshes.template, tiny_meshes.faces[0])
+    rec = reconstruct(tiny_model, template)
+    cond = conditional(tiny_model, template, level=1, num_samples=2, per_level=True, key=jax.random.key(5))
+    for s in range(2):
+        np.testing.assert_allclose(cond.level_vertices[0][s], rec.level_vertices[0][0], rtol=0, atol=1e-6)
+    assert not np.allclose(cond.level_vertices[1][0], cond.level_vertices[1][1])  # fresh noise at level 1
+    full = conditional(tiny_model, template, level=tiny_model.num_levels, key=jax.random.key(9))
+    np.testing.assert_allclose(full.vertices, rec.vertices, rtol=0, atol=1e-9)
+    with pytest.raises(Exception, match="z\\*"):
+        reconstruct(tiny_model, icosphere(1))
+
+
+def test_training_snapshots_match_the_reconstruction(tiny_meshes):
+    from jmeshtex.dgts import train
+    from tests.dgts.conftest import TINY, TINY_KEY
+
+    result = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), progress=False, snapshot_every=1)
+    snaps = result.extra["snapshots"]
+    assert [(s["level"], s["step"]) for s in snaps] == [(0, 2), (1, 2)]  # rounded up to a chunk: once per level
+    assert [s["sample"].shape for s in snaps] == [(12, 3), (42, 3)]
+    rec = reconstruct(result.model, Mesh(tiny_meshes.template, tiny_meshes.faces[0]))
+    scale = TINY.scale_factor  # level 1's frame is the template's times 2
+    np.testing.assert_allclose(snaps[1]["reconstruction"], scale * rec.level_vertices[1][0], rtol=0, atol=1e-4)
+    with pytest.raises(Exception, match="snapshot_every"):
+        train(tiny_meshes, TINY, key=jax.random.key(0), progress=False, snapshot_every=0)

@@ -1,0 +1,80 @@
+"""Run by tests/fl/test_train_sharded.py in a fresh process with 4 forced host devices (not a test).
+
+argv: a work folder. Writes ``result.json`` there:
+- ``step``: for each decoder, one training step from the same state and batch on one device and
+  on four (loss, l1 and the updated parameters' leaves);
+- ``full_4`` / ``full_1``: the losses of an uninterrupted 4-step run on four devices / on one;
+- ``resumed_4``: the same run stopped after 2 steps and resumed from its checkpoint, on four;
+- ``from_1``: resumed on four devices from ``ckpt_1`` (a checkpoint the parent wrote on one device).
+Leaves ``ckpt_4`` (a four-device checkpoint at step 2) and ``model_4.npz`` for the parent to load.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import sys
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_dtype_promotion", "strict")
+jax.config.update("jax_debug_nans", True)
+
+import numpy as np  # noqa: E402
+
+from jmeshtex import fl, parallel  # noqa: E402
+
+CONFIG = fl.Config(latent_dim=4, features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16,
+                   min_vertices=10, max_vertices=12, meshes_per_image=2, batch_size=2, max_image_size=16,
+                   steps=4, warmup_steps=1, checkpoint_every=2, learning_rate=3e-3)
+
+
+def images() -> list[np.ndarray]:
+    y, x = np.mgrid[0:16, 0:16] / 16
+    return [np.stack([0.5 + 0.5 * np.cos(2 * np.pi * (i + 1) * x), y, 0.5 + 0.4 * np.sin(5 * y + i)], -1)
+            for i in range(2)]
+
+
+def leaves(params) -> list[list[float]]:
+    return [np.asarray(a, np.complex128).ravel().view(np.float64).tolist() for a in jax.tree.leaves(params)]
+
+
+def one_step(config: fl.Config, mesh) -> dict:
+    rng = np.random.default_rng(3)
+    meshes = [fl.planar_mesh(im, 12, rng=rng) for im in images()]
+    batch = fl.mesh_batch(meshes, config, rng, num_vertices=24)
+    params = fl.init(config, key=jax.random.key(1)).params
+    state = fl.optimizer(config).init(params)
+    params, _, loss, l1 = fl.make_train_step(config, mesh)(params, state, batch, jax.random.key(2))
+    params = parallel.fetch(params)
+    return {"loss": float(parallel.fetch(loss)), "l1": float(parallel.fetch(l1)), "params": leaves(params)}
+
+
+def main(work: pathlib.Path) -> None:
+    assert len(jax.devices()) == 4, jax.devices()
+    one = parallel.data_mesh(jax.devices()[:1])
+    four = parallel.data_mesh()
+    out = {"step": {}}
+    for decoder in ("log", "barycentric"):
+        c = CONFIG.replace(decoder=decoder)
+        out["step"][decoder] = {"one": one_step(c, one), "four": one_step(c, four)}
+    key = jax.random.key(0)
+    full = fl.train(CONFIG, key=key, images=images(), progress=False)
+    out["full_4"] = full.losses["loss"].tolist()
+    out["full_1"] = fl.train(CONFIG, key=key, images=images(), progress=False,
+                             devices=jax.devices()[:1]).losses["loss"].tolist()
+    fl.train(CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_4", stop_after=2)
+    fl.save(full.model, work / "model_4.npz")
+    out["resumed_4"] = fl.train(CONFIG, key=key, images=images(), progress=False,
+                                checkpoint_dir=work / "ckpt_4_resume", stop_after=2).losses["loss"].tolist()
+    out["resumed_4"] = fl.train(CONFIG, key=key, images=images(), progress=False,
+                                checkpoint_dir=work / "ckpt_4_resume").losses["loss"].tolist()
+    resumed = fl.train(CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_1")
+    out["from_1"] = resumed.losses["loss"].tolist()
+    out["from_1_resumed_from"] = resumed.resumed_from
+    (work / "result.json").write_text(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main(pathlib.Path(sys.argv[1]))

@@ -1,0 +1,212 @@
+"""Field convolution, general path: two-hidden-layer filters, per-channel embedding, and the
+untransported (reference-code / printed eq. 34) filter argument, against a slow loop reference."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+from jmeshtex import ConfigError, InputError
+from jmeshtex.geometry import VertexNeighborhood, pad_to
+from jmeshtex.ops import FieldConvParams, field_conv, init_field_conv
+from jmeshtex.ops import _field_conv as fc_module
+
+V, K, C, D, H = 7, 5, 3, 2, 4
+
+# ----------------------------------------------------------------------------- helpers (as in test_field_conv.py)
+
+
+def crandn(rng, *shape):
+    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+
+
+def silu(t):
+    return t / (1 + np.exp(-t))
+
+
+def rel_err(a, b):
+    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
+
+
+def random_nbhd(rng, v, k, p_pad=0.3):
+    """A random k-NN-like neighbourhood with a self slot, padded slots per the contract."""
+    index = rng.integers(0, v, (v, k))
+    mask = rng.random((v, k)) > p_pad
+    log = rng.uniform(0.2, 1.0, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
+    transport = np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
+    weight = rng.uniform(0.5, 1.5, (v, k))
+    index[:, 0], mask[:, 0], log[:, 0], transport[:, 0] = np.arange(v), True, 0, 1
+    index, log, transport, weight = (np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0)))
+    return VertexNeighborhood(
+        index=index.astype(np.int32), mask=mask, log=log, transport=transport, weight=weight,
+        area=rng.uniform(0.5, 1.5, v), vertex_mask=np.ones(v, bool),
+    )
+
+
+def gauge_transform(x, nb, alpha):
+    """Rotate every frame p by alpha_p: features and logs by e^{-iα_p}, transports by e^{i(α_q − α_p)}."""
+    rot = np.exp(-1j * alpha)
+    return x * rot[:, None], nb._replace(
+        log=nb.log * rot[:, None], transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None]))
+    )
+
+
+def make_params(seed, *, e, c, d, h, dtype):
+    rng = np.random.default_rng(seed)
+    real = np.float64 if dtype == jnp.complex128 else np.float32
+    return FieldConvParams(
+        filter_weight=(rng.standard_normal((2 + e, h)) / np.sqrt(2 + e)).astype(real),
+        filter_bias=rng.standard_normal(h).astype(real),
+        mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
+    )
+
+# ----------------------------------------------------------------------------- tests
+
+
+def general_params(seed, *, hidden=True, channel=True, dtype=jnp.complex128):
+    rng = np.random.default_rng(seed)
+    base = make_params(seed, e=1, c=C, d=D, h=H, dtype=dtype)
+    real = np.float64 if dtype == jnp.complex128 else np.float32
+    extra = {}
+    if channel:
+        extra["channel_weight"] = rng.standard_normal(H).astype(real)
+    if hidden:
+        extra["hidden_weight"] = (rng.standard_normal((H, H)) / np.sqrt(H)).astype(real)
+        extra["hidden_bias"] = (0.3 * rng.standard_normal(H)).astype(real)
+    return base._replace(**extra)
+
+
+def loop_reference(x, nb, params, emb, chan, *, activation="silu", untransported=False, delta=1e-4):
+    """One (vertex, slot, channel) at a time: φ = act(act([a_r, a_i, e_p, e_pc] A + b) W₂ + b₂)."""
+    act = silu if activation == "silu" else (lambda t: np.maximum(t, 0))
+    x = np.asarray(x, complex)
+    a_w, b, mix = (np.asarray(t) for t in params[:3])
+    cw = None if params.channel_weight is None else np.asarray(params.channel_weight)
+    y = np.zeros((x.shape[0], mix.shape[2]), complex)
+    for p in range(x.shape[0]):
+        wsum = sum(nb.weight[p, k] for k in range(nb.index.shape[1]) if nb.mask[p, k])
+        for k in range(nb.index.shape[1]):
+            if not nb.mask[p, k]:
+                continue
+            q, rho, w = nb.index[p, k], nb.transport[p, k], nb.weight[p, k] / wsum
+            for ch in range(x.shape[1]):
+                u = rho * x[q, ch]
+                direction = x[q, ch] if untransported else u
+                a = nb.log[p, k] * np.conj(direction / np.sqrt(abs(direction) ** 2 + delta**2))
+                pre = np.concatenate([[a.real, a.imag], emb[p]]) @ a_w + b
+                if cw is not None:
+                    pre = pre + chan[p, ch] * cw
+                phi = act(pre)
+                if params.hidden_weight is not None:
+                    phi = act(phi @ np.asarray(params.hidden_weight) + np.asarray(params.hidden_bias))
+                y[p] += w * u * (phi @ mix[ch])
+    return y
+
+
+@pytest.fixture
+def case(rng):
+    nb = random_nbhd(rng, V, K)
+    return nb, crandn(rng, V, C), rng.standard_normal((V, 1)), rng.standard_normal((V, C))
+
+
+@pytest.mark.parametrize("activation", ["silu", "relu"])
+@pytest.mark.parametrize("hidden, channel", [(True, True), (True, False), (False, True)])
+def test_general_path_matches_loop_reference(case, activation, hidden, channel):
+    nb, x, emb, chan = case
+    params = general_params(1, hidden=hidden, channel=channel)
+    y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan if channel else None,
+                   activation=activation)
+    ref = loop_reference(x, nb, params, emb, chan, activation=activation)
+    assert rel_err(y, ref) < 1e-12
+
+
+def test_a_zero_channel_embedding_changes_nothing(case):
+    nb, x, emb, _ = case
+    params = general_params(2, hidden=False, channel=True)
+    fast = field_conv(jnp.asarray(x), nb, params._replace(channel_weight=None), embedding=emb)
+    general = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=np.zeros((V, C)))
+    assert rel_err(general, fast) < 1e-13
+
+
+def test_blocks_of_the_general_path_cover_every_vertex(case, monkeypatch):
+    nb, x, emb, chan = case
+    params = general_params(3)
+    whole = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
+    monkeypatch.setattr(fc_module, "_GENERAL_BLOCK", 3)  # 7 vertices: blocks of 3, the last one padded
+    blocked = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
+    assert rel_err(blocked, whole) < 1e-13
+
+
+def test_gauge_equivariance_and_the_untransported_negative_control(case, rng):
+    nb, x, emb, chan = case
+    params = general_params(4)
+    alpha = rng.uniform(-np.pi, np.pi, V)
+    xt, nbt = gauge_transform(x, nb, alpha)
+    rot = np.exp(-1j * alpha)[:, None]
+    errors = {}
+    for argument in ("transported", "untransported"):
+        y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument=argument)
+        yt = field_conv(jnp.asarray(xt), nbt, params, embedding=emb, channel_embedding=chan, argument=argument)
+        errors[argument] = rel_err(yt, np.asarray(y) * rot)
+    assert errors["transported"] < 1e-12
+    assert errors["untransported"] > 1e-2, errors
+    # the untransported form is the loop reference's printed-eq.-34 argument
+    y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument="untransported")
+    assert rel_err(y, loop_reference(x, nb, params, emb, chan, untransported=True)) < 1e-12
+
+
+def test_padding_invariance_of_the_general_path(case, rng):
+    nb, x, emb, chan = case
+    params = general_params(5)
+    y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
+    nbp = pad_to(nb, {"V": V + 3, "K": K + 2})
+    xp = np.concatenate([x, 9 + crandn(rng, 3, C)])
+    yp = field_conv(jnp.asarray(xp), nbp, params, embedding=np.concatenate([emb, np.ones((3, 1))]),
+                    channel_embedding=np.concatenate([chan, np.ones((3, C))]))
+    np.testing.assert_allclose(yp[:V], y, rtol=1e-12, atol=1e-13)
+
+
+@pytest.mark.parametrize("hidden", [True, False], ids=["two-layer", "one-layer-channel"])
+def test_gradients_finite_at_zero_and_correct(case, hidden):
+    nb, x, emb, chan = case
+    params = general_params(6, hidden=hidden)
+    modes = ("rev", "fwd") if hidden else ("rev",)  # the one-layer fast path has a hand-written VJP only
+
+    def f(x, chan):
+        return field_conv(x, nb, params, embedding=emb, channel_embedding=chan)
+
+    zero = jnp.zeros((V, C), jnp.complex128)
+    g = jax.grad(lambda z: jnp.sum(jnp.abs(f(z, chan)) ** 2 + jnp.real(f(z, chan)).sum()))(zero)
+    assert bool(jnp.all(jnp.isfinite(g)))
+    check_grads(f, (jnp.asarray(x), jnp.asarray(chan)), order=1, modes=modes, atol=1e-6, rtol=1e-6)
+    check_grads(lambda p: field_conv(jnp.asarray(x), nb, p, embedding=emb, channel_embedding=chan),
+                (params,), order=1, modes=("rev",), atol=1e-6, rtol=1e-6)
+
+
+def test_init_options_keep_the_one_layer_parameters_and_have_the_documented_shapes():
+    key = jax.random.key(0)
+    one = init_field_conv(key, 3, 5, hdim=4, embedding_features=2, dtype=jnp.complex128)
+    two = init_field_conv(key, 3, 5, hdim=4, embedding_features=2, hidden_layers=2, dtype=jnp.complex128)
+    for name in ("filter_weight", "filter_bias", "mix"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(two, name))
+    assert one.hidden_weight is None and two.hidden_weight.shape == (4, 4) and two.hidden_bias.shape == (4,)
+    chan = init_field_conv(key, 3, 5, hdim=4, channel_embedding=True)
+    assert chan.channel_weight.shape == (4,) and chan.hidden_weight is None
+    with pytest.raises(ConfigError, match="hidden_layers"):
+        init_field_conv(key, 3, 5, hidden_layers=3)
+
+
+def test_general_path_bad_inputs_raise_typed_errors(case):
+    nb, x, emb, chan = case
+    params = general_params(7)
+    with pytest.raises(InputError, match="channel_embedding needs"):
+        field_conv(jnp.asarray(x), nb, params._replace(channel_weight=None), embedding=emb, channel_embedding=chan)
+    with pytest.raises(InputError, match="channel_weight but channel_embedding=None"):
+        field_conv(jnp.asarray(x), nb, params, embedding=emb)
+    with pytest.raises(InputError, match="hidden_weight and hidden_bias"):
+        field_conv(jnp.asarray(x), nb, params._replace(hidden_bias=None), embedding=emb, channel_embedding=chan)
+    with pytest.raises(ConfigError, match="argument must be"):
+        field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument="printed")
