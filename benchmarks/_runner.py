@@ -61,6 +61,7 @@ class Benchmark:
       extra_args: argv always passed.
       report: the name of the JSON the script writes (default ``name``).
       per_size: run one process per size (scripts that take one size) rather than all sizes at once.
+      script: the script's name when it differs from ``name`` (one script, several suites).
     """
 
     name: str
@@ -71,6 +72,7 @@ class Benchmark:
     extra_args: tuple[str, ...] = ()
     report: str | None = None
     per_size: bool = False
+    script: str | None = None
 
 
 def _flag(flag: str, *, join: str | None = None):
@@ -95,6 +97,8 @@ BENCHMARKS: dict[str, Benchmark] = {b.name: b for b in (
     Benchmark("fl_vae", size_args=_flag("--sizes", join=",")),
     Benchmark("surfacecnn", size_args=lambda s: ["--precompute", ",".join(s), "--steps", ",".join(s)]),
     Benchmark("meshmatch", size_args=_flag("--sizes", join=",")),
+    Benchmark("meshmatch_cross", script="meshmatch", extra_args=("--suite", "cross")),
+    Benchmark("render", size_args=_flag("--faces"), per_size=True, quick_args=("--smoke",)),
     Benchmark("dgts"),
     Benchmark("fldm_spot", quick_args=("--quick",)),
 )}
@@ -261,7 +265,7 @@ def run_cell(bench: Benchmark, argv: list[str], *, threads: int | None, out: pat
              timeout: float) -> tuple[dict | None, dict]:
     """Run one benchmark process; returns its report (None if it failed) and the cell record."""
     out.mkdir(parents=True, exist_ok=True)
-    script = HERE / f"{bench.name}.py"
+    script = HERE / f"{bench.script or bench.name}.py"
     env = dict(os.environ)
     env.setdefault("PYTHONPATH", str(ROOT))
     preexec = None

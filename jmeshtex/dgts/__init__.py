@@ -4,7 +4,18 @@ Pipeline: :func:`training_meshes` (multi-scale fitting of a template to the refe
 configured by :class:`PrepareConfig`) → :func:`train` (hierarchical WGAN-GP, §3.4, configured by
 :class:`Config`, resumable checkpoints; returns a :class:`~jmeshtex.TrainResult` holding a
 :class:`Model`) → :func:`save` / :func:`load` → :func:`transfer` / :func:`interpolate` (any target
-mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`).
+mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`; the start level follows a
+face budget, ``max_faces``).
+
+Inference modes: zero noise above a level (``transfer(..., zero_noise_from=k)``), the training
+reconstruction (:func:`reconstruct`), conditional generation at scale ``k`` (:func:`conditional`:
+``z*`` below ``k``, fresh noise above), every level's output (``per_level=True``), training snapshots
+(``train(..., snapshot_every=N)``). Structure measures: :func:`height_autocorrelation_length`,
+:func:`peak_statistics`, :func:`reconstruction_errors`.
+
+Models trained with the official code (amirhertz/geometric-textures): export the generator's
+``state_dict`` to ``.npz`` and read it with :func:`load_official` (or :func:`from_official_state_dict`);
+the converted model reproduces the official outputs (tested against ``../shared/parity/dgts_official.npz``).
 
 Example:
   >>> import jax

@@ -156,7 +156,7 @@ def sifid(
     Args:
       image: ``[H, W, 3]`` RGB, uint8 or float in [0, 1] (float64 stays float64).
       reference: ``[H2, W2, 3]`` RGB, e.g. the exemplar or its render from the same view.
-      layers: VGG activation names (:data:`SIFID_LAYERS` by default).
+      layers: VGG activation names (default ``SIFID_LAYERS`` = ``("relu1_2", "relu2_2", "relu3_3")``).
       weights: the VGG (default :func:`load_vgg16`).
       mask, reference_mask: optional ``[H, W]`` / ``[H2, W2]`` pixel weights (bool or ≥ 0).
 

@@ -76,7 +76,7 @@ def project(vertices: np.ndarray, camera: Camera, width: int, height: int) -> tu
 
 
 def rasterize(vertices: np.ndarray, faces: np.ndarray, camera: Camera, *, supersample: int = 1) -> Visibility:
-    """The visibility buffer of a triangle mesh seen by ``camera``, at ``supersample``× resolution.
+    """The visibility buffer of a triangle mesh seen by ``camera``, at ``supersample`` times its resolution.
 
     Faces are two-sided: open meshes show their inside. Closed, consistently oriented meshes seen
     from outside skip their back faces (which a front face always hides; same result, about half

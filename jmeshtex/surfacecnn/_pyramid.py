@@ -148,7 +148,7 @@ def texel_pyramid(
       rotation: tap-frame rotation per texel (radians, scalar or ``[N]``); coarse nodes use their
         representative's.
       backoff: walk-length fractions tried, in order, when a coarse walk overshoots (default
-        :data:`BACKOFF`: 7/8 … 1/8, the reference tool's 8 sample positions).
+        ``BACKOFF``: 7/8 … 1/8, the reference tool's 8 sample positions).
       taps: level-0 taps if already computed (:func:`~jmeshtex.surfacecnn.texel_taps`).
       geometry: tracer tables.
 
