@@ -27,6 +27,7 @@ Usage::
     python benchmarks/surfacecnn.py                       # precompute 512,1024; steps 256,512
     python benchmarks/surfacecnn.py --precompute 512 --steps 256
     python benchmarks/surfacecnn.py --quality --size 96 --quality-steps 150
+    python benchmarks/surfacecnn.py --quality --size 96 --quality-steps 150 --exemplar stripes
 """
 
 from __future__ import annotations
@@ -157,16 +158,22 @@ def _quality_meshes():
     return out
 
 
-def _exemplar(n: int) -> np.ndarray:
+def _exemplar(kind: str, n: int) -> np.ndarray:
+    """``brick`` (skimage's, grey) or ``stripes`` (a sine along the columns, period 8 pixels: smooth at
+    texel scale, so colour jumps at seams stand out from the pattern's own variation)."""
     import skimage.data
     import skimage.transform
+
+    if kind == "stripes":
+        s = 0.5 + 0.5 * np.sin(2 * np.pi * np.arange(n) / 8.0)
+        return np.repeat(np.repeat(s[None, :, None], n, 0), 3, 2)
 
     brick = skimage.data.brick().astype(np.float64) / 255.0
     brick = skimage.transform.resize(brick, (n, n), anti_aliasing=True)
     return np.repeat(brick[..., None], 3, axis=2)
 
 
-def quality(size: int, steps: int, out: pathlib.Path | None) -> None:
+def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick") -> None:
     import json
 
     from jmeshtex import render
@@ -175,7 +182,7 @@ def quality(size: int, steps: int, out: pathlib.Path | None) -> None:
     from jmeshtex.surfacecnn import frame_seam_turn, seam_ratio, synthesize, synthesize_uv
 
     PNG_DIR.mkdir(parents=True, exist_ok=True)
-    exemplar = _exemplar(96)
+    exemplar = _exemplar(kind, 96 if kind == "brick" else 32)
     config = Config(size=size, steps=steps, layers=QUALITY_LAYERS)
     levels = required_levels(load_vgg16(), QUALITY_LAYERS)
     rows, lines = [], []
@@ -202,11 +209,11 @@ def quality(size: int, steps: int, out: pathlib.Path | None) -> None:
             rows.append(row)
             print(json.dumps(row))
             views = render.render_views(mesh, protocol.cameras(mesh), uv=surface.atlas.uv, texture=r.texture)
-            tag = name.split()[0] + "_" + method.replace(" ", "_").replace(",", "")
+            tag = kind + "_" + name.split()[0] + "_" + method.replace(" ", "_").replace(",", "")
             render.figure([(f"view {i}", im) for i, im in enumerate(views)] + [("texture", r.texture)],
                           columns=5, title=f"{name}: {method}", path=PNG_DIR / f"{tag}.png")
             panels.append((method, views[0]))
-        render.figure(panels, columns=len(panels), title=name, path=PNG_DIR / f"{name.split()[0]}_compare.png")
+        render.figure(panels, columns=len(panels), title=name, path=PNG_DIR / f"{kind}_{name.split()[0]}_compare.png")
         for fr, t in turns.items():
             rows.append({"mesh": name, "frames": fr, "seam_edges": len(t), "turn_max_deg": float(np.degrees(t.max())),
                          "turn_median_deg": float(np.degrees(np.median(t)))})
@@ -225,13 +232,14 @@ def quality(size: int, steps: int, out: pathlib.Path | None) -> None:
             lines.append(f"| {r['mesh']} | {r['frames']} | {r['seam_edges']} | {r['turn_max_deg']:.3g} | "
                          f"{r['turn_median_deg']:.3g} |")
     note = (f"\nsize {size}², {steps} steps, Gram layers {', '.join(QUALITY_LAYERS)} (VGG-16, embedded), exemplar "
-            "skimage brick 96², protocol: 4 views at elevation 20°, 192² (sifid/gram: VGG-16 features, not "
+            f"{kind} ({'skimage brick 96²' if kind == 'brick' else 'sine stripes 32², period 8'}), protocol: 4 views at elevation 20°, 192² (sifid/gram: VGG-16 features, not "
             "Inception). Seam ratio: mean colour difference across UV chart seams / inside charts (1 = seamless).")
     text = "\n".join(lines) + "\n" + note + "\n"
     print(text)
     directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
-    (directory / "surfacecnn.quality.md").write_text(text)
-    (directory / "surfacecnn.quality.json").write_text(json.dumps(rows, indent=1) + "\n")
+    suffix = "" if kind == "brick" else f"_{kind}"
+    (directory / f"surfacecnn.quality{suffix}.md").write_text(text)
+    (directory / f"surfacecnn.quality{suffix}.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 
 if __name__ == "__main__":
@@ -242,8 +250,9 @@ if __name__ == "__main__":
         qp.add_argument("--quality", action="store_true")
         qp.add_argument("--size", type=int, default=96)
         qp.add_argument("--quality-steps", type=int, default=150)
+        qp.add_argument("--exemplar", choices=("brick", "stripes"), default="brick")
         qp.add_argument("--out", default=None)
         qa = qp.parse_args()
-        quality(qa.size, qa.quality_steps, pathlib.Path(qa.out) if qa.out else None)
+        quality(qa.size, qa.quality_steps, pathlib.Path(qa.out) if qa.out else None, qa.exemplar)
     else:
         main()

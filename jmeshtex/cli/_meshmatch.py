@@ -12,7 +12,8 @@ summary and the result itself (:func:`jmeshtex.meshmatch.save`: read it back wit
 
 The flags the paper says must be tuned per example map one to one onto
 :class:`jmeshtex.meshmatch.Config` fields: ``--up`` (``up``; ``y`` for Y-up models, ``none`` to
-drop the ``n · up`` feature), ``--color-weight``, ``--shape-weight`` (one number, or a comma list
+drop the ``n · up`` feature), ``--side`` (``side``: the left/right axis of a symmetric model),
+``--color-weight``, ``--shape-weight`` (one number, or a comma list
 from the finest level to the coarsest), ``--fan-radius``, ``--levels``, ``--steps``, and
 ``--max-scale-ratio`` (``none``: transfer between meshes of different sizes on purpose).
 """
@@ -67,6 +68,9 @@ def _options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--up", default=None, metavar="AXIS",
                    help="up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector 'a,b,c', or none "
                         "(Config.up; default z; use y for Y-up models)")
+    p.add_argument("--side", default=None, metavar="AXIS",
+                   help="a second axis for an n·side feature, e.g. the left/right axis of a symmetric model "
+                        "(Config.side; default none)")
     p.add_argument("--color-weight", type=float, default=None, metavar="W", help="colour term weight (Config.color_weight)")
     p.add_argument("--shape-weight", default=None, metavar="W[,W...]",
                    help="shape term weight, or a comma list from the finest level to the coarsest (Config.shape_weight)")
@@ -97,6 +101,8 @@ def _config(args):
             fields["steps"] = args.steps
         if args.up is not None:
             fields["up"] = _parse_up(args.up)
+        if args.side is not None:
+            fields["side"] = _parse_up(args.side)
         if args.color_weight is not None:
             fields["color_weight"] = args.color_weight
         if args.shape_weight is not None:

@@ -142,7 +142,7 @@ def textured_sphere(
     with ``h`` the profile of the module docstring around centres from :func:`texture_centers`.
 
     Args:
-      kind: one of :data:`GEOMETRIC_TEXTURES`.
+      kind: one of ``GEOMETRIC_TEXTURES``.
       subdivisions: of the icosphere (4: 5120 faces, mean edge ≈ 0.077, about 4–5 edges per
         period 0.35).
       period: minimum distance between texture centres (unit-sphere units).
@@ -178,7 +178,7 @@ def textured_torus(
     """A torus (around z) carrying the geometric texture ``kind`` with spatial period ``period``.
 
     Args:
-      kind: one of :data:`GEOMETRIC_TEXTURES`.
+      kind: one of ``GEOMETRIC_TEXTURES``.
       n_major, n_minor: resolution of :func:`~jmeshtex.data.torus` (96 × 32: 6144 faces, edges ≈ 0.066).
       period: minimum distance between texture centres.
       amplitude: relief height; default a fraction of ``period``.

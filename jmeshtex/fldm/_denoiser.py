@@ -330,11 +330,13 @@ def _apply(params, config, z_t, t, geo, labels, argument="transported"):
 def denoiser_flops(config: Config, v0: int, v1: int) -> float:
     """Approximate real FLOPs of one denoiser evaluation (multiply-adds × 2; complex × 4).
 
-    Counts the field convolutions' filter responses and slot sums (``V·k·C·H``) and their complex
-    mixes (``V·C·H·D``), and the complex linear layers; norms, VN and pooling are lower order.
+    Counts the field convolutions' filter responses (first layer ``V·k·C·H``, second hidden layer
+    ``V·k·C·H²``), slot sums (``V·k·C·H``) and complex mixes (``V·C·H·D``), the vector neurons'
+    two complex dense layers per ``mlp_layers``, the residual, lift, merge and output layers; norms
+    and pooling are lower order.
 
     Args:
-      config: the :class:`Config` (widths, blocks, knn, hdim, latent_channels).
+      config: the :class:`Config` (widths, blocks, knn, hdim, mlp_layers, filter_layers, latent_channels).
       v0: fine vertices (``geometry_sizes(geo)["V0"]``).
       v1: coarse vertices (``geometry_sizes(geo)["V1"]``).
 
@@ -348,28 +350,33 @@ def denoiser_flops(config: Config, v0: int, v1: int) -> float:
 
     def conv(v, c, d):
         filt = v * k * c * h * 2 * 2  # filter pre-activation (2 inputs) per slot/channel/response
+        if config.filter_layers == 2:
+            filt += v * k * c * h * h * 2  # the second hidden layer
         sums = v * k * c * h * 2 * 2  # complex feature × real response, accumulated: 2 multiply-adds
         mix = v * c * h * d * 8  # complex matmul
         return filt + sums + mix
 
+    def mlp(v, c, d):  # (norm → VN) × mlp_layers; the first maps c → d, each VN has two dense layers
+        return 2 * 8 * v * (c * d + (config.mlp_layers - 1) * d * d)
+
     def block(v, c, d):
-        return conv(v, c, d) + conv(v, d, d) + (v * c * d * 8 if c != d else 0)
+        return v * c * d * 8 + mlp(v, c, d) + conv(v, d, d) + mlp(v, d, d) + conv(v, d, d)
 
     total = 8 * v0 * config.latent_channels * c0
-    for _ in range(config.blocks[0]):
-        total += block(v0, c0, c0)
+    total += sum(block(v0, c0, c0) for _ in range(config.blocks[0]))
     total += block(v1, c0, c1) + sum(block(v1, c1, c1) for _ in range(config.blocks[1] - 1))
-    total += block(v0, c1 + c0, c0) + sum(block(v0, c0, c0) for _ in range(config.blocks[2] - 1))
+    total += 8 * v0 * (c1 + c0) * c0  # merge
+    total += sum(block(v0, c0, c0) for _ in range(config.blocks[2]))
     total += 8 * v0 * c0 * config.latent_channels
     return float(total)
 
 
 def denoiser_activations(config: Config, v0: int, v1: int) -> float:
-    """Filter activations evaluated by one denoiser evaluation: ``Σ_conv V·k·C_in·H``.
+    """Filter activations evaluated by one denoiser evaluation: ``Σ_conv V·k·C_in·H·filter_layers``.
 
-    Every field convolution evaluates its filter nonlinearity once per vertex, slot, input channel
-    and response; :func:`denoiser_flops` counts the multiply-adds around it but not the activation
-    itself (a SiLU is an exponential and a division).
+    Every field convolution evaluates its filter nonlinearity once per vertex, slot, input channel,
+    response and hidden layer; :func:`denoiser_flops` counts the multiply-adds around it but not the
+    activation itself (a SiLU is an exponential and a division).
 
     Args:
       config: the :class:`Config`.
@@ -379,11 +386,10 @@ def denoiser_activations(config: Config, v0: int, v1: int) -> float:
     Example:
       >>> n = denoiser_activations(Config.paper(), 30000, 7500)
       >>> round(n / 1e9, 2)  # G evaluations
-      7.36
+      11.8
     """
     c0, c1 = config.widths
-    per = config.knn * config.hdim
-    fine = config.blocks[0] * 2 * c0 + (c1 + c0) + c0 + (config.blocks[2] - 1) * 2 * c0
-    coarse = c0 + c1 + (config.blocks[1] - 1) * 2 * c1
+    per = config.knn * config.hdim * config.filter_layers
+    fine = (config.blocks[0] + config.blocks[2]) * 2 * c0  # every convolution acts on the block's width
+    coarse = config.blocks[1] * 2 * c1
     return float(per * (v0 * fine + v1 * coarse))
-

@@ -32,6 +32,19 @@ def _up_ok(up) -> bool:
     return len(up) == 3 and all(math.isfinite(x) for x in up) and not all(x == 0 for x in up)
 
 
+def _unit_axis(axis) -> tuple[float, float, float] | None:
+    if axis is None:
+        return None
+    if isinstance(axis, str):
+        name = axis.strip().lower()
+        vec = [0.0, 0.0, 0.0]
+        vec["xyz".index(name[-1])] = -1.0 if name.startswith("-") else 1.0
+        return tuple(vec)
+    vec = [float(x) for x in axis]
+    norm = math.sqrt(sum(x * x for x in vec))
+    return tuple(x / norm for x in vec)
+
+
 #: a weight's message shows the value as the 1-tuple the tuple-valued shape_weight is checked as
 _WEIGHT_MESSAGE = "{cls}.{name} must be finite and >= 0, got ({value!r},)"
 
@@ -64,6 +77,14 @@ class Config(ConfigBase):
       up: the "up" direction of the ``n · up`` shape feature: a 3-vector or an axis name
         ``"x"|"y"|"z"|"-x"|"-y"|"-z"`` (``"y"`` for Y-up models, as OBJ files are usually
         authored), or None to leave the feature out. Source and target must share it.
+      side: a second direction, as ``up``, for one more feature ``n · side`` (None, the default:
+        none). HKS and ``n · up`` are unchanged by a mirror across a plane that contains ``up``,
+        so a bilaterally symmetric model (an animal) can match its left half to its right; with
+        smooth colours the mirrored patch fits as well as the right one (a reflected gradient is
+        a rotated one). ``n · side`` along the left/right axis changes sign under that mirror.
+        Measured on the cow (``../shared/data/cow.obj``, Y-up, left/right along z) → a remeshed
+        copy: 9 % of vertices matched more than 3 edges off, 81 % of those at the mirrored
+        point, carrying 89 % of the squared error (``up="y"``: 26.1 dB, nearest-3D copy 40.3).
       steps: most PatchMatch iterations (E-step + M-step) per level.
       coarse_steps: most iterations at the coarsest level, which starts from a random field
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
@@ -111,6 +132,7 @@ class Config(ConfigBase):
     hks_eigenpairs: int = 32
     hks_max_vertices: int = 4096
     up: tuple[float, float, float] | str | None = (0.0, 0.0, 1.0)
+    side: tuple[float, float, float] | str | None = None
     steps: int = 6
     coarse_steps: int = 30
     tolerance: float = 0.002
@@ -143,6 +165,7 @@ class Config(ConfigBase):
         rule("affinity_weight tolerance", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(lambda c: c.color_weight != 0 or any(w != 0 for w in _as_tuple(c.shape_weight)),
                    "color_weight and shape_weight are all 0: the patch distance would be constant"),
+        rule("side", _up_ok, "a non-zero 3-vector, one of x, y, z, -x, -y, -z, or None"),
         rule("up", _up_ok, "a non-zero 3-vector, one of x, y, z, -x, -y, -z, or None"),
         rule("max_scale_ratio", lambda x: x is None or (is_finite_number(x) and x >= 1), "None or a number >= 1"),
         rule("levels", lambda x: x is None or (is_int(x) and x >= 1), "None or an integer >= 1"),
@@ -156,16 +179,16 @@ class Config(ConfigBase):
           >>> Config(up="-y").up_vector()
           (0.0, -1.0, 0.0)
         """
-        if self.up is None:
-            return None
-        if isinstance(self.up, str):
-            name = self.up.strip().lower()
-            vec = [0.0, 0.0, 0.0]
-            vec["xyz".index(name[-1])] = -1.0 if name.startswith("-") else 1.0
-            return tuple(vec)
-        vec = [float(x) for x in self.up]
-        norm = math.sqrt(sum(x * x for x in vec))
-        return tuple(x / norm for x in vec)
+        return _unit_axis(self.up)
+
+    def side_vector(self) -> tuple[float, float, float] | None:
+        """``side`` as a unit 3-vector (axis names resolved), or None.
+
+        Example:
+          >>> Config(side="z").side_vector()
+          (0.0, 0.0, 1.0)
+        """
+        return _unit_axis(self.side)
 
     def shape_weight_at(self, level: int) -> float:
         """The shape weight of hierarchy level ``level`` (0 = finest)."""

@@ -99,6 +99,7 @@ def shape_features(
     log_hks: Float[np.ndarray, "V T"],
     *,
     up=None,
+    side=None,
     min_spread: float = 0.01,
 ) -> Float[np.ndarray, "V D"]:
     """Standardised shape features: z-scored log HKS (block weight 1) and ``n · up`` (weight 1).
@@ -118,6 +119,7 @@ def shape_features(
       mesh: a :class:`~jmeshtex.Mesh` or ``(vertices [V, 3], faces [F, 3])`` (for the normals).
       log_hks: ``[V, T]`` from :func:`hks_features`.
       up: a 3-vector, or None to leave the ``n · up`` feature out.
+      side: a second 3-vector (``n · side``, one more block of weight 1), or None.
       min_spread: the floor of the per-time standard deviation ``s_h`` of the log HKS.
 
     Returns:
@@ -132,13 +134,13 @@ def shape_features(
     mesh = as_mesh(mesh)
     h = np.asarray(log_hks, dtype=np.float64)
     z = (h - h.mean(axis=0)) / np.maximum(h.std(axis=0), max(float(min_spread), 1e-12))
-    blocks = 1 if up is None else 2
+    axes = [np.asarray(a, dtype=np.float64) for a in (up, side) if a is not None]
+    blocks = 1 + len(axes)
     parts = [z / np.sqrt(blocks * h.shape[1])]
-    if up is not None:
-        u = np.asarray(up, dtype=np.float64)
-        u = u / np.linalg.norm(u)
+    if axes:
         normal = tangent_frames(mesh.vertices, mesh.faces).normal
-        parts.append((normal @ u)[:, None] / np.sqrt(blocks))
+        for u in axes:
+            parts.append((normal @ (u / np.linalg.norm(u)))[:, None] / np.sqrt(blocks))
     return np.concatenate(parts, axis=1)
 
 

@@ -206,7 +206,8 @@ def style_loss(
       >>> v, f = grid(2)
       >>> s = prepare_surface(Mesh(v, f, uv=v[f][..., :2]), size=8, levels=0)
       >>> w = load_vgg16()
-      >>> t = gram_targets(np.full((8, 8, 3), 0.5), w, layers=("relu1_1", "relu1_2"))
+      >>> # a constant image: the surface's opposite-tap boundary and the 2D centre padding agree
+      >>> t = gram_targets(np.full((8, 8, 3), 0.5), w, layers=("relu1_1", "relu1_2"), padding="centre")
       >>> float(style_loss(jnp.full((64, 3), 0.5, jnp.float32), s.pyramid.network_arrays(), w, t)) < 1e-9
       True
     """

@@ -39,8 +39,12 @@ def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tm
         for a, b in zip(step["four"]["params"], step["one"]["params"], strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6, err_msg=decoder)
         assert step["one"]["loss"] > 0
+    grads_4, grads_1 = (np.concatenate([np.array(g) for g in out["step"]["log"][k]["grads"]]) for k in ("four", "one"))
+    assert np.abs(grads_1).max() > 1e-3
+    np.testing.assert_allclose(grads_4, grads_1, rtol=1e-4, atol=1e-5 * np.abs(grads_1).max())
 
-    full_4, full_1 = np.array(out["full_4"]), np.array(out["full_1"])
+    full_4 = np.array(out["full_4"])
+    full_1 = fl.train(CONFIG, key=key, images=images(), progress=False).losses["loss"]  # here: one device
     assert full_4.shape == (CONFIG.steps,) and np.isfinite(full_4).all()
     # 4 Adam steps: round-off of each step's reduction compounds a little (Adam divides by sqrt(v))
     np.testing.assert_allclose(full_4, full_1, rtol=1e-4)

@@ -102,3 +102,28 @@ def test_y_up_models_match_as_their_z_up_copies():
     wrong = meshmatch(Mesh(source.vertices @ turn.T, source.faces), sc, Mesh(target.vertices @ turn.T, target.faces),
                       key=jax.random.key(0), config=Config(up="z", **cfg))
     assert np.mean(wrong.nnf == z.nnf) < 0.9  # the up axis matters: a wrong one changes the match
+
+
+def _ellipsoids():
+    """A source and a target ellipsoid, both symmetric under x -> -x (other tessellations), and
+    source colours red on the +x half."""
+    v, f = icosphere(3)
+    source_v = v * np.array([1.6, 1.0, 0.8])
+    q, _ = np.linalg.qr(np.random.default_rng(2).standard_normal((3, 3)))
+    tv, tf = icosphere(3)
+    tv = _unit(tv @ q.T) * np.array([1.6, 1.0, 0.8])
+    red = 0.5 + 0.45 * np.tanh(3 * source_v[:, 0])
+    colors = np.stack([red, 1 - red, 0.5 * np.ones_like(red)], axis=1)
+    return Mesh(source_v, f, vertex_colors=colors), Mesh(tv, tf)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_side_axis_resolves_the_mirror_ambiguity(seed):
+    """HKS and n·up cannot tell the +x half of a mirror-symmetric ellipsoid from the -x half;
+    the n·side feature along x can: the red half lands on +x, for every key (measured, keys 0-3:
+    contrast +0.77 each; without ``side``: -0.76, 0.00, -0.76, +0.76)."""
+    source, target = _ellipsoids()
+    cfg = dict(levels=3, hks_eigenpairs=16)
+    out = transfer(source, target, key=jax.random.key(seed), config=Config(side="x", **cfg))
+    c, side = out.mesh.vertex_colors[:, 0], np.sign(target.vertices[:, 0])
+    assert c[side > 0].mean() - c[side < 0].mean() > 0.5

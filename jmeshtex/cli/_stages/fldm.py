@@ -78,7 +78,7 @@ def tiny_config(quick: bool = True):
     from ...fldm import Config
 
     if quick:
-        return Config.tiny(latent_channels=2, n_copies=4, copy_vertices=500, steps=800, batch_size=2,
+        return Config.tiny(latent_channels=2, n_copies=4, copy_vertices=500, steps=300, batch_size=2,
                            learning_rate=3e-3, widths=(16, 32), hdim=8, diffusion_steps=200, bucket=64)
     return Config.cpu(latent_channels=2, n_copies=8, copy_vertices=1500, steps=1500, diffusion_steps=1000)
 
@@ -108,7 +108,7 @@ def render_rgb_views(mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool
 
 def learning_check(
     *, quick: bool = True, n_samples: int = 2, key: jax.Array | None = None, progress: bool = False,
-    codec: str = "stripes",
+    codec: str = "stripes", steps: int | None = None,
 ) -> dict:
     """Train a tiny FLDM on the striped sphere and measure fidelity and diversity of its samples.
 
@@ -121,6 +121,7 @@ def learning_check(
         ``"fl_vae"``: the shipped FL-VAE (:func:`~jmeshtex.fl.load_pretrained`): copies encoded with
         :func:`~jmeshtex.fldm.fl_vae_encoder` (colours read on the exemplar), sample latents decoded with
         :func:`~jmeshtex.fl.decode_vertex_colors` and the colours rendered.
+      steps: training steps (default: the preset's).
 
     Returns:
       ``{"gram_trained", "gram_untrained", "gram_codec", "gram_flat", "gram_shuffled",
@@ -142,6 +143,8 @@ def learning_check(
     k_codec, k_data, k_train, k_sample = jax.random.split(key, 4)
     exemplar = striped_sphere(subdivisions=3)
     cfg = tiny_config(quick)
+    if steps is not None:
+        cfg = cfg.replace(steps=int(steps))
     if codec == "stripes":
         encode = stripe_encoder
 
@@ -218,7 +221,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
-    cfg = tiny_config(True)  # full: the learning check's configuration (800 steps, about a minute)
+    cfg = tiny_config(True)  # full: the learning check's configuration (300 steps)
     if quick:  # a smoke run: a few seconds of training
         cfg = cfg.replace(n_copies=2, copy_vertices=300, steps=120)
     exemplar = striped_sphere(subdivisions=3)
