@@ -42,7 +42,7 @@ ROOT = HERE.parent
 SCHEMA = "jmeshtex-bench/1"
 
 #: row keys that name a figure's setting (kept in ``params``) rather than measure it
-_PARAM_KEYS = ("size", "mesh", "model", "preset", "activation", "table", "chunk", "source", "bound", "what",
+_PARAM_KEYS = ("size", "mesh", "method", "model", "preset", "activation", "table", "chunk", "source", "bound", "what",
                "dtype", "atlas", "steps", "level")
 #: row keys giving the problem size ``n`` of the log-log plot, in order of preference
 _SIZE_KEYS = ("texels", "vertices", "faces", "points", "n")
@@ -345,8 +345,8 @@ def import_results(names: Sequence[str] | None = None, folder: pathlib.Path = HE
     """The committed ``results/<name>.json`` of the scripts as one sweep document (the adapter)."""
     figures = []
     for path in sorted(folder.glob("*.json")):
-        report = json.loads(path.read_text())
-        if "rows" not in report or (names and report.get("name") not in names):
+        report = _as_report(json.loads(path.read_text()), path)
+        if report is None or (names and report.get("name") not in names):
             continue
         info = report.get("machine", {})
         versions = {k: info.get(k) for k in ("python", "jax", "jaxlib", "flax", "optax", "numpy") if k in info}
@@ -355,13 +355,24 @@ def import_results(names: Sequence[str] | None = None, folder: pathlib.Path = HE
             "figures": figures, "cells": []}
 
 
+def _as_report(data: Any, path: pathlib.Path) -> dict | None:
+    """A script's JSON as a ``_harness`` report: a report as it is, a bare list of rows named after
+    the file (``surfacecnn.quality.json``), anything else None."""
+    if isinstance(data, dict) and isinstance(data.get("rows"), list):
+        return data
+    if isinstance(data, list) and data and all(isinstance(r, dict) for r in data):
+        return {"name": path.name.removesuffix(".json"), "rows": data}
+    return None
+
+
 def load_sweep(path: str | os.PathLike) -> dict:
     """A sweep document, or a script's own report converted by the adapter."""
     doc = json.loads(pathlib.Path(path).read_text())
-    if doc.get("schema") == SCHEMA:
+    if isinstance(doc, dict) and doc.get("schema") == SCHEMA:
         return doc
-    if "rows" in doc:
-        return {"schema": SCHEMA, "figures": figures_from_report(doc), "cells": []}
+    report = _as_report(doc, pathlib.Path(path))
+    if report is not None:
+        return {"schema": SCHEMA, "figures": figures_from_report(report), "cells": []}
     raise SystemExit(f"{path}: neither a {SCHEMA} sweep nor a benchmark report")
 
 

@@ -141,10 +141,9 @@ def timing(report: Report, levels: int, measured: int, steps: int) -> None:
 
 def _surface_error(a, b, n: int = 20000) -> tuple[float, float]:
     """Two-sided mean nearest-sample distance and normal angle (degrees) between two meshes."""
-    pa, na = (np.asarray(x) for x in sample_points(np.asarray(a[0], np.float32), np.asarray(a[1]), n,
-                                                    key=jax.random.key(7)))
-    pb, nb = (np.asarray(x) for x in sample_points(np.asarray(b[0], np.float32), np.asarray(b[1]), n,
-                                                    key=jax.random.key(8)))
+    (va, fa), (vb, fb) = a, b
+    pa, na = (np.asarray(x) for x in sample_points(np.asarray(va, np.float32), np.asarray(fa), n, key=jax.random.key(7)))
+    pb, nb = (np.asarray(x) for x in sample_points(np.asarray(vb, np.float32), np.asarray(fb), n, key=jax.random.key(8)))
     d_ab, i_ab = scipy.spatial.cKDTree(pb).query(pa)
     d_ba, i_ba = scipy.spatial.cKDTree(pa).query(pb)
     ang = np.concatenate([np.sum(na * nb[i_ab], 1), np.sum(nb * na[i_ba], 1)])
@@ -179,12 +178,14 @@ def main() -> None:
     ap.add_argument("--skip", nargs="*", default=(), choices=("quality", "timing", "fit"))
     args = ap.parse_args()
     report = Report("dgts")
-    if "quality" not in args.skip:
-        quality(report, args.png)
-    if "timing" not in args.skip:
-        timing(report, args.levels, args.measured_levels, args.measure)
     if "fit" not in args.skip:
         fit_compare(report, args.fit_iterations)
+        report.write()  # after every section, so a later failure keeps the earlier figures
+    if "quality" not in args.skip:
+        quality(report, args.png)
+        report.write()
+    if "timing" not in args.skip:
+        timing(report, args.levels, args.measured_levels, args.measure)
     report.write()
 
 

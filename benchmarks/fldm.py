@@ -80,7 +80,7 @@ def main() -> None:
         copy = remesh(base, n_vertices=n, key=jax.random.key(0))
         report.add(name="remesh", vertices=n, seconds=time.perf_counter() - t0, load=_load())
         t0 = time.perf_counter()
-        geo = fldm.denoiser_geometry(copy, knn=9, pool_ratio=0.25)
+        geo = fldm.denoiser_geometry(copy, knn=fldm.Config.paper().knn, pool_ratio=0.25)  # every preset: k = 8
         report.add(name="denoiser geometry", vertices=n, seconds=time.perf_counter() - t0, load=_load())
         sizes = fldm.geometry_sizes(geo)
         for preset in args.presets:

@@ -84,7 +84,10 @@ class Config(ConfigBase):
         a rotated one). ``n · side`` along the left/right axis changes sign under that mirror.
         Measured on the cow (``../shared/data/cow.obj``, Y-up, left/right along z) → a remeshed
         copy: 9 % of vertices matched more than 3 edges off, 81 % of those at the mirrored
-        point, carrying 89 % of the squared error (``up="y"``: 26.1 dB, nearest-3D copy 40.3).
+        point, carrying 89 % of the squared error (``up="y"``: 26.1 dB, nearest-3D copy 40.3);
+        ``side="z"``: 29.9 dB, and 35.0 dB (39.7 dB voted) with ``steps=12``. On the
+        cross-shape benchmark's stretched cow: 28.4 → 33.7 dB (``benchmarks/results/
+        meshmatch_cross.md``). Not a default: it needs the model's left/right axis.
       steps: most PatchMatch iterations (E-step + M-step) per level.
       coarse_steps: most iterations at the coarsest level, which starts from a random field
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
@@ -107,6 +110,8 @@ class Config(ConfigBase):
         inside the matched vertex's star (the vote's resampling), in the source level's mean edge
         lengths. At 0.5 a vertex read at its own position keeps only about 55 % of its own colour
         (six neighbours one edge away weigh ``e⁻²`` each): the vote blurs by about an edge.
+        0.3 measured mixed (cow self-transfer 26.1 → 26.5 dB, the small stretched-cow pair
+        25.1 → 24.3 dB), so the default stays 0.5.
       min_vertices: coarsest hierarchy level size (decimation stops below it).
       levels: number of hierarchy levels, or None for "down to ``min_vertices``".
       max_scale_ratio: the largest ratio of the source's and the target's bounding-box diagonals

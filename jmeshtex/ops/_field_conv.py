@@ -463,44 +463,8 @@ def _as_complex(y):
     return jax.lax.complex(y[:, :d], y[:, d:])
 
 
-def _conv_mapped(x, slots, a_w, bias, mix, index, delta, activation):
-    """The reverse-mode primal over blocks of vertices: neighbours gathered once for the whole mesh,
-    then per block of :data:`_BLOCK` vertices the terms, filter sums (hand-written VJP) and mix.
-
-    Autodiff through ``lax.map`` keeps each block's ``[B, K, C]`` terms as residuals (``4·V·K·C``
-    reals in all, the same as the whole-mesh path) and runs the backward block by block, so the
-    filter-sum backward recomputes its responses in cache instead of streaming ``[V, K, C]`` arrays
-    through memory once per response.
-    """
-    v = x.shape[0]
-    if v <= _BLOCK:
-        return _conv_whole(x, slots, a_w, bias, mix, index, delta, activation)
-    m_r, m_i = _mix_halves(mix)
-    d = mix.shape[2]
-    xqr = jnp.take(x.real, index, axis=0, mode="clip")  # [V, K, C]
-    xqi = jnp.take(x.imag, index, axis=0, mode="clip")
-    n_blocks = -(-v // _BLOCK)
-    pad = n_blocks * _BLOCK - v
-
-    def to_blocks(a):
-        a = jnp.pad(a, [(0, pad)] + [(0, 0)] * (a.ndim - 1))
-        return a.reshape(n_blocks, _BLOCK, *a.shape[1:])
-
-    def body(args):
-        qr, qi, sl, b = args
-        w, tr, ti, lr, li = (a[..., None] for a in sl)
-        ur, ui = tr * qr - ti * qi, tr * qi + ti * qr
-        inv = jax.lax.rsqrt(ur * ur + ui * ui + jnp.asarray(delta * delta, qr.dtype))
-        ar, ai = (lr * ur + li * ui) * inv, (li * ur - lr * ui) * inv
-        s_r, s_i = _filtered_sums(w * ur, w * ui, ar, ai, a_w, b, activation)
-        return s_r.reshape(_BLOCK, -1) @ m_r + s_i.reshape(_BLOCK, -1) @ m_i
-
-    y = jax.lax.map(body, jax.tree.map(to_blocks, (xqr, xqi, slots, bias)))
-    return _as_complex(y.reshape(n_blocks * _BLOCK, 2 * d)[:v])
-
-
 def _conv_fwd(x, index, slots, a_w, bias, mix, delta, activation):
-    y, vjp = jax.vjp(functools.partial(_conv_mapped, index=index, delta=delta, activation=activation),
+    y, vjp = jax.vjp(functools.partial(_conv_whole, index=index, delta=delta, activation=activation),
                      x, slots, a_w, bias, mix)
     return y, vjp
 
