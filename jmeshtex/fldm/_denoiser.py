@@ -7,7 +7,7 @@
                                                     └── concat ◄── unpool (nearest) ────┘
                                 ─ merge (linear) ─ FCRes×up (C₀, fine) ─ linear ─► ε̂ [V, d]
 
-Every block (:class:`~jmeshtex.fldm._blocks.FCResBlock`, the reference's ``FCEResBlock``) is a linear
+Every block (``FCResBlock`` in ``jmeshtex/fldm/_blocks.py``, the reference's ``FCEResBlock``) is a linear
 (complex dense) residual plus (norm → vector neuron) × ``mlp_layers`` → field convolution →
 (norm → VN) × ``mlp_layers`` → field convolution whose filters see, per channel, the processed
 timestep (⊕ one-hot label) embedding (eq. 35; the reference's ``FieldConvEmb``). Filters are one- or
