@@ -41,7 +41,8 @@ from threadpoolctl import threadpool_limits
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_debug_nans", True)
-jax.config.update("jax_platforms", "cpu")
+# CPU unless JMESHTEX_TEST_PLATFORMS says otherwise (benchmarks/gpu_check.sh runs a subset on "cuda")
+jax.config.update("jax_platforms", os.environ.get("JMESHTEX_TEST_PLATFORMS", "cpu"))
 
 # pytest-xdist runs one worker per core; a multi-threaded BLAS in every worker oversubscribes the
 # cores and slows sparse eigensolves (HKS) 8-20x. One BLAS thread per worker.

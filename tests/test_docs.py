@@ -21,7 +21,8 @@ def test_the_api_reference_builds_with_warnings_as_errors(tmp_path):
     assert run.returncode == 0, f"sphinx failed ({run.returncode}):\n{run.stdout}\n{run.stderr}"
     pages = {p.stem for p in (tmp_path / "html" / "api").glob("*.html")}
     for package in ("jmeshtex", "jmeshtex.ops", "jmeshtex.geometry", "jmeshtex.dgts", "jmeshtex.fl",
-                    "jmeshtex.fldm", "jmeshtex.surfacecnn", "jmeshtex.meshmatch"):
+                    "jmeshtex.fldm", "jmeshtex.surfacecnn", "jmeshtex.meshmatch", "jmeshtex.parallel",
+                    "jmeshtex.render", "jmeshtex.metrics"):
         assert package in pages, f"no API page for {package}: {sorted(pages)}"
     notebooks = {p.stem for p in (tmp_path / "html" / "_notebooks").glob("*.html")}
     expected = {p.stem for p in (DOCS.parent / "notebooks").glob("*.ipynb")}
