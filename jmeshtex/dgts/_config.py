@@ -186,7 +186,7 @@ class Config(ConfigBase):
 
     @property
     def y_sign(self) -> float:
-        """Sign of the in-plane displacement coefficient: −1 with :attr:`official_axes`, else 1.
+        """The sign of the in-plane displacement coefficient (−1 with :attr:`official_axes`, else 1).
 
         Example:
           >>> Config().y_sign, Config(official_axes=True).y_sign

@@ -235,7 +235,7 @@ def init(data: Dataset, config: Config, *, key: jax.Array, dtype=jnp.complex64) 
       ...                      key=jax.random.key(0), progress=False)
       >>> model = init(data, cfg, key=jax.random.key(1))
       >>> model.config == cfg, sorted(model.params)[:2]
-      (True, ['down_0', 'lift'])
+      (True, ['down_0', 'embed_0'])
     """
     _check_data(data, config)
     return Model(init_denoiser(_split(key)[0], config, dtype=dtype), config, np.asarray(data.scale))
