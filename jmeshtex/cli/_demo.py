@@ -168,7 +168,7 @@ def _trace(ctx: dict[str, Any]) -> str:
 
 
 def _render(ctx: dict[str, Any]) -> str:
-    from ..render import render_grid, render_mesh
+    from ..render import figure, render_mesh
 
     tv, tf = ctx["torus"]
     gv, gf = ctx["grid"]
@@ -184,28 +184,46 @@ def _render(ctx: dict[str, Any]) -> str:
         panels.append(render_mesh(gv, gf, edges=ctx["boundary"], view=(50.0, -60.0), size=PANEL_SIZE))
         titles.append(f"grid ({len(gv)} vertices) and its boundary")
     path = ctx["out"] / "demo.png"
-    render_grid(panels, path, titles=titles, columns=min(len(panels), 2))
+    figure(list(zip(titles, panels, strict=True)), columns=min(len(panels), 2), path=path)
     return f"{len(panels)} panels → {path.name}"
 
 
+#: the full demo's equivariance selection: one check per method and the core operators, each under
+#: the transform that tests it most directly (``jmeshtex verify`` runs the whole registry)
+VERIFY_SELECTION: tuple[tuple[str, str], ...] = (
+    ("geometry.one_ring.log", "fold"),
+    ("ops.field_conv", "gauge"),
+    ("ops.field_conv", "rotate_corners"),
+    ("negative.complex_bias", "gauge"),  # a known-bad operator: the check must flag it
+    ("dgts.discriminator", "rotate_corners"),
+    ("fl.decoder", "gauge"),
+    ("fldm.sampler", "gauge"),
+    ("meshmatch.fan_descriptor", "gauge"),
+    ("surfacecnn.first_layer", "gauge"),
+)
+QUICK_VERIFY_SELECTION: tuple[tuple[str, str], ...] = (("ops.field_conv", "gauge"), ("negative.complex_bias", "gauge"))
+
+
 def _verify(ctx: dict[str, Any]) -> str:
-    """A selection of ``jmeshtex verify``: every registered operator under a gauge change, a
-    relabelling of face corners and an exact fold, in float64 (quick: two operators, gauge only)."""
+    """A selection of ``jmeshtex verify`` in float64: :data:`VERIFY_SELECTION` (quick:
+    :data:`QUICK_VERIFY_SELECTION`), one check per method and the core operators."""
     import jax
     import jax.numpy as jnp
 
     from .. import testing
     from ..io import atomic_write
 
+    selection = QUICK_VERIFY_SELECTION if ctx["quick"] else VERIFY_SELECTION
+    hook = ctx.get("progress")
     was_x64 = jax.config.jax_enable_x64
     jax.config.update("jax_enable_x64", True)  # for this step only: the method stages run in float32
     try:
         testing.load_entries()
-        if ctx["quick"]:
-            names, transforms = ["ops.field_conv", "negative.complex_bias"], ["gauge"]
-        else:
-            names, transforms = None, ["gauge", "rotate_corners", "fold"]
-        results = testing.run_registry(names, dtypes=(jnp.float64,), transforms=transforms)
+        results = []
+        for i, (name, transform) in enumerate(selection):
+            if hook is not None:
+                hook(f"{i + 1}/{len(selection)} {name} × {transform}")
+            results += testing.run_registry([name], dtypes=(jnp.float64,), transforms=[transform])
     finally:
         jax.config.update("jax_enable_x64", was_x64)
     table = testing.format_table(results)
@@ -213,6 +231,7 @@ def _verify(ctx: dict[str, Any]) -> str:
     failed = sum(r.passed is False for r in results)
     if failed:
         raise RuntimeError(f"equivariance check failed:\n{table}")
+    transforms = sorted({t for _, t in selection})
     return f"{len(results)} checks ({', '.join(transforms)}), {failed} failed → verify.txt"
 
 
@@ -220,16 +239,17 @@ def method_stage(folder: str) -> Callable[[dict[str, Any]], str]:
     """A demo step that runs ``jmeshtex.cli._stages.<folder>.demo_stage(out / folder, quick=...)``.
 
     ``folder`` names a method (``"dgts"``): its stage module in ``jmeshtex/cli/_stages/`` has a
-    ``demo_stage(out_dir, *, quick) -> dict`` that trains/runs a tiny
+    ``demo_stage(out_dir, *, quick, progress) -> dict`` that trains/runs a tiny
     configuration on the embedded data and writes its PNGs into ``out_dir``; the dict's
-    ``"summary"`` (or else its scalar entries) becomes the report line.
+    ``"summary"`` (or else its scalar entries) becomes the report line. ``progress`` is the demo's
+    hook (status lines shown on its bar; None with ``--no-progress``).
     """
 
     def run(ctx: dict[str, Any]) -> str:
         from . import _stages
 
         stage = getattr(_stages, folder).demo_stage
-        result = stage(ctx["out"] / folder, quick=ctx["quick"])
+        result = stage(ctx["out"] / folder, quick=ctx["quick"], progress=ctx.get("progress"))
         if "summary" in result:
             text = str(result["summary"])
         else:
@@ -241,14 +261,6 @@ def method_stage(folder: str) -> Callable[[dict[str, Any]], str]:
         return f"{text} → {folder}/"
 
     return run
-
-
-def _meshmatch(ctx: dict[str, Any]) -> str:
-    from ._stages.meshmatch import demo_stage
-
-    summary = demo_stage(ctx["out"] / "meshmatch", quick=ctx["quick"])
-    return f"MeshMatch self-transfer: {summary.get('psnr_db', float('nan')):.1f} dB " \
-           f"(random field {summary.get('random_psnr_db', float('nan')):.1f} dB) → meshmatch/"
 
 
 # The demo, in order.
@@ -267,7 +279,7 @@ STEPS: list[Step] = [
     Step("sample_surface", _sample),
     Step("render", _render),
     Step("equivariance (jmeshtex verify, selection)", _verify),
-    Step("MeshMatch", _meshmatch),
+    Step("MeshMatch", method_stage("meshmatch")),
     Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts")),
     Step("Field Latents (FL-VAE encode/decode)", method_stage("fl")),
     Step("Field Latent Diffusion (tiny training, sampling)", method_stage("fldm")),
@@ -307,19 +319,23 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
     folder = output_folder(out, force=force)
     folder.mkdir(parents=True, exist_ok=True)
     ctx: dict[str, Any] = {"quick": quick, "out": folder}
-    t_start = time.perf_counter()
+    t_start, c_start = time.perf_counter(), time.process_time()
     from .. import geometry, render  # noqa: F401  (imports are timed apart from the steps)
 
-    rows: list[tuple[str, float, str]] = [("imports", time.perf_counter() - t_start, "jmeshtex.geometry, jmeshtex.render")]
+    rows: list[tuple[str, float, float, str]] = [
+        ("imports", time.perf_counter() - t_start, time.process_time() - c_start, "jmeshtex.geometry, jmeshtex.render")]
     bar = tqdm(STEPS, desc="jmeshtex demo", unit="step", file=sys.stderr, disable=not progress, leave=False)
     for step in bar:
-        bar.set_postfix_str(step.name[:40])
-        t0 = time.perf_counter()
+        label = step.name[:40]
+        bar.set_postfix_str(label)
+        if progress:  # status lines from inside the step: the bar's postfix (and clock) move
+            ctx["progress"] = lambda text, label=label: bar.set_postfix_str(f"{label}: {text}"[:90])
+        t0, c0 = time.perf_counter(), time.process_time()
         summary = step.run(ctx)
-        rows.append((step.name, time.perf_counter() - t0, summary))
-    total = time.perf_counter() - t_start
+        rows.append((step.name, time.perf_counter() - t0, time.process_time() - c0, summary))
+    total, cpu_total = time.perf_counter() - t_start, time.process_time() - c_start
 
-    width = max(len(name) for name, _, _ in rows)
+    width = max(len(name) for name, _, _, _ in rows)
     lines = [
         f"jmeshtex {__version__} demo ({'quick' if quick else 'full'}), {time.strftime('%Y-%m-%d %H:%M:%S')}",
         f"python {platform.python_version()}, {platform.platform()}, {os.cpu_count()} CPUs",
@@ -327,10 +343,10 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
         "",
         *(f"{name}: {ctx[name].num_vertices} vertices, {ctx[name].num_faces} faces" for name in ("torus", "grid") if name in ctx),
         "",
-        f"{'step':<{width}}  {'seconds':>8}  result",
-        *(f"{name:<{width}}  {s:8.3f}  {summary}" for name, s, summary in rows),
+        f"{'step':<{width}}  {'seconds':>8}  {'cpu s':>8}  result",
+        *(f"{name:<{width}}  {s:8.3f}  {c:8.3f}  {summary}" for name, s, c, summary in rows),
         "",
-        f"total: {total:.2f} s",
+        f"total: {total:.2f} s (process CPU time {cpu_total:.2f} s)",
     ]
     report = folder / "report.txt"
     tmp = report.with_name(f".{report.name}.tmp")

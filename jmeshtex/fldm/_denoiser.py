@@ -159,7 +159,7 @@ class Denoiser(nn.Module):
 
     Attributes:
       config: :class:`Config` (widths, blocks, hdim, mlp_layers, filter_layers, activation,
-        time_features, num_labels).
+        time_features, num_labels; ``remat``: every block under :func:`flax.linen.remat`).
       param_dtype: complex dtype of the complex weights.
       argument: filter argument of every field convolution (``"untransported"``: the reference's
         form, for the equivariance harness's negative control only).
@@ -187,17 +187,18 @@ class Denoiser(nn.Module):
             emb0 = emb1 = _embedding_mlp(temb, width, rdt, "embed")
         block = dict(hdim=cfg.hdim, mlp_layers=cfg.mlp_layers, filter_layers=cfg.filter_layers,
                      activation=cfg.activation, argument=self.argument, param_dtype=self.param_dtype)
+        Block = nn.remat(FCResBlock) if cfg.remat else FCResBlock  # same parameters, recomputed in the backward pass
         h = ComplexDense(c0, self.param_dtype, name="lift")(z)
         for i in range(cfg.blocks[0]):
-            h = FCResBlock(c0, name=f"down_{i}", **block)(h, geo.fine, emb0)
+            h = Block(c0, name=f"down_{i}", **block)(h, geo.fine, emb0)
         skip = h
         h = tangent_pool(h, geo.pool)
         for i in range(cfg.blocks[1]):
-            h = FCResBlock(c1, name=f"mid_{i}", **block)(h, geo.coarse, emb1)
+            h = Block(c1, name=f"mid_{i}", **block)(h, geo.coarse, emb1)
         h = jnp.concatenate([tangent_unpool(h, geo.pool), skip], axis=1)
         h = ComplexDense(c0, self.param_dtype, name="merge")(h)
         for i in range(cfg.blocks[2]):
-            h = FCResBlock(c0, name=f"up_{i}", **block)(h, geo.fine, emb0)
+            h = Block(c0, name=f"up_{i}", **block)(h, geo.fine, emb0)
         out = ComplexDense(z.shape[-1], self.param_dtype, name="out")(h)  # linear output (no norm, no VN)
         return out * jnp.asarray(geo.fine.vertex_mask).astype(out.dtype)[:, None]
 

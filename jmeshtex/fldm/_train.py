@@ -5,10 +5,16 @@ One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}
 and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam on a warm-up + cosine learning-rate
 schedule, :func:`learning_rate_schedule`; complex gradients conjugated first, DESIGN.md; optionally an
 EMA of the weights, ``config.ema_decay``), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
-(:func:`~jmeshtex.fldm.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies; the
-batch axis is sharded over every available device with :mod:`jax.sharding` (parameters
-replicated), so the same code runs on one CPU or on several accelerators (the batch is rounded up
-to a multiple of the device count).
+(:func:`~jmeshtex.fldm.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies.
+
+Data parallel (``mesh=`` / ``devices=``, default every device JAX sees; :mod:`jmeshtex.parallel`):
+the batch axis (the ``batch_size`` copies of a step) is split over the mesh's ``"data"`` axis,
+parameters, optimiser state and EMA are replicated, and XLA all-reduces the gradients. The batch is
+the same on every mesh (``batch_size`` must be a multiple of the device count; nothing is resized),
+so a step on four devices equals the one-device step up to the order of the floating-point sums.
+Under :func:`jmeshtex.parallel.initialize` every process builds the same global batch from the
+key and feeds its own devices their slices; losses and the model are read back with
+:func:`jmeshtex.parallel.fetch` on every process.
 
 Randomness: :func:`train`'s ``key`` is split three ways, into the initialisation (the model
 :func:`init` returns for the same key), the batch draws (which copies, a NumPy generator seeded
@@ -18,7 +24,7 @@ noise is a function of ``(key, step)`` alone.
 Checkpoints (``checkpoint_dir``): every ``checkpoint_every`` steps and after the last one, the
 parameters, the optimiser state and the losses so far go to a :class:`jmeshtex.io.Checkpoints`
 folder (atomic; the newest two kept), fingerprinted with the run's settings (the config apart from
-``steps`` and ``checkpoint_every``, the key, the dtype, the data's shape and scale). Calling
+``steps``, ``checkpoint_every`` and ``remat``, the key, the dtype, the data's shape and scale). Calling
 :func:`train` again with the same folder resumes after the newest step and gives the same
 parameters and losses as an uninterrupted run; a folder written by another run raises
 :class:`~jmeshtex.CheckpointMismatchError`. The finished model is written with :func:`save`
@@ -43,6 +49,14 @@ from .._errors import ConfigError, InputError, MeshIOError
 from .._random import host_rng, key_ints
 from .._train_result import TrainResult
 from ..ops import conjugate_complex_grads, tangent_noise
+from ..parallel import (
+    batch_multiple,
+    data_parallel,
+    fetch,
+    is_multiprocess,
+    replicate,
+    resolve_mesh,
+)
 from ._config import Config
 from ._data import Dataset, batch_geometry
 from ._denoiser import DenoiserGeometry, denoise, init_denoiser
@@ -97,35 +111,46 @@ def optimizer(config: Config) -> optax.GradientTransformation:
     return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(learning_rate_schedule(config)))
 
 
-@functools.partial(jax.jit, static_argnames=("decay",))
 def _ema_update(ema, params, step, *, decay: float):
     """``ema ← d ema + (1 − d) params`` with ``d = min(decay, (1 + step) / (10 + step))`` (early steps
     follow the weights closely; the usual warm-up of a weight EMA)."""
     d = jnp.minimum(decay, (1.0 + step) / (10.0 + step))
-    return jax.tree.map(lambda e, p: (d * e + (1 - d) * p).astype(p.dtype), ema, params)
-
-
-def _data_sharding(batch: int):
-    devices = np.array(jax.devices())
-    mesh = jax.sharding.Mesh(devices, ("data",))
-    P = jax.sharding.PartitionSpec
-    return (jax.sharding.NamedSharding(mesh, P("data")), jax.sharding.NamedSharding(mesh, P()), len(devices))
+    return jax.tree.map(lambda e, p: d.astype(p.dtype) * e + (1 - d).astype(p.dtype) * p, ema, params)
 
 
 @functools.lru_cache(maxsize=16)
-def make_train_step(config: Config):
-    """The jitted optimiser step of :func:`train` (module docstring), one per configuration.
+def _ema_step(decay: float, mesh: jax.sharding.Mesh):
+    """:func:`_ema_update` as one replicated-in, replicated-out program on ``mesh``."""
+    return data_parallel(functools.partial(_ema_update, decay=decay), mesh, batch_argnums=())
+
+
+def _check_batch(config: Config, mesh: jax.sharding.Mesh) -> None:
+    """Raise :class:`~jmeshtex.ConfigError` unless ``config.batch_size`` splits evenly over ``mesh``."""
+    per = batch_multiple(mesh)
+    if config.batch_size % per:
+        raise ConfigError(
+            f"fldm: batch_size={config.batch_size} copies cannot be split evenly over the {per} devices of the "
+            f"mesh; use a batch_size that is a multiple of {per}, or train on fewer devices (devices=...)")
+
+
+@functools.lru_cache(maxsize=16)
+def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
+    """The jitted optimiser step of :func:`train` (module docstring), one per configuration and mesh.
 
     Cached, so a resumed or repeated run in the same process does not compile again.
 
     Args:
       config: the :class:`Config` (schedule, prediction, ``diffusion_steps``, learning rate).
+      mesh: None (a plain :func:`jax.jit` on the default device), or a :class:`jax.sharding.Mesh`
+        with a ``"data"`` axis: the batch arguments (``z0``, ``geo``, ``labels``) are split along
+        their leading axis over it, everything else replicated, outputs replicated
+        (:func:`jmeshtex.parallel.data_parallel`).
 
     Returns:
       ``step(params, opt_state, z0 [B, V, d], geo [B, …], labels [B, V] or None, key) ->
       (params, opt_state, loss)``: ``z0`` the scaled latents and ``geo`` the geometry of a batch
       (:func:`training_batch`), ``opt_state`` from ``optimizer(config).init(params)``, ``key`` the
-      step's noise key.
+      step's noise key. With a mesh, ``B`` must be a multiple of its device count.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -151,7 +176,6 @@ def make_train_step(config: Config):
             pred = jax.vmap(lambda z, tt, g, lab: denoise(params, config, z, tt, g, labels=lab))(zt, t, geo, labels)
         return epsilon_loss(pred, prediction_target(schedule, config.prediction, z0, t, eps), geo.fine.vertex_mask)
 
-    @jax.jit
     def step(params, opt_state, z0, geo, labels, key):
         kt, ke = jax.random.split(key)
         t = jax.random.randint(kt, (z0.shape[0],), 0, config.diffusion_steps)
@@ -163,7 +187,9 @@ def make_train_step(config: Config):
             params = optax.apply_updates(params, updates)
         return params, opt_state, loss
 
-    return step
+    if mesh is None:
+        return jax.jit(step)
+    return data_parallel(step, mesh, batch_argnums=(2, 3, 4))
 
 
 def training_batch(
@@ -243,7 +269,7 @@ def init(data: Dataset, config: Config, *, key: jax.Array, dtype=jnp.complex64) 
 
 def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
     """What a checkpoint must have been written by to be resumed (module docstring)."""
-    settings = {k: v for k, v in config.to_dict().items() if k not in ("steps", "checkpoint_every")}
+    settings = {k: v for k, v in config.to_dict().items() if k not in ("steps", "checkpoint_every", "remat")}
     return {"config": settings, "key": key_ints(key), "dtype": jnp.dtype(dtype).name,
             "data": {"shape": list(data.latents.shape), "scale": np.asarray(data.scale, np.float64).tolist()}}
 
@@ -320,6 +346,8 @@ def train(
     checkpoint_dir: str | os.PathLike | None = None,
     stop_after: int | None = None,
     dtype=jnp.complex64,
+    mesh: jax.sharding.Mesh | None = None,
+    devices=None,
 ) -> TrainResult[Model]:
     """Train the denoiser on the copies of ``data`` for ``config.steps`` steps (resumable).
 
@@ -332,14 +360,21 @@ def train(
         checkpoint of the same run there is resumed.
       stop_after: run at most this many steps in this call (continue later from the checkpoint).
       dtype: complex dtype of parameters and latents.
+      mesh: the :class:`jax.sharding.Mesh` to train on (its ``"data"`` axis splits the batch;
+        module docstring). None: :func:`jmeshtex.parallel.data_mesh` over ``devices``.
+      devices: the devices of the default mesh (None: every device; ``jax.devices()[:1]`` trains
+        on one). Not with ``mesh``.
 
     Returns:
-      :class:`~jmeshtex.TrainResult` with the :class:`Model`, ``losses["loss"]`` (one per step
-      done, resumed ones included), ``steps`` (done in total) and ``resumed_from`` (the
-      checkpoint step this call started from, or None).
+      :class:`~jmeshtex.TrainResult` with the :class:`Model` (host NumPy parameters, whatever mesh
+      trained them), ``losses["loss"]`` (one per step done, resumed ones included), ``steps``
+      (done in total) and ``resumed_from`` (the checkpoint step this call started from, or None).
+      A checkpoint written on one mesh resumes on another.
 
     Raises:
-      ConfigError: the data's channels or labels do not match the config.
+      ConfigError: the data's channels or labels do not match the config; ``batch_size`` is not a
+        multiple of the mesh's device count; ``mesh`` and ``devices`` both given;
+        ``checkpoint_dir`` in a multi-process run (not supported yet).
       CheckpointMismatchError: ``checkpoint_dir`` holds a checkpoint of another run.
 
     Example:
@@ -357,12 +392,15 @@ def train(
     from ..io import Checkpoints
 
     _check_data(data, config)
-    batch_sharding, replicated, n_dev = _data_sharding(config.batch_size)
-    batch = int(np.ceil(config.batch_size / n_dev) * n_dev)
+    mesh = resolve_mesh(mesh, devices)
+    _check_batch(config, mesh)
+    if checkpoint_dir is not None and is_multiprocess():
+        raise ConfigError("fldm.train: checkpoint_dir with several processes (jax.distributed) is not supported "
+                          "yet; train without checkpoints, or in one process")
     opt = optimizer(config)
     k_init, k_batch, k_noise = _split(key)
     params = init_denoiser(k_init, config, dtype=dtype)
-    opt_state = opt.init(params)
+    params, opt_state = replicate((params, opt.init(params)), mesh)
     use_ema = config.ema_decay > 0
     ema = params if use_ema else None
     start, losses, resumed = 0, [], None
@@ -377,11 +415,10 @@ def train(
         resumed = ckpt.latest_step()
         if resumed is not None:
             state, meta = ckpt.restore(state_dict())
-            params, opt_state, ema = state["params"], state["opt_state"], state.get("ema")
+            params, opt_state, ema = replicate((state["params"], state["opt_state"], state.get("ema")), mesh)
             start, losses = resumed, [float(x) for x in meta["losses"]]
-    params = jax.device_put(params, replicated)
-    opt_state = jax.device_put(opt_state, replicated)
-    step_fn = make_train_step(config)
+    step_fn = make_train_step(config, mesh)
+    ema_fn = _ema_step(float(config.ema_decay), mesh) if use_ema else None
     end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
     end = max(end, start)
     t0 = time.perf_counter()
@@ -389,12 +426,11 @@ def train(
                disable=not progress)
     try:
         for step in bar:
-            z0, geo, labels = training_batch(data, step, batch, key=k_batch, dtype=dtype)
-            z0, geo, labels = jax.device_put((z0, geo, labels), batch_sharding)
+            z0, geo, labels = training_batch(data, step, config.batch_size, key=k_batch, dtype=dtype)
             params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, jax.random.fold_in(k_noise, step))
             if use_ema:
-                ema = _ema_update(ema, params, jnp.asarray(step, jnp.float32), decay=float(config.ema_decay))
-            losses.append(float(loss))
+                ema = ema_fn(ema, params, np.float32(step))
+            losses.append(float(fetch(loss)))
             if progress:
                 bar.set_postfix(loss=f"{np.mean(losses[-20:]):.4f}")
             if ckpt is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
@@ -403,6 +439,6 @@ def train(
         if ckpt is not None:
             ckpt.close()
     seconds = time.perf_counter() - t0
-    model = Model(jax.device_get(ema if use_ema else params), config, np.asarray(data.scale))
+    model = Model(fetch(ema if use_ema else params), config, np.asarray(data.scale))
     return TrainResult(model=model, losses={"loss": np.asarray(losses, np.float64)}, steps=end, seconds=seconds,
                        resumed_from=resumed)

@@ -24,15 +24,23 @@ def test_quick_demo_writes_png_and_report(tmp_path, capsys):
     assert "grid: 169 vertices, 288 faces" in report
     for step in _demo.STEPS:
         line = next(line for line in report.splitlines() if line.startswith(step.name))
-        seconds = float(line[len(step.name) :].split()[0])
-        assert 0.0 <= seconds < 120.0
+        seconds, cpu = (float(x) for x in line[len(step.name) :].split()[:2])
+        # the report's times are well-formed; how fast they are is the benchmarks' business
+        # (timed assertions in tests fail on a loaded machine)
+        assert seconds >= 0.0 and cpu >= 0.0
     assert "total:" in report
     # the equivariance selection ran and passed; the MeshMatch stage wrote its pictures
     assert "0 failed → verify.txt" in report
     assert "pass" in (out / "verify.txt").read_text()
-    # every method stage wrote its pictures into its own folder
+    # per step: wall and process CPU seconds
+    assert "cpu s" in report and "process CPU time" in report
+    # every method stage wrote its figure (render.figure: a title strip, panels) into its own folder
     for folder in ("meshmatch", "dgts", "surfacecnn", "fl", "fldm"):
-        assert list((out / folder).glob("*.png")), folder
+        fig = matplotlib.image.imread(out / folder / f"{folder}.png")[..., :3]
+        assert fig.shape[1] >= 4 * 240, folder  # exemplar | result(s) | baselines side by side
+        assert (fig < 0.9).any(axis=2).mean() > 0.1, folder  # the renders are drawn
+    # the stage summaries carry their baselines next to the result
+    assert "random field" in report and "flat" in report and "shuffled" in report and "no displacement" in report
 
 
 def _only_meshes(monkeypatch):
@@ -60,6 +68,39 @@ def test_out_is_a_file_gives_a_clear_error(tmp_path, capsys):
     target.write_text("x")
     assert main(["demo", "--out", str(target), "--quick", "--no-progress"]) == 2
     assert "is not a folder" in capsys.readouterr().err
+
+
+def test_progress_moves_inside_a_step(tmp_path, monkeypatch, capsys):
+    seen = []
+
+    def long_step(ctx):
+        seen.append(ctx["progress"] is not None)
+        ctx["progress"]("halfway through")
+        return "done"
+
+    monkeypatch.setattr(_demo, "STEPS", [_demo.Step("a long step", long_step)])
+    _demo.run_demo(tmp_path, quick=True, progress=True)
+    assert seen == [True]
+    assert "a long step: halfway through" in capsys.readouterr().err
+
+
+def test_no_progress_gives_the_stages_no_hook(tmp_path, monkeypatch):
+    seen = []
+    monkeypatch.setattr(_demo, "STEPS", [_demo.Step("a step", lambda ctx: seen.append(ctx.get("progress")) or "ok")])
+    _demo.run_demo(tmp_path, quick=True, progress=False)
+    assert seen == [None]
+
+
+def test_verify_selection_covers_every_method_once():
+    from jmeshtex import testing
+
+    testing.load_entries()
+    for name, transform in _demo.VERIFY_SELECTION + _demo.QUICK_VERIFY_SELECTION:
+        assert transform in testing.transforms_of(testing.REGISTRY[name]), (name, transform)
+    prefixes = [name.split(".")[0] for name, _ in _demo.VERIFY_SELECTION]
+    for method in ("dgts", "fl", "fldm", "meshmatch", "surfacecnn"):
+        assert prefixes.count(method) == 1, method
+    assert "negative.complex_bias" in {name for name, _ in _demo.VERIFY_SELECTION}  # a failure it must flag
 
 
 def test_help_lists_demo(capsys):

@@ -13,62 +13,88 @@ import numpy as np
 
 from ...data import bumpy_sphere
 from ...dgts import Config, PrepareConfig
+from ._views import Progress, say, view
 
 
 def tiny_configs(quick: bool = True) -> tuple[PrepareConfig, Config]:
-    """Small configurations that train in seconds on a laptop CPU (quick) or in a few minutes."""
+    """Small configurations that train in seconds (quick) or in under a minute on a laptop CPU.
+
+    Both share one width at every level and ``shared_levels`` = all levels, so training compiles
+    one step for the whole hierarchy; the full one adds a third level (a finer output) and more
+    steps. The learning test and ``benchmarks/dgts.py`` use the quick one.
+    """
     if quick:
         prep = PrepareConfig(levels=2, steps=150, samples_per_level=800)
         # equal widths at both levels and shared_levels=2: one compiled training step for both
         train = Config(num_layers=4, start_features=16, min_features=16, max_features=16, steps=120,
                        learning_rate_decay_every=100, shared_levels=2)
     else:
-        prep = PrepareConfig(levels=3, steps=400, samples_per_level=1500)
-        train = Config(num_layers=5, start_features=32, min_features=16, max_features=64, steps=400,
-                       learning_rate_decay_every=200)
+        prep = PrepareConfig(levels=3, steps=150, samples_per_level=800)
+        train = Config(num_layers=4, start_features=16, min_features=16, max_features=16, steps=160,
+                       learning_rate_decay_every=100, shared_levels=3)
     return prep, train
 
 
-def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
+def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = None) -> dict:
     """Run a tiny DGTS train + transfer, write ``dgts.png`` and return a summary dict.
 
-    The reference is :func:`bumpy_sphere`, the template an icosphere, the target a torus. The panel
-    shows the reference, the finest training mesh, and two transferred samples coloured by their
-    displacement along the normal.
+    The reference is :func:`bumpy_sphere`, the template an icosphere, the target a torus. The
+    figure (:func:`jmeshtex.render.figure`, smooth-shaded geometry): the reference (the exemplar),
+    the finest training mesh, two transferred samples, and two baselines on the subdivided torus:
+    no displacement, and Gaussian normal noise with the reference's height spread.
+
+    Args:
+      out_dir: folder for ``dgts.png``.
+      quick: :func:`tiny_configs` preset.
+      progress: called with status lines (fitting levels), or None; with a hook, training shows
+        its own tqdm bar per level.
 
     Returns:
-      ``{"png": path, "seconds": ..., "levels": ..., "faces": ..., "w1_trained": ..., "summary": str}``.
+      ``{"png": path, "seconds": ..., "levels": ..., "faces": ..., "w1_trained": ..., "w1_flat": ...,
+      "w1_noise": ..., "summary": str}`` (W1 of the normal-height distributions to the finest
+      training mesh's).
     """
+    from scipy.stats import wasserstein_distance
+
     from ...data import icosphere, torus
     from ...dgts import normal_heights, train, training_meshes, transfer
-    from ...render import render_grid, render_mesh
+    from ...render import figure
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
     prep, cfg = tiny_configs(quick)
     k_prepare, k_train, k_transfer = jax.random.split(jax.random.key(0), 3)
     ref = bumpy_sphere(subdivisions=3 if quick else 4)
-    tm = training_meshes(ref, icosphere(1), config=prep, key=k_prepare, progress=False)
-    model = train(tm, cfg, key=k_train, progress=False).model
+
+    def fitting(stage: str, done: int, total: int) -> None:
+        say(progress, f"training meshes: {stage} {done}/{total}")
+
+    tm = training_meshes(ref, icosphere(1), config=prep, key=k_prepare,
+                         progress=fitting if progress is not None else False)
+    say(progress, f"training {tm.num_levels} levels")
+    model = train(tm, cfg, key=k_train, progress=progress is not None).model
+    say(progress, "transfer")
     target = torus(16, 8) if quick else torus(24, 12)
     res = transfer(model, target, num_samples=2, key=k_transfer)
-    size = (300, 300)
-    lim = float(np.abs(res.heights).max()) or 1.0
-    images = [
-        render_mesh(*ref, size=size),
-        render_mesh(*tm.mesh(-1), size=size),
-    ] + [
-        render_mesh(*res.mesh(i), scalars=h, cmap="coolwarm", clim=(-lim, lim), size=size)
-        for i, h in enumerate(res.heights)
-    ]
-    png = render_grid(images, out / "dgts.png", titles=["reference", f"training level {tm.num_levels - 1}",
-                                                         "transfer 1", "transfer 2"], columns=4)
-    del png
-    from scipy.stats import wasserstein_distance
-
-    w1 = wasserstein_distance(normal_heights(tm.mesh(-1)), normal_heights(res.mesh(0)))
+    h_ref = normal_heights(tm.mesh(-1))
+    edge = float(np.linalg.norm(res.base[res.faces[:, 0]] - res.base[res.faces[:, 1]], axis=1).mean())
+    noisy = res.base + np.random.default_rng(0).standard_normal(res.base.shape) * h_ref.std() * edge
+    w1 = wasserstein_distance(h_ref, normal_heights(res.mesh(0)))
+    w1_flat = wasserstein_distance(h_ref, normal_heights((res.base, res.faces)))
+    w1_noise = wasserstein_distance(h_ref, normal_heights((noisy, res.faces)))
+    say(progress, "rendering")
+    figure([
+        ("reference (exemplar)", view(ref)),
+        (f"training level {tm.num_levels - 1}", view(tm.mesh(-1))),
+        (f"transfer 1, W1 {w1:.2f}", view(res.mesh(0))),
+        ("transfer 2", view(res.mesh(1))),
+        (f"baseline: none, W1 {w1_flat:.2f}", view((res.base, res.faces))),
+        (f"baseline: noise, W1 {w1_noise:.2f}", view((noisy, res.faces))),
+    ], columns=6, title="DGTS: a bumpy sphere's geometric texture transferred to a torus "
+                        "(W1 of normal heights to the reference)", path=out / "dgts.png")
     seconds = time.perf_counter() - t0
     summary = (f"DGTS: {tm.num_levels} levels, reference {ref.num_faces} F, torus → {len(res.faces)} F, "
-               f"W1(heights) {w1:.3f}, {seconds:.1f} s")
+               f"W1(heights) {w1:.3f} (no displacement {w1_flat:.3f}, noise {w1_noise:.3f}), {seconds:.1f} s")
     return {"png": str(out / "dgts.png"), "seconds": seconds, "levels": tm.num_levels,
-            "faces": int(len(res.faces)), "w1_trained": float(w1), "summary": summary}
+            "faces": int(len(res.faces)), "w1_trained": float(w1), "w1_flat": float(w1_flat),
+            "w1_noise": float(w1_noise), "summary": summary}

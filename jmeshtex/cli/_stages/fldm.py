@@ -34,6 +34,7 @@ from ..._mesh import Mesh
 from ..._random import host_rng
 from ..._types import Complex, Float
 from ...data import intensity_to_rgb, rgb_to_intensity, striped_sphere
+from ._views import Progress, say, view
 
 OFFSET = 0.3  # the codec's ``a``: keeps |z| away from 0 where the direction is undefined
 VIEWS = ((20.0, -60.0), (-30.0, 60.0))
@@ -206,48 +207,70 @@ def learning_check(
     }
 
 
-def demo_stage(out_dir: str | os.PathLike, *, quick: bool) -> dict:
+def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = None) -> dict:
     """Run a tiny FLDM train + sample + inpaint + transfer, write ``fldm.png``, return a summary dict.
 
-    Panels: the exemplar, two samples on a training copy, an inpainting (upper half kept), and a
-    transfer to a finer re-triangulation (more vertices: smaller stripes, §6.6).
+    The figure (:func:`jmeshtex.render.figure`, vertex colours, smooth-shaded): the exemplar, two
+    samples on a training copy, an inpainting (upper half kept), a transfer to a finer
+    re-triangulation (more vertices: smaller stripes, §6.6), and the protocol's two baselines on
+    the copy: the exemplar's mean colour (:func:`~jmeshtex.metrics.flat_baseline`) and the copy's
+    training latents permuted over vertices, decoded (the right marginal, no structure).
+
+    Args:
+      out_dir: folder for ``fldm.png``.
+      quick: a smoke run (2 copies, 120 steps); else the learning check's configuration.
+      progress: called with status lines, or None; with a hook, dataset building, training and
+        sampling show their own tqdm bars.
 
     Returns:
       ``{"png", "seconds", "loss_first", "loss_last", "summary"}``.
     """
     from ... import fldm
     from ...geometry import remesh
-    from ...render import render_grid
+    from ...metrics import flat_baseline, permuted_baseline
+    from ...render import figure
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
+    bars = progress is not None
     cfg = tiny_config(True)  # full: the learning check's configuration (300 steps)
     if quick:  # a smoke run: a few seconds of training
         cfg = cfg.replace(n_copies=2, copy_vertices=300, steps=120)
     exemplar = striped_sphere(subdivisions=3)
     k_data, k_train, key = jax.random.split(jax.random.key(0), 3)
-    data = fldm.build_dataset(exemplar, cfg, encode=stripe_encoder, key=k_data, progress=False)
-    result = fldm.train(data, cfg, key=k_train, progress=False)
+    say(progress, "building the dataset")
+    data = fldm.build_dataset(exemplar, cfg, encode=stripe_encoder, key=k_data, progress=bars)
+    say(progress, f"training {cfg.steps} steps")
+    result = fldm.train(data, cfg, key=k_train, progress=bars)
     model = result.model
     target = data.meshes[0]
+    say(progress, "sampling")
     z = fldm.sample(model, target, key=key, n=2, steps=25)
     known = stripe_encoder(target)
     mask = target.vertices[:, 2] > 0
+    say(progress, "inpainting")
     zi = fldm.inpaint(model, target, known, mask, key=key, method="ddim", steps=25)[0]
+    say(progress, "transfer")
     fine = remesh(exemplar, n_vertices=2 * target.num_vertices, key=jax.random.key(99))
     zf = fldm.sample(model, fine, key=key, n=1, steps=25)[0]
-    view = VIEWS[0]
-    images = [
-        render_views(exemplar, rgb_to_intensity(exemplar.vertex_colors), size=256)[0],
-        render_views(target, stripe_decoder(z[0]), size=256)[0],
-        render_views(target, stripe_decoder(z[1]), size=256)[0],
-        render_views(target, stripe_decoder(zi), size=256)[0],
-        render_views(fine, stripe_decoder(zf), size=256)[0],
-    ]
-    del view
-    render_grid([(255 * i).astype(np.uint8) for i in images], out / "fldm.png",
-                titles=["exemplar", "sample 1", "sample 2", "inpaint (top kept)", f"transfer {fine.num_vertices} V"],
-                columns=5)
+    say(progress, "rendering")
+    # the copy's training latents decoded (per vertex, so permuting them = permuting this)
+    copy = stripe_decoder(np.asarray(data.latents[0, : target.num_vertices]))[:, None]
+    size = (240, 240)
+
+    def stripes(mesh, intensity):
+        return view((mesh.vertices, mesh.faces), vertex_colors=intensity_to_rgb(intensity),
+                    azimuth=VIEWS[0][1], elevation=VIEWS[0][0], size=size)
+
+    figure([
+        ("exemplar", stripes(exemplar, rgb_to_intensity(exemplar.vertex_colors))),
+        ("sample 1", stripes(target, stripe_decoder(z[0]))),
+        ("sample 2", stripes(target, stripe_decoder(z[1]))),
+        ("inpaint (top kept)", stripes(target, stripe_decoder(zi))),
+        (f"transfer {fine.num_vertices} V", stripes(fine, stripe_decoder(zf))),
+        ("baseline: flat", stripes(target, flat_baseline(copy)[:, 0])),
+        ("baseline: shuffled", stripes(target, permuted_baseline(copy, key=key)[:, 0])),
+    ], columns=4, title="FLDM: diffusion on field latents of a striped sphere", path=out / "fldm.png")
     seconds = time.perf_counter() - t0
     losses = result.losses["loss"]
     first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
