@@ -31,14 +31,17 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     payload = json.loads((tmp_path / "fldm_spot.json").read_text())
     rows = {r["source"]: r for r in payload["rows"] if r["table"] == "quality"}
-    sources = ["exemplar (vs itself)", "FL-VAE reconstruction", "mean colour", "trained samples (DDIM-3)",
-               "untrained samples (DDIM-3)"]
+    sources = ["exemplar (vs itself)", "nearest training copy (FL-VAE reconstruction)", "mean colour",
+               "shuffled latents", "trained samples (DDIM-3)", "untrained samples (DDIM-3)"]
     assert list(rows) == sources
     for r in rows.values():
         assert math.isfinite(r["fidelity_gram"]) and r["fidelity_gram"] >= 0, r
     assert rows["exemplar (vs itself)"]["fidelity_gram"] == 0.0  # the metric's zero
     # the codec reconstructs the exemplar far better than a flat colour (measured 4.1 vs 29.8)
-    assert rows["FL-VAE reconstruction"]["fidelity_gram"] < 0.5 * rows["mean colour"]["fidelity_gram"]
+    recon = rows["nearest training copy (FL-VAE reconstruction)"]["fidelity_gram"]
+    assert recon < 0.5 * rows["mean colour"]["fidelity_gram"]
+    # latents permuted over vertices keep their marginal but lose the structure the codec decodes
+    assert recon < rows["shuffled latents"]["fidelity_gram"]
     for s in ("trained samples (DDIM-3)", "untrained samples (DDIM-3)"):
         assert rows[s]["n"] == 2
         assert math.isfinite(rows[s]["diversity_lpips"]) and rows[s]["diversity_lpips"] > 0, rows[s]
