@@ -18,9 +18,9 @@ import pytest
 from jmeshtex import ConfigError, fldm, parallel
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
-from sharded_worker import CONFIG, dataset, leaves  # noqa: E402
+from fldm_sharded_worker import CONFIG, dataset, leaves  # noqa: E402
 
-WORKER = pathlib.Path(__file__).with_name("sharded_worker.py")
+WORKER = pathlib.Path(__file__).with_name("fldm_sharded_worker.py")
 
 
 def _worker(mode: str, work: pathlib.Path) -> dict:
