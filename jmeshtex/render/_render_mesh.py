@@ -15,7 +15,7 @@ import numpy as np
 from .._errors import InputError
 from .._types import ArrayLike, Float, Int, Num
 from ..io import save_png
-from ._camera import view_camera
+from ._camera import _check_size, view_camera
 from ._render import _Scene, to_uint8
 from ._visibility import project
 
@@ -195,18 +195,6 @@ def _unoccluded(points: np.ndarray, vis, *, tol: float) -> np.ndarray:
     row = np.clip(np.nan_to_num(px[:, 1]), 0, H - 1).astype(np.int64)
     seen = vis.depth[row, col]
     return inside & (z <= seen + tol)
-
-
-def _check_size(size) -> tuple[int, int]:
-    try:
-        width, height = (int(s) for s in size)
-    except (TypeError, ValueError) as err:
-        raise InputError(f"size must be (width, height) in pixels, got {size!r}") from err
-    if width < 1 or height < 1:
-        raise InputError(f"zero-size image: size must be at least 1 pixel each way, got {size!r}")
-    if not (16 <= width <= 8192 and 16 <= height <= 8192):
-        raise InputError(f"size must be between 16 and 8192 pixels each way, got {size!r}")
-    return width, height
 
 
 def _check_view(view) -> tuple[float, float]:
