@@ -140,11 +140,20 @@ def planar_mesh(image: Float[np.ndarray, "H W 3"], num_vertices: int, *, rng: np
         raise InputError(f"num_vertices must be >= 4, got {num_vertices}")
     h, w = image.shape[:2]
     aspect = w / h
-    cand = rng.random((max(8 * num_vertices, 256), 2))
-    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    cand = np.concatenate([corners, cand])
+    # The boundary first, evenly spaced at the interior's expected spacing s (n vertices over the
+    # area `aspect` at √3/2·s² each): with interior samples only, the hull's edges join the corners
+    # to points a hair inside and Delaunay fills the gap with slivers as long as a side (invisible
+    # while the sheet is flat, folds once it is bent, and one-rings that span the whole sheet).
+    spacing = np.sqrt(2.0 * aspect / (np.sqrt(3.0) * num_vertices))
+    counts = [max(1, int(round(length / spacing))) for length in (aspect, 1.0, aspect, 1.0)]
+    while sum(counts) > max(4, num_vertices // 2):  # coarse meshes: keep most vertices inside
+        counts = [max(1, c // 2) for c in counts]
+    starts = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    boundary = np.concatenate([a + (b - a) * (np.arange(c) / c)[:, None]
+                               for a, b, c in zip(starts, np.roll(starts, -1, axis=0), counts, strict=True)])
+    cand = np.concatenate([boundary, rng.random((max(8 * num_vertices, 256), 2))])
     scaled = cand * np.array([aspect, 1.0])
-    idx = farthest_points(scaled, num_vertices, first=np.arange(4))
+    idx = farthest_points(scaled, num_vertices, first=np.arange(len(boundary)))
     uv = cand[idx]
     xy = scaled[idx]
     tri = Delaunay(xy).simplices.astype(np.int64)
