@@ -21,10 +21,17 @@ is not copied). Both run on the same neighbourhoods, forward and value-and-grad,
 temporary-buffer size of each compiled program as the memory figure; the oracle's output is checked
 against ``field_conv(..., argument="untransported")`` (the reference pairs the log map with the
 untransported direction). Also the one-hidden-layer form and the released 96 / h = 16 configuration.
+Columns ``x_*`` are the oracle's figure over the row's (> 1: faster than the oracle), ``temp_vs_oracle``
+the value-and-grad temporary memory over the oracle's.
+
+Loaded machines: every row also gives the least *process CPU time* of three calls (``cpu_ms``,
+``fwd_cpu_ms``, ``fwd_bwd_cpu_ms``: all threads, i.e. the work done, where wall time also counts the
+wait for a core), the one-minute load average when the row was measured, and (side by side) every
+timed wall-clock run, so a reader can see how much the medians spread.
 
 Usage::
 
-    python benchmarks/ops_field_conv.py                 # default: 5K, 30K, 80K, both activations
+    python benchmarks/ops_field_conv.py                 # default: 5K, 30K, 80K, both activations, 1 and 2 hidden
     python benchmarks/ops_field_conv.py --sizes 5000 --activations silu
     python benchmarks/ops_field_conv.py --side-by-side --sizes 30000
 
@@ -73,9 +80,9 @@ def synthetic_nbhd(v: int, k: int = K, seed: int = 0) -> VertexNeighborhood:
     )
 
 
-def run(sizes, activations, repeats: int) -> Report:
+def run(sizes, activations, repeats: int, hidden_layers=(1, 2)) -> Report:
     report = Report("ops_field_conv")
-    params = init_field_conv(jax.random.key(0), C, D, hdim=H)
+    report.config = {"K": K, "C": C, "D": D, "H": H, "hidden_layers": list(hidden_layers), "repeats": repeats}
     for v in sizes:
         nb = synthetic_nbhd(v)
         x = jax.random.normal(jax.random.key(1), (v, C), jnp.complex64)
@@ -83,7 +90,9 @@ def run(sizes, activations, repeats: int) -> Report:
         gemm_flops = 8.0 * v * C * H * D
         evals = float(v * K * C * H)
         size = f"{v // 1000}K"
-        for act in activations:
+        for act, layers in [(a, n) for n in hidden_layers for a in activations]:
+            params = init_field_conv(jax.random.key(0), C, D, hdim=H, hidden_layers=layers)
+            label = f"{act}" + ("" if layers == 1 else ", 2 hidden")
             fwd = jax.jit(lambda x, nb, p, act=act: field_conv(x, nb, p, activation=act))
 
             def loss(x, p, nb, act=act, cot=cot):
@@ -92,12 +101,15 @@ def run(sizes, activations, repeats: int) -> Report:
 
             fwd_bwd = jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))
             t = time_jax(fwd, x, nb, params, repeats=repeats)
-            report.add(name=f"field_conv fwd ({act})", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                       flops=gemm_flops, filter_gevals=evals / t.run_s / 1e9)
+            tf = t.run_s
+            report.add(name=f"field_conv fwd ({label})", size=size, seconds=t.run_s, compile_s=t.compile_s,
+                       cpu_ms=cpu_ms(fwd, x, nb, params), flops=gemm_flops, filter_gevals=evals / t.run_s / 1e9,
+                       load_avg=os.getloadavg()[0])
             t = time_jax(fwd_bwd, x, params, nb, repeats=repeats)
-            report.add(name=f"field_conv fwd+bwd ({act})", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                       flops=3 * gemm_flops, filter_gevals=evals / t.run_s / 1e9)
-            if v == 30000:  # stage split of the forward at the target size
+            report.add(name=f"field_conv fwd+bwd ({label})", size=size, seconds=t.run_s, compile_s=t.compile_s,
+                       cpu_ms=cpu_ms(fwd_bwd, x, params, nb), bwd_over_fwd=t.run_s / tf, flops=3 * gemm_flops,
+                       filter_gevals=evals / t.run_s / 1e9, load_avg=os.getloadavg()[0])
+            if v == 30000 and layers == 1:  # stage split of the forward at the target size
                 _stages(report, x, nb, params, act, size, repeats)
     return report
 
@@ -138,6 +150,18 @@ def reference_formula(x, index, log, transport, weight, w1, b1, w2, b2, mix):
     return feat.reshape(x.shape[0], -1) @ mix
 
 
+def cpu_ms(jitted, *args, repeats: int = 3) -> float:
+    """Least process CPU time (all threads) of ``repeats`` calls, ms: on a loaded machine the work done,
+    where wall time also counts the time spent waiting for a core."""
+    jax.block_until_ready(jitted(*args))
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.process_time()
+        jax.block_until_ready(jitted(*args))
+        best = min(best, time.process_time() - t0)
+    return 1e3 * best
+
+
 def _temp_bytes(jitted, *args) -> float:
     try:
         return float(jitted.lower(*args).compile().memory_analysis().temp_size_in_bytes)
@@ -171,6 +195,7 @@ def side_by_side(sizes, repeats: int, report: Report | None = None) -> Report:
             rows = [("reference formula (plain jnp), 2 hidden", ref, ref_args),
                     ("jmeshtex field_conv, 2 hidden", ours, two),
                     ("jmeshtex field_conv, 1 hidden", ours, one)]
+            oracle = None
             for name, fn, p in rows:
                 def loss(x, p, fn=fn, cot=cot):
                     y = fn(x, p)
@@ -179,11 +204,17 @@ def side_by_side(sizes, repeats: int, report: Report | None = None) -> Report:
                 fwd, vg = jax.jit(fn), jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))
                 tf = time_jax(fwd, x, p, repeats=repeats)
                 tb = time_jax(vg, x, p, repeats=repeats)
-                report.add(name=f"[{label}] {name}", size=size, fwd_ms=1e3 * tf.run_s, fwd_bwd_ms=1e3 * tb.run_s,
-                           bwd_over_fwd=tb.run_s / tf.run_s, compile_s=tf.compile_s + tb.compile_s,
-                           seconds=tf.run_s, fwd_temp_mb=_temp_bytes(fwd, x, p) / 2**20,
-                           fwd_bwd_temp_mb=_temp_bytes(vg, x, p) / 2**20,
-                           oracle_max_abs_diff=check)
+                row = dict(fwd_ms=1e3 * tf.run_s, fwd_bwd_ms=1e3 * tb.run_s, bwd_over_fwd=tb.run_s / tf.run_s,
+                           fwd_cpu_ms=cpu_ms(fwd, x, p), fwd_bwd_cpu_ms=cpu_ms(vg, x, p),
+                           fwd_temp_mb=_temp_bytes(fwd, x, p) / 2**20, fwd_bwd_temp_mb=_temp_bytes(vg, x, p) / 2**20)
+                row["cpu_bwd_over_fwd"] = row["fwd_bwd_cpu_ms"] / row["fwd_cpu_ms"]
+                oracle = oracle or row
+                for key in ("fwd_ms", "fwd_bwd_ms", "fwd_cpu_ms", "fwd_bwd_cpu_ms"):  # > 1: faster than the oracle
+                    row[f"x_{key}"] = oracle[key] / row[key]
+                row["temp_vs_oracle"] = row["fwd_bwd_temp_mb"] / oracle["fwd_bwd_temp_mb"]
+                report.add(name=f"[{label}] {name}", size=size, **row, compile_s=tf.compile_s + tb.compile_s,
+                           seconds=tf.run_s, oracle_max_abs_diff=check, load_avg=os.getloadavg()[0],
+                           fwd_runs_ms=[round(1e3 * r) for r in tf.runs], fwd_bwd_runs_ms=[round(1e3 * r) for r in tb.runs])
     return report
 
 

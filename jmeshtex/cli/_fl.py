@@ -2,8 +2,10 @@
 :mod:`jmeshtex.fl`).
 
 - ``train`` (alias ``pretrain``) trains an FL-VAE on planar meshes over images (``--images builtin``
-  = scikit-image's bundled images, or a folder): ``--out/fl_vae.npz``, resumable from
-  ``--out/checkpoints``;
+  = scikit-image's bundled images, or a folder; ``--preset small|paper`` = ``Config.small()`` /
+  ``Config.paper()`` of :class:`jmeshtex.fl.Config`, the stream of
+  augmented crops and procedural textures at ≈ 26 pixels per vertex): ``--out/fl_vae.npz``,
+  ``--out/loss_curve.png``, resumable from ``--out/checkpoints`` (run the same command again);
 - ``encode`` writes a mesh's latents (``mu``, ``log_sigma``) to an ``.npz``;
 - ``reconstruct`` encodes a textured mesh (optionally remeshed to ``--vertices``) and writes the
   reconstructed texture atlas PNG, a side-by-side render and ``metrics.json`` (PSNR, DSSIM, LPIPS).
@@ -33,8 +35,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--steps", type=int, default=None, help="optimiser steps (default: Config.steps)")
     t.add_argument("--decoder", choices=("log", "barycentric"), default=None,
                    help="decoder variant (barycentric = the paper's ablation)")
+    t.add_argument("--preset", choices=("small", "paper"), default=None,
+                   help="Config.small() (2 CPU cores) or Config.paper() (C=128, 8 layers; for a GPU); "
+                        "default: Config() (the shipped model's recipe)")
     t.add_argument("--config", type=pathlib.Path, default=None, metavar="JSON",
-                   help="jmeshtex.fl.Config fields as JSON (overridden by --steps/--decoder)")
+                   help="jmeshtex.fl.Config fields as JSON, applied over the preset (overridden by --steps/--decoder)")
+    t.add_argument("--stop-after", type=int, default=None, metavar="N",
+                   help="run at most N steps in this call (the schedule follows --steps; rerun to continue)")
     t.set_defaults(func=cached(_train))
 
     e = inner.add_parser("encode", help="encode a mesh's texture or vertex colours as latents")
@@ -82,14 +89,17 @@ def _train(args) -> int:
     for name in ("steps", "decoder"):
         if getattr(args, name) is not None:
             data[name] = getattr(args, name)
-    config = Config.from_dict(data)
+    base = {"small": Config.small, "paper": Config.paper}.get(args.preset, Config)()
+    config = base.replace(**data)
     result = train(config, key=jax.random.key(args.seed), images=args.images, progress=not args.quiet,
-                   checkpoint_dir=args.out / "checkpoints")
+                   checkpoint_dir=args.out / "checkpoints", loss_curve=args.out / "loss_curve.png",
+                   stop_after=args.stop_after)
     loss, l1 = result.losses["loss"], result.losses["l1"]
     summary = {"out": str(args.out / "fl_vae.npz"), "steps": result.steps,
                "final_loss": float(loss[-50:].mean()) if len(loss) else None,
                "final_l1": float(l1[-50:].mean()) if len(l1) else None,
-               "steps_per_second": result.extra["steps_per_second"]}
+               "steps_per_second": result.extra["steps_per_second"], "preset": args.preset,
+               "loss_curve": str(args.out / "loss_curve.png")}
     save(result.model, args.out / "fl_vae.npz",
          extra={k: summary[k] for k in ("steps", "final_loss", "final_l1")} | {"seed": args.seed})
     print(json.dumps(summary, indent=2))

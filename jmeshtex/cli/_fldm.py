@@ -1,6 +1,6 @@
 """``jmeshtex fldm train|sample|inpaint``: a thin layer over the Field Latent Diffusion API.
 
-- ``train --mesh M [--texture T] [--labels L.npy] --out DIR``: re-triangulated copies (cached in
+- ``train --mesh M [--texture T] [--labels L.npy] [--mask-conditioning] --out DIR``: re-triangulated copies (cached in
   ``DIR/data``), FL-VAE latents, denoiser training (resumable checkpoints in ``DIR/checkpoints``),
   model files ``DIR/model.npz`` + ``model.json`` (:func:`jmeshtex.fldm.save`) and ``DIR/fldm.json``
   (what to decode with).
@@ -49,6 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--steps", type=int, default=None, help="training steps")
     t.add_argument("--prediction", choices=PREDICTIONS, default=None,
                    help="what the denoiser predicts (default: the preset's; cpu: v, paper: epsilon)")
+    t.add_argument("--mask-conditioning", action="store_true",
+                   help="train on random masks and condition the denoiser on the inpainting mask (§6.4)")
     t.add_argument("--codec", choices=("fl-vae", "stripes"), default="fl-vae", help="latent encoder/decoder")
     t.add_argument("--vae", default=None, help="FL-VAE file (default: the shipped pre-trained one)")
     t.set_defaults(func=cached(_train))
@@ -118,6 +120,8 @@ def _train(args) -> int:
     changes = {"latent_channels": d}
     if labels is not None:
         changes["num_labels"] = int(np.max(labels)) + 1
+    if args.mask_conditioning:
+        changes["mask_conditioning"] = True
     for field, value in (("n_copies", args.copies), ("copy_vertices", args.vertices), ("steps", args.steps),
                          ("prediction", args.prediction)):
         if value is not None:

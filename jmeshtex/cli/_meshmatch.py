@@ -77,6 +77,14 @@ def _options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fan-radius", type=float, default=None, metavar="R",
                    help="outer fan radius in mean edge lengths (Config.fan_radius)")
     p.add_argument("--levels", type=int, default=None, metavar="N", help="hierarchy levels (Config.levels)")
+    p.add_argument("--aligned", action="store_true",
+                   help="source and target share a pose: the whole normal joins the shape features "
+                        "(Config.aligned; replaces --up/--side)")
+    p.add_argument("--normal-weight", type=float, default=None, metavar="W",
+                   help="weight of each n·axis feature relative to the HKS (Config.normal_weight)")
+    p.add_argument("--position-weight", type=float, default=None, metavar="W",
+                   help="with --aligned, weight of the per-axis standardised positions (Config.position_weight; "
+                        "e.g. 8 with --normal-weight 2 for a stretched copy)")
     p.add_argument("--max-scale-ratio", default=None, metavar="X",
                    help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)")
 
@@ -112,6 +120,12 @@ def _config(args):
             fields["fan_radius"] = args.fan_radius
         if args.levels is not None:
             fields["levels"] = args.levels
+        if args.aligned:
+            fields["aligned"] = True
+        if args.normal_weight is not None:
+            fields["normal_weight"] = args.normal_weight
+        if args.position_weight is not None:
+            fields["position_weight"] = args.position_weight
         if args.max_scale_ratio is not None:
             text = args.max_scale_ratio.strip().lower()
             fields["max_scale_ratio"] = None if text == "none" else float(text)

@@ -5,12 +5,16 @@ The FL-VAE reads a mesh's texture (or vertex colours) in each vertex's one-ring 
 :func:`jmeshtex.geometry.one_ring_neighborhood` (x-axis = the first one-ring edge) — and decodes
 such latents back into colours anywhere on the surface.
 
-- Model: :class:`Config`, :class:`Model` (parameters + config), :func:`init`, :func:`train` (on
-  planar meshes laid over images; resumable), :func:`save` / :func:`load`, :func:`load_pretrained`
+- Model: :class:`Config` (presets :meth:`Config.paper`, :meth:`Config.small`), :class:`Model`
+  (parameters + config), :func:`init`, :func:`train` (on planar meshes laid over images; resumable;
+  :func:`plot_losses`), :func:`save` / :func:`load`, :func:`load_pretrained`
   (the small model shipped in ``jmeshtex/fl/weights``).
 - Meshes: :func:`encode` (→ :class:`FieldLatents`), :func:`decode_vertex_colors`,
   :func:`decode_texture`, :func:`decode_points_in_faces`, :func:`reconstruct` (texture → latents →
   atlas, with PSNR/DSSIM/LPIPS).
+- Training data at a pixel density: :func:`training_meshes`, :func:`training_texture`
+  (:func:`procedural_texture`, :func:`augmented_crop` of :func:`training_images`; never
+  ``HELD_OUT_IMAGES``), :func:`density_mesh`.
 - Pure parts (jit/grad-safe, ``(params, config, arrays)``): :func:`encode_samples`,
   :func:`decode_points`, :func:`decode_barycentric`, :func:`vae_loss`, :func:`kl_divergence`.
 
@@ -48,6 +52,7 @@ from ._io import save as save
 from ._loss import kl_divergence as kl_divergence
 from ._loss import sample_latents as sample_latents
 from ._loss import vae_loss as vae_loss
+from ._loss_curve import plot_losses as plot_losses
 from ._model import FieldLatents as FieldLatents
 from ._model import FLVAEParams as FLVAEParams
 from ._model import Model as Model
@@ -63,6 +68,16 @@ from ._reconstruct import Reconstruction as Reconstruction
 from ._reconstruct import atlas_metrics as atlas_metrics
 from ._reconstruct import reconstruct as reconstruct
 from ._reconstruct import side_by_side as side_by_side
+from ._textures import HELD_OUT_IMAGES as HELD_OUT_IMAGES
+from ._textures import PROCEDURAL_KINDS as PROCEDURAL_KINDS
+from ._textures import TRAINING_IMAGES as TRAINING_IMAGES
+from ._textures import augmented_crop as augmented_crop
+from ._textures import density_mesh as density_mesh
+from ._textures import held_out_images as held_out_images
+from ._textures import procedural_texture as procedural_texture
+from ._textures import training_images as training_images
+from ._textures import training_meshes as training_meshes
+from ._textures import training_texture as training_texture
 from ._train import make_train_step as make_train_step
 from ._train import mesh_batch as mesh_batch
 from ._train import optimizer as optimizer

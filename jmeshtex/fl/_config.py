@@ -17,9 +17,12 @@ DECODERS = ("log", "barycentric")
 
 
 #: fields that do not change the model's function (data, optimiser, batching, chunking)
-_TRAINING_FIELDS = ("num_samples", "kl_weight", "min_vertices", "max_vertices", "max_image_size", "meshes_per_image",
-                    "batch_size", "steps", "learning_rate", "final_lr_fraction", "warmup_steps", "grad_clip",
-                    "checkpoint_every", "encode_chunk")
+_TRAINING_FIELDS = ("num_samples", "kl_weight", "loss_normalization", "min_vertices", "max_vertices", "max_image_size",
+                    "meshes_per_image", "pixels_per_vertex", "density_spread", "texture_size",
+                    "procedural_fraction", "batch_size", "steps", "learning_rate", "final_lr_fraction",
+                    "warmup_steps", "grad_clip", "checkpoint_every", "encode_chunk")
+#: how :func:`~jmeshtex.fl.vae_loss` averages its terms
+LOSS_NORMALIZATIONS = ("mean", "paper")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,16 +43,30 @@ class Config(ConfigBase):
         ``"barycentric"`` (the "FL-VAE (Bary.)" ablation: invariants interpolated across the triangle,
         no log coordinates).
       kl_weight: ``λ`` of the KL term (paper: 0.01).
+      loss_normalization: ``"paper"`` (eq. 26–28 as printed: the L1 norm over RGB and the KL summed
+        over the ``d`` channels, each averaged over samples / vertices) or ``"mean"`` (L1 and KL
+        also averaged over RGB and channels, which weakens ``λ`` by ``3/d``: the recipe of the shipped
+        model, kept as the default so its stored config reads as trained). The presets use ``"paper"``.
       log_sigma_max: upper clip of ``log σ`` (keeps ``exp`` finite early in training).
       delta: ``δ > 0`` of the layer norms and vector-neuron layers.
 
-    Planar pre-training (supplement §9.1):
+    Planar pre-training (supplement §9.1). Two data modes: with ``pixels_per_vertex = 0`` (the
+    shipped model's) a fixed pool of ``meshes_per_image`` meshes of ``min_vertices``–``max_vertices``
+    vertices over each whole image; with ``pixels_per_vertex > 0`` (the presets) a fresh
+    ``texture_size²`` texture per mesh and step (:func:`~jmeshtex.fl.training_texture`: augmented
+    image crops and procedural textures) meshed at that density (:func:`~jmeshtex.fl.density_mesh`).
 
     Attributes:
-      min_vertices, max_vertices: range of the random resolution of each planar training mesh
-        (farthest-point samples over the image, then Delaunay).
+      min_vertices, max_vertices: pool mode: range of the random resolution of each planar training
+        mesh (farthest-point samples over the image, then Delaunay).
       max_image_size: images are downscaled (by an integer stride) so their longer side is at most this.
-      meshes_per_image: planar meshes drawn per image into the training pool.
+      meshes_per_image: pool mode: planar meshes drawn per image into the training pool.
+      pixels_per_vertex: stream mode when > 0: texture pixels per mesh vertex (paper ≈ 26: 10K
+        vertices over 512²; Spot at 30K vertices ≈ 15–20 texels per vertex).
+      density_spread: stream mode: each mesh's pixels per vertex is ``pixels_per_vertex`` times a
+        log-uniform factor in ``[1/density_spread, density_spread]`` (1: exactly the given density).
+      texture_size: stream mode: side in pixels of each training texture.
+      procedural_fraction: stream mode: share of procedural textures (the rest are image crops).
       batch_size: planar meshes per optimiser step (their vertices are concatenated).
       steps: optimiser steps.
       learning_rate: peak Adam learning rate (cosine decay to ``learning_rate · final_lr_fraction``).
@@ -79,6 +96,7 @@ class Config(ConfigBase):
     decoder_layers: int = 5
     decoder: str = "log"
     kl_weight: float = 0.01
+    loss_normalization: str = "mean"
     log_sigma_max: float = 2.0
     delta: float = 1e-6
     # planar pre-training
@@ -86,6 +104,10 @@ class Config(ConfigBase):
     max_vertices: int = 192
     max_image_size: int = 256
     meshes_per_image: int = 8
+    pixels_per_vertex: float = 0.0
+    density_spread: float = 1.0
+    texture_size: int = 64
+    procedural_fraction: float = 0.5
     batch_size: int = 2
     steps: int = 2000
     learning_rate: float = 2e-3
@@ -106,6 +128,12 @@ class Config(ConfigBase):
         rule("decoder_features", lambda x: int(x) >= 1, ">= 1"),
         rule("decoder", lambda x: x in DECODERS, f"one of {DECODERS}", message="{name} must be {must}, got {value!r}"),
         rule("kl_weight", lambda x: x >= 0, ">= 0"),
+        rule("loss_normalization", lambda x: x in LOSS_NORMALIZATIONS, f"one of {LOSS_NORMALIZATIONS}",
+             message="{name} must be {must}, got {value!r}"),
+        rule("pixels_per_vertex", lambda x: x >= 0, ">= 0 (0: the image-pool data mode)"),
+        rule("density_spread", lambda x: x >= 1, ">= 1"),
+        rule("texture_size", lambda x: x >= 8, ">= 8"),
+        rule("procedural_fraction", lambda x: 0 <= x <= 1, "in [0, 1]"),
         rule("delta", lambda x: x > 0, "> 0"),
         cross_rule(lambda c: 3 <= c.min_vertices <= c.max_vertices,
                    "need 3 <= min_vertices <= max_vertices, got {c.min_vertices}, {c.max_vertices}"),
@@ -118,6 +146,42 @@ class Config(ConfigBase):
         cross_rule(lambda c: c.warmup_steps >= 0 and c.grad_clip > 0, "need warmup_steps >= 0 and grad_clip > 0"),
         rule("checkpoint_every encode_chunk", lambda x: x >= 1, ">= 1"),
     )
+
+    @classmethod
+    def paper(cls, **changes) -> Config:
+        """The paper's model size (§4, supplement §8.1): ``C = 128``, 8 VN-Transformer layers × 8 heads,
+        decoder 5 × 512, trained with eq. 26–28 as printed at ≈ 26 pixels per vertex, cosine 1e-3 → 1e-5.
+
+        Sized for an accelerator (a CPU step takes seconds); 256² textures (≈ 2.5K vertices each)
+        instead of the paper's 512² (10K), same density. The paper trains 1.5M iterations.
+
+        Example:
+          >>> c = Config.paper()
+          >>> c.features, c.num_blocks, c.num_heads, c.decoder_features, c.decoder_layers
+          (128, 8, 8, 512, 5)
+        """
+        base = dict(features=128, num_heads=8, num_blocks=8, decoder_features=512, decoder_layers=5,
+                    loss_normalization="paper", pixels_per_vertex=26.0, density_spread=1.5, texture_size=256,
+                    max_image_size=512, batch_size=4, steps=200_000, learning_rate=1e-3, final_lr_fraction=0.01,
+                    warmup_steps=1000, checkpoint_every=1000)
+        return cls(**{**base, **changes})
+
+    @classmethod
+    def small(cls, **changes) -> Config:
+        """A preset that trains on two CPU cores: ``C = 32``, 2 VN-Transformer layers × 4 heads, decoder
+        5 × 128, 32 samples per one-ring (the paper: 64; halves the encoder's cost), the paper's loss
+        and data density (64² textures, ≈ 158 vertices each), cosine 1e-3 → 1e-5 over 20K steps.
+
+        Example:
+          >>> c = Config.small()
+          >>> c.features, c.num_blocks, c.decoder_features, c.pixels_per_vertex, c.loss_normalization
+          (32, 2, 128, 26.0, 'paper')
+        """
+        base = dict(features=32, num_heads=4, num_blocks=2, decoder_features=128, decoder_layers=5, num_samples=32,
+                    loss_normalization="paper", pixels_per_vertex=26.0, density_spread=1.5, texture_size=64,
+                    max_image_size=512, batch_size=2, steps=20_000, learning_rate=1e-3, final_lr_fraction=0.01,
+                    warmup_steps=500, checkpoint_every=250)
+        return cls(**{**base, **changes})
 
     def architecture(self) -> Config:
         """The same network with every data/training field at its default: a cache key for jitted

@@ -72,8 +72,15 @@ def vae_loss(
 ) -> tuple[Float[Array, ""], dict]:
     """FL-VAE loss: L1 reconstruction of the one-ring samples + ``λ`` KL (paper eq. 26–28).
 
-    .. math:: \\mathcal L = \\frac{\\sum_{p,i} m_{pi} \\lVert D(z_p, \\log_p q_i) - c_i\\rVert_1}{3\\sum m}
-       + \\lambda\\, \\overline{\\mathrm{KL}_p}, \\qquad z_p = \\mu_p + \\sigma_p \\epsilon
+    With ``config.loss_normalization == "paper"`` (eq. 26–28 as printed; the presets):
+
+    .. math:: \\mathcal L = \\frac{\\sum_{p,i} m_{pi} \\lVert D(z_p, \\log_p q_i) - c_i\\rVert_1}{\\sum m}
+       + \\frac{\\lambda}{V} \\sum_p \\sum_{c=1}^{d} \\mathrm{KL}_{pc}, \\qquad z_p = \\mu_p + \\sigma_p \\epsilon
+
+    (``‖·‖₁`` over RGB; ``KL_pc = σ² + ½|μ|² − 1 − 2 log σ``, the KL of ``N(μ, σ² I₂)`` to
+    ``N(0, I₂)``; means over valid samples and real vertices). With ``"mean"`` (the shipped model's
+    recipe) the L1 term is also divided by 3 and the KL averaged over channels (``λ`` effectively
+    ``3/d`` as strong).
 
     Log decoder: each vertex reconstructs its own one-ring from its own latent. Barycentric
     ablation: each sample is decoded from the interpolated invariants of its face's three corner
@@ -115,8 +122,11 @@ def vae_loss(
         pred = decode_points_raw(params.decoder, config, z, log_q)
     m = jnp.asarray(mask).astype(rdt)
     err = jnp.sum(jnp.abs(pred - jnp.asarray(rgb).astype(rdt)), axis=-1)
-    l1 = jnp.sum(err * m) / (3 * jnp.maximum(jnp.sum(m), 1))
+    paper = config.loss_normalization == "paper"
+    l1 = jnp.sum(err * m) / ((1 if paper else 3) * jnp.maximum(jnp.sum(m), 1))
     vm = jnp.ones(log_q.shape[:1], rdt) if vertex_mask is None else jnp.asarray(vertex_mask).astype(rdt)
     kl = jnp.sum(kl_divergence(lat) * vm) / jnp.maximum(jnp.sum(vm), 1)
+    if paper:
+        kl = kl * jnp.asarray(config.latent_dim, rdt)  # summed over the d channels
     loss = l1 + jnp.asarray(config.kl_weight, rdt) * kl
     return loss, {"l1": l1, "kl": kl}

@@ -1,8 +1,11 @@
 """Training the FL-VAE on planar meshes laid over images (paper supplement §9.1).
 
-Each step draws ``batch_size`` planar meshes from a pool (random resolutions), samples every
-one-ring afresh on the host, and takes one jitted Adam step on :func:`~jmeshtex.fl.vae_loss`
-(cosine-decayed learning rate with warm-up, global-norm clipping, complex gradients conjugated
+Each step draws ``batch_size`` planar meshes — from a fixed pool over whole images (random
+resolutions; ``config.pixels_per_vertex == 0``, the shipped model's recipe) or, in the stream mode
+(``pixels_per_vertex > 0``, the presets), freshly made textures (augmented crops of
+:func:`~jmeshtex.fl.training_images`, never the held-out ones, and procedural textures) meshed at
+that pixel density (:func:`~jmeshtex.fl.training_meshes`) — samples every one-ring afresh on the
+host, and takes one jitted Adam step on :func:`~jmeshtex.fl.vae_loss` (cosine-decayed learning rate with warm-up, global-norm clipping, complex gradients conjugated
 before the update — DESIGN.md). All randomness derives from the ``key`` given to :func:`train`:
 the initialisation and the pool from two of its splits, step ``t``'s meshes, samples and
 reparameterisation noise from ``t`` folded into two others, so a run resumed from a checkpoint
@@ -53,8 +56,10 @@ from ._colors import surface_colors
 from ._config import Config
 from ._encoder import _numpy_rng, one_ring_samples
 from ._loss import vae_loss
+from ._loss_curve import plot_losses
 from ._model import Model, init
 from ._planar import _to_rgb01, builtin_images, downscale, folder_images, planar_pool
+from ._textures import _stream_meshes, image_levels, max_stream_vertices, training_images
 
 #: config fields a resumed run may change (the schedule follows ``steps``; ``checkpoint_every`` only
 #: says how often state is written)
@@ -184,13 +189,15 @@ def mesh_batch(meshes: list[Mesh], config: Config, rng: np.random.Generator, *, 
     }
 
 
-def _load_images(images, max_size: int) -> list[np.ndarray]:
+def _load_images(images, max_size: int, stream: bool = False) -> list[np.ndarray]:
     if images is None or (isinstance(images, str) and images == "builtin"):
-        return builtin_images(max_size=max_size)
+        return training_images(max_size=max_size) if stream else builtin_images(max_size=max_size)
     if isinstance(images, (str, os.PathLike)):
         return folder_images(images, max_size=max_size)
     if isinstance(images, (list, tuple)) and images:
         return [downscale(_to_rgb01(im), max_size) for im in images]
+    if stream and isinstance(images, (list, tuple)) and not images:
+        return []
     raise InputError(f"images must be None or 'builtin', a folder path or a non-empty list of arrays, "
                      f"got {type(images).__name__}")
 
@@ -217,6 +224,7 @@ def train(
     images=None,
     progress: bool = True,
     checkpoint_dir: str | os.PathLike | None = None,
+    loss_curve: str | os.PathLike | None = None,
     dtype=jnp.float32,
     stop_after: int | None = None,
     mesh: jax.sharding.Mesh | None = None,
@@ -228,13 +236,18 @@ def train(
       config: :class:`~jmeshtex.fl.Config` (model, data and optimiser settings).
       key: PRNG key of the initialisation, the planar meshes, the one-ring samples and the
         reparameterisation noise (module docstring).
-      images: None or ``"builtin"`` (scikit-image's bundled images), a folder of images, or a list
-        of ``[H, W, C]`` arrays.
-      progress: show a tqdm bar with ETA and the running loss.
+      images: None or ``"builtin"`` (scikit-image's bundled images: in the stream data mode,
+        ``config.pixels_per_vertex > 0``, :func:`~jmeshtex.fl.training_images` — the held-out images
+        excluded; else :func:`~jmeshtex.fl.builtin_images`), a folder of images, or a list of
+        ``[H, W, C]`` arrays (in the stream mode ``[]`` with ``procedural_fraction = 1`` trains on
+        procedural textures only).
+      progress: show a tqdm bar with ETA and the running loss (a moving average).
       checkpoint_dir: folder of :class:`jmeshtex.io.Checkpoints` (None: keep nothing on disk). The
         newest checkpoint there is resumed; it must have been written with the same config
         (``steps`` and ``checkpoint_every`` may differ), key, images and dtype, else
         :class:`~jmeshtex.CheckpointMismatchError`.
+      loss_curve: a ``.png`` path: :func:`~jmeshtex.fl.plot_losses` of the run so far, rewritten at
+        every checkpoint (every ``checkpoint_every`` steps) and at the end of the call.
       dtype: real dtype of the parameters.
       stop_after: run at most this many steps in this call (a time-boxed run; call again with the
         same folder to continue). The schedule always follows ``config.steps``.
@@ -273,9 +286,17 @@ def train(
         raise ConfigError("fl.train: checkpoint_dir with several processes (jax.distributed) is not supported "
                           "yet; train without checkpoints, or in one process")
     k_init, k_pool, k_data, k_noise = jax.random.split(key, 4)
-    loaded = _load_images(images, config.max_image_size)
-    pool = planar_pool(loaded, per_image=config.meshes_per_image, min_vertices=config.min_vertices,
-                       max_vertices=config.max_vertices, rng=_numpy_rng(k_pool))
+    stream = config.pixels_per_vertex > 0
+    loaded = _load_images(images, config.max_image_size, stream)
+    if stream:
+        levels = [image_levels(im) for im in loaded]
+        if not levels and config.procedural_fraction < 1:
+            raise InputError("fl.train: no images given and procedural_fraction < 1")
+        max_vertices = max_stream_vertices(config)
+    else:
+        pool = planar_pool(loaded, per_image=config.meshes_per_image, min_vertices=config.min_vertices,
+                           max_vertices=config.max_vertices, rng=_numpy_rng(k_pool))
+        max_vertices = config.max_vertices
     opt = optimizer(config)
     params = init(config, key=k_init, dtype=dtype).params
     params, opt_state = replicate((params, opt.init(params)), mesh)
@@ -290,19 +311,27 @@ def train(
             losses, l1s = list(meta["loss"])[:start], list(meta["l1"])[:start]
     step_fn = make_train_step(config, mesh)
     per = batch_multiple(mesh)
-    num_vertices = -(-config.batch_size * config.max_vertices // per) * per
+    num_vertices = -(-config.batch_size * max_vertices // per) * per
     bar = None
     if progress and start < config.steps:
+        import sys
+
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=config.steps, initial=start, desc="FL-VAE train", unit="step")
+        bar = tqdm(total=config.steps, initial=start, desc="FL-VAE train", unit="step",
+                   mininterval=0.5 if sys.stderr.isatty() else 30.0)
+    ema = float(np.mean(losses[-100:])) if losses else None
     t_first = None
     end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
     try:
         for step in range(start, end):
             rng = _numpy_rng(jax.random.fold_in(k_data, step))
-            chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
-            batch = mesh_batch([pool[i] for i in chosen], config, rng, num_vertices=num_vertices, dtype=np_dtype)
+            if stream:
+                meshes = _stream_meshes(rng, levels, config)
+            else:
+                chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
+                meshes = [pool[i] for i in chosen]
+            batch = mesh_batch(meshes, config, rng, num_vertices=num_vertices, dtype=np_dtype)
             params, opt_state, loss, l1 = step_fn(params, opt_state, batch, jax.random.fold_in(k_noise, step))
             loss, l1 = (float(x) for x in fetch((loss, l1)))
             if not np.isfinite(loss):
@@ -311,11 +340,15 @@ def train(
             l1s.append(l1)
             if t_first is None:
                 t_first = time.perf_counter()
+            ema = loss if ema is None else 0.99 * ema + 0.01 * loss
             if bar is not None:
                 bar.update(1)
-                bar.set_postfix(loss=f"{loss:.4f}", l1=f"{l1:.4f}")
-            if ckpt is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
-                ckpt.save(step + 1, {"params": params, "opt_state": opt_state}, meta={"loss": losses, "l1": l1s})
+                bar.set_postfix(loss=f"{ema:.4f}", l1=f"{l1:.4f}", refresh=False)
+            if (step + 1) % config.checkpoint_every == 0 or step + 1 == end:
+                if ckpt is not None:
+                    ckpt.save(step + 1, {"params": params, "opt_state": opt_state}, meta={"loss": losses, "l1": l1s})
+                if loss_curve is not None:
+                    plot_losses({"loss": losses, "l1": l1s}, loss_curve, title=f"FL-VAE training ({step + 1} steps)")
     finally:
         if bar is not None:
             bar.close()

@@ -55,6 +55,7 @@ from ._diffusion import prediction_target as prediction_target
 from ._diffusion import q_sample as q_sample
 from ._diffusion import sample_from_noise as sample_from_noise
 from ._diffusion import timestep_sequence as timestep_sequence
+from ._masks import random_mask as random_mask
 from ._sample import decode_samples as decode_samples
 from ._sample import inpaint as inpaint
 from ._sample import render_samples as render_samples
@@ -69,3 +70,4 @@ from ._train import optimizer as optimizer
 from ._train import save as save
 from ._train import train as train
 from ._train import training_batch as training_batch
+from ._train import training_masks as training_masks

@@ -41,6 +41,14 @@ class Config(ConfigBase):
       activation: filter nonlinearity, ``"silu"`` (paper) or ``"relu"`` (faster on CPU).
       time_features: width of the sinusoidal timestep embedding.
       num_labels: label classes for label-guided generation (0: unconditional).
+      mask_conditioning: inpainting conditioned on the mask (§6.4): the denoiser also sees the
+        inpainting mask as a per-vertex filter input (beside the timestep and labels, like the
+        reference's ``FieldConvEmb``) and the known latents, masked, as ``d`` extra tangent input
+        channels; training draws a random mask per copy and step (:func:`~jmeshtex.fldm.random_masks`:
+        half-space cuts, a quarter of them empty so that plain sampling is learned too) and
+        measures the loss on the generated region only. Sampling still replaces the kept region
+        (eq. 14), so it stays exact. False (default): the plain denoiser; inpainting by
+        replacement alone.
       schedule: ``"linear"`` or ``"cosine"``.
       prediction: what the denoiser outputs: ``"epsilon"`` (paper, eq. 10) or ``"v"``
         (:func:`~jmeshtex.fldm.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
@@ -85,6 +93,7 @@ class Config(ConfigBase):
     activation: str = "silu"
     time_features: int = 32
     num_labels: int = 0
+    mask_conditioning: bool = False
     schedule: str = "linear"
     prediction: str = "epsilon"
     diffusion_steps: int = 1000
@@ -124,6 +133,7 @@ class Config(ConfigBase):
         rule("pool_ratio", lambda x: 0.05 <= x <= 0.75, "in [0.05, 0.75]"),
         rule("learning_rate", lambda x: x > 0, "> 0"),
         rule("remat", lambda x: isinstance(x, bool), "True or False"),
+        rule("mask_conditioning", lambda x: isinstance(x, bool), "True or False"),
         rule("diffusion_steps", lambda x: x >= 2, ">= 2", message="{name} must be {must}"),
     )
 

@@ -13,7 +13,10 @@ Every block (``FCResBlock`` in ``jmeshtex/fldm/_blocks.py``, the reference's ``F
 timestep (⊕ one-hot label) embedding (eq. 35; the reference's ``FieldConvEmb``). Filters are one- or
 two-hidden-layer MLPs of the gauge-invariant argument. The output layer is linear, with no norm or
 nonlinearity after the last block: with the linear residuals, the output follows the scale of
-``z_t`` (at high noise ε̂ ≈ z_t must be reachable), as in the reference's ``fc_unet_2``. Complex
+``z_t`` (at high noise ε̂ ≈ z_t must be reachable), as in the reference's ``fc_unet_2``.
+With ``Config.mask_conditioning`` (inpainting conditioned on the mask, §6.4) the inpainting mask
+joins the timestep (and label) embedding as a per-vertex filter input, and the known latents,
+masked, enter the lift as ``d`` more tangent channels (``z_t ⊕ m·z_known``). Complex
 linear layers have no bias. Every piece is gauge-equivariant, so the denoiser is: rotating every
 frame of the input rotates the output by the same angles.
 
@@ -39,7 +42,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
-from .._types import Array, Complex, Float, Int, PRNGKey
+from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ..geometry import (
     PoolingMap,
     VertexNeighborhood,
@@ -170,18 +173,26 @@ class Denoiser(nn.Module):
     argument: str = "transported"
 
     @nn.compact
-    def __call__(self, z, t, geo: DenoiserGeometry, labels=None):
+    def __call__(self, z, t, geo: DenoiserGeometry, labels=None, mask=None, known=None):
         cfg = self.config
         c0, c1 = cfg.widths
         rdt = real_dtype(z.dtype)
         width = 4 * c0  # the reference's embedding width (fc_unet_2: 4 x the fine features)
         temb = timestep_embedding(t, cfg.time_features, dtype=rdt)
+        per_vertex = []  # per-vertex scalars appended to the filters' embedding input
         if cfg.num_labels:
+            per_vertex.append(jax.nn.one_hot(labels, cfg.num_labels, dtype=rdt))
+        if cfg.mask_conditioning:
+            m = jnp.asarray(mask).astype(rdt)[:, None]
+            per_vertex.append(m)
+            # the known latents, masked, as d more tangent input channels (equivariant: same frames)
+            z = jnp.concatenate([z, jnp.asarray(known).astype(z.dtype) * m.astype(z.dtype)], axis=1)
+        if per_vertex:
             v0, v1 = z.shape[0], geo.coarse.index.shape[0]
-            onehot = jax.nn.one_hot(labels, cfg.num_labels, dtype=rdt)
+            cond = jnp.concatenate(per_vertex, axis=1)
             own = jnp.asarray(geo.pool.children)[:, 0]  # each coarse vertex's own fine copy
-            emb0 = jnp.concatenate([jnp.broadcast_to(temb, (v0, temb.shape[0])), onehot], axis=1)
-            emb1 = jnp.concatenate([jnp.broadcast_to(temb, (v1, temb.shape[0])), onehot[own]], axis=1)
+            emb0 = jnp.concatenate([jnp.broadcast_to(temb, (v0, temb.shape[0])), cond], axis=1)
+            emb1 = jnp.concatenate([jnp.broadcast_to(temb, (v1, temb.shape[0])), cond[own]], axis=1)
             emb0, emb1 = (_embedding_mlp(e, width, rdt, f"embed_{lvl}") for lvl, e in ((0, emb0), (1, emb1)))
         else:
             emb0 = emb1 = _embedding_mlp(temb, width, rdt, "embed")
@@ -199,7 +210,7 @@ class Denoiser(nn.Module):
         h = ComplexDense(c0, self.param_dtype, name="merge")(h)
         for i in range(cfg.blocks[2]):
             h = Block(c0, name=f"up_{i}", **block)(h, geo.fine, emb0)
-        out = ComplexDense(z.shape[-1], self.param_dtype, name="out")(h)  # linear output (no norm, no VN)
+        out = ComplexDense(cfg.latent_channels, self.param_dtype, name="out")(h)  # linear output (no norm, no VN)
         return out * jnp.asarray(geo.fine.vertex_mask).astype(out.dtype)[:, None]
 
 
@@ -207,6 +218,17 @@ def _embedding_mlp(e, width: int, rdt, prefix: str):
     """``SiLU(SiLU(e W₁ + b₁) W₂ + b₂)``, the reference's shared embedding MLP (per level with labels)."""
     e = jax.nn.silu(nn.Dense(width, dtype=rdt, param_dtype=rdt, name=f"{prefix}_0")(e))
     return jax.nn.silu(nn.Dense(width, dtype=rdt, param_dtype=rdt, name=f"{prefix}_1")(e))
+
+
+def _check_mask(config: Config, z, mask, known) -> None:
+    if config.mask_conditioning and (mask is None or known is None):
+        raise InputError("denoiser: the config has mask_conditioning=True; pass mask [V] bool and known [V, d] latents")
+    if not config.mask_conditioning and (mask is not None or known is not None):
+        raise InputError("denoiser: mask/known given but the config is not mask-conditioned (mask_conditioning=False)")
+    if mask is not None and np.shape(mask) != (z.shape[0],):
+        raise InputError(f"denoiser: mask must be [V] = ({z.shape[0]},), got {np.shape(mask)}")
+    if known is not None and np.shape(known) != z.shape:
+        raise InputError(f"denoiser: known must be [V, d] = {z.shape}, got {np.shape(known)}")
 
 
 def _check_inputs(config: Config, z, geo: DenoiserGeometry, labels) -> None:
@@ -264,7 +286,9 @@ def _init(key, config: Config, dtype):
     v = np.shape(geo.fine.index)[0]
     z = jnp.zeros((v, config.latent_channels), dtype)
     labels = jnp.zeros((v,), jnp.int32) if config.num_labels else None
-    return Denoiser(config, param_dtype=dtype).init(key, z, jnp.zeros((), jnp.int32), geo, labels)["params"]
+    mask, known = (jnp.zeros((v,), bool), z) if config.mask_conditioning else (None, None)
+    return Denoiser(config, param_dtype=dtype).init(key, z, jnp.zeros((), jnp.int32), geo, labels, mask,
+                                                    known)["params"]
 
 
 def _as_jax(geo: DenoiserGeometry, cdtype) -> DenoiserGeometry:
@@ -282,6 +306,8 @@ def denoise(
     geo: DenoiserGeometry,
     *,
     labels: Int[Array, " V"] | None = None,
+    mask: Bool[Array, " V"] | None = None,
+    known: Complex[Array, "V d"] | None = None,
     filter_argument: str = "transported",
 ) -> Complex[Array, "V d"]:
     """Predict the noise ``ε̂_θ(z_t, t)`` of tangent latents on one (possibly padded) mesh.
@@ -299,6 +325,10 @@ def denoise(
       t: scalar int timestep.
       geo: :class:`DenoiserGeometry` (NumPy or JAX).
       labels: ``[V]`` int labels in ``[0, num_labels)`` when the config is label-guided.
+      mask: ``[V]`` bool inpainting mask (True: known) when the config is mask-conditioned
+        (``mask_conditioning``): a per-vertex input of every embedding-conditioned filter.
+      known: ``[V, d]`` the known (scaled, clean) latents of a mask-conditioned config, in the
+        frames of ``z_t``; the denoiser reads ``known · mask`` as ``d`` extra input channels.
       filter_argument: ``"transported"`` (default, gauge-equivariant) or ``"untransported"``: the
         reference code's filter argument (``get_rel_pos``: the log map paired with the neighbour's
         feature direction in the neighbour's own frame), which is **not** gauge-equivariant with
@@ -318,14 +348,16 @@ def denoise(
       (42, 2)
     """
     _check_inputs(config, z_t, geo, labels)
+    _check_mask(config, z_t, mask, known)
     geo = _as_jax(geo, z_t.dtype)
-    return _apply(params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels, filter_argument)
+    return _apply(params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels, mask, known, filter_argument)
 
 
 @functools.partial(jax.jit, static_argnames=("config", "argument"))
-def _apply(params, config, z_t, t, geo, labels, argument="transported"):
+def _apply(params, config, z_t, t, geo, labels, mask=None, known=None, argument="transported"):
     # jitted once per config and shapes (eager use would dispatch every small op separately)
-    return Denoiser(config, param_dtype=z_t.dtype, argument=argument).apply({"params": params}, z_t, t, geo, labels)
+    return Denoiser(config, param_dtype=z_t.dtype, argument=argument).apply({"params": params}, z_t, t, geo, labels,
+                                                                           mask, known)
 
 
 def denoiser_flops(config: Config, v0: int, v1: int) -> float:
@@ -363,7 +395,7 @@ def denoiser_flops(config: Config, v0: int, v1: int) -> float:
     def block(v, c, d):
         return v * c * d * 8 + mlp(v, c, d) + conv(v, d, d) + mlp(v, d, d) + conv(v, d, d)
 
-    total = 8 * v0 * config.latent_channels * c0
+    total = 8 * v0 * config.latent_channels * (2 if config.mask_conditioning else 1) * c0  # lift (+ known)
     total += sum(block(v0, c0, c0) for _ in range(config.blocks[0]))
     total += block(v1, c0, c1) + sum(block(v1, c1, c1) for _ in range(config.blocks[1] - 1))
     total += 8 * v0 * (c1 + c0) * c0  # merge

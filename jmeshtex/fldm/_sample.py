@@ -9,6 +9,8 @@ mesh with twice the vertex density gives a texture about √2 times smaller in w
 - :func:`sample`: ``n`` samples with DDIM (default, 50 steps) or ancestral DDPM (all ``T``);
   label-guided when the model was trained with labels (pass a per-vertex ``labels`` map);
 - :func:`inpaint`: keeps given latents where ``mask`` is True (eq. 14), ancestral DDPM by default;
+  a model trained with ``Config.mask_conditioning`` also sees the mask and the known latents at
+  every step (the replacement stays, so the kept region is exact either way);
 - :func:`decode_samples`: FL-VAE decoding to a UV atlas (meshes with UVs) or vertex colours;
 - :func:`render_samples`: one PNG per sample (:func:`jmeshtex.render.render_mesh`).
 
@@ -62,8 +64,11 @@ def sampling_geometry(mesh: Mesh, model: Model) -> DenoiserGeometry:
 def _run(params, config, geo, labels, z_T, step_noise, known, mask, known_noise, *, method, num_steps, eta):
     schedule = make_schedule(config.schedule, num_steps=config.diffusion_steps)
 
+    cond = dict(mask=mask, known=known) if config.mask_conditioning else {}
+
     def eps(z, t):
-        return epsilon_from_output(schedule, config.prediction, z, t, denoise(params, config, z, t, geo, labels=labels))
+        out = denoise(params, config, z, t, geo, labels=labels, **cond)
+        return epsilon_from_output(schedule, config.prediction, z, t, out)
 
     inpaint = Inpaint(known, mask)
     return sample_from_noise(eps, schedule, z_T, step_noise, method=method, num_steps=num_steps, eta=eta,
@@ -181,6 +186,11 @@ def inpaint(
     latents noised to that step's level, and the fresh noise of each ancestral step lets the
     generated region settle against it; ``method="ddim"`` is faster). The returned latents equal
     ``known`` exactly on the mask.
+
+    Two forms, chosen by how the model was trained: the default (``Config.mask_conditioning =
+    False``) is replacement alone (eq. 14); a mask-conditioned model (``mask_conditioning=True``,
+    trained on random masks) also receives the mask as a filter input and the known latents as
+    extra input channels at every step, on top of the same replacement.
 
     Args:
       model: a trained :class:`Model`.

@@ -6,6 +6,9 @@ and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam on a war
 schedule, :func:`learning_rate_schedule`; complex gradients conjugated first, DESIGN.md; optionally an
 EMA of the weights, ``config.ema_decay``), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
 (:func:`~jmeshtex.fldm.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies.
+With ``config.mask_conditioning`` every copy of a step also gets a random inpainting mask
+(:func:`training_masks`); the denoiser sees it and the known clean latents, and the loss counts the
+generated (unmasked) region only.
 
 Data parallel (``mesh=`` / ``devices=``, default every device JAX sees; :mod:`jmeshtex.parallel`):
 the batch axis (the ``batch_size`` copies of a step) is split over the mesh's ``"data"`` axis,
@@ -61,6 +64,7 @@ from ._config import Config
 from ._data import Dataset, batch_geometry
 from ._denoiser import DenoiserGeometry, denoise, init_denoiser
 from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
+from ._masks import batch_masks
 
 MODEL_FILE = "model.npz"
 MODEL_JSON = "model.json"
@@ -147,10 +151,12 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
         (:func:`jmeshtex.parallel.data_parallel`).
 
     Returns:
-      ``step(params, opt_state, z0 [B, V, d], geo [B, …], labels [B, V] or None, key) ->
+      ``step(params, opt_state, z0 [B, V, d], geo [B, …], labels [B, V] or None, key, mask=None) ->
       (params, opt_state, loss)``: ``z0`` the scaled latents and ``geo`` the geometry of a batch
       (:func:`training_batch`), ``opt_state`` from ``optimizer(config).init(params)``, ``key`` the
-      step's noise key. With a mesh, ``B`` must be a multiple of its device count.
+      step's noise key, ``mask`` ``[B, V]`` the batch's inpainting masks (:func:`training_masks`;
+      required with ``config.mask_conditioning``, ignored otherwise). With a mesh, ``B`` must be a
+      multiple of its device count.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -168,19 +174,28 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
     schedule = make_schedule(config.schedule, num_steps=config.diffusion_steps)
     opt = optimizer(config)
 
-    def loss_fn(params, z0, geo, labels, t, eps):
+    def loss_fn(params, z0, geo, labels, t, eps, mask):
         zt = q_sample(schedule, z0, t, eps)
-        if labels is None:
-            pred = jax.vmap(lambda z, tt, g: denoise(params, config, z, tt, g))(zt, t, geo)
-        else:
-            pred = jax.vmap(lambda z, tt, g, lab: denoise(params, config, z, tt, g, labels=lab))(zt, t, geo, labels)
-        return epsilon_loss(pred, prediction_target(schedule, config.prediction, z0, t, eps), geo.fine.vertex_mask)
 
-    def step(params, opt_state, z0, geo, labels, key):
+        def one(z, tt, g, lab, m, known):
+            return denoise(params, config, z, tt, g, labels=lab, mask=m, known=known)
+
+        known = z0 if config.mask_conditioning else None
+        pred = jax.vmap(one)(zt, t, geo, labels, mask, known)
+        weight = geo.fine.vertex_mask
+        if config.mask_conditioning:  # the loss of the generated region only
+            weight = weight & ~mask
+        return epsilon_loss(pred, prediction_target(schedule, config.prediction, z0, t, eps), weight)
+
+    def step(params, opt_state, z0, geo, labels, key, mask=None):
+        if config.mask_conditioning and mask is None:
+            raise InputError("fldm: a mask-conditioned config's step needs the batch's masks (training_masks)")
+        if not config.mask_conditioning:
+            mask = None
         kt, ke = jax.random.split(key)
         t = jax.random.randint(kt, (z0.shape[0],), 0, config.diffusion_steps)
         eps = tangent_noise(ke, z0.shape, dtype=z0.dtype)
-        loss, grads = jax.value_and_grad(loss_fn)(params, z0, geo, labels, t, eps)
+        loss, grads = jax.value_and_grad(loss_fn)(params, z0, geo, labels, t, eps, mask)
         grads = conjugate_complex_grads(grads)
         with jax.numpy_dtype_promotion("standard"):
             updates, opt_state = opt.update(grads, opt_state, params)
@@ -189,7 +204,7 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
 
     if mesh is None:
         return jax.jit(step)
-    return data_parallel(step, mesh, batch_argnums=(2, 3, 4))
+    return data_parallel(step, mesh, batch_argnums=(2, 3, 4, 6))
 
 
 def training_batch(
@@ -219,12 +234,40 @@ def training_batch(
       >>> z0.shape, geo.fine.index.shape[0], labels
       ((2, 32, 1), 2, None)
     """
-    rng = host_rng(key, step)
-    idx = rng.choice(data.num_copies, size=size, replace=data.num_copies < size)
+    idx = _batch_index(data, step, size, key)
     z0 = (data.latents[idx] * data.scale).astype(dtype)
     geo = batch_geometry(data, idx)
     labels = None if data.labels is None else data.labels[idx]
     return z0, geo, labels
+
+
+def _batch_index(data: Dataset, step: int, size: int, key: jax.Array) -> np.ndarray:
+    rng = host_rng(key, step)
+    return rng.choice(data.num_copies, size=size, replace=data.num_copies < size)
+
+
+def training_masks(data: Dataset, step: int, size: int, *, key: jax.Array) -> np.ndarray:
+    """Random inpainting masks of the copies of training step ``step`` (``Config.mask_conditioning``).
+
+    The copies are those of ``training_batch(data, step, size, key=key)``; each gets a mask of
+    :func:`~jmeshtex.fldm.random_mask` (empty for a quarter of them, else a half-space cap), a function of
+    ``(key, step)`` alone.
+
+    Returns:
+      ``[size, V₀]`` bool, True where the latents are known (False on padding).
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> from jmeshtex.fldm import build_dataset
+      >>> cfg = Config.tiny(latent_channels=1, n_copies=3, copy_vertices=30, bucket=32)
+      >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
+      ...                      key=jax.random.key(0), progress=False)
+      >>> m = training_masks(data, 5, 2, key=jax.random.key(1))
+      >>> m.shape, bool(m[:, 30:].any())
+      ((2, 32), False)
+    """
+    idx = _batch_index(data, step, size, key)
+    return batch_masks(data.meshes, idx, data.latents.shape[1], host_rng(key, step, 1))
 
 
 def _split(key: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -427,7 +470,12 @@ def train(
     try:
         for step in bar:
             z0, geo, labels = training_batch(data, step, config.batch_size, key=k_batch, dtype=dtype)
-            params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, jax.random.fold_in(k_noise, step))
+            k_step = jax.random.fold_in(k_noise, step)
+            if config.mask_conditioning:
+                masks = training_masks(data, step, config.batch_size, key=k_batch)
+                params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, k_step, masks)
+            else:
+                params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, k_step)
             if use_ema:
                 ema = ema_fn(ema, params, np.float32(step))
             losses.append(float(fetch(loss)))

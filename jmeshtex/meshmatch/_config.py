@@ -57,21 +57,31 @@ class Config(ConfigBase):
       num_radii: ``R``, rings per geodesic fan (paper default 3).
       num_angles: ``A``, samples per ring (paper default 18); rotations are searched in steps of
         ``2π / A``.
-      fan_radius: radius of the outermost ring, in mean edge lengths of the target's level; ring
-        ``i`` (0-based) has radius ``fan_radius · (i + 1) / R``.
+      fan_radius: radius of the outermost ring, in mean edge lengths of the target's level (or of
+        the paired source level where that is coarser: a target finer than the source gets fans
+        at the source's scale); ring ``i`` (0-based) has radius ``fan_radius · (i + 1) / R``.
       color_weight: weight of the colour term of the patch distance (normalised per dimension and
         by the source colour variance).
       shape_weight: weight of the shape term (HKS and ``n · up``, each feature standardised), one
         value for every level or a tuple from the finest level to the coarsest (the last entry
-        repeats for further levels). The default, 30 at every coarse level and 3 at the finest,
-        lets the shape decide where patches go and the colours refine them last: the target's
-        colours are synthesised, so with a weak shape term the coarse levels settle on a coherent
-        but shifted placement that finer levels cannot undo (benchmark torus, 16K vertices:
-        15 dB self-transfer PSNR at weight 3 everywhere, 31 dB at 30 everywhere, 32 dB with the
-        default; the small demo sphere: 23 dB with the default, 20 dB at 30 everywhere).
+        repeats for further levels). The default, 30 at every coarse level, 3 at the second finest
+        and 0.3 at the finest, lets the shape decide where patches go and the colours refine them
+        last: the target's colours are synthesised, so with a weak shape term the coarse levels
+        settle on a coherent but shifted placement that finer levels cannot undo (benchmark
+        torus, 16K vertices: 15 dB self-transfer PSNR at weight 3 everywhere, 31 dB at 30
+        everywhere, 32 dB with (3, 30)); at the finest levels a strong shape term pulls matches
+        off the truth wherever the two shapes' features differ (between different shapes they
+        always do): seeded with the true matches and colours, the finest level of the stretched
+        bumpy sphere fell from 35.2 to 16.8 dB at weight 3 and kept 34.6 dB at 0. Cross-shape
+        benchmark, (3, 30) → (0.3, 3, 30): bumpier sphere 25.3 → 30.7 dB, stretched cow 28.4 →
+        34.9 dB, stretched sphere and tori unchanged (13-14 dB: their shape features mislead,
+        see ``aligned``); 16K torus self-transfer 33.2 → 32.8 dB
+        (``benchmarks/results/meshmatch_cross.md``).
       affinity_weight: weight of the correspondence affinities (only with correspondences).
       hks_times: number of log-spaced heat kernel signature times.
-      hks_eigenpairs: Laplacian eigenpairs used for the HKS.
+      hks_eigenpairs: Laplacian eigenpairs used for the HKS. 96 (finer scales) measured mixed on
+        the cross-shape benchmark (bumpier sphere 30.7 → 32.4 dB, tori 13.4 → 15.2 dB, stretched
+        cow 34.9 → 29.1 dB) and costs about 10 s per mesh at 4096 vertices instead of 0.8 s.
       hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
         vertices and copied down to the finer levels through the parent maps (it is smooth).
       up: the "up" direction of the ``n · up`` shape feature: a 3-vector or an axis name
@@ -88,6 +98,25 @@ class Config(ConfigBase):
         ``side="z"``: 29.9 dB, and 35.0 dB (39.7 dB voted) with ``steps=12``. On the
         cross-shape benchmark's stretched cow: 28.4 → 33.7 dB (``benchmarks/results/
         meshmatch_cross.md``). Not a default: it needs the model's left/right axis.
+      aligned: source and target share a pose (the same orientation in world space, as scans or
+        edits of one object usually do): the whole normal ``(n · x, n · y, n · z)`` joins the shape
+        features instead of ``n · up`` / ``n · side`` (which are then ignored). The HKS alone
+        cannot place patches between shapes that are not isometric: on the cross-shape
+        benchmark (``benchmarks/results/meshmatch_cross.md``) the true match's HKS gap is 10-60 %
+        of the HKS spread under a (1.15, 1, 0.9) stretch, and the shape term then pulls matches
+        away even from a ground-truth start (bumpy sphere → stretched copy: 35.2 dB at the start,
+        16.8 dB after the finest level's iterations); with the whole normal the nearest source
+        vertex in feature space lies 1.7-2 edges from the true one instead of 10-11. The normal
+        alone is not enough (normal weight 4: bumpy sphere → stretched copy 13.0 → 21.9 dB, tori
+        13.4 → 32.3 dB, but the stretched cow 34.9 → 18.4 dB); with ``position_weight=8`` and
+        ``normal_weight=2`` every pair comes within 2 dB of its ceiling (bumpier sphere 34.0,
+        stretched sphere 33.7, tori 34.8, stretched cow 38.7 dB; nearest copies through the
+        known map 35.2, 35.2, 36.6, 40.4 dB). Not a default: meshes in different poses must
+        leave it off.
+      normal_weight: the weight of each ``n · axis`` feature block relative to the HKS block.
+      position_weight: with ``aligned``, the weight of the vertex positions standardised per
+        axis (mean 0, standard deviation 1 on each mesh) as one more feature block: a pose prior
+        that also undoes a non-uniform stretch; 0 (default) leaves it out.
       steps: most PatchMatch iterations (E-step + M-step) per level.
       coarse_steps: most iterations at the coarsest level, which starts from a random field
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
@@ -100,7 +129,11 @@ class Config(ConfigBase):
         one found, so an iteration moves good matches ``sweeps`` rings (1 = Jacobi-style).
       exact_candidates: per candidate set (random search + first sweep, then each further sweep)
         only this many candidates, those with the smallest rotation-invariant lower bound of the
-        patch distance, get the exact rotation search.
+        patch distance, get the exact rotation search (a number at least the candidate count,
+        about ``3 + global_candidates + K``, searches every candidate exactly, as the paper does).
+      star_candidates: propagation proposes the whole star (the vertex and its one-ring) of each
+        neighbour's match, as the paper does, instead of the one star vertex nearest the
+        propagated offset (about 7× the candidates, all pre-scored by the bound).
       bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
         common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
         (see :func:`~jmeshtex.meshmatch.level_groups`); 0 pads nothing (every level
@@ -131,13 +164,16 @@ class Config(ConfigBase):
     num_angles: int = 18
     fan_radius: float = 4.0
     color_weight: float = 1.0
-    shape_weight: float | tuple[float, ...] = (3.0, 30.0)
+    shape_weight: float | tuple[float, ...] = (0.3, 3.0, 30.0)
     affinity_weight: float = 1.0
     hks_times: int = 8
     hks_eigenpairs: int = 32
     hks_max_vertices: int = 4096
     up: tuple[float, float, float] | str | None = (0.0, 0.0, 1.0)
     side: tuple[float, float, float] | str | None = None
+    aligned: bool = False
+    normal_weight: float = 1.0
+    position_weight: float = 0.0
     steps: int = 6
     coarse_steps: int = 30
     tolerance: float = 0.002
@@ -145,6 +181,7 @@ class Config(ConfigBase):
     global_candidates: int = 4
     sweeps: int = 2
     exact_candidates: int = 2
+    star_candidates: bool = False
     bucket_vertices: int = 4096
     vote_sigma: float = 1.0
     interp_sigma: float = 0.5
@@ -164,6 +201,8 @@ class Config(ConfigBase):
         integers("sweeps exact_candidates", 1),
         integers("random_search_levels global_candidates bucket_vertices", 0),
         rule("fan_radius vote_sigma interp_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
+        rule("normal_weight position_weight", lambda x: is_finite_number(x) and x >= 0, "a number >= 0"),
+        rule("aligned star_candidates", lambda x: isinstance(x, bool), "True or False"),
         rule("color_weight", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(lambda c: _weights_ok(_as_tuple(c.shape_weight)),
                    lambda c: f"{display_name(type(c))}.shape_weight must be finite and >= 0, got {_as_tuple(c.shape_weight)!r}"),
@@ -194,6 +233,20 @@ class Config(ConfigBase):
           (0.0, 0.0, 1.0)
         """
         return _unit_axis(self.side)
+
+    def normal_axes(self) -> dict:
+        """The ``up`` / ``side`` / ``axes`` / ``normal_weight`` arguments of
+        :func:`~jmeshtex.meshmatch.shape_features` these settings ask for.
+
+        Example:
+          >>> Config(aligned=True).normal_axes()["axes"]
+          ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+        """
+        if self.aligned:
+            return {"up": None, "side": None, "axes": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+                    "normal_weight": float(self.normal_weight), "position_weight": float(self.position_weight)}
+        return {"up": self.up_vector(), "side": self.side_vector(), "axes": (), "normal_weight": float(self.normal_weight),
+                "position_weight": 0.0}
 
     def shape_weight_at(self, level: int) -> float:
         """The shape weight of hierarchy level ``level`` (0 = finest)."""

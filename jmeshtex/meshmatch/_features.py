@@ -100,6 +100,9 @@ def shape_features(
     *,
     up=None,
     side=None,
+    axes=(),
+    normal_weight: float = 1.0,
+    position_weight: float = 0.0,
     min_spread: float = 0.01,
 ) -> Float[np.ndarray, "V D"]:
     """Standardised shape features: z-scored log HKS (block weight 1) and ``n · up`` (weight 1).
@@ -120,10 +123,16 @@ def shape_features(
       log_hks: ``[V, T]`` from :func:`hks_features`.
       up: a 3-vector, or None to leave the ``n · up`` feature out.
       side: a second 3-vector (``n · side``, one more block of weight 1), or None.
+      axes: further 3-vectors, one ``n · a`` block each (``Config.aligned``: the three coordinate
+        axes, i.e. the whole normal, for meshes that share a pose).
+      normal_weight: the factor of every ``n · a`` block relative to the HKS block.
+      position_weight: the factor of a block of the vertex positions standardised per axis
+        (``(x − mean) / std``, the second moments matched: a pose-aligned prior that also undoes
+        a non-uniform stretch); 0 leaves it out.
       min_spread: the floor of the per-time standard deviation ``s_h`` of the log HKS.
 
     Returns:
-      ``[V, T (+1)]`` float64 features.
+      ``[V, T + number of axes (+ 3 with positions)]`` float64 features.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -134,13 +143,17 @@ def shape_features(
     mesh = as_mesh(mesh)
     h = np.asarray(log_hks, dtype=np.float64)
     z = (h - h.mean(axis=0)) / np.maximum(h.std(axis=0), max(float(min_spread), 1e-12))
-    axes = [np.asarray(a, dtype=np.float64) for a in (up, side) if a is not None]
+    axes = [np.asarray(a, dtype=np.float64) for a in (up, side, *axes) if a is not None]
     blocks = 1 + len(axes)
     parts = [z / np.sqrt(blocks * h.shape[1])]
     if axes:
         normal = tangent_frames(mesh.vertices, mesh.faces).normal
         for u in axes:
-            parts.append((normal @ (u / np.linalg.norm(u)))[:, None] / np.sqrt(blocks))
+            parts.append(float(normal_weight) * (normal @ (u / np.linalg.norm(u)))[:, None] / np.sqrt(blocks))
+    if position_weight > 0:
+        x = np.asarray(mesh.vertices, dtype=np.float64)
+        x = (x - x.mean(axis=0)) / np.maximum(x.std(axis=0), 1e-12)
+        parts.append(float(position_weight) * x / np.sqrt(3 * blocks))
     return np.concatenate(parts, axis=1)
 
 

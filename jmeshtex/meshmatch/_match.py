@@ -25,6 +25,7 @@ from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
 from ._config import Config
+from ._features import ancestors
 from ._prepare import (
     LevelArrays,
     Side,
@@ -104,6 +105,7 @@ def meshmatch(
     pin: Int[np.ndarray, " Vt"] | None = None,
     progress: bool | Callable[[str], Any] = False,
     prepared: tuple[Side, Side] | None = None,
+    initial_nnf: Int[np.ndarray, " Vt"] | None = None,
 ) -> MeshMatchResult:
     """Transfer per-vertex signals from a source mesh to a target mesh by PatchMatch (MeshMatch).
 
@@ -129,6 +131,10 @@ def meshmatch(
       progress: True for a tqdm bar per level, or a callable receiving one line per level.
       prepared: ``(source_side, target_side)`` from :func:`~jmeshtex.meshmatch.prepare_side` to
         reuse preprocessing.
+      initial_nnf: ``[Vt]`` source vertex per target vertex to start the coarsest level from
+        (moved to the levels' ancestors), with the source colours there, instead of random
+        matches: a warm start from an earlier field, or the truth when measuring how far the
+        iterations move it (``benchmarks/meshmatch.py --suite cross``, the seeded rows).
 
     Returns:
       :class:`MeshMatchResult`.
@@ -136,7 +142,7 @@ def meshmatch(
     Raises:
       InputError: shapes of colours, masks, pins; an empty source mask; a mesh that is neither a
         ``Mesh`` nor a pair; source and target sizes differing by more than
-        ``config.max_scale_ratio``.
+        ``config.max_scale_ratio``; an ``initial_nnf`` of the wrong shape or range.
 
     Example:
       >>> import jax
@@ -155,6 +161,12 @@ def meshmatch(
     t_start = time.perf_counter()
     colors, valid, pins = _checked_signals(source, target, source_colors, source_mask, pin)
     _check_scales(source, target, config.max_scale_ratio)
+    if initial_nnf is not None:
+        initial_nnf = np.asarray(initial_nnf)
+        if (initial_nnf.shape != (target.num_vertices,) or not np.issubdtype(initial_nnf.dtype, np.integer)
+                or initial_nnf.min(initial=0) < 0 or initial_nnf.max(initial=0) >= source.num_vertices):
+            raise InputError(f"initial_nnf must be [Vt={target.num_vertices}] source vertices in "
+                             f"[0, {source.num_vertices}), got {initial_nnf.dtype} {initial_nnf.shape}")
     timings: dict[str, float] = {}
     if prepared is None:
         t0 = time.perf_counter()
@@ -172,7 +184,7 @@ def meshmatch(
         s_feat = np.concatenate([s_feat, w * a_s], axis=1)
         t_feat = np.concatenate([t_feat, w * a_t], axis=1)
     result = match_levels(s_side, t_side, colors, config, key=key, features=(s_feat, t_feat),
-                          source_mask=valid, pin=pins, progress=progress)
+                          source_mask=valid, pin=pins, progress=progress, initial=initial_nnf)
     stats = {"levels": result.stats["levels"], **timings, "fans_s": result.stats["fans_s"],
              "total_s": time.perf_counter() - t_start}
     return result._replace(stats=stats)
@@ -250,7 +262,10 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
     s_feat, t_feat = features
     sh = source.hierarchy
     R, A, C = config.num_radii, config.num_angles, colors.shape[1]
-    radii = config.radii(target.edge[level])
+    # fans never smaller than the paired source level's edges: a target level finer than the
+    # source's finest would otherwise sample within a source triangle or two (64K torus
+    # self-transfer from 10K: 26.7 -> 28.0 dB)
+    radii = config.radii(max(target.edge[level], source.edge[m]))
     valid_m = source_mask[sh.vertex_index[m]]
     if not valid_m.any():  # a tiny painted region may vanish at a coarse level
         valid_m = np.ones_like(valid_m)
@@ -326,6 +341,7 @@ def match_levels(
     source_mask: np.ndarray,
     pin: np.ndarray | None,
     progress: bool | Callable[[str], Any] = False,
+    initial: np.ndarray | None = None,
 ) -> MeshMatchResult:
     """Coarse-to-fine PatchMatch of prepared sides (the loop of :func:`meshmatch`).
 
@@ -339,6 +355,7 @@ def match_levels(
       source_mask: ``[Vs]`` bool, the source vertices a match may use.
       pin: ``[Vt]`` int64 source vertex each target vertex must match (-1: free), or None.
       progress: as :func:`meshmatch`.
+      initial: ``[Vt]`` (input indexing) matches to start the coarsest level from, or None.
 
     Returns:
       :class:`MeshMatchResult` whose ``stats`` holds ``levels`` and ``fans_s``.
@@ -359,7 +376,13 @@ def match_levels(
                                     dtype, dims_of.get(level))
         fan_s += seconds
         Vt, Vp = lv.num_target, lv.num_padded
-        if nnf is None:  # coarsest level: random matches among the valid source vertices
+        if nnf is None and initial is not None:  # coarsest level from the given matches
+            th = target.hierarchy
+            src0 = source.inverse[0][initial[th.vertex_index[level]]]  # level-0 source vertices
+            nnf_h = ancestors(sh, 0, m)[np.maximum(src0, 0)].astype(np.int32)
+            rot_h = np.zeros(Vt, np.int32)
+            colors_h = np.asarray(s_colors[m][nnf_h])
+        elif nnf is None:  # coarsest level: random matches among the valid source vertices
             key, sub = jax.random.split(key)
             pick = np.asarray(jax.random.randint(sub, (Vt,), 0, lv.num_valid))
             nnf_h = lv.valid_index[pick]
@@ -381,7 +404,7 @@ def match_levels(
             t0, c0 = time.perf_counter(), time.process_time()
             key, sub = jax.random.split(key)
             weights = lv.weights
-            if coarsest and it == 0 and config.shape_weight_at(level) > 0:
+            if coarsest and it == 0 and config.shape_weight_at(level) > 0 and initial is None:
                 # the random start's colours mean nothing: its first E-step matches shape only
                 weights = weights._replace(color_scale=weights.color_scale * 0)
             nnf_j, rot_j, cost, colors_j, changed = iterate(lv.tgt, lv.src, nnf_j, rot_j, colors_j, sub, weights,

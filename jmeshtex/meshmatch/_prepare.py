@@ -107,7 +107,7 @@ def prepare_side(
     level = hks_level(hierarchy, config.hks_max_vertices)
     log_hks, times = hks_features(hierarchy, level=level, times=hks_times, num_times=config.hks_times,
                                   k=config.hks_eigenpairs)
-    features = shape_features((vertices, faces), log_hks, up=config.up_vector(), side=config.side_vector())
+    features = shape_features((vertices, faces), log_hks, **config.normal_axes())
     return Side(hierarchy, edge, nbs, sms, trs, log_hks, features, inverse, times)
 
 

@@ -49,6 +49,9 @@ class SearchOptions(NamedTuple):
       global_candidates: uniformly random source vertices per target vertex and sweep.
       sweeps: propagation sweeps per iteration.
       exact_candidates: candidates per sweep that get the exact rotation search.
+      star_candidates: propagation proposes every vertex of the star of each neighbour's match
+        (the paper's "whole neighbourhood of NNF(q)") instead of the one nearest the propagated
+        offset.
     """
 
     num_angles: int
@@ -56,12 +59,13 @@ class SearchOptions(NamedTuple):
     global_candidates: int
     sweeps: int
     exact_candidates: int
+    star_candidates: bool = False
 
     @classmethod
     def of(cls, config: Config, prefilter_steps) -> SearchOptions:
         """The options of ``config`` with the target level's pre-filter steps."""
         return cls(config.num_angles, tuple(int(s) for s in prefilter_steps), config.global_candidates,
-                   config.sweeps, config.exact_candidates)
+                   config.sweeps, config.exact_candidates, config.star_candidates)
 
 
 class StepWeights(NamedTuple):
@@ -273,9 +277,15 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
         """Pre-score random-search and propagated candidates (from this sweep's start), exact-score
         the ``exact`` best, keep improvements."""
         best, best_cost, best_rot = state
-        prop = _star_nearest(src.arr, _gather(best, tgt.nb_index), _offsets(tgt, best_rot, A))  # [V, K]
+        if options.star_candidates:  # every vertex of each neighbour's matched star
+            idx, _, smask = _star(src.arr, _gather(best, tgt.nb_index))  # [V, K, 1 + Ks]
+            prop = idx.reshape(idx.shape[0], -1)
+            prop_ok = (tgt.nb_mask[:, :, None] & smask).reshape(prop.shape)
+        else:
+            prop = _star_nearest(src.arr, _gather(best, tgt.nb_index), _offsets(tgt, best_rot, A))  # [V, K]
+            prop_ok = tgt.nb_mask
         cands = jnp.stack(_random_candidates(src, best, key, globals_), axis=1) if num_random else prop[:, :0]
-        allowed = jnp.concatenate([jnp.ones(cands.shape, bool), tgt.nb_mask], axis=1)
+        allowed = jnp.concatenate([jnp.ones(cands.shape, bool), prop_ok], axis=1)
         cands = jnp.concatenate([cands, prop], axis=1)  # [V, N]
         diff = t_desc[:, None, :] - _gather(s_desc, cands)
         bound = jnp.sum(diff * diff, axis=-1)

@@ -76,3 +76,21 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys):
     assert main(["fl", "pretrain", "--images", str(tmp_path / "missing"), "--out", str(tmp_path / "r"),
                  "--steps", "1", "--quiet"]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_train_preset_stops_after_and_draws_the_loss_curve(tmp_path, capsys):
+    over = {"latent_dim": 3, "features": 8, "num_heads": 2, "num_blocks": 1, "num_samples": 8,
+            "decoder_features": 16, "texture_size": 16, "pixels_per_vertex": 8.0, "procedural_fraction": 1.0,
+            "warmup_steps": 0, "checkpoint_every": 1}
+    (tmp_path / "over.json").write_text(json.dumps(over))
+    run = tmp_path / "run"
+    args = ["fl", "train", "--preset", "small", "--config", str(tmp_path / "over.json"), "--steps", "3",
+            "--out", str(run), "--quiet"]
+    assert main([*args, "--stop-after", "2"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["steps"] == 2 and summary["preset"] == "small"
+    assert (run / "loss_curve.png").read_bytes()[:4] == b"\x89PNG"
+    model = fl.load(run / "fl_vae.npz")
+    assert model.config == fl.Config.small(**over, steps=3)  # the preset under the JSON overrides
+    assert main(args) == 0  # the same command continues the run
+    assert json.loads(capsys.readouterr().out)["steps"] == 3

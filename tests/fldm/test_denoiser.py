@@ -137,6 +137,8 @@ SUBSET = {
     "fldm.denoiser": (("gauge", "float64"), ("fold", "float64"), ("gauge", "float32")),
     "fldm.denoiser_labels": (("permute_vertices", "float64"),),
     "fldm.sampler": (("gauge", "float64"),),
+    "fldm.denoiser_mask": (("gauge", "float64"), ("permute_vertices", "float64"), ("fold", "float64")),
+    "fldm.sampler_inpaint": (("gauge", "float64"), ("permute_vertices", "float64")),
 }
 
 

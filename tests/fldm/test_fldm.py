@@ -202,6 +202,13 @@ def test_cli_train_sample_inpaint(tmp_path):
     rc = main(["fldm", "inpaint", "--model", str(out), "--mask", str(tmp_path / "mask.npy"), "--steps", "3",
                "--n", "1", "--out", str(tmp_path / "i"), "--quiet"])
     assert rc == 0 and len(list((tmp_path / "i").glob("inpaint_*.png"))) == 1
+    masked = tmp_path / "masked"
+    rc = main(["fldm", "train", "--mesh", "striped-sphere", "--codec", "stripes", "--preset", "tiny", "--copies", "2",
+               "--vertices", "60", "--steps", "2", "--mask-conditioning", "--out", str(masked), "--quiet"])
+    assert rc == 0 and load(masked).config.mask_conditioning
+    rc = main(["fldm", "inpaint", "--model", str(masked), "--mask", str(tmp_path / "mask.npy"), "--steps", "3",
+               "--n", "1", "--out", str(tmp_path / "mi"), "--quiet"])
+    assert rc == 0 and len(list((tmp_path / "mi").glob("inpaint_*.png"))) == 1
     np.save(tmp_path / "bad.npy", np.ones(5, bool))
     rc = main(["fldm", "inpaint", "--model", str(out), "--mask", str(tmp_path / "bad.npy"), "--out",
                str(tmp_path / "j"), "--quiet"])

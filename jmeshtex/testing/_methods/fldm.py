@@ -17,6 +17,13 @@
   so pushing the same noise forward by a transform (what the harness does to tangent inputs) must
   give the transformed sample: that is the statement "samples commute with the transform".
 
+- ``fldm.denoiser_mask``: the mask-conditioned denoiser (``Config.mask_conditioning``): the
+  inpainting mask (``s > 0`` of a random scalar field, so it follows relabelling) in the filters and
+  the known latents (a second tangent input) as extra channels.
+- ``fldm.sampler_inpaint``: ancestral DDPM (a 4-step schedule) with the mask-conditioned denoiser
+  and replacement inpainting (eq. 14), as a map of its noise (initial, per-step and the known
+  region's) and of the known latents.
+
 Importing this module registers the entries (:func:`jmeshtex.testing.load_entries` does).
 """
 
@@ -39,6 +46,8 @@ FLDM_REPORT = ("cylinder",)
 CONFIG = Config.tiny(latent_channels=2, widths=(4, 6), hdim=4, knn=7, mlp_layers=2, filter_layers=2, activation="silu",
                      time_features=8)
 LABEL_CONFIG = CONFIG.replace(num_labels=3)
+MASK_CONFIG = CONFIG.replace(mask_conditioning=True)
+DDPM_SCHEDULE = make_schedule("linear", num_steps=4)
 SAMPLER_STEPS = 3
 SAMPLER_SCHEDULE = make_schedule("linear", num_steps=50)
 TIMESTEP = 37
@@ -101,6 +110,33 @@ def _denoiser_reference_argument(state, params, z):
     return Field(VERTEX_TANGENT, out)
 
 
+def _denoiser_mask(state, params, z, known, s):
+    from ...fldm import denoise
+
+    out = denoise(params, MASK_CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state), mask=s[:, 0] > 0,
+                  known=known)
+    return Field(VERTEX_TANGENT, out)
+
+
+def _sampler_inpaint(state, params, z_T, noise, known_noise, known, s):
+    from ...fldm import Inpaint, denoise
+
+    geo = _geometry(state)
+    V, C = z_T.shape
+    S = DDPM_SCHEDULE.num_steps
+    mask = s[:, 0] > 0
+
+    def steps(x):
+        return jnp.transpose(x.reshape(V, S, C), (1, 0, 2))
+
+    def eps(z, t):
+        return denoise(params, MASK_CONFIG, z, t, geo, mask=mask, known=known)
+
+    out = sample_from_noise(eps, DDPM_SCHEDULE, z_T, steps(noise), method="ddpm", inpaint=Inpaint(known, mask),
+                            inpaint_noise=steps(known_noise))
+    return Field(VERTEX_TANGENT, out)
+
+
 def _sampler(state, params, z_T, noise):
     from ...fldm import denoise
 
@@ -127,6 +163,18 @@ ENTRIES = (
                    {"z": (VERTEX_TANGENT, CONFIG.latent_channels)}, ("permute_vertices",),
                    init=_init_for(CONFIG), expect_fail=("gauge",), group="negative",
                    doc="FLDM U-Net with the reference code's untransported filter argument: breaks gauge")),
+    register(Entry("fldm.denoiser_mask", _denoiser_mask,
+                   {"z": (VERTEX_TANGENT, CONFIG.latent_channels), "known": (VERTEX_TANGENT, CONFIG.latent_channels),
+                    "s": (VERTEX_SCALAR, 1)}, FLDM_TRANSFORMS,
+                   init=_init_for(MASK_CONFIG), group="fldm", report=FLDM_REPORT,
+                   doc="mask-conditioned FLDM U-Net: inpainting mask in the filters, known latents as channels")),
+    register(Entry("fldm.sampler_inpaint", _sampler_inpaint,
+                   {"z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
+                    "noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
+                    "known_noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
+                    "known": (VERTEX_TANGENT, CONFIG.latent_channels), "s": (VERTEX_SCALAR, 1)},
+                   FLDM_TRANSFORMS, init=_init_for(MASK_CONFIG), group="fldm", report=FLDM_REPORT,
+                   doc="ancestral DDPM inpainting (4 steps) with the mask-conditioned denoiser, as a map of its noise")),
     register(Entry("fldm.sampler", _sampler,
                    {"z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
                     "noise": (VERTEX_TANGENT, CONFIG.latent_channels * SAMPLER_STEPS)},
