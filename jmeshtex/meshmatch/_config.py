@@ -72,15 +72,15 @@ class Config(ConfigBase):
         everywhere, 32 dB with (3, 30)); at the finest levels a strong shape term pulls matches
         off the truth wherever the two shapes' features differ (between different shapes they
         always do): seeded with the true matches and colours, the finest level of the stretched
-        bumpy sphere fell from 35.2 to 16.8 dB at weight 3 and kept 34.6 dB at 0. Cross-shape
+        bumpy sphere fell from 35.2 to 16.7 dB at weight 3 and kept 34.5 dB at 0. Cross-shape
         benchmark, (3, 30) → (0.3, 3, 30): bumpier sphere 25.3 → 30.7 dB, stretched cow 28.4 →
         34.9 dB, stretched sphere and tori unchanged (13-14 dB: their shape features mislead,
-        see ``aligned``); 16K torus self-transfer 33.2 → 32.8 dB
+        see ``aligned``); torus self-transfer 33.2 → 32.7 dB at 16K, 28.3 → 28.0 dB at 64K
         (``benchmarks/results/meshmatch_cross.md``).
       affinity_weight: weight of the correspondence affinities (only with correspondences).
       hks_times: number of log-spaced heat kernel signature times.
       hks_eigenpairs: Laplacian eigenpairs used for the HKS. 96 (finer scales) measured mixed on
-        the cross-shape benchmark (bumpier sphere 30.7 → 32.4 dB, tori 13.4 → 15.2 dB, stretched
+        the cross-shape benchmark (bumpier sphere 30.7 → 32.4 dB, tori 13.4 → 14.8 dB, stretched
         cow 34.9 → 29.1 dB) and costs about 10 s per mesh at 4096 vertices instead of 0.8 s.
       hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
         vertices and copied down to the finer levels through the parent maps (it is smooth).
@@ -102,10 +102,11 @@ class Config(ConfigBase):
         edits of one object usually do): the whole normal ``(n · x, n · y, n · z)`` joins the shape
         features instead of ``n · up`` / ``n · side`` (which are then ignored). The HKS alone
         cannot place patches between shapes that are not isometric: on the cross-shape
-        benchmark (``benchmarks/results/meshmatch_cross.md``) the true match's HKS gap is 10-60 %
-        of the HKS spread under a (1.15, 1, 0.9) stretch, and the shape term then pulls matches
-        away even from a ground-truth start (bumpy sphere → stretched copy: 35.2 dB at the start,
-        16.8 dB after the finest level's iterations); with the whole normal the nearest source
+        benchmark (``benchmarks/results/meshmatch_cross.md``) the true match's squared HKS gap is
+        10-60 % of the HKS variance at the five smallest times (150-375 % at the three largest)
+        under a (1.15, 1, 0.9) stretch, and the shape term then pulls matches away even from a
+        ground-truth start (bumpy sphere → stretched copy: 35.2 dB at the start, 16.7 dB after
+        the finest level's iterations at shape weight 3, 34.5 dB at 0); with the whole normal the nearest source
         vertex in feature space lies 1.7-2 edges from the true one instead of 10-11. The normal
         alone is not enough (normal weight 4: bumpy sphere → stretched copy 13.0 → 21.9 dB, tori
         13.4 → 32.3 dB, but the stretched cow 34.9 → 18.4 dB); with ``position_weight=8`` and

@@ -161,7 +161,8 @@ def field_conv_filter_sums(
     .. math:: S_{phc} = \\sum_{q} z_{pqc}\\, \\varphi_h(a_{pqc}, e_p)
 
     One fused reduction that evaluates every response once and never stores it, with a hand-written
-    VJP that recomputes them (the same code ``field_conv`` differentiates).
+    VJP that recomputes them over the whole mesh (``field_conv``'s own reverse mode differentiates
+    block by block from its kept sums instead; the two agree to rounding).
 
     Args:
       terms: :class:`FieldConvTerms` from :func:`field_conv_terms`.
