@@ -119,7 +119,9 @@ def test_labels_decide_where_the_stripes_go(exemplar, model):
     label-0 ("uniform") region, for the training-like map (``z > 0``) and a map the model never saw
     (``x > 0``), against the same ratio for the unconditional model's samples on the same regions
     (the baseline: no labels, no reason for the regions to differ). Measured, in this test (x64
-    on): z > 0 1.60 / 1.94, x > 0 1.28 / 1.31; a separate run without x64 (its trained weights
+    on), three runs of the same keys (the trained weights differ between processes in round-off,
+    which 300 steps and the sampler amplify): z > 0 1.60 / 1.94, 2.07 / 2.55, 2.38 / 2.36; x > 0
+    1.28 / 1.31, 1.94 / 1.69, 1.91 / 1.58; unconditional 0.94-1.16 in the same runs. A separate run without x64 (its trained weights
     differ in round-off, 3 samples): z > 0 0.23 / 0.22 / 0.20 against 0.11 / 0.10 / 0.12
     (ratios 1.8-2.2), x > 0 0.22 / 0.20 / 0.24 against 0.11 / 0.11 / 0.11; the unconditional
     model: 1.01-1.18 (z > 0) and 0.83-1.09 (x > 0), 4 samples; the exemplar: 0.35 against 0."""
