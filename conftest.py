@@ -97,36 +97,15 @@ def _runtime_type_checks(request: pytest.FixtureRequest):
 # past the kernel's per-process limit (vm.max_map_count, 65530 by default) LLVM's next mmap fails
 # and the compile segfaults (measured: a worker at ~60K mappings after ~18 min crashed compiling the
 # FLDM sampler's scan; the count grows ~1K per 20 s). The caches are cleared once a worker nears it.
-_MAPS_LIMIT = 0.6
-
-
-def _max_map_count() -> int:
-    try:
-        return int(pathlib.Path("/proc/sys/vm/max_map_count").read_text())
-    except (OSError, ValueError):
-        return 0
-
-
-_MAX_MAPS = _max_map_count()
-
-
-def _memory_maps() -> int:
-    try:
-        with open("/proc/self/maps", "rb") as f:
-            return sum(1 for _ in f)
-    except OSError:
-        return 0
+# (`jmeshtex._memory_maps`, which `jmeshtex verify` uses too).
+from jmeshtex._memory_maps import release_if_near_limit  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
 def _bounded_memory_maps():
     """Clear JAX's compilation caches after a test that leaves the worker near the mapping limit."""
     yield
-    if _MAX_MAPS and _memory_maps() > _MAPS_LIMIT * _MAX_MAPS:
-        import gc
-
-        jax.clear_caches()
-        gc.collect()
+    release_if_near_limit()
 
 
 @pytest.fixture

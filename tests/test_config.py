@@ -210,7 +210,14 @@ def test_config_dicts_written_before_the_refactor_still_load(name):
     with np.load(WEIGHTS / name, allow_pickle=False) as data:
         stored = json.loads(data["meta"].tobytes().decode())["config"]
     config = FLVAEConfig.from_dict(stored)
-    assert config.to_dict() == stored  # and today's to_dict writes the very same dict
+    written = config.to_dict()
+    # today's to_dict writes the very same values for every stored field ...
+    assert {k: v for k, v in written.items() if k in stored} == stored
+    # ... and fields added since (the training-data and loss options) take their defaults, which are
+    # the recipe the shipped model was trained with (e.g. loss_normalization="mean")
+    added = set(written) - set(stored)
+    assert added and all(written[k] == getattr(FLVAEConfig(), k) for k in added), added
+    assert written["loss_normalization"] == "mean"
 
 
 @pytest.mark.parametrize(

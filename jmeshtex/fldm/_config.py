@@ -44,7 +44,7 @@ class Config(ConfigBase):
       mask_conditioning: inpainting conditioned on the mask (§6.4): the denoiser also sees the
         inpainting mask as a per-vertex filter input (beside the timestep and labels, like the
         reference's ``FieldConvEmb``) and the known latents, masked, as ``d`` extra tangent input
-        channels; training draws a random mask per copy and step (:func:`~jmeshtex.fldm.random_masks`:
+        channels; training draws a random mask per copy and step (:func:`~jmeshtex.fldm.random_mask`:
         half-space cuts, a quarter of them empty so that plain sampling is learned too) and
         measures the loss on the generated region only. Sampling still replaces the kept region
         (eq. 14), so it stays exact. False (default): the plain denoiser; inpainting by

@@ -586,13 +586,17 @@ def _block_sums_vjp(xqr, xqi, slots, a_w, bias, gr, gi, delta, activation):
     dur = w * dzr + inv * (lr * dar + li * dai) - ur * common
     dui = w * dzi + inv * (li * dar - lr * dai) - ui * common
     reduced = jnp.sum(jax.lax.optimization_barrier(jnp.stack([p_one, p_ar, p_ai], axis=1)), axis=3)  # [B, 3, H]
+    return tr * dur + ti * dui, tr * dui - ti * dur, jnp.sum(reduced[:, 1:], axis=0), _bias_cotangent(bias, reduced, p_one)
+
+
+def _bias_cotangent(bias, reduced, p_one):
+    """The filter offsets' cotangent from the per-vertex sums ``reduced [V, 3, H]`` / ``p_one [V, H, C]``,
+    in the offsets' own layout (``[V, H]``, ``[V, H, 1]`` or per channel ``[V, H, C]``)."""
     if bias.ndim == 2:
-        dbias = reduced[:, 0]
-    elif bias.shape[2] == 1:
-        dbias = reduced[:, 0, :, None]
-    else:  # per-channel offsets: no sum over c
-        dbias = p_one
-    return tr * dur + ti * dui, tr * dui - ti * dur, jnp.sum(reduced[:, 1:], axis=0), dbias
+        return reduced[:, 0]
+    if bias.shape[2] == 1:
+        return reduced[:, 0, :, None]
+    return p_one  # per-channel offsets: no sum over c
 
 
 def _blocks_vjp(sums, x, index, slots, shared, per_vertex, cot):
@@ -753,13 +757,7 @@ def _sums_bwd(activation, res, g):
         p_ai = p_ai + gp * ai[:, k, None, :]
     partial = jax.lax.optimization_barrier(jnp.stack([p_one, p_ar, p_ai], axis=1))  # [V, 3, H, C]
     reduced = jnp.sum(partial, axis=3)  # [V, 3, H]
-    if bias.ndim == 2:
-        dbias = reduced[:, 0]
-    elif bias.shape[2] == 1:
-        dbias = reduced[:, 0, :, None]
-    else:  # per-channel offsets: no sum over c
-        dbias = p_one
-    return dzr, dzi, dar, dai, jnp.sum(reduced[:, 1:], axis=0), dbias
+    return dzr, dzi, dar, dai, jnp.sum(reduced[:, 1:], axis=0), _bias_cotangent(bias, reduced, p_one)
 
 
 _filtered_sums.defvjp(_sums_fwd, _sums_bwd)

@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._memory_maps import release_if_near_limit
 from ._equivariance import DEFAULT_TOLERANCE, convergence, equivariance_error
 from ._fields import (
     FACE_EDGE,
@@ -289,6 +290,7 @@ def run_registry(
                 if progress is not None:
                     progress(f"{n} × {t} ({np.dtype(dt).name})")
                 results.append(check(entry, t, dtype=dt, seed=seed))
+                release_if_near_limit()  # a whole-registry run compiles past vm.max_map_count otherwise
     return results
 
 

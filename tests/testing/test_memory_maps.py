@@ -1,0 +1,27 @@
+"""``jmeshtex verify`` keeps clear of vm.max_map_count: the registry runner releases JAX's compiled
+programs between checks once the process nears the limit (a 16-entry run crashed with "LLVM
+compilation error: Cannot allocate memory" before)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jmeshtex import _memory_maps
+from jmeshtex.testing import _registry, run_registry
+
+
+def test_the_runner_checks_the_limit_after_every_check(monkeypatch):
+    calls = []
+    monkeypatch.setattr(_registry, "release_if_near_limit", lambda: calls.append(1) or False)
+    results = run_registry(["ops.complex_linear"], transforms=["rigid", "gauge"], dtypes=(jnp.float64,))
+    assert len(results) == 2 and len(calls) == 2
+
+
+def test_release_clears_the_caches_only_past_the_threshold(monkeypatch):
+    cleared = []
+    monkeypatch.setattr(jax, "clear_caches", lambda: cleared.append(1))
+    monkeypatch.setattr(_memory_maps, "memory_maps", lambda: 700)
+    assert _memory_maps.release_if_near_limit(0.6, limit=2000) is False and not cleared  # 700 <= 1200
+    assert _memory_maps.release_if_near_limit(0.6, limit=1000) is True and cleared == [1]  # 700 > 600
+    assert _memory_maps.release_if_near_limit(0.6, limit=0) is False and cleared == [1]  # limit unknown
