@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import sys
 import time
 
 import jax
@@ -314,8 +315,6 @@ def train(
     num_vertices = -(-config.batch_size * max_vertices // per) * per
     bar = None
     if progress and start < config.steps:
-        import sys
-
         from tqdm.auto import tqdm
 
         bar = tqdm(total=config.steps, initial=start, desc="FL-VAE train", unit="step",
