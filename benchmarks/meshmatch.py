@@ -19,13 +19,16 @@ gives the process CPU seconds (all threads), which load inflates less than wall 
 coordinates both shapes share through a known map (the direction from the centre for the bumpy
 spheres, the two angles for the tori, the position before a non-uniform stretch for the cow), so
 the target's true colours are known. Rows (``VARIANTS``): PSNR against them of the default
-configuration, of the previous default shape weights (3 at the finest level, 30 above), of the
-shape-only match (colour weight 0), of shape weight 3 at every level, of the paper's search
-options (exact rotation search for every candidate; candidates from the whole star of each
-neighbour's match, alone and with 8 exact candidates), of one propagation sweep per iteration, of
-the HKS from 96 eigenpairs, of ``aligned`` (the whole normal as a feature) without and with
-standardised positions, of the ``n · side`` feature (``Config.side``: the cow's left/right axis,
-x elsewhere); and three diagnosis rows that start the finest level alone from the truth
+configuration (aligned: HKS, the whole normal and per-axis standardised positions), of its
+shape-only match (colour weight 0), of the pose-free intrinsic features (``Config.intrinsic()``:
+HKS and ``n · up``, the previous default) with and without colours and with the shape weights
+(3, 30), of shape weight 3 at every level, of the paper's search options (exact rotation search
+for every candidate; candidates from the whole star of each neighbour's match, alone and with 8
+exact candidates; sequential breadth-first propagation, aligned and intrinsic), of one
+propagation sweep per iteration, of the HKS from 96 eigenpairs, of the whole normal without
+positions, of position weights 4 and 2, of the intrinsic ``n · side`` feature (``Config.side``:
+the cow's left/right axis, x elsewhere); and three diagnosis rows that start the finest level
+alone from the truth
 (``initial_nnf``) at shape weights 0, 0.3 and 3 (what its iterations lose). Each row gives the
 final colours' PSNR and the finest vote's (``MeshMatchResult.voted``), the median placement
 error (distance from the true source point, in source mean edges), the total seconds and the
@@ -39,12 +42,15 @@ Usage::
 
     python benchmarks/meshmatch.py                 # 16K and 64K
     python benchmarks/meshmatch.py --sizes 16      # 16K only
-    python benchmarks/meshmatch.py --suite cross [--small]
+    python benchmarks/meshmatch.py --suite cross [--small] [--variants TEXT ...]
+    python benchmarks/meshmatch.py --suite figure  # results/meshmatch_cross.png
+    python benchmarks/meshmatch.py --sizes 16 --set propagation="'sequential'" --name meshmatch_sequential
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import os
 import pathlib
 import time
@@ -84,17 +90,21 @@ def _moment_aligned(x, reference):
 #: the cross suite's variants: label -> Config fields over the pair's own
 VARIANTS = {
     "default": {},
-    "previous default: shape weight 3 at the finest level, 30 above": {"shape_weight": (3.0, 30.0)},
     "shape-only (colour weight 0)": {"color_weight": 0.0},
+    "intrinsic (Config.intrinsic(): HKS + n·up, pose-free; the previous default)": {"aligned": False},
+    "intrinsic, shape-only (colour weight 0)": {"aligned": False, "color_weight": 0.0},
+    "intrinsic, shape weight 3 at the finest level, 30 above": {"aligned": False, "shape_weight": (3.0, 30.0)},
     "shape weight 3 at every level": {"shape_weight": 3.0},
     "exact rotation search for every candidate (paper)": {"exact_candidates": 64},
     "candidates from the whole star of NNF(q) (paper)": {"star_candidates": True},
     "whole star + 8 exact candidates": {"star_candidates": True, "exact_candidates": 8},
     "1 propagation sweep per iteration (Jacobi)": {"sweeps": 1},
+    "sequential propagation (Gauss-Seidel wavefronts, alternating direction; paper)": {"propagation": "sequential"},
+    "intrinsic, sequential propagation": {"aligned": False, "propagation": "sequential"},
     "HKS from 96 eigenpairs": {"hks_eigenpairs": 96},
-    "aligned: whole normal (normal weight 4)": {"aligned": True, "normal_weight": 4.0},
-    "aligned: normal weight 2 + standardised positions (weight 8)": {"aligned": True, "normal_weight": 2.0,
-                                                                     "position_weight": 8.0},
+    "whole normal only (normal weight 4, no positions)": {"normal_weight": 4.0, "position_weight": 0.0},
+    "position weight 4": {"position_weight": 4.0},
+    "position weight 2": {"position_weight": 2.0},
 }
 
 
@@ -123,8 +133,8 @@ def cross(args) -> None:
     """The cross-shape suite (module docstring)."""
     report = Report("meshmatch_cross", ceilings=False)
     for name, s, sc, t, truth, to_src, fields in pairs(args.small):
-        side = {"side": SIDE_AXIS.get(name, "x")}
-        variants_here = {**VARIANTS, f"side axis {side['side']} (n·side feature)": side}
+        side = {"aligned": False, "side": SIDE_AXIS.get(name, "x")}
+        variants_here = {**VARIANTS, f"intrinsic + side axis {side['side']} (n·side feature)": side}
         edge = mean_edge_length(*s)
         tree = cKDTree(s.vertices)
         gt = tree.query(to_src(t.vertices))[1]
@@ -142,10 +152,12 @@ def cross(args) -> None:
 
         case = (name, s, sc, t, truth, to_src, edge, base)
         for label, extra in variants_here.items():
+            if args.variants and not any(v in label for v in args.variants):
+                continue
             _add_run(report, case, label, Config(**{**fields, **extra}))
         # where the dB go: start the finest level from the truth (true matches, their colours) and
         # see how far its iterations move it at each finest-level shape weight
-        for w in (0.0, 0.3, 3.0):
+        for w in (() if args.variants else (0.0, 0.3, 3.0)):
             _add_run(report, case, f"finest level only, started from the truth, shape weight {w:g}",
                      Config(**{**fields, "levels": 1, "coarse_steps": 6, "shape_weight": w}), initial_nnf=gt)
     report.notes.append("psnr_db: the final colours (each vertex copies its match's colour); voted_psnr_db: the "
@@ -156,6 +168,36 @@ def cross(args) -> None:
     report.notes.append("'started from the truth' rows: one level (the finest), initial_nnf = the nearest source "
                         "vertex of the known map, 6 iterations: the iterations can only lose what the truth has.")
     report.write(pathlib.Path(args.out) if args.out else None)
+
+
+def figure(args) -> None:
+    """``results/meshmatch_cross.png``: the torus and stretched-sphere pairs, the pose-free
+    intrinsic features next to the aligned default, colours and nearest-neighbour fields."""
+    from jmeshtex import render
+    from jmeshtex.meshmatch import nnf_colors
+
+    wanted = ("torus r 0.3 -> torus r 0.36", "bumpy sphere -> stretched (1.15, 1, 0.9)")
+    rows, titles = [], []
+    size = (300, 260)
+    for name, s, sc, t, truth, to_src, fields in pairs(args.small, with_cow=False):
+        if name not in wanted:
+            continue
+        gt = cKDTree(s.vertices).query(to_src(t.vertices))[1]
+
+        def shot(mesh, colors):
+            return render.render_mesh(mesh.vertices, mesh.faces, vertex_colors=np.clip(colors, 0, 1), size=size)
+
+        cells = [(shot(s, sc), f"source ({name.split(' ->')[0]})"), (shot(t, truth), "target truth")]
+        for label, cfg in (("intrinsic", Config.intrinsic(**fields)), ("default (aligned)", Config(**fields))):
+            r = meshmatch(s, sc, t, key=jax.random.key(0), config=cfg)
+            cells.append((shot(t, r.colors), f"{label} {psnr(np.clip(r.colors, 0, 1), truth):.1f} dB"))
+            cells.append((shot(t, nnf_colors(s, r.nnf)), f"{label} NNF"))
+        cells.append((shot(t, nnf_colors(s, gt)), "true NNF"))
+        rows += [c for c, _ in cells]
+        titles += [label for _, label in cells]
+    out = pathlib.Path(args.out) if args.out else pathlib.Path(__file__).resolve().parent / "results"
+    render.render_grid(rows, out / "meshmatch_cross.png", titles=titles, columns=7)
+    print(f"wrote {out / 'meshmatch_cross.png'}", flush=True)
 
 
 # ---- cross-shape pairs with ground truth -------------------------------------------------------
@@ -257,16 +299,27 @@ def _torus_map(x, minor):
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--suite", choices=("speed", "cross"), default="speed")
+    ap.add_argument("--suite", choices=("speed", "cross", "figure"), default="speed",
+                    help="figure: results/meshmatch_cross.png (intrinsic vs the aligned default, two pairs)")
     ap.add_argument("--small", action="store_true", help="cross suite at half resolution (the test's sizes)")
     ap.add_argument("--sizes", default="16,64", help="target sizes in K vertices (16 and/or 64)")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--variants", nargs="*", default=None, metavar="TEXT",
+                    help="cross suite: run only the variants whose label contains one of these (no diagnosis rows)")
+    ap.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
+                    help="speed suite: Config fields over the default (Python literals, e.g. aligned=False)")
+    ap.add_argument("--name", default="meshmatch", help="speed suite: the report's name (results/NAME.{json,md})")
     args = ap.parse_args()
     if args.suite == "cross":
         cross(args)
         return
-    report = Report("meshmatch")
-    cfg = Config()
+    if args.suite == "figure":
+        figure(args)
+        return
+    report = Report(args.name)
+    cfg = Config(**{k: ast.literal_eval(v) for k, v in (item.split("=", 1) for item in args.set)})
+    if args.set:
+        report.notes.append(f"Config overrides: {', '.join(args.set)}")
     source, source_colors = _torus(128, 80)  # 10240 vertices
     print(f"source {source.num_vertices} vertices")
     for size in [int(s) for s in args.sizes.split(",")]:

@@ -10,12 +10,18 @@ summary and the result itself (:func:`jmeshtex.meshmatch.save`: read it back wit
 (:func:`jmeshtex.meshmatch.transfer_displacement`). Mesh arguments are files or procedural names
 (``icosphere:3``, ``torus``, ...).
 
-The flags the paper says must be tuned per example map one to one onto
-:class:`jmeshtex.meshmatch.Config` fields: ``--up`` (``up``; ``y`` for Y-up models, ``none`` to
-drop the ``n · up`` feature), ``--side`` (``side``: the left/right axis of a symmetric model),
-``--color-weight``, ``--shape-weight`` (one number, or a comma list
-from the finest level to the coarsest), ``--fan-radius``, ``--levels``, ``--steps``, and
-``--max-scale-ratio`` (``none``: transfer between meshes of different sizes on purpose).
+``transfer`` and ``displace`` assume source and target in a common pose (the same orientation and
+up axis, up to a per-axis scale and offset: :class:`jmeshtex.meshmatch.Config` ``aligned``);
+``--no-aligned`` switches to the pose-free features (:meth:`jmeshtex.meshmatch.Config.intrinsic`:
+HKS and ``n · up``) for meshes in different poses, and is the default of ``paint`` (``--aligned``
+turns the pose prior on there). The flags the paper says must be tuned per example map one to
+one onto :class:`jmeshtex.meshmatch.Config` fields: ``--up`` (``up``, with ``--no-aligned``;
+``y`` for Y-up models, ``none`` to drop the ``n · up`` feature), ``--side`` (``side``, with
+``--no-aligned``: the left/right axis of a symmetric model), ``--color-weight``,
+``--shape-weight`` (one number, or a comma list from the finest level to the coarsest),
+``--fan-radius``, ``--levels``, ``--steps``, ``--normal-weight``, ``--position-weight``,
+``--propagation`` (``sequential``: the paper's breadth-first scan), and ``--max-scale-ratio``
+(``none``: transfer between meshes of different sizes on purpose).
 """
 
 from __future__ import annotations
@@ -48,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--mask", type=pathlib.Path, required=True, metavar="MASK",
                    help=".npy bool per vertex, or a text file of painted vertex indices")
     q.add_argument("--texture", type=pathlib.Path, metavar="T", help="texture image of the mesh")
-    _options(q)
+    _options(q)  # paint defaults to --no-aligned (paint_by_example: the position prior smears the paint)
     q.set_defaults(func=cached(_paint))
     d = inner.add_parser("displace", help="transfer a source mesh's geometric detail onto a target mesh")
     d.add_argument("--source", required=True, metavar="S", help="detailed source mesh (a file or a procedural name)")
@@ -66,25 +72,30 @@ def _options(p: argparse.ArgumentParser) -> None:
     add_common(p)
     p.add_argument("--steps", type=int, default=None, help="PatchMatch iterations per level (Config.steps)")
     p.add_argument("--up", default=None, metavar="AXIS",
-                   help="up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector 'a,b,c', or none "
-                        "(Config.up; default z; use y for Y-up models)")
+                   help="with --no-aligned, up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector "
+                        "'a,b,c', or none (Config.up; default z; use y for Y-up models)")
     p.add_argument("--side", default=None, metavar="AXIS",
-                   help="a second axis for an n·side feature, e.g. the left/right axis of a symmetric model "
-                        "(Config.side; default none)")
+                   help="with --no-aligned, a second axis for an n·side feature, e.g. the left/right axis of a "
+                        "symmetric model (Config.side; default none)")
     p.add_argument("--color-weight", type=float, default=None, metavar="W", help="colour term weight (Config.color_weight)")
     p.add_argument("--shape-weight", default=None, metavar="W[,W...]",
                    help="shape term weight, or a comma list from the finest level to the coarsest (Config.shape_weight)")
     p.add_argument("--fan-radius", type=float, default=None, metavar="R",
                    help="outer fan radius in mean edge lengths (Config.fan_radius)")
     p.add_argument("--levels", type=int, default=None, metavar="N", help="hierarchy levels (Config.levels)")
-    p.add_argument("--aligned", action="store_true",
-                   help="source and target share a pose: the whole normal joins the shape features "
-                        "(Config.aligned; replaces --up/--side)")
+    p.add_argument("--aligned", action=argparse.BooleanOptionalAction, default=None,
+                   help="source and target share a pose and up axis (default): the whole normal and the per-axis "
+                        "standardised positions join the HKS as shape features (Config.aligned); --no-aligned: "
+                        "the pose-free features HKS + n·up (Config.intrinsic) for meshes in different poses")
     p.add_argument("--normal-weight", type=float, default=None, metavar="W",
-                   help="weight of each n·axis feature relative to the HKS (Config.normal_weight)")
+                   help="weight of each n·axis feature relative to the HKS (Config.normal_weight; default 2 "
+                        "aligned, 1 with --no-aligned)")
     p.add_argument("--position-weight", type=float, default=None, metavar="W",
-                   help="with --aligned, weight of the per-axis standardised positions (Config.position_weight; "
-                        "e.g. 8 with --normal-weight 2 for a stretched copy)")
+                   help="weight of the per-axis standardised positions (Config.position_weight; default 8; "
+                        "not with --no-aligned)")
+    p.add_argument("--propagation", choices=("parallel", "sequential"), default=None,
+                   help="PatchMatch propagation: parallel sweeps (default) or the paper's sequential "
+                        "breadth-first scan (Config.propagation; slower)")
     p.add_argument("--max-scale-ratio", default=None, metavar="X",
                    help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)")
 
@@ -98,12 +109,17 @@ def _parse_up(text: str):
     return name  # Config validates the axis name
 
 
-def _config(args):
-    """:class:`~jmeshtex.meshmatch.Config` from the flags given (unset flags keep the defaults)."""
+def _config(args, *, aligned: bool = True):
+    """:class:`~jmeshtex.meshmatch.Config` from the flags given (unset flags keep the defaults;
+    ``aligned``: the default of ``--aligned/--no-aligned``, False for ``paint``)."""
     from .._errors import InputError
     from ..meshmatch import Config
 
-    fields = {}
+    fields = {} if aligned else {"aligned": False}
+    if (args.aligned if args.aligned is not None else aligned) and (args.up is not None or args.side is not None):
+        raise InputError("--up and --side set the pose-free n·up / n·side features: add --no-aligned (the aligned "
+                         "default uses the whole normal and the positions, which need no up axis, only that "
+                         "source and target share a pose)")
     try:
         if args.steps is not None:
             fields["steps"] = args.steps
@@ -120,8 +136,10 @@ def _config(args):
             fields["fan_radius"] = args.fan_radius
         if args.levels is not None:
             fields["levels"] = args.levels
-        if args.aligned:
-            fields["aligned"] = True
+        if args.aligned is not None:
+            fields["aligned"] = args.aligned
+        if args.propagation is not None:
+            fields["propagation"] = args.propagation
         if args.normal_weight is not None:
             fields["normal_weight"] = args.normal_weight
         if args.position_weight is not None:
@@ -223,7 +241,7 @@ def _paint(args: argparse.Namespace) -> int:
 
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     mask = _load_mask(args.mask, mesh.num_vertices)
-    result = paint_by_example(mesh, mask, key=_key(args), config=_config(args), progress=_progress(args))
+    result = paint_by_example(mesh, mask, key=_key(args), config=_config(args, aligned=False), progress=_progress(args))
     summary = _write_outputs(args.out, mesh, result, "painted by example")
     print(f"wrote {summary['mesh']} and renders to {args.out}")
     return 0

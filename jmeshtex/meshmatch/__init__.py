@@ -1,7 +1,9 @@
 """MeshMatch: non-parametric texture transfer between meshes with PatchMatch (Chen et al. 2012).
 
 Geodesic fans (``R`` radii × ``A`` angles through the exponential map) and shape features (HKS,
-``n · up``, optional correspondence affinities) describe every vertex; a coarse-to-fine, jit-compiled
+the whole normal and per-axis standardised positions by default, which assumes source and target
+in a common pose; HKS and ``n · up`` with the pose-free :meth:`Config.intrinsic`; optional
+correspondence affinities) describe every vertex; a coarse-to-fine, jit-compiled
 PatchMatch finds for each target vertex the most similar source patch at the best of ``A``
 rotations, and a Gaussian-weighted vote synthesises the target's colours. Nothing is trained:
 
@@ -47,6 +49,7 @@ from ._prepare import Side as Side
 from ._prepare import level_groups as level_groups
 from ._prepare import pad_level_arrays as pad_level_arrays
 from ._prepare import prepare_side as prepare_side
+from ._prepare import scan_order as scan_order
 from ._spectrum import fan_distance_bound as fan_distance_bound
 from ._spectrum import fan_spectrum as fan_spectrum
 from ._spectrum import rotation_distances as rotation_distances

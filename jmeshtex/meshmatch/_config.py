@@ -53,6 +53,10 @@ _WEIGHT_MESSAGE = "{cls}.{name} must be finite and >= 0, got ({value!r},)"
 class Config(ConfigBase):
     """Settings of a MeshMatch transfer. All lengths are in units of the level's mean edge length.
 
+    The default assumes source and target in a common pose (the same orientation and up axis, up to
+    a per-axis scale and offset: positions are compared after per-axis moment standardisation, see
+    ``aligned``); :meth:`Config.intrinsic` gives the pose-free features (HKS and ``n · up``).
+
     Attributes:
       num_radii: ``R``, rings per geodesic fan (paper default 3).
       num_angles: ``A``, samples per ring (paper default 18); rotations are searched in steps of
@@ -62,7 +66,8 @@ class Config(ConfigBase):
         at the source's scale); ring ``i`` (0-based) has radius ``fan_radius · (i + 1) / R``.
       color_weight: weight of the colour term of the patch distance (normalised per dimension and
         by the source colour variance).
-      shape_weight: weight of the shape term (HKS and ``n · up``, each feature standardised), one
+      shape_weight: weight of the shape term (HKS, the whole normal and the standardised positions;
+        HKS and ``n · up`` with :meth:`Config.intrinsic`; each feature standardised), one
         value for every level or a tuple from the finest level to the coarsest (the last entry
         repeats for further levels). The default, 30 at every coarse level, 3 at the second finest
         and 0.3 at the finest, lets the shape decide where patches go and the colours refine them
@@ -73,7 +78,7 @@ class Config(ConfigBase):
         off the truth wherever the two shapes' features differ (between different shapes they
         always do): seeded with the true matches and colours, the finest level of the stretched
         bumpy sphere fell from 35.2 to 16.7 dB at weight 3 and kept 34.5 dB at 0. Cross-shape
-        benchmark, (3, 30) → (0.3, 3, 30): bumpier sphere 25.3 → 30.7 dB, stretched cow 28.4 →
+        benchmark with the intrinsic features, (3, 30) → (0.3, 3, 30): bumpier sphere 25.3 → 30.7 dB, stretched cow 28.4 →
         34.9 dB, stretched sphere and tori unchanged (13-14 dB: their shape features mislead,
         see ``aligned``); torus self-transfer 33.2 → 32.7 dB at 16K, 28.3 → 28.0 dB at 64K
         (``benchmarks/results/meshmatch_cross.md``).
@@ -86,7 +91,9 @@ class Config(ConfigBase):
         vertices and copied down to the finer levels through the parent maps (it is smooth).
       up: the "up" direction of the ``n · up`` shape feature: a 3-vector or an axis name
         ``"x"|"y"|"z"|"-x"|"-y"|"-z"`` (``"y"`` for Y-up models, as OBJ files are usually
-        authored), or None to leave the feature out. Source and target must share it.
+        authored), or None to leave the feature out. Source and target must share it. Used only
+        by :meth:`Config.intrinsic` (``aligned=False``); the aligned default uses the whole normal,
+        which needs no up axis (only that both meshes share their pose).
       side: a second direction, as ``up``, for one more feature ``n · side`` (None, the default:
         none). HKS and ``n · up`` are unchanged by a mirror across a plane that contains ``up``,
         so a bilaterally symmetric model (an animal) can match its left half to its right; with
@@ -97,27 +104,44 @@ class Config(ConfigBase):
         point, carrying 89 % of the squared error (``up="y"``: 26.1 dB, nearest-3D copy 40.3);
         ``side="z"``: 29.9 dB, and 35.0 dB (39.7 dB voted) with ``steps=12``. On the
         cross-shape benchmark's stretched cow: 28.4 → 33.7 dB (``benchmarks/results/
-        meshmatch_cross.md``). Not a default: it needs the model's left/right axis.
-      aligned: source and target share a pose (the same orientation in world space, as scans or
-        edits of one object usually do): the whole normal ``(n · x, n · y, n · z)`` joins the shape
-        features instead of ``n · up`` / ``n · side`` (which are then ignored). The HKS alone
-        cannot place patches between shapes that are not isometric: on the cross-shape
-        benchmark (``benchmarks/results/meshmatch_cross.md``) the true match's squared HKS gap is
-        10-60 % of the HKS variance at the five smallest times (150-375 % at the three largest)
-        under a (1.15, 1, 0.9) stretch, and the shape term then pulls matches away even from a
-        ground-truth start (bumpy sphere → stretched copy: 35.2 dB at the start, 16.7 dB after
-        the finest level's iterations at shape weight 3, 34.5 dB at 0); with the whole normal the nearest source
-        vertex in feature space lies 1.7-2 edges from the true one instead of 10-11. The normal
-        alone is not enough (normal weight 4: bumpy sphere → stretched copy 13.0 → 21.9 dB, tori
-        13.4 → 32.3 dB, but the stretched cow 34.9 → 18.4 dB); with ``position_weight=8`` and
-        ``normal_weight=2`` every pair comes within 2 dB of its ceiling (bumpier sphere 34.0,
-        stretched sphere 33.7, tori 34.8, stretched cow 38.7 dB; nearest copies through the
-        known map 35.2, 35.2, 36.6, 40.4 dB). Not a default: meshes in different poses must
-        leave it off.
-      normal_weight: the weight of each ``n · axis`` feature block relative to the HKS block.
-      position_weight: with ``aligned``, the weight of the vertex positions standardised per
-        axis (mean 0, standard deviation 1 on each mesh) as one more feature block: a pose prior
-        that also undoes a non-uniform stretch; 0 (default) leaves it out.
+        meshmatch_cross.md``). Only with :meth:`Config.intrinsic` (``aligned=False``): it needs
+        the model's left/right axis, and the aligned default tells left from right by position.
+      aligned: source and target share a pose (the same orientation in world space and the same up
+        axis, as scans or edits of one object usually do, or models authored in one convention)
+        -- the default. The whole normal ``(n · x, n · y, n · z)`` and the vertex positions
+        standardised per axis (mean 0, standard deviation 1 on each mesh: per-axis moment
+        standardisation, which also undoes a non-uniform stretch) join the HKS as shape features,
+        instead of ``n · up`` / ``n · side`` (``up`` is then ignored; ``side`` must stay None).
+        False (:meth:`Config.intrinsic`): the pose-free features, HKS and ``n · up`` only, for
+        meshes in different poses. The HKS alone cannot place patches between shapes that are not
+        isometric: on the cross-shape benchmark (``benchmarks/results/meshmatch_cross.md``) the
+        true match's squared HKS gap is 10-60 % of the HKS variance at the five smallest times
+        (150-375 % at the three largest) under a (1.15, 1, 0.9) stretch, and the shape term then
+        pulls matches away even from a ground-truth start (bumpy sphere → stretched copy:
+        35.2 dB at the start, 16.7 dB after the finest level's iterations at shape weight 3,
+        34.5 dB at 0); with the whole normal the nearest source vertex in feature space lies
+        1.7-2 edges from the true one instead of 10-11. The normal alone is not enough (normal
+        weight 4: bumpy sphere → stretched copy 13.0 → 21.9 dB, tori 13.4 → 32.3 dB, but the
+        stretched cow 34.9 → 18.4 dB); with positions (weight 8) and normals (weight 2) every
+        pair comes within 2 dB of its ceiling (intrinsic → aligned: bumpier sphere 30.7 → 34.0,
+        stretched sphere 13.0 → 33.7, tori 13.4 → 34.8, stretched cow 34.9 → 38.7 dB; nearest
+        copies through the known map 35.2, 35.2, 36.6, 40.4 dB), and a mirror-symmetric model is
+        no longer matched half to mirrored half (positions tell left from right). Meshes in
+        different poses must use :meth:`Config.intrinsic`. With these features the colour-blind
+        match (colour weight 0) is already within 0.4 dB of the default on those pairs: the pose
+        places the patches, the colours refine them. Correspondences that contradict the pose
+        also need :meth:`Config.intrinsic`: on the mirror-symmetric ellipsoid of
+        ``tests/meshmatch/test_cross_shape.py`` two pairs that swap +x and -x flip the colours
+        with the intrinsic features, but with the aligned default the positions win (red-channel
+        contrast of the halves -0.75 at affinity weight 3, -0.59 at 30, where the pairs ask for
+        +0.5 or more).
+      normal_weight: the weight of each ``n · axis`` feature block relative to the HKS block;
+        None (default): 2 with ``aligned``, 1 without.
+      position_weight: with ``aligned``, the weight of the per-axis standardised positions as
+        one more feature block (a pose prior); None (default): 8 with ``aligned`` (measured on
+        the small cross-shape pairs: the stretched sphere reaches 28.8 dB at 8, 27.1 dB at 4,
+        23.9 dB at 2; ceiling 29.1 dB); 0 leaves it out. Without ``aligned`` it must be None
+        or 0.
       steps: most PatchMatch iterations (E-step + M-step) per level.
       coarse_steps: most iterations at the coarsest level, which starts from a random field
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
@@ -128,6 +152,21 @@ class Config(ConfigBase):
       global_candidates: uniformly random source vertices tried per target vertex and iteration.
       sweeps: propagation sweeps per iteration; each sweep propagates from the matches the previous
         one found, so an iteration moves good matches ``sweeps`` rings (1 = Jacobi-style).
+      propagation: ``"parallel"`` (default: every target vertex of a sweep proposes from the
+        matches the previous sweep left, Jacobi-style, ``sweeps`` rings per iteration) or
+        ``"sequential"`` (the paper's scan, Gauss–Seidel: each sweep runs through the target's
+        breadth-first wavefronts from vertex 0 one after the other, every wavefront proposing from
+        the matches the earlier ones just found, so a good match can cross the whole mesh in one
+        sweep; odd sweeps run backwards from the far end, the alternating start). The sequential
+        scan runs the wavefronts one by one (a ``lax.scan`` of small steps): slower, and no
+        better on the cross-shape benchmark (aligned, parallel → sequential: 34.01 → 34.03,
+        33.74 → 33.73, 34.77 → 34.79, 38.74 → 38.58 dB; intrinsic: 30.67 → 30.42, 12.97 →
+        13.81, 13.38 → 13.76, 34.85 → 28.79 dB), at 1.5-3× the finest level's time per
+        iteration there (``benchmarks/results/meshmatch_cross.md``); 16K torus self-transfer
+        38.0 dB either way, 0.47 s instead of 0.17 s process CPU per finest iteration, 110 s
+        instead of 53 s in all (``benchmarks/results/meshmatch_sequential.md``, shared machine at
+        load 10): coarse-to-fine initialisation already leaves little for propagation to carry
+        far.
       exact_candidates: per candidate set (random search + first sweep, then each further sweep)
         only this many candidates, those with the smallest rotation-invariant lower bound of the
         patch distance, get the exact rotation search (a number at least the candidate count,
@@ -172,9 +211,9 @@ class Config(ConfigBase):
     hks_max_vertices: int = 4096
     up: tuple[float, float, float] | str | None = (0.0, 0.0, 1.0)
     side: tuple[float, float, float] | str | None = None
-    aligned: bool = False
-    normal_weight: float = 1.0
-    position_weight: float = 0.0
+    aligned: bool = True
+    normal_weight: float | None = None
+    position_weight: float | None = None
     steps: int = 6
     coarse_steps: int = 30
     tolerance: float = 0.002
@@ -183,6 +222,7 @@ class Config(ConfigBase):
     sweeps: int = 2
     exact_candidates: int = 2
     star_candidates: bool = False
+    propagation: str = "parallel"
     bucket_vertices: int = 4096
     vote_sigma: float = 1.0
     interp_sigma: float = 0.5
@@ -202,7 +242,8 @@ class Config(ConfigBase):
         integers("sweeps exact_candidates", 1),
         integers("random_search_levels global_candidates bucket_vertices", 0),
         rule("fan_radius vote_sigma interp_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
-        rule("normal_weight position_weight", lambda x: is_finite_number(x) and x >= 0, "a number >= 0"),
+        rule("normal_weight position_weight", lambda x: x is None or (is_finite_number(x) and x >= 0),
+             "None or a number >= 0"),
         rule("aligned star_candidates", lambda x: isinstance(x, bool), "True or False"),
         rule("color_weight", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(lambda c: _weights_ok(_as_tuple(c.shape_weight)),
@@ -212,10 +253,30 @@ class Config(ConfigBase):
                    "color_weight and shape_weight are all 0: the patch distance would be constant"),
         rule("side", _up_ok, "a non-zero 3-vector, one of x, y, z, -x, -y, -z, or None"),
         rule("up", _up_ok, "a non-zero 3-vector, one of x, y, z, -x, -y, -z, or None"),
+        cross_rule(lambda c: not (c.aligned and c.side is not None),
+                   "{cls}.side has no effect with aligned=True (the whole normal and the positions are "
+                   "features): use {cls}.intrinsic(side=...) for the pose-free n·side feature"),
+        cross_rule(lambda c: c.aligned or not c.position_weight,
+                   "{cls}.position_weight needs aligned=True (positions are a pose prior), got "
+                   "position_weight={c.position_weight!r} with aligned=False"),
         rule("max_scale_ratio", lambda x: x is None or (is_finite_number(x) and x >= 1), "None or a number >= 1"),
         rule("levels", lambda x: x is None or (is_int(x) and x >= 1), "None or an integer >= 1"),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
+        rule("propagation", lambda x: x in ("parallel", "sequential"), "'parallel' or 'sequential'"),
     )
+
+    @classmethod
+    def intrinsic(cls, **fields) -> Config:
+        """The pose-free configuration: HKS and ``n · up`` (and ``n · side`` if given) as shape
+        features, no normal components along fixed axes and no positions (``aligned=False``), for
+        source and target in different poses (the default assumes a shared pose and up axis).
+
+        Example:
+          >>> c = Config.intrinsic(up="y")
+          >>> c.aligned, c.normal_axes()["up"], c.normal_axes()["position_weight"]
+          (False, (0.0, 1.0, 0.0), 0.0)
+        """
+        return cls(**{"aligned": False, **fields})
 
     def up_vector(self) -> tuple[float, float, float] | None:
         """``up`` as a unit 3-vector (axis names resolved), or None.
@@ -230,7 +291,7 @@ class Config(ConfigBase):
         """``side`` as a unit 3-vector (axis names resolved), or None.
 
         Example:
-          >>> Config(side="z").side_vector()
+          >>> Config.intrinsic(side="z").side_vector()
           (0.0, 0.0, 1.0)
         """
         return _unit_axis(self.side)
@@ -240,13 +301,16 @@ class Config(ConfigBase):
         :func:`~jmeshtex.meshmatch.shape_features` these settings ask for.
 
         Example:
-          >>> Config(aligned=True).normal_axes()["axes"]
-          ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+          >>> a = Config().normal_axes()
+          >>> a["axes"], a["normal_weight"], a["position_weight"]
+          (((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)), 2.0, 8.0)
         """
         if self.aligned:
             return {"up": None, "side": None, "axes": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
-                    "normal_weight": float(self.normal_weight), "position_weight": float(self.position_weight)}
-        return {"up": self.up_vector(), "side": self.side_vector(), "axes": (), "normal_weight": float(self.normal_weight),
+                    "normal_weight": 2.0 if self.normal_weight is None else float(self.normal_weight),
+                    "position_weight": 8.0 if self.position_weight is None else float(self.position_weight)}
+        return {"up": self.up_vector(), "side": self.side_vector(), "axes": (),
+                "normal_weight": 1.0 if self.normal_weight is None else float(self.normal_weight),
                 "position_weight": 0.0}
 
     def shape_weight_at(self, level: int) -> float:

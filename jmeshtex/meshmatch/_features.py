@@ -2,8 +2,9 @@
 alongside the fans (Chen et al. 2012 §3.2).
 
 The heat kernel signature (8 log-spaced times; Sun et al. 2009), computed on one coarse hierarchy
-level and copied down the parent chain (:func:`ancestors`), and the normal's dot product with a
-chosen up direction (:func:`shape_features`); optional *geodesic affinities* describe where a vertex
+level and copied down the parent chain (:func:`ancestors`), and either (the aligned default of
+``Config``) the whole normal and the per-axis standardised positions, or (``Config.intrinsic()``)
+the normal's dot product with a chosen up direction (:func:`shape_features`); optional *geodesic affinities* describe where a vertex
 is relative to user correspondences (:func:`correspondence_affinities`).
 """
 
@@ -105,12 +106,14 @@ def shape_features(
     position_weight: float = 0.0,
     min_spread: float = 0.01,
 ) -> Float[np.ndarray, "V D"]:
-    """Standardised shape features: z-scored log HKS (block weight 1) and ``n · up`` (weight 1).
+    """Standardised shape features: z-scored log HKS (block weight 1), ``n · a`` per axis ``a``
+    (``up``, ``side``, ``axes``; weight ``normal_weight``) and optionally standardised positions.
 
     .. math:: \\phi_p = \\Bigl(\\tfrac{1}{\\sqrt{2T}}\\,\\tfrac{h_p - \\bar h}{s_h},\\;
               \\tfrac{1}{\\sqrt 2}\\, n_p\\cdot \\hat u\\Bigr)
 
-    so ``|φ_p − φ_q|²`` is a dimension-normalised shape distance (each block contributes at most
+    (shown for ``up`` alone at ``normal_weight`` 1: with ``B`` blocks each is divided by ``√B``, the
+    HKS block also by ``√T`` and the position block by ``√3``), so ``|φ_p − φ_q|²`` is a dimension-normalised shape distance (each block contributes at most
     about 1). The HKS is standardised per mesh (per time), which removes the mesh's scale; the
     spread ``s_h`` is floored at ``min_spread`` (log units), so a time at which the HKS is constant
     up to tessellation noise (every time on a sphere: spreads of 10⁻³ and below; the largest times

@@ -37,6 +37,7 @@ from ._prepare import (
     pad_level_arrays,
     pool_colors,
     prepare_side,
+    scan_order,
     search_tables,
     side_affinities,
 )
@@ -240,6 +241,7 @@ class _Level(NamedTuple):
     num_padded_source: int
     valid_index: np.ndarray
     num_valid: int
+    order: jax.Array | None = None
 
 
 def _group_dims(source: Side, target: Side, pairing, config: Config) -> dict:
@@ -250,8 +252,17 @@ def _group_dims(source: Side, target: Side, pairing, config: Config) -> dict:
         for group in level_groups(sizes, config.bucket_vertices):
             if len(group) > 1:
                 dims = bucket_dims(source, target, pairing, group, config.random_search_levels)
+                if config.propagation == "sequential":  # the wavefront tables share one shape too
+                    shapes = [_wavefronts(target, lv).shape for lv in group]
+                    dims["order"] = (max(a for a, _ in shapes), max(b for _, b in shapes))
                 dims_of.update({lv: dims for lv in group})
     return dims_of
+
+
+def _wavefronts(target: Side, level: int, pad_to=None, fill=None) -> np.ndarray:
+    """:func:`~jmeshtex.meshmatch.scan_order` of a target level (sequential propagation)."""
+    nb = target.neighborhoods[level]
+    return scan_order(np.asarray(nb.index), np.asarray(nb.mask), pad_to=pad_to, fill=fill)
 
 
 def _level_inputs(source: Side, target: Side, level: int, m: int, colors, features, source_mask, pin,
@@ -283,6 +294,9 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
                 for (c, cnt), (n, k) in zip(down, dims["down"], strict=True)]
         valid_index = pad_axis(valid_index, 0, dims["Vs"], valid_index[0])
     Vp = t_arr.nb_index.shape[0]
+    order = None
+    if config.propagation == "sequential":
+        order = jnp.asarray(_wavefronts(target, level, None if dims is None else dims["order"], fill=Vp))
     t_arr = jax.tree.map(jnp.asarray, t_arr)
     fan_seconds = time.perf_counter() - t0
 
@@ -303,7 +317,8 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
         mapped = np.where(p >= 0, source.inverse[m][np.maximum(p, 0)], -1)
         pin_l = np.where(mapped >= 0, mapped, -1).astype(np.int32)
     level_in = _Level(t_arr, src, jnp.asarray(pad_axis(pin_l, 0, Vp, -1)), weights,
-                      SearchOptions.of(config, t_steps), Vt, Vp, s_arr.nb_index.shape[0], valid_index, num_valid)
+                      SearchOptions.of(config, t_steps), Vt, Vp, s_arr.nb_index.shape[0], valid_index, num_valid,
+                      order)
     return level_in, fan_seconds
 
 
@@ -408,7 +423,7 @@ def match_levels(
                 # the random start's colours mean nothing: its first E-step matches shape only
                 weights = weights._replace(color_scale=weights.color_scale * 0)
             nnf_j, rot_j, cost, colors_j, changed = iterate(lv.tgt, lv.src, nnf_j, rot_j, colors_j, sub, weights,
-                                                            lv.pin, options=lv.options)
+                                                            lv.pin, lv.order, options=lv.options)
             changed = int(changed)
             wall.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)

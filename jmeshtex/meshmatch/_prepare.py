@@ -15,6 +15,8 @@ from typing import NamedTuple
 
 import jax
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from .._mesh import Mesh, as_mesh
 from ..geometry import (
@@ -82,8 +84,8 @@ def prepare_side(
     Example:
       >>> from jmeshtex.data import icosphere
       >>> side = prepare_side(icosphere(3), Config(min_vertices=100))
-      >>> side.num_levels, side.features.shape
-      (3, (642, 9))
+      >>> side.num_levels, side.features.shape      # 8 HKS times, the normal, the positions
+      (3, (642, 14))
     """
     mesh = as_mesh(mesh)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
@@ -314,3 +316,54 @@ def bucket_dims(source: Side, target: Side, pairing, levels, hops: int) -> dict:
         _, down = search_tables(source.hierarchy, m, hops)
         dims["down"] = [(max(a, c.shape[0]), max(b, c.shape[1])) for (a, b), (c, _) in zip(dims["down"], down, strict=True)]
     return dims
+
+
+def scan_order(nb_index: np.ndarray, nb_mask: np.ndarray, *, start: int = 0, pad_to: tuple[int, int] | None = None,
+               fill: int | None = None) -> np.ndarray:
+    """Breadth-first wavefronts of a mesh level: the order of sequential (Gauss–Seidel) propagation.
+
+    Row ``l`` holds the vertices ``l`` one-ring hops from ``start`` (further components follow, each
+    from its lowest vertex), padded with ``fill``; every vertex's neighbours lie in its own, the
+    previous or the next row, so a sweep through the rows hands good matches on one ring per row.
+
+    Args:
+      nb_index: ``[V, K]`` one-ring neighbours; ``nb_mask``: ``[V, K]`` their real slots.
+      start: the first wavefront's vertex.
+      pad_to: ``(rows, width)`` to pad to (at least the wavefronts' own), or None.
+      fill: the padding index (default ``V``: out of range, written nowhere).
+
+    Returns:
+      ``[L, B]`` int32: ``L`` wavefronts (rows) of at most ``B`` vertices.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.geometry import one_ring_neighborhood
+      >>> nb = one_ring_neighborhood(*grid(2, 1))          # a 3 × 2 vertex sheet
+      >>> scan_order(np.asarray(nb.index), np.asarray(nb.mask)).tolist()
+      [[0, 6, 6], [1, 3, 4], [2, 5, 6]]
+    """
+    V = len(nb_index)
+    fill = V if fill is None else int(fill)
+    rows, cols = np.nonzero(np.asarray(nb_mask, bool))
+    graph = sp.coo_matrix((np.ones(len(rows)), (rows, np.asarray(nb_index)[rows, cols])), shape=(V, V)).tocsr()
+    graph = ((graph + graph.T) > 0).astype(np.int8)
+    _, labels = connected_components(graph, directed=False)
+    depth = np.full(V, -1, np.int64)
+    offset = 0
+    seeds = [int(start)] + [int(np.argmax(labels == c)) for c in np.unique(labels) if c != labels[start]]
+    for seed in seeds:
+        order, pred = breadth_first_order(graph, seed, directed=False, return_predecessors=True)
+        d = np.zeros(V, np.int64)
+        for v in order[1:]:  # predecessors come before their children in a breadth-first order
+            d[v] = d[pred[v]] + 1
+        depth[order] = d[order] + offset
+        offset = int(depth[order].max()) + 1
+    order = np.argsort(depth, kind="stable")
+    counts = np.bincount(depth, minlength=offset)
+    L, B = offset, int(counts.max())
+    if pad_to is not None:
+        L, B = max(L, pad_to[0]), max(B, pad_to[1])
+    out = np.full((L, B), fill, np.int32)
+    slot = np.arange(V) - np.repeat(np.cumsum(counts) - counts, counts)
+    out[depth[order], slot] = order
+    return out

@@ -52,6 +52,8 @@ class SearchOptions(NamedTuple):
       star_candidates: propagation proposes every vertex of the star of each neighbour's match
         (the paper's "whole neighbourhood of NNF(q)") instead of the one nearest the propagated
         offset.
+      propagation: ``"parallel"`` (every vertex of a sweep at once, Jacobi) or ``"sequential"``
+        (breadth-first wavefronts, Gauss–Seidel; :func:`~jmeshtex.meshmatch.scan_order`).
     """
 
     num_angles: int
@@ -60,12 +62,13 @@ class SearchOptions(NamedTuple):
     sweeps: int
     exact_candidates: int
     star_candidates: bool = False
+    propagation: str = "parallel"
 
     @classmethod
     def of(cls, config: Config, prefilter_steps) -> SearchOptions:
         """The options of ``config`` with the target level's pre-filter steps."""
         return cls(config.num_angles, tuple(int(s) for s in prefilter_steps), config.global_candidates,
-                   config.sweeps, config.exact_candidates, config.star_candidates)
+                   config.sweeps, config.exact_candidates, config.star_candidates, config.propagation)
 
 
 class StepWeights(NamedTuple):
@@ -141,10 +144,16 @@ def _exact_cost(t_re, t_im, t_energy, t_feat, src: Source, cand, A, color_scale,
 
 def _offsets(tgt: LevelArrays, rot, A):
     """``[V, K]`` each target vertex p's position in the source frame of its neighbour q's match."""
-    angle = (2 * np.pi / A) * rot.astype(tgt.nb_log.real.dtype)
+    return _ring_offsets(tgt.nb_index, tgt.nb_log, tgt.nb_transport, rot, A)
+
+
+def _ring_offsets(nb_index, nb_log, nb_transport, rot, A):
+    """:func:`_offsets` for the rows whose one-rings are ``nb_index`` / ``nb_log`` / ``nb_transport``
+    ``[B, K]`` (``rot``: ``[V]`` rotations of every target vertex)."""
+    angle = (2 * np.pi / A) * rot.astype(nb_log.real.dtype)
     turn = jax.lax.complex(jnp.cos(angle), jnp.sin(angle))
-    log_qp = -jnp.conj(tgt.nb_transport) * tgt.nb_log  # log_q(p) in q's frame
-    return _gather(turn, tgt.nb_index) * log_qp
+    log_qp = -jnp.conj(nb_transport) * nb_log  # log_q(p) in q's frame
+    return _gather(turn, nb_index) * log_qp
 
 
 def _star(src_arr: LevelArrays, s):
@@ -237,7 +246,7 @@ def _smallest(cands, bound, count: int):
 
 
 @functools.partial(jax.jit, static_argnames=("options",))
-def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepWeights, pin, *,
+def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepWeights, pin, order=None, *,
             options: SearchOptions):
     """One PatchMatch iteration at a level: E-step (``sweeps`` sweeps of re-scoring, random search
     and propagation), M-step (vote). Target vertices with ``tgt.valid`` False are padding (ignored
@@ -249,6 +258,13 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
     propagates from the matches the previous sweep found, so one iteration moves good matches
     ``sweeps`` rings. The sweeps run in a ``lax.scan``: one compiled body whatever their number.
 
+    With ``options.propagation == "sequential"`` (the paper's scan, Gauss–Seidel) each sweep
+    instead runs through the breadth-first wavefronts of ``order`` one after the other (a
+    ``lax.scan`` over its rows): a wavefront's candidates come from the matches the earlier ones
+    found in this sweep, so a good match can travel across the whole mesh in one sweep; odd sweeps
+    run the wavefronts in reverse order (the alternating start). Its random numbers are drawn per
+    wavefront slot, so unlike the parallel step it is not invariant to padding ``order``.
+
     Args:
       tgt: the target level's :class:`~jmeshtex.meshmatch.LevelArrays` (JAX), ``Vt`` rows.
       src: the source level (:func:`make_source`).
@@ -257,6 +273,8 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
       key: PRNG key of this iteration's random search.
       weights: :class:`StepWeights`.
       pin: ``[Vt]`` int32 source vertex a target vertex must match, or -1.
+      order: ``[L, B]`` int32 target vertices per breadth-first wavefront, padded with ``Vt``
+        (:func:`~jmeshtex.meshmatch.scan_order`); only with sequential propagation.
       options: :class:`SearchOptions` (static).
 
     Returns:
@@ -273,42 +291,76 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
     def exact_cost(cand):
         return _exact_cost(t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight)
 
-    def sweep(state, key):
-        """Pre-score random-search and propagated candidates (from this sweep's start), exact-score
-        the ``exact`` best, keep improvements."""
+    def improve(rows, state, key):
+        """One sweep's update of target vertices ``rows`` (None: all of them, in parallel): pre-score
+        random-search and propagated candidates (from ``state``), exact-score the ``exact`` best,
+        keep improvements. Returns the rows' ``(best, cost, rot)``."""
         best, best_cost, best_rot = state
-        if options.star_candidates:  # every vertex of each neighbour's matched star
-            idx, _, smask = _star(src.arr, _gather(best, tgt.nb_index))  # [V, K, 1 + Ks]
-            prop = idx.reshape(idx.shape[0], -1)
-            prop_ok = (tgt.nb_mask[:, :, None] & smask).reshape(prop.shape)
+        if rows is None:
+            nb_index, nb_mask, nb_log, nb_tr = tgt.nb_index, tgt.nb_mask, tgt.nb_log, tgt.nb_transport
+            cur, cur_cost, cur_rot, desc = best, best_cost, best_rot, t_desc
+            rows_cost = exact_cost
         else:
-            prop = _star_nearest(src.arr, _gather(best, tgt.nb_index), _offsets(tgt, best_rot, A))  # [V, K]
-            prop_ok = tgt.nb_mask
-        cands = jnp.stack(_random_candidates(src, best, key, globals_), axis=1) if num_random else prop[:, :0]
+            nb_index, nb_mask, nb_log, nb_tr = (_gather(x, rows) for x in (tgt.nb_index, tgt.nb_mask, tgt.nb_log,
+                                                                            tgt.nb_transport))
+            cur, cur_cost, cur_rot, desc = (_gather(x, rows) for x in (best, best_cost, best_rot, t_desc))
+            t_rows = tuple(_gather(x, rows) for x in (t_re, t_im, t_energy, tgt.features))
+
+            def rows_cost(cand):
+                return _exact_cost(*t_rows, src, cand, A, color_scale, shape_weight)
+
+        if options.star_candidates:  # every vertex of each neighbour's matched star
+            idx, _, smask = _star(src.arr, _gather(best, nb_index))  # [B, K, 1 + Ks]
+            prop = idx.reshape(idx.shape[0], -1)
+            prop_ok = (nb_mask[:, :, None] & smask).reshape(prop.shape)
+        else:
+            prop = _star_nearest(src.arr, _gather(best, nb_index), _ring_offsets(nb_index, nb_log, nb_tr, best_rot, A))
+            prop_ok = nb_mask
+        cands = jnp.stack(_random_candidates(src, cur, key, globals_), axis=1) if num_random else prop[:, :0]
         allowed = jnp.concatenate([jnp.ones(cands.shape, bool), prop_ok], axis=1)
-        cands = jnp.concatenate([cands, prop], axis=1)  # [V, N]
-        diff = t_desc[:, None, :] - _gather(s_desc, cands)
+        cands = jnp.concatenate([cands, prop], axis=1)  # [B, N]
+        diff = desc[:, None, :] - _gather(s_desc, cands)
         bound = jnp.sum(diff * diff, axis=-1)
-        bound = jnp.where(allowed & (cands != best[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf)
+        bound = jnp.where(allowed & (cands != cur[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf)
         if cands.shape[1] > exact:
             cands, bound = _smallest(cands, bound, exact)
 
         def body(carry, xs):
             b, bc, br = carry
             cand, lb = xs
-            c, k = exact_cost(cand)
+            c, k = rows_cost(cand)
             better = (c < bc) & jnp.isfinite(lb)  # an infinite bound marks a slot not to use
             return (jnp.where(better, cand, b), jnp.where(better, c, bc), jnp.where(better, k, br)), None
 
-        state, _ = jax.lax.scan(body, (best, best_cost, best_rot), (cands.T, bound.T))
-        return state, None
+        out, _ = jax.lax.scan(body, (cur, cur_cost, cur_rot), (cands.T, bound.T))
+        return out
+
+    def sweep(state, key):
+        return improve(None, state, key), None
+
+    def wavefront(state, xs):
+        """Gauss–Seidel: one breadth-first wavefront (a row of ``order``) proposes from the matches
+        the earlier wavefronts of this sweep found; padded slots (index ``V``) write nothing."""
+        rows, key = xs
+        new = improve(rows, state, key)
+        return tuple(x.at[rows].set(y, mode="drop") for x, y in zip(state, new, strict=True)), None
 
     num_random = len(src.up) + globals_
     # the current match is re-scored once (its cost changes with the target's colours, which stay
     # fixed during the sweeps)
     cost0, rot0 = exact_cost(nnf)
-    (best, best_cost, best_rot), _ = jax.lax.scan(sweep, (nnf, cost0, rot0),
-                                                  jax.random.split(key, options.sweeps))
+    if options.propagation == "sequential":
+        if order is None:
+            raise ValueError("propagation='sequential' needs the scan order (scan_order)")
+        state = (nnf, cost0, rot0)
+        for sweep_index, sub in enumerate(jax.random.split(key, options.sweeps)):
+            # alternate the direction: odd sweeps run the wavefronts backwards, from the far end
+            rows = order if sweep_index % 2 == 0 else order[::-1, ::-1]
+            state, _ = jax.lax.scan(wavefront, state, (rows, jax.random.split(sub, rows.shape[0])))
+        best, best_cost, best_rot = state
+    else:
+        (best, best_cost, best_rot), _ = jax.lax.scan(sweep, (nnf, cost0, rot0),
+                                                      jax.random.split(key, options.sweeps))
 
     best = jnp.where(pin >= 0, jnp.maximum(pin, 0), best)
     best_rot = jnp.where(pin >= 0, 0, best_rot)

@@ -17,6 +17,7 @@ from jmeshtex.meshmatch import (
     pad_level_arrays,
     prepare_side,
     rotation_distances,
+    scan_order,
 )
 from jmeshtex.meshmatch._features import ancestors
 from jmeshtex.meshmatch._prepare import level_arrays, pad_axis, search_tables
@@ -80,7 +81,7 @@ def _level(cfg, colors, v, f):
     return side, s_arr, t_arr, steps, up, down
 
 
-def _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, Vp=None, dims=None):
+def _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, Vp=None, dims=None, order=None):
     V = len(nnf)
     valid_index = np.arange(s_arr.nb_index.shape[0], dtype=np.int32)
     if dims is not None:
@@ -99,7 +100,8 @@ def _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, Vp=None, dims=No
     return iterate(
         jax.tree.map(jnp.asarray, t_arr), src, jnp.asarray(pad_axis(nnf, 0, Vp)),
         jnp.zeros(Vp, jnp.int32), jnp.asarray(pad_axis(colors, 0, Vp)), key, weights,
-        jnp.full(Vp, -1, jnp.int32), options=SearchOptions.of(cfg, steps),
+        jnp.full(Vp, -1, jnp.int32), None if order is None else jnp.asarray(order),
+        options=SearchOptions.of(cfg, steps),
     )
 
 
@@ -137,6 +139,46 @@ def test_one_iteration_propagates_a_correct_match_sweeps_rings(sweeps, rng, key)
     assert np.asarray(rot)[dist <= sweeps].tolist() == [0] * int((dist <= sweeps).sum())
     np.testing.assert_allclose(np.asarray(cost)[dist <= sweeps], 0.0, atol=1e-9)
     assert hit[dist == sweeps + 1].mean() < 0.5  # information moved no further
+
+
+def test_one_sequential_sweep_carries_a_correct_match_across_the_mesh(rng, key):
+    """Sequential (Gauss–Seidel) propagation, wavefronts from the seed vertex, every other vertex
+    matched at random: one sweep hands the seed's correct match from wavefront to wavefront, so
+    every vertex gets it; one parallel sweep fixes the seed's one-ring only (and a few vertices
+    whose random neighbours' matches happen to propose them)."""
+    v, f = _bumpy(2)
+    colors = rng.uniform(0, 1, (len(v), 3))
+    cfg = Config(levels=1, random_search_levels=0, global_candidates=0, sweeps=1, exact_candidates=2,
+                 propagation="sequential")
+    _, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
+    seed_vertex = 7
+    V = len(v)
+    nnf = ((np.arange(V) + rng.integers(1, V, V)) % V).astype(np.int32)  # every match wrong ...
+    nnf[seed_vertex] = seed_vertex  # ... but the seed's
+    order = scan_order(t_arr.nb_index, t_arr.nb_mask, start=seed_vertex)
+    best, rot, cost, _, _ = _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, order=order)
+    assert (np.asarray(best) == np.arange(V)).all()
+    np.testing.assert_allclose(np.asarray(cost), 0.0, atol=1e-9)
+    parallel = _step(cfg.replace(propagation="parallel"), t_arr, s_arr, up, down, steps, nnf, colors, key)
+    assert (np.asarray(parallel[0]) == np.arange(V)).mean() < 0.2
+
+
+def test_scan_order_is_breadth_first_wavefronts():
+    v, f = _bumpy(2)
+    rings = one_rings(f, len(v))
+    order = scan_order(rings.ring, rings.mask, start=3)
+    V = len(v)
+    real = order[order < V]
+    assert sorted(real.tolist()) == list(range(V))  # every vertex once, padding = V
+    row = np.empty(V, int)
+    for r, vs in enumerate(order):
+        row[vs[vs < V]] = r
+    np.testing.assert_array_equal(row, _ring_distance(f, V, 3))
+    # two components: the second follows the first, from its own lowest vertex
+    both = scan_order(np.concatenate([rings.ring, rings.ring + V]), np.concatenate([rings.mask, rings.mask]),
+                      pad_to=(0, order.shape[1] + 2), fill=-1)
+    assert both.shape[1] == order.shape[1] + 2 and sorted(both[both >= 0].tolist()) == list(range(2 * V))
+    assert both[0].tolist()[:1] == [0] and V in both[order.shape[0]].tolist()
 
 
 def test_padding_leaves_every_real_vertex_unchanged(rng, key):
