@@ -9,9 +9,11 @@ with ``W_r`` a bias-free complex dense layer (a *linear* residual in every block
 follows the scale of its input), ``MLP`` = (norm → vector neuron) × ``mlp_layers`` before each field
 convolution, ``FC`` a field convolution and ``FC_e`` one whose filters see, per channel, that channel's
 value of the processed timestep/label embedding (``FieldConvEmb``). Filters are MLPs of the invariant
-filter argument with one or two hidden layers. Unlike the reference, the filter argument is the
-gauge-invariant transported form of :func:`jmeshtex.ops.field_conv` (``argument="untransported"``
-gives the reference's own ``get_rel_pos`` form, a negative control of the equivariance harness).
+filter argument with one or two hidden layers; both convolutions are the library's one field
+convolution layer, :class:`jmeshtex.nn.FieldConv` (``FC_e`` with ``channel_embedding=True``).
+Unlike the reference, the filter argument is the gauge-invariant transported form of
+:func:`jmeshtex.ops.field_conv` (``argument="untransported"`` gives the reference's own
+``get_rel_pos`` form, a negative control of the equivariance harness).
 
 Everything here is gauge-equivariant: complex dense layers without bias, the vector neuron, a
 norm with a real per-channel gain, and field convolutions with invariant filter inputs.
@@ -25,60 +27,8 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from ..nn import FRN, ComplexDense, VNNonlinearity
-from ..ops import field_conv, init_field_conv, real_dtype
-
-
-def _params(module: nn.Module, init):
-    """One flax parameter per array field of ``init(key)`` (a NamedTuple); None fields stay None."""
-    template = jax.eval_shape(init, jax.random.key(0))
-    values = init(module.make_rng("params")) if module.is_initializing() else template
-    fields = {}
-    for name, t, v in zip(template._fields, template, values, strict=True):
-        fields[name] = None if t is None else module.param(name, lambda _key, v=v: v)
-    return type(template)(**fields)
-
-
-class FieldConvLayer(nn.Module):
-    """A field convolution (:func:`jmeshtex.ops.field_conv`) with one- or two-hidden-layer filters.
-
-    Attributes:
-      features: output channels ``D``.
-      hdim: filter width ``H``.
-      filter_layers: hidden layers of the filter MLP (1 or 2; the reference has 2).
-      channel_embedding: the filters take a per-channel embedding ``[V, C]`` (``FieldConvEmb``).
-      activation: filter nonlinearity.
-      argument: filter argument form (``"transported"``, or ``"untransported"`` for the control).
-      param_dtype: complex dtype of the mix.
-
-    Example:
-      >>> import numpy as np
-      >>> from jmeshtex.geometry import VertexNeighborhood
-      >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
-      ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
-      ...     np.ones(2), np.ones(2, bool))
-      >>> x, e = jnp.ones((2, 3), jnp.complex64), jnp.ones((2, 3), jnp.float32)
-      >>> m = FieldConvLayer(4, hdim=8, filter_layers=2, channel_embedding=True)
-      >>> v = m.init(jax.random.key(0), x, nb, e)
-      >>> m.apply(v, x, nb, e).shape, v["params"]["hidden_weight"].shape
-      ((2, 4), (8, 8))
-    """
-
-    features: int
-    hdim: int = 16
-    filter_layers: int = 2
-    channel_embedding: bool = False
-    activation: str = "silu"
-    argument: str = "transported"
-    param_dtype: Any = jnp.complex64
-
-    @nn.compact
-    def __call__(self, x, nbhd, channel_embedding=None):
-        params = _params(self, lambda key: init_field_conv(
-            key, x.shape[-1], self.features, hdim=self.hdim, channel_embedding=self.channel_embedding,
-            hidden_layers=self.filter_layers, dtype=self.param_dtype))
-        return field_conv(x, nbhd, params, channel_embedding=channel_embedding, activation=self.activation,
-                          argument=self.argument)
+from ..nn import FRN, ComplexDense, FieldConv, VNNonlinearity
+from ..ops import real_dtype
 
 
 class TangentMLP(nn.Module):
@@ -157,11 +107,11 @@ class FCResBlock(nn.Module):
                     argument=self.argument, param_dtype=self.param_dtype)
         mlp = dict(layers=self.mlp_layers, param_dtype=self.param_dtype)
         h = TangentMLP(d, name="mlp_0", **mlp)(x, nbhd.area, nbhd.vertex_mask)
-        h = FieldConvLayer(d, name="conv_0", **conv)(h, nbhd)
+        h = FieldConv(d, name="conv_0", **conv)(h, nbhd)
         emb = jnp.asarray(embedding).astype(rdt)
         emb = jax.nn.silu(nn.Dense(d, dtype=rdt, param_dtype=rdt, name="embed_0")(emb))
         emb = jax.nn.silu(nn.Dense(d, dtype=rdt, param_dtype=rdt, name="embed_1")(emb))
         emb = jnp.broadcast_to(emb, (x.shape[0], d))
         h = TangentMLP(d, name="mlp_1", **mlp)(h, nbhd.area, nbhd.vertex_mask)
-        h = FieldConvLayer(d, name="conv_1", channel_embedding=True, **conv)(h, nbhd, emb)
+        h = FieldConv(d, name="conv_1", channel_embedding=True, **conv)(h, nbhd, emb)
         return h + res

@@ -15,21 +15,24 @@ from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere
 from jmeshtex.data import torus
 from jmeshtex.fldm import Config, build_dataset, inpaint, load, sample, save, train
 from jmeshtex.fldm._data import copy_mesh, transfer_labels
+from tests.fldm.conftest import TINY_DATA_KEY, uses_tiny_data
 
 CFG = Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, steps=4, checkpoint_every=2,
                   widths=(6, 8), hdim=4, knn=7, diffusion_steps=50, bucket=32, batch_size=2)
-DATA_KEY = jax.random.key(0)
+DATA_KEY = TINY_DATA_KEY
 TRAIN_KEY = jax.random.key(1)
 
 
 @pytest.fixture(scope="module")
-def sphere():
-    return striped_sphere(subdivisions=2)
+def sphere(tiny_sphere):
+    return tiny_sphere  # striped_sphere(subdivisions=2)
 
 
 @pytest.fixture(scope="module")
-def data(sphere):
-    return build_dataset(sphere, CFG, encode=stripe_encoder, key=DATA_KEY, progress=False)
+def data(tiny_data):
+    """``build_dataset(sphere, CFG, encode=stripe_encoder, key=DATA_KEY)``, built once per session."""
+    assert uses_tiny_data(CFG)
+    return tiny_data
 
 
 @pytest.fixture(scope="module")

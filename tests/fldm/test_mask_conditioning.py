@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 
 from jmeshtex._errors import ConfigError, InputError
-from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere
+from jmeshtex.cli._stages.fldm import stripe_encoder
 from jmeshtex.data import icosphere
 from jmeshtex.fldm import (
     Config,
-    build_dataset,
     denoise,
     denoiser_geometry,
     geometry_sizes,
@@ -29,6 +28,7 @@ from jmeshtex.fldm import (
 )
 from jmeshtex.fldm._masks import EMPTY_FRACTION
 from jmeshtex.ops import tangent_noise
+from tests.fldm.conftest import uses_tiny_data
 
 CFG = Config.tiny(latent_channels=2, widths=(6, 8), hdim=4, knn=7, time_features=8, mask_conditioning=True)
 
@@ -116,10 +116,11 @@ CFG_TRAIN = Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, steps=3
 
 
 @pytest.fixture(scope="module")
-def trained():
-    data = build_dataset(striped_sphere(subdivisions=2), CFG_TRAIN, encode=stripe_encoder, key=jax.random.key(0),
-                         progress=False)
-    return data, train(data, CFG_TRAIN, key=jax.random.key(1), progress=False)
+def trained(tiny_data):
+    # tiny_data is build_dataset(striped_sphere(subdivisions=2), CFG_TRAIN, encode=stripe_encoder,
+    # key=jax.random.key(0)), built once per session (tests/fldm/conftest.py)
+    assert uses_tiny_data(CFG_TRAIN)
+    return tiny_data, train(tiny_data, CFG_TRAIN, key=jax.random.key(1), progress=False)
 
 
 def test_training_masks_follow_the_batch(trained):

@@ -8,7 +8,9 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
+from jmeshtex._errors import ConfigError, InputError
 from jmeshtex.geometry import VertexNeighborhood, pad_to
 from jmeshtex.nn import FCResNetBlock, FieldConv, FieldConvEmb
 from jmeshtex.ops import FieldConvParams, complex_linear, field_conv
@@ -78,6 +80,31 @@ def test_field_conv_modules_apply_the_op(rng):
     for got, want in zip(out[::2], out[1::2], strict=False):
         assert rel_err(got, want) < 1e-13
 
+
+
+def test_field_conv_options_apply_the_op(rng):
+    """Two-hidden-layer filters, a per-channel embedding and the reference's untransported argument
+    (the options the FLDM denoiser's blocks use) reach :func:`field_conv` unchanged; the parameters
+    are the FieldConvParams fields, and a channel embedding the module was not built for is an error."""
+    nb = random_nbhd(rng)
+    x = jnp.asarray(crandn(rng, V, C), jnp.complex128)
+    e = jnp.asarray(rng.standard_normal((V, C)))
+    for argument in ("transported", "untransported"):
+        m = FieldConv(5, hdim=3, filter_layers=2, channel_embedding=True, argument=argument, param_dtype=jnp.complex128)
+        v = filled(jax.eval_shape(m.init, jax.random.key(0), x, nb, e))
+        assert sorted(v["params"]) == ["channel_weight", "filter_bias", "filter_weight", "hidden_bias", "hidden_weight",
+                                       "mix"]
+        assert v["params"]["hidden_weight"].shape == (3, 3) and v["params"]["channel_weight"].shape == (3,)
+        want = field_conv(x, nb, FieldConvParams(**v["params"]), channel_embedding=e, argument=argument)
+        assert rel_err(m.apply(v, x, nb, e), want) < 1e-13
+        assert rel_err(m.apply(v, x, nb, 2 * e), want) > 1e-3  # the embedding reaches the filters
+    one = FieldConv(5, hdim=3, param_dtype=jnp.complex128)
+    v1 = filled(jax.eval_shape(one.init, jax.random.key(0), x, nb))
+    assert sorted(v1["params"]) == ["filter_bias", "filter_weight", "mix"]
+    with pytest.raises(InputError, match="channel_weight"):
+        one.apply(v1, x, nb, e)
+    with pytest.raises(ConfigError, match="hidden_layers"):
+        FieldConv(5, filter_layers=3).init(jax.random.key(0), x, nb)
 
 def test_block_is_gauge_equivariant(rng):
     nb = random_nbhd(rng)

@@ -1,0 +1,62 @@
+"""Shared FLDM fixtures: models trained once per session and reused by every test that trains with
+the same settings (the same exemplar, configuration, data key and training key give the same model,
+so a test that takes the fixture sees exactly what it would have trained itself).
+
+- ``striped_exemplar``: the learning check's striped sphere (icosphere(3), 642 vertices);
+- ``striped_data`` / ``striped_model``: the learning check's tiny configuration
+  (``tiny_config(True)``: 4 copies × 500 vertices, 300 steps, T = 200) with the analytic stripe
+  codec, copies drawn with :data:`DATA_KEY` and training with :data:`TRAIN_KEY`;
+- ``tiny_sphere`` / ``tiny_data``: the three 80-vertex copies of the striped icosphere(2) that the
+  pipeline tests (``test_fldm.py``) and the mask-conditioning tests train their few-step models
+  on: the copies depend only on the configuration's dataset fields (:data:`TINY_DATA_FIELDS`),
+  which the two test configurations share (each checks it with :func:`uses_tiny_data`).
+"""
+
+from __future__ import annotations
+
+import jax
+import pytest
+
+from jmeshtex import Mesh, fldm
+from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere, tiny_config
+
+#: keys of the striped-sphere model's copies and of its training
+DATA_KEY, TRAIN_KEY = jax.random.key(10), jax.random.key(11)
+
+
+@pytest.fixture(scope="session")
+def striped_exemplar() -> Mesh:
+    return striped_sphere(subdivisions=3)
+
+
+@pytest.fixture(scope="session")
+def striped_data(striped_exemplar) -> fldm.Dataset:
+    return fldm.build_dataset(striped_exemplar, tiny_config(True), encode=stripe_encoder, key=DATA_KEY, progress=False)
+
+
+@pytest.fixture(scope="session")
+def striped_model(striped_data) -> fldm.Model:
+    return fldm.train(striped_data, tiny_config(True), key=TRAIN_KEY, progress=False).model
+
+
+#: the Config fields :func:`jmeshtex.fldm.build_dataset` reads
+TINY_DATA_FIELDS = ("latent_channels", "n_copies", "copy_vertices", "knn", "pool_ratio", "bucket", "num_labels")
+#: the dataset settings of ``tiny_data`` (the training fields are the tests' own)
+TINY_DATA = fldm.Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, knn=7, bucket=32)
+#: the key of ``tiny_data``'s copies
+TINY_DATA_KEY = jax.random.key(0)
+
+
+def uses_tiny_data(config: fldm.Config) -> bool:
+    """Whether ``config`` builds the same copies as ``tiny_data`` (so a test may take the fixture)."""
+    return all(getattr(config, f) == getattr(TINY_DATA, f) for f in TINY_DATA_FIELDS)
+
+
+@pytest.fixture(scope="session")
+def tiny_sphere() -> Mesh:
+    return striped_sphere(subdivisions=2)
+
+
+@pytest.fixture(scope="session")
+def tiny_data(tiny_sphere) -> fldm.Dataset:
+    return fldm.build_dataset(tiny_sphere, TINY_DATA, encode=stripe_encoder, key=TINY_DATA_KEY, progress=False)
