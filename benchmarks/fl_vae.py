@@ -20,8 +20,8 @@ resampled at the same texels:
   beat.
 
 Held-out images (``table="held_out"``): the scikit-image photographs in
-:data:`jmeshtex.fl.HELD_OUT_IMAGES` (never used by :func:`jmeshtex.fl.training_images`; the shipped
-model predates that split and did train on them, which the row's ``seen_in_training`` says) as planar
+:data:`jmeshtex.fl.HELD_OUT_IMAGES` (never used by :func:`jmeshtex.fl.training_images`; the row's
+``seen_in_training`` says whether the model's own training data had the image) as planar
 meshes at 26 and 18 pixels per vertex, reconstructed in the atlas next to the best constant colour:
 a model far above the constant on these but not on Spot suffers domain shift, one near the constant
 on both is under-trained.

@@ -123,6 +123,6 @@ def load_pretrained(*, decoder: str = "log") -> Model:
     if not path.is_file():
         raise MeshIOError(
             f"no pre-trained FL-VAE shipped at {path}. Fix: train one with "
-            "`jmeshtex fl train --images builtin --out DIR` and load it with jmeshtex.fl.load(DIR/'fl_vae.npz')"
+            "`jmeshtex fl train --preset small --out DIR` and load it with jmeshtex.fl.load(DIR/'fl_vae.npz')"
         )
     return load(path)

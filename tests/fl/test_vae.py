@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 
 import jax
@@ -155,8 +156,34 @@ def test_shipped_models_load():
     for decoder in ("log", "barycentric"):
         model = load_pretrained(decoder=decoder)
         config = model.config
-        assert config.decoder == decoder and config.latent_dim == 8 and config.steps == 600
-        assert config.learning_rate == 2e-3 and config.batch_size == 2  # the stored config, new field names
+        # the stored config is the small preset's, trained 3500 steps (weights/README.md)
+        assert config == dataclasses.replace(Config.small(), decoder=decoder, steps=3500), config
         assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(model.params))
     with pytest.raises(ConfigError, match="decoder must be one of"):
         load_pretrained(decoder="bary")
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+def test_shipped_model_reconstructs_a_held_out_photograph_on_spot(shared_data):
+    """A photograph the shipped models never saw (``HELD_OUT_IMAGES``), mapped onto Spot's UVs: the
+    log decoder is well above the best constant colour, and within 1 dB of the barycentric ablation.
+
+    Measured (seed 0, 256² atlas, latents on Spot's 2930 vertices): log 24.16 dB, barycentric
+    24.71 dB, constant 17.75 dB. The paper's ordering (log ahead) is not reproduced by this small,
+    briefly trained model (weights/README.md); the 1 dB bound guards against a regression."""
+    from jmeshtex.fl import HELD_OUT_IMAGES, held_out_images, reconstruct
+    from jmeshtex.io import load_mesh
+
+    spot = load_mesh(shared_data / "spot" / "spot_triangulated.obj",
+                     texture=shared_data / "spot" / "spot_texture.png")
+    photo = held_out_images(max_size=256)[HELD_OUT_IMAGES.index("chelsea")]
+    mesh = dataclasses.replace(spot, texture=np.asarray(photo, np.float32))
+    psnr = {}
+    for decoder in ("log", "barycentric"):
+        rec = reconstruct(load_pretrained(decoder=decoder), mesh, key=jax.random.key(0), size=256, lpips=False)
+        psnr[decoder] = float(rec.metrics["psnr"])
+    used = rec.target[rec.valid]
+    constant = 10 * np.log10(1.0 / np.mean((used - used.mean(axis=0)) ** 2))
+    assert psnr["log"] >= constant + 5.0, (psnr, constant)
+    assert psnr["log"] >= psnr["barycentric"] - 1.0, psnr
