@@ -38,12 +38,25 @@ nearest-3D copy after matching per-axis means and standard deviations (what the 
 position feature can reach on its own) and the source colours permuted (right statistics, no
 structure).
 
+``--suite real``: self-transfer on the real meshes of ``../shared/data`` (results in
+``results/meshmatch_real.{json,md}``): each mesh as stored (cheburashka 6.7K and fandisk 6.5K
+vertices, the "6K user case"; the cow 2.9K; Spot 2.9K with its own texture read with the area
+prefilter) → ``remesh`` of the same surface at about 5K and 20K vertices (``--large``: also 60K;
+``--real-sizes`` to choose). Colours of the untextured meshes: a smooth function of position
+(the cross suite's cow field, about three periods across the bounding box). Rows: the nearest-3D
+copy (the ceiling), the default and ``Config.intrinsic()`` (``--variants`` selects further rows of
+``EXTRA_REAL``: the fan-footprint vote, offset upsampling); each with the final and the voted PSNR,
+its gap to the ceiling and where the error comes from (the share of vertices matched more than 3
+source edges from the true point, how many of those at a mirror image, their share of the error).
+
 Usage::
 
     python benchmarks/meshmatch.py                 # 16K and 64K
     python benchmarks/meshmatch.py --sizes 16      # 16K only
     python benchmarks/meshmatch.py --suite cross [--small] [--variants TEXT ...]
     python benchmarks/meshmatch.py --suite figure  # results/meshmatch_cross.png
+    python benchmarks/meshmatch.py --suite real [--large] [--meshes cow ...] [--variants TEXT ...]
+    python benchmarks/meshmatch.py --suite vote-time --sizes 16,64   # ring vs fan vote seconds
     python benchmarks/meshmatch.py --sizes 16 --set propagation="'sequential'" --name meshmatch_sequential
 """
 
@@ -105,7 +118,16 @@ VARIANTS = {
     "whole normal only (normal weight 4, no positions)": {"normal_weight": 4.0, "position_weight": 0.0},
     "position weight 4": {"position_weight": 4.0},
     "position weight 2": {"position_weight": 2.0},
+    "fan-footprint vote (paper)": {"vote": "fan"},
+    "fan-footprint vote, vote sigma 2": {"vote": "fan", "vote_sigma": 2.0},
+    "offset upsampling + re-vote (paper)": {"upsample": "offset"},
+    "fan vote + offset upsampling (paper)": {"vote": "fan", "upsample": "offset"},
 }
+
+
+def _finest_steps(r) -> int:
+    """Iterations the finest level ran (it stops early when few matches change)."""
+    return int(next(s for s in r.stats["levels"] if s["level"] == 0)["steps"])
 
 
 def _finest_iteration(r) -> float:
@@ -125,7 +147,7 @@ def _add_run(report, case, label, cfg, **kw) -> None:
     report.add(**base, method=label, psnr_db=round(psnr(np.clip(r.colors, 0, 1), truth), 2),
                voted_psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
                placement_error_edges=round(err, 2), seconds=round(seconds, 1),
-               finest_iteration_s=_finest_iteration(r), load=load)
+               finest_iteration_s=_finest_iteration(r), finest_steps=_finest_steps(r), load=load)
     print(f"{name} | {label}: {report.rows[-1]['psnr_db']} dB", flush=True)
 
 
@@ -152,7 +174,8 @@ def cross(args) -> None:
 
         case = (name, s, sc, t, truth, to_src, edge, base)
         for label, extra in variants_here.items():
-            if args.variants and not any(v in label for v in args.variants):
+            # a text that is a whole label selects that row only; any other text every label containing it
+            if args.variants and not any(v == label if v in variants_here else v in label for v in args.variants):
                 continue
             _add_run(report, case, label, Config(**{**fields, **extra}))
         # where the dB go: start the finest level from the truth (true matches, their colours) and
@@ -297,9 +320,219 @@ def _torus_map(x, minor):
     return centre + r[:, None] * normal
 
 
+# ---- real meshes: self-transfer to another tessellation of the same surface --------------------
+
+#: the real suite's meshes: name -> (file under DATA, up axis); Spot carries its own texture
+REAL_MESHES = {"cheburashka": ("cheburashka.obj", "y"), "fandisk": ("fandisk.obj", "y"), "cow": ("cow.obj", "y"),
+               "spot": ("spot/spot_triangulated.obj", "y")}
+
+
+def _smooth_colors(p, centre, scale):
+    """A smooth colour field of position: the cross suite's cow field in coordinates centred on the
+    mesh and scaled so that the bounding-box diagonal spans 18 units (about three periods across the shape)."""
+    return _cow_colors((p - centre) * (18.0 / scale))
+
+
+def _load_real(name: str):
+    """A real mesh of ``DATA`` as (mesh for remeshing, source colours, colour function or None)."""
+    from jmeshtex.io import load_mesh
+    from jmeshtex.meshmatch import vertex_colors_from_texture
+
+    file, _ = REAL_MESHES[name]
+    path = DATA / file
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if name == "spot":
+            raw = load_mesh(path, texture=path.parent / "spot_texture.png")
+            mesh, _ = prepare_mesh(raw, repair=True)
+            return mesh, vertex_colors_from_texture(mesh, prefilter="area"), None
+        mesh, _ = prepare_mesh(load_mesh(path).replace(uv=None, texture=None), repair=True)
+    v = np.asarray(mesh.vertices, np.float64)
+    centre, scale = v.mean(axis=0), float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+
+    def field(p):
+        return _smooth_colors(np.asarray(p, np.float64), centre, scale)
+
+    return mesh, field(v), field
+
+
+def _mirror_diagnosis(s, t, nnf, truth_index, sc, truth, edge) -> dict:
+    """Where the error comes from: the share of target vertices matched more than 3 source edges
+    from the true point, the share of those within 3 edges of the true point's mirror image across
+    a principal plane through the centroid (the best of the three), their share of the squared
+    error and the PSNR had they matched the true point."""
+    sv = np.asarray(s.vertices, np.float64)
+    tv = np.asarray(t.vertices, np.float64)
+    off = np.linalg.norm(sv[nnf] - sv[truth_index], axis=1) / edge
+    far = off > 3
+    err = np.sum((np.clip(sc[nnf], 0, 1) - truth) ** 2, axis=1)
+    centre = sv.mean(axis=0)
+    _, _, axes = np.linalg.svd(sv - centre, full_matrices=False)
+    mirrored = np.zeros(len(tv), bool)
+    for n in axes:
+        refl = tv - 2 * ((tv - centre) @ n)[:, None] * n
+        mirrored |= np.linalg.norm(sv[nnf] - refl, axis=1) / edge <= 3
+    return {"far_pct": round(100 * float(far.mean()), 1),
+            "far_mirrored_pct": round(100 * float((far & mirrored).sum() / max(far.sum(), 1)), 1),
+            "far_error_pct": round(100 * float(err[far].sum() / max(err.sum(), 1e-30)), 1),
+            "median_offset_edges": round(float(np.median(off)), 2),
+            # the PSNR if the far vertices had their true match (what the far ones cost)
+            "psnr_far_fixed_db": round(psnr(np.clip(np.where(far[:, None], sc[truth_index], sc[nnf]), 0, 1), truth), 2)}
+
+
+#: the real suite's variants: label -> Config fields
+REAL_VARIANTS = {
+    "default (aligned)": {},
+    "Config.intrinsic() (up z: the previous default, as a new user ran it)": {"aligned": False},
+}
+
+
+def real(args) -> None:
+    """The real-mesh suite: each mesh of ``../shared/data`` (cheburashka, fandisk, cow, Spot with its
+    texture) → ``remesh`` of the same surface at about 5K, 20K (and with ``--large`` 60K) vertices."""
+    report = Report(args.name if args.name != "meshmatch" else "meshmatch_real", ceilings=False)
+    sizes = [5000, 20000] + ([60000] if args.large else [])
+    if args.real_sizes:
+        sizes = [int(x) for x in args.real_sizes.split(",")]
+    names = args.meshes or list(REAL_MESHES)
+    variants = {k: v for k, v in {**REAL_VARIANTS, **EXTRA_REAL}.items()
+                if (not args.variants and k in REAL_VARIANTS) or (args.variants and any(x in k for x in args.variants))}
+    for name in names:
+        if not (DATA / REAL_MESHES[name][0]).exists():
+            print(f"skip {name}: {DATA / REAL_MESHES[name][0]} not found", flush=True)
+            continue
+        s, sc, field = _load_real(name)
+        edge = mean_edge_length(s.vertices, s.faces)
+        tree = cKDTree(s.vertices)
+        for n in sizes:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                t0 = time.perf_counter()
+                try:
+                    t = remesh(s, n_vertices=n, key=jax.random.key(7))
+                except Exception as err:  # noqa: BLE001
+                    report.add(mesh=name, size=f"{s.num_vertices}->{n}", method="remesh",
+                               error=f"{type(err).__name__}: {str(err)[:160]}")
+                    continue
+                remesh_s = time.perf_counter() - t0
+            truth = np.clip(field(t.vertices) if field is not None else np.asarray(t.vertex_colors)[:, :3], 0, 1)
+            t = Mesh(t.vertices, t.faces)
+            gt = tree.query(t.vertices)[1]
+            base = {"mesh": name, "size": f"{s.num_vertices}->{t.num_vertices}"}
+            ceiling = round(psnr(np.clip(sc[gt], 0, 1), truth), 2)
+            report.add(**base, method="nearest-3D copy (ceiling)", psnr_db=ceiling, remesh_s=round(remesh_s, 1))
+            print(f"{name} {base['size']}: ceiling {ceiling} dB (remesh {remesh_s:.1f} s)", flush=True)
+            for label, extra in variants.items():
+                cfg = Config(**extra)
+                t0 = time.perf_counter()
+                try:
+                    r = meshmatch(s, sc, t, key=jax.random.key(0), config=cfg)
+                except Exception as err:  # noqa: BLE001 -- a failed case is a result too; keep the others
+                    report.add(**base, method=label, error=f"{type(err).__name__}: {str(err)[:160]}")
+                    print(f"{name} {base['size']} | {label}: {type(err).__name__}: {err}", flush=True)
+                    continue
+                seconds = time.perf_counter() - t0
+                diag = _mirror_diagnosis(s, t, r.nnf, gt, sc, truth, edge)
+                report.add(**base, method=label, psnr_db=round(psnr(np.clip(r.colors, 0, 1), truth), 2),
+                           voted_psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
+                           gap_db=round(ceiling - psnr(np.clip(r.colors, 0, 1), truth), 2), **diag,
+                           seconds=round(seconds, 1), finest_iteration_s=_finest_iteration(r),
+                           finest_steps=_finest_steps(r), load=round(os.getloadavg()[0], 1))
+                row = report.rows[-1]
+                print(f"{name} {base['size']} | {label}: {row['psnr_db']} dB (voted {row['voted_psnr_db']}), "
+                      f"far {row['far_pct']} % ({row['far_mirrored_pct']} % mirrored), {seconds:.0f} s", flush=True)
+            report.write(pathlib.Path(args.out) if args.out else None)  # keep what is done
+    report.notes.append("Source: the mesh as stored (after prepare_mesh); target: remesh of it (key 7) at the size; "
+                        "colours: a smooth function of position (untextured meshes) or Spot's texture (source: "
+                        "area prefilter; target truth: the remesh's point samples of the texture).")
+    report.notes.append("psnr_db: final colours (copy of the match); voted_psnr_db: the finest vote; gap_db: ceiling "
+                        "minus psnr_db; far_pct: target vertices matched > 3 source edges from the nearest source "
+                        "vertex; far_mirrored_pct: of those, matched within 3 edges of the mirror image across a "
+                        "principal plane; far_error_pct: their share of the squared error; seconds: the whole "
+                        "transfer incl. compiles; finest_iteration_s: median wall time of the finest level's "
+                        "iterations after the first (shared 2-core machine, load = 1-minute load average).")
+    report.write(pathlib.Path(args.out) if args.out else None)
+
+
+#: further real-suite rows, run only when named by --variants
+EXTRA_REAL = {
+    "fan-footprint vote (paper)": {"vote": "fan"},
+    "offset upsampling + re-vote (paper)": {"upsample": "offset"},
+    "fan vote + offset upsampling (paper)": {"vote": "fan", "upsample": "offset"},
+    "intrinsic + fan vote + offset upsampling": {"aligned": False, "vote": "fan", "upsample": "offset"},
+    "Config.intrinsic(up='y') (the model's up axis)": {"aligned": False, "up": "y"},
+    "Config.intrinsic(up='y', side='z') (the cow's left/right axis)": {"aligned": False, "up": "y", "side": "z"},
+    "Config.intrinsic(up='y', side='x') (Spot's left/right axis)": {"aligned": False, "up": "y", "side": "x"},
+}
+
+
+def vote_time(args) -> None:
+    """``--suite vote-time``: seconds of the M-step alone and of a whole PatchMatch iteration, ring
+    vote against fan vote, at the speed suite's finest targets (torus self-transfer at 16K / 64K,
+    true matches), alternating the two in one process so that both see the same load."""
+    import jax.numpy as jnp
+
+    from jmeshtex.meshmatch._prepare import level_arrays, search_tables
+    from jmeshtex.meshmatch._search import (
+        SearchOptions,
+        StepWeights,
+        iterate,
+        make_source,
+        vote_step,
+    )
+
+    report = Report("meshmatch_vote_time", ceilings=False)
+    for size in [int(s) for s in args.sizes.split(",")]:
+        n_major = {16: 128, 64: 256}[size]
+        mesh, colors = _torus(n_major, n_major)
+        cfg = Config()
+        side = prepare_side(mesh, cfg)
+        radii = cfg.radii(side.edge[0])
+        V = mesh.num_vertices
+        ones = np.ones(V, bool)
+        s_host, steps = level_arrays(side, 0, radii, cfg, colors, ones, side.features, np.float32)
+        t_host, _ = level_arrays(side, 0, radii, cfg, np.zeros_like(colors), ones, side.features, np.float32)
+        up, down = search_tables(side.hierarchy, 0, cfg.random_search_levels)
+        R, A = cfg.num_radii, cfg.num_angles
+        ring_weight = jnp.ones(R, jnp.float32) / R
+        src = make_source(s_host, up, down, np.arange(V, dtype=np.int32), V, ring_weight, steps=steps, num_angles=A)
+        tgt = jax.tree.map(jnp.asarray, t_host)
+        f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+        fan_w = np.exp(-((np.arange(1, R + 1) * cfg.fan_radius / R) ** 2) / (2 * cfg.vote_sigma**2))
+        weights = StepWeights(ring_weight, f32(1.0 / (R * A * 3 * colors.var())), f32(cfg.shape_weight_at(0)),
+                              f32((cfg.vote_sigma * side.edge[0]) ** 2), f32((cfg.interp_sigma * side.edge[0]) ** 2),
+                              fan_weight=f32(fan_w))
+        nnf = jnp.arange(V, dtype=jnp.int32)
+        rot = jnp.zeros(V, jnp.int32)
+        pin = jnp.full(V, -1, jnp.int32)
+        cols = jnp.asarray(colors, jnp.float32)
+        options = {v: SearchOptions.of(Config(vote=v), steps) for v in ("ring", "fan")}
+        times = {(what, v): [] for what in ("vote", "iteration") for v in ("ring", "fan")}
+        out = {}
+        for rep in range(6):  # the first round compiles
+            for v in ("ring", "fan"):
+                t0 = time.perf_counter()
+                out[v] = vote_step(tgt, src.arr, nnf, rot, weights, pin, num_angles=A, vote=v).block_until_ready()
+                times[("vote", v)].append(time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                jax.block_until_ready(iterate(tgt, src, nnf, rot, cols, jax.random.key(rep), weights, pin,
+                                              options=options[v]))
+                times[("iteration", v)].append(time.perf_counter() - t0)
+        load = round(os.getloadavg()[0], 1)
+        for (what, v), ts in times.items():
+            quality = round(psnr(np.clip(np.asarray(out[v]), 0, 1), colors), 2) if what == "vote" else None
+            report.add(name=f"{what}, {v} vote", size=f"{V // 1000}K", seconds=round(float(np.median(ts[1:])), 4),
+                       compile_s=round(ts[0], 2), psnr_db_true_matches=quality, load=load)
+            print(report.rows[-1], flush=True)
+    report.notes.append("Torus self-transfer at the finest level with the true matches (identity, rotation 0): "
+                        "seconds = median of 5 calls after the first (which compiles); psnr_db_true_matches: the "
+                        "vote's colours against the source colours (the vote's own blur).")
+    report.write(pathlib.Path(args.out) if args.out else None)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--suite", choices=("speed", "cross", "figure"), default="speed",
+    ap.add_argument("--suite", choices=("speed", "cross", "figure", "real", "vote-time"), default="speed",
                     help="figure: results/meshmatch_cross.png (intrinsic vs the aligned default, two pairs)")
     ap.add_argument("--small", action="store_true", help="cross suite at half resolution (the test's sizes)")
     ap.add_argument("--sizes", default="16,64", help="target sizes in K vertices (16 and/or 64)")
@@ -309,7 +542,16 @@ def main() -> None:
     ap.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
                     help="speed suite: Config fields over the default (Python literals, e.g. aligned=False)")
     ap.add_argument("--name", default="meshmatch", help="speed suite: the report's name (results/NAME.{json,md})")
+    ap.add_argument("--large", action="store_true", help="real suite: also the 60K targets")
+    ap.add_argument("--real-sizes", default=None, help="real suite: target sizes, e.g. 5000,20000")
+    ap.add_argument("--meshes", nargs="*", default=None, help="real suite: only these meshes")
     args = ap.parse_args()
+    if args.suite == "real":
+        real(args)
+        return
+    if args.suite == "vote-time":
+        vote_time(args)
+        return
     if args.suite == "cross":
         cross(args)
         return

@@ -20,7 +20,8 @@ one onto :class:`jmeshtex.meshmatch.Config` fields: ``--up`` (``up``, with ``--n
 ``--no-aligned``: the left/right axis of a symmetric model), ``--color-weight``,
 ``--shape-weight`` (one number, or a comma list from the finest level to the coarsest),
 ``--fan-radius``, ``--levels``, ``--steps``, ``--normal-weight``, ``--position-weight``,
-``--propagation`` (``sequential``: the paper's breadth-first scan), and ``--max-scale-ratio``
+``--propagation`` (``sequential``: the paper's breadth-first scan), ``--vote`` (``fan``: the paper's
+footprint vote), ``--upsample`` (``offset``: the paper's geodesic-offset start), and ``--max-scale-ratio``
 (``none``: transfer between meshes of different sizes on purpose).
 """
 
@@ -96,6 +97,11 @@ def _options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--propagation", choices=("parallel", "sequential"), default=None,
                    help="PatchMatch propagation: parallel sweeps (default) or the paper's sequential "
                         "breadth-first scan (Config.propagation; slower)")
+    p.add_argument("--vote", choices=("ring", "fan"), default=None,
+                   help="M-step vote: the one-ring (default) or the paper's fan footprint (Config.vote; slower)")
+    p.add_argument("--upsample", choices=("copy", "offset"), default=None,
+                   help="finer level's start: the parent's match (default) or the paper's geodesic offset + "
+                        "re-vote (Config.upsample)")
     p.add_argument("--max-scale-ratio", default=None, metavar="X",
                    help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)")
 
@@ -140,6 +146,10 @@ def _config(args, *, aligned: bool = True):
             fields["aligned"] = args.aligned
         if args.propagation is not None:
             fields["propagation"] = args.propagation
+        if args.vote is not None:
+            fields["vote"] = args.vote
+        if args.upsample is not None:
+            fields["upsample"] = args.upsample
         if args.normal_weight is not None:
             fields["normal_weight"] = args.normal_weight
         if args.position_weight is not None:

@@ -27,10 +27,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._errors import DegenerateFaceError, InputError
 from .._neighborhoods import VertexNeighborhood
 from .._types import Float, Int
 from ._adjacency import OneRings, one_rings
 from ._intrinsic import check_mesh, corner_angles, edge_lengths, face_areas, vertex_areas
+from ._validate import check_mesh_arrays
 
 
 class OneRingAngles(NamedTuple):
@@ -84,7 +86,12 @@ def one_ring_angles(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "
     return _angles_from_lengths(f, edge_lengths(v, f), len(v))
 
 
-def one_ring_neighborhood(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> VertexNeighborhood:
+def one_ring_neighborhood(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    *,
+    lengths: Float[np.ndarray, "F 3"] | None = None,
+) -> VertexNeighborhood:
     """Intrinsic one-ring neighbourhoods: log map, transport and areas of every vertex.
 
     .. math::
@@ -97,6 +104,11 @@ def one_ring_neighborhood(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndar
     Args:
       vertices: ``[V, 3]`` positions (only edge lengths are used).
       faces: ``[F, 3]`` consistently oriented manifold triangles.
+      lengths: ``[F, 3]`` intrinsic edge lengths to use instead of the positions' (edge k from
+        corner k to corner k+1; e.g. :attr:`~jmeshtex.geometry.MeshHierarchy.lengths` of a coarse
+        level, whose copied positions can make a face flat in space). Then only the arrays' shapes
+        and indices are checked (the faces must already be a valid manifold), and the lengths
+        must be finite, positive and give every face a positive area.
 
     Returns:
       :class:`~jmeshtex.VertexNeighborhood` with ``K`` = maximum degree: ``index`` the
@@ -115,8 +127,18 @@ def one_ring_neighborhood(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndar
       >>> np.round(np.angle(z, deg=True), 9).tolist(), np.round(np.abs(z) ** 2, 12).tolist()
       ([0.0, 45.0, 90.0], [1.0, 0.5, 1.0])
     """
-    v, f = check_mesh(vertices, faces)
-    return _neighborhood_from_lengths(f, edge_lengths(v, f), len(v))
+    if lengths is None:
+        v, f = check_mesh(vertices, faces)
+        return _neighborhood_from_lengths(f, edge_lengths(v, f), len(v))
+    v, f = check_mesh_arrays(vertices, faces)
+    lengths = np.asarray(lengths, dtype=np.float64)
+    if lengths.shape != f.shape or not (np.isfinite(lengths).all() and (lengths > 0).all()):
+        raise InputError(f"one_ring_neighborhood: lengths must be finite, positive and [F, 3] = {f.shape}, "
+                         f"got shape {lengths.shape}")
+    bad = np.nonzero(~(face_areas(lengths) > 0.0))[0]
+    if bad.size:
+        raise DegenerateFaceError(indices=bad)
+    return _neighborhood_from_lengths(f, lengths, len(v))
 
 
 # ---------------------------------------------------------------------------------------------

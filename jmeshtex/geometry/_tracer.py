@@ -144,7 +144,10 @@ def _face_layouts(lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def tracer_geometry(
-    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    *,
+    lengths: Float[np.ndarray, "F 3"] | None = None,
 ) -> TracerGeometry:
     """Precompute the tables :func:`trace_geodesics` and :func:`trace_from_vertices` walk over.
 
@@ -160,12 +163,17 @@ def tracer_geometry(
     Args:
       vertices: ``[V, 3]`` positions.
       faces: ``[F, 3]`` consistently oriented, manifold triangles.
+      lengths: ``[F, 3]`` intrinsic edge lengths to lay the faces out with instead of the
+        positions' (edge k from corner k to corner k+1, e.g. a coarse level's
+        :attr:`~jmeshtex.geometry.MeshHierarchy.lengths`, whose copied positions can make a face
+        flat in space that is not flat intrinsically). Default: from ``vertices``.
 
     Returns:
       :class:`TracerGeometry`.
 
     Raises:
-      DegenerateFaceError: a zero-area face.
+      DegenerateFaceError: a zero-area face (in ``lengths`` when given).
+      InputError: ``lengths`` not ``[F, 3]``, not finite or not positive.
       NonManifoldEdgeError, InconsistentOrientationError, NonManifoldVertexError: from the
         adjacency builders.
 
@@ -178,7 +186,13 @@ def tracer_geometry(
       [[-1, -1, -1]]
     """
     vertices, faces = check_mesh_arrays(vertices, faces)
-    lengths = edge_lengths(vertices, faces)
+    if lengths is None:
+        lengths = edge_lengths(vertices, faces)
+    else:
+        lengths = np.asarray(lengths, dtype=np.float64)
+        if lengths.shape != faces.shape or not (np.isfinite(lengths).all() and (lengths > 0).all()):
+            raise InputError(f"tracer_geometry: lengths must be finite, positive and [F, 3] = {faces.shape}, "
+                             f"got shape {lengths.shape}")
     corners, double_area = _face_layouts(lengths)
 
     # edge opposite corner k runs from corner k+1 to corner k+2; its inward unit normal is

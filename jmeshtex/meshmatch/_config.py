@@ -174,11 +174,57 @@ class Config(ConfigBase):
       star_candidates: propagation proposes the whole star (the vertex and its one-ring) of each
         neighbour's match, as the paper does, instead of the one star vertex nearest the
         propagated offset (about 7× the candidates, all pre-scored by the bound).
+      vote: the M-step (how the target's colours are voted from the matches), ``"ring"`` (default)
+        or ``"fan"``. ``"ring"``: a vertex averages the source colours its own match and its
+        one-ring neighbours' matches put at its position (read in the matched star, see
+        ``interp_sigma``), Gaussian weights of the neighbour's distance (``vote_sigma`` target
+        edges). ``"fan"`` (the paper's footprint vote): every target vertex q votes at every point its
+        geodesic fan covers: fan sample ``(r, a)`` of q carries the source colour at fan sample
+        ``(r, a + k_q)`` of its match (read linearly in its face) onto the corners of the target face
+        it lies in with their barycentric weights, times a Gaussian of the ring radius
+        (``vote_sigma`` in the fans' edge lengths, the unit of ``fan_radius``: ring weights 0.41,
+        0.029 and 0.0003 at the defaults), plus q's centre with weight 1. Measured ring → fan on the
+        cross-shape benchmark (aligned default; ``benchmarks/results/meshmatch_vote_cross.md``):
+        final colours 34.01 → 34.11, 33.74 → 33.72, 34.77 → 34.98, 38.74 → 38.76 dB, the finest
+        vote 37.76 → 38.88, 37.14 → 37.71, 35.99 → 36.94, 42.61 → 41.47 dB (the half-size pairs:
+        final colours within 0.12 dB); on the real meshes
+        (``benchmarks/results/meshmatch_real.md``: self-transfer to a remesh at 5K / 20K vertices)
+        final colours cheburashka 40.89 → 40.91 / 39.18 → 39.19, fandisk 39.71 → 39.70 / 38.19 →
+        38.19, cow 35.25 → 35.23 / 35.05 → 35.03, Spot (texture) 21.59 → 21.99 / 21.99 → 21.98 dB,
+        the finest vote 45.76 → 42.89 / 45.00 → 45.84, 44.29 → 41.06 / 44.55 → 45.01, 40.07 →
+        40.13 / 38.87 → 42.44, 21.85 → 21.70 / 22.13 → 22.27 dB (worse where the target is about
+        as fine as the source, better 3-7× finer). The fan vote costs 4-5× the ring vote's
+        time (torus self-transfer, true matches, 16K / 65K vertices: 0.024 → 0.118 s / 0.25 → 0.98
+        s; a whole finest iteration 0.25 → 0.34 s / 1.84 → 2.10 s, on 2 cores at load 7-9;
+        ``benchmarks/results/meshmatch_vote_time.md``) and blurs more: with the true matches it
+        reproduces the torus colours at 41.7 / 47.9 dB where the ring vote keeps 53.3 / 61.1 dB
+        (its samples lie anywhere in the faces around a vertex, not at the vertex). The final
+        colours copy each match's source colour, so the vote reaches them only through the
+        E-step's target fans: the default stays ``"ring"``.
+      upsample: how a finer level starts from the coarser one, ``"copy"`` (default: each vertex
+        takes its coarse parent's match and rotation and colour) or ``"offset"`` (the paper's): the
+        parent's match moved by the vertex's geodesic offset from its parent (the tangent-plane
+        offset in the parent's frame, rotated into the match's frame by the parent's rotation),
+        landing on the source vertex of the finer source level nearest that point (a greedy walk
+        from the parent's match), with the rotation carried the same way, then a re-vote of the
+        level's colours before its iterations. The offset start lies closer to the truth (median
+        distance from the true source point at the finest level before its iterations, half-size
+        cross pairs: 0.76 → 0.58, 0.77 → 0.58, 0.58 → 0.46, 0.64 → 0.59 source edges; checked in
+        ``tests/meshmatch/test_vote_upsample.py``), but the level's iterations erase
+        the difference: cross-shape benchmark copy → offset, final colours 34.01 → 34.01, 33.74 →
+        33.70, 34.77 → 34.72, 38.74 → 38.74 dB (votes within 0.1 dB); real meshes at 5K / 20K, final
+        colours cheburashka 40.89 → 40.91 / 39.18 → 39.19, fandisk 39.71 → 39.72 / 38.19 → 38.18,
+        cow 35.25 → 35.31 / 35.05 → 35.00, Spot 21.59 → 21.84 / 21.99 → 21.99 dB. The
+        default stays ``"copy"``: the offset start moves the final colours by 0.25 dB at most.
       bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
         common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
         (see :func:`~jmeshtex.meshmatch.level_groups`); 0 pads nothing (every level
         compiles its own step).
-      vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths.
+      vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths
+        (of the target level with ``vote="ring"``; of the fans, as ``fan_radius``, with
+        ``vote="fan"``, where 1 → 2 measured mixed: the finest vote on the half-size cross pairs
+        33.78 → 34.26, 33.73 → 33.86, 31.67 → 31.30, 37.59 → 37.14 dB, ``benchmarks/results/
+        meshmatch_vote_cross_small.md``).
       interp_sigma: standard deviation of the Gaussian that reads a source colour at an offset
         inside the matched vertex's star (the vote's resampling), in the source level's mean edge
         lengths. At 0.5 a vertex read at its own position keeps only about 55 % of its own colour
@@ -223,6 +269,8 @@ class Config(ConfigBase):
     exact_candidates: int = 2
     star_candidates: bool = False
     propagation: str = "parallel"
+    vote: str = "ring"
+    upsample: str = "copy"
     bucket_vertices: int = 4096
     vote_sigma: float = 1.0
     interp_sigma: float = 0.5
@@ -263,6 +311,8 @@ class Config(ConfigBase):
         rule("levels", lambda x: x is None or (is_int(x) and x >= 1), "None or an integer >= 1"),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
         rule("propagation", lambda x: x in ("parallel", "sequential"), "'parallel' or 'sequential'"),
+        rule("vote", lambda x: x in ("ring", "fan"), "'ring' or 'fan'"),
+        rule("upsample", lambda x: x in ("copy", "offset"), "'copy' or 'offset'"),
     )
 
     @classmethod

@@ -2,7 +2,9 @@
 
 :func:`meshmatch` prepares both meshes (:func:`~jmeshtex.meshmatch.prepare_side`), then runs the
 levels from the coarsest to the finest: the coarsest starts from random matches, every finer level
-from its parents' matches (upsampled through the parent maps); each level runs up to ``steps``
+from its parents' matches (upsampled through the parent maps: copied, or with
+``Config(upsample="offset")`` moved by each vertex's geodesic offset from its parent and re-voted);
+each level runs up to ``steps``
 PatchMatch iterations (the jitted E-step + M-step of ``jmeshtex/meshmatch/_search.py``) and stops
 early when few matches change. A final pass copies each target vertex's matched source colour (no
 blur). Levels are padded in groups (:func:`~jmeshtex.meshmatch.level_groups`: every level with at
@@ -41,7 +43,7 @@ from ._prepare import (
     search_tables,
     side_affinities,
 )
-from ._search import SearchOptions, Source, StepWeights, iterate, make_source
+from ._search import SearchOptions, Source, StepWeights, iterate, make_source, vote_step
 
 
 class MeshMatchResult(NamedTuple):
@@ -309,6 +311,9 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
         shape_weight=jnp.asarray(config.shape_weight_at(level), dtype),
         sigma2=jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype),
         tau2=jnp.asarray((config.interp_sigma * source.edge[m]) ** 2, dtype),
+        # the fan vote's ring weights: a Gaussian of the ring radius (in the fans' edge lengths)
+        fan_weight=jnp.asarray(np.exp(-((np.arange(1, R + 1) * config.fan_radius / R) ** 2)
+                                      / (2 * config.vote_sigma**2)), dtype) if config.vote == "fan" else None,
     )
     if pin is None:
         pin_l = np.full(Vt, -1, np.int32)
@@ -320,6 +325,77 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
                       SearchOptions.of(config, t_steps), Vt, Vp, s_arr.nb_index.shape[0], valid_index, num_valid,
                       order)
     return level_in, fan_seconds
+
+
+def _frames(side: Side, level: int, cache: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``([V, 3], [V, 3])`` the 3D tangent axes of each vertex's frame at ``level`` (the frame of
+    ``side.neighborhoods[level]``: x along the tangent projection of the edge to ring slot 0, y
+    counter-clockwise from it about the area-weighted normal)."""
+    key = (id(side), level)
+    if key not in cache:
+        v = np.asarray(side.hierarchy.vertices[level], np.float64)
+        f = np.asarray(side.hierarchy.faces[level], np.int64)
+        nb = side.neighborhoods[level]
+        index, mask, log = np.asarray(nb.index), np.asarray(nb.mask), np.asarray(nb.log)
+        cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        normal = np.zeros_like(v)
+        for j in range(3):
+            np.add.at(normal, f[:, j], cross)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-30)
+        d = v[index] - v[:, None, :]  # [V, K, 3]
+        d0 = d[:, 0] - np.sum(d[:, 0] * normal, axis=1, keepdims=True) * normal
+        e1 = d0 / np.maximum(np.linalg.norm(d0, axis=1, keepdims=True), 1e-30)
+        e2 = np.cross(normal, e1)
+        # the log map's angles run counter-clockwise about the orientation of the faces; check
+        sign = np.sign(np.sum(np.where(mask, log.imag * np.einsum("vkd,vd->vk", d, e2), 0.0), axis=1))
+        cache[key] = (e1, e2 * np.where(sign == 0, 1.0, sign)[:, None])
+    return cache[key]
+
+
+def _offset_upsample(source: Side, target: Side, level: int, m: int, prev_m: int, nnf_c, rot_c, valid_m, A: int,
+                     cache: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Matches and rotations of target level ``level`` from the coarser level's (``nnf_c`` /
+    ``rot_c`` at source level ``prev_m``) moved by each fine vertex's geodesic offset.
+
+    A fine vertex v with coarse parent P sits at offset ``z = log_P(v)`` in P's frame (the
+    tangent-plane projection of ``x_v − x_P``); in the source frame of P's match ``s_P`` that is
+    ``e^{2πi k_P / A} z``, the 3D point ``x_{s_P} + Re(·) e_1 + Im(·) e_2``. v's match is the source
+    vertex of level ``m`` reached from ``s_P`` by walking to the nearest star vertex of that point
+    (a greedy descent, 8 steps at most, over the valid source vertices); its rotation carries v's
+    frame axis through P's frame and the same rotation into the new match's frame.
+    """
+    th, sh = target.hierarchy, source.hierarchy
+    parent = np.asarray(th.pooling[level].parent)
+    xt, xp = np.asarray(th.vertices[level], np.float64), np.asarray(th.vertices[level + 1], np.float64)[parent]
+    e1p, e2p = (e[parent] for e in _frames(target, level + 1, cache))
+    s_c = nnf_c[parent]
+    xs_c = np.asarray(sh.vertices[prev_m], np.float64)[s_c]
+    e1s, e2s = (e[s_c] for e in _frames(source, prev_m, cache))
+    turn = np.exp(2j * np.pi * rot_c[parent] / A)
+
+    def to_source(vec):  # a 3D tangent vector at the target parent -> at its match, rotated by its k
+        z = (np.sum(vec * e1p, axis=1) + 1j * np.sum(vec * e2p, axis=1)) * turn
+        return z.real[:, None] * e1s + z.imag[:, None] * e2s
+
+    goal = xs_c + to_source(xt - xp)
+    xs = np.asarray(sh.vertices[m], np.float64)
+    nb = source.neighborhoods[m]
+    index, mask = np.asarray(nb.index), np.asarray(nb.mask) & valid_m[np.asarray(nb.index)]
+    s = source.inverse[m][sh.vertex_index[prev_m][s_c]].astype(np.int64)
+    for _ in range(8):
+        star = np.concatenate([s[:, None], index[s]], axis=1)
+        dist = np.where(np.concatenate([np.ones((len(s), 1), bool), mask[s]], axis=1),
+                        np.linalg.norm(xs[star] - goal[:, None, :], axis=2), np.inf)
+        step = star[np.arange(len(s)), np.argmin(dist, axis=1)]
+        if np.array_equal(step, s):
+            break
+        s = step
+    e1t, _ = _frames(target, level, cache)
+    w = to_source(e1t)  # v's frame axis, carried into the source
+    e1n, e2n = _frames(source, m, cache)
+    c = np.sum(w * e1n[s], axis=1) + 1j * np.sum(w * e2n[s], axis=1)
+    rot = np.round(np.angle(c) * A / (2 * np.pi)).astype(np.int64) % A
+    return s.astype(np.int32), rot.astype(np.int32)
 
 
 class _Progress:
@@ -384,6 +460,7 @@ def match_levels(
     level_stats, fan_s = [], 0.0
     nnf = rot = colors_t = cost_np = None
     prev_src_level = None
+    frames: dict = {}  # per (side, level) 3D frame axes, for offset upsampling
     for level in range(target.num_levels - 1, -1, -1):
         t_level = time.perf_counter()
         m = pairing[level]
@@ -403,6 +480,12 @@ def match_levels(
             nnf_h = lv.valid_index[pick]
             rot_h = np.zeros(Vt, np.int32)
             colors_h = np.asarray(s_colors[m][nnf_h])
+        elif config.upsample == "offset":  # the parent's match moved by the geodesic offset, re-voted
+            valid_m = np.zeros(lv.num_padded_source, bool)
+            valid_m[lv.valid_index[: lv.num_valid]] = True
+            nnf_h, rot_h = _offset_upsample(source, target, level, m, prev_src_level, nnf, rot, valid_m,
+                                            config.num_angles, frames)
+            colors_h = None
         else:  # upsample: each vertex starts from its parent's match, moved to this source level
             parent = np.asarray(target.hierarchy.pooling[level].parent)
             nnf_h = source.inverse[m][sh.vertex_index[prev_src_level][nnf[parent]]].astype(np.int32)
@@ -410,7 +493,11 @@ def match_levels(
             colors_h = colors_t[parent]
         nnf_j = jnp.asarray(pad_axis(nnf_h.astype(np.int32), 0, Vp, lv.valid_index[0]))
         rot_j = jnp.asarray(pad_axis(rot_h.astype(np.int32), 0, Vp))
-        colors_j = jnp.asarray(pad_axis(np.asarray(colors_h), 0, Vp), dtype)
+        if colors_h is None:  # the re-vote of the upsampled matches
+            colors_j = vote_step(lv.tgt, lv.src.arr, nnf_j, rot_j, lv.weights, lv.pin, num_angles=config.num_angles,
+                                 vote=config.vote)
+        else:
+            colors_j = jnp.asarray(pad_axis(np.asarray(colors_h), 0, Vp), dtype)
         coarsest = level == target.num_levels - 1
         budget = config.coarse_steps if coarsest else config.steps
         wall, cpu = [], []

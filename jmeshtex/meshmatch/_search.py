@@ -16,7 +16,9 @@ rotation ``k`` (target frame → source frame by ``2πk/A``). One iteration (:fu
   (cyclic cross-correlation through a real DFT of the angular axis) plus the rotation-invariant
   shape term.
 - **M-step**: every target vertex's colour is the Gaussian-weighted vote of the source colours
-  its own and its neighbours' matches put at its position.
+  its own and its neighbours' matches put at its position (``vote="ring"``), or, with
+  ``vote="fan"`` (the paper's footprint), of the source colours every target vertex's match puts at
+  each point of its geodesic fan (:func:`_fan_vote`).
 
 Random numbers are hashed per vertex, so padding the vertex axis changes no real vertex.
 
@@ -54,6 +56,7 @@ class SearchOptions(NamedTuple):
         offset.
       propagation: ``"parallel"`` (every vertex of a sweep at once, Jacobi) or ``"sequential"``
         (breadth-first wavefronts, Gauss–Seidel; :func:`~jmeshtex.meshmatch.scan_order`).
+      vote: the M-step, ``"ring"`` (one-ring vote) or ``"fan"`` (fan-footprint vote).
     """
 
     num_angles: int
@@ -63,12 +66,14 @@ class SearchOptions(NamedTuple):
     exact_candidates: int
     star_candidates: bool = False
     propagation: str = "parallel"
+    vote: str = "ring"
 
     @classmethod
     def of(cls, config: Config, prefilter_steps) -> SearchOptions:
         """The options of ``config`` with the target level's pre-filter steps."""
         return cls(config.num_angles, tuple(int(s) for s in prefilter_steps), config.global_candidates,
-                   config.sweeps, config.exact_candidates, config.star_candidates, config.propagation)
+                   config.sweeps, config.exact_candidates, config.star_candidates, config.propagation,
+                   config.vote)
 
 
 class StepWeights(NamedTuple):
@@ -80,6 +85,7 @@ class StepWeights(NamedTuple):
       shape_weight: ``w_φ``, the shape term's factor.
       sigma2: variance of the vote's Gaussian over target offsets.
       tau2: variance of the interpolation in the source star.
+      fan_weight: ``[R]`` the fan vote's weight of each ring (``vote="fan"``; None otherwise).
     """
 
     ring_weight: jax.Array
@@ -87,6 +93,7 @@ class StepWeights(NamedTuple):
     shape_weight: jax.Array
     sigma2: jax.Array
     tau2: jax.Array
+    fan_weight: jax.Array | None = None
 
 
 def _gather(x, index):
@@ -187,6 +194,52 @@ def _vote(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, A, sigma2, tau2, pin
     own = _gather(src_arr.colors, nnf)
     out = (own + jnp.einsum("vk,vkc->vc", w, cols)) / (1.0 + jnp.sum(w, axis=1, keepdims=True))
     return jnp.where((pin >= 0)[:, None], src_arr.colors[jnp.maximum(pin, 0)], out)
+
+
+def _fan_vote(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, A, fan_weight, pin):
+    """The fan-footprint vote (Chen et al. 2012 §4, M-step): every real target vertex q votes at
+    every point its fan covers. Target fan sample ``(r, a)`` of q lies in a target face at
+    barycentric coordinates ``b``; it carries the source colour at source fan sample
+    ``(r, (a + rot_q) mod A)`` of ``NNF(q)`` (read linearly in its face), weighted by
+    ``fan_weight[r] · b_j`` onto the face's corner ``j``; q's own centre votes its match's colour
+    with weight 1. Each vertex's colour is the weighted mean of the votes it receives:
+
+    .. math:: c_p = \\frac{\\sum_q [p = q]\\, C_s(\\mathrm{NNF}(q)) + \\sum_{q, r, a, j}
+              [F^t_{q r a j} = p]\\, w_r\\, b^t_{q r a j}\\, F^s_{\\mathrm{NNF}(q), r, a + k_q}}
+              {\\sum_q [p = q] + \\sum_{q, r, a, j} [F^t_{q r a j} = p]\\, w_r\\, b^t_{q r a j}}
+
+    Padded target rows (``tgt.valid`` False) vote nothing; pinned vertices keep their pin's colour.
+    """
+    V = nnf.shape[0]
+    real = tgt.valid.astype(src_arr.colors.dtype)  # padded rows vote nothing
+    corners = _gather(src_arr.fan_corners, nnf)  # [V, R, A, 3] source fan of each match
+    bary = _gather(src_arr.fan_bary, nnf)
+    turn = (jnp.arange(A, dtype=rot.dtype)[None, :] + rot[:, None]) % A  # target angle a -> source angle a + k
+    corners = jnp.take_along_axis(corners, turn[:, None, :, None], axis=2)
+    bary = jnp.take_along_axis(bary, turn[:, None, :, None], axis=2)
+    vals = jnp.einsum("vrak,vrakc->vrac", bary, _gather(src_arr.colors, corners))  # [V, R, A, C]
+    w = (fan_weight[None, :, None, None] * tgt.fan_bary) * real[:, None, None, None]  # [V, R, A, 3]
+    seg = tgt.fan_corners.reshape(-1)
+    num = jax.ops.segment_sum((w[..., None] * vals[:, :, :, None, :]).reshape(seg.shape[0], -1), seg,
+                              num_segments=V)
+    den = jax.ops.segment_sum(w.reshape(-1), seg, num_segments=V)
+    own = _gather(src_arr.colors, nnf)
+    out = (own * real[:, None] + num) / (real + den)[:, None].clip(1e-12)
+    out = jnp.where(tgt.valid[:, None], out, own)
+    return jnp.where((pin >= 0)[:, None], src_arr.colors[jnp.maximum(pin, 0)], out)
+
+
+def vote_colors(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, weights: StepWeights, pin, *, num_angles: int,
+                vote: str):
+    """The M-step of :func:`iterate` alone: the ring vote (``vote="ring"``) or the fan-footprint
+    vote (``"fan"``, :func:`_fan_vote`) of matches ``nnf`` / ``rot`` (``[V]``)."""
+    if vote == "fan":
+        return _fan_vote(tgt, src_arr, nnf, rot, num_angles, weights.fan_weight, pin)
+    return _vote(tgt, src_arr, nnf, rot, num_angles, weights.sigma2, weights.tau2, pin)
+
+
+#: :func:`vote_colors`, jitted (the re-vote after upsampling)
+vote_step = jax.jit(vote_colors, static_argnames=("num_angles", "vote"))
 
 
 def _mix32(h):
@@ -364,7 +417,7 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
 
     best = jnp.where(pin >= 0, jnp.maximum(pin, 0), best)
     best_rot = jnp.where(pin >= 0, 0, best_rot)
-    colors = _vote(tgt, src.arr, best, best_rot, A, weights.sigma2, weights.tau2, pin)
+    colors = vote_colors(tgt, src.arr, best, best_rot, weights, pin, num_angles=A, vote=options.vote)
     changed = jnp.sum((best != nnf) & tgt.valid)
     return best, best_rot, jnp.where(pin >= 0, 0.0, best_cost), colors, changed
 

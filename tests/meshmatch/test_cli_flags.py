@@ -30,6 +30,8 @@ def test_the_default_is_aligned_and_no_aligned_is_intrinsic():
     c = _config("--position-weight", "4", "--normal-weight", "1", "--propagation", "sequential")
     assert (c.normal_axes()["position_weight"], c.normal_axes()["normal_weight"], c.propagation) == (4.0, 1.0,
                                                                                                       "sequential")
+    c = _config("--vote", "fan", "--upsample", "offset")
+    assert (c.vote, c.upsample) == ("fan", "offset") and _config().vote == "ring" and _config().upsample == "copy"
 
 
 def test_pose_free_flags_without_no_aligned_are_refused():
