@@ -204,20 +204,36 @@ def test_tuple_valued_library_fields_come_back_as_tuples():
     assert FLDMConfig.from_dict(json.loads(json.dumps(f.to_dict()))).widths == (16, 32)
 
 
-@pytest.mark.parametrize("name", ["fl_vae.npz", "fl_vae_barycentric.npz"])
-def test_config_dicts_written_before_the_refactor_still_load(name):
-    # the shipped weights embed the fl.Config dict of their training run (field names migrated in place)
-    with np.load(WEIGHTS / name, allow_pickle=False) as data:
-        stored = json.loads(data["meta"].tobytes().decode())["config"]
-    config = FLVAEConfig.from_dict(stored)
+#: the fl.Config dict the previous shipped FL-VAE (600 steps, until this round) embedded in its weights
+#: file, as written before the training-data and loss options existed (field names already migrated)
+_OLD_FL_CONFIG = {
+    "latent_dim": 8, "num_samples": 64, "features": 32, "num_heads": 4, "num_blocks": 2, "decoder_features": 64,
+    "decoder_layers": 5, "decoder": "log", "kl_weight": 0.01, "log_sigma_max": 2.0, "delta": 1e-06,
+    "min_vertices": 64, "max_vertices": 192, "max_image_size": 256, "meshes_per_image": 8, "batch_size": 2,
+    "steps": 600, "learning_rate": 0.002, "final_lr_fraction": 0.05, "warmup_steps": 50, "grad_clip": 1.0,
+    "checkpoint_every": 50, "encode_chunk": 2048,
+}
+
+
+def test_config_dicts_written_before_the_refactor_still_load():
+    config = FLVAEConfig.from_dict(_OLD_FL_CONFIG)
     written = config.to_dict()
     # today's to_dict writes the very same values for every stored field ...
-    assert {k: v for k, v in written.items() if k in stored} == stored
+    assert {k: v for k, v in written.items() if k in _OLD_FL_CONFIG} == _OLD_FL_CONFIG
     # ... and fields added since (the training-data and loss options) take their defaults, which are
-    # the recipe the shipped model was trained with (e.g. loss_normalization="mean")
-    added = set(written) - set(stored)
+    # the recipe that model was trained with (e.g. loss_normalization="mean")
+    added = set(written) - set(_OLD_FL_CONFIG)
     assert added and all(written[k] == getattr(FLVAEConfig(), k) for k in added), added
     assert written["loss_normalization"] == "mean"
+
+
+@pytest.mark.parametrize("name", ["fl_vae.npz", "fl_vae_barycentric.npz"])
+def test_shipped_weights_store_every_config_field(name):
+    # the shipped weights embed the complete fl.Config dict of their training run, read back exactly
+    with np.load(WEIGHTS / name, allow_pickle=False) as data:
+        stored = json.loads(data["meta"].tobytes().decode())["config"]
+    assert FLVAEConfig.from_dict(stored).to_dict() == stored
+    assert set(stored) == set(FLVAEConfig().to_dict())
 
 
 @pytest.mark.parametrize(
