@@ -56,7 +56,7 @@ Usage::
     python benchmarks/meshmatch.py --suite cross [--small] [--variants TEXT ...]
     python benchmarks/meshmatch.py --suite figure  # results/meshmatch_cross.png
     python benchmarks/meshmatch.py --suite real [--large] [--meshes cow ...] [--variants TEXT ...]
-    python benchmarks/meshmatch.py --suite vote-time --sizes 16,64   # ring vs fan vote seconds
+    python benchmarks/meshmatch.py --sizes 16 --set vote="'fan'" --name meshmatch_vote_fan   # the fan vote's cost
     python benchmarks/meshmatch.py --sizes 16 --set propagation="'sequential'" --name meshmatch_sequential
 """
 
@@ -466,73 +466,9 @@ EXTRA_REAL = {
 }
 
 
-def vote_time(args) -> None:
-    """``--suite vote-time``: seconds of the M-step alone and of a whole PatchMatch iteration, ring
-    vote against fan vote, at the speed suite's finest targets (torus self-transfer at 16K / 64K,
-    true matches), alternating the two in one process so that both see the same load."""
-    import jax.numpy as jnp
-
-    from jmeshtex.meshmatch._prepare import level_arrays, search_tables
-    from jmeshtex.meshmatch._search import (
-        SearchOptions,
-        StepWeights,
-        iterate,
-        make_source,
-        vote_step,
-    )
-
-    report = Report("meshmatch_vote_time", ceilings=False)
-    for size in [int(s) for s in args.sizes.split(",")]:
-        n_major = {16: 128, 64: 256}[size]
-        mesh, colors = _torus(n_major, n_major)
-        cfg = Config()
-        side = prepare_side(mesh, cfg)
-        radii = cfg.radii(side.edge[0])
-        V = mesh.num_vertices
-        ones = np.ones(V, bool)
-        s_host, steps = level_arrays(side, 0, radii, cfg, colors, ones, side.features, np.float32)
-        t_host, _ = level_arrays(side, 0, radii, cfg, np.zeros_like(colors), ones, side.features, np.float32)
-        up, down = search_tables(side.hierarchy, 0, cfg.random_search_levels)
-        R, A = cfg.num_radii, cfg.num_angles
-        ring_weight = jnp.ones(R, jnp.float32) / R
-        src = make_source(s_host, up, down, np.arange(V, dtype=np.int32), V, ring_weight, steps=steps, num_angles=A)
-        tgt = jax.tree.map(jnp.asarray, t_host)
-        f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
-        fan_w = np.exp(-((np.arange(1, R + 1) * cfg.fan_radius / R) ** 2) / (2 * cfg.vote_sigma**2))
-        weights = StepWeights(ring_weight, f32(1.0 / (R * A * 3 * colors.var())), f32(cfg.shape_weight_at(0)),
-                              f32((cfg.vote_sigma * side.edge[0]) ** 2), f32((cfg.interp_sigma * side.edge[0]) ** 2),
-                              fan_weight=f32(fan_w))
-        nnf = jnp.arange(V, dtype=jnp.int32)
-        rot = jnp.zeros(V, jnp.int32)
-        pin = jnp.full(V, -1, jnp.int32)
-        cols = jnp.asarray(colors, jnp.float32)
-        options = {v: SearchOptions.of(Config(vote=v), steps) for v in ("ring", "fan")}
-        times = {(what, v): [] for what in ("vote", "iteration") for v in ("ring", "fan")}
-        out = {}
-        for rep in range(6):  # the first round compiles
-            for v in ("ring", "fan"):
-                t0 = time.perf_counter()
-                out[v] = vote_step(tgt, src.arr, nnf, rot, weights, pin, num_angles=A, vote=v).block_until_ready()
-                times[("vote", v)].append(time.perf_counter() - t0)
-                t0 = time.perf_counter()
-                jax.block_until_ready(iterate(tgt, src, nnf, rot, cols, jax.random.key(rep), weights, pin,
-                                              options=options[v]))
-                times[("iteration", v)].append(time.perf_counter() - t0)
-        load = round(os.getloadavg()[0], 1)
-        for (what, v), ts in times.items():
-            quality = round(psnr(np.clip(np.asarray(out[v]), 0, 1), colors), 2) if what == "vote" else None
-            report.add(name=f"{what}, {v} vote", size=f"{V // 1000}K", seconds=round(float(np.median(ts[1:])), 4),
-                       compile_s=round(ts[0], 2), psnr_db_true_matches=quality, load=load)
-            print(report.rows[-1], flush=True)
-    report.notes.append("Torus self-transfer at the finest level with the true matches (identity, rotation 0): "
-                        "seconds = median of 5 calls after the first (which compiles); psnr_db_true_matches: the "
-                        "vote's colours against the source colours (the vote's own blur).")
-    report.write(pathlib.Path(args.out) if args.out else None)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--suite", choices=("speed", "cross", "figure", "real", "vote-time"), default="speed",
+    ap.add_argument("--suite", choices=("speed", "cross", "figure", "real"), default="speed",
                     help="figure: results/meshmatch_cross.png (intrinsic vs the aligned default, two pairs)")
     ap.add_argument("--small", action="store_true", help="cross suite at half resolution (the test's sizes)")
     ap.add_argument("--sizes", default="16,64", help="target sizes in K vertices (16 and/or 64)")
@@ -549,8 +485,6 @@ def main() -> None:
     if args.suite == "real":
         real(args)
         return
-    if args.suite == "vote-time":
-        vote_time(args)
         return
     if args.suite == "cross":
         cross(args)

@@ -193,12 +193,10 @@ class Config(ConfigBase):
         38.19, cow 35.25 → 35.23 / 35.05 → 35.03, Spot (texture) 21.59 → 21.99 / 21.99 → 21.98 dB,
         the finest vote 45.76 → 42.89 / 45.00 → 45.84, 44.29 → 41.06 / 44.55 → 45.01, 40.07 →
         40.13 / 38.87 → 42.44, 21.85 → 21.70 / 22.13 → 22.27 dB (worse where the target is about
-        as fine as the source, better 3-7× finer). The fan vote costs 4-5× the ring vote's
-        time (torus self-transfer, true matches, 16K / 65K vertices: 0.024 → 0.118 s / 0.25 → 0.98
-        s; a whole finest iteration 0.25 → 0.34 s / 1.84 → 2.10 s, on 2 cores at load 7-9;
-        ``benchmarks/results/meshmatch_vote_time.md``) and blurs more: with the true matches it
-        reproduces the torus colours at 41.7 / 47.9 dB where the ring vote keeps 53.3 / 61.1 dB
-        (its samples lie anywhere in the faces around a vertex, not at the vertex). The final
+        as fine as the source, better 3-7× finer). The fan vote costs more and blurs more (the speed suite's 16K torus
+        self-transfer, ``benchmarks/results/meshmatch_vote_{ring,fan}.md``, load 4.7: finest
+        iteration 0.18 → 0.26 s process CPU, final colours 38.0 → 38.1 dB, the finest vote
+        45.4 → 40.9 dB): its samples lie anywhere in the faces around a vertex, not at the vertex. The final
         colours copy each match's source colour, so the vote reaches them only through the
         E-step's target fans: the default stays ``"ring"``.
       upsample: how a finer level starts from the coarser one, ``"copy"`` (default: each vertex
