@@ -433,9 +433,10 @@ def real(args) -> None:
                     continue
                 seconds = time.perf_counter() - t0
                 diag = _mirror_diagnosis(s, t, r.nnf, gt, sc, truth, edge)
-                report.add(**base, method=label, psnr_db=round(psnr(np.clip(r.colors, 0, 1), truth), 2),
+                final = psnr(np.clip(r.colors, 0, 1), truth)
+                report.add(**base, method=label, psnr_db=round(final, 2),
                            voted_psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
-                           gap_db=round(ceiling - psnr(np.clip(r.colors, 0, 1), truth), 2), **diag,
+                           gap_db=round(ceiling - final, 2), **diag,
                            seconds=round(seconds, 1), finest_iteration_s=_finest_iteration(r),
                            finest_steps=_finest_steps(r), load=round(os.getloadavg()[0], 1))
                 row = report.rows[-1]

@@ -26,6 +26,7 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
+from ..geometry import vertex_normals
 from ._config import Config
 from ._features import ancestors
 from ._prepare import (
@@ -337,11 +338,7 @@ def _frames(side: Side, level: int, cache: dict) -> tuple[np.ndarray, np.ndarray
         f = np.asarray(side.hierarchy.faces[level], np.int64)
         nb = side.neighborhoods[level]
         index, mask, log = np.asarray(nb.index), np.asarray(nb.mask), np.asarray(nb.log)
-        cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-        normal = np.zeros_like(v)
-        for j in range(3):
-            np.add.at(normal, f[:, j], cross)
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-30)
+        normal = vertex_normals(v, f, weighting="area")
         d = v[index] - v[:, None, :]  # [V, K, 3]
         d0 = d[:, 0] - np.sum(d[:, 0] * normal, axis=1, keepdims=True) * normal
         e1 = d0 / np.maximum(np.linalg.norm(d0, axis=1, keepdims=True), 1e-30)
