@@ -28,9 +28,13 @@ if os.environ.get("JMESHTEX_TYPECHECK", "1") != "0":
     from jaxtyping import install_import_hook
 
     _CHECKED = ["jmeshtex.ops", "jmeshtex.geometry"]
-    if any(name in sys.modules for name in _CHECKED):  # the hook only sees modules imported after it
+    if any(
+        name in sys.modules for name in _CHECKED
+    ):  # the hook only sees modules imported after it
         raise RuntimeError(f"conftest.py: {_CHECKED} were imported before their type-check hook")
-    install_import_hook(_CHECKED, "beartype.beartype(conf=beartype.BeartypeConf(is_pep484_tower=True))")
+    install_import_hook(
+        _CHECKED, "beartype.beartype(conf=beartype.BeartypeConf(is_pep484_tower=True))"
+    )
 
 import jax
 import numpy as np

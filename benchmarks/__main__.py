@@ -39,11 +39,17 @@ def main(argv=None) -> int:
     sub = ap.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="the benchmarks and their axes")
     r = sub.add_parser("run", help="run benchmarks over a grid")
-    r.add_argument("names", nargs="*", help="benchmarks (default: all; with --quick: all that have quick settings)")
+    r.add_argument(
+        "names",
+        nargs="*",
+        help="benchmarks (default: all; with --quick: all that have quick settings)",
+    )
     r.add_argument("--sizes", nargs="+", default=None, help="the sizes, in each script's own unit")
     r.add_argument("--dtypes", nargs="+", default=None)
     r.add_argument("--presets", nargs="+", default=None)
-    r.add_argument("--threads", type=int, nargs="+", default=None, help="cores each cell is pinned to")
+    r.add_argument(
+        "--threads", type=int, nargs="+", default=None, help="cores each cell is pinned to"
+    )
     r.add_argument("--repeats", type=int, default=1, help="processes per cell (the noise estimate)")
     r.add_argument("--quick", action="store_true", help="tiny sizes (the test suite's sweep)")
     r.add_argument("--timeout", type=float, default=3600, help="seconds per cell")
@@ -59,19 +65,42 @@ def main(argv=None) -> int:
     c = sub.add_parser("compare", help="per-figure ratios; exit 1 on a regression")
     c.add_argument("old", type=pathlib.Path)
     c.add_argument("new", type=pathlib.Path)
-    c.add_argument("--threshold", type=float, default=0.10, help="slowdown that fails (0.10 = 10%%)")
-    c.add_argument("--sigmas", type=float, default=3.0, help="noise multiples a slowdown must exceed")
+    c.add_argument(
+        "--threshold", type=float, default=0.10, help="slowdown that fails (0.10 = 10%%)"
+    )
+    c.add_argument(
+        "--sigmas", type=float, default=3.0, help="noise multiples a slowdown must exceed"
+    )
     args = ap.parse_args(argv)
 
     if args.command == "list":
         for name, b in BENCHMARKS.items():
-            axes = [a for a, f in (("sizes", b.size_args), ("presets", b.preset_args), ("dtypes", b.dtype_args)) if f]
-            print(f"{name:16s} axes: {', '.join(axes + ['threads']):28s} quick: {' '.join(b.quick_args or ('-',))}")
+            axes = [
+                a
+                for a, f in (
+                    ("sizes", b.size_args),
+                    ("presets", b.preset_args),
+                    ("dtypes", b.dtype_args),
+                )
+                if f
+            ]
+            print(
+                f"{name:16s} axes: {', '.join(axes + ['threads']):28s} quick: {' '.join(b.quick_args or ('-',))}"
+            )
         return 0
     if args.command == "run":
         names = args.names or list(BENCHMARKS)
-        doc = sweep(names, sizes=args.sizes, dtypes=args.dtypes, presets=args.presets, threads=args.threads,
-                    repeats=args.repeats, quick=args.quick, out=args.out, timeout=args.timeout)
+        doc = sweep(
+            names,
+            sizes=args.sizes,
+            dtypes=args.dtypes,
+            presets=args.presets,
+            threads=args.threads,
+            repeats=args.repeats,
+            quick=args.quick,
+            out=args.out,
+            timeout=args.timeout,
+        )
         _write(doc, args.out)
         failed = [c for c in doc["cells"] if c["returncode"] != 0]
         return 1 if failed or not doc["cells"] else 0
@@ -85,7 +114,9 @@ def main(argv=None) -> int:
         for path in plot(load_sweep(args.sweep), args.out):
             print(f"wrote {path}")
         return 0
-    rows, failed = compare(load_sweep(args.old), load_sweep(args.new), threshold=args.threshold, sigmas=args.sigmas)
+    rows, failed = compare(
+        load_sweep(args.old), load_sweep(args.new), threshold=args.threshold, sigmas=args.sigmas
+    )
     print(compare_markdown(rows, threshold=args.threshold), end="")
     if not rows:
         print("no figure in common", file=sys.stderr)

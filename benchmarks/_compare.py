@@ -7,8 +7,9 @@ import statistics
 from ._runner import _fmt, figure_key
 
 
-def compare(old: dict, new: dict, *, threshold: float = 0.10, sigmas: float = 3.0,
-            min_noise: float = 0.02) -> tuple[list[dict], bool]:
+def compare(
+    old: dict, new: dict, *, threshold: float = 0.10, sigmas: float = 3.0, min_noise: float = 0.02
+) -> tuple[list[dict], bool]:
     """Per-figure time ratios ``new / old`` and which are regressions.
 
     The noise of a figure is the larger relative spread ``(max - min) / median`` of its repeats in
@@ -46,14 +47,27 @@ def compare(old: dict, new: dict, *, threshold: float = 0.10, sigmas: float = 3.
         else:
             status = "ok"
         failed |= status == "REGRESSION"
-        rows.append({"key": key, "old": o["seconds"], "new": f["seconds"], "ratio": ratio, "noise": noise,
-                     "status": status})
+        rows.append(
+            {
+                "key": key,
+                "old": o["seconds"],
+                "new": f["seconds"],
+                "ratio": ratio,
+                "noise": noise,
+                "status": status,
+            }
+        )
     return rows, failed
 
 
 def compare_markdown(rows: list[dict], *, threshold: float) -> str:
-    lines = [f"| figure | old s | new s | new/old | noise | status (fail: > {threshold:.0%} and beyond noise) |",
-             "|---|---|---|---|---|---|"]
-    lines += [f"| {r['key']} | {_fmt(r['old'])} | {_fmt(r['new'])} | {r['ratio']:.3f} | {r['noise']:.3f} | "
-              f"{r['status']} |" for r in rows]
+    lines = [
+        f"| figure | old s | new s | new/old | noise | status (fail: > {threshold:.0%} and beyond noise) |",
+        "|---|---|---|---|---|---|",
+    ]
+    lines += [
+        f"| {r['key']} | {_fmt(r['old'])} | {_fmt(r['new'])} | {r['ratio']:.3f} | {r['noise']:.3f} | "
+        f"{r['status']} |"
+        for r in rows
+    ]
     return "\n".join(lines) + "\n"

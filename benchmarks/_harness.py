@@ -62,7 +62,9 @@ class Timing:
 
 
 def _block(x):
-    return jax.tree.map(lambda a: a.block_until_ready() if hasattr(a, "block_until_ready") else a, x)
+    return jax.tree.map(
+        lambda a: a.block_until_ready() if hasattr(a, "block_until_ready") else a, x
+    )
 
 
 def time_jax(fn: Callable, *args, repeats: int = 5, min_time: float = 0.2) -> Timing:
@@ -132,8 +134,11 @@ def activation_ceiling(activation: str, *, n: int = 1 << 20, responses: int = 16
     def f(v):
         acc = jnp.zeros_like(v)
         for h in range(responses):  # one ridge function a_h x + b_h per response, summed unrolled
-            p = FieldConvParams(filter_weight=jnp.array([[1.0 + 0.01 * h], [0.0]], jnp.float32),
-                                filter_bias=jnp.full((1,), 0.1 * h, jnp.float32), mix=mix)
+            p = FieldConvParams(
+                filter_weight=jnp.array([[1.0 + 0.01 * h], [0.0]], jnp.float32),
+                filter_bias=jnp.full((1,), 0.1 * h, jnp.float32),
+                mix=mix,
+            )
             acc = acc + field_conv_responses(v, zero, p, activation=activation)[:, :, 0]
         return acc
 
@@ -147,8 +152,11 @@ def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dic
     t_flops = flops / (report.ceilings["matmul_gflops"] * 1e9)
     t_bytes = nbytes / (report.ceilings["bandwidth_gbs"] * 1e9)
     bound_s = max(t_flops, t_bytes)
-    return {"bound": "flops" if t_flops >= t_bytes else "bytes", "bound_s": bound_s,
-            "pct_of_bound": 100.0 * bound_s / seconds}
+    return {
+        "bound": "flops" if t_flops >= t_bytes else "bytes",
+        "bound_s": bound_s,
+        "pct_of_bound": 100.0 * bound_s / seconds,
+    }
 
 
 class Report:
@@ -184,8 +192,13 @@ class Report:
     def write(self, directory: pathlib.Path | None = None) -> pathlib.Path:
         out = pathlib.Path(directory) if directory else RESULTS
         out.mkdir(parents=True, exist_ok=True)
-        payload = {"name": self.name, "machine": self.info, "ceilings": self.ceilings,
-                   **({"config": self.config} if self.config else {}), "rows": self.rows}
+        payload = {
+            "name": self.name,
+            "machine": self.info,
+            "ceilings": self.ceilings,
+            **({"config": self.config} if self.config else {}),
+            "rows": self.rows,
+        }
         atomic_write(out / f"{self.name}.json", json.dumps(payload, indent=2, default=float))
         atomic_write(out / f"{self.name}.md", self.markdown())
         print(f"wrote {out / self.name}.json and .md", flush=True)
@@ -196,7 +209,11 @@ class Report:
         for r in self.rows:
             keys += [k for k in r if k not in keys]
         lines = [f"# {self.name}", "", f"machine: `{json.dumps(self.info)}`", ""]
-        lines += ["ceilings (same run): " + ", ".join(f"{k} = {_fmt(v)}" for k, v in self.ceilings.items()), ""]
+        lines += [
+            "ceilings (same run): "
+            + ", ".join(f"{k} = {_fmt(v)}" for k, v in self.ceilings.items()),
+            "",
+        ]
         lines += ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
         lines += ["| " + " | ".join(_fmt(r.get(k, "")) for k in keys) + " |" for r in self.rows]
         if self.notes:

@@ -42,8 +42,23 @@ ROOT = HERE.parent
 SCHEMA = "jmeshtex-bench/1"
 
 #: row keys that name a figure's setting (kept in ``params``) rather than measure it
-_PARAM_KEYS = ("size", "mesh", "method", "model", "preset", "activation", "table", "chunk", "source", "bound", "what",
-               "dtype", "atlas", "steps", "level")
+_PARAM_KEYS = (
+    "size",
+    "mesh",
+    "method",
+    "model",
+    "preset",
+    "activation",
+    "table",
+    "chunk",
+    "source",
+    "bound",
+    "what",
+    "dtype",
+    "atlas",
+    "steps",
+    "level",
+)
 #: row keys giving the problem size ``n`` of the log-log plot, in order of preference
 _SIZE_KEYS = ("texels", "vertices", "faces", "points", "n")
 
@@ -83,33 +98,58 @@ def _flag(flag: str, *, join: str | None = None):
 
 
 #: every benchmark the runner knows, with the sizes of its quick sweep (tiny, seconds each)
-BENCHMARKS: dict[str, Benchmark] = {b.name: b for b in (
-    Benchmark("ceilings", size_args=_flag("--sizes"), quick_args=("--sizes", "256"),
-              dtype_args=lambda d: ["--dtype", d]),
-    Benchmark("ops_face_conv", size_args=_flag("--sizes"), quick_args=("--sizes", "2")),
-    Benchmark("ops_field_conv", size_args=_flag("--sizes"),
-              quick_args=("--sizes", "300", "--activations", "relu", "--repeats", "1")),
-    Benchmark("ops_texel", size_args=_flag("--size"), per_size=True, quick_args=("--size", "16", "--channels", "4")),
-    Benchmark("ops_chamfer", size_args=_flag("--points"), per_size=True,
-              quick_args=("--points", "400", "--chunks", "128")),
-    Benchmark("geometry", size_args=_flag("--sizes", join=","), quick_args=("--sizes", "400")),
-    Benchmark("fldm", size_args=_flag("--sizes"), preset_args=lambda p: ["--presets", p]),
-    Benchmark("fl_vae", size_args=_flag("--sizes", join=",")),
-    Benchmark("surfacecnn", size_args=lambda s: ["--precompute", ",".join(s), "--steps", ",".join(s)]),
-    Benchmark("meshmatch", size_args=_flag("--sizes", join=",")),
-    Benchmark("meshmatch_cross", script="meshmatch", extra_args=("--suite", "cross")),
-    Benchmark("render", size_args=_flag("--faces"), per_size=True, quick_args=("--smoke",)),
-    Benchmark("dgts"),
-    Benchmark("fldm_spot", quick_args=("--quick",)),
-)}
+BENCHMARKS: dict[str, Benchmark] = {
+    b.name: b
+    for b in (
+        Benchmark(
+            "ceilings",
+            size_args=_flag("--sizes"),
+            quick_args=("--sizes", "256"),
+            dtype_args=lambda d: ["--dtype", d],
+        ),
+        Benchmark("ops_face_conv", size_args=_flag("--sizes"), quick_args=("--sizes", "2")),
+        Benchmark(
+            "ops_field_conv",
+            size_args=_flag("--sizes"),
+            quick_args=("--sizes", "300", "--activations", "relu", "--repeats", "1"),
+        ),
+        Benchmark(
+            "ops_texel",
+            size_args=_flag("--size"),
+            per_size=True,
+            quick_args=("--size", "16", "--channels", "4"),
+        ),
+        Benchmark(
+            "ops_chamfer",
+            size_args=_flag("--points"),
+            per_size=True,
+            quick_args=("--points", "400", "--chunks", "128"),
+        ),
+        Benchmark("geometry", size_args=_flag("--sizes", join=","), quick_args=("--sizes", "400")),
+        Benchmark("fldm", size_args=_flag("--sizes"), preset_args=lambda p: ["--presets", p]),
+        Benchmark("fl_vae", size_args=_flag("--sizes", join=",")),
+        Benchmark(
+            "surfacecnn", size_args=lambda s: ["--precompute", ",".join(s), "--steps", ",".join(s)]
+        ),
+        Benchmark("meshmatch", size_args=_flag("--sizes", join=",")),
+        Benchmark("meshmatch_cross", script="meshmatch", extra_args=("--suite", "cross")),
+        Benchmark("render", size_args=_flag("--faces"), per_size=True, quick_args=("--smoke",)),
+        Benchmark("dgts"),
+        Benchmark("fldm_spot", quick_args=("--quick",)),
+    )
+}
 
 
 def machine_and_versions() -> tuple[dict, dict]:
     """Facts about this machine and the versions of what is measured (no JAX import needed)."""
     from importlib import metadata
 
-    machine = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-               "cpu_count": os.cpu_count(), "node": platform.node()}
+    machine = {
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "node": platform.node(),
+    }
     try:
         machine["load"] = round(os.getloadavg()[0], 2)
     except OSError:
@@ -126,10 +166,16 @@ def machine_and_versions() -> tuple[dict, dict]:
 def git_commit() -> str | None:
     """The checked-out commit, ``+dirty`` when the tree has changes (None outside git)."""
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True,
-                             timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        sha = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return None
     return (sha + ("+dirty" if dirty else "")) or None
@@ -164,17 +210,32 @@ def _ceiling(row: dict, ceilings: dict) -> tuple[dict | None, float | None]:
     if "pct_of_bound" in row:
         kind = "bandwidth_gbs" if row.get("bound") == "bytes" else "matmul_gflops"
         achieved = row.get("gbs") if kind == "bandwidth_gbs" else row.get("gflops")
-        return ({"kind": kind, "value": ceilings.get(kind), "achieved": achieved}, row["pct_of_bound"] / 100)
-    for pct, kind, achieved in (("pct_matmul", "matmul_gflops", "gflops"), ("pct_bandwidth", "bandwidth_gbs", "gbs")):
+        return (
+            {"kind": kind, "value": ceilings.get(kind), "achieved": achieved},
+            row["pct_of_bound"] / 100,
+        )
+    for pct, kind, achieved in (
+        ("pct_matmul", "matmul_gflops", "gflops"),
+        ("pct_bandwidth", "bandwidth_gbs", "gbs"),
+    ):
         want = {"pct_matmul": "flops", "pct_bandwidth": "bytes"}[pct]
-        if pct in row and (row.get("bound") in (None, want) or
-                           ("pct_matmul" in row) != ("pct_bandwidth" in row)):
-            return {"kind": kind, "value": ceilings.get(kind), "achieved": row.get(achieved)}, row[pct] / 100
+        if pct in row and (
+            row.get("bound") in (None, want) or ("pct_matmul" in row) != ("pct_bandwidth" in row)
+        ):
+            return {"kind": kind, "value": ceilings.get(kind), "achieved": row.get(achieved)}, row[
+                pct
+            ] / 100
     return None, None
 
 
-def figures_from_report(report: dict, *, params: dict | None = None, machine: dict | None = None,
-                        versions: dict | None = None, commit: str | None = None) -> list[dict]:
+def figures_from_report(
+    report: dict,
+    *,
+    params: dict | None = None,
+    machine: dict | None = None,
+    versions: dict | None = None,
+    commit: str | None = None,
+) -> list[dict]:
     """The adapter: every timed row of a ``_harness`` report (``results/<name>.json``) as a figure.
 
     Rows without ``seconds`` (quality tables) are kept too, with ``seconds`` None, so no figure is
@@ -196,14 +257,29 @@ def figures_from_report(report: dict, *, params: dict | None = None, machine: di
         p.update(params or {})
         ceiling, ratio = _ceiling(row, ceilings)
         seconds = row.get("seconds")
-        metrics = {k: v for k, v in row.items() if k not in p and k not in ("name", "seconds")
-                   and isinstance(v, (int, float)) and not isinstance(v, bool)}
-        out.append({"benchmark": report.get("name"), "name": name, "params": p,
-                    "seconds": float(seconds) if isinstance(seconds, (int, float)) else None,
-                    "runs": [float(seconds)] if isinstance(seconds, (int, float)) else [],
-                    "ceiling": ceiling, "ratio_to_ceiling": ratio, "metrics": metrics,
-                    "machine": machine if machine is not None else report.get("machine", {}),
-                    "versions": versions if versions is not None else {}, "commit": commit})
+        metrics = {
+            k: v
+            for k, v in row.items()
+            if k not in p
+            and k not in ("name", "seconds")
+            and isinstance(v, (int, float))
+            and not isinstance(v, bool)
+        }
+        out.append(
+            {
+                "benchmark": report.get("name"),
+                "name": name,
+                "params": p,
+                "seconds": float(seconds) if isinstance(seconds, (int, float)) else None,
+                "runs": [float(seconds)] if isinstance(seconds, (int, float)) else [],
+                "ceiling": ceiling,
+                "ratio_to_ceiling": ratio,
+                "metrics": metrics,
+                "machine": machine if machine is not None else report.get("machine", {}),
+                "versions": versions if versions is not None else {},
+                "commit": commit,
+            }
+        )
     seen: dict[str, int] = {}
     for fig in out:  # rows a report repeats with the same settings stay apart (in their order)
         key = figure_key(fig)
@@ -234,8 +310,13 @@ def merge_repeats(figures: list[dict]) -> list[dict]:
     return list(merged.values())
 
 
-def _cell_argv(bench: Benchmark, sizes: Sequence[str] | None, dtype: str | None, preset: str | None,
-               quick: bool) -> list[str]:
+def _cell_argv(
+    bench: Benchmark,
+    sizes: Sequence[str] | None,
+    dtype: str | None,
+    preset: str | None,
+    quick: bool,
+) -> list[str]:
     argv = list(bench.extra_args)
     if quick:
         argv += list(bench.quick_args or ())
@@ -249,20 +330,25 @@ def _cell_argv(bench: Benchmark, sizes: Sequence[str] | None, dtype: str | None,
         argv += bench.preset_args(preset)
     if dtype is not None:
         if bench.dtype_args is None:
-            raise SystemExit(f"benchmark {bench.name} has no dtype axis (dtypes: "
-                             f"{', '.join(n for n, b in BENCHMARKS.items() if b.dtype_args)})")
+            raise SystemExit(
+                f"benchmark {bench.name} has no dtype axis (dtypes: "
+                f"{', '.join(n for n, b in BENCHMARKS.items() if b.dtype_args)})"
+            )
         argv += bench.dtype_args(dtype)
     return argv
 
 
 #: run a benchmark script with ``_harness.RESULTS`` pointed at a folder (scripts without ``--out``)
-_BOOT = ("import pathlib, runpy, sys; sys.path.insert(0, sys.argv[1]); import _harness; "
-         "_harness.RESULTS = pathlib.Path(sys.argv[2]); script = sys.argv[3]; sys.argv = [script, *sys.argv[4:]]; "
-         "runpy.run_path(script, run_name='__main__')")
+_BOOT = (
+    "import pathlib, runpy, sys; sys.path.insert(0, sys.argv[1]); import _harness; "
+    "_harness.RESULTS = pathlib.Path(sys.argv[2]); script = sys.argv[3]; sys.argv = [script, *sys.argv[4:]]; "
+    "runpy.run_path(script, run_name='__main__')"
+)
 
 
-def run_cell(bench: Benchmark, argv: list[str], *, threads: int | None, out: pathlib.Path,
-             timeout: float) -> tuple[dict | None, dict]:
+def run_cell(
+    bench: Benchmark, argv: list[str], *, threads: int | None, out: pathlib.Path, timeout: float
+) -> tuple[dict | None, dict]:
     """Run one benchmark process; returns its report (None if it failed) and the cell record."""
     out.mkdir(parents=True, exist_ok=True)
     script = HERE / f"{bench.script or bench.name}.py"
@@ -270,25 +356,46 @@ def run_cell(bench: Benchmark, argv: list[str], *, threads: int | None, out: pat
     env.setdefault("PYTHONPATH", str(ROOT))
     preexec = None
     if threads is not None:
-        env.update({v: str(threads) for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
-        cores = sorted(os.sched_getaffinity(0))[:threads] if hasattr(os, "sched_getaffinity") else None
+        env.update(
+            {
+                v: str(threads)
+                for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+            }
+        )
+        cores = (
+            sorted(os.sched_getaffinity(0))[:threads] if hasattr(os, "sched_getaffinity") else None
+        )
         if cores and len(cores) < threads:
             raise SystemExit(f"--threads {threads}: only {len(cores)} cores available")
         if cores:
+
             def preexec():
                 os.sched_setaffinity(0, cores)
+
     cmd = [sys.executable, "-c", _BOOT, str(HERE), str(out), str(script), *argv]
     if "--out" not in argv and _takes_out(script):
         cmd += ["--out", str(out)]
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout,
-                              preexec_fn=preexec)
+        proc = subprocess.run(
+            cmd,
+            cwd=ROOT,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            preexec_fn=preexec,
+        )
         rc, log = proc.returncode, proc.stdout[-2000:] + proc.stderr[-4000:]
     except subprocess.TimeoutExpired as err:
         rc, log = -1, f"timed out after {timeout} s\n{(err.stdout or b'')[-2000:]!r}"
-    cell = {"benchmark": bench.name, "argv": argv, "threads": threads, "returncode": rc,
-            "wall_s": time.perf_counter() - t0}
+    cell = {
+        "benchmark": bench.name,
+        "argv": argv,
+        "threads": threads,
+        "returncode": rc,
+        "wall_s": time.perf_counter() - t0,
+    }
     path = out / f"{bench.report or bench.name}.json"
     if rc != 0 or not path.is_file():
         cell["log"] = log
@@ -300,9 +407,19 @@ def _takes_out(script: pathlib.Path) -> bool:
     return '"--out"' in script.read_text()
 
 
-def sweep(names: Sequence[str], *, sizes: Sequence[str] | None = None, dtypes: Sequence[str] | None = None,
-          presets: Sequence[str] | None = None, threads: Sequence[int] | None = None, repeats: int = 1,
-          quick: bool = False, out: pathlib.Path, timeout: float = 3600, log=print) -> dict:
+def sweep(
+    names: Sequence[str],
+    *,
+    sizes: Sequence[str] | None = None,
+    dtypes: Sequence[str] | None = None,
+    presets: Sequence[str] | None = None,
+    threads: Sequence[int] | None = None,
+    repeats: int = 1,
+    quick: bool = False,
+    out: pathlib.Path,
+    timeout: float = 3600,
+    log=print,
+) -> dict:
     """Run every benchmark in ``names`` over the grid; returns (and writes) the sweep document.
 
     Sizes of a script that takes one size per run (``per_size``) become one process each; the
@@ -321,8 +438,14 @@ def sweep(names: Sequence[str], *, sizes: Sequence[str] | None = None, dtypes: S
         if quick and bench.quick_args is None:
             log(f"skip {name}: no quick settings")
             continue
-        size_groups = [None] if quick or not sizes else ([[s] for s in sizes] if bench.per_size else [list(sizes)])
-        grid = itertools.product(size_groups, dtypes or [None], presets or [None], threads or [None], range(repeats))
+        size_groups = (
+            [None]
+            if quick or not sizes
+            else ([[s] for s in sizes] if bench.per_size else [list(sizes)])
+        )
+        grid = itertools.product(
+            size_groups, dtypes or [None], presets or [None], threads or [None], range(repeats)
+        )
         for group, dtype, preset, nthreads, rep in grid:
             argv = _cell_argv(bench, group, dtype, preset, quick)
             cell_dir = work / f"{name}-{len(cells):03d}"
@@ -335,13 +458,24 @@ def sweep(names: Sequence[str], *, sizes: Sequence[str] | None = None, dtypes: S
             params = {"dtype": dtype, "preset": preset, "threads": nthreads}
             params = {k: v for k, v in params.items() if v is not None}
             ran_on = dict(machine, devices=report.get("machine", {}).get("devices"))
-            figures += figures_from_report(report, params=params, machine=ran_on, versions=versions, commit=commit)
-    doc = {"schema": SCHEMA, "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "commit": commit,
-           "machine": machine, "versions": versions, "figures": merge_repeats(figures), "cells": cells}
+            figures += figures_from_report(
+                report, params=params, machine=ran_on, versions=versions, commit=commit
+            )
+    doc = {
+        "schema": SCHEMA,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "commit": commit,
+        "machine": machine,
+        "versions": versions,
+        "figures": merge_repeats(figures),
+        "cells": cells,
+    }
     return doc
 
 
-def import_results(names: Sequence[str] | None = None, folder: pathlib.Path = HERE / "results") -> dict:
+def import_results(
+    names: Sequence[str] | None = None, folder: pathlib.Path = HERE / "results"
+) -> dict:
     """The committed ``results/<name>.json`` of the scripts as one sweep document (the adapter)."""
     figures = []
     for path in sorted(folder.glob("*.json")):
@@ -349,10 +483,21 @@ def import_results(names: Sequence[str] | None = None, folder: pathlib.Path = HE
         if report is None or (names and report.get("name") not in names):
             continue
         info = report.get("machine", {})
-        versions = {k: info.get(k) for k in ("python", "jax", "jaxlib", "flax", "optax", "numpy") if k in info}
+        versions = {
+            k: info.get(k)
+            for k in ("python", "jax", "jaxlib", "flax", "optax", "numpy")
+            if k in info
+        }
         figures += figures_from_report(report, machine=info, versions=versions, commit=None)
-    return {"schema": SCHEMA, "created": None, "commit": None, "machine": {}, "versions": {},
-            "figures": figures, "cells": []}
+    return {
+        "schema": SCHEMA,
+        "created": None,
+        "commit": None,
+        "machine": {},
+        "versions": {},
+        "figures": figures,
+        "cells": [],
+    }
 
 
 def _as_report(data: Any, path: pathlib.Path) -> dict | None:
@@ -386,22 +531,39 @@ def _fmt(v: Any) -> str:
 
 def markdown(doc: dict) -> str:
     """One table of every figure: benchmark, name, params, seconds (± spread), ceiling, ratio."""
-    lines = [f"# benchmark sweep ({doc.get('created') or 'imported'})", "",
-             f"commit `{doc.get('commit')}`, machine `{json.dumps(doc.get('machine', {}))}`, "
-             f"versions `{json.dumps(doc.get('versions', {}))}`", "",
-             "| benchmark | figure | params | seconds | repeats | spread | ceiling | ratio to ceiling |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"# benchmark sweep ({doc.get('created') or 'imported'})",
+        "",
+        f"commit `{doc.get('commit')}`, machine `{json.dumps(doc.get('machine', {}))}`, "
+        f"versions `{json.dumps(doc.get('versions', {}))}`",
+        "",
+        "| benchmark | figure | params | seconds | repeats | spread | ceiling | ratio to ceiling |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for f in doc["figures"]:
         params = ", ".join(f"{k}={_fmt(v)}" for k, v in f["params"].items() if v is not None)
         runs = f.get("runs") or []
-        spread = (max(runs) - min(runs)) / statistics.median(runs) if len(runs) > 1 and statistics.median(runs) else None
-        ceiling = f"{f['ceiling']['kind']} = {_fmt(f['ceiling']['value'])}" if f.get("ceiling") else ""
-        lines.append(f"| {f['benchmark']} | {f['name']} | {params} | {_fmt(f['seconds'])} | {len(runs)} | "
-                     f"{_fmt(spread)} | {ceiling} | {_fmt(f['ratio_to_ceiling'])} |")
+        spread = (
+            (max(runs) - min(runs)) / statistics.median(runs)
+            if len(runs) > 1 and statistics.median(runs)
+            else None
+        )
+        ceiling = (
+            f"{f['ceiling']['kind']} = {_fmt(f['ceiling']['value'])}" if f.get("ceiling") else ""
+        )
+        lines.append(
+            f"| {f['benchmark']} | {f['name']} | {params} | {_fmt(f['seconds'])} | {len(runs)} | "
+            f"{_fmt(spread)} | {ceiling} | {_fmt(f['ratio_to_ceiling'])} |"
+        )
     failed = [c for c in doc.get("cells", []) if c["returncode"] != 0]
     if failed:
-        lines += ["", "Failed cells: " + "; ".join(f"{c['benchmark']} {' '.join(c['argv'])} (exit {c['returncode']})"
-                                                    for c in failed)]
+        lines += [
+            "",
+            "Failed cells: "
+            + "; ".join(
+                f"{c['benchmark']} {' '.join(c['argv'])} (exit {c['returncode']})" for c in failed
+            ),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -412,7 +574,11 @@ def growth_exponent(ns: Sequence[float], seconds: Sequence[float]) -> float | No
       >>> round(growth_exponent([1e3, 1e4, 1e5], [1e-3, 1e-1, 1e1]), 6)
       2.0
     """
-    pts = [(math.log(n), math.log(t)) for n, t in zip(ns, seconds, strict=True) if n and t and n > 0 and t > 0]
+    pts = [
+        (math.log(n), math.log(t))
+        for n, t in zip(ns, seconds, strict=True)
+        if n and t and n > 0 and t > 0
+    ]
     if len({x for x, _ in pts}) < 2:
         return None
     mx = sum(x for x, _ in pts) / len(pts)
@@ -426,9 +592,16 @@ def _series(doc: dict) -> dict[str, list[tuple[float, float]]]:
     for f in doc["figures"]:
         if f["seconds"] is None or not f["params"].get("n"):
             continue
-        rest = {k: v for k, v in f["params"].items() if k not in ("n", "size") and v is not None
-                and k not in ("bound", "what", "table", "source")}
-        label = f"{f['benchmark']}: {f['name']}" + (f" ({', '.join(f'{k}={v}' for k, v in rest.items())})" if rest else "")
+        rest = {
+            k: v
+            for k, v in f["params"].items()
+            if k not in ("n", "size")
+            and v is not None
+            and k not in ("bound", "what", "table", "source")
+        }
+        label = f"{f['benchmark']}: {f['name']}" + (
+            f" ({', '.join(f'{k}={v}' for k, v in rest.items())})" if rest else ""
+        )
         series.setdefault(label, []).append((float(f["params"]["n"]), f["seconds"]))
     return series
 
@@ -462,14 +635,21 @@ def plot(doc: dict, out: pathlib.Path) -> list[pathlib.Path]:
             ax.set_ylabel("seconds")
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=7)
-        for ax in axes.ravel()[len(benches):]:
+        for ax in axes.ravel()[len(benches) :]:
             ax.axis("off")
         fig.tight_layout()
         paths.append(out / "scaling.png")
         fig.savefig(paths[-1], dpi=90)
         plt.close(fig)
-    bars = [(f"{f['benchmark']}: {f['name']} [{_fmt(f['params'].get('size') or f['params'].get('n'))}]",
-             f["ratio_to_ceiling"], f["ceiling"]["kind"]) for f in doc["figures"] if f.get("ratio_to_ceiling") is not None]
+    bars = [
+        (
+            f"{f['benchmark']}: {f['name']} [{_fmt(f['params'].get('size') or f['params'].get('n'))}]",
+            f["ratio_to_ceiling"],
+            f["ceiling"]["kind"],
+        )
+        for f in doc["figures"]
+        if f.get("ratio_to_ceiling") is not None
+    ]
     if bars:
         fig, ax = plt.subplots(figsize=(11, 0.28 * len(bars) + 1.5))
         colors = ["tab:blue" if kind == "matmul_gflops" else "tab:orange" for _, _, kind in bars]
@@ -477,7 +657,9 @@ def plot(doc: dict, out: pathlib.Path) -> list[pathlib.Path]:
         ax.set_yticks(range(len(bars)), [label for label, _, _ in bars], fontsize=7)
         ax.invert_yaxis()
         ax.axvline(1.0, color="k", lw=0.8)
-        ax.set_xlabel("fraction of the same run's ceiling (blue: matmul GFLOP/s, orange: copy GB/s)")
+        ax.set_xlabel(
+            "fraction of the same run's ceiling (blue: matmul GFLOP/s, orange: copy GB/s)"
+        )
         fig.tight_layout()
         paths.append(out / "ceiling.png")
         fig.savefig(paths[-1], dpi=90)

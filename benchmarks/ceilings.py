@@ -23,7 +23,9 @@ jax.config.update("jax_enable_x64", True)
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[512, 1024, 2048])
-    ap.add_argument("--dtype", default="float32", choices=["float32", "float64", "bfloat16", "float16"])
+    ap.add_argument(
+        "--dtype", default="float32", choices=["float32", "float64", "bfloat16", "float16"]
+    )
     ap.add_argument("--out", default=None, help="results folder (default benchmarks/results)")
     args = ap.parse_args(argv)
     report = Report("ceilings")
@@ -32,11 +34,25 @@ def main(argv=None) -> None:
     for n in args.sizes:
         a = jnp.ones((n, n), dtype)
         t = time_jax(matmul, a, a)
-        report.add(name="matmul", size=f"{n}x{n}", dtype=args.dtype, seconds=t.run_s, compile_s=t.compile_s,
-                   flops=2.0 * n**3, bound="flops")
+        report.add(
+            name="matmul",
+            size=f"{n}x{n}",
+            dtype=args.dtype,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            flops=2.0 * n**3,
+            bound="flops",
+        )
         t = time_jax(copy, a)
-        report.add(name="copy", size=f"{n}x{n}", dtype=args.dtype, seconds=t.run_s, compile_s=t.compile_s,
-                   bytes=2.0 * n * n * dtype.itemsize, bound="bytes")
+        report.add(
+            name="copy",
+            size=f"{n}x{n}",
+            dtype=args.dtype,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            bytes=2.0 * n * n * dtype.itemsize,
+            bound="bytes",
+        )
     report.write(args.out)
 
 

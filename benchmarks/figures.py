@@ -53,7 +53,8 @@ def _store(src: pathlib.Path, dst: pathlib.Path, *, max_bytes: int = MAX_BYTES) 
     if buf.tell() > max_bytes:
         buf = io.BytesIO()
         image.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(
-            buf, format="PNG", optimize=True)
+            buf, format="PNG", optimize=True
+        )
     dst.parent.mkdir(parents=True, exist_ok=True)
     tmp = dst.with_name(f".{dst.name}.tmp")
     tmp.write_bytes(buf.getvalue())
@@ -63,21 +64,32 @@ def _store(src: pathlib.Path, dst: pathlib.Path, *, max_bytes: int = MAX_BYTES) 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/figures", help="folder of the PNGs (default docs/figures)")
+    parser.add_argument(
+        "--out", default="docs/figures", help="folder of the PNGs (default docs/figures)"
+    )
     parser.add_argument("--full", action="store_true", help="the full demo's settings (slower)")
-    parser.add_argument("--from", dest="source", type=pathlib.Path, default=None,
-                        help="copy the figures of this existing `jmeshtex demo` output folder")
+    parser.add_argument(
+        "--from",
+        dest="source",
+        type=pathlib.Path,
+        default=None,
+        help="copy the figures of this existing `jmeshtex demo` output folder",
+    )
     args = parser.parse_args(argv)
     out = pathlib.Path(args.out)
-    print(f"jmeshtex {jmeshtex.__version__}, jax {jax.__version__}, numpy {np.__version__}, "
-          f"python {platform.python_version()}")
+    print(
+        f"jmeshtex {jmeshtex.__version__}, jax {jax.__version__}, numpy {np.__version__}, "
+        f"python {platform.python_version()}"
+    )
     print(f"machine: {platform.platform()}, {os.cpu_count()} CPUs, JAX devices {jax.devices()}")
     print(f"settings: {'full' if args.full else 'quick'} demo → {out}/", flush=True)
     t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory() as work:
         demo = args.source if args.source is not None else pathlib.Path(work) / "demo"
         if args.source is None:
-            code = jmeshtex_main(["demo", "--out", str(demo), "--no-progress", *([] if args.full else ["--quick"])])
+            code = jmeshtex_main(
+                ["demo", "--out", str(demo), "--no-progress", *([] if args.full else ["--quick"])]
+            )
             if code != 0:
                 return code
         else:
@@ -85,7 +97,9 @@ def main(argv: list[str] | None = None) -> int:
         for method, name in FIGURES.items():
             size = _store(demo / method / name, out / f"{method}.png")
             print(f"{out / (method + '.png')}: {size / 1e3:.0f} KB")
-    print(f"total: {time.perf_counter() - t0:.1f} s wall, {time.process_time() - c0:.1f} s process CPU")
+    print(
+        f"total: {time.perf_counter() - t0:.1f} s wall, {time.process_time() - c0:.1f} s process CPU"
+    )
     return 0
 
 

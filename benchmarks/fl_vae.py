@@ -57,11 +57,27 @@ from jmeshtex.geometry import rasterize_uv
 
 DATA = pathlib.Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 SPOT = DATA / "spot"
-PAPER = {"log": 22.38, "barycentric": 21.33}  # PSNR at 30K vertices, Google Scanned Objects (Table 1)
+PAPER = {
+    "log": 22.38,
+    "barycentric": 21.33,
+}  # PSNR at 30K vertices, Google Scanned Objects (Table 1)
 #: images the shipped models (jmeshtex/fl/weights/README.md) were trained on
 SHIPPED_TRAINING_IMAGES = (
-    "astronaut", "brick", "camera", "chelsea", "coffee", "coins", "colorwheel", "grass", "gravel",
-    "hubble_deep_field", "immunohistochemistry", "moon", "retina", "rocket")
+    "astronaut",
+    "brick",
+    "camera",
+    "chelsea",
+    "coffee",
+    "coins",
+    "colorwheel",
+    "grass",
+    "gravel",
+    "hubble_deep_field",
+    "immunohistochemistry",
+    "moon",
+    "retina",
+    "rocket",
+)
 
 
 def textured_meshes() -> dict[str, tuple[pathlib.Path, pathlib.Path]]:
@@ -73,7 +89,11 @@ def textured_meshes() -> dict[str, tuple[pathlib.Path, pathlib.Path]]:
         if b"\nvt " not in obj.read_bytes()[:2_000_000]:
             continue
         stem = obj.stem.replace("_triangulated", "")
-        for tex in (obj.with_name(f"{stem}_texture.png"), obj.with_suffix(".png"), obj.with_suffix(".jpg")):
+        for tex in (
+            obj.with_name(f"{stem}_texture.png"),
+            obj.with_suffix(".png"),
+            obj.with_suffix(".jpg"),
+        ):
             if tex.exists():
                 out[stem] = (obj, tex)
                 break
@@ -95,10 +115,18 @@ def render_metrics(mesh, r, *, views: int, size: int, lpips: bool) -> dict:
     recon = _fill_unused(r.texture, r.valid)
     ref, _ = metrics.protocol_views(mesh, uv=mesh.uv, texture=target, protocol=rig)
     names = ["psnr", "dssim"] + (["lpips"] if lpips else [])
-    out = metrics.evaluate_views(mesh, uv=mesh.uv, texture=recon, reference_images=ref, protocol=rig, metrics=names)
+    out = metrics.evaluate_views(
+        mesh, uv=mesh.uv, texture=recon, reference_images=ref, protocol=rig, metrics=names
+    )
     const = metrics.flat_baseline(r.target, mask=r.valid)
-    base = metrics.evaluate_views(mesh, uv=mesh.uv, texture=_fill_unused(const, r.valid), reference_images=ref,
-                                  protocol=rig, metrics=names)
+    base = metrics.evaluate_views(
+        mesh,
+        uv=mesh.uv,
+        texture=_fill_unused(const, r.valid),
+        reference_images=ref,
+        protocol=rig,
+        metrics=names,
+    )
     return {k: float(out[k]) for k in names}, {k: float(base[k]) for k in names}
 
 
@@ -112,13 +140,30 @@ def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
             for decoder, model in models.items():
                 t0 = time.perf_counter()
                 r = fl.reconstruct(model, mesh, key=jax.random.key(0), size=size, lpips=lpips)
-                report.add(table="held_out", image=name, model=decoder, vertices=mesh.num_vertices,
-                           ppv_texture=round(measured, 2), atlas=size, seen_in_training=name in model_images(model),
-                           **{k: round(v, 4) for k, v in r.metrics.items()}, seconds=time.perf_counter() - t0,
-                           load=load())
-            const = fl.atlas_metrics(metrics.flat_baseline(r.target, mask=r.valid), r.target, r.valid, lpips=lpips)
-            report.add(table="held_out", image=name, model="constant", vertices=mesh.num_vertices,
-                       ppv_texture=round(measured, 2), atlas=size, **{k: round(v, 4) for k, v in const.items()})
+                report.add(
+                    table="held_out",
+                    image=name,
+                    model=decoder,
+                    vertices=mesh.num_vertices,
+                    ppv_texture=round(measured, 2),
+                    atlas=size,
+                    seen_in_training=name in model_images(model),
+                    **{k: round(v, 4) for k, v in r.metrics.items()},
+                    seconds=time.perf_counter() - t0,
+                    load=load(),
+                )
+            const = fl.atlas_metrics(
+                metrics.flat_baseline(r.target, mask=r.valid), r.target, r.valid, lpips=lpips
+            )
+            report.add(
+                table="held_out",
+                image=name,
+                model="constant",
+                vertices=mesh.num_vertices,
+                ppv_texture=round(measured, 2),
+                atlas=size,
+                **{k: round(v, 4) for k, v in const.items()},
+            )
 
 
 def model_images(model) -> tuple[str, ...]:
@@ -135,10 +180,19 @@ def main() -> None:
     ap.add_argument("--sizes", default="5000,30000", help="remeshed vertex counts")
     ap.add_argument("--atlas", type=int, default=512, help="atlas side in texels")
     ap.add_argument("--no-lpips", action="store_true")
-    ap.add_argument("--models", default=None, help="comma-separated model files (default: the two shipped ones)")
-    ap.add_argument("--views", type=int, default=8, help="render views (azimuths at 20° elevation); 0: no renders")
+    ap.add_argument(
+        "--models", default=None, help="comma-separated model files (default: the two shipped ones)"
+    )
+    ap.add_argument(
+        "--views",
+        type=int,
+        default=8,
+        help="render views (azimuths at 20° elevation); 0: no renders",
+    )
     ap.add_argument("--view-size", type=int, default=256, help="render side in pixels")
-    ap.add_argument("--held-out-size", type=int, default=192, help="held-out image side (0: skip that table)")
+    ap.add_argument(
+        "--held-out-size", type=int, default=192, help="held-out image side (0: skip that table)"
+    )
     ap.add_argument("--no-throughput", action="store_true")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
@@ -150,9 +204,15 @@ def main() -> None:
     models = {m.config.decoder: m for m in loaded}
     sizes = [int(s) for s in args.sizes.split(",")]
 
-    report.config = {"sizes": sizes, "atlas": args.atlas, "views": args.views, "view_size": args.view_size,
-                     "held_out_size": args.held_out_size, "lpips": not args.no_lpips,
-                     "models": {d: m.config.to_dict() for d, m in models.items()}}
+    report.config = {
+        "sizes": sizes,
+        "atlas": args.atlas,
+        "views": args.views,
+        "view_size": args.view_size,
+        "held_out_size": args.held_out_size,
+        "lpips": not args.no_lpips,
+        "models": {d: m.config.to_dict() for d, m in models.items()},
+    }
     from jmeshtex.geometry import remesh
     from jmeshtex.io import load_mesh
 
@@ -161,33 +221,73 @@ def main() -> None:
         print(f"skipping the reconstruction table: no textured mesh under {DATA}")
     for name, (obj, tex) in found.items():
         mesh = load_mesh(obj, texture=tex)
-        native = rasterize_uv(mesh.uv, mesh.texture.shape[0]).face.shape[0]  # used texels at the texture's size
+        native = rasterize_uv(mesh.uv, mesh.texture.shape[0]).face.shape[
+            0
+        ]  # used texels at the texture's size
         for n in sizes:
             t0 = time.perf_counter()
             latent = remesh(mesh, n_vertices=n, key=jax.random.key(0))
             t_remesh = time.perf_counter() - t0
             for decoder, model in models.items():
                 t0 = time.perf_counter()
-                r = fl.reconstruct(model, mesh, key=jax.random.key(0), size=args.atlas, latent_mesh=latent,
-                                   lpips=not args.no_lpips)
-                common = dict(table="reconstruction", mesh=name, vertices=latent.num_vertices, atlas=args.atlas,
-                              ppv_atlas=round(int(r.valid.sum()) / latent.num_vertices, 2),
-                              ppv_texture=round(native / latent.num_vertices, 2))
-                report.add(**common, model=decoder, space="atlas", **{k: round(v, 4) for k, v in r.metrics.items()},
-                           paper_psnr_30k_gso=PAPER.get(decoder), seconds=time.perf_counter() - t0,
-                           remesh_s=round(t_remesh, 2), load=load())
+                r = fl.reconstruct(
+                    model,
+                    mesh,
+                    key=jax.random.key(0),
+                    size=args.atlas,
+                    latent_mesh=latent,
+                    lpips=not args.no_lpips,
+                )
+                common = dict(
+                    table="reconstruction",
+                    mesh=name,
+                    vertices=latent.num_vertices,
+                    atlas=args.atlas,
+                    ppv_atlas=round(int(r.valid.sum()) / latent.num_vertices, 2),
+                    ppv_texture=round(native / latent.num_vertices, 2),
+                )
+                report.add(
+                    **common,
+                    model=decoder,
+                    space="atlas",
+                    **{k: round(v, 4) for k, v in r.metrics.items()},
+                    paper_psnr_30k_gso=PAPER.get(decoder),
+                    seconds=time.perf_counter() - t0,
+                    remesh_s=round(t_remesh, 2),
+                    load=load(),
+                )
                 if args.views:
                     t0 = time.perf_counter()
-                    rend, rend_const = render_metrics(mesh, r, views=args.views, size=args.view_size,
-                                                      lpips=not args.no_lpips)
-                    report.add(**common, model=decoder, space="render", **{k: round(v, 4) for k, v in rend.items()},
-                               seconds=time.perf_counter() - t0, load=load())
-            const = fl.atlas_metrics(metrics.flat_baseline(r.target, mask=r.valid), r.target, r.valid,
-                                     lpips=not args.no_lpips)
-            report.add(**common, model="constant", space="atlas", **{k: round(v, 4) for k, v in const.items()})
+                    rend, rend_const = render_metrics(
+                        mesh, r, views=args.views, size=args.view_size, lpips=not args.no_lpips
+                    )
+                    report.add(
+                        **common,
+                        model=decoder,
+                        space="render",
+                        **{k: round(v, 4) for k, v in rend.items()},
+                        seconds=time.perf_counter() - t0,
+                        load=load(),
+                    )
+            const = fl.atlas_metrics(
+                metrics.flat_baseline(r.target, mask=r.valid),
+                r.target,
+                r.valid,
+                lpips=not args.no_lpips,
+            )
+            report.add(
+                **common,
+                model="constant",
+                space="atlas",
+                **{k: round(v, 4) for k, v in const.items()},
+            )
             if args.views:
-                report.add(**common, model="constant", space="render",
-                           **{k: round(v, 4) for k, v in rend_const.items()})
+                report.add(
+                    **common,
+                    model="constant",
+                    space="render",
+                    **{k: round(v, 4) for k, v in rend_const.items()},
+                )
     if args.held_out_size:
         held_out_rows(models, report, size=args.held_out_size, lpips=not args.no_lpips)
     if args.no_throughput:
@@ -211,7 +311,9 @@ def main() -> None:
         mesh = Mesh(v, f, vertex_colors=0.5 + 0.5 * v)
         colors = fl.surface_colors(mesh)
     t0 = time.perf_counter()
-    s = fl.one_ring_samples(mesh.vertices, mesh.faces, config.num_samples, rng=np.random.default_rng(0))
+    s = fl.one_ring_samples(
+        mesh.vertices, mesh.faces, config.num_samples, rng=np.random.default_rng(0)
+    )
     points = np.einsum("vsk,vskd->vsd", s.bary, mesh.vertices[mesh.faces[s.face]])
     rgb = colors.at_points(points.reshape(-1, 3)).reshape(*s.face.shape, 3)
     t_host = time.perf_counter() - t0
@@ -221,13 +323,32 @@ def main() -> None:
     t0 = time.perf_counter()
     jax.block_until_ready(fl.encode_one_rings(model, s, rgb).mu)
     t_enc = time.perf_counter() - t0
-    report.add(table="throughput", what="encode: host one-ring sampling + colour lookup", vertices=mesh.num_vertices,
-               seconds=t_host, per_s=mesh.num_vertices / t_host, unit="vertices/s", load=load())
-    report.add(table="throughput", what=f"encode: jitted encoder (chunks of {config.encode_chunk})",
-               vertices=mesh.num_vertices, seconds=t_enc, compile_s=max(t_first - t_enc, 0.0),
-               per_s=mesh.num_vertices / t_enc, unit="vertices/s", load=load())
-    report.add(table="throughput", what="encode Spot-30K total (sampling + encoder)", vertices=mesh.num_vertices,
-               seconds=t_host + t_enc, load=load())
+    report.add(
+        table="throughput",
+        what="encode: host one-ring sampling + colour lookup",
+        vertices=mesh.num_vertices,
+        seconds=t_host,
+        per_s=mesh.num_vertices / t_host,
+        unit="vertices/s",
+        load=load(),
+    )
+    report.add(
+        table="throughput",
+        what=f"encode: jitted encoder (chunks of {config.encode_chunk})",
+        vertices=mesh.num_vertices,
+        seconds=t_enc,
+        compile_s=max(t_first - t_enc, 0.0),
+        per_s=mesh.num_vertices / t_enc,
+        unit="vertices/s",
+        load=load(),
+    )
+    report.add(
+        table="throughput",
+        what="encode Spot-30K total (sampling + encoder)",
+        vertices=mesh.num_vertices,
+        seconds=t_host + t_enc,
+        load=load(),
+    )
     if (SPOT / "spot_triangulated.obj").exists():
         texels = rasterize_uv(spot.uv, args.atlas)
         face, bary = texels.face, texels.bary
@@ -240,17 +361,32 @@ def main() -> None:
         t0 = time.perf_counter()
         fl.decode_points_in_faces(model, mesh, mu, lface, lbary)
         t_dec = time.perf_counter() - t0
-        report.add(table="throughput", what="decode atlas texels (3 corner predictions blended)", texels=len(face),
-                   seconds=t_dec, per_s=len(face) / t_dec, unit="texels/s", load=load())
+        report.add(
+            table="throughput",
+            what="decode atlas texels (3 corner predictions blended)",
+            texels=len(face),
+            seconds=t_dec,
+            per_s=len(face) / t_dec,
+            unit="texels/s",
+            load=load(),
+        )
 
     # -------- training steps/s at the shipped configuration
     cfg = config.replace(steps=10)
     params = model.params
-    pool = fl.planar_pool(fl.builtin_images(max_size=cfg.max_image_size, names=("brick", "astronaut", "coffee")),
-                          per_image=1, min_vertices=cfg.max_vertices, max_vertices=cfg.max_vertices,
-                          rng=np.random.default_rng(0))
-    batch = fl.mesh_batch(pool[: cfg.batch_size], cfg, np.random.default_rng(0),
-                          num_vertices=cfg.batch_size * cfg.max_vertices)
+    pool = fl.planar_pool(
+        fl.builtin_images(max_size=cfg.max_image_size, names=("brick", "astronaut", "coffee")),
+        per_image=1,
+        min_vertices=cfg.max_vertices,
+        max_vertices=cfg.max_vertices,
+        rng=np.random.default_rng(0),
+    )
+    batch = fl.mesh_batch(
+        pool[: cfg.batch_size],
+        cfg,
+        np.random.default_rng(0),
+        num_vertices=cfg.batch_size * cfg.max_vertices,
+    )
     step = fl.make_train_step(cfg)
     state = (params, fl.optimizer(cfg).init(params))
     t0 = time.perf_counter()
@@ -264,9 +400,16 @@ def main() -> None:
         jax.block_until_ready(out)
         times.append(time.perf_counter() - t0)
     t_step = float(np.median(times))
-    report.add(table="throughput", what=f"train step ({cfg.batch_size} planar meshes × {cfg.max_vertices} vertices, "
-        f"S={cfg.num_samples})", seconds=t_step, compile_s=max(t_first - t_step, 0.0),
-        per_s=1.0 / t_step, unit="steps/s", load=load())
+    report.add(
+        table="throughput",
+        what=f"train step ({cfg.batch_size} planar meshes × {cfg.max_vertices} vertices, "
+        f"S={cfg.num_samples})",
+        seconds=t_step,
+        compile_s=max(t_first - t_step, 0.0),
+        per_s=1.0 / t_step,
+        unit="steps/s",
+        load=load(),
+    )
     report.write(pathlib.Path(args.out) if args.out else None)
 
 

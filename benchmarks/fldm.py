@@ -67,11 +67,18 @@ def main() -> None:
     ap.add_argument("--measure", type=int, default=3, help="timed repeats of each step")
     ap.add_argument("--presets", nargs="+", default=["paper", "paper-relu", "cpu"])
     ap.add_argument("--full-ddim", action="store_true")
-    ap.add_argument("--paper-train-max", type=int, default=5000,
-                    help="largest size for the paper-size training step (30K needs ~56 GB on the CPU: skipped)")
+    ap.add_argument(
+        "--paper-train-max",
+        type=int,
+        default=5000,
+        help="largest size for the paper-size training step (30K needs ~56 GB on the CPU: skipped)",
+    )
     args = ap.parse_args()
     report = Report("fldm")
-    for act in ("silu", "relu"):  # the filter nonlinearity's own ceiling (FLOP counts do not see it)
+    for act in (
+        "silu",
+        "relu",
+    ):  # the filter nonlinearity's own ceiling (FLOP counts do not see it)
         report.ceilings[f"{act}_gevals"] = activation_ceiling(act)
     print(f"activation ceilings: {report.ceilings}", flush=True)
     base = icosphere(6)  # 40962 vertices: both sizes are re-triangulations of it
@@ -80,11 +87,17 @@ def main() -> None:
         copy = remesh(base, n_vertices=n, key=jax.random.key(0))
         report.add(name="remesh", vertices=n, seconds=time.perf_counter() - t0, load=_load())
         t0 = time.perf_counter()
-        geo = fldm.denoiser_geometry(copy, knn=fldm.Config.paper().knn, pool_ratio=0.25)  # every preset: k = 8
-        report.add(name="denoiser geometry", vertices=n, seconds=time.perf_counter() - t0, load=_load())
+        geo = fldm.denoiser_geometry(
+            copy, knn=fldm.Config.paper().knn, pool_ratio=0.25
+        )  # every preset: k = 8
+        report.add(
+            name="denoiser geometry", vertices=n, seconds=time.perf_counter() - t0, load=_load()
+        )
         sizes = fldm.geometry_sizes(geo)
         for preset in args.presets:
-            if preset == "paper-relu":  # the paper's widths and blocks with piecewise-linear filters
+            if (
+                preset == "paper-relu"
+            ):  # the paper's widths and blocks with piecewise-linear filters
                 cfg = fldm.Config.paper(latent_channels=8, copy_vertices=n, activation="relu")
             else:
                 cfg = getattr(fldm.Config, preset)(latent_channels=8, copy_vertices=n)
@@ -96,38 +109,70 @@ def main() -> None:
             params = fldm.init_denoiser(jax.random.key(0), cfg)
             opt_state = fldm.optimizer(cfg).init(params)
             step = fldm.make_train_step(cfg)
-            z0, g, lab = fldm.training_batch(data, 0, cfg.batch_size, key=jax.random.key(5), dtype=jnp.complex64)
+            z0, g, lab = fldm.training_batch(
+                data, 0, cfg.batch_size, key=jax.random.key(5), dtype=jnp.complex64
+            )
             key = jax.random.key(1)
 
             def run(params=params, opt_state=opt_state, z0=z0, g=g, lab=lab, step=step, key=key):
                 return step(params, opt_state, z0, g, lab, key)[2]
 
             if preset.startswith("paper") and n > args.paper_train_max:
-                report.add(name=f"train {preset}", vertices=n, batch=cfg.batch_size, note="skipped (memory)")
+                report.add(
+                    name=f"train {preset}",
+                    vertices=n,
+                    batch=cfg.batch_size,
+                    note="skipped (memory)",
+                )
                 run = None
             load = _load()
             t = time_jax(run, repeats=args.measure, min_time=0.0) if run is not None else None
             if t is not None:
-                report.add(name=f"train {preset}", vertices=n, batch=cfg.batch_size, compile_s=t.compile_s,
-                           seconds=t.run_s, steps_per_s=1.0 / t.run_s, load=load)
+                report.add(
+                    name=f"train {preset}",
+                    vertices=n,
+                    batch=cfg.batch_size,
+                    compile_s=t.compile_s,
+                    seconds=t.run_s,
+                    steps_per_s=1.0 / t.run_s,
+                    load=load,
+                )
             # one denoiser evaluation, and DDIM-50 = 50 of them
             gj = to_jax(geo, jnp.float32)
             z = tangent_noise(jax.random.key(2), (n, 8))
-            fn = jax.jit(lambda p, z, cfg=cfg, gj=gj: fldm.denoise(p, cfg, z, jnp.array(500, jnp.int32), gj))
+            fn = jax.jit(
+                lambda p, z, cfg=cfg, gj=gj: fldm.denoise(p, cfg, z, jnp.array(500, jnp.int32), gj)
+            )
             load = _load()
             t, ceiling, act_ceiling = _timed_between_ceilings(
-                report, cfg.activation,
-                lambda fn=fn, z=z, params=params: time_jax(fn, params, z, repeats=args.measure, min_time=0.0))
+                report,
+                cfg.activation,
+                lambda fn=fn, z=z, params=params: time_jax(
+                    fn, params, z, repeats=args.measure, min_time=0.0
+                ),
+            )
             best = min(t.runs)
             flops = fldm.denoiser_flops(cfg, sizes["V0"], sizes["V1"])
             bound = flops / (ceiling * 1e9)
             acts = fldm.denoiser_activations(cfg, sizes["V0"], sizes["V1"])
             bound_act = bound + acts / (act_ceiling * 1e9)
-            report.add(name=f"denoise {preset}", vertices=n, compile_s=t.compile_s, seconds=t.run_s,
-                       best_s=best, flops=flops, row_ceiling=ceiling, row_act_ceiling=act_ceiling,
-                       ddim50_s=50 * t.run_s, bound_s=50 * bound, x_bound=best / bound,
-                       x_bound_median=t.run_s / bound, activations=acts, x_bound_act=best / bound_act,
-                       load=load)
+            report.add(
+                name=f"denoise {preset}",
+                vertices=n,
+                compile_s=t.compile_s,
+                seconds=t.run_s,
+                best_s=best,
+                flops=flops,
+                row_ceiling=ceiling,
+                row_act_ceiling=act_ceiling,
+                ddim50_s=50 * t.run_s,
+                bound_s=50 * bound,
+                x_bound=best / bound,
+                x_bound_median=t.run_s / bound,
+                activations=acts,
+                x_bound_act=best / bound_act,
+                load=load,
+            )
             if args.full_ddim and preset == "cpu" and n == max(args.sizes):
                 model = fldm.Model(params, cfg, np.ones(8))
                 load = _load()
@@ -137,7 +182,13 @@ def main() -> None:
                 t0 = time.perf_counter()
                 fldm.sample(model, geo, key=jax.random.key(4), n=1, steps=50)
                 second = time.perf_counter() - t0
-                report.add(name="ddim50 cpu (full loop)", vertices=n, first_call_s=first, seconds=second, load=load)
+                report.add(
+                    name="ddim50 cpu (full loop)",
+                    vertices=n,
+                    first_call_s=first,
+                    seconds=second,
+                    load=load,
+                )
     report.write()
 
 

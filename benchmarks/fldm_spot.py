@@ -86,9 +86,11 @@ def spot_path() -> pathlib.Path:
     spot = base / "spot"
     for name in ("spot_triangulated.obj", "spot_texture.png"):
         if not (spot / name).is_file():
-            sys.exit(f"fldm_spot: {spot / name} not found. This benchmark needs Spot (../shared/data/spot "
-                     "with spot_triangulated.obj and spot_texture.png); point JMESHTEX_SHARED_DATA at the "
-                     "folder that holds spot/.")
+            sys.exit(
+                f"fldm_spot: {spot / name} not found. This benchmark needs Spot (../shared/data/spot "
+                "with spot_triangulated.obj and spot_texture.png); point JMESHTEX_SHARED_DATA at the "
+                "folder that holds spot/."
+            )
     return spot
 
 
@@ -97,13 +99,28 @@ def presets(quick: bool, latent_dim: int, n_vertices: int, prediction: str = "v"
     from jmeshtex import fldm
 
     if quick:
-        cfg = fldm.Config.tiny(latent_channels=latent_dim, widths=(8, 16), hdim=2, n_copies=2, copy_vertices=400,
-                               steps=3, checkpoint_every=2, diffusion_steps=100, bucket=256,
-                               prediction=prediction)
+        cfg = fldm.Config.tiny(
+            latent_channels=latent_dim,
+            widths=(8, 16),
+            hdim=2,
+            n_copies=2,
+            copy_vertices=400,
+            steps=3,
+            checkpoint_every=2,
+            diffusion_steps=100,
+            bucket=256,
+            prediction=prediction,
+        )
         run = dict(samples=2, views=VIEWS[:2], size=96, atlas=128, ddim_steps=3, subdivide=0)
     else:
-        cfg = fldm.Config.cpu(latent_channels=latent_dim, n_copies=16, copy_vertices=n_vertices, steps=4000,
-                              checkpoint_every=50, prediction=prediction)
+        cfg = fldm.Config.cpu(
+            latent_channels=latent_dim,
+            n_copies=16,
+            copy_vertices=n_vertices,
+            steps=4000,
+            checkpoint_every=50,
+            prediction=prediction,
+        )
         run = dict(samples=6, views=VIEWS, size=256, atlas=512, ddim_steps=50, subdivide=1)
     return cfg, run
 
@@ -125,21 +142,42 @@ def render_views(geom, texture: np.ndarray, views, size: int) -> np.ndarray:
     from jmeshtex.render import render_mesh
 
     v, f, uv = geom
-    return np.stack([render_mesh(v, f, uv=uv, texture=texture, view=view, size=(size, size))
-                     for view in views]).astype(np.float32) / 255.0
+    return (
+        np.stack(
+            [
+                render_mesh(v, f, uv=uv, texture=texture, view=view, size=(size, size))
+                for view in views
+            ]
+        ).astype(np.float32)
+        / 255.0
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="tiny smoke settings (about a minute)")
-    ap.add_argument("--out", type=pathlib.Path, default=RESULTS, help="folder for fldm_spot.{json,md,png}")
-    ap.add_argument("--work", type=pathlib.Path, default=None, help="cache folder (copies, checkpoints)")
-    ap.add_argument("--steps", type=int, default=None, help="training steps (default: the preset's)")
-    ap.add_argument("--samples", type=int, default=None, help="samples per model (default: the preset's)")
+    ap.add_argument(
+        "--out", type=pathlib.Path, default=RESULTS, help="folder for fldm_spot.{json,md,png}"
+    )
+    ap.add_argument(
+        "--work", type=pathlib.Path, default=None, help="cache folder (copies, checkpoints)"
+    )
+    ap.add_argument(
+        "--steps", type=int, default=None, help="training steps (default: the preset's)"
+    )
+    ap.add_argument(
+        "--samples", type=int, default=None, help="samples per model (default: the preset's)"
+    )
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--ddpm", action="store_true", help="also DDPM-1000 samples of the trained model (slow)")
-    ap.add_argument("--prediction", choices=PREDICTIONS, default="v",
-                    help="what the denoiser predicts (default: the CPU preset's v)")
+    ap.add_argument(
+        "--ddpm", action="store_true", help="also DDPM-1000 samples of the trained model (slow)"
+    )
+    ap.add_argument(
+        "--prediction",
+        choices=PREDICTIONS,
+        default="v",
+        help="what the denoiser predicts (default: the CPU preset's v)",
+    )
     args = ap.parse_args(argv)
     t_start = time.perf_counter()
     spot_dir = spot_path()  # fail before the heavy imports
@@ -169,24 +207,38 @@ def main(argv: list[str] | None = None) -> int:
     # 1. training copies (cached)
     t0 = time.perf_counter()
     encode = fldm.fl_vae_encoder(vae, spot, key=k_codec)
-    data = fldm.build_dataset(spot, cfg, encode=encode, key=k_data, cache_dir=work / "data", progress=False)
+    data = fldm.build_dataset(
+        spot, cfg, encode=encode, key=k_data, cache_dir=work / "data", progress=False
+    )
     stage("dataset", t0)
     # the cost of the cached work, as measured by the calls that did it (a re-run only loads it)
     record_path = work / "timings.json"
     record = json.loads(record_path.read_text()) if record_path.is_file() else {}
-    if any(p.stat().st_mtime >= time.time() - timings["dataset"][0] for p in (work / "data").glob("copy_*.npz")):
+    if any(
+        p.stat().st_mtime >= time.time() - timings["dataset"][0]
+        for p in (work / "data").glob("copy_*.npz")
+    ):
         record["dataset"] = {"seconds": timings["dataset"][0], "load": timings["dataset"][1]}
 
     # 2. training (resumable)
     t0 = time.perf_counter()
     train_key = f"train_{cfg.prediction}"
-    result = fldm.train(data, cfg, key=k_train, checkpoint_dir=work / train_key, progress=not args.quick)
+    result = fldm.train(
+        data, cfg, key=k_train, checkpoint_dir=work / train_key, progress=not args.quick
+    )
     stage("train", t0)
     steps_done = result.steps - (result.resumed_from or 0)  # in this call
     if steps_done:
-        old = record.get(train_key, {}) if record.get(train_key, {}).get("steps", 0) < cfg.steps else {}
-        record[train_key] = {"seconds": old.get("seconds", 0.0) + result.seconds,
-                             "steps": old.get("steps", 0) + steps_done, "load": timings["train"][1]}
+        old = (
+            record.get(train_key, {})
+            if record.get(train_key, {}).get("steps", 0) < cfg.steps
+            else {}
+        )
+        record[train_key] = {
+            "seconds": old.get("seconds", 0.0) + result.seconds,
+            "steps": old.get("steps", 0) + steps_done,
+            "load": timings["train"][1],
+        }
     from jmeshtex.io import atomic_write
 
     atomic_write(record_path, json.dumps(record, indent=2))
@@ -211,7 +263,11 @@ def main(argv: list[str] | None = None) -> int:
         return [fill_unused_texels(d["texture"], d["valid"]) for d in decoded]
 
     recon_mu = np.asarray(fl.encode(vae, spot, key=k_codec).mu)
-    tex = {"reconstruction": atlases(recon_mu[None]), "trained": atlases(z_tr), "untrained": atlases(z_un)}
+    tex = {
+        "reconstruction": atlases(recon_mu[None]),
+        "trained": atlases(z_tr),
+        "untrained": atlases(z_un),
+    }
     if z_ddpm is not None:
         tex["trained DDPM-1000"] = atlases(z_ddpm)
     mean_colour = np.broadcast_to(spot.texture[..., :3].reshape(-1, 3).mean(0), (8, 8, 3))
@@ -238,8 +294,13 @@ def main(argv: list[str] | None = None) -> int:
         return float(np.mean(np.asarray(gram_distance(jnp.asarray(imgs), ref_j, weights=weights))))
 
     def diversity(rs: list[np.ndarray]) -> list[float]:
-        return [float(np.mean(np.asarray(lpips(jnp.asarray(rs[a]), jnp.asarray(rs[b]), weights=weights))))
-                for a in range(len(rs)) for b in range(a + 1, len(rs))]
+        return [
+            float(
+                np.mean(np.asarray(lpips(jnp.asarray(rs[a]), jnp.asarray(rs[b]), weights=weights)))
+            )
+            for a in range(len(rs))
+            for b in range(a + 1, len(rs))
+        ]
 
     def latent_rms(z: np.ndarray) -> float:  # per sample over vertices and channels, then the mean
         return float(np.mean(np.sqrt(np.mean(np.abs(z * data.scale) ** 2, axis=(1, 2)))))
@@ -248,24 +309,46 @@ def main(argv: list[str] | None = None) -> int:
     trained = f"trained samples (DDIM-{run['ddim_steps']})"
     untrained = f"untrained samples (DDIM-{run['ddim_steps']})"
     rows = [("exemplar (vs itself)", [ref], "Spot's own texture; the metric's zero", None)]
-    rows += [("nearest training copy (FL-VAE reconstruction)", renders["reconstruction"],
-              "encode Spot → decode its atlas: the memorisation ceiling", None)]
+    rows += [
+        (
+            "nearest training copy (FL-VAE reconstruction)",
+            renders["reconstruction"],
+            "encode Spot → decode its atlas: the memorisation ceiling",
+            None,
+        )
+    ]
     rows += [("mean colour", renders["mean colour"], "texture-free baseline", None)]
-    rows += [("shuffled latents", renders["shuffled latents"],
-              "Spot's latents permuted over vertices: right marginal, no structure", None)]
+    rows += [
+        (
+            "shuffled latents",
+            renders["shuffled latents"],
+            "Spot's latents permuted over vertices: right marginal, no structure",
+            None,
+        )
+    ]
     rows += [(trained, renders["trained"], f"{n} samples, {len(losses)} steps", z_tr)]
     if z_ddpm is not None:
-        rows += [("trained samples (DDPM-1000)", renders["trained DDPM-1000"], f"{n} samples", z_ddpm)]
+        rows += [
+            ("trained samples (DDPM-1000)", renders["trained DDPM-1000"], f"{n} samples", z_ddpm)
+        ]
     rows += [(untrained, renders["untrained"], "same noise, initial weights", z_un)]
     quality = []
     for source, rs, what, z in rows:
         g = [gram(r) for r in rs]
         d = diversity(rs) if len(rs) > 1 else []
-        quality.append(dict(table="quality", source=source, n=len(rs), fidelity_gram=float(np.mean(g)),
-                            fidelity_gram_std=float(np.std(g)),
-                            diversity_lpips=float(np.mean(d)) if d else "",
-                            diversity_lpips_std=float(np.std(d)) if d else "",
-                            latent_rms=latent_rms(z) if z is not None else "", what=what))
+        quality.append(
+            dict(
+                table="quality",
+                source=source,
+                n=len(rs),
+                fidelity_gram=float(np.mean(g)),
+                fidelity_gram_std=float(np.std(g)),
+                diversity_lpips=float(np.mean(d)) if d else "",
+                diversity_lpips_std=float(np.std(d)) if d else "",
+                latent_rms=latent_rms(z) if z is not None else "",
+                what=what,
+            )
+        )
     stage("metrics", t0)
 
     # 7. the PNG grid (first view): exemplar, reconstruction, samples, untrained samples
@@ -275,33 +358,65 @@ def main(argv: list[str] | None = None) -> int:
     titles = ["exemplar", "FL-VAE recon."] + [f"sample {i + 1}" for i in range(n)]
     titles += [f"untrained {i + 1}" for i in range(n)]
     args.out.mkdir(parents=True, exist_ok=True)
-    render_grid([(255 * np.clip(i, 0, 1)).astype(np.uint8) for i in images], args.out / f"{name}.png",
-                titles=titles, columns=2 + n if n <= 6 else None)
+    render_grid(
+        [(255 * np.clip(i, 0, 1)).astype(np.uint8) for i in images],
+        args.out / f"{name}.png",
+        titles=titles,
+        columns=2 + n if n <= 6 else None,
+    )
     stage("png", t0)
 
     for row in quality:
         report.add(**row, load=round(_load(), 2))
     tr = record.get(train_key, {})
     loss_name = LOSS_NAMES[cfg.prediction]
-    report.add(table="training", source=loss_name, n=len(losses), loss_first=loss_first, loss_last=loss_last,
-               seconds=tr.get("seconds", ""), steps_per_s=tr["steps"] / tr["seconds"] if tr.get("seconds") else "",
-               load=round(tr["load"], 2) if "load" in tr else "",
-               what=f"mean {loss_name} of the first / last {k} steps; seconds: the optimiser loop over all calls")
+    report.add(
+        table="training",
+        source=loss_name,
+        n=len(losses),
+        loss_first=loss_first,
+        loss_last=loss_last,
+        seconds=tr.get("seconds", ""),
+        steps_per_s=tr["steps"] / tr["seconds"] if tr.get("seconds") else "",
+        load=round(tr["load"], 2) if "load" in tr else "",
+        what=f"mean {loss_name} of the first / last {k} steps; seconds: the optimiser loop over all calls",
+    )
     for label, key in (("dataset", "dataset"), ("train", train_key)):
         if key in record:
-            report.add(table="timing", source=f"{label} (when built)", seconds=record[key]["seconds"],
-                       load=round(record[key]["load"], 2), what="measured by the call that did the work")
+            report.add(
+                table="timing",
+                source=f"{label} (when built)",
+                seconds=record[key]["seconds"],
+                load=round(record[key]["load"], 2),
+                what="measured by the call that did the work",
+            )
     for label, (seconds, load) in timings.items():
-        report.add(table="timing", source=f"{label} (this call)", seconds=seconds, load=round(load, 2))
+        report.add(
+            table="timing", source=f"{label} (this call)", seconds=seconds, load=round(load, 2)
+        )
     total = time.perf_counter() - t_start
     report.add(table="timing", source="total (this call)", seconds=total, load=round(_load(), 2))
-    vae_desc = {k: getattr(vae.config, k) for k in ("latent_dim", "num_samples", "features", "decoder")}
-    report.config = {"fldm_config": cfg.to_dict(), "run": {**run, "views": [list(v) for v in views],
-                                "samples": n, "seed": args.seed, "quick": args.quick},
-                                "fl_vae": vae_desc, "spot_vertices": spot.num_vertices}
+    vae_desc = {
+        k: getattr(vae.config, k) for k in ("latent_dim", "num_samples", "features", "decoder")
+    }
+    report.config = {
+        "fldm_config": cfg.to_dict(),
+        "run": {
+            **run,
+            "views": [list(v) for v in views],
+            "samples": n,
+            "seed": args.seed,
+            "quick": args.quick,
+        },
+        "fl_vae": vae_desc,
+        "spot_vertices": spot.num_vertices,
+    }
     by_source = {r["source"]: r["fidelity_gram"] for r in quality}
     ratio = by_source[trained] / max(by_source[untrained], 1e-12)
-    flat, recon = by_source["mean colour"], by_source["nearest training copy (FL-VAE reconstruction)"]
+    flat, recon = (
+        by_source["mean colour"],
+        by_source["nearest training copy (FL-VAE reconstruction)"],
+    )
     gap = (flat - by_source[trained]) / (flat - recon) if flat != recon else float("nan")
     beats = {b: by_source[trained] < by_source[b] for b in ("mean colour", "shuffled latents")}
     report.config["trained_over_untrained_gram"] = ratio

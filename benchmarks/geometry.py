@@ -62,18 +62,41 @@ def _trace_setup(v: np.ndarray, f: np.ndarray) -> tuple:
 
 CASES: list[Case] = [
     Case("validate_mesh", ("validate_mesh",), lambda v, f: _g("validate_mesh")(v, f)),
-    Case("one_ring_neighborhood (log + transport)", ("one_ring_neighborhood",),
-         lambda v, f: _g("one_ring_neighborhood")(v, f), target_s_at_80k=5.0),
+    Case(
+        "one_ring_neighborhood (log + transport)",
+        ("one_ring_neighborhood",),
+        lambda v, f: _g("one_ring_neighborhood")(v, f),
+        target_s_at_80k=5.0,
+    ),
     Case("tangent_frames", ("tangent_frames",), lambda v, f: _g("tangent_frames")(v, f)),
-    Case("geodesic_knn_neighborhood (k = 8)", ("geodesic_knn_neighborhood",),
-         lambda v, f: _g("geodesic_knn_neighborhood")(v, f, k=8), repeats=1, target_s_at_80k=15.0),
-    Case("tracer_geometry (tables)", ("tracer_geometry",), lambda v, f: _g("tracer_geometry")(v, f)),
-    Case("trace_from_vertices (8 per vertex, 3 edges)", ("trace_from_vertices", "tracer_geometry"),
-         lambda v, f, vertex, d, length, tables: _g("trace_from_vertices")(v, f, vertex, d, length, geometry=tables),
-         setup=_trace_setup, items=lambda args: len(args[2])),
-    Case("heat_kernel_signature (k = 100)", ("heat_kernel_signature",),
-         lambda v, f: _g("heat_kernel_signature")(v, f, k=100), repeats=1),
-    Case("subdivide_midpoint", ("subdivide_midpoint",), lambda v, f: _g("subdivide_midpoint")(v, f)),
+    Case(
+        "geodesic_knn_neighborhood (k = 8)",
+        ("geodesic_knn_neighborhood",),
+        lambda v, f: _g("geodesic_knn_neighborhood")(v, f, k=8),
+        repeats=1,
+        target_s_at_80k=15.0,
+    ),
+    Case(
+        "tracer_geometry (tables)", ("tracer_geometry",), lambda v, f: _g("tracer_geometry")(v, f)
+    ),
+    Case(
+        "trace_from_vertices (8 per vertex, 3 edges)",
+        ("trace_from_vertices", "tracer_geometry"),
+        lambda v, f, vertex, d, length, tables: _g("trace_from_vertices")(
+            v, f, vertex, d, length, geometry=tables
+        ),
+        setup=_trace_setup,
+        items=lambda args: len(args[2]),
+    ),
+    Case(
+        "heat_kernel_signature (k = 100)",
+        ("heat_kernel_signature",),
+        lambda v, f: _g("heat_kernel_signature")(v, f, k=100),
+        repeats=1,
+    ),
+    Case(
+        "subdivide_midpoint", ("subdivide_midpoint",), lambda v, f: _g("subdivide_midpoint")(v, f)
+    ),
     Case("mesh_hierarchy", ("mesh_hierarchy",), lambda v, f: _g("mesh_hierarchy")(v, f), repeats=1),
 ]
 
@@ -95,14 +118,18 @@ def _label(n: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="5000,20000,80000", help="comma-separated vertex counts")
-    parser.add_argument("--out", type=pathlib.Path, default=None, help="results folder (default benchmarks/results)")
+    parser.add_argument(
+        "--out", type=pathlib.Path, default=None, help="results folder (default benchmarks/results)"
+    )
     parser.add_argument("--only", default=None, help="run only cases whose name contains this text")
     args = parser.parse_args(argv)
     sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
 
     report = Report("geometry")
     # host timings on a shared machine depend on load and on BLAS threads (eigsh): record both
-    report.info["blas_threads_env"] = {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    report.info["blas_threads_env"] = {
+        k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    }
     report.info["loadavg_start"] = list(os.getloadavg())
     cases = [c for c in CASES if args.only is None or args.only in c.name]
     missing = {c.name: [n for n in c.needs if not hasattr(geometry, n)] for c in cases}
@@ -146,8 +173,15 @@ def main(argv: list[str] | None = None) -> int:
             report.add(**row)
     skipped = [name for name, names in missing.items() if names]
     if skipped:
-        report.add(name="skipped (not in jmeshtex.geometry yet)", size="", vertices="", faces="",
-                   seconds=None, us_per_vertex=None, target=", ".join(skipped))
+        report.add(
+            name="skipped (not in jmeshtex.geometry yet)",
+            size="",
+            vertices="",
+            faces="",
+            seconds=None,
+            us_per_vertex=None,
+            target=", ".join(skipped),
+        )
     report.info["loadavg_end"] = list(os.getloadavg())
     report.write(args.out)
     return 0

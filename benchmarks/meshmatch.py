@@ -90,8 +90,14 @@ def _torus(n_major, n_minor):
     r = 0.35 * (1 + 0.2 * np.sin(3 * theta + 0.5) * np.cos(2 * phi) + 0.1 * np.cos(theta))
     centre = np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], 1)
     normal = np.stack([np.cos(phi) * np.cos(theta), np.cos(phi) * np.sin(theta), np.sin(phi)], 1)
-    colour = np.stack([0.5 + 0.4 * np.sin(7 * theta) * np.cos(2 * phi), 0.5 + 0.4 * np.sin(5 * theta + 2 * phi + 1),
-                       0.5 + 0.3 * np.cos(3 * phi + theta)], axis=1)
+    colour = np.stack(
+        [
+            0.5 + 0.4 * np.sin(7 * theta) * np.cos(2 * phi),
+            0.5 + 0.4 * np.sin(5 * theta + 2 * phi + 1),
+            0.5 + 0.3 * np.cos(3 * phi + theta),
+        ],
+        axis=1,
+    )
     return Mesh(centre + r[:, None] * normal, f), colour
 
 
@@ -104,18 +110,28 @@ def _moment_aligned(x, reference):
 VARIANTS = {
     "default": {},
     "shape-only (colour weight 0)": {"color_weight": 0.0},
-    "intrinsic (Config.intrinsic(): HKS + n·up, pose-free; the previous default)": {"aligned": False},
+    "intrinsic (Config.intrinsic(): HKS + n·up, pose-free; the previous default)": {
+        "aligned": False
+    },
     "intrinsic, shape-only (colour weight 0)": {"aligned": False, "color_weight": 0.0},
-    "intrinsic, shape weight 3 at the finest level, 30 above": {"aligned": False, "shape_weight": (3.0, 30.0)},
+    "intrinsic, shape weight 3 at the finest level, 30 above": {
+        "aligned": False,
+        "shape_weight": (3.0, 30.0),
+    },
     "shape weight 3 at every level": {"shape_weight": 3.0},
     "exact rotation search for every candidate (paper)": {"exact_candidates": 64},
     "candidates from the whole star of NNF(q) (paper)": {"star_candidates": True},
     "whole star + 8 exact candidates": {"star_candidates": True, "exact_candidates": 8},
     "1 propagation sweep per iteration (Jacobi)": {"sweeps": 1},
-    "sequential propagation (Gauss-Seidel wavefronts, alternating direction; paper)": {"propagation": "sequential"},
+    "sequential propagation (Gauss-Seidel wavefronts, alternating direction; paper)": {
+        "propagation": "sequential"
+    },
     "intrinsic, sequential propagation": {"aligned": False, "propagation": "sequential"},
     "HKS from 96 eigenpairs": {"hks_eigenpairs": 96},
-    "whole normal only (normal weight 4, no positions)": {"normal_weight": 4.0, "position_weight": 0.0},
+    "whole normal only (normal weight 4, no positions)": {
+        "normal_weight": 4.0,
+        "position_weight": 0.0,
+    },
     "position weight 4": {"position_weight": 4.0},
     "position weight 2": {"position_weight": 2.0},
     "fan-footprint vote (paper)": {"vote": "fan"},
@@ -144,10 +160,17 @@ def _add_run(report, case, label, cfg, **kw) -> None:
     seconds = time.perf_counter() - t0
     err = float(np.median(np.linalg.norm(to_src(t.vertices) - s.vertices[r.nnf], axis=1)) / edge)
     load = round(os.getloadavg()[0], 1)
-    report.add(**base, method=label, psnr_db=round(psnr(np.clip(r.colors, 0, 1), truth), 2),
-               voted_psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
-               placement_error_edges=round(err, 2), seconds=round(seconds, 1),
-               finest_iteration_s=_finest_iteration(r), finest_steps=_finest_steps(r), load=load)
+    report.add(
+        **base,
+        method=label,
+        psnr_db=round(psnr(np.clip(r.colors, 0, 1), truth), 2),
+        voted_psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
+        placement_error_edges=round(err, 2),
+        seconds=round(seconds, 1),
+        finest_iteration_s=_finest_iteration(r),
+        finest_steps=_finest_steps(r),
+        load=load,
+    )
     print(f"{name} | {label}: {report.rows[-1]['psnr_db']} dB", flush=True)
 
 
@@ -166,30 +189,48 @@ def cross(args) -> None:
         perm = sc[np.random.default_rng(0).integers(0, len(sc), len(truth))]
         size = f"{s.num_vertices}->{t.num_vertices}"
         base = {"pair": name, "size": size}
-        report.add(**base, method="nearest-3D copy, aligned by the known map (ceiling)", psnr_db=round(psnr(near, truth), 2))
+        report.add(
+            **base,
+            method="nearest-3D copy, aligned by the known map (ceiling)",
+            psnr_db=round(psnr(near, truth), 2),
+        )
         report.add(**base, method="nearest-3D copy, unaligned", psnr_db=round(psnr(raw, truth), 2))
-        report.add(**base, method="nearest-3D copy after moment alignment (per-axis mean and std)",
-                   psnr_db=round(psnr(moments, truth), 2))
+        report.add(
+            **base,
+            method="nearest-3D copy after moment alignment (per-axis mean and std)",
+            psnr_db=round(psnr(moments, truth), 2),
+        )
         report.add(**base, method="permuted source colours", psnr_db=round(psnr(perm, truth), 2))
 
         case = (name, s, sc, t, truth, to_src, edge, base)
         for label, extra in variants_here.items():
             # a text that is a whole label selects that row only; any other text every label containing it
-            if args.variants and not any(v == label if v in variants_here else v in label for v in args.variants):
+            if args.variants and not any(
+                v == label if v in variants_here else v in label for v in args.variants
+            ):
                 continue
             _add_run(report, case, label, Config(**{**fields, **extra}))
         # where the dB go: start the finest level from the truth (true matches, their colours) and
         # see how far its iterations move it at each finest-level shape weight
-        for w in (() if args.variants else (0.0, 0.3, 3.0)):
-            _add_run(report, case, f"finest level only, started from the truth, shape weight {w:g}",
-                     Config(**{**fields, "levels": 1, "coarse_steps": 6, "shape_weight": w}), initial_nnf=gt)
-    report.notes.append("psnr_db: the final colours (each vertex copies its match's colour); voted_psnr_db: the "
-                        "finest level's vote (MeshMatchResult.voted). seconds include compiling the PatchMatch "
-                        "steps (no persistent cache) and preprocessing; finest_iteration_s: median wall time of "
-                        "the finest level's iterations after the first; the machine is shared (load = 1-minute "
-                        "load average).")
-    report.notes.append("'started from the truth' rows: one level (the finest), initial_nnf = the nearest source "
-                        "vertex of the known map, 6 iterations: the iterations can only lose what the truth has.")
+        for w in () if args.variants else (0.0, 0.3, 3.0):
+            _add_run(
+                report,
+                case,
+                f"finest level only, started from the truth, shape weight {w:g}",
+                Config(**{**fields, "levels": 1, "coarse_steps": 6, "shape_weight": w}),
+                initial_nnf=gt,
+            )
+    report.notes.append(
+        "psnr_db: the final colours (each vertex copies its match's colour); voted_psnr_db: the "
+        "finest level's vote (MeshMatchResult.voted). seconds include compiling the PatchMatch "
+        "steps (no persistent cache) and preprocessing; finest_iteration_s: median wall time of "
+        "the finest level's iterations after the first; the machine is shared (load = 1-minute "
+        "load average)."
+    )
+    report.notes.append(
+        "'started from the truth' rows: one level (the finest), initial_nnf = the nearest source "
+        "vertex of the known map, 6 iterations: the iterations can only lose what the truth has."
+    )
     report.write(pathlib.Path(args.out) if args.out else None)
 
 
@@ -208,17 +249,29 @@ def figure(args) -> None:
         gt = cKDTree(s.vertices).query(to_src(t.vertices))[1]
 
         def shot(mesh, colors):
-            return render.render_mesh(mesh.vertices, mesh.faces, vertex_colors=np.clip(colors, 0, 1), size=size)
+            return render.render_mesh(
+                mesh.vertices, mesh.faces, vertex_colors=np.clip(colors, 0, 1), size=size
+            )
 
-        cells = [(shot(s, sc), f"source ({name.split(' ->')[0]})"), (shot(t, truth), "target truth")]
-        for label, cfg in (("intrinsic", Config.intrinsic(**fields)), ("default (aligned)", Config(**fields))):
+        cells = [
+            (shot(s, sc), f"source ({name.split(' ->')[0]})"),
+            (shot(t, truth), "target truth"),
+        ]
+        for label, cfg in (
+            ("intrinsic", Config.intrinsic(**fields)),
+            ("default (aligned)", Config(**fields)),
+        ):
             r = meshmatch(s, sc, t, key=jax.random.key(0), config=cfg)
-            cells.append((shot(t, r.colors), f"{label} {psnr(np.clip(r.colors, 0, 1), truth):.1f} dB"))
+            cells.append(
+                (shot(t, r.colors), f"{label} {psnr(np.clip(r.colors, 0, 1), truth):.1f} dB")
+            )
             cells.append((shot(t, nnf_colors(s, r.nnf)), f"{label} NNF"))
         cells.append((shot(t, nnf_colors(s, gt)), "true NNF"))
         rows += [c for c, _ in cells]
         titles += [label for _, label in cells]
-    out = pathlib.Path(args.out) if args.out else pathlib.Path(__file__).resolve().parent / "results"
+    out = (
+        pathlib.Path(args.out) if args.out else pathlib.Path(__file__).resolve().parent / "results"
+    )
     render.render_grid(rows, out / "meshmatch_cross.png", titles=titles, columns=7)
     print(f"wrote {out / 'meshmatch_cross.png'}", flush=True)
 
@@ -233,13 +286,20 @@ DATA = pathlib.Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 
 def _sphere_bumps(u, amp):
     """Radius of an asymmetric bumpy sphere at unit directions ``u`` (low-frequency, no symmetry)."""
-    return 1 + amp * (np.sin(3 * u[:, 0] + 1) * np.cos(2 * u[:, 1] + 0.7) + 0.6 * np.sin(4 * u[:, 2] + 0.5))
+    return 1 + amp * (
+        np.sin(3 * u[:, 0] + 1) * np.cos(2 * u[:, 1] + 0.7) + 0.6 * np.sin(4 * u[:, 2] + 0.5)
+    )
 
 
 def _sphere_colors(u):
-    return np.stack([0.5 + 0.4 * np.sin(4 * u[:, 0]) * np.cos(3 * u[:, 1]),
-                     0.5 + 0.4 * np.sin(5 * u[:, 2] + 1),
-                     0.5 + 0.3 * np.cos(3 * u[:, 0] + 2 * u[:, 1])], axis=1)
+    return np.stack(
+        [
+            0.5 + 0.4 * np.sin(4 * u[:, 0]) * np.cos(3 * u[:, 1]),
+            0.5 + 0.4 * np.sin(5 * u[:, 2] + 1),
+            0.5 + 0.3 * np.cos(3 * u[:, 0] + 2 * u[:, 1]),
+        ],
+        axis=1,
+    )
 
 
 def _unit(v):
@@ -258,14 +318,25 @@ def _angled_torus(n_major, n_minor, minor):
 
 
 def _torus_colors(theta, phi):
-    return np.stack([0.5 + 0.4 * np.sin(3 * theta) * np.cos(phi), 0.5 + 0.4 * np.sin(2 * theta + phi + 1),
-                     0.5 + 0.3 * np.cos(2 * phi + theta)], axis=1)
+    return np.stack(
+        [
+            0.5 + 0.4 * np.sin(3 * theta) * np.cos(phi),
+            0.5 + 0.4 * np.sin(2 * theta + phi + 1),
+            0.5 + 0.3 * np.cos(2 * phi + theta),
+        ],
+        axis=1,
+    )
 
 
 def _cow_colors(p):
-    return np.stack([0.5 + 0.4 * np.sin(0.6 * p[:, 0]) * np.cos(0.8 * p[:, 1]),
-                     0.5 + 0.4 * np.sin(0.9 * p[:, 2] + 0.5 * p[:, 0]),
-                     0.5 + 0.3 * np.cos(0.7 * p[:, 1] + 1)], axis=1)
+    return np.stack(
+        [
+            0.5 + 0.4 * np.sin(0.6 * p[:, 0]) * np.cos(0.8 * p[:, 1]),
+            0.5 + 0.4 * np.sin(0.9 * p[:, 2] + 0.5 * p[:, 0]),
+            0.5 + 0.3 * np.cos(0.7 * p[:, 1] + 1),
+        ],
+        axis=1,
+    )
 
 
 def pairs(small: bool = False, *, with_cow: bool = True):
@@ -280,19 +351,46 @@ def pairs(small: bool = False, *, with_cow: bool = True):
     tv, tf = icosphere(lt)
     tu = _unit(tv @ q.T)
     target = Mesh(tu * _sphere_bumps(tu, 0.22)[:, None], tf)
-    out.append(("bumpy sphere -> bumpier sphere", source, _sphere_colors(u), target, _sphere_colors(tu),
-                lambda x: _unit(x) * _sphere_bumps(_unit(x), 0.15)[:, None], {}))
+    out.append(
+        (
+            "bumpy sphere -> bumpier sphere",
+            source,
+            _sphere_colors(u),
+            target,
+            _sphere_colors(tu),
+            lambda x: _unit(x) * _sphere_bumps(_unit(x), 0.15)[:, None],
+            {},
+        )
+    )
     # 2. bumpy sphere -> the same bumpy sphere stretched non-uniformly (1.3, 1, 0.8), rotated tessellation
     stretch = np.array([1.15, 1.0, 0.9])
     target2 = Mesh(tu * _sphere_bumps(tu, 0.15)[:, None] * stretch, tf)
-    out.append(("bumpy sphere -> stretched (1.15, 1, 0.9)", source, _sphere_colors(u), target2, _sphere_colors(tu),
-                lambda x: x / stretch, {}))
+    out.append(
+        (
+            "bumpy sphere -> stretched (1.15, 1, 0.9)",
+            source,
+            _sphere_colors(u),
+            target2,
+            _sphere_colors(tu),
+            lambda x: x / stretch,
+            {},
+        )
+    )
     # 3. bumpy torus (minor 0.3) -> bumpy torus of other proportions (minor 0.36) and resolution
     n = (48, 24) if small else (96, 48)
     s_t, s_theta, s_phi = _angled_torus(*n, 0.3)
     t_t, t_theta, t_phi = _angled_torus(int(n[0] * 1.1), int(n[1] * 1.2), 0.36)
-    out.append(("torus r 0.3 -> torus r 0.36", s_t, _torus_colors(s_theta, s_phi), t_t, _torus_colors(t_theta, t_phi),
-                lambda x: _torus_map(x, 0.3), {}))
+    out.append(
+        (
+            "torus r 0.3 -> torus r 0.36",
+            s_t,
+            _torus_colors(s_theta, s_phi),
+            t_t,
+            _torus_colors(t_theta, t_phi),
+            lambda x: _torus_map(x, 0.3),
+            {},
+        )
+    )
     # 4. cow (Y-up) -> remeshed cow stretched (1.15, 1, 0.9) about its centre
     path = DATA / "cow.obj"
     if with_cow and path.exists():
@@ -305,8 +403,17 @@ def pairs(small: bool = False, *, with_cow: bool = True):
         c = cow.vertices.mean(axis=0)
         k = np.array([1.15, 1.0, 0.9])
         target4 = Mesh((re.vertices - c) * k + c, re.faces)
-        out.append(("cow -> remeshed, stretched (1.15, 1, 0.9)", cow, _cow_colors(cow.vertices), target4,
-                    _cow_colors(re.vertices), lambda x: (x - c) / k + c, {"up": "y"}))
+        out.append(
+            (
+                "cow -> remeshed, stretched (1.15, 1, 0.9)",
+                cow,
+                _cow_colors(cow.vertices),
+                target4,
+                _cow_colors(re.vertices),
+                lambda x: (x - c) / k + c,
+                {"up": "y"},
+            )
+        )
     return out
 
 
@@ -323,8 +430,12 @@ def _torus_map(x, minor):
 # ---- real meshes: self-transfer to another tessellation of the same surface --------------------
 
 #: the real suite's meshes: name -> (file under DATA, up axis); Spot carries its own texture
-REAL_MESHES = {"cheburashka": ("cheburashka.obj", "y"), "fandisk": ("fandisk.obj", "y"), "cow": ("cow.obj", "y"),
-               "spot": ("spot/spot_triangulated.obj", "y")}
+REAL_MESHES = {
+    "cheburashka": ("cheburashka.obj", "y"),
+    "fandisk": ("fandisk.obj", "y"),
+    "cow": ("cow.obj", "y"),
+    "spot": ("spot/spot_triangulated.obj", "y"),
+}
 
 
 def _smooth_colors(p, centre, scale):
@@ -372,12 +483,16 @@ def _mirror_diagnosis(s, t, nnf, truth_index, sc, truth, edge) -> dict:
     for n in axes:
         refl = tv - 2 * ((tv - centre) @ n)[:, None] * n
         mirrored |= np.linalg.norm(sv[nnf] - refl, axis=1) / edge <= 3
-    return {"far_pct": round(100 * float(far.mean()), 1),
-            "far_mirrored_pct": round(100 * float((far & mirrored).sum() / max(far.sum(), 1)), 1),
-            "far_error_pct": round(100 * float(err[far].sum() / max(err.sum(), 1e-30)), 1),
-            "median_offset_edges": round(float(np.median(off)), 2),
-            # the PSNR if the far vertices had their true match (what the far ones cost)
-            "psnr_far_fixed_db": round(psnr(np.clip(np.where(far[:, None], sc[truth_index], sc[nnf]), 0, 1), truth), 2)}
+    return {
+        "far_pct": round(100 * float(far.mean()), 1),
+        "far_mirrored_pct": round(100 * float((far & mirrored).sum() / max(far.sum(), 1)), 1),
+        "far_error_pct": round(100 * float(err[far].sum() / max(err.sum(), 1e-30)), 1),
+        "median_offset_edges": round(float(np.median(off)), 2),
+        # the PSNR if the far vertices had their true match (what the far ones cost)
+        "psnr_far_fixed_db": round(
+            psnr(np.clip(np.where(far[:, None], sc[truth_index], sc[nnf]), 0, 1), truth), 2
+        ),
+    }
 
 
 #: the real suite's variants: label -> Config fields
@@ -395,8 +510,12 @@ def real(args) -> None:
     if args.real_sizes:
         sizes = [int(x) for x in args.real_sizes.split(",")]
     names = args.meshes or list(REAL_MESHES)
-    variants = {k: v for k, v in {**REAL_VARIANTS, **EXTRA_REAL}.items()
-                if (not args.variants and k in REAL_VARIANTS) or (args.variants and any(x in k for x in args.variants))}
+    variants = {
+        k: v
+        for k, v in {**REAL_VARIANTS, **EXTRA_REAL}.items()
+        if (not args.variants and k in REAL_VARIANTS)
+        or (args.variants and any(x in k for x in args.variants))
+    }
     for name in names:
         if not (DATA / REAL_MESHES[name][0]).exists():
             print(f"skip {name}: {DATA / REAL_MESHES[name][0]} not found", flush=True)
@@ -411,47 +530,78 @@ def real(args) -> None:
                 try:
                     t = remesh(s, n_vertices=n, key=jax.random.key(7))
                 except Exception as err:  # noqa: BLE001
-                    report.add(mesh=name, size=f"{s.num_vertices}->{n}", method="remesh",
-                               error=f"{type(err).__name__}: {str(err)[:160]}")
+                    report.add(
+                        mesh=name,
+                        size=f"{s.num_vertices}->{n}",
+                        method="remesh",
+                        error=f"{type(err).__name__}: {str(err)[:160]}",
+                    )
                     continue
                 remesh_s = time.perf_counter() - t0
-            truth = np.clip(field(t.vertices) if field is not None else np.asarray(t.vertex_colors)[:, :3], 0, 1)
+            truth = np.clip(
+                field(t.vertices) if field is not None else np.asarray(t.vertex_colors)[:, :3], 0, 1
+            )
             t = Mesh(t.vertices, t.faces)
             gt = tree.query(t.vertices)[1]
             base = {"mesh": name, "size": f"{s.num_vertices}->{t.num_vertices}"}
             ceiling = round(psnr(np.clip(sc[gt], 0, 1), truth), 2)
-            report.add(**base, method="nearest-3D copy (ceiling)", psnr_db=ceiling, remesh_s=round(remesh_s, 1))
-            print(f"{name} {base['size']}: ceiling {ceiling} dB (remesh {remesh_s:.1f} s)", flush=True)
+            report.add(
+                **base,
+                method="nearest-3D copy (ceiling)",
+                psnr_db=ceiling,
+                remesh_s=round(remesh_s, 1),
+            )
+            print(
+                f"{name} {base['size']}: ceiling {ceiling} dB (remesh {remesh_s:.1f} s)", flush=True
+            )
             for label, extra in variants.items():
                 cfg = Config(**extra)
                 t0 = time.perf_counter()
                 try:
                     r = meshmatch(s, sc, t, key=jax.random.key(0), config=cfg)
                 except Exception as err:  # noqa: BLE001 -- a failed case is a result too; keep the others
-                    report.add(**base, method=label, error=f"{type(err).__name__}: {str(err)[:160]}")
-                    print(f"{name} {base['size']} | {label}: {type(err).__name__}: {err}", flush=True)
+                    report.add(
+                        **base, method=label, error=f"{type(err).__name__}: {str(err)[:160]}"
+                    )
+                    print(
+                        f"{name} {base['size']} | {label}: {type(err).__name__}: {err}", flush=True
+                    )
                     continue
                 seconds = time.perf_counter() - t0
                 diag = _mirror_diagnosis(s, t, r.nnf, gt, sc, truth, edge)
                 final = psnr(np.clip(r.colors, 0, 1), truth)
-                report.add(**base, method=label, psnr_db=round(final, 2),
-                           voted_psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
-                           gap_db=round(ceiling - final, 2), **diag,
-                           seconds=round(seconds, 1), finest_iteration_s=_finest_iteration(r),
-                           finest_steps=_finest_steps(r), load=round(os.getloadavg()[0], 1))
+                report.add(
+                    **base,
+                    method=label,
+                    psnr_db=round(final, 2),
+                    voted_psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
+                    gap_db=round(ceiling - final, 2),
+                    **diag,
+                    seconds=round(seconds, 1),
+                    finest_iteration_s=_finest_iteration(r),
+                    finest_steps=_finest_steps(r),
+                    load=round(os.getloadavg()[0], 1),
+                )
                 row = report.rows[-1]
-                print(f"{name} {base['size']} | {label}: {row['psnr_db']} dB (voted {row['voted_psnr_db']}), "
-                      f"far {row['far_pct']} % ({row['far_mirrored_pct']} % mirrored), {seconds:.0f} s", flush=True)
+                print(
+                    f"{name} {base['size']} | {label}: {row['psnr_db']} dB (voted {row['voted_psnr_db']}), "
+                    f"far {row['far_pct']} % ({row['far_mirrored_pct']} % mirrored), {seconds:.0f} s",
+                    flush=True,
+                )
             report.write(pathlib.Path(args.out) if args.out else None)  # keep what is done
-    report.notes.append("Source: the mesh as stored (after prepare_mesh); target: remesh of it (key 7) at the size; "
-                        "colours: a smooth function of position (untextured meshes) or Spot's texture (source: "
-                        "area prefilter; target truth: the remesh's point samples of the texture).")
-    report.notes.append("psnr_db: final colours (copy of the match); voted_psnr_db: the finest vote; gap_db: ceiling "
-                        "minus psnr_db; far_pct: target vertices matched > 3 source edges from the nearest source "
-                        "vertex; far_mirrored_pct: of those, matched within 3 edges of the mirror image across a "
-                        "principal plane; far_error_pct: their share of the squared error; seconds: the whole "
-                        "transfer incl. compiles; finest_iteration_s: median wall time of the finest level's "
-                        "iterations after the first (shared 2-core machine, load = 1-minute load average).")
+    report.notes.append(
+        "Source: the mesh as stored (after prepare_mesh); target: remesh of it (key 7) at the size; "
+        "colours: a smooth function of position (untextured meshes) or Spot's texture (source: "
+        "area prefilter; target truth: the remesh's point samples of the texture)."
+    )
+    report.notes.append(
+        "psnr_db: final colours (copy of the match); voted_psnr_db: the finest vote; gap_db: ceiling "
+        "minus psnr_db; far_pct: target vertices matched > 3 source edges from the nearest source "
+        "vertex; far_mirrored_pct: of those, matched within 3 edges of the mirror image across a "
+        "principal plane; far_error_pct: their share of the squared error; seconds: the whole "
+        "transfer incl. compiles; finest_iteration_s: median wall time of the finest level's "
+        "iterations after the first (shared 2-core machine, load = 1-minute load average)."
+    )
     report.write(pathlib.Path(args.out) if args.out else None)
 
 
@@ -460,25 +610,57 @@ EXTRA_REAL = {
     "fan-footprint vote (paper)": {"vote": "fan"},
     "offset upsampling + re-vote (paper)": {"upsample": "offset"},
     "fan vote + offset upsampling (paper)": {"vote": "fan", "upsample": "offset"},
-    "intrinsic + fan vote + offset upsampling": {"aligned": False, "vote": "fan", "upsample": "offset"},
+    "intrinsic + fan vote + offset upsampling": {
+        "aligned": False,
+        "vote": "fan",
+        "upsample": "offset",
+    },
     "Config.intrinsic(up='y') (the model's up axis)": {"aligned": False, "up": "y"},
-    "Config.intrinsic(up='y', side='z') (the cow's left/right axis)": {"aligned": False, "up": "y", "side": "z"},
-    "Config.intrinsic(up='y', side='x') (Spot's left/right axis)": {"aligned": False, "up": "y", "side": "x"},
+    "Config.intrinsic(up='y', side='z') (the cow's left/right axis)": {
+        "aligned": False,
+        "up": "y",
+        "side": "z",
+    },
+    "Config.intrinsic(up='y', side='x') (Spot's left/right axis)": {
+        "aligned": False,
+        "up": "y",
+        "side": "x",
+    },
 }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--suite", choices=("speed", "cross", "figure", "real"), default="speed",
-                    help="figure: results/meshmatch_cross.png (intrinsic vs the aligned default, two pairs)")
-    ap.add_argument("--small", action="store_true", help="cross suite at half resolution (the test's sizes)")
+    ap.add_argument(
+        "--suite",
+        choices=("speed", "cross", "figure", "real"),
+        default="speed",
+        help="figure: results/meshmatch_cross.png (intrinsic vs the aligned default, two pairs)",
+    )
+    ap.add_argument(
+        "--small", action="store_true", help="cross suite at half resolution (the test's sizes)"
+    )
     ap.add_argument("--sizes", default="16,64", help="target sizes in K vertices (16 and/or 64)")
     ap.add_argument("--out", default=None)
-    ap.add_argument("--variants", nargs="*", default=None, metavar="TEXT",
-                    help="cross suite: run only the variants whose label contains one of these (no diagnosis rows)")
-    ap.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
-                    help="speed suite: Config fields over the default (Python literals, e.g. aligned=False)")
-    ap.add_argument("--name", default="meshmatch", help="speed suite: the report's name (results/NAME.{json,md})")
+    ap.add_argument(
+        "--variants",
+        nargs="*",
+        default=None,
+        metavar="TEXT",
+        help="cross suite: run only the variants whose label contains one of these (no diagnosis rows)",
+    )
+    ap.add_argument(
+        "--set",
+        nargs="*",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="speed suite: Config fields over the default (Python literals, e.g. aligned=False)",
+    )
+    ap.add_argument(
+        "--name",
+        default="meshmatch",
+        help="speed suite: the report's name (results/NAME.{json,md})",
+    )
     ap.add_argument("--large", action="store_true", help="real suite: also the 60K targets")
     ap.add_argument("--real-sizes", default=None, help="real suite: target sizes, e.g. 5000,20000")
     ap.add_argument("--meshes", nargs="*", default=None, help="real suite: only these meshes")
@@ -509,8 +691,15 @@ def main() -> None:
         t_side = prepare_side(target, cfg, hks_times=s_side.hks_times)
         prep = time.perf_counter() - t0
         t0 = time.perf_counter()
-        r = meshmatch(source, source_colors, target, key=jax.random.key(0), config=cfg, prepared=(s_side, t_side),
-                      progress=print)
+        r = meshmatch(
+            source,
+            source_colors,
+            target,
+            key=jax.random.key(0),
+            config=cfg,
+            prepared=(s_side, t_side),
+            progress=print,
+        )
         total = time.perf_counter() - t0
         levels = r.stats["levels"]
         # one compiled step per padded shape (levels padded to a group's shape share one)
@@ -524,32 +713,75 @@ def main() -> None:
         quality = psnr(r.colors, truth)
         per_level = {s["level"]: round(s["seconds"], 2) for s in levels}
         iters = {s["level"]: s["steps"] for s in levels}
-        print(f"{len(tv)} V: preprocessing {prep:.1f} s, fans {r.stats['fans_s']:.1f} s, iteration {it:.3f} s, "
-              f"(CPU {it_cpu:.3f} s), total {total:.1f} s (+ preprocessing), PSNR {quality:.1f} dB, {compiles} compiled step shapes, "
-              f"per level s {per_level}, iterations {iters}")
+        print(
+            f"{len(tv)} V: preprocessing {prep:.1f} s, fans {r.stats['fans_s']:.1f} s, iteration {it:.3f} s, "
+            f"(CPU {it_cpu:.3f} s), total {total:.1f} s (+ preprocessing), PSNR {quality:.1f} dB, {compiles} compiled step shapes, "
+            f"per level s {per_level}, iterations {iters}"
+        )
         label = f"{len(tv) // 1000}K"
         load = round(os.getloadavg()[0], 1)
-        report.add(name="preprocessing (hierarchies, HKS, tracer tables)", size=label, seconds=prep, load=load)
-        report.add(name="fans traced + uploaded (all levels)", size=label, seconds=r.stats["fans_s"], load=load)
+        report.add(
+            name="preprocessing (hierarchies, HKS, tracer tables)",
+            size=label,
+            seconds=prep,
+            load=load,
+        )
+        report.add(
+            name="fans traced + uploaded (all levels)",
+            size=label,
+            seconds=r.stats["fans_s"],
+            load=load,
+        )
         # estimated float32 words read per target vertex: fan samples (R·A·3 corners·C) + smoothing,
         # per sweep the bound pre-score (13 candidates × 27), exact rows ((P+1) × 190) and propagation
         # stars, and the vote
-        words = 3 * 18 * 3 * 3 + 36 + cfg.sweeps * (13 * 27 + (cfg.exact_candidates + 1) * 190 + 168) + 252
+        words = (
+            3 * 18 * 3 * 3
+            + 36
+            + cfg.sweeps * (13 * 27 + (cfg.exact_candidates + 1) * 190 + 168)
+            + 252
+        )
         bytes_moved = len(tv) * 4 * words
-        report.add(name="PatchMatch iteration, finest level (target 0.65 s at 64K)", size=label, seconds=it,
-                   bytes=bytes_moved, bound="bandwidth", load=load, cpu_seconds=round(it_cpu, 3))
-        report.add(name=f"transfer incl. fans + {compiles} compiles (target 60 s)", size=label, seconds=total,
-                   load=load)
+        report.add(
+            name="PatchMatch iteration, finest level (target 0.65 s at 64K)",
+            size=label,
+            seconds=it,
+            bytes=bytes_moved,
+            bound="bandwidth",
+            load=load,
+            cpu_seconds=round(it_cpu, 3),
+        )
+        report.add(
+            name=f"transfer incl. fans + {compiles} compiles (target 60 s)",
+            size=label,
+            seconds=total,
+            load=load,
+        )
         report.add(name="preprocessing + transfer", size=label, seconds=prep + total, load=load)
-        report.add(name="self-transfer PSNR (dB, >= 20 asked)", size=label, seconds=0.0, psnr_db=round(quality, 2),
-                   load=load)
+        report.add(
+            name="self-transfer PSNR (dB, >= 20 asked)",
+            size=label,
+            seconds=0.0,
+            psnr_db=round(quality, 2),
+            load=load,
+        )
         # the ceiling: each target vertex copies the nearest source vertex (the 16K target shares the
         # source's 128 columns around the ring, the 64K one puts every second column between them)
         near = source_colors[cKDTree(source.vertices).query(tv)[1]]
-        report.add(name="nearest-3D copy PSNR (ceiling of the copied output)", size=label, seconds=0.0,
-                   psnr_db=round(psnr(near, truth), 2), load=load)
-        report.add(name="self-transfer PSNR of the finest vote", size=label, seconds=0.0,
-                   psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2), load=load)
+        report.add(
+            name="nearest-3D copy PSNR (ceiling of the copied output)",
+            size=label,
+            seconds=0.0,
+            psnr_db=round(psnr(near, truth), 2),
+            load=load,
+        )
+        report.add(
+            name="self-transfer PSNR of the finest vote",
+            size=label,
+            seconds=0.0,
+            psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
+            load=load,
+        )
     report.write(pathlib.Path(args.out) if args.out else None)
 
 

@@ -39,7 +39,13 @@ def sphere_points(n: int, key) -> jax.Array:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--points", type=int, default=20_000, help="N = M")
-    ap.add_argument("--chunks", type=int, nargs="+", default=[128, 512, 2048], help="chunk sizes (first: fwd+bwd)")
+    ap.add_argument(
+        "--chunks",
+        type=int,
+        nargs="+",
+        default=[128, 512, 2048],
+        help="chunk sizes (first: fwd+bwd)",
+    )
     ap.add_argument("--out", default=None, help="results folder (default benchmarks/results)")
     args = ap.parse_args()
     N = M = args.points
@@ -73,26 +79,54 @@ def main() -> None:
 
     t = time_jax(min_only, p, q, repeats=3)
     ceiling_s = t.run_s
-    report.add(name="min-reduce only (ceiling)", size=size, chunk=chunk0, seconds=t.run_s,
-               compile_s=t.compile_s, flops=pairs * 9, bytes=nbytes, bound="elementwise")
+    report.add(
+        name="min-reduce only (ceiling)",
+        size=size,
+        chunk=chunk0,
+        seconds=t.run_s,
+        compile_s=t.compile_s,
+        flops=pairs * 9,
+        bytes=nbytes,
+        bound="elementwise",
+    )
 
     for i, chunk in enumerate(args.chunks):
-        fwd = jax.jit(lambda p, q, pn, qn, chunk=chunk: chamfer_distance(
-            p, q, p_normals=pn, q_normals=qn, chunk_size=chunk))
+        fwd = jax.jit(
+            lambda p, q, pn, qn, chunk=chunk: chamfer_distance(
+                p, q, p_normals=pn, q_normals=qn, chunk_size=chunk
+            )
+        )
         t = time_jax(fwd, p, q, pn, qn, repeats=3)
-        report.add(name="chamfer fwd", size=size, chunk=chunk, seconds=t.run_s, compile_s=t.compile_s,
-                   flops=flops, bytes=nbytes, bound="elementwise",
-                   pct_of_min_reduce=100.0 * ceiling_s / t.run_s)
+        report.add(
+            name="chamfer fwd",
+            size=size,
+            chunk=chunk,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            flops=flops,
+            bytes=nbytes,
+            bound="elementwise",
+            pct_of_min_reduce=100.0 * ceiling_s / t.run_s,
+        )
         if i == 0:
+
             def loss(p, q, chunk=chunk):
                 cd = chamfer_distance(p, q, p_normals=pn, q_normals=qn, chunk_size=chunk)
                 return cd.distance + 0.1 * cd.normal
 
             bwd = jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))
             t = time_jax(bwd, p, q, repeats=3)
-            report.add(name="chamfer fwd+bwd", size=size, chunk=chunk, seconds=t.run_s, compile_s=t.compile_s,
-                       flops=flops, bytes=nbytes, bound="elementwise",
-                       pct_of_min_reduce=100.0 * ceiling_s / t.run_s)
+            report.add(
+                name="chamfer fwd+bwd",
+                size=size,
+                chunk=chunk,
+                seconds=t.run_s,
+                compile_s=t.compile_s,
+                flops=flops,
+                bytes=nbytes,
+                bound="elementwise",
+                pct_of_min_reduce=100.0 * ceiling_s / t.run_s,
+            )
 
     report.write(args.out)
 

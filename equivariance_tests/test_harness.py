@@ -101,7 +101,9 @@ def test_transport_average_is_gauge_equivariant_for_any_gauge(data):
 def test_convergence_measures_second_order_for_vertex_areas():
     entry = REGISTRY["geometry.vertex_area"]
     conv = convergence(
-        lambda s: entry.apply(s, None), CATALOGUE["cylinder"], lambda s, rng: {},
+        lambda s: entry.apply(s, None),
+        CATALOGUE["cylinder"],
+        lambda s, rng: {},
         resolutions=(8, 16, 32, 64),
     )
     assert not conv.floor

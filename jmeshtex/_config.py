@@ -82,13 +82,17 @@ class Rule:
         if not self.names:
             if not _holds(self.ok, config):
                 message = self.message
-                raise ConfigError(message(config) if callable(message) else str(message).format(cls=cls, c=config))
+                raise ConfigError(
+                    message(config) if callable(message) else str(message).format(cls=cls, c=config)
+                )
             return
         template = self.message if self.message is not None else type(config)._MESSAGE
         for name in self.names:
             value = getattr(config, name)
             if not _holds(self.ok, value):
-                raise ConfigError(template.format(cls=cls, name=name, value=value, must=self.must, c=config))
+                raise ConfigError(
+                    template.format(cls=cls, name=name, value=value, must=self.must, c=config)
+                )
 
 
 def _holds(ok: Callable[[Any], bool], arg: Any) -> bool:
@@ -112,7 +116,9 @@ def display_name(cls: type) -> str:
     return cls.__qualname__
 
 
-def rule(names: str, ok: Callable[[Any], bool], must: str = "", *, message: str | None = None) -> Rule:
+def rule(
+    names: str, ok: Callable[[Any], bool], must: str = "", *, message: str | None = None
+) -> Rule:
     """A rule on single values: each field in ``names`` (separated by spaces) must satisfy ``ok``.
 
     Args:
@@ -131,7 +137,9 @@ def rule(names: str, ok: Callable[[Any], bool], must: str = "", *, message: str 
     """
     fields = tuple(names.split())
     if not fields:
-        raise ConfigError("rule() needs at least one field name; use cross_rule() for a rule over the whole config")
+        raise ConfigError(
+            "rule() needs at least one field name; use cross_rule() for a rule over the whole config"
+        )
     return Rule(fields, ok, must, message)
 
 
@@ -210,11 +218,15 @@ class ConfigBase:
           ConfigError: ``data`` is not a mapping, has unknown keys, or holds invalid values.
         """
         if not isinstance(data, Mapping):
-            raise ConfigError(f"{display_name(cls)}.from_dict needs a dict of fields (as written by to_dict), "
-                              f"got {type(data).__name__}")
+            raise ConfigError(
+                f"{display_name(cls)}.from_dict needs a dict of fields (as written by to_dict), "
+                f"got {type(data).__name__}"
+            )
         _reject_unknown(cls, data)
         tuples = _tuple_fields(cls)
-        return cls(**{k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in data.items()})
+        return cls(
+            **{k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in data.items()}
+        )
 
     def replace(self: _C, **changes: Any) -> _C:
         """A copy with some fields changed (validated again); unknown names raise ConfigError."""
@@ -243,4 +255,6 @@ def _is_tuple_type(hint: Any) -> bool:
     origin = typing.get_origin(hint)
     if hint is tuple or origin is tuple:
         return True
-    return origin in (Union, types.UnionType) and any(_is_tuple_type(a) for a in typing.get_args(hint))
+    return origin in (Union, types.UnionType) and any(
+        _is_tuple_type(a) for a in typing.get_args(hint)
+    )

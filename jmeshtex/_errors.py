@@ -55,7 +55,9 @@ def _format_indices(indices: np.ndarray, limit: int = 10) -> str:
     if indices.size == 0:
         return ""
     flat = indices.reshape(len(indices), -1) if indices.ndim > 1 else indices
-    items = [str(tuple(int(v) for v in row)) if np.ndim(row) else str(int(row)) for row in flat[:limit]]
+    items = [
+        str(tuple(int(v) for v in row)) if np.ndim(row) else str(int(row)) for row in flat[:limit]
+    ]
     more = f", ... ({len(flat) - limit} more)" if len(flat) > limit else ""
     return f"(count {len(flat)}: {', '.join(items)}{more})"
 

@@ -93,7 +93,11 @@ def as_mesh(mesh: Mesh | tuple, *, what: str = "mesh") -> Mesh:
         v, f = (np.asarray(x) for x in mesh)
         if v.ndim == 2 and v.shape[-1] == 3 and f.ndim == 2 and f.shape[-1] == 3:
             return Mesh(v.astype(np.float64), f.astype(np.int64))
-        raise InputError(f"{what}: a (vertices, faces) pair needs shapes [V, 3] and [F, 3], got "
-                         f"{v.shape} and {f.shape}")
-    raise InputError(f"{what} must be a jmeshtex.Mesh or a (vertices, faces) pair, got {type(mesh).__name__}"
-                     " (load a file with jmeshtex.io.load_mesh, or build one with jmeshtex.data)")
+        raise InputError(
+            f"{what}: a (vertices, faces) pair needs shapes [V, 3] and [F, 3], got "
+            f"{v.shape} and {f.shape}"
+        )
+    raise InputError(
+        f"{what} must be a jmeshtex.Mesh or a (vertices, faces) pair, got {type(mesh).__name__}"
+        " (load a file with jmeshtex.io.load_mesh, or build one with jmeshtex.data)"
+    )

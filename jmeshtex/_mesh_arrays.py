@@ -40,8 +40,10 @@ def coerce_vertices(vertices: Any) -> np.ndarray:
         v = np.asarray(vertices)
     except (ValueError, TypeError) as err:
         raise InputError(f"vertices must be a [V, 3] array of real numbers ({err})") from None
-    if v.dtype == object or v.dtype == bool or not (
-        np.issubdtype(v.dtype, np.floating) or np.issubdtype(v.dtype, np.integer)
+    if (
+        v.dtype == object
+        or v.dtype == bool
+        or not (np.issubdtype(v.dtype, np.floating) or np.issubdtype(v.dtype, np.integer))
     ):
         raise InputError(f"vertices must be real numbers, got dtype {v.dtype}")
     if v.ndim != 2 or v.shape[1] != 3:
@@ -81,7 +83,11 @@ def coerce_faces(faces: Any) -> np.ndarray:
                 f"{NonTriangleFaceError.what}, got {f.shape[1]} corners per face (shape {f.shape})",
                 indices=np.arange(len(f)),
             )
-        hint = " (a flat index list? use faces.reshape(-1, 3))" if f.ndim == 1 and f.size % 3 == 0 else ""
+        hint = (
+            " (a flat index list? use faces.reshape(-1, 3))"
+            if f.ndim == 1 and f.size % 3 == 0
+            else ""
+        )
         raise NonTriangleFaceError(f"{NonTriangleFaceError.what}, got shape {f.shape}{hint}")
     if f.dtype == bool or not np.issubdtype(f.dtype, np.integer):
         raise InputError(
@@ -183,7 +189,11 @@ def coincident_vertex_map(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.n
 
     while True:
         merged = rep[faces]
-        ok = (merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 2] != merged[:, 0])
+        ok = (
+            (merged[:, 0] != merged[:, 1])
+            & (merged[:, 1] != merged[:, 2])
+            & (merged[:, 2] != merged[:, 0])
+        )
         fo, fm = faces[ok], merged[ok]
         revert = np.zeros(V, bool)  # indexed by representative
         if len(fm):
@@ -208,5 +218,3 @@ def coincident_vertex_map(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.n
         rep = np.where(revert[rep], np.arange(V), rep)
     kept = coincident & (rep == np.arange(V)) & (np.bincount(rep, minlength=V) == 1)
     return rep, np.nonzero(kept)[0]
-
-

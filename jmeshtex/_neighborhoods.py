@@ -218,7 +218,9 @@ def pad_to(tree: T, sizes: dict[str, int]) -> T:
         for axis_name, current in zip(names, leaf.shape, strict=False):
             target = sizes.get(axis_name, current)
             if target < current:
-                raise ValueError(f"pad_to: cannot shrink axis {axis_name} of {name} from {current} to {target}")
+                raise ValueError(
+                    f"pad_to: cannot shrink axis {axis_name} of {name} from {current} to {target}"
+                )
             widths.append((0, target - current))
         widths += [(0, 0)] * (leaf.ndim - len(names))
         out[name] = xp.pad(leaf, widths, constant_values=_PAD_VALUES.get(name, 0))

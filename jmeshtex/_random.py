@@ -25,9 +25,15 @@ def check_key(key, what: str = "key") -> jax.Array:
     from ._errors import InputError
 
     ok = isinstance(key, jax.Array) and (
-        jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) or (key.dtype == np.uint32 and key.shape[-1:] == (2,)))
+        jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key)
+        or (key.dtype == np.uint32 and key.shape[-1:] == (2,))
+    )
     if not ok:
-        hint = f"jax.random.key({key})" if isinstance(key, (int, np.integer)) and not isinstance(key, bool) else "jax.random.key(0)"
+        hint = (
+            f"jax.random.key({key})"
+            if isinstance(key, (int, np.integer)) and not isinstance(key, bool)
+            else "jax.random.key(0)"
+        )
         raise InputError(f"{what} must be a JAX PRNG key such as {hint}, got {type(key).__name__}")
     return key
 
@@ -52,7 +58,9 @@ def host_seed(key: jax.Array, *ints: int) -> int:
       >>> host_seed(k, 1) == host_seed(k, 1) != host_seed(k, 2)
       True
     """
-    return int(np.random.SeedSequence([*key_ints(key), *(int(i) for i in ints)]).generate_state(1)[0])
+    return int(
+        np.random.SeedSequence([*key_ints(key), *(int(i) for i in ints)]).generate_state(1)[0]
+    )
 
 
 def host_rng(key: jax.Array, *ints: int) -> np.random.Generator:

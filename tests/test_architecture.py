@@ -20,7 +20,9 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 METHODS = ("dgts", "fl", "fldm", "surfacecnn", "meshmatch")
-ALLOWED_METHOD_IMPORTS = {("fldm", "fl")}  # DESIGN.md: methods never import each other, except fldm -> fl
+ALLOWED_METHOD_IMPORTS = {
+    ("fldm", "fl")
+}  # DESIGN.md: methods never import each other, except fldm -> fl
 
 
 def _module_parts(rel: pathlib.PurePosixPath) -> tuple[list[str], list[str]]:
@@ -101,7 +103,11 @@ def method_imports(source: str, rel: pathlib.PurePosixPath) -> list[tuple[int, s
         for target in sorted(targets):
             if target in ("testing", "cli"):
                 out.append((line, f"method {home} imports jmeshtex.{target}"))
-            elif target in METHODS and target != home and (home, target) not in ALLOWED_METHOD_IMPORTS:
+            elif (
+                target in METHODS
+                and target != home
+                and (home, target) not in ALLOWED_METHOD_IMPORTS
+            ):
                 out.append((line, f"method {home} imports method {target}"))
     return out
 
@@ -152,7 +158,11 @@ def _offenders(rule) -> list[str]:
         ("notebooks/x.ipynb", "import jmeshtex.fl._vae as v", True),
         ("jmeshtex/fl/_a.py", "from ._vae import x", False),  # own package
         ("jmeshtex/cli/_stages/fl.py", "from .._common import x", False),  # own top-level package
-        ("jmeshtex/fl/_a.py", "from .._errors import InputError", False),  # root-level shared internals
+        (
+            "jmeshtex/fl/_a.py",
+            "from .._errors import InputError",
+            False,
+        ),  # root-level shared internals
         ("jmeshtex/fl/_a.py", "from .._mesh_arrays import coerce_faces", False),
         ("jmeshtex/fl/_a.py", "from ..ops import field_conv", False),  # through the __init__
         ("benchmarks/x.py", "from jmeshtex import __version__, _errors", False),
@@ -212,6 +222,8 @@ def test_a_lower_layer_imports_without_the_ones_above(package, forbidden):
         f"bad = sorted(m for m in sys.modules if any(m == f or m.startswith(f + '.') for f in {forbidden!r}))\n"
         "print('\\n'.join(bad))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
     loaded = out.stdout.split()
     assert not loaded, f"import {package} loads {len(loaded)} modules it must not: {loaded[:20]}"

@@ -45,10 +45,22 @@ class Toy(ConfigBase):
     _RULES = (
         integers("steps", 1),
         rule("lr", lambda x: x > 0, "> 0"),
-        rule("widths", lambda w: len(w) == 2 and all(is_int(x) and x >= 1 for x in w), "two positive integers"),
-        rule("mode", lambda x: x in ("a", "b"), "'a' or 'b'", message="mode must be {must}, got {value!r}"),
+        rule(
+            "widths",
+            lambda w: len(w) == 2 and all(is_int(x) and x >= 1 for x in w),
+            "two positive integers",
+        ),
+        rule(
+            "mode",
+            lambda x: x in ("a", "b"),
+            "'a' or 'b'",
+            message="mode must be {must}, got {value!r}",
+        ),
         cross_rule(lambda c: c.lo <= c.hi, "{cls} needs lo <= hi, got {c.lo}, {c.hi}"),
-        cross_rule(lambda c: c.widths[0] <= c.widths[1], lambda c: f"widths {c.widths} must not shrink, {{literal}}"),
+        cross_rule(
+            lambda c: c.widths[0] <= c.widths[1],
+            lambda c: f"widths {c.widths} must not shrink, {{literal}}",
+        ),
     )
 
 
@@ -115,7 +127,15 @@ def test_a_cross_rule_sees_the_whole_config():
 def test_json_round_trip_turns_tuples_into_lists_and_back():
     c = Toy(steps=3, widths=(2, 5), up=(1.0, 0.0, 0.0), mode="b")
     d = c.to_dict()
-    assert d == {"steps": 3, "lr": 0.1, "widths": [2, 5], "up": [1.0, 0.0, 0.0], "mode": "b", "lo": 0.0, "hi": 1.0}
+    assert d == {
+        "steps": 3,
+        "lr": 0.1,
+        "widths": [2, 5],
+        "up": [1.0, 0.0, 0.0],
+        "mode": "b",
+        "lo": 0.0,
+        "hi": 1.0,
+    }
     back = Toy.from_dict(json.loads(json.dumps(d)))
     assert back == c and isinstance(back.widths, tuple) and isinstance(back.up, tuple)
     assert Toy.from_dict(Toy(up=None).to_dict()).up is None  # Optional tuple: None stays None
@@ -172,7 +192,14 @@ def test_rule_needs_a_field_name():
 
 
 def test_predicates():
-    assert [is_int(x) for x in (0, -3, True, 1.0, "1", None)] == [True, True, False, False, False, False]
+    assert [is_int(x) for x in (0, -3, True, 1.0, "1", None)] == [
+        True,
+        True,
+        False,
+        False,
+        False,
+        False,
+    ]
     checks = [is_finite_number(x) for x in (0, 2.5, float("nan"), float("-inf"), "1", None)]
     assert checks == [True, True, False, False, False, False]
 
@@ -189,7 +216,9 @@ def test_library_configs_round_trip_through_json(cls):
     text = json.dumps(c.to_dict())
     assert cls.from_dict(json.loads(text)) == c
     assert cls.from_dict({}) == c
-    with pytest.raises(ConfigError, match=f"^{re.escape(display_name(cls))}: unknown fields \\['bogus'\\]"):
+    with pytest.raises(
+        ConfigError, match=f"^{re.escape(display_name(cls))}: unknown fields \\['bogus'\\]"
+    ):
         cls.from_dict({"bogus": 1})
 
 
@@ -207,11 +236,29 @@ def test_tuple_valued_library_fields_come_back_as_tuples():
 #: the fl.Config dict the previous shipped FL-VAE (600 steps, until this round) embedded in its weights
 #: file, as written before the training-data and loss options existed (field names already migrated)
 _OLD_FL_CONFIG = {
-    "latent_dim": 8, "num_samples": 64, "features": 32, "num_heads": 4, "num_blocks": 2, "decoder_features": 64,
-    "decoder_layers": 5, "decoder": "log", "kl_weight": 0.01, "log_sigma_max": 2.0, "delta": 1e-06,
-    "min_vertices": 64, "max_vertices": 192, "max_image_size": 256, "meshes_per_image": 8, "batch_size": 2,
-    "steps": 600, "learning_rate": 0.002, "final_lr_fraction": 0.05, "warmup_steps": 50, "grad_clip": 1.0,
-    "checkpoint_every": 50, "encode_chunk": 2048,
+    "latent_dim": 8,
+    "num_samples": 64,
+    "features": 32,
+    "num_heads": 4,
+    "num_blocks": 2,
+    "decoder_features": 64,
+    "decoder_layers": 5,
+    "decoder": "log",
+    "kl_weight": 0.01,
+    "log_sigma_max": 2.0,
+    "delta": 1e-06,
+    "min_vertices": 64,
+    "max_vertices": 192,
+    "max_image_size": 256,
+    "meshes_per_image": 8,
+    "batch_size": 2,
+    "steps": 600,
+    "learning_rate": 0.002,
+    "final_lr_fraction": 0.05,
+    "warmup_steps": 50,
+    "grad_clip": 1.0,
+    "checkpoint_every": 50,
+    "encode_chunk": 2048,
 }
 
 
@@ -240,20 +287,44 @@ def test_shipped_weights_store_every_config_field(name):
     "make, message",
     [
         # messages asserted elsewhere in the suite, word for word
-        (lambda: DGTSConfig(min_features=64, max_features=32), "need min_features <= max_features, got 64, 32"),
+        (
+            lambda: DGTSConfig(min_features=64, max_features=32),
+            "need min_features <= max_features, got 64, 32",
+        ),
         (lambda: PrepareConfig(levels=0), "dgts.PrepareConfig.levels must be >= 1, got 0"),
-        (lambda: FLVAEConfig(decoder="bary"), "decoder must be one of ('log', 'barycentric'), got 'bary'"),
-        (lambda: FLVAEConfig(features=10, num_heads=4), "features (10) must be divisible by num_heads (4)"),
-        (lambda: FLDMConfig(widths=(4,)), "widths must be two positive integers (fine, coarse), got (4,)"),
+        (
+            lambda: FLVAEConfig(decoder="bary"),
+            "decoder must be one of ('log', 'barycentric'), got 'bary'",
+        ),
+        (
+            lambda: FLVAEConfig(features=10, num_heads=4),
+            "features (10) must be divisible by num_heads (4)",
+        ),
+        (
+            lambda: FLDMConfig(widths=(4,)),
+            "widths must be two positive integers (fine, coarse), got (4,)",
+        ),
         (lambda: FLDMConfig(diffusion_steps=1), "diffusion_steps must be >= 2"),
-        (lambda: MeshMatchConfig(color_weight=-1.0), "meshmatch.Config.color_weight must be finite and >= 0, got (-1.0,)"),
-        (lambda: MeshMatchConfig(shape_weight=(1.0, -1.0)),
-         "meshmatch.Config.shape_weight must be finite and >= 0, got (1.0, -1.0)"),
-        (lambda: MeshMatchConfig(color_weight=0.0, shape_weight=(0.0, 0.0)),
-         "color_weight and shape_weight are all 0: the patch distance would be constant"),
-        (lambda: SurfaceCNNConfig(init_low=0.5, init_high=0.2),
-         "surfacecnn.Config needs 0 <= init_low <= init_high <= 1, got 0.5, 0.2"),
-        (lambda: SurfaceCNNConfig(size=True), "surfacecnn.Config.size must be an integer >= 4, got True"),
+        (
+            lambda: MeshMatchConfig(color_weight=-1.0),
+            "meshmatch.Config.color_weight must be finite and >= 0, got (-1.0,)",
+        ),
+        (
+            lambda: MeshMatchConfig(shape_weight=(1.0, -1.0)),
+            "meshmatch.Config.shape_weight must be finite and >= 0, got (1.0, -1.0)",
+        ),
+        (
+            lambda: MeshMatchConfig(color_weight=0.0, shape_weight=(0.0, 0.0)),
+            "color_weight and shape_weight are all 0: the patch distance would be constant",
+        ),
+        (
+            lambda: SurfaceCNNConfig(init_low=0.5, init_high=0.2),
+            "surfacecnn.Config needs 0 <= init_low <= init_high <= 1, got 0.5, 0.2",
+        ),
+        (
+            lambda: SurfaceCNNConfig(size=True),
+            "surfacecnn.Config.size must be an integer >= 4, got True",
+        ),
     ],
 )
 def test_library_messages_are_unchanged(make, message):

@@ -29,6 +29,8 @@ def test_notebook_executes(path, monkeypatch, tmp_path):
     monkeypatch.setenv("JMESHTEX_NOTEBOOK_TINY", "1")
     monkeypatch.setenv("JMESHTEX_NOTEBOOK_OUT", str(tmp_path))
     nb = nbformat.read(path, as_version=4)
-    NotebookClient(nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
+    NotebookClient(
+        nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}
+    ).execute()
     errors = [o for c in nb.cells for o in c.get("outputs", []) if o.get("output_type") == "error"]
     assert not errors

@@ -31,8 +31,14 @@ PROCEDURAL = {
 }
 
 
-def add_common(p: argparse.ArgumentParser, *, out: str | None = "output folder", seed: bool = True,
-               quiet: bool = True, out_required: bool = True) -> None:
+def add_common(
+    p: argparse.ArgumentParser,
+    *,
+    out: str | None = "output folder",
+    seed: bool = True,
+    quiet: bool = True,
+    out_required: bool = True,
+) -> None:
     """Add the shared flags to a subcommand's parser.
 
     Args:
@@ -72,9 +78,14 @@ def add_up(p: argparse.ArgumentParser, *, default: str = "z") -> None:
       >>> p.parse_args(["--up", "y"]).up, p.parse_args([]).up
       ('y', 'z')
     """
-    p.add_argument("--up", default=default, choices=UP_CHOICES, metavar="AXIS",
-                   help=f"up axis of the mesh in renders: {'|'.join(UP_CHOICES)} (default {default}; "
-                        "most OBJ files are y)")
+    p.add_argument(
+        "--up",
+        default=default,
+        choices=UP_CHOICES,
+        metavar="AXIS",
+        help=f"up axis of the mesh in renders: {'|'.join(UP_CHOICES)} (default {default}; "
+        "most OBJ files are y)",
+    )
 
 
 def procedural_mesh(spec: str):
@@ -123,8 +134,10 @@ def load_mesh_spec(spec: str | os.PathLike, *, texture: str | os.PathLike | None
         return load_mesh(path, texture=texture)
     mesh = procedural_mesh(str(spec))
     if mesh is None:
-        raise InputError(f"{str(spec)!r} is neither a mesh file nor one of the procedural names "
-                         f"{sorted(PROCEDURAL)} (e.g. icosphere:3)")
+        raise InputError(
+            f"{str(spec)!r} is neither a mesh file nor one of the procedural names "
+            f"{sorted(PROCEDURAL)} (e.g. icosphere:3)"
+        )
     return mesh
 
 

@@ -46,9 +46,13 @@ def _meshes(ctx: dict[str, Any]) -> str:
     quick = ctx["quick"]
     ctx["torus"] = data.torus(32, 16) if quick else data.torus(72, 36)
     gv, gf = data.grid(6) if quick else data.grid(12)
-    gv[:, 2] = 0.12 * np.sin(2.0 * np.pi * gv[:, 0]) * np.cos(np.pi * gv[:, 1])  # a gentle bend to see
+    gv[:, 2] = (
+        0.12 * np.sin(2.0 * np.pi * gv[:, 0]) * np.cos(np.pi * gv[:, 1])
+    )  # a gentle bend to see
     ctx["grid"] = data.grid(6).replace(vertices=gv, faces=gf)
-    return ", ".join(f"{name} {ctx[name].num_vertices} V / {ctx[name].num_faces} F" for name in ("torus", "grid"))
+    return ", ".join(
+        f"{name} {ctx[name].num_vertices} V / {ctx[name].num_faces} F" for name in ("torus", "grid")
+    )
 
 
 def _subdivide(ctx: dict[str, Any]) -> str:
@@ -65,7 +69,9 @@ def _boundary(ctx: dict[str, Any]) -> str:
 
     v, f = ctx["grid"]
     loops = boundary_loops(f, len(v))
-    ctx["boundary"] = np.concatenate([np.stack([loop, np.roll(loop, -1)], axis=1) for loop in loops])
+    ctx["boundary"] = np.concatenate(
+        [np.stack([loop, np.roll(loop, -1)], axis=1) for loop in loops]
+    )
     return f"grid: {len(loops)} boundary loop(s), {len(ctx['boundary'])} edges; torus: {len(boundary_loops(ctx['torus'].faces))}"
 
 
@@ -76,7 +82,9 @@ def _validate(ctx: dict[str, Any]) -> str:
     for name in ("torus", "grid"):
         validate_mesh(*ctx[name])
         st = mesh_statistics(ctx[name])
-        parts.append(f"{name}: valid, χ = {st.euler_characteristic}, genus {st.genus}, {st.boundary_loops} boundary loop(s)")
+        parts.append(
+            f"{name}: valid, χ = {st.euler_characteristic}, genus {st.genus}, {st.boundary_loops} boundary loop(s)"
+        )
     return "; ".join(parts)
 
 
@@ -162,7 +170,9 @@ def _trace(ctx: dict[str, Any]) -> str:
     direction = np.exp(2j * np.pi * np.tile(np.arange(n_dirs), len(v)) / n_dirs)
     geometry = tracer_geometry(v, f)
     t0 = time.perf_counter()
-    result = trace_from_vertices(v, f, vertex, direction, 3.0 * mean_edge_length(v, f), geometry=geometry)
+    result = trace_from_vertices(
+        v, f, vertex, direction, 3.0 * mean_edge_length(v, f), geometry=geometry
+    )
     seconds = time.perf_counter() - t0
     return f"torus: {len(vertex)} geodesics of 3 mean edges, {len(vertex) / max(seconds, 1e-9):,.0f} traces/s, {int(result.stopped.sum())} stopped"
 
@@ -173,15 +183,28 @@ def _render(ctx: dict[str, Any]) -> str:
     tv, tf = ctx["torus"]
     gv, gf = ctx["grid"]
     view = (35.0, -60.0)
-    panels, titles = [render_mesh(tv, tf, view=view, size=PANEL_SIZE)], [f"torus ({len(tv)} vertices)"]
+    panels, titles = (
+        [render_mesh(tv, tf, view=view, size=PANEL_SIZE)],
+        [f"torus ({len(tv)} vertices)"],
+    )
     if "hks" in ctx:
-        panels.append(render_mesh(tv, tf, scalars=np.log(ctx["hks"]), cmap="magma", view=view, size=PANEL_SIZE))
+        panels.append(
+            render_mesh(
+                tv, tf, scalars=np.log(ctx["hks"]), cmap="magma", view=view, size=PANEL_SIZE
+            )
+        )
         titles.append(f"log HKS, t = {ctx['hks_time']:.3g}")
     if "x_axes" in ctx:
-        panels.append(render_mesh(tv, tf, vectors=ctx["x_axes"], max_arrows=600, view=(55.0, -60.0), size=PANEL_SIZE))
+        panels.append(
+            render_mesh(
+                tv, tf, vectors=ctx["x_axes"], max_arrows=600, view=(55.0, -60.0), size=PANEL_SIZE
+            )
+        )
         titles.append(ctx["x_axes_label"])
     if "boundary" in ctx:
-        panels.append(render_mesh(gv, gf, edges=ctx["boundary"], view=(50.0, -60.0), size=PANEL_SIZE))
+        panels.append(
+            render_mesh(gv, gf, edges=ctx["boundary"], view=(50.0, -60.0), size=PANEL_SIZE)
+        )
         titles.append(f"grid ({len(gv)} vertices) and its boundary")
     path = ctx["out"] / "demo.png"
     figure(list(zip(titles, panels, strict=True)), columns=min(len(panels), 2), path=path)
@@ -201,7 +224,10 @@ VERIFY_SELECTION: tuple[tuple[str, str], ...] = (
     ("meshmatch.fan_descriptor", "gauge"),
     ("surfacecnn.first_layer", "gauge"),
 )
-QUICK_VERIFY_SELECTION: tuple[tuple[str, str], ...] = (("ops.field_conv", "gauge"), ("negative.complex_bias", "gauge"))
+QUICK_VERIFY_SELECTION: tuple[tuple[str, str], ...] = (
+    ("ops.field_conv", "gauge"),
+    ("negative.complex_bias", "gauge"),
+)
 
 
 def _verify(ctx: dict[str, Any]) -> str:
@@ -216,7 +242,9 @@ def _verify(ctx: dict[str, Any]) -> str:
     selection = QUICK_VERIFY_SELECTION if ctx["quick"] else VERIFY_SELECTION
     hook = ctx.get("progress")
     was_x64 = jax.config.jax_enable_x64
-    jax.config.update("jax_enable_x64", True)  # for this step only: the method stages run in float32
+    jax.config.update(
+        "jax_enable_x64", True
+    )  # for this step only: the method stages run in float32
     try:
         testing.load_entries()
         results = []
@@ -309,8 +337,13 @@ def output_folder(out: str | os.PathLike, *, force: bool = False) -> pathlib.Pat
     return out / f"run-{n}"
 
 
-def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force: bool = False,
-             progress: bool = True) -> pathlib.Path:
+def run_demo(
+    out: str | os.PathLike = DEFAULT_OUT,
+    *,
+    quick: bool = False,
+    force: bool = False,
+    progress: bool = True,
+) -> pathlib.Path:
     """Run every :data:`STEPS` entry, write ``demo.png`` and ``report.txt``; return the folder."""
     from tqdm import tqdm
 
@@ -323,8 +356,16 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
     from .. import geometry, render  # noqa: F401  (imports are timed apart from the steps)
 
     rows: list[tuple[str, float, float, str]] = [
-        ("imports", time.perf_counter() - t_start, time.process_time() - c_start, "jmeshtex.geometry, jmeshtex.render")]
-    bar = tqdm(STEPS, desc="jmeshtex demo", unit="step", file=sys.stderr, disable=not progress, leave=False)
+        (
+            "imports",
+            time.perf_counter() - t_start,
+            time.process_time() - c_start,
+            "jmeshtex.geometry, jmeshtex.render",
+        )
+    ]
+    bar = tqdm(
+        STEPS, desc="jmeshtex demo", unit="step", file=sys.stderr, disable=not progress, leave=False
+    )
     for step in bar:
         label = step.name[:40]
         bar.set_postfix_str(label)
@@ -341,7 +382,11 @@ def run_demo(out: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, force
         f"python {platform.python_version()}, {platform.platform()}, {os.cpu_count()} CPUs",
         f"output: {folder.resolve()}",
         "",
-        *(f"{name}: {ctx[name].num_vertices} vertices, {ctx[name].num_faces} faces" for name in ("torus", "grid") if name in ctx),
+        *(
+            f"{name}: {ctx[name].num_vertices} vertices, {ctx[name].num_faces} faces"
+            for name in ("torus", "grid")
+            if name in ctx
+        ),
         "",
         f"{'step':<{width}}  {'seconds':>8}  {'cpu s':>8}  result",
         *(f"{name:<{width}}  {s:8.3f}  {c:8.3f}  {summary}" for name, s, c, summary in rows),
@@ -373,8 +418,14 @@ def register(subparsers) -> None:
         "An existing non-empty --out folder is never overwritten: the demo writes into a fresh "
         "run-N subfolder unless --force is given.",
     )
-    parser.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default: ./{DEFAULT_OUT})")
-    parser.add_argument("--quick", action="store_true", help="small meshes and spectra (a few seconds)")
-    parser.add_argument("--force", action="store_true", help="write into --out even if it is not empty")
+    parser.add_argument(
+        "--out", default=DEFAULT_OUT, help=f"output folder (default: ./{DEFAULT_OUT})"
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="small meshes and spectra (a few seconds)"
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="write into --out even if it is not empty"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=_main)

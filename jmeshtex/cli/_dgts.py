@@ -29,49 +29,106 @@ from ._common import add_common, cached, load_mesh_spec
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("dgts", help="DGTS: learn a geometric texture from one mesh, transfer it to any mesh",
-                       description="Deep Geometric Texture Synthesis (Hertz et al. 2020) on the CPU.")
+    p = sub.add_parser(
+        "dgts",
+        help="DGTS: learn a geometric texture from one mesh, transfer it to any mesh",
+        description="Deep Geometric Texture Synthesis (Hertz et al. 2020) on the CPU.",
+    )
     dsub = p.add_subparsers(dest="dgts_command", metavar="STEP")
 
-    q = dsub.add_parser("prepare", help="fit a template to the reference at every level (training meshes)")
+    q = dsub.add_parser(
+        "prepare", help="fit a template to the reference at every level (training meshes)"
+    )
     q.add_argument("--reference", required=True, help="reference mesh file or procedural name")
-    q.add_argument("--template", default="icosphere:1", help="template mesh file or name (default icosphere:1)")
-    q.add_argument("--levels", type=int, default=5, help="number of levels (default 5, the paper's depth)")
-    q.add_argument("--steps", type=int, default=None, help="Adam steps per level (default: PrepareConfig's)")
+    q.add_argument(
+        "--template", default="icosphere:1", help="template mesh file or name (default icosphere:1)"
+    )
+    q.add_argument(
+        "--levels", type=int, default=5, help="number of levels (default 5, the paper's depth)"
+    )
+    q.add_argument(
+        "--steps", type=int, default=None, help="Adam steps per level (default: PrepareConfig's)"
+    )
     q.add_argument("--samples", type=int, default=None, help="surface samples at level 0")
     add_common(q)
     q.set_defaults(func=cached(_prepare))
 
     t = dsub.add_parser("train", help="train the generator hierarchy (WGAN-GP), resumable")
     t.add_argument("dir", type=pathlib.Path, metavar="DIR", help="folder written by `dgts prepare`")
-    t.add_argument("--steps", type=int, default=None, help="training steps per level (default 2000)")
+    t.add_argument(
+        "--steps", type=int, default=None, help="training steps per level (default 2000)"
+    )
     t.add_argument("--layers", type=int, default=None, help="layers per network (default 7)")
-    t.add_argument("--features", type=int, nargs=3, default=None, metavar=("START", "MIN", "MAX"),
-                   help="width schedule (default 32 32 128)")
+    t.add_argument(
+        "--features",
+        type=int,
+        nargs=3,
+        default=None,
+        metavar=("START", "MIN", "MAX"),
+        help="width schedule (default 32 32 128)",
+    )
     t.add_argument("--levels", type=int, default=None, help="train only the first N levels")
-    t.add_argument("--shared-levels", type=int, default=0, metavar="N",
-                   help="pad levels 0..N-1 to one size so equal-width levels share one compiled step (default 0)")
-    t.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
-                   help="also checkpoint every N steps within a level (default: after each level only)")
-    t.add_argument("--snapshot-every", type=int, default=None, metavar="N",
-                   help="record the current sample and reconstruction every N steps (DIR/snapshots.npz)")
+    t.add_argument(
+        "--shared-levels",
+        type=int,
+        default=0,
+        metavar="N",
+        help="pad levels 0..N-1 to one size so equal-width levels share one compiled step (default 0)",
+    )
+    t.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=None,
+        metavar="N",
+        help="also checkpoint every N steps within a level (default: after each level only)",
+    )
+    t.add_argument(
+        "--snapshot-every",
+        type=int,
+        default=None,
+        metavar="N",
+        help="record the current sample and reconstruction every N steps (DIR/snapshots.npz)",
+    )
     add_common(t, out=None)
     t.set_defaults(func=cached(_train))
 
-    for name, helptext in (("transfer", "synthesise the texture on a target mesh"),
-                           ("interpolate", "animate between two noises on a target mesh")):
+    for name, helptext in (
+        ("transfer", "synthesise the texture on a target mesh"),
+        ("interpolate", "animate between two noises on a target mesh"),
+    ):
         r = dsub.add_parser(name, help=helptext)
-        r.add_argument("--model", required=True, type=pathlib.Path, help="folder of `dgts train` (or its model/)")
+        r.add_argument(
+            "--model",
+            required=True,
+            type=pathlib.Path,
+            help="folder of `dgts train` (or its model/)",
+        )
         r.add_argument("--target", required=True, help="target mesh file or procedural name")
-        r.add_argument("--start-level", type=int, default=None,
-                       help="first generator level to run (default: the first whose output fits --max-faces)")
-        r.add_argument("--max-faces", type=int, default=500_000, help="face budget of the output (default 500000)")
+        r.add_argument(
+            "--start-level",
+            type=int,
+            default=None,
+            help="first generator level to run (default: the first whose output fits --max-faces)",
+        )
+        r.add_argument(
+            "--max-faces",
+            type=int,
+            default=500_000,
+            help="face budget of the output (default 500000)",
+        )
         if name == "transfer":
             r.add_argument("--samples", type=int, default=1, help="number of samples (default 1)")
-            r.add_argument("--zero-noise-from", type=int, default=None, metavar="K",
-                           help="zero noise at levels >= K (K <= start level: deterministic)")
+            r.add_argument(
+                "--zero-noise-from",
+                type=int,
+                default=None,
+                metavar="K",
+                help="zero noise at levels >= K (K <= start level: deterministic)",
+            )
         else:
-            r.add_argument("--frames", type=int, default=8, help="frames including both ends (default 8)")
+            r.add_argument(
+                "--frames", type=int, default=8, help="frames including both ends (default 8)"
+            )
         add_common(r, quiet=False)
         r.set_defaults(func=cached(_transfer if name == "transfer" else _interpolate))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
@@ -92,17 +149,27 @@ def _prepare(args) -> int:
     config = PrepareConfig(**changes)
     ref = load_mesh_spec(args.reference)
     tmpl = load_mesh_spec(args.template)
-    tm = training_meshes(ref, tmpl, config=config, key=jax.random.key(args.seed), progress=not args.quiet)
+    tm = training_meshes(
+        ref, tmpl, config=config, key=jax.random.key(args.seed), progress=not args.quiet
+    )
     out = args.out
     save_training_meshes(tm, out / "training.npz")
-    atomic_write(out / "prepare.json", json.dumps({**config.to_dict(), "seed": args.seed}, indent=2).encode())
+    atomic_write(
+        out / "prepare.json", json.dumps({**config.to_dict(), "seed": args.seed}, indent=2).encode()
+    )
     save_mesh(ref, out / "reference.obj")
     images = [render_mesh(*ref, size=(300, 300))]
     for level in range(tm.num_levels):
         save_mesh(tm.mesh(level), out / f"level_{level:02d}.obj")
         images.append(render_mesh(*tm.mesh(level), size=(300, 300)))
-    render_grid(images, out / "levels.png", titles=["reference"] + [f"level {i}" for i in range(tm.num_levels)])
-    print(f"wrote {out / 'training.npz'} ({tm.num_levels} levels, {[len(f) for f in tm.faces]} faces)")
+    render_grid(
+        images,
+        out / "levels.png",
+        titles=["reference"] + [f"level {i}" for i in range(tm.num_levels)],
+    )
+    print(
+        f"wrote {out / 'training.npz'} ({tm.num_levels} levels, {[len(f) for f in tm.faces]} faces)"
+    )
     return 0
 
 
@@ -121,26 +188,42 @@ def _train(args) -> int:
     if args.layers is not None:
         changes["num_layers"] = args.layers
     if args.features is not None:
-        changes.update(zip(("start_features", "min_features", "max_features"), args.features, strict=True))
+        changes.update(
+            zip(("start_features", "min_features", "max_features"), args.features, strict=True)
+        )
     config = Config(**changes)
     key = jax.random.key(args.seed)
-    result = train(tm, config, key=key, levels=args.levels, progress=not args.quiet,
-                   checkpoint_dir=args.dir / "checkpoints", checkpoint_every=args.checkpoint_every,
-                   snapshot_every=args.snapshot_every)
+    result = train(
+        tm,
+        config,
+        key=key,
+        levels=args.levels,
+        progress=not args.quiet,
+        checkpoint_dir=args.dir / "checkpoints",
+        checkpoint_every=args.checkpoint_every,
+        snapshot_every=args.snapshot_every,
+    )
     if args.snapshot_every is not None:
         from ..io import atomic_save_npz
 
         snaps = result.extra["snapshots"]
-        atomic_save_npz(args.dir / "snapshots.npz", {
-            **{f"sample_{i:03d}": s["sample"] for i, s in enumerate(snaps)},
-            **{f"reconstruction_{i:03d}": s["reconstruction"] for i, s in enumerate(snaps)},
-            "level": [s["level"] for s in snaps], "step": [s["step"] for s in snaps]})
+        atomic_save_npz(
+            args.dir / "snapshots.npz",
+            {
+                **{f"sample_{i:03d}": s["sample"] for i, s in enumerate(snaps)},
+                **{f"reconstruction_{i:03d}": s["reconstruction"] for i, s in enumerate(snaps)},
+                "level": [s["level"] for s in snaps],
+                "step": [s["step"] for s in snaps],
+            },
+        )
         print(f"wrote {len(snaps)} snapshots to {args.dir / 'snapshots.npz'}")
     if result.resumed_from is not None:
         print(f"resumed from checkpoint step {result.resumed_from}")
     for r in result.extra["levels"]:
-        print(f"level {r.level}: {r.faces} faces, {r.steps} steps, compile {r.compile_seconds:.1f} s, "
-              f"{1000 * r.seconds_per_step:.1f} ms/step")
+        print(
+            f"level {r.level}: {r.faces} faces, {r.steps} steps, compile {r.compile_seconds:.1f} s, "
+            f"{1000 * r.seconds_per_step:.1f} ms/step"
+        )
     out = save(result.model, args.dir / "model")
     sample = transfer(result.model, Mesh(tm.template, tm.faces[0]), key=key).mesh(0)
     save_mesh(sample, args.dir / "sample.obj")
@@ -164,14 +247,18 @@ def _write_results(res, out: pathlib.Path, stem: str, title: str) -> None:
     images = []
     for i, h in enumerate(res.heights):
         save_mesh(res.mesh(i), out / f"{stem}_{i:02d}.obj")
-        images.append(render_mesh(*res.mesh(i), scalars=h, cmap="coolwarm", clim=(-lim, lim), size=(300, 300)))
+        images.append(
+            render_mesh(*res.mesh(i), scalars=h, cmap="coolwarm", clim=(-lim, lim), size=(300, 300))
+        )
     render_grid(images, out / f"{title}.png", titles=[f"{stem} {i}" for i in range(len(images))])
     print(f"wrote {len(images)} meshes and {out / (title + '.png')}")
 
 
 def _say_start(res, target, args) -> None:
     how = "given" if args.start_level is not None else f"chosen for --max-faces {args.max_faces}"
-    print(f"start level {res.start_level} ({how}): {target.num_faces} target faces -> {len(res.faces)} output faces")
+    print(
+        f"start level {res.start_level} ({how}): {target.num_faces} target faces -> {len(res.faces)} output faces"
+    )
 
 
 def _transfer(args) -> int:
@@ -181,8 +268,15 @@ def _transfer(args) -> int:
 
     model = load(_model_dir(args.model))
     target = load_mesh_spec(args.target)
-    res = transfer(model, target, start_level=args.start_level, num_samples=args.samples, max_faces=args.max_faces,
-                   zero_noise_from=args.zero_noise_from, key=jax.random.key(args.seed))
+    res = transfer(
+        model,
+        target,
+        start_level=args.start_level,
+        num_samples=args.samples,
+        max_faces=args.max_faces,
+        zero_noise_from=args.zero_noise_from,
+        key=jax.random.key(args.seed),
+    )
     _say_start(res, target, args)
     _write_results(res, args.out, "sample", "transfer")
     return 0
@@ -195,8 +289,14 @@ def _interpolate(args) -> int:
 
     model = load(_model_dir(args.model))
     target = load_mesh_spec(args.target)
-    res = interpolate(model, target, start_level=args.start_level, num_frames=args.frames, max_faces=args.max_faces,
-                      key=jax.random.key(args.seed))
+    res = interpolate(
+        model,
+        target,
+        start_level=args.start_level,
+        num_frames=args.frames,
+        max_faces=args.max_faces,
+        key=jax.random.key(args.seed),
+    )
     _say_start(res, target, args)
     _write_results(res, args.out, "frame", "interpolate")
     return 0

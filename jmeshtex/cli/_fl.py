@@ -24,24 +24,53 @@ from ._common import add_common, cached, load_mesh_spec
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("fl", help="Field Latents VAE: train, encode, reconstruct textures",
-                       description="FL-VAE (Mitchel et al. 2024): textures as tangent-vector latents at vertices.")
+    p = sub.add_parser(
+        "fl",
+        help="Field Latents VAE: train, encode, reconstruct textures",
+        description="FL-VAE (Mitchel et al. 2024): textures as tangent-vector latents at vertices.",
+    )
     inner = p.add_subparsers(dest="fl_command", metavar="ACTION")
 
-    t = inner.add_parser("train", aliases=["pretrain"], help="train an FL-VAE on planar meshes over images")
-    t.add_argument("--images", default="builtin", metavar="DIR|builtin",
-                   help="folder of PNG/JPEG images, or 'builtin' (scikit-image's bundled images)")
+    t = inner.add_parser(
+        "train", aliases=["pretrain"], help="train an FL-VAE on planar meshes over images"
+    )
+    t.add_argument(
+        "--images",
+        default="builtin",
+        metavar="DIR|builtin",
+        help="folder of PNG/JPEG images, or 'builtin' (scikit-image's bundled images)",
+    )
     add_common(t, out="output folder (fl_vae.npz, checkpoints/); an existing run there resumes")
-    t.add_argument("--steps", type=int, default=None, help="optimiser steps (default: Config.steps)")
-    t.add_argument("--decoder", choices=("log", "barycentric"), default=None,
-                   help="decoder variant (barycentric = the paper's ablation)")
-    t.add_argument("--preset", choices=("small", "paper"), default=None,
-                   help="Config.small() (2 CPU cores) or Config.paper() (C=128, 8 layers; for a GPU); "
-                        "default: Config() (the shipped model's recipe)")
-    t.add_argument("--config", type=pathlib.Path, default=None, metavar="JSON",
-                   help="jmeshtex.fl.Config fields as JSON, applied over the preset (overridden by --steps/--decoder)")
-    t.add_argument("--stop-after", type=int, default=None, metavar="N",
-                   help="run at most N steps in this call (the schedule follows --steps; rerun to continue)")
+    t.add_argument(
+        "--steps", type=int, default=None, help="optimiser steps (default: Config.steps)"
+    )
+    t.add_argument(
+        "--decoder",
+        choices=("log", "barycentric"),
+        default=None,
+        help="decoder variant (barycentric = the paper's ablation)",
+    )
+    t.add_argument(
+        "--preset",
+        choices=("small", "paper"),
+        default=None,
+        help="Config.small() (2 CPU cores) or Config.paper() (C=128, 8 layers; for a GPU); "
+        "default: Config() (the shipped model's recipe)",
+    )
+    t.add_argument(
+        "--config",
+        type=pathlib.Path,
+        default=None,
+        metavar="JSON",
+        help="jmeshtex.fl.Config fields as JSON, applied over the preset (overridden by --steps/--decoder)",
+    )
+    t.add_argument(
+        "--stop-after",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run at most N steps in this call (the schedule follows --steps; rerun to continue)",
+    )
     t.set_defaults(func=cached(_train))
 
     e = inner.add_parser("encode", help="encode a mesh's texture or vertex colours as latents")
@@ -49,23 +78,42 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_common(e, out="latents file (.npz)", quiet=False)
     e.set_defaults(func=cached(_encode))
 
-    r = inner.add_parser("reconstruct", help="encode + decode a textured mesh's atlas, with metrics")
+    r = inner.add_parser(
+        "reconstruct", help="encode + decode a textured mesh's atlas, with metrics"
+    )
     _mesh_args(r)
     add_common(r, out="output folder", quiet=False)
-    r.add_argument("--size", type=int, default=None, help="atlas side in texels (default: the texture's)")
-    r.add_argument("--vertices", type=int, default=None,
-                   help="remesh to about this many vertices first (latents on the remeshed surface)")
+    r.add_argument(
+        "--size", type=int, default=None, help="atlas side in texels (default: the texture's)"
+    )
+    r.add_argument(
+        "--vertices",
+        type=int,
+        default=None,
+        help="remesh to about this many vertices first (latents on the remeshed surface)",
+    )
     r.add_argument("--no-lpips", action="store_true", help="skip LPIPS (a VGG-16 pass)")
     r.set_defaults(func=cached(_reconstruct))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _mesh_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--mesh", required=True, metavar="M",
-                   help="mesh file (OBJ, PLY, OFF, GLB) or procedural spec (icosphere:3, striped-sphere, ...)")
-    p.add_argument("--texture", type=pathlib.Path, default=None, metavar="T", help="texture image of the mesh")
-    p.add_argument("--model", type=pathlib.Path, default=None, metavar="FILE.npz",
-                   help="FL-VAE file from `fl train` (default: the shipped pre-trained model)")
+    p.add_argument(
+        "--mesh",
+        required=True,
+        metavar="M",
+        help="mesh file (OBJ, PLY, OFF, GLB) or procedural spec (icosphere:3, striped-sphere, ...)",
+    )
+    p.add_argument(
+        "--texture", type=pathlib.Path, default=None, metavar="T", help="texture image of the mesh"
+    )
+    p.add_argument(
+        "--model",
+        type=pathlib.Path,
+        default=None,
+        metavar="FILE.npz",
+        help="FL-VAE file from `fl train` (default: the shipped pre-trained model)",
+    )
 
 
 def _model(args):
@@ -91,17 +139,30 @@ def _train(args) -> int:
             data[name] = getattr(args, name)
     base = {"small": Config.small, "paper": Config.paper}.get(args.preset, Config)()
     config = base.replace(**data)
-    result = train(config, key=jax.random.key(args.seed), images=args.images, progress=not args.quiet,
-                   checkpoint_dir=args.out / "checkpoints", loss_curve=args.out / "loss_curve.png",
-                   stop_after=args.stop_after)
+    result = train(
+        config,
+        key=jax.random.key(args.seed),
+        images=args.images,
+        progress=not args.quiet,
+        checkpoint_dir=args.out / "checkpoints",
+        loss_curve=args.out / "loss_curve.png",
+        stop_after=args.stop_after,
+    )
     loss, l1 = result.losses["loss"], result.losses["l1"]
-    summary = {"out": str(args.out / "fl_vae.npz"), "steps": result.steps,
-               "final_loss": float(loss[-50:].mean()) if len(loss) else None,
-               "final_l1": float(l1[-50:].mean()) if len(l1) else None,
-               "steps_per_second": result.extra["steps_per_second"], "preset": args.preset,
-               "loss_curve": str(args.out / "loss_curve.png")}
-    save(result.model, args.out / "fl_vae.npz",
-         extra={k: summary[k] for k in ("steps", "final_loss", "final_l1")} | {"seed": args.seed})
+    summary = {
+        "out": str(args.out / "fl_vae.npz"),
+        "steps": result.steps,
+        "final_loss": float(loss[-50:].mean()) if len(loss) else None,
+        "final_l1": float(l1[-50:].mean()) if len(l1) else None,
+        "steps_per_second": result.extra["steps_per_second"],
+        "preset": args.preset,
+        "loss_curve": str(args.out / "loss_curve.png"),
+    }
+    save(
+        result.model,
+        args.out / "fl_vae.npz",
+        extra={k: summary[k] for k in ("steps", "final_loss", "final_l1")} | {"seed": args.seed},
+    )
     print(json.dumps(summary, indent=2))
     return 0
 
@@ -116,9 +177,24 @@ def _encode(args) -> int:
     model = _model(args)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     lat = encode(model, mesh, key=jax.random.key(args.seed))
-    atomic_save_npz(args.out, {"mu": np.asarray(lat.mu), "log_sigma": np.asarray(lat.log_sigma),
-                               "vertices": mesh.vertices, "faces": mesh.faces})
-    print(json.dumps({"out": str(args.out), "vertices": mesh.num_vertices, "latent_dim": model.config.latent_dim}))
+    atomic_save_npz(
+        args.out,
+        {
+            "mu": np.asarray(lat.mu),
+            "log_sigma": np.asarray(lat.log_sigma),
+            "vertices": mesh.vertices,
+            "faces": mesh.faces,
+        },
+    )
+    print(
+        json.dumps(
+            {
+                "out": str(args.out),
+                "vertices": mesh.num_vertices,
+                "latent_dim": model.config.latent_dim,
+            }
+        )
+    )
     return 0
 
 
@@ -131,14 +207,28 @@ def _reconstruct(args) -> int:
 
     model = _model(args)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
-    latent_mesh = None if args.vertices is None else remesh(mesh, n_vertices=args.vertices, key=jax.random.key(args.seed))
-    result = reconstruct(model, mesh, key=jax.random.key(args.seed), size=args.size,
-                         latent_mesh=latent_mesh, lpips=not args.no_lpips)
+    latent_mesh = (
+        None
+        if args.vertices is None
+        else remesh(mesh, n_vertices=args.vertices, key=jax.random.key(args.seed))
+    )
+    result = reconstruct(
+        model,
+        mesh,
+        key=jax.random.key(args.seed),
+        size=args.size,
+        latent_mesh=latent_mesh,
+        lpips=not args.no_lpips,
+    )
     args.out.mkdir(parents=True, exist_ok=True)
     save_png(result.texture, args.out / "reconstructed_texture.png")
     side_by_side(mesh, result, args.out / "side_by_side.png")
-    metrics = {**result.metrics, "latent_vertices": result.latent_mesh.num_vertices,
-               "decoder": model.config.decoder, "texels": int(result.valid.sum())}
+    metrics = {
+        **result.metrics,
+        "latent_vertices": result.latent_mesh.num_vertices,
+        "decoder": model.config.decoder,
+        "texels": int(result.valid.sum()),
+    }
     atomic_write(args.out / "metrics.json", json.dumps(metrics, indent=2).encode())
     print(json.dumps(metrics, indent=2))
     return 0

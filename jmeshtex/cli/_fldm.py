@@ -34,43 +34,76 @@ PREDICTIONS = ("epsilon", "v")  # jmeshtex.fldm.PREDICTIONS, spelled out so that
 
 def register(sub: argparse._SubParsersAction) -> None:
 
-    p = sub.add_parser("fldm", help="Field Latent Diffusion: generate / inpaint / transfer textures on a mesh",
-                       description="Field Latent Diffusion (Mitchel et al. 2024) trained on one textured mesh.")
+    p = sub.add_parser(
+        "fldm",
+        help="Field Latent Diffusion: generate / inpaint / transfer textures on a mesh",
+        description="Field Latent Diffusion (Mitchel et al. 2024) trained on one textured mesh.",
+    )
     fsub = p.add_subparsers(dest="fldm_command", metavar="STEP")
 
-    t = fsub.add_parser("train", help="train a diffusion model on re-triangulated copies of one mesh (resumable)")
+    t = fsub.add_parser(
+        "train", help="train a diffusion model on re-triangulated copies of one mesh (resumable)"
+    )
     t.add_argument("--mesh", required=True, help="textured mesh file or procedural name")
     t.add_argument("--texture", default=None, help="texture image replacing the mesh's (needs UVs)")
-    t.add_argument("--labels", default=None, type=pathlib.Path, help="[V] int labels (.npy) for label guidance")
+    t.add_argument(
+        "--labels", default=None, type=pathlib.Path, help="[V] int labels (.npy) for label guidance"
+    )
     add_common(t, out="model folder (model, checkpoints, data cache)")
-    t.add_argument("--preset", choices=PRESETS, default="cpu", help="denoiser/data preset (default cpu)")
+    t.add_argument(
+        "--preset", choices=PRESETS, default="cpu", help="denoiser/data preset (default cpu)"
+    )
     t.add_argument("--copies", type=int, default=None, help="re-triangulated copies")
     t.add_argument("--vertices", type=int, default=None, help="vertices per copy")
     t.add_argument("--steps", type=int, default=None, help="training steps")
-    t.add_argument("--prediction", choices=PREDICTIONS, default=None,
-                   help="what the denoiser predicts (default: the preset's; cpu: v, paper: epsilon)")
-    t.add_argument("--mask-conditioning", action="store_true",
-                   help="train on random masks and condition the denoiser on the inpainting mask (§6.4)")
-    t.add_argument("--codec", choices=("fl-vae", "stripes"), default="fl-vae", help="latent encoder/decoder")
+    t.add_argument(
+        "--prediction",
+        choices=PREDICTIONS,
+        default=None,
+        help="what the denoiser predicts (default: the preset's; cpu: v, paper: epsilon)",
+    )
+    t.add_argument(
+        "--mask-conditioning",
+        action="store_true",
+        help="train on random masks and condition the denoiser on the inpainting mask (§6.4)",
+    )
+    t.add_argument(
+        "--codec", choices=("fl-vae", "stripes"), default="fl-vae", help="latent encoder/decoder"
+    )
     t.add_argument("--vae", default=None, help="FL-VAE file (default: the shipped pre-trained one)")
     t.set_defaults(func=cached(_train))
 
-    for name, helptext in (("sample", "sample textures (optionally on another mesh)"),
-                           ("inpaint", "fill in the unmasked part of a mesh's texture")):
+    for name, helptext in (
+        ("sample", "sample textures (optionally on another mesh)"),
+        ("inpaint", "fill in the unmasked part of a mesh's texture"),
+    ):
         s = fsub.add_parser(name, help=helptext)
         s.add_argument("--model", required=True, type=pathlib.Path, help="folder of `fldm train`")
-        s.add_argument("--mesh", default=None, help="mesh to sample on (default: the training mesh)")
-        s.add_argument("--vertices", type=int, default=None, help="re-triangulate the mesh to this many vertices first")
+        s.add_argument(
+            "--mesh", default=None, help="mesh to sample on (default: the training mesh)"
+        )
+        s.add_argument(
+            "--vertices",
+            type=int,
+            default=None,
+            help="re-triangulate the mesh to this many vertices first",
+        )
         s.add_argument("--steps", type=int, default=50, help="DDIM steps (default 50)")
         s.add_argument("--ddim", action="store_true", help="DDIM sampling (the default)")
         s.add_argument("--ddpm", action="store_true", help="ancestral DDPM with all T steps")
         s.add_argument("--eta", type=float, default=0.0, help="DDIM eta (default 0)")
         s.add_argument("--n", type=int, default=4, help="number of samples (default 4)")
-        s.add_argument("--labels", default=None, type=pathlib.Path, help="[V] int label map (.npy) on the mesh")
-        s.add_argument("--size", type=int, default=512, help="texture atlas size when the mesh has UVs")
+        s.add_argument(
+            "--labels", default=None, type=pathlib.Path, help="[V] int label map (.npy) on the mesh"
+        )
+        s.add_argument(
+            "--size", type=int, default=512, help="texture atlas size when the mesh has UVs"
+        )
         add_common(s, out="output folder (latents.npz, PNGs)")
         if name == "inpaint":
-            s.add_argument("--mask", required=True, type=pathlib.Path, help="[V] bool mask (.npy): True = keep")
+            s.add_argument(
+                "--mask", required=True, type=pathlib.Path, help="[V] bool mask (.npy): True = keep"
+            )
         s.set_defaults(func=cached(_sample if name == "sample" else _inpaint))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
@@ -122,23 +155,44 @@ def _train(args) -> int:
         changes["num_labels"] = int(np.max(labels)) + 1
     if args.mask_conditioning:
         changes["mask_conditioning"] = True
-    for field, value in (("n_copies", args.copies), ("copy_vertices", args.vertices), ("steps", args.steps),
-                         ("prediction", args.prediction)):
+    for field, value in (
+        ("n_copies", args.copies),
+        ("copy_vertices", args.vertices),
+        ("steps", args.steps),
+        ("prediction", args.prediction),
+    ):
         if value is not None:
             changes[field] = value
     config = getattr(Config, args.preset)(**changes)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
-    data = build_dataset(mesh, config, encode=encode, key=k_data, labels=labels, cache_dir=out / "data",
-                         progress=not args.quiet)
-    res = train(data, config, key=k_train, checkpoint_dir=out / "checkpoints", progress=not args.quiet)
+    data = build_dataset(
+        mesh,
+        config,
+        encode=encode,
+        key=k_data,
+        labels=labels,
+        cache_dir=out / "data",
+        progress=not args.quiet,
+    )
+    res = train(
+        data, config, key=k_train, checkpoint_dir=out / "checkpoints", progress=not args.quiet
+    )
     save(res.model, out)
-    meta = {"mesh": args.mesh, "texture": args.texture, "codec": args.codec, "vae": args.vae, "seed": args.seed,
-            "labels": None if args.labels is None else str(args.labels)}
+    meta = {
+        "mesh": args.mesh,
+        "texture": args.texture,
+        "codec": args.codec,
+        "vae": args.vae,
+        "seed": args.seed,
+        "labels": None if args.labels is None else str(args.labels),
+    }
     (out / "fldm.json").write_text(json.dumps(meta, indent=2))
     done = res.steps - (res.resumed_from or 0)
-    print(f"trained {done} steps in {res.seconds:.1f} s ({res.steps} in all); loss "
-          f"{np.mean(res.losses['loss'][-20:]):.4f}; model in {out}")
+    print(
+        f"trained {done} steps in {res.seconds:.1f} s ({res.steps} in all); loss "
+        f"{np.mean(res.losses['loss'][-20:]):.4f}; model in {out}"
+    )
     return 0
 
 
@@ -162,7 +216,9 @@ def _run_sampling(args, *, inpaint: bool) -> int:
     model = load(args.model)
     meta_path = args.model / "fldm.json"
     if not meta_path.is_file():
-        raise MeshIOError(f"{meta_path} is missing; was {args.model} written by `jmeshtex fldm train`?")
+        raise MeshIOError(
+            f"{meta_path} is missing; was {args.model} written by `jmeshtex fldm train`?"
+        )
     meta = json.loads(meta_path.read_text())
     original, mesh = _target(args, meta)
     k_codec, k_sample = jax.random.split(jax.random.key(args.seed))
@@ -170,18 +226,31 @@ def _run_sampling(args, *, inpaint: bool) -> int:
     if args.ddim and args.ddpm:
         raise InputError("choose one of --ddim and --ddpm")
     labels = None if args.labels is None else np.load(args.labels)
-    kwargs = dict(key=k_sample, n=args.n, method="ddpm" if args.ddpm else "ddim", steps=args.steps,
-                  eta=args.eta, labels=labels, progress=not args.quiet)
+    kwargs = dict(
+        key=k_sample,
+        n=args.n,
+        method="ddpm" if args.ddpm else "ddim",
+        steps=args.steps,
+        eta=args.eta,
+        labels=labels,
+        progress=not args.quiet,
+    )
     if inpaint:
         mask = np.load(args.mask).astype(bool)
         if mask.shape != (mesh.num_vertices,):
-            raise InputError(f"--mask must be a [V] = ({mesh.num_vertices},) boolean array, got {mask.shape}")
+            raise InputError(
+                f"--mask must be a [V] = ({mesh.num_vertices},) boolean array, got {mask.shape}"
+            )
         kwargs.update(known=encode(mesh), mask=mask)
     latents = sample(model, mesh, **kwargs)
     args.out.mkdir(parents=True, exist_ok=True)
     np.savez(args.out / "latents.npz", latents=latents, vertices=mesh.vertices, faces=mesh.faces)
-    paths = render_samples(mesh, decode(mesh, latents, args.size), args.out, prefix="inpaint" if inpaint else "sample")
-    print(f"{len(latents)} samples on {mesh.num_vertices} vertices → {args.out} ({len(paths)} PNGs)")
+    paths = render_samples(
+        mesh, decode(mesh, latents, args.size), args.out, prefix="inpaint" if inpaint else "sample"
+    )
+    print(
+        f"{len(latents)} samples on {mesh.num_vertices} vertices → {args.out} ({len(paths)} PNGs)"
+    )
     return 0
 
 

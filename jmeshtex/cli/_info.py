@@ -26,11 +26,20 @@ def register(sub: argparse._SubParsersAction) -> None:
             "Exit status 2 if it is invalid."
         ),
     )
-    p.add_argument("mesh", metavar="MESH", help="mesh file, or a procedural name (icosphere:3, torus, ...)")
-    p.add_argument("--json", type=pathlib.Path, metavar="PATH", help="also write the statistics as JSON")
-    p.add_argument("--render", type=pathlib.Path, metavar="PNG", help="also render the mesh to a PNG")
     p.add_argument(
-        "--texture", type=pathlib.Path, metavar="IMAGE", help="texture image for meshes whose file names none"
+        "mesh", metavar="MESH", help="mesh file, or a procedural name (icosphere:3, torus, ...)"
+    )
+    p.add_argument(
+        "--json", type=pathlib.Path, metavar="PATH", help="also write the statistics as JSON"
+    )
+    p.add_argument(
+        "--render", type=pathlib.Path, metavar="PNG", help="also render the mesh to a PNG"
+    )
+    p.add_argument(
+        "--texture",
+        type=pathlib.Path,
+        metavar="IMAGE",
+        help="texture image for meshes whose file names none",
     )
     p.set_defaults(func=_run)
 

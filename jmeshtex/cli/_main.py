@@ -15,7 +15,16 @@ import sys
 from .._errors import JmeshtexError
 
 # subcommand modules, in the order `jmeshtex --help` lists them
-_SUBCOMMANDS: list[str] = ["_verify", "_demo", "_info", "_meshmatch", "_dgts", "_surfacecnn", "_fl", "_fldm"]
+_SUBCOMMANDS: list[str] = [
+    "_verify",
+    "_demo",
+    "_info",
+    "_meshmatch",
+    "_dgts",
+    "_surfacecnn",
+    "_fl",
+    "_fldm",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

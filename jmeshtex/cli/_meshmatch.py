@@ -35,35 +35,81 @@ from ._common import add_common, cached, load_mesh_spec
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("meshmatch", help="PatchMatch texture transfer between meshes (MeshMatch)",
-                       description="MeshMatch (Chen et al. 2012): non-parametric texture transfer.")
+    p = sub.add_parser(
+        "meshmatch",
+        help="PatchMatch texture transfer between meshes (MeshMatch)",
+        description="MeshMatch (Chen et al. 2012): non-parametric texture transfer.",
+    )
     inner = p.add_subparsers(dest="meshmatch_command", metavar="ACTION")
     t = inner.add_parser("transfer", help="transfer a source mesh's texture onto a target mesh")
-    t.add_argument("--source", required=True, metavar="S",
-                   help="textured source mesh (a file, or a procedural name such as striped-sphere:3)")
-    t.add_argument("--source-texture", type=pathlib.Path, metavar="T", help="texture image of the source")
-    t.add_argument("--target", required=True, metavar="M", help="target mesh (a file or a procedural name)")
-    t.add_argument("--correspondences", type=pathlib.Path, metavar="FILE",
-                   help="text file of 'source_vertex target_vertex' pairs, one per line")
-    t.add_argument("--voted", action="store_true",
-                   help="output the finest level's vote (smoother) instead of each vertex's matched colour")
+    t.add_argument(
+        "--source",
+        required=True,
+        metavar="S",
+        help="textured source mesh (a file, or a procedural name such as striped-sphere:3)",
+    )
+    t.add_argument(
+        "--source-texture", type=pathlib.Path, metavar="T", help="texture image of the source"
+    )
+    t.add_argument(
+        "--target", required=True, metavar="M", help="target mesh (a file or a procedural name)"
+    )
+    t.add_argument(
+        "--correspondences",
+        type=pathlib.Path,
+        metavar="FILE",
+        help="text file of 'source_vertex target_vertex' pairs, one per line",
+    )
+    t.add_argument(
+        "--voted",
+        action="store_true",
+        help="output the finest level's vote (smoother) instead of each vertex's matched colour",
+    )
     _options(t)
     t.set_defaults(func=cached(_transfer))
     q = inner.add_parser("paint", help="complete a partly painted mesh by example")
-    q.add_argument("--mesh", required=True, metavar="M",
-                   help="mesh with colours or texture (a file or a procedural name)")
-    q.add_argument("--mask", type=pathlib.Path, required=True, metavar="MASK",
-                   help=".npy bool per vertex, or a text file of painted vertex indices")
+    q.add_argument(
+        "--mesh",
+        required=True,
+        metavar="M",
+        help="mesh with colours or texture (a file or a procedural name)",
+    )
+    q.add_argument(
+        "--mask",
+        type=pathlib.Path,
+        required=True,
+        metavar="MASK",
+        help=".npy bool per vertex, or a text file of painted vertex indices",
+    )
     q.add_argument("--texture", type=pathlib.Path, metavar="T", help="texture image of the mesh")
-    _options(q)  # paint defaults to --no-aligned (paint_by_example: the position prior smears the paint)
+    _options(
+        q
+    )  # paint defaults to --no-aligned (paint_by_example: the position prior smears the paint)
     q.set_defaults(func=cached(_paint))
-    d = inner.add_parser("displace", help="transfer a source mesh's geometric detail onto a target mesh")
-    d.add_argument("--source", required=True, metavar="S", help="detailed source mesh (a file or a procedural name)")
-    d.add_argument("--target", required=True, metavar="M", help="target mesh (a file or a procedural name)")
-    d.add_argument("--smoothing-steps", type=int, default=10, metavar="N",
-                   help="Taubin pairs that define the source's smooth base (default 10)")
-    d.add_argument("--voted", action="store_true",
-                   help="displace by the voted detail (smoother, lower) instead of the matched vertex's")
+    d = inner.add_parser(
+        "displace", help="transfer a source mesh's geometric detail onto a target mesh"
+    )
+    d.add_argument(
+        "--source",
+        required=True,
+        metavar="S",
+        help="detailed source mesh (a file or a procedural name)",
+    )
+    d.add_argument(
+        "--target", required=True, metavar="M", help="target mesh (a file or a procedural name)"
+    )
+    d.add_argument(
+        "--smoothing-steps",
+        type=int,
+        default=10,
+        metavar="N",
+        help="Taubin pairs that define the source's smooth base (default 10)",
+    )
+    d.add_argument(
+        "--voted",
+        action="store_true",
+        help="displace by the voted detail (smoother, lower) instead of the matched vertex's",
+    )
     _options(d)
     d.set_defaults(func=cached(_displace))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
@@ -71,39 +117,96 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _options(p: argparse.ArgumentParser) -> None:
     add_common(p)
-    p.add_argument("--steps", type=int, default=None, help="PatchMatch iterations per level (Config.steps)")
-    p.add_argument("--up", default=None, metavar="AXIS",
-                   help="with --no-aligned, up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector "
-                        "'a,b,c', or none (Config.up; default z; use y for Y-up models)")
-    p.add_argument("--side", default=None, metavar="AXIS",
-                   help="with --no-aligned, a second axis for an n·side feature, e.g. the left/right axis of a "
-                        "symmetric model (Config.side; default none)")
-    p.add_argument("--color-weight", type=float, default=None, metavar="W", help="colour term weight (Config.color_weight)")
-    p.add_argument("--shape-weight", default=None, metavar="W[,W...]",
-                   help="shape term weight, or a comma list from the finest level to the coarsest (Config.shape_weight)")
-    p.add_argument("--fan-radius", type=float, default=None, metavar="R",
-                   help="outer fan radius in mean edge lengths (Config.fan_radius)")
-    p.add_argument("--levels", type=int, default=None, metavar="N", help="hierarchy levels (Config.levels)")
-    p.add_argument("--aligned", action=argparse.BooleanOptionalAction, default=None,
-                   help="source and target share a pose and up axis (default): the whole normal and the per-axis "
-                        "standardised positions join the HKS as shape features (Config.aligned); --no-aligned: "
-                        "the pose-free features HKS + n·up (Config.intrinsic) for meshes in different poses")
-    p.add_argument("--normal-weight", type=float, default=None, metavar="W",
-                   help="weight of each n·axis feature relative to the HKS (Config.normal_weight; default 2 "
-                        "aligned, 1 with --no-aligned)")
-    p.add_argument("--position-weight", type=float, default=None, metavar="W",
-                   help="weight of the per-axis standardised positions (Config.position_weight; default 8; "
-                        "not with --no-aligned)")
-    p.add_argument("--propagation", choices=("parallel", "sequential"), default=None,
-                   help="PatchMatch propagation: parallel sweeps (default) or the paper's sequential "
-                        "breadth-first scan (Config.propagation; slower)")
-    p.add_argument("--vote", choices=("ring", "fan"), default=None,
-                   help="M-step vote: the one-ring (default) or the paper's fan footprint (Config.vote; slower)")
-    p.add_argument("--upsample", choices=("copy", "offset"), default=None,
-                   help="finer level's start: the parent's match (default) or the paper's geodesic offset + "
-                        "re-vote (Config.upsample)")
-    p.add_argument("--max-scale-ratio", default=None, metavar="X",
-                   help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)")
+    p.add_argument(
+        "--steps", type=int, default=None, help="PatchMatch iterations per level (Config.steps)"
+    )
+    p.add_argument(
+        "--up",
+        default=None,
+        metavar="AXIS",
+        help="with --no-aligned, up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector "
+        "'a,b,c', or none (Config.up; default z; use y for Y-up models)",
+    )
+    p.add_argument(
+        "--side",
+        default=None,
+        metavar="AXIS",
+        help="with --no-aligned, a second axis for an n·side feature, e.g. the left/right axis of a "
+        "symmetric model (Config.side; default none)",
+    )
+    p.add_argument(
+        "--color-weight",
+        type=float,
+        default=None,
+        metavar="W",
+        help="colour term weight (Config.color_weight)",
+    )
+    p.add_argument(
+        "--shape-weight",
+        default=None,
+        metavar="W[,W...]",
+        help="shape term weight, or a comma list from the finest level to the coarsest (Config.shape_weight)",
+    )
+    p.add_argument(
+        "--fan-radius",
+        type=float,
+        default=None,
+        metavar="R",
+        help="outer fan radius in mean edge lengths (Config.fan_radius)",
+    )
+    p.add_argument(
+        "--levels", type=int, default=None, metavar="N", help="hierarchy levels (Config.levels)"
+    )
+    p.add_argument(
+        "--aligned",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="source and target share a pose and up axis (default): the whole normal and the per-axis "
+        "standardised positions join the HKS as shape features (Config.aligned); --no-aligned: "
+        "the pose-free features HKS + n·up (Config.intrinsic) for meshes in different poses",
+    )
+    p.add_argument(
+        "--normal-weight",
+        type=float,
+        default=None,
+        metavar="W",
+        help="weight of each n·axis feature relative to the HKS (Config.normal_weight; default 2 "
+        "aligned, 1 with --no-aligned)",
+    )
+    p.add_argument(
+        "--position-weight",
+        type=float,
+        default=None,
+        metavar="W",
+        help="weight of the per-axis standardised positions (Config.position_weight; default 8; "
+        "not with --no-aligned)",
+    )
+    p.add_argument(
+        "--propagation",
+        choices=("parallel", "sequential"),
+        default=None,
+        help="PatchMatch propagation: parallel sweeps (default) or the paper's sequential "
+        "breadth-first scan (Config.propagation; slower)",
+    )
+    p.add_argument(
+        "--vote",
+        choices=("ring", "fan"),
+        default=None,
+        help="M-step vote: the one-ring (default) or the paper's fan footprint (Config.vote; slower)",
+    )
+    p.add_argument(
+        "--upsample",
+        choices=("copy", "offset"),
+        default=None,
+        help="finer level's start: the parent's match (default) or the paper's geodesic offset + "
+        "re-vote (Config.upsample)",
+    )
+    p.add_argument(
+        "--max-scale-ratio",
+        default=None,
+        metavar="X",
+        help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)",
+    )
 
 
 def _parse_up(text: str):
@@ -122,10 +225,14 @@ def _config(args, *, aligned: bool = True):
     from ..meshmatch import Config
 
     fields = {} if aligned else {"aligned": False}
-    if (args.aligned if args.aligned is not None else aligned) and (args.up is not None or args.side is not None):
-        raise InputError("--up and --side set the pose-free n·up / n·side features: add --no-aligned (the aligned "
-                         "default uses the whole normal and the positions, which need no up axis, only that "
-                         "source and target share a pose)")
+    if (args.aligned if args.aligned is not None else aligned) and (
+        args.up is not None or args.side is not None
+    ):
+        raise InputError(
+            "--up and --side set the pose-free n·up / n·side features: add --no-aligned (the aligned "
+            "default uses the whole normal and the positions, which need no up axis, only that "
+            "source and target share a pose)"
+        )
     try:
         if args.steps is not None:
             fields["steps"] = args.steps
@@ -190,7 +297,11 @@ def _load_mask(path: pathlib.Path, num_vertices: int):
     try:
         if path.suffix == ".npy":
             mask = np.load(path, allow_pickle=False)
-            if mask.dtype != bool and mask.shape == (num_vertices,) and set(np.unique(mask).tolist()) <= {0, 1}:
+            if (
+                mask.dtype != bool
+                and mask.shape == (num_vertices,)
+                and set(np.unique(mask).tolist()) <= {0, 1}
+            ):
                 mask = mask.astype(bool)  # a 0/1 array per vertex
             return mask
         return np.loadtxt(path, dtype=np.int64, ndmin=1)
@@ -207,21 +318,43 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
 
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)
-    src_kw = ({"vertex_colors": source.vertex_colors} if source.vertex_colors is not None else
-              {"uv": source.uv, "texture": source.texture} if source.texture is not None else {})
+    src_kw = (
+        {"vertex_colors": source.vertex_colors}
+        if source.vertex_colors is not None
+        else {"uv": source.uv, "texture": source.texture}
+        if source.texture is not None
+        else {}
+    )
     images = [
-        render.render_mesh(source.vertices, source.faces, out / "source.png", size=size, title="source", **src_kw),
-        render.render_mesh(target_mesh.vertices, target_mesh.faces, out / "target.png", size=size, title=title,
-                           vertex_colors=target_mesh.vertex_colors),
-        render.render_mesh(target_mesh.vertices, target_mesh.faces, out / "nnf.png", size=size,
-                           title="nearest-neighbour field", vertex_colors=nnf_colors(source, match.nnf)),
+        render.render_mesh(
+            source.vertices, source.faces, out / "source.png", size=size, title="source", **src_kw
+        ),
+        render.render_mesh(
+            target_mesh.vertices,
+            target_mesh.faces,
+            out / "target.png",
+            size=size,
+            title=title,
+            vertex_colors=target_mesh.vertex_colors,
+        ),
+        render.render_mesh(
+            target_mesh.vertices,
+            target_mesh.faces,
+            out / "nnf.png",
+            size=size,
+            title="nearest-neighbour field",
+            vertex_colors=nnf_colors(source, match.nnf),
+        ),
     ]
     render.render_grid(images, out / "meshmatch.png", columns=3)
     mesh_path = out / ("target.obj" if target_mesh.uv is not None else "target.ply")
     save_mesh(target_mesh.replace(name="target"), mesh_path)
     save(result, out)
-    summary = {"mesh": str(mesh_path), "renders": [str(out / n) for n in ("source.png", "target.png", "nnf.png", "meshmatch.png")],
-               **{k: v for k, v in match.stats.items()}}
+    summary = {
+        "mesh": str(mesh_path),
+        "renders": [str(out / n) for n in ("source.png", "target.png", "nnf.png", "meshmatch.png")],
+        **{k: v for k, v in match.stats.items()},
+    }
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     return summary
 
@@ -239,10 +372,19 @@ def _transfer(args: argparse.Namespace) -> int:
     for mesh in (source, target):
         validate_mesh(mesh.vertices, mesh.faces)  # a clear typed error before any work
     pairs = _load_pairs(args.correspondences) if args.correspondences else None
-    result = transfer(source, target, key=_key(args), config=_config(args), correspondences=pairs,
-                      voted=args.voted, progress=_progress(args))
+    result = transfer(
+        source,
+        target,
+        key=_key(args),
+        config=_config(args),
+        correspondences=pairs,
+        voted=args.voted,
+        progress=_progress(args),
+    )
     summary = _write_outputs(args.out, source, result, "target (transferred)")
-    print(f"wrote {summary['mesh']} and renders to {args.out} in {result.match.stats['total_s']:.1f} s")
+    print(
+        f"wrote {summary['mesh']} and renders to {args.out} in {result.match.stats['total_s']:.1f} s"
+    )
     return 0
 
 
@@ -251,7 +393,9 @@ def _paint(args: argparse.Namespace) -> int:
 
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     mask = _load_mask(args.mask, mesh.num_vertices)
-    result = paint_by_example(mesh, mask, key=_key(args), config=_config(args, aligned=False), progress=_progress(args))
+    result = paint_by_example(
+        mesh, mask, key=_key(args), config=_config(args, aligned=False), progress=_progress(args)
+    )
     summary = _write_outputs(args.out, mesh, result, "painted by example")
     print(f"wrote {summary['mesh']} and renders to {args.out}")
     return 0
@@ -267,27 +411,51 @@ def _displace(args: argparse.Namespace) -> int:
     target = load_mesh_spec(args.target)
     for mesh in (source, target):
         validate_mesh(mesh.vertices, mesh.faces)
-    result = transfer_displacement(source, target, key=_key(args), config=_config(args),
-                                   smoothing_steps=args.smoothing_steps, voted=args.voted,
-                                   progress=_progress(args))
+    result = transfer_displacement(
+        source,
+        target,
+        key=_key(args),
+        config=_config(args),
+        smoothing_steps=args.smoothing_steps,
+        voted=args.voted,
+        progress=_progress(args),
+    )
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)
     detail = detail_displacement(source, smoothing_steps=args.smoothing_steps)
     images = [
-        render.render_mesh(source.vertices, source.faces, out / "source.png", size=size, title="source (detail)",
-                           scalars=detail),
-        render.render_mesh(target.vertices, target.faces, out / "target.png", size=size, title="target"),
-        render.render_mesh(result.mesh.vertices, result.mesh.faces, out / "displaced.png", size=size,
-                           title="target (displaced)"),
+        render.render_mesh(
+            source.vertices,
+            source.faces,
+            out / "source.png",
+            size=size,
+            title="source (detail)",
+            scalars=detail,
+        ),
+        render.render_mesh(
+            target.vertices, target.faces, out / "target.png", size=size, title="target"
+        ),
+        render.render_mesh(
+            result.mesh.vertices,
+            result.mesh.faces,
+            out / "displaced.png",
+            size=size,
+            title="target (displaced)",
+        ),
     ]
     render.render_grid(images, out / "meshmatch.png", columns=3)
     mesh_path = out / "displaced.ply"
     save_mesh(result.mesh.replace(name="displaced", uv=None, texture=None), mesh_path)
     save(result, out)
-    summary = {"mesh": str(mesh_path), "voted": bool(args.voted),
-               "renders": [str(out / n) for n in ("source.png", "target.png", "displaced.png", "meshmatch.png")],
-               **result.match.stats}
+    summary = {
+        "mesh": str(mesh_path),
+        "voted": bool(args.voted),
+        "renders": [
+            str(out / n) for n in ("source.png", "target.png", "displaced.png", "meshmatch.png")
+        ],
+        **result.match.stats,
+    }
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     print(f"wrote {mesh_path} and renders to {out} in {result.match.stats['total_s']:.1f} s")
     return 0

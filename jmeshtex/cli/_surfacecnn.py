@@ -23,24 +23,45 @@ CHECKPOINTS = "checkpoints"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("surfacecnn", help="texture synthesis with a pre-trained 2D CNN run on the mesh",
-                       description="Surface-aware mesh texture synthesis (Kovács et al. 2024).")
+    p = sub.add_parser(
+        "surfacecnn",
+        help="texture synthesis with a pre-trained 2D CNN run on the mesh",
+        description="Surface-aware mesh texture synthesis (Kovács et al. 2024).",
+    )
     inner = p.add_subparsers(dest="surfacecnn_command", metavar="ACTION")
     s = inner.add_parser("synthesize", help="synthesise a texture matching an exemplar image")
-    s.add_argument("--mesh", required=True, metavar="M",
-                   help="mesh file (UVs optional) or procedural spec (icosphere:3, torus, ...)")
-    s.add_argument("--exemplar", type=pathlib.Path, required=True, metavar="IMG", help="exemplar image")
+    s.add_argument(
+        "--mesh",
+        required=True,
+        metavar="M",
+        help="mesh file (UVs optional) or procedural spec (icosphere:3, torus, ...)",
+    )
+    s.add_argument(
+        "--exemplar", type=pathlib.Path, required=True, metavar="IMG", help="exemplar image"
+    )
     _options(s)
     s.set_defaults(func=cached(_synthesize))
     t = inner.add_parser("stylize", help="transfer an image's style onto the mesh's texture")
     t.add_argument("--mesh", required=True, metavar="M", help="mesh file with UVs")
-    t.add_argument("--content", type=pathlib.Path, metavar="T",
-                   help="content texture in the mesh's UV layout (default: the texture the mesh file references)")
+    t.add_argument(
+        "--content",
+        type=pathlib.Path,
+        metavar="T",
+        help="content texture in the mesh's UV layout (default: the texture the mesh file references)",
+    )
     t.add_argument("--style", type=pathlib.Path, required=True, metavar="IMG", help="style image")
-    t.add_argument("--content-weight", type=float, default=None,
-                   help="weight of the content term (default: the reference's 1000 for VGG-19, rescaled to "
-                        "≈0.30 for the embedded VGG-16)")
-    t.add_argument("--content-layer", default="relu4_2", help="feature map of the content term (default relu4_2)")
+    t.add_argument(
+        "--content-weight",
+        type=float,
+        default=None,
+        help="weight of the content term (default: the reference's 1000 for VGG-19, rescaled to "
+        "≈0.30 for the embedded VGG-16)",
+    )
+    t.add_argument(
+        "--content-layer",
+        default="relu4_2",
+        help="feature map of the content term (default relu4_2)",
+    )
     _options(t)
     t.set_defaults(func=cached(_stylize))
     p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
@@ -50,20 +71,47 @@ def _options(p: argparse.ArgumentParser) -> None:
     add_common(p, out="output folder (texture, textured mesh, renders, result.npz, checkpoints/)")
     p.add_argument("--size", type=int, default=512, help="texture resolution (default 512)")
     p.add_argument("--steps", type=int, default=500, help="optimisation steps (default 500)")
-    p.add_argument("--max-image-size", type=int, default=512,
-                   help="exemplar/style images are downscaled to at most this many pixels per side (default 512)")
-    p.add_argument("--layers", default=None,
-                   help="comma-separated Gram layers, e.g. relu1_1,relu2_1 (default: every ReLU and pool)")
-    p.add_argument("--pool", choices=("mean", "max"), default="mean", help="pooling (default mean, as the paper)")
-    p.add_argument("--frames", choices=("global", "smooth", "uv"), default="global",
-                   help="texel tangent frames: global (the paper's: x projected on the surface), smooth (the "
-                        "smoothest direction field) or uv (the UV layout's; jumps at seams, an ablation)")
-    p.add_argument("--vgg19", type=pathlib.Path, default=None, metavar="FILE",
-                   help="use VGG-19 weights from a .npz or Keras .h5 file (the paper's network)")
-    p.add_argument("--resume", action="store_true",
-                   help=f"continue from DIR/{CHECKPOINTS}/ of an interrupted run (written every 50 steps)")
-    p.add_argument("--repair", action="store_true",
-                   help="repair the mesh first (drop degenerate/duplicate faces, split bow-tie vertices, re-orient)")
+    p.add_argument(
+        "--max-image-size",
+        type=int,
+        default=512,
+        help="exemplar/style images are downscaled to at most this many pixels per side (default 512)",
+    )
+    p.add_argument(
+        "--layers",
+        default=None,
+        help="comma-separated Gram layers, e.g. relu1_1,relu2_1 (default: every ReLU and pool)",
+    )
+    p.add_argument(
+        "--pool",
+        choices=("mean", "max"),
+        default="mean",
+        help="pooling (default mean, as the paper)",
+    )
+    p.add_argument(
+        "--frames",
+        choices=("global", "smooth", "uv"),
+        default="global",
+        help="texel tangent frames: global (the paper's: x projected on the surface), smooth (the "
+        "smoothest direction field) or uv (the UV layout's; jumps at seams, an ablation)",
+    )
+    p.add_argument(
+        "--vgg19",
+        type=pathlib.Path,
+        default=None,
+        metavar="FILE",
+        help="use VGG-19 weights from a .npz or Keras .h5 file (the paper's network)",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help=f"continue from DIR/{CHECKPOINTS}/ of an interrupted run (written every 50 steps)",
+    )
+    p.add_argument(
+        "--repair",
+        action="store_true",
+        help="repair the mesh first (drop degenerate/duplicate faces, split bow-tie vertices, re-orient)",
+    )
 
 
 def _image(path: pathlib.Path, max_size: int):
@@ -92,12 +140,16 @@ def _setup(args):
     mesh = load_mesh_spec(args.mesh, texture=getattr(args, "content", None))
     if args.repair:
         mesh, _ = prepare_mesh(mesh, repair=True)
-    validate_mesh(mesh.vertices, mesh.faces)  # a clear typed error for a broken mesh before any work
+    validate_mesh(
+        mesh.vertices, mesh.faces
+    )  # a clear typed error for a broken mesh before any work
     layers = tuple(x.strip() for x in args.layers.split(",") if x.strip()) if args.layers else None
     extra = {}
     if hasattr(args, "content_weight"):
         extra = {"content_weight": args.content_weight, "content_layer": args.content_layer}
-    config = Config(size=args.size, steps=args.steps, pool=args.pool, layers=layers, frames=args.frames, **extra)
+    config = Config(
+        size=args.size, steps=args.steps, pool=args.pool, layers=layers, frames=args.frames, **extra
+    )
     weights = load_vgg19(args.vgg19) if args.vgg19 else None
     return mesh, config, weights
 
@@ -113,10 +165,12 @@ def _checkpoint(args) -> pathlib.Path:
 
 
 def _report(summary: dict, out: pathlib.Path) -> None:
-    print(f"wrote {out / 'texture.png'}, {out / 'textured.obj'} and renders to {out}: loss "
-          f"{summary['initial_loss']:.4g} -> {summary['final_loss']:.4g}, {summary['texels']} texels, "
-          f"precompute {summary['atlas_s'] + summary['taps_s'] + summary['pyramid_s']:.1f} s, "
-          f"optimisation {summary['optimize_s']:.1f} s")
+    print(
+        f"wrote {out / 'texture.png'}, {out / 'textured.obj'} and renders to {out}: loss "
+        f"{summary['initial_loss']:.4g} -> {summary['final_loss']:.4g}, {summary['texels']} texels, "
+        f"precompute {summary['atlas_s'] + summary['taps_s'] + summary['pyramid_s']:.1f} s, "
+        f"optimisation {summary['optimize_s']:.1f} s"
+    )
 
 
 def _synthesize(args: argparse.Namespace) -> int:
@@ -126,8 +180,15 @@ def _synthesize(args: argparse.Namespace) -> int:
 
     mesh, config, weights = _setup(args)
     exemplar = _image(args.exemplar, args.max_image_size)
-    result = synthesize(mesh, exemplar, config, key=jax.random.key(args.seed), weights=weights,
-                        progress=not args.quiet, checkpoint=_checkpoint(args))
+    result = synthesize(
+        mesh,
+        exemplar,
+        config,
+        key=jax.random.key(args.seed),
+        weights=weights,
+        progress=not args.quiet,
+        checkpoint=_checkpoint(args),
+    )
     summary = save(result, args.out, exemplar=exemplar, title="synthesised")
     _report(summary, args.out)
     return 0
@@ -141,10 +202,20 @@ def _stylize(args: argparse.Namespace) -> int:
 
     mesh, config, weights = _setup(args)
     if mesh.texture is None:
-        raise InputError(f"{args.mesh} references no texture; give the content texture with --content")
+        raise InputError(
+            f"{args.mesh} references no texture; give the content texture with --content"
+        )
     style = _image(args.style, args.max_image_size)
-    result = stylize(mesh, mesh.texture, style, config, key=jax.random.key(args.seed), weights=weights,
-                     progress=not args.quiet, checkpoint=_checkpoint(args))
+    result = stylize(
+        mesh,
+        mesh.texture,
+        style,
+        config,
+        key=jax.random.key(args.seed),
+        weights=weights,
+        progress=not args.quiet,
+        checkpoint=_checkpoint(args),
+    )
     summary = save(result, args.out, exemplar=style, title="stylised")
     _report(summary, args.out)
     return 0

@@ -22,7 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--json", type=pathlib.Path, help="also write the results as JSON to this path")
     p.add_argument("--only", nargs="+", metavar="NAME", help="operators to check (default: all)")
-    p.add_argument("--transforms", nargs="+", metavar="T", help="transforms to check (default: all declared)")
+    p.add_argument(
+        "--transforms", nargs="+", metavar="T", help="transforms to check (default: all declared)"
+    )
     p.add_argument("--dtype", choices=["both", "float64", "float32"], default="both")
     p.add_argument("--list", action="store_true", help="list registered operators and transforms")
     add_common(p, out=None)
@@ -38,6 +40,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from .. import testing
     from ..testing import transforms_of
+
     testing.load_entries()
 
     if args.list:
@@ -47,27 +50,43 @@ def _run(args: argparse.Namespace) -> int:
         for name, t in testing.CATALOGUE.items():
             print(f"  {name:17s} {'exact ' if t.exact else 'smooth'} {t.doc}")
         return 0
-    dtypes = {"both": (jnp.float64, jnp.float32), "float64": (jnp.float64,), "float32": (jnp.float32,)}
+    dtypes = {
+        "both": (jnp.float64, jnp.float32),
+        "float64": (jnp.float64,),
+        "float32": (jnp.float32,),
+    }
     names = args.only or list(testing.REGISTRY)
     transforms = args.transforms
     total = sum(
-        len([t for t in transforms_of(testing.REGISTRY[n])
-             if transforms is None or t in transforms]) * len(dtypes[args.dtype])
-        for n in names if n in testing.REGISTRY
+        len(
+            [t for t in transforms_of(testing.REGISTRY[n]) if transforms is None or t in transforms]
+        )
+        * len(dtypes[args.dtype])
+        for n in names
+        if n in testing.REGISTRY
     )
-    bar = tqdm(total=total, desc="verify", unit="check", file=sys.stderr, disable=True if args.quiet else None)
+    bar = tqdm(
+        total=total,
+        desc="verify",
+        unit="check",
+        file=sys.stderr,
+        disable=True if args.quiet else None,
+    )
 
     def progress(msg: str) -> None:
         bar.set_postfix_str(msg[:60])
         bar.update(1)
 
-    results = testing.run_registry(names, dtypes=dtypes[args.dtype], seed=args.seed,
-                                   transforms=transforms, progress=progress)
+    results = testing.run_registry(
+        names, dtypes=dtypes[args.dtype], seed=args.seed, transforms=transforms, progress=progress
+    )
     bar.close()
     print(testing.format_table(results))
     failed = [r for r in results if r.passed is False]
-    print(f"\n{len(results)} checks: {sum(r.passed is True for r in results)} passed, "
-          f"{len(failed)} failed, {sum(r.passed is None for r in results)} reported")
+    print(
+        f"\n{len(results)} checks: {sum(r.passed is True for r in results)} passed, "
+        f"{len(failed)} failed, {sum(r.passed is None for r in results)} reported"
+    )
     if args.json:
         atomic_write(args.json, testing.to_json(results))
         print(f"wrote {args.json}")

@@ -42,12 +42,16 @@ def _poisson_disc(points: np.ndarray, radius: float, rng: np.random.Generator) -
     return np.asarray(chosen)
 
 
-def _torus_points(n: int, major_radius: float, minor_radius: float, rng: np.random.Generator) -> np.ndarray:
+def _torus_points(
+    n: int, major_radius: float, minor_radius: float, rng: np.random.Generator
+) -> np.ndarray:
     """``n`` area-uniform random points on a torus of revolution around z (rejection on the ring radius)."""
     out = []
     while sum(len(o) for o in out) < n:
         u, w = rng.uniform(0, 2 * np.pi, (2, 2 * n))
-        keep = rng.uniform(0, 1, 2 * n) < (major_radius + minor_radius * np.cos(w)) / (major_radius + minor_radius)
+        keep = rng.uniform(0, 1, 2 * n) < (major_radius + minor_radius * np.cos(w)) / (
+            major_radius + minor_radius
+        )
         u, w = u[keep], w[keep]
         r = major_radius + minor_radius * np.cos(w)
         out.append(np.stack([r * np.cos(u), r * np.sin(u), minor_radius * np.sin(w)], -1))
@@ -86,7 +90,9 @@ def texture_centers(
         candidates = fibonacci_sphere(max(2000, int(60 / period**2)))
     elif surface == "torus":
         area = 4 * np.pi**2 * major_radius * minor_radius
-        candidates = _torus_points(max(2000, int(15 * area / period**2)), major_radius, minor_radius, rng)
+        candidates = _torus_points(
+            max(2000, int(15 * area / period**2)), major_radius, minor_radius, rng
+        )
     else:
         raise ValueError(f"surface must be 'sphere' or 'torus', got {surface!r}")
     return _poisson_disc(candidates, float(period), rng)
@@ -121,7 +127,9 @@ def texture_height(
     if kind == "spikes":
         return a * np.maximum(0.0, 1 - d / (0.3 * p)) ** 2.5
     if kind == "craters":
-        return a * (np.exp(-(((d - 0.3 * p) / (0.08 * p)) ** 2)) - 0.8 * np.exp(-((d / (0.18 * p)) ** 2)))
+        return a * (
+            np.exp(-(((d - 0.3 * p) / (0.08 * p)) ** 2)) - 0.8 * np.exp(-((d / (0.18 * p)) ** 2))
+        )
     # scales: a ramp per Voronoi cell, rising against the tangent towards +z at the cell's centre
     c = centers[nearest]
     up = np.array([0.0, 0.0, 1.0])
@@ -133,7 +141,12 @@ def texture_height(
 
 
 def textured_sphere(
-    kind: str = "knobs", *, subdivisions: int = 4, period: float = 0.35, amplitude: float | None = None, seed: int = 0
+    kind: str = "knobs",
+    *,
+    subdivisions: int = 4,
+    period: float = 0.35,
+    amplitude: float | None = None,
+    seed: int = 0,
 ) -> Mesh:
     """A unit icosphere carrying the geometric texture ``kind`` with spatial period ``period``.
 
@@ -159,8 +172,14 @@ def textured_sphere(
     """
     v, f = icosphere(subdivisions)
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
-    h = texture_height(n, n, texture_centers("sphere", period=period, seed=seed), kind=kind, period=period,
-                       amplitude=amplitude)
+    h = texture_height(
+        n,
+        n,
+        texture_centers("sphere", period=period, seed=seed),
+        kind=kind,
+        period=period,
+        amplitude=amplitude,
+    )
     return Mesh(n * (1 + h)[:, None], f, name=f"{kind}_sphere")
 
 
@@ -198,6 +217,8 @@ def textured_torus(
     ring[:, 2] = 0
     ring = major_radius * ring / np.linalg.norm(ring, axis=1, keepdims=True)
     n = (v - ring) / np.linalg.norm(v - ring, axis=1, keepdims=True)
-    centers = texture_centers("torus", period=period, seed=seed, major_radius=major_radius, minor_radius=minor_radius)
+    centers = texture_centers(
+        "torus", period=period, seed=seed, major_radius=major_radius, minor_radius=minor_radius
+    )
     h = texture_height(v, n, centers, kind=kind, period=period, amplitude=amplitude)
     return Mesh(v + h[:, None] * n, f, name=f"{kind}_torus")

@@ -60,7 +60,9 @@ def striped_sphere(*, subdivisions: int = 3, frequency: float = 9.0) -> Mesh:
     return Mesh(v, f, vertex_colors=intensity_to_rgb(s).astype(np.float32), name="striped_sphere")
 
 
-def stripe_intensity(points: Float[np.ndarray, "N 3"], *, frequency: float = 9.0) -> Float[np.ndarray, " N"]:
+def stripe_intensity(
+    points: Float[np.ndarray, "N 3"], *, frequency: float = 9.0
+) -> Float[np.ndarray, " N"]:
     """``s = ½ + ½ sin(ω z)`` in [0, 1]."""
     return 0.5 + 0.5 * np.sin(frequency * np.asarray(points)[:, 2])
 

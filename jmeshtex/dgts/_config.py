@@ -93,11 +93,14 @@ class PrepareConfig(ConfigBase):
         rule("levels samples_per_level", lambda x: x >= 1, ">= 1"),
         rule("schedule", lambda x: x in ("joint", "official"), "'joint' or 'official'"),
         rule("regularizer_steps chamfer_steps", lambda x: x >= 0, ">= 0"),
-        rule("steps weight_s2t weight_t2s weight_normal_s2t weight_normal_t2s weight_edge_std weight_edge_local "
-             "weight_laplacian", lambda x: x >= 0, ">= 0"),
+        rule(
+            "steps weight_s2t weight_t2s weight_normal_s2t weight_normal_t2s weight_edge_std weight_edge_local "
+            "weight_laplacian",
+            lambda x: x >= 0,
+            ">= 0",
+        ),
         rule("learning_rate scale_factor", lambda x: x > 0, "> 0"),
     )
-
 
     @classmethod
     def official(cls, **changes) -> PrepareConfig:
@@ -174,14 +177,23 @@ class Config(ConfigBase):
 
     _RULES = (
         rule("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
-        rule("start_features min_features learning_rate_decay_every generator_steps", lambda x: x >= 1, ">= 1"),
-        rule("noise_amplitude discriminator_steps steps reconstruction_weight penalty_weight shared_levels",
-             lambda x: x >= 0, ">= 0"),
+        rule(
+            "start_features min_features learning_rate_decay_every generator_steps",
+            lambda x: x >= 1,
+            ">= 1",
+        ),
+        rule(
+            "noise_amplitude discriminator_steps steps reconstruction_weight penalty_weight shared_levels",
+            lambda x: x >= 0,
+            ">= 0",
+        ),
         rule("learning_rate scale_factor", lambda x: x > 0, "> 0"),
         rule("beta1 beta2", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("learning_rate_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
-        cross_rule(lambda c: c.min_features <= c.max_features,
-                   "need min_features <= max_features, got {c.min_features}, {c.max_features}"),
+        cross_rule(
+            lambda c: c.min_features <= c.max_features,
+            "need min_features <= max_features, got {c.min_features}, {c.max_features}",
+        ),
     )
 
     @property
@@ -204,7 +216,10 @@ class Config(ConfigBase):
           (128, 64, 32, 32, 32, 1)
         """
         hidden = [
-            max(min(self.start_features * 2**level, self.max_features) // 2 ** (i - 1), self.min_features)
+            max(
+                min(self.start_features * 2**level, self.max_features) // 2 ** (i - 1),
+                self.min_features,
+            )
             for i in range(1, self.num_layers - 1)
         ]
         return (*hidden, 3 if generator else 1)

@@ -72,8 +72,11 @@ class Model:
 
 def model_state(model: Model) -> dict:
     """The array pytree stored for ``model``."""
-    return {"generators": tuple(model.generators), "discriminators": tuple(model.discriminators),
-            "z_star": np.asarray(model.z_star, np.float32)}
+    return {
+        "generators": tuple(model.generators),
+        "discriminators": tuple(model.discriminators),
+        "z_star": np.asarray(model.z_star, np.float32),
+    }
 
 
 def model_like(config: Config, levels: int, num_vertices: int) -> dict:
@@ -81,7 +84,9 @@ def model_like(config: Config, levels: int, num_vertices: int) -> dict:
     key = jax.random.key(0)
     return {
         "generators": tuple(init_level(config, i, generator=True, key=key) for i in range(levels)),
-        "discriminators": tuple(init_level(config, i, generator=False, key=key) for i in range(levels)),
+        "discriminators": tuple(
+            init_level(config, i, generator=False, key=key) for i in range(levels)
+        ),
         "z_star": np.zeros((num_vertices, 3), np.float32),
     }
 
@@ -106,8 +111,12 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
       1
     """
     folder = pathlib.Path(path)
-    meta = {"kind": MODEL_KIND, "config": model.config.to_dict(), "levels": model.num_levels,
-            "num_vertices": int(np.shape(model.z_star)[0])}
+    meta = {
+        "kind": MODEL_KIND,
+        "config": model.config.to_dict(),
+        "levels": model.num_levels,
+        "num_vertices": int(np.shape(model.z_star)[0]),
+    }
     with Checkpoints(folder, keep=1) as ckpt:
         ckpt.save(model.num_levels, model_state(model), meta=meta)
     return folder
@@ -138,13 +147,21 @@ def load(path: str | os.PathLike) -> Model:
     folder = pathlib.Path(path)
     with Checkpoints(folder, keep=1) as ckpt:
         if ckpt.latest_step() is None:
-            raise MeshIOError(f"{folder} holds no DGTS model: write one with jmeshtex.dgts.save "
-                              "(or `jmeshtex dgts train`)")
+            raise MeshIOError(
+                f"{folder} holds no DGTS model: write one with jmeshtex.dgts.save "
+                "(or `jmeshtex dgts train`)"
+            )
         meta = ckpt.read_meta()
         if meta.get("kind") != MODEL_KIND:
-            raise MeshIOError(f"{folder} holds a checkpoint of {meta.get('kind')!r}, not a DGTS model "
-                              "(a training checkpoint_dir is not a model: save train(...).model)")
+            raise MeshIOError(
+                f"{folder} holds a checkpoint of {meta.get('kind')!r}, not a DGTS model "
+                "(a training checkpoint_dir is not a model: save train(...).model)"
+            )
         config = Config.from_dict(meta["config"])
         state, _ = ckpt.restore(model_like(config, int(meta["levels"]), int(meta["num_vertices"])))
-    return Model(config, tuple(state["generators"]), tuple(state["discriminators"]),
-                 np.asarray(state["z_star"], np.float32))
+    return Model(
+        config,
+        tuple(state["generators"]),
+        tuple(state["discriminators"]),
+        np.asarray(state["z_star"], np.float32),
+    )

@@ -62,7 +62,9 @@ class TrainingMeshes(NamedTuple):
     def mesh(self, level: int) -> Mesh:
         """The fitted mesh of ``level`` (negative: from the finest) as a :class:`~jmeshtex.Mesh`, in
         the level's frame."""
-        return Mesh(np.asarray(self.vertices[level], np.float64), np.asarray(self.faces[level], np.int64))
+        return Mesh(
+            np.asarray(self.vertices[level], np.float64), np.asarray(self.faces[level], np.int64)
+        )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -157,7 +159,9 @@ def sample_points(
     cdf = jnp.cumsum(area)
     r, u, w = jax.random.uniform(key, (3, n), vertices.dtype)
     # inverse CDF; side="right" never picks a zero-area face
-    face = jnp.minimum(jnp.searchsorted(cdf, r * cdf[-1], side="right", method="sort"), faces.shape[0] - 1)
+    face = jnp.minimum(
+        jnp.searchsorted(cdf, r * cdf[-1], side="right", method="sort"), faces.shape[0] - 1
+    )
     s = jnp.sqrt(u)
     bary = jnp.stack([1 - s, s * (1 - w), s * w], axis=1)
     points = jnp.einsum("nk,nkd->nd", bary, tri[face])
@@ -173,16 +177,28 @@ class _FitGeometry(NamedTuple):
 
 
 def fitting_loss(
-    vertices: Float[Array, "V 3"], geo: _FitGeometry, *, key: PRNGKey, config: PrepareConfig, num_samples: int
+    vertices: Float[Array, "V 3"],
+    geo: _FitGeometry,
+    *,
+    key: PRNGKey,
+    config: PrepareConfig,
+    num_samples: int,
 ) -> tuple[Float[Array, ""], dict[str, Float[Array, ""]]]:
     """The level-fitting objective of :class:`PrepareConfig` and its terms (see there)."""
     k_s, k_t = jax.random.split(key)
     ps, ns = sample_points(vertices, geo.faces, num_samples, key=k_s)
     pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
-    cd = chamfer_distance(ps, pt, p_normals=ns, q_normals=nt, squared=config.squared_chamfer, oriented=True)
+    cd = chamfer_distance(
+        ps, pt, p_normals=ns, q_normals=nt, squared=config.squared_chamfer, oriented=True
+    )
     reg, reg_terms = regularizer_loss(vertices, geo, config=config)
-    terms = {"s2t": cd.p_to_q, "t2s": cd.q_to_p, "normal_s2t": cd.normal_p_to_q, "normal_t2s": cd.normal_q_to_p,
-             **reg_terms}
+    terms = {
+        "s2t": cd.p_to_q,
+        "t2s": cd.q_to_p,
+        "normal_s2t": cd.normal_p_to_q,
+        "normal_t2s": cd.normal_q_to_p,
+        **reg_terms,
+    }
     c = config
     loss = (
         c.weight_s2t * terms["s2t"]
@@ -211,8 +227,11 @@ def regularizer_loss(
     )
     lap = jnp.mean(jnp.sum(jnp.abs(vertices - nbr / jnp.maximum(geo.degree, 1)[:, None]), axis=1))
     c = config
-    loss = c.weight_edge_std * edge_std + c.weight_edge_local * edge_local + c.weight_laplacian * lap
+    loss = (
+        c.weight_edge_std * edge_std + c.weight_edge_local * edge_local + c.weight_laplacian * lap
+    )
     return loss, {"edge_std": edge_std, "edge_local": edge_local, "laplacian": lap}
+
 
 _CHUNK = 50
 
@@ -227,14 +246,18 @@ def _fit_runner(config: PrepareConfig, num_samples: int):
         def body(i, carry):
             v, state, _ = carry
             (_, terms), g = jax.value_and_grad(
-                lambda x: fitting_loss(x, geo, key=jax.random.fold_in(key, i), config=config, num_samples=num_samples),
+                lambda x: fitting_loss(
+                    x, geo, key=jax.random.fold_in(key, i), config=config, num_samples=num_samples
+                ),
                 has_aux=True,
             )(v)
             with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
                 updates, state = opt.update(g, state, v)
             return optax.apply_updates(v, updates), state, terms
 
-        terms0 = jax.eval_shape(lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v)
+        terms0 = jax.eval_shape(
+            lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v
+        )
         zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
         return jax.lax.fori_loop(0, n, body, (v, state, zeros))
 
@@ -285,8 +308,14 @@ def fit_level(
     if config.schedule == "official":
         from ._official_fit import fit_official
 
-        v, terms = fit_official(jnp.asarray(vertices, jnp.float32), geo, config=config, num_samples=int(num_samples),
-                                key=key, progress=progress)
+        v, terms = fit_official(
+            jnp.asarray(vertices, jnp.float32),
+            geo,
+            config=config,
+            num_samples=int(num_samples),
+            key=key,
+            progress=progress,
+        )
         return np.asarray(v, np.float64), terms
     run_chunk, opt = _fit_runner(config, int(num_samples))
     chunk = _CHUNK
@@ -397,15 +426,25 @@ def training_meshes(
             target = target * config.scale_factor
             scale *= config.scale_factor
         stage = f"level {level}"
-        cb = None if report is None else (lambda done, stage=stage: report(stage, done, config.steps))
+        cb = (
+            None
+            if report is None
+            else (lambda done, stage=stage: report(stage, done, config.steps))
+        )
         v, _ = fit_level(
-            (v, f), (target, rf), config=config, num_samples=config.samples_per_level * (level + 1),
-            key=jax.random.fold_in(key, level), progress=cb,
+            (v, f),
+            (target, rf),
+            config=config,
+            num_samples=config.samples_per_level * (level + 1),
+            key=jax.random.fold_in(key, level),
+            progress=cb,
         )
         verts.append(v)
         faces.append(f)
         scales.append(scale)
-    return TrainingMeshes(template_out, tuple(verts), tuple(faces), tuple(edges), np.asarray(scales), center)
+    return TrainingMeshes(
+        template_out, tuple(verts), tuple(faces), tuple(edges), np.asarray(scales), center
+    )
 
 
 def _progress_bars(what: str) -> Callable[[str, int, int], None]:

@@ -94,7 +94,9 @@ def hierarchy_geometry(
     return tuple(geos), tuple(all_faces)
 
 
-def upsample(vertices: Float[Array, "V 3"], edge_vertices: Int[Array, "E 2"], *, scale: float = 2.0) -> Float[Array, "V+E 3"]:
+def upsample(
+    vertices: Float[Array, "V 3"], edge_vertices: Int[Array, "E 2"], *, scale: float = 2.0
+) -> Float[Array, "V+E 3"]:
     """Midpoint subdivision of the positions followed by a uniform rescale (between DGTS levels).
 
     .. math:: v' = s\\,[\\,v;\\ \\tfrac12(v_{e_0} + v_{e_1})\\,]
@@ -151,9 +153,13 @@ def generator_level(
       (12, 3)
     """
     if params.convs and params.convs[-1].weight.shape[-1] != 3:
-        raise InputError("generator_level: the last layer must have 3 outputs (displacement coefficients)")
+        raise InputError(
+            "generator_level: the last layer must have 3 outputs (displacement coefficients)"
+        )
     noisy = vertices + jnp.asarray(noise, vertices.dtype)
-    d = face_conv_stack(face_features(noisy, nbhd), nbhd, params, negative_slope=negative_slope, eps=eps)
+    d = face_conv_stack(
+        face_features(noisy, nbhd), nbhd, params, negative_slope=negative_slope, eps=eps
+    )
     if float(y_sign) != 1.0:
         d = d * jnp.asarray([1.0, float(y_sign), 1.0], d.dtype)
     return face_to_vertex_displacement(d, vertices, nbhd)
@@ -210,7 +216,9 @@ def discriminator(
       >>> discriminator(p, jnp.asarray(v), face_neighborhood(f)).shape
       (20,)
     """
-    return discriminator_features(params, face_features(vertices, nbhd), nbhd, negative_slope=negative_slope, eps=eps)
+    return discriminator_features(
+        params, face_features(vertices, nbhd), nbhd, negative_slope=negative_slope, eps=eps
+    )
 
 
 def generate(
@@ -259,7 +267,9 @@ def generate(
     v = vertices
     outputs = []
     for i, (p, g, z) in enumerate(zip(params, geometry, noise, strict=True)):
-        v = v + generator_level(p, v, g.nbhd, z, negative_slope=negative_slope, eps=eps, y_sign=y_sign)
+        v = v + generator_level(
+            p, v, g.nbhd, z, negative_slope=negative_slope, eps=eps, y_sign=y_sign
+        )
         outputs.append(v)
         if i + 1 < len(params):
             v = upsample(v, g.edge_vertices, scale=scale)
@@ -299,7 +309,9 @@ class _FaceStackModule(nn.Module):
 
     def stack(self) -> FaceConvStackParams:
         """Create (or fetch) the ``"stack"`` parameter: a :class:`~jmeshtex.ops.FaceConvStackParams`."""
-        return self.param("stack", lambda key: init_face_conv_stack(key, self.features, dtype=self.param_dtype))
+        return self.param(
+            "stack", lambda key: init_face_conv_stack(key, self.features, dtype=self.param_dtype)
+        )
 
 
 class Generator(_FaceStackModule):
@@ -318,7 +330,9 @@ class Generator(_FaceStackModule):
 
     @nn.compact
     def __call__(self, vertices, nbhd, noise=0.0):
-        return generator_level(self.stack(), vertices, nbhd, noise, negative_slope=self.negative_slope, eps=self.eps)
+        return generator_level(
+            self.stack(), vertices, nbhd, noise, negative_slope=self.negative_slope, eps=self.eps
+        )
 
 
 class Discriminator(_FaceStackModule):
@@ -336,4 +350,6 @@ class Discriminator(_FaceStackModule):
 
     @nn.compact
     def __call__(self, vertices, nbhd):
-        return discriminator(self.stack(), vertices, nbhd, negative_slope=self.negative_slope, eps=self.eps)
+        return discriminator(
+            self.stack(), vertices, nbhd, negative_slope=self.negative_slope, eps=self.eps
+        )

@@ -51,7 +51,9 @@ _FEATURE_SIGN = np.array([1.0, 1.0, -1.0, 1.0])
 _KEY = re.compile(r"^(?:module\.)?levels\.(\d+)\.layers\.(\d+)\.(?:0\.)?conv\.(weight|bias)$")
 
 
-def _official_layers(state_dict: Mapping[str, np.ndarray]) -> dict[int, dict[int, dict[str, np.ndarray]]]:
+def _official_layers(
+    state_dict: Mapping[str, np.ndarray],
+) -> dict[int, dict[int, dict[str, np.ndarray]]]:
     """``{level: {layer: {"weight", "bias"}}}`` from official state-dict names (other keys ignored)."""
     levels: dict[int, dict[int, dict[str, np.ndarray]]] = {}
     for name in state_dict:
@@ -59,7 +61,9 @@ def _official_layers(state_dict: Mapping[str, np.ndarray]) -> dict[int, dict[int
         if m is None:
             continue
         level, layer, kind = int(m[1]), int(m[2]), m[3]
-        levels.setdefault(level, {}).setdefault(layer, {})[kind] = np.asarray(state_dict[name], np.float32)
+        levels.setdefault(level, {}).setdefault(layer, {})[kind] = np.asarray(
+            state_dict[name], np.float32
+        )
     return levels
 
 
@@ -96,38 +100,58 @@ def official_level_params(state_dict: Mapping[str, np.ndarray], level: int) -> F
     """
     levels = _official_layers(state_dict)
     if level not in levels:
-        raise InputError(f"official_level_params: no level {level} in the state dict (levels found: "
-                         f"{sorted(levels)}); names must look like 'levels.<l>.layers.<i>.0.conv.weight'")
+        raise InputError(
+            f"official_level_params: no level {level} in the state dict (levels found: "
+            f"{sorted(levels)}); names must look like 'levels.<l>.layers.<i>.0.conv.weight'"
+        )
     layers = levels[level]
     if sorted(layers) != list(range(len(layers))) or len(layers) < 2:
-        raise InputError(f"official_level_params: level {level} has layers {sorted(layers)}; expected 0 … n−1, n ≥ 2")
+        raise InputError(
+            f"official_level_params: level {level} has layers {sorted(layers)}; expected 0 … n−1, n ≥ 2"
+        )
     out = []
     for i in range(len(layers)):
         entry = layers[i]
         if set(entry) != {"weight", "bias"}:
-            raise InputError(f"official_level_params: level {level} layer {i} lacks its "
-                             f"{'bias' if 'weight' in entry else 'weight'}")
+            raise InputError(
+                f"official_level_params: level {level} layer {i} lacks its "
+                f"{'bias' if 'weight' in entry else 'weight'}"
+            )
         w, b = entry["weight"], entry["bias"]
         if w.ndim != 3 or w.shape[2] != 1 or b.shape != w.shape[:1]:
-            raise InputError(f"official_level_params: level {level} layer {i}: Conv1d weight [out, in, 1] and "
-                             f"bias [out] expected, got {w.shape} and {b.shape}")
+            raise InputError(
+                f"official_level_params: level {level} layer {i}: Conv1d weight [out, in, 1] and "
+                f"bias [out] expected, got {w.shape} and {b.shape}"
+            )
         out.append((w[:, :, 0].T.copy(), b.copy()))
     w0, b0 = out[0]
     if w0.shape[0] != 4:
-        raise InputError(f"official_level_params: layer 0 must take the 4 edge features, got in = {w0.shape[0]}")
-    embed = FaceEmbedParams((w0[_FEATURE_FROM_OFFICIAL] * _FEATURE_SIGN[:, None]).astype(np.float32), b0)
+        raise InputError(
+            f"official_level_params: layer 0 must take the 4 edge features, got in = {w0.shape[0]}"
+        )
+    embed = FaceEmbedParams(
+        (w0[_FEATURE_FROM_OFFICIAL] * _FEATURE_SIGN[:, None]).astype(np.float32), b0
+    )
     convs = []
     width = w0.shape[1]
     for i, (w, b) in enumerate(out[1:], start=1):
         if w.shape[0] != 2 * width:
-            raise InputError(f"official_level_params: level {level} layer {i} takes in = {w.shape[0]}, but the "
-                             f"previous layer gives {width} channels (expected in = {2 * width})")
+            raise InputError(
+                f"official_level_params: level {level} layer {i} takes in = {w.shape[0]}, but the "
+                f"previous layer gives {width} channels (expected in = {2 * width})"
+            )
         width = w.shape[1]
         convs.append([w, b])
     if width != 3:
-        raise InputError(f"official_level_params: the last layer must give 3 displacement coefficients, got {width}")
-    return FaceConvStackParams(embed, tuple(FaceConvParams(np.asarray(w, np.float32), np.asarray(b, np.float32))
-                                            for w, b in convs))
+        raise InputError(
+            f"official_level_params: the last layer must give 3 displacement coefficients, got {width}"
+        )
+    return FaceConvStackParams(
+        embed,
+        tuple(
+            FaceConvParams(np.asarray(w, np.float32), np.asarray(b, np.float32)) for w, b in convs
+        ),
+    )
 
 
 def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:
@@ -154,8 +178,10 @@ def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:
       ['levels.0.layers.0.0.conv.bias', 'levels.0.layers.0.0.conv.weight']
     """
     if not model.config.official_axes:
-        raise ConfigError("to_official_state_dict: the model uses jmeshtex's in-plane axis (n × x); only a model "
-                          "with Config(official_axes=True) has an exact official equivalent")
+        raise ConfigError(
+            "to_official_state_dict: the model uses jmeshtex's in-plane axis (n × x); only a model "
+            "with Config(official_axes=True) has an exact official equivalent"
+        )
     out = {}
     for level, p in enumerate(model.generators):
         w0 = np.zeros((4, np.shape(p.embed.weight)[1]), np.float32)
@@ -210,27 +236,39 @@ def from_official_state_dict(
     config = (Config() if config is None else config).replace(official_axes=True)
     found = sorted(_official_layers(state_dict))
     if not found:
-        raise InputError("from_official_state_dict: no 'levels.<l>.layers.<i>...conv.weight' keys found")
+        raise InputError(
+            "from_official_state_dict: no 'levels.<l>.layers.<i>...conv.weight' keys found"
+        )
     if found != list(range(len(found))):
-        raise InputError(f"from_official_state_dict: levels {found} found; a model needs levels 0 … L−1 "
-                         "(convert a single level with official_level_params)")
+        raise InputError(
+            f"from_official_state_dict: levels {found} found; a model needs levels 0 … L−1 "
+            "(convert a single level with official_level_params)"
+        )
     gens, discs = [], []
     for level in found:
         p = official_level_params(state_dict, level)
         widths = (int(np.shape(p.embed.weight)[1]), *(int(np.shape(c.weight)[1]) for c in p.convs))
         expected = config.level_features(level, generator=True)
         if widths != expected:
-            raise ConfigError(f"from_official_state_dict: level {level} has widths {widths}, the config gives "
-                              f"{expected}; pass the Config (num_layers, start/min/max_features) it was trained with")
+            raise ConfigError(
+                f"from_official_state_dict: level {level} has widths {widths}, the config gives "
+                f"{expected}; pass the Config (num_layers, start/min/max_features) it was trained with"
+            )
         gens.append(p)
-        discs.append(init_level(config, level, generator=False, key=jax.random.fold_in(jax.random.key(0), level)))
+        discs.append(
+            init_level(
+                config, level, generator=False, key=jax.random.fold_in(jax.random.key(0), level)
+            )
+        )
     z = np.zeros((0, 3), np.float32) if z_star is None else np.asarray(z_star, np.float32)
     if z.ndim != 2 or z.shape[1] != 3:
         raise InputError(f"from_official_state_dict: z_star must be [V_0, 3], got {z.shape}")
     return Model(config, tuple(gens), tuple(discs), z)
 
 
-def load_official(path: str | os.PathLike, *, config: Config | None = None, z_star: np.ndarray | None = None) -> Model:
+def load_official(
+    path: str | os.PathLike, *, config: Config | None = None, z_star: np.ndarray | None = None
+) -> Model:
     """Read an official generator state dict saved as ``.npz`` (module docstring) into a Model.
 
     Args:

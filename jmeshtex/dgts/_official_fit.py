@@ -66,13 +66,19 @@ def _official_steps(config: PrepareConfig, num_samples: int):
             "normal_s2t": jnp.mean(1 - jnp.sum(ns * nt[s2t], -1)),
             "normal_t2s": jnp.mean(1 - jnp.sum(nt * ns[t2s], -1)),
         }
-        loss = (c.weight_s2t * terms["s2t"] + c.weight_t2s * terms["t2s"]
-                + c.weight_normal_s2t * terms["normal_s2t"] + c.weight_normal_t2s * terms["normal_t2s"])
+        loss = (
+            c.weight_s2t * terms["s2t"]
+            + c.weight_t2s * terms["t2s"]
+            + c.weight_normal_s2t * terms["normal_s2t"]
+            + c.weight_normal_t2s * terms["normal_t2s"]
+        )
         return loss, terms
 
     @jax.jit
     def chamfer_step(v, state, geo, key, pt, nt, s2t, t2s):
-        (_, terms), g = jax.value_and_grad(chamfer_loss, has_aux=True)(v, geo, key, pt, nt, s2t, t2s)
+        (_, terms), g = jax.value_and_grad(chamfer_loss, has_aux=True)(
+            v, geo, key, pt, nt, s2t, t2s
+        )
         v, state = apply(v, state, g)
         return v, state, terms
 
@@ -84,7 +90,12 @@ def _correspondences(sample, v, geo, key):
     ps, _, pt, nt = jax.device_get(sample(v, geo, key))
     s2t = scipy.spatial.cKDTree(pt).query(ps, workers=1)[1]
     t2s = scipy.spatial.cKDTree(ps).query(pt, workers=1)[1]
-    return jnp.asarray(pt), jnp.asarray(nt), jnp.asarray(s2t, jnp.int32), jnp.asarray(t2s, jnp.int32)
+    return (
+        jnp.asarray(pt),
+        jnp.asarray(nt),
+        jnp.asarray(s2t, jnp.int32),
+        jnp.asarray(t2s, jnp.int32),
+    )
 
 
 def fit_official(

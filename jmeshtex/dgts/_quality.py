@@ -42,7 +42,11 @@ def _heights_and_frame(mesh: MeshLike, heights) -> tuple[np.ndarray, np.ndarray,
     v, f = as_mesh(mesh, what="mesh")
     v = np.asarray(v, np.float64)
     f = np.asarray(f, np.int64)
-    h = normal_heights((v, f), smoothing=SMOOTHING) if heights is None else np.asarray(heights, np.float64)
+    h = (
+        normal_heights((v, f), smoothing=SMOOTHING)
+        if heights is None
+        else np.asarray(heights, np.float64)
+    )
     if h.shape != (len(v),):
         raise InputError(f"heights must be [V] = [{len(v)}], got {h.shape}")
     return v, f, h, float(mean_edge_length(v, f))
@@ -126,7 +130,9 @@ def height_autocorrelation_length(
       >>> bool(1.3 * small < large)  # sub-linear: the Taubin high-pass of the heights damps wide bumps
       True
     """
-    r, c = height_autocorrelation(mesh, heights, max_distance=max_distance, bin_width=bin_width, anchors=anchors)
+    r, c = height_autocorrelation(
+        mesh, heights, max_distance=max_distance, bin_width=bin_width, anchors=anchors
+    )
     if not np.any(np.nan_to_num(c[1:])):
         return 0.0
     target = 1.0 / np.e
@@ -199,7 +205,13 @@ def peak_statistics(
     is_max[hi[h[e[:, 0]] == h[e[:, 1]]]] = False
     peaks = np.flatnonzero(is_max)
     tri = v[f]
-    area = 0.5 * float(np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()) / ell**2
+    area = (
+        0.5
+        * float(
+            np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+        )
+        / ell**2
+    )
     spacing = np.inf
     if len(peaks) >= 2:
         d, _ = scipy.spatial.cKDTree(v[peaks] / ell).query(v[peaks] / ell, k=2)
@@ -234,13 +246,15 @@ def reconstruction_errors(model: Model, meshes: TrainingMeshes) -> Float[np.ndar
       (2,)
     """
     if model.num_levels > meshes.num_levels:
-        raise InputError(f"the model has {model.num_levels} levels, the training meshes {meshes.num_levels}")
+        raise InputError(
+            f"the model has {model.num_levels} levels, the training meshes {meshes.num_levels}"
+        )
     rec = reconstruct(model, Mesh(np.asarray(meshes.template, np.float64), meshes.faces[0]))
     out = []
     for level in range(model.num_levels):
         real = np.asarray(meshes.vertices[level], np.float64)
         # the template's coordinates are the level-0 frame; level l's is that times scale_factor**l
-        got = rec.level_vertices[level][0] * model.config.scale_factor ** level
+        got = rec.level_vertices[level][0] * model.config.scale_factor**level
         ell = mean_edge_length(real, meshes.faces[level])
         out.append(float(np.linalg.norm(got - real, axis=1).mean() / ell))
     return np.asarray(out)

@@ -159,7 +159,9 @@ def gradient_penalty(
     x = alpha * real_features + (1 - alpha) * fake_features
 
     def total(x):
-        return jnp.sum(discriminator_features(d_params, x, nbhd, negative_slope=negative_slope, eps=eps))
+        return jnp.sum(
+            discriminator_features(d_params, x, nbhd, negative_slope=negative_slope, eps=eps)
+        )
 
     g = jax.grad(total)(x)
     sq = jnp.sum(g * g, axis=(1, 2))
@@ -195,8 +197,9 @@ class LevelBatch(NamedTuple):
 def _advance(params, vertices, noise, geometry, *, config: Config):
     """One frozen level on a batch: ``s·U(v + G(v, z))`` for every row (forward only)."""
     kw = {"negative_slope": config.negative_slope, "eps": config.eps}
-    out = jax.vmap(lambda v, z: v + generator_level(params, v, geometry.nbhd, z, **kw, y_sign=config.y_sign))(
-        vertices, noise)
+    out = jax.vmap(
+        lambda v, z: v + generator_level(params, v, geometry.nbhd, z, **kw, y_sign=config.y_sign)
+    )(vertices, noise)
     return jax.vmap(lambda v: upsample(v, geometry.edge_vertices, scale=config.scale_factor))(out)
 
 
@@ -207,7 +210,9 @@ def _noise(key, fixed, *, shape: tuple[int, ...], amplitude: float):
     return jnp.concatenate([fresh, fixed], axis=0)
 
 
-def level_batch(model_levels, geos, template, z_star, key, *, config: Config, chunk: int) -> LevelBatch:
+def level_batch(
+    model_levels, geos, template, z_star, key, *, config: Config, chunk: int
+) -> LevelBatch:
     """Draw the noise of ``chunk`` steps of level ``L = len(model_levels)`` and run the frozen
     levels ``0 … L−1`` on it (forward only).
 
@@ -233,7 +238,9 @@ def level_batch(model_levels, geos, template, z_star, key, *, config: Config, ch
         fixed = jnp.zeros((int(fixed_rec), sizes[level], 3), dtype)
         if level == 0 and fixed_rec:
             fixed = z_star.astype(dtype)[None]
-        z = _noise(keys[level], fixed, shape=(n_fresh, sizes[level], 3), amplitude=float(c.noise_amplitude))
+        z = _noise(
+            keys[level], fixed, shape=(n_fresh, sizes[level], 3), amplitude=float(c.noise_amplitude)
+        )
         if level < L:
             v = _advance(model_levels[level], v, z, geos[level], config=c)
         zs.append(z)
@@ -310,8 +317,12 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: Config):
             (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(g, d, base, z, rbase, rz)
             return update(opt_g, grads, state, g), aux
 
-        (d, sd), d_aux = jax.lax.scan(d_step, (d, opt.d), (b.fake_base[:D], b.fake_noise[:D], b.alpha))
-        (g, sg), g_aux = jax.lax.scan(g_step, (g, opt.g), (b.fake_base[D:], b.fake_noise[D:], b.rec_base, b.rec_noise))
+        (d, sd), d_aux = jax.lax.scan(
+            d_step, (d, opt.d), (b.fake_base[:D], b.fake_noise[:D], b.alpha)
+        )
+        (g, sg), g_aux = jax.lax.scan(
+            g_step, (g, opt.g), (b.fake_base[D:], b.fake_noise[D:], b.rec_base, b.rec_noise)
+        )
         last_d = d_aux[-1] if D else jnp.zeros(3, real.dtype)
         return g, d, _Opt(sg, sd), history.at[i].set(jnp.concatenate([last_d, g_aux[-1]]))
 
@@ -338,14 +349,23 @@ def _fingerprint(meshes: TrainingMeshes, config: Config, key: PRNGKey) -> dict:
         a = np.ascontiguousarray(a)
         h.update(str((a.shape, a.dtype.str)).encode())
         h.update(a.tobytes())
-    return {"config": config.to_dict(), "key": np.asarray(jax.random.key_data(key)).tolist(),
-            "meshes": h.hexdigest()}
+    return {
+        "config": config.to_dict(),
+        "key": np.asarray(jax.random.key_data(key)).tolist(),
+        "meshes": h.hexdigest(),
+    }
 
 
 def _level_state(config: Config, level: int, g, d) -> dict:
     """The state of a level in progress: its networks and their optimiser states."""
-    return {"g": g, "d": d, "opt": _Opt(_optimizer(config, config.generator_steps).init(g),
-                                        _optimizer(config, config.discriminator_steps).init(d))}
+    return {
+        "g": g,
+        "d": d,
+        "opt": _Opt(
+            _optimizer(config, config.generator_steps).init(g),
+            _optimizer(config, config.discriminator_steps).init(d),
+        ),
+    }
 
 
 def _checkpoint_like(config: Config, meta: dict, num_vertices: int) -> dict:
@@ -354,8 +374,12 @@ def _checkpoint_like(config: Config, meta: dict, num_vertices: int) -> dict:
     if meta["level_steps"]:
         level = int(meta["completed_levels"])
         key = jax.random.key(0)
-        like["current"] = _level_state(config, level, init_level(config, level, generator=True, key=key),
-                                       init_level(config, level, generator=False, key=key))
+        like["current"] = _level_state(
+            config,
+            level,
+            init_level(config, level, generator=True, key=key),
+            init_level(config, level, generator=False, key=key),
+        )
     return like
 
 
@@ -421,12 +445,20 @@ def train(
     t_start = time.perf_counter()
     config = Config() if config is None else config
     total = meshes.num_levels if levels is None else levels
-    if isinstance(total, bool) or not isinstance(total, (int, np.integer)) or not 1 <= total <= meshes.num_levels:
-        raise ConfigError(f"levels must be an int in [1, {meshes.num_levels}] (the training meshes' levels), "
-                          f"got {levels!r}")
+    if (
+        isinstance(total, bool)
+        or not isinstance(total, (int, np.integer))
+        or not 1 <= total <= meshes.num_levels
+    ):
+        raise ConfigError(
+            f"levels must be an int in [1, {meshes.num_levels}] (the training meshes' levels), "
+            f"got {levels!r}"
+        )
     total = int(total)
     if checkpoint_every is not None and (checkpoint_dir is None or int(checkpoint_every) < 1):
-        raise ConfigError(f"checkpoint_every={checkpoint_every!r} needs a checkpoint_dir and a value >= 1")
+        raise ConfigError(
+            f"checkpoint_every={checkpoint_every!r} needs a checkpoint_dir and a value >= 1"
+        )
     every = None if checkpoint_every is None else -(-int(checkpoint_every) // CHUNK)  # in chunks
     if snapshot_every is not None and (isinstance(snapshot_every, bool) or int(snapshot_every) < 1):
         raise ConfigError(f"snapshot_every must be an int >= 1, got {snapshot_every!r}")
@@ -438,7 +470,9 @@ def train(
     geos_all, faces = hierarchy_geometry(meshes.faces[0], V[0], n_geo)
     for level in range(n_geo):
         if not np.array_equal(faces[level], meshes.faces[level]):
-            raise InputError(f"training mesh level {level} is not the midpoint subdivision of level {level - 1}")
+            raise InputError(
+                f"training mesh level {level} is not the midpoint subdivision of level {level - 1}"
+            )
     k_init, k_z, k_train = jax.random.split(key, 3)
     S = config.steps
     gs: list = []
@@ -456,7 +490,9 @@ def train(
         if step is not None:
             meta = ckpt.read_meta(step)
             if meta.get("kind") != CHECKPOINT_KIND:
-                raise InputError(f"{checkpoint_dir} holds {meta.get('kind')!r}, not DGTS training checkpoints")
+                raise InputError(
+                    f"{checkpoint_dir} holds {meta.get('kind')!r}, not DGTS training checkpoints"
+                )
             state, meta = ckpt.restore(_checkpoint_like(config, meta, V[0]), step=step)
             gs, ds = list(state["model"]["generators"]), list(state["model"]["discriminators"])
             z_star = np.asarray(state["model"]["z_star"], np.float32)
@@ -473,9 +509,14 @@ def train(
         state = {"model": model_state(Model(config, tuple(gs), tuple(ds), z_star))}
         if g is not None:
             state["current"] = {"g": g, "d": d, "opt": opt}
-        meta = {"kind": CHECKPOINT_KIND, "config": config.to_dict(), "completed_levels": len(gs),
-                "level_steps": 0 if g is None else done, "losses": history,
-                "levels": [dataclasses.asdict(r) for r in reports]}
+        meta = {
+            "kind": CHECKPOINT_KIND,
+            "config": config.to_dict(),
+            "completed_levels": len(gs),
+            "level_steps": 0 if g is None else done,
+            "losses": history,
+            "levels": [dataclasses.asdict(r) for r in reports],
+        }
         ckpt.save(level * S + done, state, meta=meta)
 
     try:
@@ -485,8 +526,10 @@ def train(
                 start, current = current_steps, None
             else:
                 g, d = _initial_params(config, level, k_init, gs, ds)
-                opt = _Opt(_optimizer(config, config.generator_steps).init(g),
-                           _optimizer(config, config.discriminator_steps).init(d))
+                opt = _Opt(
+                    _optimizer(config, config.generator_steps).init(g),
+                    _optimizer(config, config.discriminator_steps).init(d),
+                )
                 start = 0
             geos = geos_all[: level + 1]
             nbhd = geos[-1].nbhd
@@ -497,7 +540,13 @@ def train(
             if progress:
                 from tqdm.auto import tqdm
 
-                bar = tqdm(total=S, initial=start, desc=f"DGTS level {level + 1}/{total}", unit="step", leave=True)
+                bar = tqdm(
+                    total=S,
+                    initial=start,
+                    desc=f"DGTS level {level + 1}/{total}",
+                    unit="step",
+                    leave=True,
+                )
             n_chunks = -(-S // CHUNK)
             t_compile = 0.0
             t0 = time.perf_counter()
@@ -505,8 +554,15 @@ def train(
             for chunk in range(start // CHUNK, n_chunks):
                 n = min(CHUNK, S - chunk * CHUNK)
                 t_b = time.perf_counter()
-                batch = level_batch(frozen, geos, template, z_star_j, jax.random.fold_in(k_level, chunk),
-                                    config=config, chunk=CHUNK)
+                batch = level_batch(
+                    frozen,
+                    geos,
+                    template,
+                    z_star_j,
+                    jax.random.fold_in(k_level, chunk),
+                    config=config,
+                    chunk=CHUNK,
+                )
                 first = chunk == start // CHUNK
                 if first:  # the first chunk compiles the frozen levels (new shapes only)
                     jax.block_until_ready(batch)
@@ -522,14 +578,29 @@ def train(
                 t_compile += t_b + t_s
                 if bar is not None:
                     bar.update(n)
-                    bar.set_postfix(rec=f"{float(losses['g_rec'][n - 1]):.3g}",
-                                    adv=f"{float(losses['g_adv'][n - 1]):.3g}")
+                    bar.set_postfix(
+                        rec=f"{float(losses['g_rec'][n - 1]):.3g}",
+                        adv=f"{float(losses['g_adv'][n - 1]):.3g}",
+                    )
                 done = chunk * CHUNK + n
                 if snap_every is not None and ((chunk + 1) % snap_every == 0 or done == S):
-                    sample, rec = _snapshot(g, nbhd, batch.fake_base[0, 0], batch.fake_noise[0, 0],
-                                            batch.rec_base[0, 0], batch.rec_noise[0, 0], config=config)
-                    snapshots.append({"level": level, "step": done, "sample": np.asarray(sample, np.float64),
-                                      "reconstruction": np.asarray(rec, np.float64)})
+                    sample, rec = _snapshot(
+                        g,
+                        nbhd,
+                        batch.fake_base[0, 0],
+                        batch.fake_noise[0, 0],
+                        batch.rec_base[0, 0],
+                        batch.rec_noise[0, 0],
+                        config=config,
+                    )
+                    snapshots.append(
+                        {
+                            "level": level,
+                            "step": done,
+                            "sample": np.asarray(sample, np.float64),
+                            "reconstruction": np.asarray(rec, np.float64),
+                        }
+                    )
                 if ckpt is not None and every is not None and (chunk + 1) % every == 0 and done < S:
                     _extend(history, chunk_losses)
                     chunk_losses = []
@@ -540,15 +611,17 @@ def train(
             if bar is not None:
                 bar.close()
             ran = S - start
-            reports.append(LevelReport(
-                level=level,
-                steps=S,
-                faces=int(len(meshes.faces[level])),
-                compile_seconds=t_compile,
-                seconds=seconds,
-                seconds_per_step=(seconds - t_compile) / max(ran, 1),
-                losses={k: v[-1] for k, v in history.items()} if S else {},
-            ))
+            reports.append(
+                LevelReport(
+                    level=level,
+                    steps=S,
+                    faces=int(len(meshes.faces[level])),
+                    compile_seconds=t_compile,
+                    seconds=seconds,
+                    seconds_per_step=(seconds - t_compile) / max(ran, 1),
+                    losses={k: v[-1] for k, v in history.items()} if S else {},
+                )
+            )
             gs.append(g)
             ds.append(d)
             if ckpt is not None:
@@ -558,16 +631,23 @@ def train(
             ckpt.close()
     model = Model(config, tuple(gs[:total]), tuple(ds[:total]), z_star)
     losses = {k: np.asarray(v[: total * S], np.float64) for k, v in history.items()}
-    return TrainResult(model=model, losses=losses, steps=min(len(gs), total) * S,
-                       seconds=time.perf_counter() - t_start, resumed_from=resumed_from,
-                       extra={"levels": reports[:total], **({"snapshots": snapshots} if snap_every else {})})
+    return TrainResult(
+        model=model,
+        losses=losses,
+        steps=min(len(gs), total) * S,
+        seconds=time.perf_counter() - t_start,
+        resumed_from=resumed_from,
+        extra={"levels": reports[:total], **({"snapshots": snapshots} if snap_every else {})},
+    )
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
 def _snapshot(g, nbhd, base, z, rec_base, rec_z, *, config: Config):
     """The current generator's sample and reconstruction on one row of a :class:`LevelBatch`."""
     kw = {"negative_slope": config.negative_slope, "eps": config.eps, "y_sign": config.y_sign}
-    return base + generator_level(g, base, nbhd, z, **kw), rec_base + generator_level(g, rec_base, nbhd, rec_z, **kw)
+    return base + generator_level(g, base, nbhd, z, **kw), rec_base + generator_level(
+        g, rec_base, nbhd, rec_z, **kw
+    )
 
 
 def _extend(history: dict[str, list[float]], chunk_losses: list[dict]) -> None:
@@ -583,8 +663,11 @@ def _padded_sizes(geos, shared_levels: int) -> list[dict[str, int]]:
     if len(shared) < 2:
         return []
     last = shared[-1].nbhd
-    size = {"F": int(last.faces.shape[0]), "V": int(last.vertex_mask.shape[0]),
-            "M": max(int(g.nbhd.vertex_faces.shape[1]) for g in shared)}
+    size = {
+        "F": int(last.faces.shape[0]),
+        "V": int(last.vertex_mask.shape[0]),
+        "M": max(int(g.nbhd.vertex_faces.shape[1]) for g in shared),
+    }
     return [size] * len(shared)
 
 
@@ -600,7 +683,9 @@ def pad_level(nbhd: FaceNeighborhood, real, batch: LevelBatch, size: dict[str, i
     def rows(x):
         return jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(0, extra), (0, 0)])
 
-    batch = batch._replace(**{k: rows(getattr(batch, k)) for k in ("fake_base", "fake_noise", "rec_base", "rec_noise")})
+    batch = batch._replace(
+        **{k: rows(getattr(batch, k)) for k in ("fake_base", "fake_noise", "rec_base", "rec_noise")}
+    )
     return pad_to(nbhd, size), rows(real), batch
 
 
@@ -612,10 +697,12 @@ def _pad_level(args, size):
 def _initial_params(config: Config, level: int, key, gs: list, ds: list):
     """Fresh parameters of ``level``, or the previous level's where the widths match (warm start)."""
     out = []
-    for generator, previous, k in zip((True, False), (gs, ds), jax.random.split(jax.random.fold_in(key, level)),
-                                      strict=True):
-        same = level > 0 and config.level_features(level, generator=generator) == config.level_features(
-            level - 1, generator=generator)
+    for generator, previous, k in zip(
+        (True, False), (gs, ds), jax.random.split(jax.random.fold_in(key, level)), strict=True
+    ):
+        same = level > 0 and config.level_features(
+            level, generator=generator
+        ) == config.level_features(level - 1, generator=generator)
         out.append(previous[-1] if same else init_level(config, level, generator=generator, key=k))
     return out[0], out[1]
 
@@ -628,8 +715,15 @@ def _compiled(fn, args: tuple, static: dict):
     """``(compiled fn, compile seconds)``: ``fn`` lowered and compiled once per static arguments and
     argument shapes/dtypes (so compile time is measured apart from run time)."""
     leaves, treedef = jax.tree.flatten(args)
-    signature = (fn, tuple(sorted(static.items())), treedef,
-                 tuple((np.shape(x), jnp.result_type(x).name if hasattr(x, "dtype") else type(x)) for x in leaves))
+    signature = (
+        fn,
+        tuple(sorted(static.items())),
+        treedef,
+        tuple(
+            (np.shape(x), jnp.result_type(x).name if hasattr(x, "dtype") else type(x))
+            for x in leaves
+        ),
+    )
     hit = _COMPILED.get(signature)
     if hit is not None:
         return hit, 0.0

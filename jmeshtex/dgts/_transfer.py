@@ -100,7 +100,9 @@ class TransferPlan(NamedTuple):
     start_level: int
     scale_factor: float = 2.0
 
-    def to_target(self, vertices: Float[Array, "Vn 3"], level: int | None = None) -> Float[np.ndarray, "Vn 3"]:
+    def to_target(
+        self, vertices: Float[Array, "Vn 3"], level: int | None = None
+    ) -> Float[np.ndarray, "Vn 3"]:
         """Output positions of :func:`run_plan` back in the target's coordinates (float64).
 
         ``level``: the index (into ``sizes``) of the level run the positions come from; default the
@@ -146,8 +148,14 @@ def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -
     L = model.num_levels
     if L == 0:
         raise InputError("the model has no trained level: train it first")
-    if isinstance(start_level, bool) or not isinstance(start_level, (int, np.integer)) or not 0 <= start_level < L:
-        raise InputError(f"start_level must be an int in [0, {L - 1}] (the model has {L} levels), got {start_level!r}")
+    if (
+        isinstance(start_level, bool)
+        or not isinstance(start_level, (int, np.integer))
+        or not 0 <= start_level < L
+    ):
+        raise InputError(
+            f"start_level must be an int in [0, {L - 1}] (the model has {L} levels), got {start_level!r}"
+        )
     v = np.asarray(v, np.float64)
     f = np.asarray(f, np.int64)
     center = v.mean(axis=0)
@@ -158,17 +166,36 @@ def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -
     for g in geos[:-1]:
         sizes.append(sizes[-1] + int(g.edge_vertices.shape[0]))
     factor = scale * model.config.scale_factor ** (n - 1)
-    return TransferPlan(jnp.asarray((v - center) * scale, jnp.float32), geos, faces_all, tuple(sizes), center,
-                        float(factor), int(start_level), float(model.config.scale_factor))
+    return TransferPlan(
+        jnp.asarray((v - center) * scale, jnp.float32),
+        geos,
+        faces_all,
+        tuple(sizes),
+        center,
+        float(factor),
+        int(start_level),
+        float(model.config.scale_factor),
+    )
 
 
 @jax.jit(static_argnums=(0, 1, 2, 3, 4))
 def _generate_jit(scale, negative_slope, eps, y_sign, per_level, v0, geos, params, zs):
-    return generate(params, v0, geos, zs, scale=scale, negative_slope=negative_slope, eps=eps, y_sign=y_sign,
-                    per_level=per_level)
+    return generate(
+        params,
+        v0,
+        geos,
+        zs,
+        scale=scale,
+        negative_slope=negative_slope,
+        eps=eps,
+        y_sign=y_sign,
+        per_level=per_level,
+    )
 
 
-def run_plan(model: Model, plan: TransferPlan, noise: Sequence[Float[Array, "Vl 3"] | float]) -> Float[Array, "Vn 3"]:
+def run_plan(
+    model: Model, plan: TransferPlan, noise: Sequence[Float[Array, "Vl 3"] | float]
+) -> Float[Array, "Vn 3"]:
     """Run the generators on a prepared target with the given noise (jit-compiled, pure JAX).
 
     .. math:: v_{l+1} = s\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start} \\ldots L-1
@@ -195,9 +222,18 @@ def run_plan(model: Model, plan: TransferPlan, noise: Sequence[Float[Array, "Vl 
     if len(noise) != len(plan.sizes):
         raise InputError(f"run_plan: got {len(noise)} noises for {len(plan.sizes)} levels")
     c = model.config
-    params = tuple(model.generators[plan.start_level:])
-    return _generate_jit(c.scale_factor, c.negative_slope, c.eps, c.y_sign, False, plan.vertices, plan.geometry,
-                         params, tuple(noise))
+    params = tuple(model.generators[plan.start_level :])
+    return _generate_jit(
+        c.scale_factor,
+        c.negative_slope,
+        c.eps,
+        c.y_sign,
+        False,
+        plan.vertices,
+        plan.geometry,
+        params,
+        tuple(noise),
+    )
 
 
 def output_faces(model: Model, num_faces: int, start_level: int) -> int:
@@ -246,8 +282,10 @@ def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000
     for start in range(L):
         if output_faces(model, num_faces, start) <= max_faces:
             return start
-    raise FaceBudgetError(f"the target has {num_faces} faces: even from the last level (no subdivision) the output "
-                          f"exceeds max_faces={max_faces}; decimate the target or raise max_faces")
+    raise FaceBudgetError(
+        f"the target has {num_faces} faces: even from the last level (no subdivision) the output "
+        f"exceeds max_faces={max_faces}; decimate the target or raise max_faces"
+    )
 
 
 def _resolve_start(model: Model, target, start_level: int | None, max_faces: int | None) -> int:
@@ -255,24 +293,47 @@ def _resolve_start(model: Model, target, start_level: int | None, max_faces: int
     F = int(np.shape(f)[0])
     if start_level is None:
         return choose_start_level(model, F, max_faces=500_000 if max_faces is None else max_faces)
-    if max_faces is not None and 0 <= start_level < model.num_levels and output_faces(model, F, start_level) > max_faces:
-        raise FaceBudgetError(f"start_level={start_level} on {F} faces gives {output_faces(model, F, start_level)} "
-                              f"faces, over max_faces={max_faces}; use start_level=None to choose one that fits")
+    if (
+        max_faces is not None
+        and 0 <= start_level < model.num_levels
+        and output_faces(model, F, start_level) > max_faces
+    ):
+        raise FaceBudgetError(
+            f"start_level={start_level} on {F} faces gives {output_faces(model, F, start_level)} "
+            f"faces, over max_faces={max_faces}; use start_level=None to choose one that fits"
+        )
     return start_level
 
 
 def _noises(key: PRNGKey, sizes: Sequence[int], amplitude: float) -> list[jax.Array]:
     keys = jax.random.split(key, len(sizes))
-    return [amplitude * jax.random.normal(k, (s, 3), jnp.float32) for k, s in zip(keys, sizes, strict=True)]
+    return [
+        amplitude * jax.random.normal(k, (s, 3), jnp.float32)
+        for k, s in zip(keys, sizes, strict=True)
+    ]
 
 
-def _synthesise(model: Model, plan: TransferPlan, draws: Sequence[Sequence], *, per_level: bool) -> DGTSTransfer:
+def _synthesise(
+    model: Model, plan: TransferPlan, draws: Sequence[Sequence], *, per_level: bool
+) -> DGTSTransfer:
     """Run the generators of ``plan`` once per noise list in ``draws`` (one ``[V_l, 3]`` array per level
     run) and map the results back to the target's frame."""
     c = model.config
-    params = tuple(model.generators[plan.start_level:])
-    outs = [_generate_jit(c.scale_factor, c.negative_slope, c.eps, c.y_sign, True, plan.vertices, plan.geometry,
-                          params, tuple(jnp.asarray(z, jnp.float32) for z in zs)) for zs in draws]
+    params = tuple(model.generators[plan.start_level :])
+    outs = [
+        _generate_jit(
+            c.scale_factor,
+            c.negative_slope,
+            c.eps,
+            c.y_sign,
+            True,
+            plan.vertices,
+            plan.geometry,
+            params,
+            tuple(jnp.asarray(z, jnp.float32) for z in zs),
+        )
+        for zs in draws
+    ]
     base = plan.vertices
     for g in plan.geometry[:-1]:
         base = upsample(base, g.edge_vertices, scale=c.scale_factor)
@@ -283,22 +344,37 @@ def _synthesise(model: Model, plan: TransferPlan, draws: Sequence[Sequence], *, 
     vertices = np.stack([plan.to_target(o) for o in last])
     levels: tuple = ()
     if per_level:
-        levels = tuple(np.stack([plan.to_target(o[i], level=i) for o in outs]) for i in range(len(plan.sizes)))
-    return DGTSTransfer(vertices, plan.faces[-1], plan.to_target(base), heights,
-                        [[np.asarray(z, np.float32) for z in zs] for zs in draws], plan.start_level,
-                        levels, tuple(plan.faces) if per_level else ())
+        levels = tuple(
+            np.stack([plan.to_target(o[i], level=i) for o in outs]) for i in range(len(plan.sizes))
+        )
+    return DGTSTransfer(
+        vertices,
+        plan.faces[-1],
+        plan.to_target(base),
+        heights,
+        [[np.asarray(z, np.float32) for z in zs] for zs in draws],
+        plan.start_level,
+        levels,
+        tuple(plan.faces) if per_level else (),
+    )
 
 
 def _zero_above(draws: list, plan: TransferPlan, zero_noise_from: int | None) -> list:
     if zero_noise_from is None:
         return draws
     k = int(zero_noise_from)
-    return [[np.zeros_like(np.asarray(z)) if plan.start_level + i >= k else z for i, z in enumerate(zs)]
-            for zs in draws]
+    return [
+        [np.zeros_like(np.asarray(z)) if plan.start_level + i >= k else z for i, z in enumerate(zs)]
+        for zs in draws
+    ]
 
 
 def _check_level(name: str, value, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not low <= value <= high
+    ):
         raise InputError(f"{name} must be an int in [{low}, {high}], got {value!r}")
     return int(value)
 
@@ -356,13 +432,20 @@ def transfer(
       >>> transfer(model, torus(8, 6), max_faces=200, key=jax.random.key(0)).start_level  # 96 faces fit
       1
     """
-    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
+    if (
+        isinstance(num_samples, bool)
+        or not isinstance(num_samples, (int, np.integer))
+        or num_samples < 1
+    ):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     if zero_noise_from is not None:
         _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
     start = _resolve_start(model, target, start_level, max_faces)
     plan = plan_transfer(model, target, start_level=start)
-    draws = [_noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude) for s in range(int(num_samples))]
+    draws = [
+        _noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude)
+        for s in range(int(num_samples))
+    ]
     return _synthesise(model, plan, _zero_above(draws, plan, zero_noise_from), per_level=per_level)
 
 
@@ -370,8 +453,10 @@ def _reconstruction_noise(model: Model, sizes: Sequence[int]) -> list[np.ndarray
     """``z*`` at level 0 and zero above (the noise of the training reconstruction)."""
     z = np.asarray(model.z_star, np.float32)
     if z.shape != (sizes[0], 3):
-        raise InputError(f"the template has {sizes[0]} vertices but the model's z* has {z.shape[0]} rows: pass the "
-                         "training template (TrainingMeshes.template with faces[0])")
+        raise InputError(
+            f"the template has {sizes[0]} vertices but the model's z* has {z.shape[0]} rows: pass the "
+            "training template (TrainingMeshes.template with faces[0])"
+        )
     return [z] + [np.zeros((s, 3), np.float32) for s in sizes[1:]]
 
 
@@ -420,7 +505,11 @@ def conditional(
     """
     L = model.num_levels
     k = _check_level("level", level, 0, L)
-    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
+    if (
+        isinstance(num_samples, bool)
+        or not isinstance(num_samples, (int, np.integer))
+        or num_samples < 1
+    ):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     plan = plan_transfer(model, template, start_level=0)
     rec = _reconstruction_noise(model, plan.sizes)
@@ -461,7 +550,9 @@ def reconstruct(
       >>> [v.shape for v in reconstruct(model, (tm.template, tm.faces[0])).level_vertices]
       [(1, 12, 3), (1, 42, 3)]
     """
-    return conditional(model, template, level=model.num_levels, key=jax.random.key(0), per_level=per_level)
+    return conditional(
+        model, template, level=model.num_levels, key=jax.random.key(0), per_level=per_level
+    )
 
 
 def interpolate(
@@ -496,7 +587,11 @@ def interpolate(
       >>> interpolate(model, icosahedron(), start_level=1, num_frames=3, key=jax.random.key(0)).vertices.shape
       (3, 12, 3)
     """
-    if isinstance(num_frames, bool) or not isinstance(num_frames, (int, np.integer)) or num_frames < 2:
+    if (
+        isinstance(num_frames, bool)
+        or not isinstance(num_frames, (int, np.integer))
+        or num_frames < 2
+    ):
         raise InputError(f"num_frames must be an int >= 2, got {num_frames!r}")
     start = _resolve_start(model, target, start_level, max_faces)
     plan = plan_transfer(model, target, start_level=start)
@@ -543,7 +638,9 @@ def normal_heights(
     f = np.asarray(f, np.int64)
     V = len(v)
     pairs = unique_edges(f, V)
-    a = scipy.sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(V, V)).tocsr()
+    a = scipy.sparse.coo_matrix(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(V, V)
+    ).tocsr()
     a = a + a.T
     deg = np.asarray(a.sum(axis=1)).ravel()
     avg = scipy.sparse.diags(1.0 / np.maximum(deg, 1)) @ a

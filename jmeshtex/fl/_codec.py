@@ -34,8 +34,10 @@ from ._model import FieldLatents, Model, decode_vertex_colors_from_latents
 
 def _check_model(model) -> Model:
     if not isinstance(model, Model):
-        raise InputError(f"expected a jmeshtex.fl.Model (from fl.init, fl.train(...).model, fl.load or "
-                         f"fl.load_pretrained), got {type(model).__name__}")
+        raise InputError(
+            f"expected a jmeshtex.fl.Model (from fl.init, fl.train(...).model, fl.load or "
+            f"fl.load_pretrained), got {type(model).__name__}"
+        )
     return model
 
 
@@ -43,8 +45,10 @@ def _latent_means(model: Model, mesh: Mesh, latents) -> jax.Array:
     """``latents`` (FieldLatents or a complex ``[V, d]`` array) as μ, checked against the mesh."""
     mu = latents.mu if isinstance(latents, FieldLatents) else latents
     if jnp.shape(mu) != (mesh.num_vertices, model.config.latent_dim):
-        raise InputError(f"latents must have shape [V, d] = ({mesh.num_vertices}, {model.config.latent_dim}), "
-                         f"got {jnp.shape(mu)}")
+        raise InputError(
+            f"latents must have shape [V, d] = ({mesh.num_vertices}, {model.config.latent_dim}), "
+            f"got {jnp.shape(mu)}"
+        )
     return jnp.asarray(mu).astype(model.params.encoder.mean.dtype)
 
 
@@ -53,7 +57,9 @@ def _encode_chunk(params, config, log_q, rgb, mask):
     return encode_samples_raw(params.encoder, config, log_q, rgb, mask)
 
 
-def encode(model: Model, mesh: Mesh | tuple, *, key: PRNGKey, colors: SurfaceColors | None = None) -> FieldLatents:
+def encode(
+    model: Model, mesh: Mesh | tuple, *, key: PRNGKey, colors: SurfaceColors | None = None
+) -> FieldLatents:
     """Encode a mesh's texture (or vertex colours) as tangent-vector latents at its vertices.
 
     Draws ``config.num_samples`` area-uniform points in every one-ring (host, from ``key``), reads
@@ -91,20 +97,31 @@ def encode(model: Model, mesh: Mesh | tuple, *, key: PRNGKey, colors: SurfaceCol
     if colors is None:
         colors = surface_colors(mesh)
     elif not isinstance(colors, SurfaceColors):
-        raise InputError(f"colors must be a SurfaceColors (see jmeshtex.fl.surface_colors), got {type(colors).__name__}")
-    samples = one_ring_samples(mesh.vertices, mesh.faces, model.config.num_samples, rng=_numpy_rng(key))
+        raise InputError(
+            f"colors must be a SurfaceColors (see jmeshtex.fl.surface_colors), got {type(colors).__name__}"
+        )
+    samples = one_ring_samples(
+        mesh.vertices, mesh.faces, model.config.num_samples, rng=_numpy_rng(key)
+    )
     if colors.vertices is mesh.vertices or (
-        colors.faces.shape == mesh.faces.shape and np.array_equal(colors.faces, mesh.faces)
+        colors.faces.shape == mesh.faces.shape
+        and np.array_equal(colors.faces, mesh.faces)
         and np.array_equal(colors.vertices, mesh.vertices)
     ):
         rgb = colors.at_barycentric(samples.face, samples.bary)
     else:  # another triangulation: look colours up at the sample positions
-        points = np.einsum("vsk,vskd->vsd", samples.bary, np.asarray(mesh.vertices, np.float64)[mesh.faces[samples.face]])
+        points = np.einsum(
+            "vsk,vskd->vsd",
+            samples.bary,
+            np.asarray(mesh.vertices, np.float64)[mesh.faces[samples.face]],
+        )
         rgb = colors.at_points(points.reshape(-1, 3)).reshape(*samples.face.shape, 3)
     return encode_one_rings(model, samples, rgb)
 
 
-def encode_one_rings(model: Model, samples: OneRingSamples, rgb: Float[np.ndarray, "V S 3"]) -> FieldLatents:
+def encode_one_rings(
+    model: Model, samples: OneRingSamples, rgb: Float[np.ndarray, "V S 3"]
+) -> FieldLatents:
     """Encode precomputed one-ring samples of a whole mesh with the jitted encoder, chunk by chunk.
 
     The vertices go through the encoder in chunks of ``config.encode_chunk`` (the last one padded),
@@ -132,7 +149,9 @@ def encode_one_rings(model: Model, samples: OneRingSamples, rgb: Float[np.ndarra
     """
     model = _check_model(model)
     if not isinstance(samples, OneRingSamples):
-        raise InputError(f"samples must be OneRingSamples (see jmeshtex.fl.one_ring_samples), got {type(samples).__name__}")
+        raise InputError(
+            f"samples must be OneRingSamples (see jmeshtex.fl.one_ring_samples), got {type(samples).__name__}"
+        )
     log, mask, rgb = np.asarray(samples.log), np.asarray(samples.mask), np.asarray(rgb)
     if rgb.shape != (*log.shape, 3):
         raise InputError(f"rgb must have shape [V, S, 3] = {(*log.shape, 3)}, got {rgb.shape}")
@@ -150,8 +169,13 @@ def encode_one_rings(model: Model, samples: OneRingSamples, rgb: Float[np.ndarra
             a = a[start:stop]
             return np.concatenate([a, np.full((pad, *a.shape[1:]), fill, a.dtype)]) if pad else a
 
-        mu, ls = _encode_chunk(model.params, config, jnp.asarray(chunk(log), cdt), jnp.asarray(chunk(rgb), rdt),
-                               jnp.asarray(chunk(mask, False)))
+        mu, ls = _encode_chunk(
+            model.params,
+            config,
+            jnp.asarray(chunk(log), cdt),
+            jnp.asarray(chunk(rgb), rdt),
+            jnp.asarray(chunk(mask, False)),
+        )
         mus.append(mu[: stop - start])
         sigmas.append(ls[: stop - start])
     return FieldLatents(mu=jnp.concatenate(mus), log_sigma=jnp.concatenate(sigmas))
@@ -195,8 +219,13 @@ def _decode_texels_bary(params, config, mu, corners, bary):
 
 
 def decode_points_in_faces(
-    model: Model, mesh: Mesh | tuple, latents: FieldLatents | Complex[Array, "V d"],
-    face: Int[np.ndarray, " N"], bary: Float[np.ndarray, "N 3"], *, chunk: int = 65536,
+    model: Model,
+    mesh: Mesh | tuple,
+    latents: FieldLatents | Complex[Array, "V d"],
+    face: Int[np.ndarray, " N"],
+    bary: Float[np.ndarray, "N 3"],
+    *,
+    chunk: int = 65536,
 ) -> Float[np.ndarray, "N 3"]:
     """Decoded colours (unclipped, NumPy) at points ``(face, bary)`` of ``mesh`` from its latents.
 
@@ -247,7 +276,9 @@ def decode_points_in_faces(
         corners = jnp.asarray(faces[f], jnp.int32)
         if geom is not None:
             logs = np.stack([corner_logs(geom, f, np.full(len(f), k), b) for k in range(3)], axis=1)
-            res = _decode_texels_log(params, config, mu, corners, jnp.asarray(logs, cdt), jnp.asarray(b, rdt))
+            res = _decode_texels_log(
+                params, config, mu, corners, jnp.asarray(logs, cdt), jnp.asarray(b, rdt)
+            )
         else:
             res = _decode_texels_bary(params, config, mu, corners, jnp.asarray(b, rdt))
         out[start:stop] = np.asarray(res)[: stop - start]
@@ -291,7 +322,9 @@ def decode_texture(
     model = _check_model(model)
     mesh = as_mesh(mesh, what="mesh")
     if mesh.uv is None:
-        raise InputError("decode_texture needs a mesh with UV coordinates (mesh.uv [F, 3, 2]); use decode_vertex_colors otherwise")
+        raise InputError(
+            "decode_texture needs a mesh with UV coordinates (mesh.uv [F, 3, 2]); use decode_vertex_colors otherwise"
+        )
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
         raise InputError(f"size must be a positive int, got {size!r}")
     mu = _latent_means(model, mesh, latents)
@@ -299,6 +332,8 @@ def decode_texture(
     colors = decode_points_in_faces(model, mesh, mu, texels.face, texels.bary)
     tex = np.zeros((size, size, 3))
     valid = np.zeros((size, size), bool)
-    tex[texels.row, texels.col] = np.clip(colors, 0.0, 1.0)  # a texel on a shared edge: last face wins
+    tex[texels.row, texels.col] = np.clip(
+        colors, 0.0, 1.0
+    )  # a texel on a shared edge: last face wins
     valid[texels.row, texels.col] = True
     return tex, valid

@@ -50,7 +50,9 @@ class SurfaceColors:
         """``"texture"`` or ``"vertex_colors"``."""
         return "texture" if self.texture is not None else "vertex_colors"
 
-    def at_barycentric(self, face: Int[np.ndarray, " N"], bary: Float[np.ndarray, "N 3"]) -> Float[np.ndarray, "N 3"]:
+    def at_barycentric(
+        self, face: Int[np.ndarray, " N"], bary: Float[np.ndarray, "N 3"]
+    ) -> Float[np.ndarray, "N 3"]:
         """Colours at points given by face and barycentric coordinates (corner order of ``faces``).
 
         Texture: bilinear lookup at ``uv(p) = Σ_k b_k uv_{f,k}``; vertex colours: ``Σ_k b_k c_{f_k}``.
@@ -72,9 +74,13 @@ class SurfaceColors:
         face = np.asarray(face)
         bary = np.asarray(bary, dtype=np.float64)
         if bary.shape != (*face.shape, 3):
-            raise InputError(f"bary must have shape face.shape + (3,) = {(*face.shape, 3)}, got {bary.shape}")
+            raise InputError(
+                f"bary must have shape face.shape + (3,) = {(*face.shape, 3)}, got {bary.shape}"
+            )
         if face.size and (face.min() < 0 or face.max() >= len(self.faces)):
-            raise InputError(f"face indices must lie in [0, {len(self.faces)}), got {face.min()}..{face.max()}")
+            raise InputError(
+                f"face indices must lie in [0, {len(self.faces)}), got {face.min()}..{face.max()}"
+            )
         if self.texture is not None:
             return sample_texture(self.texture, uv_at(self.uv, face, bary), mode="bilinear")
         corners = self.vertex_colors[self.faces[face]]  # [..., 3, 3]
@@ -99,7 +105,9 @@ class SurfaceColors:
         face, bary = self.closest(points)
         return self.at_barycentric(face, bary)
 
-    def closest(self, points: Float[np.ndarray, "N 3"]) -> tuple[Int[np.ndarray, " N"], Float[np.ndarray, "N 3"]]:
+    def closest(
+        self, points: Float[np.ndarray, "N 3"]
+    ) -> tuple[Int[np.ndarray, " N"], Float[np.ndarray, "N 3"]]:
         """Closest point on the mesh as ``(face [N], bary [N, 3])`` (libigl AABB tree)."""
         import igl
 
@@ -157,12 +165,16 @@ def surface_colors(mesh: Mesh) -> SurfaceColors:
             tex = tex[..., None]
         uv = np.asarray(mesh.uv, dtype=np.float64)
         if uv.shape != (len(faces), 3, 2):
-            raise InputError(f"mesh.uv must have shape [F, 3, 2] = ({len(faces)}, 3, 2), got {uv.shape}")
+            raise InputError(
+                f"mesh.uv must have shape [F, 3, 2] = ({len(faces)}, 3, 2), got {uv.shape}"
+            )
         return SurfaceColors(vertices, faces, uv=uv, texture=_rgb(tex))
     if mesh.vertex_colors is not None:
         colors = np.asarray(mesh.vertex_colors)
         if colors.ndim != 2 or len(colors) != len(vertices):
-            raise InputError(f"mesh.vertex_colors must have shape [V, C] with V = {len(vertices)}, got {colors.shape}")
+            raise InputError(
+                f"mesh.vertex_colors must have shape [V, C] with V = {len(vertices)}, got {colors.shape}"
+            )
         return SurfaceColors(vertices, faces, vertex_colors=_rgb(colors))
     if mesh.texture is not None:
         raise InputError(

@@ -17,10 +17,27 @@ DECODERS = ("log", "barycentric")
 
 
 #: fields that do not change the model's function (data, optimiser, batching, chunking)
-_TRAINING_FIELDS = ("num_samples", "kl_weight", "loss_normalization", "min_vertices", "max_vertices", "max_image_size",
-                    "meshes_per_image", "pixels_per_vertex", "density_spread", "texture_size",
-                    "procedural_fraction", "batch_size", "steps", "learning_rate", "final_lr_fraction",
-                    "warmup_steps", "grad_clip", "checkpoint_every", "encode_chunk")
+_TRAINING_FIELDS = (
+    "num_samples",
+    "kl_weight",
+    "loss_normalization",
+    "min_vertices",
+    "max_vertices",
+    "max_image_size",
+    "meshes_per_image",
+    "pixels_per_vertex",
+    "density_spread",
+    "texture_size",
+    "procedural_fraction",
+    "batch_size",
+    "steps",
+    "learning_rate",
+    "final_lr_fraction",
+    "warmup_steps",
+    "grad_clip",
+    "checkpoint_every",
+    "encode_chunk",
+)
 #: how :func:`~jmeshtex.fl.vae_loss` averages its terms
 LOSS_NORMALIZATIONS = ("mean", "paper")
 
@@ -120,30 +137,51 @@ class Config(ConfigBase):
     _MESSAGE = "{name} must be {must}, got {value}"
     _RULES = (
         rule("latent_dim num_samples", lambda x: int(x) >= 1, ">= 1"),
-        cross_rule(lambda c: int(c.features) >= 1 and int(c.num_heads) >= 1, "features and num_heads must be >= 1"),
-        cross_rule(lambda c: c.features % c.num_heads == 0,
-                   "features ({c.features}) must be divisible by num_heads ({c.num_heads})"),
+        cross_rule(
+            lambda c: int(c.features) >= 1 and int(c.num_heads) >= 1,
+            "features and num_heads must be >= 1",
+        ),
+        cross_rule(
+            lambda c: c.features % c.num_heads == 0,
+            "features ({c.features}) must be divisible by num_heads ({c.num_heads})",
+        ),
         rule("num_blocks", lambda x: int(x) >= 0, ">= 0"),
         rule("decoder_layers", lambda x: int(x) >= 2, ">= 2"),
         rule("decoder_features", lambda x: int(x) >= 1, ">= 1"),
-        rule("decoder", lambda x: x in DECODERS, f"one of {DECODERS}", message="{name} must be {must}, got {value!r}"),
+        rule(
+            "decoder",
+            lambda x: x in DECODERS,
+            f"one of {DECODERS}",
+            message="{name} must be {must}, got {value!r}",
+        ),
         rule("kl_weight", lambda x: x >= 0, ">= 0"),
-        rule("loss_normalization", lambda x: x in LOSS_NORMALIZATIONS, f"one of {LOSS_NORMALIZATIONS}",
-             message="{name} must be {must}, got {value!r}"),
+        rule(
+            "loss_normalization",
+            lambda x: x in LOSS_NORMALIZATIONS,
+            f"one of {LOSS_NORMALIZATIONS}",
+            message="{name} must be {must}, got {value!r}",
+        ),
         rule("pixels_per_vertex", lambda x: x >= 0, ">= 0 (0: the image-pool data mode)"),
         rule("density_spread", lambda x: x >= 1, ">= 1"),
         rule("texture_size", lambda x: x >= 8, ">= 8"),
         rule("procedural_fraction", lambda x: 0 <= x <= 1, "in [0, 1]"),
         rule("delta", lambda x: x > 0, "> 0"),
-        cross_rule(lambda c: 3 <= c.min_vertices <= c.max_vertices,
-                   "need 3 <= min_vertices <= max_vertices, got {c.min_vertices}, {c.max_vertices}"),
+        cross_rule(
+            lambda c: 3 <= c.min_vertices <= c.max_vertices,
+            "need 3 <= min_vertices <= max_vertices, got {c.min_vertices}, {c.max_vertices}",
+        ),
         rule("max_image_size", lambda x: x >= 8, ">= 8"),
         rule("meshes_per_image batch_size", lambda x: x >= 1, ">= 1"),
         rule("steps", lambda x: x >= 0, ">= 0"),
-        cross_rule(lambda c: c.learning_rate > 0 and 0 <= c.final_lr_fraction <= 1,
-                   "need learning_rate > 0 and final_lr_fraction in [0, 1], got {c.learning_rate}, "
-                   "{c.final_lr_fraction}"),
-        cross_rule(lambda c: c.warmup_steps >= 0 and c.grad_clip > 0, "need warmup_steps >= 0 and grad_clip > 0"),
+        cross_rule(
+            lambda c: c.learning_rate > 0 and 0 <= c.final_lr_fraction <= 1,
+            "need learning_rate > 0 and final_lr_fraction in [0, 1], got {c.learning_rate}, "
+            "{c.final_lr_fraction}",
+        ),
+        cross_rule(
+            lambda c: c.warmup_steps >= 0 and c.grad_clip > 0,
+            "need warmup_steps >= 0 and grad_clip > 0",
+        ),
         rule("checkpoint_every encode_chunk", lambda x: x >= 1, ">= 1"),
     )
 
@@ -160,10 +198,24 @@ class Config(ConfigBase):
           >>> c.features, c.num_blocks, c.num_heads, c.decoder_features, c.decoder_layers
           (128, 8, 8, 512, 5)
         """
-        base = dict(features=128, num_heads=8, num_blocks=8, decoder_features=512, decoder_layers=5,
-                    loss_normalization="paper", pixels_per_vertex=26.0, density_spread=1.5, texture_size=256,
-                    max_image_size=512, batch_size=4, steps=200_000, learning_rate=1e-3, final_lr_fraction=0.01,
-                    warmup_steps=1000, checkpoint_every=1000)
+        base = dict(
+            features=128,
+            num_heads=8,
+            num_blocks=8,
+            decoder_features=512,
+            decoder_layers=5,
+            loss_normalization="paper",
+            pixels_per_vertex=26.0,
+            density_spread=1.5,
+            texture_size=256,
+            max_image_size=512,
+            batch_size=4,
+            steps=200_000,
+            learning_rate=1e-3,
+            final_lr_fraction=0.01,
+            warmup_steps=1000,
+            checkpoint_every=1000,
+        )
         return cls(**{**base, **changes})
 
     @classmethod
@@ -177,10 +229,25 @@ class Config(ConfigBase):
           >>> c.features, c.num_blocks, c.decoder_features, c.pixels_per_vertex, c.loss_normalization
           (32, 2, 128, 26.0, 'paper')
         """
-        base = dict(features=32, num_heads=4, num_blocks=2, decoder_features=128, decoder_layers=5, num_samples=32,
-                    loss_normalization="paper", pixels_per_vertex=26.0, density_spread=1.5, texture_size=64,
-                    max_image_size=512, batch_size=2, steps=20_000, learning_rate=1e-3, final_lr_fraction=0.01,
-                    warmup_steps=500, checkpoint_every=250)
+        base = dict(
+            features=32,
+            num_heads=4,
+            num_blocks=2,
+            decoder_features=128,
+            decoder_layers=5,
+            num_samples=32,
+            loss_normalization="paper",
+            pixels_per_vertex=26.0,
+            density_spread=1.5,
+            texture_size=64,
+            max_image_size=512,
+            batch_size=2,
+            steps=20_000,
+            learning_rate=1e-3,
+            final_lr_fraction=0.01,
+            warmup_steps=500,
+            checkpoint_every=250,
+        )
         return cls(**{**base, **changes})
 
     def architecture(self) -> Config:

@@ -52,7 +52,9 @@ def _invariants(mu: Complex[Array, "... d"]) -> Float[Array, "... D"]:
     return jnp.concatenate([mu.real * mu.real + mu.imag * mu.imag, outer.real, outer.imag], axis=-1)
 
 
-def decoder_features(config, mu: Complex[Array, "... d"], log_q: Complex[Array, "..."] | None) -> Float[Array, "... D"]:
+def decoder_features(
+    config, mu: Complex[Array, "... d"], log_q: Complex[Array, "..."] | None
+) -> Float[Array, "... D"]:
     """The decoder's gauge-invariant input ``φ(z, q)`` (module docstring).
 
     Args:
@@ -86,10 +88,14 @@ def apply_decoder(layers, features: Float[Array, "... D"]) -> Float[Array, "... 
     return out + jnp.asarray(0.5, out.dtype)
 
 
-def decode_points_raw(layers, config, mu: Complex[Array, "V d"], log_q: Complex[Array, "V S"]) -> Float[Array, "V S 3"]:
+def decode_points_raw(
+    layers, config, mu: Complex[Array, "V d"], log_q: Complex[Array, "V S"]
+) -> Float[Array, "V S 3"]:
     """Log-coordinate decoder: colour of each point from its vertex's latent and log coordinate."""
     cdt = mu.dtype
-    return apply_decoder(layers, decoder_features(config, mu[:, None, :], jnp.asarray(log_q).astype(cdt)))
+    return apply_decoder(
+        layers, decoder_features(config, mu[:, None, :], jnp.asarray(log_q).astype(cdt))
+    )
 
 
 def decode_barycentric_raw(
@@ -102,11 +108,14 @@ def decode_barycentric_raw(
 
 
 def blend_log_predictions(
-    layers, config, mu: Complex[Array, "V d"], corners: Int[Array, "N 3"], logs: Complex[Array, "N 3"],
+    layers,
+    config,
+    mu: Complex[Array, "V d"],
+    corners: Int[Array, "N 3"],
+    logs: Complex[Array, "N 3"],
     bary: Float[Array, "N 3"],
 ) -> Float[Array, "N 3"]:
     """Log decoder at points in triangles: ``Σ_k b_k D(z_{v_k}, log_{v_k}(x))`` (eq. 18 + blending)."""
     feats = decoder_features(config, mu[corners], jnp.asarray(logs).astype(mu.dtype))  # [N, 3, D]
     pred = apply_decoder(layers, feats)
     return jnp.einsum("nk,nkc->nc", jnp.asarray(bary).astype(pred.dtype), pred)
-

@@ -39,9 +39,12 @@ from ..ops import VNTransformerParams, complex_linear, real_dtype, vn_transforme
 
 def _numpy_rng(key) -> np.random.Generator:
     """A NumPy generator seeded with a JAX key's data (host-side sampling driven by ``key=``)."""
-    data = jax.random.key_data(key) if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key) else key
+    data = (
+        jax.random.key_data(key)
+        if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key)
+        else key
+    )
     return np.random.default_rng(np.asarray(data, dtype=np.uint32).ravel().tolist())
-
 
 
 class RingGeometry(NamedTuple):
@@ -70,7 +73,9 @@ class RingGeometry(NamedTuple):
     wedge_mask: np.ndarray
 
 
-def ring_geometry(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> RingGeometry:
+def ring_geometry(
+    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
+) -> RingGeometry:
     """Build :class:`RingGeometry` (edge lengths only; the gauge of ``one_ring_neighborhood``)."""
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -85,14 +90,19 @@ def ring_geometry(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 
     corner_slot = np.zeros(faces.shape, np.int64)
     corner_slot[f, corner] = j
     # r_p: mean of the two edges at each incident corner
-    total = np.bincount(faces.ravel(), weights=(lengths + np.roll(lengths, 1, axis=1)).ravel(), minlength=num_v)
+    total = np.bincount(
+        faces.ravel(), weights=(lengths + np.roll(lengths, 1, axis=1)).ravel(), minlength=num_v
+    )
     count = np.bincount(faces.ravel(), minlength=num_v) * 2.0
     radius = np.where(count > 0, total / np.maximum(count, 1.0), 1.0)
     return RingGeometry(theta, scale, radius, lengths, angles, corner_slot, faces, wf, wm)
 
 
 def corner_logs(
-    geom: RingGeometry, face: Int[np.ndarray, "*N"], corner: Int[np.ndarray, "*N"], bary: Float[np.ndarray, "*N 3"]
+    geom: RingGeometry,
+    face: Int[np.ndarray, "*N"],
+    corner: Int[np.ndarray, "*N"],
+    bary: Float[np.ndarray, "*N 3"],
 ) -> Complex[np.ndarray, "*N"]:
     """Normalised intrinsic ``log_p(x) / r_p`` of points ``x`` = (face, bary) seen from ``p = faces[face, corner]``.
 
@@ -137,8 +147,14 @@ class OneRingSamples(NamedTuple):
 
 #: fixed per-wedge rule (barycentrics on (p, q_j, q_{j+1})) of the deterministic "quadrature" sampler
 _QUADRATURE = np.array(
-    [[2 / 3, 1 / 6, 1 / 6], [1 / 3, 1 / 3, 1 / 3], [1 / 3, 1 / 2, 1 / 6], [1 / 3, 1 / 6, 1 / 2],
-     [0.0, 0.5, 0.5], [0.5, 0.5, 0.0]]
+    [
+        [2 / 3, 1 / 6, 1 / 6],
+        [1 / 3, 1 / 3, 1 / 3],
+        [1 / 3, 1 / 2, 1 / 6],
+        [1 / 3, 1 / 6, 1 / 2],
+        [0.0, 0.5, 0.5],
+        [0.5, 0.5, 0.0],
+    ]
 )
 
 
@@ -188,10 +204,20 @@ def one_ring_samples(
         local = np.tile(_QUADRATURE, (K, 1))[None].repeat(V, 0)
         mask = np.take_along_axis(wm, wedge, axis=1)
         return _assemble(geom, wedge, local, mask, corner_of)
-    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
+    if (
+        isinstance(num_samples, bool)
+        or not isinstance(num_samples, (int, np.integer))
+        or num_samples < 1
+    ):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
-    area = np.where(wm, 0.5 * geom.lengths[wf, corner_of] * geom.lengths[wf, (corner_of + 2) % 3]
-                    * np.sin(geom.angles[wf, corner_of]), 0.0)
+    area = np.where(
+        wm,
+        0.5
+        * geom.lengths[wf, corner_of]
+        * geom.lengths[wf, (corner_of + 2) % 3]
+        * np.sin(geom.angles[wf, corner_of]),
+        0.0,
+    )
     cum = np.cumsum(area, axis=1)
     total = cum[:, -1]
     out = []
@@ -289,8 +315,10 @@ def _vnt_block(draw: _Draw, c: int, heads: int, cdt, rdt) -> VNTransformerParams
 
     e = c // heads
     attention = ComplexAttentionParams(
-        query=_complex_init(draw, (c, heads, e), c, cdt), key=_complex_init(draw, (c, heads, e), c, cdt),
-        value=_complex_init(draw, (c, heads, e), c, cdt), out=_complex_init(draw, (heads, e, c), heads * e, cdt),
+        query=_complex_init(draw, (c, heads, e), c, cdt),
+        key=_complex_init(draw, (c, heads, e), c, cdt),
+        value=_complex_init(draw, (c, heads, e), c, cdt),
+        out=_complex_init(draw, (heads, e, c), heads * e, cdt),
     )
     mlp_in = VNParams(_complex_init(draw, (c, c), c, cdt), _complex_init(draw, (c, c), c, cdt))
     mlp_out = VNParams(_complex_init(draw, (c, c), c, cdt), _complex_init(draw, (c, c), c, cdt))
@@ -302,7 +330,13 @@ def encoder_size(config) -> int:
     """Number of standard normals :func:`init_encoder` draws."""
     c, d = config.features, config.latent_dim
     block = 2 * (4 * c * c + 4 * c * c)
-    return _dense_size((3, c, c, c)) + _dense_size((7, c, c)) + config.num_blocks * block + 2 * (c * d + c * c) + c * d
+    return (
+        _dense_size((3, c, c, c))
+        + _dense_size((7, c, c))
+        + config.num_blocks * block
+        + 2 * (c * d + c * c)
+        + c * d
+    )
 
 
 def init_encoder(draw: _Draw, config, *, dtype=jnp.float32) -> EncoderParams:
@@ -311,7 +345,9 @@ def init_encoder(draw: _Draw, config, *, dtype=jnp.float32) -> EncoderParams:
     cdt = jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
     sample_mlp = _dense_init(draw, (3, c, c, c), dtype)
     token_mlp = _dense_init(draw, (7, c, c), dtype)
-    blocks = tuple(_vnt_block(draw, c, config.num_heads, cdt, dtype) for _ in range(config.num_blocks))
+    blocks = tuple(
+        _vnt_block(draw, c, config.num_heads, cdt, dtype) for _ in range(config.num_blocks)
+    )
     mean = _complex_init(draw, (c, d), c, cdt)
     sigma_dir = _complex_init(draw, (c, c), c, cdt)
     w, b = _dense_init(draw, (c, d), dtype)[0]
@@ -339,16 +375,22 @@ def encode_samples_raw(
     x = h.astype(cdt) * log_q[..., None]
     # eq. 22: token = filtered gather Σ f(colour, |log|, ring mean) log / n
     mean_rgb = jnp.sum(rgb * m[..., None], axis=1, keepdims=True) / count[..., None]
-    feats = jnp.concatenate([rgb, jnp.abs(log_q)[..., None], jnp.broadcast_to(mean_rgb, rgb.shape)], axis=-1)
+    feats = jnp.concatenate(
+        [rgb, jnp.abs(log_q)[..., None], jnp.broadcast_to(mean_rgb, rgb.shape)], axis=-1
+    )
     g = mlp(params.token_mlp, feats) * m[..., None]
     token = jnp.sum(g.astype(cdt) * log_q[..., None], axis=1) / count.astype(cdt)  # [V, C]
     seq = jnp.concatenate([x, token[:, None, :]], axis=1)
-    seq_mask = jnp.concatenate([jnp.asarray(mask, bool), jnp.ones((mask.shape[0], 1), bool)], axis=1)
+    seq_mask = jnp.concatenate(
+        [jnp.asarray(mask, bool), jnp.ones((mask.shape[0], 1), bool)], axis=1
+    )
     for block in params.blocks:
         seq = vn_transformer_block(seq, block, mask=seq_mask, delta=config.delta)
     u = seq[:, -1, :]
     mu = complex_linear(u, params.mean)
     v = complex_linear(u, params.sigma_dir)
     inv = jnp.tanh(u.real * v.real + u.imag * v.imag)
-    log_sigma = jnp.minimum(inv @ params.sigma[0] + params.sigma[1], jnp.asarray(config.log_sigma_max, rdt))
+    log_sigma = jnp.minimum(
+        inv @ params.sigma[0] + params.sigma[1], jnp.asarray(config.log_sigma_max, rdt)
+    )
     return mu, log_sigma

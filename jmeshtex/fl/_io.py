@@ -23,7 +23,10 @@ from ._model import Model, init
 
 WEIGHTS_DIR = pathlib.Path(__file__).parent / "weights"
 #: the shipped models, by decoder variant (``weights/README.md`` says how they were trained)
-_PRETRAINED = {"log": WEIGHTS_DIR / "fl_vae.npz", "barycentric": WEIGHTS_DIR / "fl_vae_barycentric.npz"}
+_PRETRAINED = {
+    "log": WEIGHTS_DIR / "fl_vae.npz",
+    "barycentric": WEIGHTS_DIR / "fl_vae_barycentric.npz",
+}
 
 
 def save(model: Model, path: str | os.PathLike, *, extra: dict | None = None) -> pathlib.Path:
@@ -92,8 +95,12 @@ def load(path: str | os.PathLike, *, with_extra: bool = False):
     real = jnp.float64 if leaves and leaves[0].dtype == np.float64 else jnp.float32
     shapes = jax.eval_shape(lambda k: init(config, key=k, dtype=real).params, jax.random.key(0))
     flat, treedef = jax.tree.flatten(shapes)
-    if len(flat) != len(leaves) or any(a.shape != tuple(b.shape) for a, b in zip(flat, leaves, strict=True)):
-        raise MeshIOError(f"FL-VAE model {path}: stored arrays do not match its config (corrupt or foreign file)")
+    if len(flat) != len(leaves) or any(
+        a.shape != tuple(b.shape) for a, b in zip(flat, leaves, strict=True)
+    ):
+        raise MeshIOError(
+            f"FL-VAE model {path}: stored arrays do not match its config (corrupt or foreign file)"
+        )
     model = Model(jax.tree.unflatten(treedef, [jnp.asarray(x) for x in leaves]), config)
     return (model, meta.get("extra", {})) if with_extra else model
 

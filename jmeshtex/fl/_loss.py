@@ -116,15 +116,24 @@ def vae_loss(
     rdt = lat.log_sigma.dtype
     if config.decoder == "barycentric":
         v, s = log_q.shape
-        pred = decode_barycentric_raw(params.decoder, config, z, jnp.reshape(corners, (v * s, 3)),
-                                      jnp.reshape(bary, (v * s, 3))).reshape(v, s, 3)
+        pred = decode_barycentric_raw(
+            params.decoder,
+            config,
+            z,
+            jnp.reshape(corners, (v * s, 3)),
+            jnp.reshape(bary, (v * s, 3)),
+        ).reshape(v, s, 3)
     else:
         pred = decode_points_raw(params.decoder, config, z, log_q)
     m = jnp.asarray(mask).astype(rdt)
     err = jnp.sum(jnp.abs(pred - jnp.asarray(rgb).astype(rdt)), axis=-1)
     paper = config.loss_normalization == "paper"
     l1 = jnp.sum(err * m) / ((1 if paper else 3) * jnp.maximum(jnp.sum(m), 1))
-    vm = jnp.ones(log_q.shape[:1], rdt) if vertex_mask is None else jnp.asarray(vertex_mask).astype(rdt)
+    vm = (
+        jnp.ones(log_q.shape[:1], rdt)
+        if vertex_mask is None
+        else jnp.asarray(vertex_mask).astype(rdt)
+    )
     kl = jnp.sum(kl_divergence(lat) * vm) / jnp.maximum(jnp.sum(vm), 1)
     if paper:
         kl = kl * jnp.asarray(config.latent_dim, rdt)  # summed over the d channels

@@ -10,7 +10,9 @@ import numpy as np
 from .._errors import InputError
 
 
-def plot_losses(losses: dict, path: str | os.PathLike, *, title: str = "FL-VAE training", window: int = 100) -> None:
+def plot_losses(
+    losses: dict, path: str | os.PathLike, *, title: str = "FL-VAE training", window: int = 100
+) -> None:
     """Write a loss-curve PNG: every named series per step (faint) and its moving average (solid).
 
     Args:
@@ -46,7 +48,13 @@ def plot_losses(losses: dict, path: str | os.PathLike, *, title: str = "FL-VAE t
         ax.plot(x, y, color=color, alpha=0.25, linewidth=0.6)
         w = max(1, min(int(window), len(y) // 5 or 1))
         avg = np.convolve(y, np.ones(w) / w, mode="valid")
-        ax.plot(x[w - 1:], avg, color=color, linewidth=1.5, label=f"{name} (mean of {w}; last {avg[-1]:.4g})")
+        ax.plot(
+            x[w - 1 :],
+            avg,
+            color=color,
+            linewidth=1.5,
+            label=f"{name} (mean of {w}; last {avg[-1]:.4g})",
+        )
     if all((y > 0).all() for y in series.values()):
         ax.set_yscale("log")
     ax.set_xlabel("step")

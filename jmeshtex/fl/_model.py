@@ -70,7 +70,9 @@ class Model:
 
     def __post_init__(self) -> None:
         if not isinstance(self.config, Config):
-            raise ConfigError(f"Model.config must be a jmeshtex.fl.Config, got {type(self.config).__name__}")
+            raise ConfigError(
+                f"Model.config must be a jmeshtex.fl.Config, got {type(self.config).__name__}"
+            )
 
     @property
     def dtype(self) -> jnp.dtype:
@@ -109,10 +111,14 @@ def init(config: Config, *, key: PRNGKey, dtype=jnp.float32) -> Model:
 def _init_jit(key, config, dtype):
     # one compiled program: op-by-op, every random draw of a new shape compiles its own kernel
     draw = _Draw(key, encoder_size(config) + decoder_size(config), dtype)
-    return FLVAEParams(init_encoder(draw, config, dtype=dtype), init_decoder(draw, config, dtype=dtype))
+    return FLVAEParams(
+        init_encoder(draw, config, dtype=dtype), init_decoder(draw, config, dtype=dtype)
+    )
 
 
-@functools.partial(jax.tree_util.register_dataclass, data_fields=["mu", "log_sigma"], meta_fields=[])
+@functools.partial(
+    jax.tree_util.register_dataclass, data_fields=["mu", "log_sigma"], meta_fields=[]
+)
 @dataclasses.dataclass(frozen=True)
 class FieldLatents:
     """Tangent-vector latents at the vertices of a mesh (a pytree).
@@ -136,9 +142,13 @@ class FieldLatents:
 
 def _check_samples(log_q, rgb, mask):
     if jnp.ndim(log_q) != 2 or not jnp.issubdtype(jnp.result_type(log_q), jnp.complexfloating):
-        raise InputError(f"log_q must be a complex [V, S] array, got {jnp.result_type(log_q)} {jnp.shape(log_q)}")
+        raise InputError(
+            f"log_q must be a complex [V, S] array, got {jnp.result_type(log_q)} {jnp.shape(log_q)}"
+        )
     if jnp.shape(rgb) != (*jnp.shape(log_q), 3):
-        raise InputError(f"rgb must have shape [V, S, 3] = {(*jnp.shape(log_q), 3)}, got {jnp.shape(rgb)}")
+        raise InputError(
+            f"rgb must have shape [V, S, 3] = {(*jnp.shape(log_q), 3)}, got {jnp.shape(rgb)}"
+        )
     if jnp.shape(mask) != jnp.shape(log_q):
         raise InputError(f"mask must have shape [V, S] = {jnp.shape(log_q)}, got {jnp.shape(mask)}")
 
@@ -210,7 +220,9 @@ def decode_points(
       True
     """
     if jnp.ndim(mu) != 2 or jnp.ndim(log_q) != 2 or jnp.shape(mu)[0] != jnp.shape(log_q)[0]:
-        raise InputError(f"mu must be [V, d] and log_q [V, S] with the same V, got {jnp.shape(mu)}, {jnp.shape(log_q)}")
+        raise InputError(
+            f"mu must be [V, d] and log_q [V, S] with the same V, got {jnp.shape(mu)}, {jnp.shape(log_q)}"
+        )
     mu = jnp.asarray(mu).astype(params.encoder.mean.dtype)
     if config.decoder == "barycentric":
         feats = decoder_features(config, mu, None)[:, None, :]
@@ -219,8 +231,12 @@ def decode_points(
 
 
 def decode_barycentric(
-    params: FLVAEParams, config: Config, mu: Complex[Array, "V d"], corners: Int[Array, "N 3"],
-    bary: Float[Array, "N 3"], logs: Complex[Array, "N 3"] | None = None,
+    params: FLVAEParams,
+    config: Config,
+    mu: Complex[Array, "V d"],
+    corners: Int[Array, "N 3"],
+    bary: Float[Array, "N 3"],
+    logs: Complex[Array, "N 3"] | None = None,
 ) -> Float[Array, "N 3"]:
     """Decode colours at points inside triangles from the latents of the three corners.
 
@@ -251,11 +267,15 @@ def decode_barycentric(
     if config.decoder == "barycentric":
         return decode_barycentric_raw(params.decoder, config, mu, corners, bary)
     if logs is None:
-        raise InputError("decode_barycentric with decoder='log' needs logs [N, 3] (each corner's log map of x)")
+        raise InputError(
+            "decode_barycentric with decoder='log' needs logs [N, 3] (each corner's log map of x)"
+        )
     return blend_log_predictions(params.decoder, config, mu, corners, logs, bary)
 
 
-def decode_vertex_colors_from_latents(params: FLVAEParams, config: Config, mu: Complex[Array, "V d"]) -> Float[Array, "V 3"]:
+def decode_vertex_colors_from_latents(
+    params: FLVAEParams, config: Config, mu: Complex[Array, "V d"]
+) -> Float[Array, "V 3"]:
     """Colour at each vertex itself, ``D(z_p, log = 0)``, from its latent alone (pure; not clipped).
 
     Both decoders agree there: the log decoder at log coordinate 0, the barycentric ablation at a

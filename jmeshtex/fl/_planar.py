@@ -24,8 +24,20 @@ from .._types import Float
 
 #: scikit-image images bundled in its wheel (natural photos, textures, micrographs)
 BUILTIN_IMAGES = (
-    "astronaut", "brick", "camera", "chelsea", "coffee", "coins", "colorwheel", "grass", "gravel",
-    "hubble_deep_field", "immunohistochemistry", "moon", "retina", "rocket",
+    "astronaut",
+    "brick",
+    "camera",
+    "chelsea",
+    "coffee",
+    "coins",
+    "colorwheel",
+    "grass",
+    "gravel",
+    "hubble_deep_field",
+    "immunohistochemistry",
+    "moon",
+    "retina",
+    "rocket",
 )
 
 
@@ -40,7 +52,9 @@ def _to_rgb01(image) -> np.ndarray:
     if img.ndim == 2:
         img = img[..., None]
     if img.ndim != 3 or img.shape[0] < 2 or img.shape[1] < 2:
-        raise InputError(f"an image must be [H, W] or [H, W, C] with H, W >= 2, got shape {img.shape}")
+        raise InputError(
+            f"an image must be [H, W] or [H, W, C] with H, W >= 2, got shape {img.shape}"
+        )
     if img.shape[2] in (2, 4):  # drop alpha (composite on white)
         alpha = img[..., -1:]
         img = img[..., :-1] * alpha + (1.0 - alpha)
@@ -59,7 +73,9 @@ def downscale(image: Float[np.ndarray, "H W 3"], max_size: int) -> np.ndarray:
     return image[: h2 * k, : w2 * k].reshape(h2, k, w2, k, -1).mean(axis=(1, 3))
 
 
-def builtin_images(*, max_size: int = 256, names: tuple[str, ...] = BUILTIN_IMAGES) -> list[np.ndarray]:
+def builtin_images(
+    *, max_size: int = 256, names: tuple[str, ...] = BUILTIN_IMAGES
+) -> list[np.ndarray]:
     """scikit-image's bundled images as ``[H, W, 3]`` float64 RGB in [0, 1], downscaled to ``max_size``.
 
     Example:
@@ -87,10 +103,14 @@ def folder_images(folder: str | os.PathLike, *, max_size: int = 256) -> list[np.
 
     folder = pathlib.Path(folder)
     if not folder.is_dir():
-        raise MeshIOError(f"image folder {folder} does not exist. Fix: pass an existing folder or 'builtin'")
+        raise MeshIOError(
+            f"image folder {folder} does not exist. Fix: pass an existing folder or 'builtin'"
+        )
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
     if not files:
-        raise MeshIOError(f"no .png/.jpg images in {folder}. Fix: add images or use --images builtin")
+        raise MeshIOError(
+            f"no .png/.jpg images in {folder}. Fix: add images or use --images builtin"
+        )
     out = []
     for p in files:
         try:
@@ -100,7 +120,9 @@ def folder_images(folder: str | os.PathLike, *, max_size: int = 256) -> list[np.
     return out
 
 
-def farthest_points(candidates: Float[np.ndarray, "M 2"], n: int, *, first: np.ndarray) -> np.ndarray:
+def farthest_points(
+    candidates: Float[np.ndarray, "M 2"], n: int, *, first: np.ndarray
+) -> np.ndarray:
     """Greedy farthest-point selection of ``n`` indices from ``candidates``, seeded with ``first``.
 
     Example:
@@ -117,7 +139,9 @@ def farthest_points(candidates: Float[np.ndarray, "M 2"], n: int, *, first: np.n
     return np.asarray(chosen)
 
 
-def planar_mesh(image: Float[np.ndarray, "H W 3"], num_vertices: int, *, rng: np.random.Generator) -> Mesh:
+def planar_mesh(
+    image: Float[np.ndarray, "H W 3"], num_vertices: int, *, rng: np.random.Generator
+) -> Mesh:
     """A flat Delaunay mesh of farthest-point samples over an image, textured with it.
 
     The rectangle is ``[0, W/H] × [0, 1]`` (z = 0), so texels are square; ``uv`` maps it onto the image.
@@ -149,8 +173,12 @@ def planar_mesh(image: Float[np.ndarray, "H W 3"], num_vertices: int, *, rng: np
     while sum(counts) > max(4, num_vertices // 2):  # coarse meshes: keep most vertices inside
         counts = [max(1, c // 2) for c in counts]
     starts = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    boundary = np.concatenate([a + (b - a) * (np.arange(c) / c)[:, None]
-                               for a, b, c in zip(starts, np.roll(starts, -1, axis=0), counts, strict=True)])
+    boundary = np.concatenate(
+        [
+            a + (b - a) * (np.arange(c) / c)[:, None]
+            for a, b, c in zip(starts, np.roll(starts, -1, axis=0), counts, strict=True)
+        ]
+    )
     cand = np.concatenate([boundary, rng.random((max(8 * num_vertices, 256), 2))])
     scaled = cand * np.array([aspect, 1.0])
     idx = farthest_points(scaled, num_vertices, first=np.arange(len(boundary)))
@@ -166,7 +194,12 @@ def planar_mesh(image: Float[np.ndarray, "H W 3"], num_vertices: int, *, rng: np
 
 
 def planar_pool(
-    images: list[np.ndarray], *, per_image: int, min_vertices: int, max_vertices: int, rng: np.random.Generator
+    images: list[np.ndarray],
+    *,
+    per_image: int,
+    min_vertices: int,
+    max_vertices: int,
+    rng: np.random.Generator,
 ) -> list[Mesh]:
     """``per_image`` planar meshes of random resolution in ``[min_vertices, max_vertices]`` per image.
 

@@ -45,7 +45,9 @@ class Reconstruction:
     metrics: dict
 
 
-def atlas_metrics(texture: np.ndarray, target: np.ndarray, valid: np.ndarray, *, lpips: bool = True) -> dict:
+def atlas_metrics(
+    texture: np.ndarray, target: np.ndarray, valid: np.ndarray, *, lpips: bool = True
+) -> dict:
     """PSNR (dB), DSSIM (atlases of at least 11×11 texels) and optionally LPIPS-VGG over the used texels.
 
     Unused texels are set to the same value (0) in both images before LPIPS, which sees whole
@@ -110,8 +112,10 @@ def reconstruct(
     model = _check_model(model)
     mesh = as_mesh(mesh, what="mesh")
     if mesh.uv is None or mesh.texture is None:
-        raise InputError("reconstruct needs a textured reference mesh (Mesh with uv and texture); "
-                         "load it with jmeshtex.io.load_mesh(path, texture=...)")
+        raise InputError(
+            "reconstruct needs a textured reference mesh (Mesh with uv and texture); "
+            "load it with jmeshtex.io.load_mesh(path, texture=...)"
+        )
     colors: SurfaceColors = surface_colors(mesh)
     size = int(mesh.texture.shape[0]) if size is None else int(size)
     if latent_mesh is not None:
@@ -123,7 +127,9 @@ def reconstruct(
     if latent_mesh is None:
         lface, lbary = face, bary
     else:
-        points = np.einsum("nk,nkd->nd", bary, np.asarray(mesh.vertices, np.float64)[mesh.faces[face]])
+        points = np.einsum(
+            "nk,nkd->nd", bary, np.asarray(mesh.vertices, np.float64)[mesh.faces[face]]
+        )
         lface, lbary = surface_correspondence(latent_mesh.vertices, latent_mesh.faces, points)
     colors_pred = decode_points_in_faces(model, target_mesh, latents, lface, lbary)
     texture = np.zeros((size, size, 3))
@@ -134,13 +140,24 @@ def reconstruct(
     jj, ii = np.mgrid[0:size, 0:size]
     uv = np.stack([(ii + 0.5) / size, 1.0 - (jj + 0.5) / size], axis=-1)
     target = np.where(valid[..., None], sample_texture(colors.texture, uv), 0.0)
-    return Reconstruction(texture, target, valid, latents, target_mesh,
-                          atlas_metrics(texture, target, valid, lpips=lpips))
+    return Reconstruction(
+        texture,
+        target,
+        valid,
+        latents,
+        target_mesh,
+        atlas_metrics(texture, target, valid, lpips=lpips),
+    )
 
 
 def side_by_side(
-    mesh: Mesh, result: Reconstruction, path: str | os.PathLike | None = None, *, view=(15.0, 35.0),
-    size=(384, 384), y_up: bool = True,
+    mesh: Mesh,
+    result: Reconstruction,
+    path: str | os.PathLike | None = None,
+    *,
+    view=(15.0, 35.0),
+    size=(384, 384),
+    y_up: bool = True,
 ) -> np.ndarray:
     """Render the reference with its original and with the reconstructed texture, side by side.
 
@@ -176,10 +193,18 @@ def side_by_side(
     v = np.asarray(mesh.vertices, np.float64)
     if y_up:
         v = np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)
-    left = render_mesh(v, mesh.faces, uv=mesh.uv, texture=result.target, view=view, size=size,
-                       title="original")
-    right = render_mesh(v, mesh.faces, uv=mesh.uv, texture=result.texture, view=view, size=size,
-                        title=f"FL-VAE ({result.metrics.get('psnr', float('nan')):.2f} dB)")
+    left = render_mesh(
+        v, mesh.faces, uv=mesh.uv, texture=result.target, view=view, size=size, title="original"
+    )
+    right = render_mesh(
+        v,
+        mesh.faces,
+        uv=mesh.uv,
+        texture=result.texture,
+        view=view,
+        size=size,
+        title=f"FL-VAE ({result.metrics.get('psnr', float('nan')):.2f} dB)",
+    )
     image = np.concatenate([left, right], axis=1)
     if path is not None:
         pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)

@@ -34,8 +34,22 @@ from ._planar import _to_rgb01, builtin_images, downscale, planar_mesh
 
 #: scikit-image images (bundled in its wheel) that training textures are cut from
 TRAINING_IMAGES = (
-    "astronaut", "brick", "camera", "cell", "clock", "coins", "colorwheel", "grass", "gravel", "hubble_deep_field",
-    "immunohistochemistry", "logo", "moon", "page", "retina", "text",
+    "astronaut",
+    "brick",
+    "camera",
+    "cell",
+    "clock",
+    "coins",
+    "colorwheel",
+    "grass",
+    "gravel",
+    "hubble_deep_field",
+    "immunohistochemistry",
+    "logo",
+    "moon",
+    "page",
+    "retina",
+    "text",
 )
 #: scikit-image images never used for training (natural colour photographs; ``cat`` is ``chelsea``)
 HELD_OUT_IMAGES = ("chelsea", "coffee", "rocket")
@@ -94,7 +108,9 @@ def _value_noise(rng: np.random.Generator, size: int) -> np.ndarray:
     return (out - out.min()) / max(np.ptp(out), 1e-9)
 
 
-def procedural_texture(key: jax.Array, size: int, *, kind: str | None = None) -> Float[np.ndarray, "H W 3"]:
+def procedural_texture(
+    key: jax.Array, size: int, *, kind: str | None = None
+) -> Float[np.ndarray, "H W 3"]:
     """A random procedural texture in saturated colours, ``[size, size, 3]`` RGB in [0, 1].
 
     Kinds (``PROCEDURAL_KINDS``, one drawn at random when ``kind`` is None): fractal value noise
@@ -182,7 +198,9 @@ def _hue_rotation(angle: float) -> np.ndarray:
     return c * np.eye(3) + (1 - c) * k + s * cross
 
 
-def augmented_crop(image: Float[np.ndarray, "H W 3"], key: jax.Array, size: int) -> Float[np.ndarray, "S S 3"]:
+def augmented_crop(
+    image: Float[np.ndarray, "H W 3"], key: jax.Array, size: int
+) -> Float[np.ndarray, "S S 3"]:
     """A random ``[size, size]`` view of ``image``: scale, rotation, flip and colour jitter.
 
     The view covers ``size · zoom`` source pixels per side (``zoom`` log-uniform in [0.5, 4]; the
@@ -229,7 +247,10 @@ def _augmented(levels: tuple[np.ndarray, ...], rng: np.random.Generator, size: i
         gx = -gx
     c, s = np.cos(theta), np.sin(theta)
     coords = np.stack([cy + s * gx + c * gy - 0.5, cx + c * gx - s * gy - 0.5])
-    out = np.stack([ndimage.map_coordinates(src[..., ch], coords, order=1, mode="reflect") for ch in range(3)], -1)
+    out = np.stack(
+        [ndimage.map_coordinates(src[..., ch], coords, order=1, mode="reflect") for ch in range(3)],
+        -1,
+    )
     # colour jitter
     if rng.random() < 0.15:
         lum = out @ np.array([0.299, 0.587, 0.114])
@@ -265,10 +286,14 @@ def training_texture(
       (16, 16, 3)
     """
     check_key(key)
-    return _training_texture(host_rng(key), [image_levels(im) for im in images], size, procedural_fraction)
+    return _training_texture(
+        host_rng(key), [image_levels(im) for im in images], size, procedural_fraction
+    )
 
 
-def _training_texture(rng: np.random.Generator, levels: list, size: int, procedural_fraction: float) -> np.ndarray:
+def _training_texture(
+    rng: np.random.Generator, levels: list, size: int, procedural_fraction: float
+) -> np.ndarray:
     """:func:`training_texture` from a host generator and precomputed :func:`image_levels`."""
     if procedural_fraction < 1 and not levels:
         raise InputError("training_texture: no images given and procedural_fraction < 1")
@@ -287,7 +312,9 @@ def mesh_vertices_for(size: int, pixels_per_vertex: float) -> int:
     return max(4, int(round(size * size / float(pixels_per_vertex))))
 
 
-def density_mesh(texture: Float[np.ndarray, "H W 3"], pixels_per_vertex: float, *, rng: np.random.Generator) -> Mesh:
+def density_mesh(
+    texture: Float[np.ndarray, "H W 3"], pixels_per_vertex: float, *, rng: np.random.Generator
+) -> Mesh:
     """A :func:`~jmeshtex.fl.planar_mesh` over ``texture`` with ``H·W / pixels_per_vertex`` vertices.
 
     Args:
@@ -315,17 +342,23 @@ def _stream_meshes(rng: np.random.Generator, levels: list, config) -> list[Mesh]
     out = []
     for _ in range(config.batch_size):
         ppv = float(config.pixels_per_vertex) * float(np.exp(rng.uniform(-spread, spread)))
-        texture = _training_texture(rng, levels, int(config.texture_size), float(config.procedural_fraction))
+        texture = _training_texture(
+            rng, levels, int(config.texture_size), float(config.procedural_fraction)
+        )
         out.append(density_mesh(texture, ppv, rng=rng))
     return out
 
 
 def max_stream_vertices(config) -> int:
     """Largest vertex count of a stream-mode training mesh of ``config`` (the densest draw)."""
-    return mesh_vertices_for(int(config.texture_size), float(config.pixels_per_vertex) / float(config.density_spread))
+    return mesh_vertices_for(
+        int(config.texture_size), float(config.pixels_per_vertex) / float(config.density_spread)
+    )
 
 
-def training_meshes(key: jax.Array, config, *, images: list[np.ndarray] | None = None) -> list[Mesh]:
+def training_meshes(
+    key: jax.Array, config, *, images: list[np.ndarray] | None = None
+) -> list[Mesh]:
     """The planar meshes of one stream-mode training step: ``config.batch_size`` fresh textures at the density.
 
     Each mesh: a :func:`training_texture` of side ``config.texture_size`` (procedural with
@@ -355,7 +388,13 @@ def training_meshes(key: jax.Array, config, *, images: list[np.ndarray] | None =
     """
     check_key(key)
     if not config.pixels_per_vertex > 0:
-        raise InputError("training_meshes needs config.pixels_per_vertex > 0 (the stream data mode)")
+        raise InputError(
+            "training_meshes needs config.pixels_per_vertex > 0 (the stream data mode)"
+        )
     if images is None:
-        images = training_images(max_size=config.max_image_size) if config.procedural_fraction < 1 else []
+        images = (
+            training_images(max_size=config.max_image_size)
+            if config.procedural_fraction < 1
+            else []
+        )
     return _stream_meshes(host_rng(key), [image_levels(im) for im in images], config)

@@ -85,7 +85,9 @@ def optimizer(config: Config) -> optax.GradientTransformation:
       >>> state = optimizer(Config()).init(model.params)
     """
     schedule = optax.warmup_cosine_decay_schedule(
-        init_value=0.0, peak_value=config.learning_rate, warmup_steps=config.warmup_steps,
+        init_value=0.0,
+        peak_value=config.learning_rate,
+        warmup_steps=config.warmup_steps,
         decay_steps=max(config.steps, config.warmup_steps + 1),
         end_value=config.learning_rate * config.final_lr_fraction,
     )
@@ -123,8 +125,17 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
     opt = optimizer(config)
 
     def loss_fn(params, batch, key):
-        return vae_loss(params, config, batch["log"], batch["rgb"], batch["mask"], key=key,
-                        corners=batch["corners"], bary=batch["bary"], vertex_mask=batch["vertex_mask"])
+        return vae_loss(
+            params,
+            config,
+            batch["log"],
+            batch["rgb"],
+            batch["mask"],
+            key=key,
+            corners=batch["corners"],
+            bary=batch["bary"],
+            vertex_mask=batch["vertex_mask"],
+        )
 
     def step(params, opt_state, batch, key):
         (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key)
@@ -139,7 +150,14 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
     return data_parallel(step, mesh, batch_argnums=(2,))
 
 
-def mesh_batch(meshes: list[Mesh], config: Config, rng: np.random.Generator, *, num_vertices: int, dtype=np.float32) -> dict:
+def mesh_batch(
+    meshes: list[Mesh],
+    config: Config,
+    rng: np.random.Generator,
+    *,
+    num_vertices: int,
+    dtype=np.float32,
+) -> dict:
     """One training batch: one-ring samples of several meshes, concatenated and padded to ``num_vertices``.
 
     Args:
@@ -184,8 +202,11 @@ def mesh_batch(meshes: list[Mesh], config: Config, rng: np.random.Generator, *, 
 
     cdt = np.complex64 if dtype == np.float32 else np.complex128
     return {
-        "log": cat(logs).astype(cdt), "rgb": cat(rgbs).astype(dtype), "mask": cat(masks, False),
-        "corners": cat(corners).astype(np.int32), "bary": cat(barys).astype(dtype),
+        "log": cat(logs).astype(cdt),
+        "rgb": cat(rgbs).astype(dtype),
+        "mask": cat(masks, False),
+        "corners": cat(corners).astype(np.int32),
+        "bary": cat(barys).astype(dtype),
         "vertex_mask": np.arange(num_vertices) < offset,
     }
 
@@ -199,12 +220,18 @@ def _load_images(images, max_size: int, stream: bool = False) -> list[np.ndarray
         return [downscale(_to_rgb01(im), max_size) for im in images]
     if stream and isinstance(images, (list, tuple)) and not images:
         return []
-    raise InputError(f"images must be None or 'builtin', a folder path or a non-empty list of arrays, "
-                     f"got {type(images).__name__}")
+    raise InputError(
+        f"images must be None or 'builtin', a folder path or a non-empty list of arrays, "
+        f"got {type(images).__name__}"
+    )
 
 
 def _key_data(key: PRNGKey) -> list[int]:
-    data = jax.random.key_data(key) if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key) else key
+    data = (
+        jax.random.key_data(key)
+        if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key)
+        else key
+    )
     return np.asarray(data, dtype=np.uint32).ravel().tolist()
 
 
@@ -215,7 +242,12 @@ def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) 
         digest.update(repr(im.shape).encode())
         digest.update(np.ascontiguousarray(im, np.float64).tobytes())
     fixed = {k: v for k, v in config.to_dict().items() if k not in _RESUMABLE_CHANGES}
-    return {"config": fixed, "key": _key_data(key), "images": digest.hexdigest(), "dtype": jnp.dtype(dtype).name}
+    return {
+        "config": fixed,
+        "key": _key_data(key),
+        "images": digest.hexdigest(),
+        "dtype": jnp.dtype(dtype).name,
+    }
 
 
 def train(
@@ -284,8 +316,10 @@ def train(
     np_dtype = np.float64 if jnp.dtype(dtype) == jnp.float64 else np.float32
     mesh = resolve_mesh(mesh, devices)
     if checkpoint_dir is not None and is_multiprocess():
-        raise ConfigError("fl.train: checkpoint_dir with several processes (jax.distributed) is not supported "
-                          "yet; train without checkpoints, or in one process")
+        raise ConfigError(
+            "fl.train: checkpoint_dir with several processes (jax.distributed) is not supported "
+            "yet; train without checkpoints, or in one process"
+        )
     k_init, k_pool, k_data, k_noise = jax.random.split(key, 4)
     stream = config.pixels_per_vertex > 0
     loaded = _load_images(images, config.max_image_size, stream)
@@ -295,8 +329,13 @@ def train(
             raise InputError("fl.train: no images given and procedural_fraction < 1")
         max_vertices = max_stream_vertices(config)
     else:
-        pool = planar_pool(loaded, per_image=config.meshes_per_image, min_vertices=config.min_vertices,
-                           max_vertices=config.max_vertices, rng=_numpy_rng(k_pool))
+        pool = planar_pool(
+            loaded,
+            per_image=config.meshes_per_image,
+            min_vertices=config.min_vertices,
+            max_vertices=config.max_vertices,
+            rng=_numpy_rng(k_pool),
+        )
         max_vertices = config.max_vertices
     opt = optimizer(config)
     params = init(config, key=k_init, dtype=dtype).params
@@ -317,8 +356,13 @@ def train(
     if progress and start < config.steps:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=config.steps, initial=start, desc="FL-VAE train", unit="step",
-                   mininterval=0.5 if sys.stderr.isatty() else 30.0)
+        bar = tqdm(
+            total=config.steps,
+            initial=start,
+            desc="FL-VAE train",
+            unit="step",
+            mininterval=0.5 if sys.stderr.isatty() else 30.0,
+        )
     ema = float(np.mean(losses[-100:])) if losses else None
     t_first = None
     end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
@@ -328,13 +372,19 @@ def train(
             if stream:
                 meshes = _stream_meshes(rng, levels, config)
             else:
-                chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
+                chosen = rng.choice(
+                    len(pool), size=min(config.batch_size, len(pool)), replace=False
+                )
                 meshes = [pool[i] for i in chosen]
             batch = mesh_batch(meshes, config, rng, num_vertices=num_vertices, dtype=np_dtype)
-            params, opt_state, loss, l1 = step_fn(params, opt_state, batch, jax.random.fold_in(k_noise, step))
+            params, opt_state, loss, l1 = step_fn(
+                params, opt_state, batch, jax.random.fold_in(k_noise, step)
+            )
             loss, l1 = (float(x) for x in fetch((loss, l1)))
             if not np.isfinite(loss):
-                raise FloatingPointError(f"FL-VAE training diverged at step {step} (loss {loss}); lower learning_rate")
+                raise FloatingPointError(
+                    f"FL-VAE training diverged at step {step} (loss {loss}); lower learning_rate"
+                )
             losses.append(loss)
             l1s.append(l1)
             if t_first is None:
@@ -345,9 +395,17 @@ def train(
                 bar.set_postfix(loss=f"{ema:.4f}", l1=f"{l1:.4f}", refresh=False)
             if (step + 1) % config.checkpoint_every == 0 or step + 1 == end:
                 if ckpt is not None:
-                    ckpt.save(step + 1, {"params": params, "opt_state": opt_state}, meta={"loss": losses, "l1": l1s})
+                    ckpt.save(
+                        step + 1,
+                        {"params": params, "opt_state": opt_state},
+                        meta={"loss": losses, "l1": l1s},
+                    )
                 if loss_curve is not None:
-                    plot_losses({"loss": losses, "l1": l1s}, loss_curve, title=f"FL-VAE training ({step + 1} steps)")
+                    plot_losses(
+                        {"loss": losses, "l1": l1s},
+                        loss_curve,
+                        title=f"FL-VAE training ({step + 1} steps)",
+                    )
     finally:
         if bar is not None:
             bar.close()

@@ -103,8 +103,13 @@ class FCResBlock(nn.Module):
         rdt = real_dtype(x.dtype)
         d = self.features
         res = ComplexDense(d, self.param_dtype, name="residual")(x)
-        conv = dict(hdim=self.hdim, filter_layers=self.filter_layers, activation=self.activation,
-                    argument=self.argument, param_dtype=self.param_dtype)
+        conv = dict(
+            hdim=self.hdim,
+            filter_layers=self.filter_layers,
+            activation=self.activation,
+            argument=self.argument,
+            param_dtype=self.param_dtype,
+        )
         mlp = dict(layers=self.mlp_layers, param_dtype=self.param_dtype)
         h = TangentMLP(d, name="mlp_0", **mlp)(x, nbhd.area, nbhd.vertex_mask)
         h = FieldConv(d, name="conv_0", **conv)(h, nbhd)

@@ -113,12 +113,22 @@ class Config(ConfigBase):
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
     _RULES = (
-        rule("latent_channels hdim knn time_features diffusion_steps batch_size steps checkpoint_every n_copies "
-             "bucket", lambda x: is_int(x) and x >= 1, "a positive integer"),
-        rule("widths", lambda w: len(w) == 2 and all(isinstance(x, int) and x >= 1 for x in w),
-             "two positive integers (fine, coarse)"),
-        rule("blocks", lambda b: len(b) == 3 and all(isinstance(x, int) and x >= 1 for x in b),
-             "three positive integers (down, middle, up)"),
+        rule(
+            "latent_channels hdim knn time_features diffusion_steps batch_size steps checkpoint_every n_copies "
+            "bucket",
+            lambda x: is_int(x) and x >= 1,
+            "a positive integer",
+        ),
+        rule(
+            "widths",
+            lambda w: len(w) == 2 and all(isinstance(x, int) and x >= 1 for x in w),
+            "two positive integers (fine, coarse)",
+        ),
+        rule(
+            "blocks",
+            lambda b: len(b) == 3 and all(isinstance(x, int) and x >= 1 for x in b),
+            "three positive integers (down, middle, up)",
+        ),
         rule("activation", lambda x: x in ("silu", "relu"), "'silu' or 'relu'"),
         rule("mlp_layers", lambda x: is_int(x) and x >= 1, "a positive integer"),
         rule("filter_layers", lambda x: x in (1, 2), "1 or 2"),
@@ -129,7 +139,11 @@ class Config(ConfigBase):
         rule("schedule", lambda x: x in SCHEDULES, f"one of {SCHEDULES}"),
         rule("prediction", lambda x: x in PREDICTIONS, f"one of {PREDICTIONS}"),
         rule("num_labels", lambda x: isinstance(x, int) and x >= 0, ">= 0"),
-        rule("copy_vertices", lambda x: isinstance(x, int) and (x == 0 or x >= 16), "0 (keep the input's count) or >= 16"),
+        rule(
+            "copy_vertices",
+            lambda x: isinstance(x, int) and (x == 0 or x >= 16),
+            "0 (keep the input's count) or >= 16",
+        ),
         rule("pool_ratio", lambda x: 0.05 <= x <= 0.75, "in [0.05, 0.75]"),
         rule("learning_rate", lambda x: x > 0, "> 0"),
         rule("remat", lambda x: isinstance(x, bool), "True or False"),
@@ -151,9 +165,21 @@ class Config(ConfigBase):
     @classmethod
     def cpu(cls, **changes) -> Config:
         """A CPU preset: 32/64 channels, 1+2+2 blocks, ReLU filters, v-prediction, 32 copies of 5K vertices."""
-        base = dict(widths=(32, 64), blocks=(1, 2, 2), hdim=8, mlp_layers=1, filter_layers=2, activation="relu",
-                    prediction="v", n_copies=32, copy_vertices=5000, steps=3000, batch_size=2, learning_rate=1e-3,
-                    warmup_steps=100)
+        base = dict(
+            widths=(32, 64),
+            blocks=(1, 2, 2),
+            hdim=8,
+            mlp_layers=1,
+            filter_layers=2,
+            activation="relu",
+            prediction="v",
+            n_copies=32,
+            copy_vertices=5000,
+            steps=3000,
+            batch_size=2,
+            learning_rate=1e-3,
+            warmup_steps=100,
+        )
         return cls(**{**base, **changes})
 
     @classmethod
@@ -165,7 +191,22 @@ class Config(ConfigBase):
           >>> c.widths, c.n_copies, c.latent_channels
           ((16, 32), 4, 2)
         """
-        base = dict(widths=(16, 32), blocks=(1, 1, 1), hdim=4, mlp_layers=1, filter_layers=1, knn=7,
-                    activation="relu", time_features=16, n_copies=4, copy_vertices=400, steps=200, batch_size=2,
-                    learning_rate=3e-3, warmup_steps=20, checkpoint_every=100, bucket=64)
+        base = dict(
+            widths=(16, 32),
+            blocks=(1, 1, 1),
+            hdim=4,
+            mlp_layers=1,
+            filter_layers=1,
+            knn=7,
+            activation="relu",
+            time_features=16,
+            n_copies=4,
+            copy_vertices=400,
+            steps=200,
+            batch_size=2,
+            learning_rate=3e-3,
+            warmup_steps=20,
+            checkpoint_every=100,
+            bucket=64,
+        )
         return cls(**{**base, **changes})

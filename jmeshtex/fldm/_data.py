@@ -94,7 +94,9 @@ def fl_vae_encoder(vae, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], n
     from .. import fl
 
     if not isinstance(vae, fl.Model):
-        raise InputError(f"fl_vae_encoder: expected a jmeshtex.fl.Model (fl.load_pretrained()), got {type(vae).__name__}")
+        raise InputError(
+            f"fl_vae_encoder: expected a jmeshtex.fl.Model (fl.load_pretrained()), got {type(vae).__name__}"
+        )
     colors = fl.surface_colors(as_mesh(original, what="original"))
     counter = [0]
 
@@ -127,7 +129,9 @@ def transfer_labels(original: Mesh, labels: np.ndarray, target: Mesh) -> np.ndar
     original, target = as_mesh(original, what="original"), as_mesh(target)
     labels = np.asarray(labels)
     if labels.shape != (original.num_vertices,) or not np.issubdtype(labels.dtype, np.integer):
-        raise InputError(f"labels must be integers [V] = ({original.num_vertices},), got {labels.dtype} {labels.shape}")
+        raise InputError(
+            f"labels must be integers [V] = ({original.num_vertices},), got {labels.dtype} {labels.shape}"
+        )
     face, bary = surface_correspondence(original.vertices, original.faces, target.vertices)
     corner = np.argmax(bary, axis=1)
     return labels[original.faces[face, corner]].astype(np.int32)
@@ -152,10 +156,16 @@ def _geometry_from(arrays: dict[str, np.ndarray]) -> DenoiserGeometry:
     def part(cls, name):
         return cls(**{f: arrays[f"{name}.{f}"] for f in cls._fields})
 
-    return DenoiserGeometry(part(VertexNeighborhood, "fine"), part(VertexNeighborhood, "coarse"), part(PoolingMap, "pool"))
+    return DenoiserGeometry(
+        part(VertexNeighborhood, "fine"),
+        part(VertexNeighborhood, "coarse"),
+        part(PoolingMap, "pool"),
+    )
 
 
-def _save_copy(path: pathlib.Path, copy: Mesh, geo: DenoiserGeometry, mu: np.ndarray, labels) -> None:
+def _save_copy(
+    path: pathlib.Path, copy: Mesh, geo: DenoiserGeometry, mu: np.ndarray, labels
+) -> None:
     from ..io import atomic_save_npz
 
     arrays = {"vertices": copy.vertices, "faces": copy.faces, "mu": mu, **_geometry_arrays(geo)}
@@ -171,7 +181,9 @@ def _load_copy(path: pathlib.Path):
     try:
         return Mesh(a["vertices"], a["faces"]), _geometry_from(a), a["mu"], a.get("labels")
     except KeyError as err:
-        raise MeshIOError(f"{path}: incomplete FLDM training copy (missing {err}); delete it to rebuild") from err
+        raise MeshIOError(
+            f"{path}: incomplete FLDM training copy (missing {err}); delete it to rebuild"
+        ) from err
 
 
 def _round_up(n: int, bucket: int) -> int:
@@ -215,7 +227,14 @@ def stack_copies(
             labels[i, : m.num_vertices] = lab
     nv = np.array([m.num_vertices for m, _, _, _ in copies])
     mask = np.arange(V0)[None] < nv[:, None]
-    return Dataset(latents, geometry, labels, nv, latent_scale(latents, mask), tuple(m for m, _, _, _ in copies))
+    return Dataset(
+        latents,
+        geometry,
+        labels,
+        nv,
+        latent_scale(latents, mask),
+        tuple(m for m, _, _, _ in copies),
+    )
 
 
 def build_dataset(
@@ -262,13 +281,19 @@ def build_dataset(
 
     mesh = as_mesh(mesh)
     if not callable(encode):  # checked before the cache is touched: a stale cache is cleared below
-        raise ConfigError(f"encode must be a callable Mesh -> complex [V, d] (e.g. fl_vae_encoder), got {encode!r}")
+        raise ConfigError(
+            f"encode must be a callable Mesh -> complex [V, d] (e.g. fl_vae_encoder), got {encode!r}"
+        )
     if labels is not None:
         if not config.num_labels:
-            raise ConfigError("labels given but config.num_labels is 0; set num_labels to the number of classes")
+            raise ConfigError(
+                "labels given but config.num_labels is 0; set num_labels to the number of classes"
+            )
         lab = np.asarray(labels)
         if lab.size and (lab.min() < 0 or lab.max() >= config.num_labels):
-            raise ConfigError(f"labels must lie in [0, {config.num_labels}), got {lab.min()}..{lab.max()}")
+            raise ConfigError(
+                f"labels must lie in [0, {config.num_labels}), got {lab.min()}..{lab.max()}"
+            )
     elif config.num_labels:
         raise ConfigError(f"config.num_labels={config.num_labels} but no labels were given")
     cache = None if cache_dir is None else pathlib.Path(cache_dir)
@@ -286,7 +311,11 @@ def build_dataset(
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
         meta_path = cache / DATA_FILE
-        reuse = meta_path.is_file() and meta["encoder"] is not None and json.loads(meta_path.read_text()) == meta
+        reuse = (
+            meta_path.is_file()
+            and meta["encoder"] is not None
+            and json.loads(meta_path.read_text()) == meta
+        )
         if not reuse:
             from ..io import atomic_write
 

@@ -76,7 +76,10 @@ class DenoiserGeometry(NamedTuple):
 
 
 def denoiser_geometry(
-    mesh: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]], *, knn: int = 9, pool_ratio: float = 0.25
+    mesh: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
+    *,
+    knn: int = 9,
+    pool_ratio: float = 0.25,
 ) -> DenoiserGeometry:
     """Host-side k-NN neighbourhoods of the mesh and of one coarse level, and the pooling map.
 
@@ -121,8 +124,11 @@ def geometry_sizes(geo: DenoiserGeometry) -> dict[str, int]:
       >>> s["V0"], 0 < s["V1"] < 42
       (42, True)
     """
-    return {"V0": int(np.shape(geo.fine.index)[0]), "V1": int(np.shape(geo.coarse.index)[0]),
-            "M": int(np.shape(geo.pool.children)[1])}
+    return {
+        "V0": int(np.shape(geo.fine.index)[0]),
+        "V1": int(np.shape(geo.coarse.index)[0]),
+        "M": int(np.shape(geo.pool.children)[1]),
+    }
 
 
 def pad_geometry(geo: DenoiserGeometry, *, V0: int, V1: int, M: int) -> DenoiserGeometry:
@@ -141,7 +147,9 @@ def pad_geometry(geo: DenoiserGeometry, *, V0: int, V1: int, M: int) -> Denoiser
     )
 
 
-def timestep_embedding(t: Int[Array, ""], features: int, *, dtype=jnp.float32) -> Float[Array, " E"]:
+def timestep_embedding(
+    t: Int[Array, ""], features: int, *, dtype=jnp.float32
+) -> Float[Array, " E"]:
     """Sinusoidal timestep embedding (Vaswani et al. 2017; Ho et al. 2020).
 
     .. math:: e_{2j} = \\sin(t\\, \\omega_j),\\ e_{2j+1} = \\cos(t\\, \\omega_j),\\
@@ -193,12 +201,22 @@ class Denoiser(nn.Module):
             own = jnp.asarray(geo.pool.children)[:, 0]  # each coarse vertex's own fine copy
             emb0 = jnp.concatenate([jnp.broadcast_to(temb, (v0, temb.shape[0])), cond], axis=1)
             emb1 = jnp.concatenate([jnp.broadcast_to(temb, (v1, temb.shape[0])), cond[own]], axis=1)
-            emb0, emb1 = (_embedding_mlp(e, width, rdt, f"embed_{lvl}") for lvl, e in ((0, emb0), (1, emb1)))
+            emb0, emb1 = (
+                _embedding_mlp(e, width, rdt, f"embed_{lvl}") for lvl, e in ((0, emb0), (1, emb1))
+            )
         else:
             emb0 = emb1 = _embedding_mlp(temb, width, rdt, "embed")
-        block = dict(hdim=cfg.hdim, mlp_layers=cfg.mlp_layers, filter_layers=cfg.filter_layers,
-                     activation=cfg.activation, argument=self.argument, param_dtype=self.param_dtype)
-        Block = nn.remat(FCResBlock) if cfg.remat else FCResBlock  # same parameters, recomputed in the backward pass
+        block = dict(
+            hdim=cfg.hdim,
+            mlp_layers=cfg.mlp_layers,
+            filter_layers=cfg.filter_layers,
+            activation=cfg.activation,
+            argument=self.argument,
+            param_dtype=self.param_dtype,
+        )
+        Block = (
+            nn.remat(FCResBlock) if cfg.remat else FCResBlock
+        )  # same parameters, recomputed in the backward pass
         h = ComplexDense(c0, self.param_dtype, name="lift")(z)
         for i in range(cfg.blocks[0]):
             h = Block(c0, name=f"down_{i}", **block)(h, geo.fine, emb0)
@@ -210,7 +228,9 @@ class Denoiser(nn.Module):
         h = ComplexDense(c0, self.param_dtype, name="merge")(h)
         for i in range(cfg.blocks[2]):
             h = Block(c0, name=f"up_{i}", **block)(h, geo.fine, emb0)
-        out = ComplexDense(cfg.latent_channels, self.param_dtype, name="out")(h)  # linear output (no norm, no VN)
+        out = ComplexDense(cfg.latent_channels, self.param_dtype, name="out")(
+            h
+        )  # linear output (no norm, no VN)
         return out * jnp.asarray(geo.fine.vertex_mask).astype(out.dtype)[:, None]
 
 
@@ -222,9 +242,13 @@ def _embedding_mlp(e, width: int, rdt, prefix: str):
 
 def _check_mask(config: Config, z, mask, known) -> None:
     if config.mask_conditioning and (mask is None or known is None):
-        raise InputError("denoiser: the config has mask_conditioning=True; pass mask [V] bool and known [V, d] latents")
+        raise InputError(
+            "denoiser: the config has mask_conditioning=True; pass mask [V] bool and known [V, d] latents"
+        )
     if not config.mask_conditioning and (mask is not None or known is not None):
-        raise InputError("denoiser: mask/known given but the config is not mask-conditioned (mask_conditioning=False)")
+        raise InputError(
+            "denoiser: mask/known given but the config is not mask-conditioned (mask_conditioning=False)"
+        )
     if mask is not None and np.shape(mask) != (z.shape[0],):
         raise InputError(f"denoiser: mask must be [V] = ({z.shape[0]},), got {np.shape(mask)}")
     if known is not None and np.shape(known) != z.shape:
@@ -233,13 +257,21 @@ def _check_mask(config: Config, z, mask, known) -> None:
 
 def _check_inputs(config: Config, z, geo: DenoiserGeometry, labels) -> None:
     if z.ndim != 2 or not jnp.issubdtype(z.dtype, jnp.complexfloating):
-        raise InputError(f"denoiser: z must be complex [V, d] (vmap for batches), got {z.dtype} {z.shape}")
+        raise InputError(
+            f"denoiser: z must be complex [V, d] (vmap for batches), got {z.dtype} {z.shape}"
+        )
     if z.shape[1] != config.latent_channels:
-        raise InputError(f"denoiser: z has {z.shape[1]} channels, the config says latent_channels={config.latent_channels}")
+        raise InputError(
+            f"denoiser: z has {z.shape[1]} channels, the config says latent_channels={config.latent_channels}"
+        )
     if z.shape[0] != np.shape(geo.fine.index)[0]:
-        raise InputError(f"denoiser: z has {z.shape[0]} vertices, the geometry {np.shape(geo.fine.index)[0]}")
+        raise InputError(
+            f"denoiser: z has {z.shape[0]} vertices, the geometry {np.shape(geo.fine.index)[0]}"
+        )
     if config.num_labels and labels is None:
-        raise InputError(f"denoiser: the config has num_labels={config.num_labels}; pass labels [V] int")
+        raise InputError(
+            f"denoiser: the config has num_labels={config.num_labels}; pass labels [V] int"
+        )
     if not config.num_labels and labels is not None:
         raise InputError("denoiser: labels given but the config is unconditional (num_labels=0)")
     if labels is not None and np.shape(labels) != (z.shape[0],):
@@ -287,8 +319,9 @@ def _init(key, config: Config, dtype):
     z = jnp.zeros((v, config.latent_channels), dtype)
     labels = jnp.zeros((v,), jnp.int32) if config.num_labels else None
     mask, known = (jnp.zeros((v,), bool), z) if config.mask_conditioning else (None, None)
-    return Denoiser(config, param_dtype=dtype).init(key, z, jnp.zeros((), jnp.int32), geo, labels, mask,
-                                                    known)["params"]
+    return Denoiser(config, param_dtype=dtype).init(
+        key, z, jnp.zeros((), jnp.int32), geo, labels, mask, known
+    )["params"]
 
 
 def _as_jax(geo: DenoiserGeometry, cdtype) -> DenoiserGeometry:
@@ -350,14 +383,17 @@ def denoise(
     _check_inputs(config, z_t, geo, labels)
     _check_mask(config, z_t, mask, known)
     geo = _as_jax(geo, z_t.dtype)
-    return _apply(params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels, mask, known, filter_argument)
+    return _apply(
+        params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels, mask, known, filter_argument
+    )
 
 
 @functools.partial(jax.jit, static_argnames=("config", "argument"))
 def _apply(params, config, z_t, t, geo, labels, mask=None, known=None, argument="transported"):
     # jitted once per config and shapes (eager use would dispatch every small op separately)
-    return Denoiser(config, param_dtype=z_t.dtype, argument=argument).apply({"params": params}, z_t, t, geo, labels,
-                                                                           mask, known)
+    return Denoiser(config, param_dtype=z_t.dtype, argument=argument).apply(
+        {"params": params}, z_t, t, geo, labels, mask, known
+    )
 
 
 def denoiser_flops(config: Config, v0: int, v1: int) -> float:
@@ -385,17 +421,23 @@ def denoiser_flops(config: Config, v0: int, v1: int) -> float:
         filt = v * k * c * h * 2 * 2  # filter pre-activation (2 inputs) per slot/channel/response
         if config.filter_layers == 2:
             filt += v * k * c * h * h * 2  # the second hidden layer
-        sums = v * k * c * h * 2 * 2  # complex feature × real response, accumulated: 2 multiply-adds
+        sums = (
+            v * k * c * h * 2 * 2
+        )  # complex feature × real response, accumulated: 2 multiply-adds
         mix = v * c * h * d * 8  # complex matmul
         return filt + sums + mix
 
-    def mlp(v, c, d):  # (norm → VN) × mlp_layers; the first maps c → d, each VN has two dense layers
+    def mlp(
+        v, c, d
+    ):  # (norm → VN) × mlp_layers; the first maps c → d, each VN has two dense layers
         return 2 * 8 * v * (c * d + (config.mlp_layers - 1) * d * d)
 
     def block(v, c, d):
         return v * c * d * 8 + mlp(v, c, d) + conv(v, d, d) + mlp(v, d, d) + conv(v, d, d)
 
-    total = 8 * v0 * config.latent_channels * (2 if config.mask_conditioning else 1) * c0  # lift (+ known)
+    total = (
+        8 * v0 * config.latent_channels * (2 if config.mask_conditioning else 1) * c0
+    )  # lift (+ known)
     total += sum(block(v0, c0, c0) for _ in range(config.blocks[0]))
     total += block(v1, c0, c1) + sum(block(v1, c1, c1) for _ in range(config.blocks[1] - 1))
     total += 8 * v0 * (c1 + c0) * c0  # merge
@@ -423,6 +465,8 @@ def denoiser_activations(config: Config, v0: int, v1: int) -> float:
     """
     c0, c1 = config.widths
     per = config.knn * config.hdim * config.filter_layers
-    fine = (config.blocks[0] + config.blocks[2]) * 2 * c0  # every convolution acts on the block's width
+    fine = (
+        (config.blocks[0] + config.blocks[2]) * 2 * c0
+    )  # every convolution acts on the block's width
     coarse = config.blocks[1] * 2 * c1
     return float(per * (v0 * fine + v1 * coarse))

@@ -110,11 +110,16 @@ def _coef(values: np.ndarray, t, like: Array) -> Array:
 
 def _signal_noise(schedule: Schedule, t, like: Array) -> tuple[Array, Array]:
     """``(√ᾱ_t, √(1 − ᾱ_t))`` broadcastable against ``like``."""
-    return _coef(np.sqrt(schedule.alpha_bars), t, like), _coef(np.sqrt(1.0 - schedule.alpha_bars), t, like)
+    return _coef(np.sqrt(schedule.alpha_bars), t, like), _coef(
+        np.sqrt(1.0 - schedule.alpha_bars), t, like
+    )
 
 
 def q_sample(
-    schedule: Schedule, z0: Complex[Array, "*B V C"], t: Int[Array, "*B"], noise: Complex[Array, "*B V C"]
+    schedule: Schedule,
+    z0: Complex[Array, "*B V C"],
+    t: Int[Array, "*B"],
+    noise: Complex[Array, "*B V C"],
 ) -> Complex[Array, "*B V C"]:
     """Forward diffusion to timestep ``t`` (eq. 8).
 
@@ -141,7 +146,9 @@ def q_sample(
 
 
 def epsilon_loss(
-    eps_pred: Complex[Array, "*B V C"], eps: Complex[Array, "*B V C"], vertex_mask: Bool[Array, "*B V"] | None = None
+    eps_pred: Complex[Array, "*B V C"],
+    eps: Complex[Array, "*B V C"],
+    vertex_mask: Bool[Array, "*B V"] | None = None,
 ) -> Float[Array, ""]:
     """The ε-prediction loss (eq. 10): mean squared modulus of the error over real vertices and channels.
 
@@ -172,7 +179,10 @@ def _check_prediction(prediction: str) -> None:
 
 
 def prediction_target(
-    schedule: Schedule, prediction: str, z0: Complex[Array, "*B V C"], t: Int[Array, "*B"],
+    schedule: Schedule,
+    prediction: str,
+    z0: Complex[Array, "*B V C"],
+    t: Int[Array, "*B"],
     noise: Complex[Array, "*B V C"],
 ) -> Complex[Array, "*B V C"]:
     """What the network is trained to output for ``z_t = q_sample(schedule, z0, t, noise)``.
@@ -206,7 +216,10 @@ def prediction_target(
 
 
 def epsilon_from_output(
-    schedule: Schedule, prediction: str, z_t: Complex[Array, "*B V C"], t: Int[Array, "*B"],
+    schedule: Schedule,
+    prediction: str,
+    z_t: Complex[Array, "*B V C"],
+    t: Int[Array, "*B"],
     output: Complex[Array, "*B V C"],
 ) -> Complex[Array, "*B V C"]:
     """The noise estimate ``ε̂`` from the network's output, for the samplers.
@@ -258,12 +271,17 @@ def latent_scale(
         w = np.asarray(vertex_mask, np.float64)[..., None]
         mean = (m * w).reshape(-1, m.shape[-1]).sum(0) / max(w.sum(), 1.0)
     if not np.all(np.isfinite(mean)) or np.any(mean <= 0):
-        raise InputError("latent_scale: latents must be finite and not identically zero in any channel")
+        raise InputError(
+            "latent_scale: latents must be finite and not identically zero in any channel"
+        )
     return 1.0 / np.sqrt(mean)
 
 
 def ddpm_step(
-    schedule: Schedule, z_t: Complex[Array, "V C"], t: Int[Array, ""], eps_pred: Complex[Array, "V C"],
+    schedule: Schedule,
+    z_t: Complex[Array, "V C"],
+    t: Int[Array, ""],
+    eps_pred: Complex[Array, "V C"],
     noise: Complex[Array, "V C"],
 ) -> Complex[Array, "V C"]:
     """One ancestral DDPM step ``t → t−1`` (eq. 11, 29–31).
@@ -292,12 +310,20 @@ def ddpm_step(
     sigma = np.sqrt(schedule.betas * (1.0 - ab_prev) / (1.0 - schedule.alpha_bars))
     c1 = _coef(1.0 / np.sqrt(schedule.alphas), t, z_t)
     c2 = _coef(schedule.betas / np.sqrt(1.0 - schedule.alpha_bars), t, z_t)
-    return c1 * (z_t - c2 * eps_pred.astype(z_t.dtype)) + _coef(sigma, t, z_t) * noise.astype(z_t.dtype)
+    return c1 * (z_t - c2 * eps_pred.astype(z_t.dtype)) + _coef(sigma, t, z_t) * noise.astype(
+        z_t.dtype
+    )
 
 
 def ddim_step(
-    schedule: Schedule, z_t: Complex[Array, "V C"], t: Int[Array, ""], t_prev: Int[Array, ""],
-    eps_pred: Complex[Array, "V C"], noise: Complex[Array, "V C"], *, eta: float = 0.0,
+    schedule: Schedule,
+    z_t: Complex[Array, "V C"],
+    t: Int[Array, ""],
+    t_prev: Int[Array, ""],
+    eps_pred: Complex[Array, "V C"],
+    noise: Complex[Array, "V C"],
+    *,
+    eta: float = 0.0,
 ) -> Complex[Array, "V C"]:
     """One DDIM step ``t → t_prev`` (Song et al. 2021, eq. 12; ``t_prev = −1`` means the clean end).
 
@@ -327,7 +353,9 @@ def ddim_step(
     """
     from ..ops import real_dtype
 
-    ab = jnp.asarray(np.concatenate([schedule.alpha_bars, [1.0]]), real_dtype(z_t.dtype))  # [-1] -> 1.0
+    ab = jnp.asarray(
+        np.concatenate([schedule.alpha_bars, [1.0]]), real_dtype(z_t.dtype)
+    )  # [-1] -> 1.0
     a_t, a_p = ab[t], ab[t_prev]
     sig = eta * jnp.sqrt(jnp.maximum((1.0 - a_p) / (1.0 - a_t) * (1.0 - a_t / a_p), 0.0))
     direction = jnp.sqrt(jnp.maximum(1.0 - a_p - sig * sig, 0.0)).astype(z_t.dtype)
@@ -418,7 +446,9 @@ def sample_from_noise(
         ts = timestep_sequence(T, num_steps)
         prev = np.concatenate([ts[1:], [-1]]).astype(np.int32)
     if step_noise.shape != (len(ts), *z_T.shape):
-        raise InputError(f"step_noise must have shape {(len(ts), *z_T.shape)} for {method}, got {step_noise.shape}")
+        raise InputError(
+            f"step_noise must have shape {(len(ts), *z_T.shape)} for {method}, got {step_noise.shape}"
+        )
     if inpaint is not None and (inpaint_noise is None or inpaint_noise.shape != step_noise.shape):
         raise InputError(f"inpainting needs inpaint_noise of shape {step_noise.shape}")
     ab = jnp.asarray(np.concatenate([schedule.alpha_bars, [1.0]]))
@@ -432,7 +462,10 @@ def sample_from_noise(
             z = ddim_step(schedule, z, t, tp, eps, noise, eta=eta)
         if inpaint is not None:
             a = ab[tp].astype(z.real.dtype)
-            known = jnp.sqrt(a).astype(z.dtype) * inpaint.z0.astype(z.dtype) + jnp.sqrt(1 - a).astype(z.dtype) * known_noise
+            known = (
+                jnp.sqrt(a).astype(z.dtype) * inpaint.z0.astype(z.dtype)
+                + jnp.sqrt(1 - a).astype(z.dtype) * known_noise
+            )
             z = jnp.where(inpaint.mask[:, None], known, z)
         return z, None
 
@@ -444,8 +477,14 @@ def sample_from_noise(
 
 
 def draw_sampling_noise(
-    key: PRNGKey, shape: tuple[int, int], *, method: str, num_steps: int, diffusion_steps: int,
-    inpaint: bool = False, dtype=jnp.complex64,
+    key: PRNGKey,
+    shape: tuple[int, int],
+    *,
+    method: str,
+    num_steps: int,
+    diffusion_steps: int,
+    inpaint: bool = False,
+    dtype=jnp.complex64,
 ) -> tuple[Array, Array, Array | None]:
     """Tangent noise for :func:`sample_from_noise`: ``(z_T, step_noise, inpaint_noise or None)``.
 

@@ -57,7 +57,9 @@ def random_mask(mesh: Mesh, *, key) -> np.ndarray:
     return _random_mask(np.asarray(mesh.vertices, np.float64), host_rng(key))
 
 
-def batch_masks(meshes, index: np.ndarray, num_vertices: int, rng: np.random.Generator) -> np.ndarray:
+def batch_masks(
+    meshes, index: np.ndarray, num_vertices: int, rng: np.random.Generator
+) -> np.ndarray:
     """``[len(index), num_vertices]`` random masks of the copies ``meshes[index]`` (False on padding)."""
     out = np.zeros((len(index), num_vertices), bool)
     for row, i in enumerate(np.asarray(index)):

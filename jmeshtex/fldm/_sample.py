@@ -61,7 +61,21 @@ def sampling_geometry(mesh: Mesh, model: Model) -> DenoiserGeometry:
 
 
 @functools.partial(jax.jit, static_argnames=("config", "method", "num_steps", "eta"))
-def _run(params, config, geo, labels, z_T, step_noise, known, mask, known_noise, *, method, num_steps, eta):
+def _run(
+    params,
+    config,
+    geo,
+    labels,
+    z_T,
+    step_noise,
+    known,
+    mask,
+    known_noise,
+    *,
+    method,
+    num_steps,
+    eta,
+):
     schedule = make_schedule(config.schedule, num_steps=config.diffusion_steps)
 
     cond = dict(mask=mask, known=known) if config.mask_conditioning else {}
@@ -71,14 +85,25 @@ def _run(params, config, geo, labels, z_T, step_noise, known, mask, known_noise,
         return epsilon_from_output(schedule, config.prediction, z, t, out)
 
     inpaint = Inpaint(known, mask)
-    return sample_from_noise(eps, schedule, z_T, step_noise, method=method, num_steps=num_steps, eta=eta,
-                             inpaint=inpaint, inpaint_noise=known_noise)
+    return sample_from_noise(
+        eps,
+        schedule,
+        z_T,
+        step_noise,
+        method=method,
+        num_steps=num_steps,
+        eta=eta,
+        inpaint=inpaint,
+        inpaint_noise=known_noise,
+    )
 
 
 def _check_labels(model: Model, labels, V: int):
     if model.config.num_labels:
         if labels is None:
-            raise InputError(f"this model is label-guided (num_labels={model.config.num_labels}); pass labels [V] int")
+            raise InputError(
+                f"this model is label-guided (num_labels={model.config.num_labels}); pass labels [V] int"
+            )
         labels = np.asarray(labels)
         if labels.shape != (V,) or labels.min() < 0 or labels.max() >= model.config.num_labels:
             raise InputError(f"labels must be ints [V] = ({V},) in [0, {model.config.num_labels})")
@@ -144,17 +169,23 @@ def sample(
     scale = np.asarray(model.scale, np.float64)
     if (known is None) != (mask is None):
         raise InputError("inpainting needs both known [V, d] latents and mask [V]")
-    if known is None:  # plain sampling is inpainting with an empty mask: one compiled program for both
+    if (
+        known is None
+    ):  # plain sampling is inpainting with an empty mask: one compiled program for both
         known, mask = np.zeros((V, d), np.complex128), np.zeros(V, bool)
     known = np.asarray(known)
     mask = np.asarray(mask, bool)
     if known.shape != (V, d) or mask.shape != (V,):
-        raise InputError(f"known must be [V, d] = ({V}, {d}) and mask [V], got {known.shape} and {mask.shape}")
+        raise InputError(
+            f"known must be [V, d] = ({V}, {d}) and mask [V], got {known.shape} and {mask.shape}"
+        )
     # pad to bucketed sizes (padding never changes real outputs): nearby sizes share one compilation
     sizes = geometry_sizes(geo)
     b = model.config.bucket
     Vp = _round_up(V, b)
-    geo = pad_geometry(geo, V0=Vp, V1=_round_up(sizes["V1"], max(b // 4, 1)), M=_round_up(sizes["M"], 4))
+    geo = pad_geometry(
+        geo, V0=Vp, V1=_round_up(sizes["V1"], max(b // 4, 1)), M=_round_up(sizes["M"], 4)
+    )
     kn = jnp.asarray(np.pad(known * scale, ((0, Vp - V), (0, 0))), dtype)
     mk = jnp.asarray(np.pad(mask, (0, Vp - V)))
     if lab is not None:
@@ -163,21 +194,50 @@ def sample(
 
     rdt = jnp.float64 if jnp.dtype(dtype) == jnp.complex128 else jnp.float32
     geo_j = to_jax(geo, rdt)
-    params = jax.tree.map(lambda p: jnp.asarray(p).astype(dtype) if jnp.iscomplexobj(p) else jnp.asarray(p).astype(rdt),
-                          model.params)
+    params = jax.tree.map(
+        lambda p: (
+            jnp.asarray(p).astype(dtype) if jnp.iscomplexobj(p) else jnp.asarray(p).astype(rdt)
+        ),
+        model.params,
+    )
     out = []
     for i in tqdm(range(int(n)), desc="FLDM sample", unit="sample", disable=not progress):
         z_T, noise, known_noise = draw_sampling_noise(
-            jax.random.fold_in(key, i), (Vp, d), method=method, num_steps=steps,
-            diffusion_steps=model.config.diffusion_steps, inpaint=True, dtype=dtype)
-        z = _run(params, model.config, geo_j, lab, z_T, noise, kn, mk, known_noise, method=method,
-                 num_steps=int(steps), eta=float(eta))
+            jax.random.fold_in(key, i),
+            (Vp, d),
+            method=method,
+            num_steps=steps,
+            diffusion_steps=model.config.diffusion_steps,
+            inpaint=True,
+            dtype=dtype,
+        )
+        z = _run(
+            params,
+            model.config,
+            geo_j,
+            lab,
+            z_T,
+            noise,
+            kn,
+            mk,
+            known_noise,
+            method=method,
+            num_steps=int(steps),
+            eta=float(eta),
+        )
         out.append(np.asarray(z, np.complex128)[:V] / scale)
     return np.stack(out)
 
 
 def inpaint(
-    model: Model, mesh: Mesh, known: np.ndarray, mask: np.ndarray, *, key: jax.Array, n: int = 1, **kwargs
+    model: Model,
+    mesh: Mesh,
+    known: np.ndarray,
+    mask: np.ndarray,
+    *,
+    key: jax.Array,
+    n: int = 1,
+    **kwargs,
 ) -> np.ndarray:
     """Inpaint: sample the latents where ``mask`` is False, keep ``known`` where it is True (eq. 14).
 
@@ -236,8 +296,13 @@ def decode_samples(vae, mesh: Mesh, latents: np.ndarray, *, size: int = 256) -> 
 
 
 def render_samples(
-    mesh: Mesh, decoded: list[dict], out_dir: str | os.PathLike, *, prefix: str = "sample",
-    views: tuple[tuple[float, float], ...] = ((25.0, -60.0),), size: tuple[int, int] = (384, 384),
+    mesh: Mesh,
+    decoded: list[dict],
+    out_dir: str | os.PathLike,
+    *,
+    prefix: str = "sample",
+    views: tuple[tuple[float, float], ...] = ((25.0, -60.0),),
+    size: tuple[int, int] = (384, 384),
 ) -> list[pathlib.Path]:
     """Write one PNG per sample and view (``{prefix}_{i:02d}_{view}.png``); returns the paths.
 
@@ -259,8 +324,23 @@ def render_samples(
         for j, view in enumerate(views):
             path = out / f"{prefix}_{i:02d}_{j}.png"
             if "texture" in d:
-                render_mesh(mesh.vertices, mesh.faces, path, uv=mesh.uv, texture=d["texture"], view=view, size=size)
+                render_mesh(
+                    mesh.vertices,
+                    mesh.faces,
+                    path,
+                    uv=mesh.uv,
+                    texture=d["texture"],
+                    view=view,
+                    size=size,
+                )
             else:
-                render_mesh(mesh.vertices, mesh.faces, path, vertex_colors=d["vertex_colors"], view=view, size=size)
+                render_mesh(
+                    mesh.vertices,
+                    mesh.faces,
+                    path,
+                    vertex_colors=d["vertex_colors"],
+                    view=view,
+                    size=size,
+                )
             paths.append(path)
     return paths

@@ -101,8 +101,12 @@ def learning_rate_schedule(config: Config) -> optax.Schedule:
         return optax.constant_schedule(config.learning_rate)
     warmup = min(config.warmup_steps, config.steps // 2)
     return optax.warmup_cosine_decay_schedule(
-        init_value=0.0, peak_value=config.learning_rate, warmup_steps=warmup,
-        decay_steps=max(config.steps, warmup + 1), end_value=config.end_learning_rate)
+        init_value=0.0,
+        peak_value=config.learning_rate,
+        warmup_steps=warmup,
+        decay_steps=max(config.steps, warmup + 1),
+        end_value=config.end_learning_rate,
+    )
 
 
 def optimizer(config: Config) -> optax.GradientTransformation:
@@ -119,7 +123,9 @@ def _ema_update(ema, params, step, *, decay: float):
     """``ema ← d ema + (1 − d) params`` with ``d = min(decay, (1 + step) / (10 + step))`` (early steps
     follow the weights closely; the usual warm-up of a weight EMA)."""
     d = jnp.minimum(decay, (1.0 + step) / (10.0 + step))
-    return jax.tree.map(lambda e, p: d.astype(p.dtype) * e + (1 - d).astype(p.dtype) * p, ema, params)
+    return jax.tree.map(
+        lambda e, p: d.astype(p.dtype) * e + (1 - d).astype(p.dtype) * p, ema, params
+    )
 
 
 @functools.lru_cache(maxsize=16)
@@ -134,7 +140,8 @@ def _check_batch(config: Config, mesh: jax.sharding.Mesh) -> None:
     if config.batch_size % per:
         raise ConfigError(
             f"fldm: batch_size={config.batch_size} copies cannot be split evenly over the {per} devices of the "
-            f"mesh; use a batch_size that is a multiple of {per}, or train on fewer devices (devices=...)")
+            f"mesh; use a batch_size that is a multiple of {per}, or train on fewer devices (devices=...)"
+        )
 
 
 @functools.lru_cache(maxsize=16)
@@ -185,11 +192,15 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
         weight = geo.fine.vertex_mask
         if config.mask_conditioning:  # the loss of the generated region only
             weight = weight & ~mask
-        return epsilon_loss(pred, prediction_target(schedule, config.prediction, z0, t, eps), weight)
+        return epsilon_loss(
+            pred, prediction_target(schedule, config.prediction, z0, t, eps), weight
+        )
 
     def step(params, opt_state, z0, geo, labels, key, mask=None):
         if config.mask_conditioning and mask is None:
-            raise InputError("fldm: a mask-conditioned config's step needs the batch's masks (training_masks)")
+            raise InputError(
+                "fldm: a mask-conditioned config's step needs the batch's masks (training_masks)"
+            )
         if not config.mask_conditioning:
             mask = None
         kt, ke = jax.random.split(key)
@@ -278,11 +289,17 @@ def _split(key: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
 
 def _check_data(data: Dataset, config: Config) -> None:
     if not isinstance(data, Dataset):
-        raise InputError(f"expected a jmeshtex.fldm.Dataset (from build_dataset), got {type(data).__name__}")
+        raise InputError(
+            f"expected a jmeshtex.fldm.Dataset (from build_dataset), got {type(data).__name__}"
+        )
     if data.latents.shape[-1] != config.latent_channels:
-        raise ConfigError(f"data has {data.latents.shape[-1]} latent channels, config.latent_channels={config.latent_channels}")
+        raise ConfigError(
+            f"data has {data.latents.shape[-1]} latent channels, config.latent_channels={config.latent_channels}"
+        )
     if (data.labels is None) != (config.num_labels == 0):
-        raise ConfigError("labels in the data and config.num_labels must agree (both set or both absent)")
+        raise ConfigError(
+            "labels in the data and config.num_labels must agree (both set or both absent)"
+        )
 
 
 def init(data: Dataset, config: Config, *, key: jax.Array, dtype=jnp.complex64) -> Model:
@@ -312,9 +329,18 @@ def init(data: Dataset, config: Config, *, key: jax.Array, dtype=jnp.complex64) 
 
 def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
     """What a checkpoint must have been written by to be resumed (module docstring)."""
-    settings = {k: v for k, v in config.to_dict().items() if k not in ("steps", "checkpoint_every", "remat")}
-    return {"config": settings, "key": key_ints(key), "dtype": jnp.dtype(dtype).name,
-            "data": {"shape": list(data.latents.shape), "scale": np.asarray(data.scale, np.float64).tolist()}}
+    settings = {
+        k: v for k, v in config.to_dict().items() if k not in ("steps", "checkpoint_every", "remat")
+    }
+    return {
+        "config": settings,
+        "key": key_ints(key),
+        "dtype": jnp.dtype(dtype).name,
+        "data": {
+            "shape": list(data.latents.shape),
+            "scale": np.asarray(data.scale, np.float64).tolist(),
+        },
+    }
 
 
 def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
@@ -341,10 +367,14 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
     from ..io import atomic_save_npz, atomic_write
 
     if not isinstance(model, Model):
-        raise InputError(f"save(model, path): expected a jmeshtex.fldm.Model first, got {type(model).__name__}")
+        raise InputError(
+            f"save(model, path): expected a jmeshtex.fldm.Model first, got {type(model).__name__}"
+        )
     out = pathlib.Path(path)
-    arrays = {"/".join(str(getattr(k, "key", k)) for k in kp): np.asarray(v)
-              for kp, v in jax.tree_util.tree_flatten_with_path(model.params)[0]}
+    arrays = {
+        "/".join(str(getattr(k, "key", k)) for k in kp): np.asarray(v)
+        for kp, v in jax.tree_util.tree_flatten_with_path(model.params)[0]
+    }
     atomic_save_npz(out / MODEL_FILE, arrays)
     meta = {"config": model.config.to_dict(), "scale": np.asarray(model.scale).tolist()}
     atomic_write(out / MODEL_JSON, json.dumps(meta, indent=2).encode())
@@ -367,7 +397,9 @@ def load(path: str | os.PathLike) -> Model:
 
     out = pathlib.Path(path)
     if not (out / MODEL_JSON).is_file():
-        raise MeshIOError(f"no FLDM model in {out} (expected {MODEL_JSON} and {MODEL_FILE}; train one with `jmeshtex fldm train`)")
+        raise MeshIOError(
+            f"no FLDM model in {out} (expected {MODEL_JSON} and {MODEL_FILE}; train one with `jmeshtex fldm train`)"
+        )
     meta = json.loads((out / MODEL_JSON).read_text())
     arrays = load_npz(out / MODEL_FILE, "FLDM model")
     params: dict = {}
@@ -438,8 +470,10 @@ def train(
     mesh = resolve_mesh(mesh, devices)
     _check_batch(config, mesh)
     if checkpoint_dir is not None and is_multiprocess():
-        raise ConfigError("fldm.train: checkpoint_dir with several processes (jax.distributed) is not supported "
-                          "yet; train without checkpoints, or in one process")
+        raise ConfigError(
+            "fldm.train: checkpoint_dir with several processes (jax.distributed) is not supported "
+            "yet; train without checkpoints, or in one process"
+        )
     opt = optimizer(config)
     k_init, k_batch, k_noise = _split(key)
     params = init_denoiser(k_init, config, dtype=dtype)
@@ -454,22 +488,34 @@ def train(
         return {**state, "ema": ema} if use_ema else state
 
     if checkpoint_dir is not None:
-        ckpt = Checkpoints(checkpoint_dir, keep=2, fingerprint=_fingerprint(data, config, key, dtype))
+        ckpt = Checkpoints(
+            checkpoint_dir, keep=2, fingerprint=_fingerprint(data, config, key, dtype)
+        )
         resumed = ckpt.latest_step()
         if resumed is not None:
             state, meta = ckpt.restore(state_dict())
-            params, opt_state, ema = replicate((state["params"], state["opt_state"], state.get("ema")), mesh)
+            params, opt_state, ema = replicate(
+                (state["params"], state["opt_state"], state.get("ema")), mesh
+            )
             start, losses = resumed, [float(x) for x in meta["losses"]]
     step_fn = make_train_step(config, mesh)
     ema_fn = _ema_step(float(config.ema_decay), mesh) if use_ema else None
     end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
     end = max(end, start)
     t0 = time.perf_counter()
-    bar = tqdm(range(start, end), initial=start, total=config.steps, desc="FLDM train", unit="step",
-               disable=not progress)
+    bar = tqdm(
+        range(start, end),
+        initial=start,
+        total=config.steps,
+        desc="FLDM train",
+        unit="step",
+        disable=not progress,
+    )
     try:
         for step in bar:
-            z0, geo, labels = training_batch(data, step, config.batch_size, key=k_batch, dtype=dtype)
+            z0, geo, labels = training_batch(
+                data, step, config.batch_size, key=k_batch, dtype=dtype
+            )
             k_step = jax.random.fold_in(k_noise, step)
             if config.mask_conditioning:
                 masks = training_masks(data, step, config.batch_size, key=k_batch)
@@ -488,5 +534,10 @@ def train(
             ckpt.close()
     seconds = time.perf_counter() - t0
     model = Model(fetch(ema if use_ema else params), config, np.asarray(data.scale))
-    return TrainResult(model=model, losses={"loss": np.asarray(losses, np.float64)}, steps=end, seconds=seconds,
-                       resumed_from=resumed)
+    return TrainResult(
+        model=model,
+        losses={"loss": np.asarray(losses, np.float64)},
+        steps=end,
+        seconds=seconds,
+        resumed_from=resumed,
+    )

@@ -213,7 +213,7 @@ def one_rings(faces: np.ndarray, num_vertices: int | None = None) -> OneRings:
         raise NonManifoldVertexError(indices=np.nonzero(chain_len != counts)[0])
     rank = chain_len[p] - 1 - dist
 
-    boundary = (starts_per_vertex == 1)
+    boundary = starts_per_vertex == 1
     degree = counts + boundary.astype(np.int64)
     K = max(int(degree.max()), 1) if V else 1
     ring = np.zeros((V, K), np.int32)

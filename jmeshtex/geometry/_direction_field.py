@@ -127,7 +127,9 @@ def global_direction_field(
     face_t = project_direction(np.zeros_like(face_n), face_n, primary=primary, secondary=secondary)
     total = np.zeros_like(v)
     for axis in range(3):
-        total[:, axis] = np.bincount(f.ravel(), np.repeat(area * face_t[:, axis], 3), minlength=len(v))
+        total[:, axis] = np.bincount(
+            f.ravel(), np.repeat(area * face_t[:, axis], 3), minlength=len(v)
+        )
     normal = tangent_frames(v, f).normal
     return project_direction(total, normal, primary=primary, secondary=secondary)
 
@@ -161,8 +163,9 @@ def connection_laplacian(
     a = np.roll(f, -1, axis=1).ravel()
     b = np.roll(f, -2, axis=1).ravel()
     cot = 0.5 / np.tan(np.clip(alpha.ravel(), 1e-12, np.pi - 1e-12))
-    C = sp.coo_matrix((np.concatenate([cot, cot]), (np.concatenate([a, b]), np.concatenate([b, a]))),
-                      shape=(V, V)).tocsr()
+    C = sp.coo_matrix(
+        (np.concatenate([cot, cot]), (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(V, V)
+    ).tocsr()
     nb = _neighborhood_from_lengths(f, lengths, V)
     rows = np.broadcast_to(np.arange(V)[:, None], nb.index.shape)[nb.mask]
     cols = nb.index[nb.mask].astype(np.int64)
@@ -208,8 +211,14 @@ def smoothest_direction_field(
       True
     """
     v, f = check_mesh(vertices, faces)
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
-        raise InputError(f"smoothest_direction_field: iterations must be a positive integer, got {iterations!r}")
+    if (
+        isinstance(iterations, bool)
+        or not isinstance(iterations, (int, np.integer))
+        or iterations < 1
+    ):
+        raise InputError(
+            f"smoothest_direction_field: iterations must be a positive integer, got {iterations!r}"
+        )
     p = _unit(primary, "primary")
     frames = tangent_frames(v, f)
     L, area = connection_laplacian(v, f)
@@ -229,7 +238,9 @@ def smoothest_direction_field(
         u *= c / abs(c)
     mag = np.abs(u)
     unit = np.where(mag > 1e-9 * mag.max(), u / np.where(mag > 0, mag, 1.0), 0.0)
-    return project_direction(tangent_to_3d(unit, frames), frames.normal, primary=p, secondary=_perp(p))
+    return project_direction(
+        tangent_to_3d(unit, frames), frames.normal, primary=p, secondary=_perp(p)
+    )
 
 
 def _perp(p: np.ndarray) -> np.ndarray:

@@ -26,7 +26,9 @@ from ._adjacency import one_rings
 from ._intrinsic import check_mesh, corner_angles, edge_lengths
 
 
-def tangent_frames(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> TangentFrames:
+def tangent_frames(
+    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
+) -> TangentFrames:
     """Orthonormal per-vertex frames (angle-weighted normal, projected reference edge).
 
     .. math::
@@ -57,7 +59,9 @@ def tangent_frames(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F
     alpha = corner_angles(edge_lengths(v, f))
     normal = np.zeros((V, 3))
     for axis in range(3):
-        normal[:, axis] = np.bincount(f.ravel(), (alpha * face_n[:, axis:axis + 1]).ravel(), minlength=V)
+        normal[:, axis] = np.bincount(
+            f.ravel(), (alpha * face_n[:, axis : axis + 1]).ravel(), minlength=V
+        )
     normal = _normalize_or(normal, np.array([0.0, 0.0, 1.0]))
 
     rings = one_rings(f, V)
@@ -79,7 +83,9 @@ def _normalize_or(a: np.ndarray, default: np.ndarray) -> np.ndarray:
     return np.where(ok, a / np.where(ok, norm, 1.0), default)
 
 
-def tangent_to_3d(z: Complex[ArrayLike, "V ..."], frames: TangentFrames) -> Float[ArrayLike, "V ... 3"]:
+def tangent_to_3d(
+    z: Complex[ArrayLike, "V ..."], frames: TangentFrames
+) -> Float[ArrayLike, "V ... 3"]:
     """Tangent vectors (complex, per-vertex frames) to 3D vectors in the tangent planes.
 
     .. math:: v = \\operatorname{Re}(z)\\, x_p + \\operatorname{Im}(z)\\, y_p
@@ -110,7 +116,9 @@ def tangent_to_3d(z: Complex[ArrayLike, "V ..."], frames: TangentFrames) -> Floa
     return xp.real(z)[..., None] * fx + xp.imag(z)[..., None] * fy
 
 
-def tangent_from_3d(v3: Float[ArrayLike, "V ... 3"], frames: TangentFrames) -> Complex[ArrayLike, "V ..."]:
+def tangent_from_3d(
+    v3: Float[ArrayLike, "V ... 3"], frames: TangentFrames
+) -> Complex[ArrayLike, "V ..."]:
     """3D vectors to tangent vectors (complex) in each vertex's frame; the normal part is dropped.
 
     .. math:: z = \\langle v, x_p \\rangle + i\\, \\langle v, y_p \\rangle

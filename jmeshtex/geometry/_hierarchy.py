@@ -60,7 +60,6 @@ _MAX_DEGREE = 12  # largest vertex degree a collapse may create (unless the leve
 _CANDIDATES = 4  # shortest edges tried per vertex and round
 
 
-
 class MeshHierarchy(NamedTuple):
     """Levels of a mesh from fine (level 0, the input) to coarse, with pooling maps between them.
 
@@ -151,10 +150,18 @@ def mesh_hierarchy(
     """
     if not (isinstance(ratio, (int, float, np.floating)) and 0.0 < float(ratio) < 1.0):
         raise ConfigError(f"ratio must be in (0, 1), got {ratio!r}")
-    if isinstance(min_vertices, bool) or not isinstance(min_vertices, (int, np.integer)) or min_vertices < 4:
+    if (
+        isinstance(min_vertices, bool)
+        or not isinstance(min_vertices, (int, np.integer))
+        or min_vertices < 4
+    ):
         raise ConfigError(f"min_vertices must be an integer >= 4, got {min_vertices!r}")
-    if levels is not None and (isinstance(levels, bool) or not isinstance(levels, (int, np.integer)) or levels < 1):
-        raise ConfigError(f"levels must be None or an integer >= 1 (the input counts as one), got {levels!r}")
+    if levels is not None and (
+        isinstance(levels, bool) or not isinstance(levels, (int, np.integer)) or levels < 1
+    ):
+        raise ConfigError(
+            f"levels must be None or an integer >= 1 (the input counts as one), got {levels!r}"
+        )
     v, f = check_mesh(vertices, faces)
     n0 = len(v)
     used = np.zeros(n0, bool)
@@ -172,7 +179,9 @@ def mesh_hierarchy(
     dst = nb0.index[src, slot].astype(np.int64)
     keys = src * n0 + dst
     order = np.argsort(keys)
-    level = _Level(f, np.arange(n0), keys[order], nb0.log[src, slot][order], nb0.transport[src, slot][order])
+    level = _Level(
+        f, np.arange(n0), keys[order], nb0.log[src, slot][order], nb0.transport[src, slot][order]
+    )
 
     out_levels = [level]
     out_lengths = [lengths0]
@@ -207,8 +216,9 @@ def mesh_hierarchy(
 
     if len(out_levels) == 1 and levels is None:
         raise DecimationError(
-            f"the mesh is too small to decimate: {stalled}" if stalled else
-            f"the mesh is too small to decimate: {n0} vertices, and one level at ratio {ratio} "
+            f"the mesh is too small to decimate: {stalled}"
+            if stalled
+            else f"the mesh is too small to decimate: {n0} vertices, and one level at ratio {ratio} "
             f"would have {math.ceil(ratio * n0)} < min_vertices={min_vertices}"
         )
     return MeshHierarchy(
@@ -302,7 +312,9 @@ def _select_collapses(rings, n, keys, log, step, need, max_degree):
     opp_next = ring[rows, np.clip(next_j, 0, K - 1)]
     n_opp = has_prev.astype(np.int64) + has_next
     # link condition: u and w share exactly the opposite vertices
-    adj = sp.csr_matrix((np.ones(int(mask.sum())), (u[np.nonzero(mask)[0]], ring[mask])), shape=(n, n))
+    adj = sp.csr_matrix(
+        (np.ones(int(mask.sum())), (u[np.nonzero(mask)[0]], ring[mask])), shape=(n, n)
+    )
     common = (adj @ adj)[np.broadcast_to(u[:, None], w.shape).ravel(), w.ravel()]
     ok &= np.asarray(common).reshape(w.shape) == n_opp
     # degrees stay >= 3 (>= 2 on the boundary) and <= max_degree
@@ -363,7 +375,15 @@ def _well_shaped(pa: np.ndarray, pb: np.ndarray, c: np.ndarray) -> np.ndarray:
         cos_w = (a * a + b * b - c * c) / (2 * a * b)
         cos_a = (a * a + c * c - b * b) / (2 * a * c)
         cos_b = (b * b + c * c - a * a) / (2 * b * c)
-    return (a > 0) & (b > 0) & (c > 0) & (turn > _MIN_ANGLE) & (cos_w < cos_min) & (cos_a < cos_min) & (cos_b < cos_min)
+    return (
+        (a > 0)
+        & (b > 0)
+        & (c > 0)
+        & (turn > _MIN_ANGLE)
+        & (cos_w < cos_min)
+        & (cos_a < cos_min)
+        & (cos_b < cos_min)
+    )
 
 
 def _compatible_set(rank, touched, touched_mask, read, read_mask, n) -> np.ndarray:
@@ -458,7 +478,9 @@ def _pooling_map(fine: _Level, fine_nb, fine_align, kept, coarse_align, step) ->
     a, b = fine.keys // n, fine.keys % n
     weight = _quantized_lengths(np.abs(fine.log), step).astype(np.float64)  # exact path sums, > 0
     graph = sp.csr_matrix((weight, (a, b)), shape=(n, n))
-    dist, pred, source = dijkstra(graph, directed=True, indices=kept, min_only=True, return_predecessors=True)
+    dist, pred, source = dijkstra(
+        graph, directed=True, indices=kept, min_only=True, return_predecessors=True
+    )
     is_root = pred < 0
     anc = np.where(is_root, np.arange(n), pred)
     # transport from each vertex's input frame to its predecessor's: stored at edge (pred, c)

@@ -96,7 +96,13 @@ def laplacian_eigenpairs(
     shift_invert = spla.LinearOperator(L.shape, matvec=lu.solve, dtype=np.float64)
     v0 = np.random.default_rng(0).standard_normal(n)  # fixed start vector: deterministic output
     values, vectors = spla.eigsh(
-        sp.csc_matrix(L), k=k, M=sp.csc_matrix(M), sigma=sigma, which="LM", v0=v0, OPinv=shift_invert
+        sp.csc_matrix(L),
+        k=k,
+        M=sp.csc_matrix(M),
+        sigma=sigma,
+        which="LM",
+        v0=v0,
+        OPinv=shift_invert,
     )
     order = np.argsort(values)
     values, vectors = values[order], vectors[:, order]
@@ -187,5 +193,7 @@ def heat_kernel_signature(
         times = hks_times(ev.values)
     times = np.asarray(times, dtype=np.float64)
     if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)) or np.any(times <= 0):
-        raise InputError(f"times must be a non-empty 1-D array of positive finite numbers, got {times}")
+        raise InputError(
+            f"times must be a non-empty 1-D array of positive finite numbers, got {times}"
+        )
     return (ev.vectors**2) @ np.exp(-np.outer(ev.values, times))

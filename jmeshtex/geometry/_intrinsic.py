@@ -16,7 +16,9 @@ from .._types import Float, Int
 from ._validate import validate_mesh
 
 
-def edge_lengths(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> Float[np.ndarray, "F 3"]:
+def edge_lengths(
+    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
+) -> Float[np.ndarray, "F 3"]:
     """Euclidean length of every face edge.
 
     .. math:: \\ell_{f,k} = \\lVert x_{f_{k+1}} - x_{f_k} \\rVert

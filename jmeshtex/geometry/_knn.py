@@ -74,7 +74,9 @@ def geodesic_knn_neighborhood(
       ([12, 7, 11, 13, 17], [0.0, 0.25, 0.25, 0.25, 0.25])
     """
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise InputError(f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}")
+        raise InputError(
+            f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}"
+        )
     v, f = check_mesh(vertices, faces)
     return knn_from_one_ring(_neighborhood_from_lengths(f, edge_lengths(v, f), len(v)), int(k))
 
@@ -123,7 +125,9 @@ def knn_from_one_ring(ring: VertexNeighborhood, k: int) -> VertexNeighborhood:
       [0, 1, 5, 7, 10, 11]
     """
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise InputError(f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}")
+        raise InputError(
+            f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}"
+        )
     k = int(k)
     V = ring.index.shape[0]
     src, slot = np.nonzero(ring.mask)

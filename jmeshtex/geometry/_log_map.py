@@ -57,7 +57,9 @@ class OneRingAngles(NamedTuple):
     scale: Float[np.ndarray, " V"]
 
 
-def one_ring_angles(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> OneRingAngles:
+def one_ring_angles(
+    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
+) -> OneRingAngles:
     """Ordered one-rings and the normalised angle of every slot (the gauge of each vertex).
 
     .. math:: \\theta_{pj} = s_p \\sum_{i<j} \\alpha_{p,i}, \\qquad
@@ -133,8 +135,10 @@ def one_ring_neighborhood(
     v, f = check_mesh_arrays(vertices, faces)
     lengths = np.asarray(lengths, dtype=np.float64)
     if lengths.shape != f.shape or not (np.isfinite(lengths).all() and (lengths > 0).all()):
-        raise InputError(f"one_ring_neighborhood: lengths must be finite, positive and [F, 3] = {f.shape}, "
-                         f"got shape {lengths.shape}")
+        raise InputError(
+            f"one_ring_neighborhood: lengths must be finite, positive and [F, 3] = {f.shape}, "
+            f"got shape {lengths.shape}"
+        )
     bad = np.nonzero(~(face_areas(lengths) > 0.0))[0]
     if bad.size:
         raise DegenerateFaceError(indices=bad)
@@ -153,7 +157,9 @@ def _wedge_corners(rings: OneRings, faces: np.ndarray) -> np.ndarray:
     return np.where(rings.wedge_mask, corner, 0)
 
 
-def _angles_from_lengths(faces: np.ndarray, lengths: np.ndarray, num_vertices: int) -> OneRingAngles:
+def _angles_from_lengths(
+    faces: np.ndarray, lengths: np.ndarray, num_vertices: int
+) -> OneRingAngles:
     rings = one_rings(faces, num_vertices)
     corner = _wedge_corners(rings, faces)
     alpha = np.where(rings.wedge_mask, corner_angles(lengths)[rings.wedge_faces, corner], 0.0)
@@ -192,7 +198,9 @@ def _reverse_slots(index: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return rev
 
 
-def _neighborhood_from_lengths(faces: np.ndarray, lengths: np.ndarray, num_vertices: int) -> VertexNeighborhood:
+def _neighborhood_from_lengths(
+    faces: np.ndarray, lengths: np.ndarray, num_vertices: int
+) -> VertexNeighborhood:
     rings, theta, _ = _angles_from_lengths(faces, lengths, num_vertices)
     mask = rings.mask
     index = rings.ring

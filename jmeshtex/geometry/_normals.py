@@ -33,7 +33,9 @@ def vertex_normals(
     from .._errors import InputError
 
     if weighting not in _WEIGHTINGS:
-        raise InputError(f"vertex_normals: weighting must be one of {_WEIGHTINGS}, got {weighting!r}")
+        raise InputError(
+            f"vertex_normals: weighting must be one of {_WEIGHTINGS}, got {weighting!r}"
+        )
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
     cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # |cross| = 2 area
@@ -44,7 +46,9 @@ def vertex_normals(
         unit = np.divide(cross, length, out=np.zeros_like(cross), where=length > 0)
         e1 = v[np.roll(f, -1, axis=1)] - v[f]
         e2 = v[np.roll(f, 1, axis=1)] - v[f]
-        cos = np.sum(e1 * e2, -1) / np.maximum(np.linalg.norm(e1, axis=-1) * np.linalg.norm(e2, axis=-1), 1e-300)
+        cos = np.sum(e1 * e2, -1) / np.maximum(
+            np.linalg.norm(e1, axis=-1) * np.linalg.norm(e2, axis=-1), 1e-300
+        )
         alpha = np.arccos(np.clip(cos, -1.0, 1.0))
         w = alpha[..., None] * unit[:, None, :]
     n = np.zeros_like(v)

@@ -103,7 +103,9 @@ def rasterize_uv(uv: Real[np.ndarray, "F 3 2"], size: int, *, coverage: str = "c
     return _overlap(tex, usable, size)
 
 
-def fill_unused_texels(image: Float[np.ndarray, "H W C"], used: Bool[np.ndarray, "H W"]) -> np.ndarray:
+def fill_unused_texels(
+    image: Float[np.ndarray, "H W C"], used: Bool[np.ndarray, "H W"]
+) -> np.ndarray:
     """Give every unused texel of an atlas the value of the nearest used one (Euclidean, in texels).
 
     Keeps texture filtering and mip-mapping from reading background colour across chart borders.
@@ -123,7 +125,9 @@ def fill_unused_texels(image: Float[np.ndarray, "H W C"], used: Bool[np.ndarray,
     """
     used = np.asarray(used, bool)
     if used.shape != np.shape(image)[:2]:
-        raise InputError(f"fill_unused_texels: used must be [H, W] = {np.shape(image)[:2]}, got {used.shape}")
+        raise InputError(
+            f"fill_unused_texels: used must be [H, W] = {np.shape(image)[:2]}, got {used.shape}"
+        )
     if used.all() or not used.any():
         return image
     from scipy.ndimage import distance_transform_edt
@@ -134,11 +138,17 @@ def fill_unused_texels(image: Float[np.ndarray, "H W C"], used: Bool[np.ndarray,
 
 def _check(uv, size, coverage) -> np.ndarray:
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
-        raise InputError(f"rasterize_uv: size must be a positive int (texels per atlas side), got {size!r}")
+        raise InputError(
+            f"rasterize_uv: size must be a positive int (texels per atlas side), got {size!r}"
+        )
     if coverage not in _COVERAGES:
         raise InputError(f"rasterize_uv: coverage must be one of {_COVERAGES}, got {coverage!r}")
     uv = np.asarray(uv)
-    if uv.ndim != 3 or uv.shape[1:] != (3, 2) or not (np.issubdtype(uv.dtype, np.floating) or np.issubdtype(uv.dtype, np.integer)):
+    if (
+        uv.ndim != 3
+        or uv.shape[1:] != (3, 2)
+        or not (np.issubdtype(uv.dtype, np.floating) or np.issubdtype(uv.dtype, np.integer))
+    ):
         raise InputError(
             f"rasterize_uv: uv must be a real [F, 3, 2] array of per-corner (u, v) (Mesh.uv), got shape "
             f"{uv.shape} and dtype {uv.dtype}"
@@ -211,15 +221,17 @@ def _separating_axes(p: np.ndarray) -> np.ndarray:
     at_edge = np.einsum("fkd,fkd->fk", normal, p)
     at_apex = np.einsum("fkd,fkd->fk", normal, np.roll(p, -2, axis=1))
     half = 0.5 * (np.abs(normal[..., 0]) + np.abs(normal[..., 1]))
-    return np.concatenate([normal[..., 0], normal[..., 1], at_edge, at_apex, half, p.min(axis=1),
-                           p.max(axis=1)], axis=1)
+    return np.concatenate(
+        [normal[..., 0], normal[..., 1], at_edge, at_apex, half, p.min(axis=1), p.max(axis=1)],
+        axis=1,
+    )
 
 
 def _square_overlaps(axes: np.ndarray, col: np.ndarray, row: np.ndarray) -> np.ndarray:
     """Whether unit squares ``[col, col+1] × [row, row+1]`` overlap the triangles whose
     :func:`_separating_axes` rows are ``axes [M, 19]`` by more than ``_TOUCH`` on all five axes."""
     cx, cy = col + 0.5, row + 0.5
-    nx, ny, at_edge, at_apex, half = (axes[:, 3 * i:3 * i + 3] for i in range(5))
+    nx, ny, at_edge, at_apex, half = (axes[:, 3 * i : 3 * i + 3] for i in range(5))
     centre = nx * cx[:, None] + ny * cy[:, None]
     ok = ((centre + half > at_edge + _TOUCH) & (centre - half < at_apex - _TOUCH)).all(axis=1)
     lo, hi = axes[:, 15:17], axes[:, 17:19]
@@ -240,7 +252,9 @@ def _closest_barycentric(p: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.n
     inside = bary.min(axis=1, initial=np.inf) >= 0.0
     # nearest point on each edge k (corner k -> corner k+1), clamped to the segment
     seg = np.roll(p, -1, axis=1) - p
-    t = np.einsum("mkd,mkd->mk", x[:, None, :] - p, seg) / np.maximum(np.einsum("mkd,mkd->mk", seg, seg), 1e-300)
+    t = np.einsum("mkd,mkd->mk", x[:, None, :] - p, seg) / np.maximum(
+        np.einsum("mkd,mkd->mk", seg, seg), 1e-300
+    )
     t = np.clip(t, 0.0, 1.0)
     dist2 = np.sum((p + t[..., None] * seg - x[:, None, :]) ** 2, axis=-1)
     k = np.argmin(dist2, axis=1) if len(p) else np.zeros(0, np.int64)

@@ -56,7 +56,9 @@ def _random_split(v: np.ndarray, f: np.ndarray, rng: np.random.Generator, jitter
     mids = (1.0 - t) * v[edges[:, 0]] + t * v[edges[:, 1]]
     a, b, c = f.T
     ab, bc, ca = (face_edges + n).T
-    faces = np.concatenate([np.stack(s, axis=1) for s in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+    faces = np.concatenate(
+        [np.stack(s, axis=1) for s in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))]
+    )
     return np.concatenate([v, mids]), faces
 
 
@@ -70,7 +72,9 @@ def _decimate_to(v: np.ndarray, f: np.ndarray, target: int) -> tuple[np.ndarray,
     dst = nb.index[src, slot].astype(np.int64)
     keys = src * n0 + dst
     order = np.argsort(keys)
-    level = _Level(f, np.arange(n0), keys[order], nb.log[src, slot][order], nb.transport[src, slot][order])
+    level = _Level(
+        f, np.arange(n0), keys[order], nb.log[src, slot][order], nb.transport[src, slot][order]
+    )
     coarse, _ = _decimate(level, target, step)
     return coarse.index, coarse.faces
 
@@ -109,7 +113,9 @@ def surface_correspondence(
     _, face, closest = igl.point_mesh_squared_distance(p, v, f)
     face = np.asarray(face, np.int64)
     a, b, c = (np.ascontiguousarray(v[f[face, k]]) for k in range(3))
-    bary = np.asarray(igl.barycentric_coordinates(np.ascontiguousarray(closest), a, b, c), np.float64)
+    bary = np.asarray(
+        igl.barycentric_coordinates(np.ascontiguousarray(closest), a, b, c), np.float64
+    )
     bary = np.clip(np.nan_to_num(bary, nan=1.0 / 3.0), 0.0, None)
     bary /= np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
     return face, bary
@@ -158,14 +164,22 @@ def remesh(
       (300, 596)
     """
     if not isinstance(mesh, Mesh):
-        raise InputError(f"remesh expects a jmeshtex.Mesh, got {type(mesh).__name__}; wrap arrays as Mesh(v, f)")
-    if isinstance(n_vertices, bool) or not isinstance(n_vertices, (int, np.integer)) or n_vertices < 4:
+        raise InputError(
+            f"remesh expects a jmeshtex.Mesh, got {type(mesh).__name__}; wrap arrays as Mesh(v, f)"
+        )
+    if (
+        isinstance(n_vertices, bool)
+        or not isinstance(n_vertices, (int, np.integer))
+        or n_vertices < 4
+    ):
         raise ConfigError(f"n_vertices must be an integer >= 4, got {n_vertices!r}")
     check_key(key)
     if not (isinstance(oversample, (int, float)) and oversample >= 1.5):
         raise ConfigError(f"oversample must be a number >= 1.5, got {oversample!r}")
     if not (isinstance(jitter, (int, float)) and 0.0 <= jitter <= 0.45):
-        raise ConfigError(f"jitter must be in [0, 0.45] (split positions stay inside the edge), got {jitter!r}")
+        raise ConfigError(
+            f"jitter must be in [0, 0.45] (split positions stay inside the edge), got {jitter!r}"
+        )
     validate_mesh(mesh.vertices, mesh.faces)
     v0 = np.asarray(mesh.vertices, np.float64)
     f0 = np.asarray(mesh.faces, np.int64)
@@ -201,4 +215,9 @@ def remesh(
             uv = uv_at(np.asarray(mesh.uv, np.float64), face, bary)
             colors = np.asarray(sample_texture(np.asarray(mesh.texture), uv), np.float64)
         colors = np.clip(colors, 0.0, 1.0).astype(np.float32)
-    return Mesh(vertices=vertices, faces=np.asarray(faces, np.int64), vertex_colors=colors, name=f"{mesh.name}_remesh")
+    return Mesh(
+        vertices=vertices,
+        faces=np.asarray(faces, np.int64),
+        vertex_colors=colors,
+        name=f"{mesh.name}_remesh",
+    )

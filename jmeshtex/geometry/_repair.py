@@ -110,9 +110,8 @@ class RepairReport:
                 shown = [str(tuple(r)) if np.ndim(r) else str(int(r)) for r in arr[:8].tolist()]
                 more = f", ... ({len(arr) - 8} more)" if len(arr) > 8 else ""
                 lines.append(f"  {label}: {len(arr)} ({', '.join(shown)}{more})")
-        head = (
-            f"RepairReport: {len(self.vertex_index)} vertices, {len(self.face_index)} faces"
-            + ("" if self.changed else ", no changes")
+        head = f"RepairReport: {len(self.vertex_index)} vertices, {len(self.face_index)} faces" + (
+            "" if self.changed else ", no changes"
         )
         return "\n".join([head, *lines])
 
@@ -131,7 +130,9 @@ def _coerce_mesh(mesh: Mesh | tuple) -> Mesh:
 
 def _check_attributes(mesh: Mesh, V: int, F: int) -> None:
     if mesh.uv is not None and np.shape(mesh.uv) != (F, 3, 2):
-        raise InputError(f"Mesh.uv must have shape [F, 3, 2] = {(F, 3, 2)}, got {np.shape(mesh.uv)}")
+        raise InputError(
+            f"Mesh.uv must have shape [F, 3, 2] = {(F, 3, 2)}, got {np.shape(mesh.uv)}"
+        )
     if mesh.vertex_colors is not None:
         shape = np.shape(mesh.vertex_colors)
         if len(shape) != 2 or shape[0] != V:
@@ -206,12 +207,16 @@ def _orientation_flips(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         oriented = np.where(flip[:, None], faces[:, [0, 2, 1]], faces)
         p = vertices - vertices[np.unique(faces)].mean(axis=0)
         p0, p1, p2 = (p[oriented[:, k]] for k in range(3))
-        volume = np.bincount(comp, weights=np.einsum("ij,ij->i", p0, np.cross(p1, p2)), minlength=n_comp)
+        volume = np.bincount(
+            comp, weights=np.einsum("ij,ij->i", p0, np.cross(p1, p2)), minlength=n_comp
+        )
         invert = np.where(closed, volume < 0, invert)
     return flip ^ invert[comp]
 
 
-def _split_bowties(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _split_bowties(
+    faces: np.ndarray, num_vertices: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Give every extra fan of a vertex its own copy; returns (faces, copy_source, split)."""
     labels, fans = corner_fans(faces, num_vertices)
     split = np.nonzero(fans > 1)[0]
@@ -378,4 +383,3 @@ def prepare_mesh(
         split_to_merged=split_to_merged,
     )
     return out, report
-

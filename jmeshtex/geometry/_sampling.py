@@ -153,7 +153,9 @@ def barycentric_interpolate(
     face = xp.asarray(face)
     bary = xp.asarray(bary)
     if values.ndim < 1:
-        raise InputError(f"values must have a leading vertex axis [V, ...], got shape {values.shape}")
+        raise InputError(
+            f"values must have a leading vertex axis [V, ...], got shape {values.shape}"
+        )
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise InputError(f"faces must have shape [F, 3], got {faces.shape}")
     if bary.shape != (*face.shape, 3):
@@ -164,7 +166,9 @@ def barycentric_interpolate(
         if not np.issubdtype(face.dtype, np.integer):
             raise InputError(f"face must hold integer face indices, got dtype {face.dtype}")
         if face.size and (face.min() < 0 or face.max() >= len(faces)):
-            raise InputError(f"face indices must lie in [0, {len(faces)}), got {face.min()}..{face.max()}")
+            raise InputError(
+                f"face indices must lie in [0, {len(faces)}), got {face.min()}..{face.max()}"
+            )
         if faces.size and (faces.min() < 0 or faces.max() >= len(values)):
             raise InputError(f"faces reference vertices outside [0, {len(values)})")
     if not xp.issubdtype(values.dtype, xp.inexact):  # integer / bool values interpolate as floats

@@ -92,7 +92,10 @@ class MeshStatistics:
             ("closed", self.closed),
             ("unreferenced vertices", self.unreferenced_vertices),
             ("coincident vertices", self.coincident_vertices),
-            ("mean edge length", None if self.mean_edge_length is None else f"{self.mean_edge_length:.6g}"),
+            (
+                "mean edge length",
+                None if self.mean_edge_length is None else f"{self.mean_edge_length:.6g}",
+            ),
             ("bbox min", _fmt_vec(self.bbox_min)),
             ("bbox max", _fmt_vec(self.bbox_max)),
             ("uv", self.has_uv),
@@ -163,9 +166,20 @@ def mesh_statistics(mesh: Mesh | tuple, *, area_tol: float = AREA_TOL) -> MeshSt
             raise NonFiniteVertexError()
     except (InputError, MeshError):
         none = dict.fromkeys(
-            ["edges", "unreferenced_vertices", "coincident_vertices", "components", "boundary_edges",
-             "boundary_loops", "euler_characteristic", "genus", "closed", "mean_edge_length",
-             "bbox_min", "bbox_max"]
+            [
+                "edges",
+                "unreferenced_vertices",
+                "coincident_vertices",
+                "components",
+                "boundary_edges",
+                "boundary_loops",
+                "euler_characteristic",
+                "genus",
+                "closed",
+                "mean_edge_length",
+                "bbox_min",
+                "bbox_max",
+            ]
         )
         return MeshStatistics(**common, **none, **verdict)
 
@@ -202,7 +216,9 @@ def mesh_statistics(mesh: Mesh | tuple, *, area_tol: float = AREA_TOL) -> MeshSt
         euler_characteristic=chi,
         genus=genus,
         closed=bool(F) and not boundary.any(),
-        mean_edge_length=float(np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1).mean()) if len(edges) else 0.0,
+        mean_edge_length=float(np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1).mean())
+        if len(edges)
+        else 0.0,
         bbox_min=tuple(float(x) for x in v.min(axis=0)) if V else None,
         bbox_max=tuple(float(x) for x in v.max(axis=0)) if V else None,
         **verdict,

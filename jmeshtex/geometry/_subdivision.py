@@ -130,7 +130,9 @@ def subdivide_uv(uv: Float[ArrayLike, "F 3 2"]) -> Float[ArrayLike, "4*F 3 2"]:
     """
     uv = np.asarray(uv)
     if uv.ndim != 3 or uv.shape[1:] != (3, 2) or not np.issubdtype(uv.dtype, np.number):
-        raise InputError(f"uv must be per-corner texture coordinates of shape [F, 3, 2], got {uv.shape}")
+        raise InputError(
+            f"uv must be per-corner texture coordinates of shape [F, 3, 2], got {uv.shape}"
+        )
     uv = uv.astype(np.float64, copy=False)
     a, b, c = uv[:, 0], uv[:, 1], uv[:, 2]
     ab, bc, ca = 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)

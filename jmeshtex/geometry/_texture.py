@@ -58,14 +58,20 @@ def uv_at(
     xp = _namespace(uv, face, bary)
     uv, face, bary = xp.asarray(uv), xp.asarray(face), xp.asarray(bary)
     if uv.ndim != 3 or uv.shape[1:] != (3, 2):
-        raise InputError(f"uv must have shape [F, 3, 2] (per-corner texture coordinates), got {uv.shape}")
+        raise InputError(
+            f"uv must have shape [F, 3, 2] (per-corner texture coordinates), got {uv.shape}"
+        )
     if bary.shape != (*face.shape, 3):
-        raise InputError(f"bary must have shape face.shape + (3,) = {(*face.shape, 3)}, got {bary.shape}")
+        raise InputError(
+            f"bary must have shape face.shape + (3,) = {(*face.shape, 3)}, got {bary.shape}"
+        )
     if xp is np:
         if not np.issubdtype(face.dtype, np.integer):
             raise InputError(f"face must hold integer face indices, got dtype {face.dtype}")
         if face.size and (face.min() < 0 or face.max() >= len(uv)):
-            raise InputError(f"face indices must lie in [0, {len(uv)}), got {face.min()}..{face.max()}")
+            raise InputError(
+                f"face indices must lie in [0, {len(uv)}), got {face.min()}..{face.max()}"
+            )
     if not xp.issubdtype(uv.dtype, xp.floating):
         uv = uv.astype(bary.dtype)
     corners = uv[face]  # [*N, 3, 2]

@@ -191,8 +191,10 @@ def tracer_geometry(
     else:
         lengths = np.asarray(lengths, dtype=np.float64)
         if lengths.shape != faces.shape or not (np.isfinite(lengths).all() and (lengths > 0).all()):
-            raise InputError(f"tracer_geometry: lengths must be finite, positive and [F, 3] = {faces.shape}, "
-                             f"got shape {lengths.shape}")
+            raise InputError(
+                f"tracer_geometry: lengths must be finite, positive and [F, 3] = {faces.shape}, "
+                f"got shape {lengths.shape}"
+            )
     corners, double_area = _face_layouts(lengths)
 
     # edge opposite corner k runs from corner k+1 to corner k+2; its inward unit normal is
@@ -320,8 +322,12 @@ def _walk(
     neighbor = geometry.neighbor.ravel()
     length_tol = _LENGTH_TOL * float(geometry.altitude.mean())
     unfold = np.stack(
-        [geometry.crossing.real, geometry.crossing.imag,
-         geometry.crossing_offset.real, geometry.crossing_offset.imag]
+        [
+            geometry.crossing.real,
+            geometry.crossing.imag,
+            geometry.crossing_offset.real,
+            geometry.crossing_offset.imag,
+        ]
     ).reshape(4, -1)
 
     # state of the walking traces, one column each: x, y, dx, dy, remaining
@@ -372,7 +378,11 @@ def _walk(
                 idx, f, state, keep = retire(done, False)
                 if not idx.size:
                     break
-                t0, t1, t_exit = np.compress(keep, t0), np.compress(keep, t1), np.compress(keep, t_exit)
+                t0, t1, t_exit = (
+                    np.compress(keep, t0),
+                    np.compress(keep, t1),
+                    np.compress(keep, t_exit),
+                )
 
             # leave through the edge opposite corner k (ties, i.e. a vertex hit: lowest k);
             # edge e = k + 1 runs from corner e to corner e + 1
@@ -390,7 +400,9 @@ def _walk(
             f = g
 
     end_face = face.copy()
-    end = np.stack([position.real, position.imag, direction.real, direction.imag, np.zeros(n_total)])
+    end = np.stack(
+        [position.real, position.imag, direction.real, direction.imag, np.zeros(n_total)]
+    )
     stopped = np.zeros(n_total, bool)
     if chunks_idx:
         out = np.concatenate(chunks_idx)
@@ -415,9 +427,13 @@ def _barycentric(geometry: TracerGeometry, face: np.ndarray, position: np.ndarra
 def _as_traces(n_expected: int | None, direction, length, name: str):
     direction = np.asarray(direction)
     if direction.ndim != 1:
-        raise InputError(f"direction must be a 1-D array of complex numbers [N], got shape {direction.shape}")
+        raise InputError(
+            f"direction must be a 1-D array of complex numbers [N], got shape {direction.shape}"
+        )
     if not np.issubdtype(direction.dtype, np.number) or np.issubdtype(direction.dtype, np.bool_):
-        raise InputError(f"direction must be complex (or real) numbers, got dtype {direction.dtype}")
+        raise InputError(
+            f"direction must be complex (or real) numbers, got dtype {direction.dtype}"
+        )
     direction = direction.astype(np.complex128)
     n = len(direction) if n_expected is None else n_expected
     if len(direction) != n:
@@ -527,7 +543,9 @@ def trace_geodesics(
     geometry = _geometry_for(vertices, faces, geometry)
     start_face = np.asarray(start_face)
     if start_face.ndim != 1 or not np.issubdtype(start_face.dtype, np.integer):
-        raise InputError(f"start_face must be a 1-D integer array [N], got {start_face.dtype} {start_face.shape}")
+        raise InputError(
+            f"start_face must be a 1-D integer array [N], got {start_face.dtype} {start_face.shape}"
+        )
     n = len(start_face)
     bad = np.nonzero((start_face < 0) | (start_face >= len(geometry.faces)))[0]
     if bad.size:
@@ -538,8 +556,11 @@ def trace_geodesics(
     if bary.shape != (n, 3):
         raise InputError(f"start_bary must have shape [{n}, 3], got {bary.shape}")
     sums = bary.sum(axis=1)
-    bad = np.nonzero(~np.isfinite(bary).all(1) | (bary.min(axis=1, initial=0.0) < -1e-9)
-                     | (np.abs(sums - 1.0) > 1e-6))[0]
+    bad = np.nonzero(
+        ~np.isfinite(bary).all(1)
+        | (bary.min(axis=1, initial=0.0) < -1e-9)
+        | (np.abs(sums - 1.0) > 1e-6)
+    )[0]
     if bad.size:
         raise InputError(
             f"start_bary must be barycentric coordinates (>= 0, summing to 1); bad at traces "
@@ -560,7 +581,9 @@ def vertex_direction_to_face(
     geometry: TracerGeometry,
     vertex: Int[np.ndarray, " N"],
     direction: Complex[np.ndarray, " N"],
-) -> tuple[Int[np.ndarray, " N"], Int[np.ndarray, " N"], Complex[np.ndarray, " N"], Bool[np.ndarray, " N"]]:
+) -> tuple[
+    Int[np.ndarray, " N"], Int[np.ndarray, " N"], Complex[np.ndarray, " N"], Bool[np.ndarray, " N"]
+]:
     """Find the one-ring wedge a vertex-frame direction points into, and re-express it there.
 
     The wedge j of vertex p is the one whose vertex-frame range ``[θ_pj, θ_p,j+1)`` (the slot angles
@@ -657,7 +680,9 @@ def trace_from_vertices(
     geometry = _geometry_for(vertices, faces, geometry)
     vertex = np.asarray(vertex)
     if vertex.ndim != 1 or not np.issubdtype(vertex.dtype, np.integer):
-        raise InputError(f"vertex must be a 1-D integer array [N], got {vertex.dtype} {vertex.shape}")
+        raise InputError(
+            f"vertex must be a 1-D integer array [N], got {vertex.dtype} {vertex.shape}"
+        )
     n_vertices = len(geometry.vertices)
     bad = np.nonzero((vertex < 0) | (vertex >= n_vertices))[0]
     if bad.size:

@@ -59,10 +59,13 @@ def _degenerate_faces(vertices: np.ndarray, faces: np.ndarray, area_tol: float) 
     with np.errstate(over="ignore", invalid="ignore"):
         twice_area = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
         longest_sq = np.max(
-            [np.sum((p1 - p0) ** 2, 1), np.sum((p2 - p1) ** 2, 1), np.sum((p0 - p2) ** 2, 1)], axis=0
+            [np.sum((p1 - p0) ** 2, 1), np.sum((p2 - p1) ** 2, 1), np.sum((p0 - p2) ** 2, 1)],
+            axis=0,
         )
         flat = twice_area <= area_tol * longest_sq
-    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    repeated = (
+        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    )
     return repeated | flat
 
 
@@ -104,13 +107,17 @@ def _check_topology(vertices: np.ndarray, faces: np.ndarray, area_tol: float) ->
         raise DegenerateFaceError(indices=bad)
     pairs = _duplicate_faces(faces)
     if pairs.size:
-        raise DuplicateFaceError(f"{DuplicateFaceError.what}, as (first, repeat) face pairs", indices=pairs)
+        raise DuplicateFaceError(
+            f"{DuplicateFaceError.what}, as (first, repeat) face pairs", indices=pairs
+        )
     edges = _nonmanifold_edges(faces, V)
     if edges.size:
         raise NonManifoldEdgeError(indices=edges)
     edges = _misoriented_edges(faces, V)
     if edges.size:
-        raise InconsistentOrientationError(f"{InconsistentOrientationError.what}, at edges", indices=edges)
+        raise InconsistentOrientationError(
+            f"{InconsistentOrientationError.what}, at edges", indices=edges
+        )
     _, fans = corner_fans(faces, V)
     bad = np.nonzero(fans > 1)[0]
     if bad.size:
@@ -143,38 +150,37 @@ def validate_mesh(
 ) -> None:
     """Check that a triangle mesh is valid input for jmeshtex geometry; raise a typed error if not.
 
-    Valid means: ``vertices`` is ``[V, 3]`` and finite, ``faces`` is ``[F, 3]`` integer indices in
-    ``[0, V)``, both are non-empty, no face has zero area (``2·area ≤ area_tol · longest_edge²``),
-    no two faces share the same three vertices, every edge has at most two faces, the two faces of
-    an interior edge traverse it in opposite directions (consistent orientation), and the faces
-    around every vertex form a single fan (no bow-ties). Boundaries, several components,
-    unreferenced vertices and any genus are allowed. The checks run in that order, so the most
-    basic problem is the one reported.
+        Valid means: ``vertices`` is ``[V, 3]`` and finite, ``faces`` is ``[F, 3]`` integer indices in
+        ``[0, V)``, both are non-empty, no face has zero area (``2·area ≤ area_tol · longest_edge²``),
+        no two faces share the same three vertices, every edge has at most two faces, the two faces of
+        an interior edge traverse it in opposite directions (consistent orientation), and the faces
+        around every vertex form a single fan (no bow-ties). Boundaries, several components,
+        unreferenced vertices and any genus are allowed. The checks run in that order, so the most
+        basic problem is the one reported.
 
-    Args:
-      vertices: ``[V, 3]`` positions (any real dtype, or nested lists; never modified).
-      faces: ``[F, 3]`` vertex indices (any integer dtype, or nested lists; never modified).
-      area_tol: relative zero-area threshold (see the module docstring for the default).
+        Args:
+          vertices: ``[V, 3]`` positions (any real dtype, or nested lists; never modified).
+          faces: ``[F, 3]`` vertex indices (any integer dtype, or nested lists; never modified).
+          area_tol: relative zero-area threshold (see the module docstring for the default).
 
-    Raises:
-      InputError: vertices not ``[V, 3]`` reals, or faces not integers.
-      NonTriangleFaceError, FaceIndexError, NonFiniteVertexError, EmptyMeshError,
-      DegenerateFaceError, DuplicateFaceError, NonManifoldEdgeError,
-      InconsistentOrientationError, NonManifoldVertexError: each names the offending faces,
-      vertices or edges (as vertex pairs) in ``err.indices``.
+        Raises:
+          InputError: vertices not ``[V, 3]`` reals, or faces not integers.
+          NonTriangleFaceError, FaceIndexError, NonFiniteVertexError, EmptyMeshError,
+          DegenerateFaceError, DuplicateFaceError, NonManifoldEdgeError,
+          InconsistentOrientationError, NonManifoldVertexError: each names the offending faces,
+          vertices or edges (as vertex pairs) in ``err.indices``.
 
-    Example:
-      >>> from collections.abc import Sequence
+        Example:
+          >>> from collections.abc import Sequence
 
-import numpy as np
-      >>> from jmeshtex.data import icosahedron
-      >>> v, f = icosahedron()
-      >>> validate_mesh(v, f)  # valid: returns None
-      >>> validate_mesh(v, np.concatenate([f, f[:1, ::-1]]))
-      Traceback (most recent call last):
-      ...
-      jmeshtex._errors.DuplicateFaceError: duplicate faces (same three vertices), as (first, repeat) face pairs (count 1: (0, 20)). Fix: pass repair=True to drop the duplicates
+    import numpy as np
+          >>> from jmeshtex.data import icosahedron
+          >>> v, f = icosahedron()
+          >>> validate_mesh(v, f)  # valid: returns None
+          >>> validate_mesh(v, np.concatenate([f, f[:1, ::-1]]))
+          Traceback (most recent call last):
+          ...
+          jmeshtex._errors.DuplicateFaceError: duplicate faces (same three vertices), as (first, repeat) face pairs (count 1: (0, 20)). Fix: pass repair=True to drop the duplicates
     """
     v, f = check_mesh_arrays(vertices, faces)
     _check_topology(v, f, area_tol)
-

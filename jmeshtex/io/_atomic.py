@@ -24,7 +24,9 @@ def _new_file_mode(path: pathlib.Path) -> int:
     return 0o666 & ~mask
 
 
-def atomic_write(path: str | os.PathLike, data: bytes | str, *, parents: bool = True) -> pathlib.Path:
+def atomic_write(
+    path: str | os.PathLike, data: bytes | str, *, parents: bool = True
+) -> pathlib.Path:
     """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``.
 
     On any failure the temporary file is removed and the previous ``path`` (if any) is untouched.
@@ -56,7 +58,9 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, parents: bool = 
         raise MeshIOError(f"cannot write {path}: it is a directory")
     if not folder.is_dir():
         if not parents:
-            raise MeshIOError(f"cannot write {path}: folder {folder} does not exist. Fix: create it first")
+            raise MeshIOError(
+                f"cannot write {path}: folder {folder} does not exist. Fix: create it first"
+            )
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as err:
@@ -81,7 +85,9 @@ def atomic_write(path: str | os.PathLike, data: bytes | str, *, parents: bool = 
     return path
 
 
-def atomic_save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray], *, parents: bool = True) -> pathlib.Path:
+def atomic_save_npz(
+    path: str | os.PathLike, arrays: dict[str, np.ndarray], *, parents: bool = True
+) -> pathlib.Path:
     """``np.savez`` (uncompressed, no pickles needed to read it back) written with :func:`atomic_write`.
 
     Example:

@@ -59,7 +59,9 @@ def _to_arrays(state: Any) -> Any:
     def leaf(x):
         if isinstance(x, jax.Array):
             if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
-                raise TypeError("checkpoint state: store jax.random.key_data(key), not a typed PRNG key")
+                raise TypeError(
+                    "checkpoint state: store jax.random.key_data(key), not a typed PRNG key"
+                )
             return x
         return np.asarray(x)
 
@@ -76,7 +78,9 @@ class Checkpoints:
         compared on :meth:`restore`. None: no check.
     """
 
-    def __init__(self, directory: str | os.PathLike, *, keep: int = 2, fingerprint: dict | None = None):
+    def __init__(
+        self, directory: str | os.PathLike, *, keep: int = 2, fingerprint: dict | None = None
+    ):
         if keep < 1:
             raise ValueError(f"Checkpoints(keep={keep}): keep at least 1 step")
         self.directory = pathlib.Path(directory).absolute()
@@ -90,8 +94,9 @@ class Checkpoints:
         if self._manager is None:
             import orbax.checkpoint as ocp
 
-            options = ocp.CheckpointManagerOptions(max_to_keep=self.keep, create=True,
-                                                   enable_async_checkpointing=False)
+            options = ocp.CheckpointManagerOptions(
+                max_to_keep=self.keep, create=True, enable_async_checkpointing=False
+            )
             self._manager = ocp.CheckpointManager(self.directory, options=options)
         return self._manager
 
@@ -99,7 +104,9 @@ class Checkpoints:
         """The saved steps, oldest first (empty when the folder holds none)."""
         if not self.directory.is_dir():
             return []
-        return sorted(int(p.name) for p in self.directory.iterdir() if p.is_dir() and p.name.isdigit())
+        return sorted(
+            int(p.name) for p in self.directory.iterdir() if p.is_dir() and p.name.isdigit()
+        )
 
     def latest_step(self) -> int | None:
         """The newest complete step, or None."""
@@ -118,8 +125,12 @@ class Checkpoints:
         mgr = self._mgr()
         if step in self.steps():
             mgr.delete(step)
-        mgr.save(int(step), args=ocp.args.Composite(state=ocp.args.StandardSave(_to_arrays(state)),
-                                                     meta=ocp.args.JsonSave(record)))
+        mgr.save(
+            int(step),
+            args=ocp.args.Composite(
+                state=ocp.args.StandardSave(_to_arrays(state)), meta=ocp.args.JsonSave(record)
+            ),
+        )
         mgr.wait_until_finished()
 
     def restore(self, like: Any, *, step: int | None = None) -> tuple[Any, dict]:
@@ -138,11 +149,16 @@ class Checkpoints:
         self._check_fingerprint(meta.get(_FINGERPRINT), step)
         like = _to_arrays(like)
         try:
-            out = self._mgr().restore(step, args=ocp.args.Composite(state=ocp.args.StandardRestore(like)))
+            out = self._mgr().restore(
+                step, args=ocp.args.Composite(state=ocp.args.StandardRestore(like))
+            )
         except (ValueError, KeyError, TypeError) as err:
-            raise MeshIOError(f"checkpoint {self.directory / str(step)} does not match the state to resume: "
-                              f"{err}") from err
-        state = jax.tree.map(lambda ref, x: np.asarray(x) if isinstance(ref, np.ndarray) else x, like, out.state)
+            raise MeshIOError(
+                f"checkpoint {self.directory / str(step)} does not match the state to resume: {err}"
+            ) from err
+        state = jax.tree.map(
+            lambda ref, x: np.asarray(x) if isinstance(ref, np.ndarray) else x, like, out.state
+        )
         meta.pop(_FINGERPRINT, None)
         return state, meta
 
@@ -160,10 +176,15 @@ class Checkpoints:
         if self.fingerprint is None or stored == self.fingerprint:
             return
         stored = stored or {}
-        keys = sorted(k for k in set(stored) | set(self.fingerprint) if stored.get(k) != self.fingerprint.get(k))
+        keys = sorted(
+            k
+            for k in set(stored) | set(self.fingerprint)
+            if stored.get(k) != self.fingerprint.get(k)
+        )
         raise CheckpointMismatchError(
             f"checkpoint {self.directory / str(step)} was written for a different run (differs in: "
-            f"{', '.join(keys)}); resume with the same settings, or use another folder")
+            f"{', '.join(keys)}); resume with the same settings, or use another folder"
+        )
 
     def close(self) -> None:
         """Release orbax's resources (also done when the object is garbage-collected)."""

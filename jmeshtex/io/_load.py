@@ -87,7 +87,9 @@ def load_texture(path: str | os.PathLike) -> Float[np.ndarray, "H W C"]:
     path = _readable_file(path, "texture")
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # e.g. PIL's DecompressionBombWarning: we read on purpose
+            warnings.simplefilter(
+                "ignore"
+            )  # e.g. PIL's DecompressionBombWarning: we read on purpose
             with Image.open(path) as image:
                 image.load()
                 return _image_to_float(image)
@@ -129,7 +131,9 @@ def _face_sizes(loaded, path: pathlib.Path) -> np.ndarray:
             lines = re.findall(r"^[ \t]*f[ \t]+([^\n#]*)", text, flags=re.MULTILINE)
             return np.array([len(line.split()) for line in lines], np.int64)
         if suffix == ".off":
-            lines = [line.split("#")[0].split() for line in path.read_text(errors="replace").splitlines()]
+            lines = [
+                line.split("#")[0].split() for line in path.read_text(errors="replace").splitlines()
+            ]
             tokens = [t for t in lines if t]
             head = tokens[0][1:] if tokens[0][0].upper().endswith("OFF") else tokens[0]
             body = tokens[1:]
@@ -327,7 +331,9 @@ def load_mesh(
     vertices = np.array(loaded.vertices, dtype=np.float64)
     stored_faces = np.array(loaded.faces, dtype=np.int64)
     if stored_faces.min() < 0 or stored_faces.max() >= len(vertices):
-        raise MeshIOError(f"cannot read mesh {path}: face indices outside the {len(vertices)} vertices")
+        raise MeshIOError(
+            f"cannot read mesh {path}: face indices outside the {len(vertices)} vertices"
+        )
     uv, image, colors = _visual_attributes(loaded, path)
     if texture is not None:
         image = load_texture(texture)

@@ -66,10 +66,14 @@ def _image_to_uint8(image: Any, what: str = "image") -> np.ndarray:
     if img.ndim == 2:
         img = img[:, :, None]
     if img.ndim != 3 or img.shape[2] not in (1, 2, 3, 4) or img.shape[0] == 0 or img.shape[1] == 0:
-        raise InputError(f"{what} must have shape [H, W] or [H, W, C] with C in 1..4, got {img.shape}")
+        raise InputError(
+            f"{what} must have shape [H, W] or [H, W, C] with C in 1..4, got {img.shape}"
+        )
     if img.dtype == np.uint8:
         return img
-    if img.dtype == bool or not (np.issubdtype(img.dtype, np.floating) or np.issubdtype(img.dtype, np.integer)):
+    if img.dtype == bool or not (
+        np.issubdtype(img.dtype, np.floating) or np.issubdtype(img.dtype, np.integer)
+    ):
         raise InputError(f"{what} must be uint8 or real numbers in [0, 1], got dtype {img.dtype}")
     img = img.astype(np.float64)
     if not np.isfinite(img).all():
@@ -86,7 +90,9 @@ def _png_bytes(pixels: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def save_png(image: Float[ArrayLike, "H W C"], path: str | os.PathLike, *, parents: bool = False) -> None:
+def save_png(
+    image: Float[ArrayLike, "H W C"], path: str | os.PathLike, *, parents: bool = False
+) -> None:
     """Write an image as an 8-bit PNG, atomically.
 
     Row 0 is the top of the image (for textures: v = 1). Floats are clipped to [0, 1] and rounded to
@@ -144,13 +150,17 @@ def _checked_mesh(mesh: Mesh | tuple) -> Mesh:
     if mesh.uv is not None:
         uv = np.asarray(mesh.uv, dtype=np.float64)
         if uv.shape != (len(f), 3, 2):
-            raise InputError(f"Mesh.uv must have shape [F, 3, 2] = {(len(f), 3, 2)}, got {uv.shape}")
+            raise InputError(
+                f"Mesh.uv must have shape [F, 3, 2] = {(len(f), 3, 2)}, got {uv.shape}"
+            )
         if not np.isfinite(uv).all():
             raise InputError("Mesh.uv has NaN or infinite values")
     if mesh.vertex_colors is not None:
         colors = np.asarray(mesh.vertex_colors, dtype=np.float64)
         if colors.ndim != 2 or colors.shape[0] != len(v) or colors.shape[1] not in (3, 4):
-            raise InputError(f"Mesh.vertex_colors must have shape [V, 3] or [V, 4] with V={len(v)}, got {colors.shape}")
+            raise InputError(
+                f"Mesh.vertex_colors must have shape [V, 3] or [V, 4] with V={len(v)}, got {colors.shape}"
+            )
     return mesh.replace(vertices=v, faces=f, uv=uv, vertex_colors=colors)
 
 
@@ -214,7 +224,11 @@ def _encode_obj(mesh: Mesh, stem: str) -> dict[str, bytes]:
     v = mesh.vertices
     if mesh.vertex_colors is not None:
         if mesh.vertex_colors.shape[1] == 4 and np.any(mesh.vertex_colors[:, 3] < 1):
-            warnings.warn("OBJ stores RGB vertex colours only: alpha is dropped (save as .ply or .glb to keep it)", UserWarning, stacklevel=3)
+            warnings.warn(
+                "OBJ stores RGB vertex colours only: alpha is dropped (save as .ply or .glb to keep it)",
+                UserWarning,
+                stacklevel=3,
+            )
         rgb = _colors_uint8(mesh.vertex_colors)[:, :3] / 255.0
         body = [_format_rows("v", np.concatenate([v, rgb], axis=1))]
     else:
@@ -254,7 +268,11 @@ def _encode_ply(mesh: Mesh, stem: str) -> dict[str, bytes]:
         columns += [rgba[:, k] for k in range(rgba.shape[1])]
     header.append(f"element vertex {len(to_vertex)}")
     header += [f"property {'double' if t == '<f8' else 'uchar'} {n}" for n, t in fields]
-    header += [f"element face {len(stored_faces)}", "property list uchar int vertex_indices", "end_header"]
+    header += [
+        f"element face {len(stored_faces)}",
+        "property list uchar int vertex_indices",
+        "end_header",
+    ]
     vert = np.empty(len(to_vertex), dtype=fields)
     for (name, _), col in zip(fields, columns, strict=True):
         vert[name] = col
@@ -267,7 +285,11 @@ def _encode_ply(mesh: Mesh, stem: str) -> dict[str, bytes]:
 
 def _encode_off(mesh: Mesh, stem: str) -> dict[str, bytes]:
     v, f = mesh.vertices, mesh.faces
-    text = f"OFF\n# written by jmeshtex\n{len(v)} {len(f)} 0\n" + _format_rows("", v) + _format_rows("3", f, "{}")
+    text = (
+        f"OFF\n# written by jmeshtex\n{len(v)} {len(f)} 0\n"
+        + _format_rows("", v)
+        + _format_rows("3", f, "{}")
+    )
     return {f"{stem}.off": text.encode()}
 
 
@@ -284,18 +306,30 @@ def _encode_glb(mesh: Mesh, stem: str) -> dict[str, bytes]:
             pixels = _image_to_uint8(mesh.texture, "Mesh.texture")
             image = Image.fromarray(pixels[:, :, 0] if pixels.shape[2] == 1 else pixels)
         if mesh.vertex_colors is not None:
-            warnings.warn("GLB (through trimesh) stores either UVs or vertex colours: the colours are dropped (save as .ply to keep both)", UserWarning, stacklevel=3)
+            warnings.warn(
+                "GLB (through trimesh) stores either UVs or vertex colours: the colours are dropped (save as .ply to keep both)",
+                UserWarning,
+                stacklevel=3,
+            )
         if image is None:  # an explicit empty material, or trimesh would embed a grey placeholder
-            visual = trimesh.visual.TextureVisuals(uv=stored_uv, material=trimesh.visual.material.PBRMaterial())
+            visual = trimesh.visual.TextureVisuals(
+                uv=stored_uv, material=trimesh.visual.material.PBRMaterial()
+            )
         else:
             visual = trimesh.visual.TextureVisuals(uv=stored_uv, image=image)
     elif mesh.vertex_colors is not None:
-        visual = trimesh.visual.ColorVisuals(vertex_colors=_colors_uint8(mesh.vertex_colors)[to_vertex])
+        visual = trimesh.visual.ColorVisuals(
+            vertex_colors=_colors_uint8(mesh.vertex_colors)[to_vertex]
+        )
     else:
         visual = None
-    tm = trimesh.Trimesh(mesh.vertices[to_vertex], stored_faces, visual=visual, process=False, validate=False)
+    tm = trimesh.Trimesh(
+        mesh.vertices[to_vertex], stored_faces, visual=visual, process=False, validate=False
+    )
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # trimesh's own deprecation noise is not the caller's concern
+        warnings.simplefilter(
+            "ignore"
+        )  # trimesh's own deprecation noise is not the caller's concern
         data = tm.export(file_type="glb")
     return {f"{stem}.glb": data}
 
@@ -340,10 +374,20 @@ def save_mesh(mesh: Mesh | tuple, path: str | os.PathLike) -> None:
             f"supported: {', '.join(MESH_SUFFIXES)}"
         )
     mesh = _checked_mesh(mesh)
-    if suffix == ".off" and (mesh.uv is not None or mesh.texture is not None or mesh.vertex_colors is not None):
-        warnings.warn("OFF stores geometry only: UVs, texture and vertex colours are dropped (save as .obj, .ply or .glb to keep them)", UserWarning, stacklevel=2)
+    if suffix == ".off" and (
+        mesh.uv is not None or mesh.texture is not None or mesh.vertex_colors is not None
+    ):
+        warnings.warn(
+            "OFF stores geometry only: UVs, texture and vertex colours are dropped (save as .obj, .ply or .glb to keep them)",
+            UserWarning,
+            stacklevel=2,
+        )
     elif mesh.texture is not None and mesh.uv is None:
-        warnings.warn("the mesh has a texture but no UVs: the texture is not written", UserWarning, stacklevel=2)
+        warnings.warn(
+            "the mesh has a texture but no UVs: the texture is not written",
+            UserWarning,
+            stacklevel=2,
+        )
     files = _ENCODERS[suffix](mesh, path.stem)
     main = path.name
     for name, data in files.items():  # dependencies (texture, material) first, the mesh file last

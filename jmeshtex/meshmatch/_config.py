@@ -287,28 +287,51 @@ class Config(ConfigBase):
         integers("min_vertices", 8),
         integers("sweeps exact_candidates", 1),
         integers("random_search_levels global_candidates bucket_vertices", 0),
-        rule("fan_radius vote_sigma interp_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
-        rule("normal_weight position_weight", lambda x: x is None or (is_finite_number(x) and x >= 0),
-             "None or a number >= 0"),
+        rule(
+            "fan_radius vote_sigma interp_sigma",
+            lambda x: is_finite_number(x) and x > 0,
+            "a positive number",
+        ),
+        rule(
+            "normal_weight position_weight",
+            lambda x: x is None or (is_finite_number(x) and x >= 0),
+            "None or a number >= 0",
+        ),
         rule("aligned star_candidates", lambda x: isinstance(x, bool), "True or False"),
         rule("color_weight", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
-        cross_rule(lambda c: _weights_ok(_as_tuple(c.shape_weight)),
-                   lambda c: f"{display_name(type(c))}.shape_weight must be finite and >= 0, got {_as_tuple(c.shape_weight)!r}"),
+        cross_rule(
+            lambda c: _weights_ok(_as_tuple(c.shape_weight)),
+            lambda c: (
+                f"{display_name(type(c))}.shape_weight must be finite and >= 0, got {_as_tuple(c.shape_weight)!r}"
+            ),
+        ),
         rule("affinity_weight tolerance", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
-        cross_rule(lambda c: c.color_weight != 0 or any(w != 0 for w in _as_tuple(c.shape_weight)),
-                   "color_weight and shape_weight are all 0: the patch distance would be constant"),
+        cross_rule(
+            lambda c: c.color_weight != 0 or any(w != 0 for w in _as_tuple(c.shape_weight)),
+            "color_weight and shape_weight are all 0: the patch distance would be constant",
+        ),
         rule("side", _up_ok, "a non-zero 3-vector, one of x, y, z, -x, -y, -z, or None"),
         rule("up", _up_ok, "a non-zero 3-vector, one of x, y, z, -x, -y, -z, or None"),
-        cross_rule(lambda c: not (c.aligned and c.side is not None),
-                   "{cls}.side has no effect with aligned=True (the whole normal and the positions are "
-                   "features): use {cls}.intrinsic(side=...) for the pose-free n·side feature"),
-        cross_rule(lambda c: c.aligned or not c.position_weight,
-                   "{cls}.position_weight needs aligned=True (positions are a pose prior), got "
-                   "position_weight={c.position_weight!r} with aligned=False"),
-        rule("max_scale_ratio", lambda x: x is None or (is_finite_number(x) and x >= 1), "None or a number >= 1"),
+        cross_rule(
+            lambda c: not (c.aligned and c.side is not None),
+            "{cls}.side has no effect with aligned=True (the whole normal and the positions are "
+            "features): use {cls}.intrinsic(side=...) for the pose-free n·side feature",
+        ),
+        cross_rule(
+            lambda c: c.aligned or not c.position_weight,
+            "{cls}.position_weight needs aligned=True (positions are a pose prior), got "
+            "position_weight={c.position_weight!r} with aligned=False",
+        ),
+        rule(
+            "max_scale_ratio",
+            lambda x: x is None or (is_finite_number(x) and x >= 1),
+            "None or a number >= 1",
+        ),
         rule("levels", lambda x: x is None or (is_int(x) and x >= 1), "None or an integer >= 1"),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
-        rule("propagation", lambda x: x in ("parallel", "sequential"), "'parallel' or 'sequential'"),
+        rule(
+            "propagation", lambda x: x in ("parallel", "sequential"), "'parallel' or 'sequential'"
+        ),
         rule("vote", lambda x: x in ("ring", "fan"), "'ring' or 'fan'"),
         rule("upsample", lambda x: x in ("copy", "offset"), "'copy' or 'offset'"),
     )
@@ -354,12 +377,22 @@ class Config(ConfigBase):
           (((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)), 2.0, 8.0)
         """
         if self.aligned:
-            return {"up": None, "side": None, "axes": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
-                    "normal_weight": 2.0 if self.normal_weight is None else float(self.normal_weight),
-                    "position_weight": 8.0 if self.position_weight is None else float(self.position_weight)}
-        return {"up": self.up_vector(), "side": self.side_vector(), "axes": (),
-                "normal_weight": 1.0 if self.normal_weight is None else float(self.normal_weight),
-                "position_weight": 0.0}
+            return {
+                "up": None,
+                "side": None,
+                "axes": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+                "normal_weight": 2.0 if self.normal_weight is None else float(self.normal_weight),
+                "position_weight": 8.0
+                if self.position_weight is None
+                else float(self.position_weight),
+            }
+        return {
+            "up": self.up_vector(),
+            "side": self.side_vector(),
+            "axes": (),
+            "normal_weight": 1.0 if self.normal_weight is None else float(self.normal_weight),
+            "position_weight": 0.0,
+        }
 
     def shape_weight_at(self, level: int) -> float:
         """The shape weight of hierarchy level ``level`` (0 = finest)."""
@@ -369,4 +402,6 @@ class Config(ConfigBase):
 
     def radii(self, edge: float) -> tuple[float, ...]:
         """Ring radii for a level whose mean edge length is ``edge``."""
-        return tuple(self.fan_radius * edge * (i + 1) / self.num_radii for i in range(self.num_radii))
+        return tuple(
+            self.fan_radius * edge * (i + 1) / self.num_radii for i in range(self.num_radii)
+        )

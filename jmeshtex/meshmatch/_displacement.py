@@ -38,7 +38,9 @@ TAUBIN_MU = -0.53
 def _uniform_average(faces: Int[np.ndarray, "F 3"], num_vertices: int) -> sp.csr_matrix:
     """``D⁻¹A``: the one-ring mean as a sparse ``[V, V]`` matrix (rows of isolated vertices are 0)."""
     e = unique_edges(np.asarray(faces, np.int64), num_vertices)
-    a = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(num_vertices, num_vertices)).tocsr()
+    a = sp.coo_matrix(
+        (np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(num_vertices, num_vertices)
+    ).tocsr()
     a = a + a.T
     deg = np.asarray(a.sum(axis=1)).ravel()
     return (sp.diags(1.0 / np.maximum(deg, 1)) @ a).tocsr()
@@ -79,7 +81,9 @@ def taubin_smooth(
       True
     """
     if not (0 < lam < 1 and -1 < mu < -lam):
-        raise InputError(f"taubin_smooth needs 0 < lam < 1 and -1 < mu < -lam, got lam={lam}, mu={mu}")
+        raise InputError(
+            f"taubin_smooth needs 0 < lam < 1 and -1 < mu < -lam, got lam={lam}, mu={mu}"
+        )
     if isinstance(steps, bool) or int(steps) != steps or steps < 0:
         raise InputError(f"steps must be an integer >= 0, got {steps!r}")
     mesh = as_mesh(mesh)
@@ -104,7 +108,9 @@ def base_surface(mesh: Mesh | tuple, *, smoothing_steps: int = 10) -> Mesh:
     return mesh.replace(vertices=taubin_smooth(mesh, steps=smoothing_steps))
 
 
-def detail_displacement(mesh: Mesh | tuple, *, smoothing_steps: int = 10) -> Float[np.ndarray, " V"]:
+def detail_displacement(
+    mesh: Mesh | tuple, *, smoothing_steps: int = 10
+) -> Float[np.ndarray, " V"]:
     """Signed geometric detail: the offset from the Taubin-smoothed base along the base's normal.
 
     .. math:: d_v = (x_v - \\bar x_v) \\cdot \\bar n_v, \\qquad

@@ -193,7 +193,11 @@ def geodesic_fans(
     radii = np.asarray(radii, dtype=np.float64).reshape(-1)
     if radii.size == 0 or not np.all(np.isfinite(radii)) or np.any(radii <= 0):
         raise InputError(f"radii must be a non-empty list of positive finite numbers, got {radii}")
-    if isinstance(num_angles, bool) or not isinstance(num_angles, (int, np.integer)) or num_angles < 1:
+    if (
+        isinstance(num_angles, bool)
+        or not isinstance(num_angles, (int, np.integer))
+        or num_angles < 1
+    ):
         raise InputError(f"num_angles must be a positive integer, got {num_angles!r}")
     if geometry is None:
         geometry = tracer_geometry(vertices, faces)
@@ -202,7 +206,9 @@ def geodesic_fans(
         reference = np.ones(V, np.complex128)
     reference = np.asarray(reference, dtype=np.complex128)
     if reference.shape != (V,) or not np.all(np.isfinite(reference)) or np.any(reference == 0):
-        raise InputError(f"reference must be [V={V}] finite non-zero complex directions, got shape {reference.shape}")
+        raise InputError(
+            f"reference must be [V={V}] finite non-zero complex directions, got shape {reference.shape}"
+        )
     reference = reference / np.abs(reference)
     if edge is None:
         edge = mean_edge_length(vertices, geometry.faces)
@@ -216,16 +222,29 @@ def geodesic_fans(
         tr = trace_from_vertices(vertices, faces, vertex, direction, radii[0], geometry=geometry)
         rings, stopped = [tr], tr.stopped
         for i in range(1, R):
-            tr = trace_geodesics(vertices, faces, tr.face, tr.bary, tr.direction,
-                                 np.where(stopped, 0.0, radii[i] - radii[i - 1]), geometry=geometry)
+            tr = trace_geodesics(
+                vertices,
+                faces,
+                tr.face,
+                tr.bary,
+                tr.direction,
+                np.where(stopped, 0.0, radii[i] - radii[i - 1]),
+                geometry=geometry,
+            )
             stopped = stopped | tr.stopped
             rings.append(tr._replace(stopped=stopped))
         face = np.stack([t.face for t in rings], axis=1).reshape(V, A, R).transpose(0, 2, 1)
         bary = np.stack([t.bary for t in rings], axis=1).reshape(V, A, R, 3).transpose(0, 2, 1, 3)
         stop = np.stack([t.stopped for t in rings], axis=1).reshape(V, A, R).transpose(0, 2, 1)
     else:
-        tr = trace_from_vertices(vertices, faces, np.repeat(vertex, R), np.repeat(direction, R),
-                                 np.tile(radii, V * A), geometry=geometry)
+        tr = trace_from_vertices(
+            vertices,
+            faces,
+            np.repeat(vertex, R),
+            np.repeat(direction, R),
+            np.tile(radii, V * A),
+            geometry=geometry,
+        )
         face = tr.face.reshape(V, A, R).transpose(0, 2, 1)
         bary = tr.bary.reshape(V, A, R, 3).transpose(0, 2, 1, 3)
         stop = tr.stopped.reshape(V, A, R).transpose(0, 2, 1)
@@ -331,7 +350,9 @@ def fan_descriptor(
       ((162, 2, 8, 1), True)
     """
     mesh = as_mesh(mesh)
-    fans = geodesic_fans(mesh, radii=radii, num_angles=num_angles, reference=reference, geometry=geometry)
+    fans = geodesic_fans(
+        mesh, radii=radii, num_angles=num_angles, reference=reference, geometry=geometry
+    )
     return filtered_fans(fans, jnp.asarray(values), smoother(mesh.faces, mesh.num_vertices))
 
 
@@ -340,11 +361,12 @@ def _smooth_host(values: np.ndarray, sm: Smoother, steps: int) -> np.ndarray:
     products (hundreds of steps cost a fraction of a second; eager JAX ops cost seconds)."""
     V, K = sm.index.shape
     rows = np.repeat(np.arange(V), K)
-    step = sp.csr_matrix((_SMOOTH_LAMBDA * np.asarray(sm.weight, np.float64).ravel(), (rows, sm.index.ravel())),
-                         shape=(V, V))
+    step = sp.csr_matrix(
+        (_SMOOTH_LAMBDA * np.asarray(sm.weight, np.float64).ravel(), (rows, sm.index.ravel())),
+        shape=(V, V),
+    )
     step = (step + (1.0 - _SMOOTH_LAMBDA) * sp.identity(V, format="csr")).tocsr()
     values = np.asarray(values, np.float64)
     for _ in range(int(steps)):
         values = step @ values
     return values
-

@@ -152,7 +152,9 @@ def shape_features(
     if axes:
         normal = tangent_frames(mesh.vertices, mesh.faces).normal
         for u in axes:
-            parts.append(float(normal_weight) * (normal @ (u / np.linalg.norm(u)))[:, None] / np.sqrt(blocks))
+            parts.append(
+                float(normal_weight) * (normal @ (u / np.linalg.norm(u)))[:, None] / np.sqrt(blocks)
+            )
     if position_weight > 0:
         x = np.asarray(mesh.vertices, dtype=np.float64)
         x = (x - x.mean(axis=0)) / np.maximum(x.std(axis=0), 1e-12)
@@ -210,10 +212,24 @@ def correspondence_affinities(
     source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
     pairs = np.asarray(pairs)
     Vs, Vt = source.num_vertices, target.num_vertices
-    if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) == 0 or not np.issubdtype(pairs.dtype, np.integer):
-        raise InputError(f"correspondences must be an integer array [m >= 1, 2] of (source, target) vertices, got {pairs.dtype} {pairs.shape}")
-    if pairs[:, 0].min() < 0 or pairs[:, 0].max() >= Vs or pairs[:, 1].min() < 0 or pairs[:, 1].max() >= Vt:
-        raise InputError(f"correspondence vertex indices out of range (source V={Vs}, target V={Vt})")
+    if (
+        pairs.ndim != 2
+        or pairs.shape[1] != 2
+        or len(pairs) == 0
+        or not np.issubdtype(pairs.dtype, np.integer)
+    ):
+        raise InputError(
+            f"correspondences must be an integer array [m >= 1, 2] of (source, target) vertices, got {pairs.dtype} {pairs.shape}"
+        )
+    if (
+        pairs[:, 0].min() < 0
+        or pairs[:, 0].max() >= Vs
+        or pairs[:, 1].min() < 0
+        or pairs[:, 1].max() >= Vt
+    ):
+        raise InputError(
+            f"correspondence vertex indices out of range (source V={Vs}, target V={Vt})"
+        )
     ds = dijkstra(_edge_graph(source), indices=pairs[:, 0]).T  # [Vs, m]
     dt = dijkstra(_edge_graph(target), indices=pairs[:, 1]).T
     finite_s = np.isfinite(ds)
@@ -229,4 +245,7 @@ def correspondence_affinities(
     dt_mapped = np.concatenate([dt, np.ones((len(dt), 1))], axis=1) @ w
     sigma = max(dmax / 3.0, 1e-12)
     scale = 1.0 / np.sqrt(m)
-    return (np.exp(-(ds**2) / (2 * sigma**2)) * scale, np.exp(-(dt_mapped**2) / (2 * sigma**2)) * scale)
+    return (
+        np.exp(-(ds**2) / (2 * sigma**2)) * scale,
+        np.exp(-(dt_mapped**2) / (2 * sigma**2)) * scale,
+    )

@@ -60,12 +60,19 @@ def save(result: MeshMatchTransfer, path: str | os.PathLike) -> pathlib.Path:
     from ..io import atomic_save_npz, atomic_write
 
     if not isinstance(result, MeshMatchTransfer):
-        raise InputError(f"save(result, path): expected a jmeshtex.meshmatch.MeshMatchTransfer first, "
-                         f"got {type(result).__name__}")
+        raise InputError(
+            f"save(result, path): expected a jmeshtex.meshmatch.MeshMatchTransfer first, "
+            f"got {type(result).__name__}"
+        )
     folder = pathlib.Path(path)
-    arrays = {f"mesh/{name}": np.asarray(getattr(result.mesh, name)) for name in _MESH_ARRAYS
-              if getattr(result.mesh, name) is not None}
-    arrays.update({f"match/{name}": np.asarray(getattr(result.match, name)) for name in _MATCH_ARRAYS})
+    arrays = {
+        f"mesh/{name}": np.asarray(getattr(result.mesh, name))
+        for name in _MESH_ARRAYS
+        if getattr(result.mesh, name) is not None
+    }
+    arrays.update(
+        {f"match/{name}": np.asarray(getattr(result.match, name)) for name in _MATCH_ARRAYS}
+    )
     atomic_save_npz(folder / ARRAYS_FILE, arrays)
     meta = {"kind": KIND, "mesh_name": result.mesh.name, "stats": result.match.stats}
     atomic_write(folder / META_FILE, json.dumps(meta, indent=1, default=_json_default) + "\n")
@@ -95,19 +102,33 @@ def load(path: str | os.PathLike) -> MeshMatchTransfer:
 
     folder = pathlib.Path(path)
     if not (folder / META_FILE).is_file():
-        raise MeshIOError(f"{folder} holds no MeshMatch transfer (expected {META_FILE} and {ARRAYS_FILE}; "
-                          "write one with jmeshtex.meshmatch.save or `jmeshtex meshmatch transfer`)")
+        raise MeshIOError(
+            f"{folder} holds no MeshMatch transfer (expected {META_FILE} and {ARRAYS_FILE}; "
+            "write one with jmeshtex.meshmatch.save or `jmeshtex meshmatch transfer`)"
+        )
     try:
         meta = json.loads((folder / META_FILE).read_text())
     except (OSError, ValueError) as err:
         raise MeshIOError(f"cannot read {folder / META_FILE}: {err}") from err
     if not isinstance(meta, dict) or meta.get("kind") != KIND:
-        raise MeshIOError(f"{folder / META_FILE} is not a MeshMatch transfer (kind {meta.get('kind')!r})"
-                          if isinstance(meta, dict) else f"{folder / META_FILE} is not a MeshMatch transfer")
+        raise MeshIOError(
+            f"{folder / META_FILE} is not a MeshMatch transfer (kind {meta.get('kind')!r})"
+            if isinstance(meta, dict)
+            else f"{folder / META_FILE} is not a MeshMatch transfer"
+        )
     arrays = load_npz(folder / ARRAYS_FILE, "MeshMatch transfer")
-    missing = [k for k in ("mesh/vertices", "mesh/faces", *(f"match/{n}" for n in _MATCH_ARRAYS)) if k not in arrays]
+    missing = [
+        k
+        for k in ("mesh/vertices", "mesh/faces", *(f"match/{n}" for n in _MATCH_ARRAYS))
+        if k not in arrays
+    ]
     if missing:
         raise MeshIOError(f"{folder / ARRAYS_FILE} lacks {missing}: a damaged or foreign file")
-    mesh = Mesh(**{name: arrays.get(f"mesh/{name}") for name in _MESH_ARRAYS}, name=str(meta.get("mesh_name", "mesh")))
-    match = MeshMatchResult(**{name: arrays[f"match/{name}"] for name in _MATCH_ARRAYS}, stats=meta.get("stats", {}))
+    mesh = Mesh(
+        **{name: arrays.get(f"mesh/{name}") for name in _MESH_ARRAYS},
+        name=str(meta.get("mesh_name", "mesh")),
+    )
+    match = MeshMatchResult(
+        **{name: arrays[f"match/{name}"] for name in _MATCH_ARRAYS}, stats=meta.get("stats", {})
+    )
     return MeshMatchTransfer(mesh, match)

@@ -167,16 +167,26 @@ def meshmatch(
     _check_scales(source, target, config.max_scale_ratio)
     if initial_nnf is not None:
         initial_nnf = np.asarray(initial_nnf)
-        if (initial_nnf.shape != (target.num_vertices,) or not np.issubdtype(initial_nnf.dtype, np.integer)
-                or initial_nnf.min(initial=0) < 0 or initial_nnf.max(initial=0) >= source.num_vertices):
-            raise InputError(f"initial_nnf must be [Vt={target.num_vertices}] source vertices in "
-                             f"[0, {source.num_vertices}), got {initial_nnf.dtype} {initial_nnf.shape}")
+        if (
+            initial_nnf.shape != (target.num_vertices,)
+            or not np.issubdtype(initial_nnf.dtype, np.integer)
+            or initial_nnf.min(initial=0) < 0
+            or initial_nnf.max(initial=0) >= source.num_vertices
+        ):
+            raise InputError(
+                f"initial_nnf must be [Vt={target.num_vertices}] source vertices in "
+                f"[0, {source.num_vertices}), got {initial_nnf.dtype} {initial_nnf.shape}"
+            )
     timings: dict[str, float] = {}
     if prepared is None:
         t0 = time.perf_counter()
         s_side = prepare_side(source, config)
-        same = (source.vertices.shape == target.vertices.shape and source.faces.shape == target.faces.shape
-                and np.array_equal(source.vertices, target.vertices) and np.array_equal(source.faces, target.faces))
+        same = (
+            source.vertices.shape == target.vertices.shape
+            and source.faces.shape == target.faces.shape
+            and np.array_equal(source.vertices, target.vertices)
+            and np.array_equal(source.faces, target.faces)
+        )
         t_side = s_side if same else prepare_side(target, config, hks_times=s_side.hks_times)
         timings["prepare_s"] = time.perf_counter() - t0
     else:
@@ -187,10 +197,24 @@ def meshmatch(
         w = math.sqrt(config.affinity_weight)
         s_feat = np.concatenate([s_feat, w * a_s], axis=1)
         t_feat = np.concatenate([t_feat, w * a_t], axis=1)
-    result = match_levels(s_side, t_side, colors, config, key=key, features=(s_feat, t_feat),
-                          source_mask=valid, pin=pins, progress=progress, initial=initial_nnf)
-    stats = {"levels": result.stats["levels"], **timings, "fans_s": result.stats["fans_s"],
-             "total_s": time.perf_counter() - t_start}
+    result = match_levels(
+        s_side,
+        t_side,
+        colors,
+        config,
+        key=key,
+        features=(s_feat, t_feat),
+        source_mask=valid,
+        pin=pins,
+        progress=progress,
+        initial=initial_nnf,
+    )
+    stats = {
+        "levels": result.stats["levels"],
+        **timings,
+        "fans_s": result.stats["fans_s"],
+        "total_s": time.perf_counter() - t_start,
+    }
     return result._replace(stats=stats)
 
 
@@ -209,7 +233,8 @@ def _check_scales(source: Mesh, target: Mesh, max_ratio: float | None) -> None:
         raise InputError(
             f"source and target sizes differ by {ratio:.3g}x (bounding-box diagonals {s:.4g} and {t:.4g}): "
             "MeshMatch pairs levels and fans in world units, so both meshes must share units; rescale one "
-            "(e.g. to the other's size) or set Config(max_scale_ratio=None) to transfer at this scale on purpose")
+            "(e.g. to the other's size) or set Config(max_scale_ratio=None) to transfer at this scale on purpose"
+        )
 
 
 def _checked_signals(source: Mesh, target: Mesh, source_colors, source_mask, pin):
@@ -226,7 +251,9 @@ def _checked_signals(source: Mesh, target: Mesh, source_colors, source_mask, pin
     if not valid.any():
         raise InputError("source_mask selects no source vertex: paint (mask) at least one region")
     pins = None if pin is None else np.asarray(pin, np.int64)
-    if pins is not None and (pins.shape != (Vt,) or pins.max(initial=-1) >= Vs or pins.min(initial=0) < -1):
+    if pins is not None and (
+        pins.shape != (Vt,) or pins.max(initial=-1) >= Vs or pins.min(initial=0) < -1
+    ):
         raise InputError(f"pin must be [Vt={Vt}] source vertices or -1, got shape {pins.shape}")
     return colors, valid, pins
 
@@ -268,8 +295,19 @@ def _wavefronts(target: Side, level: int, pad_to=None, fill=None) -> np.ndarray:
     return scan_order(np.asarray(nb.index), np.asarray(nb.mask), pad_to=pad_to, fill=fill)
 
 
-def _level_inputs(source: Side, target: Side, level: int, m: int, colors, features, source_mask, pin,
-                  config: Config, dtype, dims) -> tuple[_Level, float]:
+def _level_inputs(
+    source: Side,
+    target: Side,
+    level: int,
+    m: int,
+    colors,
+    features,
+    source_mask,
+    pin,
+    config: Config,
+    dtype,
+    dims,
+) -> tuple[_Level, float]:
     """Trace both sides' fans at target level ``level`` / source level ``m``, pad them to ``dims``
     (None: no padding), build the device-side source; also returns the seconds spent on the fans."""
     t0 = time.perf_counter()
@@ -285,26 +323,38 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
         valid_m = np.ones_like(valid_m)
     s_arr, s_steps = level_arrays(source, m, radii, config, colors, valid_m, s_feat, dtype)
     Vt = len(target.hierarchy.vertices[level])
-    t_arr, t_steps = level_arrays(target, level, radii, config, np.zeros((Vt, C)), np.ones(Vt, bool), t_feat, dtype)
+    t_arr, t_steps = level_arrays(
+        target, level, radii, config, np.zeros((Vt, C)), np.ones(Vt, bool), t_feat, dtype
+    )
     up, down = search_tables(sh, m, config.random_search_levels)
     valid_index = np.nonzero(valid_m)[0].astype(np.int32)
     num_valid = len(valid_index)
     if dims is not None:
-        s_arr = pad_level_arrays(s_arr, num_vertices=dims["Vs"], ring=dims["Ks"], smooth_ring=dims["Kss"])
-        t_arr = pad_level_arrays(t_arr, num_vertices=dims["Vt"], ring=dims["Kt"], smooth_ring=dims["Kst"])
+        s_arr = pad_level_arrays(
+            s_arr, num_vertices=dims["Vs"], ring=dims["Ks"], smooth_ring=dims["Kss"]
+        )
+        t_arr = pad_level_arrays(
+            t_arr, num_vertices=dims["Vt"], ring=dims["Kt"], smooth_ring=dims["Kst"]
+        )
         up = [pad_axis(u, 0, dims["Vs"]) for u in up]
-        down = [(pad_axis(pad_axis(c, 0, n), 1, k), pad_axis(cnt, 0, n, 1))
-                for (c, cnt), (n, k) in zip(down, dims["down"], strict=True)]
+        down = [
+            (pad_axis(pad_axis(c, 0, n), 1, k), pad_axis(cnt, 0, n, 1))
+            for (c, cnt), (n, k) in zip(down, dims["down"], strict=True)
+        ]
         valid_index = pad_axis(valid_index, 0, dims["Vs"], valid_index[0])
     Vp = t_arr.nb_index.shape[0]
     order = None
     if config.propagation == "sequential":
-        order = jnp.asarray(_wavefronts(target, level, None if dims is None else dims["order"], fill=Vp))
+        order = jnp.asarray(
+            _wavefronts(target, level, None if dims is None else dims["order"], fill=Vp)
+        )
     t_arr = jax.tree.map(jnp.asarray, t_arr)
     fan_seconds = time.perf_counter() - t0
 
     ring_weight = jnp.ones(R, dtype) / R
-    src = make_source(s_arr, up, down, valid_index, num_valid, ring_weight, steps=s_steps, num_angles=A)
+    src = make_source(
+        s_arr, up, down, valid_index, num_valid, ring_weight, steps=s_steps, num_angles=A
+    )
     variance = float(np.var(colors[valid_m])) + 1e-8
     weights = StepWeights(
         ring_weight=ring_weight,
@@ -313,8 +363,14 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
         sigma2=jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype),
         tau2=jnp.asarray((config.interp_sigma * source.edge[m]) ** 2, dtype),
         # the fan vote's ring weights: a Gaussian of the ring radius (in the fans' edge lengths)
-        fan_weight=jnp.asarray(np.exp(-((np.arange(1, R + 1) * config.fan_radius / R) ** 2)
-                                      / (2 * config.vote_sigma**2)), dtype) if config.vote == "fan" else None,
+        fan_weight=jnp.asarray(
+            np.exp(
+                -((np.arange(1, R + 1) * config.fan_radius / R) ** 2) / (2 * config.vote_sigma**2)
+            ),
+            dtype,
+        )
+        if config.vote == "fan"
+        else None,
     )
     if pin is None:
         pin_l = np.full(Vt, -1, np.int32)
@@ -322,9 +378,19 @@ def _level_inputs(source: Side, target: Side, level: int, m: int, colors, featur
         p = pin[target.hierarchy.vertex_index[level]]
         mapped = np.where(p >= 0, source.inverse[m][np.maximum(p, 0)], -1)
         pin_l = np.where(mapped >= 0, mapped, -1).astype(np.int32)
-    level_in = _Level(t_arr, src, jnp.asarray(pad_axis(pin_l, 0, Vp, -1)), weights,
-                      SearchOptions.of(config, t_steps), Vt, Vp, s_arr.nb_index.shape[0], valid_index, num_valid,
-                      order)
+    level_in = _Level(
+        t_arr,
+        src,
+        jnp.asarray(pad_axis(pin_l, 0, Vp, -1)),
+        weights,
+        SearchOptions.of(config, t_steps),
+        Vt,
+        Vp,
+        s_arr.nb_index.shape[0],
+        valid_index,
+        num_valid,
+        order,
+    )
     return level_in, fan_seconds
 
 
@@ -344,13 +410,25 @@ def _frames(side: Side, level: int, cache: dict) -> tuple[np.ndarray, np.ndarray
         e1 = d0 / np.maximum(np.linalg.norm(d0, axis=1, keepdims=True), 1e-30)
         e2 = np.cross(normal, e1)
         # the log map's angles run counter-clockwise about the orientation of the faces; check
-        sign = np.sign(np.sum(np.where(mask, log.imag * np.einsum("vkd,vd->vk", d, e2), 0.0), axis=1))
+        sign = np.sign(
+            np.sum(np.where(mask, log.imag * np.einsum("vkd,vd->vk", d, e2), 0.0), axis=1)
+        )
         cache[key] = (e1, e2 * np.where(sign == 0, 1.0, sign)[:, None])
     return cache[key]
 
 
-def _offset_upsample(source: Side, target: Side, level: int, m: int, prev_m: int, nnf_c, rot_c, valid_m, A: int,
-                     cache: dict) -> tuple[np.ndarray, np.ndarray]:
+def _offset_upsample(
+    source: Side,
+    target: Side,
+    level: int,
+    m: int,
+    prev_m: int,
+    nnf_c,
+    rot_c,
+    valid_m,
+    A: int,
+    cache: dict,
+) -> tuple[np.ndarray, np.ndarray]:
     """Matches and rotations of target level ``level`` from the coarser level's (``nnf_c`` /
     ``rot_c`` at source level ``prev_m``) moved by each fine vertex's geodesic offset.
 
@@ -363,14 +441,19 @@ def _offset_upsample(source: Side, target: Side, level: int, m: int, prev_m: int
     """
     th, sh = target.hierarchy, source.hierarchy
     parent = np.asarray(th.pooling[level].parent)
-    xt, xp = np.asarray(th.vertices[level], np.float64), np.asarray(th.vertices[level + 1], np.float64)[parent]
+    xt, xp = (
+        np.asarray(th.vertices[level], np.float64),
+        np.asarray(th.vertices[level + 1], np.float64)[parent],
+    )
     e1p, e2p = (e[parent] for e in _frames(target, level + 1, cache))
     s_c = nnf_c[parent]
     xs_c = np.asarray(sh.vertices[prev_m], np.float64)[s_c]
     e1s, e2s = (e[s_c] for e in _frames(source, prev_m, cache))
     turn = np.exp(2j * np.pi * rot_c[parent] / A)
 
-    def to_source(vec):  # a 3D tangent vector at the target parent -> at its match, rotated by its k
+    def to_source(
+        vec,
+    ):  # a 3D tangent vector at the target parent -> at its match, rotated by its k
         z = (np.sum(vec * e1p, axis=1) + 1j * np.sum(vec * e2p, axis=1)) * turn
         return z.real[:, None] * e1s + z.imag[:, None] * e2s
 
@@ -381,8 +464,11 @@ def _offset_upsample(source: Side, target: Side, level: int, m: int, prev_m: int
     s = source.inverse[m][sh.vertex_index[prev_m][s_c]].astype(np.int64)
     for _ in range(8):
         star = np.concatenate([s[:, None], index[s]], axis=1)
-        dist = np.where(np.concatenate([np.ones((len(s), 1), bool), mask[s]], axis=1),
-                        np.linalg.norm(xs[star] - goal[:, None, :], axis=2), np.inf)
+        dist = np.where(
+            np.concatenate([np.ones((len(s), 1), bool), mask[s]], axis=1),
+            np.linalg.norm(xs[star] - goal[:, None, :], axis=2),
+            np.inf,
+        )
         step = star[np.arange(len(s)), np.argmin(dist, axis=1)]
         if np.array_equal(step, s):
             break
@@ -461,8 +547,19 @@ def match_levels(
     for level in range(target.num_levels - 1, -1, -1):
         t_level = time.perf_counter()
         m = pairing[level]
-        lv, seconds = _level_inputs(source, target, level, m, s_colors[m], features, source_mask, pin, config,
-                                    dtype, dims_of.get(level))
+        lv, seconds = _level_inputs(
+            source,
+            target,
+            level,
+            m,
+            s_colors[m],
+            features,
+            source_mask,
+            pin,
+            config,
+            dtype,
+            dims_of.get(level),
+        )
         fan_s += seconds
         Vt, Vp = lv.num_target, lv.num_padded
         if nnf is None and initial is not None:  # coarsest level from the given matches
@@ -477,11 +574,23 @@ def match_levels(
             nnf_h = lv.valid_index[pick]
             rot_h = np.zeros(Vt, np.int32)
             colors_h = np.asarray(s_colors[m][nnf_h])
-        elif config.upsample == "offset":  # the parent's match moved by the geodesic offset, re-voted
+        elif (
+            config.upsample == "offset"
+        ):  # the parent's match moved by the geodesic offset, re-voted
             valid_m = np.zeros(lv.num_padded_source, bool)
             valid_m[lv.valid_index[: lv.num_valid]] = True
-            nnf_h, rot_h = _offset_upsample(source, target, level, m, prev_src_level, nnf, rot, valid_m,
-                                            config.num_angles, frames)
+            nnf_h, rot_h = _offset_upsample(
+                source,
+                target,
+                level,
+                m,
+                prev_src_level,
+                nnf,
+                rot,
+                valid_m,
+                config.num_angles,
+                frames,
+            )
             colors_h = None
         else:  # upsample: each vertex starts from its parent's match, moved to this source level
             parent = np.asarray(target.hierarchy.pooling[level].parent)
@@ -491,8 +600,16 @@ def match_levels(
         nnf_j = jnp.asarray(pad_axis(nnf_h.astype(np.int32), 0, Vp, lv.valid_index[0]))
         rot_j = jnp.asarray(pad_axis(rot_h.astype(np.int32), 0, Vp))
         if colors_h is None:  # the re-vote of the upsampled matches
-            colors_j = vote_step(lv.tgt, lv.src.arr, nnf_j, rot_j, lv.weights, lv.pin, num_angles=config.num_angles,
-                                 vote=config.vote)
+            colors_j = vote_step(
+                lv.tgt,
+                lv.src.arr,
+                nnf_j,
+                rot_j,
+                lv.weights,
+                lv.pin,
+                num_angles=config.num_angles,
+                vote=config.vote,
+            )
         else:
             colors_j = jnp.asarray(pad_axis(np.asarray(colors_h), 0, Vp), dtype)
         coarsest = level == target.num_levels - 1
@@ -506,8 +623,18 @@ def match_levels(
             if coarsest and it == 0 and config.shape_weight_at(level) > 0 and initial is None:
                 # the random start's colours mean nothing: its first E-step matches shape only
                 weights = weights._replace(color_scale=weights.color_scale * 0)
-            nnf_j, rot_j, cost, colors_j, changed = iterate(lv.tgt, lv.src, nnf_j, rot_j, colors_j, sub, weights,
-                                                            lv.pin, lv.order, options=lv.options)
+            nnf_j, rot_j, cost, colors_j, changed = iterate(
+                lv.tgt,
+                lv.src,
+                nnf_j,
+                rot_j,
+                colors_j,
+                sub,
+                weights,
+                lv.pin,
+                lv.order,
+                options=lv.options,
+            )
             changed = int(changed)
             wall.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
@@ -519,14 +646,25 @@ def match_levels(
         cost_np = np.asarray(cost)[:Vt]
         finite = np.isfinite(cost_np)
         mean_cost = float(cost_np[finite].mean()) if finite.any() else float("inf")
-        level_stats.append({
-            "level": level, "source_level": m, "vertices": Vt, "padded_vertices": Vp,
-            "padded_source_vertices": lv.num_padded_source, "steps": len(wall), "changed": changed,
-            "mean_cost": mean_cost, "seconds": time.perf_counter() - t_level, "iteration_seconds": wall,
-            "iteration_cpu_seconds": cpu,
-        })
-        bar.level(f"level {level}: {Vt} vertices, {len(wall)} iterations, mean cost {mean_cost:.4g}, "
-                  f"{changed} changed")
+        level_stats.append(
+            {
+                "level": level,
+                "source_level": m,
+                "vertices": Vt,
+                "padded_vertices": Vp,
+                "padded_source_vertices": lv.num_padded_source,
+                "steps": len(wall),
+                "changed": changed,
+                "mean_cost": mean_cost,
+                "seconds": time.perf_counter() - t_level,
+                "iteration_seconds": wall,
+                "iteration_cpu_seconds": cpu,
+            }
+        )
+        bar.level(
+            f"level {level}: {Vt} vertices, {len(wall)} iterations, mean cost {mean_cost:.4g}, "
+            f"{changed} changed"
+        )
         prev_src_level = m
     bar.close()
 

@@ -82,8 +82,10 @@ def _level_tables(vertices, faces, level: int):
     if level == 0 or (face_areas(lengths) > 1e-12 * mean**2).all():
         return one_ring_neighborhood(vertices, faces), tracer_geometry(vertices, faces)
     lengths = mollified_lengths(lengths, 1e-4 * mean)
-    return (one_ring_neighborhood(vertices, faces, lengths=lengths),
-            tracer_geometry(vertices, faces, lengths=lengths))
+    return (
+        one_ring_neighborhood(vertices, faces, lengths=lengths),
+        tracer_geometry(vertices, faces, lengths=lengths),
+    )
 
 
 def mollified_lengths(lengths, delta: float):
@@ -132,7 +134,9 @@ def prepare_side(
         if config.levels == 1:
             hierarchy = mesh_hierarchy(vertices, faces, levels=1)
         else:
-            hierarchy = mesh_hierarchy(vertices, faces, levels=config.levels, min_vertices=config.min_vertices)
+            hierarchy = mesh_hierarchy(
+                vertices, faces, levels=config.levels, min_vertices=config.min_vertices
+            )
     edge, nbs, sms, trs, inverse = [], [], [], [], []
     n0 = len(vertices)
     for level in range(hierarchy.num_levels):
@@ -146,8 +150,9 @@ def prepare_side(
         inv[hierarchy.vertex_index[level]] = np.arange(len(v))
         inverse.append(inv)
     level = hks_level(hierarchy, config.hks_max_vertices)
-    log_hks, times = hks_features(hierarchy, level=level, times=hks_times, num_times=config.hks_times,
-                                  k=config.hks_eigenpairs)
+    log_hks, times = hks_features(
+        hierarchy, level=level, times=hks_times, num_times=config.hks_times, k=config.hks_eigenpairs
+    )
     features = shape_features((vertices, faces), log_hks, **config.normal_axes())
     return Side(hierarchy, edge, nbs, sms, trs, log_hks, features, inverse, times)
 
@@ -155,7 +160,9 @@ def prepare_side(
 def side_affinities(source: Side, target: Side, pairs):
     """:func:`~jmeshtex.meshmatch.correspondence_affinities` of the finest levels of prepared sides."""
     hs, ht = source.hierarchy, target.hierarchy
-    return correspondence_affinities((hs.vertices[0], hs.faces[0]), (ht.vertices[0], ht.faces[0]), pairs)
+    return correspondence_affinities(
+        (hs.vertices[0], hs.faces[0]), (ht.vertices[0], ht.faces[0]), pairs
+    )
 
 
 class LevelArrays(NamedTuple):
@@ -195,8 +202,14 @@ def level_arrays(side: Side, level: int, radii, config: Config, colors, valid, f
     # angle 0 half a step off the frame's x-axis (the edge to ring slot 0): no sample geodesic of a
     # regular mesh then runs along an edge through vertices (an ambiguous straightest geodesic)
     reference = np.full(len(v), np.exp(1j * np.pi / config.num_angles))
-    fans = geodesic_fans((v, f), radii=radii, num_angles=config.num_angles, edge=side.edge[level],
-                         reference=reference, geometry=side.tracers[level])
+    fans = geodesic_fans(
+        (v, f),
+        radii=radii,
+        num_angles=config.num_angles,
+        edge=side.edge[level],
+        reference=reference,
+        geometry=side.tracers[level],
+    )
     nb, sm = side.neighborhoods[level], side.smoothers[level]
     real = np.dtype(dtype)
     cdt = np.complex64 if real == np.float32 else np.complex128
@@ -228,7 +241,9 @@ def pad_axis(x: np.ndarray, axis: int, size: int, fill=0) -> np.ndarray:
     return np.concatenate([x, np.full(shape, fill, x.dtype)], axis=axis)
 
 
-def pad_level_arrays(arr: LevelArrays, *, num_vertices: int, ring: int, smooth_ring: int) -> LevelArrays:
+def pad_level_arrays(
+    arr: LevelArrays, *, num_vertices: int, ring: int, smooth_ring: int
+) -> LevelArrays:
     """Pad one side's :class:`LevelArrays` to ``num_vertices`` rows and ``ring`` / ``smooth_ring``
     neighbour slots (padded-neighbourhood contract: index 0, mask False, weight 0, transport 1;
     padded vertices are not ``valid`` and no real vertex refers to them).
@@ -282,7 +297,12 @@ def search_tables(h: MeshHierarchy, m: int, hops: int):
     for i in range(hops):
         if m + i + 1 <= top:
             p = h.pooling[m + i]
-            down.append((np.asarray(p.children, np.int32), np.asarray(p.children_mask).sum(1).astype(np.int32)))
+            down.append(
+                (
+                    np.asarray(p.children, np.int32),
+                    np.asarray(p.children_mask).sum(1).astype(np.int32),
+                )
+            )
         else:
             n = len(h.vertices[top])
             down.append((np.arange(n, dtype=np.int32)[:, None], np.ones(n, np.int32)))
@@ -353,12 +373,21 @@ def bucket_dims(source: Side, target: Side, pairing, levels, hops: int) -> dict:
         dims["Ks"] = max(dims["Ks"], source.neighborhoods[m].index.shape[1])
         dims["Kss"] = max(dims["Kss"], source.smoothers[m].index.shape[1])
         _, down = search_tables(source.hierarchy, m, hops)
-        dims["down"] = [(max(a, c.shape[0]), max(b, c.shape[1])) for (a, b), (c, _) in zip(dims["down"], down, strict=True)]
+        dims["down"] = [
+            (max(a, c.shape[0]), max(b, c.shape[1]))
+            for (a, b), (c, _) in zip(dims["down"], down, strict=True)
+        ]
     return dims
 
 
-def scan_order(nb_index: np.ndarray, nb_mask: np.ndarray, *, start: int = 0, pad_to: tuple[int, int] | None = None,
-               fill: int | None = None) -> np.ndarray:
+def scan_order(
+    nb_index: np.ndarray,
+    nb_mask: np.ndarray,
+    *,
+    start: int = 0,
+    pad_to: tuple[int, int] | None = None,
+    fill: int | None = None,
+) -> np.ndarray:
     """Breadth-first wavefronts of a mesh level: the order of sequential (Gauss–Seidel) propagation.
 
     Row ``l`` holds the vertices ``l`` one-ring hops from ``start`` (further components follow, each
@@ -384,12 +413,16 @@ def scan_order(nb_index: np.ndarray, nb_mask: np.ndarray, *, start: int = 0, pad
     V = len(nb_index)
     fill = V if fill is None else int(fill)
     rows, cols = np.nonzero(np.asarray(nb_mask, bool))
-    graph = sp.coo_matrix((np.ones(len(rows)), (rows, np.asarray(nb_index)[rows, cols])), shape=(V, V)).tocsr()
+    graph = sp.coo_matrix(
+        (np.ones(len(rows)), (rows, np.asarray(nb_index)[rows, cols])), shape=(V, V)
+    ).tocsr()
     graph = ((graph + graph.T) > 0).astype(np.int8)
     _, labels = connected_components(graph, directed=False)
     depth = np.full(V, -1, np.int64)
     offset = 0
-    seeds = [int(start)] + [int(np.argmax(labels == c)) for c in np.unique(labels) if c != labels[start]]
+    seeds = [int(start)] + [
+        int(np.argmax(labels == c)) for c in np.unique(labels) if c != labels[start]
+    ]
     for seed in seeds:
         order, pred = breadth_first_order(graph, seed, directed=False, return_predecessors=True)
         d = np.zeros(V, np.int64)

@@ -71,9 +71,16 @@ class SearchOptions(NamedTuple):
     @classmethod
     def of(cls, config: Config, prefilter_steps) -> SearchOptions:
         """The options of ``config`` with the target level's pre-filter steps."""
-        return cls(config.num_angles, tuple(int(s) for s in prefilter_steps), config.global_candidates,
-                   config.sweeps, config.exact_candidates, config.star_candidates, config.propagation,
-                   config.vote)
+        return cls(
+            config.num_angles,
+            tuple(int(s) for s in prefilter_steps),
+            config.global_candidates,
+            config.sweeps,
+            config.exact_candidates,
+            config.star_candidates,
+            config.propagation,
+            config.vote,
+        )
 
 
 class StepWeights(NamedTuple):
@@ -109,7 +116,9 @@ def _fan_values(arr: LevelArrays, colors, steps: tuple[int, ...]):
     rings, current, done = [], colors, 0
     for i, s in enumerate(steps):
         for _ in range(s - done):
-            current = (1 - lam) * current + lam * jnp.einsum("vk,vkc->vc", arr.sm_weight, _gather(current, arr.sm_index))
+            current = (1 - lam) * current + lam * jnp.einsum(
+                "vk,vkc->vc", arr.sm_weight, _gather(current, arr.sm_index)
+            )
         done = max(done, s)
         corners, bary = arr.fan_corners[:, i], arr.fan_bary[:, i]
         rings.append(jnp.einsum("vak,vakc->vac", bary, _gather(current, corners)))
@@ -130,7 +139,9 @@ class Source(NamedTuple):
 
 def _source_pack(re, im, energy, features):
     V = re.shape[0]
-    return jnp.concatenate([re.reshape(V, -1), im.reshape(V, -1), energy[:, None], features], axis=1)
+    return jnp.concatenate(
+        [re.reshape(V, -1), im.reshape(V, -1), energy[:, None], features], axis=1
+    )
 
 
 def _exact_cost(t_re, t_im, t_energy, t_feat, src: Source, cand, A, color_scale, shape_weight):
@@ -166,7 +177,9 @@ def _ring_offsets(nb_index, nb_log, nb_transport, rot, A):
 def _star(src_arr: LevelArrays, s):
     """Source star of ``s`` [..]: vertices ``[.., 1+K]``, offsets (log) and mask, self first."""
     idx = jnp.concatenate([s[..., None], _gather(src_arr.nb_index, s)], axis=-1)
-    log = jnp.concatenate([jnp.zeros(s.shape + (1,), src_arr.nb_log.dtype), _gather(src_arr.nb_log, s)], axis=-1)
+    log = jnp.concatenate(
+        [jnp.zeros(s.shape + (1,), src_arr.nb_log.dtype), _gather(src_arr.nb_log, s)], axis=-1
+    )
     mask = jnp.concatenate([jnp.ones(s.shape + (1,), bool), _gather(src_arr.nb_mask, s)], axis=-1)
     return idx, log, mask
 
@@ -214,14 +227,17 @@ def _fan_vote(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, A, fan_weight, p
     real = tgt.valid.astype(src_arr.colors.dtype)  # padded rows vote nothing
     corners = _gather(src_arr.fan_corners, nnf)  # [V, R, A, 3] source fan of each match
     bary = _gather(src_arr.fan_bary, nnf)
-    turn = (jnp.arange(A, dtype=rot.dtype)[None, :] + rot[:, None]) % A  # target angle a -> source angle a + k
+    turn = (
+        jnp.arange(A, dtype=rot.dtype)[None, :] + rot[:, None]
+    ) % A  # target angle a -> source angle a + k
     corners = jnp.take_along_axis(corners, turn[:, None, :, None], axis=2)
     bary = jnp.take_along_axis(bary, turn[:, None, :, None], axis=2)
     vals = jnp.einsum("vrak,vrakc->vrac", bary, _gather(src_arr.colors, corners))  # [V, R, A, C]
     w = (fan_weight[None, :, None, None] * tgt.fan_bary) * real[:, None, None, None]  # [V, R, A, 3]
     seg = tgt.fan_corners.reshape(-1)
-    num = jax.ops.segment_sum((w[..., None] * vals[:, :, :, None, :]).reshape(seg.shape[0], -1), seg,
-                              num_segments=V)
+    num = jax.ops.segment_sum(
+        (w[..., None] * vals[:, :, :, None, :]).reshape(seg.shape[0], -1), seg, num_segments=V
+    )
     den = jax.ops.segment_sum(w.reshape(-1), seg, num_segments=V)
     own = _gather(src_arr.colors, nnf)
     out = (own * real[:, None] + num) / (real + den)[:, None].clip(1e-12)
@@ -229,8 +245,17 @@ def _fan_vote(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, A, fan_weight, p
     return jnp.where((pin >= 0)[:, None], src_arr.colors[jnp.maximum(pin, 0)], out)
 
 
-def vote_colors(tgt: LevelArrays, src_arr: LevelArrays, nnf, rot, weights: StepWeights, pin, *, num_angles: int,
-                vote: str):
+def vote_colors(
+    tgt: LevelArrays,
+    src_arr: LevelArrays,
+    nnf,
+    rot,
+    weights: StepWeights,
+    pin,
+    *,
+    num_angles: int,
+    vote: str,
+):
     """The M-step of :func:`iterate` alone: the ring vote (``vote="ring"``) or the fan-footprint
     vote (``"fan"``, :func:`_fan_vote`) of matches ``nnf`` / ``rot`` (``[V]``)."""
     if vote == "fan":
@@ -274,12 +299,16 @@ def _random_candidates(src: Source, nnf, key, globals_: int):
         a = src.up[j][nnf]
         for i in range(j, -1, -1):
             children, count = src.down[i]
-            pick = jnp.minimum((uniform[n] * count[a].astype(jnp.float32)).astype(jnp.int32), count[a] - 1)
+            pick = jnp.minimum(
+                (uniform[n] * count[a].astype(jnp.float32)).astype(jnp.int32), count[a] - 1
+            )
             n += 1
             a = children[a, pick]
         cands.append(a)
     for _ in range(globals_):
-        pick = jnp.minimum((uniform[n] * src.num_valid.astype(jnp.float32)).astype(jnp.int32), src.num_valid - 1)
+        pick = jnp.minimum(
+            (uniform[n] * src.num_valid.astype(jnp.float32)).astype(jnp.int32), src.num_valid - 1
+        )
         n += 1
         cands.append(src.valid_index[pick])
     return cands
@@ -299,8 +328,19 @@ def _smallest(cands, bound, count: int):
 
 
 @functools.partial(jax.jit, static_argnames=("options",))
-def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepWeights, pin, order=None, *,
-            options: SearchOptions):
+def iterate(
+    tgt: LevelArrays,
+    src: Source,
+    nnf,
+    rot,
+    colors,
+    key,
+    weights: StepWeights,
+    pin,
+    order=None,
+    *,
+    options: SearchOptions,
+):
     """One PatchMatch iteration at a level: E-step (``sweeps`` sweeps of re-scoring, random search
     and propagation), M-step (vote). Target vertices with ``tgt.valid`` False are padding (ignored
     in ``changed``).
@@ -336,13 +376,17 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
     """
     A, globals_, exact = options.num_angles, options.global_candidates, options.exact_candidates
     color_scale, shape_weight = weights.color_scale, weights.shape_weight
-    t_re, t_im, t_energy = fan_spectrum(_fan_values(tgt, colors, options.prefilter_steps), weights.ring_weight)
+    t_re, t_im, t_energy = fan_spectrum(
+        _fan_values(tgt, colors, options.prefilter_steps), weights.ring_weight
+    )
     sc, sw = jnp.sqrt(color_scale), jnp.sqrt(shape_weight)
     t_desc = jnp.concatenate([sc * _fan_summaries(t_re, t_im, A), sw * tgt.features], axis=1)
     s_desc = jnp.concatenate([sc * src.summary, sw * src.arr.features], axis=1)
 
     def exact_cost(cand):
-        return _exact_cost(t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight)
+        return _exact_cost(
+            t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight
+        )
 
     def improve(rows, state, key):
         """One sweep's update of target vertices ``rows`` (None: all of them, in parallel): pre-score
@@ -350,13 +394,21 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
         keep improvements. Returns the rows' ``(best, cost, rot)``."""
         best, best_cost, best_rot = state
         if rows is None:
-            nb_index, nb_mask, nb_log, nb_tr = tgt.nb_index, tgt.nb_mask, tgt.nb_log, tgt.nb_transport
+            nb_index, nb_mask, nb_log, nb_tr = (
+                tgt.nb_index,
+                tgt.nb_mask,
+                tgt.nb_log,
+                tgt.nb_transport,
+            )
             cur, cur_cost, cur_rot, desc = best, best_cost, best_rot, t_desc
             rows_cost = exact_cost
         else:
-            nb_index, nb_mask, nb_log, nb_tr = (_gather(x, rows) for x in (tgt.nb_index, tgt.nb_mask, tgt.nb_log,
-                                                                            tgt.nb_transport))
-            cur, cur_cost, cur_rot, desc = (_gather(x, rows) for x in (best, best_cost, best_rot, t_desc))
+            nb_index, nb_mask, nb_log, nb_tr = (
+                _gather(x, rows) for x in (tgt.nb_index, tgt.nb_mask, tgt.nb_log, tgt.nb_transport)
+            )
+            cur, cur_cost, cur_rot, desc = (
+                _gather(x, rows) for x in (best, best_cost, best_rot, t_desc)
+            )
             t_rows = tuple(_gather(x, rows) for x in (t_re, t_im, t_energy, tgt.features))
 
             def rows_cost(cand):
@@ -367,14 +419,24 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
             prop = idx.reshape(idx.shape[0], -1)
             prop_ok = (nb_mask[:, :, None] & smask).reshape(prop.shape)
         else:
-            prop = _star_nearest(src.arr, _gather(best, nb_index), _ring_offsets(nb_index, nb_log, nb_tr, best_rot, A))
+            prop = _star_nearest(
+                src.arr,
+                _gather(best, nb_index),
+                _ring_offsets(nb_index, nb_log, nb_tr, best_rot, A),
+            )
             prop_ok = nb_mask
-        cands = jnp.stack(_random_candidates(src, cur, key, globals_), axis=1) if num_random else prop[:, :0]
+        cands = (
+            jnp.stack(_random_candidates(src, cur, key, globals_), axis=1)
+            if num_random
+            else prop[:, :0]
+        )
         allowed = jnp.concatenate([jnp.ones(cands.shape, bool), prop_ok], axis=1)
         cands = jnp.concatenate([cands, prop], axis=1)  # [B, N]
         diff = desc[:, None, :] - _gather(s_desc, cands)
         bound = jnp.sum(diff * diff, axis=-1)
-        bound = jnp.where(allowed & (cands != cur[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf)
+        bound = jnp.where(
+            allowed & (cands != cur[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf
+        )
         if cands.shape[1] > exact:
             cands, bound = _smallest(cands, bound, exact)
 
@@ -383,7 +445,11 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
             cand, lb = xs
             c, k = rows_cost(cand)
             better = (c < bc) & jnp.isfinite(lb)  # an infinite bound marks a slot not to use
-            return (jnp.where(better, cand, b), jnp.where(better, c, bc), jnp.where(better, k, br)), None
+            return (
+                jnp.where(better, cand, b),
+                jnp.where(better, c, bc),
+                jnp.where(better, k, br),
+            ), None
 
         out, _ = jax.lax.scan(body, (cur, cur_cost, cur_rot), (cands.T, bound.T))
         return out
@@ -412,12 +478,15 @@ def iterate(tgt: LevelArrays, src: Source, nnf, rot, colors, key, weights: StepW
             state, _ = jax.lax.scan(wavefront, state, (rows, jax.random.split(sub, rows.shape[0])))
         best, best_cost, best_rot = state
     else:
-        (best, best_cost, best_rot), _ = jax.lax.scan(sweep, (nnf, cost0, rot0),
-                                                      jax.random.split(key, options.sweeps))
+        (best, best_cost, best_rot), _ = jax.lax.scan(
+            sweep, (nnf, cost0, rot0), jax.random.split(key, options.sweeps)
+        )
 
     best = jnp.where(pin >= 0, jnp.maximum(pin, 0), best)
     best_rot = jnp.where(pin >= 0, 0, best_rot)
-    colors = vote_colors(tgt, src.arr, best, best_rot, weights, pin, num_angles=A, vote=options.vote)
+    colors = vote_colors(
+        tgt, src.arr, best, best_rot, weights, pin, num_angles=A, vote=options.vote
+    )
     changed = jnp.sum((best != nnf) & tgt.valid)
     return best, best_rot, jnp.where(pin >= 0, 0.0, best_cost), colors, changed
 
@@ -428,8 +497,9 @@ def _source_tables(arr: LevelArrays, ring_weight, *, steps, num_angles):
     return _source_pack(re, im, energy, arr.features), _fan_summaries(re, im, num_angles)
 
 
-def make_source(arr: LevelArrays, up, down, valid_index, num_valid: int, ring_weight, *, steps,
-                num_angles) -> Source:
+def make_source(
+    arr: LevelArrays, up, down, valid_index, num_valid: int, ring_weight, *, steps, num_angles
+) -> Source:
     """Device-side source of one level: fan spectra packed per vertex, summaries, search maps.
 
     Args:
@@ -443,6 +513,12 @@ def make_source(arr: LevelArrays, up, down, valid_index, num_valid: int, ring_we
     """
     arr = jax.tree.map(jnp.asarray, arr)
     pack, summary = _source_tables(arr, ring_weight, steps=steps, num_angles=num_angles)
-    return Source(arr, pack, summary, tuple(jnp.asarray(u, jnp.int32) for u in up),
-                  tuple((jnp.asarray(c, jnp.int32), jnp.asarray(n, jnp.int32)) for c, n in down),
-                  jnp.asarray(valid_index, jnp.int32), jnp.asarray(num_valid, jnp.int32))
+    return Source(
+        arr,
+        pack,
+        summary,
+        tuple(jnp.asarray(u, jnp.int32) for u in up),
+        tuple((jnp.asarray(c, jnp.int32), jnp.asarray(n, jnp.int32)) for c, n in down),
+        jnp.asarray(valid_index, jnp.int32),
+        jnp.asarray(num_valid, jnp.int32),
+    )

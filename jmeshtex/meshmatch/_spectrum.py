@@ -91,7 +91,9 @@ def _fan_summaries(re, im, num_angles: int):
     """
     M = re.shape[-1]
     m = np.arange(M)
-    cm = np.where((m == 0) | ((num_angles % 2 == 0) & (m == num_angles // 2)), 0.0, 2.0) / num_angles
+    cm = (
+        np.where((m == 0) | ((num_angles % 2 == 0) & (m == num_angles // 2)), 0.0, 2.0) / num_angles
+    )
     power = re * re + im * im
     ac = jnp.sqrt(jnp.maximum(power @ jnp.asarray(cm, re.dtype), 0.0))
     dc = re[..., 0] / jnp.asarray(math.sqrt(num_angles), re.dtype)

@@ -65,12 +65,16 @@ def _subtriangle_centroids(n: int) -> np.ndarray:
 def _face_subdivisions(mesh: Mesh, size: tuple[int, int]) -> np.ndarray:
     """Per face, the subdivision ``n`` whose samples lie about a texel apart (2 to 16, capped so
     that all faces together take at most :data:`MAX_TEXTURE_SAMPLES` samples)."""
-    uv = np.asarray(mesh.uv, np.float64) * np.asarray(size[::-1], np.float64)  # in texels (x = u W, y = v H)
+    uv = np.asarray(mesh.uv, np.float64) * np.asarray(
+        size[::-1], np.float64
+    )  # in texels (x = u W, y = v H)
     edges = np.linalg.norm(uv - np.roll(uv, 1, axis=1), axis=2).max(axis=1)
     n = np.clip(np.ceil(edges), 2, MAX_FACE_SUBDIVISION).astype(np.int64)
     total = float(np.sum(n.astype(np.float64) ** 2))
     if total > MAX_TEXTURE_SAMPLES:
-        n = np.clip(np.floor(n * np.sqrt(MAX_TEXTURE_SAMPLES / total)), 2, MAX_FACE_SUBDIVISION).astype(np.int64)
+        n = np.clip(
+            np.floor(n * np.sqrt(MAX_TEXTURE_SAMPLES / total)), 2, MAX_FACE_SUBDIVISION
+        ).astype(np.int64)
     return n
 
 
@@ -135,7 +139,10 @@ def vertex_colors_from_texture(mesh: Mesh, *, prefilter: str = "area") -> Float[
         samples = np.asarray(sample_texture(texture, uv)).reshape(-1, C)
         corner_vertex = faces.ravel()
         count = np.bincount(corner_vertex, minlength=V).astype(np.float64)
-        out = np.stack([np.bincount(corner_vertex, weights=samples[:, c], minlength=V) for c in range(C)], axis=1)
+        out = np.stack(
+            [np.bincount(corner_vertex, weights=samples[:, c], minlength=V) for c in range(C)],
+            axis=1,
+        )
         return out / np.maximum(count, 1)[:, None]
     x = np.asarray(mesh.vertices, np.float64)[faces]
     area = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
@@ -193,7 +200,9 @@ def bake_texture(
       [0.125, 0.375, 0.625, 0.875]
     """
     if not isinstance(mesh, Mesh) or mesh.uv is None:
-        raise InputError("bake_texture needs a jmeshtex.Mesh with uv (per-corner texture coordinates)")
+        raise InputError(
+            "bake_texture needs a jmeshtex.Mesh with uv (per-corner texture coordinates)"
+        )
     uv = np.asarray(mesh.uv, np.float64)
     faces = np.asarray(mesh.faces, np.int64)
     colors = np.asarray(colors, np.float64)
@@ -206,7 +215,9 @@ def bake_texture(
     flat = row * size + col
     out[flat] = np.einsum("nk,nkc->nc", bary, colors[faces[face]])  # overlapping charts: last wins
     hit[flat] = True
-    return fill_unused_texels(out.reshape(size, size, -1), hit.reshape(size, size)).astype(np.float32)
+    return fill_unused_texels(out.reshape(size, size, -1), hit.reshape(size, size)).astype(
+        np.float32
+    )
 
 
 def _colors_of(mesh: Mesh, colors, prefilter: str = "area") -> np.ndarray:
@@ -220,7 +231,6 @@ def _colors_of(mesh: Mesh, colors, prefilter: str = "area") -> np.ndarray:
         f"mesh {mesh.name!r} has neither vertex colours nor a UV texture: give the source a texture "
         "(--source-texture) or vertex colours"
     )
-
 
 
 def transfer(
@@ -276,8 +286,15 @@ def transfer(
     """
     source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
     colors = _colors_of(source, source_colors, texture_prefilter)
-    result = meshmatch(source, colors, target, key=key, config=config, correspondences=correspondences,
-                       progress=progress)
+    result = meshmatch(
+        source,
+        colors,
+        target,
+        key=key,
+        config=config,
+        correspondences=correspondences,
+        progress=progress,
+    )
     out = np.clip(result.voted if voted else result.colors, 0.0, 1.0).astype(np.float32)
     mesh = target.replace(vertex_colors=out)
     if target.uv is not None:
@@ -349,6 +366,10 @@ def paint_by_example(
     base = _colors_of(mesh, colors)
     pin = np.where(mask, np.arange(V), -1)
     config = Config.intrinsic() if config is None else config
-    result = meshmatch(mesh, base, mesh, key=key, config=config, source_mask=mask, pin=pin, progress=progress)
+    result = meshmatch(
+        mesh, base, mesh, key=key, config=config, source_mask=mask, pin=pin, progress=progress
+    )
     out = np.where(mask[:, None], base, result.colors)
-    return MeshMatchTransfer(mesh.replace(vertex_colors=np.clip(out, 0.0, 1.0).astype(np.float32)), result)
+    return MeshMatchTransfer(
+        mesh.replace(vertex_colors=np.clip(out, 0.0, 1.0).astype(np.float32)), result
+    )

@@ -13,8 +13,10 @@ from .._types import ArrayLike, Bool, Num
 def _colors_and_mask(colors, mask, name: str) -> tuple[np.ndarray, np.ndarray]:
     c = np.asarray(colors)
     if c.ndim not in (2, 3) or c.shape[-1] not in (1, 3, 4) or c.size == 0:
-        raise InputError(f"{name}: colors must be [V, C] vertex colours or an [H, W, C] texture (C = 1, 3 "
-                         f"or 4), got shape {c.shape}")
+        raise InputError(
+            f"{name}: colors must be [V, C] vertex colours or an [H, W, C] texture (C = 1, 3 "
+            f"or 4), got shape {c.shape}"
+        )
     if np.issubdtype(c.dtype, np.floating) and not np.isfinite(c).all():
         raise InputError(f"{name}: colors contain NaN or inf")
     sites = c.shape[:-1]
@@ -23,7 +25,9 @@ def _colors_and_mask(colors, mask, name: str) -> tuple[np.ndarray, np.ndarray]:
     else:
         m = np.asarray(mask, bool)
         if m.shape != sites:
-            raise InputError(f"{name}: mask must be {list(sites)} (one flag per vertex / texel), got {list(m.shape)}")
+            raise InputError(
+                f"{name}: mask must be {list(sites)} (one flag per vertex / texel), got {list(m.shape)}"
+            )
     if not m.any():
         raise InputError(f"{name}: the mask selects no vertex / texel")
     return c, m

@@ -53,6 +53,8 @@ def diversity(
         raise InputError(f"diversity needs at least 2 samples, got {len(x)}")
     weights = load_vgg16() if weights is None else weights
     pairs = np.array(list(itertools.combinations(range(len(x)), 2)))
-    d = [np.asarray(_lpips_jit(jnp.asarray(x[p[:, 0]]), jnp.asarray(x[p[:, 1]]), weights=weights))
-         for p in np.array_split(pairs, -(-len(pairs) // batch))]
+    d = [
+        np.asarray(_lpips_jit(jnp.asarray(x[p[:, 0]]), jnp.asarray(x[p[:, 1]]), weights=weights))
+        for p in np.array_split(pairs, -(-len(pairs) // batch))
+    ]
     return float(np.mean(np.concatenate(d)))

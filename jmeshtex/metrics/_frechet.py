@@ -16,7 +16,11 @@ def _psd_eigenvalues(lam: np.ndarray) -> np.ndarray:
     """Eigenvalues of a symmetric PSD matrix with rounding noise removed: those below ``C · eps ·
     max |λ|`` (negative ones, and the ≈ 1e-16 ghosts of a singular matrix, whose square roots
     ≈ 1e-8 would otherwise enter the trace) are set to 0."""
-    tol = lam.size * np.finfo(np.float64).eps * max(float(np.abs(lam).max(initial=0.0)), np.finfo(np.float64).tiny)
+    tol = (
+        lam.size
+        * np.finfo(np.float64).eps
+        * max(float(np.abs(lam).max(initial=0.0)), np.finfo(np.float64).tiny)
+    )
     return np.where(lam > tol, lam, 0.0)
 
 
@@ -64,8 +68,10 @@ def frechet_from_moments(
     ca, cb = (np.asarray(c, np.float64) for c in (cov_a, cov_b))
     c = ma.shape[0] if ma.ndim == 1 else -1
     if ma.shape != (c,) or mb.shape != (c,) or ca.shape != (c, c) or cb.shape != (c, c):
-        raise InputError(f"frechet_from_moments: need means [C] and covariances [C, C] of one C, got "
-                         f"{ma.shape}, {ca.shape}, {mb.shape}, {cb.shape}")
+        raise InputError(
+            f"frechet_from_moments: need means [C] and covariances [C, C] of one C, got "
+            f"{ma.shape}, {ca.shape}, {mb.shape}, {cb.shape}"
+        )
     if not all(np.isfinite(x).all() for x in (ma, mb, ca, cb)):
         raise InputError("frechet_from_moments: means or covariances contain NaN or inf")
     ca, cb = 0.5 * (ca + ca.T), 0.5 * (cb + cb.T)
@@ -105,9 +111,13 @@ def frechet_distance(a: Float[ArrayLike, "N C"], b: Float[ArrayLike, "M C"]) -> 
     """
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1]:
-        raise InputError(f"frechet_distance: need [N, C] and [M, C] samples, got {a.shape} and {b.shape}")
+        raise InputError(
+            f"frechet_distance: need [N, C] and [M, C] samples, got {a.shape} and {b.shape}"
+        )
     if len(a) < 2 or len(b) < 2:
-        raise InputError(f"frechet_distance: need at least 2 samples per set, got {len(a)} and {len(b)}")
+        raise InputError(
+            f"frechet_distance: need at least 2 samples per set, got {len(a)} and {len(b)}"
+        )
     if not (np.isfinite(a).all() and np.isfinite(b).all()):
         raise InputError("frechet_distance: samples contain NaN or inf")
     cov = [np.atleast_2d(np.cov(x, rowvar=False)) for x in (a, b)]

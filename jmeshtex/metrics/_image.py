@@ -13,7 +13,9 @@ def _check_pair(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None, name: str
     a = np.asarray(a, np.float64)
     b = np.asarray(b, np.float64)
     if a.shape != b.shape or a.ndim not in (2, 3):
-        raise InputError(f"{name}: images must be [H, W] or [H, W, C] of equal shape, got {a.shape} and {b.shape}")
+        raise InputError(
+            f"{name}: images must be [H, W] or [H, W, C] of equal shape, got {a.shape} and {b.shape}"
+        )
     if not (np.isfinite(a).all() and np.isfinite(b).all()):
         raise InputError(f"{name}: images contain NaN or inf")
     if mask is None:
@@ -26,7 +28,9 @@ def _check_pair(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None, name: str
     return a, b, mask
 
 
-def psnr(a: np.ndarray, b: np.ndarray, *, mask: np.ndarray | None = None, data_range: float = 1.0) -> float:
+def psnr(
+    a: np.ndarray, b: np.ndarray, *, mask: np.ndarray | None = None, data_range: float = 1.0
+) -> float:
     """Peak signal-to-noise ratio in dB over the masked pixels.
 
     .. math:: \\mathrm{PSNR} = 10 \\log_{10} \\frac{R^2}{\\operatorname{mean}_{m}(a - b)^2}
@@ -47,7 +51,9 @@ def psnr(a: np.ndarray, b: np.ndarray, *, mask: np.ndarray | None = None, data_r
     return float("inf") if mse == 0 else float(10 * np.log10(data_range**2 / mse))
 
 
-def dssim(a: np.ndarray, b: np.ndarray, *, mask: np.ndarray | None = None, data_range: float = 1.0) -> float:
+def dssim(
+    a: np.ndarray, b: np.ndarray, *, mask: np.ndarray | None = None, data_range: float = 1.0
+) -> float:
     """Structural dissimilarity ``(1 − SSIM) / 2`` averaged over the masked pixels.
 
     SSIM with the standard Gaussian window (σ = 1.5, Wang et al. 2004), channels averaged; the SSIM
@@ -83,6 +89,8 @@ def dssim(a: np.ndarray, b: np.ndarray, *, mask: np.ndarray | None = None, data_
     interior = np.zeros_like(mask)
     interior[border:-border, border:-border] = True
     if not (mask & interior).any():
-        raise InputError(f"dssim: the mask selects no pixel at least {border} pixels inside the image")
+        raise InputError(
+            f"dssim: the mask selects no pixel at least {border} pixels inside the image"
+        )
     mask = mask & interior
     return float(max(0.0, (1.0 - ssim_map[mask].mean()) / 2.0))

@@ -19,7 +19,9 @@ _LPIPS_SCALE = (0.458, 0.448, 0.450)
 
 def _check_images(img0: Array, img1: Array, name: str) -> None:
     if img0.shape != img1.shape or img0.ndim != 4 or img0.shape[-1] != 3:
-        raise InputError(f"{name}: images must be two [B, H, W, 3] arrays of equal shape, got {img0.shape}, {img1.shape}")
+        raise InputError(
+            f"{name}: images must be two [B, H, W, 3] arrays of equal shape, got {img0.shape}, {img1.shape}"
+        )
 
 
 def _unit_channels(f: Array, eps: float = 1e-10) -> Array:
@@ -70,7 +72,9 @@ def lpips(
     b = img0.shape[0]
     if mask is not None:
         if mask.shape != img0.shape[:3]:
-            raise InputError(f"lpips: mask must be [B, H, W] = {list(img0.shape[:3])}, got {list(mask.shape)}")
+            raise InputError(
+                f"lpips: mask must be [B, H, W] = {list(img0.shape[:3])}, got {list(mask.shape)}"
+            )
         layer_masks = masks_at_layers(jnp.asarray(mask).astype(img0.dtype), weights, LPIPS_LAYERS)
     total = jnp.zeros((b,), img0.dtype)
     for name, lin in zip(LPIPS_LAYERS, weights.lpips_lin, strict=True):
@@ -82,7 +86,8 @@ def lpips(
         else:
             m = layer_masks[name][..., 0]
             total = total + jnp.sum(per_pixel * m, axis=(1, 2)) / jnp.maximum(
-                jnp.sum(m, axis=(1, 2)), jnp.finfo(m.dtype).tiny)
+                jnp.sum(m, axis=(1, 2)), jnp.finfo(m.dtype).tiny
+            )
     return total
 
 

@@ -49,22 +49,36 @@ def _choose_metrics(metrics, per_view: bool) -> tuple[str, ...]:
     metrics = tuple(metrics)
     bad = [m for m in metrics if m not in known]
     if bad or not metrics:
-        raise InputError(f"unknown metrics {bad}; choose from {known}" if bad else "no metric requested")
+        raise InputError(
+            f"unknown metrics {bad}; choose from {known}" if bad else "no metric requested"
+        )
     if not per_view and any(m in RECONSTRUCTION_METRICS for m in metrics):
-        raise InputError(f"{RECONSTRUCTION_METRICS} compare views pixel by pixel: pass one reference image per "
-                         "view, not a single exemplar")
+        raise InputError(
+            f"{RECONSTRUCTION_METRICS} compare views pixel by pixel: pass one reference image per "
+            "view, not a single exemplar"
+        )
     return metrics
 
 
-def _chunked_stats(images: np.ndarray, masks: np.ndarray, weights: VGGWeights, layers, name: str) -> dict:
+def _chunked_stats(
+    images: np.ndarray, masks: np.ndarray, weights: VGGWeights, layers, name: str
+) -> dict:
     """:func:`host_stats` over fixed-size chunks of images (the last padded), concatenated."""
     parts = []
     n = len(images)
     for start in range(0, n, _CHUNK):
-        idx = np.minimum(np.arange(start, start + _CHUNK), n - 1) if n > _CHUNK else np.arange(start, n)
-        parts.append((host_stats(images[idx], masks[idx], weights, layers, name), min(_CHUNK, n - start)))
-    return {layer: tuple(np.concatenate([p[layer][k][:keep] for p, keep in parts]) for k in range(4))
-            for layer in layers}
+        idx = (
+            np.minimum(np.arange(start, start + _CHUNK), n - 1)
+            if n > _CHUNK
+            else np.arange(start, n)
+        )
+        parts.append(
+            (host_stats(images[idx], masks[idx], weights, layers, name), min(_CHUNK, n - start))
+        )
+    return {
+        layer: tuple(np.concatenate([p[layer][k][:keep] for p, keep in parts]) for k in range(4))
+        for layer in layers
+    }
 
 
 def evaluate_images(
@@ -120,8 +134,10 @@ def evaluate_images(
     b = as_float_images(references, "evaluate_images", batched=per_view)
     b = (b if per_view else b[None]).astype(a.dtype)
     if per_view and b.shape != a.shape:
-        raise InputError(f"evaluate_images: references must match results {a.shape}, got {b.shape} (or pass one "
-                         "[H, W, 3] exemplar)")
+        raise InputError(
+            f"evaluate_images: references must match results {a.shape}, got {b.shape} (or pass one "
+            "[H, W, 3] exemplar)"
+        )
     chosen = _choose_metrics(metrics, per_view)
     n = len(a)
     m = as_masks(masks, a.shape[:3], "evaluate_images", a.dtype)
@@ -129,20 +145,44 @@ def evaluate_images(
     out: dict[str, float] = {}
     dist = [x for x in chosen if x in DISTRIBUTION_METRICS]
     if dist:
-        layers = tuple(dict.fromkeys((sifid_layers if "sifid" in dist else ()) + (gram_layers if "gram" in dist else ())))
+        layers = tuple(
+            dict.fromkeys(
+                (sifid_layers if "sifid" in dist else ()) + (gram_layers if "gram" in dist else ())
+            )
+        )
         sa = _chunked_stats(a, m, weights, layers, "evaluate_images")
-        sb = sa if (per_view and np.array_equal(a, b)) else _chunked_stats(b, mb, weights, layers, "evaluate_images")
+        sb = (
+            sa
+            if (per_view and np.array_equal(a, b))
+            else _chunked_stats(b, mb, weights, layers, "evaluate_images")
+        )
         ref = (lambda i: i) if per_view else (lambda i: 0)
         if "sifid" in dist:
-            out["sifid"] = float(np.mean([sifid_from_stats(sa, sb, sifid_layers, i, ref(i)) for i in range(n)]))
+            out["sifid"] = float(
+                np.mean([sifid_from_stats(sa, sb, sifid_layers, i, ref(i)) for i in range(n)])
+            )
         if "gram" in dist:
-            out["gram"] = float(np.mean([sum(np.mean((sa[L][3][i] - sb[L][3][ref(i)]) ** 2) for L in gram_layers)
-                                         for i in range(n)]))
+            out["gram"] = float(
+                np.mean(
+                    [
+                        sum(np.mean((sa[L][3][i] - sb[L][3][ref(i)]) ** 2) for L in gram_layers)
+                        for i in range(n)
+                    ]
+                )
+            )
     if "lpips" in chosen:
         kw = {} if masks is None else {"mask": jnp.asarray(m)}
-        d = [np.asarray(_lpips_jit(jnp.asarray(a[s:s + _CHUNK]), jnp.asarray(b[s:s + _CHUNK]), weights=weights,
-                                   **({k: v[s:s + _CHUNK] for k, v in kw.items()})))
-             for s in range(0, n, _CHUNK)]
+        d = [
+            np.asarray(
+                _lpips_jit(
+                    jnp.asarray(a[s : s + _CHUNK]),
+                    jnp.asarray(b[s : s + _CHUNK]),
+                    weights=weights,
+                    **({k: v[s : s + _CHUNK] for k, v in kw.items()}),
+                )
+            )
+            for s in range(0, n, _CHUNK)
+        ]
         out["lpips"] = float(np.mean(np.concatenate(d)))
     pixel_masks = m >= 0.5
     if "psnr" in chosen:
@@ -188,13 +228,21 @@ class Protocol:
         """The rig framed on ``mesh`` (:func:`jmeshtex.render.orbit_cameras`)."""
         from .. import render
 
-        return render.orbit_cameras(mesh, azimuths=self.azimuths, elevations=self.elevations, up=self.up,
-                                    size=(self.size, self.size))
+        return render.orbit_cameras(
+            mesh,
+            azimuths=self.azimuths,
+            elevations=self.elevations,
+            up=self.up,
+            size=(self.size, self.size),
+        )
 
     def angles(self) -> list[tuple[float, float]]:
         """``(elevation, azimuth)`` of every view, elevation-major (as :meth:`cameras`)."""
-        az = ([360.0 * k / self.azimuths for k in range(self.azimuths)] if isinstance(self.azimuths, int)
-              else list(self.azimuths))
+        az = (
+            [360.0 * k / self.azimuths for k in range(self.azimuths)]
+            if isinstance(self.azimuths, int)
+            else list(self.azimuths)
+        )
         return [(float(e), float(a)) for e in self.elevations for a in az]
 
 
@@ -233,22 +281,38 @@ def protocol_views(
 
     mesh = as_mesh(mesh)
     protocol = Protocol() if protocol is None else protocol
-    opts = {k: v for k, v in (("vertex_colors", colors), ("uv", uv), ("texture", texture)) if v is not None}
+    opts = {
+        k: v
+        for k, v in (("vertex_colors", colors), ("uv", uv), ("texture", texture))
+        if v is not None
+    }
     render_views = getattr(render, "render_views", None)
     if render_views is None:  # the matplotlib renderer: one call per (elevation, azimuth)
         if cameras is not None:
-            raise InputError("protocol_views: this jmeshtex.render has no render_views; cameras cannot be used")
+            raise InputError(
+                "protocol_views: this jmeshtex.render has no render_views; cameras cannot be used"
+            )
         size = (protocol.size, protocol.size)
-        views = [render.render_mesh(mesh.vertices, mesh.faces, view=va, size=size, **opts) for va in protocol.angles()]
+        views = [
+            render.render_mesh(mesh.vertices, mesh.faces, view=va, size=size, **opts)
+            for va in protocol.angles()
+        ]
         black = np.zeros((mesh.num_vertices, 3))
-        cover = [render.render_mesh(mesh.vertices, mesh.faces, vertex_colors=black, view=va, size=size)
-                 for va in protocol.angles()]
+        cover = [
+            render.render_mesh(mesh.vertices, mesh.faces, vertex_colors=black, view=va, size=size)
+            for va in protocol.angles()
+        ]
         masks = np.stack([(c.mean(-1) < 128).astype(np.float32) for c in cover])
         return np.stack(views), masks
     cams = protocol.cameras(mesh) if cameras is None else list(cameras)
     views = render_views(mesh, cams, supersample=protocol.supersample, **opts)
-    alpha = render_views(mesh, cams, supersample=protocol.supersample, background="transparent",
-                         vertex_colors=np.zeros((mesh.num_vertices, 3)))[..., 3]
+    alpha = render_views(
+        mesh,
+        cams,
+        supersample=protocol.supersample,
+        background="transparent",
+        vertex_colors=np.zeros((mesh.num_vertices, 3)),
+    )[..., 3]
     return views[..., :3], (alpha.astype(np.float32) / np.float32(255))
 
 
@@ -292,8 +356,12 @@ def evaluate_views(
       (inf, 0.0)
     """
     if (reference_images is None) == (exemplar is None):
-        raise InputError("evaluate_views: pass exactly one of reference_images (one per view) and exemplar")
-    views, masks = protocol_views(mesh, colors=colors, uv=uv, texture=texture, cameras=cameras, protocol=protocol)
+        raise InputError(
+            "evaluate_views: pass exactly one of reference_images (one per view) and exemplar"
+        )
+    views, masks = protocol_views(
+        mesh, colors=colors, uv=uv, texture=texture, cameras=cameras, protocol=protocol
+    )
     refs = reference_images if exemplar is None else exemplar
     return evaluate_images(views, refs, masks=masks, metrics=metrics, weights=weights)
 
@@ -326,7 +394,10 @@ class BaselineTable:
         """The table in markdown, one row per colouring, then the note."""
         metrics = [k for k in next(iter(self.rows.values())) if k != "views"]
         lines = ["| row | " + " | ".join(metrics) + " |", "| --- |" + " --- |" * len(metrics)]
-        lines += [f"| {r} | " + " | ".join(f"{v[m]:.4g}" for m in metrics) + " |" for r, v in self.rows.items()]
+        lines += [
+            f"| {r} | " + " | ".join(f"{v[m]:.4g}" for m in metrics) + " |"
+            for r, v in self.rows.items()
+        ]
         return "\n".join(lines) + "\n\n" + self.note
 
     def to_dict(self) -> dict:
@@ -382,7 +453,9 @@ def baseline_table(
     """
     given = [x is not None for x in (reference_colors, reference_texture, exemplar)]
     if sum(given) != 1:
-        raise InputError("baseline_table: pass exactly one of reference_colors, reference_texture and exemplar")
+        raise InputError(
+            "baseline_table: pass exactly one of reference_colors, reference_texture and exemplar"
+        )
     if colors is None and texture is None:
         raise InputError("baseline_table: pass the result's colouring (colors, or uv with texture)")
     check_key(key)
@@ -403,7 +476,9 @@ def baseline_table(
         sites = int(np.prod(target.shape[:-1]))
         pick = host_rng(key).choice(len(pool), sites, replace=sites > len(pool))
         drawn = pool[pick].reshape(*target.shape[:-1], 3).astype(np.float64)
-        mean_colors = np.broadcast_to(pool.astype(np.float64).mean(0), (mesh.num_vertices, 3)).copy()
+        mean_colors = np.broadcast_to(
+            pool.astype(np.float64).mean(0), (mesh.num_vertices, 3)
+        ).copy()
         permuted = {"colors": drawn} if colors is not None else {"uv": uv, "texture": drawn}
         rows = {
             "result": evaluate_images(result_views, ex, **kw),
@@ -411,8 +486,10 @@ def baseline_table(
             "permuted": evaluate_images(views(**permuted)[0], ex, **kw),
             "exemplar": evaluate_images(ex[None], ex, metrics=metrics, weights=weights),
         }
-        note = (f"{len(cams)} views at {protocol.size}², each compared with the {ex.shape[1]}×{ex.shape[0]} "
-                "exemplar; SIFID/Gram on VGG-16 features (SIFID not comparable in value with Inception SIFID)")
+        note = (
+            f"{len(cams)} views at {protocol.size}², each compared with the {ex.shape[1]}×{ex.shape[0]} "
+            "exemplar; SIFID/Gram on VGG-16 features (SIFID not comparable in value with Inception SIFID)"
+        )
         return BaselineTable(rows, note)
     if reference_colors is not None:
         ref = {"colors": np.asarray(reference_colors)}
@@ -422,7 +499,10 @@ def baseline_table(
         ruv = uv if reference_uv is None else reference_uv
         ref = {"uv": ruv, "texture": np.asarray(reference_texture)}
         flat = {"uv": ruv, "texture": flat_baseline(reference_texture, mask=texel_mask)}
-        perm = {"uv": ruv, "texture": permuted_baseline(reference_texture, key=key, mask=texel_mask)}
+        perm = {
+            "uv": ruv,
+            "texture": permuted_baseline(reference_texture, key=key, mask=texel_mask),
+        }
     ref_views = views(**ref)[0]
     rows = {
         "result": evaluate_images(result_views, ref_views, **kw),
@@ -430,7 +510,9 @@ def baseline_table(
         "permuted": evaluate_images(views(**perm)[0], ref_views, **kw),
         "exemplar": evaluate_images(ref_views, ref_views, **kw),
     }
-    note = (f"{len(cams)} views at {protocol.size}², each compared with the reference's render from the same "
-            "camera, masked to the object; SIFID/Gram on VGG-16 features (SIFID not comparable in value with "
-            "Inception SIFID)")
+    note = (
+        f"{len(cams)} views at {protocol.size}², each compared with the reference's render from the same "
+        "camera, masked to the object; SIFID/Gram on VGG-16 features (SIFID not comparable in value with "
+        "Inception SIFID)"
+    )
     return BaselineTable(rows, note)

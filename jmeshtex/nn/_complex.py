@@ -85,7 +85,12 @@ class ComplexDense(nn.Module):
 
     @nn.compact
     def __call__(self, x):
-        kernel = self.param("kernel", lambda key: init_complex_linear(key, x.shape[-1], self.features, dtype=self.param_dtype))
+        kernel = self.param(
+            "kernel",
+            lambda key: init_complex_linear(
+                key, x.shape[-1], self.features, dtype=self.param_dtype
+            ),
+        )
         return complex_linear(x, kernel)
 
 
@@ -110,7 +115,9 @@ class VNNonlinearity(nn.Module):
 
     @nn.compact
     def __call__(self, x):
-        params = pytree_params(self, lambda key: init_vn(key, x.shape[-1], self.features, dtype=self.param_dtype))
+        params = pytree_params(
+            self, lambda key: init_vn(key, x.shape[-1], self.features, dtype=self.param_dtype)
+        )
         return vn_nonlinearity(x, params, delta=self.delta)
 
 
@@ -137,7 +144,9 @@ class FRN(nn.Module):
 
     @nn.compact
     def __call__(self, x, *, area, vertex_mask=None):
-        params = pytree_params(self, lambda key: init_frn(x.shape[-1], dtype=self.param_dtype, eps=self.eps_init))
+        params = pytree_params(
+            self, lambda key: init_frn(x.shape[-1], dtype=self.param_dtype, eps=self.eps_init)
+        )
         return filter_response_norm(x, params, area=area, vertex_mask=vertex_mask, delta=self.delta)
 
 
@@ -167,8 +176,12 @@ class ComplexAttention(nn.Module):
     def __call__(self, x, *, mask=None):
         def init(key):
             return init_complex_attention(
-                key, x.shape[-1], num_heads=self.num_heads, head_features=self.head_features,
-                out_features=self.out_features, dtype=self.param_dtype,
+                key,
+                x.shape[-1],
+                num_heads=self.num_heads,
+                head_features=self.head_features,
+                out_features=self.out_features,
+                dtype=self.param_dtype,
             )
 
         return complex_attention(x, pytree_params(self, init), mask=mask)
@@ -200,7 +213,11 @@ class VNTransformerBlock(nn.Module):
     def __call__(self, x, *, mask=None):
         def init(key):
             return init_vn_transformer_block(
-                key, x.shape[-1], num_heads=self.num_heads, mlp_features=self.mlp_features, dtype=self.param_dtype
+                key,
+                x.shape[-1],
+                num_heads=self.num_heads,
+                mlp_features=self.mlp_features,
+                dtype=self.param_dtype,
             )
 
         return vn_transformer_block(x, pytree_params(self, init), mask=mask, delta=self.delta)

@@ -84,11 +84,27 @@ class FieldConv(nn.Module):
 
     @nn.compact
     def __call__(self, x, nbhd, channel_embedding=None):
-        params = pytree_params(self, lambda key: init_field_conv(
-            key, x.shape[-1], self.features, hdim=self.hdim, channel_embedding=self.channel_embedding,
-            hidden_layers=self.filter_layers, dtype=self.param_dtype))
-        return field_conv(x, nbhd, params, channel_embedding=channel_embedding, delta=self.delta,
-                          activation=self.activation, argument=self.argument)
+        params = pytree_params(
+            self,
+            lambda key: init_field_conv(
+                key,
+                x.shape[-1],
+                self.features,
+                hdim=self.hdim,
+                channel_embedding=self.channel_embedding,
+                hidden_layers=self.filter_layers,
+                dtype=self.param_dtype,
+            ),
+        )
+        return field_conv(
+            x,
+            nbhd,
+            params,
+            channel_embedding=channel_embedding,
+            delta=self.delta,
+            activation=self.activation,
+            argument=self.argument,
+        )
 
 
 class FieldConvEmb(nn.Module):
@@ -129,11 +145,17 @@ class FieldConvEmb(nn.Module):
         params = pytree_params(
             self,
             lambda key: init_field_conv(
-                key, x.shape[-1], self.features, hdim=self.hdim, embedding_features=embedding.shape[-1],
+                key,
+                x.shape[-1],
+                self.features,
+                hdim=self.hdim,
+                embedding_features=embedding.shape[-1],
                 dtype=self.param_dtype,
             ),
         )
-        return field_conv(x, nbhd, params, embedding=embedding, delta=self.delta, activation=self.activation)
+        return field_conv(
+            x, nbhd, params, embedding=embedding, delta=self.delta, activation=self.activation
+        )
 
 
 class FCResNetBlock(nn.Module):
@@ -182,12 +204,21 @@ class FCResNetBlock(nn.Module):
         emb = jnp.asarray(embedding)
         emb = jax.nn.silu(nn.Dense(width, dtype=rdt, name="embed_0")(emb))
         emb = jax.nn.silu(nn.Dense(width, dtype=rdt, name="embed_1")(emb))
-        conv = dict(hdim=self.hdim, delta=self.delta, activation=self.activation, param_dtype=self.param_dtype)
+        conv = dict(
+            hdim=self.hdim,
+            delta=self.delta,
+            activation=self.activation,
+            param_dtype=self.param_dtype,
+        )
         h = FieldConv(self.features, name="conv_0", **conv)(x, nbhd)
         h = FRN(name="norm")(h, area=nbhd.area, vertex_mask=nbhd.vertex_mask)
         h = VNNonlinearity(param_dtype=self.param_dtype, name="act")(h)
         h = FieldConvEmb(self.features, name="conv_1", **conv)(h, nbhd, emb)
-        res = x if x.shape[-1] == self.features else ComplexDense(self.features, self.param_dtype, name="skip")(x)
+        res = (
+            x
+            if x.shape[-1] == self.features
+            else ComplexDense(self.features, self.param_dtype, name="skip")(x)
+        )
         return h + res
 
 

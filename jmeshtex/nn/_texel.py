@@ -42,7 +42,9 @@ class TexelConv(nn.Module):
 
     @nn.compact
     def __call__(self, x: Float[Array, "N C"], taps: TexelNeighborhood) -> Float[Array, "N D"]:
-        kernel = self.param("kernel", self.kernel_init, (3, 3, x.shape[-1], self.features), self.param_dtype)
+        kernel = self.param(
+            "kernel", self.kernel_init, (3, 3, x.shape[-1], self.features), self.param_dtype
+        )
         if self.use_bias:
             bias = self.param("bias", nn.initializers.zeros, (self.features,), self.param_dtype)
         else:

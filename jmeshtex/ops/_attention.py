@@ -69,11 +69,15 @@ def init_complex_attention(
     hf = (num_heads, head_features)
     qkv = ((in_features, *hf), in_features)
     return ComplexAttentionParams(
-        *complex_lecun_blocks(key, [qkv, qkv, qkv, ((*hf, out_features), num_heads * head_features)], dtype=dtype)
+        *complex_lecun_blocks(
+            key, [qkv, qkv, qkv, ((*hf, out_features), num_heads * head_features)], dtype=dtype
+        )
     )
 
 
-_MASKED_LOGIT = 1e30  # added (negated) to masked logits; exp(-1e30 - max) is exactly 0 in f32 and f64
+_MASKED_LOGIT = (
+    1e30  # added (negated) to masked logits; exp(-1e30 - max) is exactly 0 in f32 and f64
+)
 
 
 def complex_attention(
@@ -115,17 +119,25 @@ def complex_attention(
     """
     check_complex(x, "complex_attention", ndim_min=2)
     s, c = x.shape[-2:]
-    if params.query.ndim != 3 or params.query.shape[0] != c or params.key.shape != params.query.shape:
+    if (
+        params.query.ndim != 3
+        or params.query.shape[0] != c
+        or params.key.shape != params.query.shape
+    ):
         raise InputError(
             f"complex_attention: query and key must both be [C, H, E] with C = {c}, got "
             f"{params.query.shape} and {params.key.shape}"
         )
     _, h, e = params.query.shape
     if params.value.ndim != 3 or params.value.shape[:2] != (c, h):
-        raise InputError(f"complex_attention: value must be [C, H, F] = [{c}, {h}, F], got {params.value.shape}")
+        raise InputError(
+            f"complex_attention: value must be [C, H, F] = [{c}, {h}, F], got {params.value.shape}"
+        )
     f = params.value.shape[2]
     if params.out.ndim != 3 or params.out.shape[:2] != (h, f):
-        raise InputError(f"complex_attention: out must be [H, F, D] = [{h}, {f}, D], got {params.out.shape}")
+        raise InputError(
+            f"complex_attention: out must be [H, F, D] = [{h}, {f}, D], got {params.out.shape}"
+        )
     rdt = real_dtype(x.dtype)
     lead = x.shape[:-1]
 
@@ -138,7 +150,9 @@ def complex_attention(
     logits = jnp.einsum("...she,...the->...hst", q, k) * jnp.asarray(1.0 / math.sqrt(e), rdt)
     if mask is not None:
         if jnp.shape(mask) != lead:
-            raise InputError(f"complex_attention: mask must have shape {lead} (x.shape[:-1]), got {jnp.shape(mask)}")
+            raise InputError(
+                f"complex_attention: mask must have shape {lead} (x.shape[:-1]), got {jnp.shape(mask)}"
+            )
         m = jnp.asarray(mask).astype(rdt)[..., None, None, :]
         logits = logits + (m - 1) * jnp.asarray(_MASKED_LOGIT, rdt)
         attn = jax.nn.softmax(logits, axis=-1) * m

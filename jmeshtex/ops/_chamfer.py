@@ -60,7 +60,9 @@ class ChamferDistance(NamedTuple):
 
 def _check_points(name: str, what: str, x) -> None:
     if x.ndim != 2 or x.shape[0] < 1:
-        raise InputError(f"{name}: {what} must be a non-empty [N, D] array, got shape {tuple(x.shape)}")
+        raise InputError(
+            f"{name}: {what} must be a non-empty [N, D] array, got shape {tuple(x.shape)}"
+        )
     if not jnp.issubdtype(x.dtype, jnp.floating):
         raise InputError(f"{name}: {what} must be floating point, got {x.dtype}")
 

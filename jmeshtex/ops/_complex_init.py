@@ -13,7 +13,9 @@ from .._types import Array, PRNGKey
 from ._numerics import complex_dtype, real_dtype
 
 
-def complex_lecun_normal(key: PRNGKey, shape: tuple[int, ...], *, fan_in: int, dtype=jnp.complex64) -> Array:
+def complex_lecun_normal(
+    key: PRNGKey, shape: tuple[int, ...], *, fan_in: int, dtype=jnp.complex64
+) -> Array:
     """Circular complex Gaussian weights with ``E|w|² = 1/fan_in`` (complex LeCun normal).
 
     .. math:: w = \\frac{a + i b}{\\sqrt{2\\,\\mathrm{fan\\_in}}}, \\qquad a, b \\sim \\mathcal N(0, 1)

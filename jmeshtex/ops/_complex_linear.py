@@ -13,7 +13,9 @@ from ._complex_init import complex_lecun_normal
 from ._numerics import check_complex, complex_matmul
 
 
-def init_complex_linear(key: PRNGKey, in_features: int, out_features: int, *, dtype=jnp.complex64) -> Complex[Array, "C D"]:
+def init_complex_linear(
+    key: PRNGKey, in_features: int, out_features: int, *, dtype=jnp.complex64
+) -> Complex[Array, "C D"]:
     """Weights ``[in_features, out_features]`` for :func:`complex_linear` (:func:`complex_lecun_normal`).
 
     Example:
@@ -27,7 +29,9 @@ def init_complex_linear(key: PRNGKey, in_features: int, out_features: int, *, dt
 # --------------------------------------------------------------------------------- linear layer
 
 
-def complex_linear(x: Complex[ArrayLike, "... C"], w: Complex[ArrayLike, "C D"]) -> Complex[Array, "... D"]:
+def complex_linear(
+    x: Complex[ArrayLike, "... C"], w: Complex[ArrayLike, "C D"]
+) -> Complex[Array, "... D"]:
     """Complex linear layer without bias: ``y = x W``.
 
     .. math:: y_d = \\sum_c x_c\\, W_{cd}

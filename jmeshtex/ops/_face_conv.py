@@ -134,7 +134,9 @@ def edge_frames(vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood) -> Ed
     return EdgeFrames(origin=0.5 * (tri + nxt), x=x, y=y, z=z)
 
 
-def face_features(vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood) -> Float[Array, "F 3 4"]:
+def face_features(
+    vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood
+) -> Float[Array, "F 3 4"]:
     """Rigid-motion-invariant input features of every face, one row of 4 per edge (DGTS §3.1).
 
     For edge ``k`` of face ``f`` with frame :func:`edge_frames` ``(o_k, x_k, y_k, z)`` and ``p`` the
@@ -176,7 +178,9 @@ def face_features(vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood) -> 
     return feats * nbhd.face_mask.astype(feats.dtype)[:, None, None]
 
 
-def face_edge_embed(features: Float[ArrayLike, "F 3 E"], params: FaceEmbedParams) -> Float[Array, "F C"]:
+def face_edge_embed(
+    features: Float[ArrayLike, "F 3 E"], params: FaceEmbedParams
+) -> Float[Array, "F C"]:
     """First DGTS layer: a linear map shared by the three edges, then the max over edges (§3.2).
 
     .. math:: h_f = \\max_{k \\in \\{0,1,2\\}} \\big(W^\\top \\phi_{f,k} + b\\big)
@@ -197,7 +201,9 @@ def face_edge_embed(features: Float[ArrayLike, "F 3 E"], params: FaceEmbedParams
       [[8.0, 9.0]]
     """
     if features.ndim != 3 or features.shape[1] != 3:
-        raise InputError(f"face_edge_embed: features must be [F, 3, E], got {tuple(features.shape)}")
+        raise InputError(
+            f"face_edge_embed: features must be [F, 3, E], got {tuple(features.shape)}"
+        )
     E = features.shape[-1]
     if params.weight.shape[0] != E or params.bias.shape != params.weight.shape[1:]:
         raise InputError(
@@ -212,7 +218,9 @@ def face_edge_embed(features: Float[ArrayLike, "F 3 E"], params: FaceEmbedParams
     return elementwise_max((h[:, 0], h[:, 1], h[:, 2])) + b
 
 
-def face_conv(x: Float[ArrayLike, "F C"], nbhd: FaceNeighborhood, params: FaceConvParams) -> Float[Array, "F D"]:
+def face_conv(
+    x: Float[ArrayLike, "F C"], nbhd: FaceNeighborhood, params: FaceConvParams
+) -> Float[Array, "F D"]:
     """Symmetric DGTS face convolution: a shared linear map per neighbour, max over neighbours (§3.2).
 
     .. math:: y_f = \\max_{j \\in \\mathcal N(f)} \\big(W^\\top [x_j ; x_f] + b\\big)
@@ -249,7 +257,11 @@ def face_conv(x: Float[ArrayLike, "F C"], nbhd: FaceNeighborhood, params: FaceCo
             f"got {tuple(x.shape)}"
         )
     C = x.shape[1]
-    if params.weight.ndim != 2 or params.weight.shape[0] != 2 * C or params.bias.shape != params.weight.shape[1:]:
+    if (
+        params.weight.ndim != 2
+        or params.weight.shape[0] != 2 * C
+        or params.bias.shape != params.weight.shape[1:]
+    ):
         raise InputError(
             f"face_conv: weight {tuple(params.weight.shape)} / bias {tuple(params.bias.shape)} do not fit "
             f"C = {C} input channels; expected weight [2C, D] = [{2 * C}, D] and bias [D]"
@@ -261,7 +273,9 @@ def face_conv(x: Float[ArrayLike, "F C"], nbhd: FaceNeighborhood, params: FaceCo
     mask = nbhd.mask.astype(dtype)
     big = jnp.asarray(jnp.finfo(dtype).max / 4, dtype)
     penalty = (mask - 1) * big  # 0 for real neighbours, -big for missing ones
-    nbr_max = elementwise_max(tuple(z_nbr[nbhd.neighbors[:, k]] + penalty[:, k, None] for k in range(3)))
+    nbr_max = elementwise_max(
+        tuple(z_nbr[nbhd.neighbors[:, k]] + penalty[:, k, None] for k in range(3))
+    )
     has_nbr = jnp.max(mask, axis=1, keepdims=True)  # 0 for isolated faces
     y = nbr_max * has_nbr + z_self + params.bias.astype(dtype)
     return y * nbhd.face_mask.astype(dtype)[:, None]
@@ -292,7 +306,9 @@ def instance_norm(
       [[-1.0], [1.0], [0.0]]
     """
     if x.ndim != 2 or mask.shape != x.shape[:1]:
-        raise InputError(f"instance_norm: x must be [F, C] and mask [F], got {tuple(x.shape)}, {tuple(mask.shape)}")
+        raise InputError(
+            f"instance_norm: x must be [F, C] and mask [F], got {tuple(x.shape)}, {tuple(mask.shape)}"
+        )
     m = mask.astype(x.dtype)[:, None]
     mean = masked_mean(x, mask)
     centred = (x - mean) * m
@@ -369,7 +385,9 @@ def init_face_conv_stack(
     """
     features = tuple(int(c) for c in features)
     if not features or min(features) < 1:
-        raise InputError(f"init_face_conv_stack: features must be a non-empty list of positive widths, got {features}")
+        raise InputError(
+            f"init_face_conv_stack: features must be a non-empty list of positive widths, got {features}"
+        )
     keys = jax.random.split(key, 2 * len(features))
     fan_ins = [in_features] + [2 * c for c in features[:-1]]
     layers = []
@@ -416,10 +434,14 @@ def face_to_vertex_displacement(
     _check_vertices(vertices, nbhd, "face_to_vertex_displacement")
     F = nbhd.faces.shape[0]
     if d.shape != (F, 3):
-        raise InputError(f"face_to_vertex_displacement: d must be [F, 3] = [{F}, 3], got {tuple(d.shape)}")
+        raise InputError(
+            f"face_to_vertex_displacement: d must be [F, 3] = [{F}, 3], got {tuple(d.shape)}"
+        )
     fr = edge_frames(vertices, nbhd)
     d = d.astype(vertices.dtype)
-    per_corner = d[:, None, 0:1] * fr.x + d[:, None, 1:2] * fr.y + d[:, None, 2:3] * fr.z  # [F, 3, 3]
+    per_corner = (
+        d[:, None, 0:1] * fr.x + d[:, None, 1:2] * fr.y + d[:, None, 2:3] * fr.z
+    )  # [F, 3, 3]
     flat = per_corner.reshape(3 * F, 3)
     slot = nbhd.vertex_faces * 3 + nbhd.vertex_corners  # [V, M]
     w = nbhd.vertex_faces_mask.astype(vertices.dtype)

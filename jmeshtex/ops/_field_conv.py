@@ -114,7 +114,10 @@ def init_field_conv(
     rdt = real_dtype(dtype)
     fan = 2 + embedding_features + int(bool(channel_embedding))
     mix, weight, bias = complex_lecun_blocks(
-        key, [((in_features, hdim, out_features), in_features * hdim)], dtype=dtype, extra_real=[(2 + embedding_features, hdim), (hdim,)]
+        key,
+        [((in_features, hdim, out_features), in_features * hdim)],
+        dtype=dtype,
+        extra_real=[(2 + embedding_features, hdim), (hdim,)],
     )
     inv = jnp.asarray(1.0 / math.sqrt(fan), rdt)
     extra = {}
@@ -123,7 +126,9 @@ def init_field_conv(
         if channel_embedding:
             extra["channel_weight"] = draw[:hdim] * inv
         if hidden_layers == 2:
-            extra["hidden_weight"] = draw[hdim:].reshape(hdim, hdim) / jnp.asarray(math.sqrt(hdim), rdt)
+            extra["hidden_weight"] = draw[hdim:].reshape(hdim, hdim) / jnp.asarray(
+                math.sqrt(hdim), rdt
+            )
             extra["hidden_bias"] = jnp.zeros((hdim,), rdt)
     return FieldConvParams(filter_weight=weight * inv, filter_bias=bias, mix=mix, **extra)
 
@@ -212,7 +217,9 @@ def field_conv(
     check_complex(x, "field_conv", ndim_min=2)
     delta = check_delta(delta, "field_conv")
     if activation not in _ACTIVATIONS:
-        raise ConfigError(f"field_conv: activation must be one of {_ACTIVATIONS}, got {activation!r}")
+        raise ConfigError(
+            f"field_conv: activation must be one of {_ACTIVATIONS}, got {activation!r}"
+        )
     if argument not in _ARGUMENTS:
         raise ConfigError(f"field_conv: argument must be one of {_ARGUMENTS}, got {argument!r}")
     v, c, h, d, n_emb = _check_shapes(x, nbhd, params, embedding)
@@ -227,7 +234,10 @@ def field_conv(
     if params.hidden_weight is None and argument == "transported":
         if channel_embedding is not None:  # per-channel pre-activation offsets [V, H, C]
             cw = params.channel_weight.astype(rdt)
-            bias = bias[:, :, None] + cw[None, :, None] * jnp.asarray(channel_embedding).astype(rdt)[:, None, :]
+            bias = (
+                bias[:, :, None]
+                + cw[None, :, None] * jnp.asarray(channel_embedding).astype(rdt)[:, None, :]
+            )
         return _conv(x, index, slots, a_w[:2], bias, mix, delta, activation)
     channel = None
     if channel_embedding is not None:
@@ -235,8 +245,19 @@ def field_conv(
     hidden = None
     if params.hidden_weight is not None:
         hidden = (params.hidden_weight.astype(rdt), params.hidden_bias.astype(rdt))
-    return _conv_general(x, index, slots, a_w[:2], bias, mix, channel, hidden, delta=delta, activation=activation,
-                         transported=argument == "transported")
+    return _conv_general(
+        x,
+        index,
+        slots,
+        a_w[:2],
+        bias,
+        mix,
+        channel,
+        hidden,
+        delta=delta,
+        activation=activation,
+        transported=argument == "transported",
+    )
 
 
 _ARGUMENTS = ("transported", "untransported")
@@ -245,23 +266,37 @@ _ARGUMENTS = ("transported", "untransported")
 def _check_extra(params: FieldConvParams, channel_embedding, v: int, c: int, h: int) -> None:
     if (params.hidden_weight is None) != (params.hidden_bias is None):
         raise InputError("field_conv: hidden_weight and hidden_bias must be given together")
-    if params.hidden_weight is not None and (jnp.shape(params.hidden_weight) != (h, h) or jnp.shape(params.hidden_bias) != (h,)):
-        raise InputError(f"field_conv: hidden_weight must be [H, H] = ({h}, {h}) and hidden_bias [H], got "
-                         f"{jnp.shape(params.hidden_weight)} and {jnp.shape(params.hidden_bias)}")
+    if params.hidden_weight is not None and (
+        jnp.shape(params.hidden_weight) != (h, h) or jnp.shape(params.hidden_bias) != (h,)
+    ):
+        raise InputError(
+            f"field_conv: hidden_weight must be [H, H] = ({h}, {h}) and hidden_bias [H], got "
+            f"{jnp.shape(params.hidden_weight)} and {jnp.shape(params.hidden_bias)}"
+        )
     if channel_embedding is None:
         if params.channel_weight is not None:
-            raise InputError("field_conv: params has a channel_weight but channel_embedding=None; pass [V, C]")
+            raise InputError(
+                "field_conv: params has a channel_weight but channel_embedding=None; pass [V, C]"
+            )
         return
     if params.channel_weight is None or jnp.shape(params.channel_weight) != (h,):
-        raise InputError(f"field_conv: channel_embedding needs params.channel_weight of shape [H] = ({h},) "
-                         "(init_field_conv(..., channel_embedding=True))")
+        raise InputError(
+            f"field_conv: channel_embedding needs params.channel_weight of shape [H] = ({h},) "
+            "(init_field_conv(..., channel_embedding=True))"
+        )
     if jnp.shape(channel_embedding) != (v, c):
-        raise InputError(f"field_conv: channel_embedding must be [V, C] = ({v}, {c}), got {jnp.shape(channel_embedding)}")
+        raise InputError(
+            f"field_conv: channel_embedding must be [V, C] = ({v}, {c}), got {jnp.shape(channel_embedding)}"
+        )
     if not jnp.issubdtype(jnp.result_type(channel_embedding), jnp.floating):
-        raise InputError(f"field_conv: channel_embedding must be real, got {jnp.result_type(channel_embedding)}")
+        raise InputError(
+            f"field_conv: channel_embedding must be real, got {jnp.result_type(channel_embedding)}"
+        )
 
 
-def _general_block(xqr, xqi, slots, bias, channel, a_w, hidden, m_r, m_i, delta, activation, transported):
+def _general_block(
+    xqr, xqi, slots, bias, channel, a_w, hidden, m_r, m_i, delta, activation, transported
+):
     """One block of the general path: gathered ``x_q`` ``[B, K, C]`` → real ``[B, 2D]`` outputs.
 
     Responses are laid out ``[B, K, H, C]`` (channels innermost, as in the fast path; the second
@@ -275,7 +310,11 @@ def _general_block(xqr, xqi, slots, bias, channel, a_w, hidden, m_r, m_i, delta,
     inv = jax.lax.rsqrt(dr * dr + di * di + jnp.asarray(delta * delta, xqr.dtype))
     ar, ai = (lr * dr + li * di) * inv, (li * dr - lr * di) * inv  # [B, K, C]
     zr, zi = w * ur, w * ui
-    pre = ar[:, :, None, :] * a_w[0][:, None] + ai[:, :, None, :] * a_w[1][:, None] + bias[:, None, :, None]
+    pre = (
+        ar[:, :, None, :] * a_w[0][:, None]
+        + ai[:, :, None, :] * a_w[1][:, None]
+        + bias[:, None, :, None]
+    )
     if channel is not None:
         emb, cw = channel
         pre = pre + emb[:, None, None, :] * cw[:, None]
@@ -298,7 +337,9 @@ def _act(p, activation):
     return jnp.maximum(p, 0)
 
 
-def _conv_general(x, index, slots, a_w, bias, mix, channel, hidden, *, delta, activation, transported):
+def _conv_general(
+    x, index, slots, a_w, bias, mix, channel, hidden, *, delta, activation, transported
+):
     """The general path (two-layer filters, per-channel embedding, untransported argument), blocked."""
     v = x.shape[0]
     d = mix.shape[2]
@@ -319,7 +360,9 @@ def _conv_general(x, index, slots, a_w, bias, mix, channel, hidden, *, delta, ac
     def body(args):
         xr_b, xi_b, sl_b, b_b, e_b = args
         ch = None if e_b is None else (e_b, cw)
-        return _general_block(xr_b, xi_b, sl_b, b_b, ch, a_w, hidden, m_r, m_i, delta, activation, transported)
+        return _general_block(
+            xr_b, xi_b, sl_b, b_b, ch, a_w, hidden, m_r, m_i, delta, activation, transported
+        )
 
     if n_blocks == 1:  # small meshes: one block, no loop (fast to compile; residuals are small)
         return _as_complex(body(per_vertex))
@@ -348,14 +391,22 @@ def _check_shapes(x, nbhd: VertexNeighborhood, params: FieldConvParams, embeddin
         )
     for field in ("mask", "log", "transport", "weight"):
         if jnp.shape(getattr(nbhd, field)) != shape:
-            raise InputError(f"field_conv: nbhd.{field} has shape {jnp.shape(getattr(nbhd, field))}, expected {shape}")
+            raise InputError(
+                f"field_conv: nbhd.{field} has shape {jnp.shape(getattr(nbhd, field))}, expected {shape}"
+            )
     if jnp.ndim(params.filter_weight) != 2 or params.filter_weight.shape[0] < 2:
-        raise InputError(f"field_conv: filter_weight must be [2 + E, H], got {jnp.shape(params.filter_weight)}")
+        raise InputError(
+            f"field_conv: filter_weight must be [2 + E, H], got {jnp.shape(params.filter_weight)}"
+        )
     n_in, h = params.filter_weight.shape
     if jnp.shape(params.filter_bias) != (h,):
-        raise InputError(f"field_conv: filter_bias must be [H] = ({h},), got {jnp.shape(params.filter_bias)}")
+        raise InputError(
+            f"field_conv: filter_bias must be [H] = ({h},), got {jnp.shape(params.filter_bias)}"
+        )
     if jnp.ndim(params.mix) != 3 or params.mix.shape[:2] != (c, h):
-        raise InputError(f"field_conv: mix must be [C, H, D] = [{c}, {h}, D], got {jnp.shape(params.mix)}")
+        raise InputError(
+            f"field_conv: mix must be [C, H, D] = [{c}, {h}, D], got {jnp.shape(params.mix)}"
+        )
     n_emb = n_in - 2
     if embedding is None:
         if n_emb:
@@ -369,7 +420,9 @@ def _check_shapes(x, nbhd: VertexNeighborhood, params: FieldConvParams, embeddin
             f"{params.filter_weight.shape}, got {jnp.shape(embedding)}"
         )
     elif not jnp.issubdtype(jnp.result_type(embedding), jnp.floating):
-        raise InputError(f"field_conv: embedding must be real floating point, got {jnp.result_type(embedding)}")
+        raise InputError(
+            f"field_conv: embedding must be real floating point, got {jnp.result_type(embedding)}"
+        )
     return v, c, h, params.mix.shape[2], n_emb
 
 
@@ -432,7 +485,9 @@ def _conv(x, index, slots, a_w, bias, mix, delta, activation):
     return _as_complex(_conv_blocked(x, index, slots, a_w, bias, mix, delta, activation))
 
 
-_BLOCK = 512  # vertices per block; 256, 512 and 1024 within 2% for the paper denoiser at 30K vertices
+_BLOCK = (
+    512  # vertices per block; 256, 512 and 1024 within 2% for the paper denoiser at 30K vertices
+)
 
 
 def _conv_blocked(x, index, slots, a_w, bias, mix, delta, activation, *, keep_sums: bool = False):
@@ -454,19 +509,29 @@ def _conv_blocked(x, index, slots, a_w, bias, mix, delta, activation, *, keep_su
     if v <= _BLOCK:
         out = block(index, slots, bias)
     else:
+
         def body(i, out):
             start = jnp.minimum(i * _BLOCK, v - _BLOCK)  # the last block overlaps the one before it
-            part = block(*jax.tree.map(lambda a: jax.lax.dynamic_slice_in_dim(a, start, _BLOCK, axis=0),
-                                       per_vertex))
-            return tuple(jax.lax.dynamic_update_slice_in_dim(o, q, start, axis=0) for o, q in zip(out, part, strict=True))
+            part = block(
+                *jax.tree.map(
+                    lambda a: jax.lax.dynamic_slice_in_dim(a, start, _BLOCK, axis=0), per_vertex
+                )
+            )
+            return tuple(
+                jax.lax.dynamic_update_slice_in_dim(o, q, start, axis=0)
+                for o, q in zip(out, part, strict=True)
+            )
 
         shapes = [(v, 2 * d)] + ([(v, 2 * mix.shape[0] * mix.shape[1])] if keep_sums else [])
-        out = jax.lax.fori_loop(0, -(-v // _BLOCK), body, tuple(jnp.zeros(t, xr.dtype) for t in shapes))
+        out = jax.lax.fori_loop(
+            0, -(-v // _BLOCK), body, tuple(jnp.zeros(t, xr.dtype) for t in shapes)
+        )
     return out if keep_sums else out[0]
 
 
 def _to_blocks(tree, n_blocks: int, block: int):
     """``[V, ...]`` leaves → ``[n_blocks, block, ...]``, zero-padded (index 0, weight 0: padded vertices)."""
+
     def split(a):
         a = jnp.pad(a, [(0, n_blocks * block - a.shape[0])] + [(0, 0)] * (a.ndim - 1))
         return a.reshape(n_blocks, block, *a.shape[1:])
@@ -532,8 +597,13 @@ def _conv_bwd(delta, activation, res, g):
 
 def _gather_with_vjp(x, index):
     """``x_q`` as real, imaginary ``[V, K, C]`` and the VJP of that gather (a scatter-add)."""
-    return jax.vjp(lambda x: (jnp.take(x.real, index, axis=0, mode="clip"),
-                              jnp.take(x.imag, index, axis=0, mode="clip")), x)
+    return jax.vjp(
+        lambda x: (
+            jnp.take(x.real, index, axis=0, mode="clip"),
+            jnp.take(x.imag, index, axis=0, mode="clip"),
+        ),
+        x,
+    )
 
 
 def _blocks_vjp_fast(x, index, slots, a_w, bias, cot, delta, activation):
@@ -547,7 +617,9 @@ def _blocks_vjp_fast(x, index, slots, a_w, bias, cot, delta, activation):
         xr_b, xi_b, sl_b, b_b, gr_b, gi_b = args
         return _block_sums_vjp(xr_b, xi_b, sl_b, a_w, b_b, gr_b, gi_b, delta, activation)
 
-    d_xr, d_xi, d_aw, d_b = jax.lax.map(body, _to_blocks((xqr, xqi, slots, bias) + tuple(cot), n_blocks, block))
+    d_xr, d_xi, d_aw, d_b = jax.lax.map(
+        body, _to_blocks((xqr, xqi, slots, bias) + tuple(cot), n_blocks, block)
+    )
     (dx,) = gather_vjp(tuple(a.reshape(n_blocks * block, *a.shape[2:])[:v] for a in (d_xr, d_xi)))
     return dx, jnp.sum(d_aw, axis=0), d_b.reshape(n_blocks * block, *d_b.shape[2:])[:v]
 
@@ -573,20 +645,33 @@ def _block_sums_vjp(xqr, xqi, slots, a_w, bias, gr, gi, delta, activation):
     num_r, num_i = lr * ur + li * ui, li * ur - lr * ui
     ar, ai = num_r * inv, num_i * inv
     zr, zi = w * ur, w * ui
-    p = ar[:, :, None, :] * a_w[0][:, None] + ai[:, :, None, :] * a_w[1][:, None] + _bias3(bias)[:, None]
+    p = (
+        ar[:, :, None, :] * a_w[0][:, None]
+        + ai[:, :, None, :] * a_w[1][:, None]
+        + _bias3(bias)[:, None]
+    )
     phi, dphi = _act_and_grad(p, activation)
     g_r, g_i = gr[:, None], gi[:, None]
     gp = (g_r * zr[:, :, None, :] + g_i * zi[:, :, None, :]) * dphi
     zero = jnp.zeros((), xqr.dtype)
     dzr, dzi, dar, dai = jax.lax.reduce(
-        (g_r * phi, g_i * phi, gp * a_w[0][:, None], gp * a_w[1][:, None]), (zero,) * 4, _add, (2,))
+        (g_r * phi, g_i * phi, gp * a_w[0][:, None], gp * a_w[1][:, None]), (zero,) * 4, _add, (2,)
+    )
     p_one, p_ar, p_ai = jax.lax.reduce(
-        (gp, gp * ar[:, :, None, :], gp * ai[:, :, None, :]), (zero,) * 3, _add, (1,))  # [B, H, C]
+        (gp, gp * ar[:, :, None, :], gp * ai[:, :, None, :]), (zero,) * 3, _add, (1,)
+    )  # [B, H, C]
     common = (num_r * dar + num_i * dai) * inv * inv * inv  # ∂|u|_δ⁻¹ terms
     dur = w * dzr + inv * (lr * dar + li * dai) - ur * common
     dui = w * dzi + inv * (li * dar - lr * dai) - ui * common
-    reduced = jnp.sum(jax.lax.optimization_barrier(jnp.stack([p_one, p_ar, p_ai], axis=1)), axis=3)  # [B, 3, H]
-    return tr * dur + ti * dui, tr * dui - ti * dur, jnp.sum(reduced[:, 1:], axis=0), _bias_cotangent(bias, reduced, p_one)
+    reduced = jnp.sum(
+        jax.lax.optimization_barrier(jnp.stack([p_one, p_ar, p_ai], axis=1)), axis=3
+    )  # [B, 3, H]
+    return (
+        tr * dur + ti * dui,
+        tr * dui - ti * dur,
+        jnp.sum(reduced[:, 1:], axis=0),
+        _bias_cotangent(bias, reduced, p_one),
+    )
 
 
 def _bias_cotangent(bias, reduced, p_one):
@@ -616,10 +701,19 @@ def _blocks_vjp(sums, x, index, slots, shared, per_vertex, cot):
 
     def body(args):
         xr_b, xi_b, sl_b, pv_b, ct_b = args
-        _, vjp = jax.vjp(lambda xr_, xi_, sl_, sh_, pv_: sums(xr_, xi_, sl_, *sh_, *pv_), xr_b, xi_b, sl_b, shared, pv_b)
+        _, vjp = jax.vjp(
+            lambda xr_, xi_, sl_, sh_, pv_: sums(xr_, xi_, sl_, *sh_, *pv_),
+            xr_b,
+            xi_b,
+            sl_b,
+            shared,
+            pv_b,
+        )
         return vjp(ct_b)
 
-    d_xr, d_xi, d_sl, d_sh, d_pv = jax.lax.map(body, _to_blocks((xqr, xqi, slots, per_vertex, cot), n_blocks, block))
+    d_xr, d_xi, d_sl, d_sh, d_pv = jax.lax.map(
+        body, _to_blocks((xqr, xqi, slots, per_vertex, cot), n_blocks, block)
+    )
     (dx,) = gather_vjp((from_blocks(d_xr), from_blocks(d_xi)))
     d_sh = jax.tree.map(lambda a: jnp.sum(a, axis=0), d_sh)
     return dx, jax.tree.map(from_blocks, d_sl), tuple(d_sh) + tuple(jax.tree.map(from_blocks, d_pv))
@@ -711,16 +805,25 @@ def _responses(ar, ai, a_w, bias, activation):
     if activation == "silu":
         half = jnp.asarray(0.5, ar.dtype)
         a_w, bias = a_w * half, bias * half
-    p = ar[:, :, None, :] * a_w[0][:, None] + ai[:, :, None, :] * a_w[1][:, None] + _bias3(bias)[:, None]
+    p = (
+        ar[:, :, None, :] * a_w[0][:, None]
+        + ai[:, :, None, :] * a_w[1][:, None]
+        + _bias3(bias)[:, None]
+    )
     return p + p * jnp.tanh(p) if activation == "silu" else jnp.maximum(p, 0)
 
 
 def _sums_impl(zr, zi, ar, ai, a_w, bias, activation):
-    phi = _responses(ar, ai, a_w, bias, activation)  # fused into the reduction below, never in memory
+    phi = _responses(
+        ar, ai, a_w, bias, activation
+    )  # fused into the reduction below, never in memory
     zero = jnp.zeros((), zr.dtype)
     return jax.lax.reduce(
-        (zr[:, :, None, :] * phi, zi[:, :, None, :] * phi), (zero, zero),
-        lambda acc, x: (acc[0] + x[0], acc[1] + x[1]), (1,))
+        (zr[:, :, None, :] * phi, zi[:, :, None, :] * phi),
+        (zero, zero),
+        lambda acc, x: (acc[0] + x[0], acc[1] + x[1]),
+        (1,),
+    )
 
 
 def _sums_fwd(zr, zi, ar, ai, a_w, bias, activation):
@@ -757,7 +860,14 @@ def _sums_bwd(activation, res, g):
         p_ai = p_ai + gp * ai[:, k, None, :]
     partial = jax.lax.optimization_barrier(jnp.stack([p_one, p_ar, p_ai], axis=1))  # [V, 3, H, C]
     reduced = jnp.sum(partial, axis=3)  # [V, 3, H]
-    return dzr, dzi, dar, dai, jnp.sum(reduced[:, 1:], axis=0), _bias_cotangent(bias, reduced, p_one)
+    return (
+        dzr,
+        dzi,
+        dar,
+        dai,
+        jnp.sum(reduced[:, 1:], axis=0),
+        _bias_cotangent(bias, reduced, p_one),
+    )
 
 
 _filtered_sums.defvjp(_sums_fwd, _sums_bwd)

@@ -96,7 +96,9 @@ def _filter_inputs(params: FieldConvParams, v: int, rdt, embedding):
     a_w = params.filter_weight.astype(rdt)
     n_emb = a_w.shape[0] - 2
     bias = jnp.broadcast_to(params.filter_bias.astype(rdt), (v, a_w.shape[1]))
-    if (embedding is None) != (n_emb == 0) or (embedding is not None and jnp.shape(embedding) != (v, n_emb)):
+    if (embedding is None) != (n_emb == 0) or (
+        embedding is not None and jnp.shape(embedding) != (v, n_emb)
+    ):
         raise InputError(
             f"field_conv stages: filter_weight {params.filter_weight.shape} expects an embedding "
             f"[V, {n_emb}] (V = {v}), got {None if embedding is None else jnp.shape(embedding)}"
@@ -213,6 +215,8 @@ def field_conv_mix(
     s_r, s_i = sums
     v = s_r.shape[0]
     if s_r.shape[1:] != params.mix.shape[1::-1]:
-        raise InputError(f"field_conv_mix: sums {s_r.shape} do not match mix [C, H, D] = {params.mix.shape}")
+        raise InputError(
+            f"field_conv_mix: sums {s_r.shape} do not match mix [C, H, D] = {params.mix.shape}"
+        )
     m_r, m_i = _mix_halves(params.mix.astype(complex_dtype(s_r.dtype)))
     return _as_complex(s_r.reshape(v, -1) @ m_r + s_i.reshape(v, -1) @ m_i)

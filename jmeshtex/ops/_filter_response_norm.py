@@ -78,10 +78,14 @@ def filter_response_norm(
     check_complex(x, "filter_response_norm", ndim_min=2)
     delta = check_delta(delta, "filter_response_norm")
     if x.ndim != 2:
-        raise InputError(f"filter_response_norm: x must be [V, C] (vmap for batches), got shape {x.shape}")
+        raise InputError(
+            f"filter_response_norm: x must be [V, C] (vmap for batches), got shape {x.shape}"
+        )
     v, c = x.shape
     if jnp.shape(area) != (v,):
-        raise InputError(f"filter_response_norm: area must have shape [V] = ({v},), got {jnp.shape(area)}")
+        raise InputError(
+            f"filter_response_norm: area must have shape [V] = ({v},), got {jnp.shape(area)}"
+        )
     if params.scale.shape != (c,) or params.eps.shape != (c,):
         raise InputError(
             f"filter_response_norm: scale and eps must have shape [C] = ({c},), got "
@@ -91,7 +95,9 @@ def filter_response_norm(
     w = jnp.asarray(area).astype(rdt)
     if vertex_mask is not None:
         if jnp.shape(vertex_mask) != (v,):
-            raise InputError(f"filter_response_norm: vertex_mask must have shape ({v},), got {jnp.shape(vertex_mask)}")
+            raise InputError(
+                f"filter_response_norm: vertex_mask must have shape ({v},), got {jnp.shape(vertex_mask)}"
+            )
         w = w * jnp.asarray(vertex_mask).astype(rdt)
     total = jnp.maximum(jnp.sum(w), jnp.finfo(rdt).tiny)
     nu2 = (w @ abs2(x)) / total

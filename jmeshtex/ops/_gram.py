@@ -9,7 +9,9 @@ from .._errors import InputError
 from .._types import Array, ArrayLike, Bool, Float
 
 
-def gram_matrix(x: Float[ArrayLike, "N C"], mask: Bool[ArrayLike, " N"] | None = None) -> Float[Array, "C C"]:
+def gram_matrix(
+    x: Float[ArrayLike, "N C"], mask: Bool[ArrayLike, " N"] | None = None
+) -> Float[Array, "C C"]:
     """Channel-by-channel second moments of features over the valid entries.
 
     .. math:: G_{cd} = \\frac{1}{\\sum_n m_n} \\sum_n m_n\\, x_{nc}\\, x_{nd}

@@ -35,7 +35,9 @@ def complex_layer_norm(
     check_complex(x, "complex_layer_norm")
     delta = check_delta(delta, "complex_layer_norm")
     if jnp.shape(scale) != (x.shape[-1],):
-        raise InputError(f"complex_layer_norm: scale must have shape [C] = ({x.shape[-1]},), got {jnp.shape(scale)}")
+        raise InputError(
+            f"complex_layer_norm: scale must have shape [C] = ({x.shape[-1]},), got {jnp.shape(scale)}"
+        )
     rdt = real_dtype(x.dtype)
     factor = jnp.asarray(scale).astype(rdt) * jax.lax.rsqrt(
         jnp.mean(abs2(x), axis=-1, keepdims=True) + jnp.asarray(delta, rdt)

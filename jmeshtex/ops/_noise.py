@@ -17,7 +17,9 @@ from .._errors import InputError
 from .._types import Array, Complex, PRNGKey
 
 
-def tangent_noise(key: PRNGKey, shape: Sequence[int], *, dtype=jnp.complex64) -> Complex[Array, "..."]:
+def tangent_noise(
+    key: PRNGKey, shape: Sequence[int], *, dtype=jnp.complex64
+) -> Complex[Array, "..."]:
     """Standard circular complex Gaussian noise: one tangent vector per vertex and channel (eq. 1).
 
     .. math:: \\varepsilon = \\frac{a + i b}{\\sqrt 2}, \\qquad a, b \\sim \\mathcal N(0, 1)

@@ -17,7 +17,9 @@ from .._errors import ConfigError, InputError
 from .._types import Array, ArrayLike, Bool, Complex, Float, Inexact
 
 
-def safe_norm(x: Inexact[ArrayLike, "..."], *, axis: int = -1, keepdims: bool = False) -> Float[Array, "..."]:
+def safe_norm(
+    x: Inexact[ArrayLike, "..."], *, axis: int = -1, keepdims: bool = False
+) -> Float[Array, "..."]:
     """Euclidean norm along ``axis`` with a zero (not NaN) gradient at ``x = 0``.
 
     .. math:: \\|x\\| = \\sqrt{\\textstyle\\sum_i |x_i|^2}, \\qquad \\nabla\\|x\\| := 0 \\text{ at } x = 0
@@ -60,7 +62,10 @@ def safe_normalize(x: Float[ArrayLike, "... D"], *, axis: int = -1) -> Float[Arr
 
 
 def masked_mean(
-    x: Inexact[ArrayLike, "N ..."], mask: Bool[ArrayLike, " N"] | Float[ArrayLike, " N"], *, axis: int = 0
+    x: Inexact[ArrayLike, "N ..."],
+    mask: Bool[ArrayLike, " N"] | Float[ArrayLike, " N"],
+    *,
+    axis: int = 0,
 ) -> Inexact[Array, "..."]:
     """Mean of ``x`` over ``axis`` counting only entries where ``mask`` is set (0 if none is).
 
@@ -106,7 +111,9 @@ def complex_dtype(dtype) -> jnp.dtype:
       >>> complex_dtype(jnp.float32), complex_dtype(jnp.complex64)
       (dtype('complex64'), dtype('complex64'))
     """
-    return jnp.dtype(jnp.complex128) if real_dtype(dtype) == jnp.float64 else jnp.dtype(jnp.complex64)
+    return (
+        jnp.dtype(jnp.complex128) if real_dtype(dtype) == jnp.float64 else jnp.dtype(jnp.complex64)
+    )
 
 
 def check_complex(x, name: str, *, ndim_min: int = 1) -> None:
@@ -121,7 +128,9 @@ def check_complex(x, name: str, *, ndim_min: int = 1) -> None:
             f"got dtype {jnp.result_type(x)}; convert real pairs with jax.lax.complex(re, im)"
         )
     if jnp.ndim(x) < ndim_min:
-        raise InputError(f"{name}: expected at least {ndim_min} dimensions, got shape {jnp.shape(x)}")
+        raise InputError(
+            f"{name}: expected at least {ndim_min} dimensions, got shape {jnp.shape(x)}"
+        )
 
 
 def check_delta(delta: float, name: str) -> float:
@@ -129,9 +138,13 @@ def check_delta(delta: float, name: str) -> float:
     try:
         value = float(delta)
     except TypeError as err:  # a traced value: the δ terms are static hyper-parameters
-        raise ConfigError(f"{name}: delta must be a Python float, got {type(delta).__name__}") from err
+        raise ConfigError(
+            f"{name}: delta must be a Python float, got {type(delta).__name__}"
+        ) from err
     if not value > 0 or not math.isfinite(value):
-        raise ConfigError(f"{name}: delta must be a finite number > 0 (it keeps 1/|x| finite at x = 0), got {delta}")
+        raise ConfigError(
+            f"{name}: delta must be a finite number > 0 (it keeps 1/|x| finite at x = 0), got {delta}"
+        )
     return value
 
 
@@ -169,10 +182,14 @@ def safe_unit(z: Complex[ArrayLike, "..."], *, delta: float) -> Complex[Array, "
       >>> jax.jacfwd(lambda r: safe_unit(r + 0j, delta=0.5).real)(0.0).item()
       2.0
     """
-    return z * jax.lax.rsqrt(abs2(z) + jnp.asarray(delta * delta, real_dtype(z.dtype))).astype(z.dtype)
+    return z * jax.lax.rsqrt(abs2(z) + jnp.asarray(delta * delta, real_dtype(z.dtype))).astype(
+        z.dtype
+    )
 
 
-def complex_matmul(x: Complex[ArrayLike, "... C"], w: Complex[ArrayLike, "C D"]) -> Complex[Array, "... D"]:
+def complex_matmul(
+    x: Complex[ArrayLike, "... C"], w: Complex[ArrayLike, "C D"]
+) -> Complex[Array, "... D"]:
     """``x @ w`` for complex operands, computed as one real GEMM on stacked parts.
 
     .. math:: [\\Re x,\\ \\Im x] \\begin{bmatrix} \\Re W & \\Im W \\\\ -\\Im W & \\Re W \\end{bmatrix}

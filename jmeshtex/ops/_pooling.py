@@ -97,7 +97,10 @@ def _check_map(x, pm: PoolingMap, name: str, *, fine: bool) -> None:
     m_shape = jnp.shape(pm.children)
     for field in ("children_mask", "children_weight", "children_transport"):
         if jnp.shape(getattr(pm, field)) != m_shape:
-            raise InputError(f"{name}: pm.{field} has shape {jnp.shape(getattr(pm, field))}, expected {m_shape}")
+            raise InputError(
+                f"{name}: pm.{field} has shape {jnp.shape(getattr(pm, field))}, expected {m_shape}"
+            )
     if jnp.shape(pm.to_parent) != (vf,):
-        raise InputError(f"{name}: pm.to_parent has shape {jnp.shape(pm.to_parent)}, expected ({vf},)")
-
+        raise InputError(
+            f"{name}: pm.to_parent has shape {jnp.shape(pm.to_parent)}, expected ({vf},)"
+        )

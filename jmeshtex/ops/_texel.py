@@ -62,8 +62,14 @@ def texel_conv(
     """
     N, J = taps.index.shape[0], taps.index.shape[-1]
     if x.ndim != 2 or x.shape[0] != N:
-        raise InputError(f"texel_conv: x must be [N, C] with N = {N} texels of the taps, got {tuple(x.shape)}")
-    if taps.index.shape[1:2] != (9,) or taps.weight.shape != taps.index.shape or taps.texel_mask.shape != (N,):
+        raise InputError(
+            f"texel_conv: x must be [N, C] with N = {N} texels of the taps, got {tuple(x.shape)}"
+        )
+    if (
+        taps.index.shape[1:2] != (9,)
+        or taps.weight.shape != taps.index.shape
+        or taps.texel_mask.shape != (N,)
+    ):
         raise InputError(
             "texel_conv: taps must have index and weight [N, 9, J] and texel_mask [N], got "
             f"{tuple(taps.index.shape)}, {tuple(taps.weight.shape)}, {tuple(taps.texel_mask.shape)}"
@@ -84,7 +90,9 @@ def texel_conv(
     return y * taps.texel_mask.astype(dtype)[:, None]
 
 
-def grouped_pool(x: Float[ArrayLike, "N C"], groups: PoolGroups, *, mode: str = "mean") -> Float[Array, "G C"]:
+def grouped_pool(
+    x: Float[ArrayLike, "N C"], groups: PoolGroups, *, mode: str = "mean"
+) -> Float[Array, "G C"]:
     """Average or max pooling over precomputed texel groups (the surface CNN's pooling layers).
 
     .. math:: y_g = \\frac{1}{|S_g|}\\sum_{i \\in S_g} x_i \\quad\\text{or}\\quad y_g = \\max_{i \\in S_g} x_i
@@ -148,7 +156,9 @@ def image_texel_neighborhood(height: int, width: int) -> TexelNeighborhood:
       ([0, 1, 2, 3, 4, 5, 0, 0, 0], [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
     """
     if height < 1 or width < 1:
-        raise InputError(f"image_texel_neighborhood: height and width must be >= 1, got {height}, {width}")
+        raise InputError(
+            f"image_texel_neighborhood: height and width must be >= 1, got {height}, {width}"
+        )
     rows, cols = np.divmod(np.arange(height * width), width)
     dy, dx = np.divmod(np.arange(9), 3)
     r = rows[:, None] + dy[None, :] - 1
@@ -156,7 +166,9 @@ def image_texel_neighborhood(height: int, width: int) -> TexelNeighborhood:
     inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
     index = np.where(inside, r * width + c, 0).astype(np.int32)
     return TexelNeighborhood(
-        index=index[..., None], weight=inside.astype(np.float64)[..., None], texel_mask=np.ones(height * width, bool)
+        index=index[..., None],
+        weight=inside.astype(np.float64)[..., None],
+        texel_mask=np.ones(height * width, bool),
     )
 
 
@@ -173,7 +185,9 @@ def image_pool_groups(height: int, width: int, *, size: int = 2) -> PoolGroups:
       [[0, 1, 4, 5], [2, 3, 6, 7]]
     """
     if height < 1 or width < 1 or size < 1:
-        raise InputError(f"image_pool_groups: sizes must be >= 1, got {height}, {width}, size={size}")
+        raise InputError(
+            f"image_pool_groups: sizes must be >= 1, got {height}, {width}, size={size}"
+        )
     gh, gw = -(-height // size), -(-width // size)
     R, Q = np.divmod(np.arange(gh * gw), gw)
     sy, sx = np.divmod(np.arange(size * size), size)

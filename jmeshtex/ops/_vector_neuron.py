@@ -29,7 +29,9 @@ class VNParams(NamedTuple):
     direction: Complex[ArrayLike, "C D"]
 
 
-def init_vn(key: PRNGKey, in_features: int, out_features: int | None = None, *, dtype=jnp.complex64) -> VNParams:
+def init_vn(
+    key: PRNGKey, in_features: int, out_features: int | None = None, *, dtype=jnp.complex64
+) -> VNParams:
     """Random :class:`VNParams` (complex LeCun normal).
 
     Args:
@@ -51,7 +53,9 @@ def init_vn(key: PRNGKey, in_features: int, out_features: int | None = None, *, 
     return VNParams(weight=weight, direction=direction)
 
 
-def vn_nonlinearity(x: Complex[ArrayLike, "... C"], params: VNParams, *, delta: float = 1e-6) -> Complex[Array, "... D"]:
+def vn_nonlinearity(
+    x: Complex[ArrayLike, "... C"], params: VNParams, *, delta: float = 1e-6
+) -> Complex[Array, "... D"]:
     """Vector-neuron nonlinearity for tangent features (2024 supplement eq. 19; Deng et al. 2021).
 
     With ``q = x W`` (or ``q = x``) and ``k = x U``, per output channel:

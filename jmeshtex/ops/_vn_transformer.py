@@ -60,10 +60,20 @@ def init_vn_transformer_block(
       ((8, 16), (16, 8))
     """
     hidden = features if mlp_features is None else mlp_features
-    shapes = jax.eval_shape(lambda k: init_complex_attention(k, features, num_heads=num_heads, dtype=dtype), key)
+    shapes = jax.eval_shape(
+        lambda k: init_complex_attention(k, features, num_heads=num_heads, dtype=dtype), key
+    )
     c, h, e = shapes.query.shape  # (and the ConfigError checks of init_complex_attention)
-    qkv, mlp_in, mlp_out = ((c, h, e), c), ((features, hidden), features), ((hidden, features), hidden)
-    w = complex_lecun_blocks(key, [qkv, qkv, qkv, ((h, e, features), h * e), mlp_in, mlp_in, mlp_out, mlp_out], dtype=dtype)
+    qkv, mlp_in, mlp_out = (
+        ((c, h, e), c),
+        ((features, hidden), features),
+        ((hidden, features), hidden),
+    )
+    w = complex_lecun_blocks(
+        key,
+        [qkv, qkv, qkv, ((h, e, features), h * e), mlp_in, mlp_in, mlp_out, mlp_out],
+        dtype=dtype,
+    )
     ones = jnp.ones((features,), real_dtype(dtype))
     return VNTransformerParams(
         attention_norm=ones,
@@ -106,6 +116,10 @@ def vn_transformer_block(
       (10, 3, 4)
     """
     check_complex(x, "vn_transformer_block", ndim_min=2)
-    u = x + complex_attention(complex_layer_norm(x, params.attention_norm, delta=delta), params.attention, mask=mask)
-    hidden = vn_nonlinearity(complex_layer_norm(u, params.mlp_norm, delta=delta), params.mlp_in, delta=delta)
+    u = x + complex_attention(
+        complex_layer_norm(x, params.attention_norm, delta=delta), params.attention, mask=mask
+    )
+    hidden = vn_nonlinearity(
+        complex_layer_norm(u, params.mlp_norm, delta=delta), params.mlp_in, delta=delta
+    )
     return u + vn_nonlinearity(hidden, params.mlp_out, delta=delta)

@@ -48,13 +48,18 @@ def initialize(
     """
     if cpu_collectives is not None:
         if cpu_collectives not in CPU_COLLECTIVES:
-            raise ConfigError(f"cpu_collectives must be one of {CPU_COLLECTIVES} or None, got {cpu_collectives!r}")
+            raise ConfigError(
+                f"cpu_collectives must be one of {CPU_COLLECTIVES} or None, got {cpu_collectives!r}"
+            )
         try:
             jax.config.update("jax_cpu_collectives_implementation", cpu_collectives)
         except (AttributeError, ValueError) as err:
-            raise ConfigError(f"this jax {jax.__version__} has no CPU collectives {cpu_collectives!r}: {err}") from err
-    jax.distributed.initialize(coordinator_address, num_processes, process_id, local_device_ids=local_device_ids,
-                               **kwargs)
+            raise ConfigError(
+                f"this jax {jax.__version__} has no CPU collectives {cpu_collectives!r}: {err}"
+            ) from err
+    jax.distributed.initialize(
+        coordinator_address, num_processes, process_id, local_device_ids=local_device_ids, **kwargs
+    )
 
 
 def is_multiprocess() -> bool:

@@ -71,7 +71,9 @@ def resolve_mesh(mesh: Mesh | None = None, devices: Sequence[jax.Device] | None 
     if mesh is None:
         return data_mesh(devices)
     if not isinstance(mesh, Mesh) or DATA_AXIS not in mesh.axis_names:
-        raise ConfigError(f"mesh must be a jax.sharding.Mesh with a {DATA_AXIS!r} axis, got {mesh!r}")
+        raise ConfigError(
+            f"mesh must be a jax.sharding.Mesh with a {DATA_AXIS!r} axis, got {mesh!r}"
+        )
     return mesh
 
 

@@ -19,7 +19,9 @@ def _place(x: Any, sharding: NamedSharding) -> Any:
     if isinstance(x, (bool, int, float, complex)):
         return x
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jax.dtypes.prng_key):
-        return jax.random.wrap_key_data(_place(jax.random.key_data(x), sharding), impl=jax.random.key_impl(x))
+        return jax.random.wrap_key_data(
+            _place(jax.random.key_data(x), sharding), impl=jax.random.key_impl(x)
+        )
     if isinstance(x, jax.Array):
         if x.sharding.is_equivalent_to(sharding, x.ndim):
             return x
@@ -59,8 +61,10 @@ def shard_batch(batch: Any, mesh: Mesh) -> Any:
     def leaf(x):
         shape = np.shape(x)
         if not shape or shape[0] % d:
-            raise InputError(f"shard_batch: a leaf of shape {shape} cannot be split into {d} equal slices "
-                             f"along its leading axis (pad the batch to a multiple of {d})")
+            raise InputError(
+                f"shard_batch: a leaf of shape {shape} cannot be split into {d} equal slices "
+                f"along its leading axis (pad the batch to a multiple of {d})"
+            )
         return _place(x, sharding)
 
     return jax.tree.map(leaf, batch)
@@ -138,13 +142,21 @@ def data_parallel(
       True
     """
     if DATA_AXIS not in mesh.axis_names:
-        raise InputError(f"data_parallel needs a mesh with a {DATA_AXIS!r} axis, got {mesh.axis_names}")
+        raise InputError(
+            f"data_parallel needs a mesh with a {DATA_AXIS!r} axis, got {mesh.axis_names}"
+        )
     batch_argnums = tuple(int(i) for i in batch_argnums)
-    jitted = jax.jit(fn, out_shardings=replicated(mesh) if out_shardings is None else out_shardings,
-                     donate_argnums=tuple(donate_argnums))
+    jitted = jax.jit(
+        fn,
+        out_shardings=replicated(mesh) if out_shardings is None else out_shardings,
+        donate_argnums=tuple(donate_argnums),
+    )
 
     def step(*args):
-        placed = [shard_batch(a, mesh) if i in batch_argnums else replicate(a, mesh) for i, a in enumerate(args)]
+        placed = [
+            shard_batch(a, mesh) if i in batch_argnums else replicate(a, mesh)
+            for i, a in enumerate(args)
+        ]
         return jitted(*placed)
 
     step.jitted = jitted

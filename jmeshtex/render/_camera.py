@@ -74,7 +74,9 @@ class Camera:
 
     def replace(self, **changes) -> Camera:
         """A copy with some fields replaced (checked again, like :func:`look_at`)."""
-        fields = {k: getattr(self, k) for k in ("eye", "target", "up", "fov_deg", "half_height", "size")}
+        fields = {
+            k: getattr(self, k) for k in ("eye", "target", "up", "fov_deg", "half_height", "size")
+        }
         fields.update(changes)
         return look_at(fields.pop("eye"), fields.pop("target"), **fields)
 
@@ -95,7 +97,9 @@ def up_vector(up: str | Sequence[float] | np.ndarray) -> np.ndarray:
         return vec
     vec = np.asarray(up, dtype=np.float64) if np.ndim(up) == 1 else np.full(0, np.nan)
     if vec.shape != (3,) or not np.isfinite(vec).all() or np.linalg.norm(vec) < 1e-12:
-        raise InputError(f"up must be one of {', '.join(UP_AXES)} or a non-zero finite 3-vector, got {up!r}")
+        raise InputError(
+            f"up must be one of {', '.join(UP_AXES)} or a non-zero finite 3-vector, got {up!r}"
+        )
     return vec / np.linalg.norm(vec)
 
 
@@ -118,7 +122,9 @@ def ground_frame(up: str | Sequence[float] | np.ndarray) -> np.ndarray:
     return np.stack([a, np.cross(u, a), u])
 
 
-def direction(elev_deg: float, azim_deg: float, up: str | Sequence[float] | np.ndarray = "z") -> np.ndarray:
+def direction(
+    elev_deg: float, azim_deg: float, up: str | Sequence[float] | np.ndarray = "z"
+) -> np.ndarray:
     """Unit vector from the target towards a camera at ``(elevation, azimuth)`` degrees about ``up``."""
     e, a = np.radians(elev_deg), np.radians(azim_deg)
     frame = ground_frame(up)
@@ -183,24 +189,36 @@ def look_at(
     u = up_vector(up)
     dist = float(np.linalg.norm(target_ - eye_))
     if dist < 1e-12:
-        raise InputError(f"eye and target coincide at {eye_.tolist()}: the camera has no viewing direction")
+        raise InputError(
+            f"eye and target coincide at {eye_.tolist()}: the camera has no viewing direction"
+        )
     w = (target_ - eye_) / dist
     if np.linalg.norm(np.cross(w, u)) < 1e-9:
-        raise InputError(f"up {u.tolist()} is parallel to the viewing direction {w.tolist()}: pick another up")
+        raise InputError(
+            f"up {u.tolist()} is parallel to the viewing direction {w.tolist()}: pick another up"
+        )
     width, height = _check_size(size)
     if fov_deg is not None:
         fov = float(fov_deg)
         if not (np.isfinite(fov) and 0.0 < fov < 180.0):
-            raise InputError(f"fov_deg must be in (0, 180) degrees or None (orthographic), got {fov_deg!r}")
+            raise InputError(
+                f"fov_deg must be in (0, 180) degrees or None (orthographic), got {fov_deg!r}"
+            )
         if half_height is not None:
-            raise InputError("half_height is for orthographic cameras; a perspective camera's view is set by fov_deg")
+            raise InputError(
+                "half_height is for orthographic cameras; a perspective camera's view is set by fov_deg"
+            )
         hh = dist * np.tan(np.radians(fov) / 2.0)
     else:
         fov = None
         hh = dist * np.tan(np.radians(15.0)) if half_height is None else float(half_height)
         if not (np.isfinite(hh) and hh > 0.0):
-            raise InputError(f"half_height must be a positive number of world units, got {half_height!r}")
-    return Camera(eye=eye_, target=target_, up=u, fov_deg=fov, half_height=float(hh), size=(width, height))
+            raise InputError(
+                f"half_height must be a positive number of world units, got {half_height!r}"
+            )
+    return Camera(
+        eye=eye_, target=target_, up=u, fov_deg=fov, half_height=float(hh), size=(width, height)
+    )
 
 
 def bounding_sphere(vertices: np.ndarray) -> tuple[np.ndarray, float]:
@@ -289,7 +307,9 @@ def orbit_cameras(
         raise InputError("vertices hold NaN or infinite values: cannot frame the camera rig")
     if isinstance(azimuths, (int, np.integer)):
         if azimuths < 1:
-            raise InputError(f"azimuths must be >= 1 (a count) or a list of degrees, got {azimuths}")
+            raise InputError(
+                f"azimuths must be >= 1 (a count) or a list of degrees, got {azimuths}"
+            )
         az = [360.0 * k / int(azimuths) for k in range(int(azimuths))]
     else:
         az = [float(a) for a in azimuths]

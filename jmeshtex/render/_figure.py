@@ -29,8 +29,15 @@ def as_rgb(image, name: str) -> np.ndarray:
     img = np.asarray(image)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
-    if img.ndim != 3 or img.shape[2] not in (3, 4) or min(img.shape[:2]) < 1 or not np.issubdtype(img.dtype, np.number):
-        raise InputError(f"{name} must be an image [H, W], [H, W, 3] or [H, W, 4], got shape {img.shape}")
+    if (
+        img.ndim != 3
+        or img.shape[2] not in (3, 4)
+        or min(img.shape[:2]) < 1
+        or not np.issubdtype(img.dtype, np.number)
+    ):
+        raise InputError(
+            f"{name} must be an image [H, W], [H, W, 3] or [H, W, 4], got shape {img.shape}"
+        )
     if img.dtype == np.uint8:
         f = img.astype(np.float64) / 255.0
     elif np.issubdtype(img.dtype, np.integer):
@@ -77,7 +84,9 @@ def render_grid(
         raise InputError("render_grid needs at least one image")
     tiles = [as_rgb(img, f"images[{i}]") for i, img in enumerate(images)]
     if titles is not None and len(titles) != len(tiles):
-        raise InputError(f"got {len(titles)} titles for {len(tiles)} images: pass one title per image")
+        raise InputError(
+            f"got {len(titles)} titles for {len(tiles)} images: pass one title per image"
+        )
     n = len(tiles)
     cols = int(columns) if columns is not None else int(np.ceil(np.sqrt(n)))
     if cols < 1:
@@ -92,7 +101,9 @@ def render_grid(
         h, w = tile.shape[:2]
         top = r * (cell_h + strip)
         if strip and titles[i]:
-            panel[top : top + strip, c * cell_w : (c + 1) * cell_w] = title_strip(str(titles[i]), cell_w, strip)
+            panel[top : top + strip, c * cell_w : (c + 1) * cell_w] = title_strip(
+                str(titles[i]), cell_w, strip
+            )
         y = top + strip + (cell_h - h) // 2
         x = c * cell_w + (cell_w - w) // 2
         panel[y : y + h, x : x + w] = tile
@@ -135,9 +146,13 @@ def figure(
         raise InputError("figure needs at least one (label, image) panel")
     for i, item in enumerate(items):
         if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[0], str)):
-            raise InputError(f"panels[{i}] must be a (label, image) pair, got {type(item).__name__}")
+            raise InputError(
+                f"panels[{i}] must be a (label, image) pair, got {type(item).__name__}"
+            )
     cols = columns if columns is not None else (len(items) if len(items) <= 4 else None)
-    grid = render_grid([img for _, img in items], titles=[label for label, _ in items], columns=cols)
+    grid = render_grid(
+        [img for _, img in items], titles=[label for label, _ in items], columns=cols
+    )
     if title is not None:
         grid = np.concatenate([title_strip(str(title), grid.shape[1], 28), grid], axis=0)
     if path is not None:
@@ -193,7 +208,14 @@ def turntable(
 
             frames = [Image.fromarray(v) for v in rgb]
             buf = _io.BytesIO()
-            frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=int(frame_ms), loop=0)
+            frames[0].save(
+                buf,
+                format="GIF",
+                save_all=True,
+                append_images=frames[1:],
+                duration=int(frame_ms),
+                loop=0,
+            )
             atomic_write(path.with_suffix(".gif"), buf.getvalue())
     elif gif:
         raise InputError("turntable(gif=True) needs a path to write the GIF to")

@@ -33,10 +33,17 @@ _BACKGROUNDS = ("white", "transparent")
 def check_vertices_faces(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """float64 ``[V, 3]`` / int64 ``[F, 3]`` copies; NaN or infinite vertices raise :class:`InputError`."""
     v = np.asarray(vertices)
-    if v.ndim == 2 and v.shape[1] == 3 and np.issubdtype(v.dtype, np.number) and not np.isfinite(v).all():
+    if (
+        v.ndim == 2
+        and v.shape[1] == 3
+        and np.issubdtype(v.dtype, np.number)
+        and not np.isfinite(v).all()
+    ):
         bad = np.nonzero(~np.isfinite(v).all(axis=1))[0]
         shown = ", ".join(str(int(i)) for i in bad[:10]) + (", ..." if len(bad) > 10 else "")
-        raise InputError(f"NaN or infinite vertices cannot be rendered: {len(bad)} vertices ({shown})")
+        raise InputError(
+            f"NaN or infinite vertices cannot be rendered: {len(bad)} vertices ({shown})"
+        )
     return check_mesh_arrays(vertices, faces)
 
 
@@ -66,7 +73,9 @@ def texture_lod(
     """
     h, w = texture_shape
     s = int(supersample)
-    screen, _ = project(np.asarray(vertices, np.float64), camera, camera.width * s, camera.height * s)
+    screen, _ = project(
+        np.asarray(vertices, np.float64), camera, camera.width * s, camera.height * s
+    )
     t = np.asarray(uv, np.float64) * np.array([w, h])
     e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
     tex_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
@@ -80,8 +89,15 @@ def texture_lod(
 def colors01(values, rows: int, name: str) -> np.ndarray:
     """``[rows, 3|4]`` colours (uint8 or float) to float64 RGB in [0, 1]."""
     c = np.asarray(values)
-    if c.ndim != 2 or c.shape[0] != rows or c.shape[1] not in (3, 4) or not np.issubdtype(c.dtype, np.number):
-        raise InputError(f"{name} must be numeric [{rows}, 3] or [{rows}, 4] colours, got shape {c.shape}")
+    if (
+        c.ndim != 2
+        or c.shape[0] != rows
+        or c.shape[1] not in (3, 4)
+        or not np.issubdtype(c.dtype, np.number)
+    ):
+        raise InputError(
+            f"{name} must be numeric [{rows}, 3] or [{rows}, 4] colours, got shape {c.shape}"
+        )
     if np.issubdtype(c.dtype, np.integer):
         return c[:, :3] / 255.0
     if not np.isfinite(c).all():
@@ -94,8 +110,15 @@ def texture01(texture, name: str = "texture") -> np.ndarray:
     img = np.asarray(texture)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
-    if img.ndim != 3 or img.shape[2] not in (3, 4) or min(img.shape[:2]) < 1 or not np.issubdtype(img.dtype, np.number):
-        raise InputError(f"{name} must be an image [H, W], [H, W, 3] or [H, W, 4], got shape {img.shape}")
+    if (
+        img.ndim != 3
+        or img.shape[2] not in (3, 4)
+        or min(img.shape[:2]) < 1
+        or not np.issubdtype(img.dtype, np.number)
+    ):
+        raise InputError(
+            f"{name} must be an image [H, W], [H, W, 3] or [H, W, 4], got shape {img.shape}"
+        )
     img = img[..., :3]
     if img.dtype == np.uint8:
         return img.astype(np.float32) / 255.0
@@ -111,34 +134,54 @@ def scalar_colors(scalars, n_v: int, n_f: int, cmap: str, clim) -> tuple[np.ndar
     import matplotlib
 
     s = np.asarray(scalars)
-    if s.ndim != 1 or len(s) not in (n_v, n_f) or not np.issubdtype(s.dtype, np.number) or np.iscomplexobj(s):
-        raise InputError(f"scalars must be real [V={n_v}] or [F={n_f}] values, got shape {s.shape} ({s.dtype})")
+    if (
+        s.ndim != 1
+        or len(s) not in (n_v, n_f)
+        or not np.issubdtype(s.dtype, np.number)
+        or np.iscomplexobj(s)
+    ):
+        raise InputError(
+            f"scalars must be real [V={n_v}] or [F={n_f}] values, got shape {s.shape} ({s.dtype})"
+        )
     s = s.astype(np.float64)
     if not np.isfinite(s).all():
         raise InputError("scalars hold NaN or infinite values")
-    vmin, vmax = (float(s.min()), float(s.max())) if clim is None else (float(clim[0]), float(clim[1]))
+    vmin, vmax = (
+        (float(s.min()), float(s.max())) if clim is None else (float(clim[0]), float(clim[1]))
+    )
     if not vmax > vmin:
         vmax = vmin + 1.0  # constant field: one colour
     try:
         colormap = matplotlib.colormaps[cmap]
     except KeyError as err:
-        raise InputError(f"unknown colormap {cmap!r}: use a matplotlib name such as 'viridis'") from err
+        raise InputError(
+            f"unknown colormap {cmap!r}: use a matplotlib name such as 'viridis'"
+        ) from err
     return colormap(np.clip((s - vmin) / (vmax - vmin), 0.0, 1.0))[:, :3], len(s) == n_v
 
 
 class _Scene:
     """What every view of one mesh shares: geometry, per-corner normals and the albedo source."""
 
-    def __init__(self, mesh, *, vertex_colors, face_colors, scalars, cmap, clim, uv, texture, shading):
+    def __init__(
+        self, mesh, *, vertex_colors, face_colors, scalars, cmap, clim, uv, texture, shading
+    ):
         m = mesh if isinstance(mesh, Mesh) else None
         v, f = check_vertices_faces(*as_mesh(mesh))
         self.vertices, self.faces = v, f
         if shading not in _SHADINGS:
             raise InputError(f"shading must be one of {', '.join(_SHADINGS)}, got {shading!r}")
         self.lit = shading != "unlit"
-        given = [name for name, x in (("vertex_colors", vertex_colors), ("face_colors", face_colors),
-                                      ("scalars", scalars), ("uv/texture", uv if uv is not None else texture))
-                 if x is not None]
+        given = [
+            name
+            for name, x in (
+                ("vertex_colors", vertex_colors),
+                ("face_colors", face_colors),
+                ("scalars", scalars),
+                ("uv/texture", uv if uv is not None else texture),
+            )
+            if x is not None
+        ]
         if len(given) > 1:
             raise InputError(f"give at most one colour source, got {', '.join(given)}")
         if not given and m is not None:  # the mesh's own appearance
@@ -151,7 +194,9 @@ class _Scene:
         if vertex_colors is not None:
             self.corner_colors = colors01(vertex_colors, n_v, "vertex_colors")[f]
         elif face_colors is not None:
-            self.corner_colors = np.repeat(colors01(face_colors, n_f, "face_colors")[:, None], 3, axis=1)
+            self.corner_colors = np.repeat(
+                colors01(face_colors, n_f, "face_colors")[:, None], 3, axis=1
+            )
         elif scalars is not None:
             c, per_vertex = scalar_colors(scalars, n_v, n_f, cmap, clim)
             self.corner_colors = c[f] if per_vertex else np.repeat(c[:, None], 3, axis=1)
@@ -163,7 +208,9 @@ class _Scene:
             if uv.ndim == 2 and uv.shape == (n_v, 2):
                 uv = uv[f]
             if uv.ndim != 3 or uv.shape != (n_f, 3, 2) or not np.issubdtype(uv.dtype, np.number):
-                raise InputError(f"uv must be per-corner [F={n_f}, 3, 2] or per-vertex [V={n_v}, 2], got {uv.shape}")
+                raise InputError(
+                    f"uv must be per-corner [F={n_f}, 3, 2] or per-vertex [V={n_v}, 2], got {uv.shape}"
+                )
             if not np.isfinite(uv).all():
                 raise InputError("uv holds NaN or infinite values")
             self.uv = uv.astype(np.float64)
@@ -193,13 +240,27 @@ class _Scene:
         cam, s = vis.camera, vis.supersample
         lod = None
         if self._texture is not None:
-            lod = jnp.asarray(texture_lod(self.vertices, self.faces, self.uv, self.texture.shape[:2], cam,
-                                          supersample=s), jnp.float32)
+            lod = jnp.asarray(
+                texture_lod(
+                    self.vertices, self.faces, self.uv, self.texture.shape[:2], cam, supersample=s
+                ),
+                jnp.float32,
+            )
         lighting = camera_lighting(cam)
         lighting = type(lighting)(*(jnp.asarray(x, jnp.float32) for x in lighting))
-        img = shade(jnp.asarray(vis.face), jnp.asarray(vis.bary, jnp.float32), self._normals, lighting,
-                    corner_colors=self._colors, uv=self._uv, texture=self._texture, lod=lod, lit=self.lit,
-                    supersample=s, background=background)
+        img = shade(
+            jnp.asarray(vis.face),
+            jnp.asarray(vis.bary, jnp.float32),
+            self._normals,
+            lighting,
+            corner_colors=self._colors,
+            uv=self._uv,
+            texture=self._texture,
+            lod=lod,
+            lit=self.lit,
+            supersample=s,
+            background=background,
+        )
         return np.asarray(img)
 
 
@@ -286,11 +347,26 @@ def render(
       ((48, 64, 3), dtype('uint8'), True)
     """
     s = _check_options(background, supersample)
-    scene = _Scene(mesh, vertex_colors=vertex_colors, face_colors=face_colors, scalars=scalars, cmap=cmap,
-                   clim=clim, uv=uv, texture=texture, shading=shading)
-    cam = camera if camera is not None else view_camera(scene.vertices, *DEFAULT_VIEW, up=up, size=size)
+    scene = _Scene(
+        mesh,
+        vertex_colors=vertex_colors,
+        face_colors=face_colors,
+        scalars=scalars,
+        cmap=cmap,
+        clim=clim,
+        uv=uv,
+        texture=texture,
+        shading=shading,
+    )
+    cam = (
+        camera
+        if camera is not None
+        else view_camera(scene.vertices, *DEFAULT_VIEW, up=up, size=size)
+    )
     if not isinstance(cam, Camera):
-        raise InputError(f"camera must be a Camera (see look_at, orbit_cameras), got {type(cam).__name__}")
+        raise InputError(
+            f"camera must be a Camera (see look_at, orbit_cameras), got {type(cam).__name__}"
+        )
     return to_uint8(scene.shade(scene.visibility(cam, s), background))
 
 
@@ -316,19 +392,42 @@ def render_views(
       >>> render_views(mesh, orbit_cameras(mesh, azimuths=3, elevations=(30.0,), size=(32, 32))).shape
       (3, 32, 32, 3)
     """
-    unknown = set(options) - {"vertex_colors", "face_colors", "scalars", "cmap", "clim", "uv", "texture",
-                              "shading", "background", "supersample", "up", "size"}
+    unknown = set(options) - {
+        "vertex_colors",
+        "face_colors",
+        "scalars",
+        "cmap",
+        "clim",
+        "uv",
+        "texture",
+        "shading",
+        "background",
+        "supersample",
+        "up",
+        "size",
+    }
     if unknown:
         raise InputError(f"render_views: unknown options {sorted(unknown)}")
     cams = list(cameras)
     if not cams or not all(isinstance(c, Camera) for c in cams):
-        raise InputError("render_views needs a non-empty list of Camera objects (see orbit_cameras)")
+        raise InputError(
+            "render_views needs a non-empty list of Camera objects (see orbit_cameras)"
+        )
     if len({c.size for c in cams}) != 1:
-        raise InputError(f"render_views: cameras must share one size, got {sorted({c.size for c in cams})}")
+        raise InputError(
+            f"render_views: cameras must share one size, got {sorted({c.size for c in cams})}"
+        )
     background = options.pop("background", "white")
     s = _check_options(background, options.pop("supersample", 2))
     options.pop("up", None)
     options.pop("size", None)
-    scene = _Scene(mesh, shading=options.pop("shading", "smooth"), cmap=options.pop("cmap", "viridis"),
-                   **{k: options.pop(k, None) for k in ("vertex_colors", "face_colors", "scalars", "clim", "uv", "texture")})
+    scene = _Scene(
+        mesh,
+        shading=options.pop("shading", "smooth"),
+        cmap=options.pop("cmap", "viridis"),
+        **{
+            k: options.pop(k, None)
+            for k in ("vertex_colors", "face_colors", "scalars", "clim", "uv", "texture")
+        },
+    )
     return np.stack([to_uint8(scene.shade(scene.visibility(c, s), background)) for c in cams])

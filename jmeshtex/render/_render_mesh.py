@@ -96,8 +96,17 @@ def render_mesh(
       >>> img.shape, img.dtype
       ((48, 64, 3), dtype('uint8'))
     """
-    scene = _Scene((vertices, faces), vertex_colors=vertex_colors, face_colors=face_colors, scalars=scalars,
-                   cmap=cmap, clim=clim, uv=uv, texture=texture, shading=shading)
+    scene = _Scene(
+        (vertices, faces),
+        vertex_colors=vertex_colors,
+        face_colors=face_colors,
+        scalars=scalars,
+        cmap=cmap,
+        clim=clim,
+        uv=uv,
+        texture=texture,
+        shading=shading,
+    )
     v = scene.vertices
     width, height = _check_size(size)
     elev, azim = _check_view(view)
@@ -161,7 +170,9 @@ def _overlays(image, scene, vis, vec, vector_scale, max_arrows, e) -> np.ndarray
         if len(idx):
             longest = float(np.linalg.norm(vec[idx], axis=1).max())
             scale = 0.9 * edge_len / longest if vector_scale is None else float(vector_scale)
-            n_unit = vertex_normal[idx] / np.maximum(np.linalg.norm(vertex_normal[idx], axis=1, keepdims=True), 1e-300)
+            n_unit = vertex_normal[idx] / np.maximum(
+                np.linalg.norm(vertex_normal[idx], axis=1, keepdims=True), 1e-300
+            )
             start = v[idx] + 0.05 * edge_len * n_unit
             a, _ = project(start, cam, cam.width, cam.height)
             b, _ = project(start + vec[idx] * scale, cam, cam.width, cam.height)
@@ -190,7 +201,13 @@ def _unoccluded(points: np.ndarray, vis, *, tol: float) -> np.ndarray:
     cam = vis.camera
     H, W = vis.face.shape
     px, z = project(points, cam, W, H)
-    inside = np.isfinite(px).all(axis=1) & (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
+    inside = (
+        np.isfinite(px).all(axis=1)
+        & (px[:, 0] >= 0)
+        & (px[:, 0] < W)
+        & (px[:, 1] >= 0)
+        & (px[:, 1] < H)
+    )
     col = np.clip(np.nan_to_num(px[:, 0]), 0, W - 1).astype(np.int64)
     row = np.clip(np.nan_to_num(px[:, 1]), 0, H - 1).astype(np.int64)
     seen = vis.depth[row, col]
@@ -209,7 +226,11 @@ def _check_view(view) -> tuple[float, float]:
 
 def _check_vectors(vectors, n_vertices: int) -> np.ndarray:
     vec = np.asarray(vectors)
-    if vec.shape != (n_vertices, 3) or not np.issubdtype(vec.dtype, np.number) or np.iscomplexobj(vec):
+    if (
+        vec.shape != (n_vertices, 3)
+        or not np.issubdtype(vec.dtype, np.number)
+        or np.iscomplexobj(vec)
+    ):
         raise InputError(
             f"vectors must be real [V={n_vertices}, 3] 3D tangent vectors (convert complex tangent "
             f"coordinates with the tangent frames first), got shape {vec.shape} ({vec.dtype})"
@@ -222,6 +243,13 @@ def _check_vectors(vectors, n_vertices: int) -> np.ndarray:
 
 def _check_edges(edges, n_vertices: int) -> np.ndarray:
     e = np.asarray(edges)
-    if e.ndim != 2 or e.shape[1] != 2 or not np.issubdtype(e.dtype, np.integer) or ((e < 0) | (e >= n_vertices)).any():
-        raise InputError(f"edges must be integer vertex pairs [E, 2] in [0, {n_vertices}), got shape {e.shape}")
+    if (
+        e.ndim != 2
+        or e.shape[1] != 2
+        or not np.issubdtype(e.dtype, np.integer)
+        or ((e < 0) | (e >= n_vertices)).any()
+    ):
+        raise InputError(
+            f"edges must be integer vertex pairs [E, 2] in [0, {n_vertices}), got shape {e.shape}"
+        )
     return e

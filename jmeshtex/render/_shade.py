@@ -114,7 +114,11 @@ def sample_texture(
     l0 = jnp.floor(lod).astype(jnp.int32)
     l1 = jnp.minimum(l0 + 1, top)
     frac = (lod - l0.astype(lod.dtype))[..., None]
-    hs, ws, offs = jnp.asarray(sizes[:, 0], jnp.int32), jnp.asarray(sizes[:, 1], jnp.int32), jnp.asarray(offsets)
+    hs, ws, offs = (
+        jnp.asarray(sizes[:, 0], jnp.int32),
+        jnp.asarray(sizes[:, 1], jnp.int32),
+        jnp.asarray(offsets),
+    )
     a = _bilinear_level(flat, offs[l0], hs[l0], ws[l0], u, v)
     b = _bilinear_level(flat, offs[l1], hs[l1], ws[l1], u, v)
     return a * (1 - frac) + b * frac

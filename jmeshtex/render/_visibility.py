@@ -52,7 +52,9 @@ class Visibility:
         return self.face >= 0
 
 
-def project(vertices: np.ndarray, camera: Camera, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+def project(
+    vertices: np.ndarray, camera: Camera, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Pixel coordinates ``[V, 2]`` (x right, y down, pixel centres at ``i + 0.5``) and depths ``[V]``.
 
     Depth is the view-space ``z = (p - eye)·w`` along the forward axis. For perspective cameras
@@ -75,7 +77,9 @@ def project(vertices: np.ndarray, camera: Camera, width: int, height: int) -> tu
     return np.stack([sx, sy], axis=1), z
 
 
-def rasterize(vertices: np.ndarray, faces: np.ndarray, camera: Camera, *, supersample: int = 1) -> Visibility:
+def rasterize(
+    vertices: np.ndarray, faces: np.ndarray, camera: Camera, *, supersample: int = 1
+) -> Visibility:
     """The visibility buffer of a triangle mesh seen by ``camera``, at ``supersample`` times its resolution.
 
     Faces are two-sided: open meshes show their inside. Closed, consistently oriented meshes seen
@@ -141,7 +145,10 @@ def rasterize(vertices: np.ndarray, faces: np.ndarray, camera: Camera, *, supers
     # box per face: exact up to 8 pixels a side, the next power of two above (few groups, little waste)
     bucket = np.where(span <= 8, span, 1 << np.ceil(np.log2(np.maximum(span, 1))).astype(np.int64))
     inv_det = 1.0 / det[idx]
-    m = np.stack([e2[idx, 1] * inv_det, -e2[idx, 0] * inv_det, -e1[idx, 1] * inv_det, e1[idx, 0] * inv_det], axis=1)
+    m = np.stack(
+        [e2[idx, 1] * inv_det, -e2[idx, 0] * inv_det, -e1[idx, 1] * inv_det, e1[idx, 0] * inv_det],
+        axis=1,
+    )
     p0 = tri[idx, 0]
     kd = key_depth[idx]
     zbuf = np.full(W * H, _EMPTY, dtype=np.int64)
@@ -182,8 +189,13 @@ def rasterize(vertices: np.ndarray, faces: np.ndarray, camera: Camera, *, supers
     mf, p0f, zff = (np.zeros((len(faces),) + x.shape[1:]) for x in (m, p0, kd))
     mf[idx], p0f[idx], zff[idx] = m, p0, zf[idx]
     bary, depth = _barycentrics(face, hit, mf, p0f, zff, W, camera.orthographic)
-    return Visibility(face=face.reshape(H, W).astype(np.int32), bary=bary.reshape(H, W, 3),
-                      depth=depth.reshape(H, W), camera=camera, supersample=s)
+    return Visibility(
+        face=face.reshape(H, W).astype(np.int32),
+        bary=bary.reshape(H, W, 3),
+        depth=depth.reshape(H, W),
+        camera=camera,
+        supersample=s,
+    )
 
 
 def _front_facing(vertices: np.ndarray, faces: np.ndarray, camera: Camera) -> np.ndarray | None:

@@ -92,7 +92,9 @@ class TextureAtlas(NamedTuple):
         return np.divmod(self.texel, self.size)
 
 
-def unwrap_uv(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> Float[np.ndarray, "F 3 2"]:
+def unwrap_uv(
+    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
+) -> Float[np.ndarray, "F 3 2"]:
     """Per-corner texture coordinates of an untextured mesh from an automatic xatlas unwrap.
 
     xatlas (Young, after Zhou et al. 2004 and Lévy et al. 2002) cuts the surface into charts,
@@ -117,11 +119,15 @@ def unwrap_uv(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"])
     f = np.ascontiguousarray(faces, dtype=np.uint32)
     vmapping, indices, uvs = xatlas.parametrize(v, f)
     if indices.shape != f.shape or not np.array_equal(vmapping[indices], f):
-        raise MeshError("xatlas changed the face order or count; cannot map its UVs back to the faces")
+        raise MeshError(
+            "xatlas changed the face order or count; cannot map its UVs back to the faces"
+        )
     return uvs.astype(np.float64)[indices]
 
 
-def uv_face_tangents(geometry: TracerGeometry, uv: Float[np.ndarray, "F 3 2"]) -> tuple[np.ndarray, np.ndarray]:
+def uv_face_tangents(
+    geometry: TracerGeometry, uv: Float[np.ndarray, "F 3 2"]
+) -> tuple[np.ndarray, np.ndarray]:
     """The UV layout's frame of every face: the direction of growing texel column, and the chart side.
 
     From the Jacobian of the map face plane (tracer layout) → texel coordinates ``(u, 1 − v)``:
@@ -147,12 +153,16 @@ def uv_face_tangents(geometry: TracerGeometry, uv: Float[np.ndarray, "F 3 2"]) -
     tex = np.stack([uv[..., 0], 1.0 - uv[..., 1]], axis=-1)
     e1, e2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    usable = np.abs(det) > 1e-12 * np.maximum(np.abs(e1).max(axis=1) * np.abs(e2).max(axis=1), 1e-300)
+    usable = np.abs(det) > 1e-12 * np.maximum(
+        np.abs(e1).max(axis=1) * np.abs(e2).max(axis=1), 1e-300
+    )
     corners = geometry.corners
     dp = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1)
     P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
     Q = np.stack([e1, e2], axis=2)  # [F, 2 (col, row), 2 (edge)]
-    M = P @ np.linalg.inv(np.where(usable[:, None, None], Q, np.eye(2)))  # face-plane step per (col, row)
+    M = P @ np.linalg.inv(
+        np.where(usable[:, None, None], Q, np.eye(2))
+    )  # face-plane step per (col, row)
     t = M[:, 0, 0] + 1j * M[:, 1, 0]
     r = M[:, 0, 1] + 1j * M[:, 1, 1]
     t = np.where(usable, t / np.where(np.abs(t) > 0, np.abs(t), 1.0), 1.0 + 0j)
@@ -301,13 +311,21 @@ def texture_atlas(
         uv = unwrap_uv(vertices, faces)
     uv = np.asarray(uv, dtype=np.float64)
     if uv.shape != (len(faces), 3, 2):
-        raise InputError(f"texture_atlas: uv must be [F, 3, 2] = [{len(faces)}, 3, 2], got {uv.shape}")
+        raise InputError(
+            f"texture_atlas: uv must be [F, 3, 2] = [{len(faces)}, 3, 2], got {uv.shape}"
+        )
     if not np.isfinite(uv).all():
-        raise InputError("texture_atlas: uv contains NaN or infinite values; fix the UVs or pass uv=None to unwrap")
-    tex = np.stack([uv[..., 0] * size, (1.0 - uv[..., 1]) * size], axis=-1)  # [F, 3, 2] (x=col, y=row)
+        raise InputError(
+            "texture_atlas: uv contains NaN or infinite values; fix the UVs or pass uv=None to unwrap"
+        )
+    tex = np.stack(
+        [uv[..., 0] * size, (1.0 - uv[..., 1]) * size], axis=-1
+    )  # [F, 3, 2] (x=col, y=row)
     tex_edge1, tex_edge2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
     tex_det = tex_edge1[:, 0] * tex_edge2[:, 1] - tex_edge1[:, 1] * tex_edge2[:, 0]
-    usable = np.abs(tex_det) > 1e-12 * np.maximum(np.abs(tex_edge1).max(axis=1) * np.abs(tex_edge2).max(axis=1), 1e-300)
+    usable = np.abs(tex_det) > 1e-12 * np.maximum(
+        np.abs(tex_edge1).max(axis=1) * np.abs(tex_edge2).max(axis=1), 1e-300
+    )
 
     texels = rasterize_uv(uv, size, coverage="overlap")
     if texels.face.size == 0:
@@ -329,7 +347,9 @@ def texture_atlas(
     if frames not in FRAME_MODES:
         raise InputError(f"texture_atlas: frames must be one of {FRAME_MODES}, got {frames!r}")
     corners = geometry.corners
-    dp = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1)  # [F, 2] complex
+    dp = np.stack(
+        [corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1
+    )  # [F, 2] complex
     P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
     t, side = uv_face_tangents(geometry, uv)
     if frames == "uv":
@@ -350,8 +370,18 @@ def texture_atlas(
     ratio = np.sqrt(area3 / np.where(usable, 0.5 * np.abs(tex_det), 1.0))
     texel_size = float(np.median(ratio[usable]))
     return TextureAtlas(
-        size=size, texel=texel, index_of=index_of, face=face, bary=bary, point=point, tangent=tangent,
-        down=down, frame=frame, uv=uv, texel_size=texel_size, local_size=ratio[face],
+        size=size,
+        texel=texel,
+        index_of=index_of,
+        face=face,
+        bary=bary,
+        point=point,
+        tangent=tangent,
+        down=down,
+        frame=frame,
+        uv=uv,
+        texel_size=texel_size,
+        local_size=ratio[face],
     )
 
 
@@ -382,7 +412,9 @@ def texels_to_image(
     """
     values = np.asarray(values)
     if values.ndim != 2 or len(values) != atlas.num_texels:
-        raise InputError(f"texels_to_image: values must be [N, C] with N = {atlas.num_texels}, got {values.shape}")
+        raise InputError(
+            f"texels_to_image: values must be [N, C] with N = {atlas.num_texels}, got {values.shape}"
+        )
     if fill not in ("nearest", "zero"):
         raise InputError(f"texels_to_image: fill must be 'nearest' or 'zero', got {fill!r}")
     size = atlas.size
@@ -394,7 +426,9 @@ def texels_to_image(
     return image
 
 
-def image_to_texels(atlas: TextureAtlas, image: Float[np.ndarray, "H W C"]) -> Float[np.ndarray, "N C"]:
+def image_to_texels(
+    atlas: TextureAtlas, image: Float[np.ndarray, "H W C"]
+) -> Float[np.ndarray, "N C"]:
     """Read a texture image at the valid texels (resampled bilinearly when its size differs).
 
     Args:

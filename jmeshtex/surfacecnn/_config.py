@@ -87,26 +87,46 @@ class Config(ConfigBase):
         integers("size", 4),
         integers("steps", 0),
         integers("halve_every", 1),
-        rule("learning_rate init_low init_high", lambda x: is_finite_number(x) and x >= 0,
-             "a finite number >= 0"),
-        rule("content_weight", lambda x: x is None or (is_finite_number(x) and x >= 0), "None or a finite number >= 0"),
+        rule(
+            "learning_rate init_low init_high",
+            lambda x: is_finite_number(x) and x >= 0,
+            "a finite number >= 0",
+        ),
+        rule(
+            "content_weight",
+            lambda x: x is None or (is_finite_number(x) and x >= 0),
+            "None or a finite number >= 0",
+        ),
         rule("learning_rate", lambda x: x > 0, "> 0"),
-        cross_rule(lambda c: 0.0 <= c.init_low <= c.init_high <= 1.0,
-                   "{cls} needs 0 <= init_low <= init_high <= 1, got {c.init_low}, {c.init_high}"),
+        cross_rule(
+            lambda c: 0.0 <= c.init_low <= c.init_high <= 1.0,
+            "{cls} needs 0 <= init_low <= init_high <= 1, got {c.init_low}, {c.init_high}",
+        ),
         rule("pool", lambda x: x in POOL_MODES, f"one of {POOL_MODES}"),
         rule("boundary", lambda x: x in BOUNDARY_MODES, f"one of {BOUNDARY_MODES}"),
         rule("frames", lambda x: x in FRAME_MODES, f"one of {FRAME_MODES}"),
-        rule("frame_vector", lambda x: len(x) == 3 and all(is_finite_number(a) for a in x) and any(x),
-             "three finite numbers, not all zero"),
+        rule(
+            "frame_vector",
+            lambda x: len(x) == 3 and all(is_finite_number(a) for a in x) and any(x),
+            "three finite numbers, not all zero",
+        ),
         rule("exemplar_padding", lambda x: x in EXEMPLAR_PADDING, f"one of {EXEMPLAR_PADDING}"),
         rule("network", lambda x: x in ("vgg16", "vgg19"), "'vgg16' or 'vgg19'"),
         rule("weights_path", lambda x: x is None or isinstance(x, str), "None or a path string"),
-        cross_rule(lambda c: c.network != "vgg19" or c.weights_path is not None,
-                   "{cls}(network='vgg19') needs weights_path: the paper's Keras ImageNet VGG-19 "
-                   "(e.g. vgg19_weights_tf_dim_ordering_tf_kernels_notop.h5, or an .npz of its arrays) "
-                   "cannot ship with jmeshtex; give its file, or use network='vgg16' (embedded)"),
-        rule("layers", lambda x: x is None or (isinstance(x, tuple) and len(x) > 0 and all(isinstance(n, str) for n in x)),
-             "None or a non-empty tuple of names"),
+        cross_rule(
+            lambda c: c.network != "vgg19" or c.weights_path is not None,
+            "{cls}(network='vgg19') needs weights_path: the paper's Keras ImageNet VGG-19 "
+            "(e.g. vgg19_weights_tf_dim_ordering_tf_kernels_notop.h5, or an .npz of its arrays) "
+            "cannot ship with jmeshtex; give its file, or use network='vgg16' (embedded)",
+        ),
+        rule(
+            "layers",
+            lambda x: (
+                x is None
+                or (isinstance(x, tuple) and len(x) > 0 and all(isinstance(n, str) for n in x))
+            ),
+            "None or a non-empty tuple of names",
+        ),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
     )
 

@@ -17,7 +17,9 @@ def as_rgb(image, name: str) -> np.ndarray:
     if image.ndim == 2:
         image = np.repeat(image[..., None], 3, axis=2)
     if image.ndim != 3 or image.shape[2] not in (1, 3, 4) or min(image.shape[:2]) < 1:
-        raise InputError(f"{name} must be an [H, W, 3] RGB image (or grey / RGBA), got shape {image.shape}")
+        raise InputError(
+            f"{name} must be an [H, W, 3] RGB image (or grey / RGBA), got shape {image.shape}"
+        )
     if image.shape[2] == 1:
         image = np.repeat(image, 3, axis=2)
     image = image[..., :3]

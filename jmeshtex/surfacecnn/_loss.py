@@ -100,8 +100,9 @@ def vgg_features_centre_padded(
             kernel, bias = weights.convs[step.conv]
             kernel = kernel.astype(x.dtype)
             H, W = x.shape[:2]
-            y = jax.lax.conv_general_dilated(x[None], kernel, (1, 1), "SAME",
-                                             dimension_numbers=("NHWC", "HWIO", "NHWC"))[0]
+            y = jax.lax.conv_general_dilated(
+                x[None], kernel, (1, 1), "SAME", dimension_numbers=("NHWC", "HWIO", "NHWC")
+            )[0]
             rows, cols = np.arange(H), np.arange(W)
             for ky in range(3):
                 for kx in range(3):
@@ -129,7 +130,9 @@ def _pool_ceil(x: Array, mode: str) -> Array:
     blocks = jnp.pad(x, pad, constant_values=fill).reshape((H + 1) // 2, 2, (W + 1) // 2, 2, C)
     if mode == "max":
         return blocks.max(axis=(1, 3))
-    count = np.pad(np.ones((H, W)), pad[:2]).reshape((H + 1) // 2, 2, (W + 1) // 2, 2).sum(axis=(1, 3))
+    count = (
+        np.pad(np.ones((H, W)), pad[:2]).reshape((H + 1) // 2, 2, (W + 1) // 2, 2).sum(axis=(1, 3))
+    )
     return blocks.sum(axis=(1, 3)) / jnp.asarray(count, x.dtype)[..., None]
 
 
@@ -169,11 +172,15 @@ def gram_targets(
     image = as_rgb(exemplar, "exemplar")
     if padding == "centre":
         weights = jax.tree.map(lambda a: jnp.asarray(a, dtype), weights)
-        feats = vgg_features_centre_padded(jnp.asarray(image, dtype), weights, layers=tuple(layers), pool=pool)
+        feats = vgg_features_centre_padded(
+            jnp.asarray(image, dtype), weights, layers=tuple(layers), pool=pool
+        )
         return {k: gram_matrix(v.reshape(-1, v.shape[-1])) for k, v in feats.items()}
     if padding != "zero":
         raise InputError(f"gram_targets: padding must be 'zero' or 'centre', got {padding!r}")
-    feats = vgg_features(jnp.asarray(image, dtype)[None], weights, layers=tuple(layers), pool=pool, ceil_mode=True)
+    feats = vgg_features(
+        jnp.asarray(image, dtype)[None], weights, layers=tuple(layers), pool=pool, ceil_mode=True
+    )
     return {k: gram_matrix(v[0].reshape(-1, v.shape[-1])) for k, v in feats.items()}
 
 
@@ -217,5 +224,7 @@ def style_loss(
 
 def gram_term(feats: dict[str, Array], targets: dict[str, Array]) -> Array:
     """The style loss from already computed feature maps ``{name: [N_l, C]}``."""
-    terms = [jnp.mean((gram_matrix(feats[k]) - targets[k].astype(feats[k].dtype)) ** 2) for k in targets]
+    terms = [
+        jnp.mean((gram_matrix(feats[k]) - targets[k].astype(feats[k].dtype)) ** 2) for k in targets
+    ]
     return sum(terms) / len(terms)

@@ -114,7 +114,8 @@ def trace_taps(
     n0x, n0y, n1x, n1y, c0 = np.take(geometry.exit_table, face, axis=0).T
     x, y = position.real, position.imag
     end_bary = np.stack([n0x * x + n0y * y - c0, n1x * x + n1y * y, y], axis=1) / np.take(
-        geometry.altitude, face, axis=0)
+        geometry.altitude, face, axis=0
+    )
     inside = end_bary.min(axis=1) >= _INSIDE_TOL
     end_bary = np.maximum(end_bary, 0.0)
     end_bary /= end_bary.sum(axis=1, keepdims=True)
@@ -122,8 +123,9 @@ def trace_taps(
     stopped = np.zeros(len(face), bool)
     walk = np.nonzero(~inside)[0]
     if walk.size:
-        result = trace_geodesics(vertices, faces, face[walk], bary[walk], unit[walk], length[walk],
-                                 geometry=geometry)
+        result = trace_geodesics(
+            vertices, faces, face[walk], bary[walk], unit[walk], length[walk], geometry=geometry
+        )
         end_face[walk] = result.face
         end_bary[walk] = result.bary
         stopped[walk] = result.stopped
@@ -135,7 +137,9 @@ def _uv_of(atlas: TextureAtlas, face: np.ndarray, bary: np.ndarray) -> np.ndarra
     """UV ``[M, 2]`` of surface points (``uv_at`` with one gather per coordinate)."""
     flat = atlas.uv.reshape(len(atlas.uv), 6)
     rows = np.take(flat, face, axis=0)
-    return np.stack([np.einsum("nk,nk->n", bary, rows[:, 0::2]), np.einsum("nk,nk->n", bary, rows[:, 1::2])], 1)
+    return np.stack(
+        [np.einsum("nk,nk->n", bary, rows[:, 0::2]), np.einsum("nk,nk->n", bary, rows[:, 1::2])], 1
+    )
 
 
 def uv_to_texels(
@@ -260,7 +264,9 @@ def texel_taps(
         raise InputError(f"texel_taps: boundary must be one of {BOUNDARY_MODES}, got {boundary!r}")
     N = atlas.num_texels
     centre = np.arange(N)
-    end8, stop8 = trace_taps(vertices, faces, atlas, centre, atlas.texel_size, rotation=rotation, geometry=geometry)
+    end8, stop8 = trace_taps(
+        vertices, faces, atlas, centre, atlas.texel_size, rotation=rotation, geometry=geometry
+    )
     idx8, w8, near8 = uv_to_texels(atlas, end8.reshape(-1, 2), np.repeat(centre, 8))
     row, col = atlas.rows_cols()
     own_uv = np.stack([(col + 0.5) / atlas.size, 1.0 - (row + 0.5) / atlas.size], axis=1)

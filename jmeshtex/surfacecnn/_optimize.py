@@ -53,7 +53,9 @@ def optimize_colors(
     """
     if checkpoint_every < 1:
         raise InputError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
-    boundaries = {k * config.halve_every: 0.5 for k in range(1, config.steps // config.halve_every + 1)}
+    boundaries = {
+        k * config.halve_every: 0.5 for k in range(1, config.steps // config.halve_every + 1)
+    }
     schedule = optax.piecewise_constant_schedule(config.learning_rate, boundaries)
     optimizer = optax.adam(schedule)
 
@@ -73,16 +75,21 @@ def optimize_colors(
     if ckpt is not None and ckpt.latest_step() is not None:
         start = ckpt.latest_step()
         if start > config.steps:
-            raise InputError(f"checkpoint {ckpt.directory} is at step {start}, past this run's {config.steps} "
-                             "steps; ask for at least as many steps, or use another folder")
+            raise InputError(
+                f"checkpoint {ckpt.directory} is at step {start}, past this run's {config.steps} "
+                "steps; ask for at least as many steps, or use another folder"
+            )
         saved, meta = ckpt.restore({"x": x0, "opt": leaves})
         x = jnp.asarray(saved["x"], x0.dtype)
-        state = jax.tree.unflatten(treedef, [jnp.asarray(a, b.dtype) for a, b in zip(saved["opt"], leaves,
-                                                                                     strict=True)])
+        state = jax.tree.unflatten(
+            treedef, [jnp.asarray(a, b.dtype) for a, b in zip(saved["opt"], leaves, strict=True)]
+        )
         losses = [float(v) for v in meta["losses"]][:start]
 
     def save(at: int) -> None:
-        ckpt.save(at, {"x": x, "opt": jax.tree.leaves(state)}, meta={"losses": [float(v) for v in losses]})
+        ckpt.save(
+            at, {"x": x, "opt": jax.tree.leaves(state)}, meta={"losses": [float(v) for v in losses]}
+        )
 
     bar = None
     if progress:
@@ -117,5 +124,9 @@ def optimize_colors(
             ckpt.close()
     ran = config.steps - start
     steady = (total - compile_s) / max(ran - 1, 1)
-    return x, losses, final, {"optimize_s": total, "first_step_s": compile_s, "step_s": steady,
-                              "resumed_at": start}
+    return (
+        x,
+        losses,
+        final,
+        {"optimize_s": total, "first_step_s": compile_s, "step_s": steady, "resumed_at": start},
+    )

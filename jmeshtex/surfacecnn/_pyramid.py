@@ -115,7 +115,9 @@ def _group(labels: np.ndarray, num_groups: int) -> PoolGroups:
     return PoolGroups(index=index, mask=mask)
 
 
-def _first_per_group(labels: np.ndarray, key: np.ndarray, values: np.ndarray, num_groups: int) -> np.ndarray:
+def _first_per_group(
+    labels: np.ndarray, key: np.ndarray, values: np.ndarray, num_groups: int
+) -> np.ndarray:
     order = np.lexsort((values, key, labels))
     first = np.ones(len(order), bool)
     first[1:] = labels[order][1:] != labels[order][:-1]
@@ -169,14 +171,18 @@ def texel_pyramid(
     if isinstance(levels, bool) or not isinstance(levels, (int, np.integer)) or levels < 0:
         raise InputError(f"texel_pyramid: levels must be an integer >= 0, got {levels!r}")
     if boundary not in BOUNDARY_MODES:
-        raise InputError(f"texel_pyramid: boundary must be one of {BOUNDARY_MODES}, got {boundary!r}")
+        raise InputError(
+            f"texel_pyramid: boundary must be one of {BOUNDARY_MODES}, got {boundary!r}"
+        )
     if not all(0.0 < b < 1.0 for b in backoff):
         raise InputError(f"texel_pyramid: backoff fractions must lie in (0, 1), got {backoff!r}")
     vertices = np.asarray(vertices, dtype=np.float64)
     if geometry is None:
         geometry = tracer_geometry(vertices, faces)
     if taps is None:
-        taps = texel_taps(vertices, faces, atlas, boundary=boundary, rotation=rotation, geometry=geometry)
+        taps = texel_taps(
+            vertices, faces, atlas, boundary=boundary, rotation=rotation, geometry=geometry
+        )
     N = atlas.num_texels
     rotation = np.broadcast_to(np.asarray(rotation, dtype=np.float64), (N,))
     origin = vertices.min(axis=0)
@@ -201,14 +207,24 @@ def texel_pyramid(
         dims = voxel.max(axis=0) + 1
         vid = (voxel[:, 0] * dims[1] + voxel[:, 1]) * dims[2] + voxel[:, 2]
         intra = edges[vid[edges[:, 0]] == vid[edges[:, 1]]]
-        graph = sp.coo_matrix((np.ones(len(intra)), (intra[:, 0], intra[:, 1])), shape=(n_prev, n_prev))
+        graph = sp.coo_matrix(
+            (np.ones(len(intra)), (intra[:, 0], intra[:, 1])), shape=(n_prev, n_prev)
+        )
         num_groups, labels = connected_components(graph, directed=False)
         labels = labels.astype(np.int64)
         pools.append(_group(labels, num_groups))
         parent.append(labels.astype(np.int32))
         weight_sum = np.bincount(labels, count, minlength=num_groups)
-        centroid = np.stack([np.bincount(labels, count * centroid[:, k], minlength=num_groups)
-                             for k in range(3)], axis=1) / weight_sum[:, None]
+        centroid = (
+            np.stack(
+                [
+                    np.bincount(labels, count * centroid[:, k], minlength=num_groups)
+                    for k in range(3)
+                ],
+                axis=1,
+            )
+            / weight_sum[:, None]
+        )
         count = weight_sum
         rep_prev = representative[-1]
         dist = np.linalg.norm(atlas.point[rep_prev] - centroid[labels], axis=1)
@@ -217,8 +233,21 @@ def texel_pyramid(
         edges = _undirected(labels[edges[:, 0]], labels[edges[:, 1]])
         node_of_texel.append(of_texel)
         representative.append(rep)
-        nearest.append(_coarse_taps(vertices, faces, atlas, rep, of_texel, edges, 2.0**level * h,
-                                    rotation[rep], backoff, boundary, geometry))
+        nearest.append(
+            _coarse_taps(
+                vertices,
+                faces,
+                atlas,
+                rep,
+                of_texel,
+                edges,
+                2.0**level * h,
+                rotation[rep],
+                backoff,
+                boundary,
+                geometry,
+            )
+        )
     return TexelPyramid(
         bilinear=taps.bilinear,
         nearest=tuple(nearest),
@@ -229,7 +258,9 @@ def texel_pyramid(
     )
 
 
-def _coarse_taps(vertices, faces, atlas, rep, of_texel, edges, step, rotation, backoff, boundary, geometry):
+def _coarse_taps(
+    vertices, faces, atlas, rep, of_texel, edges, step, rotation, backoff, boundary, geometry
+):
     """Nearest taps of one coarse level, with the overshoot correction (module docstring)."""
     G = len(rep)
     keys = np.concatenate([edges[:, 0] * G + edges[:, 1], edges[:, 1] * G + edges[:, 0]])
@@ -241,8 +272,16 @@ def _coarse_taps(vertices, faces, atlas, rep, of_texel, edges, step, rotation, b
         return (keys[pos] == k) if len(keys) else np.zeros(k.shape, bool)
 
     def reach(nodes, fraction):
-        end, stopped = trace_taps(vertices, faces, atlas, rep[nodes], step, rotation=rotation[nodes],
-                                  fraction=fraction, geometry=geometry)
+        end, stopped = trace_taps(
+            vertices,
+            faces,
+            atlas,
+            rep[nodes],
+            step,
+            rotation=rotation[nodes],
+            fraction=fraction,
+            geometry=geometry,
+        )
         _, _, texel = uv_to_texels(atlas, end.reshape(-1, 2), np.repeat(rep[nodes], 8))
         return of_texel[texel].reshape(len(nodes), 8), stopped
 
@@ -259,7 +298,9 @@ def _coarse_taps(vertices, faces, atlas, rep, of_texel, edges, step, rotation, b
         sub_node[fixed], sub_stopped[fixed] = retry[fixed], retry_stopped[fixed]
         node[bad_rows], stopped[bad_rows] = sub_node, sub_stopped
         ok[bad_rows] |= fixed
-    node = np.where(ok, node, centre[:, None])  # no adjacent group within reach: replicate the centre
+    node = np.where(
+        ok, node, centre[:, None]
+    )  # no adjacent group within reach: replicate the centre
     node = np.concatenate([node[:, :4], centre[:, None], node[:, 4:]], axis=1)
     stopped = np.concatenate([stopped[:, :4], np.zeros((G, 1), bool), stopped[:, 4:]], axis=1)
     if boundary == "opposite":

@@ -72,17 +72,30 @@ def save(
     out.mkdir(parents=True, exist_ok=True)
     m = result.mesh
     stats = {k: _plain(v) for k, v in result.stats.items()}
-    arrays = {"texture": np.asarray(result.texture, np.float32), "colors": np.asarray(result.colors, np.float32),
-              "losses": np.asarray(result.losses, np.float64), "final_loss": np.asarray(result.final_loss),
-              "meta": np.asarray(json.dumps({"stats": stats, "name": m.name}))}
-    arrays.update({f"mesh_{k}": np.asarray(getattr(m, k)) for k in _MESH_ARRAYS if getattr(m, k) is not None})
+    arrays = {
+        "texture": np.asarray(result.texture, np.float32),
+        "colors": np.asarray(result.colors, np.float32),
+        "losses": np.asarray(result.losses, np.float64),
+        "final_loss": np.asarray(result.final_loss),
+        "meta": np.asarray(json.dumps({"stats": stats, "name": m.name})),
+    }
+    arrays.update(
+        {f"mesh_{k}": np.asarray(getattr(m, k)) for k in _MESH_ARRAYS if getattr(m, k) is not None}
+    )
     atomic_save_npz(out / RESULT_FILE, arrays)
     save_png(result.texture, out / "texture.png")
     save_mesh(m.replace(name="textured"), out / "textured.obj")
     views = []
     for name, view in (("render_front.png", (20.0, -60.0)), ("render_back.png", (20.0, 120.0))):
-        image = render.render_mesh(m.vertices, m.faces, uv=m.uv, texture=result.texture, view=view,
-                                   size=render_size, title=f"{title} ({name[7:-4]})")
+        image = render.render_mesh(
+            m.vertices,
+            m.faces,
+            uv=m.uv,
+            texture=result.texture,
+            view=view,
+            size=render_size,
+            title=f"{title} ({name[7:-4]})",
+        )
         save_png(image, out / name)
         views.append(image)
     panels, titles = list(views), [None, None]
@@ -91,18 +104,44 @@ def save(
         titles.insert(0, "exemplar")
     panels.append(result.texture)
     titles.append("texture (UV layout)")
-    height = max(np.shape(v)[0] for v in views)  # small images enlarged (nearest, integer factor) to the renders'
-    panels = [np.repeat(np.repeat(pn, max(1, height // np.shape(pn)[0]), 0), max(1, height // np.shape(pn)[0]), 1)
-              for pn in panels]
+    height = max(
+        np.shape(v)[0] for v in views
+    )  # small images enlarged (nearest, integer factor) to the renders'
+    panels = [
+        np.repeat(
+            np.repeat(pn, max(1, height // np.shape(pn)[0]), 0),
+            max(1, height // np.shape(pn)[0]),
+            1,
+        )
+        for pn in panels
+    ]
     save_png(render.render_grid(panels, titles=titles, columns=len(panels)), out / "surfacecnn.png")
     cameras = render.orbit_cameras(m, azimuths=views_azimuths, elevations=(20.0,), size=(256, 256))
     orbit = render.render_views(m, cameras, uv=m.uv, texture=result.texture)
-    render.figure([(f"azimuth {360 * i / views_azimuths:.0f}°", img) for i, img in enumerate(orbit)],
-                  columns=views_azimuths, title=title, path=out / "views.png")
-    files = [str(out / n) for n in (RESULT_FILE, "texture.png", "textured.obj", "render_front.png",
-                                    "render_back.png", "surfacecnn.png", "views.png", "summary.json")]
-    summary = {**{k: (float(v) if isinstance(v, float) else v) for k, v in stats.items()},
-               "losses": [float(x) for x in result.losses], "files": files}
+    render.figure(
+        [(f"azimuth {360 * i / views_azimuths:.0f}°", img) for i, img in enumerate(orbit)],
+        columns=views_azimuths,
+        title=title,
+        path=out / "views.png",
+    )
+    files = [
+        str(out / n)
+        for n in (
+            RESULT_FILE,
+            "texture.png",
+            "textured.obj",
+            "render_front.png",
+            "render_back.png",
+            "surfacecnn.png",
+            "views.png",
+            "summary.json",
+        )
+    ]
+    summary = {
+        **{k: (float(v) if isinstance(v, float) else v) for k, v in stats.items()},
+        "losses": [float(x) for x in result.losses],
+        "files": files,
+    }
     atomic_write(out / "summary.json", (json.dumps(summary, indent=2) + "\n").encode())
     return summary
 
@@ -140,9 +179,21 @@ def load(path: str | os.PathLike) -> SynthesisResult:
     data = load_npz(pathlib.Path(path) / RESULT_FILE, "surface-CNN result")
     try:
         meta = json.loads(str(data["meta"]))
-        mesh = Mesh(**{k: data[f"mesh_{k}"] for k in _MESH_ARRAYS if f"mesh_{k}" in data},
-                    texture=data["texture"], name=meta["name"])
-        return SynthesisResult(texture=data["texture"], colors=data["colors"], mesh=mesh, losses=data["losses"],
-                               final_loss=float(data["final_loss"]), surface=None, stats=meta["stats"])
+        mesh = Mesh(
+            **{k: data[f"mesh_{k}"] for k in _MESH_ARRAYS if f"mesh_{k}" in data},
+            texture=data["texture"],
+            name=meta["name"],
+        )
+        return SynthesisResult(
+            texture=data["texture"],
+            colors=data["colors"],
+            mesh=mesh,
+            losses=data["losses"],
+            final_loss=float(data["final_loss"]),
+            surface=None,
+            stats=meta["stats"],
+        )
     except (KeyError, TypeError, ValueError) as err:
-        raise MeshIOError(f"{pathlib.Path(path) / RESULT_FILE} is not a surface-CNN result ({err})") from err
+        raise MeshIOError(
+            f"{pathlib.Path(path) / RESULT_FILE} is not a surface-CNN result ({err})"
+        ) from err

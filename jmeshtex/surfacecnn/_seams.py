@@ -224,15 +224,26 @@ def seam_ratio(
       True
     """
     if geometry is None:
-        raise InputError("seam_ratio: give geometry= (jmeshtex.geometry.tracer_geometry of the mesh)")
+        raise InputError(
+            "seam_ratio: give geometry= (jmeshtex.geometry.tracer_geometry of the mesh)"
+        )
     colors = np.asarray(colors, np.float64)
     if colors.shape != (atlas.num_texels, colors.shape[-1]) or colors.ndim != 2:
-        raise InputError(f"seam_ratio: colors must be [N, C] with N = {atlas.num_texels}, got {colors.shape}")
+        raise InputError(
+            f"seam_ratio: colors must be [N, C] with N = {atlas.num_texels}, got {colors.shape}"
+        )
     seam, inner = seam_pairs(atlas, nearest, geometry)
     if not len(seam) or not len(inner):
-        raise InputError(f"seam_ratio: needs seam and interior texel pairs, got {len(seam)} and {len(inner)} "
-                         "(a single chart has no seam)")
+        raise InputError(
+            f"seam_ratio: needs seam and interior texel pairs, got {len(seam)} and {len(inner)} "
+            "(a single chart has no seam)"
+        )
     d_seam = np.linalg.norm(colors[seam[:, 0]] - colors[seam[:, 1]], axis=1).mean()
     d_inner = np.linalg.norm(colors[inner[:, 0]] - colors[inner[:, 1]], axis=1).mean()
-    return {"ratio": float(d_seam / max(d_inner, 1e-300)), "seam": float(d_seam), "interior": float(d_inner),
-            "seam_pairs": len(seam), "interior_pairs": len(inner)}
+    return {
+        "ratio": float(d_seam / max(d_inner, 1e-300)),
+        "seam": float(d_seam),
+        "interior": float(d_inner),
+        "seam_pairs": len(seam),
+        "interior_pairs": len(inner),
+    }

@@ -68,12 +68,30 @@ def prepare_surface(
     vertices, faces = mesh.vertices, mesh.faces
     t0 = time.perf_counter()
     geometry = tracer_geometry(vertices, faces)
-    atlas = texture_atlas(vertices, faces, mesh.uv, size=size, frames=frames, frame_vector=frame_vector,
-                          geometry=geometry)
+    atlas = texture_atlas(
+        vertices,
+        faces,
+        mesh.uv,
+        size=size,
+        frames=frames,
+        frame_vector=frame_vector,
+        geometry=geometry,
+    )
     t1 = time.perf_counter()
-    taps = texel_taps(vertices, faces, atlas, boundary=boundary, rotation=rotation, geometry=geometry)
+    taps = texel_taps(
+        vertices, faces, atlas, boundary=boundary, rotation=rotation, geometry=geometry
+    )
     t2 = time.perf_counter()
-    pyramid = texel_pyramid(vertices, faces, atlas, levels=levels, boundary=boundary, rotation=rotation,
-                            backoff=backoff, taps=taps, geometry=geometry)
+    pyramid = texel_pyramid(
+        vertices,
+        faces,
+        atlas,
+        levels=levels,
+        boundary=boundary,
+        rotation=rotation,
+        backoff=backoff,
+        taps=taps,
+        geometry=geometry,
+    )
     t3 = time.perf_counter()
     return Surface(atlas, pyramid, {"atlas": t1 - t0, "taps": t2 - t1, "pyramid": t3 - t2})

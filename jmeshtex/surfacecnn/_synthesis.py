@@ -83,7 +83,9 @@ def network_weights(config: Config) -> VGGWeights:
     return load_vgg16()
 
 
-def _setup(mesh: Mesh, config: Config, weights, layers, surface, extra_layers=(), task="synthesize"):
+def _setup(
+    mesh: Mesh, config: Config, weights, layers, surface, extra_layers=(), task="synthesize"
+):
     weights = network_weights(config) if weights is None else weights
     if (layers or config.layers) is None:
         layers = default_layers(weights) if task == "synthesize" else style_transfer_layers(weights)
@@ -91,8 +93,14 @@ def _setup(mesh: Mesh, config: Config, weights, layers, surface, extra_layers=()
         layers = tuple(layers or config.layers)
     levels = required_levels(weights, tuple(layers) + tuple(extra_layers))
     if surface is None:
-        surface = prepare_surface(mesh, size=config.size, levels=levels, boundary=config.boundary,
-                                  frames=config.frames, frame_vector=config.frame_vector)
+        surface = prepare_surface(
+            mesh,
+            size=config.size,
+            levels=levels,
+            boundary=config.boundary,
+            frames=config.frames,
+            frame_vector=config.frame_vector,
+        )
     elif surface.pyramid.levels < levels or surface.atlas.size != config.size:
         raise InputError(
             f"surface was prepared with size {surface.atlas.size} and {surface.pyramid.levels} levels; this run "
@@ -106,20 +114,36 @@ def _setup(mesh: Mesh, config: Config, weights, layers, surface, extra_layers=()
 
 def _fingerprint(task: str, config: Config, surface: Surface, layers, data: str, **extra) -> dict:
     """What a checkpoint must share with this run to be resumed (the step count may grow)."""
-    return {"task": task, "texels": surface.atlas.num_texels, "size": config.size,
-            "learning_rate": config.learning_rate, "halve_every": config.halve_every, "pool": config.pool,
-            "dtype": config.dtype, "layers": list(layers), "data": data, "frames": config.frames,
-            "frame_vector": list(config.frame_vector), "boundary": config.boundary,
-            "exemplar_padding": config.exemplar_padding, **extra}
+    return {
+        "task": task,
+        "texels": surface.atlas.num_texels,
+        "size": config.size,
+        "learning_rate": config.learning_rate,
+        "halve_every": config.halve_every,
+        "pool": config.pool,
+        "dtype": config.dtype,
+        "layers": list(layers),
+        "data": data,
+        "frames": config.frames,
+        "frame_vector": list(config.frame_vector),
+        "boundary": config.boundary,
+        "exemplar_padding": config.exemplar_padding,
+        **extra,
+    }
 
 
 def _result(mesh: Mesh, surface: Surface, x, losses, final, stats) -> SynthesisResult:
     colors = np.asarray(x, np.float32)
     texture = texels_to_image(surface.atlas, colors).astype(np.float32)
     textured = mesh.replace(uv=surface.atlas.uv, texture=texture)
-    stats = {**stats, **{f"{k}_s": v for k, v in surface.seconds.items()},
-             "texels": surface.atlas.num_texels, "size": surface.atlas.size,
-             "initial_loss": float(losses[0]) if len(losses) else final, "final_loss": final}
+    stats = {
+        **stats,
+        **{f"{k}_s": v for k, v in surface.seconds.items()},
+        "texels": surface.atlas.num_texels,
+        "size": surface.atlas.size,
+        "initial_loss": float(losses[0]) if len(losses) else final,
+        "final_loss": final,
+    }
     return SynthesisResult(texture, colors, textured, losses, final, surface, stats)
 
 
@@ -178,22 +202,44 @@ def synthesize(
     image = as_rgb(exemplar, "exemplar")
     weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface)
     t0 = time.perf_counter()
-    targets = gram_targets(image, weights, layers=layers, pool=config.pool, padding=config.exemplar_padding,
-                           dtype=dtype)
+    targets = gram_targets(
+        image,
+        weights,
+        layers=layers,
+        pool=config.pool,
+        padding=config.exemplar_padding,
+        dtype=dtype,
+    )
     targets = jax.block_until_ready(targets)
     target_s = time.perf_counter() - t0
-    x0 = jax.random.uniform(key, (surface.atlas.num_texels, 3), dtype, config.init_low, config.init_high)
+    x0 = jax.random.uniform(
+        key, (surface.atlas.num_texels, 3), dtype, config.init_low, config.init_high
+    )
 
     def loss_fn(x, aux):
         arrays, weights, targets = aux
         return style_loss(x, arrays, weights, targets, pool=config.pool)
 
-    fingerprint = _fingerprint("synthesize", config, surface, layers, _digest(image),
-                               init=[config.init_low, config.init_high],
-                               key=np.asarray(jax.random.key_data(key)).ravel().tolist())
-    x, losses, final, stats = optimize_colors(x0, loss_fn, (arrays, weights, targets), config, progress=progress,
-                                              desc="surfacecnn synthesize", checkpoint=checkpoint,
-                                              checkpoint_every=checkpoint_every, fingerprint=fingerprint)
+    fingerprint = _fingerprint(
+        "synthesize",
+        config,
+        surface,
+        layers,
+        _digest(image),
+        init=[config.init_low, config.init_high],
+        key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
+    )
+    x, losses, final, stats = optimize_colors(
+        x0,
+        loss_fn,
+        (arrays, weights, targets),
+        config,
+        progress=progress,
+        desc="surfacecnn synthesize",
+        checkpoint=checkpoint,
+        checkpoint_every=checkpoint_every,
+        fingerprint=fingerprint,
+    )
     return _result(mesh, surface, x, losses, final, {**stats, "targets_s": target_s})
 
 
@@ -251,30 +297,62 @@ def stylize(
     config = Config() if config is None else config
     mesh = as_mesh(mesh)
     if mesh.uv is None:
-        raise InputError("stylize: the mesh has no UVs, so a content texture cannot be placed on it; "
-                         "use synthesize or give a mesh with UVs")
+        raise InputError(
+            "stylize: the mesh has no UVs, so a content texture cannot be placed on it; "
+            "use synthesize or give a mesh with UVs"
+        )
     content_image, style_image = as_rgb(content, "content"), as_rgb(style, "style")
-    weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface,
-                                                     extra_layers=(config.content_layer,), task="stylize")
+    weights, layers, surface, arrays, dtype = _setup(
+        mesh, config, weights, layers, surface, extra_layers=(config.content_layer,), task="stylize"
+    )
     content_colors = jnp.asarray(image_to_texels(surface.atlas, content_image), dtype)
-    targets = gram_targets(style_image, weights, layers=layers, pool=config.pool,
-                           padding=config.exemplar_padding, dtype=dtype)
-    content_feats = mesh_cnn_features(content_colors, arrays, weights, layers=(config.content_layer,),
-                                      pool=config.pool)[config.content_layer]
-    content_weight = default_content_weight(weights) if config.content_weight is None else config.content_weight
+    targets = gram_targets(
+        style_image,
+        weights,
+        layers=layers,
+        pool=config.pool,
+        padding=config.exemplar_padding,
+        dtype=dtype,
+    )
+    content_feats = mesh_cnn_features(
+        content_colors, arrays, weights, layers=(config.content_layer,), pool=config.pool
+    )[config.content_layer]
+    content_weight = (
+        default_content_weight(weights) if config.content_weight is None else config.content_weight
+    )
     weight = jnp.asarray(content_weight, dtype)
 
     def loss_fn(x, aux):
         arrays, weights, targets, content_feats = aux
-        feats = mesh_cnn_features(x, arrays, weights, layers=tuple(dict.fromkeys((*layers, config.content_layer))),
-                                  pool=config.pool)
+        feats = mesh_cnn_features(
+            x,
+            arrays,
+            weights,
+            layers=tuple(dict.fromkeys((*layers, config.content_layer))),
+            pool=config.pool,
+        )
         content_term = jnp.mean((feats[config.content_layer] - content_feats) ** 2)
         return gram_term(feats, targets) + weight * content_term
 
     aux = (arrays, weights, targets, content_feats)
-    fingerprint = _fingerprint("stylize", config, surface, layers, _digest(content_image, style_image),
-                               content_layer=config.content_layer, content_weight=content_weight)
-    x, losses, final, stats = optimize_colors(content_colors, loss_fn, aux, config, progress=progress,
-                                              desc="surfacecnn stylize", checkpoint=checkpoint,
-                                              checkpoint_every=checkpoint_every, fingerprint=fingerprint)
+    fingerprint = _fingerprint(
+        "stylize",
+        config,
+        surface,
+        layers,
+        _digest(content_image, style_image),
+        content_layer=config.content_layer,
+        content_weight=content_weight,
+    )
+    x, losses, final, stats = optimize_colors(
+        content_colors,
+        loss_fn,
+        aux,
+        config,
+        progress=progress,
+        desc="surfacecnn stylize",
+        checkpoint=checkpoint,
+        checkpoint_every=checkpoint_every,
+        fingerprint=fingerprint,
+    )
     return _result(mesh, surface, x, losses, final, stats)

@@ -81,8 +81,14 @@ def synthesize_uv(
     layers = tuple(layers or config.layers or default_layers(weights))
     dtype = jnp.dtype(config.dtype)
     weights = jax.tree.map(lambda a: jnp.asarray(a, dtype), weights)
-    targets = gram_targets(image, weights, layers=layers, pool=config.pool, padding=config.exemplar_padding,
-                           dtype=dtype)
+    targets = gram_targets(
+        image,
+        weights,
+        layers=layers,
+        pool=config.pool,
+        padding=config.exemplar_padding,
+        dtype=dtype,
+    )
     size = config.size
     x0 = jax.random.uniform(key, (size * size, 3), dtype, config.init_low, config.init_high)
     centre = config.exemplar_padding == "centre"
@@ -94,16 +100,31 @@ def synthesize_uv(
         if centre:
             feats = vgg_features_centre_padded(img, weights, layers=tuple(targets), pool=pool)
         else:
-            feats = {k: v[0] for k, v in vgg_features(img[None], weights, layers=tuple(targets), pool=pool,
-                                                      ceil_mode=True).items()}
-        terms = [jnp.mean((gram_matrix(feats[k].reshape(-1, feats[k].shape[-1])) - targets[k]) ** 2)
-                 for k in targets]
+            feats = {
+                k: v[0]
+                for k, v in vgg_features(
+                    img[None], weights, layers=tuple(targets), pool=pool, ceil_mode=True
+                ).items()
+            }
+        terms = [
+            jnp.mean((gram_matrix(feats[k].reshape(-1, feats[k].shape[-1])) - targets[k]) ** 2)
+            for k in targets
+        ]
         return sum(terms) / len(terms)
 
     t0 = time.perf_counter()
     fingerprint = _fingerprint("synthesize_uv", config, surface, layers, _digest(image))
-    x, losses, final, stats = optimize_colors(x0, loss_fn, (weights, targets), config, progress=progress,
-                                              desc="surfacecnn synthesize_uv", fingerprint=fingerprint)
+    x, losses, final, stats = optimize_colors(
+        x0,
+        loss_fn,
+        (weights, targets),
+        config,
+        progress=progress,
+        desc="surfacecnn synthesize_uv",
+        fingerprint=fingerprint,
+    )
     pixels = np.asarray(x).reshape(size * size, 3)[surface.atlas.texel]
-    result = _result(mesh, surface, pixels, losses, final, {**stats, "uv_total_s": time.perf_counter() - t0})
+    result = _result(
+        mesh, surface, pixels, losses, final, {**stats, "uv_total_s": time.perf_counter() - t0}
+    )
     return result

@@ -83,23 +83,65 @@ def _normal(state, params):
 
 
 _GEOMETRY = [
-    Entry("geometry.vertex_area", _vertex_area, {}, INTRINSIC, group="geometry",
-          doc="barycentric vertex areas from edge lengths"),
-    Entry("geometry.one_ring.transport", _one_ring_transport, {"x": (VERTEX_TANGENT, 3)}, INTRINSIC,
-          group="geometry", doc="transported one-ring average Σ w ρ x / Σ w"),
-    Entry("geometry.one_ring.log", _one_ring_log, {"s": (VERTEX_SCALAR, 3)}, INTRINSIC,
-          group="geometry", doc="one-ring log-map moment Σ w log_p(q) s_q"),
-    Entry("geometry.knn.transport", _knn_transport, {"x": (VERTEX_TANGENT, 3)},
-          tuple(t for t in INTRINSIC if t != "retriangulate"), group="geometry",
-          doc="transported k-NN (k=8) average", selection=_knn_selection),
-    Entry("geometry.knn.log", _knn_log, {"s": (VERTEX_SCALAR, 3)},
-          tuple(t for t in INTRINSIC if t != "retriangulate"), group="geometry",
-          doc="k-NN (k=8) discrete exponential map moment", selection=_knn_selection),
-    Entry("geometry.hks", _hks, {}, ("rigid", "permute_vertices", "permute_faces", "fold", "hinge",
-                                     "cylinder"), group="geometry",
-          doc="heat kernel signature (robust Laplacian, 8 eigenpairs)", resolutions=(6, 12, 24, 48)),
-    Entry("geometry.vertex_normal", _normal, {}, EXTRINSIC, group="geometry",
-          doc="angle-weighted vertex normals (3D vectors)"),
+    Entry(
+        "geometry.vertex_area",
+        _vertex_area,
+        {},
+        INTRINSIC,
+        group="geometry",
+        doc="barycentric vertex areas from edge lengths",
+    ),
+    Entry(
+        "geometry.one_ring.transport",
+        _one_ring_transport,
+        {"x": (VERTEX_TANGENT, 3)},
+        INTRINSIC,
+        group="geometry",
+        doc="transported one-ring average Σ w ρ x / Σ w",
+    ),
+    Entry(
+        "geometry.one_ring.log",
+        _one_ring_log,
+        {"s": (VERTEX_SCALAR, 3)},
+        INTRINSIC,
+        group="geometry",
+        doc="one-ring log-map moment Σ w log_p(q) s_q",
+    ),
+    Entry(
+        "geometry.knn.transport",
+        _knn_transport,
+        {"x": (VERTEX_TANGENT, 3)},
+        tuple(t for t in INTRINSIC if t != "retriangulate"),
+        group="geometry",
+        doc="transported k-NN (k=8) average",
+        selection=_knn_selection,
+    ),
+    Entry(
+        "geometry.knn.log",
+        _knn_log,
+        {"s": (VERTEX_SCALAR, 3)},
+        tuple(t for t in INTRINSIC if t != "retriangulate"),
+        group="geometry",
+        doc="k-NN (k=8) discrete exponential map moment",
+        selection=_knn_selection,
+    ),
+    Entry(
+        "geometry.hks",
+        _hks,
+        {},
+        ("rigid", "permute_vertices", "permute_faces", "fold", "hinge", "cylinder"),
+        group="geometry",
+        doc="heat kernel signature (robust Laplacian, 8 eigenpairs)",
+        resolutions=(6, 12, 24, 48),
+    ),
+    Entry(
+        "geometry.vertex_normal",
+        _normal,
+        {},
+        EXTRINSIC,
+        group="geometry",
+        doc="angle-weighted vertex normals (3D vectors)",
+    ),
 ]
 
 for _e in _GEOMETRY:
@@ -141,13 +183,28 @@ def _face_to_vertex(state, params, points, d):
 
 
 _FACE = [
-    Entry("ops.face_features", _face_features, {"points": (POINTS, 3)}, FACE_OPS,
-          doc="DGTS edge features [F,3,4]: invariant to rigid motions, edges roll with corners"),
-    Entry("ops.face_conv_stack", _face_conv_stack, {"points": (POINTS, 3)}, FACE_OPS,
-          init=_init_face_conv_stack, doc="embedding + 3 face convolutions (instance norm, leaky ReLU)"),
-    Entry("ops.face_to_vertex_displacement", _face_to_vertex,
-          {"points": (POINTS, 3), "d": (FACE_SCALAR, 3)}, FACE_OPS,
-          doc="per-face coefficients in edge frames averaged to vertices: rotates with the mesh"),
+    Entry(
+        "ops.face_features",
+        _face_features,
+        {"points": (POINTS, 3)},
+        FACE_OPS,
+        doc="DGTS edge features [F,3,4]: invariant to rigid motions, edges roll with corners",
+    ),
+    Entry(
+        "ops.face_conv_stack",
+        _face_conv_stack,
+        {"points": (POINTS, 3)},
+        FACE_OPS,
+        init=_init_face_conv_stack,
+        doc="embedding + 3 face convolutions (instance norm, leaky ReLU)",
+    ),
+    Entry(
+        "ops.face_to_vertex_displacement",
+        _face_to_vertex,
+        {"points": (POINTS, 3), "d": (FACE_SCALAR, 3)},
+        FACE_OPS,
+        doc="per-face coefficients in edge frames averaged to vertices: rotates with the mesh",
+    ),
 ]
 
 for _e in _FACE:
@@ -190,8 +247,10 @@ def _frn(state, params, x):
     from .. import ops
 
     nb = state.one_ring()
-    return Field(VERTEX_TANGENT, ops.filter_response_norm(x, params, area=nb.area,
-                                                          vertex_mask=nb.vertex_mask))
+    return Field(
+        VERTEX_TANGENT,
+        ops.filter_response_norm(x, params, area=nb.area, vertex_mask=nb.vertex_mask),
+    )
 
 
 def _transported_set(state, x):
@@ -243,8 +302,11 @@ def _pooling_maps(state):
         turn_child = np.exp(1j * a)
         pm = pm._replace(
             to_parent=pm.to_parent * turn_child,
-            children_transport=np.where(pm.children_mask, pm.children_transport * turn_child[pm.children],
-                                        pm.children_transport),
+            children_transport=np.where(
+                pm.children_mask,
+                pm.children_transport * turn_child[pm.children],
+                pm.children_transport,
+            ),
         )
         return to_jax(pm, state.dtype)
 
@@ -266,42 +328,90 @@ def _init(make):
 
 
 _COMPLEX = [
-    Entry("ops.complex_linear", _complex_linear, {"x": (VERTEX_TANGENT, 4)}, POINTWISE,
-          init=_init(lambda k, c, r: _ops().init_complex_linear(k, 4, 3, dtype=c)),
-          doc="complex linear layer, no bias (supplement §9)"),
-    Entry("ops.vn_nonlinearity", _vn, {"x": (VERTEX_TANGENT, 4)}, POINTWISE,
-          init=_init(lambda k, c, r: _ops().init_vn(k, 4, 3, dtype=c)),
-          doc="vector-neuron nonlinearity (eq. 19)"),
-    Entry("ops.filter_response_norm", _frn, {"x": (VERTEX_TANGENT, 4)}, INTRINSIC,
-          init=_init(lambda k, c, r: _ops().init_frn(4, dtype=r)),
-          doc="area-weighted filter response normalisation (eq. 20)"),
-    Entry("ops.complex_attention", _attention, {"x": (VERTEX_TANGENT, 4)}, KNN_OPS,
-          init=_init(lambda k, c, r: _ops().init_complex_attention(
-              k, 4, num_heads=2, dtype=c)),
-          doc="complex attention over each vertex's transported k-NN set", selection=_knn_selection),
-    Entry("ops.vn_transformer_block", _vn_transformer, {"x": (VERTEX_TANGENT, 4)}, KNN_OPS,
-          init=_init(lambda k, c, r: _ops().init_vn_transformer_block(
-              k, 4, num_heads=2, dtype=c)),
-          doc="VN-Transformer block over each vertex's transported k-NN set", selection=_knn_selection),
-    Entry("ops.field_conv", _field_conv, {"x": (VERTEX_TANGENT, 4)}, KNN_OPS,
-          init=_init(lambda k, c, r: _ops().init_field_conv(k, 4, 3, hdim=8, dtype=c)),
-          doc="field convolution on k-NN (k=8) neighbourhoods (eq. 34, gauge-invariant form)",
-          selection=_knn_selection),
-    Entry("ops.field_conv_emb", _field_conv_emb, {"x": (VERTEX_TANGENT, 4), "e": (VERTEX_SCALAR, 2)},
-          KNN_OPS,
-          init=_init(lambda k, c, r: _ops().init_field_conv(
-              k, 4, 3, hdim=8, embedding_features=2, dtype=c)),
-          doc="field convolution with a per-vertex scalar embedding in the filters (eq. 35)",
-          selection=_knn_selection),
+    Entry(
+        "ops.complex_linear",
+        _complex_linear,
+        {"x": (VERTEX_TANGENT, 4)},
+        POINTWISE,
+        init=_init(lambda k, c, r: _ops().init_complex_linear(k, 4, 3, dtype=c)),
+        doc="complex linear layer, no bias (supplement §9)",
+    ),
+    Entry(
+        "ops.vn_nonlinearity",
+        _vn,
+        {"x": (VERTEX_TANGENT, 4)},
+        POINTWISE,
+        init=_init(lambda k, c, r: _ops().init_vn(k, 4, 3, dtype=c)),
+        doc="vector-neuron nonlinearity (eq. 19)",
+    ),
+    Entry(
+        "ops.filter_response_norm",
+        _frn,
+        {"x": (VERTEX_TANGENT, 4)},
+        INTRINSIC,
+        init=_init(lambda k, c, r: _ops().init_frn(4, dtype=r)),
+        doc="area-weighted filter response normalisation (eq. 20)",
+    ),
+    Entry(
+        "ops.complex_attention",
+        _attention,
+        {"x": (VERTEX_TANGENT, 4)},
+        KNN_OPS,
+        init=_init(lambda k, c, r: _ops().init_complex_attention(k, 4, num_heads=2, dtype=c)),
+        doc="complex attention over each vertex's transported k-NN set",
+        selection=_knn_selection,
+    ),
+    Entry(
+        "ops.vn_transformer_block",
+        _vn_transformer,
+        {"x": (VERTEX_TANGENT, 4)},
+        KNN_OPS,
+        init=_init(lambda k, c, r: _ops().init_vn_transformer_block(k, 4, num_heads=2, dtype=c)),
+        doc="VN-Transformer block over each vertex's transported k-NN set",
+        selection=_knn_selection,
+    ),
+    Entry(
+        "ops.field_conv",
+        _field_conv,
+        {"x": (VERTEX_TANGENT, 4)},
+        KNN_OPS,
+        init=_init(lambda k, c, r: _ops().init_field_conv(k, 4, 3, hdim=8, dtype=c)),
+        doc="field convolution on k-NN (k=8) neighbourhoods (eq. 34, gauge-invariant form)",
+        selection=_knn_selection,
+    ),
+    Entry(
+        "ops.field_conv_emb",
+        _field_conv_emb,
+        {"x": (VERTEX_TANGENT, 4), "e": (VERTEX_SCALAR, 2)},
+        KNN_OPS,
+        init=_init(
+            lambda k, c, r: _ops().init_field_conv(k, 4, 3, hdim=8, embedding_features=2, dtype=c)
+        ),
+        doc="field convolution with a per-vertex scalar embedding in the filters (eq. 35)",
+        selection=_knn_selection,
+    ),
     # The decimation is a greedy sequence of intrinsic edge collapses: exactly reproducible under
     # relabelling and exact isometries, but not a continuous function of the metric (a smooth
     # bending reorders the collapses and picks other coarse vertices: O(1) error at every
     # resolution). The smooth family is measured and reported, not asserted.
-    Entry("ops.tangent_pool_unpool", _pool_unpool, {"x": (VERTEX_TANGENT, 3)},
-          ("rigid", "reflection", "gauge", "permute_vertices", "permute_faces", "rotate_corners",
-           "fold", "folds", "hinge"),
-          doc="transported mean pooling to a decimated level, then nearest unpooling",
-          report=("cylinder",)),
+    Entry(
+        "ops.tangent_pool_unpool",
+        _pool_unpool,
+        {"x": (VERTEX_TANGENT, 3)},
+        (
+            "rigid",
+            "reflection",
+            "gauge",
+            "permute_vertices",
+            "permute_faces",
+            "rotate_corners",
+            "fold",
+            "folds",
+            "hinge",
+        ),
+        doc="transported mean pooling to a decimated level, then nearest unpooling",
+        report=("cylinder",),
+    ),
 ]
 
 for _e in _COMPLEX:
@@ -370,15 +480,34 @@ def _first_edge_features(state, params, points):
 
 
 _NEGATIVE = [
-    Entry("negative.complex_bias", _biased_linear, {"x": (VERTEX_TANGENT, 3)},
-          ("permute_vertices", "fold"), init=_init_biased_linear, expect_fail=("gauge",),
-          group="negative", doc="complex linear layer with a bias: breaks gauge equivariance"),
-    Entry("negative.extrinsic_log", _extrinsic_log_moment, {"s": (VERTEX_SCALAR, 3)},
-          ("rigid",), expect_fail=("fold", "hinge"), group="negative",
-          doc="log map from projected (extrinsic) angles: breaks isometry invariance"),
-    Entry("negative.face_vertex_order", _first_edge_features, {"points": (POINTS, 3)},
-          ("rigid", "permute_faces"), expect_fail=("rotate_corners",), group="negative",
-          doc="face features of the first edge only (no max over edges): depends on vertex order"),
+    Entry(
+        "negative.complex_bias",
+        _biased_linear,
+        {"x": (VERTEX_TANGENT, 3)},
+        ("permute_vertices", "fold"),
+        init=_init_biased_linear,
+        expect_fail=("gauge",),
+        group="negative",
+        doc="complex linear layer with a bias: breaks gauge equivariance",
+    ),
+    Entry(
+        "negative.extrinsic_log",
+        _extrinsic_log_moment,
+        {"s": (VERTEX_SCALAR, 3)},
+        ("rigid",),
+        expect_fail=("fold", "hinge"),
+        group="negative",
+        doc="log map from projected (extrinsic) angles: breaks isometry invariance",
+    ),
+    Entry(
+        "negative.face_vertex_order",
+        _first_edge_features,
+        {"points": (POINTS, 3)},
+        ("rigid", "permute_faces"),
+        expect_fail=("rotate_corners",),
+        group="negative",
+        doc="face features of the first edge only (no max over edges): depends on vertex order",
+    ),
 ]
 
 for _e in _NEGATIVE:

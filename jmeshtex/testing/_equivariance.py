@@ -39,7 +39,12 @@ def relative_error(actual, expected) -> float:
         raise ValueError(
             f"output structures differ: {[x.shape for x in a]} vs {[y.shape for y in b]}"
         )
-    num = np.sqrt(sum(float(np.sum(np.abs(x.astype(np.complex128) - y) ** 2)) for x, y in zip(a, b, strict=True)))
+    num = np.sqrt(
+        sum(
+            float(np.sum(np.abs(x.astype(np.complex128) - y) ** 2))
+            for x, y in zip(a, b, strict=True)
+        )
+    )
     den = np.sqrt(sum(float(np.sum(np.abs(y.astype(np.complex128)) ** 2)) for y in b))
     if not np.isfinite(num):
         return float("inf")
@@ -88,7 +93,9 @@ def equivariance_error(
       True
     """
     src_dtype = realisation.source.dtype
-    source_out = fn(realisation.source, **{k: _to_device(f, src_dtype).value for k, f in inputs.items()})
+    source_out = fn(
+        realisation.source, **{k: _to_device(f, src_dtype).value for k, f in inputs.items()}
+    )
     if not isinstance(source_out, Field):
         raise TypeError(f"the operator must return a Field(kind, value), got {type(source_out)}")
     mapped = {k: _to_device(realisation.map(f), src_dtype).value for k, f in inputs.items()}

@@ -48,7 +48,9 @@ def features(draw, kind: str, n: int, channels: int = 4, *, zero_rows: bool = Tr
     if kind in (VERTEX_SCALAR, FACE_SCALAR):
         x = rng.standard_normal((n, channels))
     elif kind == VERTEX_TANGENT:
-        x = (rng.standard_normal((n, channels)) + 1j * rng.standard_normal((n, channels))) / np.sqrt(2)
+        x = (
+            rng.standard_normal((n, channels)) + 1j * rng.standard_normal((n, channels))
+        ) / np.sqrt(2)
     elif kind == VERTEX_VECTOR:
         x = rng.standard_normal((n, channels, 3))
     else:

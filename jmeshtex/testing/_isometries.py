@@ -66,10 +66,17 @@ def hinge(
         raise InputError(f"faces must have shape [F, 3], got {f.shape}")
     moving = np.asarray(moving)
     if moving.shape != (len(v),) or moving.dtype != bool:
-        raise InputError(f"moving must be a bool array of shape [{len(v)}], got {moving.dtype} {moving.shape}")
+        raise InputError(
+            f"moving must be a bool array of shape [{len(v)}], got {moving.dtype} {moving.shape}"
+        )
     c = np.asarray(axis_point, dtype=np.float64).reshape(-1)
     d = np.asarray(axis_direction, dtype=np.float64).reshape(-1)
-    if c.shape != (3,) or d.shape != (3,) or not np.all(np.isfinite(c)) or not np.all(np.isfinite(d)):
+    if (
+        c.shape != (3,)
+        or d.shape != (3,)
+        or not np.all(np.isfinite(c))
+        or not np.all(np.isfinite(d))
+    ):
         raise InputError("axis_point and axis_direction must be 3 finite numbers each")
     norm = float(np.linalg.norm(d))
     if norm == 0.0:
@@ -147,7 +154,9 @@ def fold_sheet(
     scale = max(float(np.ptp(v, axis=0).max()), 1.0)
     z0 = float(v[0, 2]) if len(v) else 0.0
     if np.any(np.abs(v[:, 2] - z0) > 1e-12 * scale):
-        raise InputError("fold_sheet needs a flat sheet in a plane z = const (e.g. jmeshtex.data.grid)")
+        raise InputError(
+            "fold_sheet needs a flat sheet in a plane z = const (e.g. jmeshtex.data.grid)"
+        )
 
     parsed = [_parse_line(line) for line in lines]
     sides = [(v[:, :2] - p) @ nrm for p, nrm in parsed]
@@ -173,7 +182,9 @@ def fold_sheet(
         p, nrm = parsed[k]
         point = np.array([p[0], p[1], z0])
         direction = np.array([nrm[1], -nrm[0], 0.0])  # n × z: positive angles lift the part up
-        out = hinge(out, f, moving=movers[k], axis_point=point, axis_direction=direction, angle=angles[k])
+        out = hinge(
+            out, f, moving=movers[k], axis_point=point, axis_direction=direction, angle=angles[k]
+        )
     return out
 
 
@@ -188,7 +199,9 @@ def _parse_line(line) -> tuple[np.ndarray, np.ndarray]:
     try:
         p, nrm = (np.asarray(x, dtype=np.float64).reshape(2) for x in line)
     except (TypeError, ValueError) as err:
-        raise InputError(f"a fold line is ('x', c), ('y', c) or ((px, py), (nx, ny)); got {line!r}") from err
+        raise InputError(
+            f"a fold line is ('x', c), ('y', c) or ((px, py), (nx, ny)); got {line!r}"
+        ) from err
     length = float(np.linalg.norm(nrm))
     if not np.isfinite(length) or length == 0.0 or not np.all(np.isfinite(p)):
         raise InputError(f"fold line {line!r} needs a finite point and a non-zero normal")

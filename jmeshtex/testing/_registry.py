@@ -104,6 +104,7 @@ class Entry:
 
 REGISTRY: dict[str, Entry] = {}
 
+
 def load_entries() -> dict[str, Entry]:
     """Register every built-in entry (ops and geometry, then each method's) and return the registry.
 
@@ -125,9 +126,13 @@ def register(entry: Entry) -> Entry:
     """Add an entry to ``REGISTRY`` (names must be unique; transforms must exist)."""
     if entry.name in REGISTRY:
         raise ValueError(f"an operator named {entry.name!r} is already registered")
-    unknown = [t for t in (*entry.transforms, *entry.expect_fail, *entry.report) if t not in CATALOGUE]
+    unknown = [
+        t for t in (*entry.transforms, *entry.expect_fail, *entry.report) if t not in CATALOGUE
+    ]
     if unknown:
-        raise ValueError(f"{entry.name}: unknown transforms {unknown}; see jmeshtex.testing.CATALOGUE")
+        raise ValueError(
+            f"{entry.name}: unknown transforms {unknown}; see jmeshtex.testing.CATALOGUE"
+        )
     REGISTRY[entry.name] = entry
     return entry
 
@@ -236,11 +241,23 @@ def check(entry: Entry, transform_name: str, *, dtype=jnp.float64, seed: int = 0
         if report_only:
             passed = None
         return CheckResult(
-            entry.name, transform_name, name, conv.errors[-1], None, passed, "order",
-            order=None if conv.floor else conv.order, ratios=conv.ratios, expect_fail=expect_fail,
-            detail="round-off floor" if conv.floor else (
+            entry.name,
+            transform_name,
+            name,
+            conv.errors[-1],
+            None,
+            passed,
+            "order",
+            order=None if conv.floor else conv.order,
+            ratios=conv.ratios,
+            expect_fail=expect_fail,
+            detail="round-off floor"
+            if conv.floor
+            else (
                 f"excluded {max(conv.excluded):.1%} of vertices (discrete choice flipped)"
-                if conv.excluded else ""),
+                if conv.excluded
+                else ""
+            ),
         )
 
     errors = []
@@ -256,13 +273,15 @@ def check(entry: Entry, transform_name: str, *, dtype=jnp.float64, seed: int = 0
             errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, state, rng)))
     err = float(max(errors))
     if smooth or report_only:  # float32 smooth isometries, re-triangulation, declared reports
-        return CheckResult(entry.name, transform_name, name, err, None, None, "report",
-                           expect_fail=expect_fail)
+        return CheckResult(
+            entry.name, transform_name, name, err, None, None, "report", expect_fail=expect_fail
+        )
     passed = err <= tol
     if expect_fail:
         passed = not passed
-    return CheckResult(entry.name, transform_name, name, err, tol, passed, "exact",
-                       expect_fail=expect_fail)
+    return CheckResult(
+        entry.name, transform_name, name, err, tol, passed, "exact", expect_fail=expect_fail
+    )
 
 
 def run_registry(
@@ -304,7 +323,11 @@ def format_table(results: Sequence[CheckResult]) -> str:
     head = f"{'operator':30s} {'transform':17s} {'dtype':8s} {'max rel err':>11s} {'bound':>9s} {'order':>6s}  verdict"
     lines = [head, "-" * len(head)]
     for r in results:
-        bound = f"{r.tolerance:.0e}" if r.tolerance is not None else ("ratio≥3" if r.check == "order" else "-")
+        bound = (
+            f"{r.tolerance:.0e}"
+            if r.tolerance is not None
+            else ("ratio≥3" if r.check == "order" else "-")
+        )
         order = f"{r.order:.2f}" if r.order is not None else ("exact" if r.detail else "")
         note = f"  [{r.detail}]" if r.detail and r.order is not None else ""
         if r.passed is None:

@@ -98,7 +98,9 @@ class MeshState:
 
         return self._cached(
             "host_one_ring",
-            lambda: regauge_neighborhood(one_ring_neighborhood(self.vertices, self.faces), self.gauge),
+            lambda: regauge_neighborhood(
+                one_ring_neighborhood(self.vertices, self.faces), self.gauge
+            ),
         )
 
     def host_knn(self, k: int = 8) -> VertexNeighborhood:

@@ -58,7 +58,12 @@ def _size_options(kind: str, lo: int, hi: int) -> list[tuple]:
     elif kind == "grid":
         opts = [(a, b) for a in range(1, 20) for b in range(1, 20) if lo <= (a + 1) * (b + 1) <= hi]
     else:  # delaunay: a x b jittered interior points plus the square's 4 corners
-        opts = [(a, b) for a in range(0, 16) for b in range(0, 16) if (a == 0) == (b == 0) and lo <= a * b + 4 <= hi]
+        opts = [
+            (a, b)
+            for a in range(0, 16)
+            for b in range(0, 16)
+            if (a == 0) == (b == 0) and lo <= a * b + 4 <= hi
+        ]
     return sorted(opts, key=lambda p: (np.prod(p), p))  # smallest first: hypothesis shrinks to them
 
 
@@ -68,7 +73,9 @@ def _delaunay_sheet(a: int, b: int, rng: np.random.Generator) -> tuple[np.ndarra
     corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     i, j = np.meshgrid(np.arange(a), np.arange(b), indexing="ij")
     jitter = 0.15 + 0.7 * rng.random((a * b, 2))  # keeps points off the square's sides
-    inner = np.stack([(i.ravel() + jitter[:, 0]) / max(a, 1), (j.ravel() + jitter[:, 1]) / max(b, 1)], 1)
+    inner = np.stack(
+        [(i.ravel() + jitter[:, 0]) / max(a, 1), (j.ravel() + jitter[:, 1]) / max(b, 1)], 1
+    )
     xy = np.concatenate([corners, inner])
     faces = Delaunay(xy).simplices.astype(np.int64)
     e1, e2 = xy[faces[:, 1]] - xy[faces[:, 0]], xy[faces[:, 2]] - xy[faces[:, 0]]
@@ -91,7 +98,9 @@ def _smooth_deformation(vertices: np.ndarray, rng: np.random.Generator) -> np.nd
     w = rng.normal(size=(m, 3))
     w *= rng.uniform(0.5, 3.0, (m, 1)) / (np.linalg.norm(w, axis=1, keepdims=True) * extent)
     a = rng.normal(size=(m, 3))
-    a *= (0.5 / m) / (np.linalg.norm(a, axis=1, keepdims=True) * np.linalg.norm(w, axis=1, keepdims=True))
+    a *= (0.5 / m) / (
+        np.linalg.norm(a, axis=1, keepdims=True) * np.linalg.norm(w, axis=1, keepdims=True)
+    )
     a *= rng.uniform(0.0, 1.0, (m, 1))
     phase = rng.uniform(0, 2 * np.pi, m)
     return vertices + np.sin(vertices @ w.T + phase) @ a
@@ -179,14 +188,22 @@ def valid_meshes(
         elif kind == "torus":
             v, f = torus(*params, minor_radius=float(rng.uniform(0.2, 0.45)))
         elif kind == "grid":
-            v, f = grid(*params, size=tuple(rng.uniform(0.5, 2.0, 2)), diagonals=str(rng.choice(["alternate", "uniform"])))
+            v, f = grid(
+                *params,
+                size=tuple(rng.uniform(0.5, 2.0, 2)),
+                diagonals=str(rng.choice(["alternate", "uniform"])),
+            )
         else:
             v, f = _delaunay_sheet(*params, rng)
         if deform:
             v = _rigid_motion(_smooth_deformation(v, rng), rng)
         if relabel:
             v, f = _relabel(v, f, rng)
-        return Mesh(np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(f, dtype=np.int64), name=kind)
+        return Mesh(
+            np.ascontiguousarray(v, dtype=np.float64),
+            np.ascontiguousarray(f, dtype=np.int64),
+            name=kind,
+        )
 
     return draw_mesh()
 
@@ -206,7 +223,9 @@ def _mobius_strip(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndar
     """A Möbius strip of ``n`` quads: manifold, but no consistent orientation exists."""
     theta = 2 * np.pi * np.arange(n) / n
     radial = np.stack([np.cos(theta), np.sin(theta), np.zeros(n)], 1)
-    across = np.cos(theta / 2)[:, None] * radial + np.sin(theta / 2)[:, None] * np.array([0.0, 0.0, 1.0])
+    across = np.cos(theta / 2)[:, None] * radial + np.sin(theta / 2)[:, None] * np.array(
+        [0.0, 0.0, 1.0]
+    )
     width = rng.uniform(0.2, 0.4)
     v = np.concatenate([radial + width * across, radial - width * across])  # i: top, n + i: bottom
     i = np.arange(n)
@@ -217,7 +236,9 @@ def _mobius_strip(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndar
     return v, faces
 
 
-def bad_meshes(kind: str, *, max_vertices: int = 100) -> st.SearchStrategy[tuple[np.ndarray, np.ndarray]]:
+def bad_meshes(
+    kind: str, *, max_vertices: int = 100
+) -> st.SearchStrategy[tuple[np.ndarray, np.ndarray]]:
     """Strategy of ``(vertices, faces)`` that break exactly one validation rule.
 
     Built from :func:`valid_meshes` (so from every valid shape), changed just enough:
@@ -304,7 +325,9 @@ def bad_meshes(kind: str, *, max_vertices: int = 100) -> st.SearchStrategy[tuple
             return v, f
         if kind == "duplicate_face":
             at = int(rng.integers(0, F))
-            order = [list(p) for p in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (0, 2, 1), (2, 1, 0), (1, 0, 2))]
+            order = [
+                list(p) for p in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (0, 2, 1), (2, 1, 0), (1, 0, 2))
+            ]
             copy = f[at, draw(st.sampled_from(order))]
             return v, np.insert(f, int(rng.integers(0, F + 1)), copy, axis=0)
         if kind == "non_manifold_edge":

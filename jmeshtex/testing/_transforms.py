@@ -132,7 +132,9 @@ class Realisation:
         if kind == FACE_EDGE:
             y = x[self.fperm]
             k = (np.arange(3)[None, :] + self.froll[:, None]) % 3
-            return Field(kind, np.take_along_axis(y, k.reshape(k.shape + (1,) * (y.ndim - 2)), axis=1))
+            return Field(
+                kind, np.take_along_axis(y, k.reshape(k.shape + (1,) * (y.ndim - 2)), axis=1)
+            )
         if kind == VERTEX_TANGENT:
             beta = self.frame_rotation()
             turn = np.exp(-1j * beta).reshape((-1,) + (1,) * (x.ndim - 1))
@@ -235,7 +237,9 @@ def _permute_vertices(state: MeshState, rng: np.random.Generator) -> Realisation
     vperm = rng.permutation(V)  # new i <- old vperm[i]
     inv = np.empty(V, np.int64)
     inv[vperm] = np.arange(V)
-    target = state.with_(vertices=state.vertices[vperm], faces=inv[state.faces], gauge=state.gauge[vperm])
+    target = state.with_(
+        vertices=state.vertices[vperm], faces=inv[state.faces], gauge=state.gauge[vperm]
+    )
     r = _identity(state, target, "permute_vertices", rotation=np.eye(3), translation=np.zeros(3))
     r.vperm = vperm
     return r
@@ -307,8 +311,14 @@ def _hinge(n: int, rng: np.random.Generator, dtype) -> Realisation:
     v, f, ix, iy = _sheet(n, rng)
     r = int(rng.integers(2, n - 1))
     y = float(v[(iy == r) & (ix == 0), 1][0])
-    moved = hinge(v, f, moving=iy > r, axis_point=(0.0, y, 0.0), axis_direction=(1.0, 0.0, 0.0),
-                  angle=float(rng.uniform(0.5, 2.8)))
+    moved = hinge(
+        v,
+        f,
+        moving=iy > r,
+        axis_point=(0.0, y, 0.0),
+        axis_direction=(1.0, 0.0, 0.0),
+        angle=float(rng.uniform(0.5, 2.8)),
+    )
     source = MeshState(v, f, dtype=dtype)
     return _identity(source, source.with_(vertices=moved), "hinge")
 
@@ -406,15 +416,35 @@ CATALOGUE: dict[str, Transform] = {
         Transform("gauge", True, _gauge, doc="random rotation of every vertex's tangent frame"),
         Transform("permute_vertices", True, _permute_vertices, doc="random vertex relabelling"),
         Transform("permute_faces", True, _permute_faces, doc="random face reordering"),
-        Transform("rotate_corners", True, _rotate_corners, doc="cyclic shift of each face's corners"),
-        Transform("fold", True, _folds(1, "fold"), family=True, doc="flat sheet folded along one mesh line"),
-        Transform("folds", True, _folds(3, "folds"), family=True, doc="flat sheet folded along three mesh lines"),
+        Transform(
+            "rotate_corners", True, _rotate_corners, doc="cyclic shift of each face's corners"
+        ),
+        Transform(
+            "fold",
+            True,
+            _folds(1, "fold"),
+            family=True,
+            doc="flat sheet folded along one mesh line",
+        ),
+        Transform(
+            "folds",
+            True,
+            _folds(3, "folds"),
+            family=True,
+            doc="flat sheet folded along three mesh lines",
+        ),
         Transform("hinge", True, _hinge, family=True, doc="rigid piece turned about a hinge line"),
-        Transform("cylinder", False, _cylinder, family=True, doc="flat sheet rolled onto a cylinder"),
+        Transform(
+            "cylinder", False, _cylinder, family=True, doc="flat sheet rolled onto a cylinder"
+        ),
         Transform("cone", False, _cone, family=True, doc="flat annular sector rolled onto a cone"),
         Transform("catenoid", False, _catenoid, family=True, doc="helicoid bent into a catenoid"),
         Transform(
-            "retriangulate", False, _retriangulate, family=True, doc="same flat sheet, new triangulation"
+            "retriangulate",
+            False,
+            _retriangulate,
+            family=True,
+            doc="same flat sheet, new triangulation",
         ),
     )
 }

@@ -17,14 +17,31 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from benchmarks import _compare, _runner  # noqa: E402
 
-FIGURE_KEYS = {"benchmark", "name", "params", "seconds", "runs", "ceiling", "ratio_to_ceiling", "metrics",
-               "machine", "versions", "commit"}
+FIGURE_KEYS = {
+    "benchmark",
+    "name",
+    "params",
+    "seconds",
+    "runs",
+    "ceiling",
+    "ratio_to_ceiling",
+    "metrics",
+    "machine",
+    "versions",
+    "commit",
+}
 
 
 def _cli(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    return subprocess.run([sys.executable, "-m", "benchmarks", *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "benchmarks", *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def test_docstring_examples():
@@ -45,7 +62,9 @@ def test_quick_sweep_writes_one_schema_a_table_and_plots_and_compare_flags_a_slo
         assert f["seconds"] > 0 and len(f["runs"]) == 2 and f["versions"]["jax"] and f["commit"]
         assert f["machine"]["devices"], f["machine"]
     matmul = [f for f in doc["figures"] if f["name"] == "matmul"]
-    assert matmul and all(f["ceiling"]["kind"] == "matmul_gflops" and f["ratio_to_ceiling"] > 0 for f in matmul)
+    assert matmul and all(
+        f["ceiling"]["kind"] == "matmul_gflops" and f["ratio_to_ceiling"] > 0 for f in matmul
+    )
     table = (out / "sweep.md").read_text()
     assert "| ceilings | matmul |" in table and "ratio to ceiling" in table
     assert (out / "ceiling.png").stat().st_size > 1000
@@ -72,8 +91,17 @@ def test_quick_sweep_writes_one_schema_a_table_and_plots_and_compare_flags_a_slo
 
 def test_compare_separates_noise_from_regressions():
     def doc(runs):
-        return {"figures": [{"benchmark": "b", "name": "x", "params": {"n": 10}, "seconds": sorted(runs)[1],
-                             "runs": runs}]}
+        return {
+            "figures": [
+                {
+                    "benchmark": "b",
+                    "name": "x",
+                    "params": {"n": 10},
+                    "seconds": sorted(runs)[1],
+                    "runs": runs,
+                }
+            ]
+        }
 
     # 20% slower, but the repeats spread by 40%: flagged only as noise, no failure
     rows, failed = _compare.compare(doc([1.0, 1.2, 1.4]), doc([1.2, 1.44, 1.68]))
@@ -88,12 +116,23 @@ def test_compare_separates_noise_from_regressions():
 
 def test_growth_exponent_and_scaling_plot(tmp_path):
     ns = [1e3, 4e3, 1.6e4, 6.4e4]
-    figs = [{"benchmark": "op", "name": "fwd", "params": {"n": n}, "seconds": 1e-6 * n**1.5, "runs": [1e-6 * n**1.5],
-             "ceiling": {"kind": "matmul_gflops", "value": 100.0, "achieved": 50.0}, "ratio_to_ceiling": 0.5}
-            for n in ns]
+    figs = [
+        {
+            "benchmark": "op",
+            "name": "fwd",
+            "params": {"n": n},
+            "seconds": 1e-6 * n**1.5,
+            "runs": [1e-6 * n**1.5],
+            "ceiling": {"kind": "matmul_gflops", "value": 100.0, "achieved": 50.0},
+            "ratio_to_ceiling": 0.5,
+        }
+        for n in ns
+    ]
     assert abs(_runner.growth_exponent(ns, [f["seconds"] for f in figs]) - 1.5) < 1e-12
     paths = _runner.plot({"figures": figs}, tmp_path)
-    assert [p.name for p in paths] == ["scaling.png", "ceiling.png"] and all(p.stat().st_size > 1000 for p in paths)
+    assert [p.name for p in paths] == ["scaling.png", "ceiling.png"] and all(
+        p.stat().st_size > 1000 for p in paths
+    )
 
 
 def test_the_adapter_keeps_every_committed_row():
@@ -111,12 +150,20 @@ def test_the_adapter_keeps_every_committed_row():
 @pytest.mark.skipif(sys.platform != "linux", reason="bash script, Linux coreutils (timeout)")
 def test_gpu_check_script_runs_on_cpu_at_tiny_size(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"} | {"PYTHON": sys.executable}
-    run = subprocess.run(["bash", str(ROOT / "benchmarks" / "gpu_check.sh"), str(tmp_path), "--cpu", "--tiny"],
-                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
+    run = subprocess.run(
+        ["bash", str(ROOT / "benchmarks" / "gpu_check.sh"), str(tmp_path), "--cpu", "--tiny"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     summary = (tmp_path / "summary.txt").read_text()
     assert run.returncode == 0, summary + run.stdout[-2000:] + run.stderr[-2000:]
     assert json.loads((tmp_path / "device.json").read_text())["backend"] == "cpu"
     for name in ("ops_field_conv", "ops_face_conv"):
         doc = json.loads((tmp_path / f"{name}_cpu.json").read_text())
-        assert doc["figures"] and all(f["seconds"] > 0 for f in doc["figures"] if f["seconds"] is not None)
+        assert doc["figures"] and all(
+            f["seconds"] > 0 for f in doc["figures"] if f["seconds"] is not None
+        )
     assert "OK tests" in summary

@@ -40,7 +40,12 @@ def test_quick_demo_writes_png_and_report(tmp_path, capsys):
         assert fig.shape[1] >= 4 * 240, folder  # exemplar | result(s) | baselines side by side
         assert (fig < 0.9).any(axis=2).mean() > 0.1, folder  # the renders are drawn
     # the stage summaries carry their baselines next to the result
-    assert "random field" in report and "flat" in report and "shuffled" in report and "no displacement" in report
+    assert (
+        "random field" in report
+        and "flat" in report
+        and "shuffled" in report
+        and "no displacement" in report
+    )
 
 
 def _only_meshes(monkeypatch):
@@ -86,7 +91,9 @@ def test_progress_moves_inside_a_step(tmp_path, monkeypatch, capsys):
 
 def test_no_progress_gives_the_stages_no_hook(tmp_path, monkeypatch):
     seen = []
-    monkeypatch.setattr(_demo, "STEPS", [_demo.Step("a step", lambda ctx: seen.append(ctx.get("progress")) or "ok")])
+    monkeypatch.setattr(
+        _demo, "STEPS", [_demo.Step("a step", lambda ctx: seen.append(ctx.get("progress")) or "ok")]
+    )
     _demo.run_demo(tmp_path, quick=True, progress=False)
     assert seen == [None]
 
@@ -100,7 +107,9 @@ def test_verify_selection_covers_every_method_once():
     prefixes = [name.split(".")[0] for name, _ in _demo.VERIFY_SELECTION]
     for method in ("dgts", "fl", "fldm", "meshmatch", "surfacecnn"):
         assert prefixes.count(method) == 1, method
-    assert "negative.complex_bias" in {name for name, _ in _demo.VERIFY_SELECTION}  # a failure it must flag
+    assert "negative.complex_bias" in {
+        name for name, _ in _demo.VERIFY_SELECTION
+    }  # a failure it must flag
 
 
 def test_help_lists_demo(capsys):

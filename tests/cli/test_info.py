@@ -40,7 +40,12 @@ def test_json_is_written(tmp_path, capsys):
     assert main(["info", str(path), "--json", str(out_json)]) == 0
     record = json.loads(out_json.read_text())
     assert record["path"] == str(path) and record["valid"] is True
-    assert (record["vertices"], record["faces"], record["edges"], record["genus"]) == (42, 80, 120, 0)
+    assert (record["vertices"], record["faces"], record["edges"], record["genus"]) == (
+        42,
+        80,
+        120,
+        0,
+    )
     assert len(record["bbox_min"]) == 3 and record["error"] is None
     assert f"wrote {out_json}" in capsys.readouterr().out
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporaries
@@ -101,7 +106,9 @@ def test_suzanne_is_reported_invalid(shared_data, capsys):
     assert main(["info", str(shared_data / "suzanne.obj")]) == 2
     captured = capsys.readouterr()
     assert "duplicate faces" in captured.err and "(269, 270)" in captured.err
-    assert "note: suzanne.obj: split 468 polygon faces (4 corners) into 936 triangles" in captured.out
+    assert (
+        "note: suzanne.obj: split 468 polygon faces (4 corners) into 936 triangles" in captured.out
+    )
 
 
 def test_a_quad_file_says_its_polygons_were_split(tmp_path, capsys):
@@ -110,7 +117,10 @@ def test_a_quad_file_says_its_polygons_were_split(tmp_path, capsys):
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert _row(out, "verdict") == "valid" and _row(out, "faces") == "2"
-    assert "  note: quad.obj: split 1 polygon face (4 corners) into 2 triangles" in out.splitlines()[-1]
+    assert (
+        "  note: quad.obj: split 1 polygon face (4 corners) into 2 triangles"
+        in out.splitlines()[-1]
+    )
 
 
 def test_procedural_meshes_are_accepted(capsys):
@@ -122,7 +132,17 @@ def test_procedural_meshes_are_accepted(capsys):
 @pytest.mark.shared_data
 def test_spot_with_its_texture(shared_data, capsys):
     spot = shared_data / "spot"
-    assert main(["info", str(spot / "spot_triangulated.obj"), "--texture", str(spot / "spot_texture.png")]) == 0
+    assert (
+        main(
+            [
+                "info",
+                str(spot / "spot_triangulated.obj"),
+                "--texture",
+                str(spot / "spot_texture.png"),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert _row(out, "vertices") == "2930" and _row(out, "stored vertices").startswith("3225")
     assert _row(out, "texture") == "1024x1024x3" and _row(out, "genus") == "0"

@@ -15,8 +15,18 @@ def test_list_names_operators_and_transforms(capsys):
 
 def test_a_filtered_run_writes_its_json_quietly(tmp_path, capsys):
     path = tmp_path / "verify.json"
-    argv = ["verify", "--only", "geometry.knn.transport", "--transforms", "gauge", "--dtype", "float64",
-            "--quiet", "--json", str(path)]
+    argv = [
+        "verify",
+        "--only",
+        "geometry.knn.transport",
+        "--transforms",
+        "gauge",
+        "--dtype",
+        "float64",
+        "--quiet",
+        "--json",
+        str(path),
+    ]
     assert main(argv) == 0
     captured = capsys.readouterr()
     record = json.loads(path.read_text())

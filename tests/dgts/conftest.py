@@ -8,7 +8,9 @@ import pytest
 from jmeshtex.data import icosahedron, icosphere
 from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes
 
-TINY = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
+TINY = Config(
+    num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2
+)
 #: the key the tiny model is trained with
 TINY_KEY = 3
 
@@ -16,8 +18,13 @@ TINY_KEY = 3
 @pytest.fixture(scope="session")
 def tiny_meshes():
     """Two levels (20 → 80 faces) of an icosahedron fitted to an icosphere (few steps)."""
-    return training_meshes(icosphere(2), icosahedron(), config=PrepareConfig(levels=2, steps=20, samples_per_level=200),
-                           key=jax.random.key(0), progress=False)
+    return training_meshes(
+        icosphere(2),
+        icosahedron(),
+        config=PrepareConfig(levels=2, steps=20, samples_per_level=200),
+        key=jax.random.key(0),
+        progress=False,
+    )
 
 
 @pytest.fixture(scope="session")

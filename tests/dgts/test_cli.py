@@ -16,13 +16,61 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
     # same settings as the tiny fixtures (conftest), so the compiled steps are reused
     monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")  # no persistent cache written by the tests
     d = tmp_path / "dgts"
-    assert main(["dgts", "prepare", "--reference", "icosphere:2", "--template", "icosahedron", "--levels", "2",
-                 "--steps", "20", "--samples", "200", "--out", str(d), "--quiet"]) == 0
-    for name in ("training.npz", "reference.obj", "level_00.obj", "level_01.obj", "levels.png", "prepare.json"):
+    assert (
+        main(
+            [
+                "dgts",
+                "prepare",
+                "--reference",
+                "icosphere:2",
+                "--template",
+                "icosahedron",
+                "--levels",
+                "2",
+                "--steps",
+                "20",
+                "--samples",
+                "200",
+                "--out",
+                str(d),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+    for name in (
+        "training.npz",
+        "reference.obj",
+        "level_00.obj",
+        "level_01.obj",
+        "levels.png",
+        "prepare.json",
+    ):
         assert (d / name).exists(), name
     assert load_mesh(d / "level_01.obj").num_faces == 80
-    assert main(["dgts", "train", str(d), "--steps", "2", "--layers", "3", "--features", "4", "4", "4", "--seed", "3",
-                 "--shared-levels", "2", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "dgts",
+                "train",
+                str(d),
+                "--steps",
+                "2",
+                "--layers",
+                "3",
+                "--features",
+                "4",
+                "4",
+                "4",
+                "--seed",
+                "3",
+                "--shared-levels",
+                "2",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert (d / "sample.png").exists() and (d / "checkpoints").is_dir()
     model = load(d / "model")
     assert model.num_levels == 2 and model.config == TINY
@@ -30,25 +78,118 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
     for a, b in zip(jax.tree.leaves(model), jax.tree.leaves(tiny_model), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert "resumed" not in capsys.readouterr().out
-    assert main(["dgts", "train", str(d), "--steps", "2", "--layers", "3", "--features", "4", "4", "4", "--seed", "3",
-                 "--shared-levels", "2", "--quiet"]) == 0
-    assert "resumed from checkpoint step 4" in capsys.readouterr().out  # a second run resumes, nothing to do
+    assert (
+        main(
+            [
+                "dgts",
+                "train",
+                str(d),
+                "--steps",
+                "2",
+                "--layers",
+                "3",
+                "--features",
+                "4",
+                "4",
+                "4",
+                "--seed",
+                "3",
+                "--shared-levels",
+                "2",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+    assert (
+        "resumed from checkpoint step 4" in capsys.readouterr().out
+    )  # a second run resumes, nothing to do
     out = tmp_path / "out"
-    assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--samples", "2",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "dgts",
+                "transfer",
+                "--model",
+                str(d),
+                "--target",
+                "torus:8:6",
+                "--samples",
+                "2",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     m = load_mesh(out / "sample_01.obj")
     assert m.num_faces == 4 * 96 and np.isfinite(m.vertices).all()
-    assert "start level 0 (chosen for --max-faces 500000): 96 target faces -> 384" in capsys.readouterr().out
-    assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--max-faces", "383",
-                 "--zero-noise-from", "0", "--out", str(tmp_path / "budget")]) == 0
-    assert "start level 1 (chosen for --max-faces 383): 96 target faces -> 96" in capsys.readouterr().out
-    assert main(["dgts", "transfer", "--model", str(d), "--target", "torus:8:6", "--max-faces", "95",
-                 "--out", str(tmp_path / "budget")]) == 2
+    assert (
+        "start level 0 (chosen for --max-faces 500000): 96 target faces -> 384"
+        in capsys.readouterr().out
+    )
+    assert (
+        main(
+            [
+                "dgts",
+                "transfer",
+                "--model",
+                str(d),
+                "--target",
+                "torus:8:6",
+                "--max-faces",
+                "383",
+                "--zero-noise-from",
+                "0",
+                "--out",
+                str(tmp_path / "budget"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        "start level 1 (chosen for --max-faces 383): 96 target faces -> 96"
+        in capsys.readouterr().out
+    )
+    assert (
+        main(
+            [
+                "dgts",
+                "transfer",
+                "--model",
+                str(d),
+                "--target",
+                "torus:8:6",
+                "--max-faces",
+                "95",
+                "--out",
+                str(tmp_path / "budget"),
+            ]
+        )
+        == 2
+    )
     assert "max_faces=95" in capsys.readouterr().err
     img = matplotlib.image.imread(out / "transfer.png")
     assert (img[..., :3] < 0.9).any(axis=2).mean() > 0.05  # something was drawn
-    assert main(["dgts", "interpolate", "--model", str(d / "model"), "--target", "grid:4", "--frames", "3",
-                 "--start-level", "1", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "dgts",
+                "interpolate",
+                "--model",
+                str(d / "model"),
+                "--target",
+                "grid:4",
+                "--frames",
+                "3",
+                "--start-level",
+                "1",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert (out / "frame_02.obj").exists() and (out / "interpolate.png").exists()
     assert "wrote" in capsys.readouterr().out
 
@@ -64,7 +205,10 @@ def test_compilation_cache_folder(tmp_path, monkeypatch):
 
     before = jax.config.jax_compilation_cache_dir
     try:
-        assert compilation_cache() == tmp_path / "jmeshtex" / "jax" and (tmp_path / "jmeshtex" / "jax").is_dir()
+        assert (
+            compilation_cache() == tmp_path / "jmeshtex" / "jax"
+            and (tmp_path / "jmeshtex" / "jax").is_dir()
+        )
         assert jax.config.jax_compilation_cache_dir == str(tmp_path / "jmeshtex" / "jax")
     finally:
         jax.config.update("jax_compilation_cache_dir", before)
@@ -72,7 +216,21 @@ def test_compilation_cache_folder(tmp_path, monkeypatch):
 
 def test_errors_are_one_line_with_status_2(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")
-    assert main(["dgts", "transfer", "--model", str(tmp_path), "--target", "torus", "--out", str(tmp_path)]) == 2
+    assert (
+        main(
+            [
+                "dgts",
+                "transfer",
+                "--model",
+                str(tmp_path),
+                "--target",
+                "torus",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 2
+    )
     assert "holds no DGTS model" in capsys.readouterr().err
     assert main(["dgts", "prepare", "--reference", "no-such-mesh.obj", "--out", str(tmp_path)]) == 2
     assert "neither a mesh file" in capsys.readouterr().err

@@ -19,8 +19,19 @@ def test_width_schedule_matches_the_reference_code():
 
 def test_paper_defaults():
     c = Config()
-    assert (c.learning_rate, c.beta1, c.beta2, c.reconstruction_weight, c.penalty_weight) == (5e-4, 0.5, 0.99, 5.0, 0.1)
-    assert (c.discriminator_steps, c.generator_steps, c.learning_rate_decay, c.learning_rate_decay_every) == (2, 3, 0.5, 500)
+    assert (c.learning_rate, c.beta1, c.beta2, c.reconstruction_weight, c.penalty_weight) == (
+        5e-4,
+        0.5,
+        0.99,
+        5.0,
+        0.1,
+    )
+    assert (
+        c.discriminator_steps,
+        c.generator_steps,
+        c.learning_rate_decay,
+        c.learning_rate_decay_every,
+    ) == (2, 3, 0.5, 500)
     assert c.steps == 2000
 
 
@@ -34,7 +45,12 @@ def test_json_round_trip(cls):
 def test_shared_field_names_and_no_seed(cls):
     names = set(cls().to_dict())
     assert {"steps", "learning_rate"} <= names
-    assert not names & {"seed", "iterations", "lr", "num_levels"}  # randomness is the functions' key=
+    assert not names & {
+        "seed",
+        "iterations",
+        "lr",
+        "num_levels",
+    }  # randomness is the functions' key=
 
 
 @pytest.mark.parametrize(

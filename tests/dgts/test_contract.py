@@ -17,8 +17,13 @@ from tests.dgts.conftest import TINY
 def meshes():
     reference, template = icosphere(2), icosahedron()
     assert isinstance(reference, Mesh) and isinstance(template, Mesh)  # Mesh in, not (V, F)
-    return dgts.training_meshes(reference, template, config=dgts.PrepareConfig(levels=2, steps=20, samples_per_level=200),
-                                key=jax.random.key(0), progress=False)
+    return dgts.training_meshes(
+        reference,
+        template,
+        config=dgts.PrepareConfig(levels=2, steps=20, samples_per_level=200),
+        key=jax.random.key(0),
+        progress=False,
+    )
 
 
 def _leaves(tree):
@@ -57,7 +62,9 @@ def test_the_same_key_gives_the_same_result_and_another_key_another(meshes):
     c = dgts.train(meshes, TINY, key=jax.random.key(2), progress=False)
     for x, y in zip(_leaves(a.model), _leaves(b.model), strict=True):
         np.testing.assert_array_equal(x, y)
-    assert any(not np.array_equal(x, y) for x, y in zip(_leaves(a.model), _leaves(c.model), strict=True))
+    assert any(
+        not np.array_equal(x, y) for x, y in zip(_leaves(a.model), _leaves(c.model), strict=True)
+    )
     target = torus(8, 6)
     t1 = dgts.transfer(a.model, target, key=jax.random.key(3))
     t2 = dgts.transfer(a.model, target, key=jax.random.key(3))
@@ -72,8 +79,15 @@ def test_the_same_key_gives_the_same_result_and_another_key_another(meshes):
 def test_no_seed_argument_and_key_is_keyword_only():
     import inspect
 
-    for fn in (dgts.training_meshes, dgts.train, dgts.transfer, dgts.interpolate, dgts.fit_level,
-               dgts.sample_points, dgts.init_level):
+    for fn in (
+        dgts.training_meshes,
+        dgts.train,
+        dgts.transfer,
+        dgts.interpolate,
+        dgts.fit_level,
+        dgts.sample_points,
+        dgts.init_level,
+    ):
         params = inspect.signature(fn).parameters
         assert "seed" not in params, fn.__name__
         assert params["key"].kind is inspect.Parameter.KEYWORD_ONLY, fn.__name__

@@ -29,8 +29,15 @@ def _world_frame_generator(state, params, points):
 
 def test_a_world_frame_generator_is_flagged():
     gen = _equivariance.ENTRIES[0]
-    bad = Entry("dgts.negative.world_frame", _world_frame_generator, gen.inputs, gen.transforms,
-                init=gen.init, expect_fail=("rigid",), group="negative")
+    bad = Entry(
+        "dgts.negative.world_frame",
+        _world_frame_generator,
+        gen.inputs,
+        gen.transforms,
+        init=gen.init,
+        expect_fail=("rigid",),
+        group="negative",
+    )
     result = check(bad, "rigid")
     assert result.expect_fail and result.passed  # the error is above the bound
     assert result.error > 1e-3

@@ -29,7 +29,12 @@ def test_start_level_follows_the_face_budget(tiny_model):
         transfer(tiny_model, target, max_faces=95, key=jax.random.key(0))
     with pytest.raises(FaceBudgetError, match="start_level=0"):
         transfer(tiny_model, target, start_level=0, max_faces=383, key=jax.random.key(0))
-    assert len(transfer(tiny_model, target, start_level=0, max_faces=None, key=jax.random.key(0)).faces) == 384
+    assert (
+        len(
+            transfer(tiny_model, target, start_level=0, max_faces=None, key=jax.random.key(0)).faces
+        )
+        == 384
+    )
 
 
 def test_zero_noise_from_the_start_level_is_deterministic(tiny_model):
@@ -55,13 +60,21 @@ def test_per_level_output_grows_and_ends_in_the_result(tiny_model):
         assert abs(np.linalg.norm(v[0], axis=1).mean() - 1.0) < 0.3
 
 
-def test_conditional_generation_reproduces_the_reconstruction_below_its_level(tiny_model, tiny_meshes):
+def test_conditional_generation_reproduces_the_reconstruction_below_its_level(
+    tiny_model, tiny_meshes
+):
     template = Mesh(tiny_meshes.template, tiny_meshes.faces[0])
     rec = reconstruct(tiny_model, template)
-    cond = conditional(tiny_model, template, level=1, num_samples=2, per_level=True, key=jax.random.key(5))
+    cond = conditional(
+        tiny_model, template, level=1, num_samples=2, per_level=True, key=jax.random.key(5)
+    )
     for s in range(2):
-        np.testing.assert_allclose(cond.level_vertices[0][s], rec.level_vertices[0][0], rtol=0, atol=1e-6)
-    assert not np.allclose(cond.level_vertices[1][0], cond.level_vertices[1][1])  # fresh noise at level 1
+        np.testing.assert_allclose(
+            cond.level_vertices[0][s], rec.level_vertices[0][0], rtol=0, atol=1e-6
+        )
+    assert not np.allclose(
+        cond.level_vertices[1][0], cond.level_vertices[1][1]
+    )  # fresh noise at level 1
     full = conditional(tiny_model, template, level=tiny_model.num_levels, key=jax.random.key(9))
     np.testing.assert_allclose(full.vertices, rec.vertices, rtol=0, atol=1e-9)
     with pytest.raises(Exception, match="z\\*"):
@@ -72,12 +85,19 @@ def test_training_snapshots_match_the_reconstruction(tiny_meshes):
     from jmeshtex.dgts import train
     from tests.dgts.conftest import TINY, TINY_KEY
 
-    result = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), progress=False, snapshot_every=1)
+    result = train(
+        tiny_meshes, TINY, key=jax.random.key(TINY_KEY), progress=False, snapshot_every=1
+    )
     snaps = result.extra["snapshots"]
-    assert [(s["level"], s["step"]) for s in snaps] == [(0, 2), (1, 2)]  # rounded up to a chunk: once per level
+    assert [(s["level"], s["step"]) for s in snaps] == [
+        (0, 2),
+        (1, 2),
+    ]  # rounded up to a chunk: once per level
     assert [s["sample"].shape for s in snaps] == [(12, 3), (42, 3)]
     rec = reconstruct(result.model, Mesh(tiny_meshes.template, tiny_meshes.faces[0]))
     scale = TINY.scale_factor  # level 1's frame is the template's times 2
-    np.testing.assert_allclose(snaps[1]["reconstruction"], scale * rec.level_vertices[1][0], rtol=0, atol=1e-4)
+    np.testing.assert_allclose(
+        snaps[1]["reconstruction"], scale * rec.level_vertices[1][0], rtol=0, atol=1e-4
+    )
     with pytest.raises(Exception, match="snapshot_every"):
         train(tiny_meshes, TINY, key=jax.random.key(0), progress=False, snapshot_every=0)

@@ -20,8 +20,13 @@ from jmeshtex.dgts import normal_heights, train, training_meshes, transfer
 
 def test_trained_texture_is_closer_to_the_reference_than_untrained_or_noise():
     prep, cfg = tiny_configs(quick=True)
-    tm = training_meshes(bumpy_sphere(subdivisions=3), icosphere(1), config=prep, key=jax.random.key(0),
-                         progress=False)
+    tm = training_meshes(
+        bumpy_sphere(subdivisions=3),
+        icosphere(1),
+        config=prep,
+        key=jax.random.key(0),
+        progress=False,
+    )
     trained = train(tm, cfg, key=jax.random.key(0), progress=False).model
     untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
     h_ref = normal_heights(tm.mesh(-1))
@@ -34,7 +39,9 @@ def test_trained_texture_is_closer_to_the_reference_than_untrained_or_noise():
     noisy = [res.base + rng.standard_normal(res.base.shape) * h_ref.std() * edge for _ in range(2)]
 
     def w1(meshes):
-        return float(np.mean([wasserstein_distance(h_ref, normal_heights((v, res.faces))) for v in meshes]))
+        return float(
+            np.mean([wasserstein_distance(h_ref, normal_heights((v, res.faces))) for v in meshes])
+        )
 
     w_trained, w_untrained, w_noise = w1(res.vertices), w1(res_u.vertices), w1(noisy)
     print(f"W1 trained {w_trained:.4f}, untrained {w_untrained:.4f}, noise {w_noise:.4f}")
@@ -58,7 +65,9 @@ def test_trained_texture_has_the_reference_peak_spacing_and_reconstructs_level_1
     from jmeshtex.dgts import peak_statistics, reconstruction_errors
 
     prep, cfg = tiny_configs(quick=True)
-    ref = textured_sphere("knobs", subdivisions=4, period=0.6)  # ~4 edges per period at the finest level
+    ref = textured_sphere(
+        "knobs", subdivisions=4, period=0.6
+    )  # ~4 edges per period at the finest level
     tm = training_meshes(ref, icosphere(2), config=prep, key=jax.random.key(0), progress=False)
     trained = train(tm, cfg, key=jax.random.key(0), progress=False).model
     untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
@@ -72,9 +81,15 @@ def test_trained_texture_has_the_reference_peak_spacing_and_reconstructs_level_1
     def gap(mesh):
         return abs(peak_statistics(mesh, threshold=reference.threshold).spacing - reference.spacing)
 
-    g_trained, g_zero, g_noise = gap(res.mesh(0)), gap((res.base, res.faces)), gap((noisy, res.faces))
-    print(f"peak-spacing gap: trained {g_trained:.2f}, zero {g_zero:.2f}, noise {g_noise:.2f} "
-          f"(reference spacing {reference.spacing:.2f})")
+    g_trained, g_zero, g_noise = (
+        gap(res.mesh(0)),
+        gap((res.base, res.faces)),
+        gap((noisy, res.faces)),
+    )
+    print(
+        f"peak-spacing gap: trained {g_trained:.2f}, zero {g_zero:.2f}, noise {g_noise:.2f} "
+        f"(reference spacing {reference.spacing:.2f})"
+    )
     assert g_trained < g_zero and g_trained < g_noise
     rec, rec_u = reconstruction_errors(trained, tm)[1], reconstruction_errors(untrained, tm)[1]
     print(f"level-1 reconstruction error: trained {rec:.3f}, untrained {rec_u:.3f}")

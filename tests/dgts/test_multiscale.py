@@ -52,7 +52,9 @@ def test_normalize_pair_gives_unit_template_edges_and_maps_reference_consistentl
     r, t, s, c = normalize_pair(rv, tv, tf)
     assert mean_edge_length(t, tf) == pytest.approx(1.0, abs=1e-12)
     np.testing.assert_allclose(r, (rv - c) * s, atol=1e-12)
-    np.testing.assert_allclose(r.max(0) - r.min(0), (t.max(0) - t.min(0)).max(), rtol=1e-12)  # both unit-cube fitted
+    np.testing.assert_allclose(
+        r.max(0) - r.min(0), (t.max(0) - t.min(0)).max(), rtol=1e-12
+    )  # both unit-cube fitted
 
 
 def test_fit_level_pulls_a_small_sphere_onto_a_large_one():
@@ -64,7 +66,15 @@ def test_fit_level_pulls_a_small_sphere_onto_a_large_one():
     after = np.abs(np.linalg.norm(out, axis=1) - 1).mean()
     assert before == pytest.approx(0.4)
     assert after < 0.15 * before  # residual: the Laplacian term pulls inwards, samples are discrete
-    assert set(terms) == {"s2t", "t2s", "normal_s2t", "normal_t2s", "edge_std", "edge_local", "laplacian"}
+    assert set(terms) == {
+        "s2t",
+        "t2s",
+        "normal_s2t",
+        "normal_t2s",
+        "edge_std",
+        "edge_local",
+        "laplacian",
+    }
 
 
 def test_training_meshes_structure(tiny_meshes):
@@ -75,7 +85,9 @@ def test_training_meshes_structure(tiny_meshes):
     np.testing.assert_array_equal(sub.edge_vertices, tm.edge_vertices[0])
     assert tm.scales[1] / tm.scales[0] == pytest.approx(2.0)
     assert mean_edge_length(tm.template, tm.faces[0]) == pytest.approx(1.0)
-    for v, f in zip(tm.vertices, tm.faces, strict=True):  # every level keeps a mean edge near 1 in its frame
+    for v, f in zip(
+        tm.vertices, tm.faces, strict=True
+    ):  # every level keeps a mean edge near 1 in its frame
         assert 0.7 < mean_edge_length(v, f) < 1.3
 
 
@@ -84,17 +96,27 @@ def test_training_meshes_take_a_mesh_or_a_pair_and_follow_their_key(tiny_meshes)
     reference, template = icosphere(2), icosahedron()
     assert isinstance(reference, Mesh) and isinstance(template, Mesh)
     calls = []
-    from_mesh = training_meshes(reference, template, config=cfg, key=jax.random.key(0),
-                                progress=lambda *a: calls.append(a))
-    from_pair = training_meshes((reference.vertices, reference.faces), (template.vertices, template.faces),
-                                config=cfg, key=jax.random.key(0), progress=False)
-    other_key = training_meshes(reference, template, config=cfg, key=jax.random.key(1), progress=False)
+    from_mesh = training_meshes(
+        reference, template, config=cfg, key=jax.random.key(0), progress=lambda *a: calls.append(a)
+    )
+    from_pair = training_meshes(
+        (reference.vertices, reference.faces),
+        (template.vertices, template.faces),
+        config=cfg,
+        key=jax.random.key(0),
+        progress=False,
+    )
+    other_key = training_meshes(
+        reference, template, config=cfg, key=jax.random.key(1), progress=False
+    )
     for level in range(2):
         np.testing.assert_array_equal(from_mesh.vertices[level], from_pair.vertices[level])
         np.testing.assert_array_equal(from_mesh.vertices[level], tiny_meshes.vertices[level])
         assert isinstance(from_mesh.mesh(level), Mesh)
         np.testing.assert_array_equal(from_mesh.mesh(level).faces, from_mesh.faces[level])
-    assert not np.allclose(other_key.vertices[1], from_mesh.vertices[1])  # the key drives the sampling
+    assert not np.allclose(
+        other_key.vertices[1], from_mesh.vertices[1]
+    )  # the key drives the sampling
     assert calls[-1] == ("level 1", 20, 20) and ("level 0", 20, 20) in calls
 
 
@@ -102,7 +124,9 @@ def test_save_load_round_trip(tmp_path, tiny_meshes):
     path = save_training_meshes(tiny_meshes, tmp_path / "t.npz")
     back = load_training_meshes(path)
     for a, b in zip(back, tiny_meshes, strict=True):
-        for x, y in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,), strict=True):
+        for x, y in zip(
+            a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,), strict=True
+        ):
             np.testing.assert_array_equal(x, y)
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left over
 
@@ -112,7 +136,12 @@ def test_errors(tmp_path):
         load_training_meshes(tmp_path / "missing.npz")
     v, f = icosahedron()
     with pytest.raises(MeshError):
-        training_meshes((v, f), (v, np.concatenate([f, f[:1]])), config=PrepareConfig(levels=1, steps=0),
-                        key=jax.random.key(0), progress=False)
+        training_meshes(
+            (v, f),
+            (v, np.concatenate([f, f[:1]])),
+            config=PrepareConfig(levels=1, steps=0),
+            key=jax.random.key(0),
+            progress=False,
+        )
     with pytest.raises(InputError, match="reference"):
         training_meshes(v, (v, f), config=PrepareConfig(levels=1, steps=0), key=jax.random.key(0))

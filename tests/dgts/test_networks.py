@@ -27,13 +27,17 @@ from jmeshtex.ops import FaceConvParams, face_features, init_face_conv_stack
 def _constant_output(params, b):
     """Replace the last layer by weight 0 and bias b: every face emits b."""
     last = params.convs[-1]
-    convs = params.convs[:-1] + (FaceConvParams(jnp.zeros_like(last.weight), jnp.asarray(b, last.bias.dtype)),)
+    convs = params.convs[:-1] + (
+        FaceConvParams(jnp.zeros_like(last.weight), jnp.asarray(b, last.bias.dtype)),
+    )
     return params._replace(convs=convs)
 
 
 def test_constant_normal_coefficient_moves_a_flat_sheet_along_its_normal():
     v, f = grid(4)
-    p = _constant_output(init_face_conv_stack(jax.random.key(0), (8, 8, 3), dtype=jnp.float64), [0.0, 0.0, 0.25])
+    p = _constant_output(
+        init_face_conv_stack(jax.random.key(0), (8, 8, 3), dtype=jnp.float64), [0.0, 0.0, 0.25]
+    )
     d = generator_level(p, jnp.asarray(v), face_neighborhood(f), jnp.ones((len(v), 3)) * 0.3)
     np.testing.assert_allclose(np.asarray(d), np.tile([0.0, 0.0, 0.25], (len(v), 1)), atol=1e-14)
 
@@ -47,7 +51,9 @@ def test_noise_changes_features_not_the_frames():
     p = init_face_conv_stack(jax.random.key(0), (8, 8, 3), dtype=jnp.float64)
     assert not np.allclose(generator_level(p, x, nb, z), generator_level(p, x, nb))
     pc = _constant_output(p, [0.1, 0.2, 0.3])
-    np.testing.assert_allclose(generator_level(pc, x, nb, z), generator_level(pc, x, nb), atol=1e-14)
+    np.testing.assert_allclose(
+        generator_level(pc, x, nb, z), generator_level(pc, x, nb), atol=1e-14
+    )
 
 
 def test_upsample_matches_subdivide_midpoint():
@@ -77,7 +83,9 @@ def test_hierarchy_geometry_and_generate_shapes():
 def test_gradient_penalty_of_a_linear_critic_is_exact():
     """One embedding layer: D_f = max_k w·φ_fk + b, so ∇_φf Σ D = w at the arg-max edge: (|w| − 1)²."""
     v, f = icosahedron()
-    v = v + 0.05 * np.random.default_rng(0).standard_normal(v.shape)  # no ties in the max over edges
+    v = v + 0.05 * np.random.default_rng(0).standard_normal(
+        v.shape
+    )  # no ties in the max over edges
     nb = face_neighborhood(f)
     w = jnp.array([[0.3], [-0.4], [1.2], [0.5]])
     from jmeshtex.ops import FaceConvStackParams, FaceEmbedParams
@@ -91,12 +99,16 @@ def test_gradient_penalty_of_a_linear_critic_is_exact():
 def test_init_level_widths_and_flax_wrappers_agree():
     c = Config(num_layers=4, start_features=8, min_features=4, max_features=16)
     g = init_level(c, 1, generator=True, key=jax.random.key(0))
-    assert [g.embed.weight.shape[1]] + [x.weight.shape[1] for x in g.convs] == list(c.level_features(1, generator=True))
+    assert [g.embed.weight.shape[1]] + [x.weight.shape[1] for x in g.convs] == list(
+        c.level_features(1, generator=True)
+    )
     v, f = icosahedron()
     nb, x = face_neighborhood(f), jnp.asarray(v, jnp.float32)
     gm = Generator(c.level_features(1, generator=True))
     variables = gm.init(jax.random.key(0), x, nb)
-    np.testing.assert_allclose(gm.apply(variables, x, nb), generator_level(variables["params"]["stack"], x, nb))
+    np.testing.assert_allclose(
+        gm.apply(variables, x, nb), generator_level(variables["params"]["stack"], x, nb)
+    )
     dm = Discriminator(c.level_features(1, generator=False))
     dv = dm.init(jax.random.key(0), x, nb)
     np.testing.assert_allclose(dm.apply(dv, x, nb), discriminator(dv["params"]["stack"], x, nb))

@@ -62,7 +62,9 @@ def test_face_features_and_adjacency_match_the_official_ones(official):
     _, d = official
     nb = to_jax(face_neighborhood(d["faces"], len(d["vertices"])))
     np.testing.assert_array_equal(np.asarray(nb.neighbors).T, d["gfmm"])
-    ours = np.asarray(face_features(jnp.asarray(d["vertices"] + d["noise"]), nb))  # [F, 3, (len, x, y, z)]
+    ours = np.asarray(
+        face_features(jnp.asarray(d["vertices"] + d["noise"]), nb)
+    )  # [F, 3, (len, x, y, z)]
     off = d["features"][0].reshape(3, 4, -1).transpose(2, 0, 1)  # [F, 3, (x, y, z, len)], y = x × n
     converted = np.stack([ours[..., 1], -ours[..., 2], ours[..., 3], ours[..., 0]], -1)
     assert _rel(converted, off) < RTOL
@@ -76,10 +78,16 @@ def test_converted_level_reproduces_the_official_stack_and_forward_level(officia
     v = jnp.asarray(d["vertices"], jnp.float32)
     z = jnp.asarray(d["noise"], jnp.float32)
     nb = to_jax(face_neighborhood(d["faces"], len(v)))
-    stack = np.asarray(face_conv_stack(face_features(v + z, nb), nb, params))  # the official (c_x, c_y, c_z)
+    stack = np.asarray(
+        face_conv_stack(face_features(v + z, nb), nb, params)
+    )  # the official (c_x, c_y, c_z)
     assert _rel(stack, d["stack_out"][0].T) < RTOL
-    moved = np.asarray(v + generator_level(params, v, nb, z, y_sign=Config(official_axes=True).y_sign))
-    assert _rel(moved - d["vertices"], d["level_vs"] - d["vertices"]) < RTOL  # the displacement itself
+    moved = np.asarray(
+        v + generator_level(params, v, nb, z, y_sign=Config(official_axes=True).y_sign)
+    )
+    assert (
+        _rel(moved - d["vertices"], d["level_vs"] - d["vertices"]) < RTOL
+    )  # the displacement itself
     assert _rel(moved, d["level_vs"]) < RTOL
 
 
@@ -89,7 +97,9 @@ def test_load_official_runs_the_official_level_through_a_model(official, tmp_pat
     # a model needs levels 0 … L−1: put the official level 4 at every level of a 5-level model whose
     # widths all equal level 4's (128 → 64 → 32 …), then check that the weights survive the round trip
     cfg = Config(start_features=128, min_features=32, max_features=128, official_axes=True)
-    state = {k.replace("levels.4.", f"levels.{lv}."): v for lv in range(5) for k, v in level4.items()}
+    state = {
+        k.replace("levels.4.", f"levels.{lv}."): v for lv in range(5) for k, v in level4.items()
+    }
     file = tmp_path / "official.npz"
     np.savez(file, **state)
     model = load_official(file, config=cfg)
@@ -101,7 +111,12 @@ def test_load_official_runs_the_official_level_through_a_model(official, tmp_pat
     v = jnp.asarray(d["vertices"], jnp.float32)
     nb = to_jax(face_neighborhood(d["faces"], len(v)))
     assert model.config.official_axes
-    moved = np.asarray(v + generator_level(model.generators[2], v, nb, jnp.asarray(d["noise"]), y_sign=model.config.y_sign))
+    moved = np.asarray(
+        v
+        + generator_level(
+            model.generators[2], v, nb, jnp.asarray(d["noise"]), y_sign=model.config.y_sign
+        )
+    )
     assert _rel(moved, d["level_vs"]) < RTOL
     # and through the whole transfer path: one level run on the parity mesh itself
     from jmeshtex import Mesh

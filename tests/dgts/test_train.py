@@ -45,22 +45,40 @@ def test_levels_train_and_earlier_generators_stay_frozen(tiny_meshes, tiny_model
     level0_only = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), levels=1, progress=False)
     assert [r.level for r in level0_only.extra["levels"]] == [0]
     # level 1 training must not touch generator 0 (stop_gradient + separate optimiser)
-    for a, b in zip(_leaves(level0_only.model.generators[0]), _leaves(tiny_model.generators[0]), strict=True):
+    for a, b in zip(
+        _leaves(level0_only.model.generators[0]), _leaves(tiny_model.generators[0]), strict=True
+    ):
         np.testing.assert_array_equal(a, b)
     # equal widths: level 1 starts from level 0's weights and moves away from them
     assert TINY.level_features(1, generator=True) == TINY.level_features(0, generator=True)
-    moved = [np.abs(a - b).max() for a, b in zip(_leaves(tiny_model.generators[1]), _leaves(tiny_model.generators[0]), strict=True)]
+    moved = [
+        np.abs(a - b).max()
+        for a, b in zip(
+            _leaves(tiny_model.generators[1]), _leaves(tiny_model.generators[0]), strict=True
+        )
+    ]
     assert 0 < max(moved) < 0.1  # two small Adam steps away from the warm start
     assert all(np.isfinite(x).all() for x in _leaves(tiny_model.generators))
 
 
 def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, tiny_result):
     out = tmp_path / "run"
-    first = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, levels=1, progress=False)
+    first = train(
+        tiny_meshes,
+        TINY,
+        key=jax.random.key(TINY_KEY),
+        checkpoint_dir=out,
+        levels=1,
+        progress=False,
+    )
     assert Checkpoints(out).steps() == [TINY.steps]  # one level done
-    resumed = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, progress=False)
+    resumed = train(
+        tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, progress=False
+    )
     assert first.resumed_from is None and resumed.resumed_from == TINY.steps
-    assert [r.level for r in first.extra["levels"]] == [0] and [r.level for r in resumed.extra["levels"]] == [0, 1]
+    assert [r.level for r in first.extra["levels"]] == [0] and [
+        r.level for r in resumed.extra["levels"]
+    ] == [0, 1]
     _assert_same_model(resumed.model, tiny_result.model)
     np.testing.assert_array_equal(resumed.model.z_star, tiny_result.model.z_star)
     for name in LOSS_NAMES:
@@ -78,11 +96,21 @@ def test_resume_within_a_level_is_exact(tmp_path, tiny_meshes):
     key = jax.random.key(7)
     whole = train(tiny_meshes, cfg, key=key, progress=False)
     out = tmp_path / "run"
-    train(tiny_meshes, cfg, key=key, checkpoint_dir=out, checkpoint_every=CHUNK, levels=1, progress=False)
+    train(
+        tiny_meshes,
+        cfg,
+        key=key,
+        checkpoint_dir=out,
+        checkpoint_every=CHUNK,
+        levels=1,
+        progress=False,
+    )
     # keep only the mid-level checkpoint of level 0 (step 2·CHUNK), as if the run had stopped there
     assert Checkpoints(out).steps() == [2 * CHUNK, 3 * CHUNK]
     shutil.rmtree(out / str(3 * CHUNK))
-    resumed = train(tiny_meshes, cfg, key=key, checkpoint_dir=out, checkpoint_every=CHUNK, progress=False)
+    resumed = train(
+        tiny_meshes, cfg, key=key, checkpoint_dir=out, checkpoint_every=CHUNK, progress=False
+    )
     assert resumed.resumed_from == 2 * CHUNK
     _assert_same_model(resumed.model, whole.model)
     for name in LOSS_NAMES:
@@ -91,12 +119,26 @@ def test_resume_within_a_level_is_exact(tmp_path, tiny_meshes):
 
 def test_resume_with_another_config_or_key_is_refused(tmp_path, tiny_meshes):
     out = tmp_path / "run"
-    train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, levels=1, progress=False)
+    train(
+        tiny_meshes,
+        TINY,
+        key=jax.random.key(TINY_KEY),
+        checkpoint_dir=out,
+        levels=1,
+        progress=False,
+    )
     with pytest.raises(CheckpointMismatchError, match="config"):
-        train(tiny_meshes, TINY.replace(learning_rate=1e-3), key=jax.random.key(TINY_KEY), checkpoint_dir=out,
-              progress=False)
+        train(
+            tiny_meshes,
+            TINY.replace(learning_rate=1e-3),
+            key=jax.random.key(TINY_KEY),
+            checkpoint_dir=out,
+            progress=False,
+        )
     with pytest.raises(CheckpointMismatchError, match="key"):
-        train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY + 1), checkpoint_dir=out, progress=False)
+        train(
+            tiny_meshes, TINY, key=jax.random.key(TINY_KEY + 1), checkpoint_dir=out, progress=False
+        )
 
 
 def test_save_load_round_trip(tmp_path, tiny_model):
@@ -111,7 +153,14 @@ def test_save_load_round_trip(tmp_path, tiny_model):
 def test_errors(tmp_path, tiny_meshes):
     with pytest.raises(MeshIOError, match="holds no DGTS model"):
         load(tmp_path)
-    train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=tmp_path / "ckpt", levels=1, progress=False)
+    train(
+        tiny_meshes,
+        TINY,
+        key=jax.random.key(TINY_KEY),
+        checkpoint_dir=tmp_path / "ckpt",
+        levels=1,
+        progress=False,
+    )
     with pytest.raises(MeshIOError, match="not a DGTS model"):
         load(tmp_path / "ckpt")  # a training checkpoint folder is not a model folder
     with pytest.raises(ConfigError, match="levels"):
@@ -124,7 +173,9 @@ def test_padded_levels_share_one_compiled_step(tiny_model):
     """TINY pads level 0 to level 1's size (shared_levels=2): both levels run one compiled step."""
     from jmeshtex.dgts import _train
 
-    steps = [k for k in _train._COMPILED if k[0] is _train.train_chunk and dict(k[1])["config"] == TINY]
+    steps = [
+        k for k in _train._COMPILED if k[0] is _train.train_chunk and dict(k[1])["config"] == TINY
+    ]
     assert len(steps) == 1
     assert tiny_model.num_levels == 2
 
@@ -140,7 +191,10 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
     geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 1)
     g = init_level(cfg, 0, generator=True, key=jax.random.key(0), dtype=jnp.float64)
     d = init_level(cfg, 0, generator=False, key=jax.random.key(1), dtype=jnp.float64)
-    opt = _Opt(_optimizer(cfg, cfg.generator_steps).init(g), _optimizer(cfg, cfg.discriminator_steps).init(d))
+    opt = _Opt(
+        _optimizer(cfg, cfg.generator_steps).init(g),
+        _optimizer(cfg, cfg.discriminator_steps).init(d),
+    )
     template = jnp.asarray(tiny_meshes.template)
     real = jnp.asarray(tiny_meshes.vertices[0])
     batch = level_batch((), geos, template, 0.1 * template, jax.random.key(2), config=cfg, chunk=1)
@@ -150,8 +204,9 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
     padded = train_chunk(g, d, opt, *pad_level(nb, real, batch, size), jnp.int32(1), config=cfg)
     assert set(plain[3]) == set(LOSS_NAMES)
     for k in plain[3]:
-        np.testing.assert_allclose(np.asarray(padded[3][k]), np.asarray(plain[3][k]), rtol=1e-10, atol=1e-12,
-                                   err_msg=k)
+        np.testing.assert_allclose(
+            np.asarray(padded[3][k]), np.asarray(plain[3][k]), rtol=1e-10, atol=1e-12, err_msg=k
+        )
     for a, b in zip(_leaves(plain[:2]), _leaves(padded[:2]), strict=True):
         # Adam divides by |g| + 1e-8: gradient entries near 1e-8 turn float64 rounding (other summation
         # order) into parameter differences of a few 1e-9 (lr 5e-4); the losses above agree to 1e-10

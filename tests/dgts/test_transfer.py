@@ -26,11 +26,15 @@ def test_transfer_any_topology(tiny_model, mesh, key):
     res = transfer(tiny_model, Mesh(v, f), num_samples=2, key=key)
     assert isinstance(res, DGTSTransfer)
     sub = subdivide_midpoint(v, f)
-    np.testing.assert_array_equal(res.faces, sub.faces)  # no re-meshing: the target's own subdivision
+    np.testing.assert_array_equal(
+        res.faces, sub.faces
+    )  # no re-meshing: the target's own subdivision
     np.testing.assert_allclose(res.base, sub.vertices, atol=1e-9)
     assert res.vertices.shape == (2, len(sub.vertices), 3) and np.isfinite(res.vertices).all()
     assert not np.allclose(res.vertices[0], res.vertices[1])  # different noise, different samples
-    edge = np.linalg.norm(sub.vertices[sub.faces[:, 0]] - sub.vertices[sub.faces[:, 1]], axis=1).mean()
+    edge = np.linalg.norm(
+        sub.vertices[sub.faces[:, 0]] - sub.vertices[sub.faces[:, 1]], axis=1
+    ).mean()
     assert np.abs(res.vertices - res.base).max() < 5 * edge  # displacements are texture-sized
 
 
@@ -68,9 +72,15 @@ def test_interpolation_end_frames_replay_their_noise(tiny_model, key):
     for frame, noise in ((0, res.noise[0]), (2, res.noise[-1])):
         out = np.asarray(run_plan(tiny_model, plan, noise), np.float64)
         # the plan's frame: centred on the centroid, mean edge 1, then x2 per subdivision
-        factor = 2.0 ** (len(plan.sizes) - 1) / np.mean([np.linalg.norm(target.vertices[a] - target.vertices[b])
-                                                         for a, b in _edges(target.faces)])
-        np.testing.assert_allclose(out / factor + target.vertices.mean(0), res.vertices[frame], atol=1e-5)
+        factor = 2.0 ** (len(plan.sizes) - 1) / np.mean(
+            [
+                np.linalg.norm(target.vertices[a] - target.vertices[b])
+                for a, b in _edges(target.faces)
+            ]
+        )
+        np.testing.assert_allclose(
+            out / factor + target.vertices.mean(0), res.vertices[frame], atol=1e-5
+        )
         np.testing.assert_allclose(plan.to_target(out), res.vertices[frame], atol=1e-12)
     mid = [0.5 * (a + b) for a, b in zip(res.noise[0], res.noise[-1], strict=True)]
     for a, b in zip(mid, res.noise[1], strict=True):
@@ -85,9 +95,13 @@ def test_normal_heights_of_a_single_bump():
     centre = np.argmin(np.linalg.norm(v[:, :2] - 0.5, axis=1))
     bump[centre, 2] = 0.05
     h = normal_heights((bump, f))
-    assert np.argmax(h) == centre and h[centre] > 0.5 * 0.05 / (1 / 12)  # about the bump in mean edges
+    assert np.argmax(h) == centre and h[centre] > 0.5 * 0.05 / (
+        1 / 12
+    )  # about the bump in mean edges
     sphere = icosphere(3)
-    assert np.abs(normal_heights(sphere)).max() < 0.05  # Taubin smoothing does not shrink a sphere much
+    assert (
+        np.abs(normal_heights(sphere)).max() < 0.05
+    )  # Taubin smoothing does not shrink a sphere much
 
 
 def test_vertex_normals_point_outwards_on_a_sphere():
@@ -99,7 +113,9 @@ def test_vertex_normals_point_outwards_on_a_sphere():
 def test_heights_are_displacements_along_the_base_normals(tiny_model, key):
     target = 5.0 * icosphere(1).vertices + 1.0, icosphere(1).faces
     res = transfer(tiny_model, target, key=key)
-    factor = plan_transfer(tiny_model, target).factor  # target coordinates -> the output's level frame
+    factor = plan_transfer(
+        tiny_model, target
+    ).factor  # target coordinates -> the output's level frame
     n = vertex_normals(res.base, res.faces)
     expected = factor * np.einsum("vd,vd->v", res.vertices[0] - res.base, n)
     np.testing.assert_allclose(res.heights[0], expected, rtol=1e-9, atol=1e-10)

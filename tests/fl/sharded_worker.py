@@ -25,19 +25,40 @@ import numpy as np  # noqa: E402
 
 from jmeshtex import fl, parallel  # noqa: E402
 
-CONFIG = fl.Config(latent_dim=4, features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16,
-                   min_vertices=10, max_vertices=12, meshes_per_image=2, batch_size=2, max_image_size=16,
-                   steps=4, warmup_steps=1, checkpoint_every=2, learning_rate=3e-3)
+CONFIG = fl.Config(
+    latent_dim=4,
+    features=8,
+    num_heads=2,
+    num_blocks=1,
+    num_samples=8,
+    decoder_features=16,
+    min_vertices=10,
+    max_vertices=12,
+    meshes_per_image=2,
+    batch_size=2,
+    max_image_size=16,
+    steps=4,
+    warmup_steps=1,
+    checkpoint_every=2,
+    learning_rate=3e-3,
+)
 
 
 def images() -> list[np.ndarray]:
     y, x = np.mgrid[0:16, 0:16] / 16
-    return [np.stack([0.5 + 0.5 * np.cos(2 * np.pi * (i + 1) * x), y, 0.5 + 0.4 * np.sin(5 * y + i)], -1)
-            for i in range(2)]
+    return [
+        np.stack(
+            [0.5 + 0.5 * np.cos(2 * np.pi * (i + 1) * x), y, 0.5 + 0.4 * np.sin(5 * y + i)], -1
+        )
+        for i in range(2)
+    ]
 
 
 def leaves(params) -> list[list[float]]:
-    return [np.asarray(a, np.complex128).ravel().view(np.float64).tolist() for a in jax.tree.leaves(params)]
+    return [
+        np.asarray(a, np.complex128).ravel().view(np.float64).tolist()
+        for a in jax.tree.leaves(params)
+    ]
 
 
 def one_step(config: fl.Config, mesh) -> dict:
@@ -48,15 +69,27 @@ def one_step(config: fl.Config, mesh) -> dict:
     state = fl.optimizer(config).init(params)
     out = {}
     if config.decoder == "log":  # the gradient itself (Adam's first update hides its scale)
+
         def loss(p, b):
-            return fl.vae_loss(p, config, b["log"], b["rgb"], b["mask"], key=jax.random.key(2),
-                               vertex_mask=b["vertex_mask"])[0]
+            return fl.vae_loss(
+                p,
+                config,
+                b["log"],
+                b["rgb"],
+                b["mask"],
+                key=jax.random.key(2),
+                vertex_mask=b["vertex_mask"],
+            )[0]
 
         grads = parallel.data_parallel(jax.grad(loss), mesh, batch_argnums=(1,))(params, batch)
         out["grads"] = leaves(parallel.fetch(grads))
     params, _, loss, l1 = fl.make_train_step(config, mesh)(params, state, batch, jax.random.key(2))
     params = parallel.fetch(params)
-    return out | {"loss": float(parallel.fetch(loss)), "l1": float(parallel.fetch(l1)), "params": leaves(params)}
+    return out | {
+        "loss": float(parallel.fetch(loss)),
+        "l1": float(parallel.fetch(l1)),
+        "params": leaves(params),
+    }
 
 
 def main(work: pathlib.Path) -> None:
@@ -70,13 +103,37 @@ def main(work: pathlib.Path) -> None:
     key = jax.random.key(0)
     full = fl.train(CONFIG, key=key, images=images(), progress=False)
     out["full_4"] = full.losses["loss"].tolist()
-    fl.train(CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_4", stop_after=2)
+    fl.train(
+        CONFIG,
+        key=key,
+        images=images(),
+        progress=False,
+        checkpoint_dir=work / "ckpt_4",
+        stop_after=2,
+    )
     fl.save(full.model, work / "model_4.npz")
-    out["resumed_4"] = fl.train(CONFIG, key=key, images=images(), progress=False,
-                                checkpoint_dir=work / "ckpt_4_resume", stop_after=2).losses["loss"].tolist()
-    out["resumed_4"] = fl.train(CONFIG, key=key, images=images(), progress=False,
-                                checkpoint_dir=work / "ckpt_4_resume").losses["loss"].tolist()
-    resumed = fl.train(CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_1")
+    out["resumed_4"] = (
+        fl.train(
+            CONFIG,
+            key=key,
+            images=images(),
+            progress=False,
+            checkpoint_dir=work / "ckpt_4_resume",
+            stop_after=2,
+        )
+        .losses["loss"]
+        .tolist()
+    )
+    out["resumed_4"] = (
+        fl.train(
+            CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_4_resume"
+        )
+        .losses["loss"]
+        .tolist()
+    )
+    resumed = fl.train(
+        CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_1"
+    )
     out["from_1"] = resumed.losses["loss"].tolist()
     out["from_1_resumed_from"] = resumed.resumed_from
     (work / "result.json").write_text(json.dumps(out))

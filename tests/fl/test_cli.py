@@ -13,9 +13,21 @@ from jmeshtex.cli import main
 from jmeshtex.data import grid, striped_sphere
 from jmeshtex.io import Checkpoints, save_mesh, save_png
 
-TINY = {"latent_dim": 3, "features": 8, "num_heads": 2, "num_blocks": 1, "num_samples": 8, "decoder_features": 16,
-        "min_vertices": 10, "max_vertices": 14, "meshes_per_image": 1, "batch_size": 1, "max_image_size": 16,
-        "warmup_steps": 0, "checkpoint_every": 1}
+TINY = {
+    "latent_dim": 3,
+    "features": 8,
+    "num_heads": 2,
+    "num_blocks": 1,
+    "num_samples": 8,
+    "decoder_features": 16,
+    "min_vertices": 10,
+    "max_vertices": 14,
+    "meshes_per_image": 1,
+    "batch_size": 1,
+    "max_image_size": 16,
+    "warmup_steps": 0,
+    "checkpoint_every": 1,
+}
 
 
 def test_pretrain_encode_reconstruct(tmp_path, capsys):
@@ -26,8 +38,26 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
         save_png(rng.random((16, 16, 3)).astype(np.float32), images / f"im{i}.png")
     (tmp_path / "config.json").write_text(json.dumps(TINY))
     run = tmp_path / "run"
-    assert main(["fl", "train", "--images", str(images), "--out", str(run), "--steps", "2",
-                 "--config", str(tmp_path / "config.json"), "--quiet", "--seed", "3"]) == 0
+    assert (
+        main(
+            [
+                "fl",
+                "train",
+                "--images",
+                str(images),
+                "--out",
+                str(run),
+                "--steps",
+                "2",
+                "--config",
+                str(tmp_path / "config.json"),
+                "--quiet",
+                "--seed",
+                "3",
+            ]
+        )
+        == 0
+    )
     assert (run / "fl_vae.npz").exists() and Checkpoints(run / "checkpoints").latest_step() == 2
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 2 and np.isfinite(summary["final_loss"])
@@ -37,30 +67,99 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
     direct = fl.train(model.config, key=jax.random.key(3), images=str(images), progress=False)
     np.testing.assert_allclose(summary["final_loss"], direct.losses["loss"].mean(), rtol=1e-12)
     # `pretrain` is the same subcommand; the finished run is resumed, not redone
-    assert main(["fl", "pretrain", "--images", str(images), "--out", str(run), "--steps", "2",
-                 "--config", str(tmp_path / "config.json"), "--quiet", "--seed", "3"]) == 0
+    assert (
+        main(
+            [
+                "fl",
+                "pretrain",
+                "--images",
+                str(images),
+                "--out",
+                str(run),
+                "--steps",
+                "2",
+                "--config",
+                str(tmp_path / "config.json"),
+                "--quiet",
+                "--seed",
+                "3",
+            ]
+        )
+        == 0
+    )
     assert json.loads(capsys.readouterr().out)["final_loss"] == summary["final_loss"]
 
     v, f = grid(4)
-    mesh = Mesh(v, f, uv=v[f][..., :2], texture=rng.random((16, 16, 3)).astype(np.float32), name="sheet")
+    mesh = Mesh(
+        v, f, uv=v[f][..., :2], texture=rng.random((16, 16, 3)).astype(np.float32), name="sheet"
+    )
     save_mesh(mesh, tmp_path / "sheet.obj")
     tex = tmp_path / "sheet.png"
     assert tex.exists()
-    assert main(["fl", "encode", "--mesh", str(tmp_path / "sheet.obj"), "--texture", str(tex),
-                 "--model", str(run / "fl_vae.npz"), "--out", str(tmp_path / "lat.npz")]) == 0
+    assert (
+        main(
+            [
+                "fl",
+                "encode",
+                "--mesh",
+                str(tmp_path / "sheet.obj"),
+                "--texture",
+                str(tex),
+                "--model",
+                str(run / "fl_vae.npz"),
+                "--out",
+                str(tmp_path / "lat.npz"),
+            ]
+        )
+        == 0
+    )
     with np.load(tmp_path / "lat.npz") as data:
         assert data["mu"].shape == (25, 3) and np.iscomplexobj(data["mu"])
     # a procedural mesh spec (vertex colours), and the shipped model by default
-    assert main(["fl", "encode", "--mesh", "striped-sphere:2", "--out", str(tmp_path / "sphere.npz"), "--seed", "1"]) == 0
+    assert (
+        main(
+            [
+                "fl",
+                "encode",
+                "--mesh",
+                "striped-sphere:2",
+                "--out",
+                str(tmp_path / "sphere.npz"),
+                "--seed",
+                "1",
+            ]
+        )
+        == 0
+    )
     with np.load(tmp_path / "sphere.npz") as data:
         assert data["mu"].shape == (162, 8)
-        expected = fl.encode(fl.load_pretrained(), striped_sphere(subdivisions=2), key=jax.random.key(1)).mu
+        expected = fl.encode(
+            fl.load_pretrained(), striped_sphere(subdivisions=2), key=jax.random.key(1)
+        ).mu
         np.testing.assert_array_equal(data["mu"], expected)
     capsys.readouterr()
 
     out = tmp_path / "recon"
-    assert main(["fl", "reconstruct", "--mesh", str(tmp_path / "sheet.obj"), "--texture", str(tex),
-                 "--model", str(run / "fl_vae.npz"), "--out", str(out), "--size", "16", "--no-lpips"]) == 0
+    assert (
+        main(
+            [
+                "fl",
+                "reconstruct",
+                "--mesh",
+                str(tmp_path / "sheet.obj"),
+                "--texture",
+                str(tex),
+                "--model",
+                str(run / "fl_vae.npz"),
+                "--out",
+                str(out),
+                "--size",
+                "16",
+                "--no-lpips",
+            ]
+        )
+        == 0
+    )
     metrics = json.loads((out / "metrics.json").read_text())
     assert set(metrics) >= {"psnr", "dssim", "texels"} and metrics["texels"] == 256
     assert matplotlib.image.imread(out / "reconstructed_texture.png").shape[:2] == (16, 16)
@@ -70,22 +169,70 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
 def test_errors_are_one_line_with_status_2(tmp_path, capsys):
     v, f = grid(2)
     save_mesh(Mesh(v, f, name="plain"), tmp_path / "plain.obj")
-    assert main(["fl", "encode", "--mesh", str(tmp_path / "plain.obj"), "--model", str(tmp_path / "none.npz"),
-                 "--out", str(tmp_path / "x.npz")]) == 2
+    assert (
+        main(
+            [
+                "fl",
+                "encode",
+                "--mesh",
+                str(tmp_path / "plain.obj"),
+                "--model",
+                str(tmp_path / "none.npz"),
+                "--out",
+                str(tmp_path / "x.npz"),
+            ]
+        )
+        == 2
+    )
     assert "cannot read FL-VAE model" in capsys.readouterr().err
-    assert main(["fl", "pretrain", "--images", str(tmp_path / "missing"), "--out", str(tmp_path / "r"),
-                 "--steps", "1", "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "fl",
+                "pretrain",
+                "--images",
+                str(tmp_path / "missing"),
+                "--out",
+                str(tmp_path / "r"),
+                "--steps",
+                "1",
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     assert "does not exist" in capsys.readouterr().err
 
 
 def test_train_preset_stops_after_and_draws_the_loss_curve(tmp_path, capsys):
-    over = {"latent_dim": 3, "features": 8, "num_heads": 2, "num_blocks": 1, "num_samples": 8,
-            "decoder_features": 16, "texture_size": 16, "pixels_per_vertex": 8.0, "procedural_fraction": 1.0,
-            "warmup_steps": 0, "checkpoint_every": 1}
+    over = {
+        "latent_dim": 3,
+        "features": 8,
+        "num_heads": 2,
+        "num_blocks": 1,
+        "num_samples": 8,
+        "decoder_features": 16,
+        "texture_size": 16,
+        "pixels_per_vertex": 8.0,
+        "procedural_fraction": 1.0,
+        "warmup_steps": 0,
+        "checkpoint_every": 1,
+    }
     (tmp_path / "over.json").write_text(json.dumps(over))
     run = tmp_path / "run"
-    args = ["fl", "train", "--preset", "small", "--config", str(tmp_path / "over.json"), "--steps", "3",
-            "--out", str(run), "--quiet"]
+    args = [
+        "fl",
+        "train",
+        "--preset",
+        "small",
+        "--config",
+        str(tmp_path / "over.json"),
+        "--steps",
+        "3",
+        "--out",
+        str(run),
+        "--quiet",
+    ]
     assert main([*args, "--stop-after", "2"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 2 and summary["preset"] == "small"

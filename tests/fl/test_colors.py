@@ -50,14 +50,18 @@ def test_at_points_matches_barycentric_lookup_on_a_retriangulated_copy(rng):
     points = np.einsum("nk,nkd->nd", bary, mesh.vertices[mesh.faces[face]])
     np.testing.assert_allclose(sc.at_points(points), sc.at_barycentric(face, bary), atol=1e-9)
     # points slightly off the surface project onto it
-    np.testing.assert_allclose(sc.at_points(points + [0, 0, 0.01]), sc.at_barycentric(face, bary), atol=1e-9)
+    np.testing.assert_allclose(
+        sc.at_points(points + [0, 0, 0.01]), sc.at_barycentric(face, bary), atol=1e-9
+    )
 
 
 def test_grey_and_alpha_textures_become_rgb():
     v, f = grid(1)
     grey = np.full((4, 4, 1), 0.25, np.float32)
     sc = surface_colors(Mesh(v, f, uv=v[f][..., :2], texture=grey))
-    assert sc.at_barycentric(np.array([0]), np.array([[1.0, 0, 0]])).tolist() == [[0.25, 0.25, 0.25]]
+    assert sc.at_barycentric(np.array([0]), np.array([[1.0, 0, 0]])).tolist() == [
+        [0.25, 0.25, 0.25]
+    ]
 
 
 def test_missing_colour_source_is_a_typed_error():
@@ -67,4 +71,6 @@ def test_missing_colour_source_is_a_typed_error():
     with pytest.raises(InputError, match="no UV coordinates"):
         surface_colors(Mesh(v, f, texture=np.zeros((2, 2, 3))))
     with pytest.raises(InputError, match="bary must have shape"):
-        surface_colors(Mesh(v, f, vertex_colors=np.ones((4, 3)))).at_barycentric(np.array([0]), np.ones((2, 3)))
+        surface_colors(Mesh(v, f, vertex_colors=np.ones((4, 3)))).at_barycentric(
+            np.array([0]), np.ones((2, 3))
+        )

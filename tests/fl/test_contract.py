@@ -12,9 +12,21 @@ import pytest
 from jmeshtex import ConfigError, Mesh, TrainResult, fl
 from jmeshtex.data import grid
 
-TINY = fl.Config(latent_dim=2, features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16,
-                 min_vertices=10, max_vertices=12, meshes_per_image=1, batch_size=1, max_image_size=16,
-                 steps=2, warmup_steps=0)
+TINY = fl.Config(
+    latent_dim=2,
+    features=8,
+    num_heads=2,
+    num_blocks=1,
+    num_samples=8,
+    decoder_features=16,
+    min_vertices=10,
+    max_vertices=12,
+    meshes_per_image=1,
+    batch_size=1,
+    max_image_size=16,
+    steps=2,
+    warmup_steps=0,
+)
 
 
 def _images():
@@ -25,12 +37,16 @@ def _images():
 def _sheet() -> Mesh:
     v, f = grid(3)
     yy, xx = np.mgrid[0:8, 0:8] / 8
-    return Mesh(v, f, uv=v[f][..., :2], texture=np.stack([xx, yy, 0.5 + 0 * xx], -1).astype(np.float32))
+    return Mesh(
+        v, f, uv=v[f][..., :2], texture=np.stack([xx, yy, 0.5 + 0 * xx], -1).astype(np.float32)
+    )
 
 
 def _leaves_equal(a, b) -> bool:
-    return all(x.dtype == y.dtype and np.array_equal(x, y)
-               for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True))
+    return all(
+        x.dtype == y.dtype and np.array_equal(x, y)
+        for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True)
+    )
 
 
 def test_config_uses_the_shared_field_names():
@@ -63,8 +79,9 @@ def test_train_save_load_and_the_task_verbs_round_trip(tmp_path):
     tex_loaded, valid_loaded = fl.decode_texture(loaded, mesh, lat_loaded, size=8)
     np.testing.assert_array_equal(tex, tex_loaded)
     np.testing.assert_array_equal(valid, valid_loaded)
-    np.testing.assert_array_equal(fl.decode_vertex_colors(model, mesh, lat),
-                                  fl.decode_vertex_colors(loaded, mesh, lat_loaded))
+    np.testing.assert_array_equal(
+        fl.decode_vertex_colors(model, mesh, lat), fl.decode_vertex_colors(loaded, mesh, lat_loaded)
+    )
     r = fl.reconstruct(model, mesh, key=key, lpips=False)
     r_loaded = fl.reconstruct(loaded, mesh, key=key, lpips=False)
     np.testing.assert_array_equal(r.texture, r_loaded.texture)
@@ -73,8 +90,10 @@ def test_train_save_load_and_the_task_verbs_round_trip(tmp_path):
 
     # a (V, F) pair is accepted where a mesh is expected
     coloured = Mesh(mesh.vertices, mesh.faces, vertex_colors=np.full((mesh.num_vertices, 3), 0.5))
-    np.testing.assert_array_equal(fl.decode_vertex_colors(model, (mesh.vertices, mesh.faces), lat),
-                                  fl.decode_vertex_colors(model, coloured, lat))
+    np.testing.assert_array_equal(
+        fl.decode_vertex_colors(model, (mesh.vertices, mesh.faces), lat),
+        fl.decode_vertex_colors(model, coloured, lat),
+    )
 
 
 def test_the_same_key_gives_the_same_result_and_another_key_another():
@@ -105,7 +124,10 @@ def test_model_is_a_pytree_with_a_static_config():
         return fl.decode_vertex_colors_from_latents(m.params, m.config, mu)
 
     mu = np.ones((3, TINY.latent_dim), np.complex64)
-    np.testing.assert_allclose(vertex_colours(model, mu),
-                               fl.decode_vertex_colors_from_latents(model.params, model.config, mu), atol=1e-6)
+    np.testing.assert_allclose(
+        vertex_colours(model, mu),
+        fl.decode_vertex_colors_from_latents(model.params, model.config, mu),
+        atol=1e-6,
+    )
     with pytest.raises(ConfigError, match="Model.config must be"):
         fl.Model(model.params, TINY.to_dict())

@@ -32,7 +32,9 @@ def test_features_are_the_hermitian_invariants_and_positional_terms(rng):
     rows, cols = np.triu_indices(3, 1)
     outer = m[rows] * np.conj(m[cols])
     pos = complex(log) * np.conj(m)
-    np.testing.assert_allclose(f, np.concatenate([expected_abs, outer.real, outer.imag, pos.real, pos.imag]), atol=1e-14)
+    np.testing.assert_allclose(
+        f, np.concatenate([expected_abs, outer.real, outer.imag, pos.real, pos.imag]), atol=1e-14
+    )
     assert decoder_features(BARY, mu, None).shape == (9,)
 
 
@@ -55,7 +57,9 @@ def test_blending_at_a_corner_is_that_vertex_prediction(key, rng):
     corners = jnp.asarray([[0, 1, 2]])
     logs = jnp.asarray([[0.0, 0.4 + 0.1j, -0.2 + 0.5j]])
     out = decode_barycentric(params, LOG, mu, corners, jnp.asarray([[1.0, 0.0, 0.0]]), logs)
-    np.testing.assert_allclose(out[0], decode_vertex_colors_from_latents(params, LOG, mu)[0], atol=1e-12)
+    np.testing.assert_allclose(
+        out[0], decode_vertex_colors_from_latents(params, LOG, mu)[0], atol=1e-12
+    )
     # a mid-edge point is the mean of the two end predictions at their own log coordinates
     mid = decode_barycentric(params, LOG, mu, corners, jnp.asarray([[0.5, 0.5, 0.0]]), logs)
     p0 = decode_points(params, LOG, mu[:1], logs[:, :1])[0, 0]
@@ -68,7 +72,9 @@ def test_barycentric_ablation_interpolates_invariants_not_colours(key, rng):
     mu = _latents(rng, 3)
     corners = jnp.asarray([[0, 1, 2]])
     at_vertex = decode_barycentric(params, BARY, mu, corners, jnp.asarray([[0.0, 1.0, 0.0]]))
-    np.testing.assert_allclose(at_vertex[0], decode_vertex_colors_from_latents(params, BARY, mu)[1], atol=1e-12)
+    np.testing.assert_allclose(
+        at_vertex[0], decode_vertex_colors_from_latents(params, BARY, mu)[1], atol=1e-12
+    )
     mid = decode_barycentric(params, BARY, mu, corners, jnp.asarray([[0.5, 0.5, 0.0]]))
     inv = 0.5 * (decoder_features(BARY, mu[0], None) + decoder_features(BARY, mu[1], None))
     from jmeshtex.fl._decoder import apply_decoder
@@ -76,4 +82,6 @@ def test_barycentric_ablation_interpolates_invariants_not_colours(key, rng):
     np.testing.assert_allclose(mid[0], apply_decoder(params.decoder, inv), atol=1e-12)
     # the ablation ignores log coordinates in decode_points
     log = _latents(rng, 3, 4)
-    np.testing.assert_allclose(decode_points(params, BARY, mu, log), decode_points(params, BARY, mu, log * 1j))
+    np.testing.assert_allclose(
+        decode_points(params, BARY, mu, log), decode_points(params, BARY, mu, log * 1j)
+    )

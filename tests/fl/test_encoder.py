@@ -69,7 +69,11 @@ def test_deterministic_rule_has_six_points_per_wedge():
 
 def _inputs(rng, V=5, S=12):
     log = (rng.standard_normal((V, S)) + 1j * rng.standard_normal((V, S))) * 0.5
-    return jnp.asarray(log), jnp.asarray(rng.random((V, S, 3))), jnp.asarray(rng.random((V, S)) > 0.2)
+    return (
+        jnp.asarray(log),
+        jnp.asarray(rng.random((V, S, 3))),
+        jnp.asarray(rng.random((V, S)) > 0.2),
+    )
 
 
 def test_mu_turns_with_the_gauge_and_sigma_is_invariant(key, rng):
@@ -90,7 +94,10 @@ def test_samples_form_a_set_and_padding_changes_nothing(key, rng):
     perm = rng.permutation(log.shape[1])
     b = encode(params, SMALL, log[:, perm], rgb[:, perm], mask[:, perm])
     np.testing.assert_allclose(b.mu, a.mu, atol=1e-12)
-    pad = lambda x, val: jnp.concatenate([x, jnp.full((x.shape[0], 4, *x.shape[2:]), val, x.dtype)], 1)  # noqa: E731
+
+    def pad(x, val):
+        return jnp.concatenate([x, jnp.full((x.shape[0], 4, *x.shape[2:]), val, x.dtype)], 1)
+
     c = encode(params, SMALL, pad(log, 3 + 1j), pad(rgb, 0.9), pad(mask, False))
     np.testing.assert_allclose(c.mu, a.mu, atol=1e-12)
     np.testing.assert_allclose(c.log_sigma, a.log_sigma, atol=1e-12)
@@ -108,6 +115,7 @@ def test_jit_compiles_once_and_gradients_are_finite_at_zero(key):
     f(params, log, rgb, m)
     f(params, log + 1, rgb, m)
     assert f._cache_size() == 1
+
     def energy(lg):
         mu = encode(params, SMALL, lg, rgb, m).mu
         return jnp.sum(mu.real * mu.real + mu.imag * mu.imag)
@@ -123,6 +131,12 @@ def test_bad_shapes_are_typed_errors(key):
     with pytest.raises(InputError, match="log_q must be a complex"):
         encode(params, SMALL, jnp.zeros((2, 3)), jnp.zeros((2, 3, 3)), jnp.ones((2, 3), bool))
     with pytest.raises(InputError, match="rgb must have shape"):
-        encode(params, SMALL, jnp.zeros((2, 3), jnp.complex64), jnp.zeros((2, 3)), jnp.ones((2, 3), bool))
+        encode(
+            params,
+            SMALL,
+            jnp.zeros((2, 3), jnp.complex64),
+            jnp.zeros((2, 3)),
+            jnp.ones((2, 3), bool),
+        )
     with pytest.raises(InputError, match="num_samples"):
         one_ring_samples(*grid(1), 0, rng=np.random.default_rng(0))

@@ -13,7 +13,9 @@ import pytest
 from jmeshtex.fl import planar_mesh
 
 
-@pytest.mark.parametrize(("shape", "n"), [((100, 150, 3), 600), ((64, 64, 3), 200), ((40, 120, 3), 3000)])
+@pytest.mark.parametrize(
+    ("shape", "n"), [((100, 150, 3), 600), ((64, 64, 3), 200), ((40, 120, 3), 3000)]
+)
 def test_no_edge_much_longer_than_the_typical_one(shape, n):
     mesh = planar_mesh(np.zeros(shape), n, rng=np.random.default_rng(0))
     v, f = mesh.vertices, mesh.faces

@@ -18,8 +18,15 @@ from jmeshtex.fl import (
     side_by_side,
 )
 
-SMALL = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=8,
-                    encode_chunk=64)
+SMALL = Config(
+    latent_dim=3,
+    features=8,
+    num_heads=2,
+    num_blocks=1,
+    decoder_features=16,
+    num_samples=8,
+    encode_chunk=64,
+)
 
 
 def _sheet():

@@ -33,10 +33,24 @@ from jmeshtex.fl import (
 from jmeshtex.fl._textures import image_levels
 from jmeshtex.fl._train import _load_images
 
-STREAM = Config(latent_dim=4, features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16,
-                pixels_per_vertex=8.0, density_spread=1.3, texture_size=16, procedural_fraction=1.0,
-                loss_normalization="paper", batch_size=2, steps=4, warmup_steps=2, checkpoint_every=2,
-                learning_rate=3e-3)
+STREAM = Config(
+    latent_dim=4,
+    features=8,
+    num_heads=2,
+    num_blocks=1,
+    num_samples=8,
+    decoder_features=16,
+    pixels_per_vertex=8.0,
+    density_spread=1.3,
+    texture_size=16,
+    procedural_fraction=1.0,
+    loss_normalization="paper",
+    batch_size=2,
+    steps=4,
+    warmup_steps=2,
+    checkpoint_every=2,
+    learning_rate=3e-3,
+)
 
 
 def _digest(a: np.ndarray) -> str:
@@ -61,7 +75,10 @@ def test_hundreds_of_distinct_textures_from_images_and_procedures():
     crops = [augmented_crop(img, jax.random.key(i), 16) for i in range(3)]
     np.testing.assert_array_equal(crops[0], augmented_crop(img, jax.random.key(0), 16))
     assert all(c.shape == (16, 16, 3) and 0 <= c.min() and c.max() <= 1 for c in crops)
-    textures = [training_texture(jax.random.key(i), [img], size=12, procedural_fraction=0.5) for i in range(300)]
+    textures = [
+        training_texture(jax.random.key(i), [img], size=12, procedural_fraction=0.5)
+        for i in range(300)
+    ]
     assert len({_digest(t) for t in textures}) == 300
     with pytest.raises(InputError, match="no images"):
         training_texture(jax.random.key(0), [], size=12, procedural_fraction=0.5)
@@ -70,7 +87,9 @@ def test_hundreds_of_distinct_textures_from_images_and_procedures():
 def test_meshes_have_the_requested_pixels_per_vertex():
     """Measured, not assumed: the texels a mesh's triangles cover (uv areas × texture size) per vertex."""
     for ppv in (26.0, 18.0):
-        cfg = Config.small(pixels_per_vertex=ppv, density_spread=1.0, texture_size=48, procedural_fraction=1.0)
+        cfg = Config.small(
+            pixels_per_vertex=ppv, density_spread=1.0, texture_size=48, procedural_fraction=1.0
+        )
         meshes = training_meshes(jax.random.key(0), cfg, images=[])
         assert len(meshes) == cfg.batch_size
         for m in meshes:
@@ -94,7 +113,9 @@ def test_meshes_have_the_requested_pixels_per_vertex():
 
 
 def test_held_out_images_are_never_training_images():
-    assert not set(HELD_OUT_IMAGES) & set(TRAINING_IMAGES) and "cat" not in TRAINING_IMAGES  # cat is chelsea
+    assert (
+        not set(HELD_OUT_IMAGES) & set(TRAINING_IMAGES) and "cat" not in TRAINING_IMAGES
+    )  # cat is chelsea
     held = {_digest(im) for im in held_out_images(max_size=64)}
     # what train() loads by default in the stream mode
     loaded = _load_images(None, 64, stream=True)
@@ -106,10 +127,18 @@ def test_held_out_images_are_never_training_images():
 
 def test_presets():
     p, s = Config.paper(), Config.small()
-    assert (p.features, p.num_blocks, p.num_heads, p.decoder_features, p.decoder_layers) == (128, 8, 8, 512, 5)
+    assert (p.features, p.num_blocks, p.num_heads, p.decoder_features, p.decoder_layers) == (
+        128,
+        8,
+        8,
+        512,
+        5,
+    )
     for c in (p, s):
         assert c.loss_normalization == "paper" and c.kl_weight == 0.01 and c.latent_dim == 8
-        assert c.learning_rate == 1e-3 and c.learning_rate * c.final_lr_fraction == pytest.approx(1e-5)
+        assert c.learning_rate == 1e-3 and c.learning_rate * c.final_lr_fraction == pytest.approx(
+            1e-5
+        )
         assert 20 <= c.pixels_per_vertex <= 30
     assert Config.small(steps=5).steps == 5
     assert Config().loss_normalization == "mean"  # the shipped model's recipe stays the default
@@ -118,7 +147,9 @@ def test_presets():
 def test_loss_is_the_papers_equation_by_hand():
     """Eq. 26–28: mean over samples of the RGB L1 norm, plus λ times the KL summed over the d channels
     (KL of N(μ, σ²I₂) to N(0, I₂) from the general Gaussian formula), averaged over real vertices."""
-    c = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, kl_weight=0.37)
+    c = Config(
+        latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, kl_weight=0.37
+    )
     params = init(c, key=jax.random.key(0), dtype=jnp.float64).params
     rng = np.random.default_rng(0)
     v, s = 3, 5
@@ -132,7 +163,12 @@ def test_loss_is_the_papers_equation_by_hand():
     z = sample_latents(lat, key=key)
     pred = np.asarray(jax.jit(decode_points, static_argnums=1)(params, c, z, log))
     mu, sigma = np.asarray(lat.mu), np.exp(np.asarray(lat.log_sigma))
-    l1 = sum(np.abs(pred[p, i] - np.asarray(rgb)[p, i]).sum() for p in range(v) for i in range(s) if mask[p, i])
+    l1 = sum(
+        np.abs(pred[p, i] - np.asarray(rgb)[p, i]).sum()
+        for p in range(v)
+        for i in range(s)
+        if mask[p, i]
+    )
     l1 /= mask.sum()
     kl = 0.0
     for p in np.flatnonzero(vmask):
@@ -143,8 +179,9 @@ def test_loss_is_the_papers_equation_by_hand():
     kl /= vmask.sum()
     for norm, want_l1, want_kl in (("paper", l1, kl), ("mean", l1 / 3, kl / c.latent_dim)):
         cfg = c.replace(loss_normalization=norm)
-        loss, aux = jax.jit(vae_loss, static_argnums=1)(params, cfg, log, rgb, jnp.asarray(mask), key=key,
-                                                        vertex_mask=jnp.asarray(vmask))
+        loss, aux = jax.jit(vae_loss, static_argnums=1)(
+            params, cfg, log, rgb, jnp.asarray(mask), key=key, vertex_mask=jnp.asarray(vmask)
+        )
         np.testing.assert_allclose(float(aux["l1"]), want_l1, rtol=1e-10)
         np.testing.assert_allclose(float(aux["kl"]), want_kl, rtol=1e-10)
         np.testing.assert_allclose(float(loss), want_l1 + 0.37 * want_kl, rtol=1e-10)
@@ -153,16 +190,22 @@ def test_loss_is_the_papers_equation_by_hand():
 def test_stream_training_resumes_exactly_and_draws_a_loss_curve(tmp_path):
     key = jax.random.key(3)
     curve = tmp_path / "loss.png"
-    full = train(STREAM, key=key, images=[], progress=False, loss_curve=curve)  # no checkpoints: no resume
+    full = train(
+        STREAM, key=key, images=[], progress=False, loss_curve=curve
+    )  # no checkpoints: no resume
     assert full.steps == 4 and np.isfinite(full.losses["loss"]).all()
     assert curve.read_bytes()[:4] == b"\x89PNG"
-    part = train(STREAM, key=key, images=[], progress=False, checkpoint_dir=tmp_path / "b", stop_after=3)
+    part = train(
+        STREAM, key=key, images=[], progress=False, checkpoint_dir=tmp_path / "b", stop_after=3
+    )
     np.testing.assert_array_equal(part.losses["loss"], full.losses["loss"][:3])
     shutil.rmtree(tmp_path / "b" / "3")  # killed after step 3, before its end-of-call save
     resumed = train(STREAM, key=key, images=[], progress=False, checkpoint_dir=tmp_path / "b")
     assert resumed.resumed_from == 2 and resumed.steps == 4
     np.testing.assert_array_equal(resumed.losses["loss"], full.losses["loss"])
-    for x, y in zip(jax.tree.leaves(full.model.params), jax.tree.leaves(resumed.model.params), strict=True):
+    for x, y in zip(
+        jax.tree.leaves(full.model.params), jax.tree.leaves(resumed.model.params), strict=True
+    ):
         np.testing.assert_array_equal(x, y)
     with pytest.raises(InputError, match="no images"):
         train(STREAM.replace(procedural_fraction=0.5), key=key, images=[], progress=False)

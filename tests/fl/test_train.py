@@ -25,9 +25,23 @@ from jmeshtex.fl import (
 )
 from jmeshtex.fl._planar import farthest_points
 
-TINY = Config(latent_dim=4, features=16, num_heads=2, num_blocks=1, num_samples=24, decoder_features=32,
-              min_vertices=24, max_vertices=36, meshes_per_image=3, batch_size=2, max_image_size=32,
-              steps=4, warmup_steps=2, checkpoint_every=2, learning_rate=3e-3)
+TINY = Config(
+    latent_dim=4,
+    features=16,
+    num_heads=2,
+    num_blocks=1,
+    num_samples=24,
+    decoder_features=32,
+    min_vertices=24,
+    max_vertices=36,
+    meshes_per_image=3,
+    batch_size=2,
+    max_image_size=32,
+    steps=4,
+    warmup_steps=2,
+    checkpoint_every=2,
+    learning_rate=3e-3,
+)
 
 
 def procedural_images(rng: np.random.Generator, n: int = 6, size: int = 32) -> list[np.ndarray]:
@@ -56,7 +70,9 @@ def test_planar_meshes_are_ccw_delaunay_over_the_image(rng):
     e1 = m.vertices[m.faces[:, 1]] - m.vertices[m.faces[:, 0]]
     e2 = m.vertices[m.faces[:, 2]] - m.vertices[m.faces[:, 0]]
     assert (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] > 0).all()  # counter-clockwise, +z
-    np.testing.assert_allclose(m.uv[..., 0] * 2.0, m.vertices[m.faces][..., 0], atol=1e-12)  # aspect 2
+    np.testing.assert_allclose(
+        m.uv[..., 0] * 2.0, m.vertices[m.faces][..., 0], atol=1e-12
+    )  # aspect 2
     # the colours read on the mesh are the image's (texel centres map to themselves)
     sc = surface_colors(m)
     assert sc.source == "texture"
@@ -91,28 +107,48 @@ def test_resumed_training_equals_uninterrupted_training(tmp_path):
     imgs = procedural_images(np.random.default_rng(0), 2)
     key = jax.random.key(5)
     full = train(TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "a")
-    assert isinstance(full, TrainResult) and isinstance(full.model, Model) and full.model.config == TINY
+    assert (
+        isinstance(full, TrainResult)
+        and isinstance(full.model, Model)
+        and full.model.config == TINY
+    )
     assert full.steps == 4 and full.resumed_from is None and full.losses["loss"].shape == (4,)
-    part = train(TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "b", stop_after=3)
+    part = train(
+        TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "b", stop_after=3
+    )
     assert part.steps == 3 and len(part.losses["loss"]) == 3
     np.testing.assert_array_equal(part.losses["loss"], full.losses["loss"][:3])
     # a run killed after step 3 but before its end-of-call save: only the periodic step-2 checkpoint
     shutil.copytree(tmp_path / "b", tmp_path / "c")
     shutil.rmtree(tmp_path / "c" / "3")
     for folder, start in (("b", 3), ("c", 2)):
-        resumed = train(TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / folder)
+        resumed = train(
+            TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / folder
+        )
         assert resumed.resumed_from == start and resumed.steps == 4
         for name in ("loss", "l1"):
             np.testing.assert_array_equal(resumed.losses[name], full.losses[name])
-        for x, y in zip(jax.tree.leaves(full.model.params), jax.tree.leaves(resumed.model.params), strict=True):
+        for x, y in zip(
+            jax.tree.leaves(full.model.params), jax.tree.leaves(resumed.model.params), strict=True
+        ):
             np.testing.assert_array_equal(x, y)
-    done = train(TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "b")  # nothing left to do
+    done = train(
+        TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "b"
+    )  # nothing left to do
     assert done.resumed_from == 4 and done.steps == 4
     # a folder written for another run is not resumed by mistake
     with pytest.raises(CheckpointMismatchError, match="config"):
-        train(TINY.replace(features=8, num_heads=2), key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "b")
+        train(
+            TINY.replace(features=8, num_heads=2),
+            key=key,
+            images=imgs,
+            progress=False,
+            checkpoint_dir=tmp_path / "b",
+        )
     with pytest.raises(CheckpointMismatchError, match="key"):
-        train(TINY, key=jax.random.key(6), images=imgs, progress=False, checkpoint_dir=tmp_path / "b")
+        train(
+            TINY, key=jax.random.key(6), images=imgs, progress=False, checkpoint_dir=tmp_path / "b"
+        )
     with pytest.raises(CheckpointMismatchError, match="images"):
         train(TINY, key=key, images=imgs[:1], progress=False, checkpoint_dir=tmp_path / "b")
     with pytest.raises(ConfigError, match="must be a jmeshtex.fl.Config"):
@@ -128,7 +164,9 @@ def smooth_images(rng: np.random.Generator, n: int, size: int = 32) -> list[np.n
         for c in range(3):
             for _ in range(2):
                 k = rng.normal(size=2) * 4
-                img[..., c] += rng.uniform(0.1, 0.25) * np.cos(k[0] * x + k[1] * y + rng.uniform(0, 2 * np.pi))
+                img[..., c] += rng.uniform(0.1, 0.25) * np.cos(
+                    k[0] * x + k[1] * y + rng.uniform(0, 2 * np.pi)
+                )
         out.append(np.clip(img + rng.uniform(0.3, 0.7, 3), 0, 1))
     return out
 
@@ -139,8 +177,14 @@ def test_short_training_reconstructs_well_above_a_constant_colour():
     beat the best constant colour by more than 3 dB and 2 dB (measured: +5.1 and +3.5 dB; a model that
     ignores the latent can at best match the constant)."""
     rng = np.random.default_rng(0)
-    cfg = TINY.replace(steps=150, warmup_steps=10, checkpoint_every=1000, learning_rate=5e-3, min_vertices=50,
-                       max_vertices=70)
+    cfg = TINY.replace(
+        steps=150,
+        warmup_steps=10,
+        checkpoint_every=1000,
+        learning_rate=5e-3,
+        min_vertices=50,
+        max_vertices=70,
+    )
     images = smooth_images(rng, 6)
     result = train(cfg, key=jax.random.key(0), images=images, progress=False)
     l1 = result.losses["l1"]

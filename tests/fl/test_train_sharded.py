@@ -24,27 +24,50 @@ WORKER = pathlib.Path(__file__).with_name("sharded_worker.py")
 def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tmp_path):
     key = jax.random.key(0)
     # a one-device checkpoint at step 2, for the four-device process to resume
-    fl.train(CONFIG, key=key, images=images(), progress=False, checkpoint_dir=tmp_path / "ckpt_1", stop_after=2)
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
-    run = subprocess.run([sys.executable, str(WORKER), str(tmp_path)], env=env, capture_output=True, text=True,
-                         timeout=600)
+    fl.train(
+        CONFIG,
+        key=key,
+        images=images(),
+        progress=False,
+        checkpoint_dir=tmp_path / "ckpt_1",
+        stop_after=2,
+    )
+    env = dict(
+        os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu"
+    )
+    run = subprocess.run(
+        [sys.executable, str(WORKER), str(tmp_path)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert run.returncode == 0, run.stderr[-4000:]
     out = json.loads((tmp_path / "result.json").read_text())
 
     # one step: four devices equal one device to float32 round-off (the gradient is reduced over devices
     # by XLA in another order); the barycentric decoder gathers corner latents across devices
     for decoder, step in out["step"].items():
-        np.testing.assert_allclose(step["four"]["loss"], step["one"]["loss"], rtol=1e-5, err_msg=decoder)
-        np.testing.assert_allclose(step["four"]["l1"], step["one"]["l1"], rtol=1e-5, err_msg=decoder)
+        np.testing.assert_allclose(
+            step["four"]["loss"], step["one"]["loss"], rtol=1e-5, err_msg=decoder
+        )
+        np.testing.assert_allclose(
+            step["four"]["l1"], step["one"]["l1"], rtol=1e-5, err_msg=decoder
+        )
         for a, b in zip(step["four"]["params"], step["one"]["params"], strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6, err_msg=decoder)
         assert step["one"]["loss"] > 0
-    grads_4, grads_1 = (np.concatenate([np.array(g) for g in out["step"]["log"][k]["grads"]]) for k in ("four", "one"))
+    grads_4, grads_1 = (
+        np.concatenate([np.array(g) for g in out["step"]["log"][k]["grads"]])
+        for k in ("four", "one")
+    )
     assert np.abs(grads_1).max() > 1e-3
     np.testing.assert_allclose(grads_4, grads_1, rtol=1e-4, atol=1e-5 * np.abs(grads_1).max())
 
     full_4 = np.array(out["full_4"])
-    full_1 = fl.train(CONFIG, key=key, images=images(), progress=False).losses["loss"]  # here: one device
+    full_1 = fl.train(CONFIG, key=key, images=images(), progress=False).losses[
+        "loss"
+    ]  # here: one device
     assert full_4.shape == (CONFIG.steps,) and np.isfinite(full_4).all()
     # 4 Adam steps: round-off of each step's reduction compounds a little (Adam divides by sqrt(v))
     np.testing.assert_allclose(full_4, full_1, rtol=1e-4)
@@ -56,7 +79,9 @@ def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tm
     np.testing.assert_allclose(out["from_1"], full_1, rtol=1e-4)
 
     # four-device checkpoint resumed here on one device, and the four-device model file loaded here
-    back = fl.train(CONFIG, key=key, images=images(), progress=False, checkpoint_dir=tmp_path / "ckpt_4")
+    back = fl.train(
+        CONFIG, key=key, images=images(), progress=False, checkpoint_dir=tmp_path / "ckpt_4"
+    )
     assert back.resumed_from == 2
     np.testing.assert_allclose(back.losses["loss"], full_4, rtol=1e-4)
     model = fl.load(tmp_path / "model_4.npz")

@@ -31,8 +31,15 @@ from jmeshtex.fl import (
 from jmeshtex.fl._io import _PRETRAINED
 from jmeshtex.geometry import one_ring_neighborhood, rasterize_uv
 
-SMALL = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16, num_samples=12,
-                    encode_chunk=32)
+SMALL = Config(
+    latent_dim=3,
+    features=8,
+    num_heads=2,
+    num_blocks=1,
+    decoder_features=16,
+    num_samples=12,
+    encode_chunk=32,
+)
 
 
 def test_kl_matches_the_closed_form_per_channel():
@@ -55,7 +62,9 @@ def test_loss_is_finite_with_finite_gradients_at_zero_inputs(key, decoder):
     bary = jnp.full((V, S, 3), 1 / 3, jnp.float32)
 
     def loss(p):
-        return vae_loss(p, cfg, log, rgb, mask, key=jax.random.key(0), corners=corners, bary=bary)[0]
+        return vae_loss(p, cfg, log, rgb, mask, key=jax.random.key(0), corners=corners, bary=bary)[
+            0
+        ]
 
     value, grads = jax.jit(jax.value_and_grad(loss))(params)
     assert np.isfinite(float(value))
@@ -65,8 +74,14 @@ def test_loss_is_finite_with_finite_gradients_at_zero_inputs(key, decoder):
 def test_barycentric_loss_needs_corners(key):
     params = init(SMALL.replace(decoder="barycentric"), key=key).params
     with pytest.raises(InputError, match="needs corners"):
-        vae_loss(params, SMALL.replace(decoder="barycentric"), jnp.zeros((1, 2), jnp.complex64),
-                 jnp.zeros((1, 2, 3), jnp.float32), jnp.ones((1, 2), bool), key=jax.random.key(0))
+        vae_loss(
+            params,
+            SMALL.replace(decoder="barycentric"),
+            jnp.zeros((1, 2), jnp.complex64),
+            jnp.zeros((1, 2, 3), jnp.float32),
+            jnp.ones((1, 2), bool),
+            key=jax.random.key(0),
+        )
 
 
 def test_encode_mesh_gives_latents_in_the_one_ring_gauge(key):
@@ -82,7 +97,9 @@ def test_encode_mesh_gives_latents_in_the_one_ring_gauge(key):
     nb = one_ring_neighborhood(v, f)
     assert nb.log.shape[0] == lat.mu.shape[0]
     colors = decode_vertex_colors(model, mesh, lat.mu)
-    np.testing.assert_array_equal(decode_vertex_colors(model, mesh, lat), colors)  # FieldLatents: its means
+    np.testing.assert_array_equal(
+        decode_vertex_colors(model, mesh, lat), colors
+    )  # FieldLatents: its means
     assert colors.shape == (len(v), 3) and float(colors.min()) >= 0 and float(colors.max()) <= 1
 
 
@@ -121,7 +138,9 @@ def test_decode_texture_fills_the_used_texels_and_agrees_with_vertex_colours(key
     assert (tex[~valid] == 0).all() and tex.min() >= 0 and tex.max() <= 1
     # at a vertex the blend reduces to that vertex's own prediction
     corner = decode_points_in_faces(model, mesh, mu, np.array([0]), np.array([[1.0, 0.0, 0.0]]))
-    np.testing.assert_allclose(np.clip(corner[0], 0, 1), decode_vertex_colors(model, mesh, mu)[f[0, 0]], atol=1e-12)
+    np.testing.assert_allclose(
+        np.clip(corner[0], 0, 1), decode_vertex_colors(model, mesh, mu)[f[0, 0]], atol=1e-12
+    )
     with pytest.raises(InputError, match="UV coordinates"):
         decode_texture(model, Mesh(v, f), mu, size=8)
     with pytest.raises(InputError, match="latents must have shape"):
@@ -175,13 +194,17 @@ def test_shipped_model_reconstructs_a_held_out_photograph_on_spot(shared_data):
     from jmeshtex.fl import HELD_OUT_IMAGES, held_out_images, reconstruct
     from jmeshtex.io import load_mesh
 
-    spot = load_mesh(shared_data / "spot" / "spot_triangulated.obj",
-                     texture=shared_data / "spot" / "spot_texture.png")
+    spot = load_mesh(
+        shared_data / "spot" / "spot_triangulated.obj",
+        texture=shared_data / "spot" / "spot_texture.png",
+    )
     photo = held_out_images(max_size=256)[HELD_OUT_IMAGES.index("chelsea")]
     mesh = dataclasses.replace(spot, texture=np.asarray(photo, np.float32))
     psnr = {}
     for decoder in ("log", "barycentric"):
-        rec = reconstruct(load_pretrained(decoder=decoder), mesh, key=jax.random.key(0), size=256, lpips=False)
+        rec = reconstruct(
+            load_pretrained(decoder=decoder), mesh, key=jax.random.key(0), size=256, lpips=False
+        )
         psnr[decoder] = float(rec.metrics["psnr"])
     used = rec.target[rec.valid]
     constant = 10 * np.log10(1.0 / np.mean((used - used.mean(axis=0)) ** 2))

@@ -26,8 +26,15 @@ def _frame_blind_encoder(state, params, c):
 
 def test_an_encoder_blind_to_the_gauge_is_flagged():
     good = _equivariance.ENTRIES[0]
-    bad = Entry("fl.negative.frame_blind", _frame_blind_encoder, good.inputs, good.transforms, init=good.init,
-                expect_fail=("gauge",), group="negative")
+    bad = Entry(
+        "fl.negative.frame_blind",
+        _frame_blind_encoder,
+        good.inputs,
+        good.transforms,
+        init=good.init,
+        expect_fail=("gauge",),
+        group="negative",
+    )
     result = check(bad, "gauge")
     assert result.expect_fail and result.passed and result.error > 1e-3
 

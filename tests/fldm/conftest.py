@@ -31,7 +31,9 @@ def striped_exemplar() -> Mesh:
 
 @pytest.fixture(scope="session")
 def striped_data(striped_exemplar) -> fldm.Dataset:
-    return fldm.build_dataset(striped_exemplar, tiny_config(True), encode=stripe_encoder, key=DATA_KEY, progress=False)
+    return fldm.build_dataset(
+        striped_exemplar, tiny_config(True), encode=stripe_encoder, key=DATA_KEY, progress=False
+    )
 
 
 @pytest.fixture(scope="session")
@@ -40,7 +42,15 @@ def striped_model(striped_data) -> fldm.Model:
 
 
 #: the Config fields :func:`jmeshtex.fldm.build_dataset` reads
-TINY_DATA_FIELDS = ("latent_channels", "n_copies", "copy_vertices", "knn", "pool_ratio", "bucket", "num_labels")
+TINY_DATA_FIELDS = (
+    "latent_channels",
+    "n_copies",
+    "copy_vertices",
+    "knn",
+    "pool_ratio",
+    "bucket",
+    "num_labels",
+)
 #: the dataset settings of ``tiny_data`` (the training fields are the tests' own)
 TINY_DATA = fldm.Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, knn=7, bucket=32)
 #: the key of ``tiny_data``'s copies
@@ -59,4 +69,6 @@ def tiny_sphere() -> Mesh:
 
 @pytest.fixture(scope="session")
 def tiny_data(tiny_sphere) -> fldm.Dataset:
-    return fldm.build_dataset(tiny_sphere, TINY_DATA, encode=stripe_encoder, key=TINY_DATA_KEY, progress=False)
+    return fldm.build_dataset(
+        tiny_sphere, TINY_DATA, encode=stripe_encoder, key=TINY_DATA_KEY, progress=False
+    )

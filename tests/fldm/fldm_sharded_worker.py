@@ -32,9 +32,21 @@ from jmeshtex import ConfigError, fldm, parallel  # noqa: E402
 from jmeshtex.data import icosphere  # noqa: E402
 
 # 4 copies per step (one per device), an EMA so the returned model is the replicated EMA
-CONFIG = fldm.Config.tiny(latent_channels=2, n_copies=4, copy_vertices=40, widths=(4, 6), hdim=2, knn=5,
-                          diffusion_steps=20, bucket=16, batch_size=4, steps=4, checkpoint_every=2, warmup_steps=1,
-                          ema_decay=0.9)
+CONFIG = fldm.Config.tiny(
+    latent_channels=2,
+    n_copies=4,
+    copy_vertices=40,
+    widths=(4, 6),
+    hdim=2,
+    knn=5,
+    diffusion_steps=20,
+    bucket=16,
+    batch_size=4,
+    steps=4,
+    checkpoint_every=2,
+    warmup_steps=1,
+    ema_decay=0.9,
+)
 
 
 def encode(mesh) -> np.ndarray:
@@ -44,11 +56,16 @@ def encode(mesh) -> np.ndarray:
 
 
 def dataset() -> fldm.Dataset:
-    return fldm.build_dataset(icosphere(1), CONFIG, encode=encode, key=jax.random.key(0), progress=False)
+    return fldm.build_dataset(
+        icosphere(1), CONFIG, encode=encode, key=jax.random.key(0), progress=False
+    )
 
 
 def leaves(tree) -> list[list[float]]:
-    return [np.asarray(a, np.complex128).ravel().view(np.float64).tolist() for a in jax.tree.leaves(tree)]
+    return [
+        np.asarray(a, np.complex128).ravel().view(np.float64).tolist()
+        for a in jax.tree.leaves(tree)
+    ]
 
 
 def one_gradient(data: fldm.Dataset, mesh) -> dict:
@@ -83,9 +100,13 @@ def main(mode: str, work: pathlib.Path) -> None:
     out["full_4"] = full.losses["loss"].tolist()
     out["full_4_model"] = leaves(full.model.params)
     fldm.save(full.model, work / "model_4")
-    fldm.train(data, CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_4_resume", stop_after=2)
+    fldm.train(
+        data, CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_4_resume", stop_after=2
+    )
     shutil.copytree(work / "ckpt_4_resume", work / "ckpt_4")  # left at step 2 for the parent
-    resumed = fldm.train(data, CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_4_resume")
+    resumed = fldm.train(
+        data, CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_4_resume"
+    )
     out["resumed_4"] = resumed.losses["loss"].tolist()
     out["resumed_4_from"] = resumed.resumed_from
     out["resumed_4_model"] = leaves(resumed.model.params)

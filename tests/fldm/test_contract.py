@@ -16,8 +16,19 @@ from jmeshtex import InputError, Mesh, fldm
 from jmeshtex.cli._stages.fldm import stripe_encoder
 from jmeshtex.data import striped_sphere
 
-CFG = fldm.Config.tiny(latent_channels=2, n_copies=2, copy_vertices=40, steps=3, checkpoint_every=2, widths=(4, 6),
-                       hdim=2, knn=5, diffusion_steps=20, bucket=16, batch_size=2)
+CFG = fldm.Config.tiny(
+    latent_channels=2,
+    n_copies=2,
+    copy_vertices=40,
+    steps=3,
+    checkpoint_every=2,
+    widths=(4, 6),
+    hdim=2,
+    knn=5,
+    diffusion_steps=20,
+    bucket=16,
+    batch_size=2,
+)
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +38,9 @@ def mesh() -> Mesh:
 
 @pytest.fixture(scope="module")
 def data(mesh):
-    return fldm.build_dataset(mesh, CFG, encode=stripe_encoder, key=jax.random.key(0), progress=False)
+    return fldm.build_dataset(
+        mesh, CFG, encode=stripe_encoder, key=jax.random.key(0), progress=False
+    )
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +71,10 @@ def test_public_api_is_documented_and_takes_keys_not_seeds():
             if "key" in params and name not in ("draw_sampling_noise", "init_denoiser"):
                 assert params["key"].kind is inspect.Parameter.KEYWORD_ONLY, name
     for verb in ("train", "init", "build_dataset", "sample", "inpaint"):
-        assert inspect.signature(getattr(fldm, verb)).parameters["key"].default is inspect.Parameter.empty, verb
+        assert (
+            inspect.signature(getattr(fldm, verb)).parameters["key"].default
+            is inspect.Parameter.empty
+        ), verb
 
 
 def test_train_returns_a_train_result_of_a_model(data, result):
@@ -73,8 +89,12 @@ def test_train_returns_a_train_result_of_a_model(data, result):
     assert not np.allclose(other.losses["loss"], result.losses["loss"])
     # init(key) is the model train(key) started from
     start = fldm.init(data, CFG, key=jax.random.key(1))
-    moved = [not np.array_equal(a, b) for a, b in
-             zip(jax.tree.leaves(start.params), jax.tree.leaves(result.model.params), strict=True)]
+    moved = [
+        not np.array_equal(a, b)
+        for a, b in zip(
+            jax.tree.leaves(start.params), jax.tree.leaves(result.model.params), strict=True
+        )
+    ]
     assert any(moved)
     first = fldm.train(data, CFG.replace(steps=1), key=jax.random.key(1), progress=False)
     assert first.losses["loss"][0] == result.losses["loss"][0]
@@ -106,7 +126,9 @@ def test_task_verbs_take_a_mesh_or_a_pair_and_a_key(mesh, result):
     model = result.model
     pair = (mesh.vertices, mesh.faces)
     key = jax.random.key(5)
-    np.testing.assert_array_equal(fldm.sample(model, pair, key=key, steps=2), fldm.sample(model, mesh, key=key, steps=2))
+    np.testing.assert_array_equal(
+        fldm.sample(model, pair, key=key, steps=2), fldm.sample(model, mesh, key=key, steps=2)
+    )
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
     a = fldm.inpaint(model, mesh, known, mask, key=key, method="ddim", steps=2)
@@ -114,7 +136,9 @@ def test_task_verbs_take_a_mesh_or_a_pair_and_a_key(mesh, result):
     np.testing.assert_array_equal(a, b)
     np.testing.assert_allclose(a[0][mask], known[mask], rtol=1e-6, atol=1e-6)
     geo = fldm.sampling_geometry(mesh, model)
-    np.testing.assert_array_equal(geo.fine.index, fldm.denoiser_geometry(pair, knn=CFG.knn).fine.index)
+    np.testing.assert_array_equal(
+        geo.fine.index, fldm.denoiser_geometry(pair, knn=CFG.knn).fine.index
+    )
     for bad in (mesh.vertices, "mesh.obj", None):
         with pytest.raises(InputError, match="Mesh"):
             fldm.sample(model, bad, key=key, steps=2)
@@ -125,8 +149,12 @@ def test_task_verbs_take_a_mesh_or_a_pair_and_a_key(mesh, result):
 
 
 def test_the_dataset_is_a_function_of_its_key(mesh, data):
-    same = fldm.build_dataset(mesh, CFG, encode=stripe_encoder, key=jax.random.key(0), progress=False)
+    same = fldm.build_dataset(
+        mesh, CFG, encode=stripe_encoder, key=jax.random.key(0), progress=False
+    )
     np.testing.assert_array_equal(same.latents, data.latents)
-    other = fldm.build_dataset(mesh, CFG, encode=stripe_encoder, key=jax.random.key(7), progress=False)
+    other = fldm.build_dataset(
+        mesh, CFG, encode=stripe_encoder, key=jax.random.key(7), progress=False
+    )
     assert not np.array_equal(other.meshes[0].vertices, data.meshes[0].vertices)
     assert isinstance(data, fldm.Dataset) and data.num_copies == CFG.n_copies

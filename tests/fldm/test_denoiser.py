@@ -25,7 +25,9 @@ from jmeshtex.ops import tangent_noise
 from jmeshtex.testing import check
 from jmeshtex.testing._methods import fldm as _fldm_equivariance
 
-CFG = Config.tiny(latent_channels=2, widths=(6, 8), hdim=4, knn=7, activation="silu", time_features=8)
+CFG = Config.tiny(
+    latent_channels=2, widths=(6, 8), hdim=4, knn=7, activation="silu", time_features=8
+)
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +36,9 @@ def sphere():
     return v, f, denoiser_geometry((v, f), knn=CFG.knn, pool_ratio=0.25)
 
 
-@pytest.mark.parametrize("make", [lambda: icosphere(2), lambda: grid(9, 7)], ids=["sphere", "open-grid"])
+@pytest.mark.parametrize(
+    "make", [lambda: icosphere(2), lambda: grid(9, 7)], ids=["sphere", "open-grid"]
+)
 def test_fine_frames_are_the_one_ring_frames_of_the_fl_vae(make):
     """The FL-VAE puts latents in one_ring_neighborhood's frames (x-axis = first one-ring edge): in
     the denoiser's k-NN log map that first neighbour must be real-positive, and every one-ring
@@ -52,7 +56,9 @@ def test_fine_frames_are_the_one_ring_frames_of_the_fl_vae(make):
         for j in np.nonzero(ring.mask[p])[0]:
             slot = np.nonzero((geo.fine.index[p] == ring.index[p, j]) & geo.fine.mask[p])[0]
             if slot.size:
-                np.testing.assert_allclose(geo.fine.log[p, slot[0]] * h, ring.log[p, j], rtol=1e-10, atol=1e-12)
+                np.testing.assert_allclose(
+                    geo.fine.log[p, slot[0]] * h, ring.log[p, j], rtol=1e-10, atol=1e-12
+                )
                 hits += 1
         s0 = np.nonzero((geo.fine.index[p] == first[p]) & geo.fine.mask[p])[0]
         if s0.size:
@@ -70,7 +76,7 @@ def test_padding_leaves_real_outputs_unchanged(sphere):
     zp = jnp.concatenate([z, 5.0 + tangent_noise(jax.random.key(2), (37, 2), dtype=jnp.complex128)])
     outp = denoise(params, CFG, zp, jnp.array(123), padded)
     np.testing.assert_allclose(outp[: len(v)], out, rtol=1e-10, atol=1e-12)
-    assert bool(jnp.all(outp[len(v):] == 0))
+    assert bool(jnp.all(outp[len(v) :] == 0))
 
 
 def test_timestep_and_labels_change_the_output_and_jit_does_not_recompile(sphere):
@@ -126,7 +132,10 @@ def test_timestep_embedding_and_flops():
     e = timestep_embedding(jnp.array(7), 6, dtype=jnp.float64)
     w = np.exp(-np.log(1e4) * np.arange(3) / 3)
     np.testing.assert_allclose(e, np.stack([np.sin(7 * w), np.cos(7 * w)], 1).ravel(), rtol=1e-12)
-    small, big = denoiser_flops(Config.cpu(), 5000, 1250), denoiser_flops(Config.paper(), 5000, 1250)
+    small, big = (
+        denoiser_flops(Config.cpu(), 5000, 1250),
+        denoiser_flops(Config.paper(), 5000, 1250),
+    )
     assert big > 5 * small
     assert denoiser_flops(Config.paper(), 10000, 2500) == pytest.approx(2 * big, rel=1e-12)
 
@@ -137,12 +146,18 @@ SUBSET = {
     "fldm.denoiser": (("gauge", "float64"), ("fold", "float64"), ("gauge", "float32")),
     "fldm.denoiser_labels": (("permute_vertices", "float64"),),
     "fldm.sampler": (("gauge", "float64"),),
-    "fldm.denoiser_mask": (("gauge", "float64"), ("permute_vertices", "float64"), ("fold", "float64")),
+    "fldm.denoiser_mask": (
+        ("gauge", "float64"),
+        ("permute_vertices", "float64"),
+        ("fold", "float64"),
+    ),
     "fldm.sampler_inpaint": (("gauge", "float64"), ("permute_vertices", "float64")),
 }
 
 
-@pytest.mark.parametrize("entry", [e for e in _fldm_equivariance.ENTRIES if not e.expect_fail], ids=lambda e: e.name)
+@pytest.mark.parametrize(
+    "entry", [e for e in _fldm_equivariance.ENTRIES if not e.expect_fail], ids=lambda e: e.name
+)
 def test_registered_entries(entry):
     assert set(entry.transforms) >= {"rigid", "gauge", "permute_vertices", "fold", "hinge"}
     for t, dt in SUBSET[entry.name]:
@@ -153,7 +168,9 @@ def test_registered_entries(entry):
 def test_the_reference_codes_untransported_filter_argument_is_flagged():
     """The registered negative control: the reference's get_rel_pos argument (log map with the
     neighbour's untransported feature direction) breaks gauge equivariance; permutations pass."""
-    entry = next(e for e in _fldm_equivariance.ENTRIES if e.name == "fldm.denoiser_reference_argument")
+    entry = next(
+        e for e in _fldm_equivariance.ENTRIES if e.name == "fldm.denoiser_reference_argument"
+    )
     assert entry.expect_fail == ("gauge",)
     flagged = check(entry, "gauge")
     assert flagged.expect_fail and flagged.passed and flagged.error > 1e-3, flagged
@@ -169,10 +186,20 @@ def test_a_denoiser_that_ignores_transport_is_flagged():
     def broken(state, params, z):
         geo = _fldm_equivariance._geometry(state)
         geo = geo._replace(fine=geo.fine._replace(transport=jnp.ones_like(geo.fine.transport)))
-        return Field("vertex_tangent", denoise(params, CFG.replace(widths=(4, 6)), z, jnp.array(37, jnp.int32), geo))
+        return Field(
+            "vertex_tangent",
+            denoise(params, CFG.replace(widths=(4, 6)), z, jnp.array(37, jnp.int32), geo),
+        )
 
-    bad = Entry("fldm.negative.no_transport", broken, good.inputs, ("permute_vertices",), init=good.init,
-                expect_fail=("gauge",), group="negative")
+    bad = Entry(
+        "fldm.negative.no_transport",
+        broken,
+        good.inputs,
+        ("permute_vertices",),
+        init=good.init,
+        expect_fail=("gauge",),
+        group="negative",
+    )
     result = check(bad, "gauge")
     assert result.expect_fail and result.passed and result.error > 1e-3
 
@@ -195,4 +222,9 @@ def test_output_scales_with_input_at_high_noise():
 
     for t in (999, 900):
         r1, r4, r16 = rms(1.0, t), rms(4.0, t), rms(16.0, t)
-        assert r4 > 1.8 * r1 and r16 > 3.0 * r4, (t, r1, r4, r16)  # linear: 4 and 4; the old network: ~1 and ~1
+        assert r4 > 1.8 * r1 and r16 > 3.0 * r4, (
+            t,
+            r1,
+            r4,
+            r16,
+        )  # linear: 4 and 4; the old network: ~1 and ~1

@@ -55,7 +55,9 @@ def test_q_sample_formula_batched():
     z0, eps = np.asarray(z0), np.asarray(eps)
     for b in range(3):
         ab = s.alpha_bars[int(t[b])]
-        np.testing.assert_allclose(got[b], np.sqrt(ab) * z0[b] + np.sqrt(1 - ab) * eps[b], rtol=1e-12)
+        np.testing.assert_allclose(
+            got[b], np.sqrt(ab) * z0[b] + np.sqrt(1 - ab) * eps[b], rtol=1e-12
+        )
 
 
 def test_ddpm_step_is_the_posterior_mean_with_the_true_noise():
@@ -67,12 +69,19 @@ def test_ddpm_step_is_the_posterior_mean_with_the_true_noise():
         zt = q_sample(s, z0, jnp.array(t), eps)
         z0n, ztn = np.asarray(z0), np.asarray(zt)
         ab, ab_prev, beta, alpha = s.alpha_bars[t], s.alpha_bars[t - 1], s.betas[t], s.alphas[t]
-        mu = np.sqrt(ab_prev) * beta / (1 - ab) * z0n + np.sqrt(alpha) * (1 - ab_prev) / (1 - ab) * ztn
+        mu = (
+            np.sqrt(ab_prev) * beta / (1 - ab) * z0n
+            + np.sqrt(alpha) * (1 - ab_prev) / (1 - ab) * ztn
+        )
         got = ddpm_step(s, zt, jnp.array(t), eps, jnp.zeros_like(zt))
         np.testing.assert_allclose(got, mu, rtol=1e-10, atol=1e-12)
         noise = jnp.ones_like(zt)
         sigma2 = beta * (1 - ab_prev) / (1 - ab)
-        np.testing.assert_allclose(np.asarray(ddpm_step(s, zt, jnp.array(t), eps, noise) - got), np.sqrt(sigma2), rtol=1e-10)
+        np.testing.assert_allclose(
+            np.asarray(ddpm_step(s, zt, jnp.array(t), eps, noise) - got),
+            np.sqrt(sigma2),
+            rtol=1e-10,
+        )
 
 
 @pytest.mark.parametrize("method", ["ddim", "ddpm"])
@@ -85,8 +94,14 @@ def test_oracle_denoiser_recovers_the_data(method):
     def oracle(z, t):
         return (z - jnp.sqrt(ab[t]) * z0) / jnp.sqrt(1 - ab[t])
 
-    zT, steps, _ = draw_sampling_noise(jax.random.key(5), (6, 2), method=method, num_steps=10, diffusion_steps=60,
-                                       dtype=jnp.complex128)
+    zT, steps, _ = draw_sampling_noise(
+        jax.random.key(5),
+        (6, 2),
+        method=method,
+        num_steps=10,
+        diffusion_steps=60,
+        dtype=jnp.complex128,
+    )
     out = sample_from_noise(oracle, s, zT, steps, method=method, num_steps=10)
     np.testing.assert_allclose(out, z0, atol=1e-9)
 
@@ -128,8 +143,14 @@ def test_v_oracle_through_the_conversion_recovers_the_data(method):
         eps = (z - jnp.sqrt(ab[t]) * z0) / jnp.sqrt(1 - ab[t])
         return epsilon_from_output(s, "v", z, t, prediction_target(s, "v", z0, t, eps))
 
-    zT, steps, _ = draw_sampling_noise(jax.random.key(14), (6, 2), method=method, num_steps=10, diffusion_steps=60,
-                                       dtype=jnp.complex128)
+    zT, steps, _ = draw_sampling_noise(
+        jax.random.key(14),
+        (6, 2),
+        method=method,
+        num_steps=10,
+        diffusion_steps=60,
+        dtype=jnp.complex128,
+    )
     out = sample_from_noise(v_oracle, s, zT, steps, method=method, num_steps=10)
     np.testing.assert_allclose(out, z0, atol=1e-8)
 
@@ -158,15 +179,30 @@ def test_gaussian_data_with_the_exact_denoiser_gives_the_data_distribution():
     def exact(z, t):
         return jnp.sqrt(1 - ab[t]) * z / (ab[t] * v + 1 - ab[t])
 
-    zT, steps, _ = draw_sampling_noise(jax.random.key(6), (4000, 2), method="ddpm", num_steps=0, diffusion_steps=100,
-                                       dtype=jnp.complex128)
+    zT, steps, _ = draw_sampling_noise(
+        jax.random.key(6),
+        (4000, 2),
+        method="ddpm",
+        num_steps=0,
+        diffusion_steps=100,
+        dtype=jnp.complex128,
+    )
     out = sample_from_noise(exact, s, zT, steps, method="ddpm")
     power = float(jnp.mean(jnp.abs(out) ** 2))
-    assert abs(power - expect) < 0.04 * expect, (power, expect)  # 8000 samples: std of the estimate ~1.1 %
-    assert abs(complex(jnp.mean(out ** 2))) < 0.1 * v  # circular: no preferred direction
+    assert abs(power - expect) < 0.04 * expect, (
+        power,
+        expect,
+    )  # 8000 samples: std of the estimate ~1.1 %
+    assert abs(complex(jnp.mean(out**2))) < 0.1 * v  # circular: no preferred direction
     # DDIM with η=1 on a sub-sequence samples (nearly) the same law
-    zT, steps, _ = draw_sampling_noise(jax.random.key(7), (4000, 2), method="ddim", num_steps=50, diffusion_steps=100,
-                                       dtype=jnp.complex128)
+    zT, steps, _ = draw_sampling_noise(
+        jax.random.key(7),
+        (4000, 2),
+        method="ddim",
+        num_steps=50,
+        diffusion_steps=100,
+        dtype=jnp.complex128,
+    )
     out = sample_from_noise(exact, s, zT, steps, method="ddim", num_steps=50, eta=1.0)
     assert abs(float(jnp.mean(jnp.abs(out) ** 2)) - v) < 0.15 * v
 
@@ -177,8 +213,11 @@ def test_ddim_step_interpolates_to_z0_estimate():
     e = tangent_noise(jax.random.key(9), (4, 1), dtype=jnp.complex128)
     zt = q_sample(s, z0, jnp.array(80), e)
     # same noise, deterministic: z_{t'} is exactly the forward process at t'
-    np.testing.assert_allclose(ddim_step(s, zt, jnp.array(80), jnp.array(30), e, e), q_sample(s, z0, jnp.array(30), e),
-                               rtol=1e-10)
+    np.testing.assert_allclose(
+        ddim_step(s, zt, jnp.array(80), jnp.array(30), e, e),
+        q_sample(s, z0, jnp.array(30), e),
+        rtol=1e-10,
+    )
 
 
 def test_inpainting_keeps_the_known_latents_exactly():
@@ -187,10 +226,25 @@ def test_inpainting_keeps_the_known_latents_exactly():
     z0 = tangent_noise(jax.random.key(10), (V, C), dtype=jnp.complex128)
     mask = jnp.arange(V) % 3 == 0
     for method in ("ddim", "ddpm"):
-        zT, steps, known = draw_sampling_noise(jax.random.key(11), (V, C), method=method, num_steps=8, diffusion_steps=40,
-                                               inpaint=True, dtype=jnp.complex128)
-        out = sample_from_noise(lambda z, t: 0.3 * z, s, zT, steps, method=method, num_steps=8,
-                                inpaint=Inpaint(z0, mask), inpaint_noise=known)
+        zT, steps, known = draw_sampling_noise(
+            jax.random.key(11),
+            (V, C),
+            method=method,
+            num_steps=8,
+            diffusion_steps=40,
+            inpaint=True,
+            dtype=jnp.complex128,
+        )
+        out = sample_from_noise(
+            lambda z, t: 0.3 * z,
+            s,
+            zT,
+            steps,
+            method=method,
+            num_steps=8,
+            inpaint=Inpaint(z0, mask),
+            inpaint_noise=known,
+        )
         assert bool(jnp.all(out[mask] == z0[mask]))
         assert not bool(jnp.allclose(out[~mask], z0[~mask]))
     with pytest.raises(InputError, match="inpaint_noise"):
@@ -201,9 +255,18 @@ def test_sampling_is_reproducible_with_a_fixed_key():
     s = make_schedule("cosine", num_steps=30)
 
     def run(key):
-        zT, steps, _ = draw_sampling_noise(key, (9, 2), method="ddim", num_steps=5, diffusion_steps=30)
-        return sample_from_noise(lambda z, t: jnp.tanh(z.real).astype(z.dtype) * 0.5, s, zT, steps,
-                                 method="ddim", num_steps=5, eta=0.7)
+        zT, steps, _ = draw_sampling_noise(
+            key, (9, 2), method="ddim", num_steps=5, diffusion_steps=30
+        )
+        return sample_from_noise(
+            lambda z, t: jnp.tanh(z.real).astype(z.dtype) * 0.5,
+            s,
+            zT,
+            steps,
+            method="ddim",
+            num_steps=5,
+            eta=0.7,
+        )
 
     a, b, c = run(jax.random.key(3)), run(jax.random.key(3)), run(jax.random.key(4))
     assert bool(jnp.all(a == b)) and not bool(jnp.allclose(a, c))
@@ -215,8 +278,14 @@ def test_sampler_commutes_with_a_gauge_change_of_its_noise(prediction):
     rotated by e^{-iα} give the sample rotated by e^{-iα}."""
     s = make_schedule("linear", num_steps=20)
     w = jnp.array([[0.3 + 0.1j, -0.2j], [0.05, 0.4 - 0.3j]])
-    zT, steps, _ = draw_sampling_noise(jax.random.key(13), (11, 2), method="ddpm", num_steps=0, diffusion_steps=20,
-                                       dtype=jnp.complex128)
+    zT, steps, _ = draw_sampling_noise(
+        jax.random.key(13),
+        (11, 2),
+        method="ddpm",
+        num_steps=0,
+        diffusion_steps=20,
+        dtype=jnp.complex128,
+    )
     turn = jnp.exp(-1j * jnp.linspace(0.0, 5.0, 11).astype(jnp.complex128))[:, None]
 
     def denoise(z, t):
@@ -230,7 +299,9 @@ def test_sampler_commutes_with_a_gauge_change_of_its_noise(prediction):
 
 def test_latent_scale_and_loss():
     rng = np.random.default_rng(0)
-    mu = (rng.standard_normal((50, 3)) + 1j * rng.standard_normal((50, 3))) * np.array([0.1, 1.0, 7.0])
+    mu = (rng.standard_normal((50, 3)) + 1j * rng.standard_normal((50, 3))) * np.array(
+        [0.1, 1.0, 7.0]
+    )
     mask = np.arange(50) < 40
     sc = latent_scale(mu, mask)
     np.testing.assert_allclose((np.abs(mu[mask] * sc) ** 2).mean(0), 1.0, rtol=1e-12)

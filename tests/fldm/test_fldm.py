@@ -17,8 +17,19 @@ from jmeshtex.fldm import Config, build_dataset, inpaint, load, sample, save, tr
 from jmeshtex.fldm._data import copy_mesh, transfer_labels
 from tests.fldm.conftest import TINY_DATA_KEY, uses_tiny_data
 
-CFG = Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, steps=4, checkpoint_every=2,
-                  widths=(6, 8), hdim=4, knn=7, diffusion_steps=50, bucket=32, batch_size=2)
+CFG = Config.tiny(
+    latent_channels=2,
+    n_copies=3,
+    copy_vertices=80,
+    steps=4,
+    checkpoint_every=2,
+    widths=(6, 8),
+    hdim=4,
+    knn=7,
+    diffusion_steps=50,
+    bucket=32,
+    batch_size=2,
+)
 DATA_KEY = TINY_DATA_KEY
 TRAIN_KEY = jax.random.key(1)
 
@@ -49,10 +60,14 @@ def test_copies_are_distinct_retriangulations_padded_to_one_bucket(sphere, data)
     assert np.all(data.latents[:, 80:] == 0)
     # latents are the encoder's on each copy; the scale gives unit mean |z|² (eq. 38–39)
     np.testing.assert_allclose(data.latents[1, :80], stripe_encoder(data.meshes[1]), rtol=1e-12)
-    np.testing.assert_allclose((np.abs(data.latents[:, :80] * data.scale) ** 2).mean((0, 1)), 1.0, rtol=1e-10)
+    np.testing.assert_allclose(
+        (np.abs(data.latents[:, :80] * data.scale) ** 2).mean((0, 1)), 1.0, rtol=1e-10
+    )
     # copies are deterministic in (key, index), and another key gives other copies
     assert np.array_equal(copy_mesh(sphere, CFG, 1, key=DATA_KEY).faces, data.meshes[1].faces)
-    assert not np.array_equal(copy_mesh(sphere, CFG, 1, key=jax.random.key(5)).vertices, data.meshes[1].vertices)
+    assert not np.array_equal(
+        copy_mesh(sphere, CFG, 1, key=jax.random.key(5)).vertices, data.meshes[1].vertices
+    )
 
 
 def test_cache_is_reused_and_invalidated(tmp_path, sphere):
@@ -66,11 +81,18 @@ def test_cache_is_reused_and_invalidated(tmp_path, sphere):
     a = build_dataset(sphere, CFG, encode=enc, key=DATA_KEY, cache_dir=tmp_path, progress=False)
     b = build_dataset(sphere, CFG, encode=enc, key=DATA_KEY, cache_dir=tmp_path, progress=False)
     assert len(calls) == 3 and np.array_equal(a.latents, b.latents)
-    assert sorted(p.name for p in tmp_path.glob("copy_*.npz")) == ["copy_0000.npz", "copy_0001.npz", "copy_0002.npz"]
+    assert sorted(p.name for p in tmp_path.glob("copy_*.npz")) == [
+        "copy_0000.npz",
+        "copy_0001.npz",
+        "copy_0002.npz",
+    ]
     other = jax.random.key(5)
     build_dataset(sphere, CFG, encode=enc, key=other, cache_dir=tmp_path, progress=False)
     assert len(calls) == 6  # another key: rebuilt
-    assert json.loads((tmp_path / "data.json").read_text())["key"] == jax.random.key_data(other).tolist()
+    assert (
+        json.loads((tmp_path / "data.json").read_text())["key"]
+        == jax.random.key_data(other).tolist()
+    )
     with pytest.raises(ConfigError, match="encode must be a callable"):
         build_dataset(sphere, CFG, encode=None, key=other, cache_dir=tmp_path, progress=False)
     assert len(list(tmp_path.glob("copy_*.npz"))) == 3  # a bad call leaves the cache as it was
@@ -83,11 +105,21 @@ def test_labels_are_carried_to_the_copies(sphere):
     far = np.abs(copy.vertices[:, 2]) > 0.3  # away from the label boundary: exact
     assert np.array_equal(got[far], (copy.vertices[far, 2] > 0).astype(np.int32))
     with pytest.raises(ConfigError, match="num_labels"):
-        build_dataset(sphere, CFG, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False)
+        build_dataset(
+            sphere, CFG, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False
+        )
     with pytest.raises(ConfigError, match="no labels"):
-        build_dataset(sphere, CFG.replace(num_labels=2), encode=stripe_encoder, key=DATA_KEY, progress=False)
+        build_dataset(
+            sphere, CFG.replace(num_labels=2), encode=stripe_encoder, key=DATA_KEY, progress=False
+        )
     with pytest.raises(ConfigError, match="latent_channels"):
-        build_dataset(sphere, CFG.replace(latent_channels=3), encode=stripe_encoder, key=DATA_KEY, progress=False)
+        build_dataset(
+            sphere,
+            CFG.replace(latent_channels=3),
+            encode=stripe_encoder,
+            key=DATA_KEY,
+            progress=False,
+        )
 
 
 def test_training_resumes_exactly_as_an_uninterrupted_run(tmp_path, data, trained):
@@ -97,14 +129,20 @@ def test_training_resumes_exactly_as_an_uninterrupted_run(tmp_path, data, traine
     part = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False, stop_after=1)
     assert part.steps == 1 and part.resumed_from is None
     part = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False, stop_after=2)
-    assert part.steps == 3 and part.resumed_from == 1  # off the checkpoint_every grid: the last step is kept
+    assert (
+        part.steps == 3 and part.resumed_from == 1
+    )  # off the checkpoint_every grid: the last step is kept
     rest = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False)
     assert rest.steps == 4 and rest.resumed_from == 3
     # bit-identical: the same step function on the same state, batches and noise from (key, step)
     np.testing.assert_array_equal(rest.losses["loss"], trained.losses["loss"])
-    for a, b in zip(jax.tree.leaves(rest.model.params), jax.tree.leaves(trained.model.params), strict=True):
+    for a, b in zip(
+        jax.tree.leaves(rest.model.params), jax.tree.leaves(trained.model.params), strict=True
+    ):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    again = train(data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False)  # done: nothing more to do
+    again = train(
+        data, CFG, key=TRAIN_KEY, checkpoint_dir=ckpt, progress=False
+    )  # done: nothing more to do
     assert again.steps == 4 and again.resumed_from == 4
     np.testing.assert_array_equal(again.losses["loss"], trained.losses["loss"])
     # a folder of another run is never resumed by mistake
@@ -131,8 +169,13 @@ def test_v_prediction_is_trained_saved_and_sampled_through(tmp_path, data, train
     assert model.config.prediction == "v"
     mesh = data.meshes[0]
     as_v = sample(model, mesh, key=jax.random.key(0), n=1, steps=5)
-    as_eps = sample(model._replace(config=cfg.replace(prediction="epsilon")), mesh, key=jax.random.key(0), n=1,
-                    steps=5)
+    as_eps = sample(
+        model._replace(config=cfg.replace(prediction="epsilon")),
+        mesh,
+        key=jax.random.key(0),
+        n=1,
+        steps=5,
+    )
     assert np.isfinite(as_v).all() and not np.allclose(as_v, as_eps)
     with pytest.raises(ConfigError, match="prediction"):
         CFG.replace(prediction="x0")
@@ -142,7 +185,9 @@ def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
     model = trained.model
     mesh = data.meshes[0]
     a = sample(model, mesh, key=jax.random.key(0), n=2, steps=5)
-    b = sample(model, (mesh.vertices, mesh.faces), key=jax.random.key(0), n=2, steps=5)  # a (V, F) pair works too
+    b = sample(
+        model, (mesh.vertices, mesh.faces), key=jax.random.key(0), n=2, steps=5
+    )  # a (V, F) pair works too
     c = sample(model, mesh, key=jax.random.key(1), n=1, steps=5)
     assert a.shape == (2, 80, 2) and np.array_equal(a, b) and not np.allclose(a[0], c[0])
     assert not np.allclose(a[0], a[1])
@@ -172,7 +217,9 @@ def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
 def test_label_guided_training_and_sampling(sphere):
     cfg = CFG.replace(num_labels=2, n_copies=2, steps=2)
     labels = (sphere.vertices[:, 2] > 0).astype(np.int64)
-    data = build_dataset(sphere, cfg, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False)
+    data = build_dataset(
+        sphere, cfg, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False
+    )
     assert data.labels.shape == (2, 96) and set(np.unique(data.labels[:, :80])) == {0, 1}
     model = train(data, cfg, key=TRAIN_KEY, progress=False).model
     mesh = data.meshes[0]
@@ -189,30 +236,146 @@ def test_cli_train_sample_inpaint(tmp_path):
     from jmeshtex.cli._main import main
 
     out = tmp_path / "model"
-    rc = main(["fldm", "train", "--mesh", "icosphere:2", "--codec", "stripes", "--preset", "tiny", "--copies", "2",
-               "--vertices", "60", "--steps", "2", "--out", str(out), "--quiet"])
+    rc = main(
+        [
+            "fldm",
+            "train",
+            "--mesh",
+            "icosphere:2",
+            "--codec",
+            "stripes",
+            "--preset",
+            "tiny",
+            "--copies",
+            "2",
+            "--vertices",
+            "60",
+            "--steps",
+            "2",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert rc == 2  # icosphere has no colours to read: a clear error, no traceback
-    rc = main(["fldm", "train", "--mesh", "striped-sphere", "--codec", "stripes", "--preset", "tiny", "--copies", "2",
-               "--vertices", "60", "--steps", "2", "--prediction", "v", "--out", str(out), "--quiet"])
+    rc = main(
+        [
+            "fldm",
+            "train",
+            "--mesh",
+            "striped-sphere",
+            "--codec",
+            "stripes",
+            "--preset",
+            "tiny",
+            "--copies",
+            "2",
+            "--vertices",
+            "60",
+            "--steps",
+            "2",
+            "--prediction",
+            "v",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert rc == 0 and (out / "model.npz").exists() and (out / "data" / "copy_0001.npz").exists()
     assert load(out).config.prediction == "v"  # the tiny preset's own is epsilon
-    rc = main(["fldm", "sample", "--model", str(out), "--vertices", "70", "--steps", "3", "--n", "2",
-               "--out", str(tmp_path / "s"), "--quiet"])
+    rc = main(
+        [
+            "fldm",
+            "sample",
+            "--model",
+            str(out),
+            "--vertices",
+            "70",
+            "--steps",
+            "3",
+            "--n",
+            "2",
+            "--out",
+            str(tmp_path / "s"),
+            "--quiet",
+        ]
+    )
     assert rc == 0 and len(list((tmp_path / "s").glob("sample_*.png"))) == 2
     assert np.load(tmp_path / "s" / "latents.npz")["latents"].shape == (2, 70, 2)
     mesh = striped_sphere(subdivisions=3)
     np.save(tmp_path / "mask.npy", mesh.vertices[:, 2] > 0)
-    rc = main(["fldm", "inpaint", "--model", str(out), "--mask", str(tmp_path / "mask.npy"), "--steps", "3",
-               "--n", "1", "--out", str(tmp_path / "i"), "--quiet"])
+    rc = main(
+        [
+            "fldm",
+            "inpaint",
+            "--model",
+            str(out),
+            "--mask",
+            str(tmp_path / "mask.npy"),
+            "--steps",
+            "3",
+            "--n",
+            "1",
+            "--out",
+            str(tmp_path / "i"),
+            "--quiet",
+        ]
+    )
     assert rc == 0 and len(list((tmp_path / "i").glob("inpaint_*.png"))) == 1
     masked = tmp_path / "masked"
-    rc = main(["fldm", "train", "--mesh", "striped-sphere", "--codec", "stripes", "--preset", "tiny", "--copies", "2",
-               "--vertices", "60", "--steps", "2", "--mask-conditioning", "--out", str(masked), "--quiet"])
+    rc = main(
+        [
+            "fldm",
+            "train",
+            "--mesh",
+            "striped-sphere",
+            "--codec",
+            "stripes",
+            "--preset",
+            "tiny",
+            "--copies",
+            "2",
+            "--vertices",
+            "60",
+            "--steps",
+            "2",
+            "--mask-conditioning",
+            "--out",
+            str(masked),
+            "--quiet",
+        ]
+    )
     assert rc == 0 and load(masked).config.mask_conditioning
-    rc = main(["fldm", "inpaint", "--model", str(masked), "--mask", str(tmp_path / "mask.npy"), "--steps", "3",
-               "--n", "1", "--out", str(tmp_path / "mi"), "--quiet"])
+    rc = main(
+        [
+            "fldm",
+            "inpaint",
+            "--model",
+            str(masked),
+            "--mask",
+            str(tmp_path / "mask.npy"),
+            "--steps",
+            "3",
+            "--n",
+            "1",
+            "--out",
+            str(tmp_path / "mi"),
+            "--quiet",
+        ]
+    )
     assert rc == 0 and len(list((tmp_path / "mi").glob("inpaint_*.png"))) == 1
     np.save(tmp_path / "bad.npy", np.ones(5, bool))
-    rc = main(["fldm", "inpaint", "--model", str(out), "--mask", str(tmp_path / "bad.npy"), "--out",
-               str(tmp_path / "j"), "--quiet"])
+    rc = main(
+        [
+            "fldm",
+            "inpaint",
+            "--model",
+            str(out),
+            "--mask",
+            str(tmp_path / "bad.npy"),
+            "--out",
+            str(tmp_path / "j"),
+            "--quiet",
+        ]
+    )
     assert rc == 2

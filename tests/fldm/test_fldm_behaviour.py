@@ -61,7 +61,11 @@ def correlation_length(mesh: Mesh, s: np.ndarray, *, bins: int = 40) -> float:
     edges = np.linspace(0.0, 2.0, bins + 1)
     idx = np.clip(np.digitize(d[off], edges) - 1, 0, bins - 1)
     count = np.bincount(idx, minlength=bins)
-    c = np.bincount(idx, prod, minlength=bins) / np.maximum(count, 1) / max(float(np.mean(s * s)), 1e-12)
+    c = (
+        np.bincount(idx, prod, minlength=bins)
+        / np.maximum(count, 1)
+        / max(float(np.mean(s * s)), 1e-12)
+    )
     r = 0.5 * (edges[1:] + edges[:-1])
     keep = count > 0
     r, c = np.concatenate([[0.0], r[keep]]), np.concatenate([[1.0], c[keep]])
@@ -71,7 +75,9 @@ def correlation_length(mesh: Mesh, s: np.ndarray, *, bins: int = 40) -> float:
 
 
 def _train(exemplar: Mesh, cfg, labels=None):
-    data = fldm.build_dataset(exemplar, cfg, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False)
+    data = fldm.build_dataset(
+        exemplar, cfg, encode=stripe_encoder, key=DATA_KEY, labels=labels, progress=False
+    )
     return fldm.train(data, cfg, key=TRAIN_KEY, progress=False).model
 
 
@@ -97,10 +103,16 @@ def test_inpainting_keeps_the_known_region_and_continues_it_across_the_boundary(
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
     z = fldm.inpaint(model, mesh, known, mask, key=SAMPLE_KEY, n=2)  # ancestral DDPM, all T steps
-    np.testing.assert_allclose(z[:, mask], np.broadcast_to(known[mask], z[:, mask].shape), rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(
+        z[:, mask], np.broadcast_to(known[mask], z[:, mask].shape), rtol=1e-6, atol=1e-6
+    )
     truth = stripe_decoder(known)
-    permuted = [boundary_jump(mesh, permuted_baseline(truth[:, None], key=jax.random.key(i), mask=~mask)[:, 0], mask)
-                for i in range(3)]
+    permuted = [
+        boundary_jump(
+            mesh, permuted_baseline(truth[:, None], key=jax.random.key(i), mask=~mask)[:, 0], mask
+        )
+        for i in range(3)
+    ]
     jumps = [boundary_jump(mesh, stripe_decoder(zz), mask) for zz in z]
     print({"inpainted": np.round(jumps, 3).tolist(), "permuted": np.round(permuted, 3).tolist()})
     assert max(jumps) < 0.8 * np.mean(permuted), (jumps, permuted)
@@ -110,13 +122,17 @@ def _two_label_sphere(exemplar: Mesh) -> tuple[Mesh, np.ndarray]:
     """Stripes where ``z > 0`` (label 1), the uniform intensity ½ where ``z ≤ 0`` (label 0)."""
     v = exemplar.vertices
     s = np.where(v[:, 2] > 0, stripe_intensity(v), 0.5)
-    return Mesh(v, exemplar.faces, vertex_colors=intensity_to_rgb(s).astype(np.float32)), (v[:, 2] > 0).astype(np.int64)
+    return Mesh(v, exemplar.faces, vertex_colors=intensity_to_rgb(s).astype(np.float32)), (
+        v[:, 2] > 0
+    ).astype(np.int64)
 
 
 def _std_ratios(model, mesh, region, labels=None, n=2):
     """``std(s | region) / std(s | not region)`` of each of ``n`` samples (DDIM 25)."""
     z = fldm.sample(model, mesh, key=jax.random.key(3), n=n, steps=25, labels=labels)
-    return [float(np.std(stripe_decoder(zz)[region]) / np.std(stripe_decoder(zz)[~region])) for zz in z]
+    return [
+        float(np.std(stripe_decoder(zz)[region]) / np.std(stripe_decoder(zz)[~region])) for zz in z
+    ]
 
 
 @pytest.mark.slow
@@ -170,7 +186,10 @@ ELLIPSOID_AXES = (1.0, 0.8, 0.9)
 
 def _area(mesh: Mesh) -> float:
     v, f = mesh.vertices, mesh.faces
-    return float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+    return float(
+        0.5
+        * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum()
+    )
 
 
 def transfer_target(train_vertices: int) -> Mesh:
@@ -194,7 +213,9 @@ def transfer_grams(model: fldm.Model, data: fldm.Dataset, *, n: int = 2) -> dict
 
     def gram(s):
         img = render_views(target, s, size=96, crop=True)
-        return float(np.mean(np.asarray(gram_distance(jnp.asarray(img), jnp.asarray(ref), weights=weights))))
+        return float(
+            np.mean(np.asarray(gram_distance(jnp.asarray(img), jnp.asarray(ref), weights=weights)))
+        )
 
     z_copy = data.latents[0, : data.meshes[0].num_vertices]
     rng = np.random.default_rng(0)
@@ -203,8 +224,12 @@ def transfer_grams(model: fldm.Model, data: fldm.Dataset, *, n: int = 2) -> dict
         "vertices": target.num_vertices,
         "samples": [gram(stripe_decoder(zz)) for zz in z],
         "flat": gram(np.full(target.num_vertices, stripe_decoder(z_copy).mean())),
-        "shuffled": [gram(stripe_decoder(z_copy[rng.choice(len(z_copy), target.num_vertices, replace=False)]))
-                     for _ in range(3)],
+        "shuffled": [
+            gram(
+                stripe_decoder(z_copy[rng.choice(len(z_copy), target.num_vertices, replace=False)])
+            )
+            for _ in range(3)
+        ],
     }
 
 

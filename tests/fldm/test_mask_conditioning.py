@@ -30,7 +30,9 @@ from jmeshtex.fldm._masks import EMPTY_FRACTION
 from jmeshtex.ops import tangent_noise
 from tests.fldm.conftest import uses_tiny_data
 
-CFG = Config.tiny(latent_channels=2, widths=(6, 8), hdim=4, knn=7, time_features=8, mask_conditioning=True)
+CFG = Config.tiny(
+    latent_channels=2, widths=(6, 8), hdim=4, knn=7, time_features=8, mask_conditioning=True
+)
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +42,9 @@ def sphere():
 
 
 def _shapes(config):
-    return jax.eval_shape(lambda k: init_denoiser(k, config), jax.random.key(0))  # traced, not compiled
+    return jax.eval_shape(
+        lambda k: init_denoiser(k, config), jax.random.key(0)
+    )  # traced, not compiled
 
 
 def test_parameters_take_the_mask_and_the_known_latents():
@@ -76,8 +80,15 @@ def test_mask_and_known_latents_reach_the_output_and_padding_is_invariant(sphere
     sizes = geometry_sizes(geo)
     padded = pad_geometry(geo, V0=sizes["V0"] + 13, V1=sizes["V1"] + 5, M=sizes["M"] + 2)
     pad = 3.0 + tangent_noise(jax.random.key(3), (13, 2), dtype=jnp.complex128)
-    outp = denoise(params, CFG, jnp.concatenate([z, pad]), t, padded, mask=jnp.pad(mask, (0, 13), constant_values=True),
-                   known=jnp.concatenate([known, pad]))
+    outp = denoise(
+        params,
+        CFG,
+        jnp.concatenate([z, pad]),
+        t,
+        padded,
+        mask=jnp.pad(mask, (0, 13), constant_values=True),
+        known=jnp.concatenate([known, pad]),
+    )
     np.testing.assert_allclose(outp[:V], out, rtol=1e-10, atol=1e-12)
     assert bool(jnp.all(outp[V:] == 0))
 
@@ -107,12 +118,25 @@ def test_random_training_masks():
     assert abs(empty.mean() - EMPTY_FRACTION) < 0.1
     kept = masks[~empty].mean(1)
     assert kept.min() >= 0.15 and kept.max() <= 0.85  # a cap of 20-80 % of the vertices
-    assert np.array_equal(random_mask(icosphere(2), key=jax.random.key(7)),
-                          random_mask(icosphere(2), key=jax.random.key(7)))
+    assert np.array_equal(
+        random_mask(icosphere(2), key=jax.random.key(7)),
+        random_mask(icosphere(2), key=jax.random.key(7)),
+    )
 
 
-CFG_TRAIN = Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, steps=3, widths=(6, 8), hdim=4, knn=7,
-                        diffusion_steps=50, bucket=32, batch_size=2, mask_conditioning=True)
+CFG_TRAIN = Config.tiny(
+    latent_channels=2,
+    n_copies=3,
+    copy_vertices=80,
+    steps=3,
+    widths=(6, 8),
+    hdim=4,
+    knn=7,
+    diffusion_steps=50,
+    bucket=32,
+    batch_size=2,
+    mask_conditioning=True,
+)
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +167,9 @@ def test_a_mask_conditioned_model_trains_and_inpaints_exactly(trained):
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
     z = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=4)
-    np.testing.assert_allclose(z[0][mask], known[mask], rtol=1e-6, atol=1e-6)  # the float32 round trip of the scale
+    np.testing.assert_allclose(
+        z[0][mask], known[mask], rtol=1e-6, atol=1e-6
+    )  # the float32 round trip of the scale
     assert np.isfinite(z).all() and not np.allclose(z[0][~mask], known[~mask], atol=1e-2)
     # plain sampling of a mask-conditioned model: an empty mask (what a quarter of the training saw)
     s = sample(model, mesh, key=jax.random.key(2), steps=4)

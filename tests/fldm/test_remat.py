@@ -17,7 +17,9 @@ def test_remat_keeps_parameters_values_and_gradients():
     geo = fldm.denoiser_geometry(icosphere(2), knn=CFG.knn)
     # complex128, so that the comparison is not of float32 round-off (the recomputed pass fuses differently)
     params = fldm.init_denoiser(jax.random.key(0), CFG, dtype=jnp.complex128)
-    with_remat = fldm.init_denoiser(jax.random.key(0), CFG.replace(remat=True), dtype=jnp.complex128)
+    with_remat = fldm.init_denoiser(
+        jax.random.key(0), CFG.replace(remat=True), dtype=jnp.complex128
+    )
     assert jax.tree.structure(with_remat) == jax.tree.structure(params)
     for a, b in zip(jax.tree.leaves(with_remat), jax.tree.leaves(params), strict=True):
         np.testing.assert_array_equal(a, b)
@@ -37,4 +39,6 @@ def test_remat_keeps_parameters_values_and_gradients():
     assert float(v0) > 0
     np.testing.assert_allclose(float(v1), float(v0), rtol=1e-10)
     for a, b in zip(jax.tree.leaves(g1), jax.tree.leaves(g0), strict=True):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-8, atol=1e-10 * np.abs(np.asarray(b)).max())
+        np.testing.assert_allclose(
+            np.asarray(a), np.asarray(b), rtol=1e-8, atol=1e-10 * np.abs(np.asarray(b)).max()
+        )

@@ -24,9 +24,16 @@ WORKER = pathlib.Path(__file__).with_name("fldm_sharded_worker.py")
 
 
 def _worker(mode: str, work: pathlib.Path) -> dict:
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
-    run = subprocess.run([sys.executable, str(WORKER), mode, str(work)], env=env, capture_output=True, text=True,
-                         timeout=600)
+    env = dict(
+        os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu"
+    )
+    run = subprocess.run(
+        [sys.executable, str(WORKER), mode, str(work)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert run.returncode == 0, run.stderr[-4000:]
     return json.loads((work / f"{mode}.json").read_text())
 
@@ -53,7 +60,9 @@ def test_sharded_training_follows_one_device_and_resumes_across_meshes(tmp_path)
     data = dataset()
     key = jax.random.key(5)
     # a one-device checkpoint at step 2, for the four-device process to resume
-    fldm.train(data, CONFIG, key=key, progress=False, checkpoint_dir=tmp_path / "ckpt_1", stop_after=2)
+    fldm.train(
+        data, CONFIG, key=key, progress=False, checkpoint_dir=tmp_path / "ckpt_1", stop_after=2
+    )
     out = _worker("train", tmp_path)
 
     # the optimiser steps (make_train_step on a mesh of four, EMA included) follow the one-device run here
@@ -82,7 +91,9 @@ def test_sharded_training_follows_one_device_and_resumes_across_meshes(tmp_path)
     _close(leaves(back.model.params), out["full_4_model"], rtol=1e-4, atol_scale=1e-4)
     model = fldm.load(tmp_path / "model_4")
     assert model.config == CONFIG
-    _close(leaves(model.params), out["full_4_model"], rtol=0, atol_scale=0)  # the file holds the same numbers
+    _close(
+        leaves(model.params), out["full_4_model"], rtol=0, atol_scale=0
+    )  # the file holds the same numbers
 
     # a batch that four devices cannot split is an error, not a silently larger batch
     assert len(out["errors"]) == 1
@@ -91,5 +102,11 @@ def test_sharded_training_follows_one_device_and_resumes_across_meshes(tmp_path)
 
 def test_train_takes_a_mesh_or_devices_not_both():
     with pytest.raises(ConfigError, match="mesh or devices"):
-        fldm.train(dataset(), CONFIG, key=jax.random.key(0), progress=False, mesh=parallel.data_mesh(),
-                   devices=jax.devices())
+        fldm.train(
+            dataset(),
+            CONFIG,
+            key=jax.random.key(0),
+            progress=False,
+            mesh=parallel.data_mesh(),
+            devices=jax.devices(),
+        )

@@ -24,8 +24,12 @@ def _energy(v, f, t):
 def test_flat_sheet_fields_are_the_projected_vector():
     v, f = grid(3)
     want = np.tile([0.6, 0.8, 0.0], (len(v), 1))
-    np.testing.assert_allclose(global_direction_field(v, f, primary=(3.0, 4.0, 5.0)), want, atol=1e-12)
-    np.testing.assert_allclose(smoothest_direction_field(v, f, primary=(3.0, 4.0, 0.0)), want, atol=1e-9)
+    np.testing.assert_allclose(
+        global_direction_field(v, f, primary=(3.0, 4.0, 5.0)), want, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        smoothest_direction_field(v, f, primary=(3.0, 4.0, 0.0)), want, atol=1e-9
+    )
 
 
 def test_fields_are_unit_tangent_vectors_on_a_sphere():

@@ -13,7 +13,11 @@ from jmeshtex.geometry import one_ring_neighborhood, tangent_frames, tangent_fro
 from jmeshtex.testing import fold_sheet
 
 
-@pytest.mark.parametrize("make", [lambda: icosphere(2), lambda: torus(12, 7), lambda: grid(4)], ids=["sphere", "torus", "grid"])
+@pytest.mark.parametrize(
+    "make",
+    [lambda: icosphere(2), lambda: torus(12, 7), lambda: grid(4)],
+    ids=["sphere", "torus", "grid"],
+)
 def test_frames_are_orthonormal_and_follow_the_reference_edge(make, rng):
     v, f = make()
     v = v + 0.02 * rng.normal(size=v.shape)
@@ -82,12 +86,16 @@ def test_round_trips(rng):
     np.testing.assert_allclose(tangent_to_3d(tangent_from_3d(w, fr), fr), tangential, atol=1e-14)
 
 
-@pytest.mark.parametrize("real, cplx", [(jnp.float32, jnp.complex64), (jnp.float64, jnp.complex128)])
+@pytest.mark.parametrize(
+    "real, cplx", [(jnp.float32, jnp.complex64), (jnp.float64, jnp.complex128)]
+)
 def test_jax_arrays_under_jit_keep_their_precision(real, cplx, key):
     v, f = icosphere(1)
     fr = tangent_frames(v, f)
     k1, k2 = jax.random.split(key)
-    z = jax.lax.complex(jax.random.normal(k1, (len(v), 2), real), jax.random.normal(k2, (len(v), 2), real))
+    z = jax.lax.complex(
+        jax.random.normal(k1, (len(v), 2), real), jax.random.normal(k2, (len(v), 2), real)
+    )
     to3 = jax.jit(lambda z: tangent_to_3d(z, fr))
     v3 = to3(z)
     assert v3.dtype == real and v3.shape == (len(v), 2, 3)
@@ -109,7 +117,9 @@ def test_intrinsic_and_extrinsic_angles_agree_to_second_order():
         d3 = tangent_to_3d(nb.log, fr)
         rel = v[nb.index] - v[:, None]
         rel = rel - np.sum(rel * fr.normal[:, None], -1)[..., None] * fr.normal[:, None]
-        cos = np.sum(d3 * rel, -1) / (np.linalg.norm(d3, axis=-1) * np.linalg.norm(rel, axis=-1) + 1e-300)
+        cos = np.sum(d3 * rel, -1) / (
+            np.linalg.norm(d3, axis=-1) * np.linalg.norm(rel, axis=-1) + 1e-300
+        )
         return np.arccos(np.clip(cos, -1, 1))[nb.mask].max()
 
     m2, m3 = mismatch(2), mismatch(3)

@@ -30,7 +30,9 @@ from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes, fold_sheet, valid_meshe
 
 
 def _euler(v, f):
-    edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    edges = np.unique(
+        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
+    )
     return len(v) - len(edges) + len(f)
 
 
@@ -47,7 +49,12 @@ def _level_graph(h, level):
     "make, chi, loops, stretch",
     [
         (lambda: icosphere(3), 2, 0, (1 - 1e-12, 1.15)),  # measured 1.0 .. 1.125
-        (lambda: torus(30, 12), 0, 0, (0.9, 2.0)),  # measured 0.97 .. 1.88: coarse edges wrap the tube
+        (
+            lambda: torus(30, 12),
+            0,
+            0,
+            (0.9, 2.0),
+        ),  # measured 0.97 .. 1.88: coarse edges wrap the tube
         (lambda: grid(20, 14), 1, 1, (1 - 1e-12, 1 + 1e-12)),  # flat: composed maps are exact
     ],
     ids=["sphere", "torus", "open-grid"],
@@ -94,8 +101,12 @@ def test_pooling_maps_are_voronoi_and_consistent(rng):
         area = h.neighborhoods[level].area
         np.testing.assert_allclose(pm.children_weight.sum(axis=1), 1.0, rtol=1e-13)
         total = np.bincount(pm.parent, weights=area, minlength=coarse_n)
-        np.testing.assert_allclose(pm.children_weight[m], area[pm.children[m]] / total[np.nonzero(m)[0]], rtol=1e-13)
-        np.testing.assert_allclose(pm.children_transport[m], pm.to_parent[pm.children[m]], rtol=0, atol=0)
+        np.testing.assert_allclose(
+            pm.children_weight[m], area[pm.children[m]] / total[np.nonzero(m)[0]], rtol=1e-13
+        )
+        np.testing.assert_allclose(
+            pm.children_transport[m], pm.to_parent[pm.children[m]], rtol=0, atol=0
+        )
         np.testing.assert_allclose(np.abs(pm.to_parent), 1.0, atol=1e-14)
         assert np.all(pm.children[~m] == 0) and np.all(pm.children_weight[~m] == 0)
         assert np.all(pm.children_transport[~m] == 1)
@@ -120,9 +131,13 @@ def test_flat_sheet_transports_and_coarse_log_maps_are_exact():
         nb = h.neighborhoods[level]
         want = np.where(nb.mask, (zl[nb.index] - zl[:, None]) / frame[:, None], 0)
         np.testing.assert_allclose(nb.log, want, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(nb.transport[nb.mask], (frame[nb.index] / frame[:, None])[nb.mask], atol=1e-12)
+        np.testing.assert_allclose(
+            nb.transport[nb.mask], (frame[nb.index] / frame[:, None])[nb.mask], atol=1e-12
+        )
         _, frame0 = _frame_dirs(h, 0, z)
-        np.testing.assert_allclose(h.to_input_frame[level], frame / frame0[h.vertex_index[level]], atol=1e-12)
+        np.testing.assert_allclose(
+            h.to_input_frame[level], frame / frame0[h.vertex_index[level]], atol=1e-12
+        )
         if level + 1 < h.num_levels:
             _, coarse = _frame_dirs(h, level + 1, z)
             pm = h.pooling[level]
@@ -158,7 +173,9 @@ def test_exactly_gauge_equivariant_under_relabelling():
     for level in range(a.num_levels):
         ids_a, ids_b = a.vertex_index[level], old_id[b.vertex_index[level]]  # both in a's input ids
         assert set(ids_a) == set(ids_b)
-        to_b = np.argsort(ids_b)[np.searchsorted(np.sort(ids_b), ids_a)]  # a's vertex i is b's to_b[i]
+        to_b = np.argsort(ids_b)[
+            np.searchsorted(np.sort(ids_b), ids_a)
+        ]  # a's vertex i is b's to_b[i]
         faces_a = {tuple(sorted(t)) for t in ids_a[a.faces[level]].tolist()}
         faces_b = {tuple(sorted(t)) for t in ids_b[b.faces[level]].tolist()}
         assert faces_a == faces_b
@@ -174,7 +191,9 @@ def test_exactly_gauge_equivariant_under_relabelling():
         match = np.argmax(nb_a.index[:, None, :] == nbr_in_a[:, :, None], axis=2)
         log_a = np.take_along_axis(nb_a.log, match, axis=1)
         m = nb_b.mask[to_b]
-        np.testing.assert_allclose(nb_b.log[to_b][m], (np.conj(beta)[:, None] * log_a)[m], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            nb_b.log[to_b][m], (np.conj(beta)[:, None] * log_a)[m], rtol=0, atol=1e-12
+        )
         # and the alignment with the input frames changes by both gauges
         beta0 = gauge[0][0][ids_a]
         want = np.conj(beta0) * a.to_input_frame[level] * beta
@@ -189,7 +208,9 @@ def test_exactly_gauge_equivariant_under_relabelling():
 
 def test_unchanged_under_folds():
     v, f = grid(16, 16)  # regular: ties everywhere, broken identically after folding
-    folded = fold_sheet(v, f, lines=[("y", 0.25), ("y", 0.5), ("y", 0.8125)], angles=[0.9, -1.7, 2.4])
+    folded = fold_sheet(
+        v, f, lines=[("y", 0.25), ("y", 0.5), ("y", 0.8125)], angles=[0.9, -1.7, 2.4]
+    )
     assert np.abs(folded[:, 2]).max() > 0.15
     a = mesh_hierarchy(v, f, levels=4)
     b = mesh_hierarchy(folded, f, levels=4)
@@ -197,7 +218,9 @@ def test_unchanged_under_folds():
         np.testing.assert_array_equal(a.faces[level], b.faces[level])
         np.testing.assert_array_equal(a.vertex_index[level], b.vertex_index[level])
         np.testing.assert_allclose(b.lengths[level], a.lengths[level], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(b.to_input_frame[level], a.to_input_frame[level], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            b.to_input_frame[level], a.to_input_frame[level], rtol=0, atol=1e-12
+        )
         for x, y in zip(a.neighborhoods[level], b.neighborhoods[level], strict=True):
             np.testing.assert_allclose(y, x, rtol=0, atol=1e-12)
     for pa, pb in zip(a.pooling, b.pooling, strict=True):
@@ -233,7 +256,14 @@ def test_errors():
     with pytest.raises(DecimationError):
         mesh_hierarchy(v, f, levels=4)  # 12 -> 6 -> 3: below a closed surface's minimum
     assert mesh_hierarchy(v, f, levels=1).num_levels == 1
-    for bad in (dict(ratio=0.0), dict(ratio=1.0), dict(ratio="half"), dict(min_vertices=2), dict(levels=0), dict(levels=2.5)):
+    for bad in (
+        dict(ratio=0.0),
+        dict(ratio=1.0),
+        dict(ratio="half"),
+        dict(min_vertices=2),
+        dict(levels=0),
+        dict(levels=2.5),
+    ):
         with pytest.raises(ConfigError):
             mesh_hierarchy(v, f, **bad)
     with pytest.raises(InputError, match="unreferenced"):
@@ -274,10 +304,18 @@ def test_property_any_valid_mesh_decimates_with_its_topology(mesh):
         np.testing.assert_allclose(pm.children_weight.sum(axis=1), 1.0, rtol=1e-12)
 
 
-@given(st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))))
+@given(
+    st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(
+        lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))
+    )
+)
 @pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case
-    for build in (geodesic_knn_neighborhood, tangent_frames, lambda v, f: mesh_hierarchy(v, f, levels=2)):
+    for build in (
+        geodesic_knn_neighborhood,
+        tangent_frames,
+        lambda v, f: mesh_hierarchy(v, f, levels=2),
+    ):
         with pytest.raises(BAD_MESH_KINDS[kind]):
             build(v, f)

@@ -67,7 +67,9 @@ def test_invariant_under_rigid_motion(rng):
     w = v @ R.T + rng.normal(size=3) * 5.0
     ev = laplacian_eigenpairs(v, f, k=30)
     ew = laplacian_eigenpairs(w, f, k=30)
-    assert np.min(np.diff(ev.values)) > 1e-6 * ev.values[-1], "test mesh has a degenerate eigenvalue"
+    assert np.min(np.diff(ev.values)) > 1e-6 * ev.values[-1], (
+        "test mesh has a degenerate eigenvalue"
+    )
     np.testing.assert_allclose(ew.values, ev.values, rtol=1e-9, atol=1e-10)
     h_v = heat_kernel_signature(v, f, eigenpairs=ev)
     h_w = heat_kernel_signature(w, f, eigenpairs=ew)
@@ -109,7 +111,9 @@ def test_positive_and_decreasing_in_time():
     assert (np.diff(h, axis=1) < 0).all()
     # long times: only the constant mode is left
     ev = laplacian_eigenpairs(v, f, k=40)
-    np.testing.assert_allclose(heat_kernel_signature(v, f, eigenpairs=ev, times=[1e4]), 1 / ev.mass.sum(), rtol=1e-8)
+    np.testing.assert_allclose(
+        heat_kernel_signature(v, f, eigenpairs=ev, times=[1e4]), 1 / ev.mass.sum(), rtol=1e-8
+    )
 
 
 def test_matches_a_loop_over_eigenpairs():
@@ -120,7 +124,9 @@ def test_matches_a_loop_over_eigenpairs():
     for i in range(20):
         for j, t in enumerate(times):
             expected[:, j] += np.exp(-ev.values[i] * t) * ev.vectors[:, i] ** 2
-    np.testing.assert_allclose(heat_kernel_signature(v, f, eigenpairs=ev, times=times), expected, rtol=1e-13)
+    np.testing.assert_allclose(
+        heat_kernel_signature(v, f, eigenpairs=ev, times=times), expected, rtol=1e-13
+    )
 
 
 def test_default_times_follow_sun_et_al():
@@ -131,7 +137,9 @@ def test_default_times_follow_sun_et_al():
     assert np.isclose(t[0], 4 * np.log(10) / ev.values[-1])
     assert np.isclose(t[-1], 4 * np.log(10) / ev.values[1])  # λ_0 = 0 is skipped
     np.testing.assert_allclose(np.diff(np.log(t)), np.log(t[1] / t[0]))  # log-spaced
-    np.testing.assert_allclose(heat_kernel_signature(v, f, k=20), heat_kernel_signature(v, f, times=t, k=20))
+    np.testing.assert_allclose(
+        heat_kernel_signature(v, f, k=20), heat_kernel_signature(v, f, times=t, k=20)
+    )
 
 
 def test_disconnected_mesh_skips_every_zero_eigenvalue():
@@ -145,7 +153,9 @@ def test_disconnected_mesh_skips_every_zero_eigenvalue():
 
 def test_deterministic():
     v, f = torus(10, 6)
-    np.testing.assert_array_equal(heat_kernel_signature(v, f, k=10), heat_kernel_signature(v, f, k=10))
+    np.testing.assert_array_equal(
+        heat_kernel_signature(v, f, k=10), heat_kernel_signature(v, f, k=10)
+    )
 
 
 def test_errors():

@@ -38,9 +38,13 @@ def test_single_triangle_exact():
     v, f = single_triangle()
     lengths = edge_lengths(v, f)
     np.testing.assert_allclose(lengths, [[1.0, np.sqrt(2.0), 1.0]], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(corner_angles(lengths), [[np.pi / 2, np.pi / 4, np.pi / 4]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        corner_angles(lengths), [[np.pi / 2, np.pi / 4, np.pi / 4]], rtol=0, atol=1e-15
+    )
     np.testing.assert_allclose(face_areas(lengths), [0.5], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(vertex_areas(f, face_areas(lengths), 3), [1 / 6] * 3, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        vertex_areas(f, face_areas(lengths), 3), [1 / 6] * 3, rtol=0, atol=1e-15
+    )
 
 
 def test_regular_icosahedron_exact():
@@ -55,10 +59,14 @@ def test_regular_icosahedron_exact():
 
 
 def test_3_4_5_and_equilateral():
-    np.testing.assert_allclose(face_areas(np.array([[3.0, 4.0, 5.0], [2.0, 2.0, 2.0]])), [6.0, np.sqrt(3)], rtol=1e-15)
+    np.testing.assert_allclose(
+        face_areas(np.array([[3.0, 4.0, 5.0], [2.0, 2.0, 2.0]])), [6.0, np.sqrt(3)], rtol=1e-15
+    )
     # corner k faces edge k+1: in (3, 4, 5) the right angle (opposite 5) is corner 1
     np.testing.assert_allclose(
-        corner_angles(np.array([[3.0, 4.0, 5.0]])), [[np.arctan2(4, 3), np.pi / 2, np.arctan2(3, 4)]], atol=1e-15
+        corner_angles(np.array([[3.0, 4.0, 5.0]])),
+        [[np.arctan2(4, 3), np.pi / 2, np.arctan2(3, 4)]],
+        atol=1e-15,
     )
 
 
@@ -108,7 +116,11 @@ def test_vertex_areas_sum_to_total_and_match_the_neighborhood():
         (np.zeros((0, 3)), np.zeros((0, 3), int), EmptyMeshError),
         (np.eye(3), np.array([[0, 1, 2, 0]]), NonTriangleFaceError),
         (np.eye(3), np.array([[0, 1, 3]]), FaceIndexError),
-        (np.array([[0.0, 0, 0], [1, 0, 0], [np.nan, 1, 0]]), np.array([[0, 1, 2]]), NonFiniteVertexError),
+        (
+            np.array([[0.0, 0, 0], [1, 0, 0], [np.nan, 1, 0]]),
+            np.array([[0, 1, 2]]),
+            NonFiniteVertexError,
+        ),
         (np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]]), np.array([[0, 1, 2]]), DegenerateFaceError),
     ],
 )

@@ -45,7 +45,11 @@ def _reference(v, f, k):
     return out
 
 
-@pytest.mark.parametrize("make", [lambda: icosphere(2), lambda: grid(6), lambda: torus(12, 8)], ids=["sphere", "grid", "torus"])
+@pytest.mark.parametrize(
+    "make",
+    [lambda: icosphere(2), lambda: grid(6), lambda: torus(12, 8)],
+    ids=["sphere", "grid", "torus"],
+)
 def test_matches_dijkstra_and_loop_composition(make, rng):
     v, f = make()
     v = v + 0.01 * rng.normal(size=v.shape)  # no ties: shortest paths are unique
@@ -58,12 +62,18 @@ def test_matches_dijkstra_and_loop_composition(make, rng):
         assert set(nb.index[p].tolist()) == {q for (a, q) in ref if a == p}
         d = [ref[p, q][2] for q in nb.index[p]]
         assert np.all(np.diff(d) >= 0)  # sorted by path length
-        np.testing.assert_allclose(nb.log[p], [ref[p, q][0] for q in nb.index[p]], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(nb.transport[p], [ref[p, q][1] for q in nb.index[p]], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            nb.log[p], [ref[p, q][0] for q in nb.index[p]], rtol=0, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            nb.transport[p], [ref[p, q][1] for q in nb.index[p]], rtol=0, atol=1e-12
+        )
     ring = one_ring_neighborhood(v, f)
     np.testing.assert_allclose(nb.area, ring.area, rtol=0)
     np.testing.assert_allclose(nb.weight, ring.area[nb.index], rtol=0)
-    assert nb.log[:, 0].tolist() == [0j] * len(v) and nb.transport[:, 0].tolist() == [1 + 0j] * len(v)
+    assert nb.log[:, 0].tolist() == [0j] * len(v) and nb.transport[:, 0].tolist() == [1 + 0j] * len(
+        v
+    )
 
 
 def test_selected_distances_are_the_k_smallest_even_with_ties():
@@ -82,7 +92,9 @@ def test_flat_grid_exact_including_the_boundary():
     z = v[:, 0] + 1j * v[:, 1]
     frame = z[ring.index[:, 0]] - z
     frame /= np.abs(frame)
-    np.testing.assert_allclose(nb.log, (z[nb.index] - z[:, None]) / frame[:, None], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(
+        nb.log, (z[nb.index] - z[:, None]) / frame[:, None], rtol=0, atol=1e-14
+    )
     np.testing.assert_allclose(nb.transport, frame[nb.index] / frame[:, None], rtol=0, atol=1e-14)
 
 
@@ -112,7 +124,9 @@ def test_small_components_are_padded():
     assert nb.mask[:3].sum(axis=1).tolist() == [3, 3, 3]
     assert nb.mask[3:].sum(axis=1).tolist() == [12] * 12
     pad = ~nb.mask
-    assert np.all(nb.index[pad] == 0) and np.all(nb.log[pad] == 0) and np.all(nb.transport[pad] == 1)
+    assert (
+        np.all(nb.index[pad] == 0) and np.all(nb.log[pad] == 0) and np.all(nb.transport[pad] == 1)
+    )
     assert np.all(nb.weight[pad] == 0)
     assert set(nb.index[0, :3].tolist()) == {0, 1, 2}
     # k = 1 is the vertex alone
@@ -147,7 +161,9 @@ def test_distances_agree_with_exact_geodesics(mesh, bound):
     worst_log, worst_path = 0.0, 0.0
     for row, p in enumerate(np.arange(0, len(v), len(v) // 30)):
         q = nb.index[p, 1:]
-        exact = igl.exact_geodesic(v, f, np.array([p]), np.array([], np.int64), q.astype(np.int64), np.array([], np.int64))
+        exact = igl.exact_geodesic(
+            v, f, np.array([p]), np.array([], np.int64), q.astype(np.int64), np.array([], np.int64)
+        )
         worst_log = max(worst_log, np.max(np.abs(np.abs(nb.log[p, 1:]) - exact) / exact))
         worst_path = max(worst_path, np.max((path[row, q] - exact) / exact))
     print(f"k-NN |log| vs igl.exact_geodesic: {worst_log:.2%}; edge-path length: {worst_path:.2%}")

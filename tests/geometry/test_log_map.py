@@ -57,22 +57,36 @@ def _perturbed(mesh, rng, amount):
     return v + amount * rng.normal(size=v.shape), f
 
 
-@pytest.mark.parametrize("make", [lambda: icosphere(2), lambda: grid(5), lambda: torus(12, 8)], ids=["sphere", "grid", "torus"])
+@pytest.mark.parametrize(
+    "make",
+    [lambda: icosphere(2), lambda: grid(5), lambda: torus(12, 8)],
+    ids=["sphere", "grid", "torus"],
+)
 def test_matches_loop_reference(make, rng):
     v, f = _perturbed(make(), rng, 0.01)
     nb = one_ring_neighborhood(v, f)
     log, transport, area = _reference(v, f)
     p, j, q = _slots(nb)
     assert len(p) == len(log)
-    np.testing.assert_allclose(nb.log[p, j], [log[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(nb.transport[p, j], [transport[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        nb.log[p, j], [log[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        nb.transport[p, j], [transport[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-12
+    )
     np.testing.assert_allclose(nb.area, area, rtol=1e-12)
     np.testing.assert_allclose(nb.weight[p, j], area[q], rtol=1e-12)
     # padding contract
     pad = ~nb.mask
-    assert np.all(nb.index[pad] == 0) and np.all(nb.log[pad] == 0) and np.all(nb.transport[pad] == 1)
+    assert (
+        np.all(nb.index[pad] == 0) and np.all(nb.log[pad] == 0) and np.all(nb.transport[pad] == 1)
+    )
     assert np.all(nb.weight[pad] == 0)
-    assert nb.index.dtype == np.int32 and nb.log.dtype == np.complex128 and nb.index.shape[1] == nb.mask.sum(1).max()
+    assert (
+        nb.index.dtype == np.int32
+        and nb.log.dtype == np.complex128
+        and nb.index.shape[1] == nb.mask.sum(1).max()
+    )
 
 
 def test_regular_icosahedron_exact():
@@ -81,7 +95,9 @@ def test_regular_icosahedron_exact():
     rings, theta, scale = one_ring_angles(v, f)
     step = 2 * np.pi / 5
     np.testing.assert_allclose(scale, 2 * np.pi / (5 * np.pi / 3), rtol=1e-14)  # = 6/5
-    np.testing.assert_allclose(theta[:, :5], np.arange(5) * step + np.zeros((12, 1)), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        theta[:, :5], np.arange(5) * step + np.zeros((12, 1)), rtol=0, atol=1e-13
+    )
     np.testing.assert_allclose(np.abs(nb.log[:, :5]), 1 / np.sin(step), rtol=1e-14)
     # transport: slot s of q in p's ring and slot r of p in q's ring give e^{i(2π/5 (s - r) + π)}
     ring = rings.ring[:, :5].tolist()
@@ -105,14 +121,20 @@ def test_flat_grid_log_is_the_rotated_offset_and_transport_the_frame_rotation():
         np.testing.assert_allclose(nb.transport[p, j], frame[q] / frame[p], rtol=0, atol=1e-14)
 
 
-@pytest.mark.parametrize("make", [lambda: icosphere(2), lambda: grid(4), lambda: torus(10, 7)], ids=["sphere", "grid", "torus"])
+@pytest.mark.parametrize(
+    "make",
+    [lambda: icosphere(2), lambda: grid(4), lambda: torus(10, 7)],
+    ids=["sphere", "grid", "torus"],
+)
 def test_gauge_consistency_per_edge(make, rng):
     """ρ_{q→p} log_q(p) = -log_p(q) and ρ_{q→p} ρ_{p→q} = 1 for every edge."""
     v, f = _perturbed(make(), rng, 0.02)
     nb = one_ring_neighborhood(v, f)
     p, j, q = _slots(nb)
     rev = np.array([np.nonzero(nb.index[b] == a)[0][0] for a, b in zip(p, q, strict=True)])
-    np.testing.assert_allclose(nb.transport[p, j] * nb.log[q, rev], -nb.log[p, j], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(
+        nb.transport[p, j] * nb.log[q, rev], -nb.log[p, j], rtol=0, atol=1e-14
+    )
     np.testing.assert_allclose(nb.transport[p, j] * nb.transport[q, rev], 1.0, rtol=0, atol=1e-14)
     np.testing.assert_allclose(np.abs(nb.transport[nb.mask]), 1.0, rtol=0, atol=1e-15)
 
@@ -144,7 +166,9 @@ def test_holonomy_flat_cone_and_sphere(rng):
         assert abs(_ring_holonomy(nb, p) - 1) < 1e-13
     # a cone: apex above a flat hexagon whose rim is boundary (unnormalised), the holonomy around
     # the apex is exactly its angle defect
-    ring = np.stack([np.cos(np.arange(6) * np.pi / 3), np.sin(np.arange(6) * np.pi / 3), np.zeros(6)], 1)
+    ring = np.stack(
+        [np.cos(np.arange(6) * np.pi / 3), np.sin(np.arange(6) * np.pi / 3), np.zeros(6)], 1
+    )
     v = np.concatenate([[[0.0, 0.0, 0.7]], ring])
     f = np.array([[0, 1 + i, 1 + (i + 1) % 6] for i in range(6)])
     nb = one_ring_neighborhood(v, f)
@@ -186,7 +210,9 @@ def test_one_ring_angles_contract_for_the_tracer(rng):
     rings, theta, scale = one_ring_angles(v, f)
     alpha = corner_angles(edge_lengths(v, f))
     nb = one_ring_neighborhood(v, f)
-    np.testing.assert_allclose(np.exp(1j * theta[nb.mask]), nb.log[nb.mask] / np.abs(nb.log[nb.mask]), atol=1e-14)
+    np.testing.assert_allclose(
+        np.exp(1j * theta[nb.mask]), nb.log[nb.mask] / np.abs(nb.log[nb.mask]), atol=1e-14
+    )
     for p in range(len(v)):
         d = rings.degree[p]
         for j in range(d):
@@ -194,12 +220,16 @@ def test_one_ring_angles_contract_for_the_tracer(rng):
             corner = int(np.nonzero(face == p)[0][0])
             assert face[(corner + 1) % 3] == rings.ring[p, j]  # the wedge opens at slot j
             end = theta[p, j + 1] if j + 1 < d else 2 * np.pi
-            assert abs(end - theta[p, j] - scale[p] * alpha[rings.wedge_faces[p, j], corner]) < 1e-13
+            assert (
+                abs(end - theta[p, j] - scale[p] * alpha[rings.wedge_faces[p, j], corner]) < 1e-13
+            )
 
 
 def test_unchanged_under_folds():
     v, f = grid(8, 6, size=(1.0, 0.75))
-    folded = fold_sheet(v, f, lines=[("x", 0.25), ("x", 0.625), ("y", -1.0)], angles=[1.1, -2.0, 0.3])
+    folded = fold_sheet(
+        v, f, lines=[("x", 0.25), ("x", 0.625), ("y", -1.0)], angles=[1.1, -2.0, 0.3]
+    )
     assert np.abs(folded[:, 2]).max() > 0.3  # really folded
     a = one_ring_neighborhood(v, f)
     b = one_ring_neighborhood(folded, f)
@@ -217,7 +247,9 @@ def _pp3d_errors(v, f, sources):
     # gauge alignment: potpourri3d's x-axis is (up to ~1e-4) the projection of one ring edge; its
     # angle in our frame is the offset between the two gauges
     rel = v[nb.index] - v[:, None, :]
-    proj = np.where(nb.mask, np.arctan2(np.sum(rel * by[:, None], -1), np.sum(rel * bx[:, None], -1)), np.inf)
+    proj = np.where(
+        nb.mask, np.arctan2(np.sum(rel * by[:, None], -1), np.sum(rel * bx[:, None], -1)), np.inf
+    )
     zero = np.argmin(np.abs(proj), axis=1)
     offset = -np.angle(nb.log[np.arange(len(v)), zero])  # potpourri3d angle = our angle + offset
 
@@ -229,9 +261,14 @@ def _pp3d_errors(v, f, sources):
         m = nb.mask[p]
         q = nb.index[p, m]
         lm = solver.compute_log_map(int(p))
-        log_err = max(log_err, wrap(np.angle(lm[q, 0] + 1j * lm[q, 1]) - np.angle(nb.log[p, m]) - offset[p]).max())
+        log_err = max(
+            log_err,
+            wrap(np.angle(lm[q, 0] + 1j * lm[q, 1]) - np.angle(nb.log[p, m]) - offset[p]).max(),
+        )
         moved = solver.transport_tangent_vector(int(p), [1.0, 0.0])
-        ours = -offset[p] + np.angle(np.conj(nb.transport[p, m])) + offset[q]  # ρ_{p→q} = conj ρ_{q→p}
+        ours = (
+            -offset[p] + np.angle(np.conj(nb.transport[p, m])) + offset[q]
+        )  # ρ_{p→q} = conj ρ_{q→p}
         tr_err = max(tr_err, wrap(np.angle(moved[q, 0] + 1j * moved[q, 1]) - ours).max())
     return log_err, tr_err
 
@@ -239,12 +276,16 @@ def _pp3d_errors(v, f, sources):
 def test_agrees_with_potpourri3d_on_a_sphere(rng):
     v3, f3 = icosphere(3)
     log3, tr3 = _pp3d_errors(v3, f3, np.arange(len(v3)))
-    print(f"potpourri3d oracle, icosphere(3): log-map angle {log3:.2e} rad, transport {tr3:.2e} rad")
+    print(
+        f"potpourri3d oracle, icosphere(3): log-map angle {log3:.2e} rad, transport {tr3:.2e} rad"
+    )
     # measured: 4.0e-4 and 6.3e-4 rad (the gauge alignment itself contributes up to 1.8e-4)
     assert log3 < 6e-4 and tr3 < 9e-4
     v4, f4 = icosphere(4)
     log4, tr4 = _pp3d_errors(v4, f4, rng.choice(len(v4), 40, replace=False))
-    print(f"potpourri3d oracle, icosphere(4): log-map angle {log4:.2e} rad, transport {tr4:.2e} rad")
+    print(
+        f"potpourri3d oracle, icosphere(4): log-map angle {log4:.2e} rad, transport {tr4:.2e} rad"
+    )
     # second order: each halving of the edge length divides the discrepancy by ~4
     assert log4 < log3 / 2.5 and tr4 < tr3 / 2.5
 
@@ -256,18 +297,28 @@ def test_property_matches_reference_and_is_gauge_consistent(mesh):
     log, transport, area = _reference(v, f)
     p, j, q = _slots(nb)
     scale = np.abs(nb.log[nb.mask]).max()
-    np.testing.assert_allclose(nb.log[p, j], [log[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-11 * scale)
-    np.testing.assert_allclose(nb.transport[p, j], [transport[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-11)
+    np.testing.assert_allclose(
+        nb.log[p, j], [log[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-11 * scale
+    )
+    np.testing.assert_allclose(
+        nb.transport[p, j], [transport[a, b] for a, b in zip(p, q, strict=True)], rtol=0, atol=1e-11
+    )
     np.testing.assert_allclose(nb.area, area, rtol=1e-10)
     rev = _reverse(nb, p, q)
-    np.testing.assert_allclose(nb.transport[p, j] * nb.log[q, rev], -nb.log[p, j], rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(
+        nb.transport[p, j] * nb.log[q, rev], -nb.log[p, j], rtol=0, atol=1e-13 * scale
+    )
 
 
 def _reverse(nb, p, q):
     return np.argmax(nb.index[q] == p[:, None], axis=1)
 
 
-@given(st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))))
+@given(
+    st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(
+        lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))
+    )
+)
 @pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case

@@ -41,7 +41,13 @@ def _clip_area(tri, x0, y0):
     """Area of triangle ``tri`` (texel plane) inside the square ``[x0, x0+1] × [y0, y0+1]``
     (Sutherland–Hodgman clipping against the square's four half-planes)."""
     poly = [tuple(p) for p in tri]
-    for axis, bound, keep_below in ((0, x0, False), (0, x0 + 1, True), (1, y0, False), (1, y0 + 1, True)):
+    for axis, bound, keep_below in (
+        (0, x0, False),
+        (0, x0 + 1, True),
+        (1, y0, False),
+        (1, y0 + 1, True),
+    ):
+
         def inside(p, axis=axis, bound=bound, keep_below=keep_below):
             return p[axis] <= bound if keep_below else p[axis] >= bound
 
@@ -85,7 +91,9 @@ def test_two_triangles_cover_the_unit_square(size):
     u, v = _centres(r.row, r.col, size).T
     assert ((r.face == 0) <= (u >= v - 1e-12)).all() and ((r.face == 1) <= (u <= v + 1e-12)).all()
     # barycentrics reproduce the texel centres
-    np.testing.assert_allclose(np.einsum("nk,nkd->nd", r.bary, SQUARE[r.face]), _centres(r.row, r.col, size), atol=1e-12)
+    np.testing.assert_allclose(
+        np.einsum("nk,nkd->nd", r.bary, SQUARE[r.face]), _centres(r.row, r.col, size), atol=1e-12
+    )
     np.testing.assert_array_equal(r.distance, 0.0)
     # the diagonal crosses exactly the squares whose centre it holds: "overlap" gives the same set
     o = rasterize_uv(SQUARE, size, coverage="overlap")
@@ -97,7 +105,9 @@ def test_exact_barycentrics_and_dtypes():
     uv = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]])
     r = rasterize_uv(uv, 4)
     # centres with u + v <= 1: rows 0..3 from the top hold 1, 2, 3, 4 texels, and 4 on the diagonal
-    assert sorted(zip(r.row.tolist(), r.col.tolist(), strict=True)) == [(j, i) for j in range(4) for i in range(j + 1)]
+    assert sorted(zip(r.row.tolist(), r.col.tolist(), strict=True)) == [
+        (j, i) for j in range(4) for i in range(j + 1)
+    ]
     k = np.nonzero((r.row == 2) & (r.col == 1))[0][0]  # centre (3/8, 3/8)
     np.testing.assert_allclose(r.bary[k], [0.25, 0.375, 0.375], atol=1e-15)
     assert r.face.dtype == r.row.dtype == r.col.dtype == np.int64
@@ -123,7 +133,9 @@ def test_center_matches_a_per_texel_loop_on_random_triangles(rng):
     assert _pairs(r) == set(ref)
     assert len(r.face) == len(ref) > 0
     for f, j, i, b in zip(r.face, r.row, r.col, r.bary, strict=True):
-        np.testing.assert_allclose(b, np.clip(ref[(f, j, i)], 0, 1) / np.clip(ref[(f, j, i)], 0, 1).sum(), atol=1e-12)
+        np.testing.assert_allclose(
+            b, np.clip(ref[(f, j, i)], 0, 1) / np.clip(ref[(f, j, i)], 0, 1).sum(), atol=1e-12
+        )
 
 
 def test_overlap_matches_square_clipping_and_closest_points(rng):
@@ -132,14 +144,24 @@ def test_overlap_matches_square_clipping_and_closest_points(rng):
     uv[2] = uv[2, ::-1]
     o = rasterize_uv(uv, size, coverage="overlap")
     tex = np.stack([uv[..., 0] * size, (1.0 - uv[..., 1]) * size], axis=-1)
-    ref = {(f, j, i) for f in range(len(uv)) for j in range(size) for i in range(size)
-           if _clip_area(tex[f], i, j) > 1e-12}
+    ref = {
+        (f, j, i)
+        for f in range(len(uv))
+        for j in range(size)
+        for i in range(size)
+        if _clip_area(tex[f], i, j) > 1e-12
+    }
     assert _pairs(o) == ref
     # "overlap" contains "center", with the same barycentrics there
     c = rasterize_uv(uv, size)
     assert _pairs(c) <= _pairs(o)
-    where = {p: n for n, p in enumerate(zip(o.face.tolist(), o.row.tolist(), o.col.tolist(), strict=True))}
-    idx = np.array([where[p] for p in zip(c.face.tolist(), c.row.tolist(), c.col.tolist(), strict=True)])
+    where = {
+        p: n
+        for n, p in enumerate(zip(o.face.tolist(), o.row.tolist(), o.col.tolist(), strict=True))
+    }
+    idx = np.array(
+        [where[p] for p in zip(c.face.tolist(), c.row.tolist(), c.col.tolist(), strict=True)]
+    )
     np.testing.assert_allclose(o.bary[idx], c.bary, atol=1e-12)
     np.testing.assert_array_equal(o.distance[idx], 0.0)
     # every entry: a point of the triangle, the closest one to the texel centre, at the stated distance
@@ -161,28 +183,39 @@ def test_border_texels_of_a_chart():
     # y = x + 0.4 passes 0.4/√2 from the centres (i + ½, i + ½) of the diagonal texels
     uv = np.array([[[0.1, 0.1], [0.8, 0.1], [0.1, 0.8]]])
     c, o = rasterize_uv(uv, 4), rasterize_uv(uv, 4, coverage="overlap")
-    assert set(zip(c.row.tolist(), c.col.tolist(), strict=True)) == {(j, i) for j in range(4) for i in range(j)}
-    assert set(zip(o.row.tolist(), o.col.tolist(), strict=True)) == {(j, i) for j in range(4) for i in range(j + 1)}
+    assert set(zip(c.row.tolist(), c.col.tolist(), strict=True)) == {
+        (j, i) for j in range(4) for i in range(j)
+    }
+    assert set(zip(o.row.tolist(), o.col.tolist(), strict=True)) == {
+        (j, i) for j in range(4) for i in range(j + 1)
+    }
     diag = np.nonzero(o.row == o.col)[0]
     np.testing.assert_array_equal(o.row[diag], [0, 1, 2, 3])
     # (0, 0) and (3, 3) snap to corners 2 and 1; (1, 1) and (2, 2) to feet on the hypotenuse
     np.testing.assert_allclose(o.distance[diag], np.sqrt([0.1, 0.08, 0.08, 0.1]), atol=1e-12)
-    np.testing.assert_allclose(o.bary[diag], [[0, 0, 1], [0, 0.9 / 2.8, 1.9 / 2.8], [0, 1.9 / 2.8, 0.9 / 2.8], [0, 1, 0]],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        o.bary[diag],
+        [[0, 0, 1], [0, 0.9 / 2.8, 1.9 / 2.8], [0, 1.9 / 2.8, 0.9 / 2.8], [0, 1, 0]],
+        atol=1e-12,
+    )
     np.testing.assert_array_equal(o.distance[o.row != o.col], 0.0)
 
 
 @pytest.mark.parametrize("coverage", ["center", "overlap"])
 def test_degenerate_empty_and_outside_layouts_cover_nothing(coverage):
     line = np.array([[[0.1, 0.1], [0.5, 0.5], [0.9, 0.9]]])  # collinear corners
-    outside = np.array([[[1.5, 1.5], [2.5, 1.5], [1.5, 2.5]], [[-2.0, 0.2], [-1.0, 0.2], [-1.5, 0.8]]])
+    outside = np.array(
+        [[[1.5, 1.5], [2.5, 1.5], [1.5, 2.5]], [[-2.0, 0.2], [-1.0, 0.2], [-1.5, 0.8]]]
+    )
     for uv in (line, outside, np.zeros((0, 3, 2))):
         r = rasterize_uv(uv, 8, coverage=coverage)
         assert all(len(a) == 0 for a in r) and r.bary.shape == (0, 3)
     # a degenerate face next to a good one does not disturb the good one
     both = np.concatenate([line, SQUARE[:1]])
     r = rasterize_uv(both, 8, coverage=coverage)
-    assert (r.face == 1).all() and len(r.face) == len(rasterize_uv(SQUARE[:1], 8, coverage=coverage).face)
+    assert (r.face == 1).all() and len(r.face) == len(
+        rasterize_uv(SQUARE[:1], 8, coverage=coverage).face
+    )
 
 
 @pytest.mark.parametrize(

@@ -21,7 +21,9 @@ from jmeshtex.geometry import (
 
 
 def _euler(v, f):
-    edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    edges = np.unique(
+        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
+    )
     return len(v) - len(edges) + len(f)
 
 
@@ -32,8 +34,13 @@ def _two_spheres():
 
 @pytest.mark.parametrize(
     "make, n",
-    [(lambda: icosphere(3), 250), (lambda: icosphere(2), 900), (lambda: torus(24, 10), 400),
-     (lambda: grid(16, 12), 150), (_two_spheres, 300)],
+    [
+        (lambda: icosphere(3), 250),
+        (lambda: icosphere(2), 900),
+        (lambda: torus(24, 10), 400),
+        (lambda: grid(16, 12), 150),
+        (_two_spheres, 300),
+    ],
     ids=["sphere-coarser", "sphere-finer", "torus", "open-grid", "two-components"],
 )
 def test_same_surface_same_topology(make, n):
@@ -57,7 +64,9 @@ def test_isotropic_and_well_shaped():
     e = m.vertices[m.faces] - m.vertices[np.roll(m.faces, -1, axis=1)]
     lengths = np.linalg.norm(e, axis=-1)
     assert lengths.std() / lengths.mean() < 0.45  # measured 0.31-0.33
-    cos = np.einsum("fkd,fkd->fk", -e, np.roll(e, 1, axis=1)) / (lengths * np.roll(lengths, 1, axis=1))
+    cos = np.einsum("fkd,fkd->fk", -e, np.roll(e, 1, axis=1)) / (
+        lengths * np.roll(lengths, 1, axis=1)
+    )
     assert np.degrees(np.arccos(np.clip(cos, -1, 1))).min() > 1.0
     deg = one_rings(m.faces).degree
     assert deg.min() >= 3 and deg.max() <= 12
@@ -80,13 +89,18 @@ def test_vertex_colors_and_texture_are_transferred():
     m = remesh(Mesh(v, f, vertex_colors=col), n_vertices=60, key=jax.random.key(0))
     # colours are affine in position: barycentric interpolation reproduces them exactly
     lo, hi = v.min(0), (np.stack([v[:, 0] - v[:, 0].min(), v[:, 1] - v[:, 1].min()], 1)).max()
-    expect = np.stack([(m.vertices[:, 0] - lo[0]), (m.vertices[:, 1] - lo[1]), np.full(60, 0.5 * hi)], 1) / hi
+    expect = (
+        np.stack([(m.vertices[:, 0] - lo[0]), (m.vertices[:, 1] - lo[1]), np.full(60, 0.5 * hi)], 1)
+        / hi
+    )
     np.testing.assert_allclose(m.vertex_colors, expect, atol=1e-6)
     # a constant texture gives constant vertex colours
     uv = np.zeros((len(f), 3, 2)) + 0.5
     tex = np.zeros((4, 4, 3), np.float32) + np.array([0.2, 0.4, 0.6], np.float32)
     m2 = remesh(Mesh(v, f, uv=uv, texture=tex), n_vertices=60, key=jax.random.key(0))
-    np.testing.assert_allclose(m2.vertex_colors, np.broadcast_to([0.2, 0.4, 0.6], (60, 3)), atol=1e-6)
+    np.testing.assert_allclose(
+        m2.vertex_colors, np.broadcast_to([0.2, 0.4, 0.6], (60, 3)), atol=1e-6
+    )
 
 
 def test_surface_correspondence_recovers_points():
@@ -111,8 +125,14 @@ def test_errors():
     with pytest.raises(ConfigError, match="jitter"):
         remesh(Mesh(v, f), n_vertices=10, key=jax.random.key(0), jitter=0.6)
     with pytest.raises(NonManifoldEdgeError):
-        remesh(Mesh(v, np.concatenate([f, [[f[0, 0], f[0, 1], 5]]])), n_vertices=10, key=jax.random.key(0))
+        remesh(
+            Mesh(v, np.concatenate([f, [[f[0, 0], f[0, 1], 5]]])),
+            n_vertices=10,
+            key=jax.random.key(0),
+        )
     with pytest.raises(InputError, match="unreferenced"):
-        remesh(Mesh(np.concatenate([v, [[9.0, 9.0, 9.0]]]), f), n_vertices=10, key=jax.random.key(0))
+        remesh(
+            Mesh(np.concatenate([v, [[9.0, 9.0, 9.0]]]), f), n_vertices=10, key=jax.random.key(0)
+        )
     with pytest.raises(DecimationError, match="ask for more vertices"):
         remesh(Mesh(*_two_spheres()), n_vertices=5, key=jax.random.key(0))

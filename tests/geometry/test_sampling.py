@@ -19,8 +19,22 @@ ALPHA = 1e-6
 
 def _uneven_mesh():
     """Four triangles whose areas are 1 : 2 : 3 : 4 (and one of zero area)."""
-    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 2, 0], [2, 0, 1], [0, 3, 1], [4, 0, 2], [0, 2, 2],
-                  [0, 0, 1], [0, 0, 2], [0, 0, 3], [1, 1, 3], [2, 2, 3]])
+    v = np.array(
+        [
+            [0.0, 0, 0],
+            [1, 0, 0],
+            [0, 2, 0],
+            [2, 0, 1],
+            [0, 3, 1],
+            [4, 0, 2],
+            [0, 2, 2],
+            [0, 0, 1],
+            [0, 0, 2],
+            [0, 0, 3],
+            [1, 1, 3],
+            [2, 2, 3],
+        ]
+    )
     f = np.array([[0, 1, 2], [7, 3, 4], [8, 5, 6], [0, 2, 6], [9, 10, 11]])
     return v, f
 
@@ -80,7 +94,9 @@ def test_seed_and_rng_are_deterministic():
     assert not np.array_equal(a.point, c.point)
     rng = np.random.default_rng(7)
     d = sample_surface(v, f, 50, rng=rng)
-    np.testing.assert_array_equal(d.point, sample_surface(v, f, 50, rng=np.random.default_rng(7)).point)
+    np.testing.assert_array_equal(
+        d.point, sample_surface(v, f, 50, rng=np.random.default_rng(7)).point
+    )
     e = sample_surface(v, f, 50, rng=rng)  # the generator advanced
     assert not np.array_equal(e.point, d.point)
     assert sample_surface(v, f, 0, key=jax.random.key(1)).point.shape == (0, 3)
@@ -90,12 +106,20 @@ def test_seed_and_rng_are_deterministic():
     "kwargs, error, match",
     [
         (dict(), InputError, "exactly one of key"),
-        (dict(key=jax.random.key(1), rng=np.random.default_rng(1)), InputError, "exactly one of key"),
+        (
+            dict(key=jax.random.key(1), rng=np.random.default_rng(1)),
+            InputError,
+            "exactly one of key",
+        ),
         (dict(key=1), InputError, "must be a JAX PRNG key"),
         (dict(rng=1), InputError, "Generator"),
         (dict(key=jax.random.key(1), n=-1), InputError, "non-negative"),
         (dict(key=jax.random.key(1), faces=np.array([[0, 1, 9]])), FaceIndexError, "out of range"),
-        (dict(key=jax.random.key(1), faces=np.array([[0, 1, 2, 3]])), NonTriangleFaceError, "triangles"),
+        (
+            dict(key=jax.random.key(1), faces=np.array([[0, 1, 2, 3]])),
+            NonTriangleFaceError,
+            "triangles",
+        ),
         (dict(key=jax.random.key(1), vertices=np.zeros((4, 3))), InputError, "total area"),
     ],
 )
@@ -118,11 +142,14 @@ def test_interpolation_is_exact_for_affine_functions(rng):
     A, c = rng.standard_normal((3, 4)), rng.standard_normal(4)
     values = v @ A + c
     s = sample_surface(v, f, 200, rng=rng)
-    np.testing.assert_allclose(barycentric_interpolate(values, f, s.face, s.bary), s.point @ A + c,
-                               atol=1e-13)
+    np.testing.assert_allclose(
+        barycentric_interpolate(values, f, s.face, s.bary), s.point @ A + c, atol=1e-13
+    )
     # at a corner it returns the vertex value; extra value axes and leading sample axes pass through
     vals = rng.standard_normal((len(v), 2, 3)) + 1j * rng.standard_normal((len(v), 2, 3))
-    out = barycentric_interpolate(vals, f, np.array([[3, 5]]), np.array([[[0, 1.0, 0], [0, 0, 1.0]]]))
+    out = barycentric_interpolate(
+        vals, f, np.array([[3, 5]]), np.array([[[0, 1.0, 0], [0, 0, 1.0]]])
+    )
     assert out.shape == (1, 2, 2, 3) and out.dtype == np.complex128
     np.testing.assert_array_equal(out[0, 0], vals[f[3, 1]])
     np.testing.assert_array_equal(out[0, 1], vals[f[5, 2]])
@@ -133,7 +160,9 @@ def test_interpolation_matches_a_loop_reference(rng):
     values = rng.standard_normal((len(v), 5))
     face = rng.integers(0, len(f), 30)
     bary = rng.dirichlet([1, 1, 1], 30)
-    expected = np.array([sum(bary[i, k] * values[f[face[i], k]] for k in range(3)) for i in range(30)])
+    expected = np.array(
+        [sum(bary[i, k] * values[f[face[i], k]] for k in range(3)) for i in range(30)]
+    )
     np.testing.assert_allclose(barycentric_interpolate(values, f, face, bary), expected, atol=1e-14)
 
 
@@ -146,7 +175,9 @@ def test_interpolation_in_jax_jit_grad_and_dtype(rng):
     fn = jax.jit(barycentric_interpolate)
     out = fn(values, jnp.asarray(f), face, bary)
     assert isinstance(out, jax.Array) and out.dtype == jnp.float32
-    ref = barycentric_interpolate(np.asarray(values, np.float64), f, np.asarray(face), np.asarray(bary))
+    ref = barycentric_interpolate(
+        np.asarray(values, np.float64), f, np.asarray(face), np.asarray(bary)
+    )
     np.testing.assert_allclose(np.asarray(out), ref, rtol=1e-6, atol=1e-6)
     # the gradient of the sum w.r.t. the values is the total barycentric weight on each vertex
     grad = jax.grad(lambda x: barycentric_interpolate(x, f, face, bary).sum())(values)

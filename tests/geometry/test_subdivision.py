@@ -44,7 +44,13 @@ def _face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 def _reference_subdivide(v: np.ndarray, f: np.ndarray):
     """Slow, loop-based midpoint subdivision with a dict of edges (independent reference)."""
     edge_id: dict[tuple[int, int], int] = {}
-    for a, b in sorted({tuple(sorted((int(x), int(y)))) for tri in f for x, y in zip(tri, np.roll(tri, -1), strict=True)}):
+    for a, b in sorted(
+        {
+            tuple(sorted((int(x), int(y))))
+            for tri in f
+            for x, y in zip(tri, np.roll(tri, -1), strict=True)
+        }
+    ):
         edge_id[(a, b)] = len(v) + len(edge_id)
     verts = [*v]
     for (a, b), _ in sorted(edge_id.items(), key=lambda kv: kv[1]):
@@ -107,7 +113,9 @@ def test_area_preserved_on_flat_mesh_and_each_child_is_a_quarter(rng):
     area = lambda v, f: 0.5 * np.linalg.norm(_face_normals(v, f), axis=1)  # noqa: E731
     s = subdivide_midpoint(v, f)
     assert np.isclose(area(s.vertices, s.faces).sum(), area(v, f).sum(), rtol=1e-14)
-    np.testing.assert_allclose(area(s.vertices, s.faces), area(v, f)[s.face_parent] / 4.0, rtol=1e-12)
+    np.testing.assert_allclose(
+        area(s.vertices, s.faces), area(v, f)[s.face_parent] / 4.0, rtol=1e-12
+    )
 
 
 def test_parent_maps():
@@ -115,13 +123,21 @@ def test_parent_maps():
     s = subdivide_midpoint(v, f)
     V = len(v)
     # each new vertex is the midpoint of an existing coarse edge, every coarse edge gets exactly one
-    coarse_edges = {tuple(sorted(e)) for tri in f.tolist() for e in zip(tri, tri[1:] + tri[:1], strict=True)}
+    coarse_edges = {
+        tuple(sorted(e)) for tri in f.tolist() for e in zip(tri, tri[1:] + tri[:1], strict=True)
+    }
     assert {tuple(e) for e in s.edge_vertices.tolist()} == coarse_edges
     assert len(s.edge_vertices) == len(coarse_edges)
-    np.testing.assert_allclose(s.vertices[V:], 0.5 * (v[s.edge_vertices[:, 0]] + v[s.edge_vertices[:, 1]]))
+    np.testing.assert_allclose(
+        s.vertices[V:], 0.5 * (v[s.edge_vertices[:, 0]] + v[s.edge_vertices[:, 1]])
+    )
     np.testing.assert_array_equal(s.vertices[:V], v)
     # the new vertex is joined to both of its parents in the fine mesh
-    fine_edges = {tuple(sorted(e)) for tri in s.faces.tolist() for e in zip(tri, tri[1:] + tri[:1], strict=True)}
+    fine_edges = {
+        tuple(sorted(e))
+        for tri in s.faces.tolist()
+        for e in zip(tri, tri[1:] + tri[:1], strict=True)
+    }
     for i, (a, b) in enumerate(s.edge_vertices.tolist()):
         assert (a, V + i) in fine_edges and (b, V + i) in fine_edges
     # a fine face only uses its parent's corners and the midpoints of its parent's edges
@@ -151,7 +167,9 @@ def test_subdivide_uv_matches_positions_on_a_flat_mesh():
     # on a flat mesh whose UVs are its xy coordinates, subdivided UVs are the fine vertices' xy
     v, f = grid(3, 2, size=(1.0, 0.5))
     s = subdivide_midpoint(v, f)
-    np.testing.assert_allclose(subdivide_uv(v[f][..., :2]), s.vertices[s.faces][..., :2], atol=1e-15)
+    np.testing.assert_allclose(
+        subdivide_uv(v[f][..., :2]), s.vertices[s.faces][..., :2], atol=1e-15
+    )
 
 
 def test_subdivide_uv_keeps_seams():
@@ -205,7 +223,12 @@ def test_flat_grids_property(nx, ny, uniform, levels):
         (np.zeros((4, 3)), np.array([[0, 1, 2, 3]]), NonTriangleFaceError, r"\[F, 3\]"),
         (np.eye(3), np.array([[0, 1, 3]]), FaceIndexError, "out of range"),
         (np.eye(3), np.array([[0, -1, 2]]), FaceIndexError, "out of range"),
-        (np.array([[0, 0, 0], [1, 0, 0], [0, np.nan, 0]]), np.array([[0, 1, 2]]), NonFiniteVertexError, "NaN"),
+        (
+            np.array([[0, 0, 0], [1, 0, 0], [0, np.nan, 0]]),
+            np.array([[0, 1, 2]]),
+            NonFiniteVertexError,
+            "NaN",
+        ),
         (np.zeros((0, 3)), np.zeros((0, 3), int), EmptyMeshError, "no vertices"),
         (np.eye(3)[:, :2], np.array([[0, 1, 2]]), InputError, r"\[V, 3\]"),
         (np.eye(3), np.array([[0.0, 1.0, 2.0]]), InputError, "integer"),

@@ -33,8 +33,12 @@ def _reference(texture, uv, mode, wrap):
         x, y = u * W - 0.5, (1 - v) * H - 0.5
         i, j = int(np.floor(x)), int(np.floor(y))
         a, b = x - i, y - j
-        out.append((1 - a) * (1 - b) * texel(j, i) + a * (1 - b) * texel(j, i + 1)
-                   + (1 - a) * b * texel(j + 1, i) + a * b * texel(j + 1, i + 1))
+        out.append(
+            (1 - a) * (1 - b) * texel(j, i)
+            + a * (1 - b) * texel(j, i + 1)
+            + (1 - a) * b * texel(j + 1, i)
+            + a * b * texel(j + 1, i + 1)
+        )
     return np.array(out)
 
 
@@ -73,8 +77,9 @@ def test_bilinear_clamp_on_a_2x2_texture(uv, expected):
     ],
 )
 def test_bilinear_repeat_on_a_2x2_texture(uv, expected):
-    np.testing.assert_allclose(sample_texture(TEX, np.array([uv]), wrap="repeat")[0, 0], expected,
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        sample_texture(TEX, np.array([uv]), wrap="repeat")[0, 0], expected, atol=1e-15
+    )
 
 
 @pytest.mark.parametrize(
@@ -99,8 +104,11 @@ def test_nearest_on_a_2x2_texture(uv, clamp, repeat):
 def test_matches_the_loop_reference(rng, mode, wrap):
     texture = rng.random((5, 7, 3))
     uv = rng.uniform(-0.5, 1.5, (300, 2))
-    np.testing.assert_allclose(sample_texture(texture, uv, mode=mode, wrap=wrap),
-                               _reference(texture, uv, mode, wrap), atol=1e-14)
+    np.testing.assert_allclose(
+        sample_texture(texture, uv, mode=mode, wrap=wrap),
+        _reference(texture, uv, mode, wrap),
+        atol=1e-14,
+    )
 
 
 def test_bilinear_reproduces_linear_ramps_exactly(rng):
@@ -133,7 +141,9 @@ def test_jax_path_jit_grad_and_no_recompile(rng):
         for wrap in ("clamp", "repeat"):
             out = fn(texture, uv, mode=mode, wrap=wrap)
             assert isinstance(out, jax.Array) and out.dtype == jnp.float32
-            ref = sample_texture(np.asarray(texture, np.float64), np.asarray(uv), mode=mode, wrap=wrap)
+            ref = sample_texture(
+                np.asarray(texture, np.float64), np.asarray(uv), mode=mode, wrap=wrap
+            )
             np.testing.assert_allclose(np.asarray(out), ref, rtol=1e-5, atol=1e-6)
     size = fn._cache_size()
     fn(texture * 2, uv + 0.1, mode="bilinear", wrap="clamp")
@@ -149,7 +159,8 @@ def test_uv_at():
     face = np.array([0, 1, 1, 0])
     bary = np.array([[1.0, 0, 0], [0, 0, 1.0], [1 / 3, 1 / 3, 1 / 3], [0.2, 0.3, 0.5]])
     np.testing.assert_allclose(
-        uv_at(uv, face, bary), [[0.0, 0.0], [1.0, 1.0], [2 / 3, 5 / 6], [0.3, 0.5]], atol=1e-15)
+        uv_at(uv, face, bary), [[0.0, 0.0], [1.0, 1.0], [2 / 3, 5 / 6], [0.3, 0.5]], atol=1e-15
+    )
     out = uv_at(jnp.asarray(uv, dtype=jnp.float32), jnp.asarray(face), jnp.asarray(bary))
     assert isinstance(out, jax.Array) and out.dtype == jnp.float32
     assert uv_at(uv, face.reshape(2, 2), bary.reshape(2, 2, 3)).shape == (2, 2, 2)
@@ -164,8 +175,11 @@ def test_uv_at_then_sample_texture_on_a_mesh(rng):
     uv = v[f][..., :2]
     texture = rng.random((4, 4, 3))
     s = sample_surface(v, f, 100, rng=rng)
-    np.testing.assert_allclose(sample_texture(texture, uv_at(uv, s.face, s.bary), mode="nearest"),
-                               _reference(texture, s.point[:, :2], "nearest", "clamp"), atol=0)
+    np.testing.assert_allclose(
+        sample_texture(texture, uv_at(uv, s.face, s.bary), mode="nearest"),
+        _reference(texture, s.point[:, :2], "nearest", "clamp"),
+        atol=0,
+    )
 
 
 @pytest.mark.parametrize(
@@ -173,13 +187,19 @@ def test_uv_at_then_sample_texture_on_a_mesh(rng):
     [
         (lambda: sample_texture(TEX, np.array([[0.5, 0.5]]), mode="cubic"), "mode must be one of"),
         (lambda: sample_texture(TEX, np.array([[0.5, 0.5]]), wrap="mirror"), "wrap must be one of"),
-        (lambda: sample_texture(TEX, np.array([[0.5, 0.5, 0.5]])), r"uv must have shape \[..., 2\]"),
+        (
+            lambda: sample_texture(TEX, np.array([[0.5, 0.5, 0.5]])),
+            r"uv must have shape \[..., 2\]",
+        ),
         (lambda: sample_texture(np.zeros(4), np.array([[0.5, 0.5]])), "texture must have shape"),
         (lambda: sample_texture(TEX, np.array([[np.nan, 0.5]])), "NaN"),
         (lambda: sample_texture(TEX, np.array([[0, 1]])), "floating point"),
         (lambda: uv_at(np.zeros((2, 3)), np.array([0]), np.ones((1, 3))), r"\[F, 3, 2\]"),
         (lambda: uv_at(np.zeros((2, 3, 2)), np.array([5]), np.ones((1, 3))), "face indices"),
-        (lambda: uv_at(np.zeros((2, 3, 2)), np.array([0]), np.ones((2, 3))), "bary must have shape"),
+        (
+            lambda: uv_at(np.zeros((2, 3, 2)), np.array([0]), np.ones((2, 3))),
+            "bary must have shape",
+        ),
     ],
 )
 @pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors

@@ -106,8 +106,12 @@ def test_straight_lines_on_a_flat_grid(rng, diagonals):
     # the rest stop on the border, on the same line, after the distance to the border
     out = ~inside
     assert r.stopped[out].all()
-    np.testing.assert_allclose(r.point[out], start[out] + r.travelled[out, None] * w[out], atol=1e-12)
-    on_border = np.min(np.abs(np.concatenate([r.point[out, :2], r.point[out, :2] - [1.0, 0.8]], 1)), 1)
+    np.testing.assert_allclose(
+        r.point[out], start[out] + r.travelled[out, None] * w[out], atol=1e-12
+    )
+    on_border = np.min(
+        np.abs(np.concatenate([r.point[out, :2], r.point[out, :2] - [1.0, 0.8]], 1)), 1
+    )
     np.testing.assert_allclose(on_border, 0.0, atol=1e-12)
     assert np.all(r.travelled[out] < length[out])
     # the end point is really inside the end face
@@ -123,9 +127,10 @@ _GRID_TABLES = tracer_geometry(*_GRID)
 @given(
     face=st.integers(0, _GRID.num_faces - 1),
     weights=st.tuples(*[st.sampled_from([0.0, 0.5, 1.0]) | st.floats(0.0, 1.0)] * 3).filter(
-        lambda w: sum(w) > 0.1),
+        lambda w: sum(w) > 0.1
+    ),
     angle=st.sampled_from(np.arange(8) * np.pi / 4) | st.floats(0.0, 2 * np.pi),
-    length=st.sampled_from([0.0, 0.25, 0.5 ** 0.5]) | st.floats(0.0, 1.6),
+    length=st.sampled_from([0.0, 0.25, 0.5**0.5]) | st.floats(0.0, 1.6),
 )
 def test_straight_lines_on_a_flat_grid_property(face, weights, angle, length):
     """Any start (corners, edges, boundary), any heading (along mesh lines, through vertices)."""
@@ -159,7 +164,9 @@ def test_boundary_stop_distances_are_exact():
     rings = one_rings(f)
     x_axis = v[rings.ring[centre, 0]] - v[centre]
     alpha = np.arctan2(x_axis[1], x_axis[0])
-    r = trace_from_vertices(v, f, np.full(16, centre), np.exp(1j * (angles - alpha)), 2.0, geometry=g)
+    r = trace_from_vertices(
+        v, f, np.full(16, centre), np.exp(1j * (angles - alpha)), 2.0, geometry=g
+    )
     assert r.stopped.all()
     expected = 0.5 / np.maximum(np.abs(np.cos(angles)), np.abs(np.sin(angles)))
     np.testing.assert_allclose(r.travelled, expected, atol=1e-12)
@@ -219,7 +226,9 @@ def test_fold_leaves_traces_unchanged(rng):
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     np.testing.assert_allclose(
         np.linalg.norm(folded[e[:, 0]] - folded[e[:, 1]], axis=1),
-        np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1), atol=1e-14)
+        np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1),
+        atol=1e-14,
+    )
     assert np.abs(folded - v).max() > 0.3
     face, bary, direction = _random_starts(rng, f, 300)
     length = rng.uniform(0.0, 0.9, 300)
@@ -290,6 +299,7 @@ def test_exp_of_log_with_the_log_map_module(mesh):
 
 def test_agrees_with_potpourri3d(rng):
     import potpourri3d as pp3d
+
     v, f = icosphere(3)
     v = v * np.array([1.0, 0.8, 1.2])  # not a symmetric surface
     face, bary, direction = _random_starts(rng, f, 60)
@@ -297,7 +307,12 @@ def test_agrees_with_potpourri3d(rng):
     r = trace_geodesics(v, f, face, bary, direction, length)
     tracer = pp3d.GeodesicTracer(v, f)
     w = face_frame_to_world(v, f, face, direction) * length[:, None]
-    ends = np.array([tracer.trace_geodesic_from_face(int(a), b, c)[-1] for a, b, c in zip(face, bary, w, strict=True)])
+    ends = np.array(
+        [
+            tracer.trace_geodesic_from_face(int(a), b, c)[-1]
+            for a, b, c in zip(face, bary, w, strict=True)
+        ]
+    )
     # both unfold the same polyhedral surface exactly; observed ~3e-15
     np.testing.assert_allclose(r.point, ends, atol=1e-9)
 
@@ -326,7 +341,9 @@ def test_continuing_a_walk_equals_one_longer_walk(rng):
     np.testing.assert_allclose(second.point, whole.point, atol=1e-12)
     np.testing.assert_allclose(
         face_frame_to_world(v, f, second.face, second.direction),
-        face_frame_to_world(v, f, whole.face, whole.direction), atol=1e-10)
+        face_frame_to_world(v, f, whole.face, whole.direction),
+        atol=1e-10,
+    )
 
 
 def test_geometry_reuse_and_scalar_length_give_the_same_result(rng):
@@ -346,8 +363,13 @@ def test_geometry_reuse_and_scalar_length_give_the_same_result(rng):
 def test_directions_off_the_surface_at_a_boundary_vertex_stop_at_once():
     v, f = grid(2)
     corner = 0  # (0, 0): a quarter-plane corner, angle sum π/2
-    r = trace_from_vertices(v, f, np.array([corner] * 3), np.exp(1j * np.array([0.2, 2.0, 5.0])),
-                            np.array([0.3, 0.3, 0.0]))
+    r = trace_from_vertices(
+        v,
+        f,
+        np.array([corner] * 3),
+        np.exp(1j * np.array([0.2, 2.0, 5.0])),
+        np.array([0.3, 0.3, 0.0]),
+    )
     np.testing.assert_array_equal(r.stopped, [False, True, False])
     np.testing.assert_array_equal(r.travelled, [0.3, 0.0, 0.0])
     np.testing.assert_allclose(r.point[1:], v[[corner, corner]], atol=1e-15)
@@ -371,8 +393,12 @@ def test_directions_off_the_surface_at_a_boundary_vertex_stop_at_once():
 @pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_trace_geodesics_rejects_bad_input(kwargs, match):
     v, f = torus(6, 4)
-    args = dict(start_face=np.array([0]), start_bary=np.array([[0.2, 0.3, 0.5]]),
-                direction=np.array([1j]), length=np.array([0.5]))
+    args = dict(
+        start_face=np.array([0]),
+        start_bary=np.array([[0.2, 0.3, 0.5]]),
+        direction=np.array([1j]),
+        length=np.array([0.5]),
+    )
     max_steps = kwargs.pop("max_steps", None)
     args.update(kwargs)
     with pytest.raises(InputError, match=match):
@@ -387,8 +413,9 @@ def test_trace_from_vertices_rejects_bad_input():
     with pytest.raises(InputError, match="belong to no face"):
         trace_from_vertices(v_extra, f, np.array([9]), np.array([1j]), 0.1)
     with pytest.raises(InputError, match="different mesh"):
-        trace_from_vertices(v, f[:4], np.array([0]), np.array([1j]), 0.1,
-                            geometry=tracer_geometry(v, f))
+        trace_from_vertices(
+            v, f[:4], np.array([0]), np.array([1j]), 0.1, geometry=tracer_geometry(v, f)
+        )
 
 
 def test_degenerate_faces_are_rejected():

@@ -34,14 +34,24 @@ def test_pad_values_follow_the_contract():
     nb = pad_to(one_ring_neighborhood(v, f), {"V": 14, "K": 8})
     assert nb.index.shape == (14, 8)
     assert not nb.mask[:, 5:].any() and not nb.vertex_mask[12:].any()
-    assert (nb.transport[:, 5:] == 1).all() and (nb.log[:, 5:] == 0).all() and (nb.weight[:, 5:] == 0).all()
+    assert (
+        (nb.transport[:, 5:] == 1).all()
+        and (nb.log[:, 5:] == 0).all()
+        and (nb.weight[:, 5:] == 0).all()
+    )
     fn = pad_to(face_neighborhood(f), {"F": 22, "M": 7})
-    assert fn.faces.shape == (22, 3) and not fn.face_mask[20:].any() and not fn.vertex_faces_mask[:, 5:].any()
+    assert (
+        fn.faces.shape == (22, 3)
+        and not fn.face_mask[20:].any()
+        and not fn.vertex_faces_mask[:, 5:].any()
+    )
     with pytest.raises(ValueError, match="cannot shrink"):
         pad_to(nb, {"K": 2})
 
 
-@pytest.mark.parametrize("real, cplx", [(jnp.float32, jnp.complex64), (jnp.float64, jnp.complex128)])
+@pytest.mark.parametrize(
+    "real, cplx", [(jnp.float32, jnp.complex64), (jnp.float64, jnp.complex128)]
+)
 def test_to_jax_dtypes(real, cplx):
     v, f = icosahedron()
     nb = to_jax(one_ring_neighborhood(v, f), real)

@@ -121,7 +121,14 @@ SQUARE_F = np.array([[0, 1, 2], [0, 2, 3]])
 
 
 def test_valid_meshes_of_every_kind_pass():
-    for v, f in [single_triangle(), icosahedron(), icosphere(2), torus(6, 4), grid(3, 2), (SQUARE_V, SQUARE_F)]:
+    for v, f in [
+        single_triangle(),
+        icosahedron(),
+        icosphere(2),
+        torus(6, 4),
+        grid(3, 2),
+        (SQUARE_V, SQUARE_F),
+    ]:
         validate_mesh(v, f)
     # several components of different genus, an unreferenced vertex, int32 faces, a list input
     sv, sf = icosphere(1)
@@ -228,7 +235,9 @@ def test_bowtie_vertex_named():
     # two cones touching at their apex (closed fans on both sides) are a bow-tie too
     ring = np.array([[np.cos(t), np.sin(t), 0.0] for t in np.linspace(0, 2 * np.pi, 5)[:-1]])
     v = np.concatenate([[[0.0, 0, 0]], ring + [0, 0, 1], ring - [0, 0, 1]])
-    f = [[0, 1 + k, 1 + (k + 1) % 4] for k in range(4)] + [[0, 5 + (k + 1) % 4, 5 + k] for k in range(4)]
+    f = [[0, 1 + k, 1 + (k + 1) % 4] for k in range(4)] + [
+        [0, 5 + (k + 1) % 4, 5 + k] for k in range(4)
+    ]
     with pytest.raises(NonManifoldVertexError) as info:
         validate_mesh(v, f)
     assert _items(info.value) == [0]
@@ -260,14 +269,25 @@ def test_checks_run_in_the_documented_order():
         return v, f
 
     order = ["index", "finite", "degenerate", "duplicate", "nm_edge", "orientation", "bowtie"]
-    errors = [FaceIndexError, NonFiniteVertexError, DegenerateFaceError, DuplicateFaceError,
-              NonManifoldEdgeError, InconsistentOrientationError, NonManifoldVertexError]
+    errors = [
+        FaceIndexError,
+        NonFiniteVertexError,
+        DegenerateFaceError,
+        DuplicateFaceError,
+        NonManifoldEdgeError,
+        InconsistentOrientationError,
+        NonManifoldVertexError,
+    ]
     for i, first in enumerate(order):
         only = defect(first, v, f)
         with pytest.raises(errors[i]):
             validate_mesh(*only)
         for later in order[i + 1 :]:
-            both = defect(first, *defect(later, v, f)) if later in ("nm_edge", "bowtie", "duplicate") else defect(later, *defect(first, v, f))
+            both = (
+                defect(first, *defect(later, v, f))
+                if later in ("nm_edge", "bowtie", "duplicate")
+                else defect(later, *defect(first, v, f))
+            )
             with pytest.raises(errors[i]):
                 validate_mesh(*both)
 
@@ -330,8 +350,19 @@ def test_touching_parts_are_kept_apart():
     assert report.kept_apart_vertices.tolist() == [top, len(v) + bottom]
     assert m.num_vertices == 2 * len(v) and not report.changed
     # three fins along one edge: merging their coincident edge would make it non-manifold
-    fin_v = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.0, 0, 0], [1, 0, 0], [0.5, 0, 1],
-                      [0.0, 0, 0], [1, 0, 0], [0.5, -1, -1]])
+    fin_v = np.array(
+        [
+            [0.0, 0, 0],
+            [1, 0, 0],
+            [0.5, 1, 0],
+            [0.0, 0, 0],
+            [1, 0, 0],
+            [0.5, 0, 1],
+            [0.0, 0, 0],
+            [1, 0, 0],
+            [0.5, -1, -1],
+        ]
+    )
     fin_f = np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8]])
     m, report = prepare_mesh((fin_v, fin_f))
     assert m.num_vertices == 9 and len(report.kept_apart_vertices) == 6
@@ -424,7 +455,9 @@ def test_repair_keeps_seams_and_corner_uvs_consistent():
     split_g[[1, 2]] = split_g[[1, 2]][:, ::-1]
     uv_g = uv.copy()
     uv_g[[1, 2]] = uv_g[[1, 2]][:, ::-1]
-    mesh = Mesh(v, g, uv=uv_g, split_faces=split_g, split_to_merged=np.r_[np.arange(12), [4, 5, 6, 7]])
+    mesh = Mesh(
+        v, g, uv=uv_g, split_faces=split_g, split_to_merged=np.r_[np.arange(12), [4, 5, 6, 7]]
+    )
     m, report = prepare_mesh(mesh, repair=True)
     assert report.flipped_faces.tolist() == [1, 2]
     assert np.array_equal(m.split_to_merged[m.split_faces], m.faces)
@@ -485,13 +518,38 @@ def _cylinder(n: int = 8, rows: int = 3) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize(
     "make, expected",
     [
-        (lambda: icosphere(2), dict(components=1, boundary_loops=0, euler_characteristic=2, genus=0, closed=True)),
-        (lambda: torus(8, 5), dict(components=1, boundary_loops=0, euler_characteristic=0, genus=1, closed=True)),
-        (lambda: grid(3, 2), dict(components=1, boundary_loops=1, euler_characteristic=1, genus=0, closed=False, edges=23)),
-        (_cylinder, dict(components=1, boundary_loops=2, euler_characteristic=0, genus=0, closed=False)),
-        (lambda: (torus(8, 5).vertices, torus(8, 5).faces[1:]), dict(boundary_loops=1, euler_characteristic=-1, genus=1)),
         (
-            lambda: (np.concatenate([icosphere(1).vertices, torus(6, 4).vertices + 4]), np.concatenate([icosphere(1).faces, torus(6, 4).faces + 42])),
+            lambda: icosphere(2),
+            dict(components=1, boundary_loops=0, euler_characteristic=2, genus=0, closed=True),
+        ),
+        (
+            lambda: torus(8, 5),
+            dict(components=1, boundary_loops=0, euler_characteristic=0, genus=1, closed=True),
+        ),
+        (
+            lambda: grid(3, 2),
+            dict(
+                components=1,
+                boundary_loops=1,
+                euler_characteristic=1,
+                genus=0,
+                closed=False,
+                edges=23,
+            ),
+        ),
+        (
+            _cylinder,
+            dict(components=1, boundary_loops=2, euler_characteristic=0, genus=0, closed=False),
+        ),
+        (
+            lambda: (torus(8, 5).vertices, torus(8, 5).faces[1:]),
+            dict(boundary_loops=1, euler_characteristic=-1, genus=1),
+        ),
+        (
+            lambda: (
+                np.concatenate([icosphere(1).vertices, torus(6, 4).vertices + 4]),
+                np.concatenate([icosphere(1).faces, torus(6, 4).faces + 42]),
+            ),
             dict(components=2, euler_characteristic=2, genus=1, closed=True),
         ),
     ],

@@ -58,7 +58,9 @@ def test_seam_split_obj_is_merged_and_keeps_its_stored_indexing(tmp_path):
 def test_polygons_are_triangulated_and_dtypes_fixed(tmp_path):
     path = tmp_path / "quad.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
-    with pytest.warns(MeshRepairWarning, match=r"split 1 polygon face \(4 corners\) into 2 triangles"):
+    with pytest.warns(
+        MeshRepairWarning, match=r"split 1 polygon face \(4 corners\) into 2 triangles"
+    ):
         m = load_mesh(path)
     assert m.faces.dtype == np.int64 and m.vertices.dtype == np.float64
     assert m.num_faces == 2 and m.uv is None and m.texture is None and m.vertex_colors is None
@@ -66,7 +68,16 @@ def test_polygons_are_triangulated_and_dtypes_fixed(tmp_path):
 
 
 # a quad, a triangle and a pentagon: 2 + 1 + 3 = 6 triangles
-_POLY_V = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [3, 1, 0], [2.5, 2, 0], [1.5, 2, 0]]
+_POLY_V = [
+    [0, 0, 0],
+    [1, 0, 0],
+    [1, 1, 0],
+    [0, 1, 0],
+    [2, 0, 0],
+    [3, 1, 0],
+    [2.5, 2, 0],
+    [1.5, 2, 0],
+]
 _POLY_F = [[0, 1, 2, 3], [1, 4, 2], [4, 5, 6, 7, 2]]
 # trimesh's OFF reader fails on faces of more than 4 corners (numpy 2): there, the pentagon is split
 _OFF_F = [[0, 1, 2, 3], [1, 4, 2], [4, 5, 6, 2], [6, 7, 2]]
@@ -76,16 +87,22 @@ def _polygon_file(tmp_path, suffix: str):
     path = tmp_path / f"poly{suffix}"
     rows = "".join(f"{x} {y} {z}\n" for x, y, z in _POLY_V)
     if suffix == ".obj":
-        path.write_text("".join(f"v {r}" for r in rows.splitlines(True))
-                        + "".join("f " + " ".join(str(i + 1) for i in f) + "\n" for f in _POLY_F))
+        path.write_text(
+            "".join(f"v {r}" for r in rows.splitlines(True))
+            + "".join("f " + " ".join(str(i + 1) for i in f) + "\n" for f in _POLY_F)
+        )
     elif suffix == ".off":
-        path.write_text(f"OFF\n{len(_POLY_V)} {len(_OFF_F)} 0\n{rows}"
-                        + "".join(f"{len(f)} " + " ".join(map(str, f)) + "\n" for f in _OFF_F))
+        path.write_text(
+            f"OFF\n{len(_POLY_V)} {len(_OFF_F)} 0\n{rows}"
+            + "".join(f"{len(f)} " + " ".join(map(str, f)) + "\n" for f in _OFF_F)
+        )
     else:
         path.write_text(
             f"ply\nformat ascii 1.0\nelement vertex {len(_POLY_V)}\nproperty float x\nproperty float y\n"
             f"property float z\nelement face {len(_POLY_F)}\nproperty list uchar int vertex_indices\n"
-            f"end_header\n{rows}" + "".join(f"{len(f)} " + " ".join(map(str, f)) + "\n" for f in _POLY_F))
+            f"end_header\n{rows}"
+            + "".join(f"{len(f)} " + " ".join(map(str, f)) + "\n" for f in _POLY_F)
+        )
     return path
 
 
@@ -97,24 +114,32 @@ def _polygon_file(tmp_path, suffix: str):
         (".off", r"split 2 polygon faces \(4 corners\) into 4 triangles", 4, [0, 2]),
     ],
 )
-def test_polygon_faces_warn_with_counts_or_raise_when_strict(tmp_path, suffix, message, records, polygons):
+def test_polygon_faces_warn_with_counts_or_raise_when_strict(
+    tmp_path, suffix, message, records, polygons
+):
     path = _polygon_file(tmp_path, suffix)
     with pytest.warns(MeshRepairWarning, match=message):
         m = load_mesh(path)
     assert m.num_faces == 6
     validate_mesh(m.vertices, m.faces)
-    with pytest.raises(NonTriangleFaceError, match=rf"2 polygon faces .* among its {records} faces") as info:
+    with pytest.raises(
+        NonTriangleFaceError, match=rf"2 polygon faces .* among its {records} faces"
+    ) as info:
         load_mesh(path, strict=True)
     assert info.value.indices.tolist() == polygons  # positions among the file's faces
 
 
 def test_binary_ply_quads_warn(tmp_path):
     path = tmp_path / "quad.ply"
-    header = ("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
-              "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n")
+    header = (
+        "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    )
     body = np.array(_POLY_V[:4], "<f4").tobytes() + bytes([4]) + np.arange(4, dtype="<i4").tobytes()
     path.write_bytes(header.encode() + body)
-    with pytest.warns(MeshRepairWarning, match=r"split 1 polygon face \(4 corners\) into 2 triangles"):
+    with pytest.warns(
+        MeshRepairWarning, match=r"split 1 polygon face \(4 corners\) into 2 triangles"
+    ):
         assert load_mesh(path).num_faces == 2
 
 
@@ -135,11 +160,15 @@ def test_vertex_colors_rgb_or_rgba(tmp_path):
         import trimesh
 
         path = tmp_path / f"{name}.ply"
-        path.write_bytes(trimesh.Trimesh(v, f, vertex_colors=rgba, process=False).export(file_type="ply"))
+        path.write_bytes(
+            trimesh.Trimesh(v, f, vertex_colors=rgba, process=False).export(file_type="ply")
+        )
         m = load_mesh(path)
         assert m.vertex_colors.dtype == np.float32
         assert m.vertex_colors.shape == (len(v), 3 if name == "opaque" else 4)
-        np.testing.assert_array_equal(m.vertex_colors, rgba[:, : m.vertex_colors.shape[1]] / np.float32(255))
+        np.testing.assert_array_equal(
+            m.vertex_colors, rgba[:, : m.vertex_colors.shape[1]] / np.float32(255)
+        )
 
 
 def test_foreign_glb_scene_with_two_meshes_is_concatenated(tmp_path):

@@ -48,7 +48,9 @@ def test_geometry_round_trip(tmp_path, suffix):
     save_mesh(Mesh(v, f), tmp_path / f"t{suffix}")
     back = load_mesh(tmp_path / f"t{suffix}")
     np.testing.assert_array_equal(back.faces, f)
-    np.testing.assert_allclose(back.vertices, v, rtol=0, atol=GEOMETRY_TOL[suffix] * np.abs(v).max())
+    np.testing.assert_allclose(
+        back.vertices, v, rtol=0, atol=GEOMETRY_TOL[suffix] * np.abs(v).max()
+    )
     if GEOMETRY_TOL[suffix] == 0:
         np.testing.assert_array_equal(back.vertices, v)
 
@@ -77,7 +79,9 @@ def test_uvs_without_texture_stay_without(tmp_path, rng, suffix):
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"u{suffix}"]
 
 
-@pytest.mark.parametrize("suffix, channels", [(".obj", 3), (".ply", 3), (".ply", 4), (".glb", 3), (".glb", 4)])
+@pytest.mark.parametrize(
+    "suffix, channels", [(".obj", 3), (".ply", 3), (".ply", 4), (".glb", 3), (".glb", 4)]
+)
 def test_vertex_color_round_trip(tmp_path, rng, suffix, channels):
     v, f = icosphere(1)
     colors = _bytes01(rng, (len(v), channels))

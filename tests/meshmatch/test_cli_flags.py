@@ -14,7 +14,11 @@ from jmeshtex.cli import _meshmatch
 def _config(*flags, action="transfer"):
     parser = argparse.ArgumentParser()
     _meshmatch.register(parser.add_subparsers())
-    inputs = ["--source", "s", "--target", "t"] if action == "transfer" else ["--mesh", "m", "--mask", "k.npy"]
+    inputs = (
+        ["--source", "s", "--target", "t"]
+        if action == "transfer"
+        else ["--mesh", "m", "--mask", "k.npy"]
+    )
     args = parser.parse_args(["meshmatch", action, *inputs, "--out", "o", *flags])
     return _meshmatch._config(args, aligned=action != "paint")
 
@@ -28,10 +32,17 @@ def test_the_default_is_aligned_and_no_aligned_is_intrinsic():
     c = _config("--no-aligned", "--up", "y", "--side", "z")
     assert (c.aligned, c.up_vector(), c.side_vector()) == (False, (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     c = _config("--position-weight", "4", "--normal-weight", "1", "--propagation", "sequential")
-    assert (c.normal_axes()["position_weight"], c.normal_axes()["normal_weight"], c.propagation) == (4.0, 1.0,
-                                                                                                      "sequential")
+    assert (
+        c.normal_axes()["position_weight"],
+        c.normal_axes()["normal_weight"],
+        c.propagation,
+    ) == (4.0, 1.0, "sequential")
     c = _config("--vote", "fan", "--upsample", "offset")
-    assert (c.vote, c.upsample) == ("fan", "offset") and _config().vote == "ring" and _config().upsample == "copy"
+    assert (
+        (c.vote, c.upsample) == ("fan", "offset")
+        and _config().vote == "ring"
+        and _config().upsample == "copy"
+    )
 
 
 def test_pose_free_flags_without_no_aligned_are_refused():

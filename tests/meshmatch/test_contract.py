@@ -18,11 +18,15 @@ CONFIG = meshmatch.Config(levels=2, min_vertices=40, steps=2, coarse_steps=4, hk
 def _source() -> Mesh:
     sphere = icosphere(2)
     v = sphere.vertices
-    colors = np.clip(0.5 + 0.4 * np.sin(5 * v + np.array([0.0, 1.0, 2.0])) * np.cos(3 * v[:, 1:2]), 0, 1)
+    colors = np.clip(
+        0.5 + 0.4 * np.sin(5 * v + np.array([0.0, 1.0, 2.0])) * np.cos(3 * v[:, 1:2]), 0, 1
+    )
     return sphere.replace(vertex_colors=colors.astype(np.float32))
 
 
-def _assert_same(a: meshmatch.MeshMatchTransfer, b: meshmatch.MeshMatchTransfer, *, name: bool = True) -> None:
+def _assert_same(
+    a: meshmatch.MeshMatchTransfer, b: meshmatch.MeshMatchTransfer, *, name: bool = True
+) -> None:
     for field in dataclasses.fields(Mesh):
         if field.name == "name" and not name:
             continue
@@ -43,7 +47,9 @@ def test_transfer_takes_meshes_and_a_key_and_round_trips(tmp_path, key):
     out = meshmatch.transfer(source, target, key=key, config=CONFIG)
     assert isinstance(out, meshmatch.MeshMatchTransfer)
     assert out.mesh.vertex_colors.shape == (target.num_vertices, 3)
-    assert out.match.nnf.shape == (target.num_vertices,) and out.match.nnf.max() < source.num_vertices
+    assert (
+        out.match.nnf.shape == (target.num_vertices,) and out.match.nnf.max() < source.num_vertices
+    )
 
     folder = meshmatch.save(out, tmp_path / "result")
     back = meshmatch.load(folder)

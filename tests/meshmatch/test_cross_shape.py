@@ -24,12 +24,20 @@ def _unit(v):
 
 
 def _bumps(u, amp):
-    return 1 + amp * (np.sin(3 * u[:, 0] + 1) * np.cos(2 * u[:, 1] + 0.7) + 0.6 * np.sin(4 * u[:, 2] + 0.5))
+    return 1 + amp * (
+        np.sin(3 * u[:, 0] + 1) * np.cos(2 * u[:, 1] + 0.7) + 0.6 * np.sin(4 * u[:, 2] + 0.5)
+    )
 
 
 def _colors(u):
-    return np.stack([0.5 + 0.4 * np.sin(4 * u[:, 0]) * np.cos(3 * u[:, 1]), 0.5 + 0.4 * np.sin(5 * u[:, 2] + 1),
-                     0.5 + 0.3 * np.cos(3 * u[:, 0] + 2 * u[:, 1])], axis=1)
+    return np.stack(
+        [
+            0.5 + 0.4 * np.sin(4 * u[:, 0]) * np.cos(3 * u[:, 1]),
+            0.5 + 0.4 * np.sin(5 * u[:, 2] + 1),
+            0.5 + 0.3 * np.cos(3 * u[:, 0] + 2 * u[:, 1]),
+        ],
+        axis=1,
+    )
 
 
 def _pair():
@@ -59,12 +67,20 @@ def test_colours_reach_a_floor_the_shape_only_match_misses(seed):
     source, sc, target, truth, u, tu = _pair()
     ceiling = psnr(sc[cKDTree(u).query(tu)[1]], truth)
     key = jax.random.key(seed)
-    intrinsic = psnr(np.clip(meshmatch(source, sc, target, key=key, config=Config.intrinsic()).colors, 0, 1), truth)
-    shape_only = psnr(meshmatch(source, sc, target, key=key, config=Config.intrinsic(color_weight=0.0)).colors, truth)
+    intrinsic = psnr(
+        np.clip(meshmatch(source, sc, target, key=key, config=Config.intrinsic()).colors, 0, 1),
+        truth,
+    )
+    shape_only = psnr(
+        meshmatch(source, sc, target, key=key, config=Config.intrinsic(color_weight=0.0)).colors,
+        truth,
+    )
     assert intrinsic > FLOOR_DB > shape_only
     assert intrinsic < ceiling + 1.0  # sanity: the nearest copy of the source bounds a copy of it
     if seed == 0:
-        default = psnr(np.clip(meshmatch(source, sc, target, key=key, config=Config()).colors, 0, 1), truth)
+        default = psnr(
+            np.clip(meshmatch(source, sc, target, key=key, config=Config()).colors, 0, 1), truth
+        )
         assert ceiling + 1.0 > default > FLOOR_DB
 
 
@@ -80,16 +96,26 @@ def test_correspondences_flip_a_left_right_symmetric_case():
     source_v = v * np.array([1.6, 1.0, 0.8])
     q, _ = np.linalg.qr(np.random.default_rng(2).standard_normal((3, 3)))
     tv, tf = icosphere(3)
-    tv = _unit(tv @ q.T) * np.array([1.6, 1.0, 0.8])  # another tessellation, the same symmetric shape
+    tv = _unit(tv @ q.T) * np.array(
+        [1.6, 1.0, 0.8]
+    )  # another tessellation, the same symmetric shape
     red = 0.5 + 0.45 * np.tanh(3 * source_v[:, 0])
     colors = np.stack([red, 1 - red, 0.5 * np.ones_like(red)], axis=1)
     s_pos, s_neg = int(np.argmax(source_v[:, 0])), int(np.argmin(source_v[:, 0]))
     t_pos, t_neg = int(np.argmax(tv[:, 0])), int(np.argmin(tv[:, 0]))
     cfg = Config.intrinsic(affinity_weight=3.0)
     side = np.sign(tv[:, 0])
-    for pairs, sign in (([[s_pos, t_pos], [s_neg, t_neg]], 1.0), ([[s_pos, t_neg], [s_neg, t_pos]], -1.0)):
-        out = transfer(Mesh(source_v, f, vertex_colors=colors), Mesh(tv, tf), key=jax.random.key(0), config=cfg,
-                       correspondences=np.array(pairs))
+    for pairs, sign in (
+        ([[s_pos, t_pos], [s_neg, t_neg]], 1.0),
+        ([[s_pos, t_neg], [s_neg, t_pos]], -1.0),
+    ):
+        out = transfer(
+            Mesh(source_v, f, vertex_colors=colors),
+            Mesh(tv, tf),
+            key=jax.random.key(0),
+            config=cfg,
+            correspondences=np.array(pairs),
+        )
         c = out.mesh.vertex_colors[:, 0]
         # red where the pairs say: the red channel's mean on that half beats the other half's clearly
         assert c[side == sign].mean() - c[side == -sign].mean() > 0.5
@@ -100,8 +126,13 @@ def test_scale_mismatch_is_an_error_unless_turned_off():
     colors = np.tile(0.5 + 0.4 * v[:, :1], (1, 3))
     with pytest.raises(InputError, match="share units"):
         meshmatch((v, f), colors, (100 * v, f), key=jax.random.key(0))
-    r = meshmatch((v, f), colors, (2.5 * v, f), key=jax.random.key(0),
-                  config=Config(levels=1, steps=1, coarse_steps=2, hks_eigenpairs=8, max_scale_ratio=None))
+    r = meshmatch(
+        (v, f),
+        colors,
+        (2.5 * v, f),
+        key=jax.random.key(0),
+        config=Config(levels=1, steps=1, coarse_steps=2, hks_eigenpairs=8, max_scale_ratio=None),
+    )
     assert r.colors.shape == (len(v), 3)
 
 
@@ -112,11 +143,21 @@ def test_y_up_models_match_as_their_z_up_copies():
     turn = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # z -> y
     cfg = dict(levels=2, steps=3, coarse_steps=6, hks_eigenpairs=8)
     z = meshmatch(source, sc, target, key=jax.random.key(0), config=Config.intrinsic(up="z", **cfg))
-    y = meshmatch(Mesh(source.vertices @ turn.T, source.faces), sc, Mesh(target.vertices @ turn.T, target.faces),
-                  key=jax.random.key(0), config=Config.intrinsic(up="y", **cfg))
+    y = meshmatch(
+        Mesh(source.vertices @ turn.T, source.faces),
+        sc,
+        Mesh(target.vertices @ turn.T, target.faces),
+        key=jax.random.key(0),
+        config=Config.intrinsic(up="y", **cfg),
+    )
     assert np.mean(z.nnf == y.nnf) > 0.95
-    wrong = meshmatch(Mesh(source.vertices @ turn.T, source.faces), sc, Mesh(target.vertices @ turn.T, target.faces),
-                      key=jax.random.key(0), config=Config.intrinsic(up="z", **cfg))
+    wrong = meshmatch(
+        Mesh(source.vertices @ turn.T, source.faces),
+        sc,
+        Mesh(target.vertices @ turn.T, target.faces),
+        key=jax.random.key(0),
+        config=Config.intrinsic(up="z", **cfg),
+    )
     assert np.mean(wrong.nnf == z.nnf) < 0.9  # the up axis matters: a wrong one changes the match
 
 
@@ -129,7 +170,13 @@ def test_the_aligned_default_needs_no_up_axis():
     cfg = Config(levels=2, steps=3, coarse_steps=6, hks_eigenpairs=8)
     z = meshmatch(source, sc, target, key=jax.random.key(0), config=cfg)
     turned_target = Mesh(target.vertices @ turn.T, target.faces)
-    y = meshmatch(Mesh(source.vertices @ turn.T, source.faces), sc, turned_target, key=jax.random.key(0), config=cfg)
+    y = meshmatch(
+        Mesh(source.vertices @ turn.T, source.faces),
+        sc,
+        turned_target,
+        key=jax.random.key(0),
+        config=cfg,
+    )
     assert np.mean(z.nnf == y.nnf) > 0.95
     off = meshmatch(source, sc, turned_target, key=jax.random.key(0), config=cfg)
     assert np.mean(off.nnf == z.nnf) < 0.5
@@ -155,7 +202,9 @@ def test_side_axis_resolves_the_mirror_ambiguity(seed):
     contrast +0.77 each; without ``side``: -0.76, 0.00, -0.76, +0.76)."""
     source, target = _ellipsoids()
     cfg = dict(levels=3, hks_eigenpairs=16)
-    out = transfer(source, target, key=jax.random.key(seed), config=Config.intrinsic(side="x", **cfg))
+    out = transfer(
+        source, target, key=jax.random.key(seed), config=Config.intrinsic(side="x", **cfg)
+    )
     c, side = out.mesh.vertex_colors[:, 0], np.sign(target.vertices[:, 0])
     assert c[side > 0].mean() - c[side < 0].mean() > 0.5
 
@@ -166,7 +215,9 @@ def test_a_shared_pose_resolves_the_mirror_ambiguity(seed):
     ellipsoid apart without a side axis (where the intrinsic features alone put the red on -x for
     keys 0 and 2, ``test_side_axis_resolves_the_mirror_ambiguity``)."""
     source, target = _ellipsoids()
-    out = transfer(source, target, key=jax.random.key(seed), config=Config(levels=3, hks_eigenpairs=16))
+    out = transfer(
+        source, target, key=jax.random.key(seed), config=Config(levels=3, hks_eigenpairs=16)
+    )
     c, side = out.mesh.vertex_colors[:, 0], np.sign(target.vertices[:, 0])
     assert c[side > 0].mean() - c[side < 0].mean() > 0.5
 
@@ -238,4 +289,6 @@ def test_initial_nnf_is_checked():
     with pytest.raises(InputError, match="initial_nnf"):
         meshmatch((v, f), colors, (v, f), key=jax.random.key(0), initial_nnf=np.zeros(3, np.int64))
     with pytest.raises(InputError, match="initial_nnf"):
-        meshmatch((v, f), colors, (v, f), key=jax.random.key(0), initial_nnf=np.full(len(v), len(v)))
+        meshmatch(
+            (v, f), colors, (v, f), key=jax.random.key(0), initial_nnf=np.full(len(v), len(v))
+        )

@@ -36,7 +36,9 @@ def test_smooth_sphere_has_no_detail(subdivisions):
 def test_taubin_keeps_the_radius_and_removes_bumps():
     v, f = icosphere(3)
     r = np.linalg.norm(taubin_smooth((v, f), steps=10), axis=1)
-    np.testing.assert_allclose(r, 1.0, atol=5e-3)  # measured 1.0015-1.0042: mu < -lam inflates a little
+    np.testing.assert_allclose(
+        r, 1.0, atol=5e-3
+    )  # measured 1.0015-1.0042: mu < -lam inflates a little
     bumpy = bumpy_sphere(subdivisions=3, bumps=40, height=0.08, width=0.1)
     true = np.linalg.norm(bumpy.vertices, axis=1) - 1
     assert np.corrcoef(detail_displacement(bumpy), true)[0, 1] > 0.95

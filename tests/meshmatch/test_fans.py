@@ -27,7 +27,9 @@ def test_fan_samples_lie_on_circles_of_a_flat_grid():
     centre = 60  # (0.6, 0.5): every ring stays inside the unit square
     xy = sample_fans(fans, v[:, :2])[centre]  # [R, A, 2]
     d = xy - v[centre, :2]
-    np.testing.assert_allclose(np.linalg.norm(d, axis=-1), np.array([[0.1], [0.2], [0.3]]) * np.ones((1, 8)), atol=1e-12)
+    np.testing.assert_allclose(
+        np.linalg.norm(d, axis=-1), np.array([[0.1], [0.2], [0.3]]) * np.ones((1, 8)), atol=1e-12
+    )
     angles = np.angle(d[..., 0] + 1j * d[..., 1])
     step = np.angle(np.exp(1j * np.diff(angles, axis=1)))
     np.testing.assert_allclose(step, 2 * np.pi / 8, atol=1e-12)  # counter-clockwise, evenly spaced
@@ -42,7 +44,9 @@ def test_turning_the_reference_by_whole_steps_rolls_the_fan(k, rng):
     A = 8
     ref = np.exp(1j * rng.uniform(0, 2 * np.pi, len(v)))
     a = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=ref)
-    b = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=ref * np.exp(2j * np.pi * k / A))
+    b = fan_descriptor(
+        (v, f), x, radii=[0.15, 0.3], num_angles=A, reference=ref * np.exp(2j * np.pi * k / A)
+    )
     np.testing.assert_allclose(np.asarray(b), np.roll(np.asarray(a), -k, axis=2), atol=1e-9)
 
 
@@ -51,8 +55,13 @@ def test_rotation_distances_match_a_loop(rng):
     t = rng.standard_normal((4, R, A, C))
     s = rng.standard_normal((4, R, A, C))
     w = np.array([0.3, 0.7])
-    d = np.asarray(rotation_distances(*fan_spectrum(jnp.asarray(t), jnp.asarray(w)),
-                                      *fan_spectrum(jnp.asarray(s), jnp.asarray(w)), A))
+    d = np.asarray(
+        rotation_distances(
+            *fan_spectrum(jnp.asarray(t), jnp.asarray(w)),
+            *fan_spectrum(jnp.asarray(s), jnp.asarray(w)),
+            A,
+        )
+    )
     ref = np.zeros((4, A))
     for n, k, r, a, c in itertools.product(range(4), range(A), range(R), range(A), range(C)):
         ref[n, k] += w[r] * (t[n, r, a, c] - s[n, r, (a + k) % A, c]) ** 2
@@ -67,7 +76,9 @@ def test_rotation_search_finds_the_shift(rng):
     k = rng.integers(0, A, len(v))
     base = np.exp(1j * rng.uniform(0, 2 * np.pi, len(v)))  # generic: no trace runs along an edge
     src = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=base)
-    tgt = fan_descriptor((v, f), x, radii=[0.15, 0.3], num_angles=A, reference=base * np.exp(2j * np.pi * k / A))
+    tgt = fan_descriptor(
+        (v, f), x, radii=[0.15, 0.3], num_angles=A, reference=base * np.exp(2j * np.pi * k / A)
+    )
     w = jnp.ones(2)
     d = rotation_distances(*fan_spectrum(tgt, w), *fan_spectrum(src, w), A)
     np.testing.assert_array_equal(np.asarray(jnp.argmin(d, axis=1)), k)
@@ -111,5 +122,7 @@ def test_host_smoothing_matches_the_jax_smoother(rng):
     v, f = icosphere(2)
     x = rng.standard_normal((len(v), 3))
     sm = smoother(f, len(v))
-    np.testing.assert_allclose(_smooth_host(x, sm, 9), np.asarray(smooth(jnp.asarray(x), sm, 9)), atol=1e-13)
+    np.testing.assert_allclose(
+        _smooth_host(x, sm, 9), np.asarray(smooth(jnp.asarray(x), sm, 9)), atol=1e-13
+    )
     np.testing.assert_array_equal(_smooth_host(x, sm, 0), x)

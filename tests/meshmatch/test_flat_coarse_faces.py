@@ -44,11 +44,21 @@ def test_a_flat_coarse_face_uses_the_intrinsic_lengths():
     gap = np.where(nb.mask, np.abs(nb.log) - plain, 0.0)
     assert 0.5e-4 * mean < gap.max() < 3e-4 * mean and gap.min() > -1e-12
     # a level whose positions are fine keeps the unmollified tables
-    np.testing.assert_allclose(side.neighborhoods[2].log, one_ring_neighborhood(h.vertices[2], h.faces[2]).log)
+    np.testing.assert_allclose(
+        side.neighborhoods[2].log, one_ring_neighborhood(h.vertices[2], h.faces[2]).log
+    )
     # the traced fans of that level are finite too
     n = len(h.vertices[1])
-    arr, _ = level_arrays(side, 1, np.array([1.0, 2.0]), config, np.full((n, 3), 0.5), np.ones(n, bool),
-                          side.features, "float64")
+    arr, _ = level_arrays(
+        side,
+        1,
+        np.array([1.0, 2.0]),
+        config,
+        np.full((n, 3), 0.5),
+        np.ones(n, bool),
+        side.features,
+        "float64",
+    )
     assert all(np.isfinite(np.asarray(x)).all() for x in arr if np.asarray(x).dtype.kind in "fc")
 
 
@@ -57,7 +67,9 @@ def test_mollified_lengths_have_the_asked_slack():
     out = mollified_lengths(lengths, 0.01)
     slack = out.sum(axis=1, keepdims=True) - 2 * out
     assert abs(slack.min() - 0.01) < 1e-12 and np.allclose(out - lengths, 0.01)
-    np.testing.assert_array_equal(mollified_lengths(lengths[1:], 0.01), lengths[1:])  # slack already 2
+    np.testing.assert_array_equal(
+        mollified_lengths(lengths[1:], 0.01), lengths[1:]
+    )  # slack already 2
 
 
 def test_lengths_equal_to_the_positions_give_the_same_tables():
@@ -66,7 +78,9 @@ def test_lengths_equal_to_the_positions_give_the_same_tables():
     a, b = one_ring_neighborhood(v, f), one_ring_neighborhood(v, f, lengths=lengths)
     np.testing.assert_allclose(a.log, b.log)
     np.testing.assert_allclose(a.transport, b.transport)
-    np.testing.assert_allclose(tracer_geometry(v, f).corners, tracer_geometry(v, f, lengths=lengths).corners)
+    np.testing.assert_allclose(
+        tracer_geometry(v, f).corners, tracer_geometry(v, f, lengths=lengths).corners
+    )
 
 
 @pytest.mark.parametrize("fn", [one_ring_neighborhood, tracer_geometry])

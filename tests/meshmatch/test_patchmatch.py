@@ -52,10 +52,16 @@ def test_relabelled_target_is_matched_with_the_frame_rotation():
 
 def test_paint_by_example_keeps_paint_and_copies_only_painted():
     v, f = _bumpy_sphere(2)
-    colors = np.stack([0.5 + 0.4 * np.sin(8 * v[:, 0]), 0.5 + 0.0 * v[:, 1], 0.5 + 0.4 * np.cos(8 * v[:, 2])], 1)
+    colors = np.stack(
+        [0.5 + 0.4 * np.sin(8 * v[:, 0]), 0.5 + 0.0 * v[:, 1], 0.5 + 0.4 * np.cos(8 * v[:, 2])], 1
+    )
     painted = v[:, 2] > -0.1
-    out = paint_by_example(Mesh(v, f, vertex_colors=colors), painted, key=KEY,
-                           config=Config(levels=1, steps=4, coarse_steps=4))
+    out = paint_by_example(
+        Mesh(v, f, vertex_colors=colors),
+        painted,
+        key=KEY,
+        config=Config(levels=1, steps=4, coarse_steps=4),
+    )
     np.testing.assert_allclose(out.mesh.vertex_colors[painted], colors[painted], atol=1e-6)
     assert painted[out.match.nnf].all()  # every match is a painted vertex
     with pytest.raises(InputError, match="paints no vertex"):
@@ -65,11 +71,15 @@ def test_paint_by_example_keeps_paint_and_copies_only_painted():
 def test_displacement_transfer_moves_along_normals():
     v, f = _bumpy_sphere(2)
     smooth_v = v / np.linalg.norm(v, axis=1, keepdims=True)
-    out = transfer_displacement((v, f), Mesh(smooth_v, f), key=KEY, config=Config(levels=1, steps=2, coarse_steps=4))
+    out = transfer_displacement(
+        (v, f), Mesh(smooth_v, f), key=KEY, config=Config(levels=1, steps=2, coarse_steps=4)
+    )
     moved = out.mesh.vertices - smooth_v
     assert np.abs(moved).max() > 1e-3
     normal = smooth_v  # the unit sphere's normals
-    cos = np.abs(np.einsum("vd,vd->v", moved, normal)) / np.maximum(np.linalg.norm(moved, axis=1), 1e-300)
+    cos = np.abs(np.einsum("vd,vd->v", moved, normal)) / np.maximum(
+        np.linalg.norm(moved, axis=1), 1e-300
+    )
     assert np.all(cos[np.linalg.norm(moved, axis=1) > 1e-9] > 0.99)
 
 
@@ -88,11 +98,28 @@ def test_cli_transfer_writes_mesh_renders_and_summary(tmp_path):
     from jmeshtex.io import save_mesh
 
     source, target, _ = demo_meshes(quick=True)
-    save_mesh(source.replace(vertex_colors=source.vertex_colors.astype(np.float32)), tmp_path / "src.ply")
+    save_mesh(
+        source.replace(vertex_colors=source.vertex_colors.astype(np.float32)), tmp_path / "src.ply"
+    )
     save_mesh(target, tmp_path / "tgt.ply")
     out = tmp_path / "out"
-    code = main(["meshmatch", "transfer", "--source", str(tmp_path / "src.ply"), "--target",
-                 str(tmp_path / "tgt.ply"), "--out", str(out), "--quiet", "--steps", "2", "--seed", "3"])
+    code = main(
+        [
+            "meshmatch",
+            "transfer",
+            "--source",
+            str(tmp_path / "src.ply"),
+            "--target",
+            str(tmp_path / "tgt.ply"),
+            "--out",
+            str(out),
+            "--quiet",
+            "--steps",
+            "2",
+            "--seed",
+            "3",
+        ]
+    )
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
     assert len(summary["levels"]) >= 2
@@ -100,9 +127,24 @@ def test_cli_transfer_writes_mesh_renders_and_summary(tmp_path):
     for name in ("source.png", "target.png", "nnf.png", "target.ply"):
         assert (out / name).stat().st_size > 500
     back = load(out)  # the CLI also writes the result itself
-    assert back.mesh.num_vertices == target.num_vertices and back.match.stats == summary_stats(summary)
-    assert main(["meshmatch", "paint", "--mesh", str(tmp_path / "src.ply"), "--mask", str(tmp_path / "none.txt"),
-                 "--out", str(out)]) == 2  # missing mask file: a clear error, exit status 2
+    assert back.mesh.num_vertices == target.num_vertices and back.match.stats == summary_stats(
+        summary
+    )
+    assert (
+        main(
+            [
+                "meshmatch",
+                "paint",
+                "--mesh",
+                str(tmp_path / "src.ply"),
+                "--mask",
+                str(tmp_path / "none.txt"),
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )  # missing mask file: a clear error, exit status 2
 
 
 def summary_stats(summary: dict) -> dict:
@@ -114,7 +156,20 @@ def test_cli_takes_procedural_mesh_names(tmp_path):
     from jmeshtex.cli import main
 
     out = tmp_path / "out"
-    code = main(["meshmatch", "transfer", "--source", "striped-sphere:3", "--target", "icosphere:3",
-                 "--out", str(out), "--quiet", "--steps", "1"])
+    code = main(
+        [
+            "meshmatch",
+            "transfer",
+            "--source",
+            "striped-sphere:3",
+            "--target",
+            "icosphere:3",
+            "--out",
+            str(out),
+            "--quiet",
+            "--steps",
+            "1",
+        ]
+    )
     assert code == 0
     assert load(out).mesh.vertex_colors.shape == (642, 3)

@@ -47,10 +47,23 @@ def test_fan_distance_bound_is_below_every_rotation_and_tight_for_shifts(rng):
     ts, ss = fan_spectrum(jnp.asarray(t), w), fan_spectrum(jnp.asarray(s), w)
     bound = np.asarray(fan_distance_bound(ts[0], ts[1], ss[0], ss[1], A))
     # slow reference: every cyclic shift, by loops
-    exact = np.array([[sum(w[i] * (t[n, i, a, c] - s[n, i, (a + k) % A, c]) ** 2
-                           for i in range(R) for a in range(A) for c in range(C)) for k in range(A)]
-                      for n in range(n)]).min(1)
-    np.testing.assert_allclose(np.asarray(rotation_distances(*ts, *ss, A)).min(1), exact, rtol=1e-10)
+    exact = np.array(
+        [
+            [
+                sum(
+                    w[i] * (t[n, i, a, c] - s[n, i, (a + k) % A, c]) ** 2
+                    for i in range(R)
+                    for a in range(A)
+                    for c in range(C)
+                )
+                for k in range(A)
+            ]
+            for n in range(n)
+        ]
+    ).min(1)
+    np.testing.assert_allclose(
+        np.asarray(rotation_distances(*ts, *ss, A)).min(1), exact, rtol=1e-10
+    )
     assert np.all(bound <= exact + 1e-10)
     # informative, not a trivial 0: exactly the documented bound, per row (ring i, channel c)
     # w_i [A (mean_T - mean_S)^2 + (|T - mean_T| - |S - mean_S|)^2], by loops (holds for every draw,
@@ -61,22 +74,31 @@ def test_fan_distance_bound_is_below_every_rotation_and_tight_for_shifts(rng):
             for c in range(C):
                 tr, sr = t[m, i, :, c], s[m, i, :, c]
                 mt, ms = tr.mean(), sr.mean()
-                formula[m] += wn[i] * (A * (mt - ms) ** 2 + (np.linalg.norm(tr - mt) - np.linalg.norm(sr - ms)) ** 2)
+                formula[m] += wn[i] * (
+                    A * (mt - ms) ** 2 + (np.linalg.norm(tr - mt) - np.linalg.norm(sr - ms)) ** 2
+                )
     np.testing.assert_allclose(bound, formula, rtol=1e-10, atol=1e-12)
     # a rolled fan plus a constant per row: the bound is exact
     shifted = np.roll(t, 3, axis=2) + rng.standard_normal((n, R, 1, C))
     sh = fan_spectrum(jnp.asarray(shifted), w)
-    np.testing.assert_allclose(np.asarray(fan_distance_bound(ts[0], ts[1], sh[0], sh[1], A)),
-                               np.asarray(rotation_distances(*ts, *sh, A)).min(1), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        np.asarray(fan_distance_bound(ts[0], ts[1], sh[0], sh[1], A)),
+        np.asarray(rotation_distances(*ts, *sh, A)).min(1),
+        rtol=1e-9,
+        atol=1e-9,
+    )
 
 
 def _level(cfg, colors, v, f):
     """Source = target = (v, f) at level 0: host arrays, source tables, target colours."""
     side = prepare_side((v, f), cfg)
     radii = cfg.radii(side.edge[0])
-    s_arr, steps = level_arrays(side, 0, radii, cfg, colors, np.ones(len(v), bool), side.features, np.float64)
-    t_arr, _ = level_arrays(side, 0, radii, cfg, np.zeros_like(colors), np.ones(len(v), bool), side.features,
-                            np.float64)
+    s_arr, steps = level_arrays(
+        side, 0, radii, cfg, colors, np.ones(len(v), bool), side.features, np.float64
+    )
+    t_arr, _ = level_arrays(
+        side, 0, radii, cfg, np.zeros_like(colors), np.ones(len(v), bool), side.features, np.float64
+    )
     up, down = search_tables(side.hierarchy, 0, cfg.random_search_levels)
     return side, s_arr, t_arr, steps, up, down
 
@@ -88,19 +110,33 @@ def _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, Vp=None, dims=No
         s_arr = pad_level_arrays(s_arr, **dims)
         t_arr = pad_level_arrays(t_arr, **dims)
         up = [pad_axis(u, 0, dims["num_vertices"]) for u in up]
-        down = [(pad_axis(c, 0, dims["num_vertices"]), pad_axis(n, 0, dims["num_vertices"], 1)) for c, n in down]
+        down = [
+            (pad_axis(c, 0, dims["num_vertices"]), pad_axis(n, 0, dims["num_vertices"], 1))
+            for c, n in down
+        ]
         valid_index = pad_axis(valid_index, 0, dims["num_vertices"], 0)
     A = cfg.num_angles
     ring_weight = jnp.ones(cfg.num_radii, jnp.float64) / cfg.num_radii
     src = make_source(s_arr, up, down, valid_index, V, ring_weight, steps=steps, num_angles=A)
     Vp = t_arr.nb_index.shape[0]
     scalar = lambda x: jnp.asarray(x, jnp.float64)  # noqa: E731
-    weights = StepWeights(ring_weight, scalar(1.0 / (cfg.num_radii * A * colors.shape[1] * colors.var())),
-                          scalar(1.0), scalar(0.01), scalar(0.01))
+    weights = StepWeights(
+        ring_weight,
+        scalar(1.0 / (cfg.num_radii * A * colors.shape[1] * colors.var())),
+        scalar(1.0),
+        scalar(0.01),
+        scalar(0.01),
+    )
     return iterate(
-        jax.tree.map(jnp.asarray, t_arr), src, jnp.asarray(pad_axis(nnf, 0, Vp)),
-        jnp.zeros(Vp, jnp.int32), jnp.asarray(pad_axis(colors, 0, Vp)), key, weights,
-        jnp.full(Vp, -1, jnp.int32), None if order is None else jnp.asarray(order),
+        jax.tree.map(jnp.asarray, t_arr),
+        src,
+        jnp.asarray(pad_axis(nnf, 0, Vp)),
+        jnp.zeros(Vp, jnp.int32),
+        jnp.asarray(pad_axis(colors, 0, Vp)),
+        key,
+        weights,
+        jnp.full(Vp, -1, jnp.int32),
+        None if order is None else jnp.asarray(order),
         options=SearchOptions.of(cfg, steps),
     )
 
@@ -126,7 +162,9 @@ def test_one_iteration_propagates_a_correct_match_sweeps_rings(sweeps, rng, key)
     far vertex: one iteration (no random search) must fix exactly the ``sweeps``-ring disc."""
     v, f = _bumpy(2)
     colors = rng.uniform(0, 1, (len(v), 3))
-    cfg = Config(levels=1, random_search_levels=0, global_candidates=0, sweeps=sweeps, exact_candidates=2)
+    cfg = Config(
+        levels=1, random_search_levels=0, global_candidates=0, sweeps=sweeps, exact_candidates=2
+    )
     _, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
     seed_vertex = 7
     dist = _ring_distance(f, len(v), seed_vertex)
@@ -148,8 +186,14 @@ def test_one_sequential_sweep_carries_a_correct_match_across_the_mesh(rng, key):
     whose random neighbours' matches happen to propose them)."""
     v, f = _bumpy(2)
     colors = rng.uniform(0, 1, (len(v), 3))
-    cfg = Config(levels=1, random_search_levels=0, global_candidates=0, sweeps=1, exact_candidates=2,
-                 propagation="sequential")
+    cfg = Config(
+        levels=1,
+        random_search_levels=0,
+        global_candidates=0,
+        sweeps=1,
+        exact_candidates=2,
+        propagation="sequential",
+    )
     _, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
     seed_vertex = 7
     V = len(v)
@@ -159,7 +203,9 @@ def test_one_sequential_sweep_carries_a_correct_match_across_the_mesh(rng, key):
     best, rot, cost, _, _ = _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key, order=order)
     assert (np.asarray(best) == np.arange(V)).all()
     np.testing.assert_allclose(np.asarray(cost), 0.0, atol=1e-9)
-    parallel = _step(cfg.replace(propagation="parallel"), t_arr, s_arr, up, down, steps, nnf, colors, key)
+    parallel = _step(
+        cfg.replace(propagation="parallel"), t_arr, s_arr, up, down, steps, nnf, colors, key
+    )
     assert (np.asarray(parallel[0]) == np.arange(V)).mean() < 0.2
 
 
@@ -175,9 +221,15 @@ def test_scan_order_is_breadth_first_wavefronts():
         row[vs[vs < V]] = r
     np.testing.assert_array_equal(row, _ring_distance(f, V, 3))
     # two components: the second follows the first, from its own lowest vertex
-    both = scan_order(np.concatenate([rings.ring, rings.ring + V]), np.concatenate([rings.mask, rings.mask]),
-                      pad_to=(0, order.shape[1] + 2), fill=-1)
-    assert both.shape[1] == order.shape[1] + 2 and sorted(both[both >= 0].tolist()) == list(range(2 * V))
+    both = scan_order(
+        np.concatenate([rings.ring, rings.ring + V]),
+        np.concatenate([rings.mask, rings.mask]),
+        pad_to=(0, order.shape[1] + 2),
+        fill=-1,
+    )
+    assert both.shape[1] == order.shape[1] + 2 and sorted(both[both >= 0].tolist()) == list(
+        range(2 * V)
+    )
     assert both[0].tolist()[:1] == [0] and V in both[order.shape[0]].tolist()
 
 
@@ -209,9 +261,15 @@ def test_random_search_candidates_are_descendants_of_the_hop_ancestor(rng, key):
     for m in (0, 2):  # 2 is the top: every hop repeats the top-level search (identity maps)
         up, down = search_tables(h, m, 4)
         V = len(h.vertices[m])
-        src = Source(None, None, None, tuple(jnp.asarray(u) for u in up),
-                   tuple((jnp.asarray(c), jnp.asarray(n)) for c, n in down), jnp.arange(V, dtype=jnp.int32),
-                   jnp.asarray(V, jnp.int32))
+        src = Source(
+            None,
+            None,
+            None,
+            tuple(jnp.asarray(u) for u in up),
+            tuple((jnp.asarray(c), jnp.asarray(n)) for c, n in down),
+            jnp.arange(V, dtype=jnp.int32),
+            jnp.asarray(V, jnp.int32),
+        )
         s = jnp.asarray(rng.integers(0, V, 300).astype(np.int32))
         cands = _random_candidates(src, s, key, 2)
         assert len(cands) == 4 + 2
@@ -238,7 +296,9 @@ def test_level_groups_share_a_step_and_change_no_result():
     padded = meshmatch((v, f), colors, (v, f), key=key, config=Config(bucket_vertices=100, **base))
     plain = meshmatch((v, f), colors, (v, f), key=key, config=Config(bucket_vertices=0, **base))
     stats = padded.stats["levels"]
-    assert [s["padded_vertices"] for s in stats] == [max(s["vertices"] for s in stats[:2])] * 2 + [162]
+    assert [s["padded_vertices"] for s in stats] == [max(s["vertices"] for s in stats[:2])] * 2 + [
+        162
+    ]
     np.testing.assert_array_equal(padded.nnf, plain.nnf)
     np.testing.assert_array_equal(padded.rotation, plain.rotation)
     np.testing.assert_allclose(padded.cost, plain.cost, rtol=1e-5)
@@ -252,4 +312,6 @@ def test_smallest_picks_the_lowest_bounds_in_order(rng):
     order = np.argsort(bound, axis=1, kind="stable")[:, :3]
     np.testing.assert_array_equal(np.asarray(b), np.take_along_axis(bound, order, axis=1))
     rows = [0, 1, 3, 4]
-    np.testing.assert_array_equal(np.asarray(c)[rows], np.take_along_axis(cands, order, axis=1)[rows])
+    np.testing.assert_array_equal(
+        np.asarray(c)[rows], np.take_along_axis(cands, order, axis=1)[rows]
+    )

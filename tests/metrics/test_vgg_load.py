@@ -35,16 +35,27 @@ def test_vgg19_npz_round_trip(tmp_path, rng, scheme):
     w = load_vgg19(path, preprocess="caffe" if scheme == "keras" else "torch")
     assert w.names == VGG19_NAMES and len(w.convs) == 16
     assert w.pools_after == ("conv1_2", "conv2_2", "conv3_4", "conv4_4", "conv5_4")
-    ref = arrays["block3_conv2/block3_conv2/kernel:0"] if scheme == "keras" else \
-        arrays["conv3_2.weight"].transpose(2, 3, 1, 0)
+    ref = (
+        arrays["block3_conv2/block3_conv2/kernel:0"]
+        if scheme == "keras"
+        else arrays["conv3_2.weight"].transpose(2, 3, 1, 0)
+    )
     np.testing.assert_array_equal(np.asarray(w.convs[5][0]), ref)
     # caffe preprocessing: BGR, 0-255, mean subtracted
     x = jnp.asarray([[0.0, 0.5, 1.0]], jnp.float32)
-    want = ([255.0 - 103.939, 127.5 - 116.779, 0.0 - 123.68] if scheme == "keras"
-            else (np.array([0.0, 0.5, 1.0]) - [0.485, 0.456, 0.406]) / [0.229, 0.224, 0.225])
+    want = (
+        [255.0 - 103.939, 127.5 - 116.779, 0.0 - 123.68]
+        if scheme == "keras"
+        else (np.array([0.0, 0.5, 1.0]) - [0.485, 0.456, 0.406]) / [0.229, 0.224, 0.225]
+    )
     np.testing.assert_allclose(w.preprocess(x)[0], want, rtol=1e-5)
-    out = vgg_features(jnp.full((1, 8, 8, 3), 0.5, jnp.float32), w, layers=("pool3", "relu4_4"), pool="mean",
-                       ceil_mode=True)
+    out = vgg_features(
+        jnp.full((1, 8, 8, 3), 0.5, jnp.float32),
+        w,
+        layers=("pool3", "relu4_4"),
+        pool="mean",
+        ceil_mode=True,
+    )
     assert out["pool3"].shape == (1, 1, 1, 6) and out["relu4_4"].shape == (1, 1, 1, 6)
 
 

@@ -55,18 +55,32 @@ MODULES = {  # name -> (module, call kwargs, op(x, params), params NamedTuple ty
     "dense": (ComplexDense(3), {}, complex_linear, None),
     "vn": (VNNonlinearity(), {}, vn_nonlinearity, VNParams),
     "vn_dense": (VNNonlinearity(3), {}, vn_nonlinearity, VNParams),
-    "frn": (FRN(), {"area": AREA, "vertex_mask": MASK},
-            lambda x, p: filter_response_norm(x, p, area=AREA, vertex_mask=MASK), FRNParams),
-    "attention": (ComplexAttention(num_heads=2), {"mask": MASK}, lambda x, p: complex_attention(x, p, mask=MASK),
-                  ComplexAttentionParams),
-    "block": (VNTransformerBlock(num_heads=2, mlp_features=6), {"mask": MASK},
-              lambda x, p: vn_transformer_block(x, p, mask=MASK), VNTransformerParams),
+    "frn": (
+        FRN(),
+        {"area": AREA, "vertex_mask": MASK},
+        lambda x, p: filter_response_norm(x, p, area=AREA, vertex_mask=MASK),
+        FRNParams,
+    ),
+    "attention": (
+        ComplexAttention(num_heads=2),
+        {"mask": MASK},
+        lambda x, p: complex_attention(x, p, mask=MASK),
+        ComplexAttentionParams,
+    ),
+    "block": (
+        VNTransformerBlock(num_heads=2, mlp_features=6),
+        {"mask": MASK},
+        lambda x, p: vn_transformer_block(x, p, mask=MASK),
+        VNTransformerParams,
+    ),
 }
 
 
 def shapes(name):
     module, kwargs, _, _ = MODULES[name]
-    return jax.eval_shape(lambda key: module.init(key, jnp.zeros((5, C), jnp.complex64), **kwargs), jax.random.key(0))
+    return jax.eval_shape(
+        lambda key: module.init(key, jnp.zeros((5, C), jnp.complex64), **kwargs), jax.random.key(0)
+    )
 
 
 @functools.cache
@@ -75,7 +89,9 @@ def variables(name):
     rng = np.random.default_rng(0)
 
     def fill(s):
-        v = rng.standard_normal(s.shape) + (1j * rng.standard_normal(s.shape) if np.iscomplexobj(np.zeros(0, s.dtype)) else 0)
+        v = rng.standard_normal(s.shape) + (
+            1j * rng.standard_normal(s.shape) if np.iscomplexobj(np.zeros(0, s.dtype)) else 0
+        )
         return jnp.asarray(0.5 * v, s.dtype)
 
     return jax.tree.map(fill, shapes(name))
@@ -100,7 +116,11 @@ def test_apply_equals_op_with_the_module_parameters(rng, name):
 @pytest.mark.parametrize("name", MODULES)
 def test_complex128_input_gives_complex128_output(name):
     module, kwargs, _, _ = MODULES[name]
-    out = jax.eval_shape(lambda v, x: module.apply(v, x, **kwargs), variables(name), jnp.zeros((5, C), jnp.complex128))
+    out = jax.eval_shape(
+        lambda v, x: module.apply(v, x, **kwargs),
+        variables(name),
+        jnp.zeros((5, C), jnp.complex128),
+    )
     assert out.dtype == jnp.complex128
 
 
@@ -111,9 +131,17 @@ def test_parameter_names_and_init():
     np.testing.assert_array_equal(frn["scale"], 1)
     np.testing.assert_allclose(frn["eps"], 1e-3)
     block = shapes("block")["params"]
-    assert {"attention_norm", "attention_query", "mlp_norm", "mlp_in_weight", "mlp_out_direction"} <= set(block)
+    assert {
+        "attention_norm",
+        "attention_query",
+        "mlp_norm",
+        "mlp_in_weight",
+        "mlp_out_direction",
+    } <= set(block)
     # complex LeCun normal: circular, E|w|^2 = 1/fan_in
-    big = jax.jit(ComplexDense(512).init)(jax.random.key(1), jnp.zeros((1, 256), jnp.complex64))["params"]["kernel"]
+    big = jax.jit(ComplexDense(512).init)(jax.random.key(1), jnp.zeros((1, 256), jnp.complex64))[
+        "params"
+    ]["kernel"]
     w = np.asarray(big, np.complex128)
     assert abs(np.mean(np.abs(w) ** 2) * 256 - 1) < 0.02
     assert abs(np.mean(w)) < 0.01 and abs(np.mean(w**2)) * 256 < 0.02  # no preferred phase

@@ -30,7 +30,10 @@ def test_module_is_the_op_with_its_parameters(mesh):
     variables = jax.jit(model.init)(jax.random.key(0), x, nb)
     params = variables["params"]["stack"]
     assert isinstance(params, FaceConvStackParams)
-    assert params.embed.weight.shape == (4, 6) and [c.weight.shape for c in params.convs] == [(12, 5), (10, 3)]
+    assert params.embed.weight.shape == (4, 6) and [c.weight.shape for c in params.convs] == [
+        (12, 5),
+        (10, 3),
+    ]
     assert params.embed.weight.dtype == jnp.float32
     # PyTorch Conv1d default init: U(-1/sqrt(fan_in), 1/sqrt(fan_in))
     assert float(jnp.max(jnp.abs(params.convs[0].weight))) <= 1 / np.sqrt(12)
@@ -49,7 +52,9 @@ def test_padding_and_gradients_through_the_module(mesh, rng):
     nb_pad = pad_to(nb, {"F": F + 3, "V": V + 2, "M": nb.vertex_faces.shape[1] + 1})
     x_pad = _features(jnp.pad(jnp.asarray(v), ((0, 2), (0, 0))), nb_pad)
     apply = jax.jit(model.apply)
-    np.testing.assert_allclose(apply(variables, x_pad, nb_pad)[:F], apply(variables, x, nb), rtol=1e-12)
+    np.testing.assert_allclose(
+        apply(variables, x_pad, nb_pad)[:F], apply(variables, x, nb), rtol=1e-12
+    )
 
     def loss(variables):
         return jnp.sum(model.apply(variables, x, nb) ** 2)

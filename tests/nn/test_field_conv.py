@@ -31,13 +31,20 @@ def random_nbhd(rng, v=V, k=K):
     index = rng.integers(0, v, (v, k))
     mask = rng.random((v, k)) > 0.3
     index[:, 0], mask[:, 0] = np.arange(v), True
-    log = np.where(mask, rng.uniform(0.2, 1, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))), 0)
+    log = np.where(
+        mask, rng.uniform(0.2, 1, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))), 0
+    )
     log[:, 0] = 0
     transport = np.where(mask, np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))), 1)
     transport[:, 0] = 1
     return VertexNeighborhood(
-        index=np.where(mask, index, 0).astype(np.int32), mask=mask, log=log, transport=transport,
-        weight=np.where(mask, rng.uniform(0.5, 1.5, (v, k)), 0), area=rng.uniform(0.5, 1.5, v), vertex_mask=np.ones(v, bool),
+        index=np.where(mask, index, 0).astype(np.int32),
+        mask=mask,
+        log=log,
+        transport=transport,
+        weight=np.where(mask, rng.uniform(0.5, 1.5, (v, k)), 0),
+        area=rng.uniform(0.5, 1.5, v),
+        vertex_mask=np.ones(v, bool),
     )
 
 
@@ -72,14 +79,18 @@ def test_field_conv_modules_apply_the_op(rng):
     @jax.jit
     def run(v1, v2, x, emb):
         p1, p2 = (FieldConvParams(**v["params"]) for v in (v1, v2))
-        return (plain.apply(v1, x, nb), field_conv(x, nb, p1, activation="relu"),
-                with_emb.apply(v2, x, nb, emb), field_conv(x, nb, p2, embedding=emb),
-                with_emb.apply(v2, x, nb, t), field_conv(x, nb, p2, embedding=jnp.tile(t, (V, 1))))
+        return (
+            plain.apply(v1, x, nb),
+            field_conv(x, nb, p1, activation="relu"),
+            with_emb.apply(v2, x, nb, emb),
+            field_conv(x, nb, p2, embedding=emb),
+            with_emb.apply(v2, x, nb, t),
+            field_conv(x, nb, p2, embedding=jnp.tile(t, (V, 1))),
+        )
 
     out = run(v1, v2, x, emb)
     for got, want in zip(out[::2], out[1::2], strict=False):
         assert rel_err(got, want) < 1e-13
-
 
 
 def test_field_conv_options_apply_the_op(rng):
@@ -90,12 +101,29 @@ def test_field_conv_options_apply_the_op(rng):
     x = jnp.asarray(crandn(rng, V, C), jnp.complex128)
     e = jnp.asarray(rng.standard_normal((V, C)))
     for argument in ("transported", "untransported"):
-        m = FieldConv(5, hdim=3, filter_layers=2, channel_embedding=True, argument=argument, param_dtype=jnp.complex128)
+        m = FieldConv(
+            5,
+            hdim=3,
+            filter_layers=2,
+            channel_embedding=True,
+            argument=argument,
+            param_dtype=jnp.complex128,
+        )
         v = filled(jax.eval_shape(m.init, jax.random.key(0), x, nb, e))
-        assert sorted(v["params"]) == ["channel_weight", "filter_bias", "filter_weight", "hidden_bias", "hidden_weight",
-                                       "mix"]
-        assert v["params"]["hidden_weight"].shape == (3, 3) and v["params"]["channel_weight"].shape == (3,)
-        want = field_conv(x, nb, FieldConvParams(**v["params"]), channel_embedding=e, argument=argument)
+        assert sorted(v["params"]) == [
+            "channel_weight",
+            "filter_bias",
+            "filter_weight",
+            "hidden_bias",
+            "hidden_weight",
+            "mix",
+        ]
+        assert v["params"]["hidden_weight"].shape == (3, 3) and v["params"][
+            "channel_weight"
+        ].shape == (3,)
+        want = field_conv(
+            x, nb, FieldConvParams(**v["params"]), channel_embedding=e, argument=argument
+        )
         assert rel_err(m.apply(v, x, nb, e), want) < 1e-13
         assert rel_err(m.apply(v, x, nb, 2 * e), want) > 1e-3  # the embedding reaches the filters
     one = FieldConv(5, hdim=3, param_dtype=jnp.complex128)
@@ -106,6 +134,7 @@ def test_field_conv_options_apply_the_op(rng):
     with pytest.raises(ConfigError, match="hidden_layers"):
         FieldConv(5, filter_layers=3).init(jax.random.key(0), x, nb)
 
+
 def test_block_is_gauge_equivariant(rng):
     nb = random_nbhd(rng)
     m = FCResNetBlock(C, hdim=3, embedding_features=2, param_dtype=jnp.complex128)
@@ -113,7 +142,10 @@ def test_block_is_gauge_equivariant(rng):
     x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
     alpha = rng.uniform(-np.pi, np.pi, V)
     rot = np.exp(-1j * alpha)
-    nb2 = nb._replace(log=nb.log * rot[:, None], transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])))
+    nb2 = nb._replace(
+        log=nb.log * rot[:, None],
+        transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])),
+    )
     f = jax.jit(m.apply)
     assert rel_err(f(v, x * rot[:, None], nb2, emb), f(v, x, nb, emb) * rot[:, None]) < 1e-12
 
@@ -141,7 +173,9 @@ def test_block_residual_path(rng):
         return {"params": params}
 
     same = FCResNetBlock(C, hdim=3, embedding_features=2, param_dtype=jnp.complex128)
-    np.testing.assert_allclose(jax.jit(same.apply)(zero_last_conv(block_variables(C)), x, nb, t), x, rtol=1e-15)
+    np.testing.assert_allclose(
+        jax.jit(same.apply)(zero_last_conv(block_variables(C)), x, nb, t), x, rtol=1e-15
+    )
     wider = FCResNetBlock(5, hdim=3, embedding_features=2, param_dtype=jnp.complex128)
     v = zero_last_conv(block_variables(5))
     assert v["params"]["skip"]["kernel"].shape == (C, 5)
@@ -155,7 +189,10 @@ def test_block_init_and_jit_without_recompiling(rng):
     x = jnp.asarray(crandn(rng, V, C), jnp.complex64)
     v = jax.jit(m.init)(jax.random.key(0), x, nb, jnp.zeros(1))
     assert v["params"]["conv_0"]["mix"].dtype == jnp.complex64
-    assert v["params"]["conv_1"]["filter_weight"].shape == (2 + 4, 2)  # embedding_features defaults to D
+    assert v["params"]["conv_1"]["filter_weight"].shape == (
+        2 + 4,
+        2,
+    )  # embedding_features defaults to D
     traces = []
 
     def apply(v, x, t):

@@ -19,14 +19,18 @@ def test_drop_in_for_flax_conv(rng):
     x = img.reshape(H * W, C)
     variables = jax.jit(layer.init)(jax.random.key(0), x, taps)
     assert variables["params"]["kernel"].shape == (3, 3, C, D)
-    variables = jax.tree.map(lambda a: a + jnp.asarray(rng.standard_normal(a.shape), a.dtype), variables)
+    variables = jax.tree.map(
+        lambda a: a + jnp.asarray(rng.standard_normal(a.shape), a.dtype), variables
+    )
     conv = nn.Conv(D, (3, 3), padding="SAME", dtype=jnp.float64)  # casts the float32 parameters
     want = jax.jit(conv.apply)(variables, img[None])[0]  # the same parameter names and layout
     got = jax.jit(layer.apply)(variables, x, taps)
     assert got.dtype == jnp.float64  # follows the input, not the float32 parameters
     np.testing.assert_allclose(got.reshape(H, W, D), want, rtol=1e-12, atol=1e-12)
     p = variables["params"]
-    np.testing.assert_allclose(got, jax.jit(texel_conv)(x, taps, p["kernel"], p["bias"]), rtol=1e-13, atol=1e-14)
+    np.testing.assert_allclose(
+        got, jax.jit(texel_conv)(x, taps, p["kernel"], p["bias"]), rtol=1e-13, atol=1e-14
+    )
 
 
 def test_without_bias(rng):

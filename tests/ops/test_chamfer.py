@@ -12,9 +12,7 @@ from scipy.spatial import cKDTree
 from jmeshtex import InputError
 from jmeshtex.ops import chamfer_distance, nearest_neighbor
 
-_chamfer = jax.jit(
-    chamfer_distance, static_argnames=("squared", "oriented", "chunk_size")
-)
+_chamfer = jax.jit(chamfer_distance, static_argnames=("squared", "oriented", "chunk_size"))
 _nn = jax.jit(nearest_neighbor, static_argnames=("chunk_size",))
 
 
@@ -58,9 +56,18 @@ def test_exact_small_case():
 def test_against_brute_force(squared, oriented, rng):
     p, q = rng.standard_normal((57, 3)), rng.standard_normal((40, 3))
     pn, qn = _unit(rng, 57), _unit(rng, 40)
-    cd = _chamfer(jnp.asarray(p), jnp.asarray(q), p_normals=jnp.asarray(pn), q_normals=jnp.asarray(qn),
-                  squared=squared, oriented=oriented, chunk_size=16)
-    np.testing.assert_allclose(cd, _chamfer_ref(p, q, pn, qn, squared=squared, oriented=oriented), rtol=1e-12)
+    cd = _chamfer(
+        jnp.asarray(p),
+        jnp.asarray(q),
+        p_normals=jnp.asarray(pn),
+        q_normals=jnp.asarray(qn),
+        squared=squared,
+        oriented=oriented,
+        chunk_size=16,
+    )
+    np.testing.assert_allclose(
+        cd, _chamfer_ref(p, q, pn, qn, squared=squared, oriented=oriented), rtol=1e-12
+    )
 
 
 def test_nearest_neighbor_against_kdtree(rng):
@@ -116,8 +123,15 @@ def test_masks_ignore_padded_points(rng):
     qn_pad = np.concatenate([qn, _unit(rng, 7)])
     pm = np.arange(25) < 20
     qm = np.arange(20) < 13
-    got = _chamfer(jnp.asarray(p_pad), jnp.asarray(q_pad), p_mask=jnp.asarray(pm), q_mask=jnp.asarray(qm),
-                   p_normals=jnp.asarray(pn_pad), q_normals=jnp.asarray(qn_pad), chunk_size=8)
+    got = _chamfer(
+        jnp.asarray(p_pad),
+        jnp.asarray(q_pad),
+        p_mask=jnp.asarray(pm),
+        q_mask=jnp.asarray(qm),
+        p_normals=jnp.asarray(pn_pad),
+        q_normals=jnp.asarray(qn_pad),
+        chunk_size=8,
+    )
     np.testing.assert_allclose(got, _chamfer_ref(p, q, pn, qn), rtol=1e-12)
     # no valid target at all: that direction contributes 0, the other is unaffected
     none = _chamfer(jnp.asarray(p), jnp.asarray(q), q_mask=jnp.zeros(13, bool))
@@ -130,9 +144,15 @@ def test_rigid_motion_invariance(rng):
     a, r = np.linalg.qr(rng.standard_normal((3, 3)))
     R = a * np.sign(np.diag(r))
     t = rng.standard_normal(3)
-    base = _chamfer(*(jnp.asarray(x) for x in (p, q)), p_normals=jnp.asarray(pn), q_normals=jnp.asarray(qn))
-    moved = _chamfer(jnp.asarray(p @ R.T + t), jnp.asarray(q @ R.T + t),
-                     p_normals=jnp.asarray(pn @ R.T), q_normals=jnp.asarray(qn @ R.T))
+    base = _chamfer(
+        *(jnp.asarray(x) for x in (p, q)), p_normals=jnp.asarray(pn), q_normals=jnp.asarray(qn)
+    )
+    moved = _chamfer(
+        jnp.asarray(p @ R.T + t),
+        jnp.asarray(q @ R.T + t),
+        p_normals=jnp.asarray(pn @ R.T),
+        q_normals=jnp.asarray(qn @ R.T),
+    )
     np.testing.assert_allclose(moved, base, rtol=1e-12, atol=1e-14)
 
 
@@ -158,16 +178,19 @@ def test_vmap_over_two_padded_point_sets(rng):
     Q = jnp.stack([jnp.pad(jnp.asarray(q), ((0, M - len(q)), (0, 0))) for _, q in sets])
     PM = jnp.stack([jnp.arange(N) < n for n, _ in sizes])
     QM = jnp.stack([jnp.arange(M) < m for _, m in sizes])
-    out = jax.jit(jax.vmap(lambda p, q, pm, qm: chamfer_distance(p, q, p_mask=pm, q_mask=qm, chunk_size=8)))(
-        P, Q, PM, QM
-    )
+    out = jax.jit(
+        jax.vmap(lambda p, q, pm, qm: chamfer_distance(p, q, p_mask=pm, q_mask=qm, chunk_size=8))
+    )(P, Q, PM, QM)
     for b, (p, q) in enumerate(sets):
         np.testing.assert_allclose([o[b] for o in out], _chamfer_ref(p, q), rtol=1e-12)
 
 
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
 def test_dtype_preserved(dtype, rng):
-    p, q = jnp.asarray(rng.standard_normal((9, 3)), dtype), jnp.asarray(rng.standard_normal((7, 3)), dtype)
+    p, q = (
+        jnp.asarray(rng.standard_normal((9, 3)), dtype),
+        jnp.asarray(rng.standard_normal((7, 3)), dtype),
+    )
     cd = _chamfer(p, q, p_normals=p, q_normals=q)
     assert all(v.dtype == dtype for v in cd)
     assert _nn(p, q).sq_distance.dtype == dtype
@@ -180,8 +203,13 @@ def test_gradients(rng):
     @jax.jit
     def loss(flat):  # one flat vector in: check_grads' eager pytree arithmetic stays cheap
         p, q, pn, qn = jnp.split(flat, [30, 54, 84])
-        cd = chamfer_distance(p.reshape(10, 3), q.reshape(8, 3), p_normals=pn.reshape(10, 3),
-                              q_normals=qn.reshape(8, 3), chunk_size=4)
+        cd = chamfer_distance(
+            p.reshape(10, 3),
+            q.reshape(8, 3),
+            p_normals=pn.reshape(10, 3),
+            q_normals=qn.reshape(8, 3),
+            chunk_size=4,
+        )
         return cd.distance + 0.5 * cd.normal
 
     args = tuple(jnp.asarray(a) for a in (p, q, pn, qn))
@@ -199,10 +227,14 @@ def test_finite_gradient_at_coincident_points():
     p = jnp.array([[0.0, 0, 0], [1, 0, 0]])
     q = jnp.array([[0.0, 0, 0], [1, 0, 0]])  # every distance is exactly 0
     for squared in (True, False):
-        g = jax.jit(jax.grad(lambda p, q, s=squared: chamfer_distance(p, q, squared=s).distance, (0, 1)))(p, q)
+        g = jax.jit(
+            jax.grad(lambda p, q, s=squared: chamfer_distance(p, q, squared=s).distance, (0, 1))
+        )(p, q)
         assert all(np.isfinite(np.asarray(x)).all() for x in g)
     n = jnp.array([[0.0, 0, 1], [1, 0, 0]])
-    gn = jax.jit(jax.grad(lambda a: chamfer_distance(p, q, p_normals=a, q_normals=n[::-1] * 0).normal))(n)
+    gn = jax.jit(
+        jax.grad(lambda a: chamfer_distance(p, q, p_normals=a, q_normals=n[::-1] * 0).normal)
+    )(n)
     assert np.isfinite(np.asarray(gn)).all()  # |cos| at cos = 0
 
 

@@ -89,7 +89,10 @@ def ref_attention(x, p, mask=None):
     mask = np.ones(x.shape[:-1], bool) if mask is None else np.asarray(mask)
     c, nh, e = p.query.shape
     f = p.value.shape[2]
-    q, k, v = (ref_linear(x, np.asarray(w).reshape(c, -1)).reshape(x.shape[:-1] + (nh, -1)) for w in (p.query, p.key, p.value))
+    q, k, v = (
+        ref_linear(x, np.asarray(w).reshape(c, -1)).reshape(x.shape[:-1] + (nh, -1))
+        for w in (p.query, p.key, p.value)
+    )
     out = np.zeros(x.shape[:-1] + (nh, f), complex)
     for b in np.ndindex(*x.shape[:-2]):
         for h in range(nh):
@@ -97,7 +100,12 @@ def ref_attention(x, p, mask=None):
                 valid = [t for t in range(x.shape[-2]) if mask[b + (t,)]]
                 if not valid:
                     continue
-                logits = np.array([np.sum(q[b + (s, h)] * np.conj(k[b + (t, h)])).real / np.sqrt(e) for t in valid])
+                logits = np.array(
+                    [
+                        np.sum(q[b + (s, h)] * np.conj(k[b + (t, h)])).real / np.sqrt(e)
+                        for t in valid
+                    ]
+                )
                 a = np.exp(logits - logits.max())
                 a /= a.sum()
                 out[b + (s, h)] = sum(ai * v[b + (t, h)] for ai, t in zip(a, valid, strict=False))
@@ -126,17 +134,23 @@ def _params(name, dtype, seed=0):
         return VNParams(weight=w(c, d) if dense else None, direction=w(c, d))
 
     def attention():
-        return ComplexAttentionParams(w(C, HEADS, 2), w(C, HEADS, 2), w(C, HEADS, 2), w(HEADS, 2, C))
+        return ComplexAttentionParams(
+            w(C, HEADS, 2), w(C, HEADS, 2), w(C, HEADS, 2), w(HEADS, 2, C)
+        )
 
     scale = np.linspace(0.5, 2.0, C).astype(real)
     return {
         "linear": lambda: w(C, 3),
         "vn": lambda: vn(C, C, dense=False),
         "vn_dense": lambda: vn(C, 3),
-        "frn": lambda: FRNParams(scale=np.arange(1, C + 1).astype(real), eps=np.full(C, -1e-3, real)),
+        "frn": lambda: FRNParams(
+            scale=np.arange(1, C + 1).astype(real), eps=np.full(C, -1e-3, real)
+        ),
         "layer_norm": lambda: scale,
         "attention": attention,
-        "block": lambda: VNTransformerParams(scale, attention(), scale[::-1].copy(), vn(C, 6), vn(6, C)),
+        "block": lambda: VNTransformerParams(
+            scale, attention(), scale[::-1].copy(), vn(C, 6), vn(6, C)
+        ),
     }[name]()
 
 
@@ -147,13 +161,19 @@ OPS = {  # name -> (op(x, params), reference(x, params)); x is [2, S, C] for set
     "linear": (complex_linear, ref_linear),
     "vn": (vn_nonlinearity, ref_vn),
     "vn_dense": (vn_nonlinearity, ref_vn),
-    "frn": (lambda x, p: filter_response_norm(x, p, area=AREA, vertex_mask=MASK),
-            lambda x, p: ref_frn(x, p, AREA, MASK)),
+    "frn": (
+        lambda x, p: filter_response_norm(x, p, area=AREA, vertex_mask=MASK),
+        lambda x, p: ref_frn(x, p, AREA, MASK),
+    ),
     "layer_norm": (complex_layer_norm, ref_layer_norm),
-    "attention": (lambda x, p: complex_attention(x, p, mask=np.stack([MASK, ~MASK | MASK])),
-                  lambda x, p: ref_attention(x, p, np.stack([MASK, ~MASK | MASK]))),
-    "block": (lambda x, p: vn_transformer_block(x, p, mask=np.stack([MASK, ~MASK | MASK])),
-              lambda x, p: ref_block(x, p, np.stack([MASK, ~MASK | MASK]))),
+    "attention": (
+        lambda x, p: complex_attention(x, p, mask=np.stack([MASK, ~MASK | MASK])),
+        lambda x, p: ref_attention(x, p, np.stack([MASK, ~MASK | MASK])),
+    ),
+    "block": (
+        lambda x, p: vn_transformer_block(x, p, mask=np.stack([MASK, ~MASK | MASK])),
+        lambda x, p: ref_block(x, p, np.stack([MASK, ~MASK | MASK])),
+    ),
 }
 JITTED = {name: jax.jit(op) for name, (op, _) in OPS.items()}
 
@@ -197,7 +217,9 @@ def test_dtype_follows_input(rng, name, dtype):
     # parameters of the other precision are cast to the input's; eval_shape traces without compiling
     low = {jnp.dtype("complex128"): jnp.complex64, jnp.dtype("float64"): jnp.float32}
     cast = (lambda d: low[d]) if dtype == jnp.complex128 else (lambda d: d)
-    params = jax.tree.map(lambda a: jax.ShapeDtypeStruct(a.shape, cast(a.dtype)), _params(name, jnp.complex128))
+    params = jax.tree.map(
+        lambda a: jax.ShapeDtypeStruct(a.shape, cast(a.dtype)), _params(name, jnp.complex128)
+    )
     assert jax.eval_shape(OPS[name][0], _x(rng, name, dtype), params).dtype == dtype
 
 
@@ -232,10 +254,14 @@ def test_check_grads_at_random_and_at_zero_features(rng, name):
     for point, eps, at_zero in ((x, 1e-6, False), (np.zeros_like(x), 1e-8, True)):
         assert np.all(np.isfinite(np.asarray(f(point.real, point.imag))))
         if at_zero and name == "block":
-            grads = jax.jit(jax.grad(lambda a, b: jnp.sum(jnp.sin(f(a, b))), argnums=(0, 1)))(point.real, point.imag)
+            grads = jax.jit(jax.grad(lambda a, b: jnp.sum(jnp.sin(f(a, b))), argnums=(0, 1)))(
+                point.real, point.imag
+            )
             assert all(np.all(np.isfinite(np.asarray(g))) for g in grads)
             continue
-        check_grads(f, (point.real, point.imag), order=1, modes=("rev",), atol=1e-5, rtol=1e-5, eps=eps)
+        check_grads(
+            f, (point.real, point.imag), order=1, modes=("rev",), atol=1e-5, rtol=1e-5, eps=eps
+        )
 
 
 def test_parameter_gradients_finite_at_zero_features():
@@ -256,7 +282,9 @@ def test_parameter_gradients_finite_at_zero_features():
 def test_complex_linear_hand_case():
     x = jnp.array([[1 + 1j, 2.0, -1j]])
     w = jnp.array([[1.0, 1j], [0.5j, 0.0], [2.0, 1.0]])
-    np.testing.assert_allclose(complex_linear(x, w), [[(1 + 1j) + 1j - 2j, (1 + 1j) * 1j - 1j]], rtol=1e-15)
+    np.testing.assert_allclose(
+        complex_linear(x, w), [[(1 + 1j) + 1j - 2j, (1 + 1j) * 1j - 1j]], rtol=1e-15
+    )
 
 
 def test_vn_is_vector_neuron_relu_far_from_zero():
@@ -264,7 +292,9 @@ def test_vn_is_vector_neuron_relu_far_from_zero():
     # exactly, SiLU(900) = 900 (to 1e-390) and y = x (1 - 900 / (900 + δ))
     p = VNParams(weight=None, direction=-jnp.eye(1, dtype=jnp.complex128))
     x = jnp.array([[30 * np.exp(0.4j)]])
-    y = vn_nonlinearity(x, p, delta=1e-6)  # ~3e-8; the subtraction q - q(1 - 1e-9) costs ~1e-15 absolute
+    y = vn_nonlinearity(
+        x, p, delta=1e-6
+    )  # ~3e-8; the subtraction q - q(1 - 1e-9) costs ~1e-15 absolute
     np.testing.assert_allclose(y, x * (1 - 900 / (900 + 1e-6)), rtol=0, atol=1e-13)
     # k aligned with q: <q, k> >> 0 and y ≈ q
     p = VNParams(weight=None, direction=jnp.eye(1, dtype=jnp.complex128))
@@ -277,8 +307,9 @@ def test_vn_is_vector_neuron_relu_far_from_zero():
 def test_frn_hand_case_and_padding_invariance(rng):
     x = jnp.array([[3 + 4j], [0j], [1e6 + 0j]])
     p = FRNParams(scale=jnp.array([2.0]), eps=jnp.array([-0.25]))  # |eps| is used
-    y = filter_response_norm(x, p, area=jnp.array([1.0, 3.0, 5.0]), vertex_mask=jnp.array([True, True, False]),
-                             delta=0.5)
+    y = filter_response_norm(
+        x, p, area=jnp.array([1.0, 3.0, 5.0]), vertex_mask=jnp.array([True, True, False]), delta=0.5
+    )
     # nu^2 = (1*25 + 3*0) / 4 = 6.25, factor = 2 / sqrt(6.25 + 0.5 + 0.25) = 2 / sqrt(7)
     np.testing.assert_allclose(y[:2], [[(3 + 4j) * 2 / np.sqrt(7)], [0]], rtol=1e-15)
     # padding with pad_to-style zero-area, masked vertices leaves the real vertices unchanged
@@ -286,8 +317,12 @@ def test_frn_hand_case_and_padding_invariance(rng):
     p = _params("frn", jnp.complex128)
     y = filter_response_norm(x, p, area=AREA, vertex_mask=MASK)
     x_pad = np.concatenate([x, 1e4 * crandn(rng, 3, C)])
-    y_pad = filter_response_norm(x_pad, p, area=np.concatenate([AREA, np.zeros(3)]),
-                                 vertex_mask=np.concatenate([MASK, np.zeros(3, bool)]))
+    y_pad = filter_response_norm(
+        x_pad,
+        p,
+        area=np.concatenate([AREA, np.zeros(3)]),
+        vertex_mask=np.concatenate([MASK, np.zeros(3, bool)]),
+    )
     assert rel_err(y_pad[:S], y) < 1e-14
 
 
@@ -300,7 +335,9 @@ def test_frn_vmap_over_padded_batch(rng):
     xb = np.stack([pad(x, n) for x, n in zip(xs, sizes, strict=False)])
     ab = np.stack([pad(a, n) for a, n in zip(areas, sizes, strict=False)])
     mb = np.stack([np.arange(S) < n for n in sizes])
-    yb = jax.jit(jax.vmap(lambda x, a, m: filter_response_norm(x, p, area=a, vertex_mask=m)))(xb, ab, mb)
+    yb = jax.jit(jax.vmap(lambda x, a, m: filter_response_norm(x, p, area=a, vertex_mask=m)))(
+        xb, ab, mb
+    )
     for i, (x, a) in enumerate(zip(xs, areas, strict=False)):
         assert rel_err(yb[i, : len(x)], filter_response_norm(x, p, area=a)) < 1e-14
 

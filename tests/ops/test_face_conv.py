@@ -157,7 +157,9 @@ def test_features_two_triangles_exact():
     np.testing.assert_allclose(feats[0, 2], [1, 0.5, 1, 0], atol=1e-15)
     # face 1, edge 0 (2->1) is shared: opposite vertex 0
     assert feats[1, 0, 0] == pytest.approx(s)
-    np.testing.assert_allclose(feats, _features_ref(np.asarray(v), np.array([[0, 1, 2], [2, 1, 3]])), atol=1e-14)
+    np.testing.assert_allclose(
+        feats, _features_ref(np.asarray(v), np.array([[0, 1, 2], [2, 1, 3]])), atol=1e-14
+    )
 
 
 def test_conv_and_embed_exact():
@@ -211,10 +213,14 @@ def test_against_loop_references(kind, rng):
 
     x = rng.standard_normal((len(f), 4))
     p = _params(rng, 8, 6)
-    np.testing.assert_allclose(_conv(jnp.asarray(x), nb, p), _conv_ref(x, f, p), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        _conv(jnp.asarray(x), nb, p), _conv_ref(x, f, p), rtol=1e-12, atol=1e-12
+    )
 
     d = rng.standard_normal((len(f), 3))
-    np.testing.assert_allclose(_disp(jnp.asarray(d), vj, nb), _displacement_ref(d, v, f), atol=1e-12)
+    np.testing.assert_allclose(
+        _disp(jnp.asarray(d), vj, nb), _displacement_ref(d, v, f), atol=1e-12
+    )
 
 
 def test_stack_against_loop_reference(rng):
@@ -264,9 +270,7 @@ def test_cyclic_vertex_order_invariance(rng):
     np.testing.assert_allclose(_conv(x, nb_r, p), _conv(x, nb, p), atol=1e-12)
     d = jnp.asarray(rng.standard_normal((len(f), 3)))
     # displacements use the edge starting at each corner, which rotates with the vertex order
-    np.testing.assert_allclose(
-        _disp(d, vj, nb_r), _disp(d, vj, nb), atol=1e-12
-    )
+    np.testing.assert_allclose(_disp(d, vj, nb_r), _disp(d, vj, nb), atol=1e-12)
 
 
 # ----------------------------------------------------------------------------- jit / padding / vmap
@@ -293,7 +297,12 @@ def test_jit_matches_eager_and_compiles_once(rng):
         feats = face_features(v, nb)
         h = instance_norm(face_edge_embed(feats, e), nb.face_mask)
         y = face_conv(h, nb, p)
-        return feats, h, y, face_to_vertex_displacement(y, v, nb) + face_to_vertex_displacement(d, v, nb)
+        return (
+            feats,
+            h,
+            y,
+            face_to_vertex_displacement(y, v, nb) + face_to_vertex_displacement(d, v, nb),
+        )
 
     jitted = jax.jit(raw)
     eager = raw(jnp.asarray(v), nb, e, p, d)
@@ -324,7 +333,9 @@ def test_padding_invariance(rng):
     x = rng.standard_normal((F, 4))
     x_pad = np.concatenate([x, 1e6 * rng.standard_normal((5, 4))])
     p = _params(rng, 8, 6)
-    np.testing.assert_allclose(_conv(jnp.asarray(x_pad), nb_pad, p)[:F], _conv(jnp.asarray(x), nb, p), rtol=1e-12)
+    np.testing.assert_allclose(
+        _conv(jnp.asarray(x_pad), nb_pad, p)[:F], _conv(jnp.asarray(x), nb, p), rtol=1e-12
+    )
 
 
 def test_vmap_over_two_padded_meshes(rng):
@@ -355,7 +366,10 @@ def test_dtype_follows_input(rng):
     nb = _to_jax(face_neighborhood(f))
     params = init_face_conv_stack(jax.random.key(0), WIDTHS, dtype=jnp.float32)  # cast inside
     d = rng.standard_normal((len(f), 3))
-    outs = {dt: _pipeline(jnp.asarray(v, dt), nb, params, jnp.asarray(d, dt)) for dt in (jnp.float32, jnp.float64)}
+    outs = {
+        dt: _pipeline(jnp.asarray(v, dt), nb, params, jnp.asarray(d, dt))
+        for dt in (jnp.float32, jnp.float64)
+    }
     for dt, out in outs.items():
         assert all(o.dtype == dt for o in out)
     for got, want in zip(outs[jnp.float32], outs[jnp.float64], strict=True):
@@ -385,7 +399,9 @@ def test_degenerate_geometry_finite_values_and_grads():
         h = face_conv_stack(feats, nb, params)
         h0 = face_conv_stack(zero_feats, nb, params)  # exactly-zero features into the stack
         return (
-            jnp.sum(feats**2) + jnp.sum(h**2) + jnp.sum(h0**2)
+            jnp.sum(feats**2)
+            + jnp.sum(h**2)
+            + jnp.sum(h0**2)
             + jnp.sum(face_to_vertex_displacement(h, v, nb) ** 2)
         )
 
@@ -433,7 +449,9 @@ def test_elementwise_max_derivative_goes_to_the_first_maximum(rng):
 
     a, b, c = jnp.array([1.0, 2.0, 3.0]), jnp.array([1.0, 5.0, 3.0]), jnp.array([0.0, 5.0, 3.0])
     np.testing.assert_array_equal(elementwise_max((a, b, c)), [1.0, 5.0, 3.0])
-    ga, gb, gc = jax.jit(jax.grad(lambda xs: jnp.sum(elementwise_max(xs) * jnp.array([1.0, 2.0, 3.0]))))((a, b, c))
+    ga, gb, gc = jax.jit(
+        jax.grad(lambda xs: jnp.sum(elementwise_max(xs) * jnp.array([1.0, 2.0, 3.0])))
+    )((a, b, c))
     np.testing.assert_array_equal(ga, [1, 0, 3])  # ties: the first input attaining the max
     np.testing.assert_array_equal(gb, [0, 2, 0])
     np.testing.assert_array_equal(gc, [0, 0, 0])

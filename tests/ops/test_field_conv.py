@@ -42,6 +42,7 @@ def make_params(seed, e=E, c=C, d=D, h=H, dtype=jnp.complex128):
         mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
     )
 
+
 # ----------------------------------------------------------------------------- helpers
 
 
@@ -55,10 +56,17 @@ def random_nbhd(rng, v, k, *, self_slot=True, p_pad=0.3):
     if self_slot:
         index[:, 0], mask[:, 0], log[:, 0], transport[:, 0] = np.arange(v), True, 0, 1
     mask[:, 0] = True
-    index, log, transport, weight = (np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0)))
+    index, log, transport, weight = (
+        np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0))
+    )
     return VertexNeighborhood(
-        index=index.astype(np.int32), mask=mask, log=log, transport=transport, weight=weight,
-        area=rng.uniform(0.5, 1.5, v), vertex_mask=np.ones(v, bool),
+        index=index.astype(np.int32),
+        mask=mask,
+        log=log,
+        transport=transport,
+        weight=weight,
+        area=rng.uniform(0.5, 1.5, v),
+        vertex_mask=np.ones(v, bool),
     )
 
 
@@ -76,13 +84,20 @@ def grid_nbhd(n):
     ij = np.round(np.stack([pos.real, pos.imag], 1) / step).astype(int)
     lookup = {tuple(t): i for i, t in enumerate(ij)}
     offsets = [(0, 0)] + [(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1) if (a, b) != (0, 0)]
-    index = np.array([[lookup.get((i + a, j + b), -1) for a, b in offsets] for i, j in ij])  # host set-up only
+    index = np.array(
+        [[lookup.get((i + a, j + b), -1) for a, b in offsets] for i, j in ij]
+    )  # host set-up only
     mask = index >= 0
     index = np.where(mask, index, 0)
     log = np.where(mask, pos[index] - pos[:, None], 0)
     return VertexNeighborhood(
-        index=index.astype(np.int32), mask=mask, log=log, transport=np.ones(index.shape, complex),
-        weight=np.where(mask, area[index], 0.0), area=area, vertex_mask=np.ones(v, bool),
+        index=index.astype(np.int32),
+        mask=mask,
+        log=log,
+        transport=np.ones(index.shape, complex),
+        weight=np.where(mask, area[index], 0.0),
+        area=area,
+        vertex_mask=np.ones(v, bool),
     )
 
 
@@ -124,7 +139,8 @@ def gauge_transform(x, nb, alpha):
     """Rotate every frame p by alpha_p: features and logs by e^{-iα_p}, transports by e^{i(α_q − α_p)}."""
     rot = np.exp(-1j * alpha)
     return x * rot[:, None], nb._replace(
-        log=nb.log * rot[:, None], transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None]))
+        log=nb.log * rot[:, None],
+        transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])),
     )
 
 
@@ -139,9 +155,13 @@ def test_hand_case_single_transported_neighbour():
     # vertex 0 sees vertex 1 one unit east; 1's frame is turned so that ρ = i; x_1 = 1 in 1's frame.
     # u = i, û ≈ i, a = 1 · conj(i) = -i  =>  φ = SiLU(Im a) = SiLU(-1), y_0 = u φ.
     nb = VertexNeighborhood(
-        index=np.array([[1], [0]], np.int32), mask=np.array([[True], [False]]),
-        log=np.array([[1.0 + 0j], [0j]]), transport=np.array([[1j], [1 + 0j]]),
-        weight=np.array([[2.0], [0.0]]), area=np.ones(2), vertex_mask=np.ones(2, bool),
+        index=np.array([[1], [0]], np.int32),
+        mask=np.array([[True], [False]]),
+        log=np.array([[1.0 + 0j], [0j]]),
+        transport=np.array([[1j], [1 + 0j]]),
+        weight=np.array([[2.0], [0.0]]),
+        area=np.ones(2),
+        vertex_mask=np.ones(2, bool),
     )
     params = FieldConvParams(np.array([[0.0], [1.0]]), np.zeros(1), np.ones((1, 1, 1), complex))
     y = _conv(jnp.array([[0j], [1 + 0j]]), nb, params, delta=1e-9)
@@ -170,10 +190,16 @@ def test_public_stages_compose_to_field_conv(rng, activation):
     sums = field_conv_filter_sums(terms, params, embedding=emb, activation=activation)
     y = field_conv_mix(sums, params)
     assert rel_err(y, _conv(x, nb, params, embedding=emb, activation=activation)) < 1e-12
-    phi = field_conv_responses(terms.arg_real, terms.arg_imag, params, embedding=emb, activation=activation)
+    phi = field_conv_responses(
+        terms.arg_real, terms.arg_imag, params, embedding=emb, activation=activation
+    )
     assert phi.shape == (V, K, H, C)
-    np.testing.assert_allclose(sums[0], jnp.einsum("vkc,vkhc->vhc", terms.z_real, phi), rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(sums[1], jnp.einsum("vkc,vkhc->vhc", terms.z_imag, phi), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(
+        sums[0], jnp.einsum("vkc,vkhc->vhc", terms.z_real, phi), rtol=1e-12, atol=1e-14
+    )
+    np.testing.assert_allclose(
+        sums[1], jnp.einsum("vkc,vkhc->vhc", terms.z_imag, phi), rtol=1e-12, atol=1e-14
+    )
 
 
 def test_matches_loop_reference_without_embedding(rng):
@@ -192,7 +218,9 @@ def test_flat_grid_constant_field_gives_constant_interior_output():
     y = np.asarray(_conv(x, nb, params))
     interior = nb.mask[nb.index].all(axis=(1, 2))  # the whole stencil is interior
     assert interior.sum() == 9
-    np.testing.assert_allclose(y[interior], np.broadcast_to(y[interior][0], y[interior].shape), rtol=1e-12)
+    np.testing.assert_allclose(
+        y[interior], np.broadcast_to(y[interior][0], y[interior].shape), rtol=1e-12
+    )
     assert rel_err(y, loop_reference(np.asarray(x), nb, params)) < 1e-12
 
 
@@ -226,7 +254,9 @@ def test_printed_eq34_argument_is_not_gauge_equivariant(rng):
     alpha = rng.uniform(-np.pi, np.pi, V)
     params = make_params(4)
     gathering = _gauge_error(lambda a, n, e: loop_reference(a, n, params, e), x, nb, alpha, emb)
-    printed = _gauge_error(lambda a, n, e: loop_reference(a, n, params, e, printed_eq34=True), x, nb, alpha, emb)
+    printed = _gauge_error(
+        lambda a, n, e: loop_reference(a, n, params, e, printed_eq34=True), x, nb, alpha, emb
+    )
     assert gathering < 1e-12
     assert printed > 1e-2
 
@@ -240,10 +270,14 @@ def test_filter_responses_are_silu_to_float32_accuracy():
     p = np.linspace(-30.0, 30.0, 600_001)
     ar = jnp.asarray(p, jnp.float32).reshape(1, 1, -1)  # one vertex, one slot, C = len(p)
     a_w, bias = jnp.array([[1.0], [0.0]], jnp.float32), jnp.zeros((1, 1), jnp.float32)
-    got = np.asarray(_field_conv._responses(ar, jnp.zeros_like(ar), a_w, bias, "silu"), np.float64).ravel()
+    got = np.asarray(
+        _field_conv._responses(ar, jnp.zeros_like(ar), a_w, bias, "silu"), np.float64
+    ).ravel()
     want = p / (1.0 + np.exp(-p))
     assert np.max(np.abs(got - want)) < 4e-6
-    relu = np.asarray(_field_conv._responses(ar, jnp.zeros_like(ar), a_w, bias, "relu"), np.float64).ravel()
+    relu = np.asarray(
+        _field_conv._responses(ar, jnp.zeros_like(ar), a_w, bias, "relu"), np.float64
+    ).ravel()
     np.testing.assert_array_equal(relu, np.maximum(np.asarray(ar, np.float64).ravel(), 0))
 
 
@@ -261,11 +295,17 @@ def test_vertex_blocks_match_loop_reference_and_reverse_mode_path(rng, monkeypat
         want = loop_reference(x, nb, params, emb, activation=activation)
         assert rel_err(conv(jnp.asarray(x), nb, params, embedding=emb), want) < 1e-12
         # the reverse-mode path's primal: the output of jax.vjp
-        y, _ = jax.vjp(lambda a, nb=nb, emb=emb: field_conv(a, nb, params, embedding=emb, activation=activation), jnp.asarray(x))
+        y, _ = jax.vjp(
+            lambda a, nb=nb, emb=emb: field_conv(
+                a, nb, params, embedding=emb, activation=activation
+            ),
+            jnp.asarray(x),
+        )
         assert rel_err(y, want) < 1e-12
     batch = jax.tree.map(lambda *a: np.stack(a), *nbs)
-    yb = jax.jit(jax.vmap(lambda a, n, e: field_conv(a, n, params, embedding=e, activation=activation)))(
-        jnp.asarray(np.stack(xs)), batch, np.stack(embs))
+    yb = jax.jit(
+        jax.vmap(lambda a, n, e: field_conv(a, n, params, embedding=e, activation=activation))
+    )(jnp.asarray(np.stack(xs)), batch, np.stack(embs))
     for i, (nb, x, emb) in enumerate(zip(nbs, xs, embs, strict=True)):
         assert rel_err(yb[i], loop_reference(x, nb, params, emb, activation=activation)) < 1e-12
 
@@ -292,18 +332,28 @@ def test_vmap_over_padded_batch(rng):
     batch = jax.tree.map(lambda *a: np.stack(a), *[pad_to(n, {"V": V, "K": K}) for n in nbs])
     xb = np.stack([np.concatenate([xs[0], np.zeros((2, C))]), xs[1]])
     eb = np.stack([np.concatenate([embs[0], np.zeros((2, E))]), embs[1]])
-    yb = jax.jit(jax.vmap(lambda a, n, e: field_conv(a, n, params, embedding=e)))(jnp.asarray(xb), batch, eb)
+    yb = jax.jit(jax.vmap(lambda a, n, e: field_conv(a, n, params, embedding=e)))(
+        jnp.asarray(xb), batch, eb
+    )
     for i, (n, a, e) in enumerate(zip(nbs, xs, embs, strict=False)):
         assert rel_err(yb[i, : len(a)], _conv(jnp.asarray(a), n, params, embedding=e)) < 1e-13
+
     # and the parameter gradient of the batched loss is the sum of the per-mesh gradients
     def batched(p):
         y = jax.vmap(lambda a, n, e: field_conv(a, n, p, embedding=e))(jnp.asarray(xb), batch, eb)
         return jnp.sum(jnp.abs(y[0, : V - 2]) ** 2) + jnp.sum(jnp.abs(y[1]) ** 2)
 
     def separate(p):
-        return sum(jnp.sum(jnp.abs(field_conv(a, n, p, embedding=e)) ** 2) for n, a, e in zip(nbs, xs, embs, strict=True))
+        return sum(
+            jnp.sum(jnp.abs(field_conv(a, n, p, embedding=e)) ** 2)
+            for n, a, e in zip(nbs, xs, embs, strict=True)
+        )
 
-    for g, r in zip(jax.tree.leaves(jax.jit(jax.grad(batched))(params)), jax.tree.leaves(jax.jit(jax.grad(separate))(params)), strict=True):
+    for g, r in zip(
+        jax.tree.leaves(jax.jit(jax.grad(batched))(params)),
+        jax.tree.leaves(jax.jit(jax.grad(separate))(params)),
+        strict=True,
+    ):
         np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
 
 
@@ -375,7 +425,9 @@ def test_check_grads_real_and_imaginary_parts(rng, activation):
     # reverse mode only: the op has a hand-written VJP and no JVP rule
     f = _real_view(random_nbhd(rng, 4, 3), activation)
     # small step: ReLU filters have kinks, which a step of 1e-6 reaches with probability ~1e-4
-    check_grads(jax.jit(f), _grad_args(rng), order=1, modes=("rev",), atol=1e-5, rtol=1e-5, eps=1e-6)
+    check_grads(
+        jax.jit(f), _grad_args(rng), order=1, modes=("rev",), atol=1e-5, rtol=1e-5, eps=1e-6
+    )
 
 
 def test_hand_written_vjp_matches_autodiff_to_second_order(rng):
@@ -383,7 +435,10 @@ def test_hand_written_vjp_matches_autodiff_to_second_order(rng):
     # (VJP) and second order (reverse over the hand-written VJP). SiLU: the ReLU path shares the code
     # and has no second-order terms; its first order is covered by check_grads above.
     activation = "silu"
-    args = [rng.standard_normal((3, 2, 2)) for _ in range(4)] + [rng.standard_normal((2, 3)), rng.standard_normal((3, 3))]
+    args = [rng.standard_normal((3, 2, 2)) for _ in range(4)] + [
+        rng.standard_normal((2, 3)),
+        rng.standard_normal((3, 3)),
+    ]
     w = rng.standard_normal((3, 2, 3, 2))
 
     def loss(core):
@@ -391,8 +446,13 @@ def test_hand_written_vjp_matches_autodiff_to_second_order(rng):
 
     def second(core):  # d/d(args) of <v, grad loss>
         v = [np.cos(np.arange(a.size).reshape(a.shape)) for a in args]
-        return jax.grad(lambda *a: sum(jnp.sum(g * t) for g, t in zip(jax.grad(loss(core), argnums=range(6))(*a), v, strict=False)),
-                        argnums=range(6))
+        return jax.grad(
+            lambda *a: sum(
+                jnp.sum(g * t)
+                for g, t in zip(jax.grad(loss(core), argnums=range(6))(*a), v, strict=False)
+            ),
+            argnums=range(6),
+        )
 
     for order in (lambda core: jax.grad(loss(core), argnums=range(6)), second):
         got = jax.jit(order(_filtered_sums))(*args)
@@ -436,13 +496,17 @@ def plain_formula(x, nb, params, emb=None, chan=None, activation="silu", delta=1
     norm = jnp.sqrt(u.real**2 + u.imag**2 + delta**2).astype(u.dtype)
     a = jnp.asarray(nb.log)[..., None] * jnp.conj(u) / norm
     a_w = params.filter_weight
-    pre = a.real[..., None] * a_w[0] + a.imag[..., None] * a_w[1] + params.filter_bias  # [V, K, C, H]
+    pre = (
+        a.real[..., None] * a_w[0] + a.imag[..., None] * a_w[1] + params.filter_bias
+    )  # [V, K, C, H]
     if emb is not None:
         pre = pre + (emb @ a_w[2:])[:, None, None, :]
     if chan is not None:
         pre = pre + chan[:, None, :, None] * params.channel_weight
     phi = jax.nn.silu(pre) if activation == "silu" else jnp.maximum(pre, 0)
-    return jnp.einsum("vkc,vkch,chd->vd", w[..., None].astype(u.dtype) * u, phi.astype(u.dtype), params.mix)
+    return jnp.einsum(
+        "vkc,vkch,chd->vd", w[..., None].astype(u.dtype) * u, phi.astype(u.dtype), params.mix
+    )
 
 
 @pytest.mark.parametrize("activation", ["silu", "relu"])
@@ -456,22 +520,38 @@ def test_reverse_mode_matches_autodiff_of_the_plain_formula(rng, monkeypatch, ac
     params = make_params(21)
     if channel:
         params = params._replace(channel_weight=rng.standard_normal(H) / 2)
-    x, emb, chan = jnp.asarray(crandn(rng, v, C)), jnp.asarray(rng.standard_normal((v, E))), jnp.asarray(rng.standard_normal((v, C)))
+    x, emb, chan = (
+        jnp.asarray(crandn(rng, v, C)),
+        jnp.asarray(rng.standard_normal((v, E))),
+        jnp.asarray(rng.standard_normal((v, C))),
+    )
     cot = jnp.asarray(crandn(rng, v, D))
 
     def loss(fn):
         def f(x, p, emb, chan):
             y = fn(x, p, emb, chan if channel else None)
             return jnp.sum(y.real * cot.real + y.imag * cot.imag)
+
         return jax.jit(jax.value_and_grad(f, argnums=(0, 1, 2, 3)))
 
-    got = loss(lambda x, p, e, c: field_conv(x, nb, p, embedding=e, channel_embedding=c, activation=activation))(x, params, emb, chan)
-    want = loss(lambda x, p, e, c: plain_formula(x, nb, p, e, c, activation=activation))(x, params, emb, chan)
+    got = loss(
+        lambda x, p, e, c: field_conv(
+            x, nb, p, embedding=e, channel_embedding=c, activation=activation
+        )
+    )(x, params, emb, chan)
+    want = loss(lambda x, p, e, c: plain_formula(x, nb, p, e, c, activation=activation))(
+        x, params, emb, chan
+    )
     leaves = jax.tree.leaves(want)
-    assert len(jax.tree.leaves(got)) == len(leaves) == (8 if channel else 7)  # value, x, params, both embeddings
+    assert (
+        len(jax.tree.leaves(got)) == len(leaves) == (8 if channel else 7)
+    )  # value, x, params, both embeddings
     for g, r in zip(jax.tree.leaves(got), leaves, strict=True):
         np.testing.assert_allclose(g, r, rtol=1e-10, atol=1e-12)
-    assert np.abs(np.asarray(got[1][0])).max() > 0 and np.abs(np.asarray(got[1][1].filter_weight)).max() > 0
+    assert (
+        np.abs(np.asarray(got[1][0])).max() > 0
+        and np.abs(np.asarray(got[1][1].filter_weight)).max() > 0
+    )
 
 
 def test_gradient_with_respect_to_the_neighbourhood_geometry(rng, monkeypatch):
@@ -480,12 +560,17 @@ def test_gradient_with_respect_to_the_neighbourhood_geometry(rng, monkeypatch):
     v = 9
     nb = random_nbhd(rng, v, K)
     params = make_params(22)
-    x, emb, cot = jnp.asarray(crandn(rng, v, C)), jnp.asarray(rng.standard_normal((v, E))), jnp.asarray(crandn(rng, v, D))
+    x, emb, cot = (
+        jnp.asarray(crandn(rng, v, C)),
+        jnp.asarray(rng.standard_normal((v, E))),
+        jnp.asarray(crandn(rng, v, D)),
+    )
 
     def loss(fn):
         def f(log, transport, weight, x):
             y = fn(x, nb._replace(log=log, transport=transport, weight=weight))
             return jnp.sum(y.real * cot.real + y.imag * cot.imag)
+
         return jax.jit(jax.grad(f, argnums=(0, 1, 2, 3)))
 
     args = tuple(jnp.asarray(a) for a in (nb.log, nb.transport, nb.weight)) + (x,)
@@ -499,7 +584,11 @@ def test_gradient_with_respect_to_the_neighbourhood_geometry(rng, monkeypatch):
 def test_nested_reverse_mode_matches_the_plain_formula(rng):
     # reverse over the blocked hand-written VJP: a Hessian-vector product in x
     nb, params = random_nbhd(rng, V, K), make_params(23)
-    emb, x, t = rng.standard_normal((V, E)), jnp.asarray(crandn(rng, V, C)), jnp.asarray(crandn(rng, V, C))
+    emb, x, t = (
+        rng.standard_normal((V, E)),
+        jnp.asarray(crandn(rng, V, C)),
+        jnp.asarray(crandn(rng, V, C)),
+    )
 
     def hvp(fn):
         loss = lambda x: jnp.sum(jnp.abs(fn(x)) ** 2)  # noqa: E731

@@ -39,10 +39,17 @@ def random_nbhd(rng, v, k, p_pad=0.3):
     transport = np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
     weight = rng.uniform(0.5, 1.5, (v, k))
     index[:, 0], mask[:, 0], log[:, 0], transport[:, 0] = np.arange(v), True, 0, 1
-    index, log, transport, weight = (np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0)))
+    index, log, transport, weight = (
+        np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0))
+    )
     return VertexNeighborhood(
-        index=index.astype(np.int32), mask=mask, log=log, transport=transport, weight=weight,
-        area=rng.uniform(0.5, 1.5, v), vertex_mask=np.ones(v, bool),
+        index=index.astype(np.int32),
+        mask=mask,
+        log=log,
+        transport=transport,
+        weight=weight,
+        area=rng.uniform(0.5, 1.5, v),
+        vertex_mask=np.ones(v, bool),
     )
 
 
@@ -50,7 +57,8 @@ def gauge_transform(x, nb, alpha):
     """Rotate every frame p by alpha_p: features and logs by e^{-iα_p}, transports by e^{i(α_q − α_p)}."""
     rot = np.exp(-1j * alpha)
     return x * rot[:, None], nb._replace(
-        log=nb.log * rot[:, None], transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None]))
+        log=nb.log * rot[:, None],
+        transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])),
     )
 
 
@@ -62,6 +70,7 @@ def make_params(seed, *, e, c, d, h, dtype):
         filter_bias=rng.standard_normal(h).astype(real),
         mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
     )
+
 
 # ----------------------------------------------------------------------------- tests
 
@@ -101,7 +110,9 @@ def loop_reference(x, nb, params, emb, chan, *, activation="silu", untransported
                     pre = pre + chan[p, ch] * cw
                 phi = act(pre)
                 if params.hidden_weight is not None:
-                    phi = act(phi @ np.asarray(params.hidden_weight) + np.asarray(params.hidden_bias))
+                    phi = act(
+                        phi @ np.asarray(params.hidden_weight) + np.asarray(params.hidden_bias)
+                    )
                 y[p] += w * u * (phi @ mix[ch])
     return y
 
@@ -117,8 +128,14 @@ def case(rng):
 def test_general_path_matches_loop_reference(case, activation, hidden, channel):
     nb, x, emb, chan = case
     params = general_params(1, hidden=hidden, channel=channel)
-    y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan if channel else None,
-                   activation=activation)
+    y = field_conv(
+        jnp.asarray(x),
+        nb,
+        params,
+        embedding=emb,
+        channel_embedding=chan if channel else None,
+        activation=activation,
+    )
     ref = loop_reference(x, nb, params, emb, chan, activation=activation)
     assert rel_err(y, ref) < 1e-12
 
@@ -127,7 +144,9 @@ def test_a_zero_channel_embedding_changes_nothing(case):
     nb, x, emb, _ = case
     params = general_params(2, hidden=False, channel=True)
     fast = field_conv(jnp.asarray(x), nb, params._replace(channel_weight=None), embedding=emb)
-    general = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=np.zeros((V, C)))
+    general = field_conv(
+        jnp.asarray(x), nb, params, embedding=emb, channel_embedding=np.zeros((V, C))
+    )
     assert rel_err(general, fast) < 1e-13
 
 
@@ -135,7 +154,9 @@ def test_blocks_of_the_general_path_cover_every_vertex(case, monkeypatch):
     nb, x, emb, chan = case
     params = general_params(3)
     whole = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
-    monkeypatch.setattr(fc_module, "_GENERAL_BLOCK", 3)  # 7 vertices: blocks of 3, the last one padded
+    monkeypatch.setattr(
+        fc_module, "_GENERAL_BLOCK", 3
+    )  # 7 vertices: blocks of 3, the last one padded
     monkeypatch.setattr(fc_module, "_GENERAL_SINGLE", 0)
     blocked = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
     assert rel_err(blocked, whole) < 1e-13
@@ -149,13 +170,19 @@ def test_gauge_equivariance_and_the_untransported_negative_control(case, rng):
     rot = np.exp(-1j * alpha)[:, None]
     errors = {}
     for argument in ("transported", "untransported"):
-        y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument=argument)
-        yt = field_conv(jnp.asarray(xt), nbt, params, embedding=emb, channel_embedding=chan, argument=argument)
+        y = field_conv(
+            jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument=argument
+        )
+        yt = field_conv(
+            jnp.asarray(xt), nbt, params, embedding=emb, channel_embedding=chan, argument=argument
+        )
         errors[argument] = rel_err(yt, np.asarray(y) * rot)
     assert errors["transported"] < 1e-12
     assert errors["untransported"] > 1e-2, errors
     # the untransported form is the loop reference's printed-eq.-34 argument
-    y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument="untransported")
+    y = field_conv(
+        jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument="untransported"
+    )
     assert rel_err(y, loop_reference(x, nb, params, emb, chan, untransported=True)) < 1e-12
 
 
@@ -165,8 +192,13 @@ def test_padding_invariance_of_the_general_path(case, rng):
     y = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
     nbp = pad_to(nb, {"V": V + 3, "K": K + 2})
     xp = np.concatenate([x, 9 + crandn(rng, 3, C)])
-    yp = field_conv(jnp.asarray(xp), nbp, params, embedding=np.concatenate([emb, np.ones((3, 1))]),
-                    channel_embedding=np.concatenate([chan, np.ones((3, C))]))
+    yp = field_conv(
+        jnp.asarray(xp),
+        nbp,
+        params,
+        embedding=np.concatenate([emb, np.ones((3, 1))]),
+        channel_embedding=np.concatenate([chan, np.ones((3, C))]),
+    )
     np.testing.assert_allclose(yp[:V], y, rtol=1e-12, atol=1e-13)
 
 
@@ -174,7 +206,9 @@ def test_padding_invariance_of_the_general_path(case, rng):
 def test_gradients_finite_at_zero_and_correct(case, hidden):
     nb, x, emb, chan = case
     params = general_params(6, hidden=hidden)
-    modes = ("rev", "fwd") if hidden else ("rev",)  # the one-layer fast path has a hand-written VJP only
+    modes = (
+        ("rev", "fwd") if hidden else ("rev",)
+    )  # the one-layer fast path has a hand-written VJP only
 
     def f(x, chan):
         return field_conv(x, nb, params, embedding=emb, channel_embedding=chan)
@@ -183,17 +217,29 @@ def test_gradients_finite_at_zero_and_correct(case, hidden):
     g = jax.grad(lambda z: jnp.sum(jnp.abs(f(z, chan)) ** 2 + jnp.real(f(z, chan)).sum()))(zero)
     assert bool(jnp.all(jnp.isfinite(g)))
     check_grads(f, (jnp.asarray(x), jnp.asarray(chan)), order=1, modes=modes, atol=1e-6, rtol=1e-6)
-    check_grads(lambda p: field_conv(jnp.asarray(x), nb, p, embedding=emb, channel_embedding=chan),
-                (params,), order=1, modes=("rev",), atol=1e-6, rtol=1e-6)
+    check_grads(
+        lambda p: field_conv(jnp.asarray(x), nb, p, embedding=emb, channel_embedding=chan),
+        (params,),
+        order=1,
+        modes=("rev",),
+        atol=1e-6,
+        rtol=1e-6,
+    )
 
 
 def test_init_options_keep_the_one_layer_parameters_and_have_the_documented_shapes():
     key = jax.random.key(0)
     one = init_field_conv(key, 3, 5, hdim=4, embedding_features=2, dtype=jnp.complex128)
-    two = init_field_conv(key, 3, 5, hdim=4, embedding_features=2, hidden_layers=2, dtype=jnp.complex128)
+    two = init_field_conv(
+        key, 3, 5, hdim=4, embedding_features=2, hidden_layers=2, dtype=jnp.complex128
+    )
     for name in ("filter_weight", "filter_bias", "mix"):
         np.testing.assert_array_equal(getattr(one, name), getattr(two, name))
-    assert one.hidden_weight is None and two.hidden_weight.shape == (4, 4) and two.hidden_bias.shape == (4,)
+    assert (
+        one.hidden_weight is None
+        and two.hidden_weight.shape == (4, 4)
+        and two.hidden_bias.shape == (4,)
+    )
     chan = init_field_conv(key, 3, 5, hdim=4, channel_embedding=True)
     assert chan.channel_weight.shape == (4,) and chan.hidden_weight is None
     with pytest.raises(ConfigError, match="hidden_layers"):
@@ -204,10 +250,24 @@ def test_general_path_bad_inputs_raise_typed_errors(case):
     nb, x, emb, chan = case
     params = general_params(7)
     with pytest.raises(InputError, match="channel_embedding needs"):
-        field_conv(jnp.asarray(x), nb, params._replace(channel_weight=None), embedding=emb, channel_embedding=chan)
+        field_conv(
+            jnp.asarray(x),
+            nb,
+            params._replace(channel_weight=None),
+            embedding=emb,
+            channel_embedding=chan,
+        )
     with pytest.raises(InputError, match="channel_weight but channel_embedding=None"):
         field_conv(jnp.asarray(x), nb, params, embedding=emb)
     with pytest.raises(InputError, match="hidden_weight and hidden_bias"):
-        field_conv(jnp.asarray(x), nb, params._replace(hidden_bias=None), embedding=emb, channel_embedding=chan)
+        field_conv(
+            jnp.asarray(x),
+            nb,
+            params._replace(hidden_bias=None),
+            embedding=emb,
+            channel_embedding=chan,
+        )
     with pytest.raises(ConfigError, match="argument must be"):
-        field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument="printed")
+        field_conv(
+            jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument="printed"
+        )

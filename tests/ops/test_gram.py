@@ -27,7 +27,9 @@ def _gram_ref(x, mask):
 
 def test_exact_and_loop_reference(rng):
     x = jnp.array([[1.0, 0.0], [0.0, 2.0], [1.0, 1.0]])
-    np.testing.assert_allclose(_gram(x, jnp.ones(3, bool)), [[2 / 3, 1 / 3], [1 / 3, 5 / 3]], rtol=1e-15)
+    np.testing.assert_allclose(
+        _gram(x, jnp.ones(3, bool)), [[2 / 3, 1 / 3], [1 / 3, 5 / 3]], rtol=1e-15
+    )
     y = rng.standard_normal((17, 5))
     mask = rng.random(17) < 0.6
     g = np.asarray(_gram(jnp.asarray(y), jnp.asarray(mask)))

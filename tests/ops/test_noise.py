@@ -19,8 +19,12 @@ _noise = jax.jit(tangent_noise, static_argnums=(1,), static_argnames=("dtype",))
 def test_shape_dtype_and_determinism(dtype):
     a = _noise(jax.random.key(3), (7, 5), dtype=dtype)
     assert a.shape == (7, 5) and a.dtype == dtype
-    np.testing.assert_array_equal(np.asarray(a), np.asarray(_noise(jax.random.key(3), (7, 5), dtype=dtype)))
-    assert not np.allclose(np.asarray(a), np.asarray(_noise(jax.random.key(4), (7, 5), dtype=dtype)))
+    np.testing.assert_array_equal(
+        np.asarray(a), np.asarray(_noise(jax.random.key(3), (7, 5), dtype=dtype))
+    )
+    assert not np.allclose(
+        np.asarray(a), np.asarray(_noise(jax.random.key(4), (7, 5), dtype=dtype))
+    )
 
 
 def test_variance_convention():

@@ -38,18 +38,29 @@ def random_map(rng, vf=VF, vc=VC):
     for p, k in enumerate(kids):  # host set-up of a tiny test map
         children[p, : len(k)], mask[p, : len(k)] = k, True
     return PoolingMap(
-        parent=parent.astype(np.int32), to_parent=to_parent, children=children, children_mask=mask,
-        children_weight=np.where(mask, area[children], 0.0), children_transport=np.where(mask, to_parent[children], 1),
+        parent=parent.astype(np.int32),
+        to_parent=to_parent,
+        children=children,
+        children_mask=mask,
+        children_weight=np.where(mask, area[children], 0.0),
+        children_transport=np.where(mask, to_parent[children], 1),
     )
 
 
 def ref_pool(x, pm):
     y = np.zeros((len(pm.children), x.shape[1]), complex)
     for p in range(len(pm.children)):
-        tot = sum(pm.children_weight[p, j] for j in range(pm.children.shape[1]) if pm.children_mask[p, j])
+        tot = sum(
+            pm.children_weight[p, j] for j in range(pm.children.shape[1]) if pm.children_mask[p, j]
+        )
         for j in range(pm.children.shape[1]):
             if pm.children_mask[p, j]:
-                y[p] += pm.children_weight[p, j] / tot * pm.children_transport[p, j] * x[pm.children[p, j]]
+                y[p] += (
+                    pm.children_weight[p, j]
+                    / tot
+                    * pm.children_transport[p, j]
+                    * x[pm.children[p, j]]
+                )
     return y
 
 
@@ -60,17 +71,28 @@ def ref_unpool(x, pm):
 def gauge(pm, beta, alpha):
     """Fine frames turned by beta, coarse frames by alpha."""
     tp = pm.to_parent * np.exp(1j * (beta - alpha[pm.parent]))
-    ct = np.where(pm.children_mask, pm.children_transport * np.exp(1j * (beta[pm.children] - alpha[:, None])), 1)
+    ct = np.where(
+        pm.children_mask,
+        pm.children_transport * np.exp(1j * (beta[pm.children] - alpha[:, None])),
+        1,
+    )
     return pm._replace(to_parent=tp, children_transport=ct)
 
 
 def test_hand_case():
-    pm = PoolingMap(parent=np.array([0, 0, 1]), to_parent=np.array([1, 1j, -1]),
-                    children=np.array([[0, 1], [2, 0]]), children_mask=np.array([[True, True], [True, False]]),
-                    children_weight=np.array([[1.0, 3.0], [2.0, 0.0]]), children_transport=np.array([[1, 1j], [-1, 1]]))
+    pm = PoolingMap(
+        parent=np.array([0, 0, 1]),
+        to_parent=np.array([1, 1j, -1]),
+        children=np.array([[0, 1], [2, 0]]),
+        children_mask=np.array([[True, True], [True, False]]),
+        children_weight=np.array([[1.0, 3.0], [2.0, 0.0]]),
+        children_transport=np.array([[1, 1j], [-1, 1]]),
+    )
     x = jnp.array([[2 + 0j], [-1j], [1 + 1j]])
     np.testing.assert_allclose(_pool(x, pm), [[(2 + 3) / 4], [-1 - 1j]], rtol=1e-15)
-    np.testing.assert_allclose(_unpool(jnp.array([[1j], [2.0 + 0j]]), pm), [[1j], [1], [-2]], rtol=1e-15)
+    np.testing.assert_allclose(
+        _unpool(jnp.array([[1j], [2.0 + 0j]]), pm), [[1j], [1], [-2]], rtol=1e-15
+    )
 
 
 def test_matches_loop_reference(rng):
@@ -98,7 +120,9 @@ def test_padding_invariance_and_vmap(rng):
     m = max(p.children.shape[1] for p in pms) + 1
     padded = [pad_to(p, {"Vf": VF, "Vc": VC, "M": m}) for p in pms]
     batch = jax.tree.map(lambda *a: np.stack(a), *padded)
-    xb = np.stack([np.concatenate([xs[0], 1e3 * crandn(rng, VF - 6, C)]), xs[1]])  # garbage on padding
+    xb = np.stack(
+        [np.concatenate([xs[0], 1e3 * crandn(rng, VF - 6, C)]), xs[1]]
+    )  # garbage on padding
     xcb = np.stack([np.concatenate([xcs[0], 1e3 * crandn(rng, VC - 3, C)]), xcs[1]])
     yb = jax.jit(jax.vmap(tangent_pool))(xb, batch)
     ub = jax.jit(jax.vmap(tangent_unpool))(xcb, batch)
@@ -120,7 +144,10 @@ def test_jit_matches_eager_without_recompiling(rng, op):
         return op(x, pm)
 
     jitted = jax.jit(fn)
-    x1, x2 = jnp.asarray(crandn(rng, n, C), jnp.complex64), jnp.asarray(crandn(rng, n, C), jnp.complex64)
+    x1, x2 = (
+        jnp.asarray(crandn(rng, n, C), jnp.complex64),
+        jnp.asarray(crandn(rng, n, C), jnp.complex64),
+    )
     np.testing.assert_allclose(jitted(x1), op(x1, pm), rtol=1e-6, atol=1e-6)
     jitted(x2)
     assert len(traces) == 1
@@ -158,4 +185,6 @@ def test_bad_inputs_raise_typed_errors(rng):
     with pytest.raises(InputError, match="coarse"):
         tangent_unpool(jnp.ones((VF, C), jnp.complex64), pm)
     with pytest.raises(InputError, match="children_weight"):
-        tangent_pool(jnp.ones((VF, C), jnp.complex64), pm._replace(children_weight=pm.children_weight[:, :1]))
+        tangent_pool(
+            jnp.ones((VF, C), jnp.complex64), pm._replace(children_weight=pm.children_weight[:, :1])
+        )

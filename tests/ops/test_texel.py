@@ -45,7 +45,9 @@ def _conv_ref(x, taps, kernel, bias):
     for n in range(N):
         for t in range(9):
             dy, dx = divmod(t, 3)
-            s = sum(taps.weight[n, t, j] * x[taps.index[n, t, j]] for j in range(taps.index.shape[2]))
+            s = sum(
+                taps.weight[n, t, j] * x[taps.index[n, t, j]] for j in range(taps.index.shape[2])
+            )
             out[n] += s @ kernel[dy, dx]
         out[n] = (out[n] + bias) * taps.texel_mask[n]
     return out
@@ -74,7 +76,9 @@ def test_equals_lax_conv_random(dtype, tol, rng):
     got = _conv(img.reshape(H * W, C), image_texel_neighborhood(H, W), kernel, bias)
     assert got.dtype == dtype
     # only the summation order differs from XLA's convolution
-    np.testing.assert_allclose(got.reshape(H, W, D), _lax_conv(img, kernel, bias), rtol=tol, atol=tol)
+    np.testing.assert_allclose(
+        got.reshape(H, W, D), _lax_conv(img, kernel, bias), rtol=tol, atol=tol
+    )
 
 
 def test_offset_and_row_direction_convention():
@@ -100,8 +104,12 @@ def test_pooling_equals_reduce_window(rng):
     img = rng.standard_normal((H, W, C))
     groups = image_pool_groups(H, W)
     x = jnp.asarray(img.reshape(H * W, C))
-    avg = jax.lax.reduce_window(jnp.asarray(img), 0.0, jax.lax.add, (2, 2, 1), (2, 2, 1), "VALID") / 4
-    mx = jax.lax.reduce_window(jnp.asarray(img), -jnp.inf, jax.lax.max, (2, 2, 1), (2, 2, 1), "VALID")
+    avg = (
+        jax.lax.reduce_window(jnp.asarray(img), 0.0, jax.lax.add, (2, 2, 1), (2, 2, 1), "VALID") / 4
+    )
+    mx = jax.lax.reduce_window(
+        jnp.asarray(img), -jnp.inf, jax.lax.max, (2, 2, 1), (2, 2, 1), "VALID"
+    )
     np.testing.assert_allclose(_pool(x, groups).reshape(H // 2, W // 2, C), avg, rtol=1e-14)
     np.testing.assert_array_equal(_pool(x, groups, mode="max").reshape(H // 2, W // 2, C), mx)
     # odd sizes: border blocks keep only their real members
@@ -118,7 +126,11 @@ def test_bilinear_taps_against_loop_reference(rng):
     N, C, D = 13, 3, 2
     taps = _random_taps(rng, N)
     taps = taps._replace(texel_mask=rng.random(N) < 0.8)
-    x, kernel, bias = rng.standard_normal((N, C)), rng.standard_normal((3, 3, C, D)), rng.standard_normal(D)
+    x, kernel, bias = (
+        rng.standard_normal((N, C)),
+        rng.standard_normal((3, 3, C, D)),
+        rng.standard_normal(D),
+    )
     got = _conv(jnp.asarray(x), taps, jnp.asarray(kernel), jnp.asarray(bias))
     np.testing.assert_allclose(got, _conv_ref(x, taps, kernel, bias), rtol=1e-12, atol=1e-14)
 
@@ -148,7 +160,11 @@ def test_pool_against_loop_reference(rng):
 def test_padding_invariance(rng):
     N, C, D = 11, 3, 2
     taps = _random_taps(rng, N)
-    x, kernel, bias = rng.standard_normal((N, C)), rng.standard_normal((3, 3, C, D)), rng.standard_normal(D)
+    x, kernel, bias = (
+        rng.standard_normal((N, C)),
+        rng.standard_normal((3, 3, C, D)),
+        rng.standard_normal(D),
+    )
     ref = np.asarray(_conv(jnp.asarray(x), taps, jnp.asarray(kernel), jnp.asarray(bias)))
     # 4 padded texels (garbage features, mask False) and 2 padded slots per tap (index 0, weight 0)
     P = 4
@@ -181,7 +197,9 @@ def test_jit_eager_and_single_compilation(rng):
         return y, grouped_pool(y, groups), grouped_pool(y, groups, mode="max")
 
     jitted = jax.jit(fn)
-    for got, want in zip(jitted(x, taps, kernel, bias, groups), fn(x, taps, kernel, bias, groups), strict=True):
+    for got, want in zip(
+        jitted(x, taps, kernel, bias, groups), fn(x, taps, kernel, bias, groups), strict=True
+    ):
         np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-15)
     jitted(x + 1, taps, kernel * 2, bias, groups)
     assert len(traces) == 2  # eager once, compiled once
@@ -190,7 +208,10 @@ def test_jit_eager_and_single_compilation(rng):
 def test_vmap_over_two_padded_textures(rng):
     sizes = [(3, 4), (4, 5)]
     N = max(h * w for h, w in sizes)
-    kernel, bias = jnp.asarray(rng.standard_normal((3, 3, 2, 3))), jnp.asarray(rng.standard_normal(3))
+    kernel, bias = (
+        jnp.asarray(rng.standard_normal((3, 3, 2, 3))),
+        jnp.asarray(rng.standard_normal(3)),
+    )
     imgs = [rng.standard_normal((h, w, 2)) for h, w in sizes]
 
     def pad_taps(t):
@@ -201,8 +222,15 @@ def test_vmap_over_two_padded_textures(rng):
             np.pad(t.texel_mask, (0, N - n)),
         )
 
-    taps = jax.tree.map(lambda *a: jnp.stack(a), *[pad_taps(image_texel_neighborhood(h, w)) for h, w in sizes])
-    xs = jnp.stack([jnp.pad(jnp.asarray(i.reshape(-1, 2)), ((0, N - i.shape[0] * i.shape[1]), (0, 0))) for i in imgs])
+    taps = jax.tree.map(
+        lambda *a: jnp.stack(a), *[pad_taps(image_texel_neighborhood(h, w)) for h, w in sizes]
+    )
+    xs = jnp.stack(
+        [
+            jnp.pad(jnp.asarray(i.reshape(-1, 2)), ((0, N - i.shape[0] * i.shape[1]), (0, 0)))
+            for i in imgs
+        ]
+    )
     out = jax.jit(jax.vmap(texel_conv, in_axes=(0, 0, None, None)))(xs, taps, kernel, bias)
     for b, ((h, w), img) in enumerate(zip(sizes, imgs, strict=True)):
         want = _lax_conv(jnp.asarray(img), kernel, bias).reshape(h * w, 3)
@@ -217,7 +245,9 @@ def test_vmap_over_two_padded_textures(rng):
 def test_dtype_follows_input(dtype, rng):
     x = jnp.asarray(rng.standard_normal((16, 3)), dtype)
     taps, groups = image_texel_neighborhood(4, 4), image_pool_groups(4, 4)
-    y = _conv(x, taps, jnp.ones((3, 3, 3, 2), jnp.float32), jnp.zeros(2, jnp.float32))  # params cast
+    y = _conv(
+        x, taps, jnp.ones((3, 3, 3, 2), jnp.float32), jnp.zeros(2, jnp.float32)
+    )  # params cast
     assert y.dtype == dtype
     assert _pool(y, groups).dtype == dtype and _pool(y, groups, mode="max").dtype == dtype
 
@@ -240,8 +270,14 @@ def test_gradients(rng):
     check_grads(f, args, order=1, modes=["fwd", "rev"])
     # exactly-zero features and an all-empty group: finite values and gradients
     empty = PoolGroups(np.zeros((2, 3), np.int32), np.zeros((2, 3), bool))
-    g = jax.jit(jax.grad(lambda x: jnp.sum(grouped_pool(texel_conv(x, taps, args[1], args[2]), empty, mode="max"))
-                        + jnp.sum(grouped_pool(x, groups, mode="max"))))(jnp.zeros((N, 2)))
+    g = jax.jit(
+        jax.grad(
+            lambda x: (
+                jnp.sum(grouped_pool(texel_conv(x, taps, args[1], args[2]), empty, mode="max"))
+                + jnp.sum(grouped_pool(x, groups, mode="max"))
+            )
+        )
+    )(jnp.zeros((N, 2)))
     assert np.isfinite(np.asarray(g)).all()
 
 

@@ -24,9 +24,19 @@ from sharded_worker import CONFIG, images  # noqa: E402
 
 if __name__ == "__main__":
     port, pid, work = int(sys.argv[1]), int(sys.argv[2]), pathlib.Path(sys.argv[3])
-    parallel.initialize(f"127.0.0.1:{port}", num_processes=2, process_id=pid, initialization_timeout=120)
+    parallel.initialize(
+        f"127.0.0.1:{port}", num_processes=2, process_id=pid, initialization_timeout=120
+    )
     assert parallel.is_multiprocess() and len(jax.devices()) == 2 and len(jax.local_devices()) == 1
     mesh = parallel.data_mesh()
-    result = fl.train(CONFIG.replace(steps=3), key=jax.random.key(0), images=images(), progress=False, mesh=mesh)
-    (work / f"losses_{pid}.json").write_text(json.dumps({"loss": result.losses["loss"].tolist(),
-                                                         "devices": [str(d) for d in mesh.devices.ravel()]}))
+    result = fl.train(
+        CONFIG.replace(steps=3), key=jax.random.key(0), images=images(), progress=False, mesh=mesh
+    )
+    (work / f"losses_{pid}.json").write_text(
+        json.dumps(
+            {
+                "loss": result.losses["loss"].tolist(),
+                "devices": [str(d) for d in mesh.devices.ravel()],
+            }
+        )
+    )

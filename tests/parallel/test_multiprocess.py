@@ -30,8 +30,16 @@ def _free_port() -> int:
 def test_two_processes_train_like_one(tmp_path):
     port = _free_port()
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"} | {"JAX_PLATFORMS": "cpu"}
-    procs = [subprocess.Popen([sys.executable, str(WORKER), str(port), str(pid), str(tmp_path)], env=env,
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) for pid in (0, 1)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, str(WORKER), str(port), str(pid), str(tmp_path)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for pid in (0, 1)
+    ]
     logs = []
     try:
         for p in procs:
@@ -45,8 +53,13 @@ def test_two_processes_train_like_one(tmp_path):
     assert len(runs[0]["devices"]) == 2
     # both processes see the same replicated loss
     np.testing.assert_array_equal(runs[0]["loss"], runs[1]["loss"])
-    alone = fl.train(CONFIG.replace(steps=3), key=jax.random.key(0), images=images(), progress=False,
-                     devices=jax.devices()[:1])
+    alone = fl.train(
+        CONFIG.replace(steps=3),
+        key=jax.random.key(0),
+        images=images(),
+        progress=False,
+        devices=jax.devices()[:1],
+    )
     # the gradient all-reduce across processes sums in another order: float32 round-off, compounded
     # over 3 Adam steps
     np.testing.assert_allclose(runs[0]["loss"], alone.losses["loss"], rtol=1e-4)

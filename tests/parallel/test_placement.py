@@ -59,14 +59,20 @@ FOUR_DEVICES = textwrap.dedent("""
 
 
 def test_four_devices_split_the_batch_and_xla_reduces_the_gradient():
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
-    run = subprocess.run([sys.executable, "-c", FOUR_DEVICES], env=env, capture_output=True, text=True, timeout=300)
+    env = dict(
+        os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", FOUR_DEVICES], env=env, capture_output=True, text=True, timeout=300
+    )
     assert run.returncode == 0 and run.stdout.strip().endswith("ok"), run.stderr[-4000:]
 
 
 def test_one_device_mesh_and_errors():
     mesh = parallel.data_mesh()
-    assert mesh.axis_names == (parallel.DATA_AXIS,) and parallel.batch_multiple(mesh) == len(jax.devices())
+    assert mesh.axis_names == (parallel.DATA_AXIS,) and parallel.batch_multiple(mesh) == len(
+        jax.devices()
+    )
     assert parallel.resolve_mesh(mesh) is mesh
     with pytest.raises(ConfigError):
         parallel.data_mesh([])
@@ -81,4 +87,3 @@ def test_one_device_mesh_and_errors():
     with pytest.raises(ConfigError):
         parallel.initialize("127.0.0.1:1", 1, 0, cpu_collectives="nccl-on-cpu")
     assert not parallel.is_multiprocess()
-

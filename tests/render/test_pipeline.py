@@ -64,8 +64,14 @@ def test_textured_quad_head_on_gives_the_image_back():
     img = render((v, f), _head_on(64), uv=uv, texture=tex, shading="unlit", supersample=1)
     assert _psnr(img, tex) >= 40.0  # measured: exact (float32 bilinear at texel centres)
     # the oracle can fail: a texture upside down (v flipped) is far from the image
-    flipped = render((v, f), _head_on(64), uv=uv * [1.0, -1.0] + [0.0, 1.0], texture=tex, shading="unlit",
-                     supersample=1)
+    flipped = render(
+        (v, f),
+        _head_on(64),
+        uv=uv * [1.0, -1.0] + [0.0, 1.0],
+        texture=tex,
+        shading="unlit",
+        supersample=1,
+    )
     assert _psnr(flipped, tex) < 20.0
     # 2x2 supersampling averages four samples a quarter texel off each centre: a slight blur, still close
     ss = render((v, f), _head_on(64), uv=uv, texture=tex, shading="unlit", supersample=2)
@@ -125,7 +131,9 @@ class _BoxTree:
 @pytest.mark.parametrize("fov_deg", [None, 40.0])
 def test_visibility_agrees_with_trimesh_ray_test(fov_deg, key):
     v, f = torus(32, 16)
-    cams = orbit_cameras((v, f), azimuths=[30.0], elevations=(35.0,), size=(96, 80), fov_deg=fov_deg)
+    cams = orbit_cameras(
+        (v, f), azimuths=[30.0], elevations=(35.0,), size=(96, 80), fov_deg=fov_deg
+    )
     vis = rasterize(v, f, cams[0], supersample=1)
     rng = np.random.default_rng(int(jax.random.randint(key, (), 0, 2**31 - 1)))
     rows, cols = rng.integers(0, 80, 1500), rng.integers(0, 96, 1500)
@@ -133,7 +141,8 @@ def test_visibility_agrees_with_trimesh_ray_test(fov_deg, key):
     # trimesh's ray/triangle test (RayMeshIntersector without embree), with a brute-force broad
     # phase in place of its rtree index (rtree is not installed)
     tri_idx, ray_idx, hits = trimesh.ray.ray_triangle.ray_triangle_id(
-        v[f], origins, dirs, tree=_BoxTree(v[f]), multiple_hits=True)
+        v[f], origins, dirs, tree=_BoxTree(v[f]), multiple_hits=True
+    )
     near = np.full(len(rows), np.inf)
     point = np.zeros((len(rows), 3))
     dist = np.einsum("ij,ij->i", hits - origins[ray_idx], dirs[ray_idx])
@@ -146,7 +155,9 @@ def test_visibility_agrees_with_trimesh_ray_test(fov_deg, key):
     both = ours & theirs
     seen = (vis.bary[rows, cols][..., None] * v[f[vis.face[rows, cols]]]).sum(axis=1)  # Σ b_i v_i
     err = np.linalg.norm(seen - point, axis=1)[both]
-    assert (err < 1e-6).mean() >= 0.995  # the same surface point: nearest face, perspective-correct b
+    assert (
+        err < 1e-6
+    ).mean() >= 0.995  # the same surface point: nearest face, perspective-correct b
 
 
 def test_shading_gradients_pass_check_grads():
@@ -161,12 +172,27 @@ def test_shading_gradients_pass_check_grads():
     colors = jnp.asarray(0.1 + 0.5 * rng.random((4, 3)))
 
     def from_texture(t):
-        return shade(face, bary, normals, lighting, uv=jnp.asarray(uv)[jnp.asarray(f)], texture=t,
-                     lod=jnp.array([0.7, 1.4]), supersample=2)
+        return shade(
+            face,
+            bary,
+            normals,
+            lighting,
+            uv=jnp.asarray(uv)[jnp.asarray(f)],
+            texture=t,
+            lod=jnp.array([0.7, 1.4]),
+            supersample=2,
+        )
 
     def from_vertex_colors(c):
-        return shade(face, bary, normals, lighting, corner_colors=c[jnp.asarray(f)], supersample=2,
-                     background="transparent")
+        return shade(
+            face,
+            bary,
+            normals,
+            lighting,
+            corner_colors=c[jnp.asarray(f)],
+            supersample=2,
+            background="transparent",
+        )
 
     check_grads(from_texture, (tex,), order=1, modes=["fwd", "rev"])
     check_grads(from_vertex_colors, (colors,), order=1, modes=["fwd", "rev"])
@@ -180,7 +206,9 @@ def test_mip_mapping_removes_aliasing():
     tex = np.repeat(checker[..., None], 3, axis=2)
     v, f, uv = _quad()
     n = 37  # not a divisor of 256: pixel centres fall on both colours of the checker
-    img = render((v, f), _head_on(n), uv=uv, texture=tex, shading="unlit", supersample=1).astype(float)
+    img = render((v, f), _head_on(n), uv=uv, texture=tex, shading="unlit", supersample=1).astype(
+        float
+    )
     assert abs(img.mean() - 127.5) < 3 and img.std() < 3
     # without mip levels (plain bilinear lookups at the texels under the pixel centres) it aliases
     centres = (np.floor((np.arange(n) + 0.5) * 256 / n) + 0.5) / 256
@@ -283,7 +311,9 @@ def test_top_view_has_x_right_and_y_up():
     colors = np.eye(3)  # x corner green, y corner blue
     from jmeshtex.render import render_mesh
 
-    img = render_mesh(v, f, vertex_colors=colors, view=(90.0, -90.0), size=(64, 64), shading="unlit").astype(int)
+    img = render_mesh(
+        v, f, vertex_colors=colors, view=(90.0, -90.0), size=(64, 64), shading="unlit"
+    ).astype(int)
     ys, xs = np.nonzero((img < 250).any(axis=2))
     right = img[ys.max() - 2, xs.max() - 4]
     top = img[ys.min() + 4, xs.min() + 2]
@@ -299,7 +329,9 @@ def test_top_view_has_x_right_and_y_up():
 def test_figure_layout(tmp_path):
     a = np.zeros((32, 40, 3), np.uint8)
     b = np.ones((32, 40, 4))
-    fig = figure([("exemplar", a), ("result", b), ("baseline", a)], title="t", path=tmp_path / "f.png")
+    fig = figure(
+        [("exemplar", a), ("result", b), ("baseline", a)], title="t", path=tmp_path / "f.png"
+    )
     assert fig.shape == (28 + 20 + 32, 3 * 40, 3)
     assert fig[28 + 20 + 2 : -2, 2:38].max() < 10 and fig[28 + 20 + 2 : -2, 42:78].min() > 245
     assert (fig[28 : 28 + 20, :40] < 128).any()  # a label is written
@@ -327,7 +359,9 @@ def test_turntable_writes_a_strip_and_a_gif(tmp_path):
 
 def test_bad_input_raises_typed_errors():
     v, f = icosphere(1)
-    away = look_at((0.0, 0.0, 5.0), (0.0, 0.0, 10.0), up="y", fov_deg=30.0)  # looks away from the mesh
+    away = look_at(
+        (0.0, 0.0, 5.0), (0.0, 0.0, 10.0), up="y", fov_deg=30.0
+    )  # looks away from the mesh
     with pytest.raises(InputError, match="the camera sees nothing"):
         render((v, f), away)
     off = look_at((50.0, 0.0, 5.0), (50.0, 0.0, 0.0), up="y", half_height=1.0)  # looks beside it
@@ -339,7 +373,9 @@ def test_bad_input_raises_typed_errors():
         look_at((0, 0, 1), (0, 0, 0), up="y", size=(512, 0))
     bad = v.copy()
     bad[3] = np.nan
-    with pytest.raises(InputError, match=r"NaN or infinite vertices cannot be rendered: 1 vertices \(3\)"):
+    with pytest.raises(
+        InputError, match=r"NaN or infinite vertices cannot be rendered: 1 vertices \(3\)"
+    ):
         render((bad, f))
     with pytest.raises(InputError, match="up must be one of"):
         render((v, f), up="w")

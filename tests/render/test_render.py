@@ -64,7 +64,9 @@ def test_painter_order_by_depth_not_by_input_order(near_first):
     img = render_mesh(v, f, face_colors=colors, view=TOP, size=(100, 100)).astype(int)
     center = img[50, 50]
     assert center[0] > 150 and center[2] < 60  # the near red square hides the blue one
-    corner = img[25, 75]  # only the far square covers this pixel (x = y = 1.31; near: [0, 1], far: [-0.5, 1.5])
+    corner = img[
+        25, 75
+    ]  # only the far square covers this pixel (x = y = 1.31; near: [0, 1], far: [-0.5, 1.5])
     assert corner[2] > 150 and corner[0] < 60
 
 
@@ -77,7 +79,9 @@ def test_scalars_follow_the_colormap():
     assert thirds[0] + 40 < thirds[1] < thirds[2] - 40
     # face scalars and clim: everything above vmax saturates
     fx = v[f].mean(axis=1)[:, 0]
-    img2 = render_mesh(v, f, scalars=fx, cmap="gray", clim=(0.0, 0.25), view=TOP, size=(100, 100)).astype(int)
+    img2 = render_mesh(
+        v, f, scalars=fx, cmap="gray", clim=(0.0, 0.25), view=TOP, size=(100, 100)
+    ).astype(int)
     assert np.ptp(img2[50, 50:80, 0]) <= 3
 
 
@@ -104,7 +108,9 @@ def test_uv_texture_orientation():
     assert bottom_right[2] > 150 and bottom_right[0] < 60
     assert top[1] > 150 and top[0] < 60
     # per-vertex UVs and uint8 textures give the same picture
-    img2 = render_mesh(v, f, uv=v[:, :2], texture=(tex * 255).astype(np.uint8), view=TOP, size=(100, 100))
+    img2 = render_mesh(
+        v, f, uv=v[:, :2], texture=(tex * 255).astype(np.uint8), view=TOP, size=(100, 100)
+    )
     np.testing.assert_array_equal(img2, img)
 
 
@@ -139,7 +145,9 @@ def test_png_is_written_atomically_and_matches(tmp_path):
     np.testing.assert_array_equal(np.round(back[..., :3] * 255).astype(np.uint8), img)
     # writing over an existing file replaces it
     img2 = render_mesh(v, f, str(path), size=(80, 60))
-    np.testing.assert_array_equal(np.round(matplotlib.image.imread(path)[..., :3] * 255).astype(np.uint8), img2)
+    np.testing.assert_array_equal(
+        np.round(matplotlib.image.imread(path)[..., :3] * 255).astype(np.uint8), img2
+    )
     with pytest.raises(MeshIOError, match="inside-a-file.png"):  # a file where a folder must be
         render_mesh(v, f, path / "inside-a-file.png", size=(80, 60))
 
@@ -197,6 +205,8 @@ def test_needs_no_display_and_no_pyplot(tmp_path):
         f"render_mesh(*icosphere(1), {str(tmp_path / 'x.png')!r}, size=(32, 32)); "
         "assert 'matplotlib.pyplot' not in sys.modules, 'pyplot was imported'"
     )
-    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 0, done.stderr
     assert pathlib.Path(tmp_path / "x.png").exists()

@@ -84,7 +84,9 @@ def test_validity_and_snapping_match_a_slow_reference(rng, mirrored):
                 centre = np.array([c + 0.5, r + 0.5])
                 signs = [_cross(tri[(k + 1) % 3] - tri[k], centre - tri[k]) for k in range(3)]
                 t = np.linspace(0, 1, 4001)[:, None]
-                edge_pts = np.concatenate([tri[k] + t * (tri[(k + 1) % 3] - tri[k]) for k in range(3)])
+                edge_pts = np.concatenate(
+                    [tri[k] + t * (tri[(k + 1) % 3] - tri[k]) for k in range(3)]
+                )
                 inside = all(x >= 0 for x in signs) or all(x <= 0 for x in signs)
                 snapped.append(0.0 if inside else np.min(np.linalg.norm(edge_pts - centre, axis=1)))
     assert atlas.texel.tolist() == expected
@@ -129,7 +131,9 @@ def test_image_round_trip_and_fill():
     values = np.arange(atlas.num_texels, dtype=float)[:, None]
     image = texels_to_image(atlas, values)
     np.testing.assert_array_equal(image_to_texels(atlas, image), values)
-    np.testing.assert_array_equal(image[:4, :4], np.broadcast_to(image[4:5, :4], (4, 4, 1)))  # nearest fill
+    np.testing.assert_array_equal(
+        image[:4, :4], np.broadcast_to(image[4:5, :4], (4, 4, 1))
+    )  # nearest fill
     assert (texels_to_image(atlas, values, fill="zero")[:4] == 0).all()
 
 

@@ -45,7 +45,11 @@ def test_config_is_a_frozen_config_base_without_a_seed():
 def test_synthesize_save_load_round_trip(mesh, exemplar, tmp_path):
     result = _run(mesh, exemplar, jax.random.key(0))
     assert isinstance(result, surfacecnn.SynthesisResult)
-    assert result.texture.shape == (8, 8, 3) and result.colors.shape == (64, 3) and result.losses.shape == (3,)
+    assert (
+        result.texture.shape == (8, 8, 3)
+        and result.colors.shape == (64, 3)
+        and result.losses.shape == (3,)
+    )
     summary = surfacecnn.save(result, tmp_path / "out")
     assert str(tmp_path / "out" / "result.npz") in summary["files"]
     back = surfacecnn.load(tmp_path / "out")
@@ -69,8 +73,14 @@ def test_randomness_comes_only_from_key(mesh, exemplar):
     np.testing.assert_array_equal(a.losses, b.losses)
     assert np.abs(a.texture - c.texture).max() > 1e-3
     # a (vertices, faces) pair is accepted too (unwrapped, having no UVs); anything else is a typed error
-    pair = surfacecnn.synthesize((mesh.vertices, mesh.faces), exemplar, surfacecnn.Config(size=8, steps=1),
-                                 key=jax.random.key(1), layers=LAYERS, progress=False)
+    pair = surfacecnn.synthesize(
+        (mesh.vertices, mesh.faces),
+        exemplar,
+        surfacecnn.Config(size=8, steps=1),
+        key=jax.random.key(1),
+        layers=LAYERS,
+        progress=False,
+    )
     assert pair.mesh.uv.shape == (2, 3, 2)
     with pytest.raises(InputError, match="mesh"):
         surfacecnn.synthesize("not a mesh", exemplar, key=jax.random.key(1), progress=False)
@@ -79,7 +89,13 @@ def test_randomness_comes_only_from_key(mesh, exemplar):
 def test_stylize_takes_key_but_draws_nothing(mesh, exemplar):
     config = surfacecnn.Config(size=8, steps=2, content_layer="relu1_2")
     content = np.full((8, 8, 3), 0.4)
-    runs = [surfacecnn.stylize(mesh, content, exemplar, config, key=jax.random.key(k), layers=LAYERS,
-                               progress=False) for k in (0, 1)]
+    runs = [
+        surfacecnn.stylize(
+            mesh, content, exemplar, config, key=jax.random.key(k), layers=LAYERS, progress=False
+        )
+        for k in (0, 1)
+    ]
     np.testing.assert_array_equal(runs[0].texture, runs[1].texture)
-    assert np.abs(runs[0].texture - 0.4).max() > 1e-3  # the optimisation moved away from the content
+    assert (
+        np.abs(runs[0].texture - 0.4).max() > 1e-3
+    )  # the optimisation moved away from the content

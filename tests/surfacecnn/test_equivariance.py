@@ -26,20 +26,27 @@ def test_rotating_frames_and_exemplar_together(seed):
     pyr = texel_pyramid(v, f, atlas, levels=1, rotation=np.pi / 2)
     image = np.random.default_rng(seed).uniform(size=(size, size, 3)).astype(np.float32)
     weights = load_vgg16()
-    mesh = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=LAYERS)
+    mesh = mesh_cnn_features(
+        jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=LAYERS
+    )
     turned = np.rot90(image, k=-1)  # R[i, j] = I[H - 1 - j, i]
-    flat = vgg_features(jnp.asarray(turned.copy()[None]), weights, layers=LAYERS, pool="mean", ceil_mode=True)
+    flat = vgg_features(
+        jnp.asarray(turned.copy()[None]), weights, layers=LAYERS, pool="mean", ceil_mode=True
+    )
     for name in LAYERS:
         want = np.asarray(flat[name][0])
         n = want.shape[0]
         got = np.asarray(mesh[name]).reshape(n, n, -1)
         # texel (r, c) of the mesh sees what pixel (c, n - 1 - r) of the turned image sees
         r, c = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-        np.testing.assert_allclose(got[r, c], want[c, n - 1 - r], rtol=0, atol=1e-5 * np.abs(want).max())
+        np.testing.assert_allclose(
+            got[r, c], want[c, n - 1 - r], rtol=0, atol=1e-5 * np.abs(want).max()
+        )
     # without the frame rotation the features differ (the check can fail)
     plain = texel_pyramid(v, f, atlas, levels=1)
-    unturned = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), plain.network_arrays(), weights,
-                                 layers=("relu1_1",))["relu1_1"]
+    unturned = mesh_cnn_features(
+        jnp.asarray(image.reshape(-1, 3)), plain.network_arrays(), weights, layers=("relu1_1",)
+    )["relu1_1"]
     assert np.abs(np.asarray(unturned) - np.asarray(mesh["relu1_1"])).max() > 1e-2
 
 

@@ -27,7 +27,9 @@ def test_flat_sheet_taps_are_the_image_taps(diagonals):
     ref = image_texel_neighborhood(size, size)
     np.testing.assert_array_equal(taps.nearest.index, ref.index)
     np.testing.assert_array_equal(taps.nearest.weight, ref.weight)
-    np.testing.assert_allclose(_dense(taps.bilinear, size * size), _dense(ref, size * size), atol=1e-12)
+    np.testing.assert_allclose(
+        _dense(taps.bilinear, size * size), _dense(ref, size * size), atol=1e-12
+    )
     # the boundary walks are the ones that read zero
     assert taps.stopped.sum() == (ref.weight[..., 0] == 0).sum()
 
@@ -91,7 +93,9 @@ def test_uv_to_texels_renormalises_over_valid_corners():
     atlas = texture_atlas(v, f, v[f][..., :2] * 0.5, size=4)  # valid: the 2×2 lower-left pixels
     # a point between the valid block and invalid pixels above it: only valid corners keep weight
     idx, w, near = uv_to_texels(atlas, np.array([[0.25, 0.5]]), np.array([0]))
-    assert np.isclose(w.sum(), 1.0) and set(idx[0][w[0] > 0].tolist()) <= set(range(atlas.num_texels))
+    assert np.isclose(w.sum(), 1.0) and set(idx[0][w[0] > 0].tolist()) <= set(
+        range(atlas.num_texels)
+    )
     assert near[0] in range(atlas.num_texels)
 
 
@@ -107,9 +111,19 @@ def test_in_face_fast_path_agrees_with_the_tracer():
     # reference: every walk through the tracer, directions built independently
     offsets = [(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dx, dy) != (0, 0)]
     turn = np.exp(0.3j)
-    direction = np.stack([(dx * atlas.tangent[start] + dy * atlas.down[start]) * turn for dx, dy in offsets], 1)
+    direction = np.stack(
+        [(dx * atlas.tangent[start] + dy * atlas.down[start]) * turn for dx, dy in offsets], 1
+    )
     length = 1.7 * atlas.texel_size * np.abs(direction)
-    ref = trace_geodesics(v, f, np.repeat(atlas.face[start], 8), np.repeat(atlas.bary[start], 8, axis=0),
-                          direction.ravel(), length.ravel())
-    np.testing.assert_allclose(end.reshape(-1, 2), uv_at(atlas.uv, ref.face.astype(np.int64), ref.bary), atol=1e-12)
+    ref = trace_geodesics(
+        v,
+        f,
+        np.repeat(atlas.face[start], 8),
+        np.repeat(atlas.bary[start], 8, axis=0),
+        direction.ravel(),
+        length.ravel(),
+    )
+    np.testing.assert_allclose(
+        end.reshape(-1, 2), uv_at(atlas.uv, ref.face.astype(np.int64), ref.bary), atol=1e-12
+    )
     assert not stopped.any()

@@ -34,9 +34,12 @@ def test_mesh_cnn_equals_2d_cnn_on_a_flat_sheet(sheet, seed, pool):
     size, pyr = sheet
     weights = load_vgg16()
     image = np.random.default_rng(seed).uniform(size=(size, size, 3)).astype(np.float32)
-    layers = LAYERS if pool == "mean" else LAYERS[:4]  # max pooling: the first pooled block suffices
-    mesh = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=layers,
-                             pool=pool)
+    layers = (
+        LAYERS if pool == "mean" else LAYERS[:4]
+    )  # max pooling: the first pooled block suffices
+    mesh = mesh_cnn_features(
+        jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=layers, pool=pool
+    )
     flat = vgg_features(jnp.asarray(image[None]), weights, layers=layers, pool=pool, ceil_mode=True)
     for name in layers:
         want = np.asarray(flat[name][0])
@@ -103,9 +106,15 @@ def test_float64_is_exact_to_rounding():
     weights = jax.tree.map(lambda a: jnp.asarray(a, jnp.float64), load_vgg16())
     image = np.random.default_rng(0).uniform(size=(size, size, 3))
     layers = ("relu1_2", "pool1", "relu2_1")
-    mesh = mesh_cnn_features(jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=layers)
-    flat = vgg_features(jnp.asarray(image[None]), weights, layers=layers, pool="mean", ceil_mode=True)
+    mesh = mesh_cnn_features(
+        jnp.asarray(image.reshape(-1, 3)), pyr.network_arrays(), weights, layers=layers
+    )
+    flat = vgg_features(
+        jnp.asarray(image[None]), weights, layers=layers, pool="mean", ceil_mode=True
+    )
     for name in layers:
         want = np.asarray(flat[name][0]).reshape(-1, flat[name].shape[-1])
         assert mesh[name].dtype == jnp.float64
-        np.testing.assert_allclose(np.asarray(mesh[name]), want, rtol=0, atol=1e-10 * np.abs(want).max())
+        np.testing.assert_allclose(
+            np.asarray(mesh[name]), want, rtol=0, atol=1e-10 * np.abs(want).max()
+        )

@@ -18,8 +18,10 @@ def test_aligned_sheet_gives_image_pooling_and_taps():
         groups = image_pool_groups(s, s)
         np.testing.assert_array_equal(pyr.pools[level].index, groups.index)
         np.testing.assert_array_equal(pyr.pools[level].mask, groups.mask)
-        np.testing.assert_array_equal(pyr.parent[level][groups.index], np.arange(len(groups.index))[:, None]
-                                      * np.ones((1, 4), int))
+        np.testing.assert_array_equal(
+            pyr.parent[level][groups.index],
+            np.arange(len(groups.index))[:, None] * np.ones((1, 4), int),
+        )
         coarse = image_texel_neighborhood(s // 2, s // 2)
         np.testing.assert_array_equal(pyr.nearest[level + 1].index, coarse.index)
         np.testing.assert_array_equal(pyr.nearest[level + 1].weight, coarse.weight)
@@ -51,7 +53,12 @@ def test_overshoot_walks_back_to_an_adjacent_group():
         # without walking back, overshooting taps fall back to the centre group more often
         def centre_reads(p, level=level):
             nb = p.nearest[level]
-            return int(((nb.index[..., 0] == np.arange(len(nb.index))[:, None]) & (nb.weight[..., 0] > 0)).sum())
+            return int(
+                (
+                    (nb.index[..., 0] == np.arange(len(nb.index))[:, None])
+                    & (nb.weight[..., 0] > 0)
+                ).sum()
+            )
 
         assert centre_reads(pyr) < centre_reads(no_backoff)
         nb = pyr.nearest[level]

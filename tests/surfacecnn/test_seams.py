@@ -47,7 +47,9 @@ def _tube(m=32, k=12, radius=0.5, height=1.5):
     """An open cylinder around z, outward normals."""
     a = 2 * np.pi * np.arange(m) / m
     z = np.linspace(0.0, height, k)
-    v = np.stack([np.tile(radius * np.cos(a), k), np.tile(radius * np.sin(a), k), np.repeat(z, m)], 1)
+    v = np.stack(
+        [np.tile(radius * np.cos(a), k), np.tile(radius * np.sin(a), k), np.repeat(z, m)], 1
+    )
     faces = []
     for r in range(k - 1):
         for c in range(m):
@@ -73,7 +75,9 @@ def test_texel_frames_turn_across_seams_as_inside_charts(sphere, frames):
     t = atlas.frame[:, 0]
 
     def angle(pairs):
-        return np.degrees(np.arccos(np.clip(np.sum(t[pairs[:, 0]] * t[pairs[:, 1]], axis=1), -1, 1)))
+        return np.degrees(
+            np.arccos(np.clip(np.sum(t[pairs[:, 0]] * t[pairs[:, 1]], axis=1), -1, 1))
+        )
 
     # texels one step apart: world tangents differ by the surface's turn over a texel (~4° here),
     # across a seam as inside a chart for surface frames; UV frames jump by the charts' layouts
@@ -88,7 +92,9 @@ def test_striped_exemplar_on_a_cylinder_follows_the_frame_field():
     v, f = _tube()
     mesh = Mesh(v, f, uv=unwrap_uv(v, f))
     config = Config(size=64, steps=80, layers=LAYERS, frame_vector=(0.0, 0.0, 1.0))
-    surface = prepare_surface(mesh, size=64, levels=1, boundary=config.boundary, frame_vector=(0.0, 0.0, 1.0))
+    surface = prepare_surface(
+        mesh, size=64, levels=1, boundary=config.boundary, frame_vector=(0.0, 0.0, 1.0)
+    )
     # the frame field says: t (the exemplar's growing column) along the axis
     assert np.abs(surface.atlas.frame[:, 0, 2]).min() > 0.999
     taps = surface.pyramid.nearest[0]
@@ -99,7 +105,14 @@ def test_striped_exemplar_on_a_cylinder_follows_the_frame_field():
     around = np.abs(d[:, 2]) < 0.1 * np.linalg.norm(d, axis=1)
     ratios = []
     for axis in (1, 0):  # colour varying along columns (→ along t), then along rows (→ along d)
-        r = synthesize(mesh, _stripes(axis=axis), config, key=jax.random.key(0), surface=surface, progress=False)
+        r = synthesize(
+            mesh,
+            _stripes(axis=axis),
+            config,
+            key=jax.random.key(0),
+            surface=surface,
+            progress=False,
+        )
         c = r.colors.astype(np.float64)
         diff = np.linalg.norm(c[a] - c[b], axis=1)
         ratios.append(diff[along].mean() / diff[around].mean())
@@ -128,7 +141,12 @@ def test_seam_ratio_needs_seams(sphere):
     v, f = grid(2)
     atlas = texture_atlas(v, f, v[f][..., :2], size=8)
     with pytest.raises(InputError, match="single chart"):
-        seam_ratio(np.zeros((64, 3)), atlas, texel_taps(v, f, atlas).nearest, geometry=tracer_geometry(v, f))
+        seam_ratio(
+            np.zeros((64, 3)),
+            atlas,
+            texel_taps(v, f, atlas).nearest,
+            geometry=tracer_geometry(v, f),
+        )
 
 
 def test_opposite_boundary_rule_reads_the_mirrored_tap():
@@ -148,7 +166,9 @@ def test_opposite_boundary_rule_reads_the_mirrored_tap():
 def test_centre_padding_matches_a_direct_computation(rng):
     w = load_vgg16()
     img = rng.uniform(size=(5, 6, 3))
-    got = np.asarray(vgg_features_centre_padded(jax.numpy.asarray(img), w, layers=("conv1_1",))["conv1_1"])
+    got = np.asarray(
+        vgg_features_centre_padded(jax.numpy.asarray(img), w, layers=("conv1_1",))["conv1_1"]
+    )
     x = np.asarray(w.preprocess(jax.numpy.asarray(img)))
     kernel, bias = (np.asarray(a, np.float64) for a in w.convs[0])
     want = np.zeros((5, 6, 64))
@@ -163,7 +183,9 @@ def test_centre_padding_matches_a_direct_computation(rng):
             want[i, j] = acc
     np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
     # interior pixels are the SAME convolution's
-    same = np.asarray(vgg_features(jax.numpy.asarray(img[None]), w, layers=("conv1_1",))["conv1_1"][0])
+    same = np.asarray(
+        vgg_features(jax.numpy.asarray(img[None]), w, layers=("conv1_1",))["conv1_1"][0]
+    )
     np.testing.assert_allclose(got[1:-1, 1:-1], same[1:-1, 1:-1], rtol=1e-10, atol=1e-10)
     g = gram_targets(img, w, layers=("relu1_1",), padding="centre")
     assert g["relu1_1"].shape == (64, 64)

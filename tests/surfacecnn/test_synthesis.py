@@ -15,13 +15,17 @@ LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1")
 
 
 def _histogram(colors, bins=8):
-    h = np.stack([np.histogram(colors[:, c], bins=bins, range=(0, 1))[0] for c in range(3)]).astype(float)
+    h = np.stack([np.histogram(colors[:, c], bins=bins, range=(0, 1))[0] for c in range(3)]).astype(
+        float
+    )
     return h / h.sum(axis=1, keepdims=True)
 
 
 @pytest.fixture(scope="module")
 def exemplar():
-    return skimage.transform.resize(skimage.data.chelsea()[100:260, 150:310], (48, 48), anti_aliasing=True)
+    return skimage.transform.resize(
+        skimage.data.chelsea()[100:260, 150:310], (48, 48), anti_aliasing=True
+    )
 
 
 @pytest.fixture(scope="module")
@@ -43,27 +47,48 @@ def test_gram_loss_drops_and_colours_move_to_the_exemplar(sphere, exemplar, key)
     np.testing.assert_allclose(result.colors.mean(0), exemplar.reshape(-1, 3).mean(0), atol=0.1)
     assert result.colors.min() >= 0 and result.colors.max() <= 1
     assert result.texture.shape == (32, 32, 3) and result.texture.dtype == np.float32
-    assert result.mesh.texture is result.texture or np.array_equal(result.mesh.texture, result.texture)
+    assert result.mesh.texture is result.texture or np.array_equal(
+        result.mesh.texture, result.texture
+    )
     np.testing.assert_array_equal(result.mesh.uv, sphere.uv)
 
 
 def test_learning_rate_schedule_and_config_errors():
     c = Config()
-    assert [c.learning_rate_at(s) for s in (0, 199, 200, 399, 400, 499)] == [0.1, 0.1, 0.05, 0.05, 0.025, 0.025]
+    assert [c.learning_rate_at(s) for s in (0, 199, 200, 399, 400, 499)] == [
+        0.1,
+        0.1,
+        0.05,
+        0.05,
+        0.025,
+        0.025,
+    ]
     assert (c.steps, c.init_low, c.init_high, c.pool) == (500, 0.0, 0.2, "mean")
-    for bad in ({"size": 2}, {"steps": -1}, {"learning_rate": 0.0}, {"pool": "sum"}, {"boundary": "wrap"},
-                {"init_low": 0.5, "init_high": 0.1}, {"layers": ()}, {"dtype": "float16"}):
+    for bad in (
+        {"size": 2},
+        {"steps": -1},
+        {"learning_rate": 0.0},
+        {"pool": "sum"},
+        {"boundary": "wrap"},
+        {"init_low": 0.5, "init_high": 0.1},
+        {"layers": ()},
+        {"dtype": "float16"},
+    ):
         with pytest.raises(ConfigError):
             Config(**bad)
 
 
 def test_stylize_keeps_content_and_bad_inputs(sphere, exemplar):
-    config = Config(size=32, steps=8, learning_rate=0.02, content_layer="relu1_2", content_weight=10.0)
+    config = Config(
+        size=32, steps=8, learning_rate=0.02, content_layer="relu1_2", content_weight=10.0
+    )
     surface = prepare_surface(sphere, size=32, levels=0)
     content = np.zeros((32, 32, 3))
     content[:, :16] = [0.9, 0.1, 0.1]
     content[:, 16:] = [0.1, 0.1, 0.9]
-    result = stylize(sphere, content, exemplar, config, layers=("relu1_1",), surface=surface, progress=False)
+    result = stylize(
+        sphere, content, exemplar, config, layers=("relu1_1",), surface=surface, progress=False
+    )
     # the content term keeps the left/right colour split
     col = surface.atlas.rows_cols()[1]
     left, right = result.colors[col < 14].mean(0), result.colors[col >= 18].mean(0)
@@ -74,8 +99,15 @@ def test_stylize_keeps_content_and_bad_inputs(sphere, exemplar):
     with pytest.raises(InputError, match="exemplar"):
         synthesize(sphere, np.zeros((4, 4, 5)), config, key=jax.random.key(0), progress=False)
     with pytest.raises(InputError, match="surface was prepared"):
-        synthesize(sphere, exemplar, Config(size=64), key=jax.random.key(0), surface=surface, layers=("relu1_1",),
-                   progress=False)
+        synthesize(
+            sphere,
+            exemplar,
+            Config(size=64),
+            key=jax.random.key(0),
+            surface=surface,
+            layers=("relu1_1",),
+            progress=False,
+        )
 
 
 def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch):
@@ -90,7 +122,9 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
     # a shorter run, then a longer one continuing from its last checkpoint
     ckpt = tmp_path / "ckpt"
     synthesize(mesh, ex, Config(size=16, steps=6), checkpoint=ckpt, **kw)
-    resumed = synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, checkpoint_every=3, **kw)
+    resumed = synthesize(
+        mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, checkpoint_every=3, **kw
+    )
     assert resumed.stats["resumed_at"] == 6
     np.testing.assert_array_equal(resumed.losses, full.losses)
     np.testing.assert_array_equal(resumed.colors, full.colors)
@@ -108,7 +142,9 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
         synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=killed, checkpoint_every=4, **kw)
     monkeypatch.setattr(Checkpoints, "save", save)
     assert Checkpoints(killed).steps() == [4]
-    again = synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=killed, checkpoint_every=4, **kw)
+    again = synthesize(
+        mesh, ex, Config(size=16, steps=10), checkpoint=killed, checkpoint_every=4, **kw
+    )
     assert again.stats["resumed_at"] == 4
     np.testing.assert_array_equal(again.losses, full.losses)
     np.testing.assert_array_equal(again.colors, full.colors)
@@ -118,6 +154,8 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
     with pytest.raises(CheckpointMismatchError, match="data"):
         synthesize(mesh, ex[::-1], Config(size=16, steps=10), checkpoint=ckpt, **kw)
     with pytest.raises(CheckpointMismatchError, match="key"):
-        synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, **{**kw, "key": jax.random.key(4)})
+        synthesize(
+            mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, **{**kw, "key": jax.random.key(4)}
+        )
     with pytest.raises(InputError, match="past this run"):
         synthesize(mesh, ex, Config(size=16, steps=5), checkpoint=ckpt, **kw)

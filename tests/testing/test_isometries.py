@@ -42,7 +42,13 @@ def test_folds_preserve_every_edge_length(lines, angles):
     # vertices on no moving side stay put
     still = np.ones(len(v), bool)
     for line in lines:
-        p, n = ((line[1], 0.0), (1.0, 0.0)) if line[0] == "x" else ((0.0, line[1]), (0.0, 1.0)) if line[0] == "y" else line
+        p, n = (
+            ((line[1], 0.0), (1.0, 0.0))
+            if line[0] == "x"
+            else ((0.0, line[1]), (0.0, 1.0))
+            if line[0] == "y"
+            else line
+        )
         still &= (v[:, :2] - np.asarray(p, float)) @ np.asarray(n, float) <= 1e-12
     np.testing.assert_array_equal(out[still], v[still])
 
@@ -59,12 +65,23 @@ def test_hinge_on_a_curved_mesh():
     v, f = icosphere(2)
     # the cap z > 0 is attached along the equator ring: not a hinge (the ring is not on one line)
     with pytest.raises(InputError, match="away from the axis"):
-        hinge(v, f, moving=v[:, 2] > 1e-9, axis_point=[0, 0, 0], axis_direction=[1, 0, 0], angle=0.3)
+        hinge(
+            v, f, moving=v[:, 2] > 1e-9, axis_point=[0, 0, 0], axis_direction=[1, 0, 0], angle=0.3
+        )
     # the whole mesh is a rigid piece by itself
-    out = hinge(v, f, moving=np.ones(len(v), bool), axis_point=[1, 2, 3], axis_direction=[0, 1, 1], angle=1.1)
+    out = hinge(
+        v,
+        f,
+        moving=np.ones(len(v), bool),
+        axis_point=[1, 2, 3],
+        axis_direction=[0, 1, 1],
+        angle=1.1,
+    )
     np.testing.assert_allclose(edge_lengths(out, f), edge_lengths(v, f), rtol=1e-14)
     d = np.array([0, 1, 1]) / np.sqrt(2)
-    np.testing.assert_allclose((out - [1, 2, 3]) @ d, (v - [1, 2, 3]) @ d, atol=1e-14)  # axial part kept
+    np.testing.assert_allclose(
+        (out - [1, 2, 3]) @ d, (v - [1, 2, 3]) @ d, atol=1e-14
+    )  # axial part kept
 
 
 def test_bad_input():
@@ -82,6 +99,15 @@ def test_bad_input():
     with pytest.raises(InputError, match="non-zero normal"):
         fold_sheet(v, f, lines=[((0.5, 0.5), (0.0, 0.0))], angles=[1.0])
     with pytest.raises(InputError, match="axis_direction"):
-        hinge(v, f, moving=v[:, 0] > 0.5, axis_point=[0.5, 0, 0], axis_direction=[0, 0, 0], angle=1.0)
+        hinge(
+            v, f, moving=v[:, 0] > 0.5, axis_point=[0.5, 0, 0], axis_direction=[0, 0, 0], angle=1.0
+        )
     with pytest.raises(InputError, match="bool"):
-        hinge(v, f, moving=np.arange(len(v)), axis_point=[0.5, 0, 0], axis_direction=[0, 1, 0], angle=1.0)
+        hinge(
+            v,
+            f,
+            moving=np.arange(len(v)),
+            axis_point=[0.5, 0, 0],
+            axis_direction=[0, 1, 0],
+            angle=1.0,
+        )

@@ -14,7 +14,9 @@ from jmeshtex.testing import _registry, run_registry
 def test_the_runner_checks_the_limit_after_every_check(monkeypatch):
     calls = []
     monkeypatch.setattr(_registry, "release_if_near_limit", lambda: calls.append(1) or False)
-    results = run_registry(["ops.complex_linear"], transforms=["rigid", "gauge"], dtypes=(jnp.float64,))
+    results = run_registry(
+        ["ops.complex_linear"], transforms=["rigid", "gauge"], dtypes=(jnp.float64,)
+    )
     assert len(results) == 2 and len(calls) == 2
 
 
@@ -22,6 +24,12 @@ def test_release_clears_the_caches_only_past_the_threshold(monkeypatch):
     cleared = []
     monkeypatch.setattr(jax, "clear_caches", lambda: cleared.append(1))
     monkeypatch.setattr(_memory_maps, "memory_maps", lambda: 700)
-    assert _memory_maps.release_if_near_limit(0.6, limit=2000) is False and not cleared  # 700 <= 1200
-    assert _memory_maps.release_if_near_limit(0.6, limit=1000) is True and cleared == [1]  # 700 > 600
-    assert _memory_maps.release_if_near_limit(0.6, limit=0) is False and cleared == [1]  # limit unknown
+    assert (
+        _memory_maps.release_if_near_limit(0.6, limit=2000) is False and not cleared
+    )  # 700 <= 1200
+    assert _memory_maps.release_if_near_limit(0.6, limit=1000) is True and cleared == [
+        1
+    ]  # 700 > 600
+    assert _memory_maps.release_if_near_limit(0.6, limit=0) is False and cleared == [
+        1
+    ]  # limit unknown

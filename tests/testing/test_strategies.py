@@ -23,7 +23,12 @@ def test_valid_meshes_pass_validation_and_need_no_repair(mesh):
     assert not report.changed and not len(report.kept_apart_vertices)
     np.testing.assert_array_equal(out.faces, mesh.faces)  # already outward / consistently oriented
     s = mesh_statistics(mesh)
-    expected = {"icosphere": (True, 0, 0), "torus": (True, 1, 0), "grid": (False, 0, 1), "delaunay": (False, 0, 1)}
+    expected = {
+        "icosphere": (True, 0, 0),
+        "torus": (True, 1, 0),
+        "grid": (False, 0, 1),
+        "delaunay": (False, 0, 1),
+    }
     assert (s.closed, s.genus, s.boundary_loops) == expected[mesh.name]
     assert s.components == 1
 
@@ -94,7 +99,12 @@ def _named_items_are_bad(kind: str, err: MeshError, v, f) -> None:
             incident = [set(face) for face in f.tolist() if p in face]
             fans = [{0}]
             for _ in incident:  # grow the first fan through shared edges
-                fans[0] |= {j for j in range(len(incident)) for i in fans[0] if len(incident[i] & incident[j]) >= 2}
+                fans[0] |= {
+                    j
+                    for j in range(len(incident))
+                    for i in fans[0]
+                    if len(incident[i] & incident[j]) >= 2
+                }
             assert len(fans[0]) < len(incident)  # some incident face is unreachable: a bow-tie
 
 

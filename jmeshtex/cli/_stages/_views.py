@@ -17,8 +17,15 @@ PANEL = (300, 280)  # (width, height) of one panel
 Progress = Callable[[str], None] | None
 
 
-def view(mesh, *, azimuth: float = -60.0, elevation: float = 25.0, size: tuple[int, int] = PANEL,
-         up: str = "z", **options) -> np.ndarray:
+def view(
+    mesh,
+    *,
+    azimuth: float = -60.0,
+    elevation: float = 25.0,
+    size: tuple[int, int] = PANEL,
+    up: str = "z",
+    **options,
+) -> np.ndarray:
     """``[H, W, 3]`` uint8 render of ``mesh`` from one camera of the standard rig.
 
     Args:
@@ -36,7 +43,9 @@ def view(mesh, *, azimuth: float = -60.0, elevation: float = 25.0, size: tuple[i
     """
     from ...render import orbit_cameras, render
 
-    camera = orbit_cameras(mesh, azimuths=(float(azimuth),), elevations=(float(elevation),), up=up, size=size)[0]
+    camera = orbit_cameras(
+        mesh, azimuths=(float(azimuth),), elevations=(float(elevation),), up=up, size=size
+    )[0]
     return render(mesh, camera, **options)
 
 

@@ -26,12 +26,26 @@ def tiny_configs(quick: bool = True) -> tuple[PrepareConfig, Config]:
     if quick:
         prep = PrepareConfig(levels=2, steps=150, samples_per_level=800)
         # equal widths at both levels and shared_levels=2: one compiled training step for both
-        train = Config(num_layers=4, start_features=16, min_features=16, max_features=16, steps=120,
-                       learning_rate_decay_every=100, shared_levels=2)
+        train = Config(
+            num_layers=4,
+            start_features=16,
+            min_features=16,
+            max_features=16,
+            steps=120,
+            learning_rate_decay_every=100,
+            shared_levels=2,
+        )
     else:
         prep = PrepareConfig(levels=3, steps=150, samples_per_level=800)
-        train = Config(num_layers=4, start_features=16, min_features=16, max_features=16, steps=160,
-                       learning_rate_decay_every=100, shared_levels=3)
+        train = Config(
+            num_layers=4,
+            start_features=16,
+            min_features=16,
+            max_features=16,
+            steps=160,
+            learning_rate_decay_every=100,
+            shared_levels=3,
+        )
     return prep, train
 
 
@@ -69,32 +83,53 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     def fitting(stage: str, done: int, total: int) -> None:
         say(progress, f"training meshes: {stage} {done}/{total}")
 
-    tm = training_meshes(ref, icosphere(1), config=prep, key=k_prepare,
-                         progress=fitting if progress is not None else False)
+    tm = training_meshes(
+        ref,
+        icosphere(1),
+        config=prep,
+        key=k_prepare,
+        progress=fitting if progress is not None else False,
+    )
     say(progress, f"training {tm.num_levels} levels")
     model = train(tm, cfg, key=k_train, progress=progress is not None).model
     say(progress, "transfer")
     target = torus(16, 8) if quick else torus(24, 12)
     res = transfer(model, target, num_samples=2, key=k_transfer)
     h_ref = normal_heights(tm.mesh(-1))
-    edge = float(np.linalg.norm(res.base[res.faces[:, 0]] - res.base[res.faces[:, 1]], axis=1).mean())
+    edge = float(
+        np.linalg.norm(res.base[res.faces[:, 0]] - res.base[res.faces[:, 1]], axis=1).mean()
+    )
     noisy = res.base + np.random.default_rng(0).standard_normal(res.base.shape) * h_ref.std() * edge
     w1 = wasserstein_distance(h_ref, normal_heights(res.mesh(0)))
     w1_flat = wasserstein_distance(h_ref, normal_heights((res.base, res.faces)))
     w1_noise = wasserstein_distance(h_ref, normal_heights((noisy, res.faces)))
     say(progress, "rendering")
-    figure([
-        ("reference (exemplar)", view(ref)),
-        (f"training level {tm.num_levels - 1}", view(tm.mesh(-1))),
-        (f"transfer 1, W1 {w1:.2f}", view(res.mesh(0))),
-        ("transfer 2", view(res.mesh(1))),
-        (f"baseline: none, W1 {w1_flat:.2f}", view((res.base, res.faces))),
-        (f"baseline: noise, W1 {w1_noise:.2f}", view((noisy, res.faces))),
-    ], columns=6, title="DGTS: a bumpy sphere's geometric texture transferred to a torus "
-                        "(W1 of normal heights to the reference)", path=out / "dgts.png")
+    figure(
+        [
+            ("reference (exemplar)", view(ref)),
+            (f"training level {tm.num_levels - 1}", view(tm.mesh(-1))),
+            (f"transfer 1, W1 {w1:.2f}", view(res.mesh(0))),
+            ("transfer 2", view(res.mesh(1))),
+            (f"baseline: none, W1 {w1_flat:.2f}", view((res.base, res.faces))),
+            (f"baseline: noise, W1 {w1_noise:.2f}", view((noisy, res.faces))),
+        ],
+        columns=6,
+        title="DGTS: a bumpy sphere's geometric texture transferred to a torus "
+        "(W1 of normal heights to the reference)",
+        path=out / "dgts.png",
+    )
     seconds = time.perf_counter() - t0
-    summary = (f"DGTS: {tm.num_levels} levels, reference {ref.num_faces} F, torus → {len(res.faces)} F, "
-               f"W1(heights) {w1:.3f} (no displacement {w1_flat:.3f}, noise {w1_noise:.3f}), {seconds:.1f} s")
-    return {"png": str(out / "dgts.png"), "seconds": seconds, "levels": tm.num_levels,
-            "faces": int(len(res.faces)), "w1_trained": float(w1), "w1_flat": float(w1_flat),
-            "w1_noise": float(w1_noise), "summary": summary}
+    summary = (
+        f"DGTS: {tm.num_levels} levels, reference {ref.num_faces} F, torus → {len(res.faces)} F, "
+        f"W1(heights) {w1:.3f} (no displacement {w1_flat:.3f}, noise {w1_noise:.3f}), {seconds:.1f} s"
+    )
+    return {
+        "png": str(out / "dgts.png"),
+        "seconds": seconds,
+        "levels": tm.num_levels,
+        "faces": int(len(res.faces)),
+        "w1_trained": float(w1),
+        "w1_flat": float(w1_flat),
+        "w1_noise": float(w1_noise),
+        "summary": summary,
+    }

@@ -23,7 +23,9 @@ def demo_mesh(quick: bool = True):
     image = builtin_images(max_size=150 if quick else 300, names=("coffee",))[0]
     mesh = planar_mesh(image, 600 if quick else 3000, rng=np.random.default_rng(0))
     v = mesh.vertices.copy()
-    v[:, 2] = 0.15 * np.sin(2.0 * v[:, 0]) * np.cos(1.5 * v[:, 1])  # bend it: the latents are intrinsic
+    v[:, 2] = (
+        0.15 * np.sin(2.0 * v[:, 0]) * np.cos(1.5 * v[:, 1])
+    )  # bend it: the latents are intrinsic
     return mesh.replace(vertices=v, name="coffee_sheet")
 
 
@@ -73,21 +75,41 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     m_perm = atlas_metrics(shuffled, result.target, result.valid, lpips=False)
     geometry = (mesh.vertices, mesh.faces)
 
-    scale = max(1, 280 // max(mesh.texture.shape[:2]))  # nearest-neighbour enlargement to the panel size
+    scale = max(
+        1, 280 // max(mesh.texture.shape[:2])
+    )  # nearest-neighbour enlargement to the panel size
 
     def sheet(texture):
-        return view(geometry, uv=mesh.uv, texture=np.clip(texture, 0.0, 1.0), azimuth=-90.0, elevation=40.0)
+        return view(
+            geometry, uv=mesh.uv, texture=np.clip(texture, 0.0, 1.0), azimuth=-90.0, elevation=40.0
+        )
 
-    figure([
-        ("exemplar image", np.kron(mesh.texture, np.ones((scale, scale, 1)))),
-        ("original texture", sheet(result.target)),
-        (f"FL-VAE, {m['psnr']:.1f} dB", sheet(result.texture)),
-        (f"baseline: flat, {m_flat['psnr']:.1f} dB", sheet(flat)),
-        (f"baseline: shuffled, {m_perm['psnr']:.1f} dB", sheet(shuffled)),
-    ], columns=5, title="FL-VAE: a textured sheet encoded to field latents and decoded (atlas PSNR)", path=files[1])
+    figure(
+        [
+            ("exemplar image", np.kron(mesh.texture, np.ones((scale, scale, 1)))),
+            ("original texture", sheet(result.target)),
+            (f"FL-VAE, {m['psnr']:.1f} dB", sheet(result.texture)),
+            (f"baseline: flat, {m_flat['psnr']:.1f} dB", sheet(flat)),
+            (f"baseline: shuffled, {m_perm['psnr']:.1f} dB", sheet(shuffled)),
+        ],
+        columns=5,
+        title="FL-VAE: a textured sheet encoded to field latents and decoded (atlas PSNR)",
+        path=files[1],
+    )
     seconds = time.perf_counter() - t0
-    summary = (f"FL-VAE: {mesh.num_vertices}-vertex sheet, {config.latent_dim} complex latents per vertex, "
-               f"atlas PSNR {m['psnr']:.2f} dB (flat {m_flat['psnr']:.2f}, shuffled {m_perm['psnr']:.2f}), "
-               f"DSSIM {m['dssim']:.3f}" + (f", LPIPS {m['lpips']:.3f}" if "lpips" in m else "") + f" ({seconds:.1f} s)")
-    return {"summary": summary, "psnr_db": m["psnr"], "dssim": m["dssim"], "flat_psnr_db": m_flat["psnr"],
-            "permuted_psnr_db": m_perm["psnr"], "seconds": seconds, "files": [str(f) for f in files]}
+    summary = (
+        f"FL-VAE: {mesh.num_vertices}-vertex sheet, {config.latent_dim} complex latents per vertex, "
+        f"atlas PSNR {m['psnr']:.2f} dB (flat {m_flat['psnr']:.2f}, shuffled {m_perm['psnr']:.2f}), "
+        f"DSSIM {m['dssim']:.3f}"
+        + (f", LPIPS {m['lpips']:.3f}" if "lpips" in m else "")
+        + f" ({seconds:.1f} s)"
+    )
+    return {
+        "summary": summary,
+        "psnr_db": m["psnr"],
+        "dssim": m["dssim"],
+        "flat_psnr_db": m_flat["psnr"],
+        "permuted_psnr_db": m_perm["psnr"],
+        "seconds": seconds,
+        "files": [str(f) for f in files],
+    }

@@ -79,12 +79,26 @@ def tiny_config(quick: bool = True):
     from ...fldm import Config
 
     if quick:
-        return Config.tiny(latent_channels=2, n_copies=4, copy_vertices=500, steps=300, batch_size=2,
-                           learning_rate=3e-3, widths=(16, 32), hdim=8, diffusion_steps=200, bucket=64)
-    return Config.cpu(latent_channels=2, n_copies=8, copy_vertices=1500, steps=1500, diffusion_steps=1000)
+        return Config.tiny(
+            latent_channels=2,
+            n_copies=4,
+            copy_vertices=500,
+            steps=300,
+            batch_size=2,
+            learning_rate=3e-3,
+            widths=(16, 32),
+            hdim=8,
+            diffusion_steps=200,
+            bucket=64,
+        )
+    return Config.cpu(
+        latent_channels=2, n_copies=8, copy_vertices=1500, steps=1500, diffusion_steps=1000
+    )
 
 
-def render_views(mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bool = False) -> np.ndarray:
+def render_views(
+    mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bool = False
+) -> np.ndarray:
     """``[len(VIEWS), size, size, 3]`` renders (float in [0, 1]) of an intensity field on ``mesh``.
 
     ``crop``: render at twice the size and keep the central half, where the sphere fills the frame
@@ -93,14 +107,23 @@ def render_views(mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bo
     return render_rgb_views(mesh, intensity_to_rgb(intensity), size=size, crop=crop)
 
 
-def render_rgb_views(mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool = False) -> np.ndarray:
+def render_rgb_views(
+    mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool = False
+) -> np.ndarray:
     """:func:`render_views` of per-vertex colours ``rgb [V, 3]`` in [0, 1] instead of an intensity."""
     from ...render import render_mesh
 
     rgb = np.asarray(rgb, np.float64)
     full = 2 * size if crop else size
-    imgs = np.stack([render_mesh(mesh.vertices, mesh.faces, vertex_colors=rgb, view=v, size=(full, full))
-                     for v in VIEWS]).astype(np.float32) / 255.0
+    imgs = (
+        np.stack(
+            [
+                render_mesh(mesh.vertices, mesh.faces, vertex_colors=rgb, view=v, size=(full, full))
+                for v in VIEWS
+            ]
+        ).astype(np.float32)
+        / 255.0
+    )
     if crop:
         a = size // 2
         imgs = imgs[:, a : a + size, a : a + size]
@@ -108,8 +131,13 @@ def render_rgb_views(mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool
 
 
 def learning_check(
-    *, quick: bool = True, n_samples: int = 2, key: jax.Array | None = None, progress: bool = False,
-    codec: str = "stripes", steps: int | None = None,
+    *,
+    quick: bool = True,
+    n_samples: int = 2,
+    key: jax.Array | None = None,
+    progress: bool = False,
+    codec: str = "stripes",
+    steps: int | None = None,
 ) -> dict:
     """Train a tiny FLDM on the striped sphere and measure fidelity and diversity of its samples.
 
@@ -159,7 +187,9 @@ def learning_check(
         cfg = cfg.replace(latent_channels=vae.config.latent_dim)
 
         def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
-            return np.asarray(decode_vertex_colors(vae, mesh, jnp.asarray(z, jnp.complex64)), np.float64)
+            return np.asarray(
+                decode_vertex_colors(vae, mesh, jnp.asarray(z, jnp.complex64)), np.float64
+            )
     else:
         raise ConfigError(f"codec must be 'stripes' or 'fl_vae', got {codec!r}")
     data = fldm.build_dataset(exemplar, cfg, encode=encode, key=k_data, progress=progress)
@@ -179,16 +209,38 @@ def learning_check(
     rec = render_rgb_views(target, decode(target, z_copy), size=96, crop=True)
     # baselines: a flat colour (the exemplar's mean) and the training latents shuffled over vertices
     # (the right marginal, no spatial structure)
-    flat = render_rgb_views(target, np.broadcast_to(np.mean(decode(target, z_copy), axis=0), (target.num_vertices, 3)),
-                            size=96, crop=True)
+    flat = render_rgb_views(
+        target,
+        np.broadcast_to(np.mean(decode(target, z_copy), axis=0), (target.num_vertices, 3)),
+        size=96,
+        crop=True,
+    )
     perm = host_rng(k_sample, 1).permutation(target.num_vertices)
     shuffled = render_rgb_views(target, decode(target, z_copy[perm]), size=96, crop=True)
 
     def gram(imgs):
-        return float(np.mean([np.asarray(gram_distance(jnp.asarray(i), jnp.asarray(ref), weights=weights)) for i in imgs]))
+        return float(
+            np.mean(
+                [
+                    np.asarray(gram_distance(jnp.asarray(i), jnp.asarray(ref), weights=weights))
+                    for i in imgs
+                ]
+            )
+        )
 
     pairs = [(a, b) for a in range(n_samples) for b in range(a + 1, n_samples)]
-    div = float(np.mean([np.asarray(lpips(jnp.asarray(tr[a]), jnp.asarray(tr[b]), weights=weights)) for a, b in pairs])) if pairs else 0.0
+    div = (
+        float(
+            np.mean(
+                [
+                    np.asarray(lpips(jnp.asarray(tr[a]), jnp.asarray(tr[b]), weights=weights))
+                    for a, b in pairs
+                ]
+            )
+        )
+        if pairs
+        else 0.0
+    )
     return {
         "gram_trained": gram(tr),
         "gram_untrained": gram(un),
@@ -259,23 +311,40 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     size = (240, 240)
 
     def stripes(mesh, intensity):
-        return view((mesh.vertices, mesh.faces), vertex_colors=intensity_to_rgb(intensity),
-                    azimuth=VIEWS[0][1], elevation=VIEWS[0][0], size=size)
+        return view(
+            (mesh.vertices, mesh.faces),
+            vertex_colors=intensity_to_rgb(intensity),
+            azimuth=VIEWS[0][1],
+            elevation=VIEWS[0][0],
+            size=size,
+        )
 
-    figure([
-        ("exemplar", stripes(exemplar, rgb_to_intensity(exemplar.vertex_colors))),
-        ("sample 1", stripes(target, stripe_decoder(z[0]))),
-        ("sample 2", stripes(target, stripe_decoder(z[1]))),
-        ("inpaint (top kept)", stripes(target, stripe_decoder(zi))),
-        (f"transfer {fine.num_vertices} V", stripes(fine, stripe_decoder(zf))),
-        ("baseline: flat", stripes(target, flat_baseline(copy)[:, 0])),
-        ("baseline: shuffled", stripes(target, permuted_baseline(copy, key=key)[:, 0])),
-    ], columns=4, title="FLDM: diffusion on field latents of a striped sphere", path=out / "fldm.png")
+    figure(
+        [
+            ("exemplar", stripes(exemplar, rgb_to_intensity(exemplar.vertex_colors))),
+            ("sample 1", stripes(target, stripe_decoder(z[0]))),
+            ("sample 2", stripes(target, stripe_decoder(z[1]))),
+            ("inpaint (top kept)", stripes(target, stripe_decoder(zi))),
+            (f"transfer {fine.num_vertices} V", stripes(fine, stripe_decoder(zf))),
+            ("baseline: flat", stripes(target, flat_baseline(copy)[:, 0])),
+            ("baseline: shuffled", stripes(target, permuted_baseline(copy, key=key)[:, 0])),
+        ],
+        columns=4,
+        title="FLDM: diffusion on field latents of a striped sphere",
+        path=out / "fldm.png",
+    )
     seconds = time.perf_counter() - t0
     losses = result.losses["loss"]
     first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
-    summary = (f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
-               f"{fldm.LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
-               f"{seconds:.1f} s")
-    return {"png": str(out / "fldm.png"), "seconds": seconds, "loss_first": first, "loss_last": last,
-            "summary": summary}
+    summary = (
+        f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
+        f"{fldm.LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
+        f"{seconds:.1f} s"
+    )
+    return {
+        "png": str(out / "fldm.png"),
+        "seconds": seconds,
+        "loss_first": first,
+        "loss_last": last,
+        "summary": summary,
+    }

@@ -31,15 +31,22 @@ def demo_meshes(quick: bool = True):
     tv = fine.vertices / np.linalg.norm(fine.vertices, axis=1, keepdims=True)
 
     def bumpy(p):
-        r = 1 + 0.25 * np.sin(3 * p[:, 0] + 1) * np.cos(2 * p[:, 1]) + 0.15 * np.sin(4 * p[:, 2] + 0.5)
+        r = (
+            1
+            + 0.25 * np.sin(3 * p[:, 0] + 1) * np.cos(2 * p[:, 1])
+            + 0.15 * np.sin(4 * p[:, 2] + 0.5)
+        )
         return p * r[:, None]
 
     def colour(p):
-        return np.stack([
-            0.5 + 0.4 * np.sin(6 * p[:, 0]) * np.cos(5 * p[:, 1]),
-            0.5 + 0.4 * np.sin(7 * p[:, 2] + 1),
-            0.5 + 0.3 * np.cos(4 * p[:, 0] + 3 * p[:, 1]),
-        ], axis=1)
+        return np.stack(
+            [
+                0.5 + 0.4 * np.sin(6 * p[:, 0]) * np.cos(5 * p[:, 1]),
+                0.5 + 0.4 * np.sin(7 * p[:, 2] + 1),
+                0.5 + 0.3 * np.cos(4 * p[:, 0] + 3 * p[:, 1]),
+            ],
+            axis=1,
+        )
 
     source = Mesh(bumpy(v), f, vertex_colors=colour(v), name="source")
     return source, Mesh(bumpy(tv), fine.faces, name="target"), colour(tv)
@@ -78,25 +85,47 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     t0 = time.perf_counter()
     source, target, truth = demo_meshes(quick)
     sc = source.vertex_colors
-    result = meshmatch(source, sc, target, key=jax.random.key(0), config=Config(),
-                       progress=(lambda line: say(progress, line)) if progress is not None else False)
+    result = meshmatch(
+        source,
+        sc,
+        target,
+        key=jax.random.key(0),
+        config=Config(),
+        progress=(lambda line: say(progress, line)) if progress is not None else False,
+    )
     rng = np.random.default_rng(0)
     random_colors = sc[rng.integers(0, source.num_vertices, target.num_vertices)]
     flat_colors = np.broadcast_to(flat_baseline(sc)[0], truth.shape)
     geometry = (target.vertices, target.faces)
-    value, baseline, flat = psnr(result.colors, truth), psnr(random_colors, truth), psnr(flat_colors, truth)
-    render.figure([
-        ("source (exemplar)", view(source)),
-        (f"transferred, {value:.1f} dB", view(geometry, vertex_colors=np.clip(result.colors, 0, 1))),
-        ("nearest-neighbour field", view(geometry, vertex_colors=nnf_colors(source, result.nnf))),
-        (f"baseline: flat, {flat:.1f} dB", view(geometry, vertex_colors=flat_colors)),
-        (f"baseline: random, {baseline:.1f} dB", view(geometry, vertex_colors=random_colors)),
-    ], columns=5, title="MeshMatch: self-transfer to a 4x finer mesh (PSNR vs the true colours)",
-        path=out / "meshmatch.png")
+    value, baseline, flat = (
+        psnr(result.colors, truth),
+        psnr(random_colors, truth),
+        psnr(flat_colors, truth),
+    )
+    render.figure(
+        [
+            ("source (exemplar)", view(source)),
+            (
+                f"transferred, {value:.1f} dB",
+                view(geometry, vertex_colors=np.clip(result.colors, 0, 1)),
+            ),
+            (
+                "nearest-neighbour field",
+                view(geometry, vertex_colors=nnf_colors(source, result.nnf)),
+            ),
+            (f"baseline: flat, {flat:.1f} dB", view(geometry, vertex_colors=flat_colors)),
+            (f"baseline: random, {baseline:.1f} dB", view(geometry, vertex_colors=random_colors)),
+        ],
+        columns=5,
+        title="MeshMatch: self-transfer to a 4x finer mesh (PSNR vs the true colours)",
+        path=out / "meshmatch.png",
+    )
     seconds = time.perf_counter() - t0
     return {
-        "summary": (f"MeshMatch self-transfer {source.num_vertices} → {target.num_vertices} vertices: PSNR "
-                    f"{value:.1f} dB (random field {baseline:.1f} dB, flat {flat:.1f} dB), {seconds:.1f} s"),
+        "summary": (
+            f"MeshMatch self-transfer {source.num_vertices} → {target.num_vertices} vertices: PSNR "
+            f"{value:.1f} dB (random field {baseline:.1f} dB, flat {flat:.1f} dB), {seconds:.1f} s"
+        ),
         "psnr_db": value,
         "random_psnr_db": baseline,
         "flat_psnr_db": flat,

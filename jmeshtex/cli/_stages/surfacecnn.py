@@ -61,33 +61,49 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     exemplar = demo_exemplar()
     config = surfacecnn.Config(size=128, steps=40 if quick else 150)
     say(progress, f"synthesis, {config.steps} steps")
-    result = surfacecnn.synthesize(torus(48, 24), exemplar, config, key=jax.random.key(0),
-                                   layers=QUICK_LAYERS if quick else None, progress=progress is not None)
+    result = surfacecnn.synthesize(
+        torus(48, 24),
+        exemplar,
+        config,
+        key=jax.random.key(0),
+        layers=QUICK_LAYERS if quick else None,
+        progress=progress is not None,
+    )
     say(progress, "saving and rendering")
     saved = surfacecnn.save(result, out / "result", exemplar=exemplar, title="surface CNN")
     m = result.mesh
     reps = -(-config.size // exemplar.shape[0])
-    shuffled = np.tile(permuted_baseline(exemplar, key=jax.random.key(1)), (reps, reps, 1))[: config.size, : config.size]
+    shuffled = np.tile(permuted_baseline(exemplar, key=jax.random.key(1)), (reps, reps, 1))[
+        : config.size, : config.size
+    ]
     flat = flat_baseline(exemplar)[:1, :1] * np.ones((config.size, config.size, 1))
 
     def torus_view(texture, azimuth=-60.0):
-        return view((m.vertices, m.faces), uv=m.uv, texture=texture, azimuth=azimuth, elevation=35.0)
+        return view(
+            (m.vertices, m.faces), uv=m.uv, texture=texture, azimuth=azimuth, elevation=35.0
+        )
 
-    figure([
-        ("exemplar", np.kron(exemplar, np.ones((4, 4, 1)))),
-        ("synthesised (front)", torus_view(result.texture)),
-        ("synthesised (back)", torus_view(result.texture, 120.0)),
-        ("texture atlas", np.kron(result.texture, np.ones((2, 2, 1)))),
-        ("baseline: flat", torus_view(flat)),
-        ("baseline: shuffled texels", torus_view(shuffled)),
-    ], columns=6, title="Surface CNN: VGG-16 Gram statistics of a photo matched on a torus's texels",
-        path=out / "surfacecnn.png")
+    figure(
+        [
+            ("exemplar", np.kron(exemplar, np.ones((4, 4, 1)))),
+            ("synthesised (front)", torus_view(result.texture)),
+            ("synthesised (back)", torus_view(result.texture, 120.0)),
+            ("texture atlas", np.kron(result.texture, np.ones((2, 2, 1)))),
+            ("baseline: flat", torus_view(flat)),
+            ("baseline: shuffled texels", torus_view(shuffled)),
+        ],
+        columns=6,
+        title="Surface CNN: VGG-16 Gram statistics of a photo matched on a torus's texels",
+        path=out / "surfacecnn.png",
+    )
     seconds = time.perf_counter() - t0
     drop = float(result.losses[0] / max(result.final_loss, 1e-30))
     return {
-        "summary": (f"surface CNN: {result.stats['texels']} texels at 128² on a torus, Gram loss "
-                    f"{result.losses[0]:.3g} → {result.final_loss:.3g} ({drop:.0f}× lower) in "
-                    f"{config.steps} steps, {seconds:.1f} s"),
+        "summary": (
+            f"surface CNN: {result.stats['texels']} texels at 128² on a torus, Gram loss "
+            f"{result.losses[0]:.3g} → {result.final_loss:.3g} ({drop:.0f}× lower) in "
+            f"{config.steps} steps, {seconds:.1f} s"
+        ),
         "loss_drop": drop,
         "seconds": seconds,
         "files": [str(out / "surfacecnn.png"), *saved["files"]],

@@ -44,12 +44,24 @@ def _init_discriminator(key, dtype):
 
 
 ENTRIES = (
-    Entry("dgts.generator_level", _generator, {"points": (POINTS, 3)}, DGTS_TRANSFORMS,
-          init=_init_generator, group="models",
-          doc="DGTS generator level: displacements rotate with the mesh, follow relabelling"),
-    Entry("dgts.discriminator", _discriminator, {"points": (POINTS, 3)}, DGTS_TRANSFORMS,
-          init=_init_discriminator, group="models",
-          doc="DGTS patch discriminator: per-face scores invariant to rigid motions and relabelling"),
+    Entry(
+        "dgts.generator_level",
+        _generator,
+        {"points": (POINTS, 3)},
+        DGTS_TRANSFORMS,
+        init=_init_generator,
+        group="models",
+        doc="DGTS generator level: displacements rotate with the mesh, follow relabelling",
+    ),
+    Entry(
+        "dgts.discriminator",
+        _discriminator,
+        {"points": (POINTS, 3)},
+        DGTS_TRANSFORMS,
+        init=_init_discriminator,
+        group="models",
+        doc="DGTS patch discriminator: per-face scores invariant to rigid motions and relabelling",
+    ),
 )
 
 for _entry in ENTRIES:

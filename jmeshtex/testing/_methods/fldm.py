@@ -39,12 +39,29 @@ from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 from .._state import regauge_neighborhood
 
 #: transforms the FLDM networks must commute with (smooth bending of the decimation: reported)
-FLDM_TRANSFORMS = ("rigid", "reflection", "gauge", "permute_vertices", "permute_faces", "rotate_corners",
-                   "fold", "folds", "hinge")
+FLDM_TRANSFORMS = (
+    "rigid",
+    "reflection",
+    "gauge",
+    "permute_vertices",
+    "permute_faces",
+    "rotate_corners",
+    "fold",
+    "folds",
+    "hinge",
+)
 FLDM_REPORT = ("cylinder",)
 
-CONFIG = Config.tiny(latent_channels=2, widths=(4, 6), hdim=4, knn=7, mlp_layers=2, filter_layers=2, activation="silu",
-                     time_features=8)
+CONFIG = Config.tiny(
+    latent_channels=2,
+    widths=(4, 6),
+    hdim=4,
+    knn=7,
+    mlp_layers=2,
+    filter_layers=2,
+    activation="silu",
+    time_features=8,
+)
 LABEL_CONFIG = CONFIG.replace(num_labels=3)
 MASK_CONFIG = CONFIG.replace(mask_conditioning=True)
 DDPM_SCHEDULE = make_schedule("linear", num_steps=4)
@@ -65,8 +82,9 @@ def _geometry(state):
         turn = np.exp(1j * state.gauge)
         pm = pm._replace(
             to_parent=pm.to_parent * turn,
-            children_transport=np.where(pm.children_mask, pm.children_transport * turn[pm.children],
-                                        pm.children_transport),
+            children_transport=np.where(
+                pm.children_mask, pm.children_transport * turn[pm.children], pm.children_transport
+            ),
         )
         return to_jax(geo._replace(fine=fine, pool=pm), state.dtype)
 
@@ -82,7 +100,12 @@ def _init_for(config):
         geo = denoiser_geometry(icosahedron(), knn=config.knn, pool_ratio=0.5)
         params = init_denoiser(key, config, geo, dtype=cdt)
         # random (not unit) FRN gains so the check is not blind to any channel
-        return jax.tree.map(lambda p: p * (1.0 + 0.5 * jnp.cos(jnp.arange(p.size).reshape(p.shape)).astype(p.dtype)), params)
+        return jax.tree.map(
+            lambda p: (
+                p * (1.0 + 0.5 * jnp.cos(jnp.arange(p.size).reshape(p.shape)).astype(p.dtype))
+            ),
+            params,
+        )
 
     return init
 
@@ -98,23 +121,38 @@ def _denoiser_labels(state, params, z, s):
     from ...fldm import denoise
 
     labels = jnp.argmax(s, axis=1).astype(jnp.int32)
-    out = denoise(params, LABEL_CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state), labels=labels)
+    out = denoise(
+        params, LABEL_CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state), labels=labels
+    )
     return Field(VERTEX_TANGENT, out)
 
 
 def _denoiser_reference_argument(state, params, z):
     from ...fldm import denoise
 
-    out = denoise(params, CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state),
-                  filter_argument="untransported")
+    out = denoise(
+        params,
+        CONFIG,
+        z,
+        jnp.asarray(TIMESTEP, jnp.int32),
+        _geometry(state),
+        filter_argument="untransported",
+    )
     return Field(VERTEX_TANGENT, out)
 
 
 def _denoiser_mask(state, params, z, known, s):
     from ...fldm import denoise
 
-    out = denoise(params, MASK_CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state), mask=s[:, 0] > 0,
-                  known=known)
+    out = denoise(
+        params,
+        MASK_CONFIG,
+        z,
+        jnp.asarray(TIMESTEP, jnp.int32),
+        _geometry(state),
+        mask=s[:, 0] > 0,
+        known=known,
+    )
     return Field(VERTEX_TANGENT, out)
 
 
@@ -132,8 +170,15 @@ def _sampler_inpaint(state, params, z_T, noise, known_noise, known, s):
     def eps(z, t):
         return denoise(params, MASK_CONFIG, z, t, geo, mask=mask, known=known)
 
-    out = sample_from_noise(eps, DDPM_SCHEDULE, z_T, steps(noise), method="ddpm", inpaint=Inpaint(known, mask),
-                            inpaint_noise=steps(known_noise))
+    out = sample_from_noise(
+        eps,
+        DDPM_SCHEDULE,
+        z_T,
+        steps(noise),
+        method="ddpm",
+        inpaint=Inpaint(known, mask),
+        inpaint_noise=steps(known_noise),
+    )
     return Field(VERTEX_TANGENT, out)
 
 
@@ -147,37 +192,96 @@ def _sampler(state, params, z_T, noise):
     def eps(z, t):
         return denoise(params, CONFIG, z, t, geo)
 
-    out = sample_from_noise(eps, SAMPLER_SCHEDULE, z_T, step_noise, method="ddim", num_steps=SAMPLER_STEPS, eta=0.5)
+    out = sample_from_noise(
+        eps, SAMPLER_SCHEDULE, z_T, step_noise, method="ddim", num_steps=SAMPLER_STEPS, eta=0.5
+    )
     return Field(VERTEX_TANGENT, out)
 
 
 ENTRIES = (
-    register(Entry("fldm.denoiser", _denoiser, {"z": (VERTEX_TANGENT, CONFIG.latent_channels)}, FLDM_TRANSFORMS,
-                   init=_init_for(CONFIG), group="fldm", report=FLDM_REPORT,
-                   doc="FLDM U-Net ε̂(z_t, t): field convs with timestep in the filters, pool/unpool")),
-    register(Entry("fldm.denoiser_labels", _denoiser_labels,
-                   {"z": (VERTEX_TANGENT, CONFIG.latent_channels), "s": (VERTEX_SCALAR, 3)}, FLDM_TRANSFORMS,
-                   init=_init_for(LABEL_CONFIG), group="fldm", report=FLDM_REPORT,
-                   doc="FLDM U-Net with a per-vertex label map (argmax of s) in the filters")),
-    register(Entry("fldm.denoiser_reference_argument", _denoiser_reference_argument,
-                   {"z": (VERTEX_TANGENT, CONFIG.latent_channels)}, ("permute_vertices",),
-                   init=_init_for(CONFIG), expect_fail=("gauge",), group="negative",
-                   doc="FLDM U-Net with the reference code's untransported filter argument: breaks gauge")),
-    register(Entry("fldm.denoiser_mask", _denoiser_mask,
-                   {"z": (VERTEX_TANGENT, CONFIG.latent_channels), "known": (VERTEX_TANGENT, CONFIG.latent_channels),
-                    "s": (VERTEX_SCALAR, 1)}, FLDM_TRANSFORMS,
-                   init=_init_for(MASK_CONFIG), group="fldm", report=FLDM_REPORT,
-                   doc="mask-conditioned FLDM U-Net: inpainting mask in the filters, known latents as channels")),
-    register(Entry("fldm.sampler_inpaint", _sampler_inpaint,
-                   {"z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
-                    "noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
-                    "known_noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
-                    "known": (VERTEX_TANGENT, CONFIG.latent_channels), "s": (VERTEX_SCALAR, 1)},
-                   FLDM_TRANSFORMS, init=_init_for(MASK_CONFIG), group="fldm", report=FLDM_REPORT,
-                   doc="ancestral DDPM inpainting (4 steps) with the mask-conditioned denoiser, as a map of its noise")),
-    register(Entry("fldm.sampler", _sampler,
-                   {"z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
-                    "noise": (VERTEX_TANGENT, CONFIG.latent_channels * SAMPLER_STEPS)},
-                   FLDM_TRANSFORMS, init=_init_for(CONFIG), group="fldm", report=FLDM_REPORT,
-                   doc="DDIM sampler (3 steps, η=0.5) as a map of its noise: samples commute with transforms")),
+    register(
+        Entry(
+            "fldm.denoiser",
+            _denoiser,
+            {"z": (VERTEX_TANGENT, CONFIG.latent_channels)},
+            FLDM_TRANSFORMS,
+            init=_init_for(CONFIG),
+            group="fldm",
+            report=FLDM_REPORT,
+            doc="FLDM U-Net ε̂(z_t, t): field convs with timestep in the filters, pool/unpool",
+        )
+    ),
+    register(
+        Entry(
+            "fldm.denoiser_labels",
+            _denoiser_labels,
+            {"z": (VERTEX_TANGENT, CONFIG.latent_channels), "s": (VERTEX_SCALAR, 3)},
+            FLDM_TRANSFORMS,
+            init=_init_for(LABEL_CONFIG),
+            group="fldm",
+            report=FLDM_REPORT,
+            doc="FLDM U-Net with a per-vertex label map (argmax of s) in the filters",
+        )
+    ),
+    register(
+        Entry(
+            "fldm.denoiser_reference_argument",
+            _denoiser_reference_argument,
+            {"z": (VERTEX_TANGENT, CONFIG.latent_channels)},
+            ("permute_vertices",),
+            init=_init_for(CONFIG),
+            expect_fail=("gauge",),
+            group="negative",
+            doc="FLDM U-Net with the reference code's untransported filter argument: breaks gauge",
+        )
+    ),
+    register(
+        Entry(
+            "fldm.denoiser_mask",
+            _denoiser_mask,
+            {
+                "z": (VERTEX_TANGENT, CONFIG.latent_channels),
+                "known": (VERTEX_TANGENT, CONFIG.latent_channels),
+                "s": (VERTEX_SCALAR, 1),
+            },
+            FLDM_TRANSFORMS,
+            init=_init_for(MASK_CONFIG),
+            group="fldm",
+            report=FLDM_REPORT,
+            doc="mask-conditioned FLDM U-Net: inpainting mask in the filters, known latents as channels",
+        )
+    ),
+    register(
+        Entry(
+            "fldm.sampler_inpaint",
+            _sampler_inpaint,
+            {
+                "z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
+                "noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
+                "known_noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
+                "known": (VERTEX_TANGENT, CONFIG.latent_channels),
+                "s": (VERTEX_SCALAR, 1),
+            },
+            FLDM_TRANSFORMS,
+            init=_init_for(MASK_CONFIG),
+            group="fldm",
+            report=FLDM_REPORT,
+            doc="ancestral DDPM inpainting (4 steps) with the mask-conditioned denoiser, as a map of its noise",
+        )
+    ),
+    register(
+        Entry(
+            "fldm.sampler",
+            _sampler,
+            {
+                "z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
+                "noise": (VERTEX_TANGENT, CONFIG.latent_channels * SAMPLER_STEPS),
+            },
+            FLDM_TRANSFORMS,
+            init=_init_for(CONFIG),
+            group="fldm",
+            report=FLDM_REPORT,
+            doc="DDIM sampler (3 steps, η=0.5) as a map of its noise: samples commute with transforms",
+        )
+    ),
 )

@@ -24,16 +24,32 @@ NUM_ANGLES = 6
 def _fan(state, params, x, u):
     """Fans ``[V, R·A·C]`` of colours ``x`` with angle 0 along ``u`` (state gauge → intrinsic)."""
     ref = np.asarray(u)[:, 0].astype(np.complex128) * np.exp(1j * state.gauge)
-    fans = fan_descriptor((state.vertices, state.faces), jnp.asarray(x), radii=RADII, num_angles=NUM_ANGLES,
-                          reference=ref)
+    fans = fan_descriptor(
+        (state.vertices, state.faces),
+        jnp.asarray(x),
+        radii=RADII,
+        num_angles=NUM_ANGLES,
+        reference=ref,
+    )
     return Field(VERTEX_SCALAR, fans.reshape(fans.shape[0], -1))
 
 
-ENTRY = register(Entry(
-    "meshmatch.fan_descriptor",
-    _fan,
-    {"x": (VERTEX_SCALAR, 3), "u": (VERTEX_TANGENT, 1)},
-    ("rigid", "gauge", "permute_vertices", "permute_faces", "rotate_corners", "fold", "hinge", "cylinder"),
-    group="models",
-    doc="MeshMatch geodesic fan (R=2 × A=6, exp-map tracer, pre-filtered), angle 0 along u",
-))
+ENTRY = register(
+    Entry(
+        "meshmatch.fan_descriptor",
+        _fan,
+        {"x": (VERTEX_SCALAR, 3), "u": (VERTEX_TANGENT, 1)},
+        (
+            "rigid",
+            "gauge",
+            "permute_vertices",
+            "permute_faces",
+            "rotate_corners",
+            "fold",
+            "hinge",
+            "cylinder",
+        ),
+        group="models",
+        doc="MeshMatch geodesic fan (R=2 × A=6, exp-map tracer, pre-filtered), angle 0 along u",
+    )
+)

@@ -37,26 +37,34 @@ def vertex_taps(state, u) -> TexelNeighborhood:
     direction = (offset.real[None] * t[:, None] + offset.imag[None] * (-1j * t)[:, None]).ravel()
     length = np.tile(STEP * np.abs(offset), V)
     vertex = np.repeat(np.arange(V), 9)
-    result = trace_from_vertices(state.vertices, state.faces, vertex, np.where(length > 0, direction, 0),
-                                 length)
+    result = trace_from_vertices(
+        state.vertices, state.faces, vertex, np.where(length > 0, direction, 0), length
+    )
     index = state.faces[result.face].reshape(V, 9, 3)
     weight = np.where(result.stopped[:, None], 0.0, result.bary).reshape(V, 9, 3)
     centre = np.arange(V)
     index[:, 4] = centre[:, None]
     weight[:, 4] = [1.0, 0.0, 0.0]
-    return TexelNeighborhood(index=index.astype(np.int32), weight=weight, texel_mask=np.ones(V, bool))
+    return TexelNeighborhood(
+        index=index.astype(np.int32), weight=weight, texel_mask=np.ones(V, bool)
+    )
 
 
 def _first_layer(state, params, x, u):
     kernel, bias = params
     taps = vertex_taps(state, u)
-    taps = TexelNeighborhood(jnp.asarray(taps.index), jnp.asarray(taps.weight, x.dtype), jnp.asarray(taps.texel_mask))
+    taps = TexelNeighborhood(
+        jnp.asarray(taps.index), jnp.asarray(taps.weight, x.dtype), jnp.asarray(taps.texel_mask)
+    )
     return Field(VERTEX_SCALAR, jax.nn.relu(texel_conv(x, taps, kernel, bias)))
 
 
 def _init(key, dtype):
     k1, k2 = jax.random.split(key)
-    return (jax.random.normal(k1, (3, 3, 3, CHANNELS), dtype) / 5.0, jax.random.normal(k2, (CHANNELS,), dtype) / 10)
+    return (
+        jax.random.normal(k1, (3, 3, 3, CHANNELS), dtype) / 5.0,
+        jax.random.normal(k2, (CHANNELS,), dtype) / 10,
+    )
 
 
 ENTRIES = (
