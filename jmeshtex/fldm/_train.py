@@ -37,18 +37,15 @@ parameters and losses as an uninterrupted run; a folder written by another run r
 from __future__ import annotations
 
 import functools
-import json
 import os
-import pathlib
 import time
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._errors import ConfigError, InputError, MeshIOError
+from .._errors import ConfigError, InputError
 from .._random import host_rng, key_ints
 from .._train_result import TrainResult
 from ..ops import conjugate_complex_grads, tangent_noise
@@ -65,23 +62,7 @@ from ._data import Dataset, batch_geometry
 from ._denoiser import DenoiserGeometry, denoise, init_denoiser
 from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
 from ._masks import batch_masks
-
-MODEL_FILE = "model.npz"
-MODEL_JSON = "model.json"
-
-
-class Model(NamedTuple):
-    """A trained (or freshly initialised) FLDM: the denoiser's parameters with their config and scale.
-
-    Attributes:
-      params: denoiser parameters (flax ``params`` dict, :func:`init_denoiser`).
-      config: the :class:`Config`.
-      scale: ``[d]`` latent scale ``s`` (train on ``s·μ``, decode ``z/s``; eq. 38–39).
-    """
-
-    params: dict
-    config: Config
-    scale: np.ndarray
+from ._model import Model
 
 
 def learning_rate_schedule(config: Config) -> optax.Schedule:
@@ -341,75 +322,6 @@ def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
             "scale": np.asarray(data.scale, np.float64).tolist(),
         },
     }
-
-
-def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
-    """Write ``model.npz`` (parameters) + ``model.json`` (config, scale) into the folder ``path``, atomically.
-
-    Args:
-      model: the :class:`Model` (e.g. ``train(...).model``).
-      path: the folder (created if needed).
-
-    Returns:
-      The folder.
-
-    Example:
-      >>> import tempfile
-      >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fldm import build_dataset
-      >>> cfg = Config.tiny(latent_channels=1, n_copies=1, copy_vertices=0, bucket=32)
-      >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
-      ...                      key=jax.random.key(0), progress=False)
-      >>> folder = save(init(data, cfg, key=jax.random.key(1)), tempfile.mkdtemp())
-      >>> load(folder).config == cfg
-      True
-    """
-    from ..io import atomic_save_npz, atomic_write
-
-    if not isinstance(model, Model):
-        raise InputError(
-            f"save(model, path): expected a jmeshtex.fldm.Model first, got {type(model).__name__}"
-        )
-    out = pathlib.Path(path)
-    arrays = {
-        "/".join(str(getattr(k, "key", k)) for k in kp): np.asarray(v)
-        for kp, v in jax.tree_util.tree_flatten_with_path(model.params)[0]
-    }
-    atomic_save_npz(out / MODEL_FILE, arrays)
-    meta = {"config": model.config.to_dict(), "scale": np.asarray(model.scale).tolist()}
-    atomic_write(out / MODEL_JSON, json.dumps(meta, indent=2).encode())
-    return out
-
-
-def load(path: str | os.PathLike) -> Model:
-    """Read a model written by :func:`save`.
-
-    Args:
-      path: the folder that holds ``model.npz`` and ``model.json``.
-
-    Returns:
-      The :class:`Model` (parameters as JAX arrays with their saved dtypes).
-
-    Raises:
-      MeshIOError: missing or unreadable files.
-    """
-    from ..io import load_npz
-
-    out = pathlib.Path(path)
-    if not (out / MODEL_JSON).is_file():
-        raise MeshIOError(
-            f"no FLDM model in {out} (expected {MODEL_JSON} and {MODEL_FILE}; train one with `jmeshtex fldm train`)"
-        )
-    meta = json.loads((out / MODEL_JSON).read_text())
-    arrays = load_npz(out / MODEL_FILE, "FLDM model")
-    params: dict = {}
-    for name, value in arrays.items():
-        node = params
-        *parents, leaf = name.split("/")
-        for p in parents:
-            node = node.setdefault(p, {})
-        node[leaf] = jnp.asarray(value)
-    return Model(params, Config.from_dict(meta["config"]), np.asarray(meta["scale"], np.float64))
 
 
 def train(
