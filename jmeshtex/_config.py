@@ -12,9 +12,18 @@ its method package for a library config: ``dgts.Config``),
 ``{name}``, ``{value}``, ``{must}`` (the rule's requirement) and ``{c}`` (the config); without its
 own template it uses the class's ``_MESSAGE`` (default ``"{cls}.{name} must be {must}, got {value!r}"``).
 A cross rule's template sees ``{cls}`` and ``{c}`` (``"{c.lo} > {c.hi}"``), or it is a function of
-the config for messages that need computed values. A predicate that raises ``TypeError`` or
-``ValueError`` (a string where a number belongs, ``len`` of an int) counts as broken, so a wrongly
-typed value gets the rule's message too, never a bare built-in error.
+the config for messages that need computed values. A predicate that raises ``TypeError``,
+``ValueError`` or ``ArithmeticError`` (a string where a number belongs, ``len`` of an int,
+``10**400`` as a float) counts as broken, so a wrongly typed value gets the rule's message too,
+never a bare built-in error.
+
+After the ``_RULES``, every field is checked against its annotation (:func:`type_ok`): an ``int``
+field takes an integer (``np.integer`` too, never a bool) below ``2**31``, a ``float`` field a
+finite number, a ``bool`` field True or False, a ``str`` field a string, a tuple field a tuple of
+such values; ``X | None`` also takes None. So every field of every config has at least a type and
+finiteness rule, and ``_RULES`` add the ranges. Before any check, NumPy scalars become Python
+scalars and lists (or 1-D arrays) given for tuple fields become tuples, so a config stays hashable
+and writes plain JSON.
 
 :meth:`ConfigBase.to_dict` writes plain JSON values (tuples become lists); :meth:`ConfigBase.from_dict`
 reads them back: lists become tuples for fields annotated with a tuple type, missing keys take their
@@ -51,7 +60,12 @@ import typing
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar, TypeVar, Union
 
+import numpy as np
+
 from ._errors import ConfigError
+
+#: the bound of an ``int`` field (exclusive): JAX's default integer is int32
+INT_LIMIT = 2**31
 
 #: a message template (``str.format``), or a function of the config for a cross rule
 Message = str | Callable[[Any], str]
@@ -91,14 +105,32 @@ class Rule:
             value = getattr(config, name)
             if not _holds(self.ok, value):
                 raise ConfigError(
-                    template.format(cls=cls, name=name, value=value, must=self.must, c=config)
+                    template.format(
+                        cls=cls, name=name, value=_shown(value), must=self.must, c=config
+                    )
                 )
+
+
+class _Huge(int):
+    """An integer too long to print in a message: shown as its digit count."""
+
+    def __repr__(self) -> str:
+        return f"<an integer of {len(str(abs(int(self))))} digits>"
+
+    __str__ = __repr__
+
+
+def _shown(value: Any) -> Any:
+    """``value`` as a message shows it: an integer of more than 30 digits by its length."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
+        return _Huge(value)
+    return value
 
 
 def _holds(ok: Callable[[Any], bool], arg: Any) -> bool:
     try:
         return bool(ok(arg))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, ArithmeticError):
         return False
 
 
@@ -162,24 +194,42 @@ def cross_rule(ok: Callable[[Any], bool], message: Message) -> Rule:
     return Rule((), ok, "", message)
 
 
-def is_int(x: Any) -> bool:
-    """Whether ``x`` is an ``int`` and not a ``bool``.
+def is_int(x: Any, low: int | None = None) -> bool:
+    """Whether ``x`` is an integer (``int`` or ``np.integer``, not a bool), and ``>= low`` if given.
+
+    The one integer check of the package: arguments and config fields use it.
+
+    Args:
+      x: any value.
+      low: the smallest value accepted; None: no bound.
+
+    Returns:
+      True for an integer (at least ``low``), False otherwise (never raises).
 
     Example:
-      >>> is_int(3), is_int(True), is_int(3.0)
-      (True, False, False)
+      >>> is_int(3), is_int(np.int64(3)), is_int(True), is_int(3.0), is_int(0, low=1)
+      (True, True, False, False, False)
     """
-    return isinstance(x, int) and not isinstance(x, bool)
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, np.integer)):
+        return False
+    return low is None or x >= low
 
 
 def is_finite_number(x: Any) -> bool:
-    """Whether ``x`` is an ``int`` or ``float`` and finite.
+    """Whether ``x`` is a real number (``int``, ``float`` or a NumPy one, not a bool) and finite.
 
     Example:
       >>> is_finite_number(0.5), is_finite_number(float("inf")), is_finite_number("1")
       (True, False, False)
+      >>> is_finite_number(10**400), is_finite_number(True)
+      (False, False)
     """
-    return isinstance(x, (int, float)) and math.isfinite(x)
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
+        return False
+    try:
+        return math.isfinite(x)
+    except OverflowError:  # an int too large for a float
+        return False
 
 
 def integers(names: str, low: int) -> Rule:
@@ -189,7 +239,106 @@ def integers(names: str, low: int) -> Rule:
       >>> integers("size steps", 1).must
       'an integer >= 1'
     """
-    return rule(names, lambda x: is_int(x) and x >= low, f"an integer >= {low}")
+    return rule(names, lambda x: is_int(x, low), f"an integer >= {low}")
+
+
+def type_ok(hint: Any, value: Any) -> bool:
+    """Whether ``value`` fits the field annotation ``hint`` (the type rule every config field gets).
+
+    ``int``: an integer (not a bool) in ``(-2**31, 2**31)``; ``float``: a finite number; ``bool``:
+    True or False; ``str``: a string; ``tuple[X, ...]`` / ``tuple[X, Y]``: a tuple of such values;
+    ``X | Y``: either; ``None``: None. Any other annotation accepts every value.
+
+    Args:
+      hint: a resolved annotation (``typing.get_type_hints``).
+      value: the field's value.
+
+    Returns:
+      Whether the value fits.
+
+    Example:
+      >>> type_ok(int, 3), type_ok(int, 1.5), type_ok(float, float("nan")), type_ok(bool, 1)
+      (True, False, False, False)
+      >>> type_ok(tuple[int, int], (1, 2)), type_ok(tuple[float, ...] | None, None)
+      (True, True)
+    """
+    origin = typing.get_origin(hint)
+    if origin in (Union, types.UnionType):
+        return any(type_ok(a, value) for a in typing.get_args(hint))
+    if hint is type(None) or hint is None:
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return is_int(value) and -INT_LIMIT < value < INT_LIMIT
+    if hint is float:
+        return is_finite_number(value)
+    if hint is str:
+        return isinstance(value, str)
+    if hint is tuple or origin is tuple:
+        if not isinstance(value, tuple):
+            return False
+        args = typing.get_args(hint)
+        if not args:
+            return True
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(type_ok(args[0], v) for v in value)
+        return len(value) == len(args) and all(
+            type_ok(a, v) for a, v in zip(args, value, strict=True)
+        )
+    return True
+
+
+def type_words(hint: Any) -> str:
+    """What :func:`type_ok` asks of a value of annotation ``hint``, in words (for messages).
+
+    Example:
+      >>> type_words(int), type_words(tuple[float, float, float] | str | None)
+      ('an integer below 2**31', 'a tuple of 3 finite numbers, a string or None')
+    """
+    origin = typing.get_origin(hint)
+    if origin in (Union, types.UnionType):
+        words = [type_words(a) for a in typing.get_args(hint)]
+        return ", ".join(words[:-1]) + " or " + words[-1] if len(words) > 1 else words[0]
+    if hint is type(None) or hint is None:
+        return "None"
+    if hint is tuple or origin is tuple:
+        args = typing.get_args(hint)
+        if not args:
+            return "a tuple"
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a tuple of {_plural(args[0])}"
+        if len(set(args)) == 1:
+            return f"a tuple of {len(args)} {_plural(args[0])}"
+        return "a tuple (" + ", ".join(type_words(a) for a in args) + ")"
+    return _WORDS.get(hint, getattr(hint, "__name__", str(hint)))
+
+
+_WORDS = {
+    int: "an integer below 2**31",
+    float: "a finite number",
+    bool: "True or False",
+    str: "a string",
+}
+
+
+def _plural(hint: Any) -> str:
+    return {int: "integers", float: "finite numbers", bool: "bools", str: "strings"}.get(
+        hint, type_words(hint)
+    )
+
+
+def _normalise(hint: Any, value: Any) -> Any:
+    """NumPy scalars as Python scalars; a list or 1-D array given for a tuple field as a tuple."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray) and value.ndim == 1 and _is_tuple_type(hint):
+        return tuple(v.item() for v in value)
+    if isinstance(value, list) and _is_tuple_type(hint):
+        return tuple(_normalise(None, v) for v in value)
+    if isinstance(value, tuple):
+        return tuple(_normalise(None, v) for v in value)
+    return value
 
 
 class ConfigBase:
@@ -203,8 +352,27 @@ class ConfigBase:
     _MESSAGE: ClassVar[str] = "{cls}.{name} must be {must}, got {value!r}"
 
     def __post_init__(self) -> None:
+        hints = _hints(type(self))
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            normal = _normalise(hints.get(f.name), value)
+            if normal is not value:
+                object.__setattr__(self, f.name, normal)
         for r in self._RULES:
             r.check(self)
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            hint = hints.get(f.name)
+            value = getattr(self, f.name)
+            if hint is not None and not type_ok(hint, value):
+                raise ConfigError(
+                    self._MESSAGE.format(
+                        cls=display_name(type(self)),
+                        name=f.name,
+                        value=_shown(value),
+                        must=type_words(hint),
+                        c=self,
+                    )
+                )
 
     def to_dict(self) -> dict[str, Any]:
         """The fields as a JSON-compatible dict (tuples become lists)."""
@@ -246,8 +414,13 @@ def _plain(value: Any) -> Any:
 
 
 @functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+@functools.cache
 def _tuple_fields(cls: type) -> frozenset[str]:
-    hints = typing.get_type_hints(cls)
+    hints = _hints(cls)
     return frozenset(f.name for f in dataclasses.fields(cls) if _is_tuple_type(hints.get(f.name)))
 
 

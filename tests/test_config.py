@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import pathlib
 import re
+import types
+import typing
 
 import numpy as np
 import pytest
@@ -19,6 +22,7 @@ from jmeshtex._config import (
     is_finite_number,
     is_int,
     rule,
+    type_ok,
 )
 from jmeshtex.dgts import Config as DGTSConfig
 from jmeshtex.dgts import PrepareConfig
@@ -202,6 +206,49 @@ def test_predicates():
     ]
     checks = [is_finite_number(x) for x in (0, 2.5, float("nan"), float("-inf"), "1", None)]
     assert checks == [True, True, False, False, False, False]
+    # NumPy integers are integers, NumPy bools are not; an int too large for a float is not finite
+    assert is_int(np.int64(3)) and is_int(np.uint8(3)) and not is_int(np.bool_(True))
+    assert is_int(5, 5) and not is_int(4, 5) and not is_int(np.int32(4), 5)
+    assert is_finite_number(np.float32(0.5)) and not is_finite_number(np.float64("nan"))
+    assert not is_finite_number(10**400) and not is_finite_number(True)
+
+
+def test_numpy_scalars_and_lists_are_stored_as_plain_values():
+    c = Toy(steps=np.int64(3), lr=np.float32(0.5), widths=[2, np.int32(3)], up=np.ones(3))
+    assert c == Toy(steps=3, lr=0.5, widths=(2, 3), up=(1.0, 1.0, 1.0))
+    assert type(c.steps) is int and type(c.lr) is float and type(c.widths[1]) is int
+    json.dumps(c.to_dict())  # plain JSON, no NumPy scalar left
+    hash(c)
+
+
+@pytest.mark.parametrize(
+    "hint, good, bad",
+    [
+        (int, [0, -3, np.int16(2), 2**31 - 1], [2**31, True, 1.5, "1", None]),
+        (float, [0, 2.5, np.float32(1.0)], [math.nan, math.inf, 10**400, True, "1", None]),
+        (bool, [True, False], [1, 0, "True", None]),
+        (str, ["", "a"], [1, None, b"a"]),
+        (tuple[int, int], [(1, 2)], [(1,), (1, 2, 3), (1, 1.5), [1, 2], "12"]),
+        (tuple[float, ...], [(), (1.0, 2)], [(math.nan,), ("a",), 1.0]),
+        (float | tuple[float, ...] | None, [None, 1.0, (1.0,)], ["1", (None,)]),
+    ],
+)
+def test_type_rule(hint, good, bad):
+    assert all(type_ok(hint, v) for v in good), [v for v in good if not type_ok(hint, v)]
+    assert not any(type_ok(hint, v) for v in bad), [v for v in bad if type_ok(hint, v)]
+
+
+def test_a_huge_integer_is_shown_by_its_length_in_the_message():
+    with pytest.raises(ConfigError) as err:
+        Toy.from_dict({"steps": 10**400})
+    # the range rule holds (it is >= 1); the type rule that follows bounds it
+    assert (
+        str(err.value) == "Toy.steps must be an integer below 2**31, got <an integer of 401 digits>"
+    )
+    with pytest.raises(
+        ConfigError, match="must be a finite number, got <an integer of 401 digits>"
+    ):
+        Toy.from_dict({"hi": 10**400})
 
 
 # --- every config of the library uses the mechanism -----------------------------------------------
@@ -331,3 +378,110 @@ def test_library_messages_are_unchanged(make, message):
     with pytest.raises(ConfigError) as err:
         make()
     assert str(err.value) == message
+
+
+# --- every field of every library config rejects values of the wrong kind -------------------------
+
+#: one object per kind of nonsense; a field's bad values are chosen by identity from these
+NAN, INF, NINF, HUGE = math.nan, math.inf, -math.inf, 10**400
+HALF, ONE, TRUE, NONE = 1.5, 1, True, None
+DIGITS, WORD, LIST, DICT = "8", "yes", [1], {"a": 1}
+NAN3, DIGITS3, ONE_TUPLE, EMPTY = (NAN, NAN, NAN), ("8", "8", "8"), (1,), ()
+NONSENSE = (NAN, INF, NINF, HUGE, HALF, ONE, TRUE, NONE, DIGITS, WORD, LIST, DICT)
+NONSENSE += (NAN3, DIGITS3, ONE_TUPLE, EMPTY)
+
+
+def _bad_for(hint) -> list:
+    """The values of ``NONSENSE`` that no value of annotation ``hint`` may take, from the type alone."""
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        bads = [_bad_for(a) for a in typing.get_args(hint)]
+        return [v for v in bads[0] if all(any(v is b for b in other) for other in bads[1:])]
+    tuples = (NAN3, DIGITS3, ONE_TUPLE, EMPTY)
+    if hint is type(None):
+        return [v for v in NONSENSE if v is not None]
+    if hint is int:
+        return [NAN, INF, NINF, HUGE, HALF, TRUE, NONE, DIGITS, WORD, LIST, DICT, *tuples]
+    if hint is float:
+        return [NAN, INF, NINF, HUGE, TRUE, NONE, DIGITS, WORD, LIST, DICT, *tuples]
+    if hint is bool:
+        return [NAN, HUGE, HALF, ONE, NONE, DIGITS, WORD, LIST, DICT, *tuples]
+    if hint is str:
+        return [NAN, INF, HUGE, HALF, ONE, TRUE, NONE, LIST, DICT, *tuples]
+    if origin is tuple:
+        args = typing.get_args(hint)
+        variadic = len(args) == 2 and args[1] is Ellipsis
+        element_bad = _bad_for(args[0])
+        out = [NAN, INF, NINF, HUGE, HALF, ONE, TRUE, NONE, DIGITS, WORD, DICT]
+        # a list is read as a tuple: [1] is (1,)
+        for t, given in [*((t, t) for t in tuples), (ONE_TUPLE, LIST)]:
+            wrong_length = not variadic and len(t) != len(args)
+            if wrong_length or any(any(x is b for b in element_bad) for x in t):
+                out.append(given)
+        return out
+    raise AssertionError(f"no bad values known for {hint!r}: extend _bad_for")
+
+
+def _cases():
+    for cls in ALL:
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            for value in _bad_for(hints[f.name]):
+                yield pytest.param(
+                    cls, f.name, value, id=f"{cls.__module__}.{cls.__name__}.{f.name}={value!r:.20}"
+                )
+
+
+@pytest.mark.parametrize("cls, name, value", list(_cases()))
+def test_every_field_of_every_config_rejects_nonsense(cls, name, value):
+    with pytest.raises(ConfigError):
+        cls(**{name: value})
+    with pytest.raises(ConfigError):
+        cls.from_dict({name: value})
+
+
+def test_the_nonsense_table_covers_every_field_with_several_values():
+    counts = {
+        (cls.__name__, f.name): len(_bad_for(typing.get_type_hints(cls)[f.name]))
+        for cls in ALL
+        for f in dataclasses.fields(cls)
+    }
+    assert min(counts.values()) >= 5, counts
+
+
+@pytest.mark.parametrize("cls", ALL)
+def test_defaults_and_presets_validate(cls):
+    names = ("official", "paper", "small", "cpu", "tiny", "intrinsic")
+    presets = [getattr(cls, p, None) for p in names]
+    for make in [cls, *[p for p in presets if callable(p)]]:
+        c = make()
+        assert cls.from_dict(json.loads(json.dumps(c.to_dict()))) == c
+
+
+@pytest.mark.parametrize(
+    "cls, changes",
+    [
+        (DGTSConfig, {"eps": 0.0}),
+        (DGTSConfig, {"eps": -1e-5}),
+        (DGTSConfig, {"negative_slope": -0.1}),
+        (DGTSConfig, {"negative_slope": 1.0}),
+        (DGTSConfig, {"reconstruction_start": -1}),
+        (DGTSConfig, {"official_axes": 1}),
+        (SurfaceCNNConfig, {"content_layer": ""}),
+        (FLDMConfig, {"widths": (16, np.bool_(True))}),
+    ],
+)
+def test_fields_that_had_no_rule_now_have_one(cls, changes):
+    with pytest.raises(ConfigError):
+        cls(**changes)
+
+
+def test_a_json_list_or_a_string_number_is_a_config_error():
+    with pytest.raises(ConfigError, match="needs a dict of fields"):
+        FLVAEConfig.from_dict(json.loads("[1, 2]"))
+    with pytest.raises(ConfigError, match="latent_dim must be an integer below 2\\*\\*31, got '8'"):
+        FLVAEConfig.from_dict(json.loads('{"latent_dim": "8"}'))
+    for cls in ALL:
+        if "steps" in {f.name for f in dataclasses.fields(cls)}:
+            with pytest.raises(ConfigError):
+                cls.from_dict({"steps": 10**400})

@@ -190,6 +190,9 @@ class Config(ConfigBase):
         rule("learning_rate scale_factor", lambda x: x > 0, "> 0"),
         rule("beta1 beta2", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("learning_rate_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
+        rule("reconstruction_start", lambda x: x >= 0, ">= 0"),
+        rule("negative_slope", lambda x: 0 <= x < 1, "in [0, 1)"),
+        rule("eps", lambda x: x > 0, "> 0"),
         cross_rule(
             lambda c: c.min_features <= c.max_features,
             "need min_features <= max_features, got {c.min_features}, {c.max_features}",

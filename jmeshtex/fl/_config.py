@@ -134,7 +134,7 @@ class Config(ConfigBase):
     checkpoint_every: int = 250
     encode_chunk: int = 2048
 
-    _MESSAGE = "{name} must be {must}, got {value}"
+    _MESSAGE = "{name} must be {must}, got {value!r}"
     _RULES = (
         rule("latent_dim num_samples", lambda x: int(x) >= 1, ">= 1"),
         cross_rule(

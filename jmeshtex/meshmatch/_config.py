@@ -327,7 +327,7 @@ class Config(ConfigBase):
             lambda x: x is None or (is_finite_number(x) and x >= 1),
             "None or a number >= 1",
         ),
-        rule("levels", lambda x: x is None or (is_int(x) and x >= 1), "None or an integer >= 1"),
+        rule("levels", lambda x: x is None or is_int(x, 1), "None or an integer >= 1"),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
         rule(
             "propagation", lambda x: x in ("parallel", "sequential"), "'parallel' or 'sequential'"

@@ -128,6 +128,7 @@ class Config(ConfigBase):
             "None or a non-empty tuple of names",
         ),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
+        rule("content_layer", lambda x: isinstance(x, str) and x != "", "a layer name"),
     )
 
     def learning_rate_at(self, step: int) -> float:
