@@ -12,6 +12,8 @@ from __future__ import annotations
 import jax
 import numpy as np
 
+from ._config import is_int
+
 
 def check_key(key, what: str = "key") -> jax.Array:
     """``key`` if it is a JAX PRNG key (typed, or raw ``uint32[2]`` key data); else a typed error.
@@ -29,11 +31,7 @@ def check_key(key, what: str = "key") -> jax.Array:
         or (key.dtype == np.uint32 and key.shape[-1:] == (2,))
     )
     if not ok:
-        hint = (
-            f"jax.random.key({key})"
-            if isinstance(key, (int, np.integer)) and not isinstance(key, bool)
-            else "jax.random.key(0)"
-        )
+        hint = f"jax.random.key({key})" if is_int(key) else "jax.random.key(0)"
         raise InputError(f"{what} must be a JAX PRNG key such as {hint}, got {type(key).__name__}")
     return key
 

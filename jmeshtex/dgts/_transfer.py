@@ -33,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.sparse
 
+from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Array, Float, Int, PRNGKey
@@ -148,11 +149,7 @@ def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -
     L = model.num_levels
     if L == 0:
         raise InputError("the model has no trained level: train it first")
-    if (
-        isinstance(start_level, bool)
-        or not isinstance(start_level, (int, np.integer))
-        or not 0 <= start_level < L
-    ):
+    if not is_int(start_level, 0) or start_level >= L:
         raise InputError(
             f"start_level must be an int in [0, {L - 1}] (the model has {L} levels), got {start_level!r}"
         )
@@ -277,7 +274,7 @@ def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000
     L = model.num_levels
     if L == 0:
         raise InputError("the model has no trained level: train it first")
-    if isinstance(max_faces, bool) or not isinstance(max_faces, (int, np.integer)) or max_faces < 1:
+    if not is_int(max_faces, 1):
         raise InputError(f"max_faces must be a positive int, got {max_faces!r}")
     for start in range(L):
         if output_faces(model, num_faces, start) <= max_faces:
@@ -370,11 +367,7 @@ def _zero_above(draws: list, plan: TransferPlan, zero_noise_from: int | None) ->
 
 
 def _check_level(name: str, value, low: int, high: int) -> int:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, np.integer))
-        or not low <= value <= high
-    ):
+    if not is_int(value, low) or value > high:
         raise InputError(f"{name} must be an int in [{low}, {high}], got {value!r}")
     return int(value)
 
@@ -432,11 +425,7 @@ def transfer(
       >>> transfer(model, torus(8, 6), max_faces=200, key=jax.random.key(0)).start_level  # 96 faces fit
       1
     """
-    if (
-        isinstance(num_samples, bool)
-        or not isinstance(num_samples, (int, np.integer))
-        or num_samples < 1
-    ):
+    if not is_int(num_samples, 1):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     if zero_noise_from is not None:
         _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
@@ -505,11 +494,7 @@ def conditional(
     """
     L = model.num_levels
     k = _check_level("level", level, 0, L)
-    if (
-        isinstance(num_samples, bool)
-        or not isinstance(num_samples, (int, np.integer))
-        or num_samples < 1
-    ):
+    if not is_int(num_samples, 1):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     plan = plan_transfer(model, template, start_level=0)
     rec = _reconstruction_noise(model, plan.sizes)
@@ -587,11 +572,7 @@ def interpolate(
       >>> interpolate(model, icosahedron(), start_level=1, num_frames=3, key=jax.random.key(0)).vertices.shape
       (3, 12, 3)
     """
-    if (
-        isinstance(num_frames, bool)
-        or not isinstance(num_frames, (int, np.integer))
-        or num_frames < 2
-    ):
+    if not is_int(num_frames, 2):
         raise InputError(f"num_frames must be an int >= 2, got {num_frames!r}")
     start = _resolve_start(model, target, start_level, max_faces)
     plan = plan_transfer(model, target, start_level=start)

@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
@@ -325,7 +326,7 @@ def decode_texture(
         raise InputError(
             "decode_texture needs a mesh with UV coordinates (mesh.uv [F, 3, 2]); use decode_vertex_colors otherwise"
         )
-    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+    if not is_int(size, 1):
         raise InputError(f"size must be a positive int, got {size!r}")
     mu = _latent_means(model, mesh, latents)
     texels = rasterize_uv(mesh.uv, int(size))  # texel centres in UV triangles

@@ -29,6 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._types import Array, Bool, Complex, Float, Int
 from ..geometry import corner_angles, edge_lengths, one_ring_angles
@@ -204,11 +205,7 @@ def one_ring_samples(
         local = np.tile(_QUADRATURE, (K, 1))[None].repeat(V, 0)
         mask = np.take_along_axis(wm, wedge, axis=1)
         return _assemble(geom, wedge, local, mask, corner_of)
-    if (
-        isinstance(num_samples, bool)
-        or not isinstance(num_samples, (int, np.integer))
-        or num_samples < 1
-    ):
+    if not is_int(num_samples, 1):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     area = np.where(
         wm,

@@ -36,6 +36,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import is_int
 from .._errors import ConfigError, InputError
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ..ops import tangent_noise
@@ -85,7 +86,7 @@ def make_schedule(kind: str = "linear", *, num_steps: int = 1000) -> Schedule:
     """
     if kind not in SCHEDULES:
         raise ConfigError(f"schedule must be one of {SCHEDULES}, got {kind!r}")
-    if isinstance(num_steps, bool) or not isinstance(num_steps, (int, np.integer)) or num_steps < 2:
+    if not is_int(num_steps, 2):
         raise ConfigError(f"num_steps must be an integer >= 2, got {num_steps!r}")
     T = int(num_steps)
     if kind == "linear":

@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from .._config import is_int
 from .._errors import InputError
 from .._types import Float, Int
 from ._frames import tangent_frames, tangent_from_3d, tangent_to_3d
@@ -211,11 +212,7 @@ def smoothest_direction_field(
       True
     """
     v, f = check_mesh(vertices, faces)
-    if (
-        isinstance(iterations, bool)
-        or not isinstance(iterations, (int, np.integer))
-        or iterations < 1
-    ):
+    if not is_int(iterations, 1):
         raise InputError(
             f"smoothest_direction_field: iterations must be a positive integer, got {iterations!r}"
         )

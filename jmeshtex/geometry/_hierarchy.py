@@ -47,6 +47,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
+from .._config import is_int
 from .._errors import ConfigError, DecimationError, InputError
 from .._neighborhoods import PoolingMap, VertexNeighborhood
 from .._types import Float, Int
@@ -150,15 +151,9 @@ def mesh_hierarchy(
     """
     if not (isinstance(ratio, (int, float, np.floating)) and 0.0 < float(ratio) < 1.0):
         raise ConfigError(f"ratio must be in (0, 1), got {ratio!r}")
-    if (
-        isinstance(min_vertices, bool)
-        or not isinstance(min_vertices, (int, np.integer))
-        or min_vertices < 4
-    ):
+    if not is_int(min_vertices, 4):
         raise ConfigError(f"min_vertices must be an integer >= 4, got {min_vertices!r}")
-    if levels is not None and (
-        isinstance(levels, bool) or not isinstance(levels, (int, np.integer)) or levels < 1
-    ):
+    if levels is not None and (not is_int(levels, 1)):
         raise ConfigError(
             f"levels must be None or an integer >= 1 (the input counts as one), got {levels!r}"
         )

@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from jaxtyping import Bool, Float, Int, Real
 
+from .._config import is_int
 from .._errors import InputError
 
 _COVERAGES = ("center", "overlap")
@@ -137,7 +138,7 @@ def fill_unused_texels(
 
 
 def _check(uv, size, coverage) -> np.ndarray:
-    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+    if not is_int(size, 1):
         raise InputError(
             f"rasterize_uv: size must be a positive int (texels per atlas side), got {size!r}"
         )

@@ -33,6 +33,7 @@ import math
 
 import numpy as np
 
+from .._config import is_int
 from .._errors import ConfigError, DecimationError, InputError
 from .._mesh import Mesh
 from .._random import check_key, host_rng
@@ -167,11 +168,7 @@ def remesh(
         raise InputError(
             f"remesh expects a jmeshtex.Mesh, got {type(mesh).__name__}; wrap arrays as Mesh(v, f)"
         )
-    if (
-        isinstance(n_vertices, bool)
-        or not isinstance(n_vertices, (int, np.integer))
-        or n_vertices < 4
-    ):
+    if not is_int(n_vertices, 4):
         raise ConfigError(f"n_vertices must be an integer >= 4, got {n_vertices!r}")
     check_key(key)
     if not (isinstance(oversample, (int, float)) and oversample >= 1.5):

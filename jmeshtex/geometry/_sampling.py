@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Float, Int, Shaped
 
+from .._config import is_int
 from .._errors import EmptyMeshError, FaceIndexError, InputError, NonTriangleFaceError
 from .._random import check_key, host_rng
 from .._types import ArrayLike
@@ -95,7 +96,7 @@ def sample_surface(
     bad = np.nonzero((faces < 0).any(1) | (faces >= len(vertices)).any(1))[0]
     if bad.size:
         raise FaceIndexError(indices=bad)
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+    if not is_int(n, 0):
         raise InputError(f"n must be a non-negative int, got {n!r}")
 
     tri = vertices[faces]

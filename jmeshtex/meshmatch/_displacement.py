@@ -21,6 +21,7 @@ import jax
 import numpy as np
 import scipy.sparse as sp
 
+from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
@@ -84,7 +85,7 @@ def taubin_smooth(
         raise InputError(
             f"taubin_smooth needs 0 < lam < 1 and -1 < mu < -lam, got lam={lam}, mu={mu}"
         )
-    if isinstance(steps, bool) or int(steps) != steps or steps < 0:
+    if not is_int(steps, 0):
         raise InputError(f"steps must be an integer >= 0, got {steps!r}")
     mesh = as_mesh(mesh)
     x = np.asarray(mesh.vertices, np.float64)

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.sparse as sp
 
+from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import ArrayLike, Bool, Complex, Float, Int
@@ -193,11 +194,7 @@ def geodesic_fans(
     radii = np.asarray(radii, dtype=np.float64).reshape(-1)
     if radii.size == 0 or not np.all(np.isfinite(radii)) or np.any(radii <= 0):
         raise InputError(f"radii must be a non-empty list of positive finite numbers, got {radii}")
-    if (
-        isinstance(num_angles, bool)
-        or not isinstance(num_angles, (int, np.integer))
-        or num_angles < 1
-    ):
+    if not is_int(num_angles, 1):
         raise InputError(f"num_angles must be a positive integer, got {num_angles!r}")
     if geometry is None:
         geometry = tracer_geometry(vertices, faces)

@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 from jaxtyping import Complex, Float, Int
 
+from .._config import is_int
 from .._errors import InputError, MeshError
 from ..geometry import (
     TracerGeometry,
@@ -300,7 +301,7 @@ def texture_atlas(
       >>> atlas.num_texels, round(atlas.texel_size, 12), atlas.point[0].round(3).tolist()
       (16, 0.25, [0.125, 0.875, 0.0])
     """
-    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+    if not is_int(size, 1):
         raise InputError(f"texture_atlas: size must be a positive integer, got {size!r}")
     size = int(size)
     vertices = np.asarray(vertices, dtype=np.float64)

@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from jaxtyping import Float, Int
 from scipy.sparse.csgraph import connected_components
 
+from .._config import is_int
 from .._errors import InputError
 from ..geometry import TracerGeometry, tracer_geometry
 from ..ops import PoolGroups, TexelNeighborhood
@@ -168,7 +169,7 @@ def texel_pyramid(
       >>> pyr.nearest[1].index[0, :, 0].tolist()      # block (0, 0): right, below, diagonal
       [0, 0, 0, 0, 0, 1, 0, 2, 3]
     """
-    if isinstance(levels, bool) or not isinstance(levels, (int, np.integer)) or levels < 0:
+    if not is_int(levels, 0):
         raise InputError(f"texel_pyramid: levels must be an integer >= 0, got {levels!r}")
     if boundary not in BOUNDARY_MODES:
         raise InputError(
