@@ -7,7 +7,9 @@ no intersphinx; ``docs/conf.py`` lists them).
 
 from __future__ import annotations
 
+import ast
 import pathlib
+import re
 import subprocess
 import sys
 
@@ -50,4 +52,51 @@ def test_the_api_reference_builds_with_warnings_as_errors(tmp_path):
     expected = {p.stem for p in (DOCS.parent / "notebooks").glob("*.ipynb")}
     assert expected and expected <= notebooks, (
         f"notebooks not rendered: {sorted(expected - notebooks)}"
+    )
+
+
+# --- docstrings state the contract; measurements and history live in benchmarks/results and git ---
+
+ROOT = DOCS.parent
+#: a lab-notebook figure or a history note in a docstring
+LAB_NOTES = re.compile(r"\d+(\.\d+)? ?dB\b|previous version|\bused to\b", re.IGNORECASE)
+
+
+def _docstrings(path: pathlib.Path):
+    tree = ast.parse(path.read_text())
+    nodes = (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)
+    for node in ast.walk(tree):
+        if isinstance(node, nodes):
+            doc = ast.get_docstring(node, clean=False)
+            if doc:
+                yield getattr(node, "lineno", 1), getattr(node, "name", "<module>"), doc
+
+
+def lab_notes(path: pathlib.Path) -> list[str]:
+    """``file:line name: 'match'`` for every dB figure or history phrase in the docstrings of ``path``."""
+    rel = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+    return [
+        f"{rel}:{line} {name}: {m.group(0)!r}"
+        for line, name, doc in _docstrings(path)
+        for m in LAB_NOTES.finditer(doc)
+    ]
+
+
+def test_the_lab_note_check_can_fail(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text(
+        '"""Module."""\n\n\ndef f():\n    """Does f (31.5 dB on the torus; the previous version '
+        'used to be slower)."""\n'
+    )
+    found = lab_notes(bad)
+    assert [f.split(": ", 1)[1] for f in found] == ["'31.5 dB'", "'previous version'", "'used to'"]
+    good = tmp_path / "good.py"
+    good.write_text('"""Module."""\n\n# a comment may say 31.5 dB\nx = "31.5 dB"\n')
+    assert lab_notes(good) == []
+
+
+def test_no_docstring_in_the_package_cites_db_figures_or_history():
+    found = [f for path in sorted((ROOT / "jmeshtex").rglob("*.py")) for f in lab_notes(path)]
+    assert not found, (
+        "move these to benchmarks/results/*.md or docs/design_notes.md:\n" + "\n".join(found)
     )

@@ -1,6 +1,6 @@
 """Atomic file writes: every file jmeshtex writes goes through a temporary file in the same folder and
 ``os.replace``, so a crash or a full disk never leaves a half-written output or destroys the
-previous version."""
+file it replaces."""
 
 from __future__ import annotations
 

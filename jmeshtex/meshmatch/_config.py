@@ -55,7 +55,9 @@ class Config(ConfigBase):
 
     The default assumes source and target in a common pose (the same orientation and up axis, up to
     a per-axis scale and offset: positions are compared after per-axis moment standardisation, see
-    ``aligned``); :meth:`Config.intrinsic` gives the pose-free features (HKS and ``n · up``).
+    ``aligned``); :meth:`Config.intrinsic` gives the pose-free features (HKS and ``n · up``). The
+    measurements behind each default are in ``benchmarks/results/meshmatch_*.md``; the reasoning in
+    ``docs/design_notes.md`` (MeshMatch).
 
     Attributes:
       num_radii: ``R``, rings per geodesic fan (paper default 3).
@@ -67,26 +69,14 @@ class Config(ConfigBase):
       color_weight: weight of the colour term of the patch distance (normalised per dimension and
         by the source colour variance).
       shape_weight: weight of the shape term (HKS, the whole normal and the standardised positions;
-        HKS and ``n · up`` with :meth:`Config.intrinsic`; each feature standardised), one
-        value for every level or a tuple from the finest level to the coarsest (the last entry
-        repeats for further levels). The default, 30 at every coarse level, 3 at the second finest
-        and 0.3 at the finest, lets the shape decide where patches go and the colours refine them
-        last: the target's colours are synthesised, so with a weak shape term the coarse levels
-        settle on a coherent but shifted placement that finer levels cannot undo (benchmark
-        torus, 16K vertices: 15 dB self-transfer PSNR at weight 3 everywhere, 31 dB at 30
-        everywhere, 32 dB with (3, 30)); at the finest levels a strong shape term pulls matches
-        off the truth wherever the two shapes' features differ (between different shapes they
-        always do): seeded with the true matches and colours, the finest level of the stretched
-        bumpy sphere fell from 35.2 to 16.7 dB at weight 3 and kept 34.5 dB at 0. Cross-shape
-        benchmark with the intrinsic features, (3, 30) → (0.3, 3, 30): bumpier sphere 25.3 → 30.7 dB, stretched cow 28.4 →
-        34.9 dB, stretched sphere and tori unchanged (13-14 dB: their shape features mislead,
-        see ``aligned``); torus self-transfer 33.2 → 32.7 dB at 16K, 28.3 → 28.0 dB at 64K
-        (``benchmarks/results/meshmatch_cross.md``).
+        HKS and ``n · up`` with :meth:`Config.intrinsic`; each feature standardised), one value for
+        every level or a tuple from the finest level to the coarsest (the last entry repeats for
+        further levels). Default (0.3, 3, 30): the shape places patches at the coarse levels, the
+        colours refine them at the finest (``benchmarks/results/meshmatch_cross.md``).
       affinity_weight: weight of the correspondence affinities (only with correspondences).
       hks_times: number of log-spaced heat kernel signature times.
-      hks_eigenpairs: Laplacian eigenpairs used for the HKS. 96 (finer scales) measured mixed on
-        the cross-shape benchmark (bumpier sphere 30.7 → 32.4 dB, tori 13.4 → 14.8 dB, stretched
-        cow 34.9 → 29.1 dB) and costs about 10 s per mesh at 4096 vertices instead of 0.8 s.
+      hks_eigenpairs: Laplacian eigenpairs used for the HKS (32: more cost time and did not help
+        across shapes, ``benchmarks/results/meshmatch_cross.md``).
       hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
         vertices and copied down to the finer levels through the parent maps (it is smooth).
       up: the "up" direction of the ``n · up`` shape feature: a 3-vector or an axis name
@@ -96,52 +86,22 @@ class Config(ConfigBase):
         which needs no up axis (only that both meshes share their pose).
       side: a second direction, as ``up``, for one more feature ``n · side`` (None, the default:
         none). HKS and ``n · up`` are unchanged by a mirror across a plane that contains ``up``,
-        so a bilaterally symmetric model (an animal) can match its left half to its right; with
-        smooth colours the mirrored patch fits as well as the right one (a reflected gradient is
-        a rotated one). ``n · side`` along the left/right axis changes sign under that mirror.
-        Measured on the cow (``../shared/data/cow.obj``, Y-up, left/right along z) → a remeshed
-        copy: 9 % of vertices matched more than 3 edges off, 81 % of those at the mirrored
-        point, carrying 89 % of the squared error (``up="y"``: 26.1 dB, nearest-3D copy 40.3);
-        ``side="z"``: 29.9 dB, and 35.0 dB (39.7 dB voted) with ``steps=12``. On the
-        cross-shape benchmark's stretched cow: 28.4 → 33.7 dB (``benchmarks/results/
-        meshmatch_cross.md``). Only with :meth:`Config.intrinsic` (``aligned=False``): it needs
-        the model's left/right axis, and the aligned default tells left from right by position.
+        so a bilaterally symmetric model can match its left half to its right; ``n · side`` along
+        the left/right axis changes sign under that mirror. Only with :meth:`Config.intrinsic`
+        (``aligned=False``): the aligned default tells left from right by position.
       aligned: source and target share a pose (the same orientation in world space and the same up
-        axis, as scans or edits of one object usually do, or models authored in one convention)
-        -- the default. The whole normal ``(n · x, n · y, n · z)`` and the vertex positions
-        standardised per axis (mean 0, standard deviation 1 on each mesh: per-axis moment
-        standardisation, which also undoes a non-uniform stretch) join the HKS as shape features,
-        instead of ``n · up`` / ``n · side`` (``up`` is then ignored; ``side`` must stay None).
-        False (:meth:`Config.intrinsic`): the pose-free features, HKS and ``n · up`` only, for
-        meshes in different poses. The HKS alone cannot place patches between shapes that are not
-        isometric: on the cross-shape benchmark (``benchmarks/results/meshmatch_cross.md``) the
-        true match's squared HKS gap is 10-60 % of the HKS variance at the five smallest times
-        (150-375 % at the three largest) under a (1.15, 1, 0.9) stretch, and the shape term then
-        pulls matches away even from a ground-truth start (bumpy sphere → stretched copy:
-        35.2 dB at the start, 16.7 dB after the finest level's iterations at shape weight 3,
-        34.5 dB at 0); with the whole normal the nearest source vertex in feature space lies
-        1.7-2 edges from the true one instead of 10-11. The normal alone is not enough (normal
-        weight 4: bumpy sphere → stretched copy 13.0 → 21.9 dB, tori 13.4 → 32.3 dB, but the
-        stretched cow 34.9 → 18.4 dB); with positions (weight 8) and normals (weight 2) every
-        pair comes within 2 dB of its ceiling (intrinsic → aligned: bumpier sphere 30.7 → 34.0,
-        stretched sphere 13.0 → 33.7, tori 13.4 → 34.8, stretched cow 34.9 → 38.7 dB; nearest
-        copies through the known map 35.2, 35.2, 36.6, 40.4 dB), and a mirror-symmetric model is
-        no longer matched half to mirrored half (positions tell left from right). Meshes in
-        different poses must use :meth:`Config.intrinsic`. With these features the colour-blind
-        match (colour weight 0) is already within 0.4 dB of the default on those pairs: the pose
-        places the patches, the colours refine them. Correspondences that contradict the pose
-        also need :meth:`Config.intrinsic`: on the mirror-symmetric ellipsoid of
-        ``tests/meshmatch/test_cross_shape.py`` two pairs that swap +x and -x flip the colours
-        with the intrinsic features, but with the aligned default the positions win (red-channel
-        contrast of the halves -0.75 at affinity weight 3, -0.59 at 30, where the pairs ask for
-        +0.5 or more).
+        axis) -- the default. The whole normal ``(n · x, n · y, n · z)`` and the vertex positions
+        standardised per axis (mean 0, standard deviation 1 on each mesh, which also undoes a
+        non-uniform stretch) join the HKS as shape features, instead of ``n · up`` / ``n · side``
+        (``up`` is then ignored; ``side`` must stay None). False (:meth:`Config.intrinsic`): the
+        pose-free features, HKS and ``n · up`` only, for meshes in different poses or
+        correspondences that contradict the pose (``benchmarks/results/meshmatch_cross.md``).
       normal_weight: the weight of each ``n · axis`` feature block relative to the HKS block;
         None (default): 2 with ``aligned``, 1 without.
       position_weight: with ``aligned``, the weight of the per-axis standardised positions as
-        one more feature block (a pose prior); None (default): 8 with ``aligned`` (measured on
-        the small cross-shape pairs: the stretched sphere reaches 28.8 dB at 8, 27.1 dB at 4,
-        23.9 dB at 2; ceiling 29.1 dB); 0 leaves it out. Without ``aligned`` it must be None
-        or 0.
+        one more feature block (a pose prior); None (default): 8 with ``aligned``
+        (``benchmarks/results/meshmatch_cross.md``); 0 leaves it out. Without ``aligned`` it must
+        be None or 0.
       steps: most PatchMatch iterations (E-step + M-step) per level.
       coarse_steps: most iterations at the coarsest level, which starts from a random field
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
@@ -156,17 +116,9 @@ class Config(ConfigBase):
         matches the previous sweep left, Jacobi-style, ``sweeps`` rings per iteration) or
         ``"sequential"`` (the paper's scan, Gauss–Seidel: each sweep runs through the target's
         breadth-first wavefronts from vertex 0 one after the other, every wavefront proposing from
-        the matches the earlier ones just found, so a good match can cross the whole mesh in one
-        sweep; odd sweeps run backwards from the far end, the alternating start). The sequential
-        scan runs the wavefronts one by one (a ``lax.scan`` of small steps): slower, and no
-        better on the cross-shape benchmark (aligned, parallel → sequential: 34.01 → 34.03,
-        33.74 → 33.73, 34.77 → 34.79, 38.74 → 38.58 dB; intrinsic: 30.67 → 30.42, 12.97 →
-        13.81, 13.38 → 13.76, 34.85 → 28.79 dB), at 1.5-3× the finest level's time per
-        iteration there (``benchmarks/results/meshmatch_cross.md``); 16K torus self-transfer
-        38.0 dB either way, 0.47 s instead of 0.17 s process CPU per finest iteration, 110 s
-        instead of 53 s in all (``benchmarks/results/meshmatch_sequential.md``, shared machine at
-        load 10): coarse-to-fine initialisation already leaves little for propagation to carry
-        far.
+        the matches the earlier ones just found; odd sweeps run backwards from the far end). The
+        default is parallel: as accurate, several times faster
+        (``benchmarks/results/meshmatch_sequential.md``, ``meshmatch_cross.md``).
       exact_candidates: per candidate set (random search + first sweep, then each further sweep)
         only this many candidates, those with the smallest rotation-invariant lower bound of the
         patch distance, get the exact rotation search (a number at least the candidate count,
@@ -178,57 +130,32 @@ class Config(ConfigBase):
         or ``"fan"``. ``"ring"``: a vertex averages the source colours its own match and its
         one-ring neighbours' matches put at its position (read in the matched star, see
         ``interp_sigma``), Gaussian weights of the neighbour's distance (``vote_sigma`` target
-        edges). ``"fan"`` (the paper's footprint vote): every target vertex q votes at every point its
-        geodesic fan covers: fan sample ``(r, a)`` of q carries the source colour at fan sample
-        ``(r, a + k_q)`` of its match (read linearly in its face) onto the corners of the target face
-        it lies in with their barycentric weights, times a Gaussian of the ring radius
-        (``vote_sigma`` in the fans' edge lengths, the unit of ``fan_radius``: ring weights 0.41,
-        0.029 and 0.0003 at the defaults), plus q's centre with weight 1. Measured ring → fan on the
-        cross-shape benchmark (aligned default; ``benchmarks/results/meshmatch_vote_cross.md``):
-        final colours 34.01 → 34.11, 33.74 → 33.72, 34.77 → 34.98, 38.74 → 38.76 dB, the finest
-        vote 37.76 → 38.88, 37.14 → 37.71, 35.99 → 36.94, 42.61 → 41.47 dB (the half-size pairs:
-        final colours within 0.12 dB); on the real meshes
-        (``benchmarks/results/meshmatch_real.md``: self-transfer to a remesh at 5K / 20K vertices)
-        final colours cheburashka 40.89 → 40.91 / 39.18 → 39.19, fandisk 39.71 → 39.70 / 38.19 →
-        38.19, cow 35.25 → 35.23 / 35.05 → 35.03, Spot (texture) 21.59 → 21.99 / 21.99 → 21.98 dB,
-        the finest vote 45.76 → 42.89 / 45.00 → 45.84, 44.29 → 41.06 / 44.55 → 45.01, 40.07 →
-        40.13 / 38.87 → 42.44, 21.85 → 21.70 / 22.13 → 22.27 dB (worse where the target is about
-        as fine as the source, better 3-7× finer). The fan vote costs more and blurs more (the speed suite's 16K torus
-        self-transfer, ``benchmarks/results/meshmatch_vote_{ring,fan}.md``, load 4.7: finest
-        iteration 0.18 → 0.26 s process CPU, final colours 38.0 → 38.1 dB, the finest vote
-        45.4 → 40.9 dB): its samples lie anywhere in the faces around a vertex, not at the vertex. The final
-        colours copy each match's source colour, so the vote reaches them only through the
-        E-step's target fans: the default stays ``"ring"``.
+        edges). ``"fan"`` (the paper's footprint vote): every target vertex q votes at every point
+        its geodesic fan covers: fan sample ``(r, a)`` of q carries the source colour at fan sample
+        ``(r, a + k_q)`` of its match onto the corners of the target face it lies in with their
+        barycentric weights, times a Gaussian of the ring radius (``vote_sigma`` in the fans' edge
+        lengths), plus q's centre with weight 1. The default is ``"ring"``: cheaper, sharper, the
+        same final colours (``benchmarks/results/meshmatch_vote_cross.md``, ``meshmatch_real.md``).
       upsample: how a finer level starts from the coarser one, ``"copy"`` (default: each vertex
         takes its coarse parent's match and rotation and colour) or ``"offset"`` (the paper's): the
         parent's match moved by the vertex's geodesic offset from its parent (the tangent-plane
         offset in the parent's frame, rotated into the match's frame by the parent's rotation),
-        landing on the source vertex of the finer source level nearest that point (a greedy walk
-        from the parent's match), with the rotation carried the same way, then a re-vote of the
-        level's colours before its iterations. The offset start lies closer to the truth (median
-        distance from the true source point at the finest level before its iterations, half-size
-        cross pairs: 0.76 → 0.58, 0.77 → 0.58, 0.58 → 0.46, 0.64 → 0.59 source edges; checked in
-        ``tests/meshmatch/test_vote_upsample.py``), but the level's iterations erase
-        the difference: cross-shape benchmark copy → offset, final colours 34.01 → 34.01, 33.74 →
-        33.70, 34.77 → 34.72, 38.74 → 38.74 dB (votes within 0.1 dB); real meshes at 5K / 20K, final
-        colours cheburashka 40.89 → 40.91 / 39.18 → 39.19, fandisk 39.71 → 39.72 / 38.19 → 38.18,
-        cow 35.25 → 35.31 / 35.05 → 35.00, Spot 21.59 → 21.84 / 21.99 → 21.99 dB. The
-        default stays ``"copy"``: the offset start moves the final colours by 0.25 dB at most.
+        landing on the source vertex of the finer source level nearest that point, with the
+        rotation carried the same way, then a re-vote of the level's colours before its
+        iterations. The default is ``"copy"``: the level's iterations erase the offset start's
+        head start (``benchmarks/results/meshmatch_cross.md``, ``meshmatch_real.md``).
       bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
         common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
         (see :func:`~jmeshtex.meshmatch.level_groups`); 0 pads nothing (every level
         compiles its own step).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths
         (of the target level with ``vote="ring"``; of the fans, as ``fan_radius``, with
-        ``vote="fan"``, where 1 → 2 measured mixed: the finest vote on the half-size cross pairs
-        33.78 → 34.26, 33.73 → 33.86, 31.67 → 31.30, 37.59 → 37.14 dB, ``benchmarks/results/
-        meshmatch_vote_cross_small.md``).
+        ``vote="fan"``; ``benchmarks/results/meshmatch_vote_cross_small.md``).
       interp_sigma: standard deviation of the Gaussian that reads a source colour at an offset
         inside the matched vertex's star (the vote's resampling), in the source level's mean edge
         lengths. At 0.5 a vertex read at its own position keeps only about 55 % of its own colour
-        (six neighbours one edge away weigh ``e⁻²`` each): the vote blurs by about an edge.
-        0.3 measured mixed (cow self-transfer 26.1 → 26.5 dB, the small stretched-cow pair
-        25.1 → 24.3 dB), so the default stays 0.5.
+        (six neighbours one edge away weigh ``e⁻²`` each): the vote blurs by about an edge
+        (0.5: smaller values did not help consistently, ``docs/design_notes.md``).
       min_vertices: coarsest hierarchy level size (decimation stops below it).
       levels: number of hierarchy levels, or None for "down to ``min_vertices``".
       max_scale_ratio: the largest ratio of the source's and the target's bounding-box diagonals

@@ -569,10 +569,8 @@ def _conv_bwd(delta, activation, res, g):
     the symbolic-zero flags) by the hand-written :func:`_block_sums_vjp`, two reductions that
     evaluate the responses inside them; otherwise by plain autodiff of :func:`_block_sums`
     (:func:`_blocks_vjp`; about 1.8x slower, it also gives the slot cotangents). The gathered
-    features' cotangents are scattered back once. Measured at 30K vertices, C = 64, h = 8, SiLU
-    (process CPU time, loaded 2-core machine): value-and-grad 910 ms against 1460 ms for the
-    previous whole-mesh VJP (which evaluated every response twice more and wrote the ``[V, K, C]``
-    terms), forward 170 ms.
+    features' cotangents are scattered back once, so no ``[V, K, C]`` term array is written and
+    every response is evaluated once per pass (timings: ``benchmarks/results/ops_field_conv.md``).
     """
     x, index, slots, a_w, bias, mix, sums, slot_grads = res
     v, (c, h, d) = x.shape[0], mix.shape
@@ -795,12 +793,10 @@ def _responses(ar, ai, a_w, bias, activation):
     function as ``p σ(p)`` with two vector operations fewer per response (float32 absolute error
     2.8e-6 on [-30, 30], against 1.9e-6 for ``jax.nn.silu``).
 
-    Why ``jnp.tanh`` and not a cheaper formula (measured, jaxlib 0.10.2, AVX-512 CPU): the filter-sum
-    fusion is vectorised over channels only once LLVM has fully unrolled its slot loop, and the
-    unroller sees XLA's tanh as a single call. A clamped rational tanh written in ``jnp`` (12 vector
-    operations against about 20; filter sums 1.15-1.3x faster on materialised inputs) makes the
-    slot body too large to unroll for ``K ≥ 7`` slots, and the convolution compiles to scalar code (3x
-    slower at ``K = 9``). ``p σ(p)`` through ``jax.nn.sigmoid`` stays vectorised but is 1.5x slower.
+    Why ``jnp.tanh`` and not a cheaper formula: the filter-sum fusion is vectorised over channels
+    only once LLVM has fully unrolled its slot loop, and the unroller sees XLA's tanh as a single
+    call; a rational tanh written in ``jnp`` makes the slot body too large to unroll for ``K ≥ 7``
+    slots (scalar code), and ``p σ(p)`` through ``jax.nn.sigmoid`` is slower.
     """
     if activation == "silu":
         half = jnp.asarray(0.5, ar.dtype)
