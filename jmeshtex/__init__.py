@@ -11,6 +11,7 @@ holds what every layer shares: :class:`Mesh` and :func:`as_mesh`, the typed erro
 
 from ._errors import CheckpointMismatchError as CheckpointMismatchError
 from ._errors import ConfigError as ConfigError
+from ._errors import CorruptModelError as CorruptModelError
 from ._errors import DecimationError as DecimationError
 from ._errors import DegenerateFaceError as DegenerateFaceError
 from ._errors import DuplicateFaceError as DuplicateFaceError

@@ -33,6 +33,11 @@ class CheckpointMismatchError(MeshIOError):
     """A checkpoint folder holds a different run (config or data differ) and cannot be resumed."""
 
 
+class CorruptModelError(MeshIOError):
+    """A saved model cannot be read: missing, truncated, not a model file, another method's model,
+    or a format version this jmeshtex does not read. The message names the file and what is wrong."""
+
+
 class MeshError(JmeshtexError, ValueError):
     """A mesh is invalid. ``indices`` holds the offending vertex/face/edge indices (may be empty)."""
 

@@ -1,9 +1,9 @@
 """A trained DGTS hierarchy (:class:`Model`) and its files (:func:`save`, :func:`load`).
 
-A model folder is written with :class:`jmeshtex.io.Checkpoints` (orbax; atomic: an interrupted save
-leaves no half-written model): the parameter arrays as one pytree, the config and the number of
-levels as its JSON record. (Training checkpoints, :func:`~jmeshtex.dgts.train`'s ``checkpoint_dir``,
-use the same mechanism with the optimiser state added; they are not model folders.)
+A model folder holds one ``model.npz`` in the model format of :func:`jmeshtex.io.save_model`
+(atomic: an interrupted save leaves the previous model): the parameter arrays by key path and the
+config. (Training checkpoints, :func:`~jmeshtex.dgts.train`'s ``checkpoint_dir``, are
+:class:`jmeshtex.io.Checkpoints` folders with the optimiser state; they are not model folders.)
 """
 
 from __future__ import annotations
@@ -17,14 +17,19 @@ from typing import Any
 import jax
 import numpy as np
 
-from .._errors import MeshIOError
-from ..io import Checkpoints
+from .._errors import CorruptModelError, InputError
+from ..io import load_model, save_model
 from ..ops import FaceConvStackParams
 from ._config import Config
 from ._networks import init_level
 
-#: the ``kind`` recorded with a model folder
+#: the ``kind`` recorded in a model file
 MODEL_KIND = "jmeshtex.dgts.Model"
+#: the model file in a model folder
+MODEL_FILE = "model.npz"
+#: the layout of the arrays in the file
+FORMAT_VERSION = 1
+_WHAT = "DGTS model"
 
 
 @functools.partial(
@@ -92,7 +97,10 @@ def model_like(config: Config, levels: int, num_vertices: int) -> dict:
 
 
 def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
-    """Write ``model`` into the folder ``path``, atomically (read it back with :func:`load`).
+    """Write ``model`` as ``model.npz`` into the folder ``path``, atomically (read it with :func:`load`).
+
+    The file is the one model format of :func:`jmeshtex.io.save_model`: the arrays of
+    :func:`model_state` by key path, with the config.
 
     Args:
       model: a :class:`Model` (``train(...).model``).
@@ -110,29 +118,34 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
       >>> load(folder).num_levels
       1
     """
+    if not isinstance(model, Model):
+        raise InputError(
+            f"save(model, path): expected a jmeshtex.dgts.Model first, got {type(model).__name__}"
+        )
     folder = pathlib.Path(path)
-    meta = {
-        "kind": MODEL_KIND,
-        "config": model.config.to_dict(),
-        "levels": model.num_levels,
-        "num_vertices": int(np.shape(model.z_star)[0]),
-    }
-    with Checkpoints(folder, keep=1) as ckpt:
-        ckpt.save(model.num_levels, model_state(model), meta=meta)
+    save_model(
+        folder / MODEL_FILE,
+        kind=MODEL_KIND,
+        params=jax.tree.map(np.asarray, model_state(model)),
+        config=model.config.to_dict(),
+        format_version=FORMAT_VERSION,
+    )
     return folder
 
 
 def load(path: str | os.PathLike) -> Model:
-    """Read a :class:`Model` from a folder written by :func:`save`.
+    """Read a :class:`Model` from a folder written by :func:`save` (or its ``model.npz``).
 
     Args:
-      path: the folder.
+      path: the folder, or the ``model.npz`` file in it.
 
     Returns:
       The :class:`Model`.
 
     Raises:
-      MeshIOError: the folder holds no DGTS model, or its files are damaged.
+      CorruptModelError: the folder holds no DGTS model (a training ``checkpoint_dir`` or a
+        model folder of the earlier orbax layout included), or its file is truncated, damaged or
+        another method's.
 
     Example:
       >>> import tempfile
@@ -144,21 +157,30 @@ def load(path: str | os.PathLike) -> Model:
       >>> model.num_levels, model.config == c
       (2, True)
     """
-    folder = pathlib.Path(path)
-    with Checkpoints(folder, keep=1) as ckpt:
-        if ckpt.latest_step() is None:
-            raise MeshIOError(
-                f"{folder} holds no DGTS model: write one with jmeshtex.dgts.save "
-                "(or `jmeshtex dgts train`)"
+    path = pathlib.Path(path)
+    file = path if path.is_file() else path / MODEL_FILE
+    if not file.is_file():
+        if path.is_dir() and any(p.is_dir() and p.name.isdigit() for p in path.iterdir()):
+            raise CorruptModelError(
+                f"{path} holds no {MODEL_FILE}: it is a training checkpoint folder or a model "
+                "folder of the earlier orbax layout, not a DGTS model this jmeshtex reads. Fix: "
+                "save train(...).model with jmeshtex.dgts.save (or retrain with `jmeshtex dgts "
+                "train`)"
             )
-        meta = ckpt.read_meta()
-        if meta.get("kind") != MODEL_KIND:
-            raise MeshIOError(
-                f"{folder} holds a checkpoint of {meta.get('kind')!r}, not a DGTS model "
-                "(a training checkpoint_dir is not a model: save train(...).model)"
-            )
-        config = Config.from_dict(meta["config"])
-        state, _ = ckpt.restore(model_like(config, int(meta["levels"]), int(meta["num_vertices"])))
+        raise CorruptModelError(
+            f"{path} holds no DGTS model (no {MODEL_FILE}): write one with jmeshtex.dgts.save "
+            "(or `jmeshtex dgts train`)"
+        )
+    stored = load_model(file, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT)
+    config = stored.config_as(Config)
+    levels = {n.split("/")[1] for n in stored.arrays if n.startswith("generators/")}
+    z_star = stored.arrays.get("z_star")
+    if z_star is None or z_star.ndim != 2 or not levels:
+        raise CorruptModelError(
+            f"{file}: no generators or no z_star [V, 3] array: not a DGTS model"
+        )
+    like = jax.eval_shape(lambda: model_like(config, len(levels), int(z_star.shape[0])))
+    state = stored.restore(like)
     return Model(
         config,
         tuple(state["generators"]),

@@ -7,7 +7,7 @@ such latents back into colours anywhere on the surface.
 
 - Model: :class:`Config` (presets :meth:`Config.paper`, :meth:`Config.small`), :class:`Model`
   (parameters + config), :func:`init`, :func:`train` (on planar meshes laid over images; resumable;
-  :func:`plot_losses`), :func:`save` / :func:`load`, :func:`load_pretrained`
+  :func:`plot_losses`), :func:`save` / :func:`load` (:func:`load_extra`), :func:`load_pretrained`
   (the small model shipped in ``jmeshtex/fl/weights``).
 - Meshes: :func:`encode` (→ :class:`FieldLatents`), :func:`decode_vertex_colors`,
   :func:`decode_texture`, :func:`decode_points_in_faces`, :func:`reconstruct` (texture → latents →
@@ -47,6 +47,7 @@ from ._encoder import EncoderParams as EncoderParams
 from ._encoder import OneRingSamples as OneRingSamples
 from ._encoder import one_ring_samples as one_ring_samples
 from ._io import load as load
+from ._io import load_extra as load_extra
 from ._io import load_pretrained as load_pretrained
 from ._io import save as save
 from ._loss import kl_divergence as kl_divergence

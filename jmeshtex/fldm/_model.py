@@ -1,4 +1,5 @@
-"""The FLDM model: the denoiser's parameters with their config and latent scale, saved and loaded."""
+"""The FLDM model: the denoiser's parameters with their config and latent scale, saved and loaded
+(one ``model.npz`` in the model format of :func:`jmeshtex.io.save_model`)."""
 
 from __future__ import annotations
 
@@ -11,11 +12,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import InputError, MeshIOError
+from .._errors import CorruptModelError, InputError
+from ..io import load_model, read_arrays, save_model
 from ._config import Config
 
 MODEL_FILE = "model.npz"
-MODEL_JSON = "model.json"
+#: the JSON file of the earlier layout (format version 0, read only)
+LEGACY_JSON = "model.json"
+#: the ``kind`` recorded in an FLDM model file
+MODEL_KIND = "jmeshtex.fldm.Model"
+#: the layout of the arrays in the file
+FORMAT_VERSION = 1
+_WHAT = "FLDM model"
 
 
 class Model(NamedTuple):
@@ -33,11 +41,14 @@ class Model(NamedTuple):
 
 
 def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
-    """Write ``model.npz`` (parameters) + ``model.json`` (config, scale) into the folder ``path``, atomically.
+    """Write ``model`` as ``model.npz`` into the folder ``path``, atomically.
+
+    The file is the one model format of :func:`jmeshtex.io.save_model`: the denoiser's parameters
+    under ``params/...`` and the latent scale under ``scale``, with the config.
 
     Args:
       model: the :class:`Model` (e.g. ``train(...).model``).
-      path: the folder (created if needed).
+      path: the folder (created if needed; a model already there is replaced).
 
     Returns:
       The folder.
@@ -45,7 +56,7 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
     Example:
       >>> import tempfile
       >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fldm import build_dataset, init
+      >>> from jmeshtex.fldm import Config, build_dataset, init, load, save
       >>> cfg = Config.tiny(latent_channels=1, n_copies=1, copy_vertices=0, bucket=32)
       >>> data = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
       ...                      key=jax.random.key(0), progress=False)
@@ -53,49 +64,91 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
       >>> load(folder).config == cfg
       True
     """
-    from ..io import atomic_save_npz, atomic_write
-
     if not isinstance(model, Model):
         raise InputError(
             f"save(model, path): expected a jmeshtex.fldm.Model first, got {type(model).__name__}"
         )
     out = pathlib.Path(path)
-    arrays = {
-        "/".join(str(getattr(k, "key", k)) for k in kp): np.asarray(v)
-        for kp, v in jax.tree_util.tree_flatten_with_path(model.params)[0]
+    params = {
+        "params": jax.tree.map(np.asarray, model.params),
+        "scale": np.asarray(model.scale, np.float64),
     }
-    atomic_save_npz(out / MODEL_FILE, arrays)
-    meta = {"config": model.config.to_dict(), "scale": np.asarray(model.scale).tolist()}
-    atomic_write(out / MODEL_JSON, json.dumps(meta, indent=2).encode())
+    save_model(
+        out / MODEL_FILE,
+        kind=MODEL_KIND,
+        params=params,
+        config=model.config.to_dict(),
+        format_version=FORMAT_VERSION,
+    )
     return out
 
 
-def load(path: str | os.PathLike) -> Model:
-    """Read a model written by :func:`save`.
+def _model(params: dict, config: Config, scale) -> Model:
+    return Model(jax.tree.map(jnp.asarray, params), config, np.asarray(scale, np.float64))
 
-    Args:
-      path: the folder that holds ``model.npz`` and ``model.json``.
 
-    Returns:
-      The :class:`Model` (parameters as JAX arrays with their saved dtypes).
+def _load_legacy(out: pathlib.Path) -> Model:
+    """Format version 0: ``model.npz`` (``/``-keyed parameters) + ``model.json`` (config, scale)."""
+    arrays = read_arrays(out / MODEL_FILE, what=_WHAT)
+    try:
+        meta = json.loads((out / LEGACY_JSON).read_text())
+        config, scale = Config.from_dict(meta["config"]), meta["scale"]
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise CorruptModelError(f"cannot read {_WHAT} {out / LEGACY_JSON}: {err}") from None
+    return _model(_nested(arrays), config, scale)
 
-    Raises:
-      MeshIOError: missing or unreadable files.
-    """
-    from ..io import load_npz
 
-    out = pathlib.Path(path)
-    if not (out / MODEL_JSON).is_file():
-        raise MeshIOError(
-            f"no FLDM model in {out} (expected {MODEL_JSON} and {MODEL_FILE}; train one with `jmeshtex fldm train`)"
-        )
-    meta = json.loads((out / MODEL_JSON).read_text())
-    arrays = load_npz(out / MODEL_FILE, "FLDM model")
+def _nested(arrays: dict) -> dict:
     params: dict = {}
     for name, value in arrays.items():
         node = params
         *parents, leaf = name.split("/")
         for p in parents:
             node = node.setdefault(p, {})
-        node[leaf] = jnp.asarray(value)
-    return Model(params, Config.from_dict(meta["config"]), np.asarray(meta["scale"], np.float64))
+        node[leaf] = value
+    return params
+
+
+def load(path: str | os.PathLike) -> Model:
+    """Read a model written by :func:`save`.
+
+    Args:
+      path: the folder that holds ``model.npz``.
+
+    Returns:
+      The :class:`Model` (parameters as JAX arrays with their saved dtypes).
+
+    Raises:
+      CorruptModelError: no model in the folder, or a truncated, damaged or foreign file.
+
+    Example:
+      >>> import tempfile
+      >>> load(tempfile.mkdtemp())
+      Traceback (most recent call last):
+      ...
+      jmeshtex._errors.CorruptModelError: no FLDM model in ...
+    """
+    out = pathlib.Path(path)
+    if not (out / MODEL_FILE).is_file():
+        raise CorruptModelError(
+            f"no FLDM model in {out} (expected {MODEL_FILE}; train one with `jmeshtex fldm train`)"
+        )
+    try:
+        file = load_model(
+            out / MODEL_FILE, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT
+        )
+    except CorruptModelError:
+        if (out / LEGACY_JSON).is_file():  # a folder of the earlier layout
+            return _load_legacy(out)
+        raise
+    config = file.config_as(Config)
+    tree = file.params
+    if set(tree) != {"params", "scale"} or not isinstance(tree["params"], dict):
+        raise CorruptModelError(f"{out / MODEL_FILE}: expected params/... and scale arrays")
+    scale = tree["scale"]
+    if np.shape(scale) != (config.latent_channels,):
+        raise CorruptModelError(
+            f"{out / MODEL_FILE}: scale has shape {np.shape(scale)}, its config needs "
+            f"({config.latent_channels},)"
+        )
+    return _model(tree["params"], config, scale)

@@ -1,4 +1,5 @@
-"""Mesh and texture files: load/save OBJ/PLY/OFF/GLB with UVs, textures and vertex colours."""
+"""Files: load/save OBJ/PLY/OFF/GLB with UVs, textures and vertex colours; the one model file format of
+every method (:func:`save_model` / :func:`load_model`); atomic writes; resumable checkpoints."""
 
 from .._mesh import Mesh as Mesh
 from ._atomic import atomic_save_npz as atomic_save_npz
@@ -7,5 +8,9 @@ from ._atomic import load_npz as load_npz
 from ._checkpoint import Checkpoints as Checkpoints
 from ._load import load_mesh as load_mesh
 from ._load import load_texture as load_texture
+from ._model_file import ModelFile as ModelFile
+from ._model_file import load_model as load_model
+from ._model_file import read_arrays as read_arrays
+from ._model_file import save_model as save_model
 from ._save import save_mesh as save_mesh
 from ._save import save_png as save_png

@@ -61,7 +61,7 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
     assert (run / "fl_vae.npz").exists() and Checkpoints(run / "checkpoints").latest_step() == 2
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 2 and np.isfinite(summary["final_loss"])
-    model, extra = fl.load(run / "fl_vae.npz", with_extra=True)
+    model, extra = fl.load(run / "fl_vae.npz"), fl.load_extra(run / "fl_vae.npz")
     assert model.config.latent_dim == 3 and model.config.batch_size == 1 and extra["seed"] == 3
     # the CLI is the library call with key = jax.random.key(--seed)
     direct = fl.train(model.config, key=jax.random.key(3), images=str(images), progress=False)

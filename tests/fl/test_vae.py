@@ -23,6 +23,7 @@ from jmeshtex.fl import (
     init,
     kl_divergence,
     load,
+    load_extra,
     load_pretrained,
     save,
     surface_colors,
@@ -150,7 +151,7 @@ def test_decode_texture_fills_the_used_texels_and_agrees_with_vertex_colours(key
 def test_save_and_load_round_trip_atomically(tmp_path: pathlib.Path, key):
     model = init(SMALL, key=key)
     path = save(model, tmp_path / "sub" / "m.npz", extra={"step": 3})
-    loaded, extra = load(path, with_extra=True)
+    loaded, extra = load(path), load_extra(path)
     assert isinstance(loaded, Model) and loaded.config == SMALL and extra == {"step": 3}
     for a, b in zip(jax.tree.leaves(model.params), jax.tree.leaves(loaded.params), strict=True):
         np.testing.assert_array_equal(a, b)
