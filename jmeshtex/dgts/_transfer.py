@@ -31,13 +31,18 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-import scipy.sparse
 
 from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Array, Float, Int, PRNGKey
-from ..geometry import mean_edge_length, unique_edges, validate_mesh, vertex_normals
+from ..geometry import (
+    mean_edge_length,
+    taubin_smooth,
+    unique_edges,
+    validate_mesh,
+    vertex_normals,
+)
 from ._model import Model
 from ._networks import LevelGeometry, generate, hierarchy_geometry, upsample
 
@@ -597,7 +602,7 @@ def normal_heights(
        \\bar v = \\big((I + \\mu \\Delta)(I + \\lambda \\Delta)\\big)^{k} v
 
     Taubin's shrink-free smoothing with the uniform graph Laplacian ``Δ = D^{-1}A − I``
-    (``k = smoothing`` pairs of steps), ``n̄`` the smoothed mesh's vertex normals and ``ℓ̄`` the mean
+    (:func:`jmeshtex.geometry.taubin_smooth`, ``k = smoothing`` pairs of steps), ``n̄`` the smoothed mesh's vertex normals and ``ℓ̄`` the mean
     edge length. Bumps point outwards as positive heights; the distribution of ``h`` summarises a
     geometric texture.
 
@@ -617,18 +622,8 @@ def normal_heights(
     v, f = as_mesh(mesh, what="normal_heights: mesh")
     v = np.asarray(v, np.float64)
     f = np.asarray(f, np.int64)
-    V = len(v)
-    pairs = unique_edges(f, V)
-    a = scipy.sparse.coo_matrix(
-        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(V, V)
-    ).tocsr()
-    a = a + a.T
-    deg = np.asarray(a.sum(axis=1)).ravel()
-    avg = scipy.sparse.diags(1.0 / np.maximum(deg, 1)) @ a
-    smooth = v.copy()
-    for _ in range(int(smoothing)):  # iterations over the whole mesh, not per vertex
-        smooth = smooth + lam * (avg @ smooth - smooth)
-        smooth = smooth + mu * (avg @ smooth - smooth)
+    pairs = unique_edges(f, len(v))
+    smooth = taubin_smooth((v, f), steps=smoothing, lam=lam, mu=mu)
     n = vertex_normals(smooth, f)
     ell = np.linalg.norm(v[pairs[:, 0]] - v[pairs[:, 1]], axis=1).mean()
     return np.einsum("vd,vd->v", v - smooth, n) / ell

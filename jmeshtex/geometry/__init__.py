@@ -53,6 +53,7 @@ from ._repair import prepare_mesh as prepare_mesh
 from ._sampling import SurfaceSamples as SurfaceSamples
 from ._sampling import barycentric_interpolate as barycentric_interpolate
 from ._sampling import sample_surface as sample_surface
+from ._smoothing import taubin_smooth as taubin_smooth
 from ._statistics import MeshStatistics as MeshStatistics
 from ._statistics import mesh_statistics as mesh_statistics
 from ._subdivision import Subdivision as Subdivision

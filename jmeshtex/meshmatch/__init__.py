@@ -22,10 +22,10 @@ with :func:`save` / :func:`load`; :func:`meshmatch` is the matcher behind them, 
 signal.
 """
 
+from ..geometry import taubin_smooth as taubin_smooth
 from ._config import Config as Config
 from ._displacement import base_surface as base_surface
 from ._displacement import detail_displacement as detail_displacement
-from ._displacement import taubin_smooth as taubin_smooth
 from ._displacement import transfer_displacement as transfer_displacement
 from ._fans import GeodesicFans as GeodesicFans
 from ._fans import Smoother as Smoother
