@@ -18,6 +18,8 @@ from ._adjacency import boundary_loops as boundary_loops
 from ._adjacency import connected_components as connected_components
 from ._adjacency import face_neighborhood as face_neighborhood
 from ._adjacency import one_rings as one_rings
+from ._axes import UP_AXES as UP_AXES
+from ._axes import up_vector as up_vector
 from ._direction_field import connection_laplacian as connection_laplacian
 from ._direction_field import global_direction_field as global_direction_field
 from ._direction_field import project_direction as project_direction

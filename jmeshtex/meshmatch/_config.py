@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 
 from .._config import ConfigBase, cross_rule, display_name, integers, is_finite_number, is_int, rule
+from .._errors import InputError
+from ..geometry import up_vector
 
 
 def _as_tuple(weight: float | tuple[float, ...]) -> tuple[float, ...]:
@@ -16,33 +17,18 @@ def _weights_ok(values: tuple[float, ...]) -> bool:
     return bool(values) and all(is_finite_number(v) and v >= 0 for v in values)
 
 
-#: the axis names ``Config.up`` accepts besides a 3-vector
-UP_AXES = ("x", "y", "z", "-x", "-y", "-z")
-
-
 def _up_ok(up) -> bool:
     if up is None:
         return True
-    if isinstance(up, str):
-        return up.strip().lower() in UP_AXES
     try:
-        up = tuple(float(x) for x in up)
-    except (TypeError, ValueError):
+        up_vector(up)
+    except InputError:
         return False
-    return len(up) == 3 and all(math.isfinite(x) for x in up) and not all(x == 0 for x in up)
+    return True
 
 
 def _unit_axis(axis) -> tuple[float, float, float] | None:
-    if axis is None:
-        return None
-    if isinstance(axis, str):
-        name = axis.strip().lower()
-        vec = [0.0, 0.0, 0.0]
-        vec["xyz".index(name[-1])] = -1.0 if name.startswith("-") else 1.0
-        return tuple(vec)
-    vec = [float(x) for x in axis]
-    norm = math.sqrt(sum(x * x for x in vec))
-    return tuple(x / norm for x in vec)
+    return None if axis is None else tuple(float(x) for x in up_vector(axis))
 
 
 #: a weight's message shows the value as the 1-tuple the tuple-valued shape_weight is checked as

@@ -7,11 +7,11 @@ panels and :func:`turntable` writes PNG strips / GIFs. :func:`render_mesh` / :fu
 the one-call helpers with overlays (arrows, edges, titles).
 """
 
-from ._camera import UP_AXES as UP_AXES
+from ..geometry import UP_AXES as UP_AXES
+from ..geometry import up_vector as up_vector
 from ._camera import Camera as Camera
 from ._camera import look_at as look_at
 from ._camera import orbit_cameras as orbit_cameras
-from ._camera import up_vector as up_vector
 from ._figure import figure as figure
 from ._figure import render_grid as render_grid
 from ._figure import turntable as turntable

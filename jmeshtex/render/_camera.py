@@ -18,9 +18,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._mesh import as_mesh
-
-#: up-axis names accepted wherever ``up=`` is
-UP_AXES = ("x", "y", "z", "-x", "-y", "-z")
+from ..geometry import up_vector
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -79,28 +77,6 @@ class Camera:
         }
         fields.update(changes)
         return look_at(fields.pop("eye"), fields.pop("target"), **fields)
-
-
-def up_vector(up: str | Sequence[float] | np.ndarray) -> np.ndarray:
-    """The unit ``[3]`` vector of an up axis: ``"x"|"y"|"z"|"-x"|"-y"|"-z"`` or a 3-vector.
-
-    Example:
-      >>> up_vector("-y")
-      array([ 0., -1.,  0.])
-    """
-    if isinstance(up, str):
-        name = up.strip().lower()
-        if name not in UP_AXES:
-            raise InputError(f"up must be one of {', '.join(UP_AXES)} or a 3-vector, got {up!r}")
-        vec = np.zeros(3)
-        vec["xyz".index(name[-1])] = -1.0 if name.startswith("-") else 1.0
-        return vec
-    vec = np.asarray(up, dtype=np.float64) if np.ndim(up) == 1 else np.full(0, np.nan)
-    if vec.shape != (3,) or not np.isfinite(vec).all() or np.linalg.norm(vec) < 1e-12:
-        raise InputError(
-            f"up must be one of {', '.join(UP_AXES)} or a non-zero finite 3-vector, got {up!r}"
-        )
-    return vec / np.linalg.norm(vec)
 
 
 def ground_frame(up: str | Sequence[float] | np.ndarray) -> np.ndarray:
