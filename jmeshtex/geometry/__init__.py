@@ -62,6 +62,8 @@ from ._subdivision import Subdivision as Subdivision
 from ._subdivision import rescale_to_mean_edge as rescale_to_mean_edge
 from ._subdivision import subdivide_midpoint as subdivide_midpoint
 from ._subdivision import subdivide_uv as subdivide_uv
+from ._texture import bilinear_blend as bilinear_blend
+from ._texture import bilinear_taps as bilinear_taps
 from ._texture import sample_texture as sample_texture
 from ._texture import uv_at as uv_at
 from ._tracer import TraceResult as TraceResult

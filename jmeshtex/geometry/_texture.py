@@ -148,16 +148,67 @@ def sample_texture(
 
     if not xp.issubdtype(texture.dtype, xp.inexact):
         texture = texture.astype(uv.dtype)
-    x = u * width - 0.5
-    y = (1.0 - v) * height - 0.5
-    x0, y0 = xp.floor(x), xp.floor(y)
+    (r0, r1, c0, c1), (ax, ay) = bilinear_taps(u, v, height, width, wrap=wrap)
     trailing = (Ellipsis,) + (None,) * (texture.ndim - 2)
-    ax = (x - x0).astype(texture.dtype)[trailing]
-    ay = (y - y0).astype(texture.dtype)[trailing]
+    ax, ay = ax.astype(texture.dtype)[trailing], ay.astype(texture.dtype)[trailing]
+    return bilinear_blend(
+        texture[r0, c0], texture[r0, c1], texture[r1, c0], texture[r1, c1], ax, ay
+    )
+
+
+def bilinear_taps(
+    u: Float[ArrayLike, " *N"],
+    v: Float[ArrayLike, " *N"],
+    height: int | Int[ArrayLike, " *N"],
+    width: int | Int[ArrayLike, " *N"],
+    *,
+    wrap: str = "clamp",
+) -> tuple[tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike], tuple[ArrayLike, ArrayLike]]:
+    """The four texels and two weights of a bilinear lookup: the one bilinear kernel of jmeshtex.
+
+    With texel coordinates ``x = u W − 0.5``, ``y = (1 − v) H − 0.5`` (module docstring), the
+    texels are rows ``y₀ = ⌊y⌋, y₀ + 1`` and columns ``x₀ = ⌊x⌋, x₀ + 1`` (clamped to the image or
+    taken modulo its size, ``wrap``) and the weights ``α = x − x₀, β = y − y₀``; combine them with
+    :func:`bilinear_blend`. ``height`` and ``width`` may be arrays (one image size per point, as
+    in a mip pyramid stored flat).
+
+    Args:
+      u, v: ``[...N]`` texture coordinates.
+      height, width: the image size, an int or ``[...N]`` ints.
+      wrap: ``"clamp"`` (default) or ``"repeat"``.
+
+    Returns:
+      ``((r0, r1, c0, c1), (α, β))``: ``[...N]`` int32 rows and columns, weights in ``u``'s dtype.
+
+    Example:
+      >>> (r0, r1, c0, c1), (a, b) = bilinear_taps(np.array([0.5]), np.array([0.5]), 2, 2)
+      >>> [int(i[0]) for i in (r0, r1, c0, c1)], float(a[0]), float(b[0])
+      ([0, 1, 0, 1], 0.5, 0.5)
+    """
+    if wrap not in _WRAPS:
+        raise InputError(f"wrap must be one of {_WRAPS}, got {wrap!r}")
+    xp = _namespace(u, v, height, width)
+
+    def index(i, size):
+        return xp.clip(i, 0, size - 1) if wrap == "clamp" else xp.mod(i, size)
+
+    x = u * xp.asarray(width, u.dtype) - 0.5
+    y = (1.0 - v) * xp.asarray(height, u.dtype) - 0.5
+    x0, y0 = xp.floor(x), xp.floor(y)
     c0, r0 = x0.astype(xp.int32), y0.astype(xp.int32)
-    c1, r1 = index(c0 + 1, width), index(r0 + 1, height)
-    c0, r0 = index(c0, width), index(r0, height)
-    one = xp.ones((), texture.dtype)
-    top = (one - ax) * texture[r0, c0] + ax * texture[r0, c1]
-    bottom = (one - ax) * texture[r1, c0] + ax * texture[r1, c1]
-    return (one - ay) * top + ay * bottom
+    rows = (index(r0, height), index(r0 + 1, height))
+    cols = (index(c0, width), index(c0 + 1, width))
+    return (*rows, *cols), (x - x0, y - y0)
+
+
+def bilinear_blend(t00, t01, t10, t11, ax, ay):
+    """``(1 − β)[(1 − α) t₀₀ + α t₀₁] + β[(1 − α) t₁₀ + α t₁₁]``: the texels of :func:`bilinear_taps`
+    (row first, then column) blended with its weights (broadcast ``α``, ``β`` over channels first).
+
+    Example:
+      >>> float(bilinear_blend(0.0, 1.0, 2.0, 3.0, 0.5, 0.5))
+      1.5
+    """
+    top = (1 - ax) * t00 + ax * t01
+    bottom = (1 - ax) * t10 + ax * t11
+    return (1 - ay) * top + ay * bottom

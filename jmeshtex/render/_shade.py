@@ -17,6 +17,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._types import Array, ArrayLike, Float, Int
+from ..geometry import bilinear_blend, bilinear_taps
 
 #: ambient, diffuse and specular weights and the Blinn-Phong exponent
 AMBIENT, DIFFUSE, SPECULAR, SHININESS = 0.3, 0.7, 0.12, 32.0
@@ -67,19 +68,10 @@ def mip_pyramid(texture: Float[ArrayLike, "H W C"]) -> list[Array]:
 
 
 def _bilinear_level(flat, offset, h, w, u, v):
-    """Bilinear lookup in one level stored flat at ``offset`` (u right, v up, texel centres at (i + ½)/w)."""
-    x = u * jnp.asarray(w, u.dtype) - 0.5
-    y = (1.0 - v) * jnp.asarray(h, u.dtype) - 0.5
-    x0f, y0f = jnp.floor(x), jnp.floor(y)
-    fx, fy = (x - x0f)[..., None], (y - y0f)[..., None]
-    x0, y0 = x0f.astype(jnp.int32), y0f.astype(jnp.int32)
-    wm1, hm1 = w - 1, h - 1
-    xa, xb = jnp.clip(x0, 0, wm1), jnp.clip(x0 + 1, 0, wm1)
-    ya, yb = jnp.clip(y0, 0, hm1), jnp.clip(y0 + 1, 0, hm1)
+    """Bilinear lookup in one level stored flat at ``offset`` (``geometry.bilinear_taps``, clamped)."""
+    (ya, yb, xa, xb), (fx, fy) = bilinear_taps(u, v, h, w)
     t = lambda yy, xx: jnp.take(flat, offset + yy * w + xx, axis=0)  # noqa: E731
-    top = t(ya, xa) * (1 - fx) + t(ya, xb) * fx
-    bottom = t(yb, xa) * (1 - fx) + t(yb, xb) * fx
-    return top * (1 - fy) + bottom * fy
+    return bilinear_blend(t(ya, xa), t(ya, xb), t(yb, xa), t(yb, xb), fx[..., None], fy[..., None])
 
 
 def sample_texture(
@@ -87,7 +79,9 @@ def sample_texture(
     uv: Float[ArrayLike, "*N 2"],
     lod: Float[ArrayLike, "*N"] | None = None,
 ) -> Float[Array, "*N C"]:
-    """Trilinear (mip-mapped bilinear) texture lookup.
+    """Trilinear (mip-mapped bilinear) texture lookup, built on the bilinear kernel of
+    :func:`jmeshtex.geometry.bilinear_taps` (the same texel convention as
+    :func:`jmeshtex.geometry.sample_texture`).
 
     UVs wrap into [0, 1) (u right, v up; row 0 of the texture is v = 1); within a level the lookup
     clamps at the borders. ``lod`` is the mip level (``log2`` of texels per sample along a side);

@@ -206,3 +206,26 @@ def test_uv_at_then_sample_texture_on_a_mesh(rng):
 def test_bad_input_raises(call, match):
     with pytest.raises(InputError, match=match):
         call()
+
+
+def test_the_renderer_s_lookup_is_the_geometry_lookup_at_level_zero():
+    # one bilinear kernel: render.sample_texture without a mip level equals geometry's, clamped
+    from jmeshtex import render
+
+    rng = np.random.default_rng(3)
+    texture = rng.random((7, 5, 3))
+    uv = rng.uniform(0.0, 0.999, (200, 2))
+    np.testing.assert_allclose(
+        np.asarray(render.sample_texture(texture, uv)), sample_texture(texture, uv), atol=1e-15
+    )
+
+
+def test_bilinear_taps_take_one_image_size_per_point():
+    from jmeshtex.geometry import bilinear_blend, bilinear_taps
+
+    u, v = np.array([0.5, 0.5]), np.array([0.5, 0.5])
+    (r0, r1, c0, c1), (a, b) = bilinear_taps(u, v, np.array([2, 4]), np.array([2, 4]))
+    # x = u·W − 0.5 = 0.5 and 1.5: texels (0, 1) of the 2-wide image, (1, 2) of the 4-wide one
+    assert [r0.tolist(), r1.tolist(), c0.tolist(), c1.tolist()] == [[0, 1], [1, 2]] * 2
+    assert a.tolist() == b.tolist() == [0.5, 0.5]
+    assert bilinear_blend(0.0, 1.0, 2.0, 3.0, 0.25, 0.0) == 0.25
