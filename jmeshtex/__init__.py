@@ -16,6 +16,7 @@ from ._errors import DecimationError as DecimationError
 from ._errors import DegenerateFaceError as DegenerateFaceError
 from ._errors import DuplicateFaceError as DuplicateFaceError
 from ._errors import EmptyMeshError as EmptyMeshError
+from ._errors import FaceBudgetError as FaceBudgetError
 from ._errors import FaceIndexError as FaceIndexError
 from ._errors import InconsistentOrientationError as InconsistentOrientationError
 from ._errors import InputError as InputError

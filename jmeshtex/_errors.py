@@ -21,6 +21,10 @@ class InputError(JmeshtexError, ValueError):
     """An argument has the wrong shape, dtype, range or combination (not a mesh defect)."""
 
 
+class FaceBudgetError(InputError):
+    """The output of a transfer would exceed the face budget (``max_faces``) even from the last level."""
+
+
 class ConfigError(JmeshtexError, ValueError):
     """A configuration value is invalid or inconsistent."""
 

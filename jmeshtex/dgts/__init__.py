@@ -30,6 +30,7 @@ Example:
   (1, 192, 3)
 """
 
+from .._errors import FaceBudgetError as FaceBudgetError
 from .._train_result import TrainResult as TrainResult
 from ._config import Config as Config
 from ._config import PrepareConfig as PrepareConfig
@@ -65,7 +66,6 @@ from ._train import LevelReport as LevelReport
 from ._train import gradient_penalty as gradient_penalty
 from ._train import train as train
 from ._transfer import DGTSTransfer as DGTSTransfer
-from ._transfer import FaceBudgetError as FaceBudgetError
 from ._transfer import TransferPlan as TransferPlan
 from ._transfer import choose_start_level as choose_start_level
 from ._transfer import conditional as conditional

@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._config import is_int
-from .._errors import InputError
+from .._errors import FaceBudgetError, InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Array, Float, Int, PRNGKey
 from ..geometry import (
@@ -45,10 +45,6 @@ from ..geometry import (
 )
 from ._model import Model
 from ._networks import LevelGeometry, generate, hierarchy_geometry, upsample
-
-
-class FaceBudgetError(InputError):
-    """The output of a transfer would exceed the face budget (``max_faces``) even from the last level."""
 
 
 class DGTSTransfer(NamedTuple):
@@ -419,11 +415,10 @@ def transfer(
 
     Example:
       >>> from jmeshtex.data import icosahedron, torus
-      >>> from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes
-      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
-      ...                      key=jax.random.key(0))
-      >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
-      >>> model = train(tm, cfg, key=jax.random.key(3), progress=False).model
+      >>> from jmeshtex.dgts import Config, init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
+      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
       >>> res = transfer(model, torus(8, 6), num_samples=2, key=jax.random.key(0))
       >>> res.vertices.shape, res.faces.shape, res.start_level
       ((2, 192, 3), (384, 3), 0)
@@ -487,12 +482,11 @@ def conditional(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes
-      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
-      ...                      key=jax.random.key(0))
-      >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
-      >>> model = train(tm, cfg, key=jax.random.key(3), progress=False).model
-      >>> out = conditional(model, (tm.template, tm.faces[0]), level=1, num_samples=2, per_level=True,
+      >>> from jmeshtex.dgts import Config, init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
+      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
+      >>> out = conditional(model, icosahedron(), level=1, num_samples=2, per_level=True,
       ...                   key=jax.random.key(0))
       >>> bool(np.array_equal(out.level_vertices[0][0], out.level_vertices[0][1]))  # level 0: reconstruction
       True
@@ -532,12 +526,11 @@ def reconstruct(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes
-      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
-      ...                      key=jax.random.key(0))
-      >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
-      >>> model = train(tm, cfg, key=jax.random.key(3), progress=False).model
-      >>> [v.shape for v in reconstruct(model, (tm.template, tm.faces[0])).level_vertices]
+      >>> from jmeshtex.dgts import Config, init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
+      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
+      >>> [v.shape for v in reconstruct(model, icosahedron()).level_vertices]
       [(1, 12, 3), (1, 42, 3)]
     """
     return conditional(
@@ -569,11 +562,10 @@ def interpolate(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes
-      >>> tm = training_meshes(icosahedron(), icosahedron(), config=PrepareConfig(levels=2, steps=0),
-      ...                      key=jax.random.key(0))
-      >>> cfg = Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2, shared_levels=2)
-      >>> model = train(tm, cfg, key=jax.random.key(3), progress=False).model
+      >>> from jmeshtex.dgts import Config, init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
+      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
       >>> interpolate(model, icosahedron(), start_level=1, num_frames=3, key=jax.random.key(0)).vertices.shape
       (3, 12, 3)
     """
