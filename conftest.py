@@ -10,6 +10,11 @@
   they pass ill-typed arguments on purpose to test the typed errors the functions raise themselves;
   ``JMESHTEX_TYPECHECK=0`` switches them off for a whole run;
 - BLAS runs one thread per test worker (the workers already use every core);
+- each process (xdist worker) keeps JAX's persistent compilation cache in a folder of its own
+  (``.pytest_cache/jax/<worker>``, ``JMESHTEX_TEST_JAX_CACHE`` moves it, ``0`` turns it off), so a
+  second run skips most compilation;
+- the tests of a session fixture that trains a model run on one xdist worker (``xdist_group`` set
+  below, ``--dist loadgroup`` in pyproject), so each trained fixture is built once per run;
 - a worker's JAX compilation caches are cleared when its memory mappings near the kernel's limit
   (``_bounded_memory_maps``; XLA:CPU segfaults compiling past it);
 - the ``key`` fixture prints its seed; pin it with ``JMESHTEX_SEED=<int>`` to replay a failure;
@@ -52,13 +57,50 @@ jax.config.update("jax_platforms", os.environ.get("JMESHTEX_TEST_PLATFORMS", "cp
 # cores and slows sparse eigensolves (HKS) 8-20x. One BLAS thread per worker.
 threadpool_limits(1)
 
-# The CLI turns on JAX's persistent compilation cache (~/.cache/jmeshtex/jax). Tests that call the CLI
-# in-process must not share one cache folder between xdist workers and other runs (a half-written
-# entry read by another process crashed a worker): the suite runs with the cache off.
+# The CLI turns on JAX's persistent compilation cache in ~/.cache/jmeshtex/jax; tests that call the
+# CLI in-process must not use that folder (shared with other runs: a half-written entry read by
+# another process crashed a worker).
 os.environ["JMESHTEX_JAX_CACHE"] = "0"
-# ... and a test that sets a cache folder (the CLI's cache-folder test) must not switch it on for the
-# rest of its worker either: once used, JAX keeps the cache for the process.
-jax.config.update("jax_enable_compilation_cache", False)
+
+
+def _worker_cache_folder() -> pathlib.Path | None:
+    """A persistent compilation cache folder this process holds alone (None: cache off).
+
+    ``$JMESHTEX_TEST_JAX_CACHE`` (default ``.pytest_cache/jax`` under the repository; ``0`` turns it
+    off) holds one folder per xdist worker (``gw0``, ``gw1``, ``main`` without xdist). A process
+    takes the first of ``<worker>``, ``<worker>-1``, ... whose lock it can hold, so two runs at the
+    same time (or two workers) never write one folder.
+    """
+    import fcntl
+
+    env = os.environ.get("JMESHTEX_TEST_JAX_CACHE")
+    if env is not None and env.strip() in ("", "0"):
+        return None
+    base = pathlib.Path(env) if env else pathlib.Path(__file__).resolve().parent / ".pytest_cache"
+    base = base / "jax" if not env else base
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    for i in range(16):
+        folder = base / (worker if i == 0 else f"{worker}-{i}")
+        folder.mkdir(parents=True, exist_ok=True)
+        fd = os.open(folder / ".lock", os.O_RDWR | os.O_CREAT)  # held for the process's lifetime
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue
+        _LOCKS.append(fd)
+        return folder
+    return None
+
+
+_LOCKS: list = []
+_JAX_CACHE = _worker_cache_folder()
+if _JAX_CACHE is None:
+    jax.config.update("jax_enable_compilation_cache", False)
+else:
+    jax.config.update("jax_compilation_cache_dir", str(_JAX_CACHE))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 settings.register_profile(
     "ci",
@@ -151,3 +193,34 @@ def shared_data() -> pathlib.Path:
     if path is None:
         pytest.skip("../shared/data is absent (set JMESHTEX_SHARED_DATA to point at it)")
     return path
+
+
+def _fixture_group(item: pytest.Item) -> str | None:
+    """The xdist group of a test that takes a session or module fixture defined under ``tests/``.
+
+    A session fixture (a trained model in ``tests/<method>/conftest.py``) groups its tests by the
+    folder that defines it, a module fixture by the module: with ``--dist loadgroup`` each is built
+    on one worker only.
+    """
+    info = getattr(item, "_fixtureinfo", None)
+    if info is None:
+        return None
+    group = None
+    for name in item.fixturenames:
+        defs = info.name2fixturedefs.get(name)
+        if not defs or not defs[-1].baseid:
+            continue
+        scope = defs[-1].scope
+        if scope == "session":
+            return defs[-1].baseid.rstrip("/")
+        if scope == "module":
+            group = item.nodeid.split("::")[0]
+    return group
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.get_closest_marker("xdist_group") is None:
+            group = _fixture_group(item)
+            if group is not None:
+                item.add_marker(pytest.mark.xdist_group(group))

@@ -1,5 +1,6 @@
 """Testing helpers: procedural meshes, hypothesis strategies and the equivariance harness."""
 
+from ._check_cache import CheckCache as CheckCache
 from ._equivariance import Convergence as Convergence
 from ._equivariance import assert_equivariant as assert_equivariant
 from ._equivariance import convergence as convergence
@@ -12,9 +13,12 @@ from ._fields import KINDS as KINDS
 from ._fields import Field as Field
 from ._isometries import fold_sheet as fold_sheet
 from ._isometries import hinge as hinge
+from ._registry import EXTRINSIC as EXTRINSIC
+from ._registry import INTRINSIC as INTRINSIC
 from ._registry import REGISTRY as REGISTRY
 from ._registry import CheckResult as CheckResult
 from ._registry import Entry as Entry
+from ._registry import asserted as asserted
 from ._registry import check as check
 from ._registry import format_table as format_table
 from ._registry import load_entries as load_entries

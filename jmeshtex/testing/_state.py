@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -41,6 +42,11 @@ def regauge_neighborhood(nbhd: VertexNeighborhood, alpha: np.ndarray) -> VertexN
     return nbhd._replace(log=log, transport=transport)
 
 
+def _is_host(value) -> bool:
+    """Whether every leaf of ``value`` is a NumPy array or a Python scalar (no JAX array)."""
+    return not any(isinstance(leaf, jax.Array) for leaf in jax.tree.leaves(value))
+
+
 class MeshState:
     """Positions, faces and a tangent gauge, with cached geometry built from them.
 
@@ -64,7 +70,8 @@ class MeshState:
         V = self.vertices.shape[0]
         self.gauge = np.zeros(V) if gauge is None else np.asarray(gauge, dtype=np.float64)
         self.dtype = jnp.dtype(dtype)
-        self._cache: dict[Any, Any] = {}
+        self._cache: dict[Any, Any] = {}  # values holding JAX arrays (in ``dtype``)
+        self._host: dict[Any, Any] = {}  # host (NumPy) values: the same in every dtype
 
     @property
     def num_vertices(self) -> int:
@@ -88,9 +95,13 @@ class MeshState:
         )
 
     def _cached(self, key, build):
-        if key not in self._cache:
-            self._cache[key] = build()
-        return self._cache[key]
+        if key in self._cache:
+            return self._cache[key]
+        if key in self._host:
+            return self._host[key]
+        value = build()
+        (self._host if _is_host(value) else self._cache)[key] = value
+        return value
 
     # -- host geometry (NumPy, float64, in this state's gauge) ---------------------------------
     def host_one_ring(self) -> VertexNeighborhood:

@@ -77,7 +77,7 @@ def _jitted():
 def _encode(state, params, c, cfg=None):
     encode_samples = _jitted()[0]
     s = _samples(state)
-    corners = state.faces[s.face]  # [V, S, 3]
+    corners = state.cached("fl_corners", lambda: state.faces[_samples(state).face])  # [V, S, 3]
     rgb = jnp.einsum(
         "vsk,vskc->vsc", jnp.asarray(s.bary, state.dtype), jnp.asarray(c, state.dtype)[corners]
     )
