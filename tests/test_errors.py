@@ -56,3 +56,14 @@ def test_every_error_class_is_exported_by_the_package():
     }
     assert defined and not defined - set(dir(jmeshtex)), sorted(defined - set(dir(jmeshtex)))
     assert jmeshtex.dgts.FaceBudgetError is jmeshtex.FaceBudgetError
+
+
+def test_tests_import_errors_from_the_package_not_from_errors_py():
+    tests = pathlib.Path(__file__).resolve().parent
+    found = [
+        f"{path.relative_to(tests.parent)}:{node.lineno}"
+        for path in sorted(tests.rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ImportFrom) and node.module == "jmeshtex._errors"
+    ]
+    assert found == [], "import errors with `from jmeshtex import ...`"

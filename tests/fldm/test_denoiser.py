@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid, icosphere
 from jmeshtex.fldm._config import Config
 from jmeshtex.fldm._denoiser import (

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError
 from jmeshtex.fldm._diffusion import (
     Inpaint,
     ddim_step,

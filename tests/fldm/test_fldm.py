@@ -9,8 +9,7 @@ import jax
 import numpy as np
 import pytest
 
-from jmeshtex import CheckpointMismatchError, TrainResult
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import CheckpointMismatchError, ConfigError, InputError, TrainResult
 from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere
 from jmeshtex.data import torus
 from jmeshtex.fldm import Config, build_dataset, inpaint, load, sample, save, train

@@ -9,7 +9,7 @@ import jax
 import numpy as np
 import pytest
 
-from jmeshtex._errors import ConfigError
+from jmeshtex import ConfigError
 from jmeshtex.cli._stages.fldm import learning_check
 
 

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError
 from jmeshtex.cli._stages.fldm import stripe_encoder
 from jmeshtex.data import icosphere
 from jmeshtex.fldm import (

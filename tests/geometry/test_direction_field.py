@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from jmeshtex._errors import InputError
+from jmeshtex import InputError
 from jmeshtex.data import grid, icosphere, torus
 from jmeshtex.geometry import (
     connection_laplacian,

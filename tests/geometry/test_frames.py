@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import FaceIndexError
+from jmeshtex import FaceIndexError
 from jmeshtex.data import grid, icosahedron, icosphere, torus
 from jmeshtex.geometry import one_ring_neighborhood, tangent_frames, tangent_from_3d, tangent_to_3d
 from jmeshtex.testing import fold_sheet

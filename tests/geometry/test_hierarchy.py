@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.sparse.csgraph import dijkstra
 
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid, icosahedron, icosphere, torus
 from jmeshtex.geometry import (
     DecimationError,

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from jmeshtex._errors import (
+from jmeshtex import (
     DegenerateFaceError,
     EmptyMeshError,
     FaceIndexError,

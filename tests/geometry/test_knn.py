@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.sparse.csgraph import dijkstra
 
-from jmeshtex._errors import InputError
+from jmeshtex import InputError
 from jmeshtex.data import grid, icosahedron, icosphere, single_triangle, torus
 from jmeshtex.geometry import geodesic_knn_neighborhood, knn_from_one_ring, one_ring_neighborhood
 from jmeshtex.testing import fold_sheet, valid_meshes

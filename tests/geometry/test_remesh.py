@@ -7,8 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh
-from jmeshtex._errors import ConfigError, DecimationError, InputError, NonManifoldEdgeError
+from jmeshtex import ConfigError, DecimationError, InputError, Mesh, NonManifoldEdgeError
 from jmeshtex.data import grid, icosphere, torus
 from jmeshtex.geometry import (
     boundary_loops,

@@ -7,7 +7,7 @@ import argparse
 
 import pytest
 
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError
 from jmeshtex.cli import _meshmatch
 
 

@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from jmeshtex import Mesh
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError, Mesh
 from jmeshtex.data import icosphere
 from jmeshtex.meshmatch import Config, meshmatch, transfer
 from jmeshtex.metrics import psnr

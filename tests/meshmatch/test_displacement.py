@@ -7,8 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh
-from jmeshtex._errors import InputError
+from jmeshtex import InputError, Mesh
 from jmeshtex.data import bumpy_sphere, icosphere
 from jmeshtex.geometry import mean_edge_length, tangent_frames
 from jmeshtex.meshmatch import (

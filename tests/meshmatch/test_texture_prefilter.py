@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh
-from jmeshtex._errors import InputError
+from jmeshtex import InputError, Mesh
 from jmeshtex.data import grid
 from jmeshtex.meshmatch import vertex_colors_from_texture
 

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from jmeshtex import Mesh
-from jmeshtex._errors import ConfigError
+from jmeshtex import ConfigError, Mesh
 from jmeshtex.data import icosphere
 from jmeshtex.meshmatch import Config, _match, meshmatch, pad_level_arrays, prepare_side
 from jmeshtex.meshmatch._prepare import level_arrays, pad_axis

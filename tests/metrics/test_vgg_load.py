@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import ConfigError, MeshIOError
+from jmeshtex import ConfigError, MeshIOError
 from jmeshtex.metrics import VGG19_NAMES, load_vgg16, load_vgg19, vgg_features
 
 _CHANNELS = [(3, 4), (4, 4), (4, 6), (6, 6)] + [(6, 6)] * 12

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError
 from jmeshtex.geometry import VertexNeighborhood, pad_to
 from jmeshtex.nn import FCResNetBlock, FieldConv, FieldConvEmb
 from jmeshtex.ops import FieldConvParams, complex_linear, field_conv

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from jmeshtex._errors import InputError
+from jmeshtex import InputError
 from jmeshtex.data import grid, icosphere
 from jmeshtex.surfacecnn import image_to_texels, texels_to_image, texture_atlas, unwrap_uv
 

@@ -4,7 +4,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import InputError
+from jmeshtex import InputError
 from jmeshtex.data import grid
 from jmeshtex.ops import image_texel_neighborhood, texel_conv
 from jmeshtex.surfacecnn import texel_taps, texture_atlas, uv_to_texels

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex._errors import InputError
+from jmeshtex import InputError
 from jmeshtex.data import grid
 from jmeshtex.metrics import load_vgg16, vgg_features
 from jmeshtex.ops import PoolGroups, grouped_pool

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from jmeshtex._errors import InputError
+from jmeshtex import InputError
 from jmeshtex.data import grid
 from jmeshtex.ops import image_pool_groups, image_texel_neighborhood
 from jmeshtex.surfacecnn import texel_pyramid, texture_atlas

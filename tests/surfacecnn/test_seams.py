@@ -5,8 +5,7 @@ import jax
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import ConfigError, InputError, Mesh
 from jmeshtex.data import icosphere
 from jmeshtex.geometry import tracer_geometry
 from jmeshtex.metrics import load_vgg16, vgg_features

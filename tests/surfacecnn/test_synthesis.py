@@ -6,8 +6,7 @@ import pytest
 import skimage.data
 import skimage.transform
 
-from jmeshtex import CheckpointMismatchError, Mesh
-from jmeshtex._errors import ConfigError, InputError
+from jmeshtex import CheckpointMismatchError, ConfigError, InputError, Mesh
 from jmeshtex.data import icosphere
 from jmeshtex.surfacecnn import Config, prepare_surface, stylize, synthesize, unwrap_uv
 

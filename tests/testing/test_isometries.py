@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jmeshtex._errors import InputError
+from jmeshtex import InputError
 from jmeshtex.data import grid, icosphere
 from jmeshtex.geometry import edge_lengths
 from jmeshtex.testing import fold_sheet, hinge
