@@ -6,7 +6,7 @@ import ast
 import pathlib
 
 import jmeshtex
-from jmeshtex import _errors
+from jmeshtex import _errors, dgts
 
 ROOT = pathlib.Path(__file__).resolve().parents[1] / "jmeshtex"
 _SUFFIXES = ("Error", "Exception", "Warning")
@@ -55,7 +55,7 @@ def test_every_error_class_is_exported_by_the_package():
         and obj.__module__ == _errors.__name__
     }
     assert defined and not defined - set(dir(jmeshtex)), sorted(defined - set(dir(jmeshtex)))
-    assert jmeshtex.dgts.FaceBudgetError is jmeshtex.FaceBudgetError
+    assert dgts.FaceBudgetError is jmeshtex.FaceBudgetError
 
 
 def test_tests_import_errors_from_the_package_not_from_errors_py():
