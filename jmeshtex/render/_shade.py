@@ -118,6 +118,26 @@ def sample_texture(
     return a * (1 - frac) + b * frac
 
 
+def _gather_columns(tables: dict[str, Array], index: Array) -> dict[str, Array]:
+    """``{name: table[index]}`` for per-face tables ``[F, ...]``, gathered as one ``[F, Σ]`` table.
+
+    Example:
+      >>> t = {"a": jnp.arange(6.0).reshape(3, 2), "b": jnp.arange(3.0).reshape(3, 1)}
+      >>> {k: v.tolist() for k, v in _gather_columns(t, jnp.array([[2, 0]])).items()}
+      {'a': [[[4.0, 5.0], [0.0, 1.0]]], 'b': [[[2.0], [0.0]]]}
+    """
+    if not tables:
+        return {}
+    names = list(tables)
+    flat = [tables[k].reshape(tables[k].shape[0], -1) for k in names]
+    cuts = np.cumsum([0, *(t.shape[1] for t in flat)])
+    per = jnp.take(jnp.concatenate(flat, axis=1), index, axis=0)
+    return {
+        k: per[..., cuts[i] : cuts[i + 1]].reshape(index.shape + tables[k].shape[1:])
+        for i, k in enumerate(names)
+    }
+
+
 @functools.partial(jax.jit, static_argnames=("lit", "supersample", "background"))
 def shade(
     face: Int[ArrayLike, "Hs Ws"],
@@ -184,37 +204,27 @@ def shade(
     fi = jnp.where(hit, face, 0)
     if texture is not None and uv is None:
         raise InputError("shade: texture needs uv")
-    # one gather of every per-face attribute (a 2D table gathers far faster than several 3D ones)
+    # one gather of every per-face attribute (a 2D table gathers far faster than several 3D ones),
+    # read back by name: each column block is (name, per-corner shape)
     n_faces = jnp.asarray(normals).shape[0]
-    parts, widths = [], []
+    tables = {}
     if lit:
-        parts.append(jnp.asarray(normals, dtype).reshape(n_faces, 9))
-        widths.append(9)
+        tables["normals"] = jnp.asarray(normals, dtype).reshape(n_faces, 3, 3)
     if corner_colors is not None:
-        cc = jnp.asarray(corner_colors, dtype)[..., :3]
-        parts.append(cc.reshape(n_faces, 9))
-        widths.append(9)
+        tables["colors"] = jnp.asarray(corner_colors, dtype)[..., :3].reshape(n_faces, 3, 3)
     elif texture is not None:
-        parts.append(jnp.asarray(uv, dtype).reshape(n_faces, 6))
-        widths.append(6)
+        tables["uv"] = jnp.asarray(uv, dtype).reshape(n_faces, 3, 2)
         if lod is not None:
-            parts.append(jnp.asarray(lod, dtype).reshape(n_faces, 1))
-            widths.append(1)
-    per = jnp.take(jnp.concatenate(parts, axis=1), fi, axis=0) if parts else None
-    cuts = np.cumsum([0, *widths])
-    col = iter(range(len(widths)))
-
-    def take_next(shape):
-        i = next(col)
-        return per[..., cuts[i] : cuts[i + 1]].reshape(face.shape + shape)
+            tables["lod"] = jnp.asarray(lod, dtype).reshape(n_faces, 1)
+    columns = _gather_columns(tables, fi)
 
     b = bary[..., None]  # [Hs, Ws, 3, 1]
-    n = (take_next((3, 3)) * b).sum(axis=-2) if lit else None
+    n = (columns["normals"] * b).sum(axis=-2) if lit else None
     if corner_colors is not None:
-        albedo = (take_next((3, 3)) * b).sum(axis=-2)
+        albedo = (columns["colors"] * b).sum(axis=-2)
     elif texture is not None:
-        st = (take_next((3, 2)) * b).sum(axis=-2)
-        lod_px = take_next((1,))[..., 0] if lod is not None else None
+        st = (columns["uv"] * b).sum(axis=-2)
+        lod_px = columns["lod"][..., 0] if lod is not None else None
         albedo = sample_texture(jnp.asarray(texture, dtype), st, lod_px)[..., :3]
     else:
         albedo = jnp.broadcast_to(jnp.asarray(GREY, dtype), face.shape + (3,))
