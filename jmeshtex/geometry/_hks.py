@@ -52,9 +52,8 @@ def laplacian_eigenpairs(
     ``L`` is the positive semi-definite weak Laplacian, ``M`` the lumped mass matrix. Solved with
     ``scipy.sparse.linalg.eigsh`` in shift-invert mode around a small negative shift (``L - σM`` is
     then positive definite and one sparse LU factorisation serves every iteration); the starting
-    vector is fixed, so results are deterministic. Cost at k = 100 (``benchmarks/geometry.py``, one
-    BLAS thread, loaded 2-core machine): ~1 s at 5K vertices, ~7 s at 20K, ~40 s at 80K, mostly
-    ARPACK's reorthogonalisation. Many BLAS threads on busy cores make it several times slower.
+    vector is fixed, so results are deterministic. Cost grows about linearly with V at k = 100
+    (figures in ``benchmarks/geometry.py``'s results), mostly ARPACK's reorthogonalisation.
 
     Args:
       vertices: ``[V, 3]`` positions.
@@ -89,10 +88,10 @@ def laplacian_eigenpairs(
     mass = np.asarray(M.diagonal(), dtype=np.float64)
     # shift just below zero relative to the spectrum's scale (mean diagonal ratio ~ 1/h^2)
     sigma = -1e-8 * float(np.mean(L.diagonal() / mass))
-    # factor L - σM once, ourselves: a symmetric fill-reducing ordering (minimum degree on A^T + A)
-    # halves the fill of eigsh's default COLAMD on mesh Laplacians (measured at 20K vertices: factor
-    # 2.4x, solves 1.7x, the whole eigsh ~1.2x faster)
-    lu = spla.splu(sp.csc_matrix(L - sigma * M), permc_spec="MMD_AT_PLUS_A")
+    # factor L - σM once, ourselves, with SuperLU's COLAMD column ordering: on mesh Laplacians the
+    # minimum-degree orderings (MMD_AT_PLUS_A, MMD_ATA) have a fill cliff, 300x slower at 35K
+    # vertices (benchmarks/geometry.py, the "eigen-solve" cases)
+    lu = spla.splu(sp.csc_matrix(L - sigma * M), permc_spec="COLAMD")
     shift_invert = spla.LinearOperator(L.shape, matvec=lu.solve, dtype=np.float64)
     v0 = np.random.default_rng(0).standard_normal(n)  # fixed start vector: deterministic output
     values, vectors = spla.eigsh(
