@@ -177,10 +177,10 @@ def main() -> None:
                 model = fldm.Model(params, cfg, np.ones(8))
                 load = _load()
                 t0 = time.perf_counter()
-                fldm.sample(model, geo, key=jax.random.key(3), n=1, steps=50)
+                fldm.sample(model, geo, key=jax.random.key(3), num_samples=1, steps=50)
                 first = time.perf_counter() - t0
                 t0 = time.perf_counter()
-                fldm.sample(model, geo, key=jax.random.key(4), n=1, steps=50)
+                fldm.sample(model, geo, key=jax.random.key(4), num_samples=1, steps=50)
                 second = time.perf_counter() - t0
                 report.add(
                     name="ddim50 cpu (full loop)",

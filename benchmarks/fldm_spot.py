@@ -250,9 +250,15 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     geo = fldm.sampling_geometry(spot, result.model)
     untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
-    z_tr = fldm.sample(result.model, geo, key=k_sample, n=n, steps=run["ddim_steps"])
-    z_un = fldm.sample(untrained, geo, key=k_sample, n=n, steps=run["ddim_steps"])
-    z_ddpm = fldm.sample(result.model, geo, key=k_sample, n=n, method="ddpm") if args.ddpm else None
+    z_tr = fldm.sample(
+        result.model, geo, key=k_sample, num_samples=n, steps=run["ddim_steps"]
+    ).latents
+    z_un = fldm.sample(untrained, geo, key=k_sample, num_samples=n, steps=run["ddim_steps"]).latents
+    z_ddpm = (
+        fldm.sample(result.model, geo, key=k_sample, num_samples=n, method="ddpm").latents
+        if args.ddpm
+        else None
+    )
     stage("sample", t0)
 
     # 4. decode to Spot's atlas; the FL-VAE reconstruction of the exemplar; the mean colour

@@ -2,9 +2,9 @@
 
 - ``train --mesh M [--texture T] [--labels L.npy] [--mask-conditioning] --out DIR``: re-triangulated copies (cached in
   ``DIR/data``), FL-VAE latents, denoiser training (resumable checkpoints in ``DIR/checkpoints``),
-  model files ``DIR/model.npz`` + ``model.json`` (:func:`jmeshtex.fldm.save`) and ``DIR/fldm.json``
+  the model file ``DIR/model.npz`` (:func:`jmeshtex.fldm.save`) and ``DIR/fldm.json``
   (what to decode with).
-- ``sample --model DIR [--mesh N] [--vertices n] [--steps 50] [--ddpm] --n 4 --out OUT``: ``OUT/latents.npz``
+- ``sample --model DIR [--mesh N] [--vertices n] [--steps 50] [--ddpm] --num-samples 4 --out OUT``: ``OUT/latents.npz``
   and a PNG per sample (``OUT/sample_XX_0.png``); with ``--mesh`` on another mesh (transfer); with
   ``--vertices`` on a re-triangulation with that many vertices (textural scale follows resolution).
 - ``inpaint --model DIR --mask MASK.npy [--mesh N] ... --out OUT``: keeps the latents of the mesh's
@@ -92,7 +92,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         s.add_argument("--ddim", action="store_true", help="DDIM sampling (the default)")
         s.add_argument("--ddpm", action="store_true", help="ancestral DDPM with all T steps")
         s.add_argument("--eta", type=float, default=0.0, help="DDIM eta (default 0)")
-        s.add_argument("--n", type=int, default=4, help="number of samples (default 4)")
+        s.add_argument(
+            "--num-samples",
+            "--n",
+            dest="num_samples",
+            type=int,
+            default=4,
+            help="number of samples (default 4)",
+        )
         s.add_argument(
             "--labels", default=None, type=pathlib.Path, help="[V] int label map (.npy) on the mesh"
         )
@@ -228,7 +235,7 @@ def _run_sampling(args, *, inpaint: bool) -> int:
     labels = None if args.labels is None else np.load(args.labels)
     kwargs = dict(
         key=k_sample,
-        n=args.n,
+        num_samples=args.num_samples,
         method="ddpm" if args.ddpm else "ddim",
         steps=args.steps,
         eta=args.eta,
@@ -242,7 +249,7 @@ def _run_sampling(args, *, inpaint: bool) -> int:
                 f"--mask must be a [V] = ({mesh.num_vertices},) boolean array, got {mask.shape}"
             )
         kwargs.update(known=encode(mesh), mask=mask)
-    latents = sample(model, mesh, **kwargs)
+    latents = sample(model, mesh, **kwargs).latents
     args.out.mkdir(parents=True, exist_ok=True)
     np.savez(args.out / "latents.npz", latents=latents, vertices=mesh.vertices, faces=mesh.faces)
     paths = render_samples(

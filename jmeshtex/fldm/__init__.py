@@ -11,7 +11,8 @@ The method's shape is that of every jmeshtex method:
 - :func:`build_dataset` (a :class:`~jmeshtex.Mesh` and an ``encode`` callable in, a :class:`Dataset` out);
 - :func:`train` (resumable, returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`),
   :func:`save` / :func:`load`;
-- the task verbs :func:`sample` and :func:`inpaint` (a mesh and ``key=`` in, latents out).
+- the task verbs :func:`sample` and :func:`inpaint` (a mesh and ``key=`` in, :class:`FLDMSamples`
+  out).
 
 Example:
   >>> import jax
@@ -21,7 +22,8 @@ Example:
   >>> data = fldm.build_dataset(icosphere(1), config, encode=lambda m: m.vertices[:, :1] + 0j,
   ...                           key=jax.random.key(0), progress=False)
   >>> result = fldm.train(data, config, key=jax.random.key(1), progress=False)
-  >>> fldm.sample(result.model, icosphere(1), key=jax.random.key(2), n=2, steps=3).shape
+  >>> samples = fldm.sample(result.model, icosphere(1), key=jax.random.key(2), num_samples=2, steps=3)
+  >>> samples.latents.shape
   (2, 42, 1)
 """
 
@@ -59,6 +61,7 @@ from ._masks import random_mask as random_mask
 from ._model import Model as Model
 from ._model import load as load
 from ._model import save as save
+from ._sample import FLDMSamples as FLDMSamples
 from ._sample import decode_samples as decode_samples
 from ._sample import inpaint as inpaint
 from ._sample import render_samples as render_samples

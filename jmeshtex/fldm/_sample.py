@@ -6,7 +6,7 @@ mesh (*generative transfer*, §6.6). The denoiser's filters see log maps in unit
 mean edge length, so the resolution of the target mesh sets the textural scale: the same model on a
 mesh with twice the vertex density gives a texture about √2 times smaller in world units.
 
-- :func:`sample`: ``n`` samples with DDIM (default, 50 steps) or ancestral DDPM (all ``T``);
+- :func:`sample`: ``num_samples`` samples (:class:`FLDMSamples`) with DDIM (default, 50 steps) or ancestral DDPM (all ``T``);
   label-guided when the model was trained with labels (pass a per-vertex ``labels`` map);
 - :func:`inpaint`: keeps given latents where ``mask`` is True (eq. 14), ancestral DDPM by default;
   a model trained with ``Config.mask_conditioning`` also sees the mask and the known latents at
@@ -19,6 +19,7 @@ Every function takes an explicit ``key``; the same key gives bit-identical sampl
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import pathlib
@@ -37,7 +38,41 @@ from ._diffusion import (
     make_schedule,
     sample_from_noise,
 )
-from ._train import Model
+from ._model import Model
+
+
+@dataclasses.dataclass(frozen=True)
+class FLDMSamples:
+    """Latent fields drawn by :func:`sample` or :func:`inpaint` on one mesh.
+
+    Attributes:
+      latents: ``[num_samples, V, d]`` complex128 unscaled latents (ready for the FL-VAE decoder,
+        :func:`decode_samples`) in the one-ring frames of the mesh they were drawn on.
+      known_mask: ``[V]`` bool, True where given latents were kept (inpainting); None for plain
+        sampling.
+      method: the sampler, ``"ddim"`` or ``"ddpm"``.
+      steps: the number of denoising steps each sample ran.
+
+    Example:
+      >>> s = FLDMSamples(np.zeros((2, 5, 3), np.complex128), None, "ddim", 4)
+      >>> s.num_samples, s.num_vertices
+      (2, 5)
+    """
+
+    latents: np.ndarray
+    known_mask: np.ndarray | None
+    method: str
+    steps: int
+
+    @property
+    def num_samples(self) -> int:
+        """Number of samples."""
+        return int(self.latents.shape[0])
+
+    @property
+    def num_vertices(self) -> int:
+        """Number of vertices of the mesh the samples live on."""
+        return int(self.latents.shape[1])
 
 
 def _round_up(n: int, bucket: int) -> int:
@@ -118,7 +153,7 @@ def sample(
     target: Mesh | DenoiserGeometry,
     *,
     key: jax.Array,
-    n: int = 1,
+    num_samples: int = 1,
     method: str = "ddim",
     steps: int = 50,
     eta: float = 0.0,
@@ -127,8 +162,8 @@ def sample(
     mask: np.ndarray | None = None,
     progress: bool = False,
     dtype=jnp.complex64,
-) -> np.ndarray:
-    """Draw ``n`` latent fields on ``target`` (unscaled: ready for the FL-VAE decoder).
+) -> FLDMSamples:
+    """Draw ``num_samples`` latent fields on ``target`` (unscaled: ready for the FL-VAE decoder).
 
     .. math:: z_T \\sim \\mathcal{CN}(0, I) \\xrightarrow{\\text{DDIM / DDPM (eq. 11, 29–31)}} z_0,
        \\qquad \\mu = z_0 / s
@@ -138,7 +173,7 @@ def sample(
       target: the :class:`~jmeshtex.Mesh` to sample on (any mesh: generative transfer; a
         ``(vertices, faces)`` pair also works) or its prebuilt geometry (:func:`sampling_geometry`).
       key: PRNG key; the same key gives the same samples.
-      n: number of samples.
+      num_samples: number of samples.
       method: ``"ddim"`` (``steps`` steps, ``eta``) or ``"ddpm"`` (all ``T`` steps, ancestral).
       steps: DDIM steps.
       eta: DDIM stochasticity.
@@ -148,7 +183,8 @@ def sample(
       dtype: complex dtype.
 
     Returns:
-      ``[n, V, d]`` complex128 latents in the target's one-ring frames.
+      :class:`FLDMSamples`: ``latents`` ``[num_samples, V, d]`` complex128 in the target's one-ring
+      frames.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -156,19 +192,22 @@ def sample(
       >>> cfg = Config.tiny(latent_channels=2, diffusion_steps=20)
       >>> model = Model(init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
       >>> geo = sampling_geometry(icosphere(1), model)
-      >>> a = sample(model, geo, key=jax.random.key(1), n=2, steps=4)
-      >>> b = sample(model, geo, key=jax.random.key(1), n=2, steps=4)
-      >>> a.shape, bool(np.array_equal(a, b))
+      >>> a = sample(model, geo, key=jax.random.key(1), num_samples=2, steps=4)
+      >>> b = sample(model, geo, key=jax.random.key(1), num_samples=2, steps=4)
+      >>> a.latents.shape, bool(np.array_equal(a.latents, b.latents))
       ((2, 42, 2), True)
     """
     from tqdm.auto import tqdm
 
+    if not _is_count(num_samples):
+        raise InputError(f"num_samples must be an integer >= 1, got {num_samples!r}")
     geo = target if isinstance(target, DenoiserGeometry) else sampling_geometry(target, model)
     V, d = geo.num_vertices, model.config.latent_channels
     lab = _check_labels(model, labels, V)
     scale = np.asarray(model.scale, np.float64)
     if (known is None) != (mask is None):
         raise InputError("inpainting needs both known [V, d] latents and mask [V]")
+    inpainting = known is not None
     if (
         known is None
     ):  # plain sampling is inpainting with an empty mask: one compiled program for both
@@ -201,7 +240,7 @@ def sample(
         model.params,
     )
     out = []
-    for i in tqdm(range(int(n)), desc="FLDM sample", unit="sample", disable=not progress):
+    for i in tqdm(range(int(num_samples)), desc="FLDM sample", unit="sample", disable=not progress):
         z_T, noise, known_noise = draw_sampling_noise(
             jax.random.fold_in(key, i),
             (Vp, d),
@@ -226,7 +265,12 @@ def sample(
             eta=float(eta),
         )
         out.append(np.asarray(z, np.complex128)[:V] / scale)
-    return np.stack(out)
+    ran = model.config.diffusion_steps if method == "ddpm" else int(steps)
+    return FLDMSamples(np.stack(out), mask.copy() if inpainting else None, str(method), ran)
+
+
+def _is_count(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1
 
 
 def inpaint(
@@ -236,9 +280,9 @@ def inpaint(
     mask: np.ndarray,
     *,
     key: jax.Array,
-    n: int = 1,
+    num_samples: int = 1,
     **kwargs,
-) -> np.ndarray:
+) -> FLDMSamples:
     """Inpaint: sample the latents where ``mask`` is False, keep ``known`` where it is True (eq. 14).
 
     A thin wrapper of :func:`sample` (same keyword arguments) whose default sampler is ancestral
@@ -258,23 +302,38 @@ def inpaint(
       known: ``[V, d]`` unscaled latents (e.g. the FL-VAE's encoding of the mesh's own colours).
       mask: ``[V]`` True where ``known`` is kept.
       key: PRNG key; the same key gives the same inpaintings.
-      n: number of inpaintings.
+      num_samples: number of inpaintings.
       **kwargs: :func:`sample`'s other keywords (``method``, ``steps``, ``eta``, ``labels``, ...).
 
     Returns:
-      ``[n, V, d]`` complex128 latents.
+      :class:`FLDMSamples`: ``latents`` ``[num_samples, V, d]`` complex128, equal to ``known``
+      where ``known_mask`` (= ``mask``) is True.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> from jmeshtex.fldm import Config, init_denoiser
+      >>> cfg = Config.tiny(latent_channels=2, diffusion_steps=20)
+      >>> model = Model(init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
+      >>> mesh = icosphere(1)
+      >>> known, mask = np.ones((42, 2), np.complex128), mesh.vertices[:, 2] > 0
+      >>> out = inpaint(model, mesh, known, mask, key=jax.random.key(1), method="ddim", steps=3)
+      >>> out.latents.shape, bool(np.allclose(out.latents[0][mask], 1.0, atol=1e-6))
+      ((1, 42, 2), True)
     """
     kwargs.setdefault("method", "ddpm")
-    return sample(model, mesh, key=key, n=n, known=known, mask=mask, **kwargs)
+    return sample(model, mesh, key=key, num_samples=num_samples, known=known, mask=mask, **kwargs)
 
 
-def decode_samples(vae, mesh: Mesh, latents: np.ndarray, *, size: int = 256) -> list[dict]:
+def decode_samples(
+    vae, mesh: Mesh, latents: FLDMSamples | np.ndarray, *, size: int = 256
+) -> list[dict]:
     """Decode latent samples with the FL-VAE: a texture atlas if ``mesh`` has UVs, else vertex colours.
 
     Args:
       vae: the FL-VAE (:class:`jmeshtex.fl.Model`) the training latents were encoded with.
       mesh: the :class:`~jmeshtex.Mesh` the latents live on.
-      latents: ``[n, V, d]`` unscaled latents (:func:`sample`).
+      latents: :class:`FLDMSamples` (:func:`sample`, :func:`inpaint`) or their ``[n, V, d]``
+        unscaled latents.
       size: atlas size in texels (meshes with UVs).
 
     Returns:
@@ -284,6 +343,8 @@ def decode_samples(vae, mesh: Mesh, latents: np.ndarray, *, size: int = 256) -> 
     from ..fl import decode_texture, decode_vertex_colors
 
     mesh = as_mesh(mesh)
+    if isinstance(latents, FLDMSamples):
+        latents = latents.latents
     out = []
     for mu in np.asarray(latents):
         mu_j = jnp.asarray(mu, jnp.complex64)

@@ -167,14 +167,14 @@ def test_v_prediction_is_trained_saved_and_sampled_through(tmp_path, data, train
     model = load(save(res.model, tmp_path))
     assert model.config.prediction == "v"
     mesh = data.meshes[0]
-    as_v = sample(model, mesh, key=jax.random.key(0), n=1, steps=5)
+    as_v = sample(model, mesh, key=jax.random.key(0), num_samples=1, steps=5).latents
     as_eps = sample(
         model._replace(config=cfg.replace(prediction="epsilon")),
         mesh,
         key=jax.random.key(0),
-        n=1,
+        num_samples=1,
         steps=5,
-    )
+    ).latents
     assert np.isfinite(as_v).all() and not np.allclose(as_v, as_eps)
     with pytest.raises(ConfigError, match="prediction"):
         CFG.replace(prediction="x0")
@@ -183,26 +183,30 @@ def test_v_prediction_is_trained_saved_and_sampled_through(tmp_path, data, train
 def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
     model = trained.model
     mesh = data.meshes[0]
-    a = sample(model, mesh, key=jax.random.key(0), n=2, steps=5)
+    a = sample(model, mesh, key=jax.random.key(0), num_samples=2, steps=5).latents
     b = sample(
-        model, (mesh.vertices, mesh.faces), key=jax.random.key(0), n=2, steps=5
-    )  # a (V, F) pair works too
-    c = sample(model, mesh, key=jax.random.key(1), n=1, steps=5)
+        model, (mesh.vertices, mesh.faces), key=jax.random.key(0), num_samples=2, steps=5
+    ).latents  # a (V, F) pair works too
+    c = sample(model, mesh, key=jax.random.key(1), num_samples=1, steps=5).latents
     assert a.shape == (2, 80, 2) and np.array_equal(a, b) and not np.allclose(a[0], c[0])
     assert not np.allclose(a[0], a[1])
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
-    z = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=5)
+    z = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=5).latents
     # exact up to the float32 round trip of the scale
     np.testing.assert_allclose(z[0][mask], known[mask], rtol=1e-6, atol=1e-6)
     assert not np.allclose(z[0][~mask], known[~mask], atol=1e-2)
     # inpainting samples with ancestral DDPM (all T steps) unless told otherwise
-    z_default = inpaint(model, mesh, known, mask, key=jax.random.key(2))
-    z_ddpm = sample(model, mesh, key=jax.random.key(2), known=known, mask=mask, method="ddpm")
+    z_default = inpaint(model, mesh, known, mask, key=jax.random.key(2)).latents
+    z_ddpm = sample(
+        model, mesh, key=jax.random.key(2), known=known, mask=mask, method="ddpm"
+    ).latents
     np.testing.assert_array_equal(z_default, z_ddpm)
     assert not np.allclose(z_default, z)
     # generative transfer: any mesh, any size
-    t = sample(model, torus(12, 6), key=jax.random.key(3), n=1, steps=5, method="ddim")
+    t = sample(
+        model, torus(12, 6), key=jax.random.key(3), num_samples=1, steps=5, method="ddim"
+    ).latents
     assert t.shape == (1, 72, 2) and np.isfinite(t).all()
     with pytest.raises(InputError, match="unconditional"):
         sample(model, mesh, key=jax.random.key(0), labels=np.zeros(80, int))
@@ -223,8 +227,8 @@ def test_label_guided_training_and_sampling(sphere):
     model = train(data, cfg, key=TRAIN_KEY, progress=False).model
     mesh = data.meshes[0]
     key = jax.random.key(0)
-    z0 = sample(model, mesh, key=key, steps=3, labels=np.zeros(80, int))
-    z1 = sample(model, mesh, key=key, steps=3, labels=np.ones(80, int))
+    z0 = sample(model, mesh, key=key, steps=3, labels=np.zeros(80, int)).latents
+    z1 = sample(model, mesh, key=key, steps=3, labels=np.ones(80, int)).latents
     assert not np.allclose(z0, z1)  # the label map reaches the filters
     with pytest.raises(InputError, match="label-guided"):
         sample(model, mesh, key=key, steps=3)
@@ -292,7 +296,7 @@ def test_cli_train_sample_inpaint(tmp_path):
             "70",
             "--steps",
             "3",
-            "--n",
+            "--num-samples",
             "2",
             "--out",
             str(tmp_path / "s"),

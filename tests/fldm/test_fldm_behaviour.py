@@ -102,7 +102,7 @@ def test_inpainting_keeps_the_known_region_and_continues_it_across_the_boundary(
     mesh = remesh(exemplar, n_vertices=500, key=jax.random.key(77))
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
-    z = fldm.inpaint(model, mesh, known, mask, key=SAMPLE_KEY, n=2)  # ancestral DDPM, all T steps
+    z = fldm.inpaint(model, mesh, known, mask, key=SAMPLE_KEY, num_samples=2).latents  # DDPM, all T
     np.testing.assert_allclose(
         z[:, mask], np.broadcast_to(known[mask], z[:, mask].shape), rtol=1e-6, atol=1e-6
     )
@@ -129,7 +129,9 @@ def _two_label_sphere(exemplar: Mesh) -> tuple[Mesh, np.ndarray]:
 
 def _std_ratios(model, mesh, region, labels=None, n=2):
     """``std(s | region) / std(s | not region)`` of each of ``n`` samples (DDIM 25)."""
-    z = fldm.sample(model, mesh, key=jax.random.key(3), n=n, steps=25, labels=labels)
+    z = fldm.sample(
+        model, mesh, key=jax.random.key(3), num_samples=n, steps=25, labels=labels
+    ).latents
     return [
         float(np.std(stripe_decoder(zz)[region]) / np.std(stripe_decoder(zz)[~region])) for zz in z
     ]
@@ -171,7 +173,7 @@ def test_a_coarser_remesh_gives_a_larger_texture(exemplar, model):
     lengths, truth = {}, {}
     for n in (1000, 250):
         mesh = remesh(exemplar, n_vertices=n, key=jax.random.key(n))
-        z = fldm.sample(model, mesh, key=SAMPLE_KEY, n=2, steps=25)
+        z = fldm.sample(model, mesh, key=SAMPLE_KEY, num_samples=2, steps=25).latents
         lengths[n] = [correlation_length(mesh, stripe_decoder(zz)) for zz in z]
         truth[n] = correlation_length(mesh, stripe_intensity(mesh.vertices))
     print({"samples": lengths, "exemplar": truth})
@@ -219,7 +221,7 @@ def transfer_grams(model: fldm.Model, data: fldm.Dataset, *, n: int = 2) -> dict
 
     z_copy = data.latents[0, : data.meshes[0].num_vertices]
     rng = np.random.default_rng(0)
-    z = fldm.sample(model, target, key=SAMPLE_KEY, n=n, steps=25)
+    z = fldm.sample(model, target, key=SAMPLE_KEY, num_samples=n, steps=25).latents
     return {
         "vertices": target.num_vertices,
         "samples": [gram(stripe_decoder(zz)) for zz in z],

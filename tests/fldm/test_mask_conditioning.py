@@ -166,13 +166,13 @@ def test_a_mask_conditioned_model_trains_and_inpaints_exactly(trained):
     mesh = data.meshes[0]
     known = stripe_encoder(mesh)
     mask = mesh.vertices[:, 2] > 0
-    z = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=4)
+    z = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=4).latents
     np.testing.assert_allclose(
         z[0][mask], known[mask], rtol=1e-6, atol=1e-6
     )  # the float32 round trip of the scale
     assert np.isfinite(z).all() and not np.allclose(z[0][~mask], known[~mask], atol=1e-2)
     # plain sampling of a mask-conditioned model: an empty mask (what a quarter of the training saw)
-    s = sample(model, mesh, key=jax.random.key(2), steps=4)
+    s = sample(model, mesh, key=jax.random.key(2), steps=4).latents
     assert s.shape == (1, 80, 2) and np.isfinite(s).all()
-    again = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=4)
+    again = inpaint(model, mesh, known, mask, key=jax.random.key(2), method="ddim", steps=4).latents
     np.testing.assert_array_equal(z, again)  # reproducible from the key

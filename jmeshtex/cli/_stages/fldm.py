@@ -198,8 +198,8 @@ def learning_check(
     geo = fldm.sampling_geometry(target, result.model)
     untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
     steps = 25
-    z_tr = fldm.sample(result.model, geo, key=k_sample, n=n_samples, steps=steps)
-    z_un = fldm.sample(untrained, geo, key=k_sample, n=n_samples, steps=steps)
+    z_tr = fldm.sample(result.model, geo, key=k_sample, num_samples=n_samples, steps=steps).latents
+    z_un = fldm.sample(untrained, geo, key=k_sample, num_samples=n_samples, steps=steps).latents
     weights = load_vgg16()
     # the exemplar's stripes on the same copy the samples live on, central crops (texture only)
     ref = render_views(target, rgb_to_intensity(target.vertex_colors), size=96, crop=True)
@@ -297,14 +297,14 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     model = result.model
     target = data.meshes[0]
     say(progress, "sampling")
-    z = fldm.sample(model, target, key=key, n=2, steps=25)
+    z = fldm.sample(model, target, key=key, num_samples=2, steps=25).latents
     known = stripe_encoder(target)
     mask = target.vertices[:, 2] > 0
     say(progress, "inpainting")
-    zi = fldm.inpaint(model, target, known, mask, key=key, method="ddim", steps=25)[0]
+    zi = fldm.inpaint(model, target, known, mask, key=key, method="ddim", steps=25).latents[0]
     say(progress, "transfer")
     fine = remesh(exemplar, n_vertices=2 * target.num_vertices, key=jax.random.key(99))
-    zf = fldm.sample(model, fine, key=key, n=1, steps=25)[0]
+    zf = fldm.sample(model, fine, key=key, num_samples=1, steps=25).latents[0]
     say(progress, "rendering")
     # the copy's training latents decoded (per vertex, so permuting them = permuting this)
     copy = stripe_decoder(np.asarray(data.latents[0, : target.num_vertices]))[:, None]
