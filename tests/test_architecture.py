@@ -214,6 +214,8 @@ def test_methods_import_neither_each_other_nor_testing_nor_cli():
     [
         ("jmeshtex.ops", ("jmeshtex.geometry", "scipy")),  # pure JAX: no host geometry, no scipy
         ("jmeshtex.io", ("jmeshtex.geometry", "jmeshtex.ops")),  # the bottom layer
+        # beside ops/nn: jax and optax only
+        ("jmeshtex.optim", ("jmeshtex.geometry", "jmeshtex.ops", "jmeshtex.nn", "scipy", "flax")),
     ],
 )
 def test_a_lower_layer_imports_without_the_ones_above(package, forbidden):

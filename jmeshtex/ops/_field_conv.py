@@ -86,6 +86,11 @@ def init_field_conv(
     neighbourhood gets a non-zero response), the mix complex LeCun normal with ``fan_in = C·H``
     (:func:`~jmeshtex.ops.complex_lecun_normal`).
 
+    Training: ``mix`` is complex, and for complex leaves ``jax.grad`` returns the conjugate of the
+    steepest-ascent direction; put :func:`jmeshtex.optim.complex_steepest` first in the optax chain
+    (``optax.chain(complex_steepest(), optax.adam(lr))``), or plain optax moves the imaginary parts
+    uphill.
+
     Args:
       key: PRNG key.
       in_features: ``C``.

@@ -34,6 +34,10 @@ def init_vn(
 ) -> VNParams:
     """Random :class:`VNParams` (complex LeCun normal).
 
+    Training: the weights are complex; put :func:`jmeshtex.optim.complex_steepest` first in the
+    optax chain (``optax.chain(complex_steepest(), optax.adam(lr))``), or plain optax moves the
+    imaginary parts uphill.
+
     Args:
       key: PRNG key.
       in_features: ``C``.

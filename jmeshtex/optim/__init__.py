@@ -1,0 +1,11 @@
+"""Gradient transformations for jmeshtex's parameters, to compose with optax.
+
+:func:`complex_steepest` goes first in an ``optax.chain`` whenever the parameters have complex
+leaves (every ``jmeshtex.ops.init_*`` of a tangent-feature layer draws complex weights)::
+
+    optimizer = optax.chain(jmeshtex.optim.complex_steepest(), optax.adam(1e-3))
+
+Depends on jax and optax only.
+"""
+
+from ._complex import complex_steepest as complex_steepest
