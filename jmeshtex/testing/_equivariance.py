@@ -88,7 +88,7 @@ def equivariance_error(
       >>> def centroid(state, x):  # mean position: equivariant to rigid motions
       ...     return Field("invariant", state.points().mean(0) * 0 + x.sum())
       >>> s = MeshState(*icosahedron())
-      >>> r = CATALOGUE["permute_vertices"].draw(s, np.random.default_rng(0))
+      >>> r = CATALOGUE["permute_vertices"].draw(np.random.default_rng(0), s)
       >>> equivariance_error(centroid, r, {"x": Field("vertex_scalar", np.arange(12.0))}) < 1e-12
       True
     """
@@ -191,7 +191,7 @@ def convergence(
     errors, excluded = [], []
     for n in resolutions:
         rng = np.random.default_rng(seed)
-        real = transform.draw(n, rng, dtype)
+        real = transform.draw(rng, resolution=n, dtype=dtype)
         mask = None
         if selection is not None:
             a = np.asarray(selection(real.source))[real.vperm]

@@ -122,10 +122,31 @@ def load_entries() -> dict[str, Entry]:
 MAX_EXCLUDED = 0.1
 
 
-def register(entry: Entry) -> Entry:
-    """Add an entry to ``REGISTRY`` (names must be unique; transforms must exist)."""
-    if entry.name in REGISTRY:
-        raise ValueError(f"an operator named {entry.name!r} is already registered")
+def register(entry: Entry, *, replace: bool = False) -> Entry:
+    """Add an entry to ``REGISTRY`` (transforms must exist).
+
+    Args:
+      entry: the operator to register.
+      replace: replace an entry of the same name (re-running a notebook cell) instead of raising.
+
+    Returns:
+      ``entry``.
+
+    Raises:
+      ValueError: the name is taken (and ``replace`` is False) or a transform is unknown.
+
+    Example:
+      >>> from jmeshtex.testing import Field
+      >>> e = Entry("user.scale", lambda s, p, x: Field("vertex_scalar", 2 * x), {"x": ("vertex_scalar", 1)},
+      ...           ("rigid",))
+      >>> register(e, replace=True) is register(e, replace=True)
+      True
+      >>> _ = REGISTRY.pop("user.scale")
+    """
+    if entry.name in REGISTRY and not replace:
+        raise ValueError(
+            f"an operator named {entry.name!r} is already registered (replace=True replaces it)"
+        )
     unknown = [
         t for t in (*entry.transforms, *entry.expect_fail, *entry.report) if t not in CATALOGUE
     ]
@@ -302,7 +323,7 @@ def check(
     errors = []
     if transform.family:
         rng = np.random.default_rng(seed)
-        real = transform.draw(entry.resolutions[1] if smooth else 8, rng, dtype)
+        real = transform.draw(rng, resolution=entry.resolutions[1] if smooth else 8, dtype=dtype)
         errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, real.source, rng)))
     else:
         rng = np.random.default_rng(seed)
@@ -310,7 +331,7 @@ def check(
             if meshes is not None and mesh not in meshes:
                 continue
             state = MeshState(v, f, dtype=dtype)
-            real = transform.draw(state, rng)
+            real = transform.draw(rng, state)
             errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, state, rng)))
     err = float(max(errors))
     if smooth or report_only:  # float32 smooth isometries, re-triangulation, declared reports

@@ -179,24 +179,67 @@ def random_rotation(rng: np.random.Generator, *, proper: bool = True) -> np.ndar
 
 @dataclasses.dataclass(frozen=True)
 class Transform:
-    """A named generator of realisations.
+    """A named generator of realisations; :meth:`draw` draws one.
 
     Attributes:
       name: catalogue name.
       exact: True when the transform is an exact symmetry (checked against a tolerance); False for
         smooth isometries (checked by convergence order) and re-triangulation (reported).
-      draw: ``(state, rng) -> Realisation`` for transforms applicable to any mesh, or
+      build: ``(state, rng) -> Realisation`` for transforms applicable to any mesh, or
         ``(n, rng, dtype) -> Realisation`` for transforms that build their own mesh family
         (``family=True``; ``n`` is the resolution, doubling halves the mesh spacing).
-      family: see ``draw``.
+      family: see ``build``.
       doc: one line for reports.
     """
 
     name: str
     exact: bool
-    draw: Callable
+    build: Callable
     family: bool = False
     doc: str = ""
+
+    def draw(
+        self,
+        rng: np.random.Generator,
+        state: MeshState | None = None,
+        *,
+        resolution: int = 8,
+        dtype=np.float64,
+    ) -> Realisation:
+        """Draw a realisation: of ``state``'s mesh, or of the family's mesh at ``resolution``.
+
+        Args:
+          rng: the generator every random choice is drawn from.
+          state: the mesh to transform; required by transforms of any mesh, None for a family
+            (``family=True``), which builds its own mesh.
+          resolution: a family's resolution (cells per side; doubling halves the spacing).
+          dtype: a family's dtype (``np.float64`` or ``np.float32``); a state carries its own.
+
+        Returns:
+          The :class:`Realisation`.
+
+        Raises:
+          InputError: a state given to a family, or none to a transform of any mesh.
+
+        Example:
+          >>> from jmeshtex.data import icosahedron
+          >>> rng = np.random.default_rng(0)
+          >>> CATALOGUE["gauge"].draw(rng, MeshState(*icosahedron())).target.num_vertices
+          12
+          >>> CATALOGUE["fold"].draw(rng, resolution=4).source.num_vertices
+          25
+        """
+        from .._errors import InputError
+
+        if self.family:
+            if state is not None:
+                raise InputError(
+                    f"{self.name!r} builds its own mesh: pass resolution=, not a state"
+                )
+            return self.build(int(resolution), rng, dtype)
+        if not isinstance(state, MeshState):
+            raise InputError(f"{self.name!r} transforms a given mesh: pass a MeshState as state")
+        return self.build(state, rng)
 
 
 # --- transforms on any mesh ------------------------------------------------------------------

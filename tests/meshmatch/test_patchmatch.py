@@ -38,7 +38,7 @@ def test_relabelled_target_is_matched_with_the_frame_rotation():
     same vertex and the rotation the frame turn, to the nearest step 2π/A."""
     v, f = _bumpy_sphere(2)
     rng = np.random.default_rng(3)
-    real = CATALOGUE["permute_vertices"].draw(MeshState(v, f), rng)
+    real = CATALOGUE["permute_vertices"].draw(rng, MeshState(v, f))
     colors = 0.5 + 0.4 * np.sin(5 * v[:, :3] + np.array([0.0, 1.0, 2.0]))
     cfg = Config(levels=1, coarse_steps=25)
     r = meshmatch((v, f), colors, (real.target.vertices, real.target.faces), key=KEY, config=cfg)

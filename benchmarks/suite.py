@@ -1,0 +1,174 @@
+"""The test suite's budget: wall and CPU time of a pytest run, per folder, so growth is seen.
+
+Usage (from the repository root)::
+
+    python -m benchmarks.suite                          # the README's run: pytest -n 2
+    python -m benchmarks.suite --out /tmp/s -- tests/io -n 0    # any pytest arguments after --
+
+Runs pytest with ``--durations=0 -p no:cacheprovider --junitxml`` and this module as a plugin,
+which records every test's process CPU time (all threads: XLA compiles in its own) and wall time
+in its worker, setup and teardown included (a session fixture counts in the first test that takes
+it). Writes ``suite.json`` (machine, versions, totals, per folder and the 25 slowest tests) and
+``suite.md`` into ``--out`` (default ``benchmarks/results/``). Figures depend on the machine's load
+for wall time only; compare CPU time across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import pathlib
+import platform
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+
+import pytest
+
+_ENV = "JMESHTEX_SUITE_TIMES"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """Record ``nodeid, cpu_s, wall_s`` of one test (plugin side; active when ``$_ENV`` is set)."""
+    path = os.environ.get(_ENV)
+    cpu, wall = time.process_time(), time.perf_counter()
+    yield
+    if path:
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        line = {
+            "nodeid": item.nodeid,
+            "cpu_s": time.process_time() - cpu,
+            "wall_s": time.perf_counter() - wall,
+            "worker": worker,
+        }
+        with open(f"{path}.{worker}", "a") as f:
+            f.write(json.dumps(line) + "\n")
+
+
+def folder_of(nodeid: str) -> str:
+    """``tests/io/test_x.py::t`` → ``tests/io``; ``jmeshtex/ops/_x.py::d`` → ``jmeshtex (doctests)``.
+
+    Example:
+      >>> folder_of("tests/io/test_obj.py::test_read"), folder_of("equivariance_tests/test_a.py::t")
+      ('tests/io', 'equivariance_tests')
+      >>> folder_of("jmeshtex/ops/_conv.py::jmeshtex.ops._conv.f")
+      'jmeshtex (doctests)'
+    """
+    parts = nodeid.split("::")[0].split("/")
+    if parts[0] == "jmeshtex":
+        return "jmeshtex (doctests)"
+    if parts[0] == "tests" and len(parts) > 2:
+        return "/".join(parts[:2])
+    return parts[0]
+
+
+def summarise(records: list[dict], *, wall_s: float, cpu_s: float, outcome: dict) -> dict:
+    """Totals and per-folder sums of the per-test records.
+
+    Example:
+      >>> r = [{"nodeid": "tests/io/a.py::t", "cpu_s": 2.0, "wall_s": 3.0}]
+      >>> summarise(r, wall_s=5.0, cpu_s=4.0, outcome={})["folders"]["tests/io"]
+      {'tests': 1, 'cpu_s': 2.0, 'wall_s': 3.0}
+    """
+    folders: dict = collections.defaultdict(lambda: {"tests": 0, "cpu_s": 0.0, "wall_s": 0.0})
+    for r in records:
+        f = folders[folder_of(r["nodeid"])]
+        f["tests"] += 1
+        f["cpu_s"] += r["cpu_s"]
+        f["wall_s"] += r["wall_s"]
+    slowest = sorted(records, key=lambda r: -r["cpu_s"])[:25]
+    return {
+        "machine": {
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "load_before": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+        },
+        "wall_s": wall_s,
+        "cpu_s": cpu_s,
+        "outcome": outcome,
+        "folders": {
+            k: {**v, "cpu_s": round(v["cpu_s"], 2), "wall_s": round(v["wall_s"], 2)}
+            for k, v in sorted(folders.items(), key=lambda kv: -kv[1]["cpu_s"])
+        },
+        "slowest": [
+            {k: (round(v, 2) if isinstance(v, float) else v) for k, v in r.items()} for r in slowest
+        ],
+    }
+
+
+def markdown(doc: dict) -> str:
+    """``suite.md``: totals, a table per folder, the slowest tests."""
+    o = doc["outcome"]
+    lines = [
+        "# Test suite budget",
+        "",
+        f"{doc['machine']['platform']}, Python {doc['machine']['python']}, "
+        f"{doc['machine']['cpus']} CPUs, load {doc['machine']['load_before']}",
+        "",
+        f"Wall {doc['wall_s']:.0f} s, CPU {doc['cpu_s']:.0f} s (pytest and its workers); "
+        + ", ".join(f"{v} {k}" for k, v in o.items()),
+        "",
+        "| folder | tests | CPU s | wall s |",
+        "|---|---:|---:|---:|",
+    ]
+    for k, v in doc["folders"].items():
+        lines.append(f"| {k} | {v['tests']} | {v['cpu_s']:.1f} | {v['wall_s']:.1f} |")
+    lines += ["", "Slowest tests (CPU s):", ""]
+    lines += [f"- {r['cpu_s']:.1f} s `{r['nodeid']}`" for r in doc["slowest"]]
+    return "\n".join(lines) + "\n"
+
+
+def _outcome(junit: pathlib.Path) -> dict:
+    if not junit.exists():
+        return {}
+    suites = ET.parse(junit).getroot()
+    suites = [suites] if suites.tag == "testsuite" else list(suites)
+    keys = ("tests", "failures", "errors", "skipped")
+    return {k: sum(int(s.get(k, 0)) for s in suites) for k in keys}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.suite", description=__doc__.split("\n")[0]
+    )
+    ap.add_argument("--out", type=pathlib.Path, default=pathlib.Path("benchmarks/results"))
+    ap.add_argument("pytest_args", nargs="*", help="pytest arguments (after --); default: -n 2")
+    args = ap.parse_args(argv)
+    extra = args.pytest_args or ["-n", "2"]
+    with tempfile.TemporaryDirectory() as tmp:
+        times = pathlib.Path(tmp) / "times"
+        junit = pathlib.Path(tmp) / "junit.xml"
+        cmd = [sys.executable, "-m", "pytest", "--durations=0", "-p", "no:cacheprovider"]
+        cmd += ["-p", "benchmarks.suite", f"--junitxml={junit}", *extra]
+        env = {**os.environ, _ENV: str(times)}
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        rc = subprocess.call(cmd, env=env)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        records = [
+            json.loads(line)
+            for p in sorted(pathlib.Path(tmp).glob("times.*"))
+            for line in p.read_text().splitlines()
+        ]
+        doc = summarise(
+            records, wall_s=round(wall, 1), cpu_s=round(cpu, 1), outcome=_outcome(junit)
+        )
+    doc["command"] = " ".join(["pytest", *cmd[3:]]).replace(str(junit), "<junit>")
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "suite.json").write_text(json.dumps(doc, indent=1))
+    (args.out / "suite.md").write_text(markdown(doc))
+    print(f"wall {wall:.0f} s, CPU {cpu:.0f} s; wrote {args.out / 'suite.json'}, suite.md")
+    return rc
+
+
+if __name__ == "__main__":
+    sys.exit(main())
