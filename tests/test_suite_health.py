@@ -46,3 +46,46 @@ def test_this_worker_is_below_the_guard_threshold():
     # the autouse fixture clears after any test that ends above 60 % of the limit, so no test starts
     # far above it: a worker this close to the kernel limit would crash on its next large compile
     assert _maps() < 0.9 * int(limit.read_text())
+
+
+def test_this_worker_holds_its_own_compilation_cache_folder():
+    """The persistent compilation cache is on, in a folder named after this xdist worker, whose
+    lock this process holds (a second run or worker cannot take it)."""
+    import fcntl
+    import os
+
+    if os.environ.get("JMESHTEX_TEST_JAX_CACHE", "").strip() == "0":
+        pytest.skip("JMESHTEX_TEST_JAX_CACHE=0 turned the cache off for this run")
+    folder = pathlib.Path(jax.config.jax_compilation_cache_dir)
+    assert folder.name.split("-")[0] == os.environ.get("PYTEST_XDIST_WORKER", "main"), folder
+    fd = os.open(folder / ".lock", os.O_RDWR)
+    try:
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        os.close(fd)
+
+
+@pytest.fixture(scope="module")
+def _built_once() -> int:
+    return 1
+
+
+def test_a_module_fixture_keeps_its_tests_on_one_worker(request, _built_once):
+    marker = request.node.get_closest_marker("xdist_group")
+    assert marker is not None and marker.args == ("tests/test_suite_health.py",), marker
+    assert "loadgroup" in request.config.getini("addopts")  # pyproject: --dist loadgroup
+
+
+def test_the_suite_budget_sums_cpu_time_per_folder():
+    from benchmarks.suite import markdown, summarise
+
+    records = [
+        {"nodeid": "tests/io/test_a.py::t", "cpu_s": 1.5, "wall_s": 2.0},
+        {"nodeid": "tests/io/test_b.py::t", "cpu_s": 0.5, "wall_s": 1.0},
+        {"nodeid": "jmeshtex/ops/_x.py::jmeshtex.ops._x.f", "cpu_s": 3.0, "wall_s": 3.0},
+    ]
+    doc = summarise(records, wall_s=7.0, cpu_s=6.0, outcome={"tests": 3})
+    assert doc["folders"]["tests/io"] == {"tests": 2, "cpu_s": 2.0, "wall_s": 3.0}
+    assert list(doc["folders"]) == ["jmeshtex (doctests)", "tests/io"]  # by CPU time
+    assert "| tests/io | 2 | 2.0 | 3.0 |" in markdown(doc)
