@@ -23,6 +23,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", type=pathlib.Path, help="also write the results as JSON to this path")
     p.add_argument("--only", nargs="+", metavar="NAME", help="operators to check (default: all)")
     p.add_argument(
+        "--module",
+        nargs="+",
+        metavar="MOD",
+        default=[],
+        help="import these modules first (e.g. pkg.entries): their register(...) calls add operators",
+    )
+    p.add_argument(
         "--transforms", nargs="+", metavar="T", help="transforms to check (default: all declared)"
     )
     p.add_argument("--dtype", choices=["both", "float64", "float32"], default="both")
@@ -35,13 +42,28 @@ def _run(args: argparse.Namespace) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    import importlib
+
     import jax.numpy as jnp
     from tqdm import tqdm
 
     from .. import testing
+    from .._errors import InputError
+    from .._memory_maps import release_if_near_limit
     from ..testing import transforms_of
 
     testing.load_entries()
+    for module in args.module:
+        try:
+            importlib.import_module(module)
+        except ImportError as e:
+            raise InputError(f"--module {module}: cannot import it ({e})") from e
+    unknown = [n for n in args.only or () if n not in testing.REGISTRY]
+    if unknown:
+        raise InputError(
+            f"not registered: {', '.join(unknown)} (see --list; an operator of your own is "
+            "registered by importing its module: --module pkg.mod)"
+        )
 
     if args.list:
         for name, e in testing.REGISTRY.items():
@@ -74,6 +96,8 @@ def _run(args: argparse.Namespace) -> int:
     )
 
     def progress(msg: str) -> None:
+        # a whole-registry run compiles past vm.max_map_count unless JAX's caches are released
+        release_if_near_limit()
         bar.set_postfix_str(msg[:60])
         bar.update(1)
 

@@ -31,7 +31,6 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from .._memory_maps import release_if_near_limit
 from ._check_cache import CheckCache
 from ._equivariance import DEFAULT_TOLERANCE, convergence, equivariance_error
 from ._fields import (
@@ -372,7 +371,6 @@ def run_registry(
                 if progress is not None:
                     progress(f"{n} × {t} ({np.dtype(dt).name})")
                 results.append(check(entry, t, dtype=dt, seed=seed, cache=cache))
-                release_if_near_limit()  # a whole-registry run compiles past vm.max_map_count otherwise
     return results
 
 

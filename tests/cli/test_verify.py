@@ -34,3 +34,28 @@ def test_a_filtered_run_writes_its_json_quietly(tmp_path, capsys):
     assert record["results"][0]["transform"] == "gauge"
     assert "1 checks: 1 passed, 0 failed" in captured.out
     assert "verify:" not in captured.err  # --quiet: no progress bar
+
+
+def test_unknown_names_are_one_line_and_module_registers_users_operators(tmp_path, capsys):
+    assert main(["verify", "--only", "user.nothing", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "not registered: user.nothing" in err and "--module" in err and "Traceback" not in err
+    assert main(["verify", "--module", "no_such_module_xyz", "--list"]) == 2
+    assert "cannot import" in capsys.readouterr().err
+
+
+def test_module_registers_a_users_operator(tmp_path, monkeypatch, capsys):
+    (tmp_path / "my_entries_mod.py").write_text(
+        "from jmeshtex.testing import Entry, Field, register\n"
+        "register(Entry('user.double', lambda s, p, x: Field('vertex_scalar', 2 * x),\n"
+        "               {'x': ('vertex_scalar', 2)}, ('rigid', 'permute_vertices')), replace=True)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from jmeshtex.testing import REGISTRY
+
+    try:
+        argv = ["verify", "--module", "my_entries_mod", "--only", "user.double", "--quiet"]
+        assert main([*argv, "--dtype", "float64"]) == 0
+        assert "2 checks: 2 passed" in capsys.readouterr().out
+    finally:
+        REGISTRY.pop("user.double", None)
