@@ -10,6 +10,7 @@ holds what every layer shares: :class:`Mesh` and :func:`as_mesh`, the typed erro
 """
 
 from ._errors import CheckpointMismatchError as CheckpointMismatchError
+from ._errors import CheckpointSkippedWarning as CheckpointSkippedWarning
 from ._errors import ConfigError as ConfigError
 from ._errors import CorruptModelError as CorruptModelError
 from ._errors import DecimationError as DecimationError
@@ -28,6 +29,7 @@ from ._errors import NonFiniteVertexError as NonFiniteVertexError
 from ._errors import NonManifoldEdgeError as NonManifoldEdgeError
 from ._errors import NonManifoldVertexError as NonManifoldVertexError
 from ._errors import NonTriangleFaceError as NonTriangleFaceError
+from ._errors import OutputLockedError as OutputLockedError
 from ._mesh import Mesh as Mesh
 from ._mesh import as_mesh as as_mesh
 from ._neighborhoods import FaceNeighborhood as FaceNeighborhood

@@ -123,3 +123,12 @@ class DecimationError(MeshError):
 
 class MeshRepairWarning(UserWarning):
     """A mesh was changed on load or validation (unreferenced / duplicate vertices, repairs)."""
+
+
+class OutputLockedError(MeshIOError):
+    """Another jmeshtex process is writing into the same output folder (its lock file is held)."""
+
+
+class CheckpointSkippedWarning(UserWarning):
+    """A checkpoint step folder could not be read (empty, corrupt or foreign) and was skipped: resume
+    falls back to the newest valid step. The message names the folder and what is wrong."""

@@ -57,6 +57,12 @@ def add_common(
     """
     if out is not None:
         p.add_argument("--out", type=pathlib.Path, required=out_required, metavar="PATH", help=out)
+        p.add_argument(
+            "--overwrite",
+            action="store_true",
+            help="write into an --out folder that holds another command's output or foreign files "
+            "(inputs are never overwritten)",
+        )
     if seed:
         p.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
     if quiet:

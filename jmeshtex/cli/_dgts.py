@@ -26,6 +26,7 @@ import json
 import pathlib
 
 from ._common import add_common, cached, load_mesh_spec
+from ._output import claim_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -147,6 +148,13 @@ def _prepare(args) -> int:
     if args.samples is not None:
         changes["samples_per_level"] = args.samples
     config = PrepareConfig(**changes)
+    claim_output(
+        args.out,
+        command="dgts prepare",
+        inputs=(args.reference, args.template),
+        overwrite=args.overwrite,
+        accept=("dgts train",),
+    )
     ref = load_mesh_spec(args.reference)
     tmpl = load_mesh_spec(args.template)
     tm = training_meshes(
@@ -181,6 +189,8 @@ def _train(args) -> int:
     from ..io import save_mesh
     from ..render import render_mesh
 
+    if args.dir.is_dir():  # one process per folder: a second run would race on the checkpoints
+        claim_output(args.dir, command="dgts train", overwrite=True, accept=("dgts prepare",))
     tm = load_training_meshes(args.dir / "training.npz")
     changes = {"shared_levels": args.shared_levels}
     if args.steps is not None:
@@ -266,6 +276,12 @@ def _transfer(args) -> int:
 
     from ..dgts import load, transfer
 
+    claim_output(
+        args.out,
+        command="dgts transfer",
+        inputs=(args.model, args.target),
+        overwrite=args.overwrite,
+    )
     model = load(_model_dir(args.model))
     target = load_mesh_spec(args.target)
     res = transfer(
@@ -287,6 +303,12 @@ def _interpolate(args) -> int:
 
     from ..dgts import interpolate, load
 
+    claim_output(
+        args.out,
+        command="dgts interpolate",
+        inputs=(args.model, args.target),
+        overwrite=args.overwrite,
+    )
     model = load(_model_dir(args.model))
     target = load_mesh_spec(args.target)
     res = interpolate(

@@ -21,6 +21,7 @@ import json
 import pathlib
 
 from ._common import add_common, cached, load_mesh_spec
+from ._output import check_output_file, claim_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -128,6 +129,9 @@ def _train(args) -> int:
     from .._errors import MeshIOError
     from ..fl import Config, save, train
 
+    claim_output(
+        args.out, command="fl train", inputs=(args.config, args.images), overwrite=args.overwrite
+    )
     data = {}
     if args.config is not None:
         try:
@@ -174,6 +178,7 @@ def _encode(args) -> int:
     from ..fl import encode
     from ..io import atomic_save_npz
 
+    check_output_file(args.out, (args.mesh, args.texture, args.model))
     model = _model(args)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     lat = encode(model, mesh, key=jax.random.key(args.seed))
@@ -205,6 +210,12 @@ def _reconstruct(args) -> int:
     from ..geometry import remesh
     from ..io import atomic_write, save_png
 
+    claim_output(
+        args.out,
+        command="fl reconstruct",
+        inputs=(args.mesh, args.texture, args.model),
+        overwrite=args.overwrite,
+    )
     model = _model(args)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     latent_mesh = (

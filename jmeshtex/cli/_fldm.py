@@ -27,6 +27,7 @@ import numpy as np
 
 from .._errors import InputError, MeshIOError
 from ._common import add_common, cached, load_mesh_spec
+from ._output import claim_output
 
 PRESETS = ("tiny", "cpu", "paper")
 PREDICTIONS = ("epsilon", "v")  # jmeshtex.fldm.PREDICTIONS, spelled out so that --help needs no JAX
@@ -152,7 +153,14 @@ def _train(args) -> int:
     import jax
 
     from ..fldm import Config, build_dataset, save, train
+    from ..io import atomic_write
 
+    claim_output(
+        args.out,
+        command="fldm train",
+        inputs=(args.mesh, args.texture, args.labels, args.vae),
+        overwrite=args.overwrite,
+    )
     mesh = _load_mesh(args.mesh, args.texture)
     labels = None if args.labels is None else np.load(args.labels)
     k_codec, k_data, k_train = jax.random.split(jax.random.key(args.seed), 3)
@@ -194,7 +202,7 @@ def _train(args) -> int:
         "seed": args.seed,
         "labels": None if args.labels is None else str(args.labels),
     }
-    (out / "fldm.json").write_text(json.dumps(meta, indent=2))
+    atomic_write(out / "fldm.json", json.dumps(meta, indent=2))
     done = res.steps - (res.resumed_from or 0)
     print(
         f"trained {done} steps in {res.seconds:.1f} s ({res.steps} in all); loss "
@@ -219,7 +227,14 @@ def _run_sampling(args, *, inpaint: bool) -> int:
     import jax
 
     from ..fldm import load, render_samples, sample
+    from ..io import atomic_save_npz
 
+    claim_output(
+        args.out,
+        command=f"fldm {'inpaint' if inpaint else 'sample'}",
+        inputs=(args.model, args.mesh, args.labels, getattr(args, "mask", None)),
+        overwrite=args.overwrite,
+    )
     model = load(args.model)
     meta_path = args.model / "fldm.json"
     if not meta_path.is_file():
@@ -251,7 +266,10 @@ def _run_sampling(args, *, inpaint: bool) -> int:
         kwargs.update(known=encode(mesh), mask=mask)
     latents = sample(model, mesh, **kwargs).latents
     args.out.mkdir(parents=True, exist_ok=True)
-    np.savez(args.out / "latents.npz", latents=latents, vertices=mesh.vertices, faces=mesh.faces)
+    atomic_save_npz(
+        args.out / "latents.npz",
+        {"latents": np.asarray(latents), "vertices": mesh.vertices, "faces": mesh.faces},
+    )
     paths = render_samples(
         mesh, decode(mesh, latents, args.size), args.out, prefix="inpaint" if inpaint else "sample"
     )

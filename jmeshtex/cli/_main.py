@@ -9,7 +9,9 @@ with exit status 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
 import sys
 
 from .._errors import JmeshtexError
@@ -50,6 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 1
+    from ._output import release_all
+
     try:
         return int(args.func(args) or 0)
     except JmeshtexError as err:
@@ -58,6 +62,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"jmeshtex {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (`jmeshtex info ... | head`): not an error of ours
+        with contextlib.suppress(OSError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        return 141
+    finally:
+        release_all()
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ import json
 import pathlib
 
 from ._common import add_common, cached, load_mesh_spec
+from ._output import claim_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -311,7 +312,7 @@ def _load_mask(path: pathlib.Path, num_vertices: int):
 
 def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
     from .. import render
-    from ..io import save_mesh
+    from ..io import atomic_write, save_mesh
     from ..meshmatch import nnf_colors, save
 
     target_mesh, match = result.mesh, result.match
@@ -355,8 +356,13 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
         "renders": [str(out / n) for n in ("source.png", "target.png", "nnf.png", "meshmatch.png")],
         **{k: v for k, v in match.stats.items()},
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float) + "\n")
     return summary
+
+
+def _claim(args, command: str, *inputs) -> None:
+    """Check and lock ``--out`` before any work (:func:`~jmeshtex.cli._output.claim_output`)."""
+    claim_output(args.out, command=command, inputs=inputs, overwrite=args.overwrite)
 
 
 def _progress(args):
@@ -367,6 +373,14 @@ def _transfer(args: argparse.Namespace) -> int:
     from ..geometry import validate_mesh
     from ..meshmatch import transfer
 
+    _claim(
+        args,
+        "meshmatch transfer",
+        args.source,
+        args.source_texture,
+        args.target,
+        args.correspondences,
+    )
     source = load_mesh_spec(args.source, texture=args.source_texture)
     target = load_mesh_spec(args.target)
     for mesh in (source, target):
@@ -391,6 +405,7 @@ def _transfer(args: argparse.Namespace) -> int:
 def _paint(args: argparse.Namespace) -> int:
     from ..meshmatch import paint_by_example
 
+    _claim(args, "meshmatch paint", args.mesh, args.texture, args.mask)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     mask = _load_mask(args.mask, mesh.num_vertices)
     result = paint_by_example(
@@ -404,9 +419,10 @@ def _paint(args: argparse.Namespace) -> int:
 def _displace(args: argparse.Namespace) -> int:
     from .. import render
     from ..geometry import validate_mesh
-    from ..io import save_mesh
+    from ..io import atomic_write, save_mesh
     from ..meshmatch import detail_displacement, save, transfer_displacement
 
+    _claim(args, "meshmatch displace", args.source, args.target)
     source = load_mesh_spec(args.source)
     target = load_mesh_spec(args.target)
     for mesh in (source, target):
@@ -456,6 +472,6 @@ def _displace(args: argparse.Namespace) -> int:
         ],
         **result.match.stats,
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float) + "\n")
     print(f"wrote {mesh_path} and renders to {out} in {result.match.stats['total_s']:.1f} s")
     return 0
