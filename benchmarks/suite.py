@@ -4,6 +4,7 @@ Usage (from the repository root)::
 
     python -m benchmarks.suite                          # the README's run: pytest -n 2
     python -m benchmarks.suite --out /tmp/s -- tests/io -n 0    # any pytest arguments after --
+    python -m benchmarks.suite --seeds 30 --out /tmp/sweep -- tests/ops -k "not slow"  # seed sweep
 
 Runs pytest with ``--durations=0 -p no:cacheprovider --junitxml`` and this module as a plugin,
 which records every test's process CPU time (all threads: XLA compiles in its own) and wall time
@@ -11,6 +12,11 @@ in its worker, setup and teardown included (a session fixture counts in the firs
 it). Writes ``suite.json`` (machine, versions, totals, per folder and the 25 slowest tests) and
 ``suite.md`` into ``--out`` (default ``benchmarks/results/``). Figures depend on the machine's load
 for wall time only; compare CPU time across runs.
+
+``--seeds N`` is a flakiness sweep (not for CI): every test that takes the ``seed`` fixture
+(directly or through ``key``/``rng``) runs once per seed ``0 .. N-1`` in one process, and
+``sweep.json`` / ``sweep.md`` list each such test's failing seeds (replay one with
+``JMESHTEX_SEED=<seed>``).
 """
 
 from __future__ import annotations
@@ -31,24 +37,46 @@ import xml.etree.ElementTree as ET
 import pytest
 
 _ENV = "JMESHTEX_SUITE_TIMES"
+_SEEDS = "JMESHTEX_SWEEP_SEEDS"
+
+
+def _write_record(line: dict) -> None:
+    path = os.environ.get(_ENV)
+    if path:
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        with open(f"{path}.{worker}", "a") as f:
+            f.write(json.dumps({**line, "worker": worker}) + "\n")
+
+
+def pytest_generate_tests(metafunc):
+    """Under ``--seeds N``, parametrize the ``seed`` fixture of every test that takes it."""
+    n = int(os.environ.get(_SEEDS, "0"))
+    if not n or "seed" not in metafunc.fixturenames:
+        return
+    for m in metafunc.definition.iter_markers("parametrize"):
+        names = m.args[0].split(",") if isinstance(m.args[0], str) else m.args[0]
+        if "seed" in [name.strip() for name in names]:
+            return  # the test chooses its own seeds
+    metafunc.parametrize("seed", range(n), ids=[f"sweep{s}" for s in range(n)])
+
+
+def pytest_runtest_logreport(report):
+    if report.failed:
+        _write_record({"nodeid": report.nodeid, "failed": report.when})
 
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
     """Record ``nodeid, cpu_s, wall_s`` of one test (plugin side; active when ``$_ENV`` is set)."""
-    path = os.environ.get(_ENV)
     cpu, wall = time.process_time(), time.perf_counter()
     yield
-    if path:
-        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
-        line = {
+    _write_record(
+        {
             "nodeid": item.nodeid,
             "cpu_s": time.process_time() - cpu,
             "wall_s": time.perf_counter() - wall,
-            "worker": worker,
         }
-        with open(f"{path}.{worker}", "a") as f:
-            f.write(json.dumps(line) + "\n")
+    )
 
 
 def folder_of(nodeid: str) -> str:
@@ -125,6 +153,44 @@ def markdown(doc: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def seed_sweep(records: list[dict], failed: list[str], seeds: int) -> dict:
+    """Per seeded test (its node id without the sweep's ``[sweepK]``), runs, CPU and failing seeds.
+
+    Example:
+      >>> recs = [{"nodeid": f"t.py::f[sweep{s}]", "cpu_s": 0.5} for s in range(3)]
+      >>> seed_sweep(recs, ["t.py::f[sweep2]"], 3)["tests"]["t.py::f"]
+      {'runs': 3, 'cpu_s': 1.5, 'failed_seeds': [2]}
+    """
+    import re
+
+    tests: dict = {}
+    for r in records:
+        m = re.search(r"sweep(\d+)", r["nodeid"])
+        if m is None:
+            continue
+        base = re.sub(r"\[sweep\d+\]", "", r["nodeid"])
+        base = re.sub(r"(?<=\[)sweep\d+-|-sweep\d+(?=[\]-])", "", base)
+        t = tests.setdefault(base, {"runs": 0, "cpu_s": 0.0, "failed_seeds": []})
+        t["runs"] += 1
+        t["cpu_s"] = round(t["cpu_s"] + r["cpu_s"], 2)
+        if r["nodeid"] in failed:
+            t["failed_seeds"].append(int(m.group(1)))
+    return {"seeds": seeds, "tests": tests}
+
+
+def sweep_markdown(sweep: dict) -> str:
+    """``sweep.md``: the tests that failed on some seed first, then the count of those that did not."""
+    bad = {k: v for k, v in sweep["tests"].items() if v["failed_seeds"]}
+    lines = [
+        f"# Seed sweep: {len(sweep['tests'])} seeded tests × {sweep['seeds']} seeds",
+        "",
+        f"{len(bad)} failed on some seed (replay with JMESHTEX_SEED=<seed>):",
+        "",
+    ]
+    lines += [f"- `{k}`: seeds {v['failed_seeds']}" for k, v in bad.items()]
+    return "\n".join(lines) + "\n"
+
+
 def _outcome(junit: pathlib.Path) -> dict:
     if not junit.exists():
         return {}
@@ -139,6 +205,9 @@ def main(argv=None) -> int:
         prog="python -m benchmarks.suite", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--out", type=pathlib.Path, default=pathlib.Path("benchmarks/results"))
+    ap.add_argument(
+        "--seeds", type=int, default=0, help="sweep: run every seeded test for seeds 0..N-1"
+    )
     ap.add_argument("pytest_args", nargs="*", help="pytest arguments (after --); default: -n 2")
     args = ap.parse_args(argv)
     extra = args.pytest_args or ["-n", "2"]
@@ -147,23 +216,31 @@ def main(argv=None) -> int:
         junit = pathlib.Path(tmp) / "junit.xml"
         cmd = [sys.executable, "-m", "pytest", "--durations=0", "-p", "no:cacheprovider"]
         cmd += ["-p", "benchmarks.suite", f"--junitxml={junit}", *extra]
-        env = {**os.environ, _ENV: str(times)}
+        env = {**os.environ, _ENV: str(times), _SEEDS: str(args.seeds)}
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         rc = subprocess.call(cmd, env=env)
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-        records = [
+        lines = [
             json.loads(line)
             for p in sorted(pathlib.Path(tmp).glob("times.*"))
             for line in p.read_text().splitlines()
         ]
+        records = [r for r in lines if "cpu_s" in r]
         doc = summarise(
             records, wall_s=round(wall, 1), cpu_s=round(cpu, 1), outcome=_outcome(junit)
         )
     doc["command"] = " ".join(["pytest", *cmd[3:]]).replace(str(junit), "<junit>")
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.seeds:
+        sweep = seed_sweep(records, [r["nodeid"] for r in lines if "failed" in r], args.seeds)
+        (args.out / "sweep.json").write_text(json.dumps(sweep, indent=1))
+        (args.out / "sweep.md").write_text(sweep_markdown(sweep))
+        flaky = sum(1 for t in sweep["tests"].values() if t["failed_seeds"])
+        print(f"{len(sweep['tests'])} seeded tests × {args.seeds} seeds: {flaky} failed on a seed")
+        return rc
     (args.out / "suite.json").write_text(json.dumps(doc, indent=1))
     (args.out / "suite.md").write_text(markdown(doc))
     print(f"wall {wall:.0f} s, CPU {cpu:.0f} s; wrote {args.out / 'suite.json'}, suite.md")

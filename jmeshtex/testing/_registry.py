@@ -73,7 +73,10 @@ class Entry:
     Attributes:
       name: unique name shown in reports.
       apply: ``apply(state, params, **inputs) -> Field``; builds its geometry from ``state`` (a
-        :class:`MeshState`) so gauge and relabelling reach it.
+        :class:`MeshState`) so gauge and relabelling reach it. Geometry read through the state's
+        cache (``state.one_ring()``, ``state.knn(k)``, ``state.cached(key, build)``) is prepared on
+        the host and the rest is compiled once per dtype and mesh shape (:class:`CheckCache`); an
+        ``apply`` with host code on its inputs still works, run eagerly.
       inputs: ``{name: (kind, channels)}``; ``points`` inputs are the mesh's own positions.
       transforms: names in ``CATALOGUE`` to check.
       init: ``init(key, dtype) -> params`` (random parameters), or None.
