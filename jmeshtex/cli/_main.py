@@ -54,22 +54,24 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     from ._output import release_all
 
+    rc = 1
     try:
-        return int(args.func(args) or 0)
+        rc = int(args.func(args) or 0)
     except JmeshtexError as err:
         print(f"jmeshtex {args.command}: error: {err}", file=sys.stderr)
-        return 2
+        rc = 2
     except KeyboardInterrupt:
         print(f"jmeshtex {args.command}: interrupted", file=sys.stderr)
-        return 130
+        rc = 130
     except BrokenPipeError:
         # the reader of stdout went away (`jmeshtex info ... | head`): not an error of ours
         with contextlib.suppress(OSError):
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
-        return 141
+        rc = 141
     finally:
-        release_all()
+        release_all(failed=rc != 0)
+    return rc
 
 
 if __name__ == "__main__":

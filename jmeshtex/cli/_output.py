@@ -35,6 +35,7 @@ MANIFEST = ".jmeshtex-owner.json"
 LOCK = ".jmeshtex.lock"
 
 _HELD: list[int] = []  # file descriptors of the locks this process holds
+_CREATED: list[pathlib.Path] = []  # output folders this process created (removed if left empty)
 _PREVIOUS_OWNER: dict[pathlib.Path, str | None] = {}
 
 
@@ -165,7 +166,9 @@ def claim_output(
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} exists and is not a folder: pick another path")
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        if not out.exists():
+            out.mkdir(parents=True)
+            _CREATED.append(out)
     except OSError as err:
         raise InputError(f"cannot create --out {out}: {err.strerror or err}") from err
     owner = read_owner(out)
@@ -231,9 +234,21 @@ def _lock(out: pathlib.Path, command: str) -> None:
     _HELD.append(fd)
 
 
-def release_all() -> None:
-    """Release every output-folder lock this process holds (``main`` calls it after a command)."""
+def release_all(*, failed: bool = False) -> None:
+    """Release every output-folder lock this process holds (``main`` calls it after a command).
+
+    Args:
+      failed: the command failed; an output folder it created and left holding only the manifest
+        and the lock is removed again.
+    """
     while _HELD:
         fd = _HELD.pop()
         with contextlib.suppress(OSError):
             os.close(fd)
+    while _CREATED:
+        folder = _CREATED.pop()
+        with contextlib.suppress(OSError):
+            if failed and {p.name for p in folder.iterdir()} <= {MANIFEST, LOCK}:
+                for name in (MANIFEST, LOCK):
+                    (folder / name).unlink(missing_ok=True)
+                folder.rmdir()

@@ -226,7 +226,7 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys, monkeypatch):
                 "--target",
                 "torus",
                 "--out",
-                str(tmp_path),
+                str(tmp_path / "out"),
             ]
         )
         == 2
