@@ -17,6 +17,7 @@ import argparse
 import pathlib
 
 from ._common import add_common, cached, load_mesh_spec
+from ._output import claim_output, owns
 
 #: the folder under ``--out`` that holds the resumable checkpoints
 CHECKPOINTS = "checkpoints"
@@ -154,11 +155,29 @@ def _setup(args):
     return mesh, config, weights
 
 
+#: the commands whose ``checkpoints/`` surfacecnn may resume from or delete
+_OWNERS = ("surfacecnn synthesize", "surfacecnn stylize")
+
+
+def _claim(args, command: str, *inputs) -> None:
+    """Check and lock ``--out`` before any work (:func:`~jmeshtex.cli._output.claim_output`)."""
+    claim_output(args.out, command=command, inputs=inputs, overwrite=args.overwrite)
+
+
 def _checkpoint(args) -> pathlib.Path:
-    """``DIR/checkpoints``; without ``--resume`` a stale one is removed so the run starts afresh."""
+    """``DIR/checkpoints``; without ``--resume`` a stale one of an earlier surfacecnn run in this
+    folder is removed so the run starts afresh. Another command's ``checkpoints/`` is never deleted
+    (nor resumed from): a typed error asks for another ``--out``."""
     import shutil
 
+    from .._errors import InputError
+
     path = args.out / CHECKPOINTS
+    if path.exists() and not owns(args.out, CHECKPOINTS, _OWNERS):
+        raise InputError(
+            f"{path} was not written by jmeshtex surfacecnn: refusing to delete or resume from it. "
+            "Fix: pick a new --out folder (or move that folder away)"
+        )
     if not args.resume and path.is_dir():
         shutil.rmtree(path)
     return path
@@ -178,6 +197,8 @@ def _synthesize(args: argparse.Namespace) -> int:
 
     from ..surfacecnn import save, synthesize
 
+    _claim(args, "surfacecnn synthesize", args.mesh, args.exemplar, args.vgg19)
+    checkpoint = _checkpoint(args)
     mesh, config, weights = _setup(args)
     exemplar = _image(args.exemplar, args.max_image_size)
     result = synthesize(
@@ -187,7 +208,7 @@ def _synthesize(args: argparse.Namespace) -> int:
         key=jax.random.key(args.seed),
         weights=weights,
         progress=not args.quiet,
-        checkpoint=_checkpoint(args),
+        checkpoint=checkpoint,
     )
     summary = save(result, args.out, exemplar=exemplar, title="synthesised")
     _report(summary, args.out)
@@ -200,6 +221,8 @@ def _stylize(args: argparse.Namespace) -> int:
     from .._errors import InputError
     from ..surfacecnn import save, stylize
 
+    _claim(args, "surfacecnn stylize", args.mesh, args.content, args.style, args.vgg19)
+    checkpoint = _checkpoint(args)
     mesh, config, weights = _setup(args)
     if mesh.texture is None:
         raise InputError(
@@ -214,7 +237,7 @@ def _stylize(args: argparse.Namespace) -> int:
         key=jax.random.key(args.seed),
         weights=weights,
         progress=not args.quiet,
-        checkpoint=_checkpoint(args),
+        checkpoint=checkpoint,
     )
     summary = save(result, args.out, exemplar=style, title="stylised")
     _report(summary, args.out)
