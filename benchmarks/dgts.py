@@ -139,21 +139,21 @@ def quality(report: Report, png: pathlib.Path | None) -> None:
         size = (360, 360)
         lim = float(np.abs(res.heights).max()) or 1.0
         panels = [
-            ("reference", render_mesh(*reference_mesh(), size=size)),
-            ("training level 1", render_mesh(*ref, size=size)),
+            ("reference", render_mesh(reference_mesh(), size=size)),
+            ("training level 1", render_mesh(ref, size=size)),
         ]
         for i, v in enumerate(res.level_vertices):
             panels.append(
                 (
                     f"transfer level {i}",
-                    render_mesh(v[0], res.level_faces[i], size=size, view=(35, -60)),
+                    render_mesh((v[0], res.level_faces[i]), size=size, view=(35, -60)),
                 )
             )
         panels.append(
             (
                 "transfer (height)",
                 render_mesh(
-                    *res.mesh(0),
+                    res.mesh(0),
                     scalars=res.heights[0],
                     cmap="coolwarm",
                     clim=(-lim, lim),
@@ -162,8 +162,10 @@ def quality(report: Report, png: pathlib.Path | None) -> None:
                 ),
             )
         )
-        panels.append(("untrained", render_mesh(*res_u.mesh(0), size=size, view=(35, -60))))
-        panels.append(("gaussian noise", render_mesh(noisy, res.faces, size=size, view=(35, -60))))
+        panels.append(("untrained", render_mesh(res_u.mesh(0), size=size, view=(35, -60))))
+        panels.append(
+            ("gaussian noise", render_mesh((noisy, res.faces), size=size, view=(35, -60)))
+        )
         png.mkdir(parents=True, exist_ok=True)
         figure(
             panels,

@@ -113,16 +113,14 @@ def render_metrics(mesh, r, *, views: int, size: int, lpips: bool) -> dict:
     rig = metrics.Protocol(azimuths=views, elevations=(20.0,), size=size, up="y")
     target = _fill_unused(r.target, r.valid)
     recon = _fill_unused(r.texture, r.valid)
-    ref, _ = metrics.protocol_views(mesh, uv=mesh.uv, texture=target, protocol=rig)
+    ref, _ = metrics.protocol_views(mesh.replace(texture=target), protocol=rig)
     names = ["psnr", "dssim"] + (["lpips"] if lpips else [])
     out = metrics.evaluate_views(
-        mesh, uv=mesh.uv, texture=recon, reference_images=ref, protocol=rig, metrics=names
+        mesh.replace(texture=recon), reference_images=ref, protocol=rig, metrics=names
     )
     const = metrics.flat_baseline(r.target, mask=r.valid)
     base = metrics.evaluate_views(
-        mesh,
-        uv=mesh.uv,
-        texture=_fill_unused(const, r.valid),
+        mesh.replace(texture=_fill_unused(const, r.valid)),
         reference_images=ref,
         protocol=rig,
         metrics=names,

@@ -69,6 +69,7 @@ import jax.numpy as jnp
 import numpy as np
 from _harness import RESULTS, Report
 
+from jmeshtex import Mesh
 from jmeshtex.fldm import LOSS_NAMES, PREDICTIONS
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -145,7 +146,7 @@ def render_views(geom, texture: np.ndarray, views, size: int) -> np.ndarray:
     return (
         np.stack(
             [
-                render_mesh(v, f, uv=uv, texture=texture, view=view, size=(size, size))
+                render_mesh(Mesh(v, f, uv=uv, texture=texture), view=view, size=(size, size))
                 for view in views
             ]
         ).astype(np.float32)

@@ -250,7 +250,7 @@ def figure(args) -> None:
 
         def shot(mesh, colors):
             return render.render_mesh(
-                mesh.vertices, mesh.faces, vertex_colors=np.clip(colors, 0, 1), size=size
+                Mesh(mesh.vertices, mesh.faces, vertex_colors=np.clip(colors, 0, 1)), size=size
             )
 
         cells = [

@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from _harness import Report, time_jax
 
+from jmeshtex import Mesh
 from jmeshtex.data import torus
 from jmeshtex.geometry import vertex_normals
 from jmeshtex.render import (
@@ -211,7 +212,7 @@ def main() -> None:
         compile_s=t.compile_s,
     )
     shade_wall = t.run_s
-    wall, cpu = wall_cpu(lambda: render((v, f), cam, uv=uv, texture=tex))
+    wall, cpu = wall_cpu(lambda: render(Mesh(v, f, uv=uv, texture=tex), cam))
     report.add(
         name="total render()",
         size=label,

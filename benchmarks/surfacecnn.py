@@ -43,6 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 from _harness import Report, time_jax
 
+from jmeshtex import Mesh
 from jmeshtex.geometry import to_jax
 from jmeshtex.metrics import load_vgg16
 from jmeshtex.surfacecnn import (
@@ -249,10 +250,8 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
             seconds = time.perf_counter() - t0
             seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=g)
             table = baseline_table(
-                mesh,
+                Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture),
                 key=jax.random.key(1),
-                uv=surface.atlas.uv,
-                texture=r.texture,
                 exemplar=exemplar,
                 protocol=protocol,
                 metrics=("sifid", "gram"),
@@ -275,7 +274,8 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
             rows.append(row)
             print(json.dumps(row))
             views = render.render_views(
-                mesh, protocol.cameras(mesh), uv=surface.atlas.uv, texture=r.texture
+                Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture),
+                protocol.cameras(mesh),
             )
             tag = kind + "_" + name.split()[0] + "_" + method.replace(" ", "_").replace(",", "")
             render.figure(

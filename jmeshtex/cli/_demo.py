@@ -184,26 +184,26 @@ def _render(ctx: dict[str, Any]) -> str:
     gv, gf = ctx["grid"]
     view = (35.0, -60.0)
     panels, titles = (
-        [render_mesh(tv, tf, view=view, size=PANEL_SIZE)],
+        [render_mesh((tv, tf), view=view, size=PANEL_SIZE)],
         [f"torus ({len(tv)} vertices)"],
     )
     if "hks" in ctx:
         panels.append(
             render_mesh(
-                tv, tf, scalars=np.log(ctx["hks"]), cmap="magma", view=view, size=PANEL_SIZE
+                (tv, tf), scalars=np.log(ctx["hks"]), cmap="magma", view=view, size=PANEL_SIZE
             )
         )
         titles.append(f"log HKS, t = {ctx['hks_time']:.3g}")
     if "x_axes" in ctx:
         panels.append(
             render_mesh(
-                tv, tf, vectors=ctx["x_axes"], max_arrows=600, view=(55.0, -60.0), size=PANEL_SIZE
+                (tv, tf), vectors=ctx["x_axes"], max_arrows=600, view=(55.0, -60.0), size=PANEL_SIZE
             )
         )
         titles.append(ctx["x_axes_label"])
     if "boundary" in ctx:
         panels.append(
-            render_mesh(gv, gf, edges=ctx["boundary"], view=(50.0, -60.0), size=PANEL_SIZE)
+            render_mesh((gv, gf), edges=ctx["boundary"], view=(50.0, -60.0), size=PANEL_SIZE)
         )
         titles.append(f"grid ({len(gv)} vertices) and its boundary")
     path = ctx["out"] / "demo.png"

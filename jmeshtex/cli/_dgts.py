@@ -166,10 +166,10 @@ def _prepare(args) -> int:
         out / "prepare.json", json.dumps({**config.to_dict(), "seed": args.seed}, indent=2).encode()
     )
     save_mesh(ref, out / "reference.obj")
-    images = [render_mesh(*ref, size=(300, 300))]
+    images = [render_mesh(ref, size=(300, 300))]
     for level in range(tm.num_levels):
         save_mesh(tm.mesh(level), out / f"level_{level:02d}.obj")
-        images.append(render_mesh(*tm.mesh(level), size=(300, 300)))
+        images.append(render_mesh(tm.mesh(level), size=(300, 300)))
     render_grid(
         images,
         out / "levels.png",
@@ -237,7 +237,7 @@ def _train(args) -> int:
     out = save(result.model, args.dir / "model")
     sample = transfer(result.model, Mesh(tm.template, tm.faces[0]), key=key).mesh(0)
     save_mesh(sample, args.dir / "sample.obj")
-    render_mesh(*sample, args.dir / "sample.png", size=(400, 400), title="sample from the template")
+    render_mesh(sample, args.dir / "sample.png", size=(400, 400), title="sample from the template")
     print(f"wrote {out} ({result.model.num_levels} levels) and {args.dir / 'sample.png'}")
     return 0
 
@@ -258,7 +258,7 @@ def _write_results(res, out: pathlib.Path, stem: str, title: str) -> None:
     for i, h in enumerate(res.heights):
         save_mesh(res.mesh(i), out / f"{stem}_{i:02d}.obj")
         images.append(
-            render_mesh(*res.mesh(i), scalars=h, cmap="coolwarm", clim=(-lim, lim), size=(300, 300))
+            render_mesh(res.mesh(i), scalars=h, cmap="coolwarm", clim=(-lim, lim), size=(300, 300))
         )
     render_grid(images, out / f"{title}.png", titles=[f"{stem} {i}" for i in range(len(images))])
     print(f"wrote {len(images)} meshes and {out / (title + '.png')}")

@@ -82,9 +82,4 @@ def _run(args: argparse.Namespace) -> int:
 def _render(mesh, path: pathlib.Path) -> None:
     from .. import render
 
-    colour = {}
-    if mesh.uv is not None and mesh.texture is not None:
-        colour = {"uv": mesh.uv, "texture": mesh.texture}
-    elif mesh.vertex_colors is not None:
-        colour = {"vertex_colors": mesh.vertex_colors}
-    render.render_mesh(mesh.vertices, mesh.faces, path, title=mesh.name, **colour)
+    render.render_mesh(mesh, path, title=mesh.name)  # in its own texture or vertex colours

@@ -312,6 +312,7 @@ def _load_mask(path: pathlib.Path, num_vertices: int):
 
 def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
     from .. import render
+    from .._mesh import Mesh
     from ..io import atomic_write, save_mesh
     from ..meshmatch import nnf_colors, save
 
@@ -319,32 +320,27 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
 
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)
-    src_kw = (
-        {"vertex_colors": source.vertex_colors}
-        if source.vertex_colors is not None
-        else {"uv": source.uv, "texture": source.texture}
-        if source.texture is not None
-        else {}
+    geometry = Mesh(source.vertices, source.faces)
+    src = (
+        source
+        if source.vertex_colors is None
+        else geometry.replace(vertex_colors=source.vertex_colors)
     )
     images = [
+        render.render_mesh(src, out / "source.png", size=size, title="source"),
         render.render_mesh(
-            source.vertices, source.faces, out / "source.png", size=size, title="source", **src_kw
-        ),
-        render.render_mesh(
-            target_mesh.vertices,
-            target_mesh.faces,
+            Mesh(target_mesh.vertices, target_mesh.faces, vertex_colors=target_mesh.vertex_colors),
             out / "target.png",
             size=size,
             title=title,
-            vertex_colors=target_mesh.vertex_colors,
         ),
         render.render_mesh(
-            target_mesh.vertices,
-            target_mesh.faces,
+            Mesh(
+                target_mesh.vertices, target_mesh.faces, vertex_colors=nnf_colors(source, match.nnf)
+            ),
             out / "nnf.png",
             size=size,
             title="nearest-neighbour field",
-            vertex_colors=nnf_colors(source, match.nnf),
         ),
     ]
     render.render_grid(images, out / "meshmatch.png", columns=3)
@@ -442,19 +438,17 @@ def _displace(args: argparse.Namespace) -> int:
     detail = detail_displacement(source, smoothing_steps=args.smoothing_steps)
     images = [
         render.render_mesh(
-            source.vertices,
-            source.faces,
+            (source.vertices, source.faces),
             out / "source.png",
             size=size,
             title="source (detail)",
             scalars=detail,
         ),
         render.render_mesh(
-            target.vertices, target.faces, out / "target.png", size=size, title="target"
+            (target.vertices, target.faces), out / "target.png", size=size, title="target"
         ),
         render.render_mesh(
-            result.mesh.vertices,
-            result.mesh.faces,
+            (result.mesh.vertices, result.mesh.faces),
             out / "displaced.png",
             size=size,
             title="target (displaced)",

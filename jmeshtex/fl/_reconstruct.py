@@ -194,13 +194,13 @@ def side_by_side(
     if y_up:
         v = np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)
     left = render_mesh(
-        v, mesh.faces, uv=mesh.uv, texture=result.target, view=view, size=size, title="original"
+        Mesh(v, mesh.faces, uv=mesh.uv, texture=result.target),
+        view=view,
+        size=size,
+        title="original",
     )
     right = render_mesh(
-        v,
-        mesh.faces,
-        uv=mesh.uv,
-        texture=result.texture,
+        Mesh(v, mesh.faces, uv=mesh.uv, texture=result.texture),
         view=view,
         size=size,
         title=f"FL-VAE ({result.metrics.get('psnr', float('nan')):.2f} dB)",

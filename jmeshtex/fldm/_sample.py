@@ -386,20 +386,15 @@ def render_samples(
             path = out / f"{prefix}_{i:02d}_{j}.png"
             if "texture" in d:
                 render_mesh(
-                    mesh.vertices,
-                    mesh.faces,
+                    Mesh(mesh.vertices, mesh.faces, uv=mesh.uv, texture=d["texture"]),
                     path,
-                    uv=mesh.uv,
-                    texture=d["texture"],
                     view=view,
                     size=size,
                 )
             else:
                 render_mesh(
-                    mesh.vertices,
-                    mesh.faces,
+                    Mesh(mesh.vertices, mesh.faces, vertex_colors=d["vertex_colors"]),
                     path,
-                    vertex_colors=d["vertex_colors"],
                     view=view,
                     size=size,
                 )

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
-from .._mesh import as_mesh
+from .._mesh import Mesh, as_mesh
 from .._random import check_key, host_rng
 from .._types import ArrayLike, Float
 from ._baselines import flat_baseline, permuted_baseline
@@ -247,11 +247,8 @@ class Protocol:
 
 
 def protocol_views(
-    mesh,
+    mesh: Mesh | tuple,
     *,
-    colors: Float[ArrayLike, "V 3"] | None = None,
-    uv: Float[ArrayLike, "F 3 2"] | None = None,
-    texture: Float[ArrayLike, "H W 3"] | None = None,
     cameras: Sequence | None = None,
     protocol: Protocol | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -259,12 +256,12 @@ def protocol_views(
 
     Renders with :func:`jmeshtex.render.render_views` (white background) from ``cameras`` or
     ``protocol.cameras(mesh)``; the masks are the coverage alpha of one transparent render of the
-    same geometry. Without a colour source the mesh's own texture or vertex colours are shown.
+    same geometry.
 
     Args:
-      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices, faces)``.
-      colors: ``[V, 3]`` vertex colours in [0, 1]; or ``uv`` ``[F, 3, 2]`` with ``texture``
-        ``[H, W, 3]``.
+      mesh: the colouring, a :class:`~jmeshtex.Mesh` with ``vertex_colors`` ``[V, 3]`` in [0, 1]
+        or ``uv`` ``[F, 3, 2]`` with ``texture`` ``[H, W, 3]`` (a bare ``(vertices, faces)``
+        pair renders grey).
       cameras: :class:`jmeshtex.render.Camera` list (default: the protocol's rig).
       protocol: the rig (default :class:`Protocol`).
 
@@ -273,7 +270,8 @@ def protocol_views(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> img, mask = protocol_views(icosphere(2), protocol=Protocol(azimuths=2, elevations=(0.0,), size=32))
+      >>> rig = Protocol(azimuths=2, elevations=(0.0,), size=32)
+      >>> img, mask = protocol_views(icosphere(2), protocol=rig)
       >>> img.shape, mask.shape, bool(mask[:, 16, 16].min() == 1.0 and mask[:, 0, 0].max() == 0.0)
       ((2, 32, 32, 3), (2, 32, 32), True)
     """
@@ -281,11 +279,7 @@ def protocol_views(
 
     mesh = as_mesh(mesh)
     protocol = Protocol() if protocol is None else protocol
-    opts = {
-        k: v
-        for k, v in (("vertex_colors", colors), ("uv", uv), ("texture", texture))
-        if v is not None
-    }
+    black = Mesh(mesh.vertices, mesh.faces, vertex_colors=np.zeros((mesh.num_vertices, 3)))
     render_views = getattr(render, "render_views", None)
     if render_views is None:  # the matplotlib renderer: one call per (elevation, azimuth)
         if cameras is not None:
@@ -293,35 +287,21 @@ def protocol_views(
                 "protocol_views: this jmeshtex.render has no render_views; cameras cannot be used"
             )
         size = (protocol.size, protocol.size)
-        views = [
-            render.render_mesh(mesh.vertices, mesh.faces, view=va, size=size, **opts)
-            for va in protocol.angles()
-        ]
-        black = np.zeros((mesh.num_vertices, 3))
-        cover = [
-            render.render_mesh(mesh.vertices, mesh.faces, vertex_colors=black, view=va, size=size)
-            for va in protocol.angles()
-        ]
+        views = [render.render_mesh(mesh, view=va, size=size) for va in protocol.angles()]
+        cover = [render.render_mesh(black, view=va, size=size) for va in protocol.angles()]
         masks = np.stack([(c.mean(-1) < 128).astype(np.float32) for c in cover])
         return np.stack(views), masks
     cams = protocol.cameras(mesh) if cameras is None else list(cameras)
-    views = render_views(mesh, cams, supersample=protocol.supersample, **opts)
-    alpha = render_views(
-        mesh,
-        cams,
-        supersample=protocol.supersample,
-        background="transparent",
-        vertex_colors=np.zeros((mesh.num_vertices, 3)),
-    )[..., 3]
+    views = render_views(mesh, cams, supersample=protocol.supersample)
+    alpha = render_views(black, cams, supersample=protocol.supersample, background="transparent")[
+        ..., 3
+    ]
     return views[..., :3], (alpha.astype(np.float32) / np.float32(255))
 
 
 def evaluate_views(
-    mesh,
+    mesh: Mesh | tuple,
     *,
-    colors: Float[ArrayLike, "V 3"] | None = None,
-    uv: Float[ArrayLike, "F 3 2"] | None = None,
-    texture: Float[ArrayLike, "H W 3"] | None = None,
     reference_images: Float[ArrayLike, "N H W 3"] | None = None,
     exemplar: Float[ArrayLike, "H2 W2 3"] | None = None,
     cameras: Sequence | None = None,
@@ -336,8 +316,8 @@ def evaluate_views(
     distribution metrics only. Metrics are masked to the object (the renders' coverage).
 
     Args:
-      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices, faces)``.
-      colors: ``[V, 3]`` vertex colours; or ``uv`` with ``texture``.
+      mesh: the colouring, a :class:`~jmeshtex.Mesh` with ``vertex_colors`` or ``uv`` with
+        ``texture`` (as :func:`protocol_views`).
       reference_images: ``[N, H, W, 3]`` reference views from the same cameras.
       exemplar: one ``[H2, W2, 3]`` image (exactly one of ``reference_images`` and ``exemplar``).
       cameras, protocol: the views (default: :class:`Protocol`'s rig).
@@ -349,9 +329,10 @@ def evaluate_views(
     Example:
       >>> from jmeshtex.data import icosphere
       >>> mesh = icosphere(2)
+      >>> mesh = mesh.replace(vertex_colors=0.5 * (mesh.vertices + 1))
       >>> rig = Protocol(azimuths=2, elevations=(0.0,), size=48)
-      >>> ref, _ = protocol_views(mesh, colors=0.5 * (mesh.vertices + 1), protocol=rig)
-      >>> out = evaluate_views(mesh, colors=0.5 * (mesh.vertices + 1), reference_images=ref, protocol=rig)
+      >>> ref, _ = protocol_views(mesh, protocol=rig)
+      >>> out = evaluate_views(mesh, reference_images=ref, protocol=rig)
       >>> out["psnr"], round(out["lpips"], 6)
       (inf, 0.0)
     """
@@ -359,9 +340,7 @@ def evaluate_views(
         raise InputError(
             "evaluate_views: pass exactly one of reference_images (one per view) and exemplar"
         )
-    views, masks = protocol_views(
-        mesh, colors=colors, uv=uv, texture=texture, cameras=cameras, protocol=protocol
-    )
+    views, masks = protocol_views(mesh, cameras=cameras, protocol=protocol)
     refs = reference_images if exemplar is None else exemplar
     return evaluate_images(views, refs, masks=masks, metrics=metrics, weights=weights)
 
@@ -406,15 +385,10 @@ class BaselineTable:
 
 
 def baseline_table(
-    mesh,
+    result: Mesh,
     *,
     key,
-    colors: Float[ArrayLike, "V 3"] | None = None,
-    uv: Float[ArrayLike, "F 3 2"] | None = None,
-    texture: Float[ArrayLike, "H W 3"] | None = None,
-    reference_colors: Float[ArrayLike, "V 3"] | None = None,
-    reference_texture: Float[ArrayLike, "H W 3"] | None = None,
-    reference_uv: Float[ArrayLike, "F 3 2"] | None = None,
+    reference: Mesh | None = None,
     exemplar: Float[ArrayLike, "H2 W2 3"] | None = None,
     texel_mask: ArrayLike | None = None,
     cameras: Sequence | None = None,
@@ -427,20 +401,21 @@ def baseline_table(
     Two settings:
 
     - **reference colouring on the same mesh** (reconstruction, transfer with a ground truth):
-      ``reference_colors`` ``[V, 3]`` or ``reference_texture`` (on ``reference_uv``, default
-      ``uv``). Reference views are its renders; rows: the result, :func:`flat_baseline` and
-      :func:`permuted_baseline` of the reference colouring (over vertices / texels, within
-      ``texel_mask`` if given), and the reference itself (0, or ``inf`` PSNR, by construction).
+      ``reference``, the same geometry with the true ``vertex_colors`` or ``texture`` (on its
+      ``uv``, default the result's). Reference views are its renders; rows: the result,
+      :func:`flat_baseline` and :func:`permuted_baseline` of the reference colouring (over
+      vertices / texels, within ``texel_mask`` if given), and the reference itself (0, or ``inf``
+      PSNR, by construction).
     - **2D exemplar** (texture synthesis): each view is compared with ``exemplar`` (distribution
       metrics); flat = the exemplar's mean colour on every vertex; permuted = exemplar pixels drawn
       at random without replacement (with, if the exemplar has fewer) onto the result's vertices /
       texels (the exemplar's histogram, no structure); exemplar = the exemplar against itself.
 
     Args:
-      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices, faces)``.
+      result: the result, a :class:`~jmeshtex.Mesh` with ``vertex_colors`` ``[V, 3]`` or ``uv``
+        ``[F, 3, 2]`` with ``texture`` ``[H, W, 3]`` (the texture is used when it has both).
       key: JAX PRNG key for the permutation.
-      colors: the result's ``[V, 3]`` vertex colours; or ``uv`` + ``texture``.
-      reference_colors, reference_texture, reference_uv: the reference colouring (setting 1).
+      reference: the reference colouring on the same geometry (setting 1).
       exemplar: ``[H2, W2, 3]`` image (setting 2).
       texel_mask: ``[H, W]`` used texels of the reference texture (setting 1, textures).
       cameras, protocol, metrics, weights: as :func:`evaluate_views`.
@@ -449,40 +424,47 @@ def baseline_table(
       A :class:`BaselineTable`.
 
     Raises:
-      InputError: not exactly one reference, no result colouring, bad shapes.
+      InputError: not exactly one of ``reference`` and ``exemplar``, no result or reference
+        colouring, a reference on other geometry, bad shapes.
     """
-    given = [x is not None for x in (reference_colors, reference_texture, exemplar)]
-    if sum(given) != 1:
-        raise InputError(
-            "baseline_table: pass exactly one of reference_colors, reference_texture and exemplar"
-        )
-    if colors is None and texture is None:
-        raise InputError("baseline_table: pass the result's colouring (colors, or uv with texture)")
+    if (reference is None) == (exemplar is None):
+        raise InputError("baseline_table: pass exactly one of reference and exemplar")
     check_key(key)
-    mesh = as_mesh(mesh)
+    result = as_mesh(result, what="baseline_table: result")
+    textured = result.uv is not None and result.texture is not None
+    if not textured and result.vertex_colors is None:
+        raise InputError(
+            "baseline_table: the result needs a colouring (a Mesh with vertex_colors, or uv with "
+            "texture)"
+        )
+    geometry = Mesh(result.vertices, result.faces)
     protocol = Protocol() if protocol is None else protocol
-    cams = protocol.cameras(mesh) if cameras is None else list(cameras)
+    cams = protocol.cameras(geometry) if cameras is None else list(cameras)
     weights = load_vgg16() if weights is None else weights
 
     def views(**colouring):
-        return protocol_views(mesh, cameras=cams, protocol=protocol, **colouring)
+        return protocol_views(geometry.replace(**colouring), cameras=cams, protocol=protocol)
 
-    result_views, masks = views(colors=colors, uv=uv, texture=texture)
+    if textured:
+        own = {"uv": result.uv, "texture": result.texture}
+    else:
+        own = {"vertex_colors": result.vertex_colors}
+    result_views, masks = views(**own)
     kw = {"masks": masks, "metrics": metrics, "weights": weights}
     if exemplar is not None:
         ex = as_float_images(exemplar, "baseline_table", batched=False)
         pool = ex.reshape(-1, 3)
-        target = np.asarray(colors if colors is not None else texture)
+        target = np.asarray(result.texture if textured else result.vertex_colors)
         sites = int(np.prod(target.shape[:-1]))
         pick = host_rng(key).choice(len(pool), sites, replace=sites > len(pool))
         drawn = pool[pick].reshape(*target.shape[:-1], 3).astype(np.float64)
         mean_colors = np.broadcast_to(
-            pool.astype(np.float64).mean(0), (mesh.num_vertices, 3)
+            pool.astype(np.float64).mean(0), (geometry.num_vertices, 3)
         ).copy()
-        permuted = {"colors": drawn} if colors is not None else {"uv": uv, "texture": drawn}
+        permuted = {"uv": result.uv, "texture": drawn} if textured else {"vertex_colors": drawn}
         rows = {
             "result": evaluate_images(result_views, ex, **kw),
-            "flat": evaluate_images(views(colors=mean_colors)[0], ex, **kw),
+            "flat": evaluate_images(views(vertex_colors=mean_colors)[0], ex, **kw),
             "permuted": evaluate_images(views(**permuted)[0], ex, **kw),
             "exemplar": evaluate_images(ex[None], ex, metrics=metrics, weights=weights),
         }
@@ -491,18 +473,30 @@ def baseline_table(
             "exemplar; SIFID/Gram on VGG-16 features (SIFID not comparable in value with Inception SIFID)"
         )
         return BaselineTable(rows, note)
-    if reference_colors is not None:
-        ref = {"colors": np.asarray(reference_colors)}
-        flat = {"colors": flat_baseline(reference_colors)}
-        perm = {"colors": permuted_baseline(reference_colors, key=key)}
+    reference = as_mesh(reference, what="baseline_table: reference")
+    if reference.num_vertices != geometry.num_vertices or reference.num_faces != geometry.num_faces:
+        raise InputError(
+            "baseline_table: the reference must be the result's geometry with the true colouring, "
+            f"got {reference.num_vertices} vertices / {reference.num_faces} faces for "
+            f"{geometry.num_vertices} / {geometry.num_faces}"
+        )
+    if reference.texture is not None:
+        ruv = result.uv if reference.uv is None else reference.uv
+        if ruv is None:
+            raise InputError(
+                "baseline_table: the reference texture needs uv (its own or the result's)"
+            )
+        rtex = np.asarray(reference.texture)
+        ref = {"uv": ruv, "texture": rtex}
+        flat = {"uv": ruv, "texture": flat_baseline(rtex, mask=texel_mask)}
+        perm = {"uv": ruv, "texture": permuted_baseline(rtex, key=key, mask=texel_mask)}
+    elif reference.vertex_colors is not None:
+        rc = np.asarray(reference.vertex_colors)
+        ref = {"vertex_colors": rc}
+        flat = {"vertex_colors": flat_baseline(rc)}
+        perm = {"vertex_colors": permuted_baseline(rc, key=key)}
     else:
-        ruv = uv if reference_uv is None else reference_uv
-        ref = {"uv": ruv, "texture": np.asarray(reference_texture)}
-        flat = {"uv": ruv, "texture": flat_baseline(reference_texture, mask=texel_mask)}
-        perm = {
-            "uv": ruv,
-            "texture": permuted_baseline(reference_texture, key=key, mask=texel_mask),
-        }
+        raise InputError("baseline_table: the reference has no vertex_colors and no texture")
     ref_views = views(**ref)[0]
     rows = {
         "result": evaluate_images(result_views, ref_views, **kw),

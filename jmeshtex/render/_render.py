@@ -163,29 +163,18 @@ def scalar_colors(scalars, n_v: int, n_f: int, cmap: str, clim) -> tuple[np.ndar
 class _Scene:
     """What every view of one mesh shares: geometry, per-corner normals and the albedo source."""
 
-    def __init__(
-        self, mesh, *, vertex_colors, face_colors, scalars, cmap, clim, uv, texture, shading
-    ):
-        m = mesh if isinstance(mesh, Mesh) else None
-        v, f = check_vertices_faces(*as_mesh(mesh))
+    def __init__(self, mesh, *, face_colors, scalars, cmap, clim, shading):
+        m = as_mesh(mesh)
+        v, f = check_vertices_faces(*m)
         self.vertices, self.faces = v, f
         if shading not in _SHADINGS:
             raise InputError(f"shading must be one of {', '.join(_SHADINGS)}, got {shading!r}")
         self.lit = shading != "unlit"
-        given = [
-            name
-            for name, x in (
-                ("vertex_colors", vertex_colors),
-                ("face_colors", face_colors),
-                ("scalars", scalars),
-                ("uv/texture", uv if uv is not None else texture),
-            )
-            if x is not None
-        ]
-        if len(given) > 1:
-            raise InputError(f"give at most one colour source, got {', '.join(given)}")
-        if not given and m is not None:  # the mesh's own appearance
-            if m.uv is not None and m.texture is not None:
+        if face_colors is not None and scalars is not None:
+            raise InputError("give at most one of face_colors and scalars")
+        vertex_colors = uv = texture = None
+        if face_colors is None and scalars is None:  # the mesh's own appearance
+            if m.uv is not None or m.texture is not None:
                 uv, texture = m.uv, m.texture
             elif m.vertex_colors is not None:
                 vertex_colors = m.vertex_colors
@@ -202,7 +191,7 @@ class _Scene:
             self.corner_colors = c[f] if per_vertex else np.repeat(c[:, None], 3, axis=1)
         elif uv is not None or texture is not None:
             if uv is None or texture is None:
-                raise InputError("uv and texture go together: pass both to show a texture")
+                raise InputError("a Mesh shows a texture only with both uv and texture")
             self.texture = texture01(texture)
             uv = np.asarray(uv)
             if uv.ndim == 2 and uv.shape == (n_v, 2):
@@ -284,13 +273,10 @@ def render(
     mesh: Mesh | tuple,
     camera: Camera | None = None,
     *,
-    vertex_colors: Num[ArrayLike, "V C"] | None = None,
     face_colors: Num[ArrayLike, "F C"] | None = None,
     scalars: Float[ArrayLike, " V_or_F"] | None = None,
     cmap: str = "viridis",
     clim: tuple[float, float] | None = None,
-    uv: Float[ArrayLike, "F 3 2"] | Float[ArrayLike, "V 2"] | None = None,
-    texture: Num[ArrayLike, "H W *C"] | None = None,
     shading: str = "smooth",
     up: str | Sequence[float] = "z",
     size: tuple[int, int] = (512, 512),
@@ -310,20 +296,18 @@ def render(
     averages the samples of each pixel (antialiasing).
 
     Args:
-      mesh: a :class:`~jmeshtex.Mesh` (its own UV texture or vertex colours are shown when no colour
-        source is given) or ``(vertices [V, 3], faces [F, 3])``; world frame.
+      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices [V, 3], faces [F, 3])``; world frame. A
+        ``Mesh`` is shown in its own colours: its UV texture (``uv`` ``[F, 3, 2]`` per corner or
+        ``[V, 2]`` per vertex, ``texture`` ``[H, W]`` or ``[H, W, 3|4]``, float in [0, 1] or
+        uint8), else its ``vertex_colors`` ``[V, 3|4]`` (float in [0, 1], clipped, or uint8; alpha
+        ignored), else grey. To show other colours, render ``mesh.replace(vertex_colors=c)``.
       camera: a :class:`Camera`; None: the default 3/4 view (elevation 25°, azimuth -60° about
         ``up``) framed on the bounding sphere. A camera brings its own size and up.
-      vertex_colors: ``[V, 3|4]`` colours (float in [0, 1], clipped, or uint8; alpha ignored),
-        interpolated across faces.
-      face_colors: ``[F, 3|4]`` colours, one per face.
+      face_colors: ``[F, 3|4]`` colours, one per face, instead of the mesh's own.
       scalars: ``[V]`` per-vertex or ``[F]`` per-face values mapped through ``cmap`` (per-vertex
-        when ``V == F``); vertex colours are interpolated.
+        when ``V == F``; vertex colours are interpolated), instead of the mesh's own colours.
       cmap: a matplotlib colormap name.
       clim: ``(vmin, vmax)`` for ``scalars``; default their min and max.
-      uv: ``[F, 3, 2]`` per-corner or ``[V, 2]`` per-vertex texture coordinates (u right, v up),
-        with ``texture``.
-      texture: ``[H, W]`` or ``[H, W, 3|4]`` image (float in [0, 1] or uint8), row 0 at the top (v = 1).
       shading: ``"smooth"`` (interpolated normals), ``"flat"`` (face normals) or ``"unlit"`` (the
         albedo as it is).
       up: the world up axis of the default camera: ``"x"|"y"|"z"|"-x"|"-y"|"-z"`` or a 3-vector
@@ -336,8 +320,8 @@ def render(
       ``[height, width, 3]`` uint8 RGB image (``[height, width, 4]`` RGBA when transparent).
 
     Raises:
-      InputError: wrong shapes, NaN vertices, several colour sources, unknown colormap, shading
-        or background, a zero-size image, a camera that sees nothing.
+      InputError: wrong shapes, NaN vertices, both ``face_colors`` and ``scalars``, unknown
+        colormap, shading or background, a zero-size image, a camera that sees nothing.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -348,15 +332,7 @@ def render(
     """
     s = _check_options(background, supersample)
     scene = _Scene(
-        mesh,
-        vertex_colors=vertex_colors,
-        face_colors=face_colors,
-        scalars=scalars,
-        cmap=cmap,
-        clim=clim,
-        uv=uv,
-        texture=texture,
-        shading=shading,
+        mesh, face_colors=face_colors, scalars=scalars, cmap=cmap, clim=clim, shading=shading
     )
     cam = (
         camera
@@ -393,13 +369,10 @@ def render_views(
       (3, 32, 32, 3)
     """
     unknown = set(options) - {
-        "vertex_colors",
         "face_colors",
         "scalars",
         "cmap",
         "clim",
-        "uv",
-        "texture",
         "shading",
         "background",
         "supersample",
@@ -425,9 +398,6 @@ def render_views(
         mesh,
         shading=options.pop("shading", "smooth"),
         cmap=options.pop("cmap", "viridis"),
-        **{
-            k: options.pop(k, None)
-            for k in ("vertex_colors", "face_colors", "scalars", "clim", "uv", "texture")
-        },
+        **{k: options.pop(k, None) for k in ("face_colors", "scalars", "clim")},
     )
     return np.stack([to_uint8(scene.shade(scene.visibility(c, s), background)) for c in cams])

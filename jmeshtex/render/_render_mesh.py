@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import InputError
+from .._mesh import Mesh
 from .._types import ArrayLike, Float, Int, Num
 from ..io import save_png
 from ._camera import _check_size, view_camera
@@ -23,17 +24,13 @@ _RED = (214, 39, 40)  # matplotlib's "#d62728"
 
 
 def render_mesh(
-    vertices: Float[ArrayLike, "V 3"],
-    faces: Int[ArrayLike, "F 3"],
+    mesh: Mesh | tuple,
     path: str | os.PathLike | None = None,
     *,
-    vertex_colors: Num[ArrayLike, "V C"] | None = None,
     face_colors: Num[ArrayLike, "F C"] | None = None,
     scalars: Float[ArrayLike, " V_or_F"] | None = None,
     cmap: str = "viridis",
     clim: tuple[float, float] | None = None,
-    uv: Float[ArrayLike, "F 3 2"] | Float[ArrayLike, "V 2"] | None = None,
-    texture: Num[ArrayLike, "H W *C"] | None = None,
     vectors: Float[ArrayLike, "V 3"] | None = None,
     vector_scale: float | None = None,
     max_arrows: int = 1500,
@@ -53,23 +50,21 @@ def render_mesh(
 
     .. math:: c = a\\,(0.3 + 0.7 \\max(0, n\\cdot\\ell)) + 0.12 \\max(0, n\\cdot h)^{32}
 
-    At most one colour source may be given; without one the mesh is light grey.
+    The colours are the mesh's own (as :func:`jmeshtex.render.render`: its UV texture, else its
+    vertex colours, else light grey), or ``face_colors`` or ``scalars`` instead.
 
     Args:
-      vertices: ``[V, 3]`` positions (world frame, ``up`` pointing up).
-      faces: ``[F, 3]`` triangles.
+      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices [V, 3], faces [F, 3])`` (world frame, ``up``
+        pointing up); a ``Mesh``'s ``uv`` + ``texture`` (looked up per pixel, trilinear,
+        mip-mapped) or ``vertex_colors`` colour it. Other colours:
+        ``mesh.replace(vertex_colors=c)`` or ``Mesh(v, f, vertex_colors=c)``.
       path: where to write a PNG (parent folders are created; written to a temporary name and
         renamed, so a reader never sees a half-written file). ``None``: only return the image.
-      vertex_colors: ``[V, 3|4]`` colours (float in [0, 1], clipped, or uint8; alpha ignored),
-        interpolated across faces.
-      face_colors: ``[F, 3|4]`` colours, as ``vertex_colors``, one per face.
+      face_colors: ``[F, 3|4]`` colours, one per face (float in [0, 1], clipped, or uint8).
       scalars: ``[V]`` per-vertex or ``[F]`` per-face values mapped through ``cmap`` (per-vertex
         when ``V == F``).
       cmap: a matplotlib colormap name.
       clim: ``(vmin, vmax)`` for ``scalars``; default their min and max.
-      uv: ``[F, 3, 2]`` per-corner texture coordinates (or ``[V, 2]`` per vertex), with ``texture``.
-      texture: ``[H, W]`` or ``[H, W, 3|4]`` image (float in [0, 1] or uint8), row 0 at the top
-        (v = 1), looked up per pixel (trilinear, mip-mapped).
       vectors: ``[V, 3]`` tangent field drawn as arrows from the vertices (3D, world frame); arrows
         whose base the surface hides (depth test) are left out.
       vector_scale: arrow length per unit of ``|vector|``; default: the longest arrow is 0.9 mean
@@ -86,26 +81,19 @@ def render_mesh(
       ``[height, width, 3]`` uint8 RGB image.
 
     Raises:
-      InputError: wrong shapes, non-finite values, several colour sources, unknown colormap.
+      InputError: wrong shapes, non-finite values, both ``face_colors`` and ``scalars``, unknown
+        colormap.
       MeshIOError: the PNG cannot be written.
 
     Example:
       >>> from jmeshtex.data import icosphere
       >>> v, f = icosphere(1)
-      >>> img = render_mesh(v, f, scalars=v[:, 2], size=(64, 48))
+      >>> img = render_mesh((v, f), scalars=v[:, 2], size=(64, 48))
       >>> img.shape, img.dtype
       ((48, 64, 3), dtype('uint8'))
     """
     scene = _Scene(
-        (vertices, faces),
-        vertex_colors=vertex_colors,
-        face_colors=face_colors,
-        scalars=scalars,
-        cmap=cmap,
-        clim=clim,
-        uv=uv,
-        texture=texture,
-        shading=shading,
+        mesh, face_colors=face_colors, scalars=scalars, cmap=cmap, clim=clim, shading=shading
     )
     v = scene.vertices
     width, height = _check_size(size)

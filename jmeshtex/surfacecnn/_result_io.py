@@ -88,10 +88,7 @@ def save(
     views = []
     for name, view in (("render_front.png", (20.0, -60.0)), ("render_back.png", (20.0, 120.0))):
         image = render.render_mesh(
-            m.vertices,
-            m.faces,
-            uv=m.uv,
-            texture=result.texture,
+            m.replace(texture=result.texture),
             view=view,
             size=render_size,
             title=f"{title} ({name[7:-4]})",
@@ -117,7 +114,7 @@ def save(
     ]
     save_png(render.render_grid(panels, titles=titles, columns=len(panels)), out / "surfacecnn.png")
     cameras = render.orbit_cameras(m, azimuths=views_azimuths, elevations=(20.0,), size=(256, 256))
-    orbit = render.render_views(m, cameras, uv=m.uv, texture=result.texture)
+    orbit = render.render_views(m.replace(texture=result.texture), cameras)
     render.figure(
         [(f"azimuth {360 * i / views_azimuths:.0f}°", img) for i, img in enumerate(orbit)],
         columns=views_azimuths,

@@ -292,7 +292,7 @@ def small_rig():
 
 def test_protocol_views_cover_the_object(small_rig):
     mesh, colors, rig = small_rig
-    views, masks = protocol_views(mesh, colors=colors, protocol=rig)
+    views, masks = protocol_views(mesh.replace(vertex_colors=colors), protocol=rig)
     assert views.shape == (2, 64, 64, 3) and views.dtype == np.uint8 and masks.shape == (2, 64, 64)
     # an orthographic sphere filling 92 % of the side: coverage ≈ π (0.46)² of the image
     assert np.mean(masks) == pytest.approx(np.pi * 0.46**2, rel=0.05)
@@ -303,9 +303,8 @@ def test_baseline_table_orders_rows_and_zeroes_the_exemplar(small_rig, vgg):
     mesh, colors, rig = small_rig
     result = np.clip(colors + 0.05 * np.random.default_rng(7).standard_normal(colors.shape), 0, 1)
     table = baseline_table(
-        mesh,
-        colors=result,
-        reference_colors=colors,
+        mesh.replace(vertex_colors=result),
+        reference=mesh.replace(vertex_colors=colors),
         key=jax.random.key(0),
         protocol=rig,
         weights=vgg,
@@ -318,10 +317,10 @@ def test_baseline_table_orders_rows_and_zeroes_the_exemplar(small_rig, vgg):
     for metric in ("sifid", "gram", "lpips", "dssim"):
         assert rows["result"][metric] < min(rows["flat"][metric], rows["permuted"][metric]), metric
     assert rows["result"]["psnr"] > max(rows["flat"]["psnr"], rows["permuted"]["psnr"])
+    coloured = mesh.replace(vertex_colors=colors)
     same = evaluate_views(
-        mesh,
-        colors=colors,
-        reference_images=protocol_views(mesh, colors=colors, protocol=rig)[0],
+        coloured,
+        reference_images=protocol_views(coloured, protocol=rig)[0],
         protocol=rig,
         weights=vgg,
         metrics=("sifid", "psnr"),
@@ -329,10 +328,18 @@ def test_baseline_table_orders_rows_and_zeroes_the_exemplar(small_rig, vgg):
     assert same["psnr"] == float("inf")
     with pytest.raises(InputError):
         baseline_table(
-            mesh,
-            colors=result,
-            reference_colors=colors,
+            mesh.replace(vertex_colors=result),
+            reference=coloured,
             exemplar=np.zeros((8, 8, 3)),
             key=jax.random.key(0),
             protocol=rig,
         )
+
+
+def test_baseline_table_takes_the_colourings_as_meshes(small_rig):
+    mesh, colors, rig = small_rig
+    coloured = mesh.replace(vertex_colors=colors)
+    with pytest.raises(InputError, match="needs a colouring"):
+        baseline_table(mesh, reference=coloured, key=jax.random.key(0), protocol=rig)
+    with pytest.raises(InputError, match="exactly one of reference and exemplar"):
+        baseline_table(coloured, key=jax.random.key(0), protocol=rig)

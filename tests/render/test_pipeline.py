@@ -61,20 +61,18 @@ def _head_on(n: int, **kwargs):
 def test_textured_quad_head_on_gives_the_image_back():
     v, f, uv = _quad()
     tex = _astronaut(64)
-    img = render((v, f), _head_on(64), uv=uv, texture=tex, shading="unlit", supersample=1)
+    img = render(Mesh(v, f, uv=uv, texture=tex), _head_on(64), shading="unlit", supersample=1)
     assert _psnr(img, tex) >= 40.0  # measured: exact (float32 bilinear at texel centres)
     # the oracle can fail: a texture upside down (v flipped) is far from the image
     flipped = render(
-        (v, f),
+        Mesh(v, f, uv=uv * [1.0, -1.0] + [0.0, 1.0], texture=tex),
         _head_on(64),
-        uv=uv * [1.0, -1.0] + [0.0, 1.0],
-        texture=tex,
         shading="unlit",
         supersample=1,
     )
     assert _psnr(flipped, tex) < 20.0
     # 2x2 supersampling averages four samples a quarter texel off each centre: a slight blur, still close
-    ss = render((v, f), _head_on(64), uv=uv, texture=tex, shading="unlit", supersample=2)
+    ss = render(Mesh(v, f, uv=uv, texture=tex), _head_on(64), shading="unlit", supersample=2)
     assert _psnr(ss, tex) >= 28.0
 
 
@@ -206,9 +204,8 @@ def test_mip_mapping_removes_aliasing():
     tex = np.repeat(checker[..., None], 3, axis=2)
     v, f, uv = _quad()
     n = 37  # not a divisor of 256: pixel centres fall on both colours of the checker
-    img = render((v, f), _head_on(n), uv=uv, texture=tex, shading="unlit", supersample=1).astype(
-        float
-    )
+    img = render(Mesh(v, f, uv=uv, texture=tex), _head_on(n), shading="unlit", supersample=1)
+    img = img.astype(float)
     assert abs(img.mean() - 127.5) < 3 and img.std() < 3
     # without mip levels (plain bilinear lookups at the texels under the pixel centres) it aliases
     centres = (np.floor((np.arange(n) + 0.5) * 256 / n) + 0.5) / 256
@@ -258,7 +255,11 @@ def test_no_colour_source_renders_grey_and_mesh_appearance_is_used():
     assert np.abs(lit[:, 0] - lit[:, 2]).max() < 40 and lit.std() > 10  # grey-blue, shaded
     red = np.tile([1.0, 0.0, 0.0], (len(v), 1)).astype(np.float32)
     own = render(Mesh(v, f, vertex_colors=red), size=(64, 64))
-    np.testing.assert_array_equal(own, render((v, f), vertex_colors=red, size=(64, 64)))
+    assert own[32, 32, 0] > 150 and own[32, 32, 1] < 60  # the mesh's own colours are shown
+    # face colours or scalars replace them
+    blue = np.tile([0.0, 0.0, 1.0], (len(f), 1))
+    other = render(Mesh(v, f, vertex_colors=red), face_colors=blue, size=(64, 64))
+    assert other[32, 32, 2] > 150 and other[32, 32, 0] < 60
 
 
 def test_transparent_background_has_coverage_alpha():
@@ -312,7 +313,7 @@ def test_top_view_has_x_right_and_y_up():
     from jmeshtex.render import render_mesh
 
     img = render_mesh(
-        v, f, vertex_colors=colors, view=(90.0, -90.0), size=(64, 64), shading="unlit"
+        Mesh(v, f, vertex_colors=colors), view=(90.0, -90.0), size=(64, 64), shading="unlit"
     ).astype(int)
     ys, xs = np.nonzero((img < 250).any(axis=2))
     right = img[ys.max() - 2, xs.max() - 4]

@@ -11,7 +11,7 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from jmeshtex import InputError, MeshIOError
+from jmeshtex import InputError, Mesh, MeshIOError
 from jmeshtex.data import grid, icosphere, torus
 from jmeshtex.geometry import boundary_edges
 from jmeshtex.render import render_grid, render_mesh
@@ -25,7 +25,7 @@ def _not_white(img: np.ndarray) -> np.ndarray:
 
 def test_image_size_dtype_and_sphere_silhouette():
     v, f = icosphere(3)
-    img = render_mesh(v, f, size=(160, 120))
+    img = render_mesh((v, f), size=(160, 120))
     assert img.shape == (120, 160, 3) and img.dtype == np.uint8
     # the bounding sphere fills 92 % of the shorter side: a centred disc of diameter ~110 px
     mask = _not_white(img)
@@ -38,7 +38,7 @@ def test_image_size_dtype_and_sphere_silhouette():
 
 def test_flat_shading_depends_on_the_light():
     v, f = icosphere(3)
-    img = render_mesh(v, f, size=(128, 128)).astype(float)
+    img = render_mesh((v, f), size=(128, 128)).astype(float)
     lit = img[_not_white(img.astype(np.uint8))].mean(axis=1)
     # the light sits above-left of the camera: a range of brightness, brightest upper left
     assert lit.max() - lit.min() > 60
@@ -61,7 +61,7 @@ def _two_squares(near_first: bool):
 @pytest.mark.parametrize("near_first", [True, False])
 def test_painter_order_by_depth_not_by_input_order(near_first):
     v, f, colors = _two_squares(near_first)
-    img = render_mesh(v, f, face_colors=colors, view=TOP, size=(100, 100)).astype(int)
+    img = render_mesh((v, f), face_colors=colors, view=TOP, size=(100, 100)).astype(int)
     center = img[50, 50]
     assert center[0] > 150 and center[2] < 60  # the near red square hides the blue one
     corner = img[
@@ -72,7 +72,7 @@ def test_painter_order_by_depth_not_by_input_order(near_first):
 
 def test_scalars_follow_the_colormap():
     v, f = grid(16)
-    img = render_mesh(v, f, scalars=v[:, 0], cmap="gray", view=TOP, size=(100, 100)).astype(int)
+    img = render_mesh((v, f), scalars=v[:, 0], cmap="gray", view=TOP, size=(100, 100)).astype(int)
     # dark on the left, bright on the right (per-face means of x jitter within a grid cell, so
     # compare averages over columns of pixels)
     thirds = img[30:70, 22:79, 0].reshape(40, 3, 19).mean(axis=(0, 2))
@@ -80,7 +80,7 @@ def test_scalars_follow_the_colormap():
     # face scalars and clim: everything above vmax saturates
     fx = v[f].mean(axis=1)[:, 0]
     img2 = render_mesh(
-        v, f, scalars=fx, cmap="gray", clim=(0.0, 0.25), view=TOP, size=(100, 100)
+        (v, f), scalars=fx, cmap="gray", clim=(0.0, 0.25), view=TOP, size=(100, 100)
     ).astype(int)
     assert np.ptp(img2[50, 50:80, 0]) <= 3
 
@@ -88,10 +88,10 @@ def test_scalars_follow_the_colormap():
 def test_vertex_and_face_colors(rng):
     v, f = grid(4)
     red = np.tile([255, 0, 0], (len(v), 1)).astype(np.uint8)
-    img = render_mesh(v, f, vertex_colors=red, view=TOP, size=(64, 64)).astype(int)
+    img = render_mesh(Mesh(v, f, vertex_colors=red), view=TOP, size=(64, 64)).astype(int)
     assert img[32, 32, 0] > 150 and img[32, 32, 1] < 40 and img[32, 32, 2] < 40
     green = np.tile([0.0, 1.0, 0.0, 0.5], (len(f), 1))
-    img = render_mesh(v, f, face_colors=green, view=TOP, size=(64, 64)).astype(int)
+    img = render_mesh((v, f), face_colors=green, view=TOP, size=(64, 64)).astype(int)
     assert img[32, 32, 1] > 150 and img[32, 32, 0] < 40
 
 
@@ -102,27 +102,27 @@ def test_uv_texture_orientation():
     tex[:, 32:, 2] = 1.0
     tex[:32] = [0.0, 1.0, 0.0]  # row 0 is the top of the image, v = 1
     v, f = grid(16)
-    img = render_mesh(v, f, uv=v[f][..., :2], texture=tex, view=TOP, size=(100, 100)).astype(int)
+    img = render_mesh(Mesh(v, f, uv=v[f][..., :2], texture=tex), view=TOP, size=(100, 100))
     bottom_left, bottom_right, top = img[80, 25], img[80, 75], img[20, 50]
     assert bottom_left[0] > 150 and bottom_left[2] < 60
     assert bottom_right[2] > 150 and bottom_right[0] < 60
     assert top[1] > 150 and top[0] < 60
     # per-vertex UVs and uint8 textures give the same picture
     img2 = render_mesh(
-        v, f, uv=v[:, :2], texture=(tex * 255).astype(np.uint8), view=TOP, size=(100, 100)
+        Mesh(v, f, uv=v[:, :2], texture=(tex * 255).astype(np.uint8)), view=TOP, size=(100, 100)
     )
     np.testing.assert_array_equal(img2, img)
 
 
 def test_vectors_and_edges_draw_red_on_top():
     v, f = torus(12, 8)
-    plain = render_mesh(v, f, size=(128, 128))
+    plain = render_mesh((v, f), size=(128, 128))
     tangent = np.stack([-v[:, 1], v[:, 0], np.zeros(len(v))], axis=1)
-    arrows = render_mesh(v, f, vectors=tangent, size=(128, 128))
+    arrows = render_mesh((v, f), vectors=tangent, size=(128, 128))
     red = lambda img: ((img[..., 0] > 150) & (img[..., 1] < 90)).sum()  # noqa: E731
     assert red(plain) == 0 and red(arrows) > 100
     gv, gf = grid(6)
-    lines = render_mesh(gv, gf, edges=boundary_edges(gf), size=(128, 128))
+    lines = render_mesh((gv, gf), edges=boundary_edges(gf), size=(128, 128))
     assert red(lines) > 100
 
 
@@ -132,24 +132,24 @@ def test_arrows_on_the_far_side_of_a_closed_mesh_are_hidden():
     red = lambda img: ((img[..., 0] > 150) & (img[..., 1] < 90)).sum()  # noqa: E731
     # only the back half's vertices carry vectors: nothing must show from the front
     back = np.where((v @ [0.0, -1.0, 0.0])[:, None] < -0.2, tangent, 0.0)
-    assert red(render_mesh(v, f, vectors=back, view=(0.0, -90.0), size=(96, 96))) == 0
-    assert red(render_mesh(v, f, vectors=back, view=(0.0, 90.0), size=(96, 96))) > 30
+    assert red(render_mesh((v, f), vectors=back, view=(0.0, -90.0), size=(96, 96))) == 0
+    assert red(render_mesh((v, f), vectors=back, view=(0.0, 90.0), size=(96, 96))) > 30
 
 
 def test_png_is_written_atomically_and_matches(tmp_path):
     v, f = icosphere(1)
     path = tmp_path / "sub" / "sphere.png"
-    img = render_mesh(v, f, path, scalars=v[:, 2], size=(80, 60), title="a title")
+    img = render_mesh((v, f), path, scalars=v[:, 2], size=(80, 60), title="a title")
     assert sorted(p.name for p in path.parent.iterdir()) == ["sphere.png"]  # no temporary left over
     back = matplotlib.image.imread(path)
     np.testing.assert_array_equal(np.round(back[..., :3] * 255).astype(np.uint8), img)
     # writing over an existing file replaces it
-    img2 = render_mesh(v, f, str(path), size=(80, 60))
+    img2 = render_mesh((v, f), str(path), size=(80, 60))
     np.testing.assert_array_equal(
         np.round(matplotlib.image.imread(path)[..., :3] * 255).astype(np.uint8), img2
     )
     with pytest.raises(MeshIOError, match="inside-a-file.png"):  # a file where a folder must be
-        render_mesh(v, f, path / "inside-a-file.png", size=(80, 60))
+        render_mesh((v, f), path / "inside-a-file.png", size=(80, 60))
 
 
 def test_render_grid_layout(tmp_path):
@@ -167,8 +167,8 @@ def test_render_grid_layout(tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"scalars": np.zeros(42), "face_colors": np.zeros((80, 3))}, "at most one colour source"),
-        ({"uv": np.zeros((80, 3, 2))}, "uv and texture go together"),
+        ({"scalars": np.zeros(42), "face_colors": np.zeros((80, 3))}, "face_colors and scalars"),
+        ({"uv": np.zeros((80, 3, 2))}, "both uv and texture"),
         ({"scalars": np.zeros(7)}, r"scalars must be real \[V=42\] or \[F=80\]"),
         ({"scalars": np.full(42, np.nan)}, "NaN"),
         ({"scalars": np.zeros(42), "cmap": "no-such-map"}, "unknown colormap"),
@@ -183,8 +183,10 @@ def test_render_grid_layout(tmp_path):
 )
 def test_bad_input_raises_input_error(kwargs, match):
     v, f = icosphere(1)
+    # colours of the mesh itself travel in the Mesh, the rest are arguments
+    own = {k: kwargs.pop(k) for k in ("vertex_colors", "uv", "texture") if k in kwargs}
     with pytest.raises(InputError, match=match):
-        render_mesh(v, f, **kwargs)
+        render_mesh(Mesh(v, f, **own), **kwargs)
 
 
 def test_render_grid_errors():
@@ -202,7 +204,7 @@ def test_needs_no_display_and_no_pyplot(tmp_path):
     env["MPLBACKEND"] = "TkAgg"
     code = (
         "import sys; from jmeshtex.data import icosphere; from jmeshtex.render import render_mesh; "
-        f"render_mesh(*icosphere(1), {str(tmp_path / 'x.png')!r}, size=(32, 32)); "
+        f"render_mesh(icosphere(1), {str(tmp_path / 'x.png')!r}, size=(32, 32)); "
         "assert 'matplotlib.pyplot' not in sys.modules, 'pyplot was imported'"
     )
     done = subprocess.run(

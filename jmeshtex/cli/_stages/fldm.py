@@ -118,7 +118,9 @@ def render_rgb_views(
     imgs = (
         np.stack(
             [
-                render_mesh(mesh.vertices, mesh.faces, vertex_colors=rgb, view=v, size=(full, full))
+                render_mesh(
+                    Mesh(mesh.vertices, mesh.faces, vertex_colors=rgb), view=v, size=(full, full)
+                )
                 for v in VIEWS
             ]
         ).astype(np.float32)
