@@ -38,6 +38,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+# the tracer types tell forward mode from reverse mode (see _under_forward_mode); no public API does
+from jax._src.interpreters import ad as _ad
+from jax._src.interpreters import batching as _batching
+
 from .._errors import ConfigError, InputError
 from .._neighborhoods import VertexNeighborhood
 from .._types import Array, ArrayLike, Complex, Float, PRNGKey
@@ -203,7 +207,12 @@ def field_conv(
     nested) keeps only the ``V·2·H·C`` filtered sums of the forward and runs a hand-written VJP
     block by block, evaluating each filter response once more instead of storing ``V·K·C·H`` of
     them (a gradient with respect to the neighbourhood's geometry, rarely wanted, takes a slower
-    autodiff route); forward mode (``jax.jvp``, ``jax.jacfwd``) is not available there.
+    autodiff route). Forward mode (``jax.jvp``, ``jax.jacfwd``, ``jax.hessian``) cannot enter that
+    hand-written VJP: when ``field_conv`` is traced under it, the same formula runs on the general
+    path instead (plain autodiff, so every mode works), with equal values. Apply the forward
+    transform before ``jax.jit`` (``jax.jit(jax.jacfwd(f))``): ``jax.jvp`` of an already-jitted
+    function sees the fast path's traced form and fails in JAX (``can't apply forward-mode
+    autodiff (jvp) to a custom_vjp function``).
 
     Example:
       >>> import numpy as np
@@ -236,17 +245,16 @@ def field_conv(
         bias = bias + jnp.asarray(embedding).astype(rdt) @ a_w[2:]
     index, slots = _slot_geometry(nbhd, rdt)
     mix = params.mix.astype(complex_dtype(x.dtype))
-    if params.hidden_weight is None and argument == "transported":
-        if channel_embedding is not None:  # per-channel pre-activation offsets [V, H, C]
-            cw = params.channel_weight.astype(rdt)
-            bias = (
-                bias[:, :, None]
-                + cw[None, :, None] * jnp.asarray(channel_embedding).astype(rdt)[:, None, :]
-            )
-        return _conv(x, index, slots, a_w[:2], bias, mix, delta, activation)
     channel = None
     if channel_embedding is not None:
         channel = (jnp.asarray(channel_embedding).astype(rdt), params.channel_weight.astype(rdt))
+    if params.hidden_weight is None and argument == "transported":
+        fast_bias = bias
+        if channel is not None:  # per-channel pre-activation offsets [V, H, C]
+            fast_bias = bias[:, :, None] + channel[1][None, :, None] * channel[0][:, None, :]
+        if not _under_forward_mode((x, slots, a_w, fast_bias, mix)):
+            return _conv(x, index, slots, a_w[:2], fast_bias, mix, delta, activation)
+        # forward mode cannot enter the custom_vjp: the same formula on the general path
     hidden = None
     if params.hidden_weight is not None:
         hidden = (params.hidden_weight.astype(rdt), params.hidden_bias.astype(rdt))
@@ -266,6 +274,26 @@ def field_conv(
 
 
 _ARGUMENTS = ("transported", "untransported")
+
+
+def _under_forward_mode(tree) -> bool:
+    """Whether a leaf of ``tree`` carries a forward-mode tangent (``jax.jvp``, ``jacfwd``, the outer
+    level of forward-over-reverse), looking through reverse-mode and batching tracers.
+
+    JAX refuses forward mode through a ``custom_vjp`` (under ``jit`` only when lowering, too late to
+    choose another path), so :func:`field_conv` asks before it calls :func:`_conv`.
+    """
+    for leaf in jax.tree.leaves(tree):
+        while True:
+            if isinstance(leaf, _ad.JVPTracer):
+                return True
+            if isinstance(leaf, _ad.LinearizeTracer):
+                leaf = leaf.primal
+            elif isinstance(leaf, _batching.BatchTracer):
+                leaf = leaf.val
+            else:
+                break
+    return False
 
 
 def _check_extra(params: FieldConvParams, channel_embedding, v: int, c: int, h: int) -> None:
