@@ -4,8 +4,9 @@ CNN run on the mesh (a thin layer over :mod:`jmeshtex.surfacecnn`).
 ``synthesize`` optimises a texture in the mesh's UV layout (unwrapped with xatlas when the mesh has
 no UVs) whose VGG Gram statistics match an exemplar image; ``stylize`` transfers the style of an
 image onto the mesh's existing texture. Both write the result folder of
-:func:`jmeshtex.surfacecnn.save` (texture PNG, textured OBJ, renders, ``result.npz``, a JSON summary)
-and show a progress bar with the loss (``--quiet``: none).
+:func:`jmeshtex.surfacecnn.save` (texture PNG, textured OBJ, ``result.npz``, a JSON summary) and
+the renders (``render_front.png``, ``render_back.png``, ``surfacecnn.png``, ``views.png``; ``--up``
+names the mesh's up axis), and show a progress bar with the loss (``--quiet``: none).
 
 Every mesh argument is a file or a procedural spec (``icosphere:3``, ``torus``, ...;
 :func:`~jmeshtex.cli._common.load_mesh_spec`); ``--seed`` makes the ``key`` of the library call.
@@ -16,7 +17,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from ._common import add_common, cached, load_mesh_spec
+from ._common import add_common, add_up, cached, load_mesh_spec
 from ._output import claim_output, owns
 
 #: the folder under ``--out`` that holds the resumable checkpoints
@@ -70,6 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _options(p: argparse.ArgumentParser) -> None:
     add_common(p, out="output folder (texture, textured mesh, renders, result.npz, checkpoints/)")
+    add_up(p)
     p.add_argument("--size", type=int, default=512, help="texture resolution (default 512)")
     p.add_argument("--steps", type=int, default=500, help="optimisation steps (default 500)")
     p.add_argument(
@@ -183,6 +185,43 @@ def _checkpoint(args) -> pathlib.Path:
     return path
 
 
+def _render(result, out: pathlib.Path, *, exemplar, title: str, up: str) -> list[pathlib.Path]:
+    """The renders of a result: front and back views, the exemplar | views | texture panel and an
+    orbit of four views (the library's :func:`jmeshtex.surfacecnn.save` writes data only)."""
+    import numpy as np
+
+    from .. import render
+    from ..io import save_png
+
+    mesh = result.mesh.replace(texture=result.texture)
+    paths, views = [], []
+    for name, view in (("render_front.png", (20.0, -60.0)), ("render_back.png", (20.0, 120.0))):
+        image = render.render_mesh(
+            mesh, view=view, size=(420, 400), title=f"{title} ({name[7:-4]})", up=up
+        )
+        save_png(image, out / name)
+        paths.append(out / name)
+        views.append(image)
+    panels = [np.clip(np.asarray(exemplar, np.float32), 0, 1), *views, result.texture]
+    titles = ["exemplar", None, None, "texture (UV layout)"]
+    height = max(np.shape(v)[0] for v in views)
+    # small images enlarged (nearest, integer factor) to the renders' height
+    factors = [max(1, height // np.shape(pn)[0]) for pn in panels]
+    panels = [np.repeat(np.repeat(pn, k, 0), k, 1) for pn, k in zip(panels, factors, strict=True)]
+    render.render_grid(panels, out / "surfacecnn.png", titles=titles, columns=len(panels))
+    paths.append(out / "surfacecnn.png")
+    cameras = render.orbit_cameras(mesh, azimuths=4, elevations=(20.0,), size=(256, 256), up=up)
+    orbit = render.render_views(mesh, cameras)
+    render.figure(
+        [(f"azimuth {90 * i}°", img) for i, img in enumerate(orbit)],
+        columns=4,
+        title=title,
+        path=out / "views.png",
+    )
+    paths.append(out / "views.png")
+    return paths
+
+
 def _report(summary: dict, out: pathlib.Path) -> None:
     print(
         f"wrote {out / 'texture.png'}, {out / 'textured.obj'} and renders to {out}: loss "
@@ -210,7 +249,8 @@ def _synthesize(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         checkpoint=checkpoint,
     )
-    summary = save(result, args.out, exemplar=exemplar, title="synthesised")
+    summary = save(result, args.out)
+    _render(result, args.out, exemplar=exemplar, title="synthesised", up=args.up)
     _report(summary, args.out)
     return 0
 
@@ -239,6 +279,7 @@ def _stylize(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         checkpoint=checkpoint,
     )
-    summary = save(result, args.out, exemplar=style, title="stylised")
+    summary = save(result, args.out)
+    _render(result, args.out, exemplar=style, title="stylised", up=args.up)
     _report(summary, args.out)
     return 0

@@ -1,7 +1,8 @@
-"""A synthesis result on disk: a folder with the texture, the textured mesh, renders and ``result.npz``.
+"""A synthesis result on disk: a folder with ``result.npz``, the texture and the textured mesh.
 
 ``result.npz`` holds everything :func:`load` needs (texture, colours, loss curve, the mesh's arrays,
-the stats as JSON) at full precision; the PNGs and the OBJ are for people and other tools.
+the stats as JSON) at full precision; the texture PNG and the OBJ are for people and other tools.
+Data only: renders are made by the CLI (:mod:`jmeshtex.render`).
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ import pathlib
 import numpy as np
 
 from .._mesh import Mesh
-from ._image import as_rgb
 from ._synthesis import SynthesisResult
 
 RESULT_FILE = "result.npz"
@@ -26,33 +26,23 @@ def _plain(value):
     return value
 
 
-def save(
-    result: SynthesisResult,
-    path: str | os.PathLike,
-    *,
-    exemplar: np.ndarray | None = None,
-    title: str = "surface CNN",
-    render_size: tuple[int, int] = (420, 400),
-    views_azimuths: int = 4,
-) -> dict:
-    """Write a synthesis result to a folder (created if needed); :func:`load` reads it back.
+def save(result: SynthesisResult, path: str | os.PathLike) -> dict:
+    """Write a synthesis result's data to a folder (created if needed); :func:`load` reads it back.
 
-    Files in ``path``: ``result.npz`` (the arrays :func:`load` reads); ``texture.png`` (UV layout);
-    ``textured.obj`` (+ ``textured.mtl``, ``textured.png``); ``render_front.png``,
-    ``render_back.png``, ``surfacecnn.png`` (exemplar and both views side by side); ``views.png``
-    (``views_azimuths`` views around the object from :func:`jmeshtex.render.orbit_cameras`);
-    ``summary.json`` (timings, sizes, the loss curve). Every file is written atomically.
+    Files in ``path``: ``result.npz`` (the arrays :func:`load` reads); ``texture.png`` (the texture
+    in the UV layout); ``textured.obj`` (+ ``textured.mtl``, ``textured.png``); ``summary.json``
+    (timings, sizes, the loss curve). Every file is written atomically. Renders are not data: the
+    CLI (``jmeshtex surfacecnn synthesize``) and :mod:`jmeshtex.render` make them.
 
     Args:
       result: from :func:`~jmeshtex.surfacecnn.synthesize` or :func:`~jmeshtex.surfacecnn.stylize`.
       path: the output folder.
-      exemplar: ``[H, W, 3]`` image shown first in ``surfacecnn.png`` (optional).
-      title: title of the renders.
-      render_size: ``(width, height)`` of each render in pixels.
-      views_azimuths: number of orbit views in ``views.png``.
 
     Returns:
       The summary dict (also in ``summary.json``), with the paths written under ``"files"``.
+
+    Raises:
+      InputError: ``result`` is not a :class:`~jmeshtex.surfacecnn.SynthesisResult`.
 
     Example:
       >>> import tempfile, jax
@@ -62,12 +52,17 @@ def save(
       >>> v, f = grid(2)
       >>> r = synthesize(Mesh(v, f, uv=v[f][..., :2]), np.full((8, 8, 3), 0.5), Config(size=8, steps=2),
       ...                key=jax.random.key(0), layers=("relu1_1",), progress=False)
-      >>> sorted(p.rsplit("/", 1)[-1] for p in save(r, tempfile.mkdtemp())["files"])[:3]
-      ['render_back.png', 'render_front.png', 'result.npz']
+      >>> sorted(p.rsplit("/", 1)[-1] for p in save(r, tempfile.mkdtemp())["files"])
+      ['result.npz', 'summary.json', 'texture.png', 'textured.obj']
     """
-    from .. import render
+    from .._errors import InputError
     from ..io import atomic_save_npz, atomic_write, save_mesh, save_png
 
+    if not isinstance(result, SynthesisResult):
+        raise InputError(
+            f"save(result, path): expected a jmeshtex.surfacecnn.SynthesisResult first, "
+            f"got {type(result).__name__}"
+        )
     out = pathlib.Path(path)
     out.mkdir(parents=True, exist_ok=True)
     m = result.mesh
@@ -85,55 +80,7 @@ def save(
     atomic_save_npz(out / RESULT_FILE, arrays)
     save_png(result.texture, out / "texture.png")
     save_mesh(m.replace(name="textured"), out / "textured.obj")
-    views = []
-    for name, view in (("render_front.png", (20.0, -60.0)), ("render_back.png", (20.0, 120.0))):
-        image = render.render_mesh(
-            m.replace(texture=result.texture),
-            view=view,
-            size=render_size,
-            title=f"{title} ({name[7:-4]})",
-        )
-        save_png(image, out / name)
-        views.append(image)
-    panels, titles = list(views), [None, None]
-    if exemplar is not None:
-        panels.insert(0, as_rgb(exemplar, "exemplar"))
-        titles.insert(0, "exemplar")
-    panels.append(result.texture)
-    titles.append("texture (UV layout)")
-    height = max(
-        np.shape(v)[0] for v in views
-    )  # small images enlarged (nearest, integer factor) to the renders'
-    panels = [
-        np.repeat(
-            np.repeat(pn, max(1, height // np.shape(pn)[0]), 0),
-            max(1, height // np.shape(pn)[0]),
-            1,
-        )
-        for pn in panels
-    ]
-    save_png(render.render_grid(panels, titles=titles, columns=len(panels)), out / "surfacecnn.png")
-    cameras = render.orbit_cameras(m, azimuths=views_azimuths, elevations=(20.0,), size=(256, 256))
-    orbit = render.render_views(m.replace(texture=result.texture), cameras)
-    render.figure(
-        [(f"azimuth {360 * i / views_azimuths:.0f}°", img) for i, img in enumerate(orbit)],
-        columns=views_azimuths,
-        title=title,
-        path=out / "views.png",
-    )
-    files = [
-        str(out / n)
-        for n in (
-            RESULT_FILE,
-            "texture.png",
-            "textured.obj",
-            "render_front.png",
-            "render_back.png",
-            "surfacecnn.png",
-            "views.png",
-            "summary.json",
-        )
-    ]
+    files = [str(out / n) for n in (RESULT_FILE, "texture.png", "textured.obj", "summary.json")]
     summary = {
         **{k: (float(v) if isinstance(v, float) else v) for k, v in stats.items()},
         "losses": [float(x) for x in result.losses],

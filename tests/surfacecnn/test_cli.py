@@ -52,7 +52,9 @@ def test_synthesize_then_stylize(files, capsys):
         "textured.obj",
         "textured.png",
         "render_front.png",
+        "render_back.png",
         "surfacecnn.png",
+        "views.png",
     ):
         assert (out / name).is_file(), name
     mesh = load_mesh(out / "textured.obj")

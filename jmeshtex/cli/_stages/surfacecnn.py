@@ -35,7 +35,7 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
         exemplar, two textured views, the texture atlas, and the protocol's baselines on the same
         UVs: the exemplar's mean colour (:func:`~jmeshtex.metrics.flat_baseline`) and its texels
         shuffled (:func:`~jmeshtex.metrics.permuted_baseline`)) and ``result/`` (the result folder
-        of :func:`jmeshtex.surfacecnn.save`: ``texture.png``, ``textured.obj``, renders, ``result.npz``).
+        of :func:`jmeshtex.surfacecnn.save`: ``texture.png``, ``textured.obj``, ``result.npz``).
       quick: 40 steps on the first three VGG-16 blocks (< 30 s on 2 cores); otherwise 150 steps on
         every ReLU and pool output.
       progress: called with status lines, or None; with a hook, the optimisation shows its own
@@ -70,7 +70,7 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
         progress=progress is not None,
     )
     say(progress, "saving and rendering")
-    saved = surfacecnn.save(result, out / "result", exemplar=exemplar, title="surface CNN")
+    saved = surfacecnn.save(result, out / "result")
     m = result.mesh
     reps = -(-config.size // exemplar.shape[0])
     shuffled = np.tile(permuted_baseline(exemplar, key=jax.random.key(1)), (reps, reps, 1))[
