@@ -16,8 +16,12 @@ from ._meshes import icosphere as icosphere
 from ._meshes import single_triangle as single_triangle
 from ._meshes import torus as torus
 from ._procedural import bumpy_sphere as bumpy_sphere
+from ._procedural import coloured_sphere_pair as coloured_sphere_pair
 from ._procedural import fibonacci_sphere as fibonacci_sphere
 from ._procedural import intensity_to_rgb as intensity_to_rgb
 from ._procedural import rgb_to_intensity as rgb_to_intensity
 from ._procedural import stripe_intensity as stripe_intensity
 from ._procedural import striped_sphere as striped_sphere
+from ._stripe_codec import STRIPE_OFFSET as STRIPE_OFFSET
+from ._stripe_codec import stripe_decoder as stripe_decoder
+from ._stripe_codec import stripe_encoder as stripe_encoder

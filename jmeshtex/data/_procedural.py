@@ -79,3 +79,50 @@ def rgb_to_intensity(rgb: Float[np.ndarray, "N 3"]) -> Float[np.ndarray, " N"]:
     lo, hi = np.array([0.10, 0.15, 0.45]), np.array([0.98, 0.90, 0.55])
     d = hi - lo
     return np.clip((np.asarray(rgb, np.float64) - lo) @ d / (d @ d), 0, 1)
+
+
+def coloured_sphere_pair(subdivisions: int = 3) -> tuple[Mesh, Mesh, Float[np.ndarray, "Vt 3"]]:
+    """A bumpy sphere with a procedural colour field (source) and its subdivided copy (target).
+
+    The colour transfer test case with a known answer: the target is the source's icosphere
+    subdivided once more and pushed onto the same bumpy surface, and ``truth`` is the source's
+    colour field evaluated at the target's vertices.
+
+    Args:
+      subdivisions: of the source's icosphere (the target has one more).
+
+    Returns:
+      ``(source, target, truth)``: the source :class:`~jmeshtex.Mesh` with ``vertex_colors``, the
+      target mesh (4× the faces, no colours) and ``[Vt, 3]`` the colour field at its vertices.
+
+    Example:
+      >>> source, target, truth = coloured_sphere_pair(3)
+      >>> source.vertex_colors.shape, target.num_vertices, truth.shape
+      ((642, 3), 2562, (2562, 3))
+    """
+    from ..geometry import subdivide_midpoint
+
+    v, f = icosphere(subdivisions)
+    fine = subdivide_midpoint(v, f)
+    tv = fine.vertices / np.linalg.norm(fine.vertices, axis=1, keepdims=True)
+
+    def bumpy(p):
+        r = (
+            1
+            + 0.25 * np.sin(3 * p[:, 0] + 1) * np.cos(2 * p[:, 1])
+            + 0.15 * np.sin(4 * p[:, 2] + 0.5)
+        )
+        return p * r[:, None]
+
+    def colour(p):
+        return np.stack(
+            [
+                0.5 + 0.4 * np.sin(6 * p[:, 0]) * np.cos(5 * p[:, 1]),
+                0.5 + 0.4 * np.sin(7 * p[:, 2] + 1),
+                0.5 + 0.3 * np.cos(4 * p[:, 0] + 3 * p[:, 1]),
+            ],
+            axis=1,
+        )
+
+    source = Mesh(bumpy(v), f, vertex_colors=colour(v), name="source")
+    return source, Mesh(bumpy(tv), fine.faces, name="target"), colour(tv)

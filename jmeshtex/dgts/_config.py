@@ -108,6 +108,16 @@ class PrepareConfig(ConfigBase):
         regulariser + 2 Chamfer Adam steps at learning rate 1e-4, ``changes`` applied on top."""
         return cls(**{"schedule": "official", "steps": 3000, "learning_rate": 1e-4, **changes})
 
+    @classmethod
+    def tiny(cls, **changes) -> PrepareConfig:
+        """Two levels fitted in seconds (150 steps, 800 samples): tests, the demo and notebooks.
+
+        Example:
+          >>> PrepareConfig.tiny().levels, PrepareConfig.tiny(levels=3).levels
+          (2, 3)
+        """
+        return cls(**{"levels": 2, "steps": 150, "samples_per_level": 800, **changes})
+
 
 @dataclasses.dataclass(frozen=True)
 class Config(ConfigBase):
@@ -198,6 +208,29 @@ class Config(ConfigBase):
             "need min_features <= max_features, got {c.min_features}, {c.max_features}",
         ),
     )
+
+    @classmethod
+    def tiny(cls, **changes) -> Config:
+        """A network that trains in seconds on a CPU: tests, the demo and notebooks.
+
+        Four layers of width 16 at every level and ``shared_levels=2``, so both levels of a
+        :meth:`PrepareConfig.tiny` hierarchy run one compiled training step; 120 steps.
+
+        Example:
+          >>> c = Config.tiny()
+          >>> c.level_features(0, generator=True), c.steps, c.shared_levels
+          ((16, 16, 3), 120, 2)
+        """
+        base = dict(
+            num_layers=4,
+            start_features=16,
+            min_features=16,
+            max_features=16,
+            steps=120,
+            learning_rate_decay_every=100,
+            shared_levels=2,
+        )
+        return cls(**{**base, **changes})
 
     @property
     def y_sign(self) -> float:

@@ -183,6 +183,32 @@ class Config(ConfigBase):
         return cls(**{**base, **changes})
 
     @classmethod
+    def demo(cls, **changes) -> Config:
+        """The striped-sphere demo and learning check (2 latent channels, 300 steps; seconds).
+
+        :meth:`tiny` with a 2-channel latent (the analytic codec of
+        :func:`jmeshtex.data.stripe_encoder`), 4 copies of 500 vertices and 200 diffusion steps.
+
+        Example:
+          >>> c = Config.demo()
+          >>> c.latent_channels, c.steps, c.diffusion_steps
+          (2, 300, 200)
+        """
+        base = dict(
+            latent_channels=2,
+            n_copies=4,
+            copy_vertices=500,
+            steps=300,
+            batch_size=2,
+            learning_rate=3e-3,
+            widths=(16, 32),
+            hdim=8,
+            diffusion_steps=200,
+            bucket=64,
+        )
+        return cls.tiny(**{**base, **changes})
+
+    @classmethod
     def tiny(cls, **changes) -> Config:
         """Tests, demos and notebooks: 16/32 channels, 1+1+1 blocks, 4 copies of 400 vertices.
 

@@ -13,13 +13,19 @@ import jax
 import numpy as np
 from scipy.stats import wasserstein_distance
 
-from jmeshtex.cli._stages.dgts import tiny_configs
 from jmeshtex.data import bumpy_sphere, icosphere, torus
-from jmeshtex.dgts import normal_heights, train, training_meshes, transfer
+from jmeshtex.dgts import (
+    Config,
+    PrepareConfig,
+    normal_heights,
+    train,
+    training_meshes,
+    transfer,
+)
 
 
 def test_trained_texture_is_closer_to_the_reference_than_untrained_or_noise():
-    prep, cfg = tiny_configs(quick=True)
+    prep, cfg = PrepareConfig.tiny(), Config.tiny()
     tm = training_meshes(
         bumpy_sphere(subdivisions=3),
         icosphere(1),
@@ -64,7 +70,7 @@ def test_trained_texture_has_the_reference_peak_spacing_and_reconstructs_level_1
     from jmeshtex.data import textured_sphere
     from jmeshtex.dgts import peak_statistics, reconstruction_errors
 
-    prep, cfg = tiny_configs(quick=True)
+    prep, cfg = PrepareConfig.tiny(), Config.tiny()
     ref = textured_sphere(
         "knobs", subdivisions=4, period=0.6
     )  # ~4 edges per period at the finest level

@@ -4,7 +4,7 @@ so a test that takes the fixture sees exactly what it would have trained itself)
 
 - ``striped_exemplar``: the learning check's striped sphere (icosphere(3), 642 vertices);
 - ``striped_data`` / ``striped_model``: the learning check's tiny configuration
-  (``tiny_config(True)``: 4 copies × 500 vertices, 300 steps, T = 200) with the analytic stripe
+  (``fldm.Config.demo()``: 4 copies × 500 vertices, 300 steps, T = 200) with the analytic stripe
   codec, copies drawn with :data:`DATA_KEY` and training with :data:`TRAIN_KEY`;
 - ``tiny_sphere`` / ``tiny_data``: the three 80-vertex copies of the striped icosphere(2) that the
   pipeline tests (``test_fldm.py``) and the mask-conditioning tests train their few-step models
@@ -18,7 +18,7 @@ import jax
 import pytest
 
 from jmeshtex import Mesh, fldm
-from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere, tiny_config
+from jmeshtex.data import stripe_encoder, striped_sphere
 
 #: keys of the striped-sphere model's copies and of its training
 DATA_KEY, TRAIN_KEY = jax.random.key(10), jax.random.key(11)
@@ -32,13 +32,13 @@ def striped_exemplar() -> Mesh:
 @pytest.fixture(scope="session")
 def striped_data(striped_exemplar) -> fldm.Dataset:
     return fldm.build_dataset(
-        striped_exemplar, tiny_config(True), encode=stripe_encoder, key=DATA_KEY, progress=False
+        striped_exemplar, fldm.Config.demo(), encode=stripe_encoder, key=DATA_KEY, progress=False
     )
 
 
 @pytest.fixture(scope="session")
 def striped_model(striped_data) -> fldm.Model:
-    return fldm.train(striped_data, tiny_config(True), key=TRAIN_KEY, progress=False).model
+    return fldm.train(striped_data, fldm.Config.demo(), key=TRAIN_KEY, progress=False).model
 
 
 #: the Config fields :func:`jmeshtex.fldm.build_dataset` reads

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from jmeshtex import CheckpointMismatchError, ConfigError, InputError, TrainResult
-from jmeshtex.cli._stages.fldm import stripe_encoder, striped_sphere
-from jmeshtex.data import torus
+from jmeshtex.data import stripe_encoder, striped_sphere, torus
 from jmeshtex.fldm import Config, build_dataset, inpaint, load, sample, save, train
 from jmeshtex.fldm._data import copy_mesh, transfer_labels
 from tests.fldm.conftest import TINY_DATA_KEY, uses_tiny_data

@@ -11,7 +11,7 @@
 - generative transfer (§6.6): sampled on a triaxial ellipsoid, the samples beat a flat colour and
   the shuffled training latents on the learning check's stripe statistic (VGG Gram distance).
 
-Each uses the learning check's tiny configuration (``tiny_config(True)``: 4 copies × 500
+Each uses the learning check's tiny configuration (``fldm.Config.demo()``: 4 copies × 500
 vertices, 300 steps, T = 200) with the analytic stripe codec; the unconditional model is trained
 once per session (``striped_model`` in ``tests/fldm/conftest.py``), the labelled one here.
 Intensities are decoded with :func:`stripe_decoder`.
@@ -25,8 +25,14 @@ import numpy as np
 import pytest
 
 from jmeshtex import Mesh, fldm
-from jmeshtex.cli._stages.fldm import render_views, stripe_decoder, stripe_encoder, tiny_config
-from jmeshtex.data import icosphere, intensity_to_rgb, stripe_intensity
+from jmeshtex.cli._stages.fldm import render_views
+from jmeshtex.data import (
+    icosphere,
+    intensity_to_rgb,
+    stripe_decoder,
+    stripe_encoder,
+    stripe_intensity,
+)
 from jmeshtex.geometry import remesh
 from jmeshtex.metrics import gram_distance, load_vgg16, permuted_baseline
 from tests.fldm.conftest import DATA_KEY, TRAIN_KEY
@@ -150,7 +156,7 @@ def test_labels_decide_where_the_stripes_go(exemplar, model):
     (ratios 1.8-2.2), x > 0 0.22 / 0.20 / 0.24 against 0.11 / 0.11 / 0.11; the unconditional
     model: 1.01-1.18 (z > 0) and 0.83-1.09 (x > 0), 4 samples; the exemplar: 0.35 against 0."""
     colored, labels = _two_label_sphere(exemplar)
-    cfg = tiny_config(True).replace(num_labels=2)
+    cfg = fldm.Config.demo(num_labels=2)
     labelled = _train(colored, cfg, labels=labels)
     mesh = remesh(exemplar, n_vertices=500, key=jax.random.key(77))
     ratios, baseline = {}, {}

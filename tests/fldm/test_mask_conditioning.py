@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from jmeshtex import ConfigError, InputError
-from jmeshtex.cli._stages.fldm import stripe_encoder
-from jmeshtex.data import icosphere
+from jmeshtex.data import icosphere, stripe_encoder
 from jmeshtex.fldm import (
     Config,
     denoise,

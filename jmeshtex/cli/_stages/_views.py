@@ -34,15 +34,21 @@ def view(
       azimuth, elevation: degrees about / above ``up`` (:func:`~jmeshtex.render.orbit_cameras`).
       size: ``(width, height)``.
       up: world up axis.
-      **options: colour and shading options of :func:`jmeshtex.render.render`.
+      **options: shading options of :func:`jmeshtex.render.render`; ``vertex_colors`` or ``uv``
+        with ``texture`` colour the mesh instead of its own colours.
 
     Example:
       >>> from jmeshtex.data import icosphere
       >>> view(icosphere(1), size=(40, 30)).shape
       (30, 40, 3)
     """
+    from ..._mesh import Mesh, as_mesh
     from ...render import orbit_cameras, render
 
+    colours = {k: options.pop(k) for k in ("vertex_colors", "uv", "texture") if k in options}
+    if colours:
+        m = as_mesh(mesh)
+        mesh = Mesh(m.vertices, m.faces, **colours)
     camera = orbit_cameras(
         mesh, azimuths=(float(azimuth),), elevations=(float(elevation),), up=up, size=size
     )[0]

@@ -23,30 +23,9 @@ def tiny_configs(quick: bool = True) -> tuple[PrepareConfig, Config]:
     one step for the whole hierarchy; the full one adds a third level (a finer output) and more
     steps. The learning test and ``benchmarks/dgts.py`` use the quick one.
     """
-    if quick:
-        prep = PrepareConfig(levels=2, steps=150, samples_per_level=800)
-        # equal widths at both levels and shared_levels=2: one compiled training step for both
-        train = Config(
-            num_layers=4,
-            start_features=16,
-            min_features=16,
-            max_features=16,
-            steps=120,
-            learning_rate_decay_every=100,
-            shared_levels=2,
-        )
-    else:
-        prep = PrepareConfig(levels=3, steps=150, samples_per_level=800)
-        train = Config(
-            num_layers=4,
-            start_features=16,
-            min_features=16,
-            max_features=16,
-            steps=160,
-            learning_rate_decay_every=100,
-            shared_levels=3,
-        )
-    return prep, train
+    if quick:  # equal widths at both levels and shared_levels=2: one compiled step for both
+        return PrepareConfig.tiny(), Config.tiny()
+    return PrepareConfig.tiny(levels=3), Config.tiny(steps=160, shared_levels=3)
 
 
 def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = None) -> dict:

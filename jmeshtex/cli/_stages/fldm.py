@@ -32,46 +32,16 @@ import numpy as np
 
 from ..._mesh import Mesh
 from ..._random import host_rng
-from ..._types import Complex, Float
-from ...data import intensity_to_rgb, rgb_to_intensity, striped_sphere
+from ...data import (
+    intensity_to_rgb,
+    rgb_to_intensity,
+    stripe_decoder,
+    stripe_encoder,
+    striped_sphere,
+)
 from ._views import Progress, say, view
 
-OFFSET = 0.3  # the codec's ``a``: keeps |z| away from 0 where the direction is undefined
 VIEWS = ((20.0, -60.0), (-30.0, 60.0))
-
-
-def stripe_encoder(mesh: Mesh) -> Complex[np.ndarray, "V 2"]:
-    """The analytic codec's encoder (module docstring): colours of ``mesh`` → ``[V, 2]`` latents.
-
-    Reads ``mesh.vertex_colors`` (e.g. a :func:`~jmeshtex.geometry.remesh` copy, whose colours are
-    transferred from the exemplar). The meridian direction is expressed in the intrinsic one-ring
-    frames through :func:`~jmeshtex.geometry.tangent_frames` (whose x-axis is the same reference
-    edge).
-
-    Example:
-      >>> z = stripe_encoder(striped_sphere(subdivisions=1))
-      >>> z.shape, bool(np.allclose(stripe_decoder(z), rgb_to_intensity(striped_sphere(subdivisions=1).vertex_colors)))
-      ((42, 2), True)
-    """
-    from ...geometry import tangent_frames, tangent_from_3d
-
-    s = rgb_to_intensity(mesh.vertex_colors)
-    frames = tangent_frames(mesh.vertices, mesh.faces)
-    g = tangent_from_3d(np.broadcast_to([0.0, 0.0, 1.0], mesh.vertices.shape), frames)
-    mag = np.abs(g)
-    g = np.where(mag > 1e-6, g / np.maximum(mag, 1e-12), 1.0 + 0j)  # poles: any direction
-    z = np.stack([(OFFSET + s) * g, 1j * (OFFSET + 1 - s) * g], axis=1)
-    return z.astype(np.complex128)
-
-
-stripe_encoder.identity = f"stripe_codec:{OFFSET}"  # type: ignore[attr-defined]
-
-
-def stripe_decoder(z: Complex[np.ndarray, "V 2"]) -> Float[np.ndarray, " V"]:
-    """The analytic codec's decoder: latents → intensity in [0, 1] (gauge-invariant)."""
-    z = np.asarray(z)
-    s = 0.5 * (np.abs(z[:, 0]) - OFFSET) + 0.5 * (1 + OFFSET - np.abs(z[:, 1]))
-    return np.clip(s, 0.0, 1.0)
 
 
 def tiny_config(quick: bool = True):
@@ -79,18 +49,7 @@ def tiny_config(quick: bool = True):
     from ...fldm import Config
 
     if quick:
-        return Config.tiny(
-            latent_channels=2,
-            n_copies=4,
-            copy_vertices=500,
-            steps=300,
-            batch_size=2,
-            learning_rate=3e-3,
-            widths=(16, 32),
-            hdim=8,
-            diffusion_steps=200,
-            bucket=64,
-        )
+        return Config.demo()
     return Config.cpu(
         latent_channels=2, n_copies=8, copy_vertices=1500, steps=1500, diffusion_steps=1000
     )

@@ -11,45 +11,10 @@ from ._views import Progress, say, view
 
 
 def demo_meshes(quick: bool = True):
-    """A bumpy sphere with a procedural colour field (source) and its subdivided copy (target).
+    """:func:`jmeshtex.data.coloured_sphere_pair` at the demo's size: ``(source, target, truth)``."""
+    from ...data import coloured_sphere_pair
 
-    Returns:
-      ``(source, target, truth)``: the source :class:`~jmeshtex.Mesh` with ``vertex_colors``, the
-      target mesh (4× the vertices) and ``[Vt, 3]`` the same colour field at the target's vertices.
-
-    Example:
-      >>> source, target, truth = demo_meshes(quick=True)
-      >>> source.vertex_colors.shape, target.num_vertices, truth.shape
-      ((642, 3), 2562, (2562, 3))
-    """
-    from ... import Mesh
-    from ...data import icosphere
-    from ...geometry import subdivide_midpoint
-
-    v, f = icosphere(3 if quick else 4)
-    fine = subdivide_midpoint(v, f)
-    tv = fine.vertices / np.linalg.norm(fine.vertices, axis=1, keepdims=True)
-
-    def bumpy(p):
-        r = (
-            1
-            + 0.25 * np.sin(3 * p[:, 0] + 1) * np.cos(2 * p[:, 1])
-            + 0.15 * np.sin(4 * p[:, 2] + 0.5)
-        )
-        return p * r[:, None]
-
-    def colour(p):
-        return np.stack(
-            [
-                0.5 + 0.4 * np.sin(6 * p[:, 0]) * np.cos(5 * p[:, 1]),
-                0.5 + 0.4 * np.sin(7 * p[:, 2] + 1),
-                0.5 + 0.3 * np.cos(4 * p[:, 0] + 3 * p[:, 1]),
-            ],
-            axis=1,
-        )
-
-    source = Mesh(bumpy(v), f, vertex_colors=colour(v), name="source")
-    return source, Mesh(bumpy(tv), fine.faces, name="target"), colour(tv)
+    return coloured_sphere_pair(3 if quick else 4)
 
 
 def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
