@@ -485,3 +485,21 @@ def test_a_json_list_or_a_string_number_is_a_config_error():
         if "steps" in {f.name for f in dataclasses.fields(cls)}:
             with pytest.raises(ConfigError):
                 cls.from_dict({"steps": 10**400})
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("[1, 2]", "must hold a JSON object of fl.Config fields, got a list"),
+        ('{"latent_dim": "8"}', "latent_dim must be an integer below 2**31, got '8'"),
+        ('{"steps": 1e400}', "steps must be an integer below 2**31, got inf"),
+    ],
+)
+def test_fl_train_config_file_with_nonsense_is_a_one_line_error(tmp_path, capsys, text, message):
+    from jmeshtex.cli import main
+
+    config = tmp_path / "config.json"
+    config.write_text(text)
+    rc = main(["fl", "train", "--out", str(tmp_path / "out"), "--config", str(config), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and message in err and "Traceback" not in err, err

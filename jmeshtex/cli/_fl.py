@@ -126,7 +126,7 @@ def _model(args):
 def _train(args) -> int:
     import jax
 
-    from .._errors import MeshIOError
+    from .._errors import ConfigError, MeshIOError
     from ..fl import Config, save, train
 
     claim_output(
@@ -138,6 +138,11 @@ def _train(args) -> int:
             data = json.loads(args.config.read_text())
         except (OSError, ValueError) as err:
             raise MeshIOError(f"cannot read config {args.config}: {err}") from err
+        if not isinstance(data, dict):
+            raise ConfigError(
+                f"{args.config} must hold a JSON object of fl.Config fields, "
+                f"got a {type(data).__name__}"
+            )
     for name in ("steps", "decoder"):
         if getattr(args, name) is not None:
             data[name] = getattr(args, name)
