@@ -10,6 +10,12 @@ A *fingerprint* (a JSON-able dict: the config, a hash of the data) is stored wit
 folder whose fingerprint differs from the caller's cannot be resumed by mistake: :meth:`restore`
 raises :class:`~jmeshtex.CheckpointMismatchError` naming the keys that differ.
 
+Resume takes the newest *valid* step: a step folder that is empty, has no readable ``meta`` or no
+state metadata (a stray ``999/``, a truncated copy, garbage bytes) is skipped with a
+:class:`~jmeshtex.CheckpointSkippedWarning` naming it, and :meth:`latest_step` returns the newest
+step before it. Errors reading or writing a step (corrupt data, a full or read-only disk) are one
+:class:`~jmeshtex.MeshIOError` naming the folder; a failed save leaves no temporary folder behind.
+
 Restoring takes a ``like`` pytree with the structure, shapes and dtypes of the saved state (e.g.
 the freshly initialised state); leaves come back as arrays with ``like``'s placement, so a state
 saved by a sharded run restores on one device and back.
@@ -27,15 +33,19 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
 import pathlib
+import shutil
+import warnings
 from typing import Any
 
 import jax
 import numpy as np
 
-from .._errors import CheckpointMismatchError, MeshIOError
+from .._errors import CheckpointMismatchError, CheckpointSkippedWarning, MeshIOError
 
 _FINGERPRINT = "fingerprint"
 
@@ -53,6 +63,34 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"checkpoint meta: {type(value).__name__} is not JSON-serialisable")
 
 
+def _first_line(err: BaseException) -> str:
+    """A short reason for an error: the errno name and text for OS errors, else the first line."""
+    if isinstance(err, OSError) and err.errno in errno.errorcode:
+        return f"{errno.errorcode[err.errno]}: {err.strerror or err}"
+    text = str(err).strip().splitlines()
+    reason = text[0] if text else type(err).__name__
+    return reason[:300] + ("..." if len(reason) > 300 else "")
+
+
+def _step_problem(folder: pathlib.Path) -> str | None:
+    """Why ``folder`` is not a readable checkpoint step, or None when it looks complete."""
+    try:
+        record = json.loads((folder / "meta" / "metadata").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return "no meta record (empty, incomplete, or not a jmeshtex checkpoint)"
+    except (OSError, ValueError, UnicodeDecodeError) as err:
+        return f"unreadable meta record ({_first_line(err)})"
+    if not isinstance(record, dict):
+        return "the meta record is not a JSON object"
+    try:
+        json.loads((folder / "state" / "_METADATA").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return "no state metadata (incomplete, or not a jmeshtex checkpoint)"
+    except (OSError, ValueError, UnicodeDecodeError) as err:
+        return f"unreadable state metadata ({_first_line(err)})"
+    return None
+
+
 def _to_arrays(state: Any) -> Any:
     """Leaves as arrays orbax can store: NumPy scalars and Python numbers become 0-d arrays."""
 
@@ -66,6 +104,15 @@ def _to_arrays(state: Any) -> Any:
         return np.asarray(x)
 
     return jax.tree.map(leaf, state)
+
+
+def _root(err: BaseException) -> BaseException:
+    """The innermost cause of a chained error (orbax wraps the OS error several times)."""
+    seen = set()
+    while (err.__cause__ or err.__context__) is not None and id(err) not in seen:
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return err
 
 
 class Checkpoints:
@@ -89,6 +136,7 @@ class Checkpoints:
         self.keep = keep
         self.fingerprint = None if fingerprint is None else _jsonable(fingerprint)
         self._manager = None
+        self._warned: set[int] = set()
 
     def _mgr(self):
         if self._manager is None:
@@ -100,16 +148,36 @@ class Checkpoints:
             self._manager = ocp.CheckpointManager(self.directory, options=options)
         return self._manager
 
-    def steps(self) -> list[int]:
-        """The saved steps, oldest first (empty when the folder holds none)."""
+    def _all_steps(self) -> list[int]:
         if not self.directory.is_dir():
             return []
         return sorted(
             int(p.name) for p in self.directory.iterdir() if p.is_dir() and p.name.isdigit()
         )
 
+    def steps(self) -> list[int]:
+        """The saved, readable steps, oldest first (empty when the folder holds none).
+
+        A step folder that is not a readable checkpoint is left out, with a
+        :class:`~jmeshtex.CheckpointSkippedWarning` naming it (once per folder and object).
+        """
+        valid = []
+        for step in self._all_steps():
+            problem = _step_problem(self.directory / str(step))
+            if problem is None:
+                valid.append(step)
+            elif step not in self._warned:
+                self._warned.add(step)
+                warnings.warn(
+                    f"checkpoint {self.directory / str(step)} skipped: {problem}; resuming from "
+                    "the newest readable step before it (delete the folder to silence this)",
+                    CheckpointSkippedWarning,
+                    stacklevel=3,
+                )
+        return valid
+
     def latest_step(self) -> int | None:
-        """The newest complete step, or None."""
+        """The newest complete, readable step, or None (unreadable step folders are skipped)."""
         steps = self.steps()
         return steps[-1] if steps else None
 
@@ -122,16 +190,39 @@ class Checkpoints:
 
         record = _jsonable(dict(meta or {}))
         record[_FINGERPRINT] = self.fingerprint
-        mgr = self._mgr()
-        if step in self.steps():
-            mgr.delete(step)
-        mgr.save(
-            int(step),
-            args=ocp.args.Composite(
-                state=ocp.args.StandardSave(_to_arrays(state)), meta=ocp.args.JsonSave(record)
-            ),
-        )
-        mgr.wait_until_finished()
+        state = _to_arrays(state)
+        existing = self.directory / str(int(step))
+        try:
+            if existing.is_dir():
+                if existing.name.isdigit() and _step_problem(existing) is not None:
+                    shutil.rmtree(existing)  # an unreadable step of the same number: replaced
+                    self.close()  # the manager re-reads the folder
+                else:
+                    self._mgr().delete(step)
+            mgr = self._mgr()
+            mgr.save(
+                int(step),
+                args=ocp.args.Composite(
+                    state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(record)
+                ),
+            )
+            mgr.wait_until_finished()
+        except Exception as err:
+            self._clean_failed_save(int(step))
+            raise MeshIOError(
+                f"cannot write checkpoint {existing}: {_first_line(_root(err))}. The previous "
+                "steps are kept; free space or fix the folder's permissions, then run again"
+            ) from err
+
+    def _clean_failed_save(self, step: int) -> None:
+        """Remove the temporary folders of a failed save of ``step`` (the complete steps stay)."""
+        with contextlib.suppress(Exception):
+            self.close()
+        if not self.directory.is_dir():
+            return
+        for p in self.directory.iterdir():
+            if p.name.startswith(f"{step}.") and "tmp" in p.name:
+                shutil.rmtree(p, ignore_errors=True)
 
     def restore(self, like: Any, *, step: int | None = None) -> tuple[Any, dict]:
         """The state and meta of ``step`` (default: the newest), shaped like ``like``.
@@ -153,8 +244,16 @@ class Checkpoints:
                 step, args=ocp.args.Composite(state=ocp.args.StandardRestore(like))
             )
         except (ValueError, KeyError, TypeError) as err:
+            self.close()
             raise MeshIOError(
-                f"checkpoint {self.directory / str(step)} does not match the state to resume: {err}"
+                f"checkpoint {self.directory / str(step)} does not match the state to resume: "
+                f"{_first_line(err)}. Delete that step folder to resume from an older one"
+            ) from err
+        except Exception as err:  # corrupt data: orbax/tensorstore errors of many types
+            self.close()
+            raise MeshIOError(
+                f"checkpoint {self.directory / str(step)} cannot be read: "
+                f"{_first_line(_root(err))}. Delete that step folder to resume from an older one"
             ) from err
         state = jax.tree.map(
             lambda ref, x: np.asarray(x) if isinstance(ref, np.ndarray) else x, like, out.state
@@ -169,7 +268,18 @@ class Checkpoints:
         step = self.latest_step() if step is None else step
         if step is None:
             raise MeshIOError(f"no checkpoint in {self.directory}")
-        out = self._mgr().restore(step, args=ocp.args.Composite(meta=ocp.args.JsonRestore()))
+        problem = _step_problem(self.directory / str(step))
+        if problem is not None:
+            raise MeshIOError(f"checkpoint {self.directory / str(step)} cannot be read: {problem}")
+        try:
+            out = self._mgr().restore(step, args=ocp.args.Composite(meta=ocp.args.JsonRestore()))
+        except Exception as err:
+            self.close()
+            raise MeshIOError(
+                f"checkpoint {self.directory / str(step)} cannot be read: {_first_line(_root(err))}"
+            ) from err
+        if not isinstance(out.meta, dict):
+            raise MeshIOError(f"checkpoint {self.directory / str(step)}: meta is not a JSON object")
         return dict(out.meta)
 
     def _check_fingerprint(self, stored: Any, step: int) -> None:
@@ -188,9 +298,10 @@ class Checkpoints:
 
     def close(self) -> None:
         """Release orbax's resources (also done when the object is garbage-collected)."""
-        if self._manager is not None:
-            self._manager.close()
-            self._manager = None
+        manager, self._manager = self._manager, None
+        if manager is not None:
+            with contextlib.suppress(Exception):
+                manager.close()
 
     def __enter__(self) -> Checkpoints:
         return self
