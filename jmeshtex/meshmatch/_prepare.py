@@ -70,9 +70,8 @@ def _level_tables(vertices, faces, level: int):
     a coarse level's positions make a face flat.
 
     A coarse level's positions are copies of its kept vertices, so a collapse can leave a face with
-    (near) zero area in space (measured: the cow remeshed to 60K vertices, one face of its
-    30K-vertex level; the hierarchy's composed intrinsic lengths are no help, 46 of that level's
-    faces are flat in them). Then every edge of the level is lengthened by the same ``ε``, the
+    (near) zero area in space, and the hierarchy's composed intrinsic lengths can be flat there too
+    (``docs/design_notes.md``, MeshMatch). Then every edge of the level is lengthened by the same ``ε``, the
     smallest that gives every face a triangle-inequality slack of ``δ = 10⁻⁴`` mean edge lengths
     (intrinsic mollification, Sharp & Crane 2020, "A Laplacian for nonmanifold triangle meshes"
     §4.5): shared edges keep one length, and the layouts change by about ``δ``. Level 0 is the

@@ -324,9 +324,7 @@ def paint_by_example(
       config: :class:`~jmeshtex.meshmatch.Config`; None: :meth:`Config.intrinsic() <jmeshtex.meshmatch.Config.intrinsic>`,
         the pose-free features: the aligned default's position prior pulls every unpainted
         vertex towards the painted vertices nearest in space (the boundary) instead of the
-        patches that fit (measured, stripes around a bumpy sphere, half painted: the unpainted
-        half's colour spread (0.33, 0.19) with the aligned default, (0.28, 0.28) intrinsic, the
-        painted texture's own (0.28, 0.28)).
+        patches that fit (``docs/design_notes.md``, MeshMatch).
       progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
 
     Returns:
