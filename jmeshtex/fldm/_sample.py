@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, geometry_sizes, pad_geometry
@@ -270,7 +271,7 @@ def sample(
 
 
 def _is_count(value) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1
+    return is_int(value, 1)
 
 
 def inpaint(

@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._types import ArrayLike, Float, Int
 from ._validate import check_mesh_arrays
@@ -79,7 +80,7 @@ def laplacian_eigenpairs(
 
     v, f = check_mesh_arrays(vertices, faces)
     n = len(v)
-    if not isinstance(k, (int, np.integer)) or isinstance(k, bool) or not 1 <= k < n:
+    if not is_int(k, 1) or k >= n:
         raise InputError(
             f"k={k!r} eigenpairs requested for a mesh with V={n} vertices: k must be an integer with "
             f"1 <= k < V (ARPACK cannot return all V of them). Pass a smaller k or a finer mesh."

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._neighborhoods import VertexNeighborhood
 from .._types import Float, Int
@@ -73,7 +74,7 @@ def geodesic_knn_neighborhood(
       >>> nb.index[p].tolist(), np.round(np.abs(nb.log[p]), 12).tolist()
       ([12, 7, 11, 13, 17], [0.0, 0.25, 0.25, 0.25, 0.25])
     """
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+    if not is_int(k, 1):
         raise InputError(
             f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}"
         )
@@ -124,7 +125,7 @@ def knn_from_one_ring(ring: VertexNeighborhood, k: int) -> VertexNeighborhood:
       >>> nb.index[0].tolist()  # vertex 0 and its five neighbours, tied, by index
       [0, 1, 5, 7, 10, 11]
     """
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+    if not is_int(k, 1):
         raise InputError(
             f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}"
         )
