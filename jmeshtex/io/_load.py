@@ -97,14 +97,110 @@ def load_texture(path: str | os.PathLike) -> Float[np.ndarray, "H W C"]:
         raise MeshIOError(f"cannot read texture {path}: {err}") from err
 
 
+_BOM = b"\xef\xbb\xbf"
+
+
+def _check_obj_text(path: pathlib.Path, text: str) -> None:
+    """Refuse ``v`` lines with fewer than 3 coordinates; warn about missing or bad MTL/textures."""
+    for number, line in enumerate(text.splitlines(), 1):
+        fields = line.split("#", 1)[0].split()
+        if fields and fields[0] == "v" and len(fields) < 4:
+            raise MeshIOError(
+                f"cannot read mesh {path}: line {number} is a vertex with {len(fields) - 1} "
+                f"coordinate{'s' if len(fields) != 2 else ''} ({line.strip()!r}); OBJ vertices "
+                "need x y z"
+            )
+    for name in re.findall(r"^[ \t]*mtllib[ \t]+([^\n#]+?)[ \t]*$", text, flags=re.MULTILINE):
+        mtl = path.parent / name.strip()
+        if not mtl.is_file():
+            _dropped(path, f"its material file {mtl.name} is missing ({mtl})")
+            continue
+        try:
+            mtl_text = mtl.read_text(encoding="utf-8", errors="replace")
+        except OSError as err:
+            _dropped(path, f"its material file {mtl} cannot be read ({err.strerror or err})")
+            continue
+        maps = re.findall(r"^[ \t]*map_Kd[ \t]+([^\n#]+?)[ \t]*$", mtl_text, flags=re.MULTILINE)
+        for entry in maps:
+            image = path.parent / entry.split()[-1]
+            if not image.is_file():
+                _dropped(path, f"the texture {image.name} named by {mtl.name} is missing ({image})")
+                continue
+            try:
+                from PIL import Image
+
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    with Image.open(image) as img:
+                        img.load()
+            except Exception as err:  # PIL raises OSError, UnidentifiedImageError, SyntaxError
+                _dropped(path, f"the texture {image} named by {mtl.name} cannot be read ({err})")
+
+
+def _dropped(path: pathlib.Path, what: str) -> None:
+    warnings.warn(
+        f"load_mesh: {path.name}: {what}; the mesh is loaded without it (pass texture= to give "
+        "one)",
+        MeshRepairWarning,
+        stacklevel=4,
+    )
+
+
+def _check_ascii_ply(path: pathlib.Path, data: bytes) -> None:
+    """Refuse an ASCII PLY whose header's element counts do not match its body."""
+    end = data.find(b"end_header")
+    if end < 0:
+        return
+    header = data[:end].decode("ascii", errors="replace").splitlines()
+    if not any(line.split()[:2] == ["format", "ascii"] for line in header if line.split()):
+        return
+    counts = []
+    for line in header:
+        fields = line.split()
+        if len(fields) == 3 and fields[0] == "element":
+            try:
+                counts.append((fields[1], int(fields[2])))
+            except ValueError:
+                raise MeshIOError(f"cannot read mesh {path}: bad header line {line!r}") from None
+    newline = data.find(b"\n", end)
+    body = data[newline + 1 :].decode("ascii", errors="replace") if newline >= 0 else ""
+    lines = sum(1 for line in body.splitlines() if line.strip())
+    declared = sum(n for _, n in counts)
+    if lines != declared:
+        described = ", ".join(f"{n} {name}" for name, n in counts)
+        raise MeshIOError(
+            f"cannot read mesh {path}: the header declares {described} ({declared} lines) but the "
+            f"body has {lines} lines; the file is truncated or its header is wrong"
+        )
+
+
 def _trimesh_mesh(path: pathlib.Path):
+    import io
+
     import trimesh
 
     suffix = path.suffix.lower()
+    source: str | io.BytesIO = str(path)
+    resolver = None
+    if suffix in (".obj", ".ply"):
+        try:
+            data = path.read_bytes()
+        except OSError as err:
+            raise MeshIOError(f"cannot read mesh {path}: {err.strerror or err}") from err
+        if suffix == ".obj":
+            if data.startswith(_BOM):  # trimesh would read "\ufeffv" as an unknown keyword
+                data = data[len(_BOM) :]
+                source = io.BytesIO(data)
+                resolver = trimesh.resolvers.FilePathResolver(str(path))
+            _check_obj_text(path, data.decode("utf-8", errors="replace"))
+        elif data.startswith(b"ply"):
+            _check_ascii_ply(path, data)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # trimesh's internal deprecation noise
-            scene = trimesh.load_scene(str(path), file_type=suffix[1:], process=False)
+            scene = trimesh.load_scene(
+                source, file_type=suffix[1:], process=False, resolver=resolver
+            )
             parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
             if len(parts) > 1:
                 loaded = trimesh.util.concatenate(parts)
@@ -299,12 +395,14 @@ def load_mesh(
       RGBA if any alpha is below 1), ``name`` = the file's stem.
 
     Raises:
-      MeshIOError: missing, unreadable, unsupported or triangle-free files, bad textures.
+      MeshIOError: missing, unreadable, unsupported or triangle-free files, bad textures, OBJ
+        vertices with fewer than 3 coordinates, ASCII PLY files whose header counts lie.
       NonTriangleFaceError: ``strict=True`` and the file has polygon faces (``err.indices`` are
         their positions among the file's faces).
 
     Warns:
-      MeshRepairWarning: polygon faces were split into triangles.
+      MeshRepairWarning: polygon faces were split into triangles; an OBJ's material file or the
+        texture it names is missing or unreadable (the message names the file).
 
     Example:
       >>> import pathlib, tempfile, warnings
