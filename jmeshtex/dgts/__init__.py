@@ -31,6 +31,7 @@ Example:
 """
 
 from .._errors import FaceBudgetError as FaceBudgetError
+from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
 from .._train_result import TrainResult as TrainResult
 from ._config import Config as Config
 from ._config import PrepareConfig as PrepareConfig

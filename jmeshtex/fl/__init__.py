@@ -33,6 +33,7 @@ Example:
 Field Latent Diffusion (:mod:`jmeshtex.fldm`) builds on these.
 """
 
+from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
 from .._train_result import TrainResult as TrainResult
 from ._codec import decode_points_in_faces as decode_points_in_faces
 from ._codec import decode_texture as decode_texture

@@ -27,6 +27,7 @@ Example:
   (2, 42, 1)
 """
 
+from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
 from .._train_result import TrainResult as TrainResult
 from ._config import Config as Config
 from ._data import Dataset as Dataset

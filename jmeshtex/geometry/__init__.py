@@ -6,6 +6,7 @@ numbers in per-vertex frames; log maps and transport are intrinsic (edge lengths
 """
 
 from .._errors import DecimationError as DecimationError
+from .._extras import needs_geometry as _needs_geometry  # noqa: F401 (names a missing extra)
 from .._neighborhoods import FaceNeighborhood as FaceNeighborhood
 from .._neighborhoods import PoolingMap as PoolingMap
 from .._neighborhoods import TangentFrames as TangentFrames

@@ -22,6 +22,7 @@ with :func:`save` / :func:`load`; :func:`meshmatch` is the matcher behind them, 
 signal.
 """
 
+from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
 from ..geometry import taubin_smooth as taubin_smooth
 from ._config import Config as Config
 from ._displacement import base_surface as base_surface

@@ -13,6 +13,7 @@ feature distributions, :func:`frechet_distance`), :func:`gram_distance`, :func:`
 every number (:func:`flat_baseline`, :func:`permuted_baseline`, :func:`baseline_table`).
 """
 
+from .._extras import needs_metrics as _needs_metrics  # noqa: F401 (names a missing extra)
 from ._baselines import flat_baseline as flat_baseline
 from ._baselines import permuted_baseline as permuted_baseline
 from ._diversity import diversity as diversity

@@ -7,6 +7,7 @@ panels and :func:`turntable` writes PNG strips / GIFs. :func:`render_mesh` / :fu
 the one-call helpers with overlays (arrows, edges, titles).
 """
 
+from .._extras import needs_render as _needs_render  # noqa: F401 (names a missing extra)
 from ..geometry import UP_AXES as UP_AXES
 from ..geometry import up_vector as up_vector
 from ._camera import Camera as Camera

@@ -17,6 +17,7 @@ exemplar keeps its orientation across chart seams (:func:`frame_seam_turn`, :fun
     result = surfacecnn.load("out/")
 """
 
+from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
 from ._atlas import TextureAtlas as TextureAtlas
 from ._atlas import image_to_texels as image_to_texels
 from ._atlas import surface_tangents as surface_tangents

@@ -1,5 +1,6 @@
 """Testing helpers: procedural meshes, hypothesis strategies and the equivariance harness."""
 
+from .._extras import needs_testing as _needs_testing  # noqa: F401 (names a missing extra)
 from ._check_cache import CheckCache as CheckCache
 from ._equivariance import Convergence as Convergence
 from ._equivariance import assert_equivariant as assert_equivariant
