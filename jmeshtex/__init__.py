@@ -25,6 +25,7 @@ from ._errors import JmeshtexError as JmeshtexError
 from ._errors import MeshError as MeshError
 from ._errors import MeshIOError as MeshIOError
 from ._errors import MeshRepairWarning as MeshRepairWarning
+from ._errors import MissingExtraError as MissingExtraError
 from ._errors import NonFiniteVertexError as NonFiniteVertexError
 from ._errors import NonManifoldEdgeError as NonManifoldEdgeError
 from ._errors import NonManifoldVertexError as NonManifoldVertexError

@@ -29,6 +29,10 @@ class ConfigError(JmeshtexError, ValueError):
     """A configuration value is invalid or inconsistent."""
 
 
+class MissingExtraError(JmeshtexError, ImportError):
+    """A jmeshtex package was imported without the optional dependencies of its extra."""
+
+
 class MeshIOError(JmeshtexError, OSError):
     """A mesh, texture or checkpoint file cannot be read or written."""
 

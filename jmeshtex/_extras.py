@@ -12,6 +12,8 @@ from __future__ import annotations
 import importlib.util
 import sys
 
+from ._errors import MissingExtraError as MissingExtraError
+
 #: the import names each extra provides (the pip names are in pyproject.toml)
 EXTRAS: dict[str, tuple[str, ...]] = {
     "geometry": ("scipy", "igl", "trimesh", "robust_laplacian", "PIL"),
@@ -31,10 +33,6 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     ),
 }
 EXTRAS["testing"] = EXTRAS["methods"] + ("hypothesis",)
-
-
-class MissingExtraError(ImportError):
-    """A jmeshtex package was imported without the optional dependencies of its extra."""
 
 
 def _available(module: str) -> bool:
