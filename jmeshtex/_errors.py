@@ -29,6 +29,16 @@ class ConfigError(JmeshtexError, ValueError):
     """A configuration value is invalid or inconsistent."""
 
 
+class TrainingDivergedError(JmeshtexError, FloatingPointError):
+    """Training produced a non-finite loss or parameter; ``step`` is the step where it was seen.
+
+    Nothing non-finite is saved or returned: lower the learning rate or check the data's scale."""
+
+    def __init__(self, message: str, *, step: int):
+        super().__init__(message)
+        self.step = step
+
+
 class MissingExtraError(JmeshtexError, ImportError):
     """A jmeshtex package was imported without the optional dependencies of its extra."""
 

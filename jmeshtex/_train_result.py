@@ -26,7 +26,9 @@ class TrainResult(Generic[M]):
       losses: per-step histories by name (``"loss"``, ``"generator"``, ...), each a 1-D float array
         over every step done so far, resumed steps included.
       steps: optimiser steps done in total (resumed ones included).
-      seconds: wall time of this call (compilation included).
+      seconds: wall time of the whole ``train`` call (data, initialisation and compilation
+        included).
+      compile_seconds: the part of ``seconds`` spent compiling the training step.
       resumed_from: the checkpoint step this call resumed from, or None for a fresh run.
       extra: method-specific records (per-level reports for DGTS, ...).
     """
@@ -37,6 +39,7 @@ class TrainResult(Generic[M]):
     seconds: float
     resumed_from: int | None = None
     extra: dict[str, Any] = dataclasses.field(default_factory=dict)
+    compile_seconds: float = 0.0
 
     def final_loss(self, name: str = "loss") -> float:
         """The last recorded value of loss ``name`` (NaN when none was recorded)."""

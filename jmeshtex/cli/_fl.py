@@ -149,9 +149,9 @@ def _train(args) -> int:
     base = {"small": Config.small, "paper": Config.paper}.get(args.preset, Config)()
     config = base.replace(**data)
     result = train(
+        args.images,
         config,
         key=jax.random.key(args.seed),
-        images=args.images,
         progress=not args.quiet,
         checkpoint_dir=args.out / "checkpoints",
         loss_curve=args.out / "loss_curve.png",

@@ -15,20 +15,17 @@ gradient norms; reconstruction with the fixed noise ``z*`` at the coarsest level
 above). Adam with step decay; one training step is ``discriminator_steps`` critic updates then
 ``generator_steps`` generator updates.
 
-How it runs (compilation dominated the first version: each level compiled a step that unrolled
-every frozen generator three times, 265 s of 872 s in the small benchmark):
+How it runs (each level is one run of the shared training driver):
 
 - the frozen levels ``0 … L−1`` only make inputs for level ``L``; :func:`level_batch` runs them
-  forward, level by level, on all noise draws of ``CHUNK`` steps at once (one compiled
-  function per frozen level, reused by every later level since the batch size does not change);
+  forward, level by level, on all noise draws of ``CHUNK`` steps at once;
 - :func:`train_chunk` holds level ``L``'s generator and critic only, and runs ``CHUNK`` steps
   per call (``fori_loop``), so every level compiles one program of the same size;
 - ``Config.shared_levels`` pads the small levels (masked faces and vertices, the
   padded-neighbourhood contract: no loss or update changes, tested) to one size so equal-width
-  levels reuse one compiled step (tests, demo);
-- compilation is ahead of time (``lower().compile()``), timed apart from the steps
-  (:class:`LevelReport`), and cached per shapes in the process; the CLI also enables JAX's
-  persistent compilation cache (``jmeshtex dgts --help``).
+  levels reuse one compiled step within a call;
+- compilation is ahead of time, timed apart from the steps (:class:`LevelReport`); the CLI also
+  enables JAX's persistent compilation cache (``jmeshtex dgts --help``).
 
 Checkpoints (``checkpoint_dir``, :class:`jmeshtex.io.Checkpoints`): after every level, and every
 ``checkpoint_every`` steps within a level, the parameters of the completed levels, ``z*``, the
@@ -56,6 +53,7 @@ import optax
 from .._errors import ConfigError, InputError
 from .._neighborhoods import FaceNeighborhood
 from .._train_result import TrainResult
+from .._training import fit
 from .._types import Array, Float, PRNGKey
 from ..geometry import pad_to
 from ..io import Checkpoints
@@ -422,7 +420,8 @@ def train(
       levels), ``losses[name]`` (``LOSS_NAMES``) of every step done, level after level (level
       ``l``'s at ``[l·steps, (l+1)·steps)``), ``steps`` (steps done in all levels), ``seconds``,
       ``resumed_from`` (the checkpoint step resumed from, or None) and ``extra["levels"]``: one
-      :class:`LevelReport` per completed level (and ``extra["snapshots"]`` with ``snapshot_every``).
+      :class:`LevelReport` per completed level, ``extra["compiled_steps"]`` (level steps compiled
+      by this call; padded levels share one) and ``extra["snapshots"]`` with ``snapshot_every``.
 
     Raises:
       ConfigError: ``levels`` outside ``[1, meshes.num_levels]``; ``checkpoint_every`` without a
@@ -504,128 +503,125 @@ def train(
     template = jnp.asarray(meshes.template, jnp.float32)
     z_star_j = jnp.asarray(z_star, jnp.float32)
     padded = _padded_sizes(geos_all, config.shared_levels)
+    compiled: dict = {}  # this call's compiled steps (equal-sized levels share one)
+    chunk_step = jax.jit(functools.partial(_chunk_step, config=config))
 
-    def save(level: int, done: int, g=None, d=None, opt=None) -> None:
-        state = {"model": model_state(Model(config, tuple(gs), tuple(ds), z_star))}
-        if g is not None:
-            state["current"] = {"g": g, "d": d, "opt": opt}
-        meta = {
+    def frozen_state() -> dict:
+        return model_state(Model(config, tuple(gs), tuple(ds), z_star))
+
+    def record(level: int, done: int) -> dict:
+        return {
             "kind": CHECKPOINT_KIND,
             "config": config.to_dict(),
             "completed_levels": len(gs),
-            "level_steps": 0 if g is None else done,
-            "losses": history,
+            "level_steps": done,
             "levels": [dataclasses.asdict(r) for r in reports],
         }
-        ckpt.save(level * S + done, state, meta=meta)
 
     try:
         for level in range(len(gs), total):
             if current is not None:
-                g, d, opt = current["g"], current["d"], current["opt"]
-                start, current = current_steps, None
+                state, start, current = current, current_steps, None
             else:
                 g, d = _initial_params(config, level, k_init, gs, ds)
-                opt = _Opt(
-                    _optimizer(config, config.generator_steps).init(g),
-                    _optimizer(config, config.discriminator_steps).init(d),
-                )
-                start = 0
+                state, start = _level_state(config, level, g, d), 0
             geos = geos_all[: level + 1]
             nbhd = geos[-1].nbhd
             real = jnp.asarray(meshes.vertices[level], jnp.float32)
             frozen = tuple(gs)
             k_level = jax.random.fold_in(k_train, level)
-            bar = None
-            if progress:
-                from tqdm.auto import tqdm
+            t_batch = []  # the first chunk's frozen-level pass (compiles new shapes)
 
-                bar = tqdm(
-                    total=S,
-                    initial=start,
-                    desc=f"DGTS level {level + 1}/{total}",
-                    unit="step",
-                    leave=True,
-                )
-            n_chunks = -(-S // CHUNK)
-            t_compile = 0.0
-            t0 = time.perf_counter()
-            chunk_losses: list = []
-            for chunk in range(start // CHUNK, n_chunks):
-                n = min(CHUNK, S - chunk * CHUNK)
-                t_b = time.perf_counter()
+            def batches(
+                i: int,
+                level=level,
+                nbhd=nbhd,
+                real=real,
+                frozen=frozen,
+                k_level=k_level,
+                t_batch=t_batch,
+            ):
+                t = time.perf_counter()
                 batch = level_batch(
                     frozen,
-                    geos,
+                    geos_all[: level + 1],
                     template,
                     z_star_j,
-                    jax.random.fold_in(k_level, chunk),
+                    jax.random.fold_in(k_level, i // CHUNK),
                     config=config,
                     chunk=CHUNK,
                 )
-                first = chunk == start // CHUNK
-                if first:  # the first chunk compiles the frozen levels (new shapes only)
+                if not t_batch:
                     jax.block_until_ready(batch)
-                    t_b = time.perf_counter() - t_b
-                else:
-                    t_b = 0.0
-                args = (g, d, opt, nbhd, real, batch, jnp.int32(n))
+                    t_batch.append(time.perf_counter() - t)
                 if level < len(padded):
-                    args = _pad_level(args, padded[level])
-                step_fn, t_s = _compiled(train_chunk, args, {"config": config})
-                g, d, opt, losses = step_fn(*args)
-                chunk_losses.append({k: v[:n] for k, v in losses.items()})
-                t_compile += t_b + t_s
-                if bar is not None:
-                    bar.update(n)
-                    bar.set_postfix(
-                        rec=f"{float(losses['g_rec'][n - 1]):.3g}",
-                        adv=f"{float(losses['g_adv'][n - 1]):.3g}",
-                    )
-                done = chunk * CHUNK + n
-                if snap_every is not None and ((chunk + 1) % snap_every == 0 or done == S):
-                    sample, rec = _snapshot(
-                        g,
-                        nbhd,
-                        batch.fake_base[0, 0],
-                        batch.fake_noise[0, 0],
-                        batch.rec_base[0, 0],
-                        batch.rec_noise[0, 0],
-                        config=config,
-                    )
-                    snapshots.append(
-                        {
-                            "level": level,
-                            "step": done,
-                            "sample": np.asarray(sample, np.float64),
-                            "reconstruction": np.asarray(rec, np.float64),
-                        }
-                    )
-                if ckpt is not None and every is not None and (chunk + 1) % every == 0 and done < S:
-                    _extend(history, chunk_losses)
-                    chunk_losses = []
-                    save(level, done, g, d, opt)
-            jax.block_until_ready(g)
-            _extend(history, chunk_losses)
-            seconds = time.perf_counter() - t0
-            if bar is not None:
-                bar.close()
-            ran = S - start
+                    nbhd, real, batch = pad_level(nbhd, real, batch, padded[level])
+                return nbhd, real, batch, jnp.int32(min(CHUNK, S - i))
+
+            def snapshot(done: int, state, batch, level=level) -> None:
+                if -(-done // CHUNK) % snap_every and done != S:
+                    return
+                nbhd, _, b, _ = batch
+                sample, rec = _snapshot(
+                    state["g"],
+                    nbhd,
+                    b.fake_base[0, 0],
+                    b.fake_noise[0, 0],
+                    b.rec_base[0, 0],
+                    b.rec_noise[0, 0],
+                    config=config,
+                )
+                snapshots.append(
+                    {
+                        "level": level,
+                        "step": done,
+                        "sample": np.asarray(sample, np.float64),
+                        "reconstruction": np.asarray(rec, np.float64),
+                    }
+                )
+
+            frozen_now = frozen_state() if ckpt is not None else None
+            run = fit(
+                chunk_step,
+                state,
+                batches,
+                steps=S,
+                steps_per_call=CHUNK,
+                checkpoints=ckpt,
+                save_every=None if every is None else every * CHUNK,
+                final_save=False,
+                checkpoint_offset=level * S,
+                saved=lambda state, m=frozen_now: {"model": m, "current": state},
+                meta=functools.partial(record, level),
+                start=start,
+                history=history,
+                progress=progress,
+                desc=f"DGTS level {level + 1}/{total}",
+                show=("g_rec", "g_adv"),
+                on_step=None if snap_every is None else snapshot,
+                compiled=compiled,
+            )
+            history = {k: list(v) for k, v in run.losses.items()}
+            compile_seconds = run.compile_seconds + (t_batch[0] if t_batch else 0.0)
             reports.append(
                 LevelReport(
                     level=level,
                     steps=S,
                     faces=int(len(meshes.faces[level])),
-                    compile_seconds=t_compile,
-                    seconds=seconds,
-                    seconds_per_step=(seconds - t_compile) / max(ran, 1),
+                    compile_seconds=compile_seconds,
+                    seconds=run.seconds,
+                    seconds_per_step=(run.seconds - compile_seconds) / max(S - start, 1),
                     losses={k: v[-1] for k, v in history.items()} if S else {},
                 )
             )
-            gs.append(g)
-            ds.append(d)
+            gs.append(run.model["g"])
+            ds.append(run.model["d"])
             if ckpt is not None:
-                save(level + 1, 0)
+                ckpt.save(
+                    (level + 1) * S,
+                    {"model": frozen_state()},
+                    meta={**record(level, 0), "losses": history},
+                )
     finally:
         if ckpt is not None:
             ckpt.close()
@@ -636,9 +632,20 @@ def train(
         losses=losses,
         steps=min(len(gs), total) * S,
         seconds=time.perf_counter() - t_start,
+        compile_seconds=sum(r.compile_seconds for r in reports[:total]),
         resumed_from=resumed_from,
-        extra={"levels": reports[:total], **({"snapshots": snapshots} if snap_every else {})},
+        extra={
+            "levels": reports[:total],
+            "compiled_steps": len(compiled),
+            **({"snapshots": snapshots} if snap_every else {}),
+        },
     )
+
+
+def _chunk_step(state: dict, batch: tuple, *, config: Config):
+    """:func:`train_chunk` as the driver's ``(state, batch) -> (state, losses)``."""
+    g, d, opt, losses = train_chunk(state["g"], state["d"], state["opt"], *batch, config=config)
+    return {"g": g, "d": d, "opt": opt}, losses
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
@@ -648,13 +655,6 @@ def _snapshot(g, nbhd, base, z, rec_base, rec_z, *, config: Config):
     return base + generator_level(g, base, nbhd, z, **kw), rec_base + generator_level(
         g, rec_base, nbhd, rec_z, **kw
     )
-
-
-def _extend(history: dict[str, list[float]], chunk_losses: list[dict]) -> None:
-    """Append the per-step losses of some chunks (device arrays) to the host-side histories."""
-    for losses in jax.device_get(chunk_losses):
-        for k, v in losses.items():
-            history[k].extend(float(x) for x in np.asarray(v))
 
 
 def _padded_sizes(geos, shared_levels: int) -> list[dict[str, int]]:
@@ -689,11 +689,6 @@ def pad_level(nbhd: FaceNeighborhood, real, batch: LevelBatch, size: dict[str, i
     return pad_to(nbhd, size), rows(real), batch
 
 
-def _pad_level(args, size):
-    g, d, opt, nbhd, real, batch, n = args
-    return (g, d, opt, *pad_level(nbhd, real, batch, size), n)
-
-
 def _initial_params(config: Config, level: int, key, gs: list, ds: list):
     """Fresh parameters of ``level``, or the previous level's where the widths match (warm start)."""
     out = []
@@ -705,31 +700,3 @@ def _initial_params(config: Config, level: int, key, gs: list, ds: list):
         ) == config.level_features(level - 1, generator=generator)
         out.append(previous[-1] if same else init_level(config, level, generator=generator, key=k))
     return out[0], out[1]
-
-
-#: ahead-of-time compiled functions, keyed by function, static arguments and argument shapes
-_COMPILED: dict = {}
-
-
-def _compiled(fn, args: tuple, static: dict):
-    """``(compiled fn, compile seconds)``: ``fn`` lowered and compiled once per static arguments and
-    argument shapes/dtypes (so compile time is measured apart from run time)."""
-    leaves, treedef = jax.tree.flatten(args)
-    signature = (
-        fn,
-        tuple(sorted(static.items())),
-        treedef,
-        tuple(
-            (np.shape(x), jnp.result_type(x).name if hasattr(x, "dtype") else type(x))
-            for x in leaves
-        ),
-    )
-    hit = _COMPILED.get(signature)
-    if hit is not None:
-        return hit, 0.0
-    t = time.perf_counter()
-    compiled = fn.lower(*args, **static).compile()
-    if len(_COMPILED) >= 64:
-        _COMPILED.clear()
-    _COMPILED[signature] = compiled
-    return compiled, time.perf_counter() - t

@@ -11,7 +11,7 @@ the initialisation and the pool from two of its splits, step ``t``'s meshes, sam
 reparameterisation noise from ``t`` folded into two others, so a run resumed from a checkpoint
 continues exactly as an uninterrupted one would.
 
-Data parallel (``mesh=`` / ``devices=``, default every device JAX sees): the batch's vertex axis
+Data parallel (``device_mesh=`` / ``devices=``, default every device JAX sees): the batch's vertex axis
 (the concatenated one-rings of the step's meshes, padded to a multiple of the device count) is split
 over the mesh's ``"data"`` axis, parameters and optimiser state are replicated, and XLA all-reduces
 the gradients (``jmeshtex.parallel``). Each vertex's encoder and log decoder read only its own
@@ -28,10 +28,8 @@ and at the end of each call; :func:`train` with the same folder resumes.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import os
-import sys
 import time
 
 import jax
@@ -42,15 +40,13 @@ import optax
 from .._errors import ConfigError, InputError
 from .._mesh import Mesh
 from .._train_result import TrainResult
+from .._training import fit
 from .._types import PRNGKey
-from ..io import Checkpoints
 from ..ops import conjugate_complex_grads
 from ..parallel import (
     batch_multiple,
     data_parallel,
     fetch,
-    is_multiprocess,
-    replicate,
     resolve_mesh,
 )
 from ._colors import surface_colors
@@ -94,17 +90,15 @@ def optimizer(config: Config) -> optax.GradientTransformation:
     return optax.chain(optax.clip_by_global_norm(config.grad_clip), optax.adam(schedule))
 
 
-@functools.lru_cache(maxsize=8)
-def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
+def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None):
     """The jitted training step ``(params, opt_state, batch, key) -> (params, opt_state, loss, l1)``.
 
     One :func:`~jmeshtex.fl.vae_loss` gradient, complex gradients conjugated, one
-    :func:`optimizer` update. Cached per config and mesh, so repeated or resumed runs in one process
-    compile once.
+    :func:`optimizer` update.
 
     Args:
       config: :class:`~jmeshtex.fl.Config` (static).
-      mesh: None (a plain :func:`jax.jit`), or a :class:`jax.sharding.Mesh` with a ``"data"`` axis:
+      device_mesh: None (a plain :func:`jax.jit`), or a :class:`jax.sharding.Mesh` with a ``"data"`` axis:
         the batch's vertex axis is split over it, everything else replicated
         (``jmeshtex.parallel.data_parallel``).
 
@@ -145,9 +139,9 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
             params = optax.apply_updates(params, updates)
         return params, opt_state, loss, aux["l1"]
 
-    if mesh is None:
+    if device_mesh is None:
         return jax.jit(step)
-    return data_parallel(step, mesh, batch_argnums=(2,))
+    return data_parallel(step, device_mesh, batch_argnums=(2,))
 
 
 def mesh_batch(
@@ -251,30 +245,30 @@ def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) 
 
 
 def train(
+    images,
     config: Config,
     *,
     key: PRNGKey,
-    images=None,
     progress: bool = True,
     checkpoint_dir: str | os.PathLike | None = None,
     loss_curve: str | os.PathLike | None = None,
     dtype=jnp.float32,
     stop_after: int | None = None,
-    mesh: jax.sharding.Mesh | None = None,
+    device_mesh: jax.sharding.Mesh | None = None,
     devices=None,
 ) -> TrainResult[Model]:
     """Train an FL-VAE on planar meshes over images; resumable from checkpoints.
 
     Args:
+      images: the training data: None or ``"builtin"`` (scikit-image's bundled images: in the
+        stream data mode, ``config.pixels_per_vertex > 0``, :func:`~jmeshtex.fl.training_images` —
+        the held-out images excluded; else :func:`~jmeshtex.fl.builtin_images`), a folder of
+        images, or a list of ``[H, W, C]`` arrays (in the stream mode ``[]`` with
+        ``procedural_fraction = 1`` trains on procedural textures only).
       config: :class:`~jmeshtex.fl.Config` (model, data and optimiser settings).
       key: PRNG key of the initialisation, the planar meshes, the one-ring samples and the
         reparameterisation noise (module docstring).
-      images: None or ``"builtin"`` (scikit-image's bundled images: in the stream data mode,
-        ``config.pixels_per_vertex > 0``, :func:`~jmeshtex.fl.training_images` — the held-out images
-        excluded; else :func:`~jmeshtex.fl.builtin_images`), a folder of images, or a list of
-        ``[H, W, C]`` arrays (in the stream mode ``[]`` with ``procedural_fraction = 1`` trains on
-        procedural textures only).
-      progress: show a tqdm bar with ETA and the running loss (a moving average).
+      progress: show a tqdm bar with ETA and the running loss.
       checkpoint_dir: folder of :class:`jmeshtex.io.Checkpoints` (None: keep nothing on disk). The
         newest checkpoint there is resumed; it must have been written with the same config
         (``steps`` and ``checkpoint_every`` may differ), key, images and dtype, else
@@ -284,10 +278,10 @@ def train(
       dtype: real dtype of the parameters.
       stop_after: run at most this many steps in this call (a time-boxed run; call again with the
         same folder to continue). The schedule always follows ``config.steps``.
-      mesh: the :class:`jax.sharding.Mesh` to train on (a ``"data"`` axis splits the batch; module
-        docstring). None: ``jmeshtex.parallel.data_mesh(devices)``.
+      device_mesh: the :class:`jax.sharding.Mesh` to train on (a ``"data"`` axis splits the batch;
+        module docstring). None: ``jmeshtex.parallel.data_mesh(devices)``.
       devices: the devices of the default mesh (None: every device; ``jax.devices()[:1]`` trains
-        on one). Not with ``mesh``.
+        on one). Not with ``device_mesh``.
 
     Returns:
       :class:`~jmeshtex.TrainResult` with the :class:`~jmeshtex.fl.Model` in ``.model``; ``losses``
@@ -297,29 +291,25 @@ def train(
       device (whatever mesh trained them), and a checkpoint written on one mesh resumes on another.
 
     Raises:
-      FloatingPointError: the loss became non-finite (lower ``learning_rate``).
-      ConfigError: ``mesh`` and ``devices`` both given, or ``checkpoint_dir`` in a multi-process
-        run (not supported yet).
+      TrainingDivergedError: the loss or the parameters became non-finite (lower
+        ``learning_rate``).
+      ConfigError: ``config`` is not a :class:`~jmeshtex.fl.Config`; ``device_mesh`` and
+        ``devices`` both given, or ``checkpoint_dir`` in a multi-process run (not supported yet).
 
     Example:
       >>> import jax, numpy as np
       >>> img = np.indices((16, 16)).sum(0)[..., None].repeat(3, -1) % 2 * 1.0
       >>> c = Config(features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16,
       ...            min_vertices=10, max_vertices=12, meshes_per_image=1, batch_size=1, steps=2)
-      >>> r = train(c, key=jax.random.key(0), images=[img], progress=False)
+      >>> r = train([img], c, key=jax.random.key(0), progress=False)
       >>> r.steps, r.losses["loss"].shape, bool(np.isfinite(r.losses["loss"]).all())
       (2, (2,), True)
     """
-    t_call = time.perf_counter()
+    started = time.perf_counter()
     if not isinstance(config, Config):
         raise ConfigError(f"config must be a jmeshtex.fl.Config, got {type(config).__name__}")
     np_dtype = np.float64 if jnp.dtype(dtype) == jnp.float64 else np.float32
-    mesh = resolve_mesh(mesh, devices)
-    if checkpoint_dir is not None and is_multiprocess():
-        raise ConfigError(
-            "fl.train: checkpoint_dir with several processes (jax.distributed) is not supported "
-            "yet; train without checkpoints, or in one process"
-        )
+    device_mesh = resolve_mesh(device_mesh, devices)
     k_init, k_pool, k_data, k_noise = jax.random.split(key, 4)
     stream = config.pixels_per_vertex > 0
     loaded = _load_images(images, config.max_image_size, stream)
@@ -337,88 +327,46 @@ def train(
             rng=_numpy_rng(k_pool),
         )
         max_vertices = config.max_vertices
-    opt = optimizer(config)
-    params = init(config, key=k_init, dtype=dtype).params
-    params, opt_state = replicate((params, opt.init(params)), mesh)
-    start, losses, l1s, resumed_from = 0, [], [], None
-    ckpt = None
-    if checkpoint_dir is not None:
-        ckpt = Checkpoints(checkpoint_dir, fingerprint=_fingerprint(config, key, loaded, dtype))
-        if ckpt.latest_step() is not None:
-            state, meta = ckpt.restore({"params": params, "opt_state": opt_state})
-            params, opt_state = replicate((state["params"], state["opt_state"]), mesh)
-            start = resumed_from = ckpt.latest_step()
-            losses, l1s = list(meta["loss"])[:start], list(meta["l1"])[:start]
-    step_fn = make_train_step(config, mesh)
-    per = batch_multiple(mesh)
+    per = batch_multiple(device_mesh)
     num_vertices = -(-config.batch_size * max_vertices // per) * per
-    bar = None
-    if progress and start < config.steps:
-        from tqdm.auto import tqdm
 
-        bar = tqdm(
-            total=config.steps,
-            initial=start,
-            desc="FL-VAE train",
-            unit="step",
-            mininterval=0.5 if sys.stderr.isatty() else 30.0,
-        )
-    ema = float(np.mean(losses[-100:])) if losses else None
-    t_first = None
-    end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
-    try:
-        for step in range(start, end):
-            rng = _numpy_rng(jax.random.fold_in(k_data, step))
-            if stream:
-                meshes = _stream_meshes(rng, levels, config)
-            else:
-                chosen = rng.choice(
-                    len(pool), size=min(config.batch_size, len(pool)), replace=False
-                )
-                meshes = [pool[i] for i in chosen]
-            batch = mesh_batch(meshes, config, rng, num_vertices=num_vertices, dtype=np_dtype)
-            params, opt_state, loss, l1 = step_fn(
-                params, opt_state, batch, jax.random.fold_in(k_noise, step)
-            )
-            loss, l1 = (float(x) for x in fetch((loss, l1)))
-            if not np.isfinite(loss):
-                raise FloatingPointError(
-                    f"FL-VAE training diverged at step {step} (loss {loss}); lower learning_rate"
-                )
-            losses.append(loss)
-            l1s.append(l1)
-            if t_first is None:
-                t_first = time.perf_counter()
-            ema = loss if ema is None else 0.99 * ema + 0.01 * loss
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(loss=f"{ema:.4f}", l1=f"{l1:.4f}", refresh=False)
-            if (step + 1) % config.checkpoint_every == 0 or step + 1 == end:
-                if ckpt is not None:
-                    ckpt.save(
-                        step + 1,
-                        {"params": params, "opt_state": opt_state},
-                        meta={"loss": losses, "l1": l1s},
-                    )
-                if loss_curve is not None:
-                    plot_losses(
-                        {"loss": losses, "l1": l1s},
-                        loss_curve,
-                        title=f"FL-VAE training ({step + 1} steps)",
-                    )
-    finally:
-        if bar is not None:
-            bar.close()
-        if ckpt is not None:
-            ckpt.close()
-    done = end - start
-    seconds = time.perf_counter() - t_first if t_first is not None else 0.0
-    rate = (done - 1) / seconds if done > 1 and seconds > 0 else float("nan")
-    return TrainResult(
-        model=Model(jax.tree.map(jnp.asarray, fetch(params)), config),
-        losses={"loss": np.asarray(losses), "l1": np.asarray(l1s)},
-        steps=len(losses),
-        seconds=time.perf_counter() - t_call,
-        resumed_from=resumed_from,
-        extra={"steps_per_second": rate},
+    def batches(step: int):
+        rng = _numpy_rng(jax.random.fold_in(k_data, step))
+        if stream:
+            meshes = _stream_meshes(rng, levels, config)
+        else:
+            chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
+            meshes = [pool[i] for i in chosen]
+        batch = mesh_batch(meshes, config, rng, num_vertices=num_vertices, dtype=np_dtype)
+        return batch, jax.random.fold_in(k_noise, step)
+
+    vae_step = make_train_step(config, device_mesh)
+
+    def step(state, batch):
+        params, opt_state, loss, l1 = vae_step(*state, *batch)
+        return (params, opt_state), {"loss": loss, "l1": l1}
+
+    def curve(done: int, state, losses: dict) -> None:
+        title = f"FL-VAE training ({done} steps)"
+        plot_losses({"loss": losses["loss"], "l1": losses["l1"]}, loss_curve, title=title)
+
+    params = init(config, key=k_init, dtype=dtype).params
+    return fit(
+        step,
+        (params, optimizer(config).init(params)),
+        batches,
+        steps=config.steps,
+        stop_after=stop_after,
+        checkpoints=checkpoint_dir,
+        fingerprint=_fingerprint(config, key, loaded, dtype),
+        save_every=config.checkpoint_every,
+        saved=lambda state: {"params": state[0], "opt_state": state[1]},
+        restored=lambda tree: (tree["params"], tree["opt_state"]),
+        device_mesh=device_mesh,
+        progress=progress,
+        desc="FL-VAE train",
+        show=("loss", "l1"),
+        on_save=None if loss_curve is None else curve,
+        model=lambda state: Model(jax.tree.map(jnp.asarray, fetch(state[0])), config),
+        started=started,
     )

@@ -10,7 +10,7 @@ With ``config.mask_conditioning`` every copy of a step also gets a random inpain
 (:func:`training_masks`); the denoiser sees it and the known clean latents, and the loss counts the
 generated (unmasked) region only.
 
-Data parallel (``mesh=`` / ``devices=``, default every device JAX sees; :mod:`jmeshtex.parallel`):
+Data parallel (``device_mesh=`` / ``devices=``, default every device JAX sees; :mod:`jmeshtex.parallel`):
 the batch axis (the ``batch_size`` copies of a step) is split over the mesh's ``"data"`` axis,
 parameters, optimiser state and EMA are replicated, and XLA all-reduces the gradients. The batch is
 the same on every mesh (``batch_size`` must be a multiple of the device count; nothing is resized),
@@ -48,13 +48,12 @@ import optax
 from .._errors import ConfigError, InputError
 from .._random import host_rng, key_ints
 from .._train_result import TrainResult
+from .._training import fit
 from ..ops import conjugate_complex_grads, tangent_noise
 from ..parallel import (
     batch_multiple,
     data_parallel,
     fetch,
-    is_multiprocess,
-    replicate,
     resolve_mesh,
 )
 from ._config import Config
@@ -109,15 +108,9 @@ def _ema_update(ema, params, step, *, decay: float):
     )
 
 
-@functools.lru_cache(maxsize=16)
-def _ema_step(decay: float, mesh: jax.sharding.Mesh):
-    """:func:`_ema_update` as one replicated-in, replicated-out program on ``mesh``."""
-    return data_parallel(functools.partial(_ema_update, decay=decay), mesh, batch_argnums=())
-
-
-def _check_batch(config: Config, mesh: jax.sharding.Mesh) -> None:
-    """Raise :class:`~jmeshtex.ConfigError` unless ``config.batch_size`` splits evenly over ``mesh``."""
-    per = batch_multiple(mesh)
+def _check_batch(config: Config, device_mesh: jax.sharding.Mesh) -> None:
+    """Raise :class:`~jmeshtex.ConfigError` unless ``config.batch_size`` splits evenly over ``device_mesh``."""
+    per = batch_multiple(device_mesh)
     if config.batch_size % per:
         raise ConfigError(
             f"fldm: batch_size={config.batch_size} copies cannot be split evenly over the {per} devices of the "
@@ -125,15 +118,12 @@ def _check_batch(config: Config, mesh: jax.sharding.Mesh) -> None:
         )
 
 
-@functools.lru_cache(maxsize=16)
-def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
-    """The jitted optimiser step of :func:`train` (module docstring), one per configuration and mesh.
-
-    Cached, so a resumed or repeated run in the same process does not compile again.
+def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None):
+    """The jitted optimiser step of :func:`train` (module docstring).
 
     Args:
       config: the :class:`Config` (schedule, prediction, ``diffusion_steps``, learning rate).
-      mesh: None (a plain :func:`jax.jit` on the default device), or a :class:`jax.sharding.Mesh`
+      device_mesh: None (a plain :func:`jax.jit` on the default device), or a :class:`jax.sharding.Mesh`
         with a ``"data"`` axis: the batch arguments (``z0``, ``geo``, ``labels``) are split along
         their leading axis over it, everything else replicated, outputs replicated
         (:func:`jmeshtex.parallel.data_parallel`).
@@ -194,9 +184,9 @@ def make_train_step(config: Config, mesh: jax.sharding.Mesh | None = None):
             params = optax.apply_updates(params, updates)
         return params, opt_state, loss
 
-    if mesh is None:
+    if device_mesh is None:
         return jax.jit(step)
-    return data_parallel(step, mesh, batch_argnums=(2, 3, 4, 6))
+    return data_parallel(step, device_mesh, batch_argnums=(2, 3, 4, 6))
 
 
 def training_batch(
@@ -333,7 +323,7 @@ def train(
     checkpoint_dir: str | os.PathLike | None = None,
     stop_after: int | None = None,
     dtype=jnp.complex64,
-    mesh: jax.sharding.Mesh | None = None,
+    device_mesh: jax.sharding.Mesh | None = None,
     devices=None,
 ) -> TrainResult[Model]:
     """Train the denoiser on the copies of ``data`` for ``config.steps`` steps (resumable).
@@ -347,10 +337,10 @@ def train(
         checkpoint of the same run there is resumed.
       stop_after: run at most this many steps in this call (continue later from the checkpoint).
       dtype: complex dtype of parameters and latents.
-      mesh: the :class:`jax.sharding.Mesh` to train on (its ``"data"`` axis splits the batch;
-        module docstring). None: :func:`jmeshtex.parallel.data_mesh` over ``devices``.
+      device_mesh: the :class:`jax.sharding.Mesh` to train on (its ``"data"`` axis splits the
+        batch; module docstring). None: :func:`jmeshtex.parallel.data_mesh` over ``devices``.
       devices: the devices of the default mesh (None: every device; ``jax.devices()[:1]`` trains
-        on one). Not with ``mesh``.
+        on one). Not with ``device_mesh``.
 
     Returns:
       :class:`~jmeshtex.TrainResult` with the :class:`Model` (host NumPy parameters, whatever mesh
@@ -360,9 +350,10 @@ def train(
 
     Raises:
       ConfigError: the data's channels or labels do not match the config; ``batch_size`` is not a
-        multiple of the mesh's device count; ``mesh`` and ``devices`` both given;
+        multiple of the mesh's device count; ``device_mesh`` and ``devices`` both given;
         ``checkpoint_dir`` in a multi-process run (not supported yet).
       CheckpointMismatchError: ``checkpoint_dir`` holds a checkpoint of another run.
+      TrainingDivergedError: a loss or the parameters became non-finite.
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -374,82 +365,51 @@ def train(
       >>> r.steps, r.losses["loss"].shape, bool(np.isfinite(r.losses["loss"]).all())
       (2, (2,), True)
     """
-    from tqdm.auto import tqdm
-
-    from ..io import Checkpoints
-
+    started = time.perf_counter()
     _check_data(data, config)
-    mesh = resolve_mesh(mesh, devices)
-    _check_batch(config, mesh)
-    if checkpoint_dir is not None and is_multiprocess():
-        raise ConfigError(
-            "fldm.train: checkpoint_dir with several processes (jax.distributed) is not supported "
-            "yet; train without checkpoints, or in one process"
-        )
-    opt = optimizer(config)
+    device_mesh = resolve_mesh(device_mesh, devices)
+    _check_batch(config, device_mesh)
     k_init, k_batch, k_noise = _split(key)
-    params = init_denoiser(k_init, config, dtype=dtype)
-    params, opt_state = replicate((params, opt.init(params)), mesh)
     use_ema = config.ema_decay > 0
-    ema = params if use_ema else None
-    start, losses, resumed = 0, [], None
-    ckpt = None
 
-    def state_dict():
-        state = {"params": params, "opt_state": opt_state}
-        return {**state, "ema": ema} if use_ema else state
+    def batches(step: int):
+        z0, geo, labels = training_batch(data, step, config.batch_size, key=k_batch, dtype=dtype)
+        masks = ()
+        if config.mask_conditioning:
+            masks = (training_masks(data, step, config.batch_size, key=k_batch),)
+        return (z0, geo, labels, jax.random.fold_in(k_noise, step), *masks), np.float32(step)
 
-    if checkpoint_dir is not None:
-        ckpt = Checkpoints(
-            checkpoint_dir, keep=2, fingerprint=_fingerprint(data, config, key, dtype)
-        )
-        resumed = ckpt.latest_step()
-        if resumed is not None:
-            state, meta = ckpt.restore(state_dict())
-            params, opt_state, ema = replicate(
-                (state["params"], state["opt_state"], state.get("ema")), mesh
-            )
-            start, losses = resumed, [float(x) for x in meta["losses"]]
-    step_fn = make_train_step(config, mesh)
-    ema_fn = _ema_step(float(config.ema_decay), mesh) if use_ema else None
-    end = config.steps if stop_after is None else min(config.steps, start + int(stop_after))
-    end = max(end, start)
-    t0 = time.perf_counter()
-    bar = tqdm(
-        range(start, end),
-        initial=start,
-        total=config.steps,
-        desc="FLDM train",
-        unit="step",
-        disable=not progress,
+    denoiser_step = make_train_step(config, device_mesh)
+    ema_step = data_parallel(
+        functools.partial(_ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
     )
-    try:
-        for step in bar:
-            z0, geo, labels = training_batch(
-                data, step, config.batch_size, key=k_batch, dtype=dtype
-            )
-            k_step = jax.random.fold_in(k_noise, step)
-            if config.mask_conditioning:
-                masks = training_masks(data, step, config.batch_size, key=k_batch)
-                params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, k_step, masks)
-            else:
-                params, opt_state, loss = step_fn(params, opt_state, z0, geo, labels, k_step)
-            if use_ema:
-                ema = ema_fn(ema, params, np.float32(step))
-            losses.append(float(fetch(loss)))
-            if progress:
-                bar.set_postfix(loss=f"{np.mean(losses[-20:]):.4f}")
-            if ckpt is not None and ((step + 1) % config.checkpoint_every == 0 or step + 1 == end):
-                ckpt.save(step + 1, state_dict(), meta={"losses": losses})
-    finally:
-        if ckpt is not None:
-            ckpt.close()
-    seconds = time.perf_counter() - t0
-    model = Model(fetch(ema if use_ema else params), config, np.asarray(data.scale))
-    return TrainResult(
-        model=model,
-        losses={"loss": np.asarray(losses, np.float64)},
-        steps=end,
-        seconds=seconds,
-        resumed_from=resumed,
+
+    def step(state, batch):
+        args, t = batch
+        params, opt_state, loss = denoiser_step(state["params"], state["opt_state"], *args)
+        new = {"params": params, "opt_state": opt_state}
+        if use_ema:
+            new["ema"] = ema_step(state["ema"], params, t)
+        return new, {"loss": loss}
+
+    params = init_denoiser(k_init, config, dtype=dtype)
+    state = {"params": params, "opt_state": optimizer(config).init(params)}
+    if use_ema:
+        state["ema"] = params
+    return fit(
+        step,
+        state,
+        batches,
+        steps=config.steps,
+        stop_after=stop_after,
+        checkpoints=checkpoint_dir,
+        fingerprint=_fingerprint(data, config, key, dtype),
+        save_every=config.checkpoint_every,
+        device_mesh=device_mesh,
+        progress=progress,
+        desc="FLDM train",
+        model=lambda s: Model(
+            fetch(s["ema" if use_ema else "params"]), config, np.asarray(data.scale)
+        ),
+        started=started,
     )

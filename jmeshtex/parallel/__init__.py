@@ -18,7 +18,7 @@ Example (two processes on one machine; run each with its ``process_id``)::
 
     from jmeshtex import parallel, fl
     parallel.initialize("127.0.0.1:12355", num_processes=2, process_id=PID)
-    result = fl.train(config, key=jax.random.key(0))   # the batch is split over both processes
+    result = fl.train(None, config, key=jax.random.key(0))   # the batch is split over both processes
 
 Example:
   >>> import jax, numpy as np

@@ -22,7 +22,7 @@ def initialize(
     """Join a multi-process JAX run; call it first in every process, before any device is used.
 
     After it, :func:`jax.devices` (and so :func:`~jmeshtex.parallel.data_mesh`, the default of
-    every ``train(..., mesh=None)``) spans the devices of every process, and a jitted step over a
+    every ``train(..., device_mesh=None)``) spans the devices of every process, and a jitted step over a
     :func:`~jmeshtex.parallel.batch_sharding` runs as one program whose gradient all-reduce
     crosses processes. On a cluster manager that JAX detects (SLURM, Open MPI, Cloud TPU) the
     three arguments may be left out.

@@ -169,15 +169,13 @@ def test_errors(tmp_path, tiny_meshes):
         train(tiny_meshes, TINY, key=jax.random.key(0), checkpoint_every=10, progress=False)
 
 
-def test_padded_levels_share_one_compiled_step(tiny_model):
+def test_padded_levels_share_one_compiled_step(tiny_result, tiny_meshes):
     """TINY pads level 0 to level 1's size (shared_levels=2): both levels run one compiled step."""
-    from jmeshtex.dgts import _train
-
-    steps = [
-        k for k in _train._COMPILED if k[0] is _train.train_chunk and dict(k[1])["config"] == TINY
-    ]
-    assert len(steps) == 1
-    assert tiny_model.num_levels == 2
+    assert tiny_result.model.num_levels == 2 and tiny_result.extra["compiled_steps"] == 1
+    unpadded = train(
+        tiny_meshes, TINY.replace(shared_levels=0), key=jax.random.key(TINY_KEY), progress=False
+    )
+    assert unpadded.extra["compiled_steps"] == 2
 
 
 def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):

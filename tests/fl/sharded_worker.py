@@ -101,12 +101,12 @@ def main(work: pathlib.Path) -> None:
         c = CONFIG.replace(decoder=decoder)
         out["step"][decoder] = {"one": one_step(c, one), "four": one_step(c, four)}
     key = jax.random.key(0)
-    full = fl.train(CONFIG, key=key, images=images(), progress=False)
+    full = fl.train(images(), CONFIG, key=key, progress=False)
     out["full_4"] = full.losses["loss"].tolist()
     fl.train(
+        images(),
         CONFIG,
         key=key,
-        images=images(),
         progress=False,
         checkpoint_dir=work / "ckpt_4",
         stop_after=2,
@@ -114,9 +114,9 @@ def main(work: pathlib.Path) -> None:
     fl.save(full.model, work / "model_4.npz")
     out["resumed_4"] = (
         fl.train(
+            images(),
             CONFIG,
             key=key,
-            images=images(),
             progress=False,
             checkpoint_dir=work / "ckpt_4_resume",
             stop_after=2,
@@ -125,15 +125,11 @@ def main(work: pathlib.Path) -> None:
         .tolist()
     )
     out["resumed_4"] = (
-        fl.train(
-            CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_4_resume"
-        )
+        fl.train(images(), CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_4_resume")
         .losses["loss"]
         .tolist()
     )
-    resumed = fl.train(
-        CONFIG, key=key, images=images(), progress=False, checkpoint_dir=work / "ckpt_1"
-    )
+    resumed = fl.train(images(), CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_1")
     out["from_1"] = resumed.losses["loss"].tolist()
     out["from_1_resumed_from"] = resumed.resumed_from
     (work / "result.json").write_text(json.dumps(out))

@@ -64,7 +64,7 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
     model, extra = fl.load(run / "fl_vae.npz"), fl.load_extra(run / "fl_vae.npz")
     assert model.config.latent_dim == 3 and model.config.batch_size == 1 and extra["seed"] == 3
     # the CLI is the library call with key = jax.random.key(--seed)
-    direct = fl.train(model.config, key=jax.random.key(3), images=str(images), progress=False)
+    direct = fl.train(str(images), model.config, key=jax.random.key(3), progress=False)
     np.testing.assert_allclose(summary["final_loss"], direct.losses["loss"].mean(), rtol=1e-12)
     # `pretrain` is the same subcommand; the finished run is resumed, not redone
     assert (

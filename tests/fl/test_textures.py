@@ -190,17 +190,13 @@ def test_loss_is_the_papers_equation_by_hand():
 def test_stream_training_resumes_exactly_and_draws_a_loss_curve(tmp_path):
     key = jax.random.key(3)
     curve = tmp_path / "loss.png"
-    full = train(
-        STREAM, key=key, images=[], progress=False, loss_curve=curve
-    )  # no checkpoints: no resume
+    full = train([], STREAM, key=key, progress=False, loss_curve=curve)  # no checkpoints: no resume
     assert full.steps == 4 and np.isfinite(full.losses["loss"]).all()
     assert curve.read_bytes()[:4] == b"\x89PNG"
-    part = train(
-        STREAM, key=key, images=[], progress=False, checkpoint_dir=tmp_path / "b", stop_after=3
-    )
+    part = train([], STREAM, key=key, progress=False, checkpoint_dir=tmp_path / "b", stop_after=3)
     np.testing.assert_array_equal(part.losses["loss"], full.losses["loss"][:3])
     shutil.rmtree(tmp_path / "b" / "3")  # killed after step 3, before its end-of-call save
-    resumed = train(STREAM, key=key, images=[], progress=False, checkpoint_dir=tmp_path / "b")
+    resumed = train([], STREAM, key=key, progress=False, checkpoint_dir=tmp_path / "b")
     assert resumed.resumed_from == 2 and resumed.steps == 4
     np.testing.assert_array_equal(resumed.losses["loss"], full.losses["loss"])
     for x, y in zip(
@@ -208,4 +204,4 @@ def test_stream_training_resumes_exactly_and_draws_a_loss_curve(tmp_path):
     ):
         np.testing.assert_array_equal(x, y)
     with pytest.raises(InputError, match="no images"):
-        train(STREAM.replace(procedural_fraction=0.5), key=key, images=[], progress=False)
+        train([], STREAM.replace(procedural_fraction=0.5), key=key, progress=False)

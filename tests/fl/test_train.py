@@ -106,25 +106,21 @@ def test_batch_concatenates_meshes_with_global_corner_ids(rng):
 def test_resumed_training_equals_uninterrupted_training(tmp_path):
     imgs = procedural_images(np.random.default_rng(0), 2)
     key = jax.random.key(5)
-    full = train(TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "a")
+    full = train(imgs, TINY, key=key, progress=False, checkpoint_dir=tmp_path / "a")
     assert (
         isinstance(full, TrainResult)
         and isinstance(full.model, Model)
         and full.model.config == TINY
     )
     assert full.steps == 4 and full.resumed_from is None and full.losses["loss"].shape == (4,)
-    part = train(
-        TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "b", stop_after=3
-    )
+    part = train(imgs, TINY, key=key, progress=False, checkpoint_dir=tmp_path / "b", stop_after=3)
     assert part.steps == 3 and len(part.losses["loss"]) == 3
     np.testing.assert_array_equal(part.losses["loss"], full.losses["loss"][:3])
     # a run killed after step 3 but before its end-of-call save: only the periodic step-2 checkpoint
     shutil.copytree(tmp_path / "b", tmp_path / "c")
     shutil.rmtree(tmp_path / "c" / "3")
     for folder, start in (("b", 3), ("c", 2)):
-        resumed = train(
-            TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / folder
-        )
+        resumed = train(imgs, TINY, key=key, progress=False, checkpoint_dir=tmp_path / folder)
         assert resumed.resumed_from == start and resumed.steps == 4
         for name in ("loss", "l1"):
             np.testing.assert_array_equal(resumed.losses[name], full.losses[name])
@@ -133,26 +129,24 @@ def test_resumed_training_equals_uninterrupted_training(tmp_path):
         ):
             np.testing.assert_array_equal(x, y)
     done = train(
-        TINY, key=key, images=imgs, progress=False, checkpoint_dir=tmp_path / "b"
+        imgs, TINY, key=key, progress=False, checkpoint_dir=tmp_path / "b"
     )  # nothing left to do
     assert done.resumed_from == 4 and done.steps == 4
     # a folder written for another run is not resumed by mistake
     with pytest.raises(CheckpointMismatchError, match="config"):
         train(
+            imgs,
             TINY.replace(features=8, num_heads=2),
             key=key,
-            images=imgs,
             progress=False,
             checkpoint_dir=tmp_path / "b",
         )
     with pytest.raises(CheckpointMismatchError, match="key"):
-        train(
-            TINY, key=jax.random.key(6), images=imgs, progress=False, checkpoint_dir=tmp_path / "b"
-        )
+        train(imgs, TINY, key=jax.random.key(6), progress=False, checkpoint_dir=tmp_path / "b")
     with pytest.raises(CheckpointMismatchError, match="images"):
-        train(TINY, key=key, images=imgs[:1], progress=False, checkpoint_dir=tmp_path / "b")
+        train(imgs[:1], TINY, key=key, progress=False, checkpoint_dir=tmp_path / "b")
     with pytest.raises(ConfigError, match="must be a jmeshtex.fl.Config"):
-        train({"steps": 1}, key=key, images=imgs)
+        train(imgs, {"steps": 1}, key=key)
 
 
 def smooth_images(rng: np.random.Generator, n: int, size: int = 32) -> list[np.ndarray]:
@@ -186,7 +180,7 @@ def test_short_training_reconstructs_well_above_a_constant_colour():
         max_vertices=70,
     )
     images = smooth_images(rng, 6)
-    result = train(cfg, key=jax.random.key(0), images=images, progress=False)
+    result = train(images, cfg, key=jax.random.key(0), progress=False)
     l1 = result.losses["l1"]
     assert l1[-20:].mean() < 0.75 * l1[:5].mean()
     params = result.model.params

@@ -107,6 +107,6 @@ def test_train_takes_a_mesh_or_devices_not_both():
             CONFIG,
             key=jax.random.key(0),
             progress=False,
-            mesh=parallel.data_mesh(),
+            device_mesh=parallel.data_mesh(),
             devices=jax.devices(),
         )

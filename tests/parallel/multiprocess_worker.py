@@ -30,7 +30,7 @@ if __name__ == "__main__":
     assert parallel.is_multiprocess() and len(jax.devices()) == 2 and len(jax.local_devices()) == 1
     mesh = parallel.data_mesh()
     result = fl.train(
-        CONFIG.replace(steps=3), key=jax.random.key(0), images=images(), progress=False, mesh=mesh
+        images(), CONFIG.replace(steps=3), key=jax.random.key(0), progress=False, device_mesh=mesh
     )
     (work / f"losses_{pid}.json").write_text(
         json.dumps(

@@ -54,9 +54,9 @@ def test_two_processes_train_like_one(tmp_path):
     # both processes see the same replicated loss
     np.testing.assert_array_equal(runs[0]["loss"], runs[1]["loss"])
     alone = fl.train(
+        images(),
         CONFIG.replace(steps=3),
         key=jax.random.key(0),
-        images=images(),
         progress=False,
         devices=jax.devices()[:1],
     )

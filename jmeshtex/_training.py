@@ -1,0 +1,265 @@
+"""The one training driver: every method's ``train`` builds its data and its step, then calls :func:`fit`.
+
+:func:`fit` runs a step function over numbered batches and owns what every training loop needs:
+resuming from a :class:`~jmeshtex.io.Checkpoints` folder, periodic and final saves, the per-step
+loss histories, a finiteness check (a non-finite loss or parameter raises
+:class:`~jmeshtex.TrainingDivergedError` naming the step; nothing non-finite is saved or returned),
+a tqdm progress bar, timing (``seconds`` of the whole call, compilation reported apart) and the
+refusal of checkpoints in a multi-process run. Compiled steps belong to the call: a jitted step is
+compiled ahead of time once per argument shapes into a cache the caller owns (``compiled``), never a
+process-global one.
+
+Example:
+  >>> import jax, jax.numpy as jnp
+  >>> step = jax.jit(lambda w, x: (w - 0.5 * (w - x), {"loss": jnp.sum((w - x) ** 2)}))
+  >>> r = fit(step, jnp.zeros(2), lambda i: jnp.ones(2), steps=3, progress=False)
+  >>> r.steps, r.losses["loss"].tolist(), r.model.tolist()
+  (3, [2.0, 0.5, 0.125], [0.875, 0.875])
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypeVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._errors import ConfigError, TrainingDivergedError
+from ._train_result import TrainResult
+from .io import Checkpoints
+from .parallel import fetch, is_multiprocess, replicate
+
+State = TypeVar("State")
+
+#: losses shown in the progress bar are averaged over this many recent steps
+_SHOWN_WINDOW = 20
+
+
+def fit(
+    step: Callable[[State, Any], tuple[State, Mapping[str, Any]]],
+    state: State,
+    batches: Callable[[int], Any],
+    *,
+    steps: int,
+    stop_after: int | None = None,
+    steps_per_call: int = 1,
+    checkpoints: Checkpoints | str | os.PathLike | None = None,
+    fingerprint: dict | None = None,
+    save_every: int | None = None,
+    final_save: bool = True,
+    checkpoint_offset: int = 0,
+    saved: Callable[[State], Any] | None = None,
+    restored: Callable[[Any], State] | None = None,
+    meta: Callable[[int], dict] | None = None,
+    start: int | None = None,
+    history: Mapping[str, Sequence[float]] | None = None,
+    device_mesh: jax.sharding.Mesh | None = None,
+    progress: bool = True,
+    desc: str = "train",
+    show: Sequence[str] = ("loss",),
+    on_step: Callable[[int, State, Any], None] | None = None,
+    on_save: Callable[[int, State, dict[str, list[float]]], None] | None = None,
+    model: Callable[[State], Any] | None = None,
+    compiled: dict | None = None,
+    started: float | None = None,
+) -> TrainResult:
+    """Run ``step`` over ``batches`` from the resumed (or initial) ``state`` up to ``steps``.
+
+    Args:
+      step: ``(state, batch) -> (state, losses)``, ``losses`` a dict of scalars (or, with
+        ``steps_per_call > 1``, of ``[steps_per_call]`` arrays whose first ``n`` entries are the
+        steps run). A :func:`jax.jit` function is compiled ahead of time (timed apart); any other
+        callable runs as it is and its first call counts as compilation.
+      state: the initial training state (a pytree); replaced by the checkpoint's on resume.
+      batches: ``first step index -> batch`` of the call; a function of the index alone, so a
+        resumed run sees the batches an uninterrupted one would.
+      steps: the run's length (the schedule's ``steps``).
+      stop_after: run at most this many steps in this call (continue later from a checkpoint).
+      steps_per_call: steps one ``step`` call runs (a compiled chunk of steps).
+      checkpoints: a :class:`~jmeshtex.io.Checkpoints` (the caller closes it) or a folder (opened
+        with ``fingerprint`` and closed here); None: nothing on disk.
+      fingerprint: what a folder given by path is tied to (``Checkpoints(fingerprint=)``).
+      save_every: save every this many steps (None: only at the end).
+      final_save: also save after the last step of the call.
+      checkpoint_offset: added to the steps done to number the checkpoints (DGTS's levels).
+      saved, restored: the stored pytree of a state and back (default: the state itself).
+      meta: ``steps done -> dict`` stored with every checkpoint next to ``"losses"``.
+      start: the steps already done, with ``history`` their losses: no resume from
+        ``checkpoints`` (the caller restored). None: resume from the newest checkpoint, if any.
+      history: losses of earlier steps by name (kept in front of this call's).
+      device_mesh: replicate the initial or restored state on this :class:`jax.sharding.Mesh`.
+      progress: a tqdm bar with ETA; ``desc`` its label (and the prefix of error messages), ``show``
+        the loss names it shows (mean of the last 20 steps).
+      on_step: called with ``(steps done, state, batch)`` after each call.
+      on_save: called with ``(steps done, state, histories)`` at every save point (periodic and
+        final), with or without ``checkpoints``.
+      model: ``state -> model`` for :attr:`TrainResult.model` (default: the state).
+      compiled: the cache of ahead-of-time compiled steps (a dict the caller owns, shared by its
+        calls of :func:`fit`); None: a fresh one.
+      started: :func:`time.perf_counter` when the caller's ``train`` began; ``seconds`` counts from
+        it (default: from entering :func:`fit`).
+
+    Returns:
+      :class:`~jmeshtex.TrainResult`: ``losses`` (1-D float64 arrays, earlier steps included),
+      ``steps`` (done in all), ``seconds`` (the whole call), ``compile_seconds``, ``resumed_from``
+      and ``extra["steps_per_second"]`` (this call's rate after its first call).
+
+    Raises:
+      TrainingDivergedError: a loss or, at a save point or the end, a parameter is not finite.
+      ConfigError: checkpoints in a multi-process run (not supported yet).
+      CheckpointMismatchError: the folder holds a checkpoint of another run.
+    """
+    t_call = time.perf_counter() if started is None else started
+    if checkpoints is not None and is_multiprocess():
+        raise ConfigError(
+            f"{desc}: checkpoints with several processes (jax.distributed) are not supported yet; "
+            "train without checkpoints, or in one process"
+        )
+    own_ckpt = checkpoints is not None and not isinstance(checkpoints, Checkpoints)
+    ckpt = Checkpoints(checkpoints, fingerprint=fingerprint) if own_ckpt else checkpoints
+    saved = saved or (lambda s: s)
+    restored = restored or (lambda s: s)
+    compiled = {} if compiled is None else compiled
+    losses = {k: [float(x) for x in v] for k, v in (history or {}).items()}
+    resumed_from = None
+    if device_mesh is not None:
+        state = replicate(state, device_mesh)
+    bar = None
+    try:
+        if start is None:
+            start = 0
+            latest = None if ckpt is None else ckpt.latest_step()
+            if latest is not None:
+                tree, record = ckpt.restore(saved(state), step=latest)
+                state = restored(tree)
+                if device_mesh is not None:
+                    state = replicate(state, device_mesh)
+                resumed_from = latest
+                start = latest - checkpoint_offset
+                losses = {k: [float(x) for x in v][:start] for k, v in record["losses"].items()}
+        end = steps if stop_after is None else min(steps, start + int(stop_after))
+        end = max(end, start)
+        if progress and start < end:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(
+                total=steps,
+                initial=start,
+                desc=desc,
+                unit="step",
+                mininterval=0.5 if sys.stderr.isatty() else 30.0,
+            )
+
+        def save(done: int) -> None:
+            _check_finite_state(state, desc, checkpoint_offset + done)
+            if ckpt is not None:
+                record = {**(meta(done) if meta else {}), "losses": losses}
+                ckpt.save(checkpoint_offset + done, saved(state), meta=record)
+            if on_save is not None:
+                on_save(done, state, losses)
+
+        compile_seconds, t_first = 0.0, None
+        for i in range(start, end, steps_per_call):
+            n = min(steps_per_call, end - i)
+            batch = batches(i)
+            run, t_compile = _compiled_step(step, state, batch, compiled)
+            if t_compile is None:  # not a jitted step: time its first call instead
+                t0 = time.perf_counter()
+                state, out = run(state, batch)
+                if t_first is None:
+                    jax.block_until_ready((state, out))
+                    compile_seconds += time.perf_counter() - t0
+            else:
+                compile_seconds += t_compile
+                state, out = run(state, batch)
+            out = fetch(out)
+            for name, values in out.items():
+                values = np.asarray(values, np.float64).reshape(-1)[:n]
+                bad = np.flatnonzero(~np.isfinite(values))
+                if bad.size:
+                    at = checkpoint_offset + i + int(bad[0])
+                    raise TrainingDivergedError(
+                        f"{desc}: loss {name!r} is {values[bad[0]]} at step {at}; nothing non-finite "
+                        "was saved (lower learning_rate, or check the data's scale)",
+                        step=at,
+                    )
+                losses.setdefault(name, []).extend(values.tolist())
+            if t_first is None:
+                t_first = time.perf_counter()
+            done = i + n
+            if bar is not None:
+                bar.update(n)
+                bar.set_postfix(
+                    {k: f"{np.mean(losses[k][-_SHOWN_WINDOW:]):.4g}" for k in show if k in losses},
+                    refresh=False,
+                )
+            if on_step is not None:
+                on_step(done, state, batch)
+            periodic = save_every is not None and done % save_every == 0 and done < end
+            if periodic or (final_save and done == end):
+                save(done)
+        jax.block_until_ready(state)
+        _check_finite_state(state, desc, checkpoint_offset + end)
+    finally:
+        if bar is not None:
+            bar.close()
+        if own_ckpt:
+            ckpt.close()
+    ran = end - start
+    after_first = time.perf_counter() - t_first if t_first is not None else 0.0
+    rate = (
+        (ran - steps_per_call) / after_first if ran > steps_per_call and after_first > 0 else None
+    )
+    return TrainResult(
+        model=state if model is None else model(state),
+        losses={k: np.asarray(v, np.float64) for k, v in losses.items()},
+        steps=end,
+        seconds=time.perf_counter() - t_call,
+        compile_seconds=compile_seconds,
+        resumed_from=resumed_from,
+        extra={"steps_per_second": float("nan") if rate is None else rate},
+    )
+
+
+def _compiled_step(step, state, batch, compiled: dict):
+    """``(callable, compile seconds)``: a :func:`jax.jit` ``step`` compiled ahead of time once per
+    argument shapes and dtypes into ``compiled`` (0 s on a hit); ``(step, None)`` for any other."""
+    if not hasattr(step, "lower"):
+        return step, None
+    leaves, treedef = jax.tree.flatten((state, batch))
+    signature = (
+        step,
+        treedef,
+        tuple((np.shape(x), jnp.result_type(x).name) for x in leaves),
+    )
+    hit = compiled.get(signature)
+    if hit is not None:
+        return hit, 0.0
+    t = time.perf_counter()
+    compiled[signature] = step.lower(state, batch).compile()
+    return compiled[signature], time.perf_counter() - t
+
+
+@jax.jit
+def _all_finite(leaves: list) -> jax.Array:
+    return jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]).all()
+
+
+def _check_finite_state(state: Any, desc: str, step: int) -> None:
+    """Raise :class:`TrainingDivergedError` if a floating leaf of ``state`` is not finite."""
+    leaves = [
+        x
+        for x in jax.tree.leaves(state)
+        if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.inexact)
+    ]
+    if leaves and not bool(fetch(_all_finite(leaves))):
+        raise TrainingDivergedError(
+            f"{desc}: the parameters are not finite after step {step}; nothing non-finite was "
+            "saved (lower learning_rate, or check the data's scale)",
+            step=step,
+        )
