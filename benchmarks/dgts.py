@@ -60,19 +60,8 @@ SMOOTHING = 30
 
 
 def tiny_configs() -> tuple[PrepareConfig, Config]:
-    """The tiny configuration of the demo and the learning test (``jmeshtex.cli._stages.dgts``)."""
-    return (
-        PrepareConfig(levels=2, steps=150, samples_per_level=800),
-        Config(
-            num_layers=4,
-            start_features=16,
-            min_features=16,
-            max_features=16,
-            steps=120,
-            learning_rate_decay_every=100,
-            shared_levels=2,
-        ),
-    )
+    """The tiny configuration of the demo and the learning test (``PrepareConfig.tiny``, ``Config.tiny``)."""
+    return PrepareConfig.tiny(), Config.tiny()
 
 
 def reference_mesh():
