@@ -60,7 +60,7 @@ SMOOTHING = 30
 
 
 def tiny_configs() -> tuple[PrepareConfig, Config]:
-    """The tiny configuration of the demo and the learning test (``PrepareConfig.tiny``, ``Config.tiny``)."""
+    """The demo's and the learning test's configuration: ``PrepareConfig.tiny``, ``Config.tiny``."""
     return PrepareConfig.tiny(), Config.tiny()
 
 
