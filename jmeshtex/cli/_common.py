@@ -14,11 +14,16 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import pathlib
 from collections.abc import Callable
 
 from .._errors import InputError
+
+#: the most vertices a procedural mesh spec may ask for (an icosphere:8 has 655K; larger specs are
+#: typos or attempts to exhaust memory, refused before anything is built)
+MAX_SPEC_VERTICES = 2_000_000
 
 #: the procedural names a mesh argument may take, and their default numbers
 PROCEDURAL = {
@@ -64,9 +69,63 @@ def add_common(
             "(inputs are never overwritten)",
         )
     if seed:
-        p.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
+        p.add_argument("--seed", type=int_in(0, 2**32 - 1), default=0, help="PRNG seed (default 0)")
     if quiet:
         p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def int_in(low: int | None = None, high: int | None = None):
+    """An argparse ``type=`` for an integer in ``[low, high]``: refused at parse time otherwise.
+
+    Example:
+      >>> p = argparse.ArgumentParser()
+      >>> _ = p.add_argument("--n", type=int_in(1))
+      >>> p.parse_args(["--n", "3"]).n
+      3
+    """
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if (low is not None and value < low) or (high is not None and value > high):
+            bounds = f">= {low}" if high is None else f"in [{low}, {high}]"
+            raise argparse.ArgumentTypeError(f"{text} is out of range: must be {bounds}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def float_in(low: float | None = None, high: float | None = None, *, open_low: bool = False):
+    """An argparse ``type=`` for a finite number in ``[low, high]`` (``(low, high]`` if open_low).
+
+    Example:
+      >>> p = argparse.ArgumentParser()
+      >>> _ = p.add_argument("--eta", type=float_in(0.0, 1.0))
+      >>> p.parse_args(["--eta", "0.5"]).eta
+      0.5
+    """
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text} is not a finite number")
+        below = low is not None and (value <= low if open_low else value < low)
+        if below or (high is not None and value > high):
+            lo = "-inf" if low is None else f"{low:g}"
+            hi = "inf" if high is None else f"{high:g}"
+            raise argparse.ArgumentTypeError(
+                f"{text} is out of range: must be in {'(' if open_low else '['}{lo}, {hi}]"
+            )
+        return value
+
+    parse.__name__ = "number"
+    return parse
 
 
 #: the values ``--up`` takes (the same as ``jmeshtex.render.UP_AXES``)
@@ -110,6 +169,9 @@ def procedural_mesh(spec: str):
         numbers = [int(x) for x in nums] or list(PROCEDURAL[name])
     except ValueError as err:
         raise InputError(f"bad procedural mesh {spec!r}: whole numbers expected after ':'") from err
+    if len(numbers) > max(1, len(PROCEDURAL[name])):
+        raise InputError(f"bad procedural mesh {spec!r}: too many numbers after the name")
+    _check_spec_size(spec, name, numbers)
     builders: dict[str, Callable] = {
         "icosahedron": lambda: data.icosahedron(),
         "icosphere": lambda: data.icosphere(*numbers),
@@ -120,8 +182,30 @@ def procedural_mesh(spec: str):
     }
     try:
         return builders[name]()
-    except TypeError as err:
-        raise InputError(f"bad procedural mesh {spec!r}: too many numbers after the name") from err
+    except (TypeError, ValueError) as err:
+        raise InputError(f"bad procedural mesh {spec!r}: {err}") from err
+
+
+def _check_spec_size(spec: str, name: str, numbers: list[int]) -> None:
+    """Refuse procedural numbers that build nothing valid or more than :data:`MAX_SPEC_VERTICES`."""
+    smallest = {"torus": 3, "grid": 1}.get(name, 0)
+    if any(n < smallest for n in numbers):
+        raise InputError(
+            f"bad procedural mesh {spec!r}: {name} needs numbers >= {smallest} after ':'"
+        )
+    if name == "torus":
+        vertices = numbers[0] * (numbers[1] if len(numbers) > 1 else PROCEDURAL["torus"][1])
+    elif name == "grid":
+        vertices = (numbers[0] + 1) ** 2
+    elif name == "icosahedron":
+        vertices = 12
+    else:  # subdivided icosahedra: 10 * 4^n + 2 vertices
+        vertices = 10 * 4 ** min(numbers[0], 64) + 2
+    if vertices > MAX_SPEC_VERTICES:
+        raise InputError(
+            f"procedural mesh {spec!r} would have ~{vertices:.3g} vertices, more than the "
+            f"{MAX_SPEC_VERTICES:,} a mesh spec may ask for: use smaller numbers, or a mesh file"
+        )
 
 
 def load_mesh_spec(spec: str | os.PathLike, *, texture: str | os.PathLike | None = None):

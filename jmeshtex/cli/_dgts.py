@@ -25,7 +25,8 @@ import argparse
 import json
 import pathlib
 
-from ._common import add_common, cached, load_mesh_spec
+from .._errors import InputError
+from ._common import MAX_SPEC_VERTICES, add_common, cached, int_in, load_mesh_spec
 from ._output import claim_output
 
 
@@ -45,7 +46,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--template", default="icosphere:1", help="template mesh file or name (default icosphere:1)"
     )
     q.add_argument(
-        "--levels", type=int, default=5, help="number of levels (default 5, the paper's depth)"
+        "--levels",
+        type=int_in(1, 10),
+        default=5,
+        help="number of levels, 1 to 10 (default 5, the paper's depth)",
     )
     q.add_argument(
         "--steps", type=int, default=None, help="Adam steps per level (default: PrepareConfig's)"
@@ -157,6 +161,13 @@ def _prepare(args) -> int:
     )
     ref = load_mesh_spec(args.reference)
     tmpl = load_mesh_spec(args.template)
+    finest = tmpl.num_faces * 4 ** (config.levels - 1)  # each level subdivides the one before
+    if finest > 2 * MAX_SPEC_VERTICES:
+        raise InputError(
+            f"--levels {config.levels} on a {tmpl.num_faces}-face template makes ~{finest:.3g} "
+            f"faces at the finest level, more than {2 * MAX_SPEC_VERTICES:,}: ask for fewer "
+            "levels or a coarser --template"
+        )
     tm = training_meshes(
         ref, tmpl, config=config, key=jax.random.key(args.seed), progress=not args.quiet
     )

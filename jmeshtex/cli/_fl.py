@@ -20,7 +20,7 @@ import argparse
 import json
 import pathlib
 
-from ._common import add_common, cached, load_mesh_spec
+from ._common import add_common, cached, int_in, load_mesh_spec
 from ._output import check_output_file, claim_output
 
 
@@ -67,7 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     t.add_argument(
         "--stop-after",
-        type=int,
+        type=int_in(1),
         default=None,
         metavar="N",
         help="run at most N steps in this call (the schedule follows --steps; rerun to continue)",

@@ -26,7 +26,7 @@ import pathlib
 import numpy as np
 
 from .._errors import InputError, MeshIOError
-from ._common import add_common, cached, load_mesh_spec
+from ._common import add_common, cached, float_in, load_mesh_spec
 from ._output import claim_output
 
 PRESETS = ("tiny", "cpu", "paper")
@@ -92,7 +92,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         s.add_argument("--steps", type=int, default=50, help="DDIM steps (default 50)")
         s.add_argument("--ddim", action="store_true", help="DDIM sampling (the default)")
         s.add_argument("--ddpm", action="store_true", help="ancestral DDPM with all T steps")
-        s.add_argument("--eta", type=float, default=0.0, help="DDIM eta (default 0)")
+        s.add_argument("--eta", type=float_in(0.0), default=0.0, help="DDIM eta (default 0)")
         s.add_argument(
             "--num-samples",
             "--n",

@@ -31,7 +31,7 @@ import argparse
 import json
 import pathlib
 
-from ._common import add_common, cached, load_mesh_spec
+from ._common import add_common, cached, float_in, load_mesh_spec
 from ._output import claim_output
 
 
@@ -150,10 +150,10 @@ def _options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--fan-radius",
-        type=float,
+        type=float_in(0.0, 64.0, open_low=True),
         default=None,
         metavar="R",
-        help="outer fan radius in mean edge lengths (Config.fan_radius)",
+        help="outer fan radius in mean edge lengths, at most 64 (Config.fan_radius)",
     )
     p.add_argument(
         "--levels", type=int, default=None, metavar="N", help="hierarchy levels (Config.levels)"

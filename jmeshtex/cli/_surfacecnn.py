@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from ._common import add_common, add_up, cached, load_mesh_spec
+from ._common import add_common, add_up, cached, int_in, load_mesh_spec
 from ._output import claim_output, owns
 
 #: the folder under ``--out`` that holds the resumable checkpoints
@@ -76,7 +76,7 @@ def _options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, default=500, help="optimisation steps (default 500)")
     p.add_argument(
         "--max-image-size",
-        type=int,
+        type=int_in(1, 16384),
         default=512,
         help="exemplar/style images are downscaled to at most this many pixels per side (default 512)",
     )
@@ -146,6 +146,8 @@ def _setup(args):
     validate_mesh(
         mesh.vertices, mesh.faces
     )  # a clear typed error for a broken mesh before any work
+    if mesh.uv is None:
+        _check_unwrap_scale(mesh, args.mesh)
     layers = tuple(x.strip() for x in args.layers.split(",") if x.strip()) if args.layers else None
     extra = {}
     if hasattr(args, "content_weight"):
@@ -164,6 +166,31 @@ _OWNERS = ("surfacecnn synthesize", "surfacecnn stylize")
 def _claim(args, command: str, *inputs) -> None:
     """Check and lock ``--out`` before any work (:func:`~jmeshtex.cli._output.claim_output`)."""
     claim_output(args.out, command=command, inputs=inputs, overwrite=args.overwrite)
+
+
+#: the bounding-box diagonals between which xatlas unwraps reliably (it loops forever at ~1e12 and
+#: fails below ~1e-3: absolute tolerances inside it); coordinates may sit at most this far off centre
+_UNWRAP_DIAGONAL = (1e-2, 1e6)
+_UNWRAP_OFFSET = 1e4
+
+
+def _check_unwrap_scale(mesh, spec) -> None:
+    """Refuse, before xatlas runs, a mesh without UVs whose size or offset xatlas cannot unwrap."""
+    import numpy as np
+
+    from .._errors import InputError
+
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    diagonal = float(np.linalg.norm(hi - lo))
+    offset = float(np.abs((lo + hi) / 2).max())
+    low, high = _UNWRAP_DIAGONAL
+    if not low <= diagonal <= high or offset > _UNWRAP_OFFSET * diagonal:
+        raise InputError(
+            f"{spec} has no UVs, and its size (bounding-box diagonal {diagonal:.3g}, centre "
+            f"{offset:.3g} from the origin) is outside what the UV unwrapper handles (diagonal "
+            f"{low:g} to {high:g}, centre within {_UNWRAP_OFFSET:g} diagonals): rescale and centre "
+            "the mesh (e.g. jmeshtex.geometry.rescale_to_mean_edge), or give it UVs"
+        )
 
 
 def _checkpoint(args) -> pathlib.Path:

@@ -61,8 +61,9 @@ def _run(args: argparse.Namespace) -> int:
     unknown = [n for n in args.only or () if n not in testing.REGISTRY]
     if unknown:
         raise InputError(
-            f"not registered: {', '.join(unknown)} (see --list; an operator of your own is "
-            "registered by importing its module: --module pkg.mod)"
+            f"not registered: {', '.join(unknown)}; registered operators: "
+            f"{', '.join(testing.REGISTRY)} (an operator of your own is registered by importing "
+            "its module: --module pkg.mod)"
         )
 
     if args.list:

@@ -30,9 +30,12 @@ from ._registry import to_json as to_json
 from ._registry import transforms_of as transforms_of
 from ._state import MeshState as MeshState
 from ._state import regauge_neighborhood as regauge_neighborhood
+from ._strategies import BAD_ARGUMENTS as BAD_ARGUMENTS
+from ._strategies import BAD_MESH_FILES as BAD_MESH_FILES
 from ._strategies import BAD_MESH_KINDS as BAD_MESH_KINDS
 from ._strategies import bad_meshes as bad_meshes
 from ._strategies import valid_meshes as valid_meshes
+from ._strategies import write_bad_mesh_files as write_bad_mesh_files
 from ._transforms import CATALOGUE as CATALOGUE
 from ._transforms import Realisation as Realisation
 from ._transforms import Transform as Transform

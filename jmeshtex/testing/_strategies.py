@@ -12,6 +12,9 @@ generator seeded with it, so every example is reproducible and shrinks towards s
 
 from __future__ import annotations
 
+import os
+import pathlib
+
 import numpy as np
 from hypothesis import strategies as st
 
@@ -359,3 +362,96 @@ def bad_meshes(
         return np.concatenate([v, apexes]), np.concatenate([f, fin])
 
     return draw_bad()
+
+
+BAD_MESH_FILES: tuple[str, ...] = (
+    "two_coordinates.obj",
+    "lying_header.ply",
+    "garbage.obj",
+    "empty.obj",
+    "non_finite.obj",
+    "no_triangles.off",
+    "huge_no_uv.obj",
+    "tiny_no_uv.obj",
+    "far_off_centre_no_uv.obj",
+)
+"""The files :func:`write_bad_mesh_files` writes: crafted or numerically extreme mesh files that a
+command must refuse with one typed error (the last three are valid meshes at scales that the UV
+unwrapper cannot handle: 1e12, 1e-4 and a 1e8 offset)."""
+
+
+def write_bad_mesh_files(folder: str | os.PathLike) -> dict[str, pathlib.Path]:
+    """Write every :data:`BAD_MESH_FILES` case into ``folder``; returns ``{name: path}``.
+
+    Example:
+      >>> import tempfile
+      >>> paths = write_bad_mesh_files(tempfile.mkdtemp())
+      >>> sorted(paths) == sorted(BAD_MESH_FILES)
+      True
+    """
+    from ..data import icosphere
+
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    v, f = icosphere(1)
+
+    def obj(vertices: np.ndarray) -> str:
+        lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
+        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f.tolist()]
+        return "\n".join(lines) + "\n"
+
+    nan = v.copy()
+    nan[3, 1] = np.nan
+    head = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+    head += "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    texts = {
+        "two_coordinates.obj": "v 0 0\nv 1 0\nv 0 1\nf 1 2 3\n",
+        "lying_header.ply": head + "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n",
+        "empty.obj": "",
+        "non_finite.obj": obj(nan),
+        "no_triangles.off": "OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n",
+        "huge_no_uv.obj": obj(v * 1e12),
+        "tiny_no_uv.obj": obj(v * 1e-4),
+        "far_off_centre_no_uv.obj": obj(v + 1e8),
+    }
+    paths = {}
+    for name in BAD_MESH_FILES:
+        path = folder / name
+        if name == "garbage.obj":
+            path.write_bytes(np.random.default_rng(0).integers(0, 256, 4096, np.uint8).tobytes())
+        else:
+            path.write_text(texts[name])
+        paths[name] = path
+    return paths
+
+
+BAD_ARGUMENTS: dict[str, tuple[str, ...]] = {
+    "info torus:0:0": ("info", "torus:0:0"),
+    "info icosphere:-1": ("info", "icosphere:-1"),
+    "info icosphere:12 (size budget)": ("info", "icosphere:12"),
+    "info grid:x": ("info", "grid:x"),
+    "seed 2**70": ("dgts", "prepare", "--reference", "icosphere:1", "--seed", str(2**70)),
+    "negative seed": ("meshmatch", "transfer", "--source", "torus", "--target", "torus", "--seed", "-1"),
+    "fl train --stop-after -3": ("fl", "train", "--stop-after", "-3"),
+    "surfacecnn --max-image-size 0": (
+        "surfacecnn", "synthesize", "--mesh", "icosphere:1", "--exemplar", "x.png",
+        "--max-image-size", "0",
+    ),
+    "fldm sample --eta nan": ("fldm", "sample", "--model", "m", "--eta", "nan"),
+    "fldm sample --eta inf": ("fldm", "sample", "--model", "m", "--eta", "inf"),
+    "meshmatch --fan-radius 1e9": (
+        "meshmatch", "transfer", "--source", "torus", "--target", "torus", "--fan-radius", "1e9",
+    ),
+    "meshmatch --fan-radius nan": (
+        "meshmatch", "transfer", "--source", "torus", "--target", "torus", "--fan-radius", "nan",
+    ),
+    "dgts prepare --levels 12": ("dgts", "prepare", "--reference", "icosphere:1", "--levels", "12"),
+    "dgts prepare --levels 9 (face budget)": (
+        "dgts", "prepare", "--reference", "icosphere:1", "--template", "icosphere:3",
+        "--levels", "9",
+    ),
+    "verify --only bogus": ("verify", "--only", "bogus"),
+    "procedural spec with too many numbers": ("info", "torus:24:12:1"),
+}  # fmt: skip
+"""Bad command-line arguments, by name: each must end in a non-zero exit with one error line and
+no traceback, before any work (``--out`` is added by the caller where the command needs one)."""
