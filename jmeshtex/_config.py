@@ -404,7 +404,7 @@ class ConfigBase:
 
 def _reject_unknown(cls: type, data: Mapping[str, Any]) -> None:
     names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - names)
+    unknown = sorted(set(data) - names, key=str)  # keys of any type (JSON gives strings)
     if unknown:
         raise ConfigError(f"{display_name(cls)}: unknown fields {unknown}; known: {sorted(names)}")
 

@@ -164,6 +164,11 @@ def test_from_dict_rejects_unknown_keys_and_names_them():
     )
 
 
+def test_from_dict_names_unknown_keys_of_any_type():
+    with pytest.raises(ConfigError, match=re.escape("unknown fields [1, 'zeta']")):
+        Toy.from_dict({1: 2, "zeta": 3, "steps": 2})
+
+
 def test_from_dict_rejects_a_non_mapping():
     with pytest.raises(ConfigError, match="Toy.from_dict needs a dict of fields"):
         Toy.from_dict([("steps", 2)])  # type: ignore[arg-type]
