@@ -508,3 +508,40 @@ def test_fl_train_config_file_with_nonsense_is_a_one_line_error(tmp_path, capsys
     rc = main(["fl", "train", "--out", str(tmp_path / "out"), "--config", str(config), "--quiet"])
     err = capsys.readouterr().err
     assert rc == 2 and message in err and "Traceback" not in err, err
+
+
+#: numeric fields where a negative value is meaningful
+_NEGATIVE_OK = {("fl.Config", "log_sigma_max")}  # an upper clip of log σ
+
+
+def _numeric(hint) -> bool:
+    args = (
+        typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else ()
+    )
+    return hint in (int, float) or int in args or float in args
+
+
+@pytest.mark.parametrize(
+    "cls, name",
+    [
+        (cls, f.name)
+        for cls in ALL
+        for f in dataclasses.fields(cls)
+        if _numeric(typing.get_type_hints(cls)[f.name])
+        and (display_name(cls), f.name) not in _NEGATIVE_OK
+    ],
+)
+def test_every_numeric_field_has_a_range(cls, name):
+    # counts, sizes, rates, weights and factors are all >= 0: -1 breaks a range rule, not the type rule
+    with pytest.raises(ConfigError) as err:
+        cls(**{name: -1})
+    assert "below 2**31" not in str(err.value) and "finite number," not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "changes", [{"content_layer": "bogus"}, {"layers": ("relu1_1", "relu9_9")}, {"layers": ()}]
+)
+def test_surfacecnn_layer_names_are_vgg_layers(changes):
+    with pytest.raises(ConfigError, match="VGG layer name"):
+        SurfaceCNNConfig(**changes)
+    assert SurfaceCNNConfig(layers=("conv5_4", "relu1_1", "pool5")).layers[0] == "conv5_4"

@@ -5,11 +5,20 @@ from __future__ import annotations
 import dataclasses
 
 from .._config import ConfigBase, cross_rule, integers, is_finite_number, rule
+from ..metrics import VGG19_NAMES
 
 BOUNDARY_MODES = ("opposite", "zero", "clamp")
 FRAME_MODES = ("global", "smooth", "uv")
 EXEMPLAR_PADDING = ("centre", "zero")
 POOL_MODES = ("mean", "max")
+#: every feature map a VGG-16 or VGG-19 has: ``conv<b>_<i>``, ``relu<b>_<i>``, ``pool<b>``
+LAYER_NAMES = frozenset(
+    [
+        *VGG19_NAMES,
+        *(n.replace("conv", "relu") for n in VGG19_NAMES),
+        *(f"pool{b}" for b in range(1, 6)),
+    ]
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,12 +132,12 @@ class Config(ConfigBase):
             "layers",
             lambda x: (
                 x is None
-                or (isinstance(x, tuple) and len(x) > 0 and all(isinstance(n, str) for n in x))
+                or (isinstance(x, tuple) and len(x) > 0 and all(n in LAYER_NAMES for n in x))
             ),
-            "None or a non-empty tuple of names",
+            "None or a non-empty tuple of VGG layer names ('relu1_1', 'pool1', ...)",
         ),
         rule("dtype", lambda x: x in ("float32", "float64"), "'float32' or 'float64'"),
-        rule("content_layer", lambda x: isinstance(x, str) and x != "", "a layer name"),
+        rule("content_layer", lambda x: x in LAYER_NAMES, "a VGG layer name ('relu4_2', ...)"),
     )
 
     def learning_rate_at(self, step: int) -> float:
