@@ -329,8 +329,11 @@ def _plural(hint: Any) -> str:
 
 
 def _normalise(hint: Any, value: Any) -> Any:
-    """NumPy scalars as Python scalars; a list or 1-D array given for a tuple field as a tuple."""
+    """NumPy scalars and 0-d NumPy / JAX arrays as Python scalars; a list or 1-D array given for a
+    tuple field as a tuple."""
     if isinstance(value, np.generic):
+        return value.item()
+    if type(value).__module__.split(".")[0] in ("numpy", "jax", "jaxlib") and np.ndim(value) == 0:
         return value.item()
     if isinstance(value, np.ndarray) and value.ndim == 1 and _is_tuple_type(hint):
         return tuple(v.item() for v in value)

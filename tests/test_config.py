@@ -224,6 +224,10 @@ def test_numpy_scalars_and_lists_are_stored_as_plain_values():
     assert type(c.steps) is int and type(c.lr) is float and type(c.widths[1]) is int
     json.dumps(c.to_dict())  # plain JSON, no NumPy scalar left
     hash(c)
+    import jax.numpy as jnp
+
+    zero_d = Toy(steps=np.array(4), lr=jnp.asarray(0.25, jnp.float32))
+    assert zero_d == Toy(steps=4, lr=0.25) and type(zero_d.steps) is int
 
 
 @pytest.mark.parametrize(
@@ -393,14 +397,20 @@ HALF, ONE, TRUE, NONE = 1.5, 1, True, None
 DIGITS, WORD, LIST, DICT = "8", "yes", [1], {"a": 1}
 NAN3, DIGITS3, ONE_TUPLE, EMPTY = (NAN, NAN, NAN), ("8", "8", "8"), (1,), ()
 NONSENSE = (NAN, INF, NINF, HUGE, HALF, ONE, TRUE, NONE, DIGITS, WORD, LIST, DICT)
-NONSENSE += (NAN3, DIGITS3, ONE_TUPLE, EMPTY)
+RAGGED = [[1], [1, 2]]  # numpy cannot even make an array of it
+NONSENSE += (NAN3, DIGITS3, ONE_TUPLE, EMPTY, RAGGED)
 
 
 def _bad_for(hint) -> list:
     """The values of ``NONSENSE`` that no value of annotation ``hint`` may take, from the type alone."""
+    bad = _bad_for_kinds(hint)
+    return bad if any(v is RAGGED for v in bad) else [*bad, RAGGED]
+
+
+def _bad_for_kinds(hint) -> list:
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
-        bads = [_bad_for(a) for a in typing.get_args(hint)]
+        bads = [_bad_for_kinds(a) for a in typing.get_args(hint)]
         return [v for v in bads[0] if all(any(v is b for b in other) for other in bads[1:])]
     tuples = (NAN3, DIGITS3, ONE_TUPLE, EMPTY)
     if hint is type(None):
@@ -416,7 +426,7 @@ def _bad_for(hint) -> list:
     if origin is tuple:
         args = typing.get_args(hint)
         variadic = len(args) == 2 and args[1] is Ellipsis
-        element_bad = _bad_for(args[0])
+        element_bad = _bad_for_kinds(args[0])
         out = [NAN, INF, NINF, HUGE, HALF, ONE, TRUE, NONE, DIGITS, WORD, DICT]
         # a list is read as a tuple: [1] is (1,)
         for t, given in [*((t, t) for t in tuples), (ONE_TUPLE, LIST)]:
