@@ -186,6 +186,7 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
                 "1",
                 "--out",
                 str(out),
+                "--overwrite",  # the folder holds the transfer's output: another command's
             ]
         )
         == 0
