@@ -88,7 +88,7 @@ def ground_frame(up: str | Sequence[float] | np.ndarray) -> np.ndarray:
     """
     u = up_vector(up)
     if isinstance(up, str):
-        i = "xyz".index(up.strip().lower()[-1])
+        i = int(np.argmax(np.abs(u)))  # the named axis (up_vector parsed the name)
         a = np.zeros(3)
         a[(i + 1) % 3] = 1.0
     else:
