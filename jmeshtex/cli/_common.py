@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import pathlib
@@ -229,6 +230,36 @@ def load_mesh_spec(spec: str | os.PathLike, *, texture: str | os.PathLike | None
             f"{sorted(PROCEDURAL)} (e.g. icosphere:3)"
         )
     return mesh
+
+
+def load_array(path: str | os.PathLike, what: str):
+    """A NumPy array from a ``.npy`` file (no pickles), or one typed error naming the file.
+
+    Raises:
+      MeshIOError: missing, unreadable, or not a single array (an ``.npz`` archive, a pickle).
+
+    Example:
+      >>> import tempfile, numpy as np
+      >>> path = pathlib.Path(tempfile.mkdtemp()) / "labels.npy"
+      >>> np.save(path, np.arange(3))
+      >>> load_array(path, "--labels").tolist()
+      [0, 1, 2]
+    """
+    import numpy as np
+
+    from .._errors import MeshIOError
+
+    try:
+        array = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise MeshIOError(f"cannot read {what} {path}: no such file") from None
+    except (OSError, ValueError, EOFError) as err:
+        raise MeshIOError(f"cannot read {what} {path}: {err} (a .npy array expected)") from err
+    if not isinstance(array, np.ndarray):
+        with contextlib.suppress(Exception):
+            array.close()
+        raise MeshIOError(f"cannot read {what} {path}: an .npz archive, not one .npy array")
+    return array
 
 
 def compilation_cache() -> pathlib.Path | None:

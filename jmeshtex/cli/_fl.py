@@ -187,6 +187,13 @@ def _encode(args) -> int:
     model = _model(args)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     lat = encode(model, mesh, key=jax.random.key(args.seed))
+    if not (np.isfinite(np.asarray(lat.mu)).all() and np.isfinite(np.asarray(lat.log_sigma)).all()):
+        from .._errors import InputError
+
+        raise InputError(
+            "encoding produced non-finite latents (NaN or inf): check the mesh's scale and its "
+            "texture or colours; nothing was written"
+        )
     atomic_save_npz(
         args.out,
         {

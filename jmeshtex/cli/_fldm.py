@@ -26,7 +26,7 @@ import pathlib
 import numpy as np
 
 from .._errors import InputError, MeshIOError
-from ._common import add_common, cached, float_in, load_mesh_spec
+from ._common import add_common, cached, float_in, int_in, load_array, load_mesh_spec
 from ._output import claim_output
 
 PRESETS = ("tiny", "cpu", "paper")
@@ -97,7 +97,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "--num-samples",
             "--n",
             dest="num_samples",
-            type=int,
+            type=int_in(1, 4096),
             default=4,
             help="number of samples (default 4)",
         )
@@ -162,7 +162,7 @@ def _train(args) -> int:
         overwrite=args.overwrite,
     )
     mesh = _load_mesh(args.mesh, args.texture)
-    labels = None if args.labels is None else np.load(args.labels)
+    labels = None if args.labels is None else load_array(args.labels, "--labels")
     k_codec, k_data, k_train = jax.random.split(jax.random.key(args.seed), 3)
     encode, _, d = _codec(args.codec, args.vae, mesh, key=k_codec)
     changes = {"latent_channels": d}
@@ -241,13 +241,20 @@ def _run_sampling(args, *, inpaint: bool) -> int:
         raise MeshIOError(
             f"{meta_path} is missing; was {args.model} written by `jmeshtex fldm train`?"
         )
-    meta = json.loads(meta_path.read_text())
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        if not isinstance(meta, dict) or not {"codec", "vae", "mesh"} <= set(meta):
+            raise ValueError("not a record with the keys codec, vae and mesh")
+    except (OSError, ValueError, UnicodeDecodeError) as err:
+        raise MeshIOError(
+            f"{meta_path} is corrupt ({type(err).__name__}: {err}); rerun `jmeshtex fldm train`"
+        ) from err
     original, mesh = _target(args, meta)
     k_codec, k_sample = jax.random.split(jax.random.key(args.seed))
     encode, decode, _ = _codec(meta["codec"], meta["vae"], original, key=k_codec)
     if args.ddim and args.ddpm:
         raise InputError("choose one of --ddim and --ddpm")
-    labels = None if args.labels is None else np.load(args.labels)
+    labels = None if args.labels is None else load_array(args.labels, "--labels")
     kwargs = dict(
         key=k_sample,
         num_samples=args.num_samples,
@@ -258,13 +265,21 @@ def _run_sampling(args, *, inpaint: bool) -> int:
         progress=not args.quiet,
     )
     if inpaint:
-        mask = np.load(args.mask).astype(bool)
+        mask = load_array(args.mask, "--mask")
+        if mask.dtype.kind not in "biu":
+            raise InputError(f"--mask must be a boolean (or 0/1) array, got dtype {mask.dtype}")
+        mask = mask.astype(bool)
         if mask.shape != (mesh.num_vertices,):
             raise InputError(
                 f"--mask must be a [V] = ({mesh.num_vertices},) boolean array, got {mask.shape}"
             )
         kwargs.update(known=encode(mesh), mask=mask)
     latents = sample(model, mesh, **kwargs).latents
+    if not np.isfinite(np.asarray(latents)).all():  # nothing non-finite is written (exit 0)
+        raise InputError(
+            "sampling produced non-finite latents: the model or the target mesh is out of range "
+            "(check the mesh's scale, or retrain the model); nothing was written"
+        )
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_save_npz(
         args.out / "latents.npz",

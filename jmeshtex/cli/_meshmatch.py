@@ -31,7 +31,7 @@ import argparse
 import json
 import pathlib
 
-from ._common import add_common, cached, float_in, load_mesh_spec
+from ._common import add_common, cached, float_in, load_array, load_mesh_spec
 from ._output import claim_output
 
 
@@ -297,7 +297,7 @@ def _load_mask(path: pathlib.Path, num_vertices: int):
 
     try:
         if path.suffix == ".npy":
-            mask = np.load(path, allow_pickle=False)
+            mask = load_array(path, "mask")
             if (
                 mask.dtype != bool
                 and mask.shape == (num_vertices,)
@@ -317,6 +317,7 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
     from ..meshmatch import nnf_colors, save
 
     target_mesh, match = result.mesh, result.match
+    _check_finite(target_mesh.vertex_colors, "colours")
 
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)
@@ -354,6 +355,20 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
     }
     atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float) + "\n")
     return summary
+
+
+def _check_finite(values, what: str) -> None:
+    """Refuse to write a result holding NaN or inf (exit 0 never comes with non-finite output)."""
+    import numpy as np
+
+    from .._errors import InputError
+
+    if values is not None and not np.isfinite(np.asarray(values)).all():
+        raise InputError(
+            f"the result's {what} are not finite (NaN or inf): the meshes are out of the range "
+            "MeshMatch computes in (check their scale, e.g. rescale to unit size); nothing was "
+            "written"
+        )
 
 
 def _claim(args, command: str, *inputs) -> None:
@@ -432,6 +447,7 @@ def _displace(args: argparse.Namespace) -> int:
         voted=args.voted,
         progress=_progress(args),
     )
+    _check_finite(result.mesh.vertices, "displaced vertices")
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)

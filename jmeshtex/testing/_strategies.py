@@ -452,6 +452,13 @@ BAD_ARGUMENTS: dict[str, tuple[str, ...]] = {
     ),
     "verify --only bogus": ("verify", "--only", "bogus"),
     "procedural spec with too many numbers": ("info", "torus:24:12:1"),
+    "fldm sample --n 0": ("fldm", "sample", "--model", "m", "--n", "0"),
+    "fldm train --labels missing": (
+        "fldm", "train", "--mesh", "striped-sphere:1", "--labels", "no-such-labels.npy",
+    ),
+    "meshmatch paint --mask missing": (
+        "meshmatch", "paint", "--mesh", "striped-sphere:1", "--mask", "no-such-mask.npy",
+    ),
 }  # fmt: skip
 """Bad command-line arguments, by name: each must end in a non-zero exit with one error line and
 no traceback, before any work (``--out`` is added by the caller where the command needs one)."""

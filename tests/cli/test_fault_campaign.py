@@ -159,6 +159,9 @@ EXPECT = {
     "dgts prepare --levels 9 (face budget)": "faces at the finest level",
     "verify --only bogus": "registered operators: geometry.",
     "procedural spec with too many numbers": "too many numbers",
+    "fldm sample --n 0": "argument --num-samples/--n",
+    "fldm train --labels missing": "cannot read --labels",
+    "meshmatch paint --mask missing": "cannot read mask",
 }
 
 
