@@ -66,6 +66,24 @@ def test_this_worker_holds_its_own_compilation_cache_folder():
         os.close(fd)
 
 
+def test_compiled_programs_are_written_to_the_worker_cache():
+    import os
+    import time
+
+    if os.environ.get("JMESHTEX_TEST_JAX_CACHE", "").strip() == "0":
+        pytest.skip("JMESHTEX_TEST_JAX_CACHE=0 turned the cache off for this run")
+    folder = pathlib.Path(jax.config.jax_compilation_cache_dir)
+    before = set(folder.iterdir())
+    threshold = jax.config.jax_persistent_cache_min_compile_time_secs
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    try:
+        unique = float(time.time_ns() % 10**9)  # a program this run has not compiled before
+        jax.jit(lambda x: jnp.sin(x) * unique)(jnp.ones(3)).block_until_ready()
+    finally:
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", threshold)
+    assert set(folder.iterdir()) - before, f"nothing written to {folder}"
+
+
 @pytest.fixture(scope="module")
 def _built_once() -> int:
     return 1
