@@ -35,12 +35,15 @@ from ._errors import TrainingDivergedError as TrainingDivergedError
 from ._mesh import Mesh as Mesh
 from ._mesh import as_mesh as as_mesh
 from ._neighborhoods import FaceNeighborhood as FaceNeighborhood
+from ._neighborhoods import LogScaleWarning as LogScaleWarning
 from ._neighborhoods import PoolGroups as PoolGroups
 from ._neighborhoods import PoolingMap as PoolingMap
 from ._neighborhoods import TangentFrames as TangentFrames
 from ._neighborhoods import TexelNeighborhood as TexelNeighborhood
 from ._neighborhoods import VertexNeighborhood as VertexNeighborhood
+from ._neighborhoods import check_log_scale as check_log_scale
 from ._neighborhoods import pad_to as pad_to
+from ._neighborhoods import scale_log_maps as scale_log_maps
 from ._neighborhoods import to_jax as to_jax
 from ._train_result import TrainResult as TrainResult
 

@@ -18,13 +18,15 @@ whole pytree to JAX arrays of a chosen precision.
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple, TypeVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Bool, Complex, Float, Int
+from ._errors import InputError
+from ._types import Array, ArrayLike, Bool, Complex, Float, Int
 
 
 class FaceNeighborhood(NamedTuple):
@@ -71,6 +73,11 @@ class VertexNeighborhood(NamedTuple):
       weight: ``[V, K]`` integration weight of the slot: the vertex area of q (0 on padding).
       area: ``[V]`` vertex area of p (barycentric, a third of incident face areas); 0 on padding.
       vertex_mask: ``[V]`` True for real vertices.
+      log_unit: the length, in mesh units, of one unit of ``log`` (a 0-d array), set by
+        :func:`scale_log_maps` and by the builders' ``scale=`` (e.g. the mean edge length, so
+        that ``|log|`` is about 1 for a neighbour one edge away, the scale a filter's weights
+        start at); ``None`` (the default): ``log`` is in mesh units, as built without ``scale=``.
+        A leaf of the pytree when set (``vmap`` a stacked batch with ``[B]`` units).
     """
 
     index: Int[Array, "V K"]
@@ -80,6 +87,116 @@ class VertexNeighborhood(NamedTuple):
     weight: Float[Array, "V K"]
     area: Float[Array, " V"]
     vertex_mask: Bool[Array, " V"]
+    log_unit: Float[ArrayLike, ""] | None = None
+
+
+class LogScaleWarning(UserWarning):
+    """A neighbourhood's log maps are far from unit scale, where field-convolution filters see them.
+
+    Raised by :func:`check_log_scale` (on concrete, un-jitted neighbourhoods without a recorded
+    ``log_unit``); build with ``scale="mean_edge"`` or call :func:`scale_log_maps`.
+    """
+
+
+#: typical ``|log|`` (the median over real, non-self slots) outside this range warns
+LOG_SCALE_RANGE = (1.0 / 32.0, 32.0)
+
+
+def check_log_scale(
+    nbhd: VertexNeighborhood, caller: str = "check_log_scale", *, unrecorded: bool = True
+) -> None:
+    """Warn (:class:`LogScaleWarning`) when ``nbhd``'s log maps are far from unit scale.
+
+    Checks only what can be read without tracing: a neighbourhood with a recorded ``log_unit`` is
+    at the scale its builder chose (the unit must be positive and finite, else
+    :class:`~jmeshtex.InputError`); one without is checked when its arrays are concrete (not under
+    ``jax.jit`` / ``vmap`` / ``grad``), by the median ``|log|`` of its real non-self slots against
+    ``LOG_SCALE_RANGE`` (1/32 to 32).
+
+    Args:
+      nbhd: a :class:`VertexNeighborhood`.
+      caller: the calling function's name, for the messages.
+      unrecorded: also check a neighbourhood without ``log_unit`` (its typical ``|log|``);
+        :func:`jmeshtex.ops.field_conv` passes False (the equivariance harness scales meshes on
+        purpose).
+
+    Example:
+      >>> import numpy as np, warnings
+      >>> nb = VertexNeighborhood(np.zeros((1, 2), np.int32), np.ones((1, 2), bool),
+      ...     np.array([[0, 0.001j]]), np.ones((1, 2), complex), np.ones((1, 2)), np.ones(1),
+      ...     np.ones(1, bool))
+      >>> with warnings.catch_warnings(record=True) as caught:
+      ...     warnings.simplefilter("always")
+      ...     check_log_scale(nb, "field_conv")
+      >>> caught[0].category.__name__
+      'LogScaleWarning'
+      >>> check_log_scale(scale_log_maps(nb, 0.001), "field_conv")  # unit scale: silent
+    """
+    unit, log, mask = nbhd.log_unit, nbhd.log, nbhd.mask
+    if unit is not None:
+        if isinstance(unit, jax.core.Tracer):
+            return
+        u = np.asarray(unit)
+        if not (np.all(np.isfinite(u)) and np.all(u > 0)):
+            raise InputError(f"{caller}: nbhd.log_unit must be positive and finite, got {u!r}")
+        return
+    if not unrecorded or isinstance(log, jax.core.Tracer) or isinstance(mask, jax.core.Tracer):
+        return
+    r = np.abs(np.asarray(log))
+    r = r[np.asarray(mask, bool) & (r > 0)]
+    if not r.size:
+        return
+    typical = float(np.median(r))
+    lo, hi = LOG_SCALE_RANGE
+    if not lo <= typical <= hi:
+        warnings.warn(
+            f"{caller}: the neighbourhood's log maps have a typical |log| of {typical:.3g}, far "
+            "from the unit scale the filters see (the output then hardly depends on the "
+            'geometry); build it with scale="mean_edge" or call jmeshtex.scale_log_maps',
+            LogScaleWarning,
+            stacklevel=3,
+        )
+
+
+def scale_log_maps(nbhd: VertexNeighborhood, unit: float) -> VertexNeighborhood:
+    """Express a neighbourhood's log maps in units of ``unit`` and record the unit.
+
+    .. math:: \\log_p(q) \\leftarrow \\log_p(q) / u, \\qquad u_{\\log} \\leftarrow u \\cdot u_{\\log}
+
+    (``log_unit`` is ``u_log``; 1 when it was None).
+
+    Field-convolution filters see ``log`` directly, so their weights (drawn for arguments of
+    order 1) only see the geometry when ``|log|`` is of order 1: on a mesh with a mean edge of 0.01
+    in mesh units every log map is about 0 to the filter. Dividing by the mean edge length
+    (:func:`jmeshtex.geometry.mean_edge_length`) puts one edge at about 1 on any mesh.
+
+    Args:
+      nbhd: a :class:`VertexNeighborhood` (NumPy or JAX arrays).
+      unit: a positive, finite length in the current units of ``nbhd.log``.
+
+    Returns:
+      The same neighbourhood with ``log / unit`` and ``log_unit`` the length of one new unit in
+      mesh units (a float64 0-d NumPy array, or of ``log``'s real dtype for JAX arrays).
+
+    Example:
+      >>> import numpy as np
+      >>> nb = VertexNeighborhood(np.zeros((1, 2), np.int32), np.ones((1, 2), bool),
+      ...     np.array([[0, 0.02j]]), np.ones((1, 2), complex), np.ones((1, 2)), np.ones(1),
+      ...     np.ones(1, bool))
+      >>> s = scale_log_maps(nb, 0.01)
+      >>> s.log.tolist(), float(s.log_unit), float(scale_log_maps(s, 2.0).log_unit)
+      ([[0j, 2j]], 0.01, 0.02)
+    """
+    unit_f = float(unit)
+    if not (np.isfinite(unit_f) and unit_f > 0):
+        raise InputError(f"scale_log_maps: unit must be a positive, finite length, got {unit!r}")
+    xp = jnp if isinstance(nbhd.log, jax.Array) else np
+    real = xp.real(nbhd.log).dtype
+    old = 1.0 if nbhd.log_unit is None else nbhd.log_unit
+    return nbhd._replace(
+        log=nbhd.log / xp.asarray(unit_f, nbhd.log.dtype),
+        log_unit=xp.asarray(old, real) * xp.asarray(unit_f, real),
+    )
 
 
 class TangentFrames(NamedTuple):
@@ -213,6 +330,9 @@ def pad_to(tree: T, sizes: dict[str, int]) -> T:
     out = {}
     for name, leaf in tree._asdict().items():
         names = axes[name]
+        if leaf is None or names == ():  # optional fields, scalars (log_unit): nothing to pad
+            out[name] = leaf
+            continue
         xp = jnp if isinstance(leaf, jax.Array) else np
         widths = []
         for axis_name, current in zip(names, leaf.shape, strict=False):
@@ -247,6 +367,7 @@ _AXES = {
         "weight": ("V", "K"),
         "area": ("V",),
         "vertex_mask": ("V",),
+        "log_unit": (),
     },
     "TangentFrames": {"normal": ("V",), "x": ("V",), "y": ("V",)},
     # texel neighbourhoods: N texels, 9 taps of J texels each; G pooling groups of S texels

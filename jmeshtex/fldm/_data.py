@@ -148,13 +148,14 @@ def _geometry_arrays(geo: DenoiserGeometry) -> dict[str, np.ndarray]:
     out = {}
     for part in ("fine", "coarse", "pool"):
         for name, value in getattr(geo, part)._asdict().items():
-            out[f"{part}.{name}"] = np.asarray(value)
+            if value is not None:  # optional fields (log_unit) default to None
+                out[f"{part}.{name}"] = np.asarray(value)
     return out
 
 
 def _geometry_from(arrays: dict[str, np.ndarray]) -> DenoiserGeometry:
     def part(cls, name):
-        return cls(**{f: arrays[f"{name}.{f}"] for f in cls._fields})
+        return cls(**{f: arrays[f"{name}.{f}"] for f in cls._fields if f"{name}.{f}" in arrays})
 
     return DenoiserGeometry(
         part(VertexNeighborhood, "fine"),

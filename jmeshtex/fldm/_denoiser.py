@@ -42,6 +42,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
+from .._neighborhoods import scale_log_maps
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ..geometry import (
     PoolingMap,
@@ -107,8 +108,8 @@ def denoiser_geometry(
     scale = mean_edge_length(vertices, faces)
     fine = knn_from_one_ring(h.neighborhoods[0], knn)
     coarse = knn_from_one_ring(h.neighborhoods[1], knn)
-    fine = fine._replace(log=fine.log / scale)
-    coarse = coarse._replace(log=coarse.log / scale)
+    fine = scale_log_maps(fine, scale)  # log maps in mean edges, the unit recorded
+    coarse = scale_log_maps(coarse, scale)
     return DenoiserGeometry(fine=fine, coarse=coarse, pool=h.pooling[0])
 
 

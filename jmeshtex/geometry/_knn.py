@@ -31,13 +31,17 @@ from .._errors import InputError
 from .._neighborhoods import VertexNeighborhood
 from .._types import Float, Int
 from ._intrinsic import check_mesh, edge_lengths
-from ._log_map import _neighborhood_from_lengths
+from ._log_map import _neighborhood_from_lengths, apply_scale, check_scale
 
 _INF = np.iinfo(np.int64).max // 4
 
 
 def geodesic_knn_neighborhood(
-    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"], *, k: int = 8
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    *,
+    k: int = 8,
+    scale: str | float | None = None,
 ) -> VertexNeighborhood:
     """The vertex itself and its k-1 nearest vertices by edge path, with composed log map and transport.
 
@@ -60,6 +64,10 @@ def geodesic_knn_neighborhood(
       k: slots per vertex including the vertex itself (≥ 1). Vertices whose connected component
         has fewer than k vertices get padded slots (index 0, mask False, log 0, transport 1,
         weight 0).
+      scale: the unit of ``log``: ``None`` (default) mesh units; ``"mean_edge"`` the mean edge
+        length (a neighbour one edge away at ``|log|`` ≈ 1 on any mesh: what field-convolution
+        filters need; recommended for new models); or a positive length. Recorded in
+        ``log_unit``. The default keeps the units the shipped models were trained with.
 
     Returns:
       :class:`~jmeshtex.VertexNeighborhood` ``[V, k]``; ``weight`` is the barycentric
@@ -73,13 +81,19 @@ def geodesic_knn_neighborhood(
       >>> p = 12  # the centre (1/2, 1/2), degree 4: its edge neighbours come first
       >>> nb.index[p].tolist(), np.round(np.abs(nb.log[p]), 12).tolist()
       ([12, 7, 11, 13, 17], [0.0, 0.25, 0.25, 0.25, 0.25])
+      >>> unit = geodesic_knn_neighborhood(v, f, k=5, scale="mean_edge")  # 40 edges 1/4, 16 √2/4
+      >>> np.round(np.abs(unit.log[p]), 6).tolist(), round(float(unit.log_unit), 6)
+      ([0.0, 0.894177, 0.894177, 0.894177, 0.894177], 0.279587)
     """
     if not is_int(k, 1):
         raise InputError(
             f"k must be an integer >= 1 (slots including the vertex itself), got {k!r}"
         )
+    check_scale(scale)
     v, f = check_mesh(vertices, faces)
-    return knn_from_one_ring(_neighborhood_from_lengths(f, edge_lengths(v, f), len(v)), int(k))
+    lengths = edge_lengths(v, f)
+    nbhd = knn_from_one_ring(_neighborhood_from_lengths(f, lengths, len(v)), int(k))
+    return apply_scale(nbhd, scale, f, lengths)
 
 
 def _quantization_step(lengths: np.ndarray) -> float:
@@ -168,6 +182,7 @@ def knn_from_one_ring(ring: VertexNeighborhood, k: int) -> VertexNeighborhood:
         weight=np.where(valid, ring.area[index], 0.0),
         area=ring.area.copy(),
         vertex_mask=ring.vertex_mask.copy(),
+        log_unit=ring.log_unit,  # the one-ring's unit (None: mesh units)
     )
 
 

@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._errors import DegenerateFaceError, InputError
-from .._neighborhoods import VertexNeighborhood
+from .._neighborhoods import VertexNeighborhood, scale_log_maps
 from .._types import Float, Int
 from ._adjacency import OneRings, one_rings
 from ._intrinsic import check_mesh, corner_angles, edge_lengths, face_areas, vertex_areas
@@ -93,6 +93,7 @@ def one_ring_neighborhood(
     faces: Int[np.ndarray, "F 3"],
     *,
     lengths: Float[np.ndarray, "F 3"] | None = None,
+    scale: str | float | None = None,
 ) -> VertexNeighborhood:
     """Intrinsic one-ring neighbourhoods: log map, transport and areas of every vertex.
 
@@ -111,6 +112,11 @@ def one_ring_neighborhood(
         level, whose copied positions can make a face flat in space). Then only the arrays' shapes
         and indices are checked (the faces must already be a valid manifold), and the lengths
         must be finite, positive and give every face a positive area.
+      scale: the unit of ``log``. ``None`` (default): mesh units (``log_unit`` None).
+        ``"mean_edge"``: the mean edge length (:func:`~jmeshtex.geometry.mean_edge_length`, or
+        of ``lengths``), so a neighbour one edge away sits at ``|log|`` ≈ 1 on any mesh, the
+        scale field-convolution filters see (recommended for new models). A positive float: that
+        length. The unit is recorded in ``log_unit`` (:func:`~jmeshtex.scale_log_maps`).
 
     Returns:
       :class:`~jmeshtex.VertexNeighborhood` with ``K`` = maximum degree: ``index`` the
@@ -129,9 +135,11 @@ def one_ring_neighborhood(
       >>> np.round(np.angle(z, deg=True), 9).tolist(), np.round(np.abs(z) ** 2, 12).tolist()
       ([0.0, 45.0, 90.0], [1.0, 0.5, 1.0])
     """
+    check_scale(scale)
     if lengths is None:
         v, f = check_mesh(vertices, faces)
-        return _neighborhood_from_lengths(f, edge_lengths(v, f), len(v))
+        lengths = edge_lengths(v, f)
+        return apply_scale(_neighborhood_from_lengths(f, lengths, len(v)), scale, f, lengths)
     v, f = check_mesh_arrays(vertices, faces)
     lengths = np.asarray(lengths, dtype=np.float64)
     if lengths.shape != f.shape or not (np.isfinite(lengths).all() and (lengths > 0).all()):
@@ -142,7 +150,35 @@ def one_ring_neighborhood(
     bad = np.nonzero(~(face_areas(lengths) > 0.0))[0]
     if bad.size:
         raise DegenerateFaceError(indices=bad)
-    return _neighborhood_from_lengths(f, lengths, len(v))
+    return apply_scale(_neighborhood_from_lengths(f, lengths, len(v)), scale, f, lengths)
+
+
+def check_scale(scale) -> None:
+    """Raise :class:`~jmeshtex.InputError` unless ``scale`` is None, ``"mean_edge"`` or a positive float."""
+    if scale is None or (isinstance(scale, str) and scale == "mean_edge"):
+        return
+    if isinstance(scale, str) or isinstance(scale, bool) or not isinstance(scale, (int, float)):
+        raise InputError(f'scale must be None, "mean_edge" or a positive length, got {scale!r}')
+    if not (np.isfinite(scale) and scale > 0):
+        raise InputError(f'scale must be None, "mean_edge" or a positive length, got {scale!r}')
+
+
+def apply_scale(
+    nbhd: VertexNeighborhood, scale, faces: np.ndarray, lengths: np.ndarray
+) -> VertexNeighborhood:
+    """``nbhd`` with log maps in units of ``scale`` (:func:`check_scale`'s values; ``None``: as is).
+
+    ``"mean_edge"`` is the mean over the undirected edges of ``lengths`` (``[F, 3]``, edge k from
+    corner k to corner k+1), each counted once.
+    """
+    if scale is None:
+        return nbhd
+    if scale == "mean_edge":
+        a, b = faces, np.roll(faces, -1, axis=1)
+        keys = np.minimum(a, b).astype(np.int64) * (int(faces.max()) + 1) + np.maximum(a, b)
+        _, first = np.unique(keys.ravel(), return_index=True)
+        scale = float(np.asarray(lengths, np.float64).ravel()[first].mean())
+    return scale_log_maps(nbhd, scale)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -43,7 +43,7 @@ from jax._src.interpreters import ad as _ad
 from jax._src.interpreters import batching as _batching
 
 from .._errors import ConfigError, InputError
-from .._neighborhoods import VertexNeighborhood
+from .._neighborhoods import VertexNeighborhood, check_log_scale
 from .._types import Array, ArrayLike, Complex, Float, PRNGKey
 from ._complex_init import complex_lecun_blocks
 from ._numerics import check_complex, check_delta, complex_dtype, real_dtype
@@ -168,7 +168,11 @@ def field_conv(
     Everything inside the filter is gauge-invariant and the rest is complex-linear in features that
     all live in ``p``'s frame, so a gauge change ``x_p → x_p e^{-iα_p}`` (with the matching log maps
     and transports) gives ``y_p → y_p e^{-iα_p}`` exactly. The filter argument scales with the log
-    map, so neighbourhoods should come with log maps of a consistent scale (e.g. normalised radius).
+    map, so neighbourhoods should come with log maps of about unit scale: build them with
+    ``scale="mean_edge"`` or call :func:`jmeshtex.scale_log_maps` (a recorded ``log_unit`` must
+    be positive and finite); :func:`jmeshtex.check_log_scale` warns
+    (:class:`jmeshtex.LogScaleWarning`) when a neighbourhood's typical ``|log|`` is outside
+    ``[1/32, 32]``.
 
     Args:
       x: ``[V, C]`` complex tangent features, each in its own vertex's frame.
@@ -238,6 +242,7 @@ def field_conv(
         raise ConfigError(f"field_conv: argument must be one of {_ARGUMENTS}, got {argument!r}")
     v, c, h, d, n_emb = _check_shapes(x, nbhd, params, embedding)
     _check_extra(params, channel_embedding, v, c, h)
+    check_log_scale(nbhd, "field_conv", unrecorded=False)
     rdt = real_dtype(x.dtype)
     a_w = params.filter_weight.astype(rdt)
     bias = jnp.broadcast_to(params.filter_bias.astype(rdt), (v, h))
