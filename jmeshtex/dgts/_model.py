@@ -97,10 +97,10 @@ def model_like(config: Config, levels: int, num_vertices: int) -> dict:
 
 
 def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
-    """Write ``model`` as ``model.npz`` into the folder ``path``, atomically (read it with :func:`load`).
+    """Write ``model`` as ``model.npz`` into the folder ``path``, atomically (read with :func:`load`).
 
     The file is the one model format of :func:`jmeshtex.io.save_model`: the arrays of
-    :func:`model_state` by key path, with the config.
+    ``model_state(model)`` by key path, with the config.
 
     Args:
       model: a :class:`Model` (``train(...).model``).

@@ -6,7 +6,8 @@ mesh (*generative transfer*, §6.6). The denoiser's filters see log maps in unit
 mean edge length, so the resolution of the target mesh sets the textural scale: the same model on a
 mesh with twice the vertex density gives a texture about √2 times smaller in world units.
 
-- :func:`sample`: ``num_samples`` samples (:class:`FLDMSamples`) with DDIM (default, 50 steps) or ancestral DDPM (all ``T``);
+- :func:`sample`: ``num_samples`` samples (:class:`FLDMSamples`) with DDIM (default, 50 steps) or
+  ancestral DDPM (all ``T``);
   label-guided when the model was trained with labels (pass a per-vertex ``labels`` map);
 - :func:`inpaint`: keeps given latents where ``mask`` is True (eq. 14), ancestral DDPM by default;
   a model trained with ``Config.mask_conditioning`` also sees the mask and the known latents at

@@ -4,8 +4,8 @@ A model file is one uncompressed ``.npz`` (no pickles): each parameter array und
 path joined by ``/`` (``encoder/mean``, ``generators/0/weights/1``), plus the header
 ``__jmeshtex_model__``, a UTF-8 JSON string
 ``{"container": 1, "kind": ..., "format_version": ..., "config": {...}, "extra": {...}}``. ``kind``
-names the method's model (``"jmeshtex.fl.Model"``), ``format_version`` the layout of its arrays, so a
-file of another method or of an unknown layout is refused before any array is used. The file is
+names the method's model (``"jmeshtex.fl.Model"``), ``format_version`` the layout of its arrays,
+so a file of another method or of an unknown layout is refused before any array is used. The file is
 written atomically (temporary file + ``os.replace``; a symbolic link at the path is replaced, never
 written through).
 """
@@ -123,12 +123,14 @@ class ModelFile:
         return jax.tree_util.tree_unflatten(treedef, leaves)
 
     def config_as(self, cls):
-        """``cls.from_dict(self.config)``; an invalid stored config is a :class:`CorruptModelError`."""
+        """``cls.from_dict(self.config)``; an invalid stored config is a
+        :class:`~jmeshtex.CorruptModelError`."""
         try:
             return cls.from_dict(self.config)
         except (ValueError, TypeError, KeyError) as err:
             raise CorruptModelError(
-                f"model file {self.path}: its stored config is not a valid {cls.__qualname__}: {err}"
+                f"model file {self.path}: its stored config is not a valid "
+                f"{cls.__qualname__}: {err}"
             ) from err
 
 
@@ -207,13 +209,14 @@ def _read(path: pathlib.Path, what: str) -> dict[str, np.ndarray]:
 
 
 def read_arrays(path: str | os.PathLike, *, what: str = "model") -> dict[str, np.ndarray]:
-    """Every entry of an ``.npz`` file (no pickles); any failure is a :class:`CorruptModelError`.
+    """Every entry of an ``.npz`` (no pickles); failures are :class:`~jmeshtex.CorruptModelError`.
 
     For readers of an older layout behind a version check; new files go through :func:`load_model`.
 
     Example:
       >>> import tempfile, numpy as np
-      >>> p = save_model(tempfile.mkdtemp() + "/m.npz", kind="demo", config={}, params={"w": np.ones(2)})
+      >>> p = save_model(tempfile.mkdtemp() + "/m.npz", kind="demo", config={},
+      ...                params={"w": np.ones(2)})
       >>> sorted(read_arrays(p))
       ['__jmeshtex_model__', 'w']
     """
