@@ -4,7 +4,7 @@ Every builder in :mod:`jmeshtex.geometry` (and the texel builders of :mod:`jmesh
 shapes. They are pytrees, so they pass through ``jax.jit`` / ``vmap`` as arguments, and can be padded
 to common sizes with :func:`pad_to` and stacked for batches.
 
-Padding contract (DESIGN.md): a padded slot holds index 0, ``mask`` False and zero weight; no op may
+Padding contract (the docs' Concepts page): a padded slot holds index 0, ``mask`` False and zero weight; no op may
 let a padded slot change its output. Padded vertices / faces have ``vertex_mask`` / ``face_mask``
 False.
 

@@ -102,7 +102,7 @@ def one_ring_neighborhood(
         \\rho_{q\\to p} = e^{i(\\theta_{pq} - \\theta_{qp} + \\pi)}
 
     (Mitchel et al. 2021, "Field Convolutions", §4: one-ring log map and transport; angles from
-    edge lengths, DESIGN.md "Geometric conventions").
+    edge lengths; the docs' Concepts page, "Frames and gauges").
 
     Args:
       vertices: ``[V, 3]`` positions (only edge lengths are used).

@@ -6,7 +6,7 @@ evaluated at the neighbour's position *relative to the feature's own direction*.
 relative position is invariant to the frames at both ends, the result is equivariant to gauge
 changes (and hence intrinsic: unchanged by isometries that preserve the log maps and transports).
 
-Filter argument (DESIGN.md, "gathering" form). With ``u_{pqc} = ρ_{q→p} x_{qc}`` (the feature of
+Filter argument ("gathering" form). With ``u_{pqc} = ρ_{q→p} x_{qc}`` (the feature of
 channel ``c`` at ``q``, in ``p``'s frame) and ``û = u / sqrt(|u|² + δ²)`` its smoothed direction,
 
 .. math:: a_{pqc} = \\log_p(q)\\, \\overline{\\hat u_{pqc}}
