@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from .._config import is_int
 from .._errors import ConfigError, InputError
 from .._neighborhoods import FaceNeighborhood
 from .._train_result import TrainResult
@@ -444,11 +445,7 @@ def train(
     t_start = time.perf_counter()
     config = Config() if config is None else config
     total = meshes.num_levels if levels is None else levels
-    if (
-        isinstance(total, bool)
-        or not isinstance(total, (int, np.integer))
-        or not 1 <= total <= meshes.num_levels
-    ):
+    if not is_int(total, 1) or total > meshes.num_levels:
         raise ConfigError(
             f"levels must be an int in [1, {meshes.num_levels}] (the training meshes' levels), "
             f"got {levels!r}"
@@ -504,6 +501,7 @@ def train(
     z_star_j = jnp.asarray(z_star, jnp.float32)
     padded = _padded_sizes(geos_all, config.shared_levels)
     compiled: dict = {}  # this call's compiled steps (equal-sized levels share one)
+    unpadded: dict = {}  # the newest level batch before padding
     chunk_step = jax.jit(functools.partial(_chunk_step, config=config))
 
     def frozen_state() -> dict:
@@ -554,31 +552,17 @@ def train(
                 if not t_batch:
                     jax.block_until_ready(batch)
                     t_batch.append(time.perf_counter() - t)
+                unpadded["batch"] = nbhd, batch  # for the snapshots
                 if level < len(padded):
                     nbhd, real, batch = pad_level(nbhd, real, batch, padded[level])
                 return nbhd, real, batch, jnp.int32(min(CHUNK, S - i))
 
             def snapshot(done: int, state, batch, level=level) -> None:
-                if -(-done // CHUNK) % snap_every and done != S:
-                    return
-                nbhd, _, b, _ = batch
-                sample, rec = _snapshot(
-                    state["g"],
-                    nbhd,
-                    b.fake_base[0, 0],
-                    b.fake_noise[0, 0],
-                    b.rec_base[0, 0],
-                    b.rec_noise[0, 0],
-                    config=config,
-                )
-                snapshots.append(
-                    {
-                        "level": level,
-                        "step": done,
-                        "sample": np.asarray(sample, np.float64),
-                        "reconstruction": np.asarray(rec, np.float64),
-                    }
-                )
+                if -(-done // CHUNK) % snap_every == 0 or done == S:
+                    sample, rec = _snapshot(state["g"], *unpadded["batch"], config=config)
+                    snapshots.append(
+                        {"level": level, "step": done, "sample": sample, "reconstruction": rec}
+                    )
 
             frozen_now = frozen_state() if ckpt is not None else None
             run = fit(
@@ -648,9 +632,22 @@ def _chunk_step(state: dict, batch: tuple, *, config: Config):
     return {"g": g, "d": d, "opt": opt}, losses
 
 
+def _snapshot(g, nbhd, batch: LevelBatch, *, config: Config) -> tuple[np.ndarray, np.ndarray]:
+    """The current generator's sample and reconstruction on the first row of ``batch`` (float64)."""
+    out = _generate_pair(
+        g,
+        nbhd,
+        batch.fake_base[0, 0],
+        batch.fake_noise[0, 0],
+        batch.rec_base[0, 0],
+        batch.rec_noise[0, 0],
+        config=config,
+    )
+    return tuple(np.asarray(x, np.float64) for x in out)
+
+
 @functools.partial(jax.jit, static_argnames=("config",))
-def _snapshot(g, nbhd, base, z, rec_base, rec_z, *, config: Config):
-    """The current generator's sample and reconstruction on one row of a :class:`LevelBatch`."""
+def _generate_pair(g, nbhd, base, z, rec_base, rec_z, *, config: Config):
     kw = {"negative_slope": config.negative_slope, "eps": config.eps, "y_sign": config.y_sign}
     return base + generator_level(g, base, nbhd, z, **kw), rec_base + generator_level(
         g, rec_base, nbhd, rec_z, **kw
