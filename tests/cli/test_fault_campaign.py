@@ -186,3 +186,24 @@ def test_the_harness_passes_good_input_and_sees_a_traceback():
     assert rc == 0 and err == ""
     assert not _clean_failure(1, "Traceback (most recent call last):\nValueError: error\n")
     assert not _clean_failure(0, "")
+
+
+def test_a_closed_pipe_ends_quietly():
+    """``jmeshtex info … | head``: the reader goes away; no BrokenPipeError traceback."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, time\n"
+        "from jmeshtex.cli import main\n"
+        "time.sleep(0.3)\n"  # let the reader close the pipe first
+        "sys.exit(main(['info', 'icosphere:1']))\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    proc.stdout.close()  # the reader is gone before anything is written
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    assert proc.wait(timeout=120) == 141
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
