@@ -1,11 +1,16 @@
 """What every ``jmeshtex`` subcommand shares: the same flags for the same meaning, one mesh-spec syntax.
 
-- :func:`add_common`: ``--out`` (output folder), ``--seed`` (the PRNG seed the library's ``key=``
-  is made from), ``--quiet`` (no progress bar).
+- :func:`add_common`: ``--out`` (output folder, claimed by :mod:`jmeshtex.cli._output`: inputs are
+  never overwritten, another command's folder needs ``--overwrite``), ``--seed`` (the PRNG seed the
+  library's ``key=`` is made from, ``0 … 2**32 - 1``), ``--quiet`` (no progress bar).
+- :func:`int_in` / :func:`float_in`: argparse types that refuse out-of-range or non-finite numbers
+  at parse time; :func:`load_array`: a ``.npy`` argument (``--labels``, ``--mask``) or one typed
+  error.
 - :func:`load_mesh_spec`: a mesh argument is a file (``.obj``/``.ply``/``.off``/``.glb``, with its
   UVs, texture and colours) or a procedural name from :mod:`jmeshtex.data`: ``icosahedron``,
   ``icosphere:N``, ``torus``, ``torus:NMAJOR:NMINOR``, ``grid:N``, ``bumpy-sphere[:N]``,
-  ``striped-sphere[:N]``.
+  ``striped-sphere[:N]``; numbers below a shape's minimum or beyond :data:`MAX_SPEC_VERTICES`
+  vertices are refused before anything is built.
 - :func:`compilation_cache`: JAX's persistent compilation cache, so a second run with the same
   sizes skips most compilation: ``$JMESHTEX_JAX_CACHE`` (a folder; ``0`` or empty turns it off), by
   default ``$XDG_CACHE_HOME/jmeshtex/jax`` (``~/.cache/jmeshtex/jax``).
