@@ -381,7 +381,7 @@ unwrapper cannot handle: 1e12, 1e-4 and a 1e8 offset)."""
 
 
 def write_bad_mesh_files(folder: str | os.PathLike) -> dict[str, pathlib.Path]:
-    """Write every :data:`BAD_MESH_FILES` case into ``folder``; returns ``{name: path}``.
+    """Write every ``BAD_MESH_FILES`` case into ``folder``; returns ``{name: path}``.
 
     Example:
       >>> import tempfile
