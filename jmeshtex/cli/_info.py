@@ -49,7 +49,11 @@ def _run(args: argparse.Namespace) -> int:
     from ..geometry import mesh_statistics, validate_mesh
     from ..io import atomic_write
     from ._common import load_mesh_spec
+    from ._output import check_output_file
 
+    for flag, written in (("--json", args.json), ("--render", args.render)):
+        if written is not None:  # a report never replaces the mesh it describes
+            check_output_file(written, (args.mesh, args.texture), flag=flag)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MeshRepairWarning)
         mesh = load_mesh_spec(args.mesh, texture=args.texture)

@@ -80,12 +80,15 @@ def _foreign_entries(folder: str | os.PathLike) -> set[str]:
     return {e for e in entries if isinstance(e, str)} if isinstance(entries, list) else set()
 
 
-def check_output_file(out: str | os.PathLike, inputs: Iterable[str | os.PathLike | None]) -> None:
+def check_output_file(
+    out: str | os.PathLike, inputs: Iterable[str | os.PathLike | None], *, flag: str = "--out"
+) -> None:
     """Refuse an output file that is one of the inputs, a folder, or a link.
 
     Args:
       out: the file the command will write.
       inputs: the command's input paths (None and procedural names that are not files are skipped).
+      flag: the option that named ``out``, for the message.
 
     Raises:
       InputError: ``out`` is an input, a folder or a symbolic link.
@@ -108,13 +111,13 @@ def check_output_file(out: str | os.PathLike, inputs: Iterable[str | os.PathLike
         path = pathlib.Path(given)
         if path.exists() and (_same(out, path) or out.resolve() == path.resolve()):
             raise InputError(
-                f"refusing to write --out {out}: it is the input {path}, which the output would "
-                "overwrite. Fix: pick another --out"
+                f"refusing to write {flag} {out}: it is the input {path}, which the output would "
+                f"overwrite. Fix: pick another {flag}"
             )
     if out.is_symlink():
-        raise InputError(f"--out {out} is a symbolic link: pick a plain path")
+        raise InputError(f"{flag} {out} is a symbolic link: pick a plain path")
     if out.is_dir():
-        raise InputError(f"--out {out} is a folder; this command writes a file there")
+        raise InputError(f"{flag} {out} is a folder; this command writes a file there")
 
 
 def claim_output(

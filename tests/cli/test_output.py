@@ -120,3 +120,15 @@ def test_a_link_planted_in_the_output_folder_does_not_redirect_a_write(tmp_path)
     atomic_write(out / "summary.json", "{}")
     assert outside.read_text() == "not yours"
     assert not (out / "summary.json").is_symlink()
+
+
+def test_info_reports_never_replace_the_mesh(tmp_path, capsys):
+    v, f = icosphere(1)
+    mesh = tmp_path / "m.obj"
+    save_mesh((v, f), mesh)
+    before = _digest(tmp_path)
+    assert main(["info", str(mesh), "--json", str(mesh)]) == 2
+    assert main(["info", str(mesh), "--render", str(mesh)]) == 2
+    err = capsys.readouterr().err
+    assert "refusing to write --json" in err and "refusing to write --render" in err
+    assert _digest(tmp_path) == before
