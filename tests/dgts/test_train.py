@@ -209,3 +209,19 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
         # Adam divides by |g| + 1e-8: gradient entries near 1e-8 turn float64 rounding (other summation
         # order) into parameter differences of a few 1e-9 (lr 5e-4); the losses above agree to 1e-10
         np.testing.assert_allclose(a, b, rtol=0, atol=5e-8)
+
+
+def test_divergence_raises_naming_the_step_and_saves_no_nan_model(tiny_meshes, tmp_path):
+    """Finite or nothing: an absurd learning rate makes the losses NaN within a step or two."""
+    from jmeshtex import TrainingDivergedError
+
+    with jax.debug_nans(False), pytest.raises(TrainingDivergedError, match="at step") as err:
+        train(
+            tiny_meshes,
+            TINY.replace(learning_rate=1e30),
+            key=jax.random.key(TINY_KEY),
+            checkpoint_dir=tmp_path / "ckpt",
+            progress=False,
+        )
+    assert 0 <= err.value.step < 2 * TINY.steps
+    assert Checkpoints(tmp_path / "ckpt").steps() == []  # nothing was saved
