@@ -15,6 +15,7 @@ import numpy as np
 from .._errors import CorruptModelError, InputError
 from ..io import load_model, read_arrays, save_model
 from ._config import Config
+from ._denoiser import init_denoiser
 
 MODEL_FILE = "model.npz"
 #: the JSON file of the earlier layout (format version 0, read only)
@@ -142,13 +143,16 @@ def load(path: str | os.PathLike) -> Model:
             return _load_legacy(out)
         raise
     config = file.config_as(Config)
-    tree = file.params
-    if set(tree) != {"params", "scale"} or not isinstance(tree["params"], dict):
-        raise CorruptModelError(f"{out / MODEL_FILE}: expected params/... and scale arrays")
-    scale = tree["scale"]
-    if np.shape(scale) != (config.latent_channels,):
-        raise CorruptModelError(
-            f"{out / MODEL_FILE}: scale has shape {np.shape(scale)}, its config needs "
-            f"({config.latent_channels},)"
+    shapes = jax.eval_shape(lambda k: init_denoiser(k, config), jax.random.key(0))
+    # parameters saved from a float64 run (complex128 weights) are restored as such
+    if any(a.dtype == np.complex128 for n, a in file.arrays.items() if n.startswith("params/")):
+        wide = {np.dtype(np.complex64): np.complex128, np.dtype(np.float32): np.float64}
+        shapes = jax.tree.map(
+            lambda x: jax.ShapeDtypeStruct(x.shape, wide.get(np.dtype(x.dtype), x.dtype)), shapes
         )
-    return _model(tree["params"], config, scale)
+    like = {
+        "params": shapes,
+        "scale": jax.ShapeDtypeStruct((config.latent_channels,), np.float64),
+    }
+    tree = file.restore(like)  # every array's key path, shape and dtype checked against the config
+    return _model(tree["params"], config, tree["scale"])

@@ -187,3 +187,39 @@ def test_each_method_refuses_another_methods_model(tmp_path):
     (tmp_path / "fl" / "model.npz").write_bytes(b"")
     with pytest.raises(CorruptModelError, match="cannot read FL-VAE model .*model.npz"):
         fl.load(tmp_path / "fl" / "model.npz")
+
+
+def test_a_model_whose_arrays_do_not_fit_its_config_is_corrupt(tmp_path):
+    from jmeshtex import fldm
+
+    cfg = fldm.Config.tiny(latent_channels=2, diffusion_steps=20)
+    model = fldm.Model(fldm.init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
+    back = fldm.load(fldm.save(model, tmp_path / "good"))
+    for a, b in zip(jax.tree.leaves(model.params), jax.tree.leaves(back.params), strict=True):
+        assert np.asarray(a).dtype == np.asarray(b).dtype
+        np.testing.assert_array_equal(a, b)
+    params = {"params": jax.tree.map(np.asarray, model.params), "scale": np.ones(2)}
+    other = cfg.replace(widths=tuple(2 * w for w in cfg.widths)).to_dict()
+    save_model(
+        tmp_path / "bad" / "model.npz", kind="jmeshtex.fldm.Model", params=params, config=other
+    )
+    with pytest.raises(
+        CorruptModelError, match=r"bad/model\.npz: array 'params/.*its config needs"
+    ):
+        fldm.load(tmp_path / "bad")
+    save_model(
+        tmp_path / "scale" / "model.npz",
+        kind="jmeshtex.fldm.Model",
+        params={**params, "scale": np.ones(3)},
+        config=cfg.to_dict(),
+    )
+    with pytest.raises(CorruptModelError, match="'scale' is float64\\[3\\]"):
+        fldm.load(tmp_path / "scale")
+    save_model(
+        tmp_path / "cfg" / "model.npz",
+        kind="jmeshtex.fldm.Model",
+        params=params,
+        config={**cfg.to_dict(), "steps": -1},
+    )
+    with pytest.raises(CorruptModelError, match="stored config is not a valid Config"):
+        fldm.load(tmp_path / "cfg")
