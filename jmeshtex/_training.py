@@ -75,7 +75,8 @@ def fit(
         ``steps_per_call > 1``, of ``[steps_per_call]`` arrays whose first ``n`` entries are the
         steps run). A :func:`jax.jit` function is compiled ahead of time (timed apart); any other
         callable runs as it is and its first call counts as compilation.
-      state: the initial training state (a pytree); replaced by the checkpoint's on resume.
+      state: the initial training state (a pytree; a dict or another container to be
+        checkpointed); replaced by the checkpoint's on resume.
       batches: ``first step index -> batch`` of the call; a function of the index alone, so a
         resumed run sees the batches an uninterrupted one would.
       steps: the run's length (the schedule's ``steps``).
@@ -113,6 +114,17 @@ def fit(
       TrainingDivergedError: a loss or, at a save point or the end, a parameter is not finite.
       ConfigError: checkpoints in a multi-process run (not supported yet).
       CheckpointMismatchError: the folder holds a checkpoint of another run.
+
+    Example:
+      >>> import jax, jax.numpy as jnp, tempfile
+      >>> step = jax.jit(lambda s, x: ({"w": s["w"] + x}, {"loss": jnp.sum(s["w"])}))
+      >>> state, folder = {"w": jnp.zeros(1)}, tempfile.mkdtemp()
+      >>> part = fit(step, state, lambda i: jnp.ones(1), steps=4, stop_after=2,
+      ...            checkpoints=folder, progress=False)
+      >>> rest = fit(step, state, lambda i: jnp.ones(1), steps=4, checkpoints=folder,
+      ...            progress=False)
+      >>> rest.resumed_from, rest.losses["loss"].tolist()
+      (2, [0.0, 1.0, 2.0, 3.0])
     """
     t_call = time.perf_counter() if started is None else started
     if checkpoints is not None and is_multiprocess():
