@@ -318,6 +318,8 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
 
     target_mesh, match = result.mesh, result.match
     _check_finite(target_mesh.vertex_colors, "colours")
+    _check_finite(match.voted, "voted colours")
+    _check_finite(match.cost, "patch costs")
 
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)
@@ -448,6 +450,7 @@ def _displace(args: argparse.Namespace) -> int:
         progress=_progress(args),
     )
     _check_finite(result.mesh.vertices, "displaced vertices")
+    _check_finite(result.match.cost, "patch costs")
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     size = (420, 380)

@@ -207,3 +207,22 @@ def test_a_closed_pipe_ends_quietly():
     proc.stderr.close()
     assert proc.wait(timeout=120) == 141
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
+def test_a_result_that_is_not_finite_is_not_written(tmp_path):
+    """MeshMatch self-transfer of a 1e30-scaled mesh: refused after the match, nothing written."""
+    from jmeshtex.cli._common import procedural_mesh
+    from jmeshtex.io import save_mesh
+
+    mesh = procedural_mesh("striped-sphere:3")
+    path = tmp_path / "huge.ply"
+    save_mesh(mesh.replace(vertices=mesh.vertices * 1e30), path)
+    out = tmp_path / "out"
+    argv = ["meshmatch", "transfer", "--source", str(path), "--target", str(path)]
+    import jax
+
+    with jax.debug_nans(False):  # the suite's NaN trap would stop the match itself (a user's won't)
+        rc, err, seconds = _run([*argv, "--out", str(out), "--quiet"])
+    assert _clean_failure(rc, err) and "not finite" in err, err
+    assert seconds < CASE_SECONDS
+    assert not out.exists()
