@@ -222,6 +222,9 @@ def test_unchanged_under_folds():
             b.to_input_frame[level], a.to_input_frame[level], rtol=0, atol=1e-12
         )
         for x, y in zip(a.neighborhoods[level], b.neighborhoods[level], strict=True):
+            if x is None or y is None:  # optional fields (log_unit) unset in both
+                assert x is None and y is None
+                continue
             np.testing.assert_allclose(y, x, rtol=0, atol=1e-12)
     for pa, pb in zip(a.pooling, b.pooling, strict=True):
         for x, y in zip(pa, pb, strict=True):
