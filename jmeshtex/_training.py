@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import ConfigError, TrainingDivergedError
+from ._errors import CheckpointMismatchError, ConfigError, TrainingDivergedError
 from ._train_result import TrainResult
 from .io import Checkpoints
 from .parallel import fetch, is_multiprocess, replicate
@@ -113,7 +113,8 @@ def fit(
     Raises:
       TrainingDivergedError: a loss or, at a save point or the end, a parameter is not finite.
       ConfigError: checkpoints in a multi-process run (not supported yet).
-      CheckpointMismatchError: the folder holds a checkpoint of another run.
+      CheckpointMismatchError: the folder holds a checkpoint of another run (or one without
+        this driver's loss record).
 
     Example:
       >>> import jax, jax.numpy as jnp, tempfile
@@ -151,6 +152,12 @@ def fit(
                 state = restored(tree)
                 if device_mesh is not None:
                     state = replicate(state, device_mesh)
+                if not isinstance(record.get("losses"), dict):
+                    raise CheckpointMismatchError(
+                        f"{desc}: checkpoint {latest} in {ckpt.directory} has no loss record of "
+                        "this driver (written by an older jmeshtex?); resume with that version, or "
+                        "use another folder"
+                    )
                 resumed_from = latest
                 start = latest - checkpoint_offset
                 losses = {k: [float(x) for x in v][:start] for k, v in record["losses"].items()}

@@ -63,6 +63,12 @@ def test_resumed_run_equals_uninterrupted_run(tmp_path):
         )  # fmt: skip
 
 
+def test_a_checkpoint_without_the_driver_s_loss_record_is_refused(tmp_path):
+    Checkpoints(tmp_path).save(2, _state(), meta={"loss": [0.5, 0.25]})  # an older layout
+    with pytest.raises(CheckpointMismatchError, match="no loss record"):
+        fit(_step, _state(), _batches, steps=4, checkpoints=tmp_path, progress=False)
+
+
 def test_non_finite_loss_raises_naming_the_step_and_saves_nothing_non_finite(tmp_path):
     def batches(i):
         x, y = _batches(i)
