@@ -451,12 +451,12 @@ def train(
             f"got {levels!r}"
         )
     total = int(total)
-    if checkpoint_every is not None and (checkpoint_dir is None or int(checkpoint_every) < 1):
+    if checkpoint_every is not None and (checkpoint_dir is None or not is_int(checkpoint_every, 1)):
         raise ConfigError(
             f"checkpoint_every={checkpoint_every!r} needs a checkpoint_dir and a value >= 1"
         )
     every = None if checkpoint_every is None else -(-int(checkpoint_every) // CHUNK)  # in chunks
-    if snapshot_every is not None and (isinstance(snapshot_every, bool) or int(snapshot_every) < 1):
+    if snapshot_every is not None and not is_int(snapshot_every, 1):
         raise ConfigError(f"snapshot_every must be an int >= 1, got {snapshot_every!r}")
     snap_every = None if snapshot_every is None else -(-int(snapshot_every) // CHUNK)  # in chunks
     snapshots: list[dict] = []
