@@ -22,6 +22,7 @@ from ._errors import FaceIndexError as FaceIndexError
 from ._errors import InconsistentOrientationError as InconsistentOrientationError
 from ._errors import InputError as InputError
 from ._errors import JmeshtexError as JmeshtexError
+from ._errors import LogScaleWarning as LogScaleWarning
 from ._errors import MeshError as MeshError
 from ._errors import MeshIOError as MeshIOError
 from ._errors import MeshRepairWarning as MeshRepairWarning
@@ -35,7 +36,6 @@ from ._errors import TrainingDivergedError as TrainingDivergedError
 from ._mesh import Mesh as Mesh
 from ._mesh import as_mesh as as_mesh
 from ._neighborhoods import FaceNeighborhood as FaceNeighborhood
-from ._neighborhoods import LogScaleWarning as LogScaleWarning
 from ._neighborhoods import PoolGroups as PoolGroups
 from ._neighborhoods import PoolingMap as PoolingMap
 from ._neighborhoods import TangentFrames as TangentFrames

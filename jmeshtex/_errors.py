@@ -135,6 +135,15 @@ class DecimationError(MeshError):
     fix = "ask for fewer levels, lower min_vertices, or use a finer mesh"
 
 
+class LogScaleWarning(UserWarning):
+    """A neighbourhood's log maps are far from unit scale, where field-convolution filters see them.
+
+    Raised by :func:`jmeshtex.check_log_scale` (on concrete, un-jitted neighbourhoods without a
+    recorded ``log_unit``); build with ``scale="mean_edge"`` or call
+    :func:`jmeshtex.scale_log_maps`.
+    """
+
+
 class MeshRepairWarning(UserWarning):
     """A mesh was changed on load or validation (unreferenced / duplicate vertices, repairs)."""
 

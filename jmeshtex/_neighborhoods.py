@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import InputError
+from ._errors import InputError, LogScaleWarning
 from ._types import Array, ArrayLike, Bool, Complex, Float, Int
 
 
@@ -88,14 +88,6 @@ class VertexNeighborhood(NamedTuple):
     area: Float[Array, " V"]
     vertex_mask: Bool[Array, " V"]
     log_unit: Float[ArrayLike, ""] | None = None
-
-
-class LogScaleWarning(UserWarning):
-    """A neighbourhood's log maps are far from unit scale, where field-convolution filters see them.
-
-    Raised by :func:`check_log_scale` (on concrete, un-jitted neighbourhoods without a recorded
-    ``log_unit``); build with ``scale="mean_edge"`` or call :func:`scale_log_maps`.
-    """
 
 
 #: typical ``|log|`` (the median over real, non-self slots) outside this range warns
