@@ -216,7 +216,9 @@ def test_gradients_finite_at_zero_and_correct(case, hidden):
     zero = jnp.zeros((V, C), jnp.complex128)
     g = jax.grad(lambda z: jnp.sum(jnp.abs(f(z, chan)) ** 2 + jnp.real(f(z, chan)).sum()))(zero)
     assert bool(jnp.all(jnp.isfinite(g)))
-    check_grads(f, (jnp.asarray(x), jnp.asarray(chan)), order=1, modes=modes, atol=1e-6, rtol=1e-6)
+    # JAX's float64 default (1e-5): central differences (eps 1e-4) err by eps^2 f'''/6, and f'''
+    # grows as |x|^-3 through the argument x/|x|; random features put some |x| near 0.05
+    check_grads(f, (jnp.asarray(x), jnp.asarray(chan)), order=1, modes=modes, atol=1e-5, rtol=1e-5)
     check_grads(
         lambda p: field_conv(jnp.asarray(x), nb, p, embedding=emb, channel_embedding=chan),
         (params,),
