@@ -263,7 +263,7 @@ def check(
       dtype: ``jnp.float64`` or ``jnp.float32``.
       seed: seed of the parameters, the draws and the inputs.
       cache: compiled operators and geometry shared with other checks (a fresh one by default).
-      meshes: for transforms of any mesh, the names of the :func:`sample_meshes` to draw on
+      meshes: for transforms of any mesh, the names of the ``sample_meshes`` to draw on
         (default: all of them, ``("closed", "open")``).
 
     Returns:

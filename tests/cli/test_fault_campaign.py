@@ -157,7 +157,7 @@ EXPECT = {
     "meshmatch --fan-radius nan": "argument --fan-radius",
     "dgts prepare --levels 12": "argument --levels",
     "dgts prepare --levels 9 (face budget)": "faces at the finest level",
-    "verify --only bogus": "registered operators: geometry.",
+    "verify --only bogus": "not registered: bogus; registered operators: ",
     "procedural spec with too many numbers": "too many numbers",
     "fldm sample --n 0": "argument --num-samples/--n",
     "fldm train --labels missing": "cannot read --labels",

@@ -122,7 +122,7 @@ def test_errors_are_one_line(files, capsys):
             "--quiet",
         ]
     )
-    assert rc == 2 and "unknown layer" in capsys.readouterr().err
+    assert rc == 2 and "VGG layer names" in capsys.readouterr().err
     rc = main(
         [
             "surfacecnn",
