@@ -14,6 +14,7 @@ from ._fields import KINDS as KINDS
 from ._fields import Field as Field
 from ._isometries import fold_sheet as fold_sheet
 from ._isometries import hinge as hinge
+from ._registry import EXACT as EXACT
 from ._registry import EXTRINSIC as EXTRINSIC
 from ._registry import INTRINSIC as INTRINSIC
 from ._registry import REGISTRY as REGISTRY

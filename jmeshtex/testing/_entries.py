@@ -18,7 +18,7 @@ from ._fields import (
     VERTEX_VECTOR,
     Field,
 )
-from ._registry import EXTRINSIC, INTRINSIC, Entry, register
+from ._registry import EXACT, EXTRINSIC, INTRINSIC, Entry, register
 
 # ---------------------------------------------------------------------------------------------
 # geometry exposed as operators
@@ -398,17 +398,7 @@ _COMPLEX = [
         "ops.tangent_pool_unpool",
         _pool_unpool,
         {"x": (VERTEX_TANGENT, 3)},
-        (
-            "rigid",
-            "reflection",
-            "gauge",
-            "permute_vertices",
-            "permute_faces",
-            "rotate_corners",
-            "fold",
-            "folds",
-            "hinge",
-        ),
+        EXACT,
         doc="transported mean pooling to a decimated level, then nearest unpooling",
         report=("cylinder",),
     ),

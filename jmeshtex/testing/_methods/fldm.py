@@ -34,22 +34,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...fldm import Config, make_schedule, sample_from_noise
-from .. import Entry, Field, register
+from .. import EXACT, Entry, Field, register
 from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 from .._state import regauge_neighborhood
 
 #: transforms the FLDM networks must commute with (smooth bending of the decimation: reported)
-FLDM_TRANSFORMS = (
-    "rigid",
-    "reflection",
-    "gauge",
-    "permute_vertices",
-    "permute_faces",
-    "rotate_corners",
-    "fold",
-    "folds",
-    "hinge",
-)
+FLDM_TRANSFORMS = EXACT
 FLDM_REPORT = ("cylinder",)
 
 CONFIG = Config.tiny(
