@@ -144,6 +144,12 @@ def _runtime_type_checks(request: pytest.FixtureRequest):
 # and the compile segfaults (measured: a worker at ~60K mappings after ~18 min crashed compiling the
 # FLDM sampler's scan; the count grows ~1K per 20 s). The caches are cleared once a worker nears it.
 # (`jmeshtex._memory_maps`, which `jmeshtex verify` uses too).
+#
+# Doctest collection imports each module from its file. A submodule collected before its package
+# was imported is executed twice (once by the package's own imports, once from the file), and state
+# the package bound at import (``jmeshtex.testing.REGISTRY``) parts from the module's. Importing the
+# packages that hold such state first makes collection find every module already imported.
+import jmeshtex.testing  # noqa: E402, F401
 from jmeshtex._memory_maps import release_if_near_limit  # noqa: E402
 
 
