@@ -1,9 +1,9 @@
 """Testing helpers: procedural meshes, hypothesis strategies and the equivariance harness."""
 
 from .._extras import needs_testing as _needs_testing  # noqa: F401 (names a missing extra)
+from ._assert import assert_equivariant as assert_equivariant
 from ._check_cache import CheckCache as CheckCache
 from ._equivariance import Convergence as Convergence
-from ._equivariance import assert_equivariant as assert_equivariant
 from ._equivariance import convergence as convergence
 from ._equivariance import equivariance_error as equivariance_error
 from ._equivariance import relative_error as relative_error

@@ -86,6 +86,8 @@ class Entry:
       selection: ``state -> [V, ...]`` signature of discrete per-vertex choices (k-NN selection);
         vertices where it differs are left out of smooth-isometry comparisons and counted (see
         :func:`~jmeshtex.testing.convergence`).
+      hops: the receptive field's depth in k-NN hops (stacked layers): vertices within ``hops`` of
+        a flipped choice are left out too (``selection`` must give neighbour indices).
       report: transforms that are measured and reported but not asserted, each for a documented
         reason (e.g. a greedy decimation that is not a continuous function of the metric).
     """
@@ -101,6 +103,7 @@ class Entry:
     resolutions: tuple[int, ...] = (8, 16, 32, 64)
     selection: Callable | None = None
     report: tuple[str, ...] = ()
+    hops: int = 1
 
 
 REGISTRY: dict[str, Entry] = {}
@@ -157,6 +160,27 @@ def register(entry: Entry, *, replace: bool = False) -> Entry:
         )
     REGISTRY[entry.name] = entry
     return entry
+
+
+def _order_detail(conv, entry: Entry, passed: bool | None) -> str:
+    """What a convergence verdict rests on, and for a failure with discrete choices, what to try."""
+    if conv.floor:
+        return "round-off floor"
+    text = ""
+    if conv.excluded:
+        text = f"excluded {max(conv.excluded):.1%} of vertices (discrete choice flipped"
+        text += f" within {entry.hops} hops)" if entry.hops > 1 else ")"
+    if passed is False and entry.selection is not None and conv.excluded:
+        text += (
+            "; k-NN choices flipped upstream change every output whose receptive field holds "
+            "them: if the operator stacks k-NN layers, set Entry(hops=<layers>)"
+        )
+    elif passed is False and entry.selection is None:
+        text += (
+            "no order: if the operator selects neighbours discretely (k-NN), declare "
+            "Entry(selection=...) and hops= so flipped choices are left out"
+        )
+    return text
 
 
 def random_inputs(
@@ -290,6 +314,7 @@ def check(
             dtype=dtype,
             seed=seed,
             selection=entry.selection,
+            hops=entry.hops,
         )
         if conv.floor:
             passed = True
@@ -312,13 +337,7 @@ def check(
             order=None if conv.floor else conv.order,
             ratios=conv.ratios,
             expect_fail=expect_fail,
-            detail="round-off floor"
-            if conv.floor
-            else (
-                f"excluded {max(conv.excluded):.1%} of vertices (discrete choice flipped)"
-                if conv.excluded
-                else ""
-            ),
+            detail=_order_detail(conv, entry, passed),
         )
 
     errors = []

@@ -1,0 +1,105 @@
+"""The one-call check a user runs on an operator of their own, and the multi-hop selection that lets
+a stacked k-NN network be judged under smooth isometries."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jmeshtex import InputError
+from jmeshtex.data import icosphere
+from jmeshtex.testing import (
+    CATALOGUE,
+    Field,
+    MeshState,
+    assert_equivariant,
+    convergence,
+    random_inputs,
+)
+
+
+def _spread_and_height(state, x):
+    """Channel 0: distance to the centroid (rigid-invariant); channel 1: the z coordinate (not)."""
+    p = state.points()
+    spread = jnp.linalg.norm(p - p.mean(0), axis=1)
+    return Field("vertex_scalar", jnp.stack([spread, p[:, 2]], axis=1) * x)
+
+
+def _spread(state, x):
+    p = state.points()
+    return Field("vertex_scalar", jnp.linalg.norm(p - p.mean(0), axis=1)[:, None] * x)
+
+
+def test_an_equivariant_operator_passes_every_named_transform_in_one_call():
+    errors = assert_equivariant(
+        _spread,
+        jax.random.key(3),
+        {"x": ("vertex_scalar", 2)},
+        transforms=("rigid", "reflection", "permute_vertices", "permute_faces"),
+    )
+    assert set(errors) == {"rigid", "reflection", "permute_vertices", "permute_faces"}
+    assert max(errors.values()) < 1e-10
+
+
+def test_a_failure_names_the_transform_and_the_broken_output_channel():
+    v, f = icosphere(1)
+    state = MeshState(v, f)
+    real = CATALOGUE["rigid"].draw(np.random.default_rng(1), state)
+    with pytest.raises(AssertionError) as info:
+        assert_equivariant(_spread_and_height, 0, {"x": ("vertex_scalar", 1)}, transforms=[real])
+    message = str(info.value)
+    assert "rigid: relative error" in message
+    # channel 1 (the height) is the broken one: listed first, channel 0 at round-off
+    per_channel = message.split("per output channel: ")[1]
+    first, second = per_channel.split(", ")
+    assert first.startswith("1: ") and second.startswith("0: ")
+    assert float(second.split(": ")[1]) < 1e-12 < 1e-3 < float(first.split(": ")[1])
+
+
+def test_bad_arguments_are_typed_errors():
+    v, f = icosphere(1)
+    fixed = {"x": Field("vertex_scalar", np.ones((len(v), 1)))}
+    with pytest.raises(InputError, match="fixed Fields on one mesh"):
+        assert_equivariant(_spread, 0, fixed, transforms=("rigid",))
+    with pytest.raises(InputError, match="unknown transforms"):
+        assert_equivariant(_spread, 0, {"x": ("vertex_scalar", 1)}, transforms=("shear",))
+    with pytest.raises(InputError, match="key must be"):
+        assert_equivariant(_spread, "seed", {"x": ("vertex_scalar", 1)})
+
+
+def _selected(state):
+    nb = state.host_knn(8)
+    return np.sort(np.where(nb.mask, nb.index, -1), axis=1)
+
+
+def _knn_mean(nb, h):
+    w = jnp.where(nb.mask, nb.weight, 0.0)
+    return jnp.sum(w[..., None] * h[nb.index], axis=1) / jnp.sum(w, axis=1)[:, None]
+
+
+def _two_knn_layers(state, x):
+    nb = state.knn(8)
+    return Field("vertex_scalar", _knn_mean(nb, jnp.tanh(_knn_mean(nb, x))))
+
+
+def test_two_stacked_knn_layers_converge_only_with_a_two_hop_selection():
+    """A flipped k-NN choice at q changes every output whose two-layer receptive field holds q:
+    a one-hop mask leaves those in, and the error stops falling; two hops leave them out."""
+
+    def conv(hops):
+        return convergence(
+            _two_knn_layers,
+            CATALOGUE["cylinder"],
+            lambda s, rng: random_inputs({"x": ("vertex_scalar", 2)}, s, rng),
+            selection=_selected,
+            hops=hops,
+        )
+
+    one, two = conv(1), conv(2)
+    assert min(one.ratios) < 1.0, one  # the error grows on a refinement: flips leak through
+    assert min(two.ratios) > 2.5 and two.errors[-1] < one.errors[-1] / 100, two
+    assert all(b >= a for a, b in zip(one.excluded, two.excluded, strict=True))
+    with pytest.raises(ValueError, match="hops must be an integer"):
+        convergence(_two_knn_layers, CATALOGUE["cylinder"], lambda s, r: {}, hops=0)

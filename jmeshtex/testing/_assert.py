@@ -1,0 +1,161 @@
+"""One call that checks a user's operator under the harness's transforms, as e3nn-jax's
+``assert_equivariant`` does for irreps: draw, compare, and say which transform and which output
+channels broke.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from ._check_cache import CheckCache
+from ._equivariance import DEFAULT_TOLERANCE, _to_device, relative_error
+from ._fields import Field
+from ._registry import EXACT, Entry, check, random_inputs
+from ._transforms import CATALOGUE, Realisation
+
+__all__ = ["assert_equivariant"]
+
+
+def assert_equivariant(
+    fn: Callable[..., Field],
+    key,
+    inputs: Mapping[str, tuple[str, int] | Field],
+    *,
+    transforms: Sequence[str | Realisation] = EXACT,
+    dtype=jnp.float64,
+    rtol: float | None = None,
+    hops: int = 1,
+    selection: Callable | None = None,
+) -> dict[str, float]:
+    """Check ``fn`` under every transform in one call; raise one ``AssertionError`` naming each failure.
+
+    Args:
+      fn: the operator, ``fn(state, **inputs) -> Field``; builds its geometry from ``state`` (a
+        :class:`~jmeshtex.testing.MeshState`), e.g. ``state.knn(k)`` or ``state.one_ring()``.
+      key: a ``jax.random`` key or an int seed; every draw (meshes, transforms, inputs) follows it.
+      inputs: ``{name: (kind, channels)}`` drawn at random on each mesh, as the registry does; a
+        ``Field`` value is used as given, which needs the transforms to be realisations of its mesh.
+      transforms: names in :data:`~jmeshtex.testing.CATALOGUE` (default: the exact ones, see
+        :data:`~jmeshtex.testing.EXACT`), checked with the registry's bounds (exact: ``rtol``;
+        smooth isometries: a convergence order), or drawn :class:`~jmeshtex.testing.Realisation`
+        objects of your own mesh.
+      dtype: ``jnp.float64`` (bounds 1e-10 / order) or ``jnp.float32`` (1e-5; smooth isometries
+        reported only).
+      rtol: the relative bound of exact checks (default: 1e-10 in float64, 1e-5 in float32).
+      hops: depth of the receptive field (number of stacked k-NN layers): where k-NN choices flip
+        under a smooth isometry, every vertex within ``hops`` hops is left out (needs ``selection``).
+      selection: ``state -> [V, k]`` neighbour indices the operator selected (e.g.
+        ``lambda s: s.knn(k).index``); required for smooth isometries of operators with discrete
+        neighbour choices.
+
+    Returns:
+      ``{transform name: error}`` (the relative error for exact checks, the finest resolution's
+      error for smooth isometries).
+
+    Raises:
+      AssertionError: one or more transforms broke their bound; the message lists each, and for a
+        realisation the relative error of every output channel.
+      InputError: an unknown transform name, or a ``Field`` input with a transform name (the mesh
+        it lives on is unknown: pass realisations).
+
+    Example:
+      >>> import jax.numpy as jnp
+      >>> from jmeshtex.testing import Field
+      >>> def spread(state, x):  # distance to the centroid times a scalar: rigid-equivariant
+      ...     p = state.points()
+      ...     return Field("vertex_scalar", jnp.linalg.norm(p - p.mean(0), axis=1)[:, None] * x)
+      >>> errors = assert_equivariant(spread, 0, {"x": ("vertex_scalar", 2)},
+      ...                             transforms=("rigid", "permute_vertices"))
+      >>> sorted(errors), max(errors.values()) < 1e-10
+      (['permute_vertices', 'rigid'], True)
+    """
+    seed = _seed(key)
+    tol = DEFAULT_TOLERANCE[np.dtype(dtype)] if rtol is None else float(rtol)
+    specs = {k: v for k, v in inputs.items() if not isinstance(v, Field)}
+    fixed = {k: v for k, v in inputs.items() if isinstance(v, Field)}
+    names = [t for t in transforms if isinstance(t, str)]
+    unknown = [t for t in names if t not in CATALOGUE]
+    if unknown:
+        raise InputError(
+            f"assert_equivariant: unknown transforms {unknown}; known: {sorted(CATALOGUE)}"
+        )
+    if names and fixed:
+        raise InputError(
+            f"assert_equivariant: inputs {sorted(fixed)} are fixed Fields on one mesh, but "
+            f"transforms {names} draw their own meshes; pass (kind, channels) specs, or "
+            "realisations of your mesh (CATALOGUE[name].draw(rng, MeshState(v, f)))"
+        )
+    errors: dict[str, float] = {}
+    failures: list[str] = []
+    if names:
+        entry = Entry(
+            name="assert_equivariant",
+            apply=lambda state, params, **x: fn(state, **x),
+            inputs=specs,
+            transforms=tuple(names),
+            hops=hops,
+            selection=selection,
+        )
+        cache = CheckCache()
+        for name in names:
+            result = check(entry, name, dtype=dtype, seed=seed, cache=cache)
+            errors[name] = result.error
+            if result.check == "exact" and rtol is not None:
+                result.passed = result.error <= tol
+            if result.passed is False:
+                bound = f"> {tol:.1e}" if result.check == "exact" else "order below the bound"
+                detail = f" [{result.detail}]" if result.detail else ""
+                failures.append(f"  {name}: relative error {result.error:.3e} {bound}{detail}")
+    rng = np.random.default_rng(seed)
+    for real in (t for t in transforms if not isinstance(t, str)):
+        values = dict(fixed)
+        values.update(random_inputs(specs, real.source, rng))
+        err, per_channel = _errors_by_channel(fn, real, values)
+        errors[real.name] = err
+        if not err <= tol:
+            worst = ", ".join(f"{c}: {e:.1e}" for c, e in per_channel[:8])
+            failures.append(
+                f"  {real.name}: relative error {err:.3e} > {tol:.1e}; per output channel: {worst}"
+            )
+    if failures:
+        raise AssertionError("not equivariant:\n" + "\n".join(failures))
+    return errors
+
+
+def _seed(key) -> int:
+    if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
+        return int(key)
+    try:
+        data = np.asarray(jax.random.key_data(key))
+    except (TypeError, ValueError):
+        data = None
+    if data is None or data.dtype.kind not in "ui":
+        raise InputError(
+            f"assert_equivariant: key must be a jax.random key or an int seed, got {type(key)}"
+        )
+    return int(np.uint64(np.bitwise_xor.reduce(data.astype(np.uint64).ravel())) % (2**31))
+
+
+def _errors_by_channel(
+    fn: Callable[..., Field], real: Realisation, inputs: Mapping[str, Field]
+) -> tuple[float, list[tuple[int, float]]]:
+    """The relative error, and each output channel's (last axis after the rows), worst first."""
+    dt = real.source.dtype
+    out = fn(real.source, **{k: _to_device(f, dt).value for k, f in inputs.items()})
+    if not isinstance(out, Field):
+        raise TypeError(f"the operator must return a Field(kind, value), got {type(out)}")
+    mapped = {k: _to_device(real.map(f), dt).value for k, f in inputs.items()}
+    actual = np.asarray(fn(real.target, **mapped).value)
+    wanted = np.asarray(real.map(Field(out.kind, np.asarray(out.value))).value)
+    total = relative_error(actual, wanted)
+    if actual.ndim < 2:
+        return total, [(0, total)]
+    rows, channels = actual.shape[:2]
+    a, w = actual.reshape(rows, channels, -1), wanted.reshape(rows, channels, -1)
+    per = [(c, relative_error(a[:, c], w[:, c])) for c in range(a.shape[1])]
+    return total, sorted(per, key=lambda item: -item[1])
