@@ -12,6 +12,10 @@ from ._field_strategies import gauges as gauges
 from ._field_strategies import rotations as rotations
 from ._fields import KINDS as KINDS
 from ._fields import Field as Field
+from ._hypothesis import bucket as bucket
+from ._hypothesis import hypothesis_profile as hypothesis_profile
+from ._hypothesis import pad_rows as pad_rows
+from ._hypothesis import pad_to_bucket as pad_to_bucket
 from ._isometries import fold_sheet as fold_sheet
 from ._isometries import hinge as hinge
 from ._registry import EXACT as EXACT
