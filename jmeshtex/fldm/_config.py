@@ -6,9 +6,10 @@ diffusion schedule, the training data (re-triangulated copies) and the optimiser
 - :meth:`Config.paper`: the paper's denoiser as the released labelled configuration
   (google-research ``mesh_diffusion/sin_mesh_ddm/configs/default.py`` and
   ``default_train_labeled.py``): 96 / 192 channels, 2 + 4 + 4 FCResNet blocks, ``hdim`` 16,
-  two-hidden-layer filters, ``mlp_layers`` 2, ``k_conv`` 8, ε-prediction, Adam 5e-4 with 1000
-  warm-up steps and cosine decay to 1e-5; 500 copies of ~30K vertices, T = 1000;
-- :meth:`Config.cpu`: a CPU-sized denoiser (32 / 64 channels, 1 + 2 + 2 blocks);
+  two-hidden-layer filters, ``mlp_layers`` 2, ``k_conv`` 8, ε-prediction, cosine noise schedule,
+  L1 loss, one global latent σ, batch 16, Adam 5e-4 with 1000 warm-up steps and cosine decay to
+  1e-5 over 200K steps; 500 copies of ~30K vertices, T = 1000;
+- :meth:`Config.cpu`: the ``tiny`` denoiser on a 10,000-step budget (sized by measurement);
 - :meth:`Config.tiny`: tests, demos and notebooks (16 / 32 channels, 1 + 1 + 1 blocks, few copies).
 
 ``knn`` counts the vertex itself: the reference keeps the first ``k_conv = 8`` columns of a
@@ -21,8 +22,11 @@ from __future__ import annotations
 
 import dataclasses
 
-from .._config import ConfigBase, is_int, rule
+from .._config import ConfigBase, cross_rule, is_int, rule
 from ._diffusion import PREDICTIONS, SCHEDULES
+
+LOSSES = ("l2", "l1")
+SCALINGS = ("per_channel", "global")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,7 +55,7 @@ class Config(ConfigBase):
         replacement alone.
       schedule: ``"linear"`` or ``"cosine"``.
       prediction: what the denoiser outputs: ``"epsilon"`` (paper, eq. 10) or ``"v"``
-        (:func:`~jmeshtex.fldm.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
+        (:func:`~jmeshtex.fldm.core.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
         over-shoots the latents' magnitude several times when sampled).
       diffusion_steps: diffusion steps ``T`` of the noise schedule.
       learning_rate: Adam peak learning rate.
@@ -73,6 +77,22 @@ class Config(ConfigBase):
         of compute; the numbers agree to float32 round-off. It trims the activations kept between
         blocks, not the peak inside one field convolution: at the paper's size (30K vertices,
         batch 1) XLA's CPU memory analysis gives 11.6 GiB with or without it.
+      loss: the training loss: ``"l2"`` (the paper's eq. 10: mean squared modulus of the error)
+        or ``"l1"`` (the released ``get_l1_loss``: mean modulus of the error).
+      latent_scaling: ``"per_channel"`` (every channel to unit mean power, eq. 38–39) or
+        ``"global"`` (one σ for all channels, as released: collapsed channels stay small).
+      collapsed_channels: what to do with channels whose raw mean power is below
+        ``collapsed_below`` × the strongest channel's: ``"keep"``; ``"downweight"`` (their loss
+        weight is that power ratio); ``"drop"`` (their latents are zeroed in training, so the
+        model learns to generate zeros there).
+      collapsed_below: the power ratio under which a channel counts as collapsed.
+      accumulate: micro-batches per optimiser step (gradient accumulation; ``batch_size`` must
+        be a multiple); 1: the whole batch at once.
+      encodings_per_copy: FL-VAE encodings kept per copy, each with a fresh one-ring sampling
+        (an augmentation of the phase noise; each training draw picks one at random).
+      stats_samples: DDIM samples drawn at every checkpoint for the decoder-free statistics
+        (:func:`~jmeshtex.fldm.latent_statistics`) logged with it; 0: none.
+      stats_ddim_steps: DDIM steps of those samples.
 
     Randomness (copies, initialisation, training noise) comes from the ``key`` of
     :func:`~jmeshtex.fldm.build_dataset` and :func:`~jmeshtex.fldm.train`, not from the config.
@@ -110,6 +130,14 @@ class Config(ConfigBase):
     pool_ratio: float = 0.25
     bucket: int = 256
     remat: bool = False
+    loss: str = "l2"
+    latent_scaling: str = "per_channel"
+    collapsed_channels: str = "keep"
+    collapsed_below: float = 0.05
+    accumulate: int = 1
+    encodings_per_copy: int = 1
+    stats_samples: int = 0
+    stats_ddim_steps: int = 25
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
     _RULES = (
@@ -147,40 +175,87 @@ class Config(ConfigBase):
         rule("pool_ratio", lambda x: 0.05 <= x <= 0.75, "in [0.05, 0.75]"),
         rule("learning_rate", lambda x: x > 0, "> 0"),
         rule("remat", lambda x: isinstance(x, bool), "True or False"),
+        rule("loss", lambda x: x in LOSSES, f"one of {LOSSES}"),
+        rule("latent_scaling", lambda x: x in SCALINGS, f"one of {SCALINGS}"),
+        rule(
+            "collapsed_channels",
+            lambda x: x in ("keep", "downweight", "drop"),
+            "'keep', 'downweight' or 'drop'",
+        ),
+        rule("collapsed_below", lambda x: 0 <= x < 1, "in [0, 1)"),
+        rule(
+            "accumulate encodings_per_copy stats_ddim_steps",
+            lambda x: is_int(x, 1),
+            "a positive integer",
+        ),
+        rule("stats_samples", lambda x: is_int(x, 0), "an integer >= 0"),
         rule("mask_conditioning", lambda x: isinstance(x, bool), "True or False"),
         rule("diffusion_steps", lambda x: x >= 2, ">= 2", message="{name} must be {must}"),
+        cross_rule(
+            lambda c: c.batch_size % c.accumulate == 0,
+            "batch_size ({c.batch_size}) must be a multiple of accumulate ({c.accumulate}); "
+            "each micro-batch holds batch_size // accumulate copies",
+        ),
     )
 
     @classmethod
     def paper(cls, **changes) -> Config:
-        """The paper's denoiser and data (module docstring): the defaults.
+        """The released labelled configuration (module docstring).
+
+        Cosine noise schedule, batch 16 (4 micro-batches of 4 copies, gradient accumulation),
+        200K steps, the released L1 loss and one global latent σ; ``loss="l2"`` gives the
+        paper's eq. 10 and ``latent_scaling="per_channel"`` eq. 38–39 per channel.
 
         Example:
           >>> c = Config.paper()
           >>> c.widths, c.blocks, c.hdim, c.filter_layers, c.mlp_layers, c.knn, c.prediction
           ((96, 192), (2, 4, 4), 16, 2, 2, 8, 'epsilon')
+          >>> c.schedule, c.batch_size, c.accumulate, c.steps, c.loss, c.latent_scaling
+          ('cosine', 16, 4, 200000, 'l1', 'global')
         """
-        return cls(**changes)
+        base = dict(
+            schedule="cosine",
+            batch_size=16,
+            accumulate=4,
+            steps=200000,
+            loss="l1",
+            latent_scaling="global",
+        )
+        return cls(**{**base, **changes})
 
     @classmethod
     def cpu(cls, **changes) -> Config:
-        """A CPU preset: 32/64 channels, 1+2+2 blocks, ReLU filters, v-prediction, 32 copies of 5K vertices."""
+        """A CPU preset sized by measurement (``benchmarks/results/fldm_spot.md``).
+
+        The :meth:`tiny` denoiser (16/32 channels, 1+1+1 blocks, one-hidden-layer ReLU filters) with
+        v-prediction, the cosine noise schedule, Adam 2e-3 with 200 warm-up steps and cosine decay to
+        1e-5 over 10,000 steps, batch 2, an EMA of the weights (0.999), 32 copies of 10,000 vertices
+        with 4 FL-VAE encodings each, 2 DDIM-25 samples for the statistics at every checkpoint
+        (every 500 steps).
+
+        Example:
+          >>> c = Config.cpu()
+          >>> c.widths, c.schedule, c.steps, c.learning_rate, c.encodings_per_copy
+          ((16, 32), 'cosine', 10000, 0.002, 4)
+        """
         base = dict(
-            widths=(32, 64),
-            blocks=(1, 2, 2),
-            hdim=8,
-            mlp_layers=1,
-            filter_layers=2,
-            activation="relu",
             prediction="v",
-            n_copies=32,
-            copy_vertices=5000,
-            steps=3000,
+            schedule="cosine",
+            learning_rate=2e-3,
+            end_learning_rate=1e-5,
+            warmup_steps=200,
+            steps=10000,
+            ema_decay=0.999,
             batch_size=2,
-            learning_rate=1e-3,
-            warmup_steps=100,
+            n_copies=32,
+            copy_vertices=10000,
+            encodings_per_copy=4,
+            checkpoint_every=500,
+            stats_samples=2,
+            stats_ddim_steps=25,
+            bucket=256,
         )
-        return cls(**{**base, **changes})
+        return cls.tiny(**{**base, **changes})
 
     @classmethod
     def demo(cls, **changes) -> Config:

@@ -5,7 +5,7 @@ that it learns the texture and not the connectivity. For each copy ``i`` (:func:
 
 1. :func:`jmeshtex.geometry.remesh` with a seed drawn from ``(key, i)`` (same surface, new
    triangles; ``copy_vertices`` vertices);
-2. the denoiser's geometry (:func:`~jmeshtex.fldm.denoiser_geometry`: k-NN neighbourhoods of
+2. the denoiser's geometry (:func:`~jmeshtex.fldm.core.denoiser_geometry`: k-NN neighbourhoods of
    the copy and of one coarse level, pooling map);
 3. its latents from an ``encode`` callable ``Mesh -> complex [V, d]`` — normally the FL-VAE reading
    the *original* surface's colours at the copy's one-ring samples (:func:`fl_vae_encoder`), in the
@@ -46,11 +46,13 @@ class Dataset(NamedTuple):
 
     Attributes:
       latents: ``[N, V₀, d]`` complex128 latents (unscaled; zero on padding).
-      geometry: :class:`DenoiserGeometry` with a leading ``[N]`` axis on every leaf.
+      geometry: :class:`~jmeshtex.fldm.core.DenoiserGeometry` with a leading ``[N]`` axis on every leaf.
       labels: ``[N, V₀]`` int32 labels, or None.
       num_vertices: ``[N]`` real vertex count of each copy.
       scale: ``[d]`` per-channel latent scale (eq. 38–39) over all copies.
       meshes: the copies as :class:`~jmeshtex.Mesh` (host, for rendering and checks).
+      encodings: ``[N, K − 1, V₀, d]`` complex64 further encodings of every copy (fresh one-ring
+        samplings; ``config.encodings_per_copy = K``), or None (one encoding per copy).
     """
 
     latents: np.ndarray
@@ -59,6 +61,7 @@ class Dataset(NamedTuple):
     num_vertices: np.ndarray
     scale: np.ndarray
     meshes: tuple[Mesh, ...]
+    encodings: np.ndarray | None = None
 
     @property
     def num_copies(self) -> int:
@@ -97,7 +100,7 @@ def fl_vae_encoder(vae, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], n
         raise InputError(
             f"fl_vae_encoder: expected a jmeshtex.fl.Model (fl.load_pretrained()), got {type(vae).__name__}"
         )
-    colors = fl.surface_colors(as_mesh(original, what="original"))
+    colors = fl.core.surface_colors(as_mesh(original, what="original"))
     counter = [0]
 
     def encode(copy: Mesh) -> np.ndarray:
@@ -165,13 +168,15 @@ def _geometry_from(arrays: dict[str, np.ndarray]) -> DenoiserGeometry:
 
 
 def _save_copy(
-    path: pathlib.Path, copy: Mesh, geo: DenoiserGeometry, mu: np.ndarray, labels
+    path: pathlib.Path, copy: Mesh, geo: DenoiserGeometry, mu: np.ndarray, labels, extra=None
 ) -> None:
     from ..io import atomic_save_npz
 
     arrays = {"vertices": copy.vertices, "faces": copy.faces, "mu": mu, **_geometry_arrays(geo)}
     if labels is not None:
         arrays["labels"] = labels
+    if extra is not None:
+        arrays["mu_extra"] = extra
     atomic_save_npz(path, arrays)
 
 
@@ -180,7 +185,8 @@ def _load_copy(path: pathlib.Path):
 
     a = load_npz(path, "FLDM training copy")
     try:
-        return Mesh(a["vertices"], a["faces"]), _geometry_from(a), a["mu"], a.get("labels")
+        copy = (Mesh(a["vertices"], a["faces"]), _geometry_from(a), a["mu"], a.get("labels"))
+        return (*copy, a["mu_extra"]) if "mu_extra" in a else copy
     except KeyError as err:
         raise MeshIOError(
             f"{path}: incomplete FLDM training copy (missing {err}); delete it to rebuild"
@@ -198,11 +204,12 @@ def stack_copies(
 
     Args:
       copies: one ``(mesh, geometry, latents [V, d], labels [V] or None)`` per copy (labels all
-        given or all None).
-      config: :class:`Config` (``bucket``).
+        given or all None), optionally with a fifth entry ``[K − 1, V, d]`` further encodings
+        (all copies or none).
+      config: :class:`~jmeshtex.fldm.Config` (``bucket``, ``latent_scaling``).
 
     Returns:
-      :class:`Dataset`; ``V₀`` and ``V₁`` rounded up to a multiple of ``bucket`` (``bucket // 4``
+      :class:`~jmeshtex.fldm.Dataset`; ``V₀`` and ``V₁`` rounded up to a multiple of ``bucket`` (``bucket // 4``
       for the coarse level).
 
     Example:
@@ -213,6 +220,10 @@ def stack_copies(
       >>> d.latents.shape, d.num_vertices.tolist(), d.scale.tolist()
       ((1, 64, 1), [42], [1.0])
     """
+    extras = [c[4] if len(c) > 4 else None for c in copies]
+    copies = [tuple(c[:4]) for c in copies]
+    if any(e is None for e in extras) != all(e is None for e in extras):
+        raise InputError("stack_copies: give further encodings for every copy or for none")
     sizes = [geometry_sizes(g) for _, g, _, _ in copies]
     V0 = _round_up(max(s["V0"] for s in sizes), config.bucket)
     V1 = _round_up(max(s["V1"] for s in sizes), max(config.bucket // 4, 1))
@@ -226,15 +237,16 @@ def stack_copies(
         latents[i, : m.num_vertices] = mu
         if labels is not None:
             labels[i, : m.num_vertices] = lab
+    encodings = None
+    if extras[0] is not None:
+        encodings = np.zeros((len(copies), extras[0].shape[0], V0, d), np.complex64)
+        for i, (m, _, _, _) in enumerate(copies):
+            encodings[i, :, : m.num_vertices] = extras[i]
     nv = np.array([m.num_vertices for m, _, _, _ in copies])
     mask = np.arange(V0)[None] < nv[:, None]
+    scale = latent_scale(latents, mask, per_channel=config.latent_scaling == "per_channel")
     return Dataset(
-        latents,
-        geometry,
-        labels,
-        nv,
-        latent_scale(latents, mask),
-        tuple(m for m, _, _, _ in copies),
+        latents, geometry, labels, nv, scale, tuple(m for m, _, _, _ in copies), encodings
     )
 
 
@@ -260,6 +272,10 @@ def build_dataset(
       key: PRNG key of the re-triangulations (the same key gives the same copies).
       labels: optional ``[V]`` int labels on ``mesh`` in ``[0, num_labels)``.
       cache_dir: folder for ``copy_####.npz`` and ``data.json`` (None: no cache).
+
+    With ``config.encodings_per_copy = K > 1`` each copy is encoded ``K`` times (``encode`` is
+    called again; :func:`fl_vae_encoder` draws new one-ring samples each call): the first in
+    ``latents`` (and the scale), the others in ``Dataset.encodings``.
       progress: tqdm bar.
 
     Returns:
@@ -308,6 +324,8 @@ def build_dataset(
         "key": key_ints(key),
         "latent_channels": config.latent_channels,
     }
+    if config.encodings_per_copy > 1:  # (absent for one: caches built before the option stay valid)
+        meta["encodings_per_copy"] = config.encodings_per_copy
     reuse = False
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
@@ -339,9 +357,14 @@ def build_dataset(
                 f"{config.latent_channels}) (set latent_channels to the FL-VAE's latent_dim)"
             )
         lab = None if labels is None else transfer_labels(mesh, labels, copy)
+        extra = None
+        if config.encodings_per_copy > 1:
+            extra = np.stack(
+                [np.asarray(encode(copy)) for _ in range(config.encodings_per_copy - 1)]
+            ).astype(np.complex64)
         if path is not None:
-            _save_copy(path, copy, geo, mu, lab)
-        copies.append((copy, geo, mu, lab))
+            _save_copy(path, copy, geo, mu, lab, extra)
+        copies.append((copy, geo, mu, lab) + (() if extra is None else (extra,)))
     return stack_copies(copies, config)
 
 

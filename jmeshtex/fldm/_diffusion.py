@@ -150,6 +150,9 @@ def epsilon_loss(
     eps_pred: Complex[Array, "*B V C"],
     eps: Complex[Array, "*B V C"],
     vertex_mask: Bool[Array, "*B V"] | None = None,
+    *,
+    kind: str = "l2",
+    channel_weight: Float[Array, " C"] | None = None,
 ) -> Float[Array, ""]:
     """The ε-prediction loss (eq. 10): mean squared modulus of the error over real vertices and channels.
 
@@ -159,6 +162,9 @@ def epsilon_loss(
       eps_pred: predicted noise.
       eps: the noise that was added.
       vertex_mask: True for real vertices (padding excluded); None: all.
+      kind: ``"l2"`` (squared modulus, eq. 10) or ``"l1"`` (modulus, the released ``get_l1_loss``).
+      channel_weight: ``[C]`` weights of the channels' errors (None: all 1); the mean stays over
+        ``C`` channels.
 
     Returns:
       Scalar real loss.
@@ -167,7 +173,13 @@ def epsilon_loss(
       >>> float(epsilon_loss(jnp.array([[1j], [5.0]]), jnp.zeros((2, 1), complex), jnp.array([True, False])))
       1.0
     """
-    err = jnp.abs(eps_pred - eps.astype(eps_pred.dtype)) ** 2
+    err = jnp.abs(eps_pred - eps.astype(eps_pred.dtype))
+    if kind == "l2":
+        err = err**2
+    elif kind != "l1":
+        raise ConfigError(f"epsilon_loss: kind must be 'l1' or 'l2', got {kind!r}")
+    if channel_weight is not None:
+        err = err * jnp.asarray(channel_weight, err.dtype)
     if vertex_mask is None:
         return jnp.mean(err)
     w = vertex_mask.astype(err.dtype)[..., None]
@@ -246,7 +258,10 @@ def epsilon_from_output(
 
 
 def latent_scale(
-    mu: Complex[Array, "*B V C"], vertex_mask: Bool[Array, "*B V"] | None = None
+    mu: Complex[Array, "*B V C"],
+    vertex_mask: Bool[Array, "*B V"] | None = None,
+    *,
+    per_channel: bool = True,
 ) -> Float[np.ndarray, " C"]:
     """Per-channel scale that gives the latents unit mean squared modulus (eq. 38–39).
 
@@ -257,6 +272,8 @@ def latent_scale(
     Args:
       mu: latents (any leading batch dims).
       vertex_mask: True for real vertices; None: all.
+      per_channel: True: one scale per channel; False: one σ for all channels (the released
+        code's), repeated ``C`` times (the mean power over channels becomes 1).
 
     Returns:
       ``[C]`` float64 NumPy scales; train on ``s·μ``, decode ``z/s``.
@@ -271,10 +288,12 @@ def latent_scale(
     else:
         w = np.asarray(vertex_mask, np.float64)[..., None]
         mean = (m * w).reshape(-1, m.shape[-1]).sum(0) / max(w.sum(), 1.0)
-    if not np.all(np.isfinite(mean)) or np.any(mean <= 0):
+    if not np.all(np.isfinite(mean)) or (np.any(mean <= 0) if per_channel else mean.sum() <= 0):
         raise InputError(
             "latent_scale: latents must be finite and not identically zero in any channel"
         )
+    if not per_channel:
+        mean = np.full_like(mean, mean.mean())
     return 1.0 / np.sqrt(mean)
 
 
@@ -411,7 +430,7 @@ def sample_from_noise(
 
     Every random draw is an argument, so the sampler is a plain map from noise to samples; a gauge
     change or isometry applied to the noise gives the transformed sample (the distributional
-    equivariance the harness checks). :func:`sample` draws the noise from a key.
+    equivariance the harness checks). :func:`~jmeshtex.fldm.sample` draws the noise from a key.
 
     Inpainting (eq. 14): after each step to timestep ``t'``, ``z_{t'}[mask] = √ᾱ_{t'} z0 +
     √(1−ᾱ_{t'}) ε''`` with ``ε'' = inpaint_noise[i]``; after the last step ``z[mask] = z0`` exactly.

@@ -20,6 +20,7 @@ from ._denoiser import init_denoiser
 MODEL_FILE = "model.npz"
 #: the JSON file of the earlier layout (format version 0, read only)
 LEGACY_JSON = "model.json"
+CARD_FILE = "card.json"
 #: the ``kind`` recorded in an FLDM model file
 MODEL_KIND = "jmeshtex.fldm.Model"
 #: the layout of the arrays in the file
@@ -31,7 +32,7 @@ class Model(NamedTuple):
     """A trained (or freshly initialised) FLDM: the denoiser's parameters with their config and scale.
 
     Attributes:
-      params: denoiser parameters (flax ``params`` dict, :func:`init_denoiser`).
+      params: denoiser parameters (flax ``params`` dict, :func:`~jmeshtex.fldm.core.init_denoiser`).
       config: the :class:`Config`.
       scale: ``[d]`` latent scale ``s`` (train on ``s·μ``, decode ``z/s``; eq. 38–39).
     """
@@ -41,7 +42,7 @@ class Model(NamedTuple):
     scale: np.ndarray
 
 
-def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
+def save(model: Model, path: str | os.PathLike, *, card: dict | None = None) -> pathlib.Path:
     """Write ``model`` as ``model.npz`` into the folder ``path``, atomically.
 
     The file is the one model format of :func:`jmeshtex.io.save_model`: the denoiser's parameters
@@ -50,6 +51,9 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
     Args:
       model: the :class:`Model` (e.g. ``train(...).model``).
       path: the folder (created if needed; a model already there is replaced).
+      card: a JSON-able model card written next to it as ``card.json`` (e.g. the training's
+        steps, losses and the decoder-free statistics of ``TrainResult.extra["statistics"]``:
+        :func:`model_card`); None: none (an old card there is left as it is).
 
     Returns:
       The folder.
@@ -81,7 +85,30 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
         config=model.config.to_dict(),
         format_version=FORMAT_VERSION,
     )
+    if card is not None:
+        from ..io import atomic_write
+
+        text = json.dumps({"config": model.config.to_dict(), **card}, indent=1, default=float)
+        atomic_write(out / CARD_FILE, text.encode())
     return out
+
+
+def model_card(result) -> dict:
+    """The card of a trained model (:func:`save`'s ``card``): steps, final loss and statistics.
+
+    Args:
+      result: the :class:`~jmeshtex.TrainResult` of :func:`~jmeshtex.fldm.train`.
+
+    Returns:
+      ``{"steps", "final_loss", "statistics"}``: ``statistics`` the decoder-free statistics logged
+      at each checkpoint (:mod:`jmeshtex.fldm` ``latent_statistics``; empty without
+      ``config.stats_samples``).
+    """
+    return {
+        "steps": int(result.steps),
+        "final_loss": float(result.final_loss()),
+        "statistics": list(result.extra.get("statistics", [])),
+    }
 
 
 def _model(params: dict, config: Config, scale) -> Model:

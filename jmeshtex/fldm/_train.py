@@ -5,7 +5,7 @@ One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}
 and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam on a warm-up + cosine learning-rate
 schedule, :func:`learning_rate_schedule`; complex gradients conjugated first, DESIGN.md; optionally an
 EMA of the weights, ``config.ema_decay``), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
-(:func:`~jmeshtex.fldm.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies.
+(:func:`~jmeshtex.fldm.core.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies.
 With ``config.mask_conditioning`` every copy of a step also gets a random inpainting mask
 (:func:`training_masks`); the denoiser sees it and the known clean latents, and the loss counts the
 generated (unmasked) region only.
@@ -58,7 +58,7 @@ from ..parallel import (
 )
 from ._config import Config
 from ._data import Dataset, batch_geometry
-from ._denoiser import DenoiserGeometry, denoise, init_denoiser
+from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, init_denoiser
 from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
 from ._masks import batch_masks
 from ._model import Model
@@ -90,7 +90,7 @@ def learning_rate_schedule(config: Config) -> optax.Schedule:
 
 
 def optimizer(config: Config) -> optax.GradientTransformation:
-    """The optimiser of :func:`train`: Adam on :func:`learning_rate_schedule` after global-norm clipping at 1.
+    """The optimiser of :func:`~jmeshtex.fldm.train`: Adam on :func:`learning_rate_schedule` after global-norm clipping at 1.
 
     Example:
       >>> opt = optimizer(Config.tiny())
@@ -118,15 +118,23 @@ def _check_batch(config: Config, device_mesh: jax.sharding.Mesh) -> None:
         )
 
 
-def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None):
-    """The jitted optimiser step of :func:`train` (module docstring).
+def make_train_step(
+    config: Config, device_mesh: jax.sharding.Mesh | None = None, *, channel_weight=None
+):
+    """The jitted optimiser step of :func:`~jmeshtex.fldm.train` (module docstring).
 
     Args:
-      config: the :class:`Config` (schedule, prediction, ``diffusion_steps``, learning rate).
+      config: the :class:`~jmeshtex.fldm.Config` (schedule, prediction, ``diffusion_steps``, learning rate).
       device_mesh: None (a plain :func:`jax.jit` on the default device), or a :class:`jax.sharding.Mesh`
         with a ``"data"`` axis: the batch arguments (``z0``, ``geo``, ``labels``) are split along
         their leading axis over it, everything else replicated, outputs replicated
         (:func:`jmeshtex.parallel.data_parallel`).
+      channel_weight: ``[d]`` loss weights of the latent channels (:func:`channel_weights`;
+        None: all 1).
+
+    ``config.loss`` picks the L2 or L1 loss; with ``config.accumulate = a`` the batch is split into
+    ``a`` micro-batches whose gradients are averaged before one optimiser update (the same update
+    as the whole batch at once, up to round-off).
 
     Returns:
       ``step(params, opt_state, z0 [B, V, d], geo [B, …], labels [B, V] or None, key, mask=None) ->
@@ -164,8 +172,28 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
         if config.mask_conditioning:  # the loss of the generated region only
             weight = weight & ~mask
         return epsilon_loss(
-            pred, prediction_target(schedule, config.prediction, z0, t, eps), weight
+            pred,
+            prediction_target(schedule, config.prediction, z0, t, eps),
+            weight,
+            kind=config.loss,
+            channel_weight=channel_weight,
         )
+
+    def grads_of(params, z0, geo, labels, t, eps, mask):
+        a = config.accumulate
+        if a == 1:
+            return jax.value_and_grad(loss_fn)(params, z0, geo, labels, t, eps, mask)
+        micro = jax.tree.map(
+            lambda x: x.reshape(a, x.shape[0] // a, *x.shape[1:]), (z0, geo, labels, t, eps, mask)
+        )
+
+        def body(acc, xs):
+            loss, g = jax.value_and_grad(loss_fn)(params, *xs)
+            return jax.tree.map(jnp.add, acc, (loss, g)), None
+
+        zero = (jnp.zeros((), jnp.float32), jax.tree.map(jnp.zeros_like, params))
+        (loss, g), _ = jax.lax.scan(body, zero, micro)
+        return loss / a, jax.tree.map(lambda x: x / a, g)
 
     def step(params, opt_state, z0, geo, labels, key, mask=None):
         if config.mask_conditioning and mask is None:
@@ -177,7 +205,7 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
         kt, ke = jax.random.split(key)
         t = jax.random.randint(kt, (z0.shape[0],), 0, config.diffusion_steps)
         eps = tangent_noise(ke, z0.shape, dtype=z0.dtype)
-        loss, grads = jax.value_and_grad(loss_fn)(params, z0, geo, labels, t, eps, mask)
+        loss, grads = grads_of(params, z0, geo, labels, t, eps, mask)
         grads = conjugate_complex_grads(grads)
         with jax.numpy_dtype_promotion("standard"):
             updates, opt_state = opt.update(grads, opt_state, params)
@@ -193,10 +221,11 @@ def training_batch(
     data: Dataset, step: int, size: int, *, key: jax.Array, dtype=jnp.complex64
 ) -> tuple[np.ndarray, DenoiserGeometry, np.ndarray | None]:
     """The copies of training step ``step``: a function of ``(key, step)`` (drawn without
-    replacement when the data set has enough copies).
+    replacement when the data set has enough copies). With several encodings per copy
+    (``Dataset.encodings``), each drawn copy comes with one of them, uniformly.
 
     Args:
-      data: the :class:`Dataset`.
+      data: the :class:`~jmeshtex.fldm.Dataset`.
       step: the optimiser step.
       size: batch size.
       key: PRNG key of the batch draws.
@@ -217,7 +246,13 @@ def training_batch(
       ((2, 32, 1), 2, None)
     """
     idx = _batch_index(data, step, size, key)
-    z0 = (data.latents[idx] * data.scale).astype(dtype)
+    latents = data.latents[idx]
+    if data.encodings is not None:  # one of the copy's K encodings, drawn after the copies
+        which = host_rng(key, step, 2).integers(0, data.encodings.shape[1] + 1, size=len(idx))
+        for b, (i, j) in enumerate(zip(idx, which, strict=True)):
+            if j:
+                latents[b] = data.encodings[i, j - 1]
+    z0 = (latents * data.scale).astype(dtype)
     geo = batch_geometry(data, idx)
     labels = None if data.labels is None else data.labels[idx]
     return z0, geo, labels
@@ -300,9 +335,8 @@ def init(data: Dataset, config: Config, *, key: jax.Array, dtype=jnp.complex64) 
 
 def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
     """What a checkpoint must have been written by to be resumed (module docstring)."""
-    settings = {
-        k: v for k, v in config.to_dict().items() if k not in ("steps", "checkpoint_every", "remat")
-    }
+    free = ("steps", "checkpoint_every", "remat", "stats_samples", "stats_ddim_steps")
+    settings = {k: v for k, v in config.to_dict().items() if k not in free}
     return {
         "config": settings,
         "key": key_ints(key),
@@ -371,15 +405,22 @@ def train(
     _check_batch(config, device_mesh)
     k_init, k_batch, k_noise = _split(key)
     use_ema = config.ema_decay > 0
+    weight, keep = channel_weights(data, config)
 
     def batches(step: int):
         z0, geo, labels = training_batch(data, step, config.batch_size, key=k_batch, dtype=dtype)
+        if not keep.all():  # collapsed_channels="drop"
+            z0 = z0 * keep.astype(z0.real.dtype)
         masks = ()
         if config.mask_conditioning:
             masks = (training_masks(data, step, config.batch_size, key=k_batch),)
         return (z0, geo, labels, jax.random.fold_in(k_noise, step), *masks), np.float32(step)
 
-    denoiser_step = make_train_step(config, device_mesh)
+    denoiser_step = make_train_step(
+        config,
+        device_mesh,
+        channel_weight=weight if config.collapsed_channels == "downweight" else None,
+    )
     ema_step = data_parallel(
         functools.partial(_ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
     )
@@ -396,7 +437,11 @@ def train(
     state = {"params": params, "opt_state": optimizer(config).init(params)}
     if use_ema:
         state["ema"] = params
-    return fit(
+    stats = _CheckpointStatistics(
+        data, config, key=jax.random.fold_in(key, 7), dtype=dtype, use_ema=use_ema
+    )
+    stats.resume(checkpoint_dir, _fingerprint(data, config, key, dtype))
+    result = fit(
         step,
         state,
         batches,
@@ -412,4 +457,113 @@ def train(
             fetch(s["ema" if use_ema else "params"]), config, np.asarray(data.scale)
         ),
         started=started,
+        meta=stats.meta,
+        on_step=stats.on_step,
     )
+    result.extra["statistics"] = stats.history
+    return result
+
+
+def channel_weights(data: Dataset, config: Config) -> tuple[np.ndarray, np.ndarray]:
+    """``(loss weight [d], kept [d] bool)`` of the latent channels (``config.collapsed_channels``).
+
+    A channel is collapsed when its mean raw power ``mean |μ_c|²`` over the copies' real vertices is
+    below ``config.collapsed_below`` times the strongest channel's. ``"keep"``: weights 1, all kept;
+    ``"downweight"``: a collapsed channel's weight is its power ratio; ``"drop"``: weights 1, the
+    collapsed channels not kept (zeroed in training).
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> from jmeshtex.fldm import build_dataset
+      >>> cfg = Config.tiny(latent_channels=2, n_copies=1, copy_vertices=0, bucket=32,
+      ...                   collapsed_channels="downweight", collapsed_below=0.5)
+      >>> enc = lambda m: np.stack([np.ones(m.num_vertices), 0.1 * np.ones(m.num_vertices)], 1) + 0j
+      >>> data = build_dataset(icosphere(1), cfg, encode=enc, key=jax.random.key(0), progress=False)
+      >>> w, kept = channel_weights(data, cfg)
+      >>> w.round(4).tolist(), kept.tolist()
+      ([1.0, 0.01], [True, True])
+    """
+    real = np.arange(data.latents.shape[1])[None] < np.asarray(data.num_vertices)[:, None]
+    power = (np.abs(data.latents) ** 2 * real[..., None]).sum((0, 1)) / max(real.sum(), 1)
+    ratio = power / max(float(power.max()), 1e-30)
+    collapsed = ratio < config.collapsed_below
+    weight = np.ones(len(power), np.float32)
+    keep = np.ones(len(power), bool)
+    if config.collapsed_channels == "downweight":
+        weight = np.where(collapsed, ratio, 1.0).astype(np.float32)
+    elif config.collapsed_channels == "drop":
+        keep = ~collapsed
+    return weight, keep
+
+
+class _CheckpointStatistics:
+    """The decoder-free statistics logged at every checkpoint (``config.stats_samples``).
+
+    At each save point: ``stats_samples`` DDIM-``stats_ddim_steps`` samples of the current model
+    (EMA weights when kept) on copy 0, and :func:`~jmeshtex.fldm.latent_statistics` of each; the
+    record holds their mean per statistic and, once, the same statistics of copy 0's own latents
+    (``"data"``). The history (a list of records by step) goes into every checkpoint's meta, is read
+    back on resume and ends up in ``TrainResult.extra["statistics"]``.
+    """
+
+    def __init__(self, data: Dataset, config: Config, *, key, dtype, use_ema: bool):
+        self.data, self.config, self.key, self.dtype = data, config, key, dtype
+        self.use_ema = use_ema
+        self.history: list[dict] = []
+        self.state = None
+        self._geo = None
+
+    def resume(self, checkpoint_dir, fingerprint) -> None:
+        if checkpoint_dir is None or self.config.stats_samples == 0:
+            return
+        from ..io import Checkpoints
+
+        ckpt = Checkpoints(checkpoint_dir, fingerprint=fingerprint)
+        try:
+            latest = ckpt.latest_step()
+            if latest is not None:
+                old = ckpt.read_meta(latest).get("statistics", [])
+                self.history = [
+                    r for r in old if isinstance(r, dict) and r.get("step", 0) <= latest
+                ]
+        finally:
+            ckpt.close()
+
+    def on_step(self, done, state, batch) -> None:
+        self.state = state
+
+    def meta(self, done: int) -> dict:
+        if self.config.stats_samples == 0 or self.state is None:
+            return {}
+        from ._sample import sample
+        from ._statistics import latent_statistics
+
+        if self._geo is None:
+            self._geo = denoiser_geometry(
+                self.data.meshes[0], knn=self.config.knn, pool_ratio=self.config.pool_ratio
+            )
+        geo = self._geo
+        V = self.data.meshes[0].num_vertices
+        t0 = time.perf_counter()
+        params = fetch(self.state["ema" if self.use_ema else "params"])
+        model = Model(params, self.config, np.asarray(self.data.scale))
+        z = sample(
+            model,
+            geo,
+            key=jax.random.fold_in(self.key, done),
+            num_samples=self.config.stats_samples,
+            steps=self.config.stats_ddim_steps,
+            dtype=self.dtype,
+        ).latents
+        per = [latent_statistics(jnp.asarray(zi[:V]), geo.fine) for zi in z]
+        record = {
+            "step": int(done),
+            **{k: float(np.mean([p[k] for p in per])) for k in per[0] if k != "power"},
+            "power": np.mean([p["power"] for p in per], axis=0).tolist(),
+            "seconds": time.perf_counter() - t0,
+        }
+        if not any("data" in r for r in self.history):
+            ref = latent_statistics(jnp.asarray(self.data.latents[0, :V]), geo.fine)
+            record["data"] = {k: v for k, v in ref.items()}
+        self.history = [r for r in self.history if r.get("step") != done] + [record]
+        return {"statistics": self.history}
