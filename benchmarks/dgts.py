@@ -42,17 +42,13 @@ from _harness import Report, matmul_ceiling
 from scipy.stats import wasserstein_distance
 
 from jmeshtex.data import icosphere, textured_sphere, torus
-from jmeshtex.dgts import (
-    Config,
-    PrepareConfig,
+from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes, transfer
+from jmeshtex.dgts.core import (
     height_autocorrelation_length,
     normal_heights,
     peak_statistics,
     reconstruction_errors,
     sample_points,
-    train,
-    training_meshes,
-    transfer,
 )
 
 #: Taubin pairs of the heights, as the dgts quality measures use them by default

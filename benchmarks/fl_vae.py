@@ -20,7 +20,7 @@ resampled at the same texels:
   beat.
 
 Held-out images (``table="held_out"``): the scikit-image photographs in
-:data:`jmeshtex.fl.HELD_OUT_IMAGES` (never used by :func:`jmeshtex.fl.training_images`; the row's
+:data:`jmeshtex.fl.core.HELD_OUT_IMAGES` (never used by :func:`jmeshtex.fl.training_images`; the row's
 ``seen_in_training`` says whether the model's own training data had the image) as planar
 meshes at 26 and 18 pixels per vertex, reconstructed in the atlas next to the best constant colour:
 a model far above the constant on these but not on Spot suffers domain shift, one near the constant
@@ -131,9 +131,9 @@ def render_metrics(mesh, r, *, views: int, size: int, lpips: bool) -> dict:
 def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
     """Held-out photographs as planar meshes at 26 and 18 pixels per vertex (module docstring)."""
     rng = np.random.default_rng(0)
-    for name, image in zip(fl.HELD_OUT_IMAGES, fl.held_out_images(max_size=size), strict=True):
+    for name, image in zip(fl.core.HELD_OUT_IMAGES, fl.held_out_images(max_size=size), strict=True):
         for ppv in (26.0, 18.0):
-            mesh = fl.density_mesh(image, ppv, rng=rng)
+            mesh = fl.core.density_mesh(image, ppv, rng=rng)
             measured = image.shape[0] * image.shape[1] / mesh.num_vertices
             for decoder, model in models.items():
                 t0 = time.perf_counter()
@@ -150,7 +150,7 @@ def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
                     seconds=time.perf_counter() - t0,
                     load=load(),
                 )
-            const = fl.atlas_metrics(
+            const = fl.core.atlas_metrics(
                 metrics.flat_baseline(r.target, mask=r.valid), r.target, r.valid, lpips=lpips
             )
             report.add(
@@ -166,7 +166,9 @@ def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
 
 def model_images(model) -> tuple[str, ...]:
     """The scikit-image names a model's training saw (the stream mode's split, else the shipped pool)."""
-    return fl.TRAINING_IMAGES if model.config.pixels_per_vertex > 0 else SHIPPED_TRAINING_IMAGES
+    return (
+        fl.core.TRAINING_IMAGES if model.config.pixels_per_vertex > 0 else SHIPPED_TRAINING_IMAGES
+    )
 
 
 def load() -> float:
@@ -267,7 +269,7 @@ def main() -> None:
                         seconds=time.perf_counter() - t0,
                         load=load(),
                     )
-            const = fl.atlas_metrics(
+            const = fl.core.atlas_metrics(
                 metrics.flat_baseline(r.target, mask=r.valid),
                 r.target,
                 r.valid,
@@ -300,26 +302,26 @@ def main() -> None:
     n = max(sizes)
     if (SPOT / "spot_triangulated.obj").exists():
         mesh = remesh(spot, n_vertices=n, key=jax.random.key(1))
-        colors = fl.surface_colors(spot)
+        colors = fl.core.surface_colors(spot)
     else:
         from jmeshtex import Mesh
         from jmeshtex.data import icosphere
 
         v, f = icosphere(6)
         mesh = Mesh(v, f, vertex_colors=0.5 + 0.5 * v)
-        colors = fl.surface_colors(mesh)
+        colors = fl.core.surface_colors(mesh)
     t0 = time.perf_counter()
-    s = fl.one_ring_samples(
+    s = fl.core.one_ring_samples(
         mesh.vertices, mesh.faces, config.num_samples, rng=np.random.default_rng(0)
     )
     points = np.einsum("vsk,vskd->vsd", s.bary, mesh.vertices[mesh.faces[s.face]])
     rgb = colors.at_points(points.reshape(-1, 3)).reshape(*s.face.shape, 3)
     t_host = time.perf_counter() - t0
     t0 = time.perf_counter()
-    jax.block_until_ready(fl.encode_one_rings(model, s, rgb).mu)
+    jax.block_until_ready(fl.core.encode_one_rings(model, s, rgb).mu)
     t_first = time.perf_counter() - t0
     t0 = time.perf_counter()
-    jax.block_until_ready(fl.encode_one_rings(model, s, rgb).mu)
+    jax.block_until_ready(fl.core.encode_one_rings(model, s, rgb).mu)
     t_enc = time.perf_counter() - t0
     report.add(
         table="throughput",
@@ -354,7 +356,7 @@ def main() -> None:
 
         pts = np.einsum("nk,nkd->nd", bary, spot.vertices[spot.faces[face]])
         lface, lbary = surface_correspondence(mesh.vertices, mesh.faces, pts)
-        mu = fl.encode_one_rings(model, s, rgb).mu
+        mu = fl.core.encode_one_rings(model, s, rgb).mu
         fl.decode_points_in_faces(model, mesh, mu, lface[:1000], lbary[:1000])  # warm-up / compile
         t0 = time.perf_counter()
         fl.decode_points_in_faces(model, mesh, mu, lface, lbary)
@@ -372,21 +374,21 @@ def main() -> None:
     # -------- training steps/s at the shipped configuration
     cfg = config.replace(steps=10)
     params = model.params
-    pool = fl.planar_pool(
-        fl.builtin_images(max_size=cfg.max_image_size, names=("brick", "astronaut", "coffee")),
+    pool = fl.core.planar_pool(
+        fl.core.builtin_images(max_size=cfg.max_image_size, names=("brick", "astronaut", "coffee")),
         per_image=1,
         min_vertices=cfg.max_vertices,
         max_vertices=cfg.max_vertices,
         rng=np.random.default_rng(0),
     )
-    batch = fl.mesh_batch(
+    batch = fl.core.mesh_batch(
         pool[: cfg.batch_size],
         cfg,
         np.random.default_rng(0),
         num_vertices=cfg.batch_size * cfg.max_vertices,
     )
-    step = fl.make_train_step(cfg)
-    state = (params, fl.optimizer(cfg).init(params))
+    step = fl.core.make_train_step(cfg)
+    state = (params, fl.core.optimizer(cfg).init(params))
     t0 = time.perf_counter()
     out = step(*state, batch, jax.random.key(0))
     jax.block_until_ready(out)

@@ -11,7 +11,7 @@ tangent-noise latents — timings do not depend on the values):
 - ``train``: seconds per optimiser step (ε-loss, Adam) for the paper denoiser (96/192 channels,
   2+4+4 FCResNet blocks, batch 1) and the CPU preset (32/64, 1+2+2, ReLU filters, batch 2);
   ``steps_per_s`` is its inverse;
-- ``denoise``: one denoiser evaluation, beside its FLOP count (``fldm.denoiser_flops``) and the
+- ``denoise``: one denoiser evaluation, beside its FLOP count (``fldm.core.denoiser_flops``) and the
   matmul ceiling measured in the same run: ``row_ceiling`` is the highest of the run's first
   ceiling and two more measured right before and after the row (this machine is shared, with steal
   time up to a third, so a single ceiling can be low and flatter the ratio); ``seconds`` is the
@@ -19,7 +19,7 @@ tangent-noise latents — timings do not depend on the values):
   case), ``x_bound_median`` the median's ratio; ``ddim50_s`` is 50 median evaluations (the sampler
   adds a few element-wise ops per step), ``bound_s`` the time the ceiling allows for 50;
   ``--full-ddim`` also runs the whole jitted DDIM-50 loop once for the CPU preset at the largest size;
-  ``activations`` counts the filter nonlinearity's evaluations (``fldm.denoiser_activations``), and
+  ``activations`` counts the filter nonlinearity's evaluations (``fldm.core.denoiser_activations``), and
   ``x_bound_act`` compares the best time with a bound that adds them at the activation's own
   ceiling (``silu_gevals`` / ``relu_gevals``; ``row_act_ceiling`` taken like ``row_ceiling``): a
   SiLU costs a tanh (a rational function with a division), which the FLOP count does not see;
@@ -87,13 +87,13 @@ def main() -> None:
         copy = remesh(base, n_vertices=n, key=jax.random.key(0))
         report.add(name="remesh", vertices=n, seconds=time.perf_counter() - t0, load=_load())
         t0 = time.perf_counter()
-        geo = fldm.denoiser_geometry(
+        geo = fldm.core.denoiser_geometry(
             copy, knn=fldm.Config.paper().knn, pool_ratio=0.25
         )  # every preset: k = 8
         report.add(
             name="denoiser geometry", vertices=n, seconds=time.perf_counter() - t0, load=_load()
         )
-        sizes = fldm.geometry_sizes(geo)
+        sizes = fldm.core.geometry_sizes(geo)
         for preset in args.presets:
             if (
                 preset == "paper-relu"
@@ -105,11 +105,11 @@ def main() -> None:
                 cfg = cfg.replace(batch_size=1)
             # training step on a batch of copies (the same copy repeated: timing only)
             mu = np.asarray(tangent_noise(jax.random.key(0), (n, 8)), np.complex128)
-            data = fldm.stack_copies([(copy, geo, mu, None)], cfg)
-            params = fldm.init_denoiser(jax.random.key(0), cfg)
-            opt_state = fldm.optimizer(cfg).init(params)
-            step = fldm.make_train_step(cfg)
-            z0, g, lab = fldm.training_batch(
+            data = fldm.core.stack_copies([(copy, geo, mu, None)], cfg)
+            params = fldm.core.init_denoiser(jax.random.key(0), cfg)
+            opt_state = fldm.core.optimizer(cfg).init(params)
+            step = fldm.core.make_train_step(cfg)
+            z0, g, lab = fldm.core.training_batch(
                 data, 0, cfg.batch_size, key=jax.random.key(5), dtype=jnp.complex64
             )
             key = jax.random.key(1)
@@ -141,7 +141,9 @@ def main() -> None:
             gj = to_jax(geo, jnp.float32)
             z = tangent_noise(jax.random.key(2), (n, 8))
             fn = jax.jit(
-                lambda p, z, cfg=cfg, gj=gj: fldm.denoise(p, cfg, z, jnp.array(500, jnp.int32), gj)
+                lambda p, z, cfg=cfg, gj=gj: fldm.core.denoise(
+                    p, cfg, z, jnp.array(500, jnp.int32), gj
+                )
             )
             load = _load()
             t, ceiling, act_ceiling = _timed_between_ceilings(
@@ -152,9 +154,9 @@ def main() -> None:
                 ),
             )
             best = min(t.runs)
-            flops = fldm.denoiser_flops(cfg, sizes["V0"], sizes["V1"])
+            flops = fldm.core.denoiser_flops(cfg, sizes["V0"], sizes["V1"])
             bound = flops / (ceiling * 1e9)
-            acts = fldm.denoiser_activations(cfg, sizes["V0"], sizes["V1"])
+            acts = fldm.core.denoiser_activations(cfg, sizes["V0"], sizes["V1"])
             bound_act = bound + acts / (act_ceiling * 1e9)
             report.add(
                 name=f"denoise {preset}",

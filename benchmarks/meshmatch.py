@@ -77,7 +77,8 @@ from scipy.spatial import cKDTree
 from jmeshtex import Mesh
 from jmeshtex.data import icosphere, torus
 from jmeshtex.geometry import mean_edge_length, prepare_mesh, remesh
-from jmeshtex.meshmatch import Config, meshmatch, prepare_side
+from jmeshtex.meshmatch import Config, meshmatch
+from jmeshtex.meshmatch.core import prepare_side
 from jmeshtex.metrics import psnr
 
 
@@ -238,7 +239,7 @@ def figure(args) -> None:
     """``results/meshmatch_cross.png``: the torus and stretched-sphere pairs, the pose-free
     intrinsic features next to the aligned default, colours and nearest-neighbour fields."""
     from jmeshtex import render
-    from jmeshtex.meshmatch import nnf_colors
+    from jmeshtex.meshmatch.core import nnf_colors
 
     wanted = ("torus r 0.3 -> torus r 0.36", "bumpy sphere -> stretched (1.15, 1, 0.9)")
     rows, titles = [], []

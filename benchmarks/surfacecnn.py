@@ -46,14 +46,8 @@ from _harness import Report, time_jax
 from jmeshtex import Mesh
 from jmeshtex.geometry import to_jax
 from jmeshtex.metrics import load_vgg16
-from jmeshtex.surfacecnn import (
-    Config,
-    default_layers,
-    gram_targets,
-    prepare_surface,
-    required_levels,
-    style_loss,
-)
+from jmeshtex.surfacecnn import Config, prepare_surface
+from jmeshtex.surfacecnn.core import default_layers, gram_targets, required_levels, style_loss
 
 SHARED = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -215,7 +209,8 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
     from jmeshtex import render
     from jmeshtex.geometry import tracer_geometry
     from jmeshtex.metrics import Protocol, baseline_table
-    from jmeshtex.surfacecnn import frame_seam_turn, seam_ratio, synthesize, synthesize_uv
+    from jmeshtex.surfacecnn import synthesize, synthesize_uv
+    from jmeshtex.surfacecnn.core import frame_seam_turn, seam_ratio
 
     PNG_DIR.mkdir(parents=True, exist_ok=True)
     exemplar = _exemplar(kind, 96 if kind == "brick" else 32)

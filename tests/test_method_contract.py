@@ -380,15 +380,25 @@ def test_train_takes_data_first_config_second_and_a_keyword_key(method):
     assert "seed" not in by_name and "mesh" not in by_name, "a device mesh is device_mesh="
 
 
+def _public(method):
+    """``(qualified name, object)`` of every public name of a method and of its ``core``."""
+    for prefix, module in (
+        (method.name, method.module),
+        (f"{method.name}.core", method.module.core),
+    ):
+        for name in dir(module):
+            if not name.startswith("_"):
+                yield f"{prefix}.{name}", getattr(module, name)
+
+
 @pytest.mark.parametrize("method", _METHODS_UNDER_TEST, ids=_ids(_METHODS_UNDER_TEST))
 def test_a_device_mesh_is_always_the_keyword_device_mesh(method):
-    for name in dir(method.module):
-        obj = getattr(method.module, name)
-        if name.startswith("_") or not inspect.isfunction(obj):
+    for name, obj in _public(method):
+        if not inspect.isfunction(obj):
             continue
         for p in inspect.signature(obj).parameters.values():
             if "sharding" in str(p.annotation) or p.name == "device_mesh":
-                assert p.name == "device_mesh", f"{method.name}.{name}({p.name}=...)"
+                assert p.name == "device_mesh", f"{name}({p.name}=...)"
 
 
 @pytest.mark.parametrize("method", _METHODS_UNDER_TEST, ids=_ids(_METHODS_UNDER_TEST))
@@ -403,28 +413,57 @@ def test_verbs_take_a_required_keyword_key_and_count_with_num_samples(method):
 
 #: pure building blocks that take the key positionally, as jax.random does
 _POSITIONAL_KEY = {
-    "fl.augmented_crop",
-    "fl.procedural_texture",
-    "fl.training_meshes",
-    "fl.training_texture",
-    "fldm.draw_sampling_noise",
-    "fldm.init_denoiser",
+    "fl.core.augmented_crop",
+    "fl.core.procedural_texture",
+    "fl.core.training_meshes",
+    "fl.core.training_texture",
+    "fldm.core.draw_sampling_noise",
+    "fldm.core.init_denoiser",
 }
 
 
 @pytest.mark.parametrize("method", _METHODS_UNDER_TEST, ids=_ids(_METHODS_UNDER_TEST))
 def test_public_functions_are_documented_and_take_a_key_not_a_seed(method):
-    for name in dir(method.module):
-        obj = getattr(method.module, name)
-        if name.startswith("_") or inspect.ismodule(obj) or not callable(obj):
+    for name, obj in _public(method):
+        if inspect.ismodule(obj) or not callable(obj):
             continue
-        assert (obj.__doc__ or "").strip(), f"{method.name}.{name} has no docstring"
+        assert (obj.__doc__ or "").strip(), f"{name} has no docstring"
         if not inspect.isfunction(obj):
             continue
         params = inspect.signature(obj).parameters
-        assert "seed" not in params, f"{method.name}.{name}: randomness is a key= argument"
-        if "key" in params and f"{method.name}.{name}" not in _POSITIONAL_KEY:
-            assert params["key"].kind is inspect.Parameter.KEYWORD_ONLY, f"{method.name}.{name}"
+        assert "seed" not in params, f"{name}: randomness is a key= argument"
+        if "key" in params and name not in _POSITIONAL_KEY:
+            assert params["key"].kind is inspect.Parameter.KEYWORD_ONLY, name
+
+
+#: the most names a method's top level may hold (the contract plus a handful of helpers);
+#: everything else is a building block in ``<method>.core``
+_MAX_TOP_LEVEL = 25
+#: what a method's top level holds besides its verbs, results and a few helpers
+_CONTRACT = {"Config", "save", "load", "core"}
+_TRAINED_CONTRACT = {"Model", "train", "TrainResult"}
+
+
+@pytest.mark.parametrize("method", _METHODS_UNDER_TEST, ids=_ids(_METHODS_UNDER_TEST))
+def test_the_top_level_is_the_contract_and_core_holds_the_building_blocks(method):
+    top = {n for n in dir(method.module) if not n.startswith("_")}
+    core = {n for n in dir(method.module.core) if not n.startswith("_")}
+    need = _CONTRACT | {*method.verbs, method.result_type.__name__}
+    if method.data is not None:
+        need |= _TRAINED_CONTRACT
+    assert need <= top, f"{method.name} lacks {sorted(need - top)} at its top level"
+    assert len(top) <= _MAX_TOP_LEVEL, (
+        f"{method.name} exports {len(top)} names (at most {_MAX_TOP_LEVEL}); move the building "
+        f"blocks to {method.name}.core: {sorted(top - need)}"
+    )
+    assert not top & core, f"{sorted(top & core)} are in both {method.name} and {method.name}.core"
+    assert inspect.ismodule(method.module.core)
+    assert method.module.core.__name__ == f"jmeshtex.{method.name}.core"
+    assert "building" in (method.module.core.__doc__ or ""), "core's docstring says what it is for"
+    for name in core:  # re-exported from the method's private modules, never defined twice
+        home = getattr(getattr(method.module.core, name), "__module__", None)
+        if home is not None and home.startswith("jmeshtex."):
+            assert home.startswith(f"jmeshtex.{method.name}._"), (name, home)
 
 
 def test_result_types_have_distinct_names_exported_by_their_method():
@@ -546,10 +585,10 @@ def test_fl_model_is_a_pytree_with_a_static_config_and_reconstruct_encodes_with_
     doubled = jax.tree.map(lambda x: 2 * x, model)
     assert isinstance(doubled, fl.Model) and doubled.config is model.config
     mu = np.ones((3, _FL.latent_dim), np.complex64)
-    jitted = jax.jit(lambda m, z: fl.decode_vertex_colors_from_latents(m.params, m.config, z))
+    jitted = jax.jit(lambda m, z: fl.core.decode_vertex_colors_from_latents(m.params, m.config, z))
     np.testing.assert_allclose(
         jitted(model, mu),
-        fl.decode_vertex_colors_from_latents(model.params, model.config, mu),
+        fl.core.decode_vertex_colors_from_latents(model.params, model.config, mu),
         atol=1e-6,
     )
     with pytest.raises(jmeshtex.ConfigError, match="Model.config must be"):

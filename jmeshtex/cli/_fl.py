@@ -218,7 +218,8 @@ def _encode(args) -> int:
 def _reconstruct(args) -> int:
     import jax
 
-    from ..fl import reconstruct, side_by_side
+    from ..fl import reconstruct
+    from ..fl.core import side_by_side
     from ..geometry import remesh
     from ..io import atomic_write, save_png
 

@@ -314,7 +314,8 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
     from .. import render
     from .._mesh import Mesh
     from ..io import atomic_write, save_mesh
-    from ..meshmatch import nnf_colors, save
+    from ..meshmatch import save
+    from ..meshmatch.core import nnf_colors
 
     target_mesh, match = result.mesh, result.match
     _check_finite(target_mesh.vertex_colors, "colours")
@@ -433,7 +434,8 @@ def _displace(args: argparse.Namespace) -> int:
     from .. import render
     from ..geometry import validate_mesh
     from ..io import atomic_write, save_mesh
-    from ..meshmatch import detail_displacement, save, transfer_displacement
+    from ..meshmatch import save, transfer_displacement
+    from ..meshmatch.core import detail_displacement
 
     _claim(args, "meshmatch displace", args.source, args.target)
     source = load_mesh_spec(args.source)

@@ -10,8 +10,13 @@ face budget, ``max_faces``).
 Inference modes: zero noise above a level (``transfer(..., zero_noise_from=k)``), the training
 reconstruction (:func:`reconstruct`), conditional generation at scale ``k`` (:func:`conditional`:
 ``z*`` below ``k``, fresh noise above), every level's output (``per_level=True``), training snapshots
-(``train(..., snapshot_every=N)``). Structure measures: :func:`height_autocorrelation_length`,
-:func:`peak_statistics`, :func:`reconstruction_errors`.
+(``train(..., snapshot_every=N)``). Structure measures (:func:`~jmeshtex.dgts.core.peak_statistics`,
+:func:`~jmeshtex.dgts.core.height_autocorrelation_length`,
+:func:`~jmeshtex.dgts.core.reconstruction_errors`) are in
+:mod:`jmeshtex.dgts.core`.
+
+The building blocks (the generator and discriminator of one level, the gradient penalty, the two
+halves of a transfer, the template fit of one level) are in :mod:`jmeshtex.dgts.core`.
 
 Models trained with the official code (amirhertz/geometric-textures): export the generator's
 ``state_dict`` to ``.npz`` and read it with :func:`load_official` (or :func:`from_official_state_dict`);
@@ -33,47 +38,22 @@ Example:
 from .._errors import FaceBudgetError as FaceBudgetError
 from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
 from .._train_result import TrainResult as TrainResult
+from . import core as core  # the building blocks
 from ._config import Config as Config
 from ._config import PrepareConfig as PrepareConfig
 from ._model import Model as Model
 from ._model import load as load
 from ._model import save as save
 from ._multiscale import TrainingMeshes as TrainingMeshes
-from ._multiscale import fit_level as fit_level
 from ._multiscale import load_training_meshes as load_training_meshes
-from ._multiscale import sample_points as sample_points
 from ._multiscale import save_training_meshes as save_training_meshes
 from ._multiscale import training_meshes as training_meshes
-from ._networks import Discriminator as Discriminator
-from ._networks import Generator as Generator
-from ._networks import LevelGeometry as LevelGeometry
-from ._networks import discriminator as discriminator
-from ._networks import generate as generate
-from ._networks import generator_level as generator_level
-from ._networks import hierarchy_geometry as hierarchy_geometry
-from ._networks import init_level as init_level
-from ._networks import upsample as upsample
 from ._official import from_official_state_dict as from_official_state_dict
 from ._official import load_official as load_official
-from ._official import official_level_params as official_level_params
-from ._official import to_official_state_dict as to_official_state_dict
-from ._quality import PeakStatistics as PeakStatistics
-from ._quality import height_autocorrelation as height_autocorrelation
-from ._quality import height_autocorrelation_length as height_autocorrelation_length
-from ._quality import peak_statistics as peak_statistics
-from ._quality import reconstruction_errors as reconstruction_errors
-from ._train import LOSS_NAMES as LOSS_NAMES
 from ._train import LevelReport as LevelReport
-from ._train import gradient_penalty as gradient_penalty
 from ._train import train as train
 from ._transfer import DGTSTransfer as DGTSTransfer
-from ._transfer import TransferPlan as TransferPlan
-from ._transfer import choose_start_level as choose_start_level
 from ._transfer import conditional as conditional
 from ._transfer import interpolate as interpolate
-from ._transfer import normal_heights as normal_heights
-from ._transfer import output_faces as output_faces
-from ._transfer import plan_transfer as plan_transfer
 from ._transfer import reconstruct as reconstruct
-from ._transfer import run_plan as run_plan
 from ._transfer import transfer as transfer

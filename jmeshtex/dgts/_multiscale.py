@@ -378,7 +378,7 @@ def training_meshes(
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
 
     For level ``l = 0 … L−1``: (``l > 0``) subdivide the previous level 1 → 4 at edge midpoints and
-    scale it and the reference by ``scale_factor``; fit with :func:`fit_level` on
+    scale it and the reference by ``scale_factor``; fit with :func:`~jmeshtex.dgts.core.fit_level` on
     ``samples_per_level·(l + 1)`` samples.
 
     Args:

@@ -137,7 +137,7 @@ def generator_level(
       noise: ``[V, 3]`` vertex noise added before the features are computed (0: none).
       negative_slope, eps: leaky-ReLU slope and instance-norm regulariser.
       y_sign: sign of the in-plane coefficient ``d_y`` (static): 1 for jmeshtex's axis ``y = n × x``,
-        −1 for the official code's ``y = x × n`` (:attr:`Config.y_sign`; the sign cannot be folded
+        −1 for the official code's ``y = x × n`` (:attr:`~jmeshtex.dgts.Config.y_sign`; the sign cannot be folded
         into the last layer's weights because a max over neighbours follows them).
 
     Returns:
@@ -282,7 +282,7 @@ def init_level(
     """Fresh parameters of one level's generator or discriminator (widths from the config).
 
     Args:
-      config: the widths (:meth:`Config.level_features`).
+      config: the widths (:meth:`~jmeshtex.dgts.Config.level_features`).
       level: the level, 0 the coarsest.
       generator: the generator (last width 3) or the discriminator (last width 1).
       key: PRNG key of the initialisation.

@@ -85,7 +85,7 @@ def official_level_params(state_dict: Mapping[str, np.ndarray], level: int) -> F
       level: which level to convert.
 
     Returns:
-      :class:`~jmeshtex.ops.FaceConvStackParams` (float32) for :func:`~jmeshtex.dgts.generator_level`.
+      :class:`~jmeshtex.ops.FaceConvStackParams` (float32) for :func:`~jmeshtex.dgts.core.generator_level`.
 
     Raises:
       InputError: the level is missing, a layer lacks its weight or bias, or shapes do not chain.
@@ -155,7 +155,7 @@ def official_level_params(state_dict: Mapping[str, np.ndarray], level: int) -> F
 
 
 def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:
-    """The inverse of :func:`from_official_state_dict`: a model's generators under official names.
+    """The inverse of :func:`~jmeshtex.dgts.from_official_state_dict`: a model's generators under official names.
 
     Only a model with ``config.official_axes`` (a converted one, or one trained with that flag) has
     an exact official equivalent: with jmeshtex's axis the ``y`` displacement would need a min
@@ -204,7 +204,7 @@ def from_official_state_dict(
 ) -> Model:
     """A :class:`~jmeshtex.dgts.Model` from an official ``SingleMeshGenerator`` state dict (all levels).
 
-    Every level ``0 … L−1`` found is converted with :func:`official_level_params`; the widths must be
+    Every level ``0 … L−1`` found is converted with :func:`~jmeshtex.dgts.core.official_level_params`; the widths must be
     those of ``config`` (default :class:`~jmeshtex.dgts.Config`, the official default ``Options``:
     7 layers, 32 → 128 channels); the model's config is ``config`` with ``official_axes=True``.
     The official discriminators are not part of a generator's state

@@ -8,7 +8,7 @@ per Chamfer step. Here the Chamfer steps find nearest neighbours with a KD-tree 
 (``scipy.spatial.cKDTree``: ``O(n log n)`` per step instead of the ``O(n²)`` dense search, which is
 what makes the finest levels (tens of thousands of samples) affordable), then take the gradient step
 with the correspondences fixed inside a jit-compiled function (the nearest neighbour is piecewise
-constant, so its gradient is the same). Reached through :func:`~jmeshtex.dgts.fit_level`.
+constant, so its gradient is the same). Reached through :func:`~jmeshtex.dgts.core.fit_level`.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 A geometric texture is more than its distribution of heights: two fields with the same histogram
 can have bumps of very different size and spacing. The measures here look at spatial structure of
-the normal heights ``h`` (:func:`~jmeshtex.dgts.normal_heights`, in mean edges), with every length
+the normal heights ``h`` (:func:`~jmeshtex.dgts.core.normal_heights`, in mean edges), with every length
 also in mean edges of the mesh it is measured on, so a reference and a transfer at different
 resolutions or sizes compare directly:
 
@@ -71,7 +71,7 @@ def height_autocorrelation(
 
     Args:
       mesh: the displaced mesh (Mesh or pair).
-      heights: ``[V]`` heights; default :func:`~jmeshtex.dgts.normal_heights` of ``mesh`` with
+      heights: ``[V]`` heights; default :func:`~jmeshtex.dgts.core.normal_heights` of ``mesh`` with
         ``SMOOTHING`` (30) Taubin pairs.
       max_distance, bin_width: the distance range and bin width, in mean edges.
       anchors: number of anchor vertices.
@@ -179,7 +179,7 @@ def peak_statistics(
 
     Args:
       mesh: the displaced mesh (Mesh or pair).
-      heights: ``[V]`` heights in mean edges; default :func:`~jmeshtex.dgts.normal_heights` with
+      heights: ``[V]`` heights in mean edges; default :func:`~jmeshtex.dgts.core.normal_heights` with
         ``SMOOTHING`` (30) Taubin pairs.
       threshold: minimum peak height (mean edges); default ``mean + std`` of ``heights``. Compare
         meshes with one threshold (e.g. the reference's): heights are in mean edges everywhere.

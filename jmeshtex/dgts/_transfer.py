@@ -57,7 +57,7 @@ class DGTSTransfer(NamedTuple):
       heights: ``[S, V_n]`` float64, displacement along the base's vertex normals, in mean edges of
         the output's level frame (for colouring).
       noise: per sample, the list of per-level noises used (``[V_l, 3]`` float32 arrays; replay or
-        interpolate with them through :func:`run_plan`).
+        interpolate with them through :func:`~jmeshtex.dgts.core.run_plan`).
       start_level: the first generator level run (chosen by the face budget when not given).
       level_vertices: with ``per_level=True``, one ``[S, V_l, 3]`` float64 array per level run:
         that level's output (target coordinates, before subdivision); else empty.
@@ -84,7 +84,7 @@ class TransferPlan(NamedTuple):
     Attributes:
       vertices: ``[V, 3]`` float32, the target in the model's frame (centred on its centroid, mean
         edge 1).
-      geometry: one :class:`~jmeshtex.dgts.LevelGeometry` per level run.
+      geometry: one :class:`~jmeshtex.dgts.core.LevelGeometry` per level run.
       faces: ``[F_l, 3]`` int64 triangles per level run (the target's, then its subdivisions).
       sizes: vertices per level run (the shapes of the noise, ``[V_l, 3]``).
       center: ``[3]`` the target's centroid (input coordinates).
@@ -137,7 +137,8 @@ def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))
@@ -209,7 +210,8 @@ def run_plan(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))
@@ -238,7 +240,8 @@ def output_faces(model: Model, num_faces: int, start_level: int) -> int:
     """Faces of a transfer's output: ``F · 4^{L − 1 − start}`` (midpoint subdivision 1 → 4 per level).
 
     Example:
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(3))
       >>> output_faces(Model(c, gs, gs, np.zeros((12, 3), np.float32)), 100, 0)
@@ -265,7 +268,8 @@ def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000
       InputError: an untrained model or a budget below 1.
 
     Example:
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(5))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))
@@ -396,7 +400,7 @@ def transfer(
       key: PRNG key of the noise.
       start_level: first generator to run (0: coarsest); the target is treated as a level-``start``
         mesh, so ``L − start_level − 1`` subdivisions follow. None: the first level whose output
-        fits ``max_faces`` (:func:`choose_start_level`; the result's ``start_level`` says which).
+        fits ``max_faces`` (:func:`~jmeshtex.dgts.core.choose_start_level`; the result's ``start_level`` says which).
       num_samples: independent noise draws.
       max_faces: face budget of the output (checked for an explicit ``start_level`` too); None: no
         budget (with ``start_level=None`` then 500 000).
@@ -415,7 +419,8 @@ def transfer(
 
     Example:
       >>> from jmeshtex.data import icosahedron, torus
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
@@ -482,7 +487,8 @@ def conditional(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
@@ -526,7 +532,8 @@ def reconstruct(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
@@ -562,7 +569,8 @@ def interpolate(
 
     Example:
       >>> from jmeshtex.data import icosahedron
-      >>> from jmeshtex.dgts import Config, init_level
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels

@@ -64,15 +64,15 @@ def encode(
     """Encode a mesh's texture (or vertex colours) as tangent-vector latents at its vertices.
 
     Draws ``config.num_samples`` area-uniform points in every one-ring (host, from ``key``), reads
-    their colours from ``colors`` (default :func:`~jmeshtex.fl.surface_colors` of the mesh) and runs
-    the jitted encoder (:func:`encode_one_rings`).
+    their colours from ``colors`` (default :func:`~jmeshtex.fl.core.surface_colors` of the mesh) and runs
+    the jitted encoder (:func:`~jmeshtex.fl.core.encode_one_rings`).
 
     Args:
       model: the FL-VAE (:class:`~jmeshtex.fl.Model`).
       mesh: a :class:`~jmeshtex.Mesh` (merged geometry; UV seams live in ``mesh.uv``).
       key: PRNG key of the one-ring sampling.
       colors: where to read colours; pass ``surface_colors(original)`` to encode a re-triangulated
-        copy of a textured mesh (:meth:`SurfaceColors.at_points`).
+        copy of a textured mesh (:meth:`~jmeshtex.fl.core.SurfaceColors.at_points`).
 
     Returns:
       :class:`FieldLatents` ``[V, d]`` in the frames of ``one_ring_neighborhood(mesh)``.
@@ -126,22 +126,23 @@ def encode_one_rings(
     """Encode precomputed one-ring samples of a whole mesh with the jitted encoder, chunk by chunk.
 
     The vertices go through the encoder in chunks of ``config.encode_chunk`` (the last one padded),
-    so a mesh of any size compiles once per chunk size and memory stays bounded. :func:`encode` is
-    this after :func:`~jmeshtex.fl.one_ring_samples` and the colour lookup; call it directly to
+    so a mesh of any size compiles once per chunk size and memory stays bounded. :func:`~jmeshtex.fl.encode` is
+    this after :func:`~jmeshtex.fl.core.one_ring_samples` and the colour lookup; call it directly to
     time the encoder apart from the host-side sampling, or to encode samples drawn another way.
 
     Args:
       model: the FL-VAE (:class:`~jmeshtex.fl.Model`).
-      samples: :class:`~jmeshtex.fl.OneRingSamples` ``[V, S]`` (log coordinates and mask are used).
+      samples: :class:`~jmeshtex.fl.core.OneRingSamples` ``[V, S]`` (log coordinates and mask are used).
       rgb: ``[V, S, 3]`` colours in [0, 1] at the samples.
 
     Returns:
-      :class:`FieldLatents` ``[V, d]`` in the dtype of the model's parameters.
+      :class:`~jmeshtex.fl.FieldLatents` ``[V, d]`` in the dtype of the model's parameters.
 
     Example:
       >>> import jax, numpy as np
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.fl import Config, init, one_ring_samples
+      >>> from jmeshtex.fl import Config, init
+      >>> from jmeshtex.fl.core import one_ring_samples
       >>> model = init(Config(features=8, num_heads=2, num_blocks=1, encode_chunk=10), key=jax.random.key(0))
       >>> s = one_ring_samples(*grid(3), 8, rng=np.random.default_rng(0))
       >>> lat = encode_one_rings(model, s, np.full((*s.log.shape, 3), 0.5))

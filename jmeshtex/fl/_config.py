@@ -38,7 +38,7 @@ _TRAINING_FIELDS = (
     "checkpoint_every",
     "encode_chunk",
 )
-#: how :func:`~jmeshtex.fl.vae_loss` averages its terms
+#: how :func:`~jmeshtex.fl.core.vae_loss` averages its terms
 LOSS_NORMALIZATIONS = ("mean", "paper")
 
 
@@ -70,8 +70,8 @@ class Config(ConfigBase):
     Planar pre-training (supplement §9.1). Two data modes: with ``pixels_per_vertex = 0`` (the
     shipped model's) a fixed pool of ``meshes_per_image`` meshes of ``min_vertices``–``max_vertices``
     vertices over each whole image; with ``pixels_per_vertex > 0`` (the presets) a fresh
-    ``texture_size²`` texture per mesh and step (:func:`~jmeshtex.fl.training_texture`: augmented
-    image crops and procedural textures) meshed at that density (:func:`~jmeshtex.fl.density_mesh`).
+    ``texture_size²`` texture per mesh and step (:func:`~jmeshtex.fl.core.training_texture`: augmented
+    image crops and procedural textures) meshed at that density (:func:`~jmeshtex.fl.core.density_mesh`).
 
     Attributes:
       min_vertices, max_vertices: pool mode: range of the random resolution of each planar training

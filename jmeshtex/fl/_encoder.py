@@ -360,7 +360,7 @@ def encode_samples_raw(
     rgb: Float[Array, "V S 3"],
     mask: Bool[Array, "V S"],
 ) -> tuple[Complex[Array, "V d"], Float[Array, "V d"]]:
-    """``(μ, log σ)`` from one-ring samples (see :func:`~jmeshtex.fl.encode_samples`)."""
+    """``(μ, log σ)`` from one-ring samples (see :func:`~jmeshtex.fl.core.encode_samples`)."""
     rdt = real_dtype(params.mean.dtype)
     cdt = params.mean.dtype
     log_q = jnp.asarray(log_q).astype(cdt)

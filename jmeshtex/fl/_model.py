@@ -55,7 +55,7 @@ class Model:
     ``jax.jit`` and ``jax.tree`` maps as it is.
 
     Attributes:
-      params: :class:`FLVAEParams`.
+      params: :class:`~jmeshtex.fl.core.FLVAEParams`.
       config: :class:`~jmeshtex.fl.Config`.
 
     Example:
@@ -174,7 +174,7 @@ def encode_samples(
       mask: ``[V, S]`` True for real samples (others never change the output).
 
     Returns:
-      :class:`FieldLatents`: μ in p's frame (rotates with ``log_q``), ``log σ`` invariant.
+      :class:`~jmeshtex.fl.FieldLatents`: μ in p's frame (rotates with ``log_q``), ``log σ`` invariant.
 
     Example:
       >>> import jax, jax.numpy as jnp

@@ -162,8 +162,8 @@ def side_by_side(
     """Render the reference with its original and with the reconstructed texture, side by side.
 
     Args:
-      mesh: the textured reference given to :func:`reconstruct`.
-      result: its :class:`Reconstruction`.
+      mesh: the textured reference given to :func:`~jmeshtex.fl.reconstruct`.
+      result: its :class:`~jmeshtex.fl.Reconstruction`.
       path: where to write the image as a PNG (:func:`jmeshtex.io.save_png`; folders are created);
         None: only return it.
       view: ``(elevation, azimuth)`` of the camera in degrees.

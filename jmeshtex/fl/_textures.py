@@ -10,7 +10,7 @@ the fly, every texture a pure function of a key:
   else an :func:`augmented_crop` of one of the training images (random scale, rotation, flip, colour
   jitter). Every key gives a different texture, so a run of ``T`` steps over ``B`` meshes sees
   ``T·B`` distinct textures.
-- :func:`density_mesh`: a :func:`~jmeshtex.fl.planar_mesh` over a texture with
+- :func:`density_mesh`: a :func:`~jmeshtex.fl.core.planar_mesh` over a texture with
   ``round(H·W / pixels_per_vertex)`` vertices, so the texels per one-ring match the target's.
 
 The scikit-image images split into ``TRAINING_IMAGES`` and ``HELD_OUT_IMAGES`` (three
@@ -272,7 +272,7 @@ def training_texture(
 
     Args:
       key: PRNG key (the texture is a function of it).
-      images: source images (e.g. :func:`training_images`); may be empty if ``procedural_fraction == 1``.
+      images: source images (e.g. :func:`~jmeshtex.fl.training_images`); may be empty if ``procedural_fraction == 1``.
       size: side in pixels.
       procedural_fraction: probability of a :func:`procedural_texture`.
 
@@ -315,7 +315,7 @@ def mesh_vertices_for(size: int, pixels_per_vertex: float) -> int:
 def density_mesh(
     texture: Float[np.ndarray, "H W 3"], pixels_per_vertex: float, *, rng: np.random.Generator
 ) -> Mesh:
-    """A :func:`~jmeshtex.fl.planar_mesh` over ``texture`` with ``H·W / pixels_per_vertex`` vertices.
+    """A :func:`~jmeshtex.fl.core.planar_mesh` over ``texture`` with ``H·W / pixels_per_vertex`` vertices.
 
     Args:
       texture: ``[H, W, 3]`` RGB in [0, 1].
@@ -370,7 +370,7 @@ def training_meshes(
     Args:
       key: PRNG key (the meshes are a function of it).
       config: :class:`~jmeshtex.fl.Config` with ``pixels_per_vertex > 0``.
-      images: source images (default :func:`training_images` at ``config.max_image_size``: no
+      images: source images (default :func:`~jmeshtex.fl.training_images` at ``config.max_image_size``: no
         held-out image).
 
     Returns:

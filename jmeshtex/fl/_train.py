@@ -4,8 +4,8 @@ Each step draws ``batch_size`` planar meshes — from a fixed pool over whole im
 resolutions; ``config.pixels_per_vertex == 0``, the shipped model's recipe) or, in the stream mode
 (``pixels_per_vertex > 0``, the presets), freshly made textures (augmented crops of
 :func:`~jmeshtex.fl.training_images`, never the held-out ones, and procedural textures) meshed at
-that pixel density (:func:`~jmeshtex.fl.training_meshes`) — samples every one-ring afresh on the
-host, and takes one jitted Adam step on :func:`~jmeshtex.fl.vae_loss` (cosine-decayed learning rate with warm-up, global-norm clipping, complex gradients conjugated
+that pixel density (:func:`~jmeshtex.fl.core.training_meshes`) — samples every one-ring afresh on the
+host, and takes one jitted Adam step on :func:`~jmeshtex.fl.core.vae_loss` (cosine-decayed learning rate with warm-up, global-norm clipping, complex gradients conjugated
 before the update — DESIGN.md). All randomness derives from the ``key`` given to :func:`train`:
 the initialisation and the pool from two of its splits, step ``t``'s meshes, samples and
 reparameterisation noise from ``t`` folded into two others, so a run resumed from a checkpoint
@@ -71,7 +71,7 @@ def optimizer(config: Config) -> optax.GradientTransformation:
         ``final_lr_fraction``, ``grad_clip``).
 
     Returns:
-      An optax transformation over :class:`~jmeshtex.fl.FLVAEParams` (complex gradients must be
+      An optax transformation over :class:`~jmeshtex.fl.core.FLVAEParams` (complex gradients must be
       conjugated first: :func:`make_train_step` does).
 
     Example:
@@ -93,7 +93,7 @@ def optimizer(config: Config) -> optax.GradientTransformation:
 def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None):
     """The jitted training step ``(params, opt_state, batch, key) -> (params, opt_state, loss, l1)``.
 
-    One :func:`~jmeshtex.fl.vae_loss` gradient, complex gradients conjugated, one
+    One :func:`~jmeshtex.fl.core.vae_loss` gradient, complex gradients conjugated, one
     :func:`optimizer` update.
 
     Args:
@@ -107,7 +107,8 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
 
     Example:
       >>> import jax, numpy as np
-      >>> from jmeshtex.fl import init, planar_mesh
+      >>> from jmeshtex.fl import init
+      >>> from jmeshtex.fl.core import planar_mesh
       >>> c = Config(features=8, num_heads=2, num_blocks=1, num_samples=8, decoder_features=16)
       >>> params = init(c, key=jax.random.key(0)).params
       >>> rng = np.random.default_rng(0)
@@ -155,7 +156,7 @@ def mesh_batch(
     """One training batch: one-ring samples of several meshes, concatenated and padded to ``num_vertices``.
 
     Args:
-      meshes: textured (or vertex-coloured) meshes, e.g. from :func:`~jmeshtex.fl.planar_pool`.
+      meshes: textured (or vertex-coloured) meshes, e.g. from :func:`~jmeshtex.fl.core.planar_pool`.
       config: :class:`~jmeshtex.fl.Config` (``num_samples``).
       rng: generator of the one-ring samples.
       num_vertices: padded size ``N`` (at least the meshes' total vertex count; a fixed size
@@ -168,7 +169,7 @@ def mesh_batch(
 
     Example:
       >>> import numpy as np
-      >>> from jmeshtex.fl import planar_mesh
+      >>> from jmeshtex.fl.core import planar_mesh
       >>> rng = np.random.default_rng(0)
       >>> meshes = [planar_mesh(rng.random((8, 8, 3)), 10, rng=rng) for _ in range(2)]
       >>> b = mesh_batch(meshes, Config(num_samples=4), rng, num_vertices=24)
@@ -262,7 +263,7 @@ def train(
     Args:
       images: the training data: None or ``"builtin"`` (scikit-image's bundled images: in the
         stream data mode, ``config.pixels_per_vertex > 0``, :func:`~jmeshtex.fl.training_images` —
-        the held-out images excluded; else :func:`~jmeshtex.fl.builtin_images`), a folder of
+        the held-out images excluded; else :func:`~jmeshtex.fl.core.builtin_images`), a folder of
         images, or a list of ``[H, W, C]`` arrays (in the stream mode ``[]`` with
         ``procedural_fraction = 1`` trains on procedural textures only).
       config: :class:`~jmeshtex.fl.Config` (model, data and optimiser settings).

@@ -14,6 +14,9 @@ The method's shape is that of every jmeshtex method:
 - the task verbs :func:`sample` and :func:`inpaint` (a mesh and ``key=`` in, :class:`FLDMSamples`
   out).
 
+The denoiser, the diffusion maths (schedules, DDPM/DDIM steps) and the training step are building
+blocks in :mod:`jmeshtex.fldm.core`.
+
 Example:
   >>> import jax
   >>> from jmeshtex import fldm
@@ -29,35 +32,11 @@ Example:
 
 from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
 from .._train_result import TrainResult as TrainResult
+from . import core as core  # the building blocks
 from ._config import Config as Config
 from ._data import Dataset as Dataset
 from ._data import build_dataset as build_dataset
 from ._data import fl_vae_encoder as fl_vae_encoder
-from ._data import stack_copies as stack_copies
-from ._denoiser import DenoiserGeometry as DenoiserGeometry
-from ._denoiser import denoise as denoise
-from ._denoiser import denoiser_activations as denoiser_activations
-from ._denoiser import denoiser_flops as denoiser_flops
-from ._denoiser import denoiser_geometry as denoiser_geometry
-from ._denoiser import geometry_sizes as geometry_sizes
-from ._denoiser import init_denoiser as init_denoiser
-from ._denoiser import pad_geometry as pad_geometry
-from ._diffusion import LOSS_NAMES as LOSS_NAMES
-from ._diffusion import PREDICTIONS as PREDICTIONS
-from ._diffusion import SCHEDULES as SCHEDULES
-from ._diffusion import Inpaint as Inpaint
-from ._diffusion import Schedule as Schedule
-from ._diffusion import ddim_step as ddim_step
-from ._diffusion import ddpm_step as ddpm_step
-from ._diffusion import draw_sampling_noise as draw_sampling_noise
-from ._diffusion import epsilon_from_output as epsilon_from_output
-from ._diffusion import epsilon_loss as epsilon_loss
-from ._diffusion import latent_scale as latent_scale
-from ._diffusion import make_schedule as make_schedule
-from ._diffusion import prediction_target as prediction_target
-from ._diffusion import q_sample as q_sample
-from ._diffusion import sample_from_noise as sample_from_noise
-from ._diffusion import timestep_sequence as timestep_sequence
 from ._masks import random_mask as random_mask
 from ._model import Model as Model
 from ._model import load as load
@@ -67,11 +46,5 @@ from ._sample import decode_samples as decode_samples
 from ._sample import inpaint as inpaint
 from ._sample import render_samples as render_samples
 from ._sample import sample as sample
-from ._sample import sampling_geometry as sampling_geometry
 from ._train import init as init
-from ._train import learning_rate_schedule as learning_rate_schedule
-from ._train import make_train_step as make_train_step
-from ._train import optimizer as optimizer
 from ._train import train as train
-from ._train import training_batch as training_batch
-from ._train import training_masks as training_masks

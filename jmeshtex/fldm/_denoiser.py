@@ -290,7 +290,7 @@ def init_denoiser(
 
     Args:
       key: PRNG key of the initialisation.
-      config: the :class:`Config` (architecture fields).
+      config: the :class:`~jmeshtex.fldm.Config` (architecture fields).
       geo: unused (any geometry, or None).
       dtype: complex dtype of the complex weights.
 
@@ -354,7 +354,7 @@ def denoise(
 
     Args:
       params: from :func:`init_denoiser` (or training).
-      config: the :class:`Config`.
+      config: the :class:`~jmeshtex.fldm.Config`.
       z_t: ``[V, d]`` noisy latents in the fine frames of ``geo``.
       t: scalar int timestep.
       geo: :class:`DenoiserGeometry` (NumPy or JAX).
@@ -406,7 +406,7 @@ def denoiser_flops(config: Config, v0: int, v1: int) -> float:
     and pooling are lower order.
 
     Args:
-      config: the :class:`Config` (widths, blocks, knn, hdim, mlp_layers, filter_layers, latent_channels).
+      config: the :class:`~jmeshtex.fldm.Config` (widths, blocks, knn, hdim, mlp_layers, filter_layers, latent_channels).
       v0: fine vertices (``geometry_sizes(geo)["V0"]``).
       v1: coarse vertices (``geometry_sizes(geo)["V1"]``).
 
@@ -455,7 +455,7 @@ def denoiser_activations(config: Config, v0: int, v1: int) -> float:
     activation itself (a SiLU is an exponential and a division).
 
     Args:
-      config: the :class:`Config`.
+      config: the :class:`~jmeshtex.fldm.Config`.
       v0: fine vertices.
       v1: coarse vertices.
 

@@ -84,11 +84,11 @@ def _round_up(n: int, bucket: int) -> int:
 def sampling_geometry(mesh: Mesh, model: Model) -> DenoiserGeometry:
     """The denoiser geometry of ``mesh`` with the model's ``knn`` and ``pool_ratio``.
 
-    Build it once to sample several times on the same mesh (:func:`sample` accepts it as ``target``).
+    Build it once to sample several times on the same mesh (:func:`~jmeshtex.fldm.sample` accepts it as ``target``).
 
     Args:
       mesh: a :class:`~jmeshtex.Mesh` (or a ``(vertices, faces)`` pair).
-      model: the :class:`Model` to sample with.
+      model: the :class:`~jmeshtex.fldm.Model` to sample with.
 
     Returns:
       :class:`DenoiserGeometry` (:func:`denoiser_geometry`).
@@ -173,7 +173,7 @@ def sample(
     Args:
       model: a trained :class:`Model`.
       target: the :class:`~jmeshtex.Mesh` to sample on (any mesh: generative transfer; a
-        ``(vertices, faces)`` pair also works) or its prebuilt geometry (:func:`sampling_geometry`).
+        ``(vertices, faces)`` pair also works) or its prebuilt geometry (:func:`~jmeshtex.fldm.core.sampling_geometry`).
       key: PRNG key; the same key gives the same samples.
       num_samples: number of samples.
       method: ``"ddim"`` (``steps`` steps, ``eta``) or ``"ddpm"`` (all ``T`` steps, ancestral).
@@ -190,7 +190,8 @@ def sample(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fldm import Config, init_denoiser
+      >>> from jmeshtex.fldm import Config
+      >>> from jmeshtex.fldm.core import init_denoiser
       >>> cfg = Config.tiny(latent_channels=2, diffusion_steps=20)
       >>> model = Model(init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
       >>> geo = sampling_geometry(icosphere(1), model)
@@ -300,7 +301,7 @@ def inpaint(
 
     Args:
       model: a trained :class:`Model`.
-      mesh: the :class:`~jmeshtex.Mesh` (or its :func:`sampling_geometry`).
+      mesh: the :class:`~jmeshtex.Mesh` (or its :func:`~jmeshtex.fldm.core.sampling_geometry`).
       known: ``[V, d]`` unscaled latents (e.g. the FL-VAE's encoding of the mesh's own colours).
       mask: ``[V]`` True where ``known`` is kept.
       key: PRNG key; the same key gives the same inpaintings.
@@ -313,7 +314,8 @@ def inpaint(
 
     Example:
       >>> from jmeshtex.data import icosphere
-      >>> from jmeshtex.fldm import Config, init_denoiser
+      >>> from jmeshtex.fldm import Config
+      >>> from jmeshtex.fldm.core import init_denoiser
       >>> cfg = Config.tiny(latent_channels=2, diffusion_steps=20)
       >>> model = Model(init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
       >>> mesh = icosphere(1)

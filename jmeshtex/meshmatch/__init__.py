@@ -19,41 +19,18 @@ rotations, and a Gaussian-weighted vote synthesises the target's colours. Nothin
 Task verbs (:func:`transfer`, :func:`paint_by_example`, :func:`transfer_displacement`) take
 :class:`~jmeshtex.Mesh` inputs and ``key=`` and return a :class:`MeshMatchTransfer`, written and read
 with :func:`save` / :func:`load`; :func:`meshmatch` is the matcher behind them, on any per-vertex
-signal.
+signal; its building blocks (fans, features, the padded hierarchy) are in
+:mod:`jmeshtex.meshmatch.core`.
 """
 
 from .._extras import needs_methods as _needs_methods  # noqa: F401 (names a missing extra)
-from ..geometry import taubin_smooth as taubin_smooth
+from . import core as core  # the building blocks
 from ._config import Config as Config
-from ._displacement import base_surface as base_surface
-from ._displacement import detail_displacement as detail_displacement
 from ._displacement import transfer_displacement as transfer_displacement
-from ._fans import GeodesicFans as GeodesicFans
-from ._fans import Smoother as Smoother
-from ._fans import fan_descriptor as fan_descriptor
-from ._fans import filtered_fans as filtered_fans
-from ._fans import geodesic_fans as geodesic_fans
-from ._fans import prefilter_steps as prefilter_steps
-from ._fans import sample_fans as sample_fans
-from ._fans import smooth as smooth
-from ._fans import smoother as smoother
-from ._features import correspondence_affinities as correspondence_affinities
-from ._features import hks_features as hks_features
-from ._features import shape_features as shape_features
 from ._io import load as load
 from ._io import save as save
 from ._match import MeshMatchResult as MeshMatchResult
 from ._match import meshmatch as meshmatch
-from ._match import nnf_colors as nnf_colors
-from ._prepare import LevelArrays as LevelArrays
-from ._prepare import Side as Side
-from ._prepare import level_groups as level_groups
-from ._prepare import pad_level_arrays as pad_level_arrays
-from ._prepare import prepare_side as prepare_side
-from ._prepare import scan_order as scan_order
-from ._spectrum import fan_distance_bound as fan_distance_bound
-from ._spectrum import fan_spectrum as fan_spectrum
-from ._spectrum import rotation_distances as rotation_distances
 from ._transfer import MeshMatchTransfer as MeshMatchTransfer
 from ._transfer import bake_texture as bake_texture
 from ._transfer import paint_by_example as paint_by_example

@@ -132,7 +132,7 @@ class Config(ConfigBase):
         head start (``benchmarks/results/meshmatch_cross.md``, ``meshmatch_real.md``).
       bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
         common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
-        (see :func:`~jmeshtex.meshmatch.level_groups`); 0 pads nothing (every level
+        (see :func:`~jmeshtex.meshmatch.core.level_groups`); 0 pads nothing (every level
         compiles its own step).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths
         (of the target level with ``vote="ring"``; of the fans, as ``fan_radius``, with
@@ -282,7 +282,7 @@ class Config(ConfigBase):
 
     def normal_axes(self) -> dict:
         """The ``up`` / ``side`` / ``axes`` / ``normal_weight`` arguments of
-        :func:`~jmeshtex.meshmatch.shape_features` these settings ask for.
+        :func:`~jmeshtex.meshmatch.core.shape_features` these settings ask for.
 
         Example:
           >>> a = Config().normal_axes()

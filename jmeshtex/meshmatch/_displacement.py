@@ -29,7 +29,7 @@ from ._transfer import MeshMatchTransfer
 
 
 def base_surface(mesh: Mesh | tuple, *, smoothing_steps: int = 10) -> Mesh:
-    """The smooth base of a mesh: the same faces on :func:`taubin_smooth` vertices.
+    """The smooth base of a mesh: the same faces on :func:`~jmeshtex.geometry.taubin_smooth` vertices.
 
     Example:
       >>> from jmeshtex.data import bumpy_sphere
@@ -49,7 +49,7 @@ def detail_displacement(
     .. math:: d_v = (x_v - \\bar x_v) \\cdot \\bar n_v, \\qquad
               \\bar x = \\bigl((I + \\mu\\Delta)(I + \\lambda\\Delta)\\bigr)^n x
 
-    (:func:`taubin_smooth`; ``n̄`` the base's angle-weighted vertex normals). A smooth mesh has
+    (:func:`~jmeshtex.geometry.taubin_smooth`; ``n̄`` the base's angle-weighted vertex normals). A smooth mesh has
     (near) no detail: the unit icosphere with 642 / 2562 vertices gets ``|d| ≤ 0.028 / 0.014`` mean
     edges (a plain Laplacian smoothing: 0.19–0.37). Gaussian bumps 2 edges wide (``bumpy_sphere``
     with 642 vertices, width 0.1) are recovered with correlation 0.96 / 0.98 / 0.99 to their true
@@ -94,8 +94,8 @@ def transfer_displacement(
 
     .. math:: x'_t = x_t + \\hat d_t\\, n_t
 
-    The source's :func:`detail_displacement` is the transferred signal; the match runs between
-    the source's smooth :func:`base_surface` and the target (shape features and fans of comparable
+    The source's :func:`~jmeshtex.meshmatch.core.detail_displacement` is the transferred signal; the match runs between
+    the source's smooth :func:`~jmeshtex.meshmatch.core.base_surface` and the target (shape features and fans of comparable
     geometry, as the paper matches on the smooth component); ``d̂`` is the matched source vertex's
     detail or, with ``voted=True``, the finest level's Gaussian-weighted vote of it.
 
@@ -104,7 +104,7 @@ def transfer_displacement(
       target: the (smooth) mesh that receives it, ``Vt`` vertices, in the source's units.
       key: a ``jax.random`` key.
       config: :class:`~jmeshtex.meshmatch.Config` (default settings when None).
-      smoothing_steps: Taubin pairs of :func:`detail_displacement`.
+      smoothing_steps: Taubin pairs of :func:`~jmeshtex.meshmatch.core.detail_displacement`.
       voted: displace by the finest level's voted detail instead of the matched source vertex's
         (the default): the vote averages the detail neighbouring matches predict, which blurs
         where they disagree (bumpy sphere → sphere, 642 vertices: the nearest copy keeps the

@@ -1,13 +1,13 @@
 """Coarse-to-fine PatchMatch between two meshes (MeshMatch, Chen et al. 2012 §4): the driver.
 
-:func:`meshmatch` prepares both meshes (:func:`~jmeshtex.meshmatch.prepare_side`), then runs the
+:func:`meshmatch` prepares both meshes (:func:`~jmeshtex.meshmatch.core.prepare_side`), then runs the
 levels from the coarsest to the finest: the coarsest starts from random matches, every finer level
 from its parents' matches (upsampled through the parent maps: copied, or with
 ``Config(upsample="offset")`` moved by each vertex's geodesic offset from its parent and re-voted);
 each level runs up to ``steps``
 PatchMatch iterations (the jitted E-step + M-step of ``jmeshtex/meshmatch/_search.py``) and stops
 early when few matches change. A final pass copies each target vertex's matched source colour (no
-blur). Levels are padded in groups (:func:`~jmeshtex.meshmatch.level_groups`: every level with at
+blur). Levels are padded in groups (:func:`~jmeshtex.meshmatch.core.level_groups`: every level with at
 most ``bucket_vertices`` target vertices, then pairs of larger levels) to one shape each, so a
 group shares one compiled step.
 """
@@ -82,7 +82,7 @@ def nnf_colors(source: Mesh | tuple, nnf: Int[np.ndarray, " Vt"]) -> Float[np.nd
 
     Args:
       source: the source :class:`~jmeshtex.Mesh` or ``(vertices [Vs, 3], faces)``.
-      nnf: ``[Vt]`` matched source vertex per target vertex (:attr:`MeshMatchResult.nnf`).
+      nnf: ``[Vt]`` matched source vertex per target vertex (:attr:`~jmeshtex.meshmatch.MeshMatchResult.nnf`).
 
     Returns:
       ``[Vt, 3]`` float64 colours in ``[0, 1]``.
@@ -133,7 +133,7 @@ def meshmatch(
       pin: ``[Vt]`` source vertex each target vertex must match (−1: free) — for painting by
         example, where source and target are the same mesh.
       progress: True for a tqdm bar per level, or a callable receiving one line per level.
-      prepared: ``(source_side, target_side)`` from :func:`~jmeshtex.meshmatch.prepare_side` to
+      prepared: ``(source_side, target_side)`` from :func:`~jmeshtex.meshmatch.core.prepare_side` to
         reuse preprocessing.
       initial_nnf: ``[Vt]`` source vertex per target vertex to start the coarsest level from
         (moved to the levels' ancestors), with the source colours there, instead of random
@@ -290,7 +290,7 @@ def _group_dims(source: Side, target: Side, pairing, config: Config) -> dict:
 
 
 def _wavefronts(target: Side, level: int, pad_to=None, fill=None) -> np.ndarray:
-    """:func:`~jmeshtex.meshmatch.scan_order` of a target level (sequential propagation)."""
+    """:func:`~jmeshtex.meshmatch.core.scan_order` of a target level (sequential propagation)."""
     nb = target.neighborhoods[level]
     return scan_order(np.asarray(nb.index), np.asarray(nb.mask), pad_to=pad_to, fill=fill)
 
@@ -520,7 +520,7 @@ def match_levels(
     """Coarse-to-fine PatchMatch of prepared sides (the loop of :func:`meshmatch`).
 
     Args:
-      source, target: :class:`~jmeshtex.meshmatch.Side` of each mesh.
+      source, target: :class:`~jmeshtex.meshmatch.core.Side` of each mesh.
       colors: ``[Vs, C]`` float64 source signal.
       config: :class:`~jmeshtex.meshmatch.Config`.
       key: PRNG key.

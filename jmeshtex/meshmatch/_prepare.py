@@ -42,7 +42,7 @@ class Side:
       edge: per level mean edge length.
       neighborhoods: per level one-ring :class:`~jmeshtex.VertexNeighborhood` of the level mesh
         (the tracer's frames).
-      smoothers: per level :class:`~jmeshtex.meshmatch.Smoother`.
+      smoothers: per level :class:`~jmeshtex.meshmatch.core.Smoother`.
       tracers: per level :class:`~jmeshtex.geometry.TracerGeometry`.
       log_hks: ``[V_0, T]`` log heat kernel signature.
       features: ``[V_0, D]`` standardised shape features (plus affinities when given).
@@ -157,7 +157,7 @@ def prepare_side(
 
 
 def side_affinities(source: Side, target: Side, pairs):
-    """:func:`~jmeshtex.meshmatch.correspondence_affinities` of the finest levels of prepared sides."""
+    """:func:`~jmeshtex.meshmatch.core.correspondence_affinities` of the finest levels of prepared sides."""
     hs, ht = source.hierarchy, target.hierarchy
     return correspondence_affinities(
         (hs.vertices[0], hs.faces[0]), (ht.vertices[0], ht.faces[0]), pairs

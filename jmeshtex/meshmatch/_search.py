@@ -10,7 +10,7 @@ rotation ``k`` (target frame → source frame by ``2πk/A``). One iteration (:fu
   vertex of the source star), *random search* through the source hierarchy (hop up j levels from
   the current match, come down through random children) and uniformly random source vertices.
   All of them are pre-scored with a rotation-invariant lower bound of the patch distance (ring
-  means and AC norms of the fans, :func:`~jmeshtex.meshmatch.fan_distance_bound`, plus the shape
+  means and AC norms of the fans, :func:`~jmeshtex.meshmatch.core.fan_distance_bound`, plus the shape
   term: 27 numbers per vertex); only the ``exact_candidates`` best (and, once per iteration, the
   current match) get the exact score, at the best of the ``A`` cyclic rotations of the fans at once
   (cyclic cross-correlation through a real DFT of the angular axis) plus the rotation-invariant
@@ -55,7 +55,7 @@ class SearchOptions(NamedTuple):
         (the paper's "whole neighbourhood of NNF(q)") instead of the one nearest the propagated
         offset.
       propagation: ``"parallel"`` (every vertex of a sweep at once, Jacobi) or ``"sequential"``
-        (breadth-first wavefronts, Gauss–Seidel; :func:`~jmeshtex.meshmatch.scan_order`).
+        (breadth-first wavefronts, Gauss–Seidel; :func:`~jmeshtex.meshmatch.core.scan_order`).
       vote: the M-step, ``"ring"`` (one-ring vote) or ``"fan"`` (fan-footprint vote).
     """
 
@@ -346,7 +346,7 @@ def iterate(
     in ``changed``).
 
     The current match is re-scored once; each sweep pre-scores its candidates with the
-    rotation-invariant bound of :func:`~jmeshtex.meshmatch.fan_distance_bound` (a few numbers per
+    rotation-invariant bound of :func:`~jmeshtex.meshmatch.core.fan_distance_bound` (a few numbers per
     vertex) and gives only the ``exact_candidates`` best the full rotation search; a sweep
     propagates from the matches the previous sweep found, so one iteration moves good matches
     ``sweeps`` rings. The sweeps run in a ``lax.scan``: one compiled body whatever their number.
@@ -359,7 +359,7 @@ def iterate(
     wavefront slot, so unlike the parallel step it is not invariant to padding ``order``.
 
     Args:
-      tgt: the target level's :class:`~jmeshtex.meshmatch.LevelArrays` (JAX), ``Vt`` rows.
+      tgt: the target level's :class:`~jmeshtex.meshmatch.core.LevelArrays` (JAX), ``Vt`` rows.
       src: the source level (:func:`make_source`).
       nnf: ``[Vt]`` int32 current matches; ``rot``: ``[Vt]`` int32 their rotations.
       colors: ``[Vt, C]`` the target's current colours (the previous vote).
@@ -367,7 +367,7 @@ def iterate(
       weights: :class:`StepWeights`.
       pin: ``[Vt]`` int32 source vertex a target vertex must match, or -1.
       order: ``[L, B]`` int32 target vertices per breadth-first wavefront, padded with ``Vt``
-        (:func:`~jmeshtex.meshmatch.scan_order`); only with sequential propagation.
+        (:func:`~jmeshtex.meshmatch.core.scan_order`); only with sequential propagation.
       options: :class:`SearchOptions` (static).
 
     Returns:
@@ -503,7 +503,7 @@ def make_source(
     """Device-side source of one level: fan spectra packed per vertex, summaries, search maps.
 
     Args:
-      arr: the source level's host :class:`~jmeshtex.meshmatch.LevelArrays`.
+      arr: the source level's host :class:`~jmeshtex.meshmatch.core.LevelArrays`.
       up, down: random-search maps (:func:`~jmeshtex.meshmatch._prepare.search_tables`).
       valid_index: ``[Nv]`` the valid source vertices (padded with the first one).
       num_valid: how many of them are real.

@@ -33,7 +33,7 @@ def fan_spectrum(fans, ring_weight, dtype=None):
     .. math:: \\hat F[i c, m] = \\sum_a \\sqrt{w_i}\\, F[i, a, c]\\, e^{-2\\pi i m a / A}
 
     Args:
-      fans: ``[V, R, A, C]`` fan samples (e.g. :func:`~jmeshtex.meshmatch.filtered_fans`).
+      fans: ``[V, R, A, C]`` fan samples (e.g. :func:`~jmeshtex.meshmatch.core.filtered_fans`).
       ring_weight: ``[R]`` non-negative ring weights ``w_i``.
       dtype: dtype of the DFT matrices (default: the fans' dtype).
 

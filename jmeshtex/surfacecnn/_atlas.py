@@ -282,7 +282,7 @@ def texture_atlas(
     Args:
       vertices: ``[V, 3]`` positions.
       faces: ``[F, 3]`` consistently oriented, manifold triangles.
-      uv: ``[F, 3, 2]`` per-corner UVs (``Mesh.uv``), or None to unwrap with :func:`unwrap_uv`.
+      uv: ``[F, 3, 2]`` per-corner UVs (``Mesh.uv``), or None to unwrap with :func:`~jmeshtex.surfacecnn.unwrap_uv`.
       size: texture resolution.
       frames: ``"global"`` (default), ``"smooth"`` or ``"uv"`` (module docstring).
       frame_vector: the world vector of the ``"global"`` field (start of the ``"smooth"`` one).

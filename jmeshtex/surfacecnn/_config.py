@@ -47,7 +47,7 @@ class Config(ConfigBase):
         reference's rule: the opposite tap if its walk succeeded, else the centre), ``"zero"``
         (zero padding, like a 2D CNN at the image border) or ``"clamp"`` (the texel where the walk
         stopped).
-      frames: tangent frames of the texels (:func:`~jmeshtex.surfacecnn.texture_atlas`):
+      frames: tangent frames of the texels (:func:`~jmeshtex.surfacecnn.core.texture_atlas`):
         ``"global"`` (the paper's: ``frame_vector`` projected on the surface), ``"smooth"`` (the
         smoothest direction field, Knöppel et al. 2013) or ``"uv"`` (the UV layout's; jumps at
         chart seams — an ablation).
@@ -60,7 +60,7 @@ class Config(ConfigBase):
       content_layer: the feature map of the content term (style transfer).
       content_weight: weight of the content term against the (layer-averaged) style term, or None
         for the reference's 1000 rescaled to the network's input scale
-        (:func:`~jmeshtex.surfacecnn.default_content_weight`: 1000 for Caffe-preprocessed VGG-19,
+        (:func:`~jmeshtex.surfacecnn.core.default_content_weight`: 1000 for Caffe-preprocessed VGG-19,
         ≈0.30 for the embedded torchvision VGG-16).
       network: ``"vgg16"`` (the embedded torchvision weights, always available) or ``"vgg19"``
         (the paper's; needs ``weights_path``, read by :func:`jmeshtex.metrics.load_vgg19` with Caffe

@@ -1,7 +1,7 @@
 """3×3 exponential-map neighbourhoods of texels (Kovács et al. 2024, Sec. 4.2).
 
 Tap ``(dx, dy)`` of texel n walks the surface from the texel's point along ``dx·t + dy·d`` (its
-tangent frame, :class:`~jmeshtex.surfacecnn.TextureAtlas`) for ``|(dx, dy)|`` texel sizes (one
+tangent frame, :class:`~jmeshtex.surfacecnn.core.TextureAtlas`) for ``|(dx, dy)|`` texel sizes (one
 texel, √2 on the diagonals) with the straightest-geodesic tracer
 (:func:`jmeshtex.geometry.trace_geodesics`, which crosses faces and UV seams: the walk happens on
 the merged surface, the end point is read in the UV chart of the face it ends in). The end point's
@@ -76,7 +76,7 @@ def trace_taps(
 
     Args:
       vertices, faces: the mesh.
-      atlas: from :func:`~jmeshtex.surfacecnn.texture_atlas`.
+      atlas: from :func:`~jmeshtex.surfacecnn.core.texture_atlas`.
       start: ``[M]`` valid-texel numbers to walk from.
       step: world length of one tap step (the texel size at level 0, ``2^l`` texel sizes at level l).
       rotation: angle α (radians, scalar or ``[M]``) by which the tap frame is turned
@@ -89,7 +89,7 @@ def trace_taps(
 
     Example:
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.surfacecnn import texture_atlas
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
       >>> v, f = grid(2)
       >>> atlas = texture_atlas(v, f, v[f][..., :2], size=4)
       >>> end, stopped = trace_taps(v, f, atlas, np.array([5]), atlas.texel_size)
@@ -159,7 +159,7 @@ def uv_to_texels(
 
     Example:
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.surfacecnn import texture_atlas
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
       >>> v, f = grid(1)
       >>> atlas = texture_atlas(v, f, v[f][..., :2], size=2)
       >>> idx, w, near = uv_to_texels(atlas, np.array([[0.5, 0.5]]), np.array([0]))
@@ -239,7 +239,7 @@ def texel_taps(
 
     Args:
       vertices, faces: the mesh.
-      atlas: from :func:`~jmeshtex.surfacecnn.texture_atlas`.
+      atlas: from :func:`~jmeshtex.surfacecnn.core.texture_atlas`.
       boundary: ``"zero"`` (default), ``"opposite"`` or ``"clamp"``: what a tap whose walk hit a
         boundary reads (module docstring).
       rotation: turn every texel's tap frame by this angle (radians, scalar or ``[N]``); 0 keeps the
@@ -251,7 +251,7 @@ def texel_taps(
 
     Example:
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.surfacecnn import texture_atlas
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
       >>> v, f = grid(2)
       >>> atlas = texture_atlas(v, f, v[f][..., :2], size=4)
       >>> taps = texel_taps(v, f, atlas)

@@ -27,7 +27,7 @@ def required_levels(weights: VGGWeights, layers: tuple[str, ...]) -> int:
       layers: activation names (:func:`jmeshtex.metrics.vgg_layer_names`).
 
     Returns:
-      The ``levels`` to build the :class:`~jmeshtex.surfacecnn.TexelPyramid` with.
+      The ``levels`` to build the :class:`~jmeshtex.surfacecnn.core.TexelPyramid` with.
 
     Example:
       >>> from jmeshtex.metrics import load_vgg16
@@ -69,7 +69,7 @@ def mesh_cnn_features(
       >>> import numpy as np
       >>> from jmeshtex.data import grid
       >>> from jmeshtex.metrics import load_vgg16
-      >>> from jmeshtex.surfacecnn import texture_atlas, texel_pyramid
+      >>> from jmeshtex.surfacecnn.core import texture_atlas, texel_pyramid
       >>> v, f = grid(2)
       >>> atlas = texture_atlas(v, f, v[f][..., :2], size=8)
       >>> pyr = texel_pyramid(v, f, atlas, levels=1)

@@ -145,14 +145,14 @@ def texel_pyramid(
 
     Args:
       vertices, faces: the mesh.
-      atlas: from :func:`~jmeshtex.surfacecnn.texture_atlas`.
+      atlas: from :func:`~jmeshtex.surfacecnn.core.texture_atlas`.
       levels: number of pooling levels (VGG: 4 or 5).
-      boundary: ``"zero"``, ``"opposite"`` or ``"clamp"`` (see :func:`~jmeshtex.surfacecnn.texel_taps`).
+      boundary: ``"zero"``, ``"opposite"`` or ``"clamp"`` (see :func:`~jmeshtex.surfacecnn.core.texel_taps`).
       rotation: tap-frame rotation per texel (radians, scalar or ``[N]``); coarse nodes use their
         representative's.
       backoff: walk-length fractions tried, in order, when a coarse walk overshoots (default
         ``BACKOFF``: 7/8 … 1/8, the reference tool's 8 sample positions).
-      taps: level-0 taps if already computed (:func:`~jmeshtex.surfacecnn.texel_taps`).
+      taps: level-0 taps if already computed (:func:`~jmeshtex.surfacecnn.core.texel_taps`).
       geometry: tracer tables.
 
     Returns:
@@ -160,7 +160,7 @@ def texel_pyramid(
 
     Example:
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.surfacecnn import texture_atlas
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
       >>> v, f = grid(2)
       >>> atlas = texture_atlas(v, f, v[f][..., :2], size=4)
       >>> pyr = texel_pyramid(v, f, atlas, levels=1)

@@ -106,7 +106,7 @@ def frame_seam_turn(
     Args:
       mesh: a :class:`~jmeshtex.Mesh` with ``uv`` (a mesh without, or a ``(vertices, faces)`` pair,
         is unwrapped with xatlas).
-      frames: ``"global"``, ``"smooth"`` or ``"uv"`` (:func:`~jmeshtex.surfacecnn.texture_atlas`).
+      frames: ``"global"``, ``"smooth"`` or ``"uv"`` (:func:`~jmeshtex.surfacecnn.core.texture_atlas`).
       frame_vector: the global vector of the surface frames.
       geometry: tracer tables.
 
@@ -164,7 +164,7 @@ def seam_pairs(
 
     Example:
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.surfacecnn import texel_taps, texture_atlas
+      >>> from jmeshtex.surfacecnn.core import texel_taps, texture_atlas
       >>> v, f = grid(1)
       >>> atlas = texture_atlas(v, f, v[f][..., :2], size=4)
       >>> seam, inner = seam_pairs(atlas, texel_taps(v, f, atlas).nearest, tracer_geometry(v, f))
@@ -200,7 +200,7 @@ def seam_ratio(
 
     Args:
       colors: ``[N, 3]`` texel colours (atlas order).
-      atlas: the :class:`~jmeshtex.surfacecnn.TextureAtlas`.
+      atlas: the :class:`~jmeshtex.surfacecnn.core.TextureAtlas`.
       nearest: level-0 nearest taps (``Surface.pyramid.nearest[0]`` or ``texel_taps(...).nearest``).
       geometry: tracer tables of the mesh (built from the atlas' mesh if None is impossible: give it).
 
@@ -212,7 +212,7 @@ def seam_ratio(
 
     Example:
       >>> from jmeshtex.data import grid
-      >>> from jmeshtex.surfacecnn import texel_taps, texture_atlas
+      >>> from jmeshtex.surfacecnn.core import texel_taps, texture_atlas
       >>> v, f = grid(2)
       >>> uv = v[f][..., :2] * 0.45
       >>> uv[f[:, 0] == 0] += 0.5                    # the faces at vertex 0 in a second chart

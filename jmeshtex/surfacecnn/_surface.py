@@ -18,8 +18,8 @@ class Surface(NamedTuple):
     """The precomputed surface of a mesh CNN: texel atlas and pooling pyramid (host arrays).
 
     Attributes:
-      atlas: :class:`~jmeshtex.surfacecnn.TextureAtlas`.
-      pyramid: :class:`~jmeshtex.surfacecnn.TexelPyramid`.
+      atlas: :class:`~jmeshtex.surfacecnn.core.TextureAtlas`.
+      pyramid: :class:`~jmeshtex.surfacecnn.core.TexelPyramid`.
       seconds: ``{"atlas": s, "taps": s, "pyramid": s}`` host time of each stage.
     """
 
@@ -46,12 +46,12 @@ def prepare_surface(
         lays out the texture, and a mesh without UVs (or a ``(vertices, faces)`` pair) is unwrapped
         with xatlas.
       size: texture resolution (``size × size`` texels).
-      levels: pooling levels (:func:`~jmeshtex.surfacecnn.required_levels`).
-      boundary: failed-walk rule (:func:`~jmeshtex.surfacecnn.texel_taps`; default the reference's
+      levels: pooling levels (:func:`~jmeshtex.surfacecnn.core.required_levels`).
+      boundary: failed-walk rule (:func:`~jmeshtex.surfacecnn.core.texel_taps`; default the reference's
         ``"opposite"``, as :class:`~jmeshtex.surfacecnn.Config`).
       rotation: tap-frame rotation (radians, scalar or per texel).
-      frames, frame_vector: the tangent frames (:func:`~jmeshtex.surfacecnn.texture_atlas`).
-      backoff: overshoot back-off fractions (:func:`~jmeshtex.surfacecnn.texel_pyramid`).
+      frames, frame_vector: the tangent frames (:func:`~jmeshtex.surfacecnn.core.texture_atlas`).
+      backoff: overshoot back-off fractions (:func:`~jmeshtex.surfacecnn.core.texel_pyramid`).
 
     Returns:
       :class:`Surface`.

@@ -162,7 +162,7 @@ def synthesize(
 ) -> SynthesisResult:
     """Synthesise a texture for a mesh whose CNN Gram statistics match a 2D exemplar's.
 
-    Minimises :func:`~jmeshtex.surfacecnn.style_loss` over the texel colours (Kovács et al. 2024,
+    Minimises :func:`~jmeshtex.surfacecnn.core.style_loss` over the texel colours (Kovács et al. 2024,
     eq. 1, after Gatys et al. 2015) with Adam, lr ``config.learning_rate`` halved every
     ``config.halve_every`` steps, clipped to [0, 1], from uniform(``init_low``, ``init_high``) colours.
 
@@ -172,7 +172,7 @@ def synthesize(
       exemplar: ``[H, W, 3]`` RGB image in [0, 1] (or uint8).
       config: :class:`~jmeshtex.surfacecnn.Config` (default: the paper's settings).
       key: PRNG key of the initial colours.
-      weights: CNN weights (default: ``config.network``, :func:`network_weights`; the embedded
+      weights: CNN weights (default: ``config.network``, :func:`~jmeshtex.surfacecnn.core.network_weights`; the embedded
         VGG-16 unless VGG-19's file is given).
       layers: Gram layers (default ``config.layers``, else every ReLU and pool output).
       surface: a precomputed :class:`~jmeshtex.surfacecnn.Surface` to reuse.
@@ -272,7 +272,7 @@ def stylize(
         ``mesh.texture``.
       style: ``[H2, W2, 3]`` style image.
       config: :class:`~jmeshtex.surfacecnn.Config` (``content_layer``, ``content_weight``; the style
-        layers default to ``relu1_1 … relu5_1``, :func:`~jmeshtex.surfacecnn.style_transfer_layers`).
+        layers default to ``relu1_1 … relu5_1``, :func:`~jmeshtex.surfacecnn.core.style_transfer_layers`).
       key: accepted for the common task-verb signature; style transfer starts from the content
         texture and draws no random numbers, so the result does not depend on it.
       weights, layers, surface, progress, checkpoint, checkpoint_every: as in

@@ -8,14 +8,8 @@ import pytest
 
 from jmeshtex import Mesh
 from jmeshtex.data import icosphere, torus
-from jmeshtex.dgts import (
-    FaceBudgetError,
-    choose_start_level,
-    conditional,
-    output_faces,
-    reconstruct,
-    transfer,
-)
+from jmeshtex.dgts import FaceBudgetError, conditional, reconstruct, transfer
+from jmeshtex.dgts.core import choose_start_level, output_faces
 
 
 def test_start_level_follows_the_face_budget(tiny_model):

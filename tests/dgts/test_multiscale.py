@@ -9,15 +9,9 @@ import pytest
 
 from jmeshtex import InputError, Mesh, MeshError, MeshIOError
 from jmeshtex.data import grid, icosahedron, icosphere
-from jmeshtex.dgts import (
-    PrepareConfig,
-    fit_level,
-    load_training_meshes,
-    sample_points,
-    save_training_meshes,
-    training_meshes,
-)
+from jmeshtex.dgts import PrepareConfig, load_training_meshes, save_training_meshes, training_meshes
 from jmeshtex.dgts._multiscale import normalize_pair
+from jmeshtex.dgts.core import fit_level, sample_points
 from jmeshtex.geometry import mean_edge_length, subdivide_midpoint, unique_edges
 
 

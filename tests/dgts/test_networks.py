@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from jmeshtex.data import grid, icosahedron
-from jmeshtex.dgts import (
-    Config,
+from jmeshtex.dgts import Config
+from jmeshtex.dgts.core import (
     Discriminator,
     Generator,
     discriminator,

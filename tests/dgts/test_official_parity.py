@@ -16,14 +16,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex.dgts import (
-    Config,
-    from_official_state_dict,
-    generator_level,
-    load_official,
-    official_level_params,
-    to_official_state_dict,
-)
+from jmeshtex.dgts import Config, from_official_state_dict, load_official
+from jmeshtex.dgts.core import generator_level, official_level_params, to_official_state_dict
 from jmeshtex.geometry import face_neighborhood, to_jax
 from jmeshtex.ops import face_conv_stack, face_features
 
@@ -120,7 +114,7 @@ def test_load_official_runs_the_official_level_through_a_model(official, tmp_pat
     assert _rel(moved, d["level_vs"]) < RTOL
     # and through the whole transfer path: one level run on the parity mesh itself
     from jmeshtex import Mesh
-    from jmeshtex.dgts import plan_transfer, run_plan
+    from jmeshtex.dgts.core import plan_transfer, run_plan
 
     plan = plan_transfer(model, Mesh(d["vertices"].astype(np.float64), d["faces"]), start_level=4)
     out = plan.to_target(run_plan(model, plan, [jnp.asarray(d["noise"])]))

@@ -14,8 +14,8 @@ from jmeshtex.data import (
     textured_sphere,
     textured_torus,
 )
-from jmeshtex.dgts import (
-    PrepareConfig,
+from jmeshtex.dgts import PrepareConfig
+from jmeshtex.dgts.core import (
     fit_level,
     height_autocorrelation,
     height_autocorrelation_length,

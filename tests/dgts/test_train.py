@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from jmeshtex import CheckpointMismatchError, ConfigError, MeshIOError, TrainResult
-from jmeshtex.dgts import LOSS_NAMES, LevelReport, Model, load, save, train
+from jmeshtex.dgts import LevelReport, Model, load, save, train
+from jmeshtex.dgts.core import LOSS_NAMES
 from jmeshtex.io import Checkpoints
 from tests.dgts.conftest import TINY, TINY_KEY
 
@@ -182,8 +183,8 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
     """The padding contract in float64: masked faces and vertices change no loss and no parameter."""
     import jax.numpy as jnp
 
-    from jmeshtex.dgts import hierarchy_geometry, init_level
     from jmeshtex.dgts._train import _Opt, _optimizer, level_batch, pad_level, train_chunk
+    from jmeshtex.dgts.core import hierarchy_geometry, init_level
 
     cfg = TINY.replace(shared_levels=0)
     geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 1)

@@ -8,14 +8,8 @@ import pytest
 
 from jmeshtex import InputError, Mesh, MeshError
 from jmeshtex.data import grid, icosahedron, icosphere, torus
-from jmeshtex.dgts import (
-    DGTSTransfer,
-    interpolate,
-    normal_heights,
-    plan_transfer,
-    run_plan,
-    transfer,
-)
+from jmeshtex.dgts import DGTSTransfer, interpolate, transfer
+from jmeshtex.dgts.core import normal_heights, plan_transfer, run_plan
 from jmeshtex.geometry import subdivide_midpoint, vertex_normals
 
 

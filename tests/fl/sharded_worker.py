@@ -63,15 +63,15 @@ def leaves(params) -> list[list[float]]:
 
 def one_step(config: fl.Config, mesh) -> dict:
     rng = np.random.default_rng(3)
-    meshes = [fl.planar_mesh(im, 12, rng=rng) for im in images()]
-    batch = fl.mesh_batch(meshes, config, rng, num_vertices=24)
+    meshes = [fl.core.planar_mesh(im, 12, rng=rng) for im in images()]
+    batch = fl.core.mesh_batch(meshes, config, rng, num_vertices=24)
     params = fl.init(config, key=jax.random.key(1)).params
-    state = fl.optimizer(config).init(params)
+    state = fl.core.optimizer(config).init(params)
     out = {}
     if config.decoder == "log":  # the gradient itself (Adam's first update hides its scale)
 
         def loss(p, b):
-            return fl.vae_loss(
+            return fl.core.vae_loss(
                 p,
                 config,
                 b["log"],
@@ -83,7 +83,9 @@ def one_step(config: fl.Config, mesh) -> dict:
 
         grads = parallel.data_parallel(jax.grad(loss), mesh, batch_argnums=(1,))(params, batch)
         out["grads"] = leaves(parallel.fetch(grads))
-    params, _, loss, l1 = fl.make_train_step(config, mesh)(params, state, batch, jax.random.key(2))
+    params, _, loss, l1 = fl.core.make_train_step(config, mesh)(
+        params, state, batch, jax.random.key(2)
+    )
     params = parallel.fetch(params)
     return out | {
         "loss": float(parallel.fetch(loss)),

@@ -7,7 +7,7 @@ import pytest
 
 from jmeshtex import InputError, Mesh
 from jmeshtex.data import grid
-from jmeshtex.fl import surface_colors
+from jmeshtex.fl.core import surface_colors
 
 
 def _textured_grid(n=4):

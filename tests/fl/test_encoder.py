@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from jmeshtex.data import grid, icosphere
-from jmeshtex.fl import Config, encode_samples, init, one_ring_samples
+from jmeshtex.fl import Config, init
 from jmeshtex.fl._encoder import corner_logs, ring_geometry
+from jmeshtex.fl.core import encode_samples, one_ring_samples
 from jmeshtex.geometry import one_ring_neighborhood
 
 SMALL = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)

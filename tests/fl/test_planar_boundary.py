@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jmeshtex.fl import planar_mesh
+from jmeshtex.fl.core import planar_mesh
 
 
 @pytest.mark.parametrize(

@@ -9,14 +9,8 @@ import pytest
 
 from jmeshtex import InputError, Mesh
 from jmeshtex.data import grid
-from jmeshtex.fl import (
-    Config,
-    atlas_metrics,
-    decode_texture,
-    init,
-    reconstruct,
-    side_by_side,
-)
+from jmeshtex.fl import Config, decode_texture, init, reconstruct
+from jmeshtex.fl.core import atlas_metrics, side_by_side
 
 SMALL = Config(
     latent_dim=3,

@@ -12,26 +12,23 @@ import numpy as np
 import pytest
 
 from jmeshtex import InputError
-from jmeshtex.fl import (
+from jmeshtex.fl import Config, held_out_images, init, train
+from jmeshtex.fl._textures import image_levels
+from jmeshtex.fl._train import _load_images
+from jmeshtex.fl.core import (
     HELD_OUT_IMAGES,
     PROCEDURAL_KINDS,
     TRAINING_IMAGES,
-    Config,
     augmented_crop,
     decode_points,
     density_mesh,
     encode_samples,
-    held_out_images,
-    init,
     procedural_texture,
     sample_latents,
-    train,
     training_meshes,
     training_texture,
     vae_loss,
 )
-from jmeshtex.fl._textures import image_levels
-from jmeshtex.fl._train import _load_images
 
 STREAM = Config(
     latent_dim=4,

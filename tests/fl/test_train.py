@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from jmeshtex import CheckpointMismatchError, ConfigError, InputError, TrainResult, metrics
-from jmeshtex.fl import (
-    Config,
-    Model,
+from jmeshtex.fl import Config, Model, train
+from jmeshtex.fl._planar import farthest_points
+from jmeshtex.fl.core import (
     builtin_images,
     decode_points,
     encode_samples,
@@ -21,9 +21,7 @@ from jmeshtex.fl import (
     one_ring_samples,
     planar_mesh,
     surface_colors,
-    train,
 )
-from jmeshtex.fl._planar import farthest_points
 
 TINY = Config(
     latent_dim=4,

@@ -71,15 +71,15 @@ def leaves(tree) -> list[list[float]]:
 def one_gradient(data: fldm.Dataset, mesh) -> dict:
     """The training loss (ε-prediction, eq. 10) and its gradient for one batch, data-parallel on ``mesh``."""
     params = fldm.init(data, CONFIG, key=jax.random.key(1)).params
-    z0, geo, _ = fldm.training_batch(data, 0, CONFIG.batch_size, key=jax.random.key(2))
-    schedule = fldm.make_schedule(CONFIG.schedule, num_steps=CONFIG.diffusion_steps)
+    z0, geo, _ = fldm.core.training_batch(data, 0, CONFIG.batch_size, key=jax.random.key(2))
+    schedule = fldm.core.make_schedule(CONFIG.schedule, num_steps=CONFIG.diffusion_steps)
     t = np.arange(CONFIG.batch_size, dtype=np.int32) * 5 + 1
     eps = np.asarray(jax.random.normal(jax.random.key(3), z0.shape, jnp.complex64))
 
     def loss(p, z0, geo, t, eps):
-        zt = fldm.q_sample(schedule, z0, t, eps)
-        pred = jax.vmap(lambda z, tt, g: fldm.denoise(p, CONFIG, z, tt, g))(zt, t, geo)
-        return fldm.epsilon_loss(pred, eps, geo.fine.vertex_mask)
+        zt = fldm.core.q_sample(schedule, z0, t, eps)
+        pred = jax.vmap(lambda z, tt, g: fldm.core.denoise(p, CONFIG, z, tt, g))(zt, t, geo)
+        return fldm.core.epsilon_loss(pred, eps, geo.fine.vertex_mask)
 
     step = parallel.data_parallel(jax.value_and_grad(loss), mesh, batch_argnums=(1, 2, 3, 4))
     value, grads = parallel.fetch(step(params, z0, geo, t, eps))

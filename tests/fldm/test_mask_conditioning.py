@@ -11,21 +11,17 @@ import pytest
 
 from jmeshtex import ConfigError, InputError
 from jmeshtex.data import icosphere, stripe_encoder
-from jmeshtex.fldm import (
-    Config,
+from jmeshtex.fldm import Config, inpaint, random_mask, sample, train
+from jmeshtex.fldm._masks import EMPTY_FRACTION
+from jmeshtex.fldm.core import (
     denoise,
     denoiser_geometry,
     geometry_sizes,
     init_denoiser,
-    inpaint,
     pad_geometry,
-    random_mask,
-    sample,
-    train,
     training_batch,
     training_masks,
 )
-from jmeshtex.fldm._masks import EMPTY_FRACTION
 from jmeshtex.ops import tangent_noise
 from tests.fldm.conftest import uses_tiny_data
 

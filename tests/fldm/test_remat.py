@@ -14,10 +14,10 @@ CFG = fldm.Config.tiny(latent_channels=2, widths=(4, 6), hdim=2, knn=5)
 
 
 def test_remat_keeps_parameters_values_and_gradients():
-    geo = fldm.denoiser_geometry(icosphere(2), knn=CFG.knn)
+    geo = fldm.core.denoiser_geometry(icosphere(2), knn=CFG.knn)
     # complex128, so that the comparison is not of float32 round-off (the recomputed pass fuses differently)
-    params = fldm.init_denoiser(jax.random.key(0), CFG, dtype=jnp.complex128)
-    with_remat = fldm.init_denoiser(
+    params = fldm.core.init_denoiser(jax.random.key(0), CFG, dtype=jnp.complex128)
+    with_remat = fldm.core.init_denoiser(
         jax.random.key(0), CFG.replace(remat=True), dtype=jnp.complex128
     )
     assert jax.tree.structure(with_remat) == jax.tree.structure(params)
@@ -28,7 +28,7 @@ def test_remat_keeps_parameters_values_and_gradients():
     gj = jax.tree.map(jnp.asarray, geo)
 
     def loss(p, cfg):
-        out = fldm.denoise(p, cfg, z, t, gj)
+        out = fldm.core.denoise(p, cfg, z, t, gj)
         return jnp.sum(jnp.abs(out - z) ** 2)
 
     runs = {}

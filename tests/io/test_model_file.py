@@ -160,8 +160,8 @@ def test_fl_reads_its_earlier_layout_and_the_shipped_weights(tmp_path):
     assert fl.load_extra(tmp_path / "old.npz") == fl.load_extra(tmp_path / "new.npz") == {"step": 2}
     mu = np.ones((3, 2), np.complex64)
     np.testing.assert_array_equal(
-        fl.decode_vertex_colors_from_latents(old.params, old.config, mu),
-        fl.decode_vertex_colors_from_latents(new.params, new.config, mu),
+        fl.core.decode_vertex_colors_from_latents(old.params, old.config, mu),
+        fl.core.decode_vertex_colors_from_latents(new.params, new.config, mu),
     )
     with zipfile.ZipFile(fl.load_pretrained.__globals__["_PRETRAINED"]["log"]) as z:
         assert "meta.npy" in z.namelist()  # the shipped weights are in the earlier layout
@@ -193,7 +193,7 @@ def test_a_model_whose_arrays_do_not_fit_its_config_is_corrupt(tmp_path):
     from jmeshtex import fldm
 
     cfg = fldm.Config.tiny(latent_channels=2, diffusion_steps=20)
-    model = fldm.Model(fldm.init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
+    model = fldm.Model(fldm.core.init_denoiser(jax.random.key(0), cfg), cfg, np.ones(2))
     back = fldm.load(fldm.save(model, tmp_path / "good"))
     for a, b in zip(jax.tree.leaves(model.params), jax.tree.leaves(back.params), strict=True):
         assert np.asarray(a).dtype == np.asarray(b).dtype

@@ -10,8 +10,8 @@ import pytest
 
 from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid, icosphere
-from jmeshtex.meshmatch import (
-    Config,
+from jmeshtex.meshmatch import Config
+from jmeshtex.meshmatch.core import (
     correspondence_affinities,
     fan_descriptor,
     fan_spectrum,
@@ -116,8 +116,8 @@ def test_bad_inputs_raise_typed_errors():
 
 def test_host_smoothing_matches_the_jax_smoother(rng):
     """The HKS copy-down smooths hundreds of steps on the host (sparse); same result as `smooth`."""
-    from jmeshtex.meshmatch import smooth, smoother
     from jmeshtex.meshmatch._fans import _smooth_host
+    from jmeshtex.meshmatch.core import smooth, smoother
 
     v, f = icosphere(2)
     x = rng.standard_normal((len(v), 3))

@@ -15,8 +15,9 @@ from jmeshtex.geometry import (
     one_ring_neighborhood,
     tracer_geometry,
 )
-from jmeshtex.meshmatch import Config, prepare_side
+from jmeshtex.meshmatch import Config
 from jmeshtex.meshmatch._prepare import level_arrays, mollified_lengths
+from jmeshtex.meshmatch.core import prepare_side
 
 
 def _flattened_hierarchy():

@@ -9,16 +9,7 @@ import pytest
 
 from jmeshtex.data import icosphere
 from jmeshtex.geometry import mesh_hierarchy, one_rings
-from jmeshtex.meshmatch import (
-    Config,
-    fan_distance_bound,
-    fan_spectrum,
-    level_groups,
-    pad_level_arrays,
-    prepare_side,
-    rotation_distances,
-    scan_order,
-)
+from jmeshtex.meshmatch import Config
 from jmeshtex.meshmatch._features import ancestors
 from jmeshtex.meshmatch._prepare import level_arrays, pad_axis, search_tables
 from jmeshtex.meshmatch._search import (
@@ -29,6 +20,15 @@ from jmeshtex.meshmatch._search import (
     _smallest,
     iterate,
     make_source,
+)
+from jmeshtex.meshmatch.core import (
+    fan_distance_bound,
+    fan_spectrum,
+    level_groups,
+    pad_level_arrays,
+    prepare_side,
+    rotation_distances,
+    scan_order,
 )
 
 

@@ -10,9 +10,10 @@ from scipy.spatial import cKDTree
 
 from jmeshtex import ConfigError, Mesh
 from jmeshtex.data import icosphere
-from jmeshtex.meshmatch import Config, _match, meshmatch, pad_level_arrays, prepare_side
+from jmeshtex.meshmatch import Config, _match, meshmatch
 from jmeshtex.meshmatch._prepare import level_arrays, pad_axis
 from jmeshtex.meshmatch._search import StepWeights, vote_step
+from jmeshtex.meshmatch.core import pad_level_arrays, prepare_side
 from jmeshtex.metrics import psnr
 
 

@@ -5,7 +5,8 @@ import pytest
 
 from jmeshtex import InputError
 from jmeshtex.data import grid, icosphere
-from jmeshtex.surfacecnn import image_to_texels, texels_to_image, texture_atlas, unwrap_uv
+from jmeshtex.surfacecnn import unwrap_uv
+from jmeshtex.surfacecnn.core import image_to_texels, texels_to_image, texture_atlas
 
 
 def _cross(a, b):

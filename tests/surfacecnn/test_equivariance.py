@@ -6,13 +6,8 @@ import pytest
 
 from jmeshtex.data import grid, icosphere
 from jmeshtex.metrics import load_vgg16, vgg_features
-from jmeshtex.surfacecnn import (
-    mesh_cnn_features,
-    texel_pyramid,
-    texel_taps,
-    texture_atlas,
-    unwrap_uv,
-)
+from jmeshtex.surfacecnn import unwrap_uv
+from jmeshtex.surfacecnn.core import mesh_cnn_features, texel_pyramid, texel_taps, texture_atlas
 from jmeshtex.testing import REGISTRY, check
 
 LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1")

@@ -7,7 +7,7 @@ import pytest
 from jmeshtex import InputError
 from jmeshtex.data import grid
 from jmeshtex.ops import image_texel_neighborhood, texel_conv
-from jmeshtex.surfacecnn import texel_taps, texture_atlas, uv_to_texels
+from jmeshtex.surfacecnn.core import texel_taps, texture_atlas, uv_to_texels
 
 
 def _dense(nb, n):
@@ -102,7 +102,8 @@ def test_uv_to_texels_renormalises_over_valid_corners():
 def test_in_face_fast_path_agrees_with_the_tracer():
     from jmeshtex.data import icosphere
     from jmeshtex.geometry import trace_geodesics, uv_at
-    from jmeshtex.surfacecnn import trace_taps, unwrap_uv
+    from jmeshtex.surfacecnn import unwrap_uv
+    from jmeshtex.surfacecnn.core import trace_taps
 
     v, f = icosphere(2)
     atlas = texture_atlas(v, f, unwrap_uv(v, f), size=32)

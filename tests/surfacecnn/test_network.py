@@ -9,14 +9,14 @@ from jmeshtex import InputError
 from jmeshtex.data import grid
 from jmeshtex.metrics import load_vgg16, vgg_features
 from jmeshtex.ops import PoolGroups, grouped_pool
-from jmeshtex.surfacecnn import (
+from jmeshtex.surfacecnn._network import _pool_groups
+from jmeshtex.surfacecnn.core import (
     default_layers,
     mesh_cnn_features,
     required_levels,
     texel_pyramid,
     texture_atlas,
 )
-from jmeshtex.surfacecnn._network import _pool_groups
 
 LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1", "relu2_2", "pool2", "relu3_1")
 

@@ -6,7 +6,7 @@ import pytest
 from jmeshtex import InputError
 from jmeshtex.data import grid
 from jmeshtex.ops import image_pool_groups, image_texel_neighborhood
-from jmeshtex.surfacecnn import texel_pyramid, texture_atlas
+from jmeshtex.surfacecnn.core import texel_pyramid, texture_atlas
 
 
 def test_aligned_sheet_gives_image_pooling_and_taps():

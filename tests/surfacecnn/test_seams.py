@@ -9,19 +9,15 @@ from jmeshtex import ConfigError, InputError, Mesh
 from jmeshtex.data import icosphere
 from jmeshtex.geometry import tracer_geometry
 from jmeshtex.metrics import load_vgg16, vgg_features
-from jmeshtex.surfacecnn import (
-    Config,
+from jmeshtex.surfacecnn import Config, prepare_surface, synthesize, synthesize_uv, unwrap_uv
+from jmeshtex.surfacecnn.core import (
     frame_seam_turn,
     gram_targets,
     opposite_source,
-    prepare_surface,
     seam_pairs,
     seam_ratio,
-    synthesize,
-    synthesize_uv,
     texel_taps,
     texture_atlas,
-    unwrap_uv,
     vgg_features_centre_padded,
 )
 

@@ -5,7 +5,8 @@ import numpy as np
 
 from jmeshtex.geometry import prepare_mesh, tracer_geometry
 from jmeshtex.io import load_mesh
-from jmeshtex.surfacecnn import Config, synthesize, texel_pyramid, texel_taps, texture_atlas
+from jmeshtex.surfacecnn import Config, synthesize
+from jmeshtex.surfacecnn.core import texel_pyramid, texel_taps, texture_atlas
 
 
 def test_spot_closed_surface_taps_never_stop_and_cross_seams(shared_data):

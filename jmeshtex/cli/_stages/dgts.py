@@ -50,7 +50,8 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     from scipy.stats import wasserstein_distance
 
     from ...data import icosphere, torus
-    from ...dgts import normal_heights, train, training_meshes, transfer
+    from ...dgts import train, training_meshes, transfer
+    from ...dgts.core import normal_heights
     from ...render import figure
 
     t0 = time.perf_counter()

@@ -18,7 +18,7 @@ def demo_mesh(quick: bool = True):
       >>> m.num_vertices, m.texture.shape
       (600, (100, 150, 3))
     """
-    from ...fl import builtin_images, planar_mesh
+    from ...fl.core import builtin_images, planar_mesh
 
     image = builtin_images(max_size=150 if quick else 300, names=("coffee",))[0]
     mesh = planar_mesh(image, 600 if quick else 3000, rng=np.random.default_rng(0))
@@ -52,7 +52,8 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     """
     import jax
 
-    from ...fl import atlas_metrics, load_pretrained, reconstruct
+    from ...fl import load_pretrained, reconstruct
+    from ...fl.core import atlas_metrics
     from ...io import save_png
     from ...metrics import flat_baseline, permuted_baseline
     from ...render import figure

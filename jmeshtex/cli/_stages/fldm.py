@@ -156,7 +156,7 @@ def learning_check(
     data = fldm.build_dataset(exemplar, cfg, encode=encode, key=k_data, progress=progress)
     result = fldm.train(data, cfg, key=k_train, progress=progress)
     target = data.meshes[0]
-    geo = fldm.sampling_geometry(target, result.model)
+    geo = fldm.core.sampling_geometry(target, result.model)
     untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
     steps = 25
     z_tr = fldm.sample(result.model, geo, key=k_sample, num_samples=n_samples, steps=steps).latents
@@ -299,7 +299,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
     summary = (
         f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
-        f"{fldm.LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
+        f"{fldm.core.LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
         f"{seconds:.1f} s"
     )
     return {

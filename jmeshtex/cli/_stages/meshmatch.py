@@ -42,7 +42,8 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     import jax
 
     from ... import render
-    from ...meshmatch import Config, meshmatch, nnf_colors
+    from ...meshmatch import Config, meshmatch
+    from ...meshmatch.core import nnf_colors
     from ...metrics import flat_baseline, psnr
 
     out = pathlib.Path(out_dir)

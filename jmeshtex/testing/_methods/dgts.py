@@ -19,7 +19,7 @@ DGTS_TRANSFORMS = ("rigid", "permute_vertices", "permute_faces", "rotate_corners
 
 
 def _generator(state, params, points):
-    from ...dgts import generator_level
+    from ...dgts.core import generator_level
 
     out = generator_level(params, points, state.face_neighborhood())
     return Field(VERTEX_VECTOR, out[:, None, :])
@@ -32,7 +32,7 @@ def _init_generator(key, dtype):
 
 
 def _discriminator(state, params, points):
-    from ...dgts import discriminator
+    from ...dgts.core import discriminator
 
     return Field(FACE_SCALAR, discriminator(params, points, state.face_neighborhood())[:, None])
 

@@ -1,7 +1,7 @@
 """Registers the FL-VAE encoder and decoder in the equivariance harness (:mod:`jmeshtex.testing`).
 
 The one-ring samples of the registered operators come from the deterministic per-wedge rule of
-:func:`~jmeshtex.fl.one_ring_samples` (``rng=None``), so relabelling a mesh only reorders the sample
+:func:`~jmeshtex.fl.core.one_ring_samples` (``rng=None``), so relabelling a mesh only reorders the sample
 set; colours at the samples are the barycentric interpolation of a random per-vertex colour field.
 
 - ``fl.encoder.mu``: μ is a tangent field — it turns with gauge changes (``μ_p e^{-iα_p}``) and is
@@ -56,7 +56,7 @@ def _init(key, dtype):
 
 def _samples(state):
     """Deterministic one-ring samples in the state's gauge (host, cached per state)."""
-    from ...fl import one_ring_samples
+    from ...fl.core import one_ring_samples
 
     def build():
         s = one_ring_samples(state.vertices, state.faces, 1, rng=None)
@@ -69,7 +69,7 @@ def _samples(state):
 @functools.lru_cache(maxsize=1)
 def _jitted():
     """Jitted encoder/decoder (op-by-op dispatch under ``jax_debug_nans`` is ~50x slower)."""
-    from ...fl import decode_points, encode_samples
+    from ...fl.core import decode_points, encode_samples
 
     return jax.jit(encode_samples, static_argnums=1), jax.jit(decode_points, static_argnums=1)
 
@@ -95,7 +95,7 @@ def _encoder_sigma(state, params, c):
 
 
 def _decoder(state, params, z, cfg=None):
-    from ...fl import decode_vertex_colors_from_latents
+    from ...fl.core import decode_vertex_colors_from_latents
 
     decode_points = _jitted()[1]
     s = _samples(state)

@@ -33,7 +33,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...fldm import Config, make_schedule, sample_from_noise
+from ...fldm import Config
+from ...fldm.core import make_schedule, sample_from_noise
 from .. import EXACT, Entry, Field, register
 from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 from .._state import regauge_neighborhood
@@ -62,7 +63,7 @@ TIMESTEP = 37
 
 def _geometry(state):
     """Denoiser geometry of the state's mesh, fine frames turned to the state's gauge."""
-    from ...fldm import denoiser_geometry
+    from ...fldm.core import denoiser_geometry
     from ...geometry import to_jax
 
     def build():
@@ -84,7 +85,7 @@ def _geometry(state):
 def _init_for(config):
     def init(key, dtype):
         from ...data import icosahedron
-        from ...fldm import denoiser_geometry, init_denoiser
+        from ...fldm.core import denoiser_geometry, init_denoiser
 
         cdt = jnp.complex128 if jnp.dtype(dtype) == jnp.float64 else jnp.complex64
         geo = denoiser_geometry(icosahedron(), knn=config.knn, pool_ratio=0.5)
@@ -101,14 +102,14 @@ def _init_for(config):
 
 
 def _denoiser(state, params, z):
-    from ...fldm import denoise
+    from ...fldm.core import denoise
 
     out = denoise(params, CONFIG, z, jnp.asarray(TIMESTEP, jnp.int32), _geometry(state))
     return Field(VERTEX_TANGENT, out)
 
 
 def _denoiser_labels(state, params, z, s):
-    from ...fldm import denoise
+    from ...fldm.core import denoise
 
     labels = jnp.argmax(s, axis=1).astype(jnp.int32)
     out = denoise(
@@ -118,7 +119,7 @@ def _denoiser_labels(state, params, z, s):
 
 
 def _denoiser_reference_argument(state, params, z):
-    from ...fldm import denoise
+    from ...fldm.core import denoise
 
     out = denoise(
         params,
@@ -132,7 +133,7 @@ def _denoiser_reference_argument(state, params, z):
 
 
 def _denoiser_mask(state, params, z, known, s):
-    from ...fldm import denoise
+    from ...fldm.core import denoise
 
     out = denoise(
         params,
@@ -147,7 +148,7 @@ def _denoiser_mask(state, params, z, known, s):
 
 
 def _sampler_inpaint(state, params, z_T, noise, known_noise, known, s):
-    from ...fldm import Inpaint, denoise
+    from ...fldm.core import Inpaint, denoise
 
     geo = _geometry(state)
     V, C = z_T.shape
@@ -173,7 +174,7 @@ def _sampler_inpaint(state, params, z_T, noise, known_noise, known, s):
 
 
 def _sampler(state, params, z_T, noise):
-    from ...fldm import denoise
+    from ...fldm.core import denoise
 
     geo = _geometry(state)
     V, C = z_T.shape

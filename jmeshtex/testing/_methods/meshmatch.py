@@ -12,7 +12,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from ...meshmatch import fan_descriptor
+from ...meshmatch.core import fan_descriptor
 from .. import Entry, Field, register
 from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 

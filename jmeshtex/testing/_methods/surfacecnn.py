@@ -19,7 +19,7 @@ import numpy as np
 
 from ...geometry import trace_from_vertices
 from ...ops import TexelNeighborhood, texel_conv
-from ...surfacecnn import TAP_DX, TAP_DY
+from ...surfacecnn.core import TAP_DX, TAP_DY
 from .. import Entry, Field, register
 from .._fields import VERTEX_SCALAR, VERTEX_TANGENT
 

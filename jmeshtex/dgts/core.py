@@ -1,0 +1,49 @@
+"""DGTS building blocks: the pieces :func:`jmeshtex.dgts.train` and :func:`jmeshtex.dgts.transfer`
+are made of, for building your own model, training loop or inference schedule.
+
+Everything here is a pure function or a plain record over the arrays of one level of the hierarchy;
+the method's contract (``Config``, ``Model``, ``train`` / ``save`` / ``load``, the task verbs) lives
+one level up, in :mod:`jmeshtex.dgts`.
+
+- Multi-scale fitting (§3.3): :func:`fit_level` (one level of the template fit),
+  :func:`sample_points`.
+- Networks (§3.4): :class:`Generator` / :class:`Discriminator` (one level's parameters),
+  :func:`init_level`, :func:`generator_level`, :func:`discriminator`, :func:`generate` (the whole
+  hierarchy), :func:`upsample`, :func:`hierarchy_geometry` / :class:`LevelGeometry` (the frozen face
+  neighbourhoods of every level).
+- Training: :func:`gradient_penalty` (WGAN-GP), ``LOSS_NAMES`` (the per-step loss series).
+- Inference: :func:`plan_transfer` / :class:`TransferPlan` and :func:`run_plan` (the two halves of
+  :func:`~jmeshtex.dgts.transfer`), :func:`choose_start_level`, :func:`output_faces`,
+  :func:`normal_heights`.
+- Official weights: :func:`official_level_params`, :func:`to_official_state_dict`.
+- Structure measures: :func:`peak_statistics` / :class:`PeakStatistics`,
+  :func:`height_autocorrelation` and :func:`height_autocorrelation_length`,
+  :func:`reconstruction_errors`.
+"""
+
+from ._multiscale import fit_level as fit_level
+from ._multiscale import sample_points as sample_points
+from ._networks import Discriminator as Discriminator
+from ._networks import Generator as Generator
+from ._networks import LevelGeometry as LevelGeometry
+from ._networks import discriminator as discriminator
+from ._networks import generate as generate
+from ._networks import generator_level as generator_level
+from ._networks import hierarchy_geometry as hierarchy_geometry
+from ._networks import init_level as init_level
+from ._networks import upsample as upsample
+from ._official import official_level_params as official_level_params
+from ._official import to_official_state_dict as to_official_state_dict
+from ._quality import PeakStatistics as PeakStatistics
+from ._quality import height_autocorrelation as height_autocorrelation
+from ._quality import height_autocorrelation_length as height_autocorrelation_length
+from ._quality import peak_statistics as peak_statistics
+from ._quality import reconstruction_errors as reconstruction_errors
+from ._train import LOSS_NAMES as LOSS_NAMES
+from ._train import gradient_penalty as gradient_penalty
+from ._transfer import TransferPlan as TransferPlan
+from ._transfer import choose_start_level as choose_start_level
+from ._transfer import normal_heights as normal_heights
+from ._transfer import output_faces as output_faces
+from ._transfer import plan_transfer as plan_transfer
+from ._transfer import run_plan as run_plan

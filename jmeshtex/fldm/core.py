@@ -1,0 +1,52 @@
+"""Field Latent Diffusion building blocks: the denoiser, the diffusion maths and the training step
+of :mod:`jmeshtex.fldm`, for building your own sampler, loss or training loop.
+
+Everything here is a pure function over padded arrays (jit/grad/vmap-safe) or builds those arrays
+on the host; the method's contract (``Config``, ``Model``, ``train`` / ``save`` / ``load``, the
+verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
+
+- Denoiser: :func:`init_denoiser`, :func:`denoise`, :func:`denoiser_geometry` /
+  :class:`DenoiserGeometry` (the frozen neighbourhoods of one mesh), :func:`pad_geometry`,
+  :func:`geometry_sizes`, :func:`sampling_geometry`; cost models :func:`denoiser_flops`,
+  :func:`denoiser_activations`.
+- Diffusion (DDPM / DDIM): :func:`make_schedule` / :class:`Schedule` (``SCHEDULES``),
+  :func:`q_sample`, :func:`prediction_target` (``PREDICTIONS``), :func:`epsilon_from_output`,
+  :func:`epsilon_loss` (``LOSS_NAMES``), :func:`ddpm_step`, :func:`ddim_step`,
+  :func:`timestep_sequence`, :func:`draw_sampling_noise`, :func:`sample_from_noise`,
+  :class:`Inpaint`, :func:`latent_scale`.
+- Training: :func:`~jmeshtex.fldm.init`, :func:`make_train_step`, :func:`optimizer`,
+  :func:`learning_rate_schedule`, :func:`training_batch`, :func:`training_masks`,
+  :func:`stack_copies`.
+"""
+
+from ._data import stack_copies as stack_copies
+from ._denoiser import DenoiserGeometry as DenoiserGeometry
+from ._denoiser import denoise as denoise
+from ._denoiser import denoiser_activations as denoiser_activations
+from ._denoiser import denoiser_flops as denoiser_flops
+from ._denoiser import denoiser_geometry as denoiser_geometry
+from ._denoiser import geometry_sizes as geometry_sizes
+from ._denoiser import init_denoiser as init_denoiser
+from ._denoiser import pad_geometry as pad_geometry
+from ._diffusion import LOSS_NAMES as LOSS_NAMES
+from ._diffusion import PREDICTIONS as PREDICTIONS
+from ._diffusion import SCHEDULES as SCHEDULES
+from ._diffusion import Inpaint as Inpaint
+from ._diffusion import Schedule as Schedule
+from ._diffusion import ddim_step as ddim_step
+from ._diffusion import ddpm_step as ddpm_step
+from ._diffusion import draw_sampling_noise as draw_sampling_noise
+from ._diffusion import epsilon_from_output as epsilon_from_output
+from ._diffusion import epsilon_loss as epsilon_loss
+from ._diffusion import latent_scale as latent_scale
+from ._diffusion import make_schedule as make_schedule
+from ._diffusion import prediction_target as prediction_target
+from ._diffusion import q_sample as q_sample
+from ._diffusion import sample_from_noise as sample_from_noise
+from ._diffusion import timestep_sequence as timestep_sequence
+from ._sample import sampling_geometry as sampling_geometry
+from ._train import learning_rate_schedule as learning_rate_schedule
+from ._train import make_train_step as make_train_step
+from ._train import optimizer as optimizer
+from ._train import training_batch as training_batch
+from ._train import training_masks as training_masks
