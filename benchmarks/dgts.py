@@ -5,15 +5,20 @@ Run: ``.venv/bin/python benchmarks/dgts.py [--levels 5] [--measure 10] [--measur
 
 Sections (float32, CPU, jit; compile time reported apart):
 
-- ``quality``: a knobs sphere (``data.textured_sphere("knobs", subdivisions=4, period=0.6)``: known
-  spatial period) learned with the tiny configuration (the demo's ``tiny_configs(quick=True)``: 2 levels,
-  template icosphere(2), 120 steps) and transferred to a torus (32 × 12 → 3072 faces). Rows trained /
-  untrained (same architecture, no step) / zero displacement / Gaussian noise (the reference's height
-  std) / the reference itself (the finest training mesh), on the height autocorrelation length and
-  the peak spacing and density (``dgts.height_autocorrelation_length``, ``dgts.peak_statistics``, all
-  in mean edges, one peak threshold: the reference's) and W1 of the normal-height distributions;
-  plus the reconstruction error per level (``dgts.reconstruction_errors``). This is the tiny setting,
-  not the paper's (2 levels, 16 channels, 120 steps instead of 5 levels, 32–128 channels, 2000 steps).
+- ``quality``: a knobs sphere (``data.textured_sphere("knobs", subdivisions=4, period=0.6)``)
+  learned with the tiny configuration (``PrepareConfig.tiny``, ``Config.tiny``: 2 levels, template
+  icosphere(2), 120 steps; not the paper's 5 levels, 32–128 channels, 2000 steps) and scored against
+  ground truth on the same surface. Transfers (to a torus 64 × 24 and, when ``../shared/data`` is
+  there, the cow; from the default start level and from level 0) are scored against an oracle: the
+  transfer's own undisplaced output carrying knobs at the reference's period in mean edges
+  (``dgts.core.oracle_texture``, ``period_in_mean_edges``); in-domain samples (``conditional`` at
+  level 0) against the finest training mesh. Rows: the truth, the oracle with other centres (the
+  metric's spread), trained, untrained (same architecture, no step), zero displacement, Gaussian
+  normal noise of the truth's relief (``matched_noise``); columns from ``dgts.core.texture_scores``:
+  peak density (peaks per squared mean edge, the headline) and its ratio and ``|log|`` error to the
+  truth, relief (height std) and its ratio, W1 of the heights, ACL and peak spacing (all in mean
+  edges, heights relative to the shared base, one peak threshold: the truth's). Reconstruction
+  errors per level are a diagnostic (level 0 is never trained to reconstruct from ``z*``).
 - ``train level l``: seconds per WGAN-GP step (2 critic + 3 generator updates) with the default
   widths (``dgts.Config``: 7 layers, 32 → 128 channels) on a 5-level hierarchy of icosphere(1)
   (80 → 20480 faces), measured for the first ``--measured-levels`` levels over ``--measure`` steps,
@@ -31,6 +36,7 @@ Sections (float32, CPU, jit; compile time reported apart):
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import pathlib
 import time
@@ -38,21 +44,30 @@ import time
 import jax
 import numpy as np
 import scipy.spatial
-from _harness import Report, matmul_ceiling
-from scipy.stats import wasserstein_distance
+from _harness import RESULTS, Report, matmul_ceiling
 
 from jmeshtex.data import icosphere, textured_sphere, torus
-from jmeshtex.dgts import Config, PrepareConfig, train, training_meshes, transfer
+from jmeshtex.dgts import (
+    Config,
+    PrepareConfig,
+    conditional,
+    train,
+    training_meshes,
+    transfer,
+)
 from jmeshtex.dgts.core import (
-    height_autocorrelation_length,
-    normal_heights,
-    peak_statistics,
+    density_error,
+    matched_noise,
+    oracle_texture,
+    period_in_mean_edges,
     reconstruction_errors,
+    relief_heights,
     sample_points,
+    texture_scores,
 )
 
-#: Taubin pairs of the heights, as the dgts quality measures use them by default
-SMOOTHING = 30
+#: the shared real meshes (rows for them are skipped when the folder is absent)
+SHARED = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
 def tiny_configs() -> tuple[PrepareConfig, Config]:
@@ -60,11 +75,53 @@ def tiny_configs() -> tuple[PrepareConfig, Config]:
     return PrepareConfig.tiny(), Config.tiny()
 
 
+#: the reference texture of the quality section: its kind and period (unit-sphere units)
+KIND, PERIOD = "knobs", 0.6
+
+
 def reference_mesh():
-    return textured_sphere("knobs", subdivisions=4, period=0.6)
+    return textured_sphere(KIND, subdivisions=4, period=PERIOD)
 
 
-def quality(report: Report, png: pathlib.Path | None) -> None:
+def _targets() -> list[tuple[str, object]]:
+    out: list[tuple[str, object]] = [("torus 64x24", torus(64, 24))]
+    cow = SHARED / "cow.obj"
+    if cow.is_file():
+        import warnings
+
+        from jmeshtex.geometry import prepare_mesh
+        from jmeshtex.io import load_mesh
+
+        with warnings.catch_warnings():  # the cow has one bow-tie vertex: split it
+            warnings.simplefilter("ignore")
+            out.append(("cow", prepare_mesh(load_mesh(cow), repair=True)[0]))
+    return out
+
+
+def _score_rows(report, section: str, rows: dict, truth, base, samples: dict) -> None:
+    """One row per mesh list in ``rows`` (mean over its meshes), scored against ``truth``."""
+    own = texture_scores(truth, truth, base=base)
+    for name, meshes in rows.items():
+        scores = [texture_scores(m, truth, base=base) for m in meshes]
+        mean = {k: float(np.mean([getattr(s, k) for s in scores])) for k in own._fields}
+        ratio = mean["peak_density"] / own.peak_density
+        report.add(
+            name=f"{section}: {name}",
+            samples=len(meshes),
+            peak_density=mean["peak_density"],
+            density_vs_truth=ratio,
+            density_error=float(np.mean([density_error(s, own) for s in scores])),
+            relief=mean["relief"],
+            relief_vs_truth=mean["relief"] / own.relief,
+            w1_heights=mean["w1"],
+            autocorrelation_length=mean["autocorrelation_length"],
+            peak_spacing=mean["spacing"],
+            peaks=mean["peaks"],
+            **samples.get(name, {}),
+        )
+
+
+def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> None:
     prep, cfg = tiny_configs()
     t0 = time.perf_counter()
     tm = training_meshes(
@@ -75,87 +132,102 @@ def quality(report: Report, png: pathlib.Path | None) -> None:
     trained = train(tm, cfg, key=jax.random.key(0), progress=False).model
     t_train = time.perf_counter() - t0
     untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
+    period = period_in_mean_edges(tm, PERIOD)
     report.add(
         name="quality: prepare + train (tiny)",
         faces=len(tm.faces[-1]),
         prepare_s=t_prep,
         train_s=t_train,
+        texture=KIND,
+        period_mean_edges=period,
     )
-    target = torus(32, 12)
-    res = transfer(trained, target, key=jax.random.key(1), per_level=True)
-    res_u = transfer(untrained, target, key=jax.random.key(1))
-    ref = tm.mesh(-1)
-    h_ref = normal_heights(ref, smoothing=SMOOTHING)
-    edge = np.linalg.norm(res.base[res.faces[:, 0]] - res.base[res.faces[:, 1]], axis=1).mean()
-    noisy = res.base + np.random.default_rng(0).standard_normal(res.base.shape) * h_ref.std() * edge
-    ref_peaks = peak_statistics(ref)
-    rows = {
-        "reference": ref,
-        "trained": res.mesh(0),
-        "untrained": res_u.mesh(0),
-        "zero displacement": (res.base, res.faces),
-        "gaussian noise": (noisy, res.faces),
-    }
-    acl_ref = height_autocorrelation_length(ref)
-    for name, mesh in rows.items():
-        acl = height_autocorrelation_length(mesh)
-        peaks = peak_statistics(mesh, threshold=ref_peaks.threshold)
-        w1 = wasserstein_distance(h_ref, normal_heights(mesh, smoothing=SMOOTHING))
-        report.add(
-            name=f"quality: {name}",
-            autocorrelation_length=acl,
-            acl_vs_reference=acl / acl_ref,
-            peak_spacing=peaks.spacing,
-            spacing_vs_reference=peaks.spacing / ref_peaks.spacing,
-            peak_density=peaks.density,
-            peaks=peaks.count,
-            w1_heights=w1,
-        )
+    # in-domain: samples from the template (fresh noise at every level) against the training mesh
+    truth = tm.mesh(-1)
+    template = (tm.template, tm.faces[0])
+    cond = conditional(trained, template, level=0, num_samples=samples, key=jax.random.key(2))
+    cond_u = conditional(untrained, template, level=0, num_samples=samples, key=jax.random.key(2))
+    relief = float(np.std(relief_heights(truth)))
+    _score_rows(
+        report,
+        "in-domain vs training mesh",
+        {
+            "training mesh (truth)": [truth],
+            "trained": [cond.mesh(i) for i in range(samples)],
+            "untrained": [cond_u.mesh(i) for i in range(samples)],
+            "zero displacement": [(cond.base, cond.faces)],
+            "noise (matched relief)": [
+                matched_noise((cond.base, cond.faces), relief, seed=i) for i in range(samples)
+            ],
+        },
+        truth,
+        None,
+        {},
+    )
     for name, model in (("trained", trained), ("untrained", untrained)):
         errs = reconstruction_errors(model, tm)
         report.add(
-            name=f"quality: reconstruction error ({name})",
+            name=f"diagnostic: reconstruction error ({name})",
             **{f"level_{i}": float(e) for i, e in enumerate(errs)},
-            target="< 0.1 mean edges",
+            note="mean edges; level 0 never reconstructs from z* (reconstruction_start = 1)",
         )
+    figures = []
+    for target_name, target in _targets():
+        for start in (None, 0):
+            res = transfer(
+                trained, target, num_samples=samples, start_level=start, key=jax.random.key(1)
+            )
+            res_u = transfer(
+                untrained, target, num_samples=samples, start_level=start, key=jax.random.key(1)
+            )
+            base = (res.base, res.faces)
+            oracle = oracle_texture(base, KIND, period=period, seed=0)
+            own = texture_scores(oracle, oracle, base=base)
+            section = (
+                f"transfer to {target_name} from level {res.start_level}"
+                f"{' (default)' if start is None else ''}, {len(res.faces)} F"
+            )
+            _score_rows(
+                report,
+                section,
+                {
+                    "oracle (truth)": [oracle],
+                    "oracle, other centres": [
+                        oracle_texture(base, KIND, period=period, seed=s) for s in (1, 2)
+                    ],
+                    "trained": [res.mesh(i) for i in range(samples)],
+                    "untrained": [res_u.mesh(i) for i in range(samples)],
+                    "zero displacement": [base],
+                    "noise (matched relief)": [
+                        matched_noise(base, own.relief, seed=i) for i in range(samples)
+                    ],
+                },
+                oracle,
+                base,
+                {},
+            )
+            if start is None:
+                figures.append((target_name, res, res_u, oracle, base, own.relief))
     if png is not None:
         from jmeshtex.render import figure, render_mesh
 
-        size = (360, 360)
-        lim = float(np.abs(res.heights).max()) or 1.0
+        size = (320, 320)
         panels = [
             ("reference", render_mesh(reference_mesh(), size=size)),
-            ("training level 1", render_mesh(ref, size=size)),
+            ("training level 1", render_mesh(truth, size=size)),
+            ("in-domain sample", render_mesh(cond.mesh(0), size=size)),
         ]
-        for i, v in enumerate(res.level_vertices):
-            panels.append(
-                (
-                    f"transfer level {i}",
-                    render_mesh((v[0], res.level_faces[i]), size=size, view=(35, -60)),
-                )
-            )
-        panels.append(
-            (
-                "transfer (height)",
-                render_mesh(
-                    res.mesh(0),
-                    scalars=res.heights[0],
-                    cmap="coolwarm",
-                    clim=(-lim, lim),
-                    size=size,
-                    view=(35, -60),
-                ),
-            )
-        )
-        panels.append(("untrained", render_mesh(res_u.mesh(0), size=size, view=(35, -60))))
-        panels.append(
-            ("gaussian noise", render_mesh((noisy, res.faces), size=size, view=(35, -60)))
-        )
+        for target_name, res, res_u, oracle, base, relief in figures:
+            panels += [
+                (f"{target_name}: trained", render_mesh(res.mesh(0), size=size)),
+                (f"{target_name}: oracle", render_mesh(oracle, size=size)),
+                (f"{target_name}: untrained", render_mesh(res_u.mesh(0), size=size)),
+                (f"{target_name}: noise", render_mesh(matched_noise(base, relief), size=size)),
+            ]
         png.mkdir(parents=True, exist_ok=True)
         figure(
             panels,
             columns=4,
-            title="DGTS tiny: knobs sphere -> torus",
+            title=f"DGTS tiny ({KIND}): reference | in-domain | transfers vs oracle and baselines",
             path=png / "dgts_quality.png",
         )
 
@@ -256,21 +328,40 @@ def fit_compare(report: Report, iterations: int) -> None:
         report.add(**row)
 
 
+def _section(row: dict) -> str:
+    name = str(row.get("name", ""))
+    if name.startswith("fit:"):
+        return "fit"
+    if name.startswith("train"):
+        return "timing"
+    return "quality"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--levels", type=int, default=5)
     ap.add_argument("--measured-levels", type=int, default=3)
     ap.add_argument("--measure", type=int, default=10, help="timed steps per measured level")
     ap.add_argument("--fit-iterations", type=int, default=200)
+    ap.add_argument("--samples", type=int, default=3, help="transfer samples per quality row")
     ap.add_argument("--png", type=pathlib.Path, default=None)
     ap.add_argument("--skip", nargs="*", default=(), choices=("quality", "timing", "fit"))
     args = ap.parse_args()
     report = Report("dgts")
+    previous = RESULTS / "dgts.json"
+    if args.skip and previous.is_file():  # a skipped section keeps its rows of the last run
+        kept = [r for r in json.loads(previous.read_text())["rows"] if _section(r) in args.skip]
+        report.rows.extend(kept)
+        if kept:
+            report.notes.append(
+                f"Rows of the sections {', '.join(sorted(args.skip))} are kept from an earlier run "
+                "(this run skipped them)."
+            )
     if "fit" not in args.skip:
         fit_compare(report, args.fit_iterations)
         report.write()  # after every section, so a later failure keeps the earlier figures
     if "quality" not in args.skip:
-        quality(report, args.png)
+        quality(report, args.png, samples=args.samples)
         report.write()
     if "timing" not in args.skip:
         timing(report, args.levels, args.measured_levels, args.measure)

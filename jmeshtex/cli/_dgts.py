@@ -7,8 +7,9 @@
   (``DIR/sample.obj`` / ``.png``).
 - ``transfer --model DIR --target M [--start-level l | --max-faces N] --samples n --out OUT``:
   ``OUT/sample_XX.obj`` and ``OUT/transfer.png`` (coloured by displacement along the normal). Without
-  ``--start-level`` the first level whose output stays within ``--max-faces`` (default 500000) is
-  chosen and printed; ``--zero-noise-from k`` zeroes the noise of levels ≥ k.
+  ``--start-level`` the level whose training mesh has the target's face count (at least 1) is
+  chosen, raised until the output fits ``--max-faces`` (default 500000), and printed; noise goes on
+  the first two levels run (the official practice), ``--zero-noise-from k`` zeroes it from level k.
 - ``interpolate --model DIR --target M --frames n --out OUT``: ``OUT/frame_XX.obj`` and
   ``OUT/interpolate.png``.
 
@@ -113,7 +114,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "--start-level",
             type=int,
             default=None,
-            help="first generator level to run (default: the first whose output fits --max-faces)",
+            help="first generator level to run (default: the level whose training mesh has the "
+            "target's face count, at least 1, raised until the output fits --max-faces)",
         )
         r.add_argument(
             "--max-faces",
@@ -128,7 +130,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                 type=int,
                 default=None,
                 metavar="K",
-                help="zero noise at levels >= K (K <= start level: deterministic)",
+                help="zero noise at levels >= K (default: start level + 2, noise on the first two "
+                "levels run; K <= start level: deterministic)",
             )
         else:
             r.add_argument(
@@ -276,7 +279,11 @@ def _write_results(res, out: pathlib.Path, stem: str, title: str) -> None:
 
 
 def _say_start(res, target, args) -> None:
-    how = "given" if args.start_level is not None else f"chosen for --max-faces {args.max_faces}"
+    how = (
+        "given"
+        if args.start_level is not None
+        else f"matched to the target's faces, within --max-faces {args.max_faces}"
+    )
     print(
         f"start level {res.start_level} ({how}): {target.num_faces} target faces -> {len(res.faces)} output faces"
     )

@@ -9,6 +9,7 @@ from .._extras import needs_geometry as _needs_geometry  # noqa: F401 (names a m
 from ._geometric_textures import GEOMETRIC_TEXTURES as GEOMETRIC_TEXTURES
 from ._geometric_textures import texture_centers as texture_centers
 from ._geometric_textures import texture_height as texture_height
+from ._geometric_textures import textured_mesh as textured_mesh
 from ._geometric_textures import textured_sphere as textured_sphere
 from ._geometric_textures import textured_torus as textured_torus
 from ._meshes import grid as grid

@@ -1,7 +1,8 @@
 """Procedural references with a real geometric texture and a known spatial period (DGTS-style).
 
 The paper's references carry relief that repeats over the surface: spikes, knobs, scales, craters.
-These functions build such surfaces on a unit sphere or a torus: texture centres are spread over the
+These functions build such surfaces on a unit sphere, a torus, or any given mesh
+(:func:`textured_mesh`, the ground truth a DGTS transfer is scored against): texture centres are spread over the
 surface by Poisson-disc sampling with minimum distance ``period`` (so the spacing of neighbouring
 centres lies in ``[period, ~1.4 period]``; :func:`texture_centers` returns them), and every vertex
 moves along the surface normal by a profile of its distance ``d`` to the nearest centre:
@@ -56,6 +57,17 @@ def _torus_points(
         r = major_radius + minor_radius * np.cos(w)
         out.append(np.stack([r * np.cos(u), r * np.sin(u), minor_radius * np.sin(w)], -1))
     return np.concatenate(out)[:n]
+
+
+def _nearest(points: np.ndarray, centers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance to, and index of, the nearest centre of every point (blocks of points, low memory)."""
+    d = np.empty(len(points))
+    nearest = np.empty(len(points), np.int64)
+    for s in range(0, len(points), 4096):
+        d2 = np.sum((points[s : s + 4096, None, :] - centers[None]) ** 2, axis=-1)
+        nearest[s : s + 4096] = np.argmin(d2, axis=1)
+        d[s : s + 4096] = np.sqrt(d2[np.arange(len(d2)), nearest[s : s + 4096]])
+    return d, nearest
 
 
 def texture_centers(
@@ -119,9 +131,7 @@ def texture_height(
         raise ValueError(f"kind must be one of {GEOMETRIC_TEXTURES}, got {kind!r}")
     p = float(period)
     a = _AMPLITUDE[kind] * p if amplitude is None else float(amplitude)
-    d2 = np.sum((points[:, None, :] - centers[None]) ** 2, axis=-1)
-    nearest = np.argmin(d2, axis=1)
-    d = np.sqrt(d2[np.arange(len(points)), nearest])
+    d, nearest = _nearest(points, centers)
     if kind == "knobs":
         return a * np.exp(-((d / (0.3 * p)) ** 2))
     if kind == "spikes":
@@ -222,3 +232,70 @@ def textured_torus(
     )
     h = texture_height(v, n, centers, kind=kind, period=period, amplitude=amplitude)
     return Mesh(v + h[:, None] * n, f, name=f"{kind}_torus")
+
+
+def _vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (unit; zero where a vertex has no area)."""
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, f[:, k], fn)
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def textured_mesh(
+    mesh: Mesh | tuple[Float[np.ndarray, "V 3"], np.ndarray],
+    kind: str = "knobs",
+    *,
+    period: float,
+    amplitude: float | None = None,
+    seed: int = 0,
+) -> Mesh:
+    """Any mesh carrying the geometric texture ``kind`` at spatial period ``period`` (its own units).
+
+    .. math:: v \\mapsto v + h(v)\\, n(v)
+
+    with ``n`` the area-weighted vertex normals and ``h`` the profile of the module docstring
+    around centres chosen by Poisson-disc sampling (minimum distance ``period``, Euclidean) from
+    area-uniform random points of the surface. The tessellation does not enter the centres, so
+    two tessellations of one surface carry statistically the same texture.
+
+    Args:
+      mesh: a :class:`~jmeshtex.Mesh` or ``(vertices [V, 3], faces [F, 3])``.
+      kind: one of ``GEOMETRIC_TEXTURES``.
+      period: minimum distance between texture centres, in the mesh's units (for a period in mean
+        edges, multiply by the mesh's mean edge).
+      amplitude: relief height; default a fraction of ``period`` (module docstring).
+      seed: the NumPy seed of the surface samples and their order.
+
+    Returns:
+      The displaced :class:`~jmeshtex.Mesh` (same faces, name ``"<kind>_<name>"``).
+
+    Example:
+      >>> from jmeshtex.data import torus
+      >>> m = textured_mesh(torus(48, 16), "spikes", period=0.4)
+      >>> m.num_faces, bool(np.abs(m.vertices - torus(48, 16).vertices).max() > 0.1)
+      (1536, True)
+    """
+    if isinstance(mesh, Mesh):
+        v, f, name = mesh.vertices, mesh.faces, mesh.name or "mesh"
+    else:
+        (v, f), name = mesh, "mesh"
+    v = np.asarray(v, np.float64)
+    f = np.asarray(f, np.int64)
+    if not period > 0:
+        raise ValueError(f"period must be > 0, got {period!r}")
+    rng = np.random.default_rng(seed)
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    n_samples = max(2000, int(15 * area.sum() / period**2))
+    face = rng.choice(len(f), n_samples, p=area / area.sum())
+    a, b = rng.uniform(size=(2, n_samples))
+    flip = a + b > 1
+    a, b = np.where(flip, 1 - a, a), np.where(flip, 1 - b, b)
+    t = tri[face]
+    samples = t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
+    centers = _poisson_disc(samples, float(period), rng)
+    n = _vertex_normals(v, f)
+    h = texture_height(v, n, centers, kind=kind, period=period, amplitude=amplitude)
+    return Mesh(v + h[:, None] * n, f, name=f"{kind}_{name}")

@@ -12,7 +12,7 @@ reconstruction (:func:`reconstruct`), conditional generation at scale ``k`` (:fu
 ``z*`` below ``k``, fresh noise above), every level's output (``per_level=True``), training snapshots
 (``train(..., snapshot_every=N)``). Structure measures (:func:`~jmeshtex.dgts.core.peak_statistics`,
 :func:`~jmeshtex.dgts.core.height_autocorrelation_length`,
-:func:`~jmeshtex.dgts.core.reconstruction_errors`) are in
+:func:`~jmeshtex.dgts.core.reconstruction_errors`, :func:`~jmeshtex.dgts.core.texture_scores`) are in
 :mod:`jmeshtex.dgts.core`.
 
 The building blocks (the generator and discriminator of one level, the gradient penalty, the two

@@ -11,7 +11,14 @@ resolutions or sizes compare directly:
 - :func:`peak_statistics`: local maxima of ``h`` above a threshold, their density per unit area
   and the mean distance from each peak to its nearest other peak (the texture's spacing);
 - :func:`reconstruction_errors`: how far the reconstruction of every level is from its training
-  mesh (mean vertex distance in mean edges).
+  mesh (mean vertex distance in mean edges);
+- ground truth for a transfer: :func:`oracle_texture` puts the reference's procedural texture
+  (:func:`jmeshtex.data.textured_mesh`) at the reference's period in mean edges
+  (:func:`period_in_mean_edges`) on the transfer's own undisplaced output, and
+  :func:`texture_scores` scores a mesh against it on that shared base: peak density (peaks per
+  squared mean edge, the headline: it does not move with curvature or resolution, while ACL and
+  nearest-peak spacing do), relief, W1 of the heights, ACL and spacing;
+  :func:`matched_noise` is the "right relief, no structure" baseline.
 """
 
 from __future__ import annotations
@@ -24,7 +31,8 @@ import scipy.spatial
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
-from ..geometry import mean_edge_length, unique_edges
+from ..data import textured_mesh
+from ..geometry import mean_edge_length, unique_edges, vertex_normals
 from ._model import Model
 from ._multiscale import TrainingMeshes
 from ._transfer import normal_heights, reconstruct
@@ -258,3 +266,211 @@ def reconstruction_errors(model: Model, meshes: TrainingMeshes) -> Float[np.ndar
         ell = mean_edge_length(real, meshes.faces[level])
         out.append(float(np.linalg.norm(got - real, axis=1).mean() / ell))
     return np.asarray(out)
+
+
+def relief_heights(mesh: MeshLike, base: MeshLike | None = None) -> Float[np.ndarray, " V"]:
+    """Normal heights of ``mesh`` (mean edges, ``SMOOTHING`` Taubin pairs) less those of ``base``.
+
+    .. math:: h = h_{\\text{Taubin}}(\\text{mesh}) - h_{\\text{Taubin}}(\\text{base})
+
+    A transfer's base is the target subdivided without displacement; its own heights (the facets of
+    midpoint subdivision, the curvature of the surface) are there with or without texture, so they
+    are removed. ``base=None``: the plain heights (a mesh without a base, e.g. a training mesh).
+
+    Args:
+      mesh: the displaced mesh.
+      base: the same connectivity without displacement, or None.
+
+    Returns:
+      ``[V]`` float64 heights in mean edges of ``mesh``.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> float(np.abs(relief_heights(icosphere(3), icosphere(3))).max())
+      0.0
+    """
+    v, f = as_mesh(mesh, what="mesh")
+    h = normal_heights((v, f), smoothing=SMOOTHING)
+    if base is None:
+        return h
+    vb, fb = as_mesh(base, what="base")
+    if np.shape(vb) != np.shape(v) or not np.array_equal(np.asarray(fb), np.asarray(f)):
+        raise InputError(
+            "relief_heights: base must have the mesh's faces and vertex count (the transfer's "
+            "undisplaced output, DGTSTransfer.base with .faces)"
+        )
+    return h - normal_heights((vb, fb), smoothing=SMOOTHING)
+
+
+def period_in_mean_edges(meshes: TrainingMeshes, period: float, *, level: int = -1) -> float:
+    """A length of the reference (its own units) in mean edges of training level ``level``.
+
+    .. math:: p_\\ell = p\\, s_l / \\bar\\ell_l
+
+    with ``s_l`` the input-to-level scale (``meshes.scales``) and ``ℓ̄_l`` the level's mean edge.
+
+    Example:
+      >>> import jax
+      >>> from jmeshtex.data import icosahedron, icosphere
+      >>> from jmeshtex.dgts import PrepareConfig, training_meshes
+      >>> tm = training_meshes(icosphere(2), icosahedron(), config=PrepareConfig(levels=2, steps=0),
+      ...                      key=jax.random.key(0), progress=False)
+      >>> round(period_in_mean_edges(tm, 1.0), 2), round(float(tm.scales[-1]), 2)  # edges of 1 there
+      (1.62, 1.62)
+    """
+    lv = int(level) % meshes.num_levels
+    ell = mean_edge_length(np.asarray(meshes.vertices[lv], np.float64), meshes.faces[lv])
+    return float(period) * float(meshes.scales[lv]) / float(ell)
+
+
+def oracle_texture(
+    base: MeshLike,
+    kind: str,
+    *,
+    period: float,
+    amplitude: float | None = None,
+    seed: int = 0,
+) -> Mesh:
+    """The ground truth of a transfer: ``base`` carrying the texture ``kind`` at ``period`` mean edges.
+
+    :func:`jmeshtex.data.textured_mesh` with the period (and amplitude) given in mean edges of
+    ``base``: the reference's texture at the reference's scale, on the transfer's own surface and
+    tessellation (``DGTSTransfer.base`` and ``.faces``).
+
+    Args:
+      base: the undisplaced output of the transfer.
+      kind: the reference's texture (``jmeshtex.data.GEOMETRIC_TEXTURES``).
+      period: the reference's period in its mean edges (:func:`period_in_mean_edges`).
+      amplitude: relief height in mean edges; default the kind's fraction of the period.
+      seed: seed of the texture centres.
+
+    Returns:
+      The textured :class:`~jmeshtex.Mesh` (``base``'s faces).
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> truth = oracle_texture(icosphere(4), "knobs", period=5.0)
+      >>> s = peak_statistics(truth, relief_heights(truth, icosphere(4)))
+      >>> bool(0.02 < s.density < 0.035)  # about one knob per (5 edges)^2
+      True
+    """
+    v, f = as_mesh(base, what="base")
+    ell = float(mean_edge_length(np.asarray(v, np.float64), np.asarray(f, np.int64)))
+    if not period > 0:
+        raise InputError(f"oracle_texture: period must be > 0 mean edges, got {period!r}")
+    return textured_mesh(
+        Mesh(np.asarray(v, np.float64), np.asarray(f, np.int64)),
+        kind,
+        period=float(period) * ell,
+        amplitude=None if amplitude is None else float(amplitude) * ell,
+        seed=seed,
+    )
+
+
+def matched_noise(base: MeshLike, relief: float, *, seed: int = 0) -> Mesh:
+    """Gaussian displacement of ``base`` along its normals whose relief heights have std ``relief``.
+
+    The "right relief, no structure" baseline: the displacement's scale is set so that
+    ``relief_heights(noise, base).std() == relief`` (one linear rescale: the heights are linear in
+    a normal displacement).
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> m = matched_noise(icosphere(3), 0.2)
+      >>> round(float(relief_heights(m, icosphere(3)).std()), 3)
+      0.2
+    """
+    v, f = as_mesh(base, what="base")
+    v = np.asarray(v, np.float64)
+    f = np.asarray(f, np.int64)
+    n = vertex_normals(v, f)
+    g = np.random.default_rng(seed).standard_normal(len(v))
+    trial = Mesh(v + n * (g * mean_edge_length(v, f))[:, None], f)
+    scale = float(relief) / max(float(relief_heights(trial, (v, f)).std()), 1e-12)
+    for _ in range(3):  # normal_heights is nearly linear in a small displacement: a few rescales
+        trial = Mesh(v + n * (scale * g * mean_edge_length(v, f))[:, None], f)
+        scale *= float(relief) / max(float(relief_heights(trial, (v, f)).std()), 1e-12)
+    return Mesh(v + n * (scale * g * mean_edge_length(v, f))[:, None], f)
+
+
+class TextureScores(NamedTuple):
+    """A mesh's texture against a ground truth (:func:`texture_scores`); lengths in mean edges.
+
+    Attributes:
+      peak_density: peaks per squared mean edge (the headline).
+      relief: std of the relief heights.
+      w1: Wasserstein-1 distance between the mesh's and the truth's relief heights.
+      autocorrelation_length: :func:`height_autocorrelation_length` of the relief heights.
+      spacing: mean nearest-peak distance.
+      peaks: number of peaks.
+      threshold: the peak threshold used (the truth's ``mean + std``).
+    """
+
+    peak_density: float
+    relief: float
+    w1: float
+    autocorrelation_length: float
+    spacing: float
+    peaks: int
+    threshold: float
+
+
+def texture_scores(
+    mesh: MeshLike,
+    truth: MeshLike,
+    *,
+    base: MeshLike | None = None,
+    threshold: float | None = None,
+) -> TextureScores:
+    """Score ``mesh``'s texture against ``truth`` (an oracle on the same base, or the training mesh).
+
+    Heights are :func:`relief_heights` relative to ``base`` (both meshes share it: a transfer's
+    output and its :func:`oracle_texture`), or plain normal heights with ``base=None`` (in-domain
+    samples against the training mesh). Peaks use one threshold for both, the truth's.
+
+    Args:
+      mesh: the mesh to score.
+      truth: the ground truth.
+      base: the shared undisplaced mesh, or None.
+      threshold: peak threshold in mean edges; default the truth's ``mean + std``.
+
+    Returns:
+      :class:`TextureScores` of ``mesh`` (``texture_scores(truth, truth, base=base)`` gives the
+      truth's own, with ``w1 = 0``).
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> truth = oracle_texture(icosphere(4), "knobs", period=5.0)
+      >>> flat = texture_scores(icosphere(4), truth, base=icosphere(4))
+      >>> own = texture_scores(truth, truth, base=icosphere(4))
+      >>> flat.peaks, own.w1, bool(own.peak_density > 0.02)
+      (0, 0.0, True)
+    """
+    from scipy.stats import wasserstein_distance
+
+    h_truth = relief_heights(truth, base)
+    h = relief_heights(mesh, base)
+    thr = float(h_truth.mean() + h_truth.std()) if threshold is None else float(threshold)
+    peaks = peak_statistics(mesh, h, threshold=thr)
+    return TextureScores(
+        peak_density=float(peaks.density),
+        relief=float(h.std()),
+        w1=float(wasserstein_distance(h, h_truth)),
+        autocorrelation_length=float(height_autocorrelation_length(mesh, h)),
+        spacing=float(peaks.spacing),
+        peaks=int(peaks.count),
+        threshold=thr,
+    )
+
+
+def density_error(scores: TextureScores, truth: TextureScores) -> float:
+    """How far a peak density is from the truth's, as a factor: ``|log(ρ / ρ*)|`` (``inf`` at 0).
+
+    Example:
+      >>> t = TextureScores(0.03, 0.1, 0.0, 2.0, 5.0, 30, 0.1)
+      >>> round(density_error(t._replace(peak_density=0.06), t), 3), density_error(t, t)
+      (0.693, 0.0)
+    """
+    if scores.peak_density <= 0 or truth.peak_density <= 0:
+        return float("inf")
+    return float(abs(np.log(scores.peak_density / truth.peak_density)))

@@ -3,18 +3,19 @@
 Inference modes (all through one jit-compiled pass that also returns every level's output, the
 growing mesh of the paper's Fig. 6, ``per_level=True``):
 
-- :func:`transfer`: fresh noise at every level run; ``zero_noise_from=k`` sets the noise of levels
-  ``≥ k`` to zero (the official ``animate``; deterministic from the start level on when
-  ``k ≤ start_level``);
+- :func:`transfer`: fresh noise on the first two levels run and none above (the official
+  ``growing`` / ``animate``); ``zero_noise_from=k`` sets the noise of levels ``≥ k`` to zero instead
+  (deterministic from the start level on when ``k ≤ start_level``; ``k = L``: noise everywhere);
 - :func:`reconstruct`: the template through all levels with the reconstruction noise (``z*`` at
   level 0, zero above): the training meshes' reconstruction;
 - :func:`conditional`: generation from the template at scale ``k`` (Fig. 5): the reconstruction's
   noise below level ``k``, fresh noise from ``k`` on, so levels ``< k`` reproduce the reconstruction;
 - :func:`interpolate`: frames between two noise draws.
 
-Output size: ``F_out = F_target · 4^{L − 1 − start}``; with ``start_level=None`` :func:`transfer`
-and :func:`interpolate` take the first start level whose output fits ``max_faces``
-(:func:`choose_start_level`; default 500 000) and raise :class:`FaceBudgetError` when none does.
+Start level: with ``start_level=None`` :func:`transfer` and :func:`interpolate` start at the level
+whose training mesh has the target's resolution, never the coarsest of a deeper model, raised until
+the output (``F_out = F_target · 4^{L − 1 − start}``) fits ``max_faces`` (:func:`choose_start_level`;
+default 500 000); :class:`FaceBudgetError` when none does.
 
 The target is scaled about its centroid so its mean edge is 1 (the frame the generators were trained
 in), the generators ``start_level … L−1`` run on it with fresh Gaussian vertex noise, subdividing 1 → 4
@@ -250,10 +251,38 @@ def output_faces(model: Model, num_faces: int, start_level: int) -> int:
     return int(num_faces) * 4 ** (model.num_levels - 1 - int(start_level))
 
 
-def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000) -> int:
-    """The first start level whose transfer output stays within ``max_faces`` faces.
+def matching_level(model: Model, num_faces: int) -> int:
+    """The level whose training mesh has about the target's face count, never level 0 of a deeper model.
 
-    .. math:: s = \\min\\{\\,s \\in [0, L) : F \\cdot 4^{L-1-s} \\le F_{\\max}\\,\\}
+    .. math:: s = \\operatorname{clip}\\big(\\operatorname{round}\\big(\\log_4 (F / F_0)\\big),\\;
+       \\min(1, L - 1),\\; L - 1\\big),\\qquad F_0 = 2 V_0
+
+    (``V_0`` the template's vertices, the rows of ``z*``; a closed template has ``F_0 ≈ 2 V_0``.)
+    Equal face counts mean equal mean edges relative to the surface's size, so the generator that
+    starts sees a shape as coarse, in its own edges, as the one it was trained on. Level 0 is
+    skipped (the official code starts at level 1, the paper at 2–3): its generator lays out the
+    training shape itself and, with ``Config.reconstruction_start`` = 1, never learns to leave a
+    given shape alone.
+
+    Example:
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(5))
+      >>> model = Model(c, gs, gs, np.zeros((42, 3), np.float32))  # template of 80 faces
+      >>> [matching_level(model, f) for f in (20, 320, 1000, 5120, 10**6)]
+      [1, 1, 2, 3, 4]
+    """
+    L = model.num_levels
+    f0 = 2.0 * max(int(np.shape(model.z_star)[0]), 1)
+    s = int(np.floor(np.log(max(int(num_faces), 1) / f0) / np.log(4.0) + 0.5))
+    return int(min(max(s, min(1, L - 1)), L - 1))
+
+
+def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000) -> int:
+    """The default start level: :func:`matching_level`, raised until the output fits ``max_faces``.
+
+    .. math:: s = \\min\\{\\,s \\in [s_m, L) : F \\cdot 4^{L-1-s} \\le F_{\\max}\\,\\}
 
     Args:
       model: the trained model (``L`` levels).
@@ -272,16 +301,16 @@ def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000
       >>> from jmeshtex.dgts.core import init_level
       >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(5))
-      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))
-      >>> choose_start_level(model, 20_000), choose_start_level(model, 20_000, max_faces=2_000_000)
-      (2, 1)
+      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # template of 20 faces
+      >>> choose_start_level(model, 1_000), choose_start_level(model, 1_000, max_faces=3_000)
+      (3, 4)
     """
     L = model.num_levels
     if L == 0:
         raise InputError("the model has no trained level: train it first")
     if not is_int(max_faces, 1):
         raise InputError(f"max_faces must be a positive int, got {max_faces!r}")
-    for start in range(L):
+    for start in range(matching_level(model, num_faces), L):
         if output_faces(model, num_faces, start) <= max_faces:
             return start
     raise FaceBudgetError(
@@ -361,6 +390,11 @@ def _synthesise(
     )
 
 
+#: levels run with fresh noise by default, from the start level on (the official ``growing`` and
+#: ``animate``: ``zero_places = (0, 0, 1, 1, 1)``, amirhertz/geometric-textures ``dgts_base.py``)
+OFFICIAL_NOISY_LEVELS = 2
+
+
 def _zero_above(draws: list, plan: TransferPlan, zero_noise_from: int | None) -> list:
     if zero_noise_from is None:
         return draws
@@ -390,6 +424,10 @@ def transfer(
 ) -> DGTSTransfer:
     """Synthesise the learned texture on a target mesh, ``num_samples`` times with different noise.
 
+    By default as the official code and the paper transfer: from the level whose training mesh has
+    the target's resolution (not the coarsest), with noise on the first two levels run only, since
+    the coarse generators were trained on one shape each and the finer ones shape the texture.
+
     .. math:: v_{l+1} = 2\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start\\_level} \\ldots L-1,
        \\quad v_{\\text{start}} = \\text{target} / \\bar\\ell
 
@@ -399,13 +437,15 @@ def transfer(
         placement; open or closed, any genus).
       key: PRNG key of the noise.
       start_level: first generator to run (0: coarsest); the target is treated as a level-``start``
-        mesh, so ``L − start_level − 1`` subdivisions follow. None: the first level whose output
-        fits ``max_faces`` (:func:`~jmeshtex.dgts.core.choose_start_level`; the result's ``start_level`` says which).
+        mesh, so ``L − start_level − 1`` subdivisions follow. None: :func:`~jmeshtex.dgts.core.choose_start_level` (the
+        level matching the target's resolution, at least 1, within ``max_faces``; the result's
+        ``start_level`` says which).
       num_samples: independent noise draws.
       max_faces: face budget of the output (checked for an explicit ``start_level`` too); None: no
         budget (with ``start_level=None`` then 500 000).
-      zero_noise_from: zero noise at levels ``≥`` this (None: noise everywhere); with
-        ``zero_noise_from ≤ start_level`` the output does not depend on ``key``.
+      zero_noise_from: zero noise at levels ``≥`` this; None: ``start_level + 2`` (the official
+        ``growing``: noise on the first two levels run); ``model.num_levels``: noise everywhere;
+        with ``zero_noise_from ≤ start_level`` the output does not depend on ``key``.
       per_level: also return every level's output (``level_vertices``, ``level_faces``: Fig. 6).
 
     Returns:
@@ -425,10 +465,10 @@ def transfer(
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))  # untrained, two levels
       >>> res = transfer(model, torus(8, 6), num_samples=2, key=jax.random.key(0))
-      >>> res.vertices.shape, res.faces.shape, res.start_level
-      ((2, 192, 3), (384, 3), 0)
-      >>> transfer(model, torus(8, 6), max_faces=200, key=jax.random.key(0)).start_level  # 96 faces fit
-      1
+      >>> res.vertices.shape, res.faces.shape, res.start_level  # a two-level model starts at 1
+      ((2, 48, 3), (96, 3), 1)
+      >>> transfer(model, torus(8, 6), start_level=0, key=jax.random.key(0)).faces.shape
+      (384, 3)
     """
     if not is_int(num_samples, 1):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
@@ -440,6 +480,8 @@ def transfer(
         _noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude)
         for s in range(int(num_samples))
     ]
+    if zero_noise_from is None:
+        zero_noise_from = start + OFFICIAL_NOISY_LEVELS
     return _synthesise(model, plan, _zero_above(draws, plan, zero_noise_from), per_level=per_level)
 
 
@@ -553,13 +595,14 @@ def interpolate(
     start_level: int | None = None,
     num_frames: int = 8,
     max_faces: int | None = 500_000,
+    zero_noise_from: int | None = None,
 ) -> DGTSTransfer:
     """Frames of a latent interpolation between two noise draws (the reference code's animation).
 
     .. math:: z(t) = (1 - t)\\, z_a + t\\, z_b,\\qquad t = 0, \\tfrac{1}{N-1}, \\ldots, 1
 
     Args:
-      model, target, start_level, max_faces: as :func:`transfer`.
+      model, target, start_level, max_faces, zero_noise_from: as :func:`transfer` (both draws).
       key: PRNG key of ``z_a`` and ``z_b``.
       num_frames: frames including both ends (≥ 2).
 
@@ -579,11 +622,20 @@ def interpolate(
     """
     if not is_int(num_frames, 2):
         raise InputError(f"num_frames must be an int >= 2, got {num_frames!r}")
+    if zero_noise_from is not None:
+        _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
     start = _resolve_start(model, target, start_level, max_faces)
     plan = plan_transfer(model, target, start_level=start)
     ka, kb = jax.random.split(key)
-    za = _noises(ka, plan.sizes, model.config.noise_amplitude)
-    zb = _noises(kb, plan.sizes, model.config.noise_amplitude)
+    k = start + OFFICIAL_NOISY_LEVELS if zero_noise_from is None else zero_noise_from
+    za, zb = _zero_above(
+        [
+            _noises(ka, plan.sizes, model.config.noise_amplitude),
+            _noises(kb, plan.sizes, model.config.noise_amplitude),
+        ],
+        plan,
+        k,
+    )
     weights = [np.float32(t) for t in np.linspace(0.0, 1.0, int(num_frames))]
     draws = [[(1 - w) * a + w * b for a, b in zip(za, zb, strict=True)] for w in weights]
     return _synthesise(model, plan, draws, per_level=False)

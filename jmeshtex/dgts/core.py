@@ -13,12 +13,14 @@ one level up, in :mod:`jmeshtex.dgts`.
   neighbourhoods of every level).
 - Training: :func:`gradient_penalty` (WGAN-GP), ``LOSS_NAMES`` (the per-step loss series).
 - Inference: :func:`plan_transfer` / :class:`TransferPlan` and :func:`run_plan` (the two halves of
-  :func:`~jmeshtex.dgts.transfer`), :func:`choose_start_level`, :func:`output_faces`,
+  :func:`~jmeshtex.dgts.transfer`), :func:`choose_start_level`, :func:`matching_level`, :func:`output_faces`,
   :func:`normal_heights`.
 - Official weights: :func:`official_level_params`, :func:`to_official_state_dict`.
 - Structure measures: :func:`peak_statistics` / :class:`PeakStatistics`,
   :func:`height_autocorrelation` and :func:`height_autocorrelation_length`,
-  :func:`reconstruction_errors`.
+  :func:`reconstruction_errors`; against a procedural oracle: :func:`texture_scores` /
+  :class:`TextureScores`, :func:`oracle_texture`, :func:`relief_heights`, :func:`density_error`,
+  :func:`period_in_mean_edges`, :func:`matched_noise`.
 """
 
 from ._multiscale import fit_level as fit_level
@@ -35,14 +37,22 @@ from ._networks import upsample as upsample
 from ._official import official_level_params as official_level_params
 from ._official import to_official_state_dict as to_official_state_dict
 from ._quality import PeakStatistics as PeakStatistics
+from ._quality import TextureScores as TextureScores
+from ._quality import density_error as density_error
 from ._quality import height_autocorrelation as height_autocorrelation
 from ._quality import height_autocorrelation_length as height_autocorrelation_length
+from ._quality import matched_noise as matched_noise
+from ._quality import oracle_texture as oracle_texture
 from ._quality import peak_statistics as peak_statistics
+from ._quality import period_in_mean_edges as period_in_mean_edges
 from ._quality import reconstruction_errors as reconstruction_errors
+from ._quality import relief_heights as relief_heights
+from ._quality import texture_scores as texture_scores
 from ._train import LOSS_NAMES as LOSS_NAMES
 from ._train import gradient_penalty as gradient_penalty
 from ._transfer import TransferPlan as TransferPlan
 from ._transfer import choose_start_level as choose_start_level
+from ._transfer import matching_level as matching_level
 from ._transfer import normal_heights as normal_heights
 from ._transfer import output_faces as output_faces
 from ._transfer import plan_transfer as plan_transfer

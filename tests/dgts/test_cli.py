@@ -123,10 +123,10 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
         == 0
     )
     m = load_mesh(out / "sample_01.obj")
-    assert m.num_faces == 4 * 96 and np.isfinite(m.vertices).all()
+    assert m.num_faces == 96 and np.isfinite(m.vertices).all()  # a 20-face template: level 1
     assert (
-        "start level 0 (chosen for --max-faces 500000): 96 target faces -> 384"
-        in capsys.readouterr().out
+        "start level 1 (matched to the target's faces, within --max-faces 500000): 96 target "
+        "faces -> 96" in capsys.readouterr().out
     )
     assert (
         main(
@@ -137,8 +137,10 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
                 str(d),
                 "--target",
                 "torus:8:6",
+                "--start-level",
+                "0",
                 "--max-faces",
-                "383",
+                "384",
                 "--zero-noise-from",
                 "0",
                 "--out",
@@ -147,10 +149,7 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
         )
         == 0
     )
-    assert (
-        "start level 1 (chosen for --max-faces 383): 96 target faces -> 96"
-        in capsys.readouterr().out
-    )
+    assert "start level 0 (given): 96 target faces -> 384" in capsys.readouterr().out
     assert (
         main(
             [

@@ -7,18 +7,25 @@ import numpy as np
 import pytest
 
 from jmeshtex import Mesh
-from jmeshtex.data import icosphere, torus
-from jmeshtex.dgts import FaceBudgetError, conditional, reconstruct, transfer
-from jmeshtex.dgts.core import choose_start_level, output_faces
+from jmeshtex.data import icosahedron, icosphere, torus
+from jmeshtex.dgts import (
+    Config,
+    FaceBudgetError,
+    Model,
+    conditional,
+    interpolate,
+    reconstruct,
+    transfer,
+)
+from jmeshtex.dgts.core import choose_start_level, init_level, matching_level, output_faces
 
 
 def test_start_level_follows_the_face_budget(tiny_model):
     target = torus(8, 6)  # 96 faces; two levels: 384 from level 0, 96 from level 1
     assert output_faces(tiny_model, 96, 0) == 384
-    assert transfer(tiny_model, target, key=jax.random.key(0)).start_level == 0
+    assert transfer(tiny_model, target, start_level=0, key=jax.random.key(0)).start_level == 0
     res = transfer(tiny_model, target, max_faces=383, key=jax.random.key(0))
     assert res.start_level == 1 and len(res.faces) == 96
-    assert choose_start_level(tiny_model, 96, max_faces=384) == 0
     with pytest.raises(FaceBudgetError, match="max_faces"):
         transfer(tiny_model, target, max_faces=95, key=jax.random.key(0))
     with pytest.raises(FaceBudgetError, match="start_level=0"):
@@ -31,21 +38,66 @@ def test_start_level_follows_the_face_budget(tiny_model):
     )
 
 
+def _model(levels: int, template_vertices: int) -> Model:
+    c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+    gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(levels))
+    return Model(c, gs, gs, np.zeros((template_vertices, 3), np.float32))
+
+
+@pytest.mark.parametrize("template", [12, 42, 162], ids=["F0=20", "F0=80", "F0=320"])
+def test_default_start_matches_the_target_resolution_and_skips_level_0(template):
+    """The start level's training mesh has the target's face count (nearest power of 4); level 0
+    only for a one-level model; the face budget raises it."""
+    model = _model(5, template)
+    f0 = 2 * template - 4  # a closed genus-0 template
+    for level in range(1, 5):
+        for factor in (0.7, 1.0, 1.4):  # within a factor 2 of F_level: that level
+            assert matching_level(model, int(factor * f0 * 4**level)) == level
+    assert matching_level(model, f0) == 1 and matching_level(model, 1) == 1  # not the coarsest
+    assert matching_level(model, f0 * 4**9) == 4
+    assert matching_level(_model(1, template), 10**6) == 0
+    f = f0 * 4**2
+    assert choose_start_level(model, f) == 2
+    assert choose_start_level(model, f, max_faces=f * 4**2 - 1) == 3  # level 2's output is over
+    assert choose_start_level(model, f, max_faces=f) == 4
+
+
+def test_default_noise_is_on_the_first_two_levels_run_only():
+    model = _model(4, 12)
+    res = transfer(model, icosphere(2), key=jax.random.key(0))  # 320 faces: level 2 of 20 x 4^l
+    assert res.start_level == 2
+    assert [bool(np.any(z)) for z in res.noise[0]] == [True, True]
+    target = icosahedron()
+    res = transfer(model, target, start_level=0, key=jax.random.key(0))
+    assert [bool(np.any(z)) for z in res.noise[0]] == [True, True, False, False]
+    everywhere = transfer(model, target, start_level=0, zero_noise_from=4, key=jax.random.key(0))
+    assert all(np.any(z) for z in everywhere.noise[0])
+    frames = interpolate(model, target, start_level=0, num_frames=2, key=jax.random.key(0))
+    assert [bool(np.any(z)) for z in frames.noise[0]] == [True, True, False, False]
+
+
 def test_zero_noise_from_the_start_level_is_deterministic(tiny_model):
     target = icosphere(1)
-    a = transfer(tiny_model, target, zero_noise_from=0, key=jax.random.key(0))
-    b = transfer(tiny_model, target, zero_noise_from=0, key=jax.random.key(1))
+    a = transfer(tiny_model, target, start_level=0, zero_noise_from=0, key=jax.random.key(0))
+    b = transfer(tiny_model, target, start_level=0, zero_noise_from=0, key=jax.random.key(1))
     np.testing.assert_array_equal(a.vertices, b.vertices)
     assert all(not np.any(z) for z in a.noise[0])
     # zero noise above level 1 only: level 0 still draws noise, so keys differ, level-1 noise is 0
-    c = transfer(tiny_model, target, zero_noise_from=1, key=jax.random.key(0))
-    d = transfer(tiny_model, target, zero_noise_from=1, key=jax.random.key(1))
+    c = transfer(tiny_model, target, start_level=0, zero_noise_from=1, key=jax.random.key(0))
+    d = transfer(tiny_model, target, start_level=0, zero_noise_from=1, key=jax.random.key(1))
     assert not np.any(c.noise[0][1]) and np.any(c.noise[0][0])
     assert not np.allclose(c.vertices, d.vertices)
 
 
 def test_per_level_output_grows_and_ends_in_the_result(tiny_model):
-    res = transfer(tiny_model, icosphere(1), num_samples=2, per_level=True, key=jax.random.key(0))
+    res = transfer(
+        tiny_model,
+        icosphere(1),
+        num_samples=2,
+        per_level=True,
+        start_level=0,
+        key=jax.random.key(0),
+    )
     assert [v.shape for v in res.level_vertices] == [(2, 42, 3), (2, 162, 3)]
     assert [len(f) for f in res.level_faces] == [80, 320]
     np.testing.assert_allclose(res.level_vertices[-1], res.vertices, rtol=0, atol=1e-12)

@@ -1,5 +1,5 @@
 """Structure measures (autocorrelation length, peaks, reconstruction error) on textures with a known period,
-and the official fitting schedule."""
+the ground truth of a transfer (oracle textures, peak density), and the official fitting schedule."""
 
 from __future__ import annotations
 
@@ -7,22 +7,30 @@ import jax
 import numpy as np
 import pytest
 
+from jmeshtex import InputError, Mesh
 from jmeshtex.data import (
     GEOMETRIC_TEXTURES,
     icosphere,
     texture_centers,
     textured_sphere,
     textured_torus,
+    torus,
 )
 from jmeshtex.dgts import PrepareConfig
 from jmeshtex.dgts.core import (
+    density_error,
     fit_level,
     height_autocorrelation,
     height_autocorrelation_length,
+    matched_noise,
+    oracle_texture,
     peak_statistics,
+    period_in_mean_edges,
     reconstruction_errors,
+    relief_heights,
+    texture_scores,
 )
-from jmeshtex.geometry import mean_edge_length
+from jmeshtex.geometry import mean_edge_length, subdivide_midpoint
 
 
 @pytest.mark.parametrize("period", [0.3, 0.45])
@@ -100,3 +108,66 @@ def test_official_schedule_fits_like_the_joint_one():
     assert cd(terms) < 1.25 * cd(joint)
     with pytest.raises(Exception, match="schedule"):
         PrepareConfig(schedule="alternate")
+
+
+def _subdivided(mesh, times: int):
+    v, f = mesh
+    for _ in range(times):
+        s = subdivide_midpoint(v, f)
+        v, f = s.vertices, s.faces
+    return Mesh(v, f)
+
+
+#: tessellations of one surface each: resolutions, and coarse meshes subdivided as a transfer does
+TESSELLATIONS = {
+    "sphere": [icosphere(4), icosphere(5), _subdivided(icosphere(2), 2)],
+    "torus": [torus(128, 44), torus(96, 32), _subdivided(torus(64, 24), 1)],
+}
+
+
+@pytest.mark.parametrize(
+    "surface, period", [("sphere", 4.0), ("sphere", 5.5), ("torus", 4.0)], ids=str
+)
+def test_oracle_peak_density_is_the_same_on_every_tessellation_of_a_surface(surface, period):
+    """Peaks per squared mean edge of an oracle at ``period`` mean edges: within ±10 % across
+    resolutions and subdivided coarse meshes (mean of 3 centre seeds). Where the period nears the
+    surface's radius of curvature the count follows the curvature instead (a 48 × 18 torus, tube
+    radius 0.35, at 5.5 edges ≈ 0.9: half the peaks), as ACL and spacing always do."""
+    densities = []
+    for base in TESSELLATIONS[surface]:
+        truths = [oracle_texture(base, "knobs", period=period, seed=s) for s in range(3)]
+        d = [texture_scores(t, t, base=base).peak_density for t in truths]
+        densities.append(float(np.mean(d)))
+    mid = float(np.mean(densities))
+    print(f"{surface} period {period}: densities {np.round(densities, 4)}")
+    assert all(abs(x - mid) <= 0.1 * mid for x in densities)
+    expected = 1.0 / period**2  # about one knob per squared period (Poisson-disc packing)
+    assert 0.5 * expected < mid < 2.0 * expected
+
+
+def test_peak_density_separates_the_oracle_from_zero_and_noise():
+    base = _subdivided(torus(32, 12), 1)
+    truth = oracle_texture(base, "knobs", period=4.0)
+    own = texture_scores(truth, truth, base=base)
+    zero = texture_scores(base, truth, base=base)
+    noise = texture_scores(matched_noise(base, own.relief), truth, base=base)
+    other = texture_scores(oracle_texture(base, "knobs", period=4.0, seed=5), truth, base=base)
+    assert own.w1 == 0 and own.peaks > 20
+    assert zero.peaks == 0 and density_error(zero, own) == np.inf
+    assert abs(noise.relief - own.relief) < 0.02 * own.relief  # matched relief ...
+    assert noise.peak_density > 2 * own.peak_density  # ... but twice as many peaks, or more
+    assert density_error(other, own) < 0.15 < np.log(2) < density_error(noise, own)
+
+
+def test_relief_heights_need_the_base_connectivity():
+    with pytest.raises(InputError, match="base"):
+        relief_heights(icosphere(3), icosphere(2))
+    with pytest.raises(InputError, match="period"):
+        oracle_texture(icosphere(2), "knobs", period=0.0)
+
+
+def test_period_in_mean_edges_follows_the_training_scale(tiny_meshes):
+    p = period_in_mean_edges(tiny_meshes, 1.0)
+    ell = mean_edge_length(tiny_meshes.vertices[-1], tiny_meshes.faces[-1])
+    assert np.isclose(p * ell, tiny_meshes.scales[-1])
+    assert np.isclose(period_in_mean_edges(tiny_meshes, 2.0), 2 * p)

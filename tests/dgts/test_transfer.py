@@ -17,7 +17,7 @@ from jmeshtex.geometry import subdivide_midpoint, vertex_normals
 def test_transfer_any_topology(tiny_model, mesh, key):
     v, f = mesh
     v = 3.0 * v + 7.0  # any scale and placement
-    res = transfer(tiny_model, Mesh(v, f), num_samples=2, key=key)
+    res = transfer(tiny_model, Mesh(v, f), num_samples=2, start_level=0, key=key)
     assert isinstance(res, DGTSTransfer)
     sub = subdivide_midpoint(v, f)
     np.testing.assert_array_equal(
@@ -59,7 +59,7 @@ def test_a_mesh_and_a_pair_give_the_same_transfer_and_the_key_decides(tiny_model
 
 def test_interpolation_end_frames_replay_their_noise(tiny_model, key):
     target = torus(8, 6)
-    res = interpolate(tiny_model, target, num_frames=3, key=key)
+    res = interpolate(tiny_model, target, num_frames=3, start_level=0, key=key)
     assert res.vertices.shape[0] == 3
     plan = plan_transfer(tiny_model, target)
     assert plan.sizes == tuple(len(z) for z in res.noise[0])
@@ -106,7 +106,7 @@ def test_vertex_normals_point_outwards_on_a_sphere():
 
 def test_heights_are_displacements_along_the_base_normals(tiny_model, key):
     target = 5.0 * icosphere(1).vertices + 1.0, icosphere(1).faces
-    res = transfer(tiny_model, target, key=key)
+    res = transfer(tiny_model, target, start_level=0, key=key)
     factor = plan_transfer(
         tiny_model, target
     ).factor  # target coordinates -> the output's level frame

@@ -73,7 +73,9 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     say(progress, f"training {tm.num_levels} levels")
     model = train(tm, cfg, key=k_train, progress=progress is not None).model
     say(progress, "transfer")
-    target = torus(16, 8) if quick else torus(24, 12)
+    # as many faces as the finest training level: the default start is the last level, so the
+    # output keeps the target's tessellation (1024 faces quick, as from level 0 of a 256-face torus)
+    target = torus(32, 16) if quick else torus(48, 24)
     res = transfer(model, target, num_samples=2, key=k_transfer)
     h_ref = normal_heights(tm.mesh(-1))
     edge = float(
