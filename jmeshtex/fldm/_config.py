@@ -229,7 +229,7 @@ class Config(ConfigBase):
 
         The :meth:`tiny` denoiser (16/32 channels, 1+1+1 blocks, one-hidden-layer ReLU filters) with
         v-prediction, the cosine noise schedule, Adam 2e-3 with 200 warm-up steps and cosine decay to
-        1e-5 over 10,000 steps, batch 2, an EMA of the weights (0.999), 32 copies of 10,000 vertices
+        1e-5 over 10,000 steps, batch 2, an EMA of the weights (0.999), 16 copies of 10,000 vertices
         with 4 FL-VAE encodings each, 2 DDIM-25 samples for the statistics at every checkpoint
         (every 500 steps).
 
@@ -247,7 +247,7 @@ class Config(ConfigBase):
             steps=10000,
             ema_decay=0.999,
             batch_size=2,
-            n_copies=32,
+            n_copies=16,
             copy_vertices=10000,
             encodings_per_copy=4,
             checkpoint_every=500,

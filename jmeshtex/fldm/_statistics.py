@@ -38,6 +38,17 @@ from .._errors import InputError
 _TINY = 1e-20
 
 
+def _standard(fn):
+    """Run ``fn`` under JAX's standard dtype promotion (the callers mix complex and real arrays)."""
+
+    @functools.wraps(fn)
+    def wrapped(*args, **kwargs):
+        with jax.numpy_dtype_promotion("standard"):
+            return fn(*args, **kwargs)
+
+    return wrapped
+
+
 def _check_latents(z, what: str = "z") -> None:
     shape = getattr(z, "shape", None)
     if shape is None or len(shape) != 2 or not jnp.iscomplexobj(z):
@@ -77,12 +88,14 @@ def _relative_phasors(z):
 
 
 @jax.jit
+@_standard
 def _mean_phasors(z, vmask):
     u = _relative_phasors(z)
     w = vmask.astype(u.real.dtype)[:, None]
     return jnp.sum(u * w, axis=0) / jnp.maximum(jnp.sum(w), 1.0)
 
 
+@_standard
 def relative_phase_concentration(z, vertex_mask=None, *, channel_weight=None) -> jax.Array:
     """Cross-channel relative-phase concentration ``R`` in [0, 1] (module docstring).
 
@@ -97,7 +110,7 @@ def relative_phase_concentration(z, vertex_mask=None, *, channel_weight=None) ->
       random.
 
     Example:
-      >>> z = jnp.exp(1j * jnp.arange(4.0))[:, None] * jnp.array([[1.0, 1j]])
+      >>> z = jnp.asarray(np.exp(1j * np.arange(4.0))[:, None] * np.array([[1.0, 1j]]))
       >>> round(float(relative_phase_concentration(z)), 6)
       1.0
     """
@@ -109,6 +122,7 @@ def relative_phase_concentration(z, vertex_mask=None, *, channel_weight=None) ->
     return jnp.sum(w * jnp.abs(m)) / jnp.maximum(jnp.sum(w), _TINY)
 
 
+@_standard
 def pointwise_concentration(z, vertex_mask=None, *, reference=None) -> jax.Array:
     """Per-vertex agreement ``r_v`` of the relative phases with their pooled mean direction.
 
@@ -126,7 +140,7 @@ def pointwise_concentration(z, vertex_mask=None, *, reference=None) -> jax.Array
       ``[V]`` in [−1, 1]; 0 on padding.
 
     Example:
-      >>> z = jnp.array([[1.0, 1.0], [1.0, -1.0]]) + 0j
+      >>> z = jnp.array([[1.0, 1.0], [1.0, -1.0]], complex)
       >>> pointwise_concentration(z, reference=pair_mean_phasors(z[:1])).tolist()
       [1.0, -1.0]
     """
@@ -137,6 +151,7 @@ def pointwise_concentration(z, vertex_mask=None, *, reference=None) -> jax.Array
 
 
 @jax.jit
+@_standard
 def _pointwise(z, vmask, m):
     u = _relative_phasors(z)
     mhat = m / jnp.maximum(jnp.abs(m), _TINY)
@@ -144,11 +159,12 @@ def _pointwise(z, vmask, m):
     return jnp.where(vmask, r, 0.0)
 
 
+@_standard
 def pair_mean_phasors(z, vertex_mask=None) -> jax.Array:
     """``[d(d−1)/2]`` complex mean relative phasors ``m_{cc'}`` (pairs in ``np.triu_indices`` order).
 
     Example:
-      >>> pair_mean_phasors(jnp.array([[1.0, 1j]])).round(6).tolist()
+      >>> pair_mean_phasors(jnp.array([[1.0, 1j]], complex)).round(6).tolist()
       [-1j]
     """
     _check_latents(z)
@@ -164,6 +180,7 @@ def _edges(neighborhood):
 
 
 @jax.jit
+@_standard
 def _energy_corr(z, index, emask, vmask, pair_w):
     e = jnp.abs(z) ** 2
     w = vmask.astype(e.dtype)[:, None]
@@ -177,6 +194,7 @@ def _energy_corr(z, index, emask, vmask, pair_w):
     return jnp.sum(rho * pair_w) / jnp.maximum(jnp.sum(pair_w), _TINY), rho
 
 
+@_standard
 def neighbour_energy_correlation(
     z, neighborhood, vertex_mask=None, *, channel_weight=None, per_channel: bool = False
 ) -> jax.Array:
@@ -222,6 +240,7 @@ def neighbour_energy_correlation(
 
 
 @jax.jit
+@_standard
 def _phase_coherence(z, index, emask, vmask, transport):
     zq = z[index] * transport[..., None]  # q's vector in p's frame
     ew = (emask & vmask[:, None] & vmask[index]).astype(z.real.dtype)[..., None]
@@ -230,6 +249,7 @@ def _phase_coherence(z, index, emask, vmask, transport):
     return num / jnp.maximum(den, _TINY)
 
 
+@_standard
 def transported_phase_coherence(z, neighborhood, vertex_mask=None) -> jax.Array:
     """Directional agreement of neighbouring latents after parallel transport, in [−1, 1].
 
@@ -239,8 +259,8 @@ def transported_phase_coherence(z, neighborhood, vertex_mask=None) -> jax.Array:
       >>> from jmeshtex.fldm.core import denoiser_geometry
       >>> from jmeshtex.data import icosphere
       >>> nb = denoiser_geometry(icosphere(2), knn=7).fine
-      >>> z = jnp.ones((162, 1), complex)
-      >>> bool(transported_phase_coherence(z, nb) > 0.5)
+      >>> z = random_channel_phases(jnp.ones((162, 2), complex), key=jax.random.key(0))
+      >>> bool(abs(transported_phase_coherence(z, nb)) < 0.2)
       True
     """
     _check_latents(z)
@@ -251,6 +271,7 @@ def transported_phase_coherence(z, neighborhood, vertex_mask=None) -> jax.Array:
     return _phase_coherence(z, index, emask, vmask, jnp.asarray(neighborhood.transport))
 
 
+@_standard
 def latent_statistics(z, neighborhood, vertex_mask=None, *, channel_weight=None) -> dict:
     """All pooled statistics of one field as a dict of Python floats.
 
@@ -288,6 +309,7 @@ def latent_statistics(z, neighborhood, vertex_mask=None, *, channel_weight=None)
     return out
 
 
+@_standard
 def region_statistics(z, regions, num_regions: int, vertex_mask=None) -> dict:
     """``R`` and the mean channel energies within each region of a vertex labelling.
 
@@ -302,7 +324,7 @@ def region_statistics(z, regions, num_regions: int, vertex_mask=None) -> dict:
       NumPy arrays (``concentration`` NaN for an empty region).
 
     Example:
-      >>> z = jnp.array([[1.0, 1.0], [1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]) + 0j
+      >>> z = jnp.array([[1.0, 1.0], [1.0, 1.0], [1.0, -1.0], [1.0, 1.0]], complex)
       >>> s = region_statistics(z, jnp.array([0, 0, 1, 1]), 2)
       >>> s["concentration"].round(6).tolist(), s["count"].tolist()
       ([1.0, 0.0], [2, 2])
@@ -318,6 +340,7 @@ def region_statistics(z, regions, num_regions: int, vertex_mask=None) -> dict:
 
 
 @functools.partial(jax.jit, static_argnums=3)
+@_standard
 def _regions(z, regions, vmask, n):
     onehot = (regions[:, None] == jnp.arange(n)[None]) & vmask[:, None]  # [V, n]
     w = onehot.astype(z.real.dtype)
@@ -331,6 +354,7 @@ def _regions(z, regions, vmask, n):
 
 
 @jax.jit
+@_standard
 def energy_field_correlation(a, b, vertex_mask=None) -> jax.Array:
     """Pearson correlation of the total energies ``Σ_c |z_c|²`` of two fields on the same vertices.
 
@@ -338,9 +362,9 @@ def energy_field_correlation(a, b, vertex_mask=None) -> jax.Array:
     sample's vertices (nearest surface point).
 
     Example:
-      >>> z = jnp.array([[1.0], [2.0], [3.0]]) + 0j
-      >>> round(float(energy_field_correlation(z, 2 * z)), 4)
-      0.9862
+      >>> z = jnp.array([[1.0], [2.0], [3.0]], complex)
+      >>> [round(float(energy_field_correlation(z, b)), 4) for b in (2 * z, z[::-1])]
+      [1.0, -1.0]
     """
     ea = jnp.sum(jnp.abs(a) ** 2, axis=-1)
     eb = jnp.sum(jnp.abs(b) ** 2, axis=-1)
@@ -351,11 +375,12 @@ def energy_field_correlation(a, b, vertex_mask=None) -> jax.Array:
     return jnp.sum(xa * xb) / jnp.sqrt(jnp.maximum(jnp.sum(xa**2) * jnp.sum(xb**2), _TINY))
 
 
+@_standard
 def shuffle_latents(z, *, key: jax.Array, vertex_mask=None) -> jax.Array:
     """The field permuted over its real vertices (same marginal, no spatial structure).
 
     Example:
-      >>> z = jnp.arange(5.0)[:, None] + 0j
+      >>> z = jnp.arange(5.0, dtype=complex)[:, None]
       >>> sorted(shuffle_latents(z, key=jax.random.key(0))[:, 0].real.tolist())
       [0.0, 1.0, 2.0, 3.0, 4.0]
     """
@@ -365,6 +390,7 @@ def shuffle_latents(z, *, key: jax.Array, vertex_mask=None) -> jax.Array:
     return jnp.asarray(z).at[real].set(jnp.asarray(z)[perm])
 
 
+@_standard
 def random_channel_phases(z, *, key: jax.Array) -> jax.Array:
     """Each ``z_{vc}`` turned by its own uniform random phase (magnitudes kept; ``R`` → ~0).
 
@@ -374,5 +400,6 @@ def random_channel_phases(z, *, key: jax.Array) -> jax.Array:
       True
     """
     _check_latents(z)
-    theta = jax.random.uniform(key, z.shape, minval=0.0, maxval=2 * np.pi)
-    return z * jnp.exp(1j * theta).astype(z.dtype)
+    z = jnp.asarray(z)
+    theta = jax.random.uniform(key, z.shape, z.real.dtype, minval=0.0, maxval=2 * np.pi)
+    return z * jax.lax.complex(jnp.cos(theta), jnp.sin(theta))

@@ -191,7 +191,7 @@ def make_train_step(
             loss, g = jax.value_and_grad(loss_fn)(params, *xs)
             return jax.tree.map(jnp.add, acc, (loss, g)), None
 
-        zero = (jnp.zeros((), jnp.float32), jax.tree.map(jnp.zeros_like, params))
+        zero = (jnp.zeros((), z0.real.dtype), jax.tree.map(jnp.zeros_like, params))
         (loss, g), _ = jax.lax.scan(body, zero, micro)
         return loss / a, jax.tree.map(lambda x: x / a, g)
 

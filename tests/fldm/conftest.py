@@ -50,6 +50,8 @@ TINY_DATA_FIELDS = (
     "pool_ratio",
     "bucket",
     "num_labels",
+    "encodings_per_copy",
+    "latent_scaling",
 )
 #: the dataset settings of ``tiny_data`` (the training fields are the tests' own)
 TINY_DATA = fldm.Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, knn=7, bucket=32)
