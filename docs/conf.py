@@ -7,8 +7,13 @@ so a broken cross-reference in a docstring fails CI. Build by hand with
 
 from __future__ import annotations
 
+import importlib
+import inspect
+import os
 import pathlib
+import re
 import shutil
+import tempfile
 
 HERE = pathlib.Path(__file__).resolve().parent
 
@@ -20,17 +25,26 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
+    "sphinx.ext.autosummary",
     "myst_nb",
 ]
 
-# notebooks live in ../notebooks (committed without outputs, executed by the test suite); they are
-# copied next to the sources and rendered as they are, not executed again here
+# notebooks live in ../notebooks, committed without outputs; they are copied next to the sources and
+# executed at build time with their tiny settings (JMESHTEX_NOTEBOOK_TINY), so every page shows its
+# outputs and figures. "cache" (default) re-runs a notebook only when it changed; the test suite
+# builds with JMESHTEX_DOCS_EXECUTE=force, so a notebook that fails to run fails the docs build.
 _NOTEBOOKS = HERE / "_notebooks"
 shutil.rmtree(_NOTEBOOKS, ignore_errors=True)
 _NOTEBOOKS.mkdir()
 for nb in sorted((HERE.parent / "notebooks").glob("*.ipynb")):
     shutil.copy(nb, _NOTEBOOKS / nb.name)
-nb_execution_mode = "off"
+os.environ.setdefault("JMESHTEX_NOTEBOOK_TINY", "1")
+os.environ.setdefault("JMESHTEX_NOTEBOOK_OUT", tempfile.mkdtemp(prefix="jmeshtex-docs-"))
+nb_execution_mode = os.environ.get("JMESHTEX_DOCS_EXECUTE", "cache")
+nb_execution_timeout = 600
+nb_execution_raise_on_error = True
+nb_execution_in_temp = True
+nb_execution_cache_path = str(HERE / "_build" / ".jupyter_cache")
 
 exclude_patterns = ["_build", "**/.ipynb_checkpoints"]
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
@@ -81,10 +95,47 @@ def _skip_root_reexports(app, what, name, obj, skip, options):
     return skip
 
 
+_FIELD_ALIAS = re.compile(r"Alias for field number \d+")
+
+
+def _drop_field_aliases(app, what, name, obj, options, lines):
+    """NamedTuple fields are described in their class's Attributes section: blank the generated
+    "Alias for field number N" text (the entries stay, as link targets)."""
+    if _FIELD_ALIAS.fullmatch(" ".join(lines).strip()):
+        lines.clear()
+
+
+def _summary_table(app, docname, source):
+    """Open every ``api/<package>`` page with an autosummary table of the package's public names."""
+    if not docname.startswith("api/"):
+        return
+    package = docname.split("/", 1)[1]
+    module = importlib.import_module(package)
+    entries = []
+    for name in getattr(module, "__all__", None) or list(vars(module)):
+        obj = getattr(module, name)
+        if name.startswith("_") or not (inspect.isfunction(obj) or inspect.isclass(obj)):
+            continue  # constants and wrapped callables have no summary line to link
+        home = obj.__module__.split(".")
+        shared = package != "jmeshtex" and len(home) == 2 and home[1].startswith("_")
+        entries.append(f"   ~jmeshtex.{name}" if shared else f"   {name}")  # shared: root page
+    if not entries:
+        return
+    table = "\n".join(
+        [f".. currentmodule:: {package}", "", ".. rubric:: Contents", "", ".. autosummary::"]
+        + ["   :nosignatures:", "", *entries]
+    )
+    marker = f".. automodule:: {package}"
+    source[0] = source[0].replace(marker, table + "\n\n" + marker, 1)
+
+
 def setup(app):
     app.connect("autodoc-skip-member", _skip_root_reexports)
+    app.connect("autodoc-process-docstring", _drop_field_aliases)
+    app.connect("source-read", _summary_table)
 
 
 html_theme = "alabaster"
+html_sidebars = {"**": ["localtoc.html", "navigation.html", "relations.html", "searchbox.html"]}
 html_static_path: list[str] = []
 html_title = "jmeshtex"

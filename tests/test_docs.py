@@ -8,6 +8,7 @@ no intersphinx; ``docs/conf.py`` lists them).
 from __future__ import annotations
 
 import ast
+import os
 import pathlib
 import re
 import subprocess
@@ -31,7 +32,10 @@ def test_the_api_reference_builds_with_warnings_as_errors(tmp_path):
         str(DOCS),
         str(tmp_path / "html"),
     ]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    # the notebooks run at build time (tiny settings): one that fails to run fails the build
+    env = {**os.environ, "JMESHTEX_DOCS_EXECUTE": "force", "JMESHTEX_NOTEBOOK_TINY": "1"}
+    env["JMESHTEX_NOTEBOOK_OUT"] = str(tmp_path / "notebook_outputs")
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=1200, env=env)
     assert run.returncode == 0, f"sphinx failed ({run.returncode}):\n{run.stdout}\n{run.stderr}"
     pages = {p.stem for p in (tmp_path / "html" / "api").glob("*.html")}
     for package in (
@@ -53,6 +57,14 @@ def test_the_api_reference_builds_with_warnings_as_errors(tmp_path):
     assert expected and expected <= notebooks, (
         f"notebooks not rendered: {sorted(expected - notebooks)}"
     )
+    for name in expected:  # executed: every page shows outputs, none an error
+        page = (tmp_path / "html" / "_notebooks" / f"{name}.html").read_text()
+        assert page.count('class="cell_output') >= 2, f"{name}: no outputs rendered"
+        assert "output traceback" not in page and "Traceback (most recent call" not in page, name
+    for guide in ("concepts", "own_model"):
+        assert (tmp_path / "html" / f"{guide}.html").exists(), f"no {guide} page"
+    api = (tmp_path / "html" / "api" / "jmeshtex.ops.html").read_text()
+    assert "autosummary" in api and "Alias for field number" not in api
 
 
 # --- docstrings state the contract; measurements and history live in benchmarks/results and git ---
@@ -99,4 +111,20 @@ def test_no_docstring_in_the_package_cites_db_figures_or_history():
     found = [f for path in sorted((ROOT / "jmeshtex").rglob("*.py")) for f in lab_notes(path)]
     assert not found, (
         "move these to benchmarks/results/*.md or docs/design_notes.md:\n" + "\n".join(found)
+    )
+
+
+#: a pointer from a docstring to a file a reader of the docs or the wheel does not have
+OUTSIDE = re.compile(r"\b(DESIGN|STYLE)\.md\b|\.\./shared\b")
+
+
+def test_no_docstring_points_to_a_file_outside_the_docs():
+    found = [
+        f"{path.relative_to(ROOT)}:{line} {name}"
+        for path in sorted((ROOT / "jmeshtex").rglob("*.py"))
+        for line, name, doc in _docstrings(path)
+        if OUTSIDE.search(doc)
+    ]
+    assert not found, "point to docs/concepts.md or docs/design_notes.md instead:\n" + "\n".join(
+        found
     )

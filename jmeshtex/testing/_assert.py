@@ -40,8 +40,8 @@ def assert_equivariant(
       key: a ``jax.random`` key or an int seed; every draw (meshes, transforms, inputs) follows it.
       inputs: ``{name: (kind, channels)}`` drawn at random on each mesh, as the registry does; a
         ``Field`` value is used as given, which needs the transforms to be realisations of its mesh.
-      transforms: names in :data:`~jmeshtex.testing.CATALOGUE` (default: the exact ones, see
-        :data:`~jmeshtex.testing.EXACT`), checked with the registry's bounds (exact: ``rtol``;
+      transforms: names in ``CATALOGUE`` (default: the exact ones, see
+        ``EXACT``), checked with the registry's bounds (exact: ``rtol``;
         smooth isometries: a convergence order), or drawn :class:`~jmeshtex.testing.Realisation`
         objects of your own mesh.
       dtype: ``jnp.float64`` (bounds 1e-10 / order) or ``jnp.float32`` (1e-5; smooth isometries

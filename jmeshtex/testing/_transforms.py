@@ -179,7 +179,7 @@ def random_rotation(rng: np.random.Generator, *, proper: bool = True) -> np.ndar
 
 @dataclasses.dataclass(frozen=True)
 class Transform:
-    """A named generator of realisations; :meth:`draw` draws one.
+    """A named generator of realisations; :meth:`Transform.draw` draws one.
 
     Attributes:
       name: catalogue name.
