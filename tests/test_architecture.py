@@ -5,7 +5,9 @@
 The private-import rule (:func:`private_imports`) covers every module under ``jmeshtex/`` and
 ``benchmarks/`` and the code cells of ``notebooks/*.ipynb``; ``tests/`` may import the private
 modules of the package they test and are not checked. Root-level private modules (``jmeshtex/_*.py``)
-are the designated shared internals and may be imported from anywhere.
+are the designated shared internals and may be imported from anywhere. Tests import neither the
+CLI's demo stages (``jmeshtex.cli._stages``: shared fixtures live in ``jmeshtex.testing``) nor error
+classes from ``jmeshtex._errors`` (:func:`forbidden_test_imports`).
 """
 
 from __future__ import annotations
@@ -190,6 +192,50 @@ def test_method_import_rule(path, source, flagged):
     assert bool(method_imports(source, pathlib.PurePosixPath(path))) == flagged
 
 
+#: what a test may not import: the CLI's demo stages (shared fixtures live in jmeshtex.testing or
+#: jmeshtex.data) and the error classes' private module (errors come from ``jmeshtex``)
+TEST_FORBIDDEN = (("jmeshtex", "cli", "_stages"), ("jmeshtex", "_errors"))
+
+
+def forbidden_test_imports(source: str, rel: pathlib.PurePosixPath) -> list[tuple[int, str]]:
+    """``(line, what)`` of the imports in a test file of the CLI's stages or of ``jmeshtex._errors``.
+
+    ``from jmeshtex import _errors`` (the module itself, to list what it defines) stays allowed;
+    importing names from it (``from jmeshtex._errors import X``) or anything below
+    ``jmeshtex.cli._stages`` is flagged.
+    """
+    package = _module_parts(rel)[1]
+    out = []
+    for line, module, names in _imports(ast.parse(source), package):
+        for forbidden in TEST_FORBIDDEN:
+            k = len(forbidden)
+            below = tuple(module[:k]) == forbidden
+            named = tuple(module) == forbidden[:-1] and forbidden[-1] in names
+            if below or (named and forbidden[-1] == "_stages"):
+                out.append((line, f"imports {'.'.join(forbidden)}"))
+    return out
+
+
+@pytest.mark.parametrize(
+    ("source", "flagged"),
+    [
+        ("from jmeshtex.cli._stages.fldm import learning_check", True),
+        ("import jmeshtex.cli._stages.fldm", True),
+        ("from jmeshtex.cli import _stages", True),
+        ("def f():\n    from jmeshtex.cli._stages import dgts", True),
+        ("from jmeshtex._errors import InputError", True),
+        ("import jmeshtex._errors as e", True),
+        ("from jmeshtex import InputError, _errors", False),  # the module, to list what it defines
+        ("from jmeshtex.testing import fldm_learning_check", False),
+        ("from jmeshtex.cli import main", False),
+        ("from jmeshtex.fldm._train import make_train_step", False),  # its own package's internals
+    ],
+)
+def test_test_file_import_rule(source, flagged):
+    found = forbidden_test_imports(source, pathlib.PurePosixPath("tests/fldm/test_x.py"))
+    assert bool(found) == flagged
+
+
 # ------------------------------------------------------------------------------- the code base
 
 
@@ -200,6 +246,20 @@ def test_no_module_imports_another_packages_private_modules():
         f"{len(offenders)} imports of another package's internals (export the name from the package "
         "__init__ with a docstring, or move the shared helper into a root-level jmeshtex/_*.py):\n"
         + "\n".join(offenders)
+    )
+
+
+def test_tests_import_neither_the_cli_stages_nor_the_errors_module():
+    offenders = [
+        f"{path.relative_to(ROOT).as_posix()}:{line}: {what}"
+        for path in sorted([*ROOT.glob("tests/**/*.py"), *ROOT.glob("equivariance_tests/**/*.py")])
+        for line, what in forbidden_test_imports(
+            path.read_text(), pathlib.PurePosixPath(path.relative_to(ROOT).as_posix())
+        )
+    ]
+    assert not offenders, (
+        "move shared fixtures to jmeshtex.testing or jmeshtex.data and import errors from "
+        "jmeshtex:\n" + "\n".join(offenders)
     )
 
 

@@ -12,6 +12,9 @@ from ._field_strategies import gauges as gauges
 from ._field_strategies import rotations as rotations
 from ._fields import KINDS as KINDS
 from ._fields import Field as Field
+from ._fldm_learning import fldm_learning_check as fldm_learning_check
+from ._fldm_learning import render_color_views as render_color_views
+from ._fldm_learning import render_intensity_views as render_intensity_views
 from ._hypothesis import bucket as bucket
 from ._hypothesis import hypothesis_profile as hypothesis_profile
 from ._hypothesis import pad_rows as pad_rows

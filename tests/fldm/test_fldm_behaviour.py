@@ -25,7 +25,6 @@ import numpy as np
 import pytest
 
 from jmeshtex import Mesh, fldm
-from jmeshtex.cli._stages.fldm import render_views
 from jmeshtex.data import (
     icosphere,
     intensity_to_rgb,
@@ -35,6 +34,7 @@ from jmeshtex.data import (
 )
 from jmeshtex.geometry import remesh
 from jmeshtex.metrics import gram_distance, load_vgg16, permuted_baseline
+from jmeshtex.testing import render_intensity_views as render_views
 from tests.fldm.conftest import DATA_KEY, TRAIN_KEY
 
 SAMPLE_KEY = jax.random.key(5)

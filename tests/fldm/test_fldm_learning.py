@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from jmeshtex import ConfigError
-from jmeshtex.cli._stages.fldm import learning_check
+from jmeshtex.testing import fldm_learning_check as learning_check
 
 
 @pytest.mark.slow

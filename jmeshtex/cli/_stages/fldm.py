@@ -1,4 +1,4 @@
-"""A small FLDM run for ``jmeshtex demo``, the notebook and the learning check: a striped sphere.
+"""A small FLDM run for ``jmeshtex demo`` and the notebook: a striped sphere.
 
 The exemplar is a unit sphere with latitudinal stripes, ``s(p) = ½ + ½ sin(ω p_z)``. To keep the
 check about the *diffusion model* (and fast, with no pre-trained FL-VAE needed), the latents come
@@ -12,12 +12,7 @@ colour, phases the stripes' orientation: a model must learn both the stripe stat
 coherent direction field. With a trained FL-VAE (:func:`jmeshtex.fldm.fl_vae_encoder`) the same
 pipeline runs on real textures (see ``benchmarks/fldm_spot.py``).
 
-:func:`learning_check` trains a tiny model and compares the VGG Gram distance (texture statistics)
-of its samples' renders to the exemplar's render with that of an untrained model's samples, and
-measures the samples' pairwise LPIPS diversity. ``learning_check(codec="fl_vae")`` runs the same
-check through the shipped FL-VAE instead of the analytic codec (encode the copies with
-:func:`~jmeshtex.fldm.fl_vae_encoder`, decode sample latents with
-:func:`~jmeshtex.fl.decode_vertex_colors`).
+The learning check on the same sphere is :func:`jmeshtex.testing.fldm_learning_check`.
 """
 
 from __future__ import annotations
@@ -27,11 +22,8 @@ import pathlib
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from ..._mesh import Mesh
-from ..._random import host_rng
 from ...data import (
     intensity_to_rgb,
     rgb_to_intensity,
@@ -45,7 +37,7 @@ VIEWS = ((20.0, -60.0), (-30.0, 60.0))
 
 
 def tiny_config(quick: bool = True):
-    """The demo / learning-check configuration (seconds on a CPU)."""
+    """The demo configuration (seconds on a CPU)."""
     from ...fldm import Config
 
     if quick:
@@ -53,171 +45,6 @@ def tiny_config(quick: bool = True):
     return Config.cpu(
         latent_channels=2, n_copies=8, copy_vertices=1500, steps=1500, diffusion_steps=1000
     )
-
-
-def render_views(
-    mesh: Mesh, intensity: np.ndarray, *, size: int = 128, crop: bool = False
-) -> np.ndarray:
-    """``[len(VIEWS), size, size, 3]`` renders (float in [0, 1]) of an intensity field on ``mesh``.
-
-    ``crop``: render at twice the size and keep the central half, where the sphere fills the frame
-    (texture statistics without background or silhouette, for the Gram distance).
-    """
-    return render_rgb_views(mesh, intensity_to_rgb(intensity), size=size, crop=crop)
-
-
-def render_rgb_views(
-    mesh: Mesh, rgb: np.ndarray, *, size: int = 128, crop: bool = False
-) -> np.ndarray:
-    """:func:`render_views` of per-vertex colours ``rgb [V, 3]`` in [0, 1] instead of an intensity."""
-    from ...render import render_mesh
-
-    rgb = np.asarray(rgb, np.float64)
-    full = 2 * size if crop else size
-    imgs = (
-        np.stack(
-            [
-                render_mesh(
-                    Mesh(mesh.vertices, mesh.faces, vertex_colors=rgb), view=v, size=(full, full)
-                )
-                for v in VIEWS
-            ]
-        ).astype(np.float32)
-        / 255.0
-    )
-    if crop:
-        a = size // 2
-        imgs = imgs[:, a : a + size, a : a + size]
-    return imgs
-
-
-def learning_check(
-    *,
-    quick: bool = True,
-    n_samples: int = 2,
-    key: jax.Array | None = None,
-    progress: bool = False,
-    codec: str = "stripes",
-    steps: int | None = None,
-) -> dict:
-    """Train a tiny FLDM on the striped sphere and measure fidelity and diversity of its samples.
-
-    Args:
-      quick: :func:`tiny_config` preset (True) or the larger CPU one.
-      n_samples: samples of the trained and of the untrained model (same noise).
-      key: PRNG key of the copies, the initialisation, training and sampling (default ``key(0)``).
-      progress: tqdm bars.
-      codec: ``"stripes"``: the analytic codec of the module docstring (2 channels);
-        ``"fl_vae"``: the shipped FL-VAE (:func:`~jmeshtex.fl.load_pretrained`): copies encoded with
-        :func:`~jmeshtex.fldm.fl_vae_encoder` (colours read on the exemplar), sample latents decoded with
-        :func:`~jmeshtex.fl.decode_vertex_colors` and the colours rendered.
-      steps: training steps (default: the preset's).
-
-    Returns:
-      ``{"gram_trained", "gram_untrained", "gram_codec", "gram_flat", "gram_shuffled",
-      "lpips_diversity", "losses", "seconds", ...}``: mean Gram distance of sample renders to the
-      exemplar's renders (trained and untrained model, same noise; ``gram_codec``: the codec's own
-      reconstruction of the exemplar on the same copy, the floor the codec allows; ``gram_flat``: the
-      exemplar's mean colour everywhere; ``gram_shuffled``: the copy's training latents permuted over
-      vertices, decoded), mean pairwise LPIPS between trained samples, the loss curve.
-
-    Raises:
-      ConfigError: unknown ``codec``.
-    """
-    from ... import fldm
-    from ..._errors import ConfigError
-    from ...metrics import gram_distance, load_vgg16, lpips
-
-    t0 = time.perf_counter()
-    key = jax.random.key(0) if key is None else key
-    k_codec, k_data, k_train, k_sample = jax.random.split(key, 4)
-    exemplar = striped_sphere(subdivisions=3)
-    cfg = tiny_config(quick)
-    if steps is not None:
-        cfg = cfg.replace(steps=int(steps))
-    if codec == "stripes":
-        encode = stripe_encoder
-
-        def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
-            return intensity_to_rgb(stripe_decoder(z))
-    elif codec == "fl_vae":
-        from ...fl import decode_vertex_colors, load_pretrained
-
-        vae = load_pretrained()
-        encode = fldm.fl_vae_encoder(vae, exemplar, key=k_codec)
-        cfg = cfg.replace(latent_channels=vae.config.latent_dim)
-
-        def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
-            return np.asarray(
-                decode_vertex_colors(vae, mesh, jnp.asarray(z, jnp.complex64)), np.float64
-            )
-    else:
-        raise ConfigError(f"codec must be 'stripes' or 'fl_vae', got {codec!r}")
-    data = fldm.build_dataset(exemplar, cfg, encode=encode, key=k_data, progress=progress)
-    result = fldm.train(data, cfg, key=k_train, progress=progress)
-    target = data.meshes[0]
-    geo = fldm.core.sampling_geometry(target, result.model)
-    untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
-    steps = 25
-    z_tr = fldm.sample(result.model, geo, key=k_sample, num_samples=n_samples, steps=steps).latents
-    z_un = fldm.sample(untrained, geo, key=k_sample, num_samples=n_samples, steps=steps).latents
-    weights = load_vgg16()
-    # the exemplar's stripes on the same copy the samples live on, central crops (texture only)
-    ref = render_views(target, rgb_to_intensity(target.vertex_colors), size=96, crop=True)
-    tr = [render_rgb_views(target, decode(target, z), size=96, crop=True) for z in z_tr]
-    un = [render_rgb_views(target, decode(target, z), size=96, crop=True) for z in z_un]
-    z_copy = data.latents[0, : target.num_vertices]
-    rec = render_rgb_views(target, decode(target, z_copy), size=96, crop=True)
-    # baselines: a flat colour (the exemplar's mean) and the training latents shuffled over vertices
-    # (the right marginal, no spatial structure)
-    flat = render_rgb_views(
-        target,
-        np.broadcast_to(np.mean(decode(target, z_copy), axis=0), (target.num_vertices, 3)),
-        size=96,
-        crop=True,
-    )
-    perm = host_rng(k_sample, 1).permutation(target.num_vertices)
-    shuffled = render_rgb_views(target, decode(target, z_copy[perm]), size=96, crop=True)
-
-    def gram(imgs):
-        return float(
-            np.mean(
-                [
-                    np.asarray(gram_distance(jnp.asarray(i), jnp.asarray(ref), weights=weights))
-                    for i in imgs
-                ]
-            )
-        )
-
-    pairs = [(a, b) for a in range(n_samples) for b in range(a + 1, n_samples)]
-    div = (
-        float(
-            np.mean(
-                [
-                    np.asarray(lpips(jnp.asarray(tr[a]), jnp.asarray(tr[b]), weights=weights))
-                    for a, b in pairs
-                ]
-            )
-        )
-        if pairs
-        else 0.0
-    )
-    return {
-        "gram_trained": gram(tr),
-        "gram_untrained": gram(un),
-        "gram_codec": gram([rec]),
-        "gram_flat": gram([flat]),
-        "gram_shuffled": gram([shuffled]),
-        "lpips_diversity": div,
-        "losses": result.losses["loss"],
-        "seconds": time.perf_counter() - t0,
-        "model": result.model,
-        "target": target,
-        "samples": z_tr,
-        "untrained_samples": z_un,
-        "exemplar": exemplar,
-        "codec": codec,
-    }
 
 
 def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = None) -> dict:
