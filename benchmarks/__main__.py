@@ -10,9 +10,14 @@ Usage (from the repository root)::
     python -m benchmarks table sweep/sweep.json
     python -m benchmarks plot sweep/sweep.json --out sweep/
     python -m benchmarks compare old/sweep.json new/sweep.json --threshold 0.1   # exit 1 on a regression
+    python -m benchmarks compare benchmarks/results/ops_face_conv.json new/sweep.json
 
-``run`` writes ``sweep.json`` (the schema of :mod:`benchmarks._runner`), ``sweep.md`` and the plots
-``scaling.png`` / ``ceiling.png`` into ``--out``; it exits 1 when a cell failed.
+``run`` writes ``sweep.json`` (the schema of :mod:`benchmarks._runner`), ``sweep.md`` (with the
+Growth table: exponents ± 95 % confidence half-widths, and any warning) and the plots
+``scaling.png`` / ``ceiling.png`` into ``--out``; it exits 1 when a cell failed. ``compare`` matches
+a figure exactly, or by interpolating OLD's times over size within OLD's sizes (never
+extrapolating), and says how many matched each way; it exits 1 on a regression, 2 when nothing
+matched.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ import json
 import pathlib
 import sys
 
-from ._compare import compare, compare_markdown
+from ._compare import compare, compare_markdown, summary_line
 from ._runner import BENCHMARKS, import_results, load_sweep, markdown, plot, sweep
 
 
@@ -62,7 +67,9 @@ def main(argv=None) -> int:
     p = sub.add_parser("plot", help="scaling and ceiling plots of a sweep")
     p.add_argument("sweep", type=pathlib.Path)
     p.add_argument("--out", type=pathlib.Path, required=True)
-    c = sub.add_parser("compare", help="per-figure ratios; exit 1 on a regression")
+    c = sub.add_parser(
+        "compare", help="per-figure ratios (interpolated over size); exit 1 on a regression"
+    )
     c.add_argument("old", type=pathlib.Path)
     c.add_argument("new", type=pathlib.Path)
     c.add_argument(
@@ -118,10 +125,18 @@ def main(argv=None) -> int:
         load_sweep(args.old), load_sweep(args.new), threshold=args.threshold, sigmas=args.sigmas
     )
     print(compare_markdown(rows, threshold=args.threshold), end="")
-    if not rows:
-        print("no figure in common", file=sys.stderr)
+    matched = [r for r in rows if r["match"] is not None]
+    if not matched:
+        print(
+            f"no figure in common ({summary_line(rows)}): NEW's sizes lie outside OLD's or its "
+            "series are not in OLD",
+            file=sys.stderr,
+        )
         return 2
-    print(f"{sum(r['status'] == 'REGRESSION' for r in rows)} regression(s) of {len(rows)} figures")
+    print(
+        f"{sum(r['status'] == 'REGRESSION' for r in matched)} regression(s) of {len(matched)} "
+        "matched figures"
+    )
     return 1 if failed else 0
 
 

@@ -6,16 +6,22 @@ calls ``block_until_ready`` and reports compile time apart from run time.
 
 Usage in a script::
 
-    from _harness import Report, time_jax, time_host
+    from _harness import Report, Size, size_label, time_jax, time_host
     report = Report("ops_field_conv")
-    report.add(name="field_conv fwd", size="30K", seconds=t, flops=n, bound="flops")
+    size = Size(size_label(v), vertices=v)   # the label "30K" and the true count 30000
+    report.add(name="field_conv fwd", size=size, seconds=t, flops=n, bound="flops")
     report.write()   # benchmarks/results/ops_field_conv.{json,md}
+
+A row's ``size`` is a label for people; the runner (``python -m benchmarks``) fits and interpolates
+over the count a row records in one of :data:`SIZE_UNITS` (``Size`` writes it), and parses the label
+only for rows that record none.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import operator
 import os
 import pathlib
 import platform
@@ -32,6 +38,66 @@ import numpy as np
 from jmeshtex.io import atomic_write
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+
+#: the count fields a row's size is recorded in (the runner's ``_SIZE_KEYS`` without its ``n``)
+SIZE_UNITS = ("texels", "pixels", "vertices", "faces", "points")
+
+
+def size_label(n: int) -> str:
+    """A count as a short label: ``500``, ``1.5K``, ``20K``, ``1.2M``.
+
+    Below 10 of a unit one decimal is kept; digits are truncated, never rounded, so a label never
+    claims more than the count, and from 10K up a label reads as the scripts wrote it before this
+    helper (``f"{n // 1000}K"``), so committed results keep their figures' names. The label is for
+    people: record the count itself with :class:`Size`.
+
+    Raises:
+      TypeError: ``n`` is not an integer; ValueError: it is negative.
+
+    Example:
+      >>> [size_label(n) for n in (0, 500, 999, 1000, 1536, 20480, 327680, 1_234_567, 12_000_000)]
+      ['0', '500', '999', '1K', '1.5K', '20K', '327K', '1.2M', '12M']
+    """
+    n = operator.index(n)
+    if n < 0:
+        raise ValueError(f"size_label: a count is not negative, got {n}")
+    for unit, scale in (("M", 1_000_000), ("K", 1_000)):
+        if n >= scale:
+            whole, tenths = n // scale, n * 10 // scale % 10
+            return f"{whole}.{tenths}{unit}" if whole < 10 and tenths else f"{whole}{unit}"
+    return str(n)
+
+
+class Size(str):
+    """A row's size label that carries the true count it stands for.
+
+    ``Report.add(size=Size("20K faces", faces=20480))`` writes the row with ``size="20K faces"`` and
+    ``faces=20480``, so every row of a script records its count through the one line that builds
+    the label. Exactly one count, named by one of :data:`SIZE_UNITS` (the quantity the figure's
+    time grows with).
+
+    Raises:
+      TypeError: not exactly one count, an unknown unit, or a count that is not an integer.
+
+    Example:
+      >>> s = Size(f"{size_label(20480)} faces", faces=20480)
+      >>> s, s.unit, s.count
+      ('20K faces', 'faces', 20480)
+    """
+
+    unit: str
+    count: int
+
+    def __new__(cls, label: str, **count: int) -> Size:
+        if len(count) != 1 or next(iter(count)) not in SIZE_UNITS:
+            raise TypeError(
+                f"Size({label!r}, ...): give exactly one count, one of {', '.join(SIZE_UNITS)} "
+                f"(got {', '.join(count) or 'none'})"
+            )
+        ((unit, n),) = count.items()
+        self = super().__new__(cls, label)
+        self.unit, self.count = unit, operator.index(n)
+        return self
 
 
 def machine_info() -> dict[str, Any]:
@@ -175,7 +241,25 @@ class Report:
         print(f"# {name}\n{json.dumps(self.info)}\nceilings: {self.ceilings}", flush=True)
 
     def add(self, **row: Any) -> dict[str, Any]:
-        """Add a row; ``flops`` / ``bytes`` with ``seconds`` give achieved rates and % of ceiling."""
+        """Add a row; ``flops`` / ``bytes`` with ``seconds`` give achieved rates and % of ceiling.
+
+        A ``size`` given as a :class:`Size` is written as its label followed by its count field
+        (``size="20K faces", faces=20480``); a different value already in that field is an error.
+        """
+        size = row.get("size")
+        if isinstance(size, Size):
+            if size.unit in row and row[size.unit] != size.count:
+                raise ValueError(
+                    f"row {row.get('name')!r}: {size.unit}={row[size.unit]!r} but its size "
+                    f"{str(size)!r} counts {size.count}"
+                )
+            items: list[tuple[str, Any]] = []
+            for k, v in row.items():
+                if k == "size":
+                    items += [(k, str(v)), (size.unit, size.count)]
+                elif k != size.unit:
+                    items.append((k, v))
+            row = dict(items)
         s = row.get("seconds")
         if s and row.get("flops"):
             row["gflops"] = row["flops"] / s / 1e9

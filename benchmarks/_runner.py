@@ -16,7 +16,13 @@ every timed row into one *figure*::
      "machine": {...}, "versions": {...}, "commit": "2e2a954..."}
 
 A sweep file is ``{"schema": SCHEMA, "figures": [...], "cells": [...]}`` (``cells``: what ran, its
-wall time and exit status). Threads: a cell with ``threads=n`` runs pinned to ``n`` cores
+wall time, exit status and the 1-minute load average at its start and end). A figure's *size* ``n``
+is the count its row records (``texels``, ``pixels``, ``vertices``, ``faces``, ``points`` or ``n``:
+``_harness.Size`` writes it), else parsed from its ``size`` label; its *series* is everything but
+the size (:func:`series_key`), the line of the log-log plot and of the growth fit
+(:func:`growth_fit`), and what ``compare`` interpolates over. A timed figure whose size cannot be
+determined is reported (sweep log and :func:`markdown`), never dropped silently; so is a cell that
+started or ended with the load average above the core count. Threads: a cell with ``threads=n`` runs pinned to ``n`` cores
 (``sched_setaffinity``; XLA:CPU and BLAS size their pools by it) with the BLAS thread variables set.
 """
 
@@ -35,7 +41,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -60,7 +66,10 @@ _PARAM_KEYS = (
     "level",
 )
 #: row keys giving the problem size ``n`` of the log-log plot, in order of preference
-_SIZE_KEYS = ("texels", "vertices", "faces", "points", "n")
+_SIZE_KEYS = ("texels", "pixels", "vertices", "faces", "points", "n")
+#: params that are not part of a figure's series: its size, and the roofline bound (which can flip
+#: between "flops" and "bytes" from one size to the next)
+_NOT_SERIES = ("size", *_SIZE_KEYS, "bound")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -184,12 +193,16 @@ def git_commit() -> str | None:
 def problem_size(row: dict) -> float | None:
     """The size ``n`` of a row for the log-log plot: a count field, else parsed from ``size``.
 
-    ``"20K faces"`` → 20000, ``"512x512 (262K texels)"`` → 262144 (texels preferred), ``"512²"``
-    → 262144, ``"1.5M"`` → 1.5e6.
+    A count field (``_SIZE_KEYS``, first present wins) is the true size and the label is then not
+    read. Without one: ``"20K faces"`` → 20000, ``"512x512 (262K texels)"`` → 262144, ``"512²"`` →
+    262144, ``"1.5M"`` → 1.5e6; None when the label says nothing usable (``"0K"``, the truncated
+    label of a size under 1000 written by old scripts), which the runner reports as a warning.
 
     Example:
       >>> problem_size({"size": "512x512 (262K texels), 64->64"}), problem_size({"size": "5K"}), problem_size({"size": "512²"})
       (262144, 5000.0, 262144)
+      >>> problem_size({"size": "0K", "vertices": 500}), problem_size({"size": "0K"})
+      (500, None)
     """
     for key in _SIZE_KEYS:
         if isinstance(row.get(key), (int, float)) and not isinstance(row.get(key), bool):
@@ -289,17 +302,90 @@ def figures_from_report(
     return out
 
 
+def series_key(fig: dict) -> str:
+    """A figure's series: benchmark, name and every param but the size (``_NOT_SERIES``).
+
+    Example:
+      >>> series_key({"benchmark": "b", "name": "fwd", "params": {"size": "5K", "n": 5000, "threads": 2}})
+      'b/fwd[threads=2]'
+    """
+    params = fig["params"]
+    rest = ",".join(f"{k}={params[k]}" for k in sorted(params) if k not in _NOT_SERIES)
+    return f"{fig['benchmark']}/{fig['name']}[{rest}]"
+
+
+def _fmt_n(n: float) -> str:
+    return str(int(n)) if float(n).is_integer() else f"{n:g}"
+
+
 def figure_key(fig: dict) -> str:
-    """What identifies a figure across runs: benchmark, name and every param."""
-    params = ",".join(f"{k}={fig['params'][k]}" for k in sorted(fig["params"]))
-    return f"{fig['benchmark']}/{fig['name']}[{params}]"
+    """What identifies a figure across runs: its series and its size (the ``size`` label when the
+    row has one, else ``n``).
+
+    The label, not the count, names the size so that a row that now records its true count
+    (``"20K faces"``, ``faces=20480``) is still the figure an older file measured from its label
+    alone (``n`` = 20000 parsed); ``compare`` checks recorded counts where both files have them.
+
+    Example:
+      >>> figure_key({"benchmark": "b", "name": "fwd", "params": {"size": "20K faces", "faces": 20480, "n": 20480}})
+      'b/fwd[] @ 20K faces'
+      >>> figure_key({"benchmark": "b", "name": "fwd", "params": {"faces": 320, "n": 320}})
+      'b/fwd[] @ 320'
+    """
+    params = fig["params"]
+    size = params.get("size")
+    if size is None and params.get("n") is not None:
+        size = _fmt_n(params["n"])
+    return series_key(fig) + ("" if size is None else f" @ {size}")
+
+
+def recorded_count(fig: dict) -> float | None:
+    """The size a figure's row recorded in a count field (``texels``, ``pixels``, ``vertices``,
+    ``faces``, ``points``), None when it had only a label (``n`` is then the label parsed).
+
+    Example:
+      >>> recorded_count({"params": {"size": "20K faces", "faces": 20480, "n": 20480}}), recorded_count({"params": {"size": "20K", "n": 20000.0}})
+      (20480, None)
+    """
+    for key in _SIZE_KEYS[:-1]:
+        value = fig["params"].get(key)
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return value
+    return None
+
+
+def unsized_figures(figures: Sequence[dict]) -> list[dict]:
+    """Timed figures whose size could not be determined although they have one: a ``size`` label
+    that does not parse, or a series whose other figures have a size. They cannot enter a growth
+    fit or an interpolation; the sweep log and :func:`markdown` name them.
+
+    Example:
+      >>> f = lambda size, n: {"benchmark": "b", "name": "x", "params": {"size": size, "n": n}, "seconds": 1.0}
+      >>> [g["params"]["size"] for g in unsized_figures([f("0K", None), f("5K", 5000.0)])]
+      ['0K']
+    """
+    sized = {series_key(f) for f in figures if f["params"].get("n")}
+    return [
+        f
+        for f in figures
+        if f.get("seconds") is not None
+        and not f["params"].get("n")
+        and (f["params"].get("size") is not None or series_key(f) in sized)
+    ]
+
+
+def _unsized_line(fig: dict) -> str:
+    return (
+        f"size unknown: {figure_key(fig)} (label {fig['params'].get('size')!r}, no count field "
+        f"{'/'.join(_SIZE_KEYS[:-1])}): left out of the growth fits and of compare's interpolation"
+    )
 
 
 def merge_repeats(figures: list[dict]) -> list[dict]:
     """Figures that differ only by repeat merged: ``runs`` joined, ``seconds`` their median."""
-    merged: dict[str, dict] = {}
+    merged: dict[tuple, dict] = {}
     for fig in figures:
-        key = figure_key(fig)
+        key = (figure_key(fig), recorded_count(fig))  # one label, two true sizes: two figures
         if key not in merged:
             merged[key] = json.loads(json.dumps(fig))
         else:
@@ -407,6 +493,25 @@ def _takes_out(script: pathlib.Path) -> bool:
     return '"--out"' in script.read_text()
 
 
+def load_average() -> float | None:
+    """The 1-minute load average (None where the platform has none)."""
+    try:
+        return os.getloadavg()[0]
+    except (OSError, AttributeError):
+        return None
+
+
+def _cores() -> int:
+    return os.cpu_count() or 1
+
+
+def _warn(message: str, log: Callable[[str], Any]) -> None:
+    """A warning to stderr, and to the sweep log when that is not stdout's ``print``."""
+    print(f"warning: {message}", file=sys.stderr, flush=True)
+    if log is not print:
+        log(f"  WARNING: {message}")
+
+
 def sweep(
     names: Sequence[str],
     *,
@@ -424,13 +529,19 @@ def sweep(
 
     Sizes of a script that takes one size per run (``per_size``) become one process each; the
     others get all sizes in one process. ``quick`` replaces the sizes by each script's tiny ones.
+
+    Warnings: a cell that starts or ends with the 1-minute load average above the core count (its
+    times include waiting for a core) goes to stderr (and ``log`` when that is not ``print``) and is
+    recorded in the cell and in ``machine["load_warnings"]``; a timed figure whose size cannot be
+    determined (:func:`unsized_figures`) goes to ``log``.
     """
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
         raise SystemExit(f"unknown benchmarks {unknown}; known: {', '.join(BENCHMARKS)}")
     machine, versions = machine_and_versions()
     commit = git_commit()
-    figures, cells = [], []
+    figures, cells, load_warnings = [], [], []
+    cores = _cores()
     out.mkdir(parents=True, exist_ok=True)
     work = out / "cells"  # each cell's own report, as the script wrote it
     for name in names:
@@ -450,27 +561,45 @@ def sweep(
             argv = _cell_argv(bench, group, dtype, preset, quick)
             cell_dir = work / f"{name}-{len(cells):03d}"
             log(f"run {name} {' '.join(argv)} threads={nthreads} repeat={rep}")
+            load_start = load_average()
             report, cell = run_cell(bench, argv, threads=nthreads, out=cell_dir, timeout=timeout)
+            cell.update(load_start=load_start, load_end=load_average())
             cells.append(cell)
+            for when in ("start", "end"):
+                load = cell[f"load_{when}"]
+                if load is not None and load > cores:
+                    record = {"benchmark": name, "argv": argv, "when": when, "load": load}
+                    load_warnings.append(record | {"cores": cores})
+                    _warn(_load_line(record, cores), log)
             if report is None:
                 log(f"  FAILED (exit {cell['returncode']}):\n{cell.get('log', '')}")
                 continue
             params = {"dtype": dtype, "preset": preset, "threads": nthreads}
             params = {k: v for k, v in params.items() if v is not None}
             ran_on = dict(machine, devices=report.get("machine", {}).get("devices"))
-            figures += figures_from_report(
+            new = figures_from_report(
                 report, params=params, machine=ran_on, versions=versions, commit=commit
             )
+            for fig in unsized_figures(new):
+                log(f"  WARNING: {_unsized_line(fig)}")
+            figures += new
     doc = {
         "schema": SCHEMA,
         "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "commit": commit,
-        "machine": machine,
+        "machine": dict(machine, load_warnings=load_warnings) if load_warnings else machine,
         "versions": versions,
         "figures": merge_repeats(figures),
         "cells": cells,
     }
     return doc
+
+
+def _load_line(record: dict, cores: int) -> str:
+    return (
+        f"load average {record['load']:.2f} > {cores} cores at the {record['when']} of "
+        f"{record['benchmark']} {' '.join(record['argv'])}: its times include waiting for a core"
+    )
 
 
 def import_results(
@@ -529,14 +658,33 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def warnings_of(doc: dict) -> list[str]:
+    """The sweep's warnings as lines: cells run under a load above the core count, and timed
+    figures whose size could not be determined."""
+    cores = (doc.get("machine") or {}).get("cpu_count") or _cores()
+    lines = [
+        _load_line(w, w.get("cores", cores))
+        for w in (doc.get("machine") or {}).get("load_warnings", [])
+    ]
+    return lines + [_unsized_line(f) for f in unsized_figures(doc["figures"])]
+
+
 def markdown(doc: dict) -> str:
-    """One table of every figure: benchmark, name, params, seconds (± spread), ceiling, ratio."""
+    """The sweep as markdown: warnings, one table of every figure (benchmark, name, params, seconds
+    (± spread), ceiling, ratio) and a *Growth* table (every series with two sizes or more: the sizes
+    used, the fitted exponent ± its 95 % confidence half-width, the number of points)."""
+    machine = {k: v for k, v in (doc.get("machine") or {}).items() if k != "load_warnings"}
     lines = [
         f"# benchmark sweep ({doc.get('created') or 'imported'})",
         "",
-        f"commit `{doc.get('commit')}`, machine `{json.dumps(doc.get('machine', {}))}`, "
+        f"commit `{doc.get('commit')}`, machine `{json.dumps(machine)}`, "
         f"versions `{json.dumps(doc.get('versions', {}))}`",
         "",
+    ]
+    warnings = warnings_of(doc)
+    if warnings:
+        lines += ["## Warnings", "", *(f"- warning: {w}" for w in warnings), ""]
+    lines += [
         "| benchmark | figure | params | seconds | repeats | spread | ceiling | ratio to ceiling |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -552,8 +700,8 @@ def markdown(doc: dict) -> str:
             f"{f['ceiling']['kind']} = {_fmt(f['ceiling']['value'])}" if f.get("ceiling") else ""
         )
         lines.append(
-            f"| {f['benchmark']} | {f['name']} | {params} | {_fmt(f['seconds'])} | {len(runs)} | "
-            f"{_fmt(spread)} | {ceiling} | {_fmt(f['ratio_to_ceiling'])} |"
+            f"| {f['benchmark']} | {f['name']} | {params} | {_fmt(f.get('seconds'))} | {len(runs)} | "
+            f"{_fmt(spread)} | {ceiling} | {_fmt(f.get('ratio_to_ceiling'))} |"
         )
     failed = [c for c in doc.get("cells", []) if c["returncode"] != 0]
     if failed:
@@ -564,7 +712,78 @@ def markdown(doc: dict) -> str:
                 f"{c['benchmark']} {' '.join(c['argv'])} (exit {c['returncode']})" for c in failed
             ),
         ]
+    fits = growth_table(doc)
+    if fits:
+        lines += [
+            "",
+            "## Growth",
+            "",
+            "Least-squares slope of log seconds against log size per series (1: linear); ± the 95 % "
+            "confidence half-width (Student t on points - 2 degrees of freedom; none from 2 points).",
+            "",
+            "| series | sizes n | exponent ± 95 % CI | points |",
+            "|---|---|---|---|",
+        ]
+        lines += [
+            f"| {label} | {', '.join(_fmt_n(n) for n in fit.sizes)} | {_fmt_fit(fit)} | "
+            f"{fit.points} |"
+            for label, fit in fits.items()
+        ]
     return "\n".join(lines) + "\n"
+
+
+class GrowthFit(NamedTuple):
+    """A growth exponent fitted to one series.
+
+    Attributes:
+      exponent: the least-squares slope of ``log t`` against ``log n``.
+      half_width: the half-width of its confidence interval (Student t on ``points - 2`` degrees
+        of freedom); None from 2 points, where a line fits exactly and says nothing of its error.
+      points: the (size, seconds) pairs the fit used (positive ones).
+      sizes: the distinct sizes among them, ascending.
+    """
+
+    exponent: float
+    half_width: float | None
+    points: int
+    sizes: tuple[float, ...]
+
+
+def growth_fit(
+    ns: Sequence[float], seconds: Sequence[float], *, confidence: float = 0.95
+) -> GrowthFit | None:
+    """Slope of ``log t`` against ``log n`` with its confidence half-width; None below 2 sizes.
+
+    The half-width is ``t_{(1+confidence)/2, m-2} · se`` with ``se² = Σr² / ((m-2) Σ(x-x̄)²)``
+    over the ``m`` points' residuals ``r`` (the textbook interval of a regression slope).
+    Non-positive sizes or times are left out.
+
+    Example:
+      >>> fit = growth_fit([1e3, 1e4, 1e5], [1e-3, 1e-1, 1e1])
+      >>> round(fit.exponent, 6), round(fit.half_width, 6), fit.points
+      (2.0, 0.0, 3)
+      >>> growth_fit([1e3, 1e4], [1e-3, 1e-2]).half_width is None
+      True
+      >>> fit = growth_fit([1, 2, 4, 8], [1.0, 2.2, 3.9, 8.3])
+      >>> round(fit.exponent, 3), round(fit.half_width, 3)
+      (0.999, 0.178)
+    """
+    if not 0 < confidence < 1:
+        raise ValueError(f"growth_fit: confidence is in (0, 1), got {confidence}")
+    used = [(n, t) for n, t in zip(ns, seconds, strict=True) if n and t and n > 0 and t > 0]
+    pts = [(math.log(n), math.log(t)) for n, t in used]
+    if len({x for x, _ in pts}) < 2:
+        return None
+    m = len(pts)
+    mx = sum(x for x, _ in pts) / m
+    my = sum(y for _, y in pts) / m
+    sxx = sum((x - mx) ** 2 for x, _ in pts)
+    slope = sum((x - mx) * (y - my) for x, y in pts) / sxx
+    half = None
+    if m > 2:
+        rss = sum((y - my - slope * (x - mx)) ** 2 for x, y in pts)
+        half = t_quantile((1 + confidence) / 2, m - 2) * math.sqrt(rss / (m - 2) / sxx)
+    return GrowthFit(slope, half, m, tuple(sorted({n for n, _ in used})))
 
 
 def growth_exponent(ns: Sequence[float], seconds: Sequence[float]) -> float | None:
@@ -574,41 +793,93 @@ def growth_exponent(ns: Sequence[float], seconds: Sequence[float]) -> float | No
       >>> round(growth_exponent([1e3, 1e4, 1e5], [1e-3, 1e-1, 1e1]), 6)
       2.0
     """
-    pts = [
-        (math.log(n), math.log(t))
-        for n, t in zip(ns, seconds, strict=True)
-        if n and t and n > 0 and t > 0
-    ]
-    if len({x for x, _ in pts}) < 2:
-        return None
-    mx = sum(x for x, _ in pts) / len(pts)
-    my = sum(y for _, y in pts) / len(pts)
-    return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
+    fit = growth_fit(ns, seconds)
+    return None if fit is None else fit.exponent
+
+
+def _t_two_sided(t: float, df: int) -> float:
+    """``P(|T| <= t)`` for Student's T with ``df`` degrees of freedom (Abramowitz & Stegun 26.7.3,
+    26.7.4: finite sums for integer ``df``)."""
+    theta = math.atan(t / math.sqrt(df))
+    c2, sin = math.cos(theta) ** 2, math.sin(theta)
+    if df % 2:
+        total, term = (math.cos(theta) if df > 1 else 0.0), math.cos(theta)
+        for k in range(1, (df - 1) // 2):
+            term *= c2 * (2 * k) / (2 * k + 1)
+            total += term
+        return 2 / math.pi * (theta + sin * total)
+    total, term = 1.0, 1.0
+    for k in range(1, df // 2):
+        term *= c2 * (2 * k - 1) / (2 * k)
+        total += term
+    return sin * total
+
+
+def t_quantile(p: float, df: int) -> float:
+    """The ``p`` quantile (``p >= 0.5``) of Student's t with ``df`` degrees of freedom, by bisection
+    on the exact distribution function (no SciPy in the runner).
+
+    Example:
+      >>> [round(t_quantile(0.975, df), 3) for df in (1, 2, 3, 10, 30)]
+      [12.706, 4.303, 3.182, 2.228, 2.042]
+    """
+    if not 0.5 <= p < 1 or df < 1:
+        raise ValueError(f"t_quantile: needs 0.5 <= p < 1 and df >= 1, got p={p}, df={df}")
+    level = 2 * p - 1  # P(|T| <= t)
+    lo, hi = 0.0, 1.0
+    while _t_two_sided(hi, df) < level:
+        lo, hi = hi, 2 * hi
+    for _ in range(200):
+        mid = (lo + hi) / 2
+        if _t_two_sided(mid, df) < level:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-12 * hi:
+            break
+    return (lo + hi) / 2
+
+
+def _fmt_fit(fit: GrowthFit) -> str:
+    if fit.half_width is None:
+        return f"{fit.exponent:.2f} (2 points: no interval)"
+    return f"{fit.exponent:.2f} ± {fit.half_width:.2f}"
+
+
+def _series_label(fig: dict) -> str:
+    rest = [f"{k}={v}" for k, v in fig["params"].items() if k not in _NOT_SERIES and v is not None]
+    return f"{fig['benchmark']}: {fig['name']}" + (f" ({', '.join(rest)})" if rest else "")
 
 
 def _series(doc: dict) -> dict[str, list[tuple[float, float]]]:
-    """Timed figures grouped by everything but size: ``label -> [(n, seconds), ...]``."""
+    """Timed figures with a size grouped by :func:`series_key`: ``label -> [(n, seconds), ...]``
+    (figures without a size are :func:`unsized_figures`'s business)."""
     series: dict[str, list[tuple[float, float]]] = {}
+    labels: dict[str, str] = {}
     for f in doc["figures"]:
         if f["seconds"] is None or not f["params"].get("n"):
             continue
-        rest = {
-            k: v
-            for k, v in f["params"].items()
-            if k not in ("n", "size")
-            and v is not None
-            and k not in ("bound", "what", "table", "source")
-        }
-        label = f"{f['benchmark']}: {f['name']}" + (
-            f" ({', '.join(f'{k}={v}' for k, v in rest.items())})" if rest else ""
-        )
+        label = labels.setdefault(series_key(f), _series_label(f))
         series.setdefault(label, []).append((float(f["params"]["n"]), f["seconds"]))
     return series
 
 
+def growth_table(doc: dict) -> dict[str, GrowthFit]:
+    """:func:`growth_fit` of every series of the sweep with at least two sizes, by series label.
+
+    Example:
+      >>> fig = lambda n, t: {"benchmark": "op", "name": "fwd", "params": {"n": n}, "seconds": t}
+      >>> fits = growth_table({"figures": [fig(1e3, 1.0), fig(2e3, 2.0), fig(4e3, 4.0), fig(500, None)]})
+      >>> [(label, round(f.exponent, 6), f.points) for label, f in fits.items()]
+      [('op: fwd', 1.0, 3)]
+    """
+    fits = {label: growth_fit(*zip(*pts, strict=True)) for label, pts in _series(doc).items()}
+    return {label: fit for label, fit in fits.items() if fit is not None}
+
+
 def plot(doc: dict, out: pathlib.Path) -> list[pathlib.Path]:
-    """``scaling.png``: log–log time against size per operator with its fitted growth exponent;
-    ``ceiling.png``: bars of the fraction of the ceiling each figure reached."""
+    """``scaling.png``: log–log time against size per series with its fitted growth exponent ± its
+    95 % confidence half-width (the Growth table of :func:`markdown`); ``ceiling.png``: bars of the fraction of the ceiling each figure reached."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -627,9 +898,9 @@ def plot(doc: dict, out: pathlib.Path) -> list[pathlib.Path]:
                 if label.split(":")[0] != bench:
                     continue
                 ns, ts = zip(*pts, strict=True)
-                k = growth_exponent(ns, ts)
-                fit = "" if k is None else f"  (n^{k:.2f})"
-                ax.loglog(ns, ts, "o-", label=f"{label.split(': ', 1)[1]}{fit}")
+                fit = growth_fit(ns, ts)
+                text = "" if fit is None else f"  (n^{_fmt_fit(fit)}, {fit.points} points)"
+                ax.loglog(ns, ts, "o-", label=f"{label.split(': ', 1)[1]}{text}")
             ax.set_title(bench)
             ax.set_xlabel("size n")
             ax.set_ylabel("seconds")

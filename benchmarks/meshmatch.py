@@ -71,7 +71,7 @@ import warnings
 
 import jax
 import numpy as np
-from _harness import Report
+from _harness import Report, Size, size_label
 from scipy.spatial import cKDTree
 
 from jmeshtex import Mesh
@@ -719,7 +719,7 @@ def main() -> None:
             f"(CPU {it_cpu:.3f} s), total {total:.1f} s (+ preprocessing), PSNR {quality:.1f} dB, {compiles} compiled step shapes, "
             f"per level s {per_level}, iterations {iters}"
         )
-        label = f"{len(tv) // 1000}K"
+        label = Size(size_label(len(tv)), vertices=len(tv))
         load = round(os.getloadavg()[0], 1)
         report.add(
             name="preprocessing (hierarchies, HKS, tracer tables)",

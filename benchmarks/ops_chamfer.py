@@ -26,7 +26,7 @@ import argparse
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _harness import Report, time_jax
+from _harness import Report, Size, size_label, time_jax
 
 from jmeshtex.ops import chamfer_distance
 
@@ -49,7 +49,7 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="results folder (default benchmarks/results)")
     args = ap.parse_args()
     N = M = args.points
-    size = f"{N // 1000}K x {M // 1000}K"
+    size = Size(f"{size_label(N)} x {size_label(M)}", points=N)
 
     report = Report("ops_chamfer")
     p = sphere_points(N, jax.random.key(0))

@@ -23,7 +23,7 @@ import argparse
 
 import jax
 import jax.numpy as jnp
-from _harness import Report, roofline, time_host, time_jax
+from _harness import Report, Size, roofline, size_label, time_host, time_jax
 
 from jmeshtex.data import icosphere
 from jmeshtex.geometry import face_neighborhood
@@ -72,7 +72,7 @@ def main() -> None:
     for s in args.sizes:
         v, f = icosphere(s)
         F = len(f)
-        size = f"{F // 1000}K faces"
+        size = Size(f"{size_label(F)} faces", faces=F)
         t_host = time_host(face_neighborhood, f, repeats=2)
         report.add(
             name="face_neighborhood (host, NumPy)", size=size, seconds=t_host.run_s, bound="host"

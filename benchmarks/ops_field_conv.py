@@ -50,7 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _harness import Report, time_jax  # noqa: E402
+from _harness import Report, Size, size_label, time_jax  # noqa: E402
 
 from jmeshtex.geometry import VertexNeighborhood  # noqa: E402
 from jmeshtex.ops import (  # noqa: E402
@@ -102,7 +102,7 @@ def run(sizes, activations, repeats: int, hidden_layers=(1, 2)) -> Report:
         cot = jax.random.normal(jax.random.key(2), (v, D), jnp.complex64)
         gemm_flops = 8.0 * v * C * H * D
         evals = float(v * K * C * H)
-        size = f"{v // 1000}K"
+        size = Size(size_label(v), vertices=v)
         for act, layers in [(a, n) for n in hidden_layers for a in activations]:
             params = init_field_conv(jax.random.key(0), C, D, hdim=H, hidden_layers=layers)
             label = f"{act}" + ("" if layers == 1 else ", 2 hidden")
@@ -216,7 +216,7 @@ def side_by_side(sizes, repeats: int, report: Report | None = None) -> Report:
             nb = synthetic_nbhd(v)
             x = jax.random.normal(jax.random.key(1), (v, c), jnp.complex64)
             cot = jax.random.normal(jax.random.key(2), (v, c), jnp.complex64)
-            size = f"{v // 1000}K"
+            size = Size(size_label(v), vertices=v)
             ref_args = (
                 two.filter_weight,
                 two.filter_bias,

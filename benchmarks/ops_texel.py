@@ -24,7 +24,7 @@ import argparse
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _harness import Report, roofline, time_jax
+from _harness import Report, Size, roofline, size_label, time_jax
 
 from jmeshtex.ops import TexelNeighborhood, grouped_pool, image_pool_groups, texel_conv
 
@@ -64,7 +64,7 @@ def main() -> None:
     args = ap.parse_args()
     S, C = args.size, args.channels
     D, N, J = C, S * S, 4
-    size = f"{S}x{S} ({N // 1000}K texels), {C}->{D}"
+    size = Size(f"{S}x{S} ({size_label(N)} texels), {C}->{D}", texels=N)
 
     report = Report("ops_texel")
     key = jax.random.key(0)

@@ -34,7 +34,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _harness import Report, time_jax
+from _harness import Report, Size, size_label, time_jax
 
 from jmeshtex import Mesh
 from jmeshtex.data import torus
@@ -180,7 +180,7 @@ def main() -> None:
 
     v, f, uv, tex = textured_torus(args.faces)
     cam = orbit_cameras((v, f), azimuths=[-60.0], elevations=(25.0,), size=(512, 512))[0]
-    label = f"{len(f) / 1000:.0f}K faces, 512² (1024² samples)"
+    label = Size(f"{size_label(len(f))} faces, 512² (1024² samples)", faces=len(f))
     wall, cpu = wall_cpu(lambda: rasterize(v, f, cam, supersample=s))
     report.add(name="visibility (NumPy z-buffer)", size=label, seconds=wall, cpu_s=cpu)
     vis_wall = wall
@@ -228,7 +228,10 @@ def main() -> None:
     old_matplotlib(ov, of, colors)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     row = dict(
-        name="old matplotlib path", size=f"{len(of) // 1000}K faces, 512²", seconds=wall, cpu_s=cpu
+        name="old matplotlib path",
+        size=Size(f"{size_label(len(of))} faces, 512²", faces=len(of)),
+        seconds=wall,
+        cpu_s=cpu,
     )
     if len(of) != len(f):
         row["projected_100K_s"] = wall * len(f) / len(of)
@@ -251,7 +254,7 @@ def main() -> None:
         t2 = time_jax(lambda *a: shade(*a, **kw2), *a2, repeats=2, min_time=0.0)  # noqa: B023
         report.add(
             name="scaling: faces",
-            size=f"{len(mf) // 1000}K faces, 512²",
+            size=Size(f"{size_label(len(mf))} faces, 512²", faces=len(mf)),
             seconds=vwall + t2.run_s,
             visibility_s=vwall,
             visibility_cpu_s=vcpu,
@@ -267,7 +270,7 @@ def main() -> None:
         t2 = time_jax(lambda *a: shade(*a, **kw2), *a2, repeats=2, min_time=0.0)  # noqa: B023
         report.add(
             name="scaling: pixels",
-            size=f"{len(f) // 1000}K faces, {px}²",
+            size=Size(f"{size_label(len(f))} faces, {px}²", pixels=px * px),
             seconds=vwall + t2.run_s,
             visibility_s=vwall,
             visibility_cpu_s=vcpu,
