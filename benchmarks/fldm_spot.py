@@ -266,7 +266,7 @@ def eval_stage(ctx: Context, step: int | None) -> None:
     from jmeshtex.fldm import _statistics as st
     from jmeshtex.fldm.core import denoiser_geometry, sampling_geometry
     from jmeshtex.geometry import fill_unused_texels
-    from jmeshtex.metrics import gram_distance, load_vgg16, lpips
+    from jmeshtex.metrics import flat_baseline, gram_distance, load_vgg16, lpips
     from jmeshtex.render import render_grid
 
     args, cfg, run, spot = ctx.args, ctx.cfg, ctx.run, ctx.spot
@@ -343,13 +343,13 @@ def eval_stage(ctx: Context, step: int | None) -> None:
     tex = {src: atlases(zs) for src, zs in fields.items()}
     # the masked best constant: the mean colour over the texels the atlas uses (the flat colour
     # that minimises the squared error over the rendered surface's texels)
-    valid = fldm.decode_samples(ctx.vae, target, recon[None], size=run["atlas"])[0]["valid"]
-    from PIL import Image
-
-    full = np.asarray(
-        Image.fromarray(np.asarray(spot.texture[..., :3])).resize((run["atlas"], run["atlas"]))
+    valid = np.asarray(
+        fldm.decode_samples(ctx.vae, target, recon[None], size=run["atlas"])[0]["valid"]
     )
-    flat = full.reshape(-1, 3)[np.asarray(valid).reshape(-1)].mean(0)
+    full = np.asarray(spot.texture[..., :3])
+    rows = np.arange(valid.shape[0]) * full.shape[0] // valid.shape[0]
+    cols = np.arange(valid.shape[1]) * full.shape[1] // valid.shape[1]
+    flat = flat_baseline(full[rows][:, cols], mask=valid)[valid][0]
     tex["masked flat colour"] = [np.broadcast_to(flat, (8, 8, 3)).astype(full.dtype)]
     stage("decode", t0, c0)
     t0, c0 = time.perf_counter(), _cpu()
