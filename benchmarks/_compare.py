@@ -82,6 +82,7 @@ def compare(
     timed_old = [f for f in old["figures"] if f.get("seconds")]
     before: dict[str, list[dict]] = {}
     by_series: dict[str, list[tuple[float, dict]]] = {}
+    old_series = {series_key(f) for f in timed_old}
     for f in timed_old:
         before.setdefault(figure_key(f), []).append(f)
         if f["params"].get("n") and f["params"]["n"] > 0:
@@ -102,10 +103,12 @@ def compare(
         if exact:
             o = exact[0]
             row.update(match="exact", old=o["seconds"], old_spread=_spread(o.get("runs") or []))
-        elif series_key(f) not in by_series:
+        elif series_key(f) not in old_series:
             row["reason"] = "series not in OLD"
         elif not n or n <= 0:
             row["reason"] = "size unknown"
+        elif series_key(f) not in by_series:
+            row["reason"] = "OLD has this series only at sizes it could not determine"
         else:
             found = _interpolate(by_series[series_key(f)], float(n))
             if isinstance(found, str):

@@ -356,6 +356,13 @@ def test_compare_interpolates_over_size_and_never_extrapolates():
     (row,), _ = _compare.compare(old, {"figures": [shifted]})
     assert row["match"] == "interpolated" and row["old_sizes"] == (10000, 100000)
 
+    # an OLD written before sizes were recorded ("0K": unknown) and a NEW figure without a size
+    unsized_old = {"figures": [{**_fig("fwd", 500, 1.0), "params": {"size": "0K", "n": None}}]}
+    (row,), _ = _compare.compare(unsized_old, {"figures": [_fig("fwd", 500, 1.0)]})
+    assert row["match"] is None and "could not determine" in row["reason"]
+    (row,), _ = _compare.compare(old, {"figures": [{**_fig("fwd", 500, 1.0), "params": {}}]})
+    assert row["match"] is None and row["reason"] == "size unknown"
+
 
 def test_compare_a_local_sweep_with_the_committed_baseline(tmp_path):
     """A sweep at other sizes than the committed ``results/ops_face_conv.json`` (its rows carry no
