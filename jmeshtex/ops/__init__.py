@@ -37,6 +37,8 @@ from ._filter_response_norm import filter_response_norm as filter_response_norm
 from ._filter_response_norm import init_frn as init_frn
 from ._gram import gram_matrix as gram_matrix
 from ._layer_norm import complex_layer_norm as complex_layer_norm
+from ._lift import tangent_gradient as tangent_gradient
+from ._lift import tangent_invariants as tangent_invariants
 from ._noise import tangent_noise as tangent_noise
 from ._numerics import complex_dtype as complex_dtype
 from ._numerics import conjugate_complex_grads as conjugate_complex_grads
