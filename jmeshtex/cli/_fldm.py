@@ -193,7 +193,9 @@ def _train(args) -> int:
     res = train(
         data, config, key=k_train, checkpoint_dir=out / "checkpoints", progress=not args.quiet
     )
-    save(res.model, out)
+    from ..fldm._model import model_card
+
+    save(res.model, out, card=model_card(res))
     meta = {
         "mesh": args.mesh,
         "texture": args.texture,

@@ -42,8 +42,13 @@ def tiny_config(quick: bool = True):
 
     if quick:
         return Config.demo()
-    return Config.cpu(
-        latent_channels=2, n_copies=8, copy_vertices=1500, steps=1500, diffusion_steps=1000
+    return Config.cpu(  # the stripe codec is deterministic: one encoding per copy
+        latent_channels=2,
+        n_copies=8,
+        copy_vertices=1500,
+        steps=1500,
+        diffusion_steps=1000,
+        encodings_per_copy=1,
     )
 
 
