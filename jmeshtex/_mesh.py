@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -101,3 +102,47 @@ def as_mesh(mesh: Mesh | tuple, *, what: str = "mesh") -> Mesh:
         f"{what} must be a jmeshtex.Mesh or a (vertices, faces) pair, got {type(mesh).__name__}"
         " (load a file with jmeshtex.io.load_mesh, or build one with jmeshtex.data)"
     )
+
+
+def accepts_mesh(fn):
+    """Let a host function of ``(vertices, faces, ...)`` take a :class:`Mesh` in their place.
+
+    ``f(mesh, ...)`` is ``f(mesh.vertices, mesh.faces, ...)``; a call with arrays is unchanged.
+    (A bare ``(vertices, faces)`` tuple is not unpacked here: write ``f(*pair)``.)
+
+    Example:
+      >>> @accepts_mesh
+      ... def count(vertices, faces, scale=1):
+      ...     return scale * (len(vertices) + len(faces))
+      >>> mesh = Mesh(np.eye(3), np.array([[0, 1, 2]]))
+      >>> count(mesh, scale=2), count(mesh.vertices, mesh.faces)
+      (8, 4)
+    """
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        if args and isinstance(args[0], Mesh):
+            args = (args[0].vertices, args[0].faces, *args[1:])
+        return fn(*args, **kwargs)
+
+    return wrapper
+
+
+def accepts_mesh_faces(fn):
+    """Let a host function of ``(faces, num_vertices, ...)`` take a :class:`Mesh` in their place.
+
+    Example:
+      >>> @accepts_mesh_faces
+      ... def unused(faces, num_vertices):
+      ...     return num_vertices - len(np.unique(faces))
+      >>> unused(Mesh(np.zeros((4, 3)), np.array([[0, 1, 2]])))
+      1
+    """
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        if args and isinstance(args[0], Mesh):
+            args = (args[0].faces, len(args[0].vertices), *args[1:])
+        return fn(*args, **kwargs)
+
+    return wrapper

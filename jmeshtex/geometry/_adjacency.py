@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._errors import InconsistentOrientationError, NonManifoldEdgeError, NonManifoldVertexError
+from .._mesh import accepts_mesh_faces
 from .._neighborhoods import FaceNeighborhood
 
 
@@ -76,6 +77,7 @@ def _halfedge_table(faces: np.ndarray, num_vertices: int):
     return sk, order
 
 
+@accepts_mesh_faces
 def face_neighborhood(faces: np.ndarray, num_vertices: int | None = None) -> FaceNeighborhood:
     """Face adjacency across each edge, plus vertex→face incidence, as a padded pytree.
 
@@ -145,6 +147,7 @@ def _vertex_faces(faces: np.ndarray, V: int):
     return vf, vc, vm
 
 
+@accepts_mesh_faces
 def one_rings(faces: np.ndarray, num_vertices: int | None = None) -> OneRings:
     """Counter-clockwise ordered one-rings of every vertex, boundary-aware, fully vectorised.
 
@@ -231,6 +234,7 @@ def one_rings(faces: np.ndarray, num_vertices: int | None = None) -> OneRings:
     return OneRings(ring, mask, wedge_faces, wedge_mask, degree.astype(np.int32), boundary)
 
 
+@accepts_mesh_faces
 def boundary_edges(faces: np.ndarray, num_vertices: int | None = None) -> np.ndarray:
     """``[B, 2]`` directed boundary half-edges (their face lies to the left).
 
@@ -247,6 +251,7 @@ def boundary_edges(faces: np.ndarray, num_vertices: int | None = None) -> np.nda
     return np.stack([p[twin < 0], a[twin < 0]], axis=1)
 
 
+@accepts_mesh_faces
 def boundary_loops(faces: np.ndarray, num_vertices: int | None = None) -> list[np.ndarray]:
     """Boundary loops as arrays of vertex indices, each in the direction of its half-edges.
 
@@ -272,6 +277,7 @@ def boundary_loops(faces: np.ndarray, num_vertices: int | None = None) -> list[n
     return loops
 
 
+@accepts_mesh_faces
 def connected_components(faces: np.ndarray, num_vertices: int | None = None) -> np.ndarray:
     """Component label of every face (faces connected through shared vertices), ``[F]``.
 

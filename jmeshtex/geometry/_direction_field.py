@@ -22,6 +22,7 @@ from scipy.sparse.linalg import splu
 
 from .._config import is_int
 from .._errors import InputError
+from .._mesh import accepts_mesh
 from .._types import Float, Int
 from ._frames import tangent_frames, tangent_from_3d, tangent_to_3d
 from ._intrinsic import check_mesh, corner_angles, edge_lengths, face_areas, vertex_areas
@@ -86,6 +87,7 @@ def _face_normals(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return cross / np.where(double_area > 0, double_area, 1.0)[:, None], 0.5 * double_area
 
 
+@accepts_mesh
 def global_direction_field(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],
@@ -135,6 +137,7 @@ def global_direction_field(
     return project_direction(total, normal, primary=primary, secondary=secondary)
 
 
+@accepts_mesh
 def connection_laplacian(
     vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
 ) -> tuple[sp.csr_matrix, Float[np.ndarray, " V"]]:
@@ -177,6 +180,7 @@ def connection_laplacian(
     return (D - A).tocsr(), area
 
 
+@accepts_mesh
 def smoothest_direction_field(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._mesh import accepts_mesh, accepts_mesh_faces
 from .._types import Float, Int
 
 
+@accepts_mesh_faces
 def unique_edges(
     faces: Int[np.ndarray, "F 3"], num_vertices: int | None = None, *, face_edges: bool = False
 ) -> Int[np.ndarray, "E 2"] | tuple[Int[np.ndarray, "E 2"], Int[np.ndarray, "F 3"]]:
@@ -32,6 +34,7 @@ def unique_edges(
     return (edges, inverse.reshape(f.shape)) if face_edges else edges
 
 
+@accepts_mesh
 def mean_edge_length(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]) -> float:
     """Mean length of the mesh's undirected edges (each edge counted once, boundary edges included).
 

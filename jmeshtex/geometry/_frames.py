@@ -20,12 +20,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._mesh import accepts_mesh
 from .._neighborhoods import TangentFrames
 from .._types import ArrayLike, Complex, Float, Int
 from ._adjacency import one_rings
 from ._intrinsic import check_mesh, corner_angles, edge_lengths
 
 
+@accepts_mesh
 def tangent_frames(
     vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
 ) -> TangentFrames:

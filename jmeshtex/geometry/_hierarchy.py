@@ -49,6 +49,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from .._config import is_int
 from .._errors import ConfigError, DecimationError, InputError
+from .._mesh import accepts_mesh
 from .._neighborhoods import PoolingMap, VertexNeighborhood
 from .._types import Float, Int
 from ._adjacency import one_rings
@@ -102,6 +103,7 @@ class _Level(NamedTuple):
     tr: np.ndarray  # [E] rho^0_{b->a}
 
 
+@accepts_mesh
 def mesh_hierarchy(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],

@@ -16,6 +16,7 @@ import numpy as np
 
 from .._config import is_int
 from .._errors import InputError
+from .._mesh import accepts_mesh
 from .._types import ArrayLike, Float, Int
 from ._validate import check_mesh_arrays
 
@@ -39,6 +40,7 @@ class LaplacianEigenpairs(NamedTuple):
     mass: Float[ArrayLike, " V"]
 
 
+@accepts_mesh
 def laplacian_eigenpairs(
     vertices: Float[ArrayLike, "V 3"],
     faces: Int[ArrayLike, "F 3"],
@@ -143,6 +145,7 @@ def hks_times(values: Float[ArrayLike, " k"], *, num: int = 8) -> Float[ArrayLik
     return np.geomspace(4 * np.log(10) / nonzero.max(), 4 * np.log(10) / nonzero.min(), num)
 
 
+@accepts_mesh
 def heat_kernel_signature(
     vertices: Float[ArrayLike, "V 3"],
     faces: Int[ArrayLike, "F 3"],

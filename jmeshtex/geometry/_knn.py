@@ -28,6 +28,7 @@ import numpy as np
 
 from .._config import is_int
 from .._errors import InputError
+from .._mesh import accepts_mesh
 from .._neighborhoods import VertexNeighborhood
 from .._types import Float, Int
 from ._intrinsic import check_mesh, edge_lengths
@@ -36,6 +37,7 @@ from ._log_map import _neighborhood_from_lengths, apply_scale, check_scale
 _INF = np.iinfo(np.int64).max // 4
 
 
+@accepts_mesh
 def geodesic_knn_neighborhood(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],

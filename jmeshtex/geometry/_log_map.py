@@ -28,6 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._errors import DegenerateFaceError, InputError
+from .._mesh import accepts_mesh
 from .._neighborhoods import VertexNeighborhood, scale_log_maps
 from .._types import Float, Int
 from ._adjacency import OneRings, one_rings
@@ -57,6 +58,7 @@ class OneRingAngles(NamedTuple):
     scale: Float[np.ndarray, " V"]
 
 
+@accepts_mesh
 def one_ring_angles(
     vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
 ) -> OneRingAngles:
@@ -88,6 +90,7 @@ def one_ring_angles(
     return _angles_from_lengths(f, edge_lengths(v, f), len(v))
 
 
+@accepts_mesh
 def one_ring_neighborhood(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._mesh import accepts_mesh
 from .._types import Float, Int
 
 _WEIGHTINGS = ("area", "angle")
 
 
+@accepts_mesh
 def vertex_normals(
     vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"], *, weighting: str = "area"
 ) -> Float[np.ndarray, "V 3"]:

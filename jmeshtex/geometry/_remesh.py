@@ -35,7 +35,7 @@ import numpy as np
 
 from .._config import is_int
 from .._errors import ConfigError, DecimationError, InputError
-from .._mesh import Mesh
+from .._mesh import Mesh, accepts_mesh
 from .._random import check_key, host_rng
 from .._types import Float, Int
 from ._edges import unique_edges
@@ -80,6 +80,7 @@ def _decimate_to(v: np.ndarray, f: np.ndarray, target: int) -> tuple[np.ndarray,
     return coarse.index, coarse.faces
 
 
+@accepts_mesh
 def surface_correspondence(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],

@@ -11,6 +11,7 @@ from jaxtyping import Float, Int, Shaped
 
 from .._config import is_int
 from .._errors import EmptyMeshError, FaceIndexError, InputError, NonTriangleFaceError
+from .._mesh import accepts_mesh
 from .._random import check_key, host_rng
 from .._types import ArrayLike
 
@@ -42,6 +43,7 @@ def _generator(key, rng) -> np.random.Generator:
     return host_rng(check_key(key))
 
 
+@accepts_mesh
 def sample_surface(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],

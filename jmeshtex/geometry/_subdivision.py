@@ -15,6 +15,7 @@ import numpy as np
 from .._errors import (
     InputError,
 )
+from .._mesh import accepts_mesh
 from .._types import ArrayLike, Float, Int
 from ._edges import mean_edge_length, unique_edges
 from ._validate import check_mesh_arrays
@@ -60,6 +61,7 @@ class Subdivision(NamedTuple):
         return np.concatenate([values, mids.astype(values.dtype, copy=False)])
 
 
+@accepts_mesh
 def subdivide_midpoint(
     vertices: Float[ArrayLike, "V 3"], faces: Int[ArrayLike, "F 3"]
 ) -> Subdivision:
@@ -141,6 +143,7 @@ def subdivide_uv(uv: Float[ArrayLike, "F 3 2"]) -> Float[ArrayLike, "4*F 3 2"]:
     )
 
 
+@accepts_mesh
 def rescale_to_mean_edge(
     vertices: Float[ArrayLike, "V 3"], faces: Int[ArrayLike, "F 3"], target: float = 1.0
 ) -> tuple[Float[ArrayLike, "V 3"], float]:
