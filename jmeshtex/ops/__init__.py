@@ -22,6 +22,7 @@ from ._face_conv import face_conv_stack as face_conv_stack
 from ._face_conv import face_edge_embed as face_edge_embed
 from ._face_conv import face_features as face_features
 from ._face_conv import face_to_vertex_displacement as face_to_vertex_displacement
+from ._face_conv import init_face_conv as init_face_conv
 from ._face_conv import init_face_conv_stack as init_face_conv_stack
 from ._face_conv import instance_norm as instance_norm
 from ._field_conv import FieldConvParams as FieldConvParams

@@ -401,6 +401,30 @@ def init_face_conv_stack(
     )
 
 
+def init_face_conv(
+    key: PRNGKey, in_features: int, out_features: int, *, dtype=jnp.float32
+) -> FaceConvParams:
+    """Random parameters of one :func:`face_conv` layer (PyTorch ``Conv1d`` default, as the stack's).
+
+    Weights and bias from ``U(-1/√(2C), 1/√(2C))`` for ``C = in_features`` (the layer sees
+    ``[x_j ; x_f]``).
+
+    Example:
+      >>> p = init_face_conv(jax.random.key(0), 8, 3)
+      >>> p.weight.shape, p.bias.shape
+      ((16, 3), (3,))
+    """
+    for name, value in (("in_features", in_features), ("out_features", out_features)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise InputError(f"init_face_conv: {name} must be a positive integer, got {value!r}")
+    bound = 1.0 / math.sqrt(2 * in_features)
+    k_w, k_b = jax.random.split(key)
+    return FaceConvParams(
+        jax.random.uniform(k_w, (2 * in_features, out_features), dtype, -bound, bound),
+        jax.random.uniform(k_b, (out_features,), dtype, -bound, bound),
+    )
+
+
 def face_to_vertex_displacement(
     d: Float[ArrayLike, "F 3"], vertices: Float[ArrayLike, "V 3"], nbhd: FaceNeighborhood
 ) -> Float[Array, "V 3"]:

@@ -482,3 +482,22 @@ def test_bad_input_raises_typed_errors(rng):
         _disp(jnp.ones((len(f), 2)), jnp.asarray(v), nb)
     with pytest.raises(InputError, match="positive widths"):
         init_face_conv_stack(jax.random.key(0), ())
+
+
+def test_one_layer_init_is_the_stacks_layer_and_checks_its_widths():
+    import jax
+    import pytest
+
+    from jmeshtex import InputError
+    from jmeshtex.data import icosphere
+    from jmeshtex.geometry import face_neighborhood
+    from jmeshtex.ops import face_conv, init_face_conv
+
+    mesh = icosphere(1)
+    params = init_face_conv(jax.random.key(0), 5, 3)
+    x = jax.random.normal(jax.random.key(1), (mesh.num_faces, 5))
+    assert face_conv(x, face_neighborhood(mesh), params).shape == (mesh.num_faces, 3)
+    bound = 1 / (2 * 5) ** 0.5  # Conv1d's default on [x_j ; x_f]
+    assert 0.5 * bound < float(abs(params.weight).max()) <= bound
+    with pytest.raises(InputError, match="out_features must be a positive integer"):
+        init_face_conv(jax.random.key(0), 5, 0)
