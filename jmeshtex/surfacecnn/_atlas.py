@@ -456,3 +456,44 @@ def image_to_texels(
     row, col = atlas.rows_cols()
     centre = np.stack([(col + 0.5) / atlas.size, 1.0 - (row + 0.5) / atlas.size], axis=1)
     return sample_texture(image.astype(np.float64), centre)
+
+
+def texel_density_spread(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    uv: Float[np.ndarray, "F 3 2"],
+) -> dict[str, float]:
+    """How much the world size of a texel varies over a UV layout (1 = an even texel density).
+
+    Every face with a non-degenerate UV triangle has the scale ``sqrt(area_3D / area_UV)``; the
+    spread is the ratio of its 95th to its 5th percentile over the surface (area-weighted), and of
+    its largest to its smallest value. An xatlas unwrap (:func:`~jmeshtex.surfacecnn.unwrap_uv`)
+    keeps it near 1.
+
+    Returns:
+      ``{"ratio_p95_p5": r, "ratio_max_min": r, "degenerate_share": share of faces skipped}``.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> v, f = grid(2)
+      >>> uv = v[f][..., :2].copy()
+      >>> uv[:4] *= 0.5                                # two of the 8 faces drawn at half size
+      >>> texel_density_spread(v, f, uv)["ratio_max_min"]
+      2.0
+    """
+    tri = np.asarray(vertices, np.float64)[np.asarray(faces)]
+    area3 = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    area2 = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    ok = (area2 > 1e-14 * max(float(area2.max(initial=0.0)), 1e-300)) & (area3 > 0)
+    if not ok.any():
+        raise InputError("texel_density_spread: every UV triangle is degenerate; give real UVs")
+    scale = np.sqrt(area3[ok] / area2[ok])
+    order = np.argsort(scale)
+    cum = np.cumsum(area3[ok][order]) / area3[ok].sum()
+    p5, p95 = scale[order][np.searchsorted(cum, [0.05, 0.95])]
+    return {
+        "ratio_p95_p5": float(p95 / p5),
+        "ratio_max_min": float(scale.max() / scale.min()),
+        "degenerate_share": float(1.0 - ok.mean()),
+    }

@@ -140,6 +140,40 @@ class Config(ConfigBase):
         rule("content_layer", lambda x: x in LAYER_NAMES, "a VGG layer name ('relu4_2', ...)"),
     )
 
+    @classmethod
+    def paper(cls, **changes) -> Config:
+        """The paper's scale: 1024² texels, 500 steps, every ReLU and pool output (Kovács et al.
+        2024, Sec. 6; pass ``network="vgg19", weights_path=...`` for its network).
+
+        Example:
+          >>> c = Config.paper()
+          >>> c.size, c.steps, c.layers
+          (1024, 500, None)
+        """
+        return cls(**{**dict(size=1024, steps=500, layers=None), **changes})
+
+    @classmethod
+    def cpu(cls, **changes) -> Config:
+        """The CPU preset (the defaults): 512² texels, 500 steps, every ReLU and pool output; time
+        per step in ``benchmarks/results/surfacecnn.md``.
+
+        Example:
+          >>> Config.cpu() == Config()
+          True
+        """
+        return cls(**{**dict(size=512, steps=500, layers=None), **changes})
+
+    @classmethod
+    def tiny(cls, **changes) -> Config:
+        """Tests and doctests: 16² texels, 3 steps, the Gram of ``relu1_1`` and ``pool1`` only.
+
+        Example:
+          >>> c = Config.tiny()
+          >>> c.size, c.steps, c.layers
+          (16, 3, ('relu1_1', 'pool1'))
+        """
+        return cls(**{**dict(size=16, steps=3, layers=("relu1_1", "pool1")), **changes})
+
     def learning_rate_at(self, step: int) -> float:
         """The learning rate of (0-based) step ``step``: halved after every ``halve_every`` steps."""
         return float(self.learning_rate * 0.5 ** (step // self.halve_every))

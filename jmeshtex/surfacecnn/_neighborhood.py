@@ -14,6 +14,15 @@ UV then names the texels the tap reads:
 If neither finds a valid texel (rounding on a chart border), the valid bilinear corner with the
 largest weight is used, else the centre texel. The centre tap reads the texel itself.
 
+**Coupling** (``couple=True``). A chart-border texel whose centre lies outside its UV triangle
+covers only a sliver of its chart, and the walks that pass over it continue into the next chart, so
+often no tap ends in it: read by no other texel, its colour reaches the Gram loss only through its
+own feature rows and drifts to saturated noise (specks along every seam). Such a texel takes over
+the nearest read of the tap whose bilinear corners weight it most (that tap ends within one texel of
+its centre), as long as the texel the tap read keeps another reader; a texel without such a tap
+takes over, in both samplings, the tap of an image 8-neighbour that ends nearest to its centre in
+UV. :func:`unread_share` reports the texels still unread (0 on the meshes tested).
+
 **Failed walks.** A walk that reaches a mesh boundary before its full length stops there
 (``stopped``). Its tap then reads what the opposite tap (``8 − t``) reads if that walk succeeded,
 else the centre (``boundary="opposite"``, the reference tool's rule and
@@ -50,12 +59,17 @@ class TexelTaps(NamedTuple):
       nearest: :class:`~jmeshtex.TexelNeighborhood` with ``J = 1`` (later convolutions).
       end_uv: ``[N, 9, 2]`` float64 UV of every tap's end point (the texel's own centre UV for tap 4).
       stopped: ``[N, 9]`` bool, True where the walk hit a mesh boundary.
+      tie: ``(index [N, K], weight [N, K])`` or None: the colour every texel shows, as a convex
+        combination of texel colours (identity rows for free texels; :func:`border_ties`). The
+        bilinear taps already read through it; apply it to the optimised colours with
+        :func:`apply_tie`.
     """
 
     bilinear: TexelNeighborhood
     nearest: TexelNeighborhood
     end_uv: Float[np.ndarray, "N 9 2"]
     stopped: Bool[np.ndarray, "N 9"]
+    tie: tuple[Int[np.ndarray, "N K"], Float[np.ndarray, "N K"]] | None = None
 
 
 def trace_taps(
@@ -231,6 +245,7 @@ def texel_taps(
     *,
     boundary: str = "zero",
     rotation: float | Float[np.ndarray, " N"] = 0.0,
+    couple: bool = True,
     geometry: TracerGeometry | None = None,
 ) -> TexelTaps:
     """The 3×3 exp-map neighbourhood of every valid texel, as bilinear and as nearest taps.
@@ -244,6 +259,9 @@ def texel_taps(
         boundary reads (module docstring).
       rotation: turn every texel's tap frame by this angle (radians, scalar or ``[N]``); 0 keeps the
         atlas frame. Turning by π/2 reads the texture rotated by 90° (the gauge check).
+      couple: True (default) so that every texel is read by another texel's taps: chart-border
+        texels that no walk ends in take over nearby taps (module docstring; measured in
+        ``benchmarks/results/surfacecnn_seams.md``); False keeps the pure geometric reads.
       geometry: tracer tables (:func:`~jmeshtex.geometry.tracer_geometry`).
 
     Returns:
@@ -288,15 +306,249 @@ def texel_taps(
         index, weight, nearest = index[rows, source], weight[rows, source], nearest[rows, source]
     off = stopped if boundary == "zero" else np.zeros_like(stopped)
     weight = np.where(off[..., None], 0.0, weight)
-    index = np.where(off[..., None], 0, index).astype(np.int32)
+    index = np.where(off[..., None], 0, index)
+    nearest = np.where(off, 0, nearest)
+    tie = None
+    if couple:
+        index, weight, nearest = _couple_unread(atlas, end_uv, index, weight, nearest, ~off)
+        tie = border_ties(atlas)
+        index, weight = _read_through(index, weight, tie)
     mask = np.ones(N, bool)
     return TexelTaps(
-        bilinear=TexelNeighborhood(index=index, weight=weight, texel_mask=mask),
+        bilinear=TexelNeighborhood(index=index.astype(np.int32), weight=weight, texel_mask=mask),
         nearest=TexelNeighborhood(
-            index=np.where(off, 0, nearest).astype(np.int32)[..., None],
+            index=nearest.astype(np.int32)[..., None],
             weight=(~off).astype(np.float64)[..., None],
             texel_mask=mask,
         ),
         end_uv=end_uv,
         stopped=stopped,
+        tie=tie,
     )
+
+
+def border_ties(atlas: TextureAtlas) -> tuple[Int[np.ndarray, "N 4"], Float[np.ndarray, "N 4"]]:
+    """Tie every chart-border texel whose centre lies outside its UV triangle to the texels it abuts.
+
+    Such a texel covers a sliver of its chart; its surface point is its centre snapped onto the
+    triangle. It shows the bilinear sample, at that point's UV, of the texels whose centres lie
+    inside their triangles (tied corners dropped, weights renormalised); where none of the four
+    corners qualifies, the mean of its untied valid 8-neighbours within two texel sizes on the
+    surface; where none exists it stays free. Every other texel shows its own colour.
+
+    Returns:
+      ``(index [N, 4], weight [N, 4])`` valid-texel numbers and convex weights (row n: texel n with
+      weight 1 for a free texel).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
+      >>> v, f = grid(2)
+      >>> index, weight = border_ties(texture_atlas(v, f, v[f][..., :2], size=4))
+      >>> bool((index[:, 0] == np.arange(16)).all() and (weight[:, 0] == 1).all())
+      True
+    """
+    N, size = atlas.num_texels, atlas.size
+    row, col = atlas.rows_cols()
+    centre = np.stack([(col + 0.5) / size, 1.0 - (row + 0.5) / size], axis=1)
+    snapped = _uv_of(atlas, atlas.face, atlas.bary)
+    tied = np.linalg.norm(snapped - centre, axis=1) * size > 1e-6
+    index = np.zeros((N, 4), np.int64)
+    index[:, 0] = np.arange(N)
+    weight = np.zeros((N, 4))
+    weight[:, 0] = 1.0
+    todo = np.nonzero(tied)[0]
+    if not todo.size:
+        return index, weight
+    idx, w, _ = uv_to_texels(atlas, snapped[todo], todo)
+    w = np.where(tied[idx], 0.0, w)
+    total = w.sum(axis=1)
+    good = total > 0
+    index[todo[good]] = idx[good]
+    weight[todo[good]] = w[good] / total[good, None]
+    rest = todo[~good]
+    if rest.size:  # no untied corner: the untied 8-neighbours close on the surface
+        r, c = row[rest], col[rest]
+        near_index, near_weight = [], []
+        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+            rr, cc = r + dr, c + dc
+            inside = (rr >= 0) & (rr < size) & (cc >= 0) & (cc < size)
+            pixel = np.clip(rr, 0, size - 1) * size + np.clip(cc, 0, size - 1)
+            v = np.where(inside, atlas.index_of[pixel], -1)
+            vv = np.maximum(v, 0)
+            dist = np.linalg.norm(atlas.point[vv] - atlas.point[rest], axis=1)
+            ok = (v >= 0) & ~tied[vv] & (dist <= 2.0 * atlas.local_size[rest])
+            near_index.append(vv)
+            near_weight.append(ok.astype(np.float64))
+        ni, nw = np.stack(near_index, axis=1), np.stack(near_weight, axis=1)
+        keep = np.argsort(-nw, axis=1, kind="stable")[:, :4]  # up to 4 of them
+        ni, nw = np.take_along_axis(ni, keep, 1), np.take_along_axis(nw, keep, 1)
+        found = nw.sum(axis=1) > 0
+        index[rest[found]] = ni[found]
+        weight[rest[found]] = nw[found] / nw[found].sum(axis=1, keepdims=True)
+    return index, weight
+
+
+def apply_tie(colors, tie):
+    """The colours texels show under a tie (:func:`border_ties`): ``out_n = Σ_k w_nk colors[i_nk]``.
+
+    Works on NumPy and JAX arrays; ``tie=None`` returns ``colors`` unchanged.
+
+    Example:
+      >>> tie = (np.array([[0, 0], [0, 2], [2, 0]]), np.array([[1.0, 0], [0.5, 0.5], [1.0, 0]]))
+      >>> apply_tie(np.array([[0.0], [9.0], [1.0]]), tie).ravel().tolist()
+      [0.0, 0.5, 1.0]
+    """
+    if tie is None:
+        return colors
+    index, weight = tie
+    return (colors[index] * weight[..., None].astype(colors.dtype)).sum(axis=1)
+
+
+def _read_through(index, weight, tie):
+    """Bilinear taps composed with the tie: a corner on a tied texel reads its tie's texels."""
+    tie_index, tie_weight = tie
+    if (tie_weight[:, 0] == 1.0).all() and (tie_index[:, 0] == np.arange(len(tie_index))).all():
+        return index, weight
+    N, T, J = index.shape
+    K = tie_index.shape[1]
+    idx = tie_index[index].reshape(N, T, J * K)
+    w = (weight[..., None] * tie_weight[index]).reshape(N, T, J * K)
+    order = np.argsort(w == 0, axis=2, kind="stable")  # non-zero weights first
+    idx, w = np.take_along_axis(idx, order, 2), np.take_along_axis(w, order, 2)
+    width = max(J, int((w != 0).sum(axis=2).max()))
+    idx, w = idx[..., :width], w[..., :width]
+    return np.where(w != 0, idx, 0), w
+
+
+def read_counts(nbhd: TexelNeighborhood) -> Int[np.ndarray, " N"]:
+    """How many taps of *other* texels read each texel with a non-zero weight (its in-degree).
+
+    Args:
+      nbhd: a level-0 :class:`~jmeshtex.TexelNeighborhood` (``index``/``weight`` ``[N, 9, J]``).
+
+    Returns:
+      ``[N]`` int64: for every texel the number of (texel ≠ it, tap, corner) slots reading it.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
+      >>> v, f = grid(2)
+      >>> taps = texel_taps(v, f, texture_atlas(v, f, v[f][..., :2], size=4))
+      >>> read_counts(taps.nearest).reshape(4, 4).tolist()    # zero padding off the sheet
+      [[3, 5, 5, 3], [5, 8, 8, 5], [5, 8, 8, 5], [3, 5, 5, 3]]
+    """
+    index = np.asarray(nbhd.index).astype(np.int64)
+    weight = np.asarray(nbhd.weight)
+    N = index.shape[0]
+    reads = (weight != 0) & (index != np.arange(N).reshape((N,) + (1,) * (index.ndim - 1)))
+    return np.bincount(index[reads], minlength=N)
+
+
+def unread_share(taps: TexelTaps) -> dict[str, float]:
+    """Share of texels with a free colour that no other texel's taps read (in-degree 0).
+
+    A texel nobody reads reaches the loss only through its own feature rows, so the Gram match
+    leaves its colour free (the chart-border specks that :func:`texel_taps` ``couple=True``
+    removes). Texels tied to others (``taps.tie``) have no free colour and are not counted.
+
+    Returns:
+      ``{"nearest": share, "bilinear": share, "either": share}`` in [0, 1] (``"either"``: unread
+      by one sampling or the other).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
+      >>> v, f = grid(2)
+      >>> unread_share(texel_taps(v, f, texture_atlas(v, f, v[f][..., :2], size=4)))["either"]
+      0.0
+    """
+    near = read_counts(taps.nearest) == 0
+    bil = read_counts(taps.bilinear) == 0
+    if taps.tie is not None:  # a tied texel shows other texels' colours: it has no free value
+        index, weight = taps.tie
+        free = (index[:, 0] == np.arange(len(index))) & (weight[:, 0] == 1.0)
+        near, bil = near & free, bil & free
+    return {
+        "nearest": float(near.mean()),
+        "bilinear": float(bil.mean()),
+        "either": float((near | bil).mean()),
+    }
+
+
+def _couple_unread(atlas, end_uv, index, weight, nearest, live, rounds: int = 4):
+    """Redirect taps so that every texel is read by another texel's nearest and bilinear taps.
+
+    A texel no nearest tap reads (a chart-border texel whose centre lies outside its UV triangle:
+    the walks that pass over it continue into the next chart) takes over the nearest read of the
+    tap whose bilinear corners give it the largest weight (its end point lies within one texel of
+    the texel's centre), provided the texel that tap read keeps another reader. A texel with no such
+    tap (no end point within its bilinear support) takes over, in both samplings, the tap of a valid
+    8-neighbour in the image whose end point is nearest to its centre in UV.
+    """
+    N = len(nearest)
+    own = np.arange(N)
+
+    def counts():
+        reads = live & (nearest != own[:, None])
+        return np.bincount(nearest[reads], minlength=N)
+
+    for _ in range(rounds):
+        count = counts()
+        unread = count == 0
+        cand = (weight > 0) & unread[index] & (index != own[:, None, None]) & live[..., None]
+        n, t, j = np.nonzero(cand)
+        u, w = index[n, t, j], weight[n, t, j]
+        ok = (count[nearest[n, t]] >= 2) & ~unread[nearest[n, t]]
+        n, t, u, w = n[ok], t[ok], u[ok], w[ok]
+        if not len(u):
+            break
+        order = np.lexsort((-w, u))  # per unread texel, the heaviest corner first
+        n, t, u = n[order], t[order], u[order]
+        first = np.unique(u, return_index=True)[1]
+        n, t, u = n[first], t[first], u[first]
+        tap = n * 9 + t  # one redirect per tap and per donor texel in a round
+        keep = np.unique(tap, return_index=True)[1]
+        n, t, u = n[keep], t[keep], u[keep]
+        keep = np.unique(nearest[n, t], return_index=True)[1]
+        n, t, u = n[keep], t[keep], u[keep]
+        nearest[n, t] = u
+    _adopt_by_neighbour(atlas, end_uv, index, weight, nearest, live, counts)
+    return index, weight, nearest
+
+
+def _adopt_by_neighbour(atlas, end_uv, index, weight, nearest, live, counts) -> None:
+    """Texels still unread take the closest-ending tap of a valid image 8-neighbour (in place)."""
+    unread = (counts() == 0) | (read_counts(TexelNeighborhood(index, weight, None)) == 0)
+    todo = np.nonzero(unread)[0]
+    if not todo.size:
+        return
+    size = atlas.size
+    row, col = np.divmod(atlas.texel[todo], size)
+    centre = np.stack([(col + 0.5) / size, 1.0 - (row + 0.5) / size], axis=1)
+    best = np.full(len(todo), np.inf)
+    pick = np.full((len(todo), 2), -1)
+    count = counts()
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            r, c = row + dr, col + dc
+            inside = (r >= 0) & (r < size) & (c >= 0) & (c < size) & ((dr, dc) != (0, 0))
+            pixel = np.clip(r, 0, size - 1) * size + np.clip(c, 0, size - 1)
+            v = np.where(inside, atlas.index_of[pixel], -1)
+            for t in (0, 1, 2, 3, 5, 6, 7, 8):
+                donor = nearest[np.maximum(v, 0), t]
+                d = np.linalg.norm(end_uv[np.maximum(v, 0), t] - centre, axis=1)
+                good = (v >= 0) & live[np.maximum(v, 0), t] & (count[donor] >= 2) & (d < best)
+                best = np.where(good, d, best)
+                pick[good] = np.stack([v[good], np.full(good.sum(), t)], axis=1)
+    found = pick[:, 0] >= 0
+    # one adoption per tap (two unread texels may pick the same one: the first keeps it)
+    taps = pick[found, 0] * 9 + pick[found, 1]
+    first = np.unique(taps, return_index=True)[1]
+    u = todo[found][first]
+    v, t = pick[found][first].T
+    nearest[v, t] = u
+    index[v, t] = 0
+    index[v, t, 0] = u
+    weight[v, t] = 0.0
+    weight[v, t, 0] = 1.0

@@ -55,6 +55,7 @@ class TexelPyramid(NamedTuple):
       representative: per level an ``[N_l]`` int64 array: the representative texel of every node.
       parent: per level ``0..L-1`` an ``[N_l]`` int32 array: the level-``l + 1`` group of every node
         (the same grouping as ``pools``, for segment pooling of very uneven groups).
+      tie: the level-0 taps' colour tie (:class:`~jmeshtex.surfacecnn.core.TexelTaps`), or None.
     """
 
     bilinear: TexelNeighborhood
@@ -63,6 +64,7 @@ class TexelPyramid(NamedTuple):
     node_of_texel: tuple[Int[np.ndarray, " N"], ...]
     representative: tuple[Int[np.ndarray, " M"], ...]
     parent: tuple[Int[np.ndarray, " M"], ...]
+    tie: tuple[Int[np.ndarray, "N K"], Float[np.ndarray, "N K"]] | None = None
 
     @property
     def levels(self) -> int:
@@ -256,6 +258,7 @@ def texel_pyramid(
         node_of_texel=tuple(node_of_texel),
         representative=tuple(representative),
         parent=tuple(parent),
+        tie=taps.tie,
     )
 
 

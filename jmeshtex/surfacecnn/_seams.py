@@ -247,3 +247,81 @@ def seam_ratio(
         "seam_pairs": len(seam),
         "interior_pairs": len(inner),
     }
+
+
+def border_texels(atlas: TextureAtlas, geometry: TracerGeometry) -> np.ndarray:
+    """Chart-border texels: valid texels with an image 8-neighbour that is invalid or in another chart.
+
+    Args:
+      atlas: :func:`~jmeshtex.surfacecnn.core.texture_atlas`'s atlas.
+      geometry: :func:`~jmeshtex.geometry.tracer_geometry` of the same mesh.
+
+    Returns:
+      ``[N]`` bool (atlas order).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
+      >>> v, f = grid(2)
+      >>> atlas = texture_atlas(v, f, v[f][..., :2], size=4)
+      >>> border_texels(atlas, tracer_geometry(v, f)).reshape(4, 4).sum(), atlas.num_texels
+      (np.int64(12), 16)
+    """
+    size = atlas.size
+    chart = np.full(size * size, -1, np.int64)
+    chart[atlas.texel] = chart_labels(geometry, atlas.uv)[atlas.face]
+    grid = np.pad(chart.reshape(size, size), 1, constant_values=-1)
+    row, col = atlas.rows_cols()
+    own = chart[atlas.texel]
+    border = np.zeros(atlas.num_texels, bool)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            border |= grid[row + 1 + dr, col + 1 + dc] != own
+    return border
+
+
+def seam_chroma(
+    atlas: TextureAtlas,
+    colors: Float[np.ndarray, "N 3"],
+    geometry: TracerGeometry,
+) -> dict[str, float]:
+    """Mean chroma (``max − min`` of RGB) of chart-border texels against interior texels.
+
+    On a grey exemplar every colour in the result is error; texels that no other texel reads
+    (:func:`~jmeshtex.surfacecnn.core.unread_share`) drift to saturated colours, so their chroma is
+    the seam-speck measure. A ratio near 1 means the chart borders look like the interior.
+
+    Args:
+      atlas: the atlas ``colors`` live on.
+      colors: ``[N, 3]`` texel colours in [0, 1].
+      geometry: :func:`~jmeshtex.geometry.tracer_geometry` of the mesh.
+
+    Returns:
+      ``{"border": mean, "interior": mean, "ratio": border / interior, "border_share": share}``.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
+      >>> v, f = grid(2)
+      >>> atlas = texture_atlas(v, f, v[f][..., :2], size=8)
+      >>> c = np.full((64, 3), 0.5)
+      >>> c[:, 0] += 0.1
+      >>> round(seam_chroma(atlas, c, tracer_geometry(v, f))["ratio"], 6)
+      1.0
+    """
+    colors = np.asarray(colors, np.float64)
+    if colors.shape != (atlas.num_texels, 3):
+        raise InputError(
+            f"seam_chroma: colors must be [{atlas.num_texels}, 3] (one RGB per valid texel), "
+            f"got {colors.shape}"
+        )
+    chroma = colors.max(axis=1) - colors.min(axis=1)
+    border = border_texels(atlas, geometry)
+    b = float(chroma[border].mean()) if border.any() else float("nan")
+    i = float(chroma[~border].mean()) if (~border).any() else float("nan")
+    return {
+        "border": b,
+        "interior": i,
+        "ratio": b / i if i > 0 else float("nan"),
+        "border_share": float(border.mean()),
+    }

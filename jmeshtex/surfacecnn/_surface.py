@@ -38,6 +38,7 @@ def prepare_surface(
     frames: str = "global",
     frame_vector=(1.0, 0.0, 0.0),
     backoff: tuple[float, ...] = BACKOFF,
+    couple: bool = True,
 ) -> Surface:
     """Atlas, level-0 taps and the pooling pyramid of a mesh (the whole host precomputation).
 
@@ -52,6 +53,8 @@ def prepare_surface(
       rotation: tap-frame rotation (radians, scalar or per texel).
       frames, frame_vector: the tangent frames (:func:`~jmeshtex.surfacecnn.core.texture_atlas`).
       backoff: overshoot back-off fractions (:func:`~jmeshtex.surfacecnn.core.texel_pyramid`).
+      couple: every texel read by another texel's taps (:func:`~jmeshtex.surfacecnn.core.texel_taps`;
+        default True).
 
     Returns:
       :class:`Surface`.
@@ -79,7 +82,13 @@ def prepare_surface(
     )
     t1 = time.perf_counter()
     taps = texel_taps(
-        vertices, faces, atlas, boundary=boundary, rotation=rotation, geometry=geometry
+        vertices,
+        faces,
+        atlas,
+        boundary=boundary,
+        rotation=rotation,
+        couple=couple,
+        geometry=geometry,
     )
     t2 = time.perf_counter()
     pyramid = texel_pyramid(

@@ -33,6 +33,7 @@ from ._loss import (
     style_loss,
     style_transfer_layers,
 )
+from ._neighborhood import apply_tie
 from ._network import mesh_cnn_features, required_levels
 from ._optimize import optimize_colors
 from ._surface import Surface, prepare_surface
@@ -133,7 +134,7 @@ def _fingerprint(task: str, config: Config, surface: Surface, layers, data: str,
 
 
 def _result(mesh: Mesh, surface: Surface, x, losses, final, stats) -> SynthesisResult:
-    colors = np.asarray(x, np.float32)
+    colors = np.asarray(apply_tie(np.asarray(x), surface.pyramid.tie), np.float32)
     texture = texels_to_image(surface.atlas, colors).astype(np.float32)
     textured = mesh.replace(uv=surface.atlas.uv, texture=texture)
     stats = {
