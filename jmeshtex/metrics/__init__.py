@@ -11,6 +11,8 @@ feature distributions, :func:`frechet_distance`), :func:`gram_distance`, :func:`
 :func:`dssim` over views (:func:`evaluate_images`), renders from one rig (:class:`Protocol`,
 :func:`protocol_views`, :func:`evaluate_views`), sample :func:`diversity`, and the baselines that bound
 every number (:func:`flat_baseline`, :func:`permuted_baseline`, :func:`baseline_table`).
+Mesh textures are also measured on the surface itself: :func:`surface_patches` (geodesic patches at
+the texel scale) against :func:`exemplar_crops`, scored by :func:`surface_patch_table`.
 """
 
 from .._extras import needs_metrics as _needs_metrics  # noqa: F401 (names a missing extra)
@@ -34,6 +36,15 @@ from ._protocol import evaluate_views as evaluate_views
 from ._protocol import protocol_views as protocol_views
 from ._sifid import SIFID_LAYERS as SIFID_LAYERS
 from ._sifid import sifid as sifid
+from ._surface_patches import PATCH_GRAM_LAYERS as PATCH_GRAM_LAYERS
+from ._surface_patches import SurfacePatches as SurfacePatches
+from ._surface_patches import exemplar_crops as exemplar_crops
+from ._surface_patches import log_radial_spectrum as log_radial_spectrum
+from ._surface_patches import patch_gram_distance as patch_gram_distance
+from ._surface_patches import patch_spectrum_distance as patch_spectrum_distance
+from ._surface_patches import surface_patch_table as surface_patch_table
+from ._surface_patches import surface_patches as surface_patches
+from ._surface_patches import uv_charts as uv_charts
 from ._vgg import LPIPS_LAYERS as LPIPS_LAYERS
 from ._vgg import VGG16_NAMES as VGG16_NAMES
 from ._vgg import VGG19_NAMES as VGG19_NAMES
