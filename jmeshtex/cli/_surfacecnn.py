@@ -17,7 +17,8 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from ._common import add_common, add_up, cached, int_in, load_mesh_spec
+from ..geometry import UP_AXES
+from ._common import add_common, cached, float_in, int_in, load_mesh_spec, procedural_mesh
 from ._output import claim_output, owns
 
 #: the folder under ``--out`` that holds the resumable checkpoints
@@ -42,6 +43,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--exemplar", type=pathlib.Path, required=True, metavar="IMG", help="exemplar image"
     )
     _options(s)
+    s.add_argument(
+        "--unwrap",
+        choices=("xatlas", "mesh"),
+        default="xatlas",
+        help="texture layout: xatlas (default, as the paper's tool: an even texel density) or mesh "
+        "(the mesh file's own UVs; their texel-density spread is printed)",
+    )
     s.set_defaults(func=cached(_synthesize))
     t = inner.add_parser("stylize", help="transfer an image's style onto the mesh's texture")
     t.add_argument("--mesh", required=True, metavar="M", help="mesh file with UVs")
@@ -71,14 +79,35 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _options(p: argparse.ArgumentParser) -> None:
     add_common(p, out="output folder (texture, textured mesh, renders, result.npz, checkpoints/)")
-    add_up(p)
-    p.add_argument("--size", type=int, default=512, help="texture resolution (default 512)")
+    p.add_argument(
+        "--up",
+        default=None,
+        choices=UP_AXES,
+        metavar="AXIS",
+        help=f"up axis of the mesh in renders: {'|'.join(UP_AXES)} (default: y for mesh files, the "
+        "OBJ/glTF convention; z for procedural meshes)",
+    )
+    p.add_argument(
+        "--size",
+        type=int,
+        default=512,
+        help="texture resolution (default 512, the CPU preset; --size 1024 is the paper's)",
+    )
     p.add_argument("--steps", type=int, default=500, help="optimisation steps (default 500)")
+    p.add_argument(
+        "--exemplar-scale",
+        type=float_in(1 / 64, 64),
+        default=1.0,
+        metavar="S",
+        help="texels per exemplar pixel: the exemplar is resampled by S before matching (default 1:"
+        " its native resolution, the paper's)",
+    )
     p.add_argument(
         "--max-image-size",
         type=int_in(1, 16384),
-        default=512,
-        help="exemplar/style images are downscaled to at most this many pixels per side (default 512)",
+        default=None,
+        help="downscale exemplar/style images to at most this many pixels per side after "
+        "--exemplar-scale (default: no limit)",
     )
     p.add_argument(
         "--layers",
@@ -117,7 +146,9 @@ def _options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _image(path: pathlib.Path, max_size: int):
+def _image(path: pathlib.Path, max_size: int | None, scale: float = 1.0):
+    """An RGB image in [0, 1], resampled by ``scale`` (texels per image pixel), then to at most
+    ``max_size`` pixels per side (None: no limit)."""
     import numpy as np
 
     from ..io import load_texture
@@ -126,13 +157,28 @@ def _image(path: pathlib.Path, max_size: int):
     if image.shape[2] in (1, 2):
         image = np.repeat(image[..., :1], 3, axis=2)
     image = image[..., :3]
-    scale = max_size / max(image.shape[:2])
-    if scale < 1:
+    if max_size is not None:
+        scale = min(scale, max_size / max(image.shape[:2]))
+    if scale != 1:
         import skimage.transform
 
         shape = (max(1, round(image.shape[0] * scale)), max(1, round(image.shape[1] * scale)))
         image = skimage.transform.resize(image, shape, anti_aliasing=True).astype(np.float32)
     return np.clip(image, 0.0, 1.0)
+
+
+def render_up(args: argparse.Namespace) -> str:
+    """The up axis of the renders: ``--up``, else ``"y"`` for a mesh file (the OBJ/glTF
+    convention) and ``"z"`` for a procedural spec (jmeshtex's meshes are Z-up).
+
+    Example:
+      >>> render_up(argparse.Namespace(up=None, mesh="spot.obj")), render_up(
+      ...     argparse.Namespace(up=None, mesh="torus"))
+      ('y', 'z')
+    """
+    if args.up is not None:
+        return args.up
+    return "z" if procedural_mesh(args.mesh) is not None else "y"
 
 
 def _setup(args):
@@ -146,8 +192,20 @@ def _setup(args):
     validate_mesh(
         mesh.vertices, mesh.faces
     )  # a clear typed error for a broken mesh before any work
-    if mesh.uv is None:
+    if getattr(args, "unwrap", "mesh") == "xatlas" or mesh.uv is None:
         _check_unwrap_scale(mesh, args.mesh)
+        from ..surfacecnn import unwrap_uv
+
+        mesh = mesh.replace(uv=unwrap_uv(mesh.vertices, mesh.faces), texture=None)
+    else:
+        from ..surfacecnn.core import texel_density_spread
+
+        spread = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)
+        print(
+            f"{args.mesh}: its own UVs; texel density (world size of a texel) varies "
+            f"{spread['ratio_p95_p5']:.2f}x between the 5th and 95th percentile of the surface "
+            "(--unwrap xatlas evens it)"
+        )
     layers = tuple(x.strip() for x in args.layers.split(",") if x.strip()) if args.layers else None
     extra = {}
     if hasattr(args, "content_weight"):
@@ -266,7 +324,7 @@ def _synthesize(args: argparse.Namespace) -> int:
     _claim(args, "surfacecnn synthesize", args.mesh, args.exemplar, args.vgg19)
     checkpoint = _checkpoint(args)
     mesh, config, weights = _setup(args)
-    exemplar = _image(args.exemplar, args.max_image_size)
+    exemplar = _image(args.exemplar, args.max_image_size, args.exemplar_scale)
     result = synthesize(
         mesh,
         exemplar,
@@ -277,7 +335,7 @@ def _synthesize(args: argparse.Namespace) -> int:
         checkpoint=checkpoint,
     )
     summary = save(result, args.out)
-    _render(result, args.out, exemplar=exemplar, title="synthesised", up=args.up)
+    _render(result, args.out, exemplar=exemplar, title="synthesised", up=render_up(args))
     _report(summary, args.out)
     return 0
 
@@ -295,7 +353,7 @@ def _stylize(args: argparse.Namespace) -> int:
         raise InputError(
             f"{args.mesh} references no texture; give the content texture with --content"
         )
-    style = _image(args.style, args.max_image_size)
+    style = _image(args.style, args.max_image_size, args.exemplar_scale)
     result = stylize(
         mesh,
         mesh.texture,
@@ -307,6 +365,6 @@ def _stylize(args: argparse.Namespace) -> int:
         checkpoint=checkpoint,
     )
     summary = save(result, args.out)
-    _render(result, args.out, exemplar=style, title="stylised", up=args.up)
+    _render(result, args.out, exemplar=style, title="stylised", up=render_up(args))
     _report(summary, args.out)
     return 0

@@ -165,3 +165,39 @@ def test_procedural_mesh_seed_and_resume(files):
     resumed, fresh = surfacecnn.load(files / "a"), surfacecnn.load(files / "c")
     assert resumed.stats["resumed_at"] == 4 and fresh.stats["resumed_at"] == 0
     np.testing.assert_array_equal(resumed.colors, fresh.colors)
+
+
+def test_exemplar_native_resolution_and_scale(tmp_path):
+    from jmeshtex.cli._surfacecnn import _image
+
+    save_png(np.random.default_rng(0).uniform(size=(600, 40, 3)), tmp_path / "tall.png")
+    assert _image(tmp_path / "tall.png", None).shape == (600, 40, 3)  # no silent downsizing
+    assert _image(tmp_path / "tall.png", None, 0.5).shape == (300, 20, 3)
+    assert _image(tmp_path / "tall.png", 300, 1.0).shape == (300, 20, 3)  # an explicit cap
+
+
+def test_render_up_follows_the_mesh_kind():
+    import argparse
+
+    from jmeshtex.cli._surfacecnn import render_up
+
+    def ns(mesh, up=None):
+        return argparse.Namespace(mesh=mesh, up=up)
+
+    assert render_up(ns("spot.obj")) == "y"  # mesh files: the OBJ/glTF convention
+    assert render_up(ns("icosphere:2")) == "z"  # jmeshtex's procedural meshes are Z-up
+    assert render_up(ns("spot.obj", "-z")) == "-z"
+
+
+def test_unwrap_mesh_keeps_uvs_and_reports_their_spread(files, capsys):
+    v, f = icosphere(1)
+    uv = surfacecnn.unwrap_uv(v, f)
+    uv[:10] *= 0.5  # uneven texel density on purpose
+    save_mesh(Mesh(v, f, uv=uv), files / "uv_ball.obj")
+    args = ["surfacecnn", "synthesize", "--mesh", str(files / "uv_ball.obj"), "--exemplar"]
+    args += [str(files / "exemplar.png"), "--size", "16", "--steps", "1", "--layers", "relu1_1"]
+    assert main([*args, "--unwrap", "mesh", "--out", str(files / "a"), "--quiet"]) == 0
+    assert "texel density" in capsys.readouterr().out
+    np.testing.assert_allclose(surfacecnn.load(files / "a").mesh.uv, uv, atol=1e-5)
+    assert main([*args, "--out", str(files / "b"), "--quiet"]) == 0  # default: xatlas
+    assert not np.allclose(surfacecnn.load(files / "b").mesh.uv, uv, atol=1e-3)
