@@ -26,6 +26,7 @@ from ._errors import LogScaleWarning as LogScaleWarning
 from ._errors import MeshError as MeshError
 from ._errors import MeshIOError as MeshIOError
 from ._errors import MeshRepairWarning as MeshRepairWarning
+from ._errors import MeshScaleError as MeshScaleError
 from ._errors import MissingExtraError as MissingExtraError
 from ._errors import NonFiniteVertexError as NonFiniteVertexError
 from ._errors import NonManifoldEdgeError as NonManifoldEdgeError

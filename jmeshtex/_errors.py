@@ -128,6 +128,17 @@ class InconsistentOrientationError(MeshError):
     fix = "pass repair=True to re-orient faces consistently per component"
 
 
+class MeshScaleError(MeshError):
+    """A mesh's size or placement is outside what float32 geometry and the UV unwrapper handle:
+    mean edge length too small or too large, or the mesh far from the origin for its size."""
+
+    what = "the mesh's scale or placement is out of range"
+    fix = (
+        "centre and rescale it, e.g. mesh.replace(vertices=(v - v.mean(0)) / "
+        "jmeshtex.geometry.mean_edge_length(v, f)) for v, f = mesh"
+    )
+
+
 class DecimationError(MeshError):
     """A mesh cannot be decimated to the requested level (too small, or collapses ran out)."""
 

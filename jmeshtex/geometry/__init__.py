@@ -39,6 +39,7 @@ from ._hks import laplacian_eigenpairs as laplacian_eigenpairs
 from ._intrinsic import corner_angles as corner_angles
 from ._intrinsic import edge_lengths as edge_lengths
 from ._intrinsic import face_areas as face_areas
+from ._intrinsic import flat_faces as flat_faces
 from ._intrinsic import vertex_areas as vertex_areas
 from ._knn import geodesic_knn_neighborhood as geodesic_knn_neighborhood
 from ._knn import knn_from_one_ring as knn_from_one_ring
@@ -56,6 +57,7 @@ from ._repair import prepare_mesh as prepare_mesh
 from ._sampling import SurfaceSamples as SurfaceSamples
 from ._sampling import barycentric_interpolate as barycentric_interpolate
 from ._sampling import sample_surface as sample_surface
+from ._scale import check_mesh_scale as check_mesh_scale
 from ._smoothing import taubin_smooth as taubin_smooth
 from ._statistics import MeshStatistics as MeshStatistics
 from ._statistics import mesh_statistics as mesh_statistics

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._types import Float, Int
-from ._validate import validate_mesh
+from .._types import Bool, Float, Int
+from ._validate import AREA_TOL, validate_mesh
 
 
 def edge_lengths(
@@ -97,6 +97,43 @@ def face_areas(lengths: Float[np.ndarray, "F 3"]) -> Float[np.ndarray, " F"]:
     a, b, c = srt[:, 0], srt[:, 1], srt[:, 2]
     prod = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c))
     return 0.25 * np.sqrt(np.maximum(prod, 0.0))
+
+
+def flat_faces(
+    lengths: Float[np.ndarray, "F 3"], area_tol: float = AREA_TOL
+) -> Bool[np.ndarray, " F"]:
+    """Which faces are degenerate (zero-area): the one definition validation, repair and the
+    geodesic tracer share.
+
+    .. math:: \\text{flat}_f \\iff 2\\,A(\\ell_f / \\max \\ell_f) \\le \\text{area\\_tol}
+
+    with ``A`` the area from edge lengths (:func:`face_areas`, Kahan's Heron) of the face's lengths
+    divided by its longest, so the test is scale-free. Working from edge lengths, not a cross
+    product, is what makes the definitions agree: a needle whose corners are not exactly collinear
+    in space can still have lengths that close to zero area after rounding, and every length-based
+    computation (the tracer's face layouts, corner angles) sees the lengths. Non-finite or all-zero
+    lengths count as flat.
+
+    Args:
+      lengths: ``[F, 3]`` edge lengths (:func:`edge_lengths`, or intrinsic lengths).
+      area_tol: threshold on the doubled area over the squared longest edge (the face's height
+        over its longest edge); the default ``1e-7`` is above the rounding noise of Heron's formula
+        on float64 lengths (about 1.3e-8 for exactly collinear corners).
+
+    Returns:
+      ``[F]`` bool, True for degenerate faces.
+
+    Example:
+      >>> import numpy as np
+      >>> v = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 1e-9, 0], [0, 1, 0]])
+      >>> flat_faces(edge_lengths(v, np.array([[0, 1, 2], [0, 1, 3]]))).tolist()  # a needle
+      [True, False]
+    """
+    lengths = np.asarray(lengths, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        unit = lengths / lengths.max(axis=1, keepdims=True)
+        relative = 2.0 * face_areas(np.nan_to_num(unit, nan=0.0, posinf=0.0))
+    return ~(relative > area_tol) | ~np.isfinite(unit).all(axis=1)
 
 
 def vertex_areas(

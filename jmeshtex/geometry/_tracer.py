@@ -35,7 +35,7 @@ from .._errors import (
     InputError,
 )
 from ._adjacency import face_neighborhood
-from ._intrinsic import edge_lengths, face_areas
+from ._intrinsic import edge_lengths, face_areas, flat_faces
 from ._log_map import _angles_from_lengths, _wedge_corners
 from ._validate import check_mesh_arrays
 
@@ -132,7 +132,9 @@ def _face_layouts(lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     l0, l1, l2 = lengths.T
     double_area = 2.0 * face_areas(lengths)  # Kahan's stable Heron formula
-    bad = np.nonzero(~(double_area > 0.0))[0]
+    # validation's definition (flat_faces); the area test only adds faces whose area under- or
+    # overflows float64 (lengths near 1e-154 or 1e154)
+    bad = np.nonzero(flat_faces(lengths) | ~(double_area > 0.0) | ~np.isfinite(double_area))[0]
     if bad.size:
         raise DegenerateFaceError(indices=bad)
     x2 = (l0 * l0 + l2 * l2 - l1 * l1) / (2.0 * l0)

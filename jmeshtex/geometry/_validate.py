@@ -9,10 +9,12 @@ indices, in a fixed order so that the most basic problem is reported first:
 Open meshes, several components and any genus are valid. :func:`check_mesh_arrays` is the
 structural half (shapes, indices, finiteness, emptiness) for builders that accept any triangle soup.
 
-Tolerance: a face is degenerate when its doubled area is at most ``area_tol`` times its longest
-squared edge (default ``1e-14``, about 45 ulps of float64: the cross product of collinear float64
-points is not exactly zero, while a genuine needle with that aspect ratio is useless to every
-cotangent or angle computation anyway).
+Tolerance: a face is degenerate when its doubled area, computed from its edge lengths scaled by
+the longest (so: its height over its longest edge), is at most ``area_tol``. This is the one
+definition of :func:`~jmeshtex.geometry.flat_faces`, shared with repair and the geodesic tracer, so a
+mesh that passes validation (or that ``repair=True`` produced) is one the tracer can lay out. The
+default ``1e-7`` sits above the rounding noise of Heron's formula on float64 lengths (up to about
+1.3e-8 for exactly collinear corners), so corners collinear up to rounding are caught.
 """
 
 from collections.abc import Sequence
@@ -31,7 +33,7 @@ from .._errors import (
 from .._mesh_arrays import check_indices, coerce_faces, coerce_vertices, corner_fans, edge_keys
 from .._types import ArrayLike, Float, Int
 
-AREA_TOL = 1e-14
+AREA_TOL = 1e-7
 
 __all__ = ["AREA_TOL", "check_mesh_arrays", "validate_mesh"]
 
@@ -54,15 +56,12 @@ def _check_basic(vertices: np.ndarray, faces: np.ndarray) -> None:
 
 
 def _degenerate_faces(vertices: np.ndarray, faces: np.ndarray, area_tol: float) -> np.ndarray:
-    """Boolean ``[F]``: repeated vertex index, or doubled area ≤ ``area_tol`` · longest edge²."""
-    p0, p1, p2 = (vertices[faces[:, k]] for k in range(3))
+    """Boolean ``[F]``: repeated vertex index, or flat by :func:`~jmeshtex.geometry.flat_faces`
+    (the tracer's definition, so whatever validation passes the tracer can lay out)."""
+    from ._intrinsic import edge_lengths, flat_faces  # _intrinsic imports this module
+
     with np.errstate(over="ignore", invalid="ignore"):
-        twice_area = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
-        longest_sq = np.max(
-            [np.sum((p1 - p0) ** 2, 1), np.sum((p2 - p1) ** 2, 1), np.sum((p0 - p2) ** 2, 1)],
-            axis=0,
-        )
-        flat = twice_area <= area_tol * longest_sq
+        flat = flat_faces(edge_lengths(vertices, faces), area_tol)
     repeated = (
         (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     )

@@ -25,21 +25,27 @@ from jmeshtex import (
     NonTriangleFaceError,
 )
 from jmeshtex.data import grid, icosahedron, icosphere, single_triangle, torus
-from jmeshtex.geometry import mesh_statistics, prepare_mesh, validate_mesh
+from jmeshtex.geometry import mesh_statistics, prepare_mesh, tracer_geometry, validate_mesh
 
 # ------------------------------------------------------------------------------------------------
 # an independent, slow reference: Python loops and dicts, written from the definitions
 # ------------------------------------------------------------------------------------------------
 
 
-def reference_first_error(v: np.ndarray, f: np.ndarray, area_tol: float = 1e-14):
+def reference_first_error(v: np.ndarray, f: np.ndarray, area_tol: float = 1e-7):
     """(error class, sorted offending items) of the first failed check, or None; loops only."""
     degenerate = []
     for i, (a, b, c) in enumerate(f.tolist()):
         pa, pb, pc = v[a], v[b], v[c]
-        twice = np.linalg.norm(np.cross(pb - pa, pc - pa))
-        longest = max(np.sum((pb - pa) ** 2), np.sum((pc - pb) ** 2), np.sum((pa - pc) ** 2))
-        if len({a, b, c}) < 3 or twice <= area_tol * longest:
+        lengths = [float(np.linalg.norm(q - p)) for p, q in ((pa, pb), (pb, pc), (pc, pa))]
+        longest = max(lengths)
+        if len({a, b, c}) < 3 or longest == 0:
+            degenerate.append(i)
+            continue
+        # Heron's formula on the lengths over the longest, in Kahan's stable order
+        x, y, z = sorted((length / longest for length in lengths), reverse=True)
+        prod = (x + (y + z)) * (z - (x - y)) * (z + (x - y)) * (x + (y - z))
+        if 2 * 0.25 * np.sqrt(max(prod, 0.0)) <= area_tol:
             degenerate.append(i)
     if degenerate:
         return DegenerateFaceError, degenerate
@@ -203,6 +209,48 @@ def test_degenerate_faces_named():
     validate_mesh(needle, [[0, 1, 2]])
     with pytest.raises(DegenerateFaceError):
         validate_mesh(needle, [[0, 1, 2]], area_tol=1e-5)
+
+
+def test_a_needle_the_tracer_rejects_is_degenerate_and_repair_drops_it():
+    """One definition (``flat_faces``): a needle whose apex is 1e-9 off the line has a non-zero
+    cross product, but its edge lengths round to 1, 0.5, 0.5 (zero area), which is all the tracer
+    sees. Validation rejects it, repair drops it, and the repaired mesh traces."""
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 1e-9, 0], [0.5, -1, 0]])
+    f = np.array([[0, 1, 2], [1, 0, 3]])
+    assert np.cross(v[1] - v[0], v[2] - v[0])[2] > 1e-14  # not flat by the cross product
+    with pytest.raises(DegenerateFaceError) as info:
+        tracer_geometry(v, f)
+    assert _items(info.value) == [0]
+    with pytest.raises(DegenerateFaceError) as info:
+        validate_mesh(v, f)
+    assert _items(info.value) == [0]
+    m, report = prepare_mesh((v, f), repair=True)
+    assert report.dropped_degenerate_faces.tolist() == [0]
+    assert np.array_equal(m.faces, [[1, 0, 2]])  # face 1, unused vertex 2 dropped
+    tracer_geometry(m.vertices, m.faces)
+
+
+@pytest.mark.parametrize("height_exponent", np.arange(-12.0, -4.0, 0.25))
+def test_validation_and_the_tracer_agree_on_every_near_needle(height_exponent):
+    """Apexes from 1e-12 to 1e-4 off the base line, at random positions along it and rotated in
+    space: validate_mesh rejects a face exactly when tracer_geometry does."""
+    rng = np.random.default_rng(int(-4 * height_exponent))
+    f = np.array([[0, 1, 2]])
+    for _ in range(20):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        apex = [rng.uniform(-0.2, 1.2), 10.0**height_exponent * rng.uniform(0.5, 2), 0.0]
+        v = np.array([[0.0, 0, 0], [1, 0, 0], apex]) @ q.T * 10.0 ** rng.uniform(-3, 3)
+        try:
+            validate_mesh(v, f)
+            by_validation = False
+        except DegenerateFaceError:
+            by_validation = True
+        try:
+            tracer_geometry(v, f)
+            by_tracer = False
+        except DegenerateFaceError:
+            by_tracer = True
+        assert by_validation == by_tracer, (v, by_validation, by_tracer)
 
 
 def test_duplicate_faces_any_order():
