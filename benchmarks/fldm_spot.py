@@ -239,19 +239,41 @@ def train_stage(ctx: Context) -> None:
 
 
 def _snapshot(ctx: Context, step: int | None):
+    """``(model, card, step)``: the model snapshot of ``step`` (default: the newest step that has a
+    snapshot or a checkpoint), else the EMA weights restored from the training checkpoint."""
     from jmeshtex import fldm
+    from jmeshtex.io import Checkpoints
 
     folder = ctx.work / "models"
     found = sorted(int(p.name[5:]) for p in folder.glob("step_*") if (p / "model.npz").is_file())
-    if not found:
-        sys.exit(f"fldm_spot: no model snapshot in {folder}; train first (--train-only)")
-    if step is None:
-        step = found[-1]
-    if step not in found:
-        sys.exit(f"fldm_spot: no snapshot of step {step} in {folder}; there are {found}")
-    path = folder / f"step_{step:05d}"
-    card = json.loads((path / "card.json").read_text()) if (path / "card.json").is_file() else {}
-    return fldm.load(path), card, step
+    with Checkpoints(ctx.work / "train") as ckpt:
+        kept = ckpt.steps()
+    if step is None and (found or kept):
+        step = max(found + kept)
+    if step in found:
+        path = folder / f"step_{step:05d}"
+        card = (
+            json.loads((path / "card.json").read_text()) if (path / "card.json").is_file() else {}
+        )
+        return fldm.load(path), card, step
+    if step not in kept:
+        sys.exit(
+            f"fldm_spot: no snapshot of step {step} in {folder} (there are {found}) and no "
+            f"checkpoint of it in {ctx.work / 'train'} (there are {kept}); train first (--train-only)"
+        )
+    from jmeshtex.fldm._train import _split
+    from jmeshtex.fldm.core import init_denoiser, optimizer
+
+    cfg = ctx.cfg
+    params = init_denoiser(_split(ctx.k_train)[0], cfg, dtype=jnp.complex64)
+    like = {"params": params, "opt_state": optimizer(cfg).init(params)}
+    if cfg.ema_decay > 0:
+        like["ema"] = params
+    with Checkpoints(ctx.work / "train") as ckpt:
+        tree, meta = ckpt.restore(like, step=step)
+    weights = tree["ema" if cfg.ema_decay > 0 else "params"]
+    model = fldm.Model(jax.tree.map(np.asarray, weights), cfg, np.asarray(ctx.data.scale))
+    return model, {"steps": step, "statistics": meta.get("statistics", [])}, step
 
 
 def _nearest(src_vertices: np.ndarray, dst_vertices: np.ndarray) -> np.ndarray:

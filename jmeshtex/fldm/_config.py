@@ -91,7 +91,7 @@ class Config(ConfigBase):
       encodings_per_copy: FL-VAE encodings kept per copy, each with a fresh one-ring sampling
         (an augmentation of the phase noise; each training draw picks one at random).
       stats_samples: DDIM samples drawn at every checkpoint for the decoder-free statistics
-        (:func:`~jmeshtex.fldm.latent_statistics`) logged with it; 0: none.
+        (:func:`~jmeshtex.fldm.core.latent_statistics`) logged with it; 0: none.
       stats_ddim_steps: DDIM steps of those samples.
 
     Randomness (copies, initialisation, training noise) comes from the ``key`` of

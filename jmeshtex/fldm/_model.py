@@ -94,14 +94,14 @@ def save(model: Model, path: str | os.PathLike, *, card: dict | None = None) -> 
 
 
 def model_card(result) -> dict:
-    """The card of a trained model (:func:`save`'s ``card``): steps, final loss and statistics.
+    """The card of a trained model (:func:`~jmeshtex.fldm.save`'s ``card``): steps, final loss and statistics.
 
     Args:
       result: the :class:`~jmeshtex.TrainResult` of :func:`~jmeshtex.fldm.train`.
 
     Returns:
       ``{"steps", "final_loss", "statistics"}``: ``statistics`` the decoder-free statistics logged
-      at each checkpoint (:mod:`jmeshtex.fldm` ``latent_statistics``; empty without
+      at each checkpoint (:func:`~jmeshtex.fldm.core.latent_statistics`; empty without
       ``config.stats_samples``).
     """
     return {

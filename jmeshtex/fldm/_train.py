@@ -1,11 +1,14 @@
 """Training the FLDM denoiser (ε- or v-loss) on a batch of mesh copies, data-parallel and resumable.
 
-One step (eq. 10): draw a batch of training copies, a timestep ``t ~ U{0..T−1}`` and tangent noise
-``ε`` per copy, form ``z_t = √ᾱ_t s·μ + √(1−ᾱ_t) ε`` (eq. 8, ``s`` the per-channel scale of eq. 38–39)
-and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (Adam on a warm-up + cosine learning-rate
-schedule, :func:`learning_rate_schedule`; complex gradients conjugated first, DESIGN.md; optionally an
-EMA of the weights, ``config.ema_decay``), or ``‖v − v̂_θ‖²`` with ``config.prediction = "v"``
-(:func:`~jmeshtex.fldm.core.prediction_target`). The step is one ``jax.jit`` over ``vmap``-ed copies.
+One step (eq. 10): draw a batch of training copies (each with one of its encodings when the data
+set keeps several), a timestep ``t ~ U{0..T−1}`` and tangent noise ``ε`` per copy, form
+``z_t = √ᾱ_t s·μ + √(1−ᾱ_t) ε`` (eq. 8, ``s`` the latent scale of eq. 38–39, per channel or global)
+and descend ``‖ε − ε̂_θ(z_t, t)‖²`` over real vertices (``config.loss = "l1"``: ``|ε − ε̂_θ|``, as
+released; Adam on a warm-up + cosine learning-rate schedule, :func:`learning_rate_schedule`;
+complex gradients conjugated first, docs/concepts.md; optionally an EMA of the weights,
+``config.ema_decay``, and gradient accumulation over ``config.accumulate`` micro-batches), or
+``‖v − v̂_θ‖²`` with ``config.prediction = "v"`` (:func:`~jmeshtex.fldm.core.prediction_target`).
+The step is one ``jax.jit`` over ``vmap``-ed copies.
 With ``config.mask_conditioning`` every copy of a step also gets a random inpainting mask
 (:func:`training_masks`); the denoiser sees it and the known clean latents, and the loss counts the
 generated (unmasked) region only.
@@ -27,11 +30,14 @@ noise is a function of ``(key, step)`` alone.
 Checkpoints (``checkpoint_dir``): every ``checkpoint_every`` steps and after the last one, the
 parameters, the optimiser state and the losses so far go to a :class:`jmeshtex.io.Checkpoints`
 folder (atomic; the newest two kept), fingerprinted with the run's settings (the config apart from
-``steps``, ``checkpoint_every`` and ``remat``, the key, the dtype, the data's shape and scale). Calling
-:func:`train` again with the same folder resumes after the newest step and gives the same
-parameters and losses as an uninterrupted run; a folder written by another run raises
-:class:`~jmeshtex.CheckpointMismatchError`. The finished model is written with :func:`save`
-(``model.npz`` + ``model.json``) and read back with :func:`load`.
+``steps``, ``checkpoint_every``, ``remat`` and the statistics settings, the key, the dtype, the data's
+shape and scale). Calling :func:`train` again with the same folder resumes after the newest step and
+gives the same parameters and losses as an uninterrupted run; a folder written by another run raises
+:class:`~jmeshtex.CheckpointMismatchError`. With ``config.stats_samples`` every checkpoint also
+records the decoder-free statistics (:func:`~jmeshtex.fldm.core.latent_statistics`) of a few DDIM
+samples drawn on copy 0, and of copy 0's own latents once; the history is read back on resume and
+returned in ``TrainResult.extra["statistics"]``. The finished model is written with :func:`save`
+(``model.npz``; ``card=model_card(result)`` adds the card) and read back with :func:`load`.
 """
 
 from __future__ import annotations
@@ -48,7 +54,7 @@ import optax
 from .._errors import ConfigError, InputError
 from .._random import host_rng, key_ints
 from .._train_result import TrainResult
-from .._training import fit
+from .._training import CheckpointPolicy, Progress, fit
 from ..ops import conjugate_complex_grads, tangent_noise
 from ..parallel import (
     batch_multiple,
@@ -447,17 +453,18 @@ def train(
         batches,
         steps=config.steps,
         stop_after=stop_after,
-        checkpoints=checkpoint_dir,
-        fingerprint=_fingerprint(data, config, key, dtype),
-        save_every=config.checkpoint_every,
+        checkpoints=CheckpointPolicy(
+            checkpoint_dir,
+            fingerprint=_fingerprint(data, config, key, dtype),
+            every=config.checkpoint_every,
+            meta=stats.meta,
+        ),
         device_mesh=device_mesh,
-        progress=progress,
-        desc="FLDM train",
+        progress=Progress(progress, "FLDM train"),
         model=lambda s: Model(
             fetch(s["ema" if use_ema else "params"]), config, np.asarray(data.scale)
         ),
         started=started,
-        meta=stats.meta,
         on_step=stats.on_step,
     )
     result.extra["statistics"] = stats.history

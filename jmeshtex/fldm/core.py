@@ -16,7 +16,13 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
   :class:`Inpaint`, :func:`latent_scale`.
 - Training: :func:`~jmeshtex.fldm.init`, :func:`make_train_step`, :func:`optimizer`,
   :func:`learning_rate_schedule`, :func:`training_batch`, :func:`training_masks`,
-  :func:`stack_copies`.
+  :func:`stack_copies`, :func:`channel_weights`, :func:`model_card`.
+- Decoder-free statistics of latent fields: :func:`latent_statistics`,
+  :func:`relative_phase_concentration`, :func:`pointwise_concentration`,
+  :func:`pair_mean_phasors`, :func:`neighbour_energy_correlation`,
+  :func:`transported_phase_coherence`, :func:`region_statistics`,
+  :func:`energy_field_correlation`; baselines :func:`shuffle_latents`,
+  :func:`random_channel_phases`.
 """
 
 from ._data import stack_copies as stack_copies
@@ -44,7 +50,19 @@ from ._diffusion import prediction_target as prediction_target
 from ._diffusion import q_sample as q_sample
 from ._diffusion import sample_from_noise as sample_from_noise
 from ._diffusion import timestep_sequence as timestep_sequence
+from ._model import model_card as model_card
 from ._sample import sampling_geometry as sampling_geometry
+from ._statistics import energy_field_correlation as energy_field_correlation
+from ._statistics import latent_statistics as latent_statistics
+from ._statistics import neighbour_energy_correlation as neighbour_energy_correlation
+from ._statistics import pair_mean_phasors as pair_mean_phasors
+from ._statistics import pointwise_concentration as pointwise_concentration
+from ._statistics import random_channel_phases as random_channel_phases
+from ._statistics import region_statistics as region_statistics
+from ._statistics import relative_phase_concentration as relative_phase_concentration
+from ._statistics import shuffle_latents as shuffle_latents
+from ._statistics import transported_phase_coherence as transported_phase_coherence
+from ._train import channel_weights as channel_weights
 from ._train import learning_rate_schedule as learning_rate_schedule
 from ._train import make_train_step as make_train_step
 from ._train import optimizer as optimizer
