@@ -406,19 +406,31 @@ def apply_tie(colors, tie):
 
 
 def _read_through(index, weight, tie):
-    """Bilinear taps composed with the tie: a corner on a tied texel reads its tie's texels."""
+    """Bilinear taps composed with the tie: a corner on a tied texel reads its tie's texels (the
+    weights of a texel reached twice are summed; width ``max(J, most texels one tap reads)``)."""
     tie_index, tie_weight = tie
     if (tie_weight[:, 0] == 1.0).all() and (tie_index[:, 0] == np.arange(len(tie_index))).all():
         return index, weight
     N, T, J = index.shape
-    K = tie_index.shape[1]
-    idx = tie_index[index].reshape(N, T, J * K)
-    w = (weight[..., None] * tie_weight[index]).reshape(N, T, J * K)
-    order = np.argsort(w == 0, axis=2, kind="stable")  # non-zero weights first
-    idx, w = np.take_along_axis(idx, order, 2), np.take_along_axis(w, order, 2)
-    width = max(J, int((w != 0).sum(axis=2).max()))
-    idx, w = idx[..., :width], w[..., :width]
-    return np.where(w != 0, idx, 0), w
+    M = len(tie_index)
+    free = (tie_index[:, 0] == np.arange(M)) & (tie_weight[:, 0] == 1.0)
+    flat_index, flat_weight = index.reshape(N * T, J), weight.reshape(N * T, J)
+    touched = np.nonzero(((~free[flat_index]) & (flat_weight != 0)).any(axis=1))[0]
+    idx = tie_index[flat_index[touched]].reshape(len(touched), -1)
+    w = (flat_weight[touched, :, None] * tie_weight[flat_index[touched]]).reshape(len(touched), -1)
+    row, col = np.nonzero(w)
+    key, inverse = np.unique(row * M + idx[row, col], return_inverse=True)
+    total = np.bincount(inverse.ravel(), weights=w[row, col], minlength=len(key))
+    tap, texel = np.divmod(key, M)
+    slot = np.arange(len(key)) - np.searchsorted(tap, np.arange(len(touched)))[tap]
+    width = max(J, int(slot.max(initial=0)) + 1)
+    out_index = np.zeros((N * T, width), np.int64)
+    out_weight = np.zeros((N * T, width))
+    out_index[:, :J], out_weight[:, :J] = flat_index, flat_weight
+    out_index[touched], out_weight[touched] = 0, 0.0
+    out_index[touched[tap], slot] = texel
+    out_weight[touched[tap], slot] = total
+    return out_index.reshape(N, T, width), out_weight.reshape(N, T, width)
 
 
 def read_counts(nbhd: TexelNeighborhood) -> Int[np.ndarray, " N"]:
