@@ -13,6 +13,7 @@ level-0 frame times ``scale_factor**l``. ``scales[l]`` maps the reference's inpu
 
 from __future__ import annotations
 
+import functools
 import os
 import pathlib
 from collections.abc import Callable
@@ -235,8 +236,10 @@ def regularizer_loss(
 _CHUNK = 50
 
 
+@functools.lru_cache(maxsize=16)
 def _fit_runner(config: PrepareConfig, num_samples: int):
-    """A jit-compiled runner of up to ``_CHUNK`` Adam steps (built per :func:`fit_level` call)."""
+    """A jit-compiled runner of up to ``_CHUNK`` Adam steps (one per config and sample count, so a
+    second :func:`fit_level` call with the same shapes does not recompile)."""
     opt = optax.adam(config.learning_rate)
 
     @jax.jit

@@ -32,6 +32,10 @@ def _unit_axis(axis) -> tuple[float, float, float] | None:
 
 
 #: a weight's message shows the value as the 1-tuple the tuple-valued shape_weight is checked as
+MAX_FAN_RADIUS = 64.0
+"""The largest ``Config.fan_radius`` (mean edge lengths): tracing cost grows with the radius and a
+larger fan no longer describes a local patch."""
+
 _WEIGHT_MESSAGE = "{cls}.{name} must be finite and >= 0, got ({value!r},)"
 
 
@@ -51,7 +55,8 @@ class Config(ConfigBase):
         ``2π / A``.
       fan_radius: radius of the outermost ring, in mean edge lengths of the target's level (or of
         the paired source level where that is coarser: a target finer than the source gets fans
-        at the source's scale); ring ``i`` (0-based) has radius ``fan_radius · (i + 1) / R``.
+        at the source's scale); ring ``i`` (0-based) has radius ``fan_radius · (i + 1) / R``; at most
+        ``MAX_FAN_RADIUS`` (64).
       color_weight: weight of the colour term of the patch distance (normalised per dimension and
         by the source colour variance).
       shape_weight: weight of the shape term (HKS, the whole normal and the standardised positions;
@@ -201,9 +206,15 @@ class Config(ConfigBase):
         integers("sweeps exact_candidates", 1),
         integers("random_search_levels global_candidates bucket_vertices", 0),
         rule(
-            "fan_radius vote_sigma interp_sigma",
+            "vote_sigma interp_sigma",
             lambda x: is_finite_number(x) and x > 0,
             "a positive number",
+        ),
+        rule(
+            "fan_radius",
+            lambda x: is_finite_number(x) and 0 < x <= MAX_FAN_RADIUS,
+            f"a number in (0, {MAX_FAN_RADIUS:g}] (mean edge lengths: a fan's trace walks about that "
+            "many faces, and the default 4 covers a patch of a few rings)",
         ),
         rule(
             "normal_weight position_weight",

@@ -26,7 +26,7 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
-from ..geometry import vertex_normals
+from ..geometry import check_mesh_scale, vertex_normals
 from ._config import Config
 from ._features import ancestors
 from ._prepare import (
@@ -146,7 +146,12 @@ def meshmatch(
     Raises:
       InputError: shapes of colours, masks, pins; an empty source mask; a mesh that is neither a
         ``Mesh`` nor a pair; source and target sizes differing by more than
-        ``config.max_scale_ratio``; an ``initial_nnf`` of the wrong shape or range.
+        ``config.max_scale_ratio``; fans that would span more than 8 bounding-box diagonals of
+        the smaller mesh (a unit mismatch with ``max_scale_ratio=None``); an ``initial_nnf`` of
+        the wrong shape or range.
+      MeshScaleError: a mesh with a mean edge outside ``[1e-6, 1e8]`` or too far from the origin
+        for float32 geometry (:func:`~jmeshtex.geometry.check_mesh_scale`).
+      MeshError: (another subclass) a mesh that is not a triangle mesh.
 
     Example:
       >>> import jax
@@ -163,8 +168,14 @@ def meshmatch(
     config = Config() if config is None else config
     source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
     t_start = time.perf_counter()
+    # no UV unwrapper here: only float32's range bounds the edge length from below
+    edges = (
+        check_mesh_scale(source, what="source", min_edge=_MIN_EDGE),
+        check_mesh_scale(target, what="target", min_edge=_MIN_EDGE),
+    )
     colors, valid, pins = _checked_signals(source, target, source_colors, source_mask, pin)
     _check_scales(source, target, config.max_scale_ratio)
+    _check_fan_extent(source, target, edges, config.fan_radius)
     if initial_nnf is not None:
         initial_nnf = np.asarray(initial_nnf)
         if (
@@ -234,6 +245,32 @@ def _check_scales(source: Mesh, target: Mesh, max_ratio: float | None) -> None:
             f"source and target sizes differ by {ratio:.3g}x (bounding-box diagonals {s:.4g} and {t:.4g}): "
             "MeshMatch pairs levels and fans in world units, so both meshes must share units; rescale one "
             "(e.g. to the other's size) or set Config(max_scale_ratio=None) to transfer at this scale on purpose"
+        )
+
+
+#: the smallest mean edge length accepted (float32 squares of lengths stay normal far below it)
+_MIN_EDGE = 1e-6
+#: the largest outer fan radius, in bounding-box diagonals of the smaller mesh, that a match traces
+_MAX_FAN_WRAP = 8.0
+
+
+def _check_fan_extent(source: Mesh, target: Mesh, edges: tuple[float, float], fan_radius) -> None:
+    """Raise when the finest level's fans (``fan_radius`` times the coarser mesh's mean edge) would
+    wrap around the smaller mesh more than ``_MAX_FAN_WRAP`` times: each trace would then walk
+    without bound in faces (a ×1e6 scale mismatch with ``max_scale_ratio=None``)."""
+    radius = float(fan_radius) * max(edges)
+    diagonals = [
+        float(np.linalg.norm(np.ptp(np.asarray(m.vertices, np.float64), axis=0)))
+        for m in (source, target)
+    ]
+    smaller = min(diagonals)
+    if radius > _MAX_FAN_WRAP * smaller:
+        ratio = max(edges) / min(edges)
+        raise InputError(
+            f"fans of radius {radius:.3g} (fan_radius {fan_radius:g} x the coarser mesh's mean edge "
+            f"{max(edges):.3g}) would span {radius / smaller:.3g} bounding-box diagonals of the "
+            f"smaller mesh ({smaller:.3g}; mean edges differ {ratio:.3g}x): rescale one mesh to "
+            "the other's units, or lower Config.fan_radius"
         )
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float
-from ..geometry import to_jax
+from ..geometry import check_mesh_scale, to_jax
 from ..metrics import VGGWeights, load_vgg16, load_vgg19
 from ._atlas import image_to_texels, texels_to_image
 from ._config import Config
@@ -200,6 +200,7 @@ def synthesize(
     """
     config = Config() if config is None else config
     mesh = as_mesh(mesh)
+    check_mesh_scale(mesh, what="mesh")  # before xatlas or float32 geometry can loop or fail
     image = as_rgb(exemplar, "exemplar")
     weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface)
     t0 = time.perf_counter()
