@@ -17,12 +17,16 @@ resampled at the same texels:
   texture's own resolution (``ppv_texture``) — the paper pre-trains at ≈ 26, its 30K inference
   meshes sit at ≈ 15–20;
 - ``constant`` rows: the best constant colour (the mean of the used texels), the floor any model must
-  beat.
+  beat; ``p1_oracle`` rows: the true colour sampled at each latent vertex, interpolated linearly
+  (3 numbers per vertex where a latent has ``2d``); ``p1_fit`` rows: the per-vertex colours that
+  minimise the squared error over the used texels (:func:`jmeshtex.fl.core.p1_baselines`) — a
+  model that does not beat them carries no more than a vertex colour.
 
 Held-out images (``table="held_out"``): the scikit-image photographs in
-:data:`jmeshtex.fl.core.HELD_OUT_IMAGES` (never used by :func:`jmeshtex.fl.training_images`; the row's
+:data:`jmeshtex.fl.HELD_OUT_IMAGES` (never used by :func:`jmeshtex.fl.training_images`; the row's
 ``seen_in_training`` says whether the model's own training data had the image) as planar
-meshes at 26 and 18 pixels per vertex, reconstructed in the atlas next to the best constant colour:
+meshes at 26 and 18 pixels per vertex, reconstructed in the atlas next to the best constant colour
+and the two P1 codecs:
 a model far above the constant on these but not on Spot suffers domain shift, one near the constant
 on both is under-trained.
 
@@ -128,6 +132,16 @@ def render_metrics(mesh, r, *, views: int, size: int, lpips: bool) -> dict:
     return {k: float(out[k]) for k in names}, {k: float(base[k]) for k in names}
 
 
+def baseline_metrics(mesh, r, *, lpips: bool) -> dict[str, dict]:
+    """Atlas metrics of the best constant colour and the two P1 codecs on ``r``'s latent mesh."""
+    atlases = {"constant": metrics.flat_baseline(r.target, mask=r.valid)}
+    atlases.update(fl.core.p1_baselines(mesh, r))
+    return {
+        name: fl.core.atlas_metrics(a, r.target, r.valid, lpips=lpips)
+        for name, a in atlases.items()
+    }
+
+
 def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
     """Held-out photographs as planar meshes at 26 and 18 pixels per vertex (module docstring)."""
     rng = np.random.default_rng(0)
@@ -147,21 +161,29 @@ def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
                     atlas=size,
                     seen_in_training=name in model_images(model),
                     **{k: round(v, 4) for k, v in r.metrics.items()},
+                    **channel_kl(r.latents),
                     seconds=time.perf_counter() - t0,
                     load=load(),
                 )
-            const = fl.core.atlas_metrics(
-                metrics.flat_baseline(r.target, mask=r.valid), r.target, r.valid, lpips=lpips
-            )
-            report.add(
-                table="held_out",
-                image=name,
-                model="constant",
-                vertices=mesh.num_vertices,
-                ppv_texture=round(measured, 2),
-                atlas=size,
-                **{k: round(v, 4) for k, v in const.items()},
-            )
+            for base, values in baseline_metrics(mesh, r, lpips=lpips).items():
+                report.add(
+                    table="held_out",
+                    image=name,
+                    model=base,
+                    vertices=mesh.num_vertices,
+                    ppv_texture=round(measured, 2),
+                    atlas=size,
+                    **{k: round(v, 4) for k, v in values.items()},
+                )
+
+
+def channel_kl(latents) -> dict:
+    """Each latent channel's mean KL (nats) over the vertices, and how many exceed 0.1 nat."""
+    kl = np.asarray(fl.core.kl_per_channel(latents)).mean(0)
+    return {
+        "kl_channels": " ".join(f"{x:.2f}" for x in kl),
+        "channels_above_0p1": int((kl > 0.1).sum()),
+    }
 
 
 def model_images(model) -> tuple[str, ...]:
@@ -173,6 +195,115 @@ def model_images(model) -> tuple[str, ...]:
 
 def load() -> float:
     return os.getloadavg()[0]
+
+
+#: KL-control variants of the ``--study`` mode (changes to ``Config.small``)
+KL_VARIANTS = {
+    "lambda=0.01": {},
+    "warm-up": {"kl_warmup_steps": -1},  # -1: the run's first half
+    "free bits 0.25": {"free_bits": 0.25},
+    "lambda=1e-3": {"kl_weight": 1e-3},
+}
+
+
+def _held_out_quality(model, *, size: int = 96) -> dict:
+    """Mean held-out atlas PSNR of ``model`` and of the P1 codecs (planar meshes at 26 ppv)."""
+    rng = np.random.default_rng(0)
+    rows = []
+    for image in fl.held_out_images(max_size=size):
+        mesh = fl.core.density_mesh(image, 26.0, rng=rng)
+        r = fl.reconstruct(model, mesh, key=jax.random.key(0), size=size, lpips=False)
+        base = baseline_metrics(mesh, r, lpips=False)
+        rows.append(
+            [r.metrics["psnr"], base["p1_oracle"]["psnr"], base["p1_fit"]["psnr"]]
+            + [base["constant"]["psnr"]]
+        )
+    m = np.mean(rows, axis=0)
+    return {"psnr": m[0], "p1_oracle_psnr": m[1], "p1_fit_psnr": m[2], "constant_psnr": m[3]}
+
+
+def study(report, *, steps: int, variants: dict, base: dict) -> None:
+    """Short training runs of ``Config.small(**base)`` per variant: per-channel KL, held-out PSNR
+    next to the P1 codecs, CPU seconds per step (one run at a time)."""
+    for name, changes in variants.items():
+        changes = dict(changes)
+        if changes.get("kl_warmup_steps") == -1:
+            changes["kl_warmup_steps"] = max(1, steps // 2)
+        config = fl.Config.small(
+            steps=steps, warmup_steps=min(50, steps // 4), checkpoint_every=steps, **base
+        ).replace(**changes)
+        cpu0, t0 = time.process_time(), time.perf_counter()
+        r = fl.train(None, config, key=jax.random.key(0), progress=False)
+        cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
+        kl = [float(np.mean(r.losses[f"kl{c}"][-50:])) for c in range(config.latent_dim)]
+        quality = _held_out_quality(r.model)
+        report.add(
+            table="study",
+            variant=name,
+            **{k: v for k, v in base.items()},
+            steps=steps,
+            kl_channels=" ".join(f"{x:.2f}" for x in kl),
+            channels_above_0p1=sum(x > 0.1 for x in kl),
+            l1_last50=round(float(np.mean(r.losses["l1"][-50:])), 4),
+            **{k: round(float(v), 3) for k, v in quality.items()},
+            cpu_s_per_step=round(cpu / steps, 3),
+            wall_s=round(wall, 1),
+            compile_s=round(r.compile_seconds, 1),
+            load=load(),
+        )
+
+
+def step_profile(report, *, base: dict, steps: int = 6) -> None:
+    """Where a training step's time goes: host batch building (meshes, one-ring sampling, colour
+    lookup) against the jitted step, in CPU and wall seconds, at ``Config.small(**base)``."""
+    config = fl.Config.small(**base)
+    images = fl.training_images(max_size=config.max_image_size)
+    n = config.batch_size * max(
+        int(round(config.texture_size**2 / (config.pixels_per_vertex / config.density_spread))), 4
+    )
+    params = fl.init(config, key=jax.random.key(0)).params
+    opt_state = fl.core.optimizer(config).init(params)
+    train_step = fl.core.make_train_step(config)
+    stages = {"meshes": [], "samples": [], "step": []}
+    cpu = {k: [] for k in stages}
+    for i in range(steps):
+        rng = np.random.default_rng(i)
+        c0, t0 = time.process_time(), time.perf_counter()
+        # (training_meshes also builds each image's pyramid, which fl.train does once per run)
+        meshes = fl.core.training_meshes(jax.random.key(i), config, images=images)
+        c1, t1 = time.process_time(), time.perf_counter()
+        batch = fl.core.mesh_batch(meshes, config, rng, num_vertices=n)
+        c2, t2 = time.process_time(), time.perf_counter()
+        params, opt_state, loss, aux = train_step(
+            params, opt_state, batch, jax.random.key(i), np.int32(i)
+        )
+        jax.block_until_ready(loss)
+        c3, t3 = time.process_time(), time.perf_counter()
+        if i == 0:
+            compile_s = t3 - t2
+            continue
+        for k, (a, b, ca, cb) in {
+            "meshes": (t0, t1, c0, c1),
+            "samples": (t1, t2, c1, c2),
+            "step": (t2, t3, c2, c3),
+        }.items():
+            stages[k].append(b - a)
+            cpu[k].append(cb - ca)
+    for k in stages:
+        report.add(
+            table="step_profile",
+            stage={
+                "meshes": "host: textures + planar meshes",
+                "samples": "host: one-ring sampling + colours + corner logs (mesh_batch)",
+                "step": "jitted step (encoder, decoder, grad, Adam)",
+            }[k],
+            **{kk: v for kk, v in base.items()},
+            padded_vertices=n,
+            wall_s=round(float(np.median(stages[k])), 4),
+            cpu_s=round(float(np.median(cpu[k])), 4),
+            first_step_compile_s=round(compile_s, 1) if k == "step" else None,
+            load=load(),
+        )
 
 
 def main() -> None:
@@ -195,7 +326,39 @@ def main() -> None:
     )
     ap.add_argument("--no-throughput", action="store_true")
     ap.add_argument("--out", default=None)
+    ap.add_argument(
+        "--study",
+        type=int,
+        default=0,
+        metavar="STEPS",
+        help="instead of the tables: short Config.small runs of STEPS steps per KL variant "
+        "(writes fl_vae_study)",
+    )
+    ap.add_argument(
+        "--profile",
+        action="store_true",
+        help="instead of the tables: where a training step's time goes",
+    )
+    ap.add_argument(
+        "--base",
+        default="{}",
+        help="JSON changes to Config.small for --study / --profile (e.g. texture_size)",
+    )
+    ap.add_argument("--variants", default=None, help="comma-separated KL_VARIANTS names")
     args = ap.parse_args()
+    if args.study or args.profile:
+        import json
+
+        base = json.loads(args.base)
+        report = Report("fl_vae_study" if args.study else "fl_vae_profile")
+        report.config = {"base": base, "study_steps": args.study}
+        if args.profile:
+            step_profile(report, base=base)
+        else:
+            names = args.variants.split(",") if args.variants else list(KL_VARIANTS)
+            study(report, steps=args.study, variants={n: KL_VARIANTS[n] for n in names}, base=base)
+        report.write(pathlib.Path(args.out) if args.out else None)
+        return
     report = Report("fl_vae")
     if args.models is None:
         loaded = [fl.load_pretrained(decoder=d) for d in ("log", "barycentric")]
@@ -251,6 +414,7 @@ def main() -> None:
                     model=decoder,
                     space="atlas",
                     **{k: round(v, 4) for k, v in r.metrics.items()},
+                    **channel_kl(r.latents),
                     paper_psnr_30k_gso=PAPER.get(decoder),
                     seconds=time.perf_counter() - t0,
                     remesh_s=round(t_remesh, 2),
@@ -269,18 +433,13 @@ def main() -> None:
                         seconds=time.perf_counter() - t0,
                         load=load(),
                     )
-            const = fl.core.atlas_metrics(
-                metrics.flat_baseline(r.target, mask=r.valid),
-                r.target,
-                r.valid,
-                lpips=not args.no_lpips,
-            )
-            report.add(
-                **common,
-                model="constant",
-                space="atlas",
-                **{k: round(v, 4) for k, v in const.items()},
-            )
+            for base, values in baseline_metrics(mesh, r, lpips=not args.no_lpips).items():
+                report.add(
+                    **common,
+                    model=base,
+                    space="atlas",
+                    **{k: round(v, 4) for k, v in values.items()},
+                )
             if args.views:
                 report.add(
                     **common,

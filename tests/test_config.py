@@ -335,8 +335,15 @@ def test_shipped_weights_store_every_config_field(name):
     # the shipped weights embed the complete fl.Config dict of their training run, read back exactly
     with np.load(WEIGHTS / name, allow_pickle=False) as data:
         stored = json.loads(data["meta"].tobytes().decode())["config"]
-    assert FLVAEConfig.from_dict(stored).to_dict() == stored
-    assert set(stored) == set(FLVAEConfig().to_dict())
+    back = FLVAEConfig.from_dict(stored).to_dict()
+    assert {k: back[k] for k in stored} == stored
+    # fields added since are exactly those whose absence means the old behaviour (from_stored)
+    from jmeshtex.fl._config import LEGACY_VALUES
+
+    added = set(FLVAEConfig().to_dict()) - set(stored)
+    assert set(stored) <= set(FLVAEConfig().to_dict())
+    legacy = FLVAEConfig.from_stored(stored)
+    assert all(getattr(legacy, k) == LEGACY_VALUES.get(k, getattr(FLVAEConfig(), k)) for k in added)
 
 
 @pytest.mark.parametrize(

@@ -158,19 +158,31 @@ def _train(args) -> int:
         stop_after=args.stop_after,
     )
     loss, l1 = result.losses["loss"], result.losses["l1"]
+    # each latent channel's KL in nats over the last 50 steps: near 0 means a collapsed channel
+    kl = [
+        float(result.losses[f"kl{c}"][-50:].mean())
+        for c in range(config.latent_dim)
+        if len(result.losses.get(f"kl{c}", ()))
+    ]
     summary = {
         "out": str(args.out / "fl_vae.npz"),
         "steps": result.steps,
         "final_loss": float(loss[-50:].mean()) if len(loss) else None,
         "final_l1": float(l1[-50:].mean()) if len(l1) else None,
         "steps_per_second": result.extra["steps_per_second"],
+        "kl_channels": [round(x, 4) for x in kl] or None,
+        "channels_above_0.1_nat": sum(x > 0.1 for x in kl) if kl else None,
         "preset": args.preset,
         "loss_curve": str(args.out / "loss_curve.png"),
     }
     save(
         result.model,
         args.out / "fl_vae.npz",
-        extra={k: summary[k] for k in ("steps", "final_loss", "final_l1")} | {"seed": args.seed},
+        extra={
+            k: summary[k]
+            for k in ("steps", "final_loss", "final_l1", "kl_channels", "channels_above_0.1_nat")
+        }
+        | {"seed": args.seed},
     )
     print(json.dumps(summary, indent=2))
     return 0

@@ -102,7 +102,11 @@ def encode(
             f"colors must be a SurfaceColors (see jmeshtex.fl.surface_colors), got {type(colors).__name__}"
         )
     samples = one_ring_samples(
-        mesh.vertices, mesh.faces, model.config.num_samples, rng=_numpy_rng(key)
+        mesh.vertices,
+        mesh.faces,
+        model.config.num_samples,
+        rng=_numpy_rng(key),
+        center=model.config.token == "centre",
     )
     if colors.vertices is mesh.vertices or (
         colors.faces.shape == mesh.faces.shape
@@ -132,7 +136,8 @@ def encode_one_rings(
 
     Args:
       model: the FL-VAE (:class:`~jmeshtex.fl.Model`).
-      samples: :class:`~jmeshtex.fl.core.OneRingSamples` ``[V, S]`` (log coordinates and mask are used).
+      samples: :class:`~jmeshtex.fl.core.OneRingSamples` ``[V, S]`` (log coordinates and mask are used;
+        drawn with ``center=True`` exactly when the model's ``token`` is ``"centre"``).
       rgb: ``[V, S, 3]`` colours in [0, 1] at the samples.
 
     Returns:
@@ -144,7 +149,7 @@ def encode_one_rings(
       >>> from jmeshtex.fl import Config, init
       >>> from jmeshtex.fl.core import one_ring_samples
       >>> model = init(Config(features=8, num_heads=2, num_blocks=1, encode_chunk=10), key=jax.random.key(0))
-      >>> s = one_ring_samples(*grid(3), 8, rng=np.random.default_rng(0))
+      >>> s = one_ring_samples(*grid(3), 8, rng=np.random.default_rng(0), center=True)
       >>> lat = encode_one_rings(model, s, np.full((*s.log.shape, 3), 0.5))
       >>> lat.mu.shape  # 16 vertices in two chunks of 10
       (16, 8)
@@ -153,6 +158,12 @@ def encode_one_rings(
     if not isinstance(samples, OneRingSamples):
         raise InputError(
             f"samples must be OneRingSamples (see jmeshtex.fl.one_ring_samples), got {type(samples).__name__}"
+        )
+    if (model.config.token == "centre") != bool(samples.centered):
+        raise InputError(
+            f"the model's token is {model.config.token!r}, so its samples must "
+            f"{'' if model.config.token == 'centre' else 'not '}have the ring's centre in column 0: "
+            f"draw them with one_ring_samples(..., center={model.config.token == 'centre'})"
         )
     log, mask, rgb = np.asarray(samples.log), np.asarray(samples.mask), np.asarray(rgb)
     if rgb.shape != (*log.shape, 3):

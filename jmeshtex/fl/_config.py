@@ -14,6 +14,18 @@ from .._config import ConfigBase, cross_rule, rule
 
 #: decoder variants: the paper's log-coordinate neural field and its barycentric ablation (Table 1)
 DECODERS = ("log", "barycentric")
+#: the reference colour of the encoder's token: the ring's centre sample (the reference's
+#: ``ring_vae.init_conv``) or the mean of the ring's samples (the shipped models')
+TOKENS = ("centre", "ring_mean")
+#: the log decoder's training objective: each sample blended from its face's three corners as at
+#: inference, or decoded from the ring's own vertex alone (the shipped models')
+LOG_OBJECTIVES = ("blended", "vertex")
+#: the VN-Transformer's normalisation: per element (the shipped models') or per channel over all
+#: vertices and samples (the reference's ``square_mag_norm_encoder``)
+VN_NORMS = ("element", "channel")
+#: what a stored config that lacks these fields was trained with (files written before they
+#: existed): :meth:`Config.from_stored` fills them in, so old models keep their numbers
+LEGACY_VALUES = {"token": "ring_mean", "log_objective": "vertex"}
 
 
 #: fields that do not change the model's function (data, optimiser, batching, chunking)
@@ -37,6 +49,10 @@ _TRAINING_FIELDS = (
     "grad_clip",
     "checkpoint_every",
     "encode_chunk",
+    "log_objective",
+    "kl_warmup_steps",
+    "free_bits",
+    "boundary_in_loss",
 )
 #: how :func:`~jmeshtex.fl.core.vae_loss` averages its terms
 LOSS_NORMALIZATIONS = ("mean", "paper")
@@ -66,6 +82,26 @@ class Config(ConfigBase):
         model, kept as the default so its stored config reads as trained). The presets use ``"paper"``.
       log_sigma_max: upper clip of ``log σ`` (keeps ``exp`` finite early in training).
       delta: ``δ > 0`` of the layer norms and vector-neuron layers.
+      token: the token's reference colour: ``"centre"`` (the reference's: the colour at the vertex
+        itself, sample 0 of :func:`~jmeshtex.fl.core.one_ring_samples` with ``center=True``, which
+        is also a reconstruction target) or ``"ring_mean"`` (the mean sample colour; the shipped
+        models', which a stored config without this field means).
+      log_objective: how the log decoder is trained: ``"blended"`` (each sample decoded from its
+        face's three corner latents and blended barycentrically, as at inference) or ``"vertex"``
+        (each ring decoded from its own vertex's latent; the shipped models', which a stored config
+        without this field means). The barycentric decoder ignores it.
+      vn_norm: the VN-Transformer's normalisation (:func:`~jmeshtex.ops.vn_transformer_block`):
+        ``"element"`` (each feature by its own magnitude; the shipped models') or ``"channel"``
+        (each channel by its mean square over all vertices and samples, the reference's).
+      attention_linear: add the reference's parallel linear path to each attention
+        (``MHA(x) + x W``; False: the shipped models' attention alone).
+      kl_warmup_steps: the KL weight ramps linearly from ``λ / kl_warmup_steps`` to ``λ`` over
+        these steps (0: ``λ`` from the start, the shipped models' recipe).
+      free_bits: per-channel KL floor in nats: a channel whose batch-mean KL is below it adds
+        ``free_bits`` to the loss and gets no KL gradient (Kingma et al. 2016; 0: off, the shipped
+        models' recipe).
+      boundary_in_loss: False drops the one-rings of boundary vertices (half-rings, never met on
+        closed meshes) from the reconstruction and KL terms (True: the shipped models' recipe).
 
     Planar pre-training (supplement §9.1). Two data modes: with ``pixels_per_vertex = 0`` (the
     shipped model's) a fixed pool of ``meshes_per_image`` meshes of ``min_vertices``–``max_vertices``
@@ -116,6 +152,13 @@ class Config(ConfigBase):
     loss_normalization: str = "mean"
     log_sigma_max: float = 2.0
     delta: float = 1e-6
+    token: str = "centre"
+    log_objective: str = "blended"
+    vn_norm: str = "element"
+    attention_linear: bool = False
+    kl_warmup_steps: int = 0
+    free_bits: float = 0.0
+    boundary_in_loss: bool = True
     # planar pre-training
     min_vertices: int = 64
     max_vertices: int = 192
@@ -155,6 +198,26 @@ class Config(ConfigBase):
             message="{name} must be {must}, got {value!r}",
         ),
         rule("kl_weight", lambda x: x >= 0, ">= 0"),
+        rule(
+            "token",
+            lambda x: x in TOKENS,
+            f"one of {TOKENS}",
+            message="{name} must be {must}, got {value!r}",
+        ),
+        rule(
+            "log_objective",
+            lambda x: x in LOG_OBJECTIVES,
+            f"one of {LOG_OBJECTIVES}",
+            message="{name} must be {must}, got {value!r}",
+        ),
+        rule(
+            "vn_norm",
+            lambda x: x in VN_NORMS,
+            f"one of {VN_NORMS}",
+            message="{name} must be {must}, got {value!r}",
+        ),
+        rule("kl_warmup_steps", lambda x: x >= 0, ">= 0 (0: no KL warm-up)"),
+        rule("free_bits", lambda x: x >= 0, ">= 0 nats per channel (0: off)"),
         rule(
             "loss_normalization",
             lambda x: x in LOSS_NORMALIZATIONS,
@@ -249,6 +312,25 @@ class Config(ConfigBase):
             checkpoint_every=250,
         )
         return cls(**{**base, **changes})
+
+    @classmethod
+    def from_stored(cls, data) -> Config:
+        """A config read back from a model or checkpoint file: fields the file lacks mean the
+        behaviour of the version that wrote it (``LEGACY_VALUES``), not today's defaults.
+
+        Example:
+          >>> old = {k: v for k, v in Config().to_dict().items() if k not in LEGACY_VALUES}
+          >>> c = Config.from_stored(old)
+          >>> c.token, c.log_objective, Config.from_dict(old).token
+          ('ring_mean', 'vertex', 'centre')
+        """
+        from .._errors import ConfigError
+
+        if not isinstance(data, dict):
+            raise ConfigError(
+                f"fl.Config.from_stored needs a dict of fields, got {type(data).__name__}"
+            )
+        return cls.from_dict({**{k: v for k, v in LEGACY_VALUES.items() if k not in data}, **data})
 
     def architecture(self) -> Config:
         """The same network with every data/training field at its default: a cache key for jitted

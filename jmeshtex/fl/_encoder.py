@@ -138,12 +138,15 @@ class OneRingSamples(NamedTuple):
       face: ``[V, S]`` int64 face containing each sample (0 on padding).
       bary: ``[V, S, 3]`` float64 barycentric coordinates in that face (corner order of ``faces``).
       mask: ``[V, S]`` True for real samples (False at vertices without faces).
+      centered: True when column 0 is the ring's centre, the vertex itself (log 0): what an
+        encoder with ``token="centre"`` reads as the token's reference colour.
     """
 
     log: np.ndarray
     face: np.ndarray
     bary: np.ndarray
     mask: np.ndarray
+    centered: bool = False
 
 
 #: fixed per-wedge rule (barycentrics on (p, q_j, q_{j+1})) of the deterministic "quadrature" sampler
@@ -167,6 +170,7 @@ def one_ring_samples(
     rng: np.random.Generator | None = None,
     geometry: RingGeometry | None = None,
     chunk: int = 8192,
+    center: bool = False,
 ) -> OneRingSamples:
     """Sample every one-ring: area-uniform random points (or a fixed per-wedge rule) with log maps.
 
@@ -181,9 +185,11 @@ def one_ring_samples(
       rng: a ``numpy.random.Generator``, or None for the deterministic rule.
       geometry: a precomputed ``ring_geometry`` (else built here).
       chunk: vertices per vectorised batch (bounds memory).
+      center: put the ring's centre (the vertex itself: log 0, in the first wedge's face) in
+        column 0, before the ``S`` samples (what ``Config(token="centre")`` encoders read).
 
     Returns:
-      :class:`OneRingSamples`.
+      :class:`OneRingSamples` (``S + 1`` columns with ``center``).
 
     Example:
       >>> import numpy as np
@@ -204,7 +210,8 @@ def one_ring_samples(
         wedge = np.repeat(np.arange(K), q)[None, :].repeat(V, 0)  # [V, K q]
         local = np.tile(_QUADRATURE, (K, 1))[None].repeat(V, 0)
         mask = np.take_along_axis(wm, wedge, axis=1)
-        return _assemble(geom, wedge, local, mask, corner_of)
+        out = _assemble(geom, wedge, local, mask, corner_of)
+        return _with_center(geom, out, corner_of) if center else out
     if not is_int(num_samples, 1):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     area = np.where(
@@ -227,7 +234,26 @@ def one_ring_samples(
         local = np.stack([1.0 - s, s * (1.0 - t), s * t], axis=-1)
         mask = np.take_along_axis(wm[sl], wedge, axis=1) & (total[sl, None] > 0)
         out.append(_assemble(geom, wedge, local, mask, corner_of[sl], offset=sl.start))
-    return OneRingSamples(*(np.concatenate(parts, axis=0) for parts in zip(*out, strict=True)))
+    joined = OneRingSamples(
+        *(np.concatenate(parts, axis=0) for parts in zip(*(o[:4] for o in out), strict=True))
+    )
+    return _with_center(geom, joined, corner_of) if center else joined
+
+
+def _with_center(geom: RingGeometry, s: OneRingSamples, corner_of: np.ndarray) -> OneRingSamples:
+    """``s`` with the ring's centre (the vertex, in the face of its first wedge) as column 0."""
+    face = np.where(geom.wedge_mask[:, 0], geom.wedge_faces[:, 0], 0)
+    corner = np.where(geom.wedge_mask[:, 0], corner_of[:, 0], 0)
+    bary = np.zeros((len(face), 3))
+    bary[np.arange(len(face)), corner] = 1.0
+    bary = np.where(geom.wedge_mask[:, :1], bary, 0.0)
+    return OneRingSamples(
+        log=np.concatenate([np.zeros((len(face), 1), s.log.dtype), s.log], axis=1),
+        face=np.concatenate([face[:, None], s.face], axis=1),
+        bary=np.concatenate([bary[:, None], s.bary], axis=1),
+        mask=np.concatenate([geom.wedge_mask[:, :1], s.mask], axis=1),
+        centered=True,
+    )
 
 
 def _assemble(geom, wedge, local, mask, corner_of, offset=0) -> OneRingSamples:
@@ -307,7 +333,9 @@ def mlp(layers, x):
     return x
 
 
-def _vnt_block(draw: _Draw, c: int, heads: int, cdt, rdt) -> VNTransformerParams:
+def _vnt_block(
+    draw: _Draw, c: int, heads: int, cdt, rdt, linear: bool = False
+) -> VNTransformerParams:
     from ..ops import ComplexAttentionParams, VNParams
 
     e = c // heads
@@ -316,6 +344,7 @@ def _vnt_block(draw: _Draw, c: int, heads: int, cdt, rdt) -> VNTransformerParams
         key=_complex_init(draw, (c, heads, e), c, cdt),
         value=_complex_init(draw, (c, heads, e), c, cdt),
         out=_complex_init(draw, (heads, e, c), heads * e, cdt),
+        linear=_complex_init(draw, (c, c), c, cdt) if linear else None,
     )
     mlp_in = VNParams(_complex_init(draw, (c, c), c, cdt), _complex_init(draw, (c, c), c, cdt))
     mlp_out = VNParams(_complex_init(draw, (c, c), c, cdt), _complex_init(draw, (c, c), c, cdt))
@@ -326,7 +355,7 @@ def _vnt_block(draw: _Draw, c: int, heads: int, cdt, rdt) -> VNTransformerParams
 def encoder_size(config) -> int:
     """Number of standard normals :func:`init_encoder` draws."""
     c, d = config.features, config.latent_dim
-    block = 2 * (4 * c * c + 4 * c * c)
+    block = 2 * (4 * c * c + 4 * c * c) + (2 * c * c if config.attention_linear else 0)
     return (
         _dense_size((3, c, c, c))
         + _dense_size((7, c, c))
@@ -343,7 +372,8 @@ def init_encoder(draw: _Draw, config, *, dtype=jnp.float32) -> EncoderParams:
     sample_mlp = _dense_init(draw, (3, c, c, c), dtype)
     token_mlp = _dense_init(draw, (7, c, c), dtype)
     blocks = tuple(
-        _vnt_block(draw, c, config.num_heads, cdt, dtype) for _ in range(config.num_blocks)
+        _vnt_block(draw, c, config.num_heads, cdt, dtype, config.attention_linear)
+        for _ in range(config.num_blocks)
     )
     mean = _complex_init(draw, (c, d), c, cdt)
     sigma_dir = _complex_init(draw, (c, c), c, cdt)
@@ -365,24 +395,39 @@ def encode_samples_raw(
     cdt = params.mean.dtype
     log_q = jnp.asarray(log_q).astype(cdt)
     rgb = jnp.asarray(rgb).astype(rdt) - jnp.asarray(0.5, rdt)
-    m = jnp.asarray(mask).astype(rdt)
+    mask = jnp.asarray(mask, bool)
+    center = config.token == "centre"
+    if center:  # column 0 is the ring's centre: the token's reference colour, not a set element
+        center_rgb = rgb[:, :1, :]
+        log_q, rgb, mask = log_q[:, 1:], rgb[:, 1:], mask[:, 1:]
+    m = mask.astype(rdt)
     count = jnp.maximum(jnp.sum(m, axis=1, keepdims=True), jnp.asarray(1.0, rdt))  # [V, 1]
     # eq. 21: a real feature of the colour times the sample's log coordinate
     h = mlp(params.sample_mlp, rgb) * m[..., None]  # [V, S, C]
     x = h.astype(cdt) * log_q[..., None]
-    # eq. 22: token = filtered gather Σ f(colour, |log|, ring mean) log / n
-    mean_rgb = jnp.sum(rgb * m[..., None], axis=1, keepdims=True) / count[..., None]
+    # eq. 22: token = filtered gather Σ f(colour, |log|, reference colour) log / n
+    if center:
+        ref_rgb = center_rgb
+    else:
+        ref_rgb = jnp.sum(rgb * m[..., None], axis=1, keepdims=True) / count[..., None]
     feats = jnp.concatenate(
-        [rgb, jnp.abs(log_q)[..., None], jnp.broadcast_to(mean_rgb, rgb.shape)], axis=-1
+        [rgb, jnp.abs(log_q)[..., None], jnp.broadcast_to(ref_rgb, rgb.shape)], axis=-1
     )
     g = mlp(params.token_mlp, feats) * m[..., None]
     token = jnp.sum(g.astype(cdt) * log_q[..., None], axis=1) / count.astype(cdt)  # [V, C]
     seq = jnp.concatenate([x, token[:, None, :]], axis=1)
-    seq_mask = jnp.concatenate(
-        [jnp.asarray(mask, bool), jnp.ones((mask.shape[0], 1), bool)], axis=1
+    # the token is always valid; for the per-channel norm's batch statistic, padded vertices (no
+    # valid sample) are left out
+    token_valid = (
+        jnp.any(mask, axis=1, keepdims=True)
+        if config.vn_norm == "channel"
+        else jnp.ones((mask.shape[0], 1), bool)
     )
+    seq_mask = jnp.concatenate([mask, token_valid], axis=1)
     for block in params.blocks:
-        seq = vn_transformer_block(seq, block, mask=seq_mask, delta=config.delta)
+        seq = vn_transformer_block(
+            seq, block, mask=seq_mask, delta=config.delta, norm=config.vn_norm
+        )
     u = seq[:, -1, :]
     mu = complex_linear(u, params.mean)
     v = complex_linear(u, params.sigma_dir)

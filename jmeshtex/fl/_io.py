@@ -83,7 +83,7 @@ def _load_legacy(path: pathlib.Path, arrays: dict) -> tuple[Model, dict]:
     """Format version 0: ``leaf_0000`` ... in pytree order, ``meta`` UTF-8 JSON bytes."""
     try:
         meta = json.loads(arrays.pop("meta").tobytes().decode())
-        config = Config.from_dict(meta["config"])
+        config = Config.from_stored(meta["config"])  # fields it lacks: the writer's behaviour
         leaves = [arrays[f"leaf_{i:04d}"] for i in range(int(meta["num_leaves"]))]
         extra = meta.get("extra", {})
     except (ValueError, KeyError, TypeError) as err:
@@ -105,7 +105,12 @@ def _load(path: str | os.PathLike) -> tuple[Model, dict]:
     if _is_legacy(arrays):
         return _load_legacy(path, arrays)
     file = load_model(path, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT)
-    config = file.config_as(Config)
+    try:  # fields the file lacks mean the behaviour of the version that wrote it
+        config = Config.from_stored(file.config)
+    except (ValueError, TypeError, KeyError) as err:
+        raise CorruptModelError(
+            f"model file {path}: its stored config is not a valid fl.Config: {err}"
+        ) from err
     mean = file.arrays.get("encoder/mean")
     real = jnp.float64 if mean is not None and mean.dtype == np.complex128 else jnp.float32
     params = file.restore(_like(config, real))

@@ -35,6 +35,8 @@ class Reconstruction:
       latents: :class:`~jmeshtex.fl.FieldLatents` on ``latent_mesh``.
       latent_mesh: the mesh the latents live on (the input, or its re-triangulation).
       metrics: ``{"psnr", "dssim", "lpips"}`` over the used texels (``lpips`` only if asked).
+      texels: ``(row [N], col [N], face [N], bary [N, 3])``: each used texel and its point on
+        ``latent_mesh`` (what :func:`~jmeshtex.fl.core.p1_baselines` fits), or None.
     """
 
     texture: np.ndarray
@@ -43,6 +45,7 @@ class Reconstruction:
     latents: FieldLatents
     latent_mesh: Mesh
     metrics: dict
+    texels: tuple | None = None
 
 
 def atlas_metrics(
@@ -147,6 +150,7 @@ def reconstruct(
         latents,
         target_mesh,
         atlas_metrics(texture, target, valid, lpips=lpips),
+        (texels.row, texels.col, lface, lbary),
     )
 
 

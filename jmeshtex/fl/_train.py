@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import threading
 import time
 
 import jax
@@ -40,7 +41,7 @@ import optax
 from .._errors import ConfigError, InputError
 from .._mesh import Mesh
 from .._train_result import TrainResult
-from .._training import fit
+from .._training import CheckpointPolicy, Progress, fit
 from .._types import PRNGKey
 from ..ops import conjugate_complex_grads
 from ..parallel import (
@@ -51,7 +52,7 @@ from ..parallel import (
 )
 from ._colors import surface_colors
 from ._config import Config
-from ._encoder import _numpy_rng, one_ring_samples
+from ._encoder import _numpy_rng, corner_logs, one_ring_samples, ring_geometry
 from ._loss import vae_loss
 from ._loss_curve import plot_losses
 from ._model import Model, init
@@ -91,10 +92,12 @@ def optimizer(config: Config) -> optax.GradientTransformation:
 
 
 def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None):
-    """The jitted training step ``(params, opt_state, batch, key) -> (params, opt_state, loss, l1)``.
+    """The jitted training step ``(params, opt_state, batch, key[, step]) -> (params, opt_state, loss, aux)``.
 
     One :func:`~jmeshtex.fl.core.vae_loss` gradient, complex gradients conjugated, one
-    :func:`optimizer` update.
+    :func:`optimizer` update. ``step`` (the 0-based step index, default 0) sets the KL warm-up's
+    factor ``min(1, (step + 1) / kl_warmup_steps)``; ``aux`` holds ``"l1"``, ``"kl"`` and
+    ``"kl_channels"`` (each channel's mean KL in nats, ``[d]``; also as scalars ``"kl0"``, ...).
 
     Args:
       config: :class:`~jmeshtex.fl.Config` (static).
@@ -113,13 +116,13 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
       >>> params = init(c, key=jax.random.key(0)).params
       >>> rng = np.random.default_rng(0)
       >>> batch = mesh_batch([planar_mesh(rng.random((8, 8, 3)), 10, rng=rng)], c, rng, num_vertices=12)
-      >>> params, state, loss, l1 = make_train_step(c)(params, optimizer(c).init(params), batch, jax.random.key(1))
+      >>> params, state, loss, aux = make_train_step(c)(params, optimizer(c).init(params), batch, jax.random.key(1))
       >>> bool(np.isfinite(loss))
       True
     """
     opt = optimizer(config)
 
-    def loss_fn(params, batch, key):
+    def loss_fn(params, batch, key, scale):
         return vae_loss(
             params,
             config,
@@ -130,15 +133,23 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
             corners=batch["corners"],
             bary=batch["bary"],
             vertex_mask=batch["vertex_mask"],
+            corner_logs=batch.get("corner_logs"),
+            kl_scale=scale,
         )
 
-    def step(params, opt_state, batch, key):
-        (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key)
+    def step(params, opt_state, batch, key, step=0):
+        if config.kl_warmup_steps > 0:
+            scale = jnp.minimum(1.0, (jnp.asarray(step, jnp.float32) + 1) / config.kl_warmup_steps)
+        else:
+            scale = 1.0
+        (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key, scale)
         grads = conjugate_complex_grads(grads)
         with jax.numpy_dtype_promotion("standard"):
             updates, opt_state = opt.update(grads, opt_state, params)
             params = optax.apply_updates(params, updates)
-        return params, opt_state, loss, aux["l1"]
+        channels = aux["kl_channels"]
+        aux = {**aux, **{f"kl{c}": channels[c] for c in range(config.latent_dim)}}
+        return params, opt_state, loss, aux
 
     if device_mesh is None:
         return jax.jit(step)
@@ -165,7 +176,11 @@ def mesh_batch(
 
     Returns:
       A dict of arrays ``log [N, S]``, ``rgb [N, S, 3]``, ``mask [N, S]``, ``corners [N, S, 3]``
-      (global vertex ids of each sample's face), ``bary [N, S, 3]``, ``vertex_mask [N]``.
+      (global vertex ids of each sample's face), ``bary [N, S, 3]``, ``corner_logs [N, S, 3]``
+      (each sample's log map seen from each corner of its face, normalised as ``log``),
+      ``vertex_mask [N]`` (the vertices whose rings enter the loss: real ones, and with
+      ``config.boundary_in_loss = False`` only interior ones). With ``config.token == "centre"``
+      column 0 is each ring's centre (``S + 1`` columns).
 
     Example:
       >>> import numpy as np
@@ -173,19 +188,34 @@ def mesh_batch(
       >>> rng = np.random.default_rng(0)
       >>> meshes = [planar_mesh(rng.random((8, 8, 3)), 10, rng=rng) for _ in range(2)]
       >>> b = mesh_batch(meshes, Config(num_samples=4), rng, num_vertices=24)
-      >>> b["log"].shape, int(b["vertex_mask"].sum())
-      ((24, 4), 20)
+      >>> b["log"].shape, int(b["vertex_mask"].sum())  # the centre and 4 samples per ring
+      ((24, 5), 20)
     """
     S = config.num_samples
-    logs, rgbs, masks, corners, barys = [], [], [], [], []
+    logs, rgbs, masks, corners, barys, clogs, keep = [], [], [], [], [], [], []
     offset = 0
     for mesh in meshes:
-        s = one_ring_samples(mesh.vertices, mesh.faces, S, rng=rng)
+        geom = ring_geometry(mesh.vertices, mesh.faces)
+        s = one_ring_samples(
+            mesh.vertices, mesh.faces, S, rng=rng, geometry=geom, center=config.token == "centre"
+        )
         logs.append(s.log)
         rgbs.append(surface_colors(mesh).at_barycentric(s.face, s.bary))
         masks.append(s.mask)
         corners.append(np.asarray(mesh.faces)[s.face] + offset)
         barys.append(s.bary)
+        clogs.append(
+            np.stack(
+                [corner_logs(geom, s.face, np.full(s.face.shape, k), s.bary) for k in range(3)],
+                axis=-1,
+            )
+            * s.mask[..., None]
+        )
+        keep.append(
+            np.ones(mesh.num_vertices, bool)
+            if config.boundary_in_loss
+            else ~boundary_vertices(mesh.faces, mesh.num_vertices)
+        )
         offset += mesh.num_vertices
     if offset > num_vertices:
         raise InputError(f"batch has {offset} vertices, more than the padded size {num_vertices}")
@@ -202,8 +232,55 @@ def mesh_batch(
         "mask": cat(masks, False),
         "corners": cat(corners).astype(np.int32),
         "bary": cat(barys).astype(dtype),
-        "vertex_mask": np.arange(num_vertices) < offset,
+        "corner_logs": cat(clogs).astype(cdt),
+        "vertex_mask": cat(keep, False),
     }
+
+
+def boundary_vertices(faces: np.ndarray, num_vertices: int) -> np.ndarray:
+    """``[V]`` True at the vertices of edges that belong to one face only.
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> int(boundary_vertices(grid(2).faces, 9).sum())  # a 3×3 grid: all but the middle vertex
+      8
+    """
+    f = np.asarray(faces, np.int64)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(e, axis=0, return_counts=True)
+    out = np.zeros(num_vertices, bool)
+    out[uniq[count == 1].ravel()] = True
+    return out
+
+
+def _prefetched(make):
+    """``make`` (step index → batch) with the next index's batch built in a worker thread.
+
+    ``get(i)`` returns ``make(i)``: the thread's result when it was building ``i`` (else computed
+    here; an error in the thread is raised by computing again here), then starts ``i + 1``.
+    """
+    ahead: dict = {}
+
+    def get(i: int):
+        thread = ahead.pop("thread", None)
+        if thread is not None:
+            thread.join()
+        box = ahead.pop("box", None)
+        out = box["out"] if box is not None and box["index"] == i and "out" in box else make(i)
+        nxt: dict = {"index": i + 1}
+
+        def work() -> None:
+            try:
+                nxt["out"] = make(i + 1)
+            except Exception:  # noqa: BLE001 (re-raised when that step is asked for)
+                pass
+
+        thread = threading.Thread(target=work, daemon=True, name="fl-batch-prefetch")
+        thread.start()
+        ahead.update(thread=thread, box=nxt)
+        return out
+
+    return get
 
 
 def _load_images(images, max_size: int, stream: bool = False) -> list[np.ndarray]:
@@ -257,6 +334,7 @@ def train(
     stop_after: int | None = None,
     device_mesh: jax.sharding.Mesh | None = None,
     devices=None,
+    prefetch: bool = True,
 ) -> TrainResult[Model]:
     """Train an FL-VAE on planar meshes over images; resumable from checkpoints.
 
@@ -283,10 +361,14 @@ def train(
         module docstring). None: ``jmeshtex.parallel.data_mesh(devices)``.
       devices: the devices of the default mesh (None: every device; ``jax.devices()[:1]`` trains
         on one). Not with ``device_mesh``.
+      prefetch: build step ``t + 1``'s batch (meshes, one-ring samples) in a worker thread while
+        step ``t`` runs (the same batches either way: each is a function of its step index).
 
     Returns:
       :class:`~jmeshtex.TrainResult` with the :class:`~jmeshtex.fl.Model` in ``.model``; ``losses``
-      has ``"loss"`` (total) and ``"l1"`` (reconstruction term) per step, resumed steps included;
+      has ``"loss"`` (total), ``"l1"`` (reconstruction term), ``"kl"`` (the KL term, before any
+      free-bits floor) and ``"kl0"`` ... ``"kl{d-1}"`` (each latent channel's mean KL in nats: a
+      channel near 0 has collapsed) per step, resumed steps included;
       ``extra["steps_per_second"]`` is this call's throughput after the first (compiling) step.
       Save the model with :func:`~jmeshtex.fl.save`. The model's parameters are on the default
       device (whatever mesh trained them), and a checkpoint written on one mesh resumes on another.
@@ -339,13 +421,18 @@ def train(
             chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
             meshes = [pool[i] for i in chosen]
         batch = mesh_batch(meshes, config, rng, num_vertices=num_vertices, dtype=np_dtype)
-        return batch, jax.random.fold_in(k_noise, step)
+        return batch, jax.random.fold_in(k_noise, step), np.int32(step)
 
+    if prefetch:
+        batches = _prefetched(batches)
     vae_step = make_train_step(config, device_mesh)
 
     def step(state, batch):
-        params, opt_state, loss, l1 = vae_step(*state, *batch)
-        return (params, opt_state), {"loss": loss, "l1": l1}
+        params, opt_state, loss, aux = vae_step(*state, *batch)
+        return (params, opt_state), {
+            "loss": loss,
+            **{k: v for k, v in aux.items() if k != "kl_channels"},
+        }
 
     def curve(done: int, state, losses: dict) -> None:
         title = f"FL-VAE training ({done} steps)"
@@ -358,16 +445,16 @@ def train(
         batches,
         steps=config.steps,
         stop_after=stop_after,
-        checkpoints=checkpoint_dir,
-        fingerprint=_fingerprint(config, key, loaded, dtype),
-        save_every=config.checkpoint_every,
-        saved=lambda state: {"params": state[0], "opt_state": state[1]},
-        restored=lambda tree: (tree["params"], tree["opt_state"]),
+        checkpoints=CheckpointPolicy(
+            checkpoint_dir,
+            fingerprint=_fingerprint(config, key, loaded, dtype),
+            every=config.checkpoint_every,
+            saved=lambda state: {"params": state[0], "opt_state": state[1]},
+            restored=lambda tree: (tree["params"], tree["opt_state"]),
+            on_save=None if loss_curve is None else curve,
+        ),
         device_mesh=device_mesh,
-        progress=progress,
-        desc="FL-VAE train",
-        show=("loss", "l1"),
-        on_save=None if loss_curve is None else curve,
+        progress=Progress(progress, "FL-VAE train", ("loss", "l1")),
         model=lambda state: Model(jax.tree.map(jnp.asarray, fetch(state[0])), config),
         started=started,
     )

@@ -24,12 +24,15 @@ class ComplexAttentionParams(NamedTuple):
       key: ``[C, H, E]`` complex.
       value: ``[C, H, F]`` complex, input channels → heads × value width.
       out: ``[H, F, D]`` complex output projection.
+      linear: ``[C, D]`` complex weight of a parallel linear path ``x W`` added to the attention's
+        output (the reference's ``complex_mhattn``: ``MHA(x) + Dense(x)``), or None (none).
     """
 
     query: Complex[ArrayLike, "C H E"]
     key: Complex[ArrayLike, "C H E"]
     value: Complex[ArrayLike, "C H F"]
     out: Complex[ArrayLike, "H F D"]
+    linear: Complex[ArrayLike, "C D"] | None = None
 
 
 def init_complex_attention(
@@ -92,7 +95,7 @@ def complex_attention(
 
     .. math:: a^h_{st} = \\operatorname{softmax}_t\\Big(\\frac{\\mathrm{Re}\\sum_e q^h_{se}\\,
        \\overline{k^h_{te}}}{\\sqrt E}\\Big), \\qquad
-       y_s = \\sum_h \\Big(\\sum_t a^h_{st}\\, v^h_t\\Big) W_o^h
+       y_s = \\sum_h \\Big(\\sum_t a^h_{st}\\, v^h_t\\Big) W_o^h \\; [+\\, x_s W_\\ell]
 
     The logits ``Re(q·k̄)`` do not change when every set element is rotated by the same ``e^{iα}``,
     and the output is a complex-linear function of the values, so ``x → x e^{iα}`` gives
@@ -160,4 +163,12 @@ def complex_attention(
         attn = jax.nn.softmax(logits, axis=-1)
     o = jnp.einsum("...hst,...thf->...shf", attn, v)  # [..., S, H, 2F]
     o = jax.lax.complex(o[..., :f], o[..., f:]).reshape(*lead, h * f)
-    return complex_matmul(o, params.out.reshape(h * f, -1))
+    y = complex_matmul(o, params.out.reshape(h * f, -1))
+    if params.linear is not None:  # complex-linear per element: commutes with rotations too
+        if jnp.shape(params.linear) != (c, y.shape[-1]):
+            raise InputError(
+                f"complex_attention: linear must be [C, D] = [{c}, {y.shape[-1]}], got "
+                f"{jnp.shape(params.linear)}"
+            )
+        y = y + complex_matmul(x, params.linear)
+    return y

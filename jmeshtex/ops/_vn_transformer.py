@@ -10,11 +10,12 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from .._errors import InputError
 from .._types import Array, ArrayLike, Bool, Complex, Float, PRNGKey
 from ._attention import ComplexAttentionParams, complex_attention, init_complex_attention
 from ._complex_init import complex_lecun_blocks
 from ._layer_norm import complex_layer_norm
-from ._numerics import check_complex, real_dtype
+from ._numerics import abs2, check_complex, real_dtype
 from ._vector_neuron import VNParams, vn_nonlinearity
 
 
@@ -90,6 +91,7 @@ def vn_transformer_block(
     *,
     mask: Bool[ArrayLike, "... S"] | None = None,
     delta: float = 1e-6,
+    norm: str = "element",
 ) -> Complex[Array, "... S C"]:
     """Pre-norm VN-Transformer block: complex attention and a vector-neuron MLP, each with a residual.
 
@@ -100,11 +102,20 @@ def vn_transformer_block(
     :func:`vn_nonlinearity` layers. Every piece commutes with a common rotation of the set and with
     permutations of it, and so does the block.
 
+    ``norm="channel"`` replaces the layer norms by the reference's per-channel normalisation
+    (``square_mag_norm_encoder`` in google-research ``mesh_diffusion/latents/ring_vae.py``):
+    channel ``c`` is divided by the root mean of ``|x_c|²`` over every valid element of the whole
+    batch (all leading indices and the set), ``LN(x)_c = γ_c x_c / sqrt(mean |x_c|² + δ)``. That
+    mean is a batch statistic: each output then depends on the other sets of the call (still
+    invariant to a rotation of any one set, whose magnitudes do not change).
+
     Args:
       x: ``[..., S, C]`` complex set elements (one frame per leading index).
       params: :class:`VNTransformerParams`.
       mask: ``[..., S]`` True for valid elements; masked ones never influence valid outputs.
       delta: ``δ > 0`` of the layer norms and VN layers.
+      norm: ``"element"`` (each element over its channels; default) or ``"channel"`` (each
+        channel over all valid elements of the batch).
 
     Returns:
       ``[..., S, C]`` complex.
@@ -116,10 +127,29 @@ def vn_transformer_block(
       (10, 3, 4)
     """
     check_complex(x, "vn_transformer_block", ndim_min=2)
-    u = x + complex_attention(
-        complex_layer_norm(x, params.attention_norm, delta=delta), params.attention, mask=mask
-    )
-    hidden = vn_nonlinearity(
-        complex_layer_norm(u, params.mlp_norm, delta=delta), params.mlp_in, delta=delta
-    )
+    if norm not in ("element", "channel"):
+        raise InputError(f"vn_transformer_block: norm must be 'element' or 'channel', got {norm!r}")
+
+    def normalise(y, gain):
+        if norm == "element":
+            return complex_layer_norm(y, gain, delta=delta)
+        return _channel_norm(y, gain, mask, delta)
+
+    u = x + complex_attention(normalise(x, params.attention_norm), params.attention, mask=mask)
+    hidden = vn_nonlinearity(normalise(u, params.mlp_norm), params.mlp_in, delta=delta)
     return u + vn_nonlinearity(hidden, params.mlp_out, delta=delta)
+
+
+def _channel_norm(x, gain, mask, delta) -> Array:
+    """``γ_c x_c / sqrt(mean |x_c|² + δ)``, the mean over every valid element of the batch."""
+    rdt = real_dtype(x.dtype)
+    w = (
+        jnp.ones(x.shape[:-1], rdt)
+        if mask is None
+        else jnp.broadcast_to(jnp.asarray(mask), x.shape[:-1]).astype(rdt)
+    )
+    axes = tuple(range(x.ndim - 1))
+    total = jnp.maximum(jnp.sum(w), jnp.asarray(1.0, rdt))
+    mean = jnp.sum(abs2(x) * w[..., None], axis=axes) / total  # [C]
+    factor = jnp.asarray(gain).astype(rdt) * jax.lax.rsqrt(mean + jnp.asarray(delta, rdt))
+    return jax.lax.complex(x.real * factor, x.imag * factor)

@@ -88,22 +88,26 @@ def test_mu_turns_with_the_gauge_and_sigma_is_invariant(key, rng):
     assert a.mu.dtype == jnp.complex128 and a.log_sigma.dtype == jnp.float64
 
 
-def test_samples_form_a_set_and_padding_changes_nothing(key, rng):
-    params = init(SMALL, key=key, dtype=jnp.float64).params
+@pytest.mark.parametrize("token", ["centre", "ring_mean"])
+def test_samples_form_a_set_and_padding_changes_nothing(key, rng, token):
+    config = SMALL.replace(token=token)
+    params = init(config, key=key, dtype=jnp.float64).params
     log, rgb, mask = _inputs(rng)
-    a = encode(params, SMALL, log, rgb, mask)
-    perm = rng.permutation(log.shape[1])
-    b = encode(params, SMALL, log[:, perm], rgb[:, perm], mask[:, perm])
+    a = encode(params, config, log, rgb, mask)
+    # with the centre token, column 0 is the centre and the set is the columns after it
+    first = 1 if token == "centre" else 0
+    perm = np.concatenate([np.arange(first), first + rng.permutation(log.shape[1] - first)])
+    b = encode(params, config, log[:, perm], rgb[:, perm], mask[:, perm])
     np.testing.assert_allclose(b.mu, a.mu, atol=1e-12)
 
     def pad(x, val):
         return jnp.concatenate([x, jnp.full((x.shape[0], 4, *x.shape[2:]), val, x.dtype)], 1)
 
-    c = encode(params, SMALL, pad(log, 3 + 1j), pad(rgb, 0.9), pad(mask, False))
+    c = encode(params, config, pad(log, 3 + 1j), pad(rgb, 0.9), pad(mask, False))
     np.testing.assert_allclose(c.mu, a.mu, atol=1e-12)
     np.testing.assert_allclose(c.log_sigma, a.log_sigma, atol=1e-12)
     # the colours matter: changing a valid sample changes the latent
-    d = encode(params, SMALL, log, rgb.at[0, jnp.argmax(mask[0])].set(0.0), mask)
+    d = encode(params, config, log, rgb.at[0, jnp.argmax(mask[0])].set(0.0), mask)
     assert not np.allclose(d.mu[0], a.mu[0])
 
 

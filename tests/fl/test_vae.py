@@ -60,10 +60,20 @@ def test_loss_is_finite_with_finite_gradients_at_zero_inputs(key, decoder):
     corners = jnp.zeros((V, S, 3), jnp.int32).at[..., 1].set(1).at[..., 2].set(2)
     bary = jnp.full((V, S, 3), 1 / 3, jnp.float32)
 
+    corner_logs = jnp.zeros((V, S, 3), jnp.complex64)  # the blended log objective at zero too
+
     def loss(p):
-        return vae_loss(p, cfg, log, rgb, mask, key=jax.random.key(0), corners=corners, bary=bary)[
-            0
-        ]
+        return vae_loss(
+            p,
+            cfg,
+            log,
+            rgb,
+            mask,
+            key=jax.random.key(0),
+            corners=corners,
+            bary=bary,
+            corner_logs=corner_logs,
+        )[0]
 
     value, grads = jax.jit(jax.value_and_grad(loss))(params)
     assert np.isfinite(float(value))
@@ -174,8 +184,11 @@ def test_shipped_models_load():
     for decoder in ("log", "barycentric"):
         model = load_pretrained(decoder=decoder)
         config = model.config
-        # the stored config is the small preset's, trained 3500 steps (weights/README.md)
-        assert config == dataclasses.replace(Config.small(), decoder=decoder, steps=3500), config
+        # the stored config is the small preset's, trained 3500 steps (weights/README.md), with
+        # the behaviour of the fields added since (Config.from_stored: the ring-mean token, the
+        # single-vertex log objective)
+        small = Config.small().replace(token="ring_mean", log_objective="vertex")
+        assert config == dataclasses.replace(small, decoder=decoder, steps=3500), config
         assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(model.params))
     with pytest.raises(ConfigError, match="decoder must be one of"):
         load_pretrained(decoder="bary")

@@ -35,7 +35,9 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     The figure (:func:`jmeshtex.render.figure`, textured renders): the exemplar image, the sheet
     with its original texture, with the reconstructed atlas, and with the protocol's two
     baselines (:func:`~jmeshtex.metrics.flat_baseline`: the mean colour on every used texel;
-    :func:`~jmeshtex.metrics.permuted_baseline`: the used texels shuffled), each with its atlas PSNR.
+    :func:`~jmeshtex.metrics.permuted_baseline`: the used texels shuffled) and the P1 oracle (the
+    true colour at each vertex, interpolated linearly: :func:`~jmeshtex.fl.core.p1_baselines`),
+    each with its atlas PSNR; the summary also gives the least-squares P1 fit.
 
     Args:
       out_dir: folder for ``fl_texture.png`` (reconstructed atlas) and ``fl.png`` (the figure).
@@ -44,7 +46,8 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
 
     Returns:
       ``{"summary": str, "psnr_db": float, "dssim": float, "flat_psnr_db": float,
-      "permuted_psnr_db": float, "seconds": float, "files": [...]}``.
+      "permuted_psnr_db": float, "p1_oracle_psnr_db": float, "p1_fit_psnr_db": float,
+      "seconds": float, "files": [...]}``.
 
     Example:
       >>> import tempfile
@@ -53,7 +56,7 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     import jax
 
     from ...fl import load_pretrained, reconstruct
-    from ...fl.core import atlas_metrics
+    from ...fl.core import atlas_metrics, p1_baselines
     from ...io import save_png
     from ...metrics import flat_baseline, permuted_baseline
     from ...render import figure
@@ -74,6 +77,8 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     m = result.metrics
     m_flat = atlas_metrics(flat, result.target, result.valid, lpips=False)
     m_perm = atlas_metrics(shuffled, result.target, result.valid, lpips=False)
+    p1 = p1_baselines(mesh, result)
+    m_p1 = {k: atlas_metrics(a, result.target, result.valid, lpips=False) for k, a in p1.items()}
     geometry = (mesh.vertices, mesh.faces)
 
     scale = max(
@@ -92,15 +97,17 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
             (f"FL-VAE, {m['psnr']:.1f} dB", sheet(result.texture)),
             (f"baseline: flat, {m_flat['psnr']:.1f} dB", sheet(flat)),
             (f"baseline: shuffled, {m_perm['psnr']:.1f} dB", sheet(shuffled)),
+            (f"P1 oracle, {m_p1['p1_oracle']['psnr']:.1f} dB", sheet(p1["p1_oracle"])),
         ],
-        columns=5,
+        columns=6,
         title="FL-VAE: a textured sheet encoded to field latents and decoded (atlas PSNR)",
         path=files[1],
     )
     seconds = time.perf_counter() - t0
     summary = (
         f"FL-VAE: {mesh.num_vertices}-vertex sheet, {config.latent_dim} complex latents per vertex, "
-        f"atlas PSNR {m['psnr']:.2f} dB (flat {m_flat['psnr']:.2f}, shuffled {m_perm['psnr']:.2f}), "
+        f"atlas PSNR {m['psnr']:.2f} dB (flat {m_flat['psnr']:.2f}, shuffled {m_perm['psnr']:.2f}, "
+        f"P1 oracle {m_p1['p1_oracle']['psnr']:.2f}, least-squares P1 {m_p1['p1_fit']['psnr']:.2f}), "
         f"DSSIM {m['dssim']:.3f}"
         + (f", LPIPS {m['lpips']:.3f}" if "lpips" in m else "")
         + f" ({seconds:.1f} s)"
@@ -111,6 +118,8 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
         "dssim": m["dssim"],
         "flat_psnr_db": m_flat["psnr"],
         "permuted_psnr_db": m_perm["psnr"],
+        "p1_oracle_psnr_db": m_p1["p1_oracle"]["psnr"],
+        "p1_fit_psnr_db": m_p1["p1_fit"]["psnr"],
         "seconds": seconds,
         "files": [str(f) for f in files],
     }

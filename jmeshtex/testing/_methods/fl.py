@@ -59,7 +59,7 @@ def _samples(state):
     from ...fl.core import one_ring_samples
 
     def build():
-        s = one_ring_samples(state.vertices, state.faces, 1, rng=None)
+        s = one_ring_samples(state.vertices, state.faces, 1, rng=None, center=True)
         log = s.log * np.exp(-1j * state.gauge)[:, None]
         return s._replace(log=log)
 
