@@ -7,7 +7,9 @@ loss histories, a finiteness check (a non-finite loss or parameter raises
 a tqdm progress bar, timing (``seconds`` of the whole call, compilation reported apart) and the
 refusal of checkpoints in a multi-process run. Compiled steps belong to the call: a jitted step is
 compiled ahead of time once per argument shapes into a cache the caller owns (``compiled``), never a
-process-global one.
+process-global one. Two small records keep its signature narrow: :class:`CheckpointPolicy` (where,
+when and what is saved, and how a checkpoint becomes a state again) and :class:`Progress` (the bar
+and the run's name in messages).
 
 Example:
   >>> import jax, jax.numpy as jnp
@@ -19,6 +21,7 @@ Example:
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import time
@@ -29,6 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._config import is_int
 from ._errors import CheckpointMismatchError, ConfigError, TrainingDivergedError
 from ._train_result import TrainResult
 from .io import Checkpoints
@@ -40,6 +44,71 @@ State = TypeVar("State")
 _SHOWN_WINDOW = 20
 
 
+@dataclasses.dataclass(frozen=True)
+class CheckpointPolicy:
+    """Where, when and what :func:`fit` saves, and how a restored checkpoint becomes a state.
+
+    Attributes:
+      folder: a :class:`~jmeshtex.io.Checkpoints` (the caller closes it) or a folder (opened with
+        ``fingerprint`` and closed by :func:`fit`); None: nothing on disk (``on_save`` still runs).
+      fingerprint: what a folder given by path is tied to (``Checkpoints(fingerprint=)``).
+      every: save every this many steps; None: only at the end of the call.
+      final: also save after the last step of the call.
+      offset: added to the steps done to number the checkpoints (DGTS's levels).
+      saved: ``state -> stored pytree`` (default: the state itself).
+      restored: ``stored pytree -> state`` (default: the pytree itself).
+      meta: ``steps done -> dict`` stored with every checkpoint next to ``"losses"``.
+      on_save: called with ``(steps done, state, histories)`` at every save point (periodic and
+        final), with or without ``folder``.
+
+    Raises:
+      ConfigError: ``every`` not a positive integer (or None), ``offset`` not a non-negative one.
+
+    Example:
+      >>> CheckpointPolicy("ckpt/", every=100).final
+      True
+    """
+
+    folder: Checkpoints | str | os.PathLike | None = None
+    fingerprint: dict | None = None
+    every: int | None = None
+    final: bool = True
+    offset: int = 0
+    saved: Callable[[Any], Any] | None = None
+    restored: Callable[[Any], Any] | None = None
+    meta: Callable[[int], dict] | None = None
+    on_save: Callable[[int, Any, dict[str, list[float]]], None] | None = None
+
+    def __post_init__(self):
+        if self.every is not None and not is_int(self.every, 1):
+            raise ConfigError(
+                f"CheckpointPolicy.every must be a positive integer or None, got {self.every!r}"
+            )
+        if not is_int(self.offset, 0):
+            raise ConfigError(
+                f"CheckpointPolicy.offset must be a non-negative integer, got {self.offset!r}"
+            )
+
+
+@dataclasses.dataclass(frozen=True)
+class Progress:
+    """:func:`fit`'s progress bar and the name of the run in its messages.
+
+    Attributes:
+      bar: draw a tqdm bar with ETA on stderr.
+      desc: the bar's label and the prefix of the driver's error messages.
+      show: the loss names the bar shows (each the mean of its last 20 steps).
+
+    Example:
+      >>> Progress(False, "FL-VAE train").show
+      ('loss',)
+    """
+
+    bar: bool = True
+    desc: str = "train"
+    show: tuple[str, ...] = ("loss",)
+
+
 def fit(
     step: Callable[[State, Any], tuple[State, Mapping[str, Any]]],
     state: State,
@@ -48,22 +117,12 @@ def fit(
     steps: int,
     stop_after: int | None = None,
     steps_per_call: int = 1,
-    checkpoints: Checkpoints | str | os.PathLike | None = None,
-    fingerprint: dict | None = None,
-    save_every: int | None = None,
-    final_save: bool = True,
-    checkpoint_offset: int = 0,
-    saved: Callable[[State], Any] | None = None,
-    restored: Callable[[Any], State] | None = None,
-    meta: Callable[[int], dict] | None = None,
+    checkpoints: CheckpointPolicy | Checkpoints | str | os.PathLike | None = None,
+    progress: Progress | bool = True,
     start: int | None = None,
     history: Mapping[str, Sequence[float]] | None = None,
     device_mesh: jax.sharding.Mesh | None = None,
-    progress: bool = True,
-    desc: str = "train",
-    show: Sequence[str] = ("loss",),
     on_step: Callable[[int, State, Any], None] | None = None,
-    on_save: Callable[[int, State, dict[str, list[float]]], None] | None = None,
     model: Callable[[State], Any] | None = None,
     compiled: dict | None = None,
     started: float | None = None,
@@ -82,23 +141,15 @@ def fit(
       steps: the run's length (the schedule's ``steps``).
       stop_after: run at most this many steps in this call (continue later from a checkpoint).
       steps_per_call: steps one ``step`` call runs (a compiled chunk of steps).
-      checkpoints: a :class:`~jmeshtex.io.Checkpoints` (the caller closes it) or a folder (opened
-        with ``fingerprint`` and closed here); None: nothing on disk.
-      fingerprint: what a folder given by path is tied to (``Checkpoints(fingerprint=)``).
-      save_every: save every this many steps (None: only at the end).
-      final_save: also save after the last step of the call.
-      checkpoint_offset: added to the steps done to number the checkpoints (DGTS's levels).
-      saved, restored: the stored pytree of a state and back (default: the state itself).
-      meta: ``steps done -> dict`` stored with every checkpoint next to ``"losses"``.
+      checkpoints: a :class:`CheckpointPolicy`; a :class:`~jmeshtex.io.Checkpoints` or a folder
+        alone is ``CheckpointPolicy(folder)`` (saved at the end of the call only); None: nothing
+        on disk and no save points.
+      progress: a :class:`Progress`; True / False is ``Progress(bar=True / False)``.
       start: the steps already done, with ``history`` their losses: no resume from
         ``checkpoints`` (the caller restored). None: resume from the newest checkpoint, if any.
       history: losses of earlier steps by name (kept in front of this call's).
       device_mesh: replicate the initial or restored state on this :class:`jax.sharding.Mesh`.
-      progress: a tqdm bar with ETA; ``desc`` its label (and the prefix of error messages), ``show``
-        the loss names it shows (mean of the last 20 steps).
       on_step: called with ``(steps done, state, batch)`` after each call.
-      on_save: called with ``(steps done, state, histories)`` at every save point (periodic and
-        final), with or without ``checkpoints``.
       model: ``state -> model`` for :attr:`TrainResult.model` (default: the state).
       compiled: the cache of ahead-of-time compiled steps (a dict the caller owns, shared by its
         calls of :func:`fit`); None: a fresh one.
@@ -119,24 +170,33 @@ def fit(
     Example:
       >>> import jax, jax.numpy as jnp, tempfile
       >>> step = jax.jit(lambda s, x: ({"w": s["w"] + x}, {"loss": jnp.sum(s["w"])}))
-      >>> state, folder = {"w": jnp.zeros(1)}, tempfile.mkdtemp()
+      >>> state, policy = {"w": jnp.zeros(1)}, CheckpointPolicy(tempfile.mkdtemp(), every=1)
       >>> part = fit(step, state, lambda i: jnp.ones(1), steps=4, stop_after=2,
-      ...            checkpoints=folder, progress=False)
-      >>> rest = fit(step, state, lambda i: jnp.ones(1), steps=4, checkpoints=folder,
+      ...            checkpoints=policy, progress=False)
+      >>> rest = fit(step, state, lambda i: jnp.ones(1), steps=4, checkpoints=policy,
       ...            progress=False)
       >>> rest.resumed_from, rest.losses["loss"].tolist()
       (2, [0.0, 1.0, 2.0, 3.0])
     """
     t_call = time.perf_counter() if started is None else started
-    if checkpoints is not None and is_multiprocess():
+    progress = progress if isinstance(progress, Progress) else Progress(bool(progress))
+    desc = progress.desc
+    if checkpoints is None:
+        policy = CheckpointPolicy(final=False)
+    elif isinstance(checkpoints, CheckpointPolicy):
+        policy = checkpoints
+    else:
+        policy = CheckpointPolicy(checkpoints)
+    checkpoint_offset = policy.offset
+    if policy.folder is not None and is_multiprocess():
         raise ConfigError(
             f"{desc}: checkpoints with several processes (jax.distributed) are not supported yet; "
             "train without checkpoints, or in one process"
         )
-    own_ckpt = checkpoints is not None and not isinstance(checkpoints, Checkpoints)
-    ckpt = Checkpoints(checkpoints, fingerprint=fingerprint) if own_ckpt else checkpoints
-    saved = saved or (lambda s: s)
-    restored = restored or (lambda s: s)
+    own_ckpt = policy.folder is not None and not isinstance(policy.folder, Checkpoints)
+    ckpt = Checkpoints(policy.folder, fingerprint=policy.fingerprint) if own_ckpt else policy.folder
+    saved = policy.saved or (lambda s: s)
+    restored = policy.restored or (lambda s: s)
     compiled = {} if compiled is None else compiled
     losses = {k: [float(x) for x in v] for k, v in (history or {}).items()}
     resumed_from = None
@@ -163,7 +223,7 @@ def fit(
                 losses = {k: [float(x) for x in v][:start] for k, v in record["losses"].items()}
         end = steps if stop_after is None else min(steps, start + int(stop_after))
         end = max(end, start)
-        if progress and start < end:
+        if progress.bar and start < end:
             from tqdm.auto import tqdm
 
             bar = tqdm(
@@ -177,10 +237,10 @@ def fit(
         def save(done: int) -> None:
             _check_finite_state(state, desc, checkpoint_offset + done)
             if ckpt is not None:
-                record = {**(meta(done) if meta else {}), "losses": losses}
+                record = {**(policy.meta(done) if policy.meta else {}), "losses": losses}
                 ckpt.save(checkpoint_offset + done, saved(state), meta=record)
-            if on_save is not None:
-                on_save(done, state, losses)
+            if policy.on_save is not None:
+                policy.on_save(done, state, losses)
 
         compile_seconds, t_first = 0.0, None
         for i in range(start, end, steps_per_call):
@@ -214,13 +274,18 @@ def fit(
             if bar is not None:
                 bar.update(n)
                 bar.set_postfix(
-                    {k: f"{np.mean(losses[k][-_SHOWN_WINDOW:]):.4g}" for k in show if k in losses},
+                    {
+                        k: f"{np.mean(losses[k][-_SHOWN_WINDOW:]):.4g}"
+                        for k in progress.show
+                        if k in losses
+                    },
                     refresh=False,
                 )
             if on_step is not None:
                 on_step(done, state, batch)
-            periodic = save_every is not None and done % save_every == 0 and done < end
-            if periodic or (final_save and done == end):
+            every = policy.every
+            periodic = every is not None and done % every == 0 and done < end
+            if periodic or (policy.final and done == end):
                 save(done)
         jax.block_until_ready(state)
         _check_finite_state(state, desc, checkpoint_offset + end)

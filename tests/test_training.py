@@ -1,4 +1,5 @@
-"""The one training driver (``jmeshtex._training.fit``): resume, saves, finiteness, timing, progress."""
+"""The one training driver (``jmeshtex._training.fit``): resume, saves, finiteness, timing, progress;
+its two small records (``CheckpointPolicy``, ``Progress``)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex import CheckpointMismatchError, TrainingDivergedError, TrainResult
-from jmeshtex._training import fit
+from jmeshtex import CheckpointMismatchError, ConfigError, TrainingDivergedError, TrainResult
+from jmeshtex._training import CheckpointPolicy, Progress, fit
 from jmeshtex.io import Checkpoints
 
 
@@ -40,16 +41,11 @@ def test_resumed_run_equals_uninterrupted_run(tmp_path):
     assert isinstance(full, TrainResult) and full.steps == 7 and full.resumed_from is None
     assert set(full.losses) == {"loss", "grad"} and full.losses["loss"].shape == (7,)
     # stop after 3 steps, saving every 2: checkpoints 2 and 3 (the end of the call)
-    part = fit(
-        _step, _state(), _batches, steps=7, stop_after=3, checkpoints=tmp_path, save_every=2,
-        fingerprint={"run": 1}, progress=False,
-    )  # fmt: skip
+    policy = CheckpointPolicy(tmp_path, fingerprint={"run": 1}, every=2)
+    part = fit(_step, _state(), _batches, steps=7, stop_after=3, checkpoints=policy, progress=False)
     assert part.steps == 3 and Checkpoints(tmp_path).steps() == [2, 3]
     np.testing.assert_array_equal(part.losses["loss"], full.losses["loss"][:3])
-    rest = fit(
-        _step, _state(), _batches, steps=7, checkpoints=tmp_path, save_every=2,
-        fingerprint={"run": 1}, progress=False,
-    )  # fmt: skip
+    rest = fit(_step, _state(), _batches, steps=7, checkpoints=policy, progress=False)
     assert rest.resumed_from == 3 and rest.steps == 7
     for name in ("loss", "grad"):
         np.testing.assert_array_equal(rest.losses[name], full.losses[name])
@@ -57,10 +53,8 @@ def test_resumed_run_equals_uninterrupted_run(tmp_path):
     assert int(rest.model["t"]) == 7
     # another run's folder is refused, not resumed
     with pytest.raises(CheckpointMismatchError, match="run"):
-        fit(
-            _step, _state(), _batches, steps=7, checkpoints=tmp_path, fingerprint={"run": 2},
-            progress=False,
-        )  # fmt: skip
+        other = CheckpointPolicy(tmp_path, fingerprint={"run": 2})
+        fit(_step, _state(), _batches, steps=7, checkpoints=other, progress=False)
 
 
 def test_a_checkpoint_without_the_driver_s_loss_record_is_refused(tmp_path):
@@ -76,10 +70,8 @@ def test_non_finite_loss_raises_naming_the_step_and_saves_nothing_non_finite(tmp
 
     # the suite's jax_debug_nans would stop inside the step: the driver's own check is under test
     with jax.debug_nans(False), pytest.raises(TrainingDivergedError, match="at step 4") as err:
-        fit(
-            _step, _state(), batches, steps=8, checkpoints=tmp_path, save_every=2,
-            progress=False,
-        )  # fmt: skip
+        policy = CheckpointPolicy(tmp_path, every=2)
+        fit(_step, _state(), batches, steps=8, checkpoints=policy, progress=False)
     assert err.value.step == 4 and isinstance(err.value, FloatingPointError)
     assert Checkpoints(tmp_path).steps() == [2, 4]  # step 4's checkpoint holds steps 0..3
     state, meta = Checkpoints(tmp_path).restore(_state())
@@ -113,8 +105,11 @@ def test_seconds_is_the_whole_call_and_compile_time_is_apart():
 def test_progress_off_writes_nothing_and_on_shows_a_bar(capsys):
     fit(_step, _state(), _batches, steps=2, progress=False)
     assert capsys.readouterr().err == ""
-    fit(_step, _state(), _batches, steps=2, progress=True, desc="toy train")
-    assert "toy train" in capsys.readouterr().err
+    fit(_step, _state(), _batches, steps=2, progress=Progress(desc="toy train", show=("grad",)))
+    err = capsys.readouterr().err
+    assert "toy train" in err and "grad=" in err and "loss=" not in err
+    fit(_step, _state(), _batches, steps=2, progress=Progress(False, "toy train"))
+    assert capsys.readouterr().err == ""
 
 
 def test_chunked_steps_and_checkpoint_offset(tmp_path):
@@ -127,9 +122,68 @@ def test_chunked_steps_and_checkpoint_offset(tmp_path):
     ckpt = Checkpoints(tmp_path)
     r = fit(
         chunk, {"s": jnp.float32(0)}, lambda i: np.arange(i, i + 4, dtype=np.float32), steps=10,
-        steps_per_call=4, checkpoints=ckpt, save_every=4, checkpoint_offset=100, progress=False,
+        steps_per_call=4, checkpoints=CheckpointPolicy(ckpt, every=4, offset=100), progress=False,
     )  # fmt: skip
     ckpt.close()
     # calls at steps 0, 4, 8; the last runs 2 of its 4 steps and only those are recorded
     assert r.losses["loss"].tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9]
     assert Checkpoints(tmp_path).steps() == [108, 110]
+
+
+def test_a_folder_alone_saves_once_at_the_end_and_a_folderless_policy_still_calls_on_save(
+    tmp_path,
+):
+    fit(_step, _state(), _batches, steps=5, checkpoints=tmp_path / "a", progress=False)
+    assert Checkpoints(tmp_path / "a").steps() == [5]
+    # a policy without a folder keeps its save points: on_save runs there, nothing is written
+    seen = []
+    policy = CheckpointPolicy(every=2, on_save=lambda done, state, losses: seen.append(done))
+    fit(_step, _state(), _batches, steps=5, checkpoints=policy, progress=False)
+    assert seen == [2, 4, 5] and sorted(p.name for p in tmp_path.iterdir()) == ["a"]
+
+
+def test_the_policy_stores_what_saved_gives_and_resumes_through_restored(tmp_path):
+    """``saved`` / ``restored`` change the stored pytree, ``meta`` adds to each record, ``final``
+    turns the end-of-call save off."""
+    policy = CheckpointPolicy(
+        tmp_path,
+        every=2,
+        final=False,
+        saved=lambda s: {"weights": s["w"], "count": s["t"]},
+        restored=lambda tree: {"w": tree["weights"], "t": tree["count"]},
+        meta=lambda done: {"done": done},
+    )
+    part = fit(_step, _state(), _batches, steps=6, stop_after=3, checkpoints=policy, progress=False)
+    assert Checkpoints(tmp_path).steps() == [2]  # step 3 ends the call, but final=False
+    tree, record = Checkpoints(tmp_path).restore({"weights": jnp.zeros(3), "count": jnp.int32(0)})
+    assert int(tree["count"]) == 2 and record["done"] == 2 and len(record["losses"]["loss"]) == 2
+    rest = fit(_step, _state(), _batches, steps=6, checkpoints=policy, progress=False)
+    full = fit(_step, _state(), _batches, steps=6, progress=False)
+    assert rest.resumed_from == 2 and part.steps == 3
+    np.testing.assert_array_equal(rest.model["w"], full.model["w"])
+    np.testing.assert_array_equal(rest.losses["loss"], full.losses["loss"])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"every": 0}, "every must be a positive integer"),
+        ({"every": 2.5}, "every must be a positive integer"),
+        ({"every": True}, "every must be a positive integer"),
+        ({"offset": -1}, "offset must be a non-negative integer"),
+    ],
+)
+def test_a_bad_policy_is_a_config_error(kwargs, match):
+    with pytest.raises(ConfigError, match=match):
+        CheckpointPolicy("folder", **kwargs)
+
+
+def test_fit_takes_the_grouped_records_not_their_fields():
+    """The signature stays narrow: checkpoint and progress settings only through their records."""
+    import inspect
+
+    params = set(inspect.signature(fit).parameters)
+    assert {"checkpoints", "progress"} <= params
+    loose = {"fingerprint", "save_every", "final_save", "checkpoint_offset", "saved", "restored"}
+    assert not params & (loose | {"meta", "on_save", "desc", "show"}), sorted(params & loose)
+    assert len(params) <= 15, sorted(params)

@@ -54,7 +54,7 @@ from .._config import is_int
 from .._errors import ConfigError, InputError
 from .._neighborhoods import FaceNeighborhood
 from .._train_result import TrainResult
-from .._training import fit
+from .._training import CheckpointPolicy, Progress, fit
 from .._types import Array, Float, PRNGKey
 from ..geometry import pad_to
 from ..io import Checkpoints
@@ -571,17 +571,17 @@ def train(
                 batches,
                 steps=S,
                 steps_per_call=CHUNK,
-                checkpoints=ckpt,
-                save_every=None if every is None else every * CHUNK,
-                final_save=False,
-                checkpoint_offset=level * S,
-                saved=lambda state, m=frozen_now: {"model": m, "current": state},
-                meta=functools.partial(record, level),
+                checkpoints=CheckpointPolicy(
+                    ckpt,
+                    every=None if every is None else every * CHUNK,
+                    final=False,
+                    offset=level * S,
+                    saved=lambda state, m=frozen_now: {"model": m, "current": state},
+                    meta=functools.partial(record, level),
+                ),
                 start=start,
                 history=history,
-                progress=progress,
-                desc=f"DGTS level {level + 1}/{total}",
-                show=("g_rec", "g_adv"),
+                progress=Progress(progress, f"DGTS level {level + 1}/{total}", ("g_rec", "g_adv")),
                 on_step=None if snap_every is None else snapshot,
                 compiled=compiled,
             )
