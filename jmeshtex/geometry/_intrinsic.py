@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._mesh import accepts_mesh
 from .._types import Bool, Float, Int
 from ._validate import AREA_TOL, validate_mesh
 
 
+@accepts_mesh
 def edge_lengths(
     vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"]
 ) -> Float[np.ndarray, "F 3"]:

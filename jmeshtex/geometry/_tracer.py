@@ -34,6 +34,7 @@ from .._errors import (
     DegenerateFaceError,
     InputError,
 )
+from .._mesh import accepts_mesh
 from ._adjacency import face_neighborhood
 from ._intrinsic import edge_lengths, face_areas, flat_faces
 from ._log_map import _angles_from_lengths, _wedge_corners
@@ -145,6 +146,7 @@ def _face_layouts(lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return corners, double_area
 
 
+@accepts_mesh
 def tracer_geometry(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],
@@ -254,6 +256,7 @@ def tracer_geometry(
     )
 
 
+@accepts_mesh
 def face_frame_to_world(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],
@@ -485,6 +488,7 @@ def _result(geometry: TracerGeometry, face, position, direction, stopped, length
     )
 
 
+@accepts_mesh
 def trace_geodesics(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],
@@ -635,6 +639,7 @@ def vertex_direction_to_face(
     return face, corner, face_dir, outside
 
 
+@accepts_mesh
 def trace_from_vertices(
     vertices: Float[np.ndarray, "V 3"],
     faces: Int[np.ndarray, "F 3"],

@@ -30,6 +30,7 @@ from .._errors import (
     NonManifoldEdgeError,
     NonManifoldVertexError,
 )
+from .._mesh import accepts_mesh
 from .._mesh_arrays import check_indices, coerce_faces, coerce_vertices, corner_fans, edge_keys
 from .._types import ArrayLike, Float, Int
 
@@ -123,6 +124,7 @@ def _check_topology(vertices: np.ndarray, faces: np.ndarray, area_tol: float) ->
         raise NonManifoldVertexError(indices=bad)
 
 
+@accepts_mesh
 def check_mesh_arrays(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """The structural half of :func:`validate_mesh`: shapes, dtypes, index range, finiteness, emptiness.
 
@@ -141,6 +143,7 @@ def check_mesh_arrays(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     return v, f
 
 
+@accepts_mesh
 def validate_mesh(
     vertices: Float[ArrayLike, "V 3"] | Sequence,
     faces: Int[ArrayLike, "F 3"] | Sequence,
