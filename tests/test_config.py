@@ -528,7 +528,7 @@ def test_fl_train_config_file_with_nonsense_is_a_one_line_error(tmp_path, capsys
 
 
 #: numeric fields where a negative value is meaningful
-_NEGATIVE_OK = {("fl.Config", "log_sigma_max")}  # an upper clip of log σ
+_NEGATIVE_OK = {("fl.Config", "log_sigma_max"), ("fl.Config", "log_sigma_init")}  # log σ values
 
 
 def _numeric(hint) -> bool:

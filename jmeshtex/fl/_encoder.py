@@ -378,8 +378,8 @@ def init_encoder(draw: _Draw, config, *, dtype=jnp.float32) -> EncoderParams:
     mean = _complex_init(draw, (c, d), c, cdt)
     sigma_dir = _complex_init(draw, (c, c), c, cdt)
     w, b = _dense_init(draw, (c, d), dtype)[0]
-    # start with small σ (log σ ≈ -2): the KL pulls it up as training allows
-    sigma = (w * jnp.asarray(0.1, dtype), b - jnp.asarray(2.0, dtype))
+    # start at log σ ≈ config.log_sigma_init (-2: small σ, the KL pulls it up as training allows)
+    sigma = (w * jnp.asarray(0.1, dtype), b + jnp.asarray(config.log_sigma_init, dtype))
     return EncoderParams(sample_mlp, token_mlp, blocks, mean, sigma_dir, sigma)
 
 

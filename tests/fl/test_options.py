@@ -212,6 +212,7 @@ def test_a_stored_config_without_the_new_fields_means_the_old_behaviour():
             "ring_mean", "vertex", "element", False,
         )  # fmt: skip
         assert (cfg.kl_warmup_steps, cfg.free_bits, cfg.boundary_in_loss) == (0, 0.0, True)
+        assert cfg.log_sigma_init == -2.0
 
 
 @pytest.mark.parametrize(
@@ -224,6 +225,8 @@ def test_a_stored_config_without_the_new_fields_means_the_old_behaviour():
         {"free_bits": -0.1},
         {"attention_linear": 1},
         {"boundary_in_loss": "no"},
+        {"log_sigma_init": 3.0},
+        {"log_sigma_init": -21.0},
     ],
 )
 def test_new_fields_are_validated(changes):
