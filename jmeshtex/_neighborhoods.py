@@ -277,6 +277,16 @@ def to_jax(tree: T, dtype=jnp.float32) -> T:
       (dtype('float32'), dtype('complex64'), dtype('int32'))
     """
     real = jnp.dtype(dtype)
+    if real not in (
+        jnp.dtype(jnp.float16),
+        jnp.dtype(jnp.bfloat16),
+        jnp.dtype(jnp.float32),
+        jnp.dtype(jnp.float64),
+    ):
+        raise InputError(
+            f"to_jax: dtype must be a real floating dtype (float32 or float64: the dtype weights, "
+            f"log maps and positions become), got {real}; integer leaves are int32 anyway"
+        )
     cplx = jnp.dtype(jnp.complex128) if real == jnp.float64 else jnp.dtype(jnp.complex64)
 
     def convert(leaf):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._errors import InputError
 from .._mesh import accepts_mesh, accepts_mesh_faces
 from .._types import Float, Int
 
@@ -19,6 +20,9 @@ def unique_edges(
       num_vertices: V (default: ``faces.max() + 1``).
       face_edges: also return, per face, the edge ids of its sides ``(ab, bc, ca)``, ``[F, 3]``.
 
+    Raises:
+      InputError: an index outside ``[0, num_vertices)``.
+
     Example:
       >>> unique_edges(np.array([[0, 1, 2], [2, 1, 3]])).tolist()
       [[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]]
@@ -27,6 +31,11 @@ def unique_edges(
     """
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     n = int(num_vertices) if num_vertices is not None else (int(f.max()) + 1 if f.size else 0)
+    if f.size and (f.min() < 0 or f.max() >= n):
+        raise InputError(
+            f"unique_edges: face indices must lie in [0, num_vertices={n}), got "
+            f"[{int(f.min())}, {int(f.max())}]; pass the mesh's vertex count (or None)"
+        )
     a, b = f, np.roll(f, -1, axis=1)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     keys, inverse = np.unique(lo * max(n, 1) + hi, return_inverse=True)

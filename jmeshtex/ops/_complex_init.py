@@ -8,9 +8,11 @@ import math
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from .._errors import InputError
 from .._types import Array, PRNGKey
-from ._numerics import complex_dtype, real_dtype
+from ._numerics import check_key, check_size, complex_dtype, real_dtype
 
 
 def complex_lecun_normal(
@@ -30,12 +32,18 @@ def complex_lecun_normal(
       fan_in: number of inputs summed into each output.
       dtype: ``complex64`` or ``complex128``.
 
+    Raises:
+      InputError: ``key`` is not a PRNG key, ``shape`` has a negative or non-integer entry, or
+        ``fan_in`` is not a positive integer.
+
     Example:
       >>> w = complex_lecun_normal(jax.random.key(0), (256, 512), fan_in=256)
       >>> round(float(jnp.mean(jnp.abs(w) ** 2) * 256), 1)
       1.0
     """
-    return complex_lecun_blocks(key, [(tuple(shape), fan_in)], dtype=dtype)[0]
+    return complex_lecun_blocks(key, [(shape, fan_in)], dtype=dtype, where="complex_lecun_normal")[
+        0
+    ]
 
 
 def normal_blocks(key: PRNGKey, shapes, dtype) -> list[Array]:
@@ -53,9 +61,16 @@ def normal_blocks(key: PRNGKey, shapes, dtype) -> list[Array]:
     return out
 
 
-def complex_lecun_blocks(key: PRNGKey, specs, *, dtype=jnp.complex64, extra_real=()) -> list[Array]:
+def complex_lecun_blocks(
+    key: PRNGKey, specs, *, dtype=jnp.complex64, extra_real=(), where: str = "init"
+) -> list[Array]:
     """Complex LeCun-normal arrays for ``specs = [(shape, fan_in), ...]`` (then standard normal real
-    arrays of the shapes in ``extra_real``), all from one draw."""
+    arrays of the shapes in ``extra_real``), all from one draw. Bad keys, shapes or fans raise
+    :class:`~jmeshtex.InputError` naming ``where`` (static checks: nothing is read from a device)."""
+    check_key(key, where)
+    for shape, fan_in in specs:
+        _check_shape(shape, where)
+        check_size(fan_in, "fan_in", where)
     dtype = complex_dtype(dtype)
     rdt = real_dtype(dtype)
     blocks = normal_blocks(key, [(2, *shape) for shape, _ in specs] + list(extra_real), rdt)
@@ -64,3 +79,16 @@ def complex_lecun_blocks(key: PRNGKey, specs, *, dtype=jnp.complex64, extra_real
         for b, (_, fan_in) in zip(blocks, specs, strict=False)
     ]
     return out + blocks[len(specs) :]
+
+
+def _check_shape(shape, where: str) -> None:
+    try:
+        dims = tuple(shape)
+    except TypeError:
+        dims = None
+    if dims is None or not all(
+        isinstance(d, (int, np.integer)) and not isinstance(d, bool) and d >= 0 for d in dims
+    ):
+        raise InputError(
+            f"{where}: weight shape must be a tuple of integers >= 0 (layer widths), got {shape!r}"
+        )

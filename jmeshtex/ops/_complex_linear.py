@@ -9,8 +9,8 @@ import jax.numpy as jnp
 
 from .._errors import InputError
 from .._types import Array, ArrayLike, Complex, PRNGKey
-from ._complex_init import complex_lecun_normal
-from ._numerics import check_complex, complex_matmul
+from ._complex_init import complex_lecun_blocks
+from ._numerics import check_complex, check_size, complex_matmul
 
 
 def init_complex_linear(
@@ -23,7 +23,14 @@ def init_complex_linear(
       >>> jax.eval_shape(lambda key: init_complex_linear(key, 3, 5), jax.random.key(0)).shape
       (3, 5)
     """
-    return complex_lecun_normal(key, (in_features, out_features), fan_in=in_features, dtype=dtype)
+    for name, value in (("in_features", in_features), ("out_features", out_features)):
+        check_size(value, name, "init_complex_linear")
+    return complex_lecun_blocks(
+        key,
+        [((in_features, out_features), in_features)],
+        dtype=dtype,
+        where="init_complex_linear",
+    )[0]
 
 
 # --------------------------------------------------------------------------------- linear layer

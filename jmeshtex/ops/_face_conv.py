@@ -32,7 +32,7 @@ import jax.numpy as jnp
 from .._errors import InputError
 from .._neighborhoods import FaceNeighborhood
 from .._types import Array, ArrayLike, Bool, Float, PRNGKey
-from ._numerics import elementwise_max, masked_mean, safe_norm, safe_normalize
+from ._numerics import check_key, elementwise_max, masked_mean, safe_norm, safe_normalize
 
 
 class EdgeFrames(NamedTuple):
@@ -383,6 +383,7 @@ def init_face_conv_stack(
       >>> p.embed.weight.shape, [c.weight.shape for c in p.convs]
       ((4, 16), [(32, 32), (64, 3)])
     """
+    check_key(key, "init_face_conv_stack")
     features = tuple(int(c) for c in features)
     if not features or min(features) < 1:
         raise InputError(
@@ -417,6 +418,7 @@ def init_face_conv(
     for name, value in (("in_features", in_features), ("out_features", out_features)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InputError(f"init_face_conv: {name} must be a positive integer, got {value!r}")
+    check_key(key, "init_face_conv")
     bound = 1.0 / math.sqrt(2 * in_features)
     k_w, k_b = jax.random.split(key)
     return FaceConvParams(

@@ -4,6 +4,7 @@ A real, rotation-invariant rescale per channel: no bias and no mean subtraction,
 features keep their frame.
 """
 
+import math
 from typing import NamedTuple
 
 import jax
@@ -11,7 +12,7 @@ import jax.numpy as jnp
 
 from .._errors import InputError
 from .._types import Array, ArrayLike, Bool, Complex, Float
-from ._numerics import abs2, check_complex, check_delta, real_dtype
+from ._numerics import abs2, check_complex, check_delta, check_size, real_dtype
 
 
 class FRNParams(NamedTuple):
@@ -33,6 +34,9 @@ def init_frn(features: int, *, dtype=jnp.float32, eps: float = 1e-3) -> FRNParam
       >>> init_frn(3).scale.tolist()
       [1.0, 1.0, 1.0]
     """
+    check_size(features, "features", "init_frn")
+    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not math.isfinite(eps):
+        raise InputError(f"init_frn: eps must be a finite number (|eps| is used), got {eps!r}")
     dtype = real_dtype(dtype)
     return FRNParams(scale=jnp.ones((features,), dtype), eps=jnp.full((features,), eps, dtype))
 

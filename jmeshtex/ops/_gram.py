@@ -16,8 +16,9 @@ def gram_matrix(
 
     .. math:: G_{cd} = \\frac{1}{\\sum_n m_n} \\sum_n m_n\\, x_{nc}\\, x_{nd}
 
-    The mask is folded into the features (``m_n ∈ {0, 1}``, so ``m_n² = m_n``) before one GEMM;
-    padded entries change nothing. With no valid entry the result is 0.
+    The mask is folded into the features (``m_n ∈ {0, 1}``, so ``m_n² = m_n``) before one GEMM,
+    padded rows replaced by 0 first, so they change nothing even when non-finite. With no valid
+    entry the result is 0.
 
     Args:
       x: ``[N, C]`` features (texels, pixels or vertices).
@@ -38,5 +39,5 @@ def gram_matrix(
     if mask.shape != x.shape[:1]:
         raise InputError(f"gram_matrix: mask must be [N] = [{x.shape[0]}], got {tuple(mask.shape)}")
     m = jnp.asarray(mask).astype(x.dtype)
-    xm = x * m[:, None]
+    xm = jnp.where(m[:, None] != 0, x, 0) * m[:, None]  # a non-finite padded row stays out
     return (xm.T @ xm) / jnp.maximum(jnp.sum(m), 1)

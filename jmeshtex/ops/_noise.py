@@ -15,6 +15,7 @@ import jax.numpy as jnp
 
 from .._errors import InputError
 from .._types import Array, Complex, PRNGKey
+from ._numerics import check_key
 
 
 def tangent_noise(
@@ -44,6 +45,7 @@ def tangent_noise(
       >>> eps.dtype, round(float(jnp.mean(jnp.abs(eps) ** 2)), 1), round(abs(complex(jnp.mean(eps**2))), 1)
       (dtype('complex64'), 1.0, 0.0)
     """
+    check_key(key, "tangent_noise")
     dtype = jnp.dtype(dtype)
     if not jnp.issubdtype(dtype, jnp.complexfloating):
         raise InputError(

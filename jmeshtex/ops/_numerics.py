@@ -71,7 +71,8 @@ def masked_mean(
 
     .. math:: \\bar x = \\frac{\\sum_i m_i x_i}{\\max(\\sum_i m_i, 1)}
 
-    The mask is folded into a weight (no ``where``), so masked entries never reach the result and
+    Masked entries are replaced by 0 before the weighted sum (a ``where``, not only a product: a
+    NaN or infinity in a padded row would survive ``0 · x``), so they never reach the result and
     get zero gradient.
 
     Args:
@@ -88,7 +89,7 @@ def masked_mean(
     w = jnp.asarray(mask).astype(x.real.dtype)
     w = w.reshape(w.shape + (1,) * (x.ndim - axis - 1))
     count = jnp.maximum(jnp.sum(w), 1)
-    return jnp.sum(x * w, axis=axis) / count
+    return jnp.sum(jnp.where(w != 0, x, 0) * w, axis=axis) / count
 
 
 # ------------------------------------------------------------------ complex (tangent) feature helpers
@@ -131,6 +132,38 @@ def check_complex(x, name: str, *, ndim_min: int = 1) -> None:
         raise InputError(
             f"{name}: expected at least {ndim_min} dimensions, got shape {jnp.shape(x)}"
         )
+
+
+def check_key(key, name: str) -> None:
+    """Raise :class:`~jmeshtex.InputError` unless ``key`` is a JAX PRNG key.
+
+    Static: only the type and dtype are looked at (a traced key passes under ``jit``). Accepts a
+    typed key (``jax.random.key``) or legacy raw key data (``jax.random.PRNGKey``: uint32 ``[2]``).
+    """
+    import numpy as np
+
+    dtype = getattr(key, "dtype", None)
+    if isinstance(key, (jax.Array, np.ndarray)) and dtype is not None:
+        if jnp.issubdtype(dtype, jax.dtypes.prng_key):
+            return
+        if dtype == jnp.uint32 and key.shape[-1:] == (2,):
+            return
+    raise InputError(
+        f"{name}: key must be a JAX PRNG key, e.g. jax.random.key(0), got "
+        f"{type(key).__name__}{'' if dtype is None else f' of dtype {dtype}'}"
+    )
+
+
+def check_size(value, name: str, where: str, *, minimum: int = 1) -> int:
+    """Return ``int(value)`` or raise :class:`~jmeshtex.InputError` unless it is an integer
+    ``>= minimum`` (a static shape argument: bools and floats are refused, NumPy integers pass)."""
+    import numpy as np
+
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{where}: {name} must be an integer >= {minimum}, got {value!r}")
+    if value < minimum:
+        raise InputError(f"{where}: {name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 def check_delta(delta: float, name: str) -> float:

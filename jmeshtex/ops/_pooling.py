@@ -46,11 +46,14 @@ def tangent_pool(x: Complex[ArrayLike, "Vf C"], pm: PoolingMap) -> Complex[Array
     check_complex(x, "tangent_pool", ndim_min=2)
     _check_map(x, pm, "tangent_pool", fine=True)
     rdt = real_dtype(x.dtype)
-    w = jnp.asarray(pm.children_weight).astype(rdt) * jnp.asarray(pm.children_mask).astype(rdt)
+    mask = jnp.asarray(pm.children_mask).astype(bool)
+    # padded slots may hold anything (NaN included): select before multiplying
+    w = jnp.where(mask, jnp.asarray(pm.children_weight).astype(rdt), 0)
     w = w / jnp.maximum(jnp.sum(w, axis=1, keepdims=True), jnp.finfo(rdt).tiny)
-    t = jnp.asarray(pm.children_transport).astype(x.dtype)
+    t = jnp.where(mask, jnp.asarray(pm.children_transport).astype(x.dtype), 0)
     coef = t * w.astype(x.dtype)  # [Vc, M]: weight and transport folded into one complex factor
     xc = jnp.take(x, jnp.asarray(pm.children), axis=0, mode="clip")  # [Vc, M, C]
+    xc = jnp.where(mask[..., None], xc, 0)  # a padded vertex row of x may be non-finite too
     return jnp.einsum("pm,pmc->pc", coef, xc)
 
 

@@ -13,7 +13,7 @@ from .._errors import InputError
 from .._types import Array, ArrayLike, Complex, PRNGKey
 from ._complex_init import complex_lecun_blocks
 from ._complex_linear import complex_linear
-from ._numerics import abs2, check_complex, check_delta
+from ._numerics import abs2, check_complex, check_delta, check_size
 
 
 class VNParams(NamedTuple):
@@ -49,11 +49,17 @@ def init_vn(
       >>> p.weight.shape, p.direction.shape, init_vn(jax.random.key(0), 4).weight is None
       ((4, 6), (4, 6), True)
     """
+    check_size(in_features, "in_features", "init_vn")
+    if out_features is not None:
+        check_size(out_features, "out_features", "init_vn")
     out = in_features if out_features is None else out_features
     spec = ((in_features, out), in_features)
     if out_features is None:
-        return VNParams(weight=None, direction=complex_lecun_blocks(key, [spec], dtype=dtype)[0])
-    weight, direction = complex_lecun_blocks(key, [spec, spec], dtype=dtype)
+        return VNParams(
+            weight=None,
+            direction=complex_lecun_blocks(key, [spec], dtype=dtype, where="init_vn")[0],
+        )
+    weight, direction = complex_lecun_blocks(key, [spec, spec], dtype=dtype, where="init_vn")
     return VNParams(weight=weight, direction=direction)
 
 
