@@ -496,7 +496,23 @@ def eval_stage(ctx: Context, step: int | None) -> None:
         "coherence; nearest_copy_corr: largest correlation of Σ|z|² with a training copy's "
         "(nearest vertex). Targets (issue 35): R ≥ 0.6, |z|² corr ≥ 0.4, Gram below the masked "
         "flat colour and the shuffled latents, diversity LPIPS ≥ 0.1, no sample a training copy.",
+        "",
     ]
+    q = {r["source"]: r for r in report.rows if r["table"] == "quality"}
+    recon_near = q["reconstruction"]["nearest_copy_corr"]
+    for src in order[4:]:
+        r = q[src]
+        checks = {
+            "R ≥ 0.6": r["concentration"] >= 0.6,
+            "|z|² corr ≥ 0.4": r["energy_corr"] >= 0.4,
+            "Gram < masked flat": r["fidelity_gram"] < q["masked flat colour"]["fidelity_gram"],
+            "Gram < shuffled": r["fidelity_gram"] < q["shuffled latents"]["fidelity_gram"],
+            "LPIPS ≥ 0.1": r["diversity_lpips"] != "" and r["diversity_lpips"] >= 0.1,
+            "no copy (nearest-copy corr < half the reconstruction's)": r["nearest_copy_corr"]
+            < 0.5 * recon_near,
+        }
+        met = ", ".join(f"{k}: {'yes' if v else 'no'}" for k, v in checks.items())
+        report.notes.append(f"- {src} at step {step}: {met}.")
     report.write(args.out)
 
 
