@@ -9,8 +9,8 @@ import pytest
 
 from jmeshtex import InputError, Mesh
 from jmeshtex.data import bumpy_sphere, icosphere
-from jmeshtex.geometry import mean_edge_length, tangent_frames
-from jmeshtex.meshmatch import Config, taubin_smooth, transfer_displacement
+from jmeshtex.geometry import mean_edge_length, tangent_frames, taubin_smooth
+from jmeshtex.meshmatch import Config, transfer_displacement
 from jmeshtex.meshmatch.core import detail_displacement, smooth, smoother
 
 
