@@ -54,6 +54,7 @@ _TRAINING_FIELDS = (
     "free_bits",
     "boundary_in_loss",
     "log_sigma_init",
+    "extra_images",
 )
 #: how :func:`~jmeshtex.fl.core.vae_loss` averages its terms
 LOSS_NORMALIZATIONS = ("mean", "paper")
@@ -124,6 +125,9 @@ class Config(ConfigBase):
         log-uniform factor in ``[1/density_spread, density_spread]`` (1: exactly the given density).
       texture_size: stream mode: side in pixels of each training texture.
       procedural_fraction: stream mode: share of procedural textures (the rest are image crops).
+      extra_images: stream mode with the default images: also crop matplotlib's bundled sample
+        images (:func:`~jmeshtex.fl.core.matplotlib_images`: 5 more; False: scikit-image's only,
+        the shipped models' data).
       batch_size: planar meshes per optimiser step (their vertices are concatenated).
       steps: optimiser steps.
       learning_rate: peak Adam learning rate (cosine decay to ``learning_rate · final_lr_fraction``).
@@ -173,6 +177,7 @@ class Config(ConfigBase):
     density_spread: float = 1.0
     texture_size: int = 64
     procedural_fraction: float = 0.5
+    extra_images: bool = False
     batch_size: int = 2
     steps: int = 2000
     learning_rate: float = 2e-3

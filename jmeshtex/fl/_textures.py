@@ -53,19 +53,79 @@ TRAINING_IMAGES = (
 )
 #: scikit-image images never used for training (natural colour photographs; ``cat`` is ``chelsea``)
 HELD_OUT_IMAGES = ("chelsea", "coffee", "rocket")
+#: matplotlib's bundled sample data used as extra training images (``Config.extra_images``): a
+#: photograph, a logo, two elevation maps and an MRI slice (grey ones as grey images)
+MATPLOTLIB_IMAGES = (
+    "Minduka_Present_Blue_Pack.png",
+    "logo2.png",
+    "jacksboro_fault_dem.npz",
+    "topobathy.npz",
+    "s1045.ima.gz",
+)
+#: matplotlib sample images never used for training (``grace_hopper.jpg``: a held-out texture of
+#: the FL-VAE's evaluation on Spot)
+HELD_OUT_MATPLOTLIB_IMAGES = ("grace_hopper.jpg",)
 #: kinds of :func:`procedural_texture`
 PROCEDURAL_KINDS = ("noise", "stripes", "cells", "checker", "gradient")
 
 
-def training_images(*, max_size: int = 512) -> list[np.ndarray]:
+def training_images(*, max_size: int = 512, extra: bool = False) -> list[np.ndarray]:
     """``TRAINING_IMAGES`` as ``[H, W, 3]`` RGB in [0, 1], box-downscaled to ``max_size`` (no held-out image).
+
+    Args:
+      max_size: longest side in pixels.
+      extra: also :func:`matplotlib_images` (``MATPLOTLIB_IMAGES``, after the scikit-image ones).
 
     Example:
       >>> imgs = training_images(max_size=64)
       >>> len(imgs) == len(TRAINING_IMAGES), max(max(im.shape[:2]) for im in imgs) <= 64
       (True, True)
     """
-    return builtin_images(max_size=max_size, names=TRAINING_IMAGES)
+    out = builtin_images(max_size=max_size, names=TRAINING_IMAGES)
+    return out + matplotlib_images(max_size=max_size) if extra else out
+
+
+def matplotlib_images(*, max_size: int = 512) -> list[np.ndarray]:
+    """matplotlib's bundled sample images ``MATPLOTLIB_IMAGES`` as ``[H, W, 3]`` RGB in [0, 1].
+
+    Colour images drop their alpha (composited on white); elevation maps and the MRI slice are
+    scaled to [0, 1] and repeated over RGB. Box-downscaled to ``max_size``. Never
+    ``HELD_OUT_MATPLOTLIB_IMAGES``.
+
+    Raises:
+      InputError: matplotlib is not installed (``pip install 'jmeshtex[render]'``).
+
+    Example:
+      >>> imgs = matplotlib_images(max_size=64)
+      >>> len(imgs) == len(MATPLOTLIB_IMAGES), all(im.shape[2] == 3 for im in imgs)
+      (True, True)
+    """
+    try:
+        import matplotlib.cbook as cbook
+        import matplotlib.image as mimage
+    except ImportError as err:
+        raise InputError(
+            "extra training images come from matplotlib's sample data: pip install 'jmeshtex[render]'"
+        ) from err
+    import gzip
+
+    out = []
+    for name in MATPLOTLIB_IMAGES:
+        path = cbook.get_sample_data(name, asfileobj=False)
+        if name.endswith(".npz"):
+            with np.load(path) as data:
+                grid = np.asarray(data["elevation" if "elevation" in data else "topo"], np.float64)
+        elif name.endswith(".ima.gz"):
+            with gzip.open(path) as f:
+                grid = np.frombuffer(f.read(), np.uint16).astype(np.float64).reshape(256, 256)
+        else:
+            grid = None
+            image = _to_rgb01(mimage.imread(path))
+        if grid is not None:
+            grid = (grid - grid.min()) / max(float(np.ptp(grid)), 1e-9)
+            image = np.repeat(grid[..., None], 3, axis=-1)
+        out.append(downscale(image, max_size))
+    return out
 
 
 def held_out_images(*, max_size: int = 512) -> list[np.ndarray]:

@@ -283,9 +283,13 @@ def _prefetched(make):
     return get
 
 
-def _load_images(images, max_size: int, stream: bool = False) -> list[np.ndarray]:
+def _load_images(
+    images, max_size: int, stream: bool = False, extra: bool = False
+) -> list[np.ndarray]:
     if images is None or (isinstance(images, str) and images == "builtin"):
-        return training_images(max_size=max_size) if stream else builtin_images(max_size=max_size)
+        if stream:
+            return training_images(max_size=max_size, extra=extra)
+        return builtin_images(max_size=max_size)
     if isinstance(images, (str, os.PathLike)):
         return folder_images(images, max_size=max_size)
     if isinstance(images, (list, tuple)) and images:
@@ -395,7 +399,7 @@ def train(
     device_mesh = resolve_mesh(device_mesh, devices)
     k_init, k_pool, k_data, k_noise = jax.random.split(key, 4)
     stream = config.pixels_per_vertex > 0
-    loaded = _load_images(images, config.max_image_size, stream)
+    loaded = _load_images(images, config.max_image_size, stream, config.extra_images)
     if stream:
         levels = [image_levels(im) for im in loaded]
         if not levels and config.procedural_fraction < 1:

@@ -212,7 +212,7 @@ def test_a_stored_config_without_the_new_fields_means_the_old_behaviour():
             "ring_mean", "vertex", "element", False,
         )  # fmt: skip
         assert (cfg.kl_warmup_steps, cfg.free_bits, cfg.boundary_in_loss) == (0, 0.0, True)
-        assert cfg.log_sigma_init == -2.0
+        assert cfg.log_sigma_init == -2.0 and cfg.extra_images is False
 
 
 @pytest.mark.parametrize(
@@ -226,9 +226,23 @@ def test_a_stored_config_without_the_new_fields_means_the_old_behaviour():
         {"attention_linear": 1},
         {"boundary_in_loss": "no"},
         {"log_sigma_init": 3.0},
+        {"extra_images": "yes"},
         {"log_sigma_init": -21.0},
     ],
 )
 def test_new_fields_are_validated(changes):
     with pytest.raises(ConfigError):
         Config(**changes)
+
+
+def test_extra_images_are_matplotlib_sample_data_never_a_held_out_one():
+    from jmeshtex.fl import training_images
+    from jmeshtex.fl._textures import HELD_OUT_MATPLOTLIB_IMAGES, MATPLOTLIB_IMAGES
+
+    assert not set(HELD_OUT_MATPLOTLIB_IMAGES) & set(MATPLOTLIB_IMAGES)
+    base = training_images(max_size=48)
+    more = training_images(max_size=48, extra=True)
+    assert len(more) == len(base) + len(MATPLOTLIB_IMAGES)
+    for im in more[len(base) :]:
+        assert im.ndim == 3 and im.shape[2] == 3 and max(im.shape[:2]) <= 48
+        assert 0 <= im.min() and im.max() <= 1 and np.ptp(im) > 0.3  # not blank
