@@ -35,8 +35,12 @@ class Config(ConfigBase):
     global vector projected on the surface, failed boundary walks read the opposite tap, exemplar
     taps outside the image read the centre pixel.
 
+    Presets: :meth:`cpu` (the defaults, 512²), :meth:`paper` (1024²), :meth:`tiny` (tests); time
+    and CPU-seconds per step in ``benchmarks/results/surfacecnn.md``.
+
     Attributes:
-      size: texture resolution (``size × size`` texels).
+      size: texture resolution (``size × size`` texels; 512 is the CPU preset, the paper's 1024 is
+        :meth:`paper`).
       steps: optimisation steps.
       learning_rate: Adam's initial learning rate.
       halve_every: the learning rate is halved after every this many steps (200 → halved at 200
