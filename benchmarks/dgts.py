@@ -1,7 +1,9 @@
 """Benchmark: DGTS quality on structure, per-level iteration times at the paper's depth, fitting schedules.
 
 Run: ``.venv/bin/python benchmarks/dgts.py [--levels 5] [--measure 10] [--measured-levels 3]
-[--png /tmp/round2/dgts_png]``. Writes ``benchmarks/results/dgts.{json,md}`` (and PNGs with ``--png``).
+[--png /tmp/round2/dgts_png] [--skip fit timing]``; ``--margins`` for the learning test's margins.
+Writes ``benchmarks/results/dgts.{json,md}`` (and PNGs with ``--png``); a skipped section keeps its
+rows of the previous run.
 
 Sections (float32, CPU, jit; compile time reported apart):
 
@@ -19,6 +21,11 @@ Sections (float32, CPU, jit; compile time reported apart):
   truth, relief (height std) and its ratio, W1 of the heights, ACL and peak spacing (all in mean
   edges, heights relative to the shared base, one peak threshold: the truth's). Reconstruction
   errors per level are a diagnostic (level 0 is never trained to reconstruct from ``z*``).
+- ``--margins [SETTING ...]`` (alone): the learning test's margins (``tests/dgts/test_learning.py``)
+  over ``--seeds`` training keys, x64 on as in the tests: per seed the ``|log|`` peak-density error
+  of the trained, untrained and noise transfers against the oracle, and their differences; a
+  summary row per setting. Writes ``benchmarks/results/dgts_learning_margins.{json,md}`` (rows of
+  other settings kept; ``--seeds 0`` only summarises).
 - ``train level l``: seconds per WGAN-GP step (2 critic + 3 generator updates) with the default
   widths (``dgts.Config``: 7 layers, 32 → 128 channels) on a 5-level hierarchy of icosphere(1)
   (80 → 20480 faces), measured for the first ``--measured-levels`` levels over ``--measure`` steps,
@@ -232,6 +239,110 @@ def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> No
         )
 
 
+#: the learning test's settings (tests/dgts/test_learning.py): name -> (Config changes, the
+#: reference's knob period on the unit sphere)
+LEARNING_SETTINGS = {
+    "tiny": ({}, PERIOD),
+    "tiny, 6 layers": ({"num_layers": 6}, PERIOD),
+    "tiny, period 0.45": ({}, 0.45),
+}
+
+
+def learning_setting(name: str = "tiny"):
+    """The learning test's reference, template, configs, target and period (about a CPU-minute)."""
+    prep, cfg = tiny_configs()
+    changes, period = LEARNING_SETTINGS[name]
+    ref = textured_sphere(KIND, subdivisions=4, period=period)
+    return ref, icosphere(2), prep, cfg.replace(**changes), torus(64, 24), period
+
+
+def learning_scores(
+    model, tm, target, *, key, period: float = PERIOD, samples: int = 2
+) -> dict[str, float]:
+    """Peak-density error (``|log ρ/ρ*|``) of a transfer against its oracle (default start level)."""
+    res = transfer(model, target, num_samples=samples, key=key)
+    base = (res.base, res.faces)
+    oracle = oracle_texture(base, KIND, period=period_in_mean_edges(tm, period), seed=0)
+    own = texture_scores(oracle, oracle, base=base)
+    scores = [texture_scores(res.mesh(i), oracle, base=base) for i in range(samples)]
+    return {
+        "density_error": float(np.mean([density_error(s, own) for s in scores])),
+        "density_vs_oracle": float(np.mean([s.peak_density for s in scores]) / own.peak_density),
+        "noise_density_error": float(
+            np.mean(
+                [
+                    density_error(
+                        texture_scores(matched_noise(base, own.relief, seed=i), oracle, base=base),
+                        own,
+                    )
+                    for i in range(samples)
+                ]
+            )
+        ),
+    }
+
+
+def learning_margins(seeds: int, settings: list[str]) -> None:
+    """Trained vs untrained / zero / noise density errors over ``seeds`` training keys."""
+    report = Report("dgts_learning_margins", ceilings=False)
+    previous = RESULTS / "dgts_learning_margins.json"
+    if previous.is_file():  # rows of the settings not measured now are kept
+        rows = json.loads(previous.read_text())["rows"]
+        report.rows.extend(
+            r
+            for r in rows
+            if seeds == 0 or r["name"].split(":")[0] not in settings
+            if "seed" in r["name"]
+        )
+    for name in settings:
+        ref, template, prep, cfg, target, period = learning_setting(name)
+        tm = training_meshes(ref, template, config=prep, key=jax.random.key(0), progress=False)
+        for seed in range(seeds):
+            t0 = time.perf_counter()
+            trained = train(tm, cfg, key=jax.random.key(seed), progress=False).model
+            seconds = time.perf_counter() - t0
+            untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(seed), progress=False)
+            key = jax.random.key(100 + seed)
+            t = learning_scores(trained, tm, target, key=key, period=period)
+            u = learning_scores(untrained.model, tm, target, key=key, period=period)
+            report.add(
+                name=f"{name}: seed {seed}",
+                trained_error=t["density_error"],
+                trained_density_vs_oracle=t["density_vs_oracle"],
+                untrained_error=u["density_error"],
+                untrained_density_vs_oracle=u["density_vs_oracle"],
+                noise_error=t["noise_density_error"],
+                zero_error=float("inf"),
+                margin_untrained=u["density_error"] - t["density_error"],
+                margin_noise=t["noise_density_error"] - t["density_error"],
+                train_s=seconds,
+                period_mean_edges=period_in_mean_edges(tm, period),
+                rec_error_level_1=float(reconstruction_errors(trained, tm)[1]),
+                rec_error_level_1_untrained=float(reconstruction_errors(untrained.model, tm)[1]),
+            )
+            report.write()
+    for name in LEARNING_SETTINGS:
+        rows = [r for r in report.rows if r["name"].startswith(f"{name}: seed")]
+        if rows:
+            report.add(
+                name=f"{name}: over {len(rows)} seeds",
+                trained_error_max=max(r["trained_error"] for r in rows),
+                trained_density_vs_oracle_min=min(r["trained_density_vs_oracle"] for r in rows),
+                trained_density_vs_oracle_max=max(r["trained_density_vs_oracle"] for r in rows),
+                margin_untrained_min=min(r["margin_untrained"] for r in rows),
+                margin_noise_min=min(r["margin_noise"] for r in rows),
+                seeds_trained_closest=sum(
+                    r["margin_untrained"] > 0 and r["margin_noise"] > 0 for r in rows
+                ),
+            )
+    report.notes.append(
+        "error = |log(peak density / oracle's)| of a transfer to a 64 x 24 torus (default start "
+        "level, 2 samples), oracle: knobs at the reference's period in mean edges on the transfer's "
+        "own base; margin = baseline error - trained error (> 0: trained closer)."
+    )
+    report.write()
+
+
 def timing(report: Report, levels: int, measured: int, steps: int) -> None:
     # timing only: the template's subdivisions, unfitted (steps=0), are valid training meshes of every size
     tm = training_meshes(
@@ -345,8 +456,22 @@ def main() -> None:
     ap.add_argument("--fit-iterations", type=int, default=200)
     ap.add_argument("--samples", type=int, default=3, help="transfer samples per quality row")
     ap.add_argument("--png", type=pathlib.Path, default=None)
+    ap.add_argument(
+        "--margins",
+        nargs="*",
+        default=None,
+        choices=sorted(LEARNING_SETTINGS),
+        help="only measure the learning test's margins for these settings (dgts_learning_margins)",
+    )
+    ap.add_argument(
+        "--seeds", type=int, default=5, help="training keys of --margins (0: summarise the file)"
+    )
     ap.add_argument("--skip", nargs="*", default=(), choices=("quality", "timing", "fit"))
     args = ap.parse_args()
+    if args.margins is not None:
+        jax.config.update("jax_enable_x64", True)  # as the tests run (conftest.py): same numerics
+        learning_margins(args.seeds, args.margins or ["tiny"])
+        return
     report = Report("dgts")
     previous = RESULTS / "dgts.json"
     if args.skip and previous.is_file():  # a skipped section keeps its rows of the last run
