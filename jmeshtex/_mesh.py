@@ -87,11 +87,20 @@ def as_mesh(mesh: Mesh | tuple, *, what: str = "mesh") -> Mesh:
       1
     """
     from ._errors import InputError
+    from ._mesh_arrays import coerce_faces, coerce_vertices
 
     if isinstance(mesh, Mesh):
-        return mesh
+        if isinstance(mesh.vertices, np.ndarray) and isinstance(mesh.faces, np.ndarray):
+            return mesh
+        # lists (ragged ones included) become arrays here, or a typed error naming the problem
+        return mesh.replace(vertices=coerce_vertices(mesh.vertices), faces=coerce_faces(mesh.faces))
     if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
-        v, f = (np.asarray(x) for x in mesh)
+        try:
+            v, f = (np.asarray(x) for x in mesh)
+        except ValueError:  # a ragged nested list: the coercions name the bad rows
+            coerce_vertices(mesh[0])
+            coerce_faces(mesh[1])
+            raise InputError(f"{what}: vertices and faces must be arrays") from None
         if v.ndim == 2 and v.shape[-1] == 3 and f.ndim == 2 and f.shape[-1] == 3:
             return Mesh(v.astype(np.float64), f.astype(np.int64))
         raise InputError(

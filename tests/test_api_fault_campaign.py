@@ -31,7 +31,7 @@ from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes
 #: configuration of each method, whose first call compiles)
 CASE_SECONDS = 20.0
 #: draws per bad-mesh kind
-DRAWS = 2
+DRAWS = 4
 
 SUMMARY: dict[str, collections.Counter] = {}
 """``{entry: Counter(outcome class)}`` of the last run (outcome: ``finite``, ``typed <Error>``, or

@@ -209,8 +209,8 @@ def test_a_closed_pipe_ends_quietly():
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
 
 
-def test_a_result_that_is_not_finite_is_not_written(tmp_path):
-    """MeshMatch self-transfer of a 1e30-scaled mesh: refused after the match, nothing written."""
+def test_a_mesh_out_of_float32_range_is_refused_before_any_work(tmp_path):
+    """MeshMatch self-transfer of a 1e30-scaled mesh: the scale check refuses it, nothing written."""
     from jmeshtex.cli._common import procedural_mesh
     from jmeshtex.io import save_mesh
 
@@ -219,10 +219,28 @@ def test_a_result_that_is_not_finite_is_not_written(tmp_path):
     save_mesh(mesh.replace(vertices=mesh.vertices * 1e30), path)
     out = tmp_path / "out"
     argv = ["meshmatch", "transfer", "--source", str(path), "--target", str(path)]
-    import jax
-
-    with jax.debug_nans(False):  # the suite's NaN trap would stop the match itself (a user's won't)
-        rc, err, seconds = _run([*argv, "--out", str(out), "--quiet"])
-    assert _clean_failure(rc, err) and "not finite" in err, err
-    assert seconds < CASE_SECONDS
+    rc, err, seconds = _run([*argv, "--out", str(out), "--quiet"])
+    assert _clean_failure(rc, err) and "mean edge length 1.51e+29 is outside" in err, err
+    assert seconds < CASE_SECONDS / 3
     assert not out.exists()
+
+
+def test_a_result_that_is_not_finite_is_not_written(tmp_path, monkeypatch):
+    """A transfer whose colours come back NaN (poisoned here, as an out-of-range mesh once did):
+    refused after the match, nothing written."""
+    import jmeshtex.meshmatch
+
+    real = jmeshtex.meshmatch.transfer
+
+    def poisoned(*args, **kwargs):
+        result = real(*args, **kwargs)
+        colors = np.full_like(result.mesh.vertex_colors, np.nan)
+        return result._replace(mesh=result.mesh.replace(vertex_colors=colors))
+
+    monkeypatch.setattr(jmeshtex.meshmatch, "transfer", poisoned)
+    out = tmp_path / "out"
+    argv = ["meshmatch", "transfer", "--source", "striped-sphere:1", "--target", "torus:6:3"]
+    rc, err, seconds = _run([*argv, "--levels", "1", "--steps", "1", "--out", str(out), "--quiet"])
+    assert _clean_failure(rc, err) and "colours are not finite" in err, err
+    assert seconds < CASE_SECONDS
+    assert not any(p.name.endswith((".ply", ".obj", ".json")) for p in out.rglob("*"))
