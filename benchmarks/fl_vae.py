@@ -342,7 +342,8 @@ def main() -> None:
     ap.add_argument(
         "--base",
         default="{}",
-        help="JSON changes to Config.small for --study / --profile (e.g. texture_size)",
+        help="JSON changes to Config.small for --study / --profile (e.g. texture_size; "
+        "--profile also takes a list of them)",
     )
     ap.add_argument("--variants", default=None, help="comma-separated KL_VARIANTS names")
     args = ap.parse_args()
@@ -352,8 +353,9 @@ def main() -> None:
         base = json.loads(args.base)
         report = Report("fl_vae_study" if args.study else "fl_vae_profile")
         report.config = {"base": base, "study_steps": args.study}
-        if args.profile:
-            step_profile(report, base=base)
+        if args.profile:  # --base may be a list of changes: one profile each
+            for one in base if isinstance(base, list) else [base]:
+                step_profile(report, base=one)
         else:
             names = args.variants.split(",") if args.variants else list(KL_VARIANTS)
             study(report, steps=args.study, variants={n: KL_VARIANTS[n] for n in names}, base=base)
