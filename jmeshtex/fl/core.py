@@ -12,15 +12,19 @@ encode/decode verbs) lives one level up, in :mod:`jmeshtex.fl`.
   :func:`surface_colors` / :class:`SurfaceColors`.
 - Decoder: :func:`decode_points`, :func:`decode_barycentric`,
   :func:`decode_vertex_colors_from_latents`, :func:`decoder_features`.
-- Loss: :func:`vae_loss`, :func:`kl_divergence`, :func:`sample_latents`.
+- Loss: :func:`vae_loss`, :func:`kl_divergence`, :func:`kl_per_channel`, :func:`sample_latents`.
 - Training: :func:`make_train_step`, :func:`optimizer`, :func:`mesh_batch`, and the data at a
   pixel density: :func:`training_meshes`, :func:`training_texture`, :func:`procedural_texture`
   (``PROCEDURAL_KINDS``), :func:`augmented_crop`, :func:`density_mesh`, :func:`planar_mesh`,
   :func:`planar_pool`, :func:`builtin_images` (``TRAINING_IMAGES``; ``HELD_OUT_IMAGES`` are for
   evaluation only).
-- Evaluation: :func:`atlas_metrics`, :func:`side_by_side`.
+- Evaluation: :func:`atlas_metrics`, :func:`side_by_side`; the per-vertex codecs that bound a
+  reconstruction: :func:`p1_baselines` (:func:`p1_interpolate`, :func:`p1_least_squares`).
 """
 
+from ._baselines import p1_baselines as p1_baselines
+from ._baselines import p1_interpolate as p1_interpolate
+from ._baselines import p1_least_squares as p1_least_squares
 from ._codec import encode_one_rings as encode_one_rings
 from ._colors import SurfaceColors as SurfaceColors
 from ._colors import surface_colors as surface_colors
@@ -29,6 +33,7 @@ from ._encoder import EncoderParams as EncoderParams
 from ._encoder import OneRingSamples as OneRingSamples
 from ._encoder import one_ring_samples as one_ring_samples
 from ._loss import kl_divergence as kl_divergence
+from ._loss import kl_per_channel as kl_per_channel
 from ._loss import sample_latents as sample_latents
 from ._loss import vae_loss as vae_loss
 from ._model import FLVAEParams as FLVAEParams
@@ -42,10 +47,12 @@ from ._planar import planar_pool as planar_pool
 from ._reconstruct import atlas_metrics as atlas_metrics
 from ._reconstruct import side_by_side as side_by_side
 from ._textures import HELD_OUT_IMAGES as HELD_OUT_IMAGES
+from ._textures import MATPLOTLIB_IMAGES as MATPLOTLIB_IMAGES
 from ._textures import PROCEDURAL_KINDS as PROCEDURAL_KINDS
 from ._textures import TRAINING_IMAGES as TRAINING_IMAGES
 from ._textures import augmented_crop as augmented_crop
 from ._textures import density_mesh as density_mesh
+from ._textures import matplotlib_images as matplotlib_images
 from ._textures import procedural_texture as procedural_texture
 from ._textures import training_meshes as training_meshes
 from ._textures import training_texture as training_texture
