@@ -86,6 +86,15 @@ def _textured(v, f) -> Mesh:
     return Mesh(np.asarray(v), f, uv=rng.uniform(0, 1, (rows, 3, 2)), texture=texture)
 
 
+def _half_mask(v) -> np.ndarray:
+    """The painted region of paint_by_example: the vertices with x above the median."""
+    v = np.asarray(v, np.float64)
+    if v.ndim != 2 or not len(v) or v.shape[1] < 1:
+        return np.zeros(len(v) if v.ndim else 0, bool)
+    with np.errstate(invalid="ignore"):
+        return v[:, 0] > np.median(v[:, 0])
+
+
 def _colour_latents(mesh: Mesh) -> np.ndarray:
     """A tiny analytic codec: two complex channels from the vertex colours (no FL-VAE needed)."""
     c = np.asarray(mesh.vertex_colors, np.float64)
@@ -153,6 +162,15 @@ def _entries(models) -> dict:
         ),
         "meshmatch.transfer (target)": lambda v, f: meshmatch.transfer(
             _meshmatch_source(), (v, f), key=_KEY, config=_MESHMATCH, texture_size=16
+        ),
+        "meshmatch.transfer_displacement (target)": lambda v, f: meshmatch.transfer_displacement(
+            _meshmatch_source(), (v, f), key=_KEY, config=_MESHMATCH, smoothing_steps=1
+        ),
+        "meshmatch.paint_by_example": lambda v, f: meshmatch.paint_by_example(
+            _colored(v, f), _half_mask(v), key=_KEY, config=_MESHMATCH
+        ),
+        "surfacecnn.prepare_surface": lambda v, f: surfacecnn.prepare_surface(
+            Mesh(np.asarray(v), f), size=8, levels=1
         ),
         "surfacecnn.synthesize": lambda v, f: surfacecnn.synthesize(
             Mesh(np.asarray(v), f),

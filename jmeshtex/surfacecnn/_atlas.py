@@ -35,6 +35,7 @@ from .._config import is_int
 from .._errors import InputError, MeshError
 from ..geometry import (
     TracerGeometry,
+    check_mesh_scale,
     face_frame_to_world,
     fill_unused_texels,
     global_direction_field,
@@ -116,6 +117,7 @@ def unwrap_uv(
     """
     import xatlas
 
+    check_mesh_scale(vertices, faces, what="unwrap_uv: mesh")  # xatlas loops or fails outside it
     v = np.ascontiguousarray(vertices, dtype=np.float32)
     f = np.ascontiguousarray(faces, dtype=np.uint32)
     vmapping, indices, uvs = xatlas.parametrize(v, f)
