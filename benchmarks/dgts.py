@@ -7,8 +7,8 @@ rows of the previous run.
 
 Sections (float32, CPU, jit; compile time reported apart):
 
-- ``quality``: a knobs sphere (``data.textured_sphere("knobs", subdivisions=4, period=0.6)``)
-  learned with the tiny configuration (``PrepareConfig.tiny``, ``Config.tiny``: 2 levels, template
+- ``quality``: a knobs sphere (``data.textured_sphere("knobs", subdivisions=4, period=p)``, ``p`` in
+  ``--periods``, default 0.6 and 0.45: 3.7 and 2.8 mean edges at the finest level) learned with the tiny configuration (``PrepareConfig.tiny``, ``Config.tiny``: 2 levels, template
   icosphere(2), 120 steps; not the paper's 5 levels, 32–128 channels, 2000 steps) and scored against
   ground truth on the same surface. Transfers (to a torus 64 × 24 and, when ``../shared/data`` is
   there, the cow; from the default start level and from level 0) are scored against an oracle: the
@@ -128,20 +128,24 @@ def _score_rows(report, section: str, rows: dict, truth, base, samples: dict) ->
         )
 
 
-def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> None:
+def quality(
+    report: Report, png: pathlib.Path | None, *, samples: int = 3, reference_period: float = PERIOD
+) -> None:
     prep, cfg = tiny_configs()
+    reference = textured_sphere(KIND, subdivisions=4, period=reference_period)
     t0 = time.perf_counter()
     tm = training_meshes(
-        reference_mesh(), icosphere(2), config=prep, key=jax.random.key(0), progress=False
+        reference, icosphere(2), config=prep, key=jax.random.key(0), progress=False
     )
     t_prep = time.perf_counter() - t0
     t0 = time.perf_counter()
     trained = train(tm, cfg, key=jax.random.key(0), progress=False).model
     t_train = time.perf_counter() - t0
     untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
-    period = period_in_mean_edges(tm, PERIOD)
+    period = period_in_mean_edges(tm, reference_period)
+    tag = f"[period {period:.2f} edges] "
     report.add(
-        name="quality: prepare + train (tiny)",
+        name=f"{tag}quality: prepare + train (tiny)",
         faces=len(tm.faces[-1]),
         prepare_s=t_prep,
         train_s=t_train,
@@ -156,7 +160,7 @@ def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> No
     relief = float(np.std(relief_heights(truth)))
     _score_rows(
         report,
-        "in-domain vs training mesh",
+        f"{tag}in-domain vs training mesh",
         {
             "training mesh (truth)": [truth],
             "trained": [cond.mesh(i) for i in range(samples)],
@@ -173,7 +177,7 @@ def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> No
     for name, model in (("trained", trained), ("untrained", untrained)):
         errs = reconstruction_errors(model, tm)
         report.add(
-            name=f"diagnostic: reconstruction error ({name})",
+            name=f"{tag}diagnostic: reconstruction error ({name})",
             **{f"level_{i}": float(e) for i, e in enumerate(errs)},
             note="mean edges; level 0 never reconstructs from z* (reconstruction_start = 1)",
         )
@@ -190,7 +194,7 @@ def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> No
             oracle = oracle_texture(base, KIND, period=period, seed=0)
             own = texture_scores(oracle, oracle, base=base)
             section = (
-                f"transfer to {target_name} from level {res.start_level}"
+                f"{tag}transfer to {target_name} from level {res.start_level}"
                 f"{' (default)' if start is None else ''}, {len(res.faces)} F"
             )
             _score_rows(
@@ -219,7 +223,7 @@ def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> No
 
         size = (320, 320)
         panels = [
-            ("reference", render_mesh(reference_mesh(), size=size)),
+            ("reference", render_mesh(reference, size=size)),
             ("training level 1", render_mesh(truth, size=size)),
             ("in-domain sample", render_mesh(cond.mesh(0), size=size)),
         ]
@@ -234,8 +238,9 @@ def quality(report: Report, png: pathlib.Path | None, *, samples: int = 3) -> No
         figure(
             panels,
             columns=4,
-            title=f"DGTS tiny ({KIND}): reference | in-domain | transfers vs oracle and baselines",
-            path=png / "dgts_quality.png",
+            title=f"DGTS tiny ({KIND}, period {period:.2f} mean edges): reference | in-domain | "
+            "transfers vs oracle and baselines",
+            path=png / f"dgts_quality_{reference_period}.png",
         )
 
 
@@ -443,7 +448,7 @@ def _section(row: dict) -> str:
     name = str(row.get("name", ""))
     if name.startswith("fit:"):
         return "fit"
-    if name.startswith("train"):
+    if name.startswith("train:") or name.startswith("train level"):
         return "timing"
     return "quality"
 
@@ -456,6 +461,13 @@ def main() -> None:
     ap.add_argument("--fit-iterations", type=int, default=200)
     ap.add_argument("--samples", type=int, default=3, help="transfer samples per quality row")
     ap.add_argument("--png", type=pathlib.Path, default=None)
+    ap.add_argument(
+        "--periods",
+        nargs="+",
+        type=float,
+        default=[PERIOD, 0.45],
+        help="knob periods of the quality section's references (unit sphere)",
+    )
     ap.add_argument(
         "--margins",
         nargs="*",
@@ -486,7 +498,9 @@ def main() -> None:
         fit_compare(report, args.fit_iterations)
         report.write()  # after every section, so a later failure keeps the earlier figures
     if "quality" not in args.skip:
-        quality(report, args.png, samples=args.samples)
+        for reference_period in args.periods:
+            quality(report, args.png, samples=args.samples, reference_period=reference_period)
+            report.write()
         report.write()
     if "timing" not in args.skip:
         timing(report, args.levels, args.measured_levels, args.measure)
