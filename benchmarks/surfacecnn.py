@@ -241,7 +241,7 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
 
     from jmeshtex import render
     from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.metrics import Protocol, baseline_table
+    from jmeshtex.metrics import Protocol, baseline_table, surface_patch_table
     from jmeshtex.surfacecnn import synthesize, synthesize_uv
     from jmeshtex.surfacecnn.core import frame_seam_turn, seam_ratio
 
@@ -284,6 +284,16 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
                 protocol=protocol,
                 metrics=("sifid", "gram"),
             )
+            patches = surface_patch_table(
+                Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv),
+                r.texture,
+                exemplar,
+                step=surface.atlas.texel_size,
+                key=jax.random.key(5),
+                num=32,
+                initial=np.random.default_rng(0).uniform(0.0, 0.2, size=(size, size, 3)),
+                valid=(surface.atlas.index_of >= 0).reshape(size, size),
+            )
             row = {
                 "mesh": name,
                 "method": method,
@@ -292,6 +302,7 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
                 "seconds": seconds,
                 "seam_ratio": seams["ratio"],
                 "seam_pairs": seams["seam_pairs"],
+                "patches": patches,
                 **{
                     f"{k}_{m}": v
                     for k, vals in table.rows.items()
@@ -341,6 +352,26 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
                 f"| {r['mesh']} | {r['method']} | {r['seam_ratio']:.3f} | {r['result_sifid']:.4g} | "
                 f"{r['result_gram']:.4g} | {r['flat_sifid']:.4g} | {r['flat_gram']:.4g} | "
                 f"{r['permuted_sifid']:.4g} | {r['permuted_gram']:.4g} | {r['seconds']:.0f} |"
+            )
+    lines += [
+        "",
+        "Surface patches (32 geodesic patches of 32² at the texel scale, global frames, against "
+        "exemplar crops; Gram on VGG-16 relu1_1…relu3_3, spectrum: log radial power L1):",
+        "",
+        "| mesh | method | patch Gram | spectrum | flat | permuted | initial | UV-tiled | floor | "
+        "charts / patch |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in rows:
+        if "patches" in r:
+            p = r["patches"]
+            cells = " | ".join(
+                f"{p[k]['gram']:.3g} / {p[k]['spectrum']:.3f}"
+                for k in ("flat", "permuted", "initial", "uv_tiled", "floor")
+            )
+            lines.append(
+                f"| {r['mesh']} | {r['method']} | {p['texture']['gram']:.3g} | "
+                f"{p['texture']['spectrum']:.3f} | {cells} | {p['texture']['charts']:.2f} |"
             )
     lines += [
         "",

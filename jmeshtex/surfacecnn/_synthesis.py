@@ -133,8 +133,11 @@ def _fingerprint(task: str, config: Config, surface: Surface, layers, data: str,
     }
 
 
-def _result(mesh: Mesh, surface: Surface, x, losses, final, stats) -> SynthesisResult:
-    colors = np.asarray(apply_tie(np.asarray(x), surface.pyramid.tie), np.float32)
+def _result(mesh: Mesh, surface: Surface, x, losses, final, stats, *, tie=True) -> SynthesisResult:
+    """The result of optimised texel colours ``x``; ``tie``: tied texels show their tie (the
+    surface network never reads their own values)."""
+    tied = apply_tie(np.asarray(x), surface.pyramid.tie) if tie else np.asarray(x)
+    colors = np.asarray(tied, np.float32)
     texture = texels_to_image(surface.atlas, colors).astype(np.float32)
     textured = mesh.replace(uv=surface.atlas.uv, texture=texture)
     stats = {

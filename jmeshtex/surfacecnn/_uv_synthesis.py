@@ -124,7 +124,13 @@ def synthesize_uv(
         fingerprint=fingerprint,
     )
     pixels = np.asarray(x).reshape(size * size, 3)[surface.atlas.texel]
-    result = _result(
-        mesh, surface, pixels, losses, final, {**stats, "uv_total_s": time.perf_counter() - t0}
+    result = _result(  # a 2D image: every pixel was optimised, no tie
+        mesh,
+        surface,
+        pixels,
+        losses,
+        final,
+        {**stats, "uv_total_s": time.perf_counter() - t0},
+        tie=False,
     )
     return result
