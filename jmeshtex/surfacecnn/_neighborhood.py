@@ -21,7 +21,12 @@ own feature rows and drifts to saturated noise (specks along every seam). Such a
 the nearest read of the tap whose bilinear corners weight it most (that tap ends within one texel of
 its centre), as long as the texel the tap read keeps another reader; a texel without such a tap
 takes over, in both samplings, the tap of an image 8-neighbour that ends nearest to its centre in
-UV. :func:`unread_share` reports the texels still unread (0 on the meshes tested).
+UV. A redirected read alone leaves such a texel's colour weakly constrained, so in addition every
+texel whose centre lies outside its UV triangle is *tied* (:func:`border_ties`): it shows the
+bilinear sample, at its surface point, of the abutting texels whose centres lie inside; the bilinear
+taps read tied texels through the tie and results show it (:func:`apply_tie`).
+:func:`unread_share` reports the free texels still unread (0 on the meshes tested; border chroma
+in ``benchmarks/results/surfacecnn_seams.md``).
 
 **Failed walks.** A walk that reaches a mesh boundary before its full length stops there
 (``stopped``). Its tap then reads what the opposite tap (``8 − t``) reads if that walk succeeded,
