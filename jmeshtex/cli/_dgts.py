@@ -249,7 +249,8 @@ def _train(args) -> int:
             f"{1000 * r.seconds_per_step:.1f} ms/step"
         )
     out = save(result.model, args.dir / "model")
-    sample = transfer(result.model, Mesh(tm.template, tm.faces[0]), key=key).mesh(0)
+    # through every level (the default start skips level 0): a generation from the template
+    sample = transfer(result.model, Mesh(tm.template, tm.faces[0]), start_level=0, key=key).mesh(0)
     save_mesh(sample, args.dir / "sample.obj")
     render_mesh(sample, args.dir / "sample.png", size=(400, 400), title="sample from the template")
     print(f"wrote {out} ({result.model.num_levels} levels) and {args.dir / 'sample.png'}")

@@ -31,8 +31,8 @@ Example:
   >>> config = dgts.Config(num_layers=3, start_features=4, min_features=4, max_features=4, steps=2)
   >>> result = dgts.train(meshes, config, key=jax.random.key(1), progress=False)
   >>> out = dgts.transfer(result.model, torus(8, 6), key=jax.random.key(2))
-  >>> out.vertices.shape
-  (1, 192, 3)
+  >>> out.vertices.shape, out.start_level  # 96 target faces: level 1's resolution (20 x 4)
+  ((1, 48, 3), 1)
 """
 
 from .._errors import FaceBudgetError as FaceBudgetError
