@@ -180,6 +180,7 @@ class Context:
             cache_dir=self.work / "data",
             progress=False,
         )
+        self._keep_recorded_scale()
         self.dataset_seconds = (time.perf_counter() - t0, _cpu() - c0)
         print(
             f"[dataset] {self.data.num_copies} copies × {self.cfg.encodings_per_copy} encodings, "
@@ -187,6 +188,33 @@ class Context:
             f"{self.dataset_seconds[1]:.1f} CPU-s",
             flush=True,
         )
+
+    def _keep_recorded_scale(self) -> None:
+        """Resume with the latent scale the run recorded.
+
+        The copies' cache is keyed by the encoder's identity (the FL-VAE's weights and config
+        repr): a change of ``fl.Config``'s fields re-encodes the copies, and a change in the
+        encoder's arithmetic moves the scale by round-off (1e-4 measured), which the checkpoint's
+        fingerprint would refuse. Within 1 % the run's recorded scale is kept.
+        """
+        from jmeshtex.io import Checkpoints
+
+        folder = self.work / "train"
+        with Checkpoints(folder) as ckpt:
+            step = ckpt.latest_step()
+            if step is None:
+                return
+            recorded = ckpt.read_meta(step).get("fingerprint", {}).get("data", {})
+        scale = np.asarray(recorded.get("scale", []), np.float64)
+        if list(recorded.get("shape", [])) != list(self.data.latents.shape):
+            return
+        if scale.shape == self.data.scale.shape and not np.array_equal(scale, self.data.scale):
+            if np.allclose(scale, self.data.scale, rtol=1e-2):
+                change = float(np.max(np.abs(scale / self.data.scale - 1)))
+                print(
+                    f"[dataset] keeping the run's recorded latent scale (re-encoded: {change:.1e})"
+                )
+                self.data = self.data._replace(scale=scale)
 
 
 def train_stage(ctx: Context) -> None:
