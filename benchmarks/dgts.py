@@ -167,7 +167,8 @@ def quality(
             "untrained": [cond_u.mesh(i) for i in range(samples)],
             "zero displacement": [(cond.base, cond.faces)],
             "noise (matched relief)": [
-                matched_noise((cond.base, cond.faces), relief, seed=i) for i in range(samples)
+                matched_noise((cond.base, cond.faces), relief, key=jax.random.key(i))
+                for i in range(samples)
             ],
         },
         truth,
@@ -191,7 +192,7 @@ def quality(
                 untrained, target, num_samples=samples, start_level=start, key=jax.random.key(1)
             )
             base = (res.base, res.faces)
-            oracle = oracle_texture(base, KIND, period=period, seed=0)
+            oracle = oracle_texture(base, KIND, period=period)
             own = texture_scores(oracle, oracle, base=base)
             section = (
                 f"{tag}transfer to {target_name} from level {res.start_level}"
@@ -203,13 +204,15 @@ def quality(
                 {
                     "oracle (truth)": [oracle],
                     "oracle, other centres": [
-                        oracle_texture(base, KIND, period=period, seed=s) for s in (1, 2)
+                        oracle_texture(base, KIND, period=period, key=jax.random.key(s))
+                        for s in (1, 2)
                     ],
                     "trained": [res.mesh(i) for i in range(samples)],
                     "untrained": [res_u.mesh(i) for i in range(samples)],
                     "zero displacement": [base],
                     "noise (matched relief)": [
-                        matched_noise(base, own.relief, seed=i) for i in range(samples)
+                        matched_noise(base, own.relief, key=jax.random.key(i))
+                        for i in range(samples)
                     ],
                 },
                 oracle,
@@ -232,7 +235,10 @@ def quality(
                 (f"{target_name}: trained", render_mesh(res.mesh(0), size=size)),
                 (f"{target_name}: oracle", render_mesh(oracle, size=size)),
                 (f"{target_name}: untrained", render_mesh(res_u.mesh(0), size=size)),
-                (f"{target_name}: noise", render_mesh(matched_noise(base, relief), size=size)),
+                (
+                    f"{target_name}: noise",
+                    render_mesh(matched_noise(base, relief, key=jax.random.key(0)), size=size),
+                ),
             ]
         png.mkdir(parents=True, exist_ok=True)
         figure(
@@ -267,7 +273,7 @@ def learning_scores(
     """Peak-density error (``|log ρ/ρ*|``) of a transfer against its oracle (default start level)."""
     res = transfer(model, target, num_samples=samples, key=key)
     base = (res.base, res.faces)
-    oracle = oracle_texture(base, KIND, period=period_in_mean_edges(tm, period), seed=0)
+    oracle = oracle_texture(base, KIND, period=period_in_mean_edges(tm, period))
     own = texture_scores(oracle, oracle, base=base)
     scores = [texture_scores(res.mesh(i), oracle, base=base) for i in range(samples)]
     return {
@@ -277,7 +283,11 @@ def learning_scores(
             np.mean(
                 [
                     density_error(
-                        texture_scores(matched_noise(base, own.relief, seed=i), oracle, base=base),
+                        texture_scores(
+                            matched_noise(base, own.relief, key=jax.random.key(i)),
+                            oracle,
+                            base=base,
+                        ),
                         own,
                     )
                     for i in range(samples)

@@ -221,7 +221,7 @@ def train_stage(ctx: Context) -> None:
     """Train on from the newest checkpoint in chunks of ``checkpoint_every`` steps; after each, a
     model snapshot with its card and a log line (wall and CPU seconds per step, statistics)."""
     from jmeshtex import fldm
-    from jmeshtex.fldm._model import model_card
+    from jmeshtex.fldm.core import model_card
 
     cfg, work = ctx.cfg, ctx.work
     rates = work / "rates.jsonl"
@@ -289,11 +289,11 @@ def _snapshot(ctx: Context, step: int | None):
             f"fldm_spot: no snapshot of step {step} in {folder} (there are {found}) and no "
             f"checkpoint of it in {ctx.work / 'train'} (there are {kept}); train first (--train-only)"
         )
-    from jmeshtex.fldm._train import _split
     from jmeshtex.fldm.core import init_denoiser, optimizer
 
     cfg = ctx.cfg
-    params = init_denoiser(_split(ctx.k_train)[0], cfg, dtype=jnp.complex64)
+    k_init = jax.random.split(ctx.k_train, 3)[0]  # fldm.train's (init, batch, noise) split
+    params = init_denoiser(k_init, cfg, dtype=jnp.complex64)
     like = {"params": params, "opt_state": optimizer(cfg).init(params)}
     if cfg.ema_decay > 0:
         like["ema"] = params
@@ -313,7 +313,7 @@ def _nearest(src_vertices: np.ndarray, dst_vertices: np.ndarray) -> np.ndarray:
 
 def eval_stage(ctx: Context, step: int | None) -> None:
     from jmeshtex import fl, fldm
-    from jmeshtex.fldm import _statistics as st
+    from jmeshtex.fldm import core as st
     from jmeshtex.fldm.core import denoiser_geometry, sampling_geometry
     from jmeshtex.geometry import fill_unused_texels
     from jmeshtex.metrics import flat_baseline, gram_distance, load_vgg16, lpips

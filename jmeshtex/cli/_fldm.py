@@ -193,7 +193,7 @@ def _train(args) -> int:
     res = train(
         data, config, key=k_train, checkpoint_dir=out / "checkpoints", progress=not args.quiet
     )
-    from ..fldm._model import model_card
+    from ..fldm.core import model_card
 
     save(res.model, out, card=model_card(res))
     meta = {

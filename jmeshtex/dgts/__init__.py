@@ -20,7 +20,7 @@ halves of a transfer, the template fit of one level) are in :mod:`jmeshtex.dgts.
 
 Models trained with the official code (amirhertz/geometric-textures): export the generator's
 ``state_dict`` to ``.npz`` and read it with :func:`load_official` (or :func:`from_official_state_dict`);
-the converted model reproduces the official outputs (tested against ``../shared/parity/dgts_official.npz``).
+the converted model reproduces the official outputs (tested against the official network's outputs on the same weights, ``tests/dgts/test_official_parity.py``).
 
 Example:
   >>> import jax

@@ -17,7 +17,7 @@ differ from :mod:`jmeshtex.ops`' in two places, which the converter absorbs into
 Everything else (edge ``k`` = ``(f[k], f[(k+1) % 3])``, apex of the face across edge ``k`` minus the
 edge midpoint, the max over the three edges, the mean over a vertex's corners) agrees, so a
 converted level reproduces the official stack output and ``forward_level`` to float32 rounding
-(tested against ``../shared/parity/dgts_official.npz``). One difference remains on open meshes:
+(tested against the official network's outputs, ``tests/dgts/test_official_parity.py``). One difference remains on open meshes:
 on a boundary edge the official features use the edge midpoint (all zero), jmeshtex the face's own
 apex (:func:`~jmeshtex.ops.face_features`); closed meshes are unaffected.
 

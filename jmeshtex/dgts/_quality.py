@@ -30,6 +30,7 @@ import scipy.spatial
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
+from .._random import check_key, host_rng
 from .._types import Float, Int
 from ..data import textured_mesh
 from ..geometry import mean_edge_length, unique_edges, vertex_normals
@@ -329,7 +330,7 @@ def oracle_texture(
     *,
     period: float,
     amplitude: float | None = None,
-    seed: int = 0,
+    key=None,
 ) -> Mesh:
     """The ground truth of a transfer: ``base`` carrying the texture ``kind`` at ``period`` mean edges.
 
@@ -342,7 +343,8 @@ def oracle_texture(
       kind: the reference's texture (``jmeshtex.data.GEOMETRIC_TEXTURES``).
       period: the reference's period in its mean edges (:func:`period_in_mean_edges`).
       amplitude: relief height in mean edges; default the kind's fraction of the period.
-      seed: seed of the texture centres.
+      key: a ``jax.random`` key placing the texture centres; None: the canonical placement (the
+        one :func:`jmeshtex.data.textured_mesh` makes by default).
 
     Returns:
       The textured :class:`~jmeshtex.Mesh` (``base``'s faces).
@@ -363,20 +365,21 @@ def oracle_texture(
         kind,
         period=float(period) * ell,
         amplitude=None if amplitude is None else float(amplitude) * ell,
-        seed=seed,
+        seed=0 if key is None else int(host_rng(check_key(key, "oracle_texture")).integers(2**31)),
     )
 
 
-def matched_noise(base: MeshLike, relief: float, *, seed: int = 0) -> Mesh:
+def matched_noise(base: MeshLike, relief: float, *, key) -> Mesh:
     """Gaussian displacement of ``base`` along its normals whose relief heights have std ``relief``.
 
     The "right relief, no structure" baseline: the displacement's scale is set so that
     ``relief_heights(noise, base).std() == relief`` (one linear rescale: the heights are linear in
-    a normal displacement).
+    a normal displacement). The Gaussian draw follows ``key`` (a ``jax.random`` key).
 
     Example:
+      >>> import jax
       >>> from jmeshtex.data import icosphere
-      >>> m = matched_noise(icosphere(3), 0.2)
+      >>> m = matched_noise(icosphere(3), 0.2, key=jax.random.key(0))
       >>> round(float(relief_heights(m, icosphere(3)).std()), 3)
       0.2
     """
@@ -384,7 +387,7 @@ def matched_noise(base: MeshLike, relief: float, *, seed: int = 0) -> Mesh:
     v = np.asarray(v, np.float64)
     f = np.asarray(f, np.int64)
     n = vertex_normals(v, f)
-    g = np.random.default_rng(seed).standard_normal(len(v))
+    g = host_rng(check_key(key, "matched_noise")).standard_normal(len(v))
     trial = Mesh(v + n * (g * mean_edge_length(v, f))[:, None], f)
     scale = float(relief) / max(float(relief_heights(trial, (v, f)).std()), 1e-12)
     for _ in range(3):  # normal_heights is nearly linear in a small displacement: a few rescales

@@ -74,7 +74,7 @@ def training_images(*, max_size: int = 512, extra: bool = False) -> list[np.ndar
 
     Args:
       max_size: longest side in pixels.
-      extra: also :func:`matplotlib_images` (``MATPLOTLIB_IMAGES``, after the scikit-image ones).
+      extra: also :func:`~jmeshtex.fl.core.matplotlib_images` (``MATPLOTLIB_IMAGES``, after the scikit-image ones).
 
     Example:
       >>> imgs = training_images(max_size=64)

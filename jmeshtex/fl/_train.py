@@ -6,7 +6,7 @@ resolutions; ``config.pixels_per_vertex == 0``, the shipped model's recipe) or, 
 :func:`~jmeshtex.fl.training_images`, never the held-out ones, and procedural textures) meshed at
 that pixel density (:func:`~jmeshtex.fl.core.training_meshes`) — samples every one-ring afresh on the
 host, and takes one jitted Adam step on :func:`~jmeshtex.fl.core.vae_loss` (cosine-decayed learning rate with warm-up, global-norm clipping, complex gradients conjugated
-before the update — DESIGN.md). All randomness derives from the ``key`` given to :func:`train`:
+before the update — docs/concepts.md). All randomness derives from the ``key`` given to :func:`train`:
 the initialisation and the pool from two of its splits, step ``t``'s meshes, samples and
 reparameterisation noise from ``t`` folded into two others, so a run resumed from a checkpoint
 continues exactly as an uninterrupted one would.

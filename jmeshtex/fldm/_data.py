@@ -272,11 +272,11 @@ def build_dataset(
       key: PRNG key of the re-triangulations (the same key gives the same copies).
       labels: optional ``[V]`` int labels on ``mesh`` in ``[0, num_labels)``.
       cache_dir: folder for ``copy_####.npz`` and ``data.json`` (None: no cache).
+      progress: tqdm bar.
 
     With ``config.encodings_per_copy = K > 1`` each copy is encoded ``K`` times (``encode`` is
     called again; :func:`fl_vae_encoder` draws new one-ring samples each call): the first in
     ``latents`` (and the scale), the others in ``Dataset.encodings``.
-      progress: tqdm bar.
 
     Returns:
       :class:`Dataset`.

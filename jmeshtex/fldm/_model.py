@@ -53,7 +53,7 @@ def save(model: Model, path: str | os.PathLike, *, card: dict | None = None) -> 
       path: the folder (created if needed; a model already there is replaced).
       card: a JSON-able model card written next to it as ``card.json`` (e.g. the training's
         steps, losses and the decoder-free statistics of ``TrainResult.extra["statistics"]``:
-        :func:`model_card`); None: none (an old card there is left as it is).
+        :func:`~jmeshtex.fldm.core.model_card`); None: none (an old card there is left as it is).
 
     Returns:
       The folder.

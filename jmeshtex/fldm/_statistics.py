@@ -12,7 +12,7 @@ vertex is gauge- and sampling-dependent, so the texture lives in gauge-invariant
   exactly (:func:`pointwise_concentration`);
 - **neighbour correlation of |z|²** (spatial structure): the channel energies
   ``e_{vc} = |z_{vc}|²``, standardised per channel over real vertices, correlated over the
-  neighbourhood pairs ``(p, q)``, ``q ≠ p``, of a k-NN :class:`~jmeshtex.geometry.VertexNeighborhood`;
+  neighbourhood pairs ``(p, q)``, ``q ≠ p``, of a k-NN :class:`~jmeshtex.VertexNeighborhood`;
   magnitudes need no transport. About 0 for latents shuffled over vertices;
 - **transported phase coherence**: ``Re Σ z_p · conj(ρ_{q→p} z_q) / Σ |z_p||z_q|`` over the same
   pairs (``ρ`` the neighbourhood's transport): whether neighbouring vectors agree in direction.
@@ -106,7 +106,7 @@ def relative_phase_concentration(z, vertex_mask=None, *, channel_weight=None) ->
         channels the FL-VAE left collapsed); None: all pairs equal.
 
     Returns:
-      Scalar: 1 when every vertex has the same relative phases, about ``1/sqrt(V)`` when they are
+      A scalar, 1 when every vertex has the same relative phases, about ``1/sqrt(V)`` when they are
       random.
 
     Example:
@@ -202,14 +202,15 @@ def neighbour_energy_correlation(
 
     Args:
       z: ``[V, d]`` complex latents.
-      neighborhood: a :class:`~jmeshtex.geometry.VertexNeighborhood` of the same ``V`` vertices
+      neighborhood: a :class:`~jmeshtex.VertexNeighborhood` of the same ``V`` vertices
         (``index``, ``mask``; the self slot is skipped), e.g. ``denoiser_geometry(mesh).fine``.
       vertex_mask: ``[V]`` True for real vertices (None: the neighbourhood's ``vertex_mask``).
       channel_weight: ``[d]`` weights of the channels' correlations (None: equal).
       per_channel: return the ``[d]`` per-channel correlations instead of their weighted mean.
 
     Returns:
-      Scalar in [−1, 1] (Pearson over neighbour pairs of the per-channel standardised energies):
+      A scalar in [−1, 1], the Pearson correlation over neighbour pairs of the per-channel
+      standardised energies;
       about 0 for shuffled latents, near 1 for fields smooth at the neighbourhood's scale.
 
     Example:

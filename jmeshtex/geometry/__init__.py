@@ -1,7 +1,7 @@
 """Host-side geometry (NumPy + libigl/trimesh/scipy, not jitted).
 
 Turns a triangle mesh into frozen, padded neighbourhood pytrees with static shapes that the pure
-JAX operators in :mod:`jmeshtex.ops` consume. Conventions (DESIGN.md): tangent vectors are complex
+JAX operators in :mod:`jmeshtex.ops` consume. Conventions (docs/concepts.md): tangent vectors are complex
 numbers in per-vertex frames; log maps and transport are intrinsic (edge lengths only).
 """
 

@@ -2,7 +2,7 @@
 
 Everything downstream (one-ring log maps, transport, geodesic neighbourhoods, the hierarchy) is
 computed from the quantities here and therefore from edge lengths only, so it does not change when a
-surface is bent isometrically (DESIGN.md, "Geometric conventions").
+surface is bent isometrically (docs/concepts.md, "Log maps, transport and their units").
 
 Edge ``k`` of face ``f`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``; corner ``k`` is the
 angle at ``faces[f, k]``, between edges ``k`` and ``k - 1``, opposite edge ``(k + 1) % 3``.

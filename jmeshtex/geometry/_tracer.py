@@ -13,7 +13,7 @@ this frame. In 3D the frame's x-axis is ``(b - a) / |b - a|`` and its y-axis ``n
 unit face normal; :func:`face_frame_to_world` converts.
 
 **Vertex frame.** :func:`trace_from_vertices` takes directions in the intrinsic vertex gauge of
-DESIGN.md: the x-axis is the edge to slot 0 of :func:`~jmeshtex.geometry.one_rings`, angles grow
+docs/concepts.md: the x-axis is the edge to slot 0 of :func:`~jmeshtex.geometry.one_rings`, angles grow
 counter-clockwise and corner angles are scaled to sum to 2π at interior vertices (not at boundary
 vertices). The slot angles come from :func:`~jmeshtex.geometry.one_ring_angles`, the same source as
 the one-ring log maps (:func:`~jmeshtex.geometry.one_ring_neighborhood`), so

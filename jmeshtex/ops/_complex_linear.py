@@ -1,6 +1,6 @@
 """Complex linear layer without bias (Mitchel, Esteves, Makadia, CVPR 2024, supplement §9).
 
-A tangent feature is one complex number per vertex and channel, in that vertex's frame (DESIGN.md); a
+A tangent feature is one complex number per vertex and channel, in that vertex's frame (docs/concepts.md); a
 gauge change rotates all channels of a vertex together, ``x → x e^{-iα}``, and a complex-linear map
 without bias commutes with it.
 """

@@ -1,7 +1,7 @@
 """Small numerical helpers shared by the operators: safe norms, masked reductions, complex features.
 
-Every helper has finite values *and* finite gradients at exactly-zero inputs (DESIGN.md, "Zero
-vectors"), uses no Python loop, and keeps the input's dtype. The complex-feature helpers (dtype
+Every helper has finite values *and* finite gradients at exactly-zero inputs (docs/concepts.md,
+"Differentiation"), uses no Python loop, and keeps the input's dtype. The complex-feature helpers (dtype
 pairs, input checks, ``|z|²``, the smoothed direction ``z/sqrt(|z|² + δ²)``, complex GEMMs as one
 real GEMM, and :func:`conjugate_complex_grads` for optax) serve the tangent-feature layers.
 """
@@ -120,7 +120,7 @@ def complex_dtype(dtype) -> jnp.dtype:
 def check_complex(x, name: str, *, ndim_min: int = 1) -> None:
     """Raise :class:`~jmeshtex.InputError` unless ``x`` is a complex array with ``ndim >= ndim_min``.
 
-    Tangent features are complex numbers in per-vertex frames (DESIGN.md); a real array here is
+    Tangent features are complex numbers in per-vertex frames (docs/concepts.md); a real array here is
     almost always a forgotten conversion, so it is refused rather than silently promoted.
     """
     if not jnp.issubdtype(jnp.result_type(x), jnp.complexfloating):
@@ -256,7 +256,7 @@ def complex_matmul(
 
 
 def conjugate_complex_grads(grads):
-    """Conjugate the complex leaves of a gradient pytree so that optax descends (DESIGN.md).
+    """Conjugate the complex leaves of a gradient pytree so that optax descends (docs/concepts.md).
 
     For a real loss ``L`` of a complex parameter ``w = a + ib``, ``jax.grad`` returns
     ``∂L/∂a − i ∂L/∂b`` (the conjugate of the steepest-ascent direction ``∂L/∂a + i ∂L/∂b``);

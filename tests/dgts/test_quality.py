@@ -135,7 +135,9 @@ def test_oracle_peak_density_is_the_same_on_every_tessellation_of_a_surface(surf
     radius 0.35, at 5.5 edges ≈ 0.9: half the peaks), as ACL and spacing always do."""
     densities = []
     for base in TESSELLATIONS[surface]:
-        truths = [oracle_texture(base, "knobs", period=period, seed=s) for s in range(3)]
+        truths = [
+            oracle_texture(base, "knobs", period=period, key=jax.random.key(s)) for s in range(3)
+        ]
         d = [texture_scores(t, t, base=base).peak_density for t in truths]
         densities.append(float(np.mean(d)))
     mid = float(np.mean(densities))
@@ -150,8 +152,10 @@ def test_peak_density_separates_the_oracle_from_zero_and_noise():
     truth = oracle_texture(base, "knobs", period=4.0)
     own = texture_scores(truth, truth, base=base)
     zero = texture_scores(base, truth, base=base)
-    noise = texture_scores(matched_noise(base, own.relief), truth, base=base)
-    other = texture_scores(oracle_texture(base, "knobs", period=4.0, seed=5), truth, base=base)
+    noise = texture_scores(matched_noise(base, own.relief, key=jax.random.key(0)), truth, base=base)
+    other = texture_scores(
+        oracle_texture(base, "knobs", period=4.0, key=jax.random.key(5)), truth, base=base
+    )
     assert own.w1 == 0 and own.peaks > 20
     assert zero.peaks == 0 and density_error(zero, own) == np.inf
     assert abs(noise.relief - own.relief) < 0.02 * own.relief  # matched relief ...
