@@ -78,18 +78,21 @@ def one_step(config: fl.Config, mesh) -> dict:
                 b["rgb"],
                 b["mask"],
                 key=jax.random.key(2),
+                corners=b["corners"],
+                bary=b["bary"],
                 vertex_mask=b["vertex_mask"],
+                corner_logs=b.get("corner_logs"),
             )[0]
 
         grads = parallel.data_parallel(jax.grad(loss), mesh, batch_argnums=(1,))(params, batch)
         out["grads"] = leaves(parallel.fetch(grads))
-    params, _, loss, l1 = fl.core.make_train_step(config, mesh)(
+    params, _, loss, aux = fl.core.make_train_step(config, mesh)(
         params, state, batch, jax.random.key(2)
     )
     params = parallel.fetch(params)
     return out | {
         "loss": float(parallel.fetch(loss)),
-        "l1": float(parallel.fetch(l1)),
+        "l1": float(parallel.fetch(aux["l1"])),
         "params": leaves(params),
     }
 
