@@ -149,24 +149,17 @@ def vae_loss(
     lat = encode_samples(params, config, log_q, rgb, mask)
     z = sample_latents(lat, key=key)
     rdt = lat.log_sigma.dtype
+    v, s = log_q.shape
+
+    def flat(a):  # [V, S, 3] per-sample corners -> [V·S, 3] rows of the face decoders
+        return jnp.reshape(a, (v * s, 3))
+
     if config.decoder == "barycentric":
-        v, s = log_q.shape
-        pred = decode_barycentric_raw(
-            params.decoder,
-            config,
-            z,
-            jnp.reshape(corners, (v * s, 3)),
-            jnp.reshape(bary, (v * s, 3)),
-        ).reshape(v, s, 3)
+        pred = decode_barycentric_raw(params.decoder, config, z, flat(corners), flat(bary))
+        pred = pred.reshape(v, s, 3)
     elif blended:
-        v, s = log_q.shape
         pred = blend_log_predictions(
-            params.decoder,
-            config,
-            z,
-            jnp.reshape(corners, (v * s, 3)),
-            jnp.reshape(corner_logs, (v * s, 3)),
-            jnp.reshape(bary, (v * s, 3)),
+            params.decoder, config, z, flat(corners), flat(corner_logs), flat(bary)
         ).reshape(v, s, 3)
     else:
         pred = decode_points_raw(params.decoder, config, z, log_q)
