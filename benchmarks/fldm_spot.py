@@ -90,6 +90,17 @@ def spot_path() -> pathlib.Path:
     return spot
 
 
+def _field_change(item: str) -> tuple[str, object]:
+    """``"name=value"`` of ``--set`` as ``(name, value)``, the value read as JSON (else a string)."""
+    name, sep, value = item.partition("=")
+    if not sep:
+        raise SystemExit(f"fldm_spot: --set needs FIELD=VALUE, got {item!r}")
+    try:
+        return name.strip(), json.loads(value)
+    except json.JSONDecodeError:
+        return name.strip(), value
+
+
 def presets(quick: bool, latent_dim: int, vertices: int):
     """``(fldm.Config, run settings)`` of the full benchmark or the ``--quick`` smoke run."""
     from jmeshtex import fldm
@@ -168,6 +179,8 @@ class Context:
         self.cfg, self.run = presets(args.quick, self.vae.config.latent_dim, args.vertices)
         if args.steps is not None:
             self.cfg = self.cfg.replace(steps=args.steps)
+        if args.set:
+            self.cfg = self.cfg.replace(**dict(_field_change(item) for item in args.set))
         keys = jax.random.split(jax.random.key(args.seed), 4)
         self.k_codec, self.k_data, self.k_train, self.k_sample = keys
         t0, c0 = time.perf_counter(), _cpu()
@@ -554,6 +567,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=None, help="DDIM samples (default: preset's)")
     ap.add_argument("--ddpm-samples", type=int, default=None, help="DDPM-1000 samples")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=JSON",
+        help="change a field of the preset's fldm.Config, e.g. --set invariants=true (repeatable)",
+    )
     ap.add_argument("--train-only", action="store_true", help="train (resume), no evaluation")
     ap.add_argument("--eval-only", action="store_true", help="evaluate a snapshot, no training")
     ap.add_argument("--checkpoint-step", type=int, default=None, help="snapshot to evaluate")

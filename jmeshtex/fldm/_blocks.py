@@ -31,6 +31,40 @@ from ..nn import FRN, ComplexDense, FieldConv, VNNonlinearity
 from ..ops import real_dtype
 
 
+def magnitude_context(x, nbhd):
+    """Per vertex and channel, the normalised power of ``x`` and its mean over the neighbourhood.
+
+    ``s_pc = log(1 + |x_pc|² / P_c)`` with ``P_c`` the channel's mean power over real vertices, and
+    ``s̄_pc`` the mean of ``s_qc`` over ``p``'s real neighbourhood slots: ``[V, 2C]`` real,
+    gauge-invariant (powers need no transport), 0 on padding vertices.
+
+    Why: the FL-VAE's latents have a common phase per vertex that is sampling noise, so a field
+    convolution's sum over neighbours adds vectors of random phase and cancels; the pattern of
+    magnitudes over the surface has no other path into a block. Fed to the filters of ``FC_e``,
+    whose centre tap scales the vertex's own vector, it lets a vertex's output follow its
+    neighbours' power.
+
+    Example:
+      >>> import numpy as np
+      >>> from jmeshtex.geometry import VertexNeighborhood
+      >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
+      ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
+      ...     np.ones(2), np.ones(2, bool))
+      >>> s = magnitude_context(jnp.array([[1j], [3.0]], jnp.complex64), nb)
+      >>> s.shape, bool(jnp.allclose(s[0, 1], s[1, 1]))  # both vertices see the same neighbourhood
+      ((2, 2), True)
+    """
+    rdt = real_dtype(x.dtype)
+    real = jnp.asarray(nbhd.vertex_mask).astype(rdt)
+    power = (jnp.real(x) ** 2 + jnp.imag(x) ** 2) * real[:, None]
+    mean = jnp.sum(power, axis=0) / jnp.maximum(jnp.sum(real), 1)
+    s = jnp.log1p(power / (mean + jnp.finfo(rdt).tiny)) * real[:, None]
+    slots = jnp.asarray(nbhd.mask).astype(rdt)
+    around = jnp.einsum("vk,vkc->vc", slots, s[jnp.asarray(nbhd.index)])
+    around = around / jnp.maximum(jnp.sum(slots, axis=1), 1)[:, None]
+    return jnp.concatenate([s, around], axis=1)
+
+
 class TangentMLP(nn.Module):
     """(norm → vector neuron) × ``layers``: the reference's ``neuron_mlp`` before each field convolution.
 
@@ -75,6 +109,8 @@ class FCResBlock(nn.Module):
       filter_layers: hidden layers of the filter MLPs.
       activation: filter nonlinearity.
       argument: filter argument form of both convolutions.
+      invariants: the invariant stream (:attr:`jmeshtex.fldm.Config.invariants`): ``FC_e``'s
+        embedding also sees :func:`magnitude_context` of the block's input.
       param_dtype: complex dtype of the complex weights.
 
     Example:
@@ -96,6 +132,7 @@ class FCResBlock(nn.Module):
     filter_layers: int = 2
     activation: str = "silu"
     argument: str = "transported"
+    invariants: bool = False
     param_dtype: Any = jnp.complex64
 
     @nn.compact
@@ -114,6 +151,9 @@ class FCResBlock(nn.Module):
         h = TangentMLP(d, name="mlp_0", **mlp)(x, nbhd.area, nbhd.vertex_mask)
         h = FieldConv(d, name="conv_0", **conv)(h, nbhd)
         emb = jnp.asarray(embedding).astype(rdt)
+        if self.invariants:
+            emb = jnp.broadcast_to(emb, (x.shape[0], emb.shape[-1]))
+            emb = jnp.concatenate([emb, magnitude_context(x, nbhd)], axis=1)
         emb = jax.nn.silu(nn.Dense(d, dtype=rdt, param_dtype=rdt, name="embed_0")(emb))
         emb = jax.nn.silu(nn.Dense(d, dtype=rdt, param_dtype=rdt, name="embed_1")(emb))
         emb = jnp.broadcast_to(emb, (x.shape[0], d))

@@ -93,6 +93,13 @@ class Config(ConfigBase):
       stats_samples: DDIM samples drawn at every checkpoint for the decoder-free statistics
         (:func:`~jmeshtex.fldm.core.latent_statistics`) logged with it; 0: none.
       stats_ddim_steps: DDIM steps of those samples.
+      invariants: an invariant stream, beyond the paper: every block's embedding (the filter input
+        of its second field convolution) also sees, per vertex and channel, the block input's
+        normalised power and its mean over the k-NN neighbourhood
+        (:func:`~jmeshtex.fldm.core.magnitude_context`). The FL-VAE's latents have a common phase
+        per vertex that is sampling noise, so the field convolutions' sums over neighbours cancel
+        and the layout of magnitudes (where a texture's patches live) has no other way in.
+        False (default, the paper's denoiser).
 
     Randomness (copies, initialisation, training noise) comes from the ``key`` of
     :func:`~jmeshtex.fldm.build_dataset` and :func:`~jmeshtex.fldm.train`, not from the config.
@@ -138,6 +145,7 @@ class Config(ConfigBase):
     encodings_per_copy: int = 1
     stats_samples: int = 0
     stats_ddim_steps: int = 25
+    invariants: bool = False
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
     _RULES = (
@@ -189,7 +197,7 @@ class Config(ConfigBase):
             "a positive integer",
         ),
         rule("stats_samples", lambda x: is_int(x, 0), "an integer >= 0"),
-        rule("mask_conditioning", lambda x: isinstance(x, bool), "True or False"),
+        rule("mask_conditioning invariants", lambda x: isinstance(x, bool), "True or False"),
         rule("diffusion_steps", lambda x: x >= 2, ">= 2", message="{name} must be {must}"),
         cross_rule(
             lambda c: c.batch_size % c.accumulate == 0,

@@ -213,6 +213,7 @@ class Denoiser(nn.Module):
             filter_layers=cfg.filter_layers,
             activation=cfg.activation,
             argument=self.argument,
+            invariants=cfg.invariants,
             param_dtype=self.param_dtype,
         )
         Block = (

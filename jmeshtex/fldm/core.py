@@ -8,7 +8,7 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
 - Denoiser: :func:`init_denoiser`, :func:`denoise`, :func:`denoiser_geometry` /
   :class:`DenoiserGeometry` (the frozen neighbourhoods of one mesh), :func:`pad_geometry`,
   :func:`geometry_sizes`, :func:`sampling_geometry`; cost models :func:`denoiser_flops`,
-  :func:`denoiser_activations`.
+  :func:`denoiser_activations`; the invariant stream's :func:`magnitude_context`.
 - Diffusion (DDPM / DDIM): :func:`make_schedule` / :class:`Schedule` (``SCHEDULES``),
   :func:`q_sample`, :func:`prediction_target` (``PREDICTIONS``), :func:`epsilon_from_output`,
   :func:`epsilon_loss` (``LOSS_NAMES``), :func:`ddpm_step`, :func:`ddim_step`,
@@ -25,6 +25,7 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
   :func:`random_channel_phases`.
 """
 
+from ._blocks import magnitude_context as magnitude_context
 from ._data import stack_copies as stack_copies
 from ._denoiser import DenoiserGeometry as DenoiserGeometry
 from ._denoiser import denoise as denoise
