@@ -9,7 +9,8 @@ Run::
     .venv/bin/python benchmarks/fldm_spot.py --quick          # a smoke run (tiny model, ~2 min)
 
 Writes ``benchmarks/results/fldm_spot.{json,md}`` and ``fldm_spot.png`` (``--out`` to change the
-folder). The work folder (``runs/fldm_spot[_quick]/``, git-ignored; ``--work``) holds the training
+folder, ``--name`` the file name; ``--set FIELD=JSON`` changes a field of the preset's config). The
+work folder (``runs/fldm_spot[_quick]/``, git-ignored; ``--work``) holds the training
 copies (``data/``), the resumable checkpoints (``train/``: re-running the same command resumes after
 the newest) and a model snapshot with its card after every ``checkpoint_every`` steps
 (``models/step_NNNNN/model.npz`` + ``card.json``), which ``--eval-only --checkpoint-step N``
@@ -333,7 +334,7 @@ def eval_stage(ctx: Context, step: int | None) -> None:
     from jmeshtex.render import render_grid
 
     args, cfg, run, spot = ctx.args, ctx.cfg, ctx.run, ctx.spot
-    report = Report("fldm_spot", ceilings=not args.quick)
+    report = Report(args.name, ceilings=not args.quick)
     model, card, step = _snapshot(ctx, step)
     n = run["samples"] if args.samples is None else args.samples
     views, size = run["views"], run["size"]
@@ -516,7 +517,7 @@ def eval_stage(ctx: Context, step: int | None) -> None:
             titles += [f"{src.split()[1]} {i + 1}", f"{src.split()[1]} {i + 1} (back)"]
     render_grid(
         [(255 * np.clip(i, 0, 1)).astype(np.uint8) for i in images],
-        args.out / "fldm_spot.png",
+        args.out / f"{args.name}.png",
         titles=titles,
         columns=5,
     )
@@ -561,6 +562,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="tiny smoke settings")
     ap.add_argument("--out", type=pathlib.Path, default=RESULTS, help="folder of the results")
+    ap.add_argument(
+        "--name", default="fldm_spot", help="results' file name (NAME.md, .json, .png) in --out"
+    )
     ap.add_argument("--work", type=pathlib.Path, default=None, help="copies, checkpoints, models")
     ap.add_argument("--steps", type=int, default=None, help="training steps (default: preset's)")
     ap.add_argument("--vertices", type=int, default=10000, help="vertices per training copy")
