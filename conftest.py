@@ -224,9 +224,34 @@ def _fixture_group(item: pytest.Item) -> str | None:
     return group
 
 
+def _carry_groups_into_node_ids(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Append ``@<group>`` to each grouped test's node id, as xdist does, where pytest 9 reads it.
+
+    ``--dist loadgroup`` schedules by the suffix of the node ids a worker reports. xdist 3.8 writes
+    it to ``item._nodeid``, which pytest 9 no longer reads (the id is ``item._id``), so every group
+    was ignored and each session or module fixture was built on both workers (measured: the FLDM
+    striped model trained twice, 50 s each). Under an older pytest xdist's own suffix works.
+    """
+    if not getattr(config.option, "loadgroup", False):  # set on xdist workers with loadgroup
+        return
+    try:
+        from _pytest.nodeid import coerce_node_id
+    except ImportError:  # pytest < 9: the node id is ``_nodeid``, which xdist suffixes itself
+        return
+    for item in items:
+        names = {
+            str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+            for m in item.iter_markers("xdist_group")
+        }
+        if names and "@" not in item.nodeid:
+            item._id = coerce_node_id(f"{item.nodeid}@{'_'.join(sorted(names))}")
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's hook, which reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("xdist_group") is None:
             group = _fixture_group(item)
             if group is not None:
                 item.add_marker(pytest.mark.xdist_group(group))
+    _carry_groups_into_node_ids(config, items)
