@@ -2,7 +2,9 @@
 
 Nitpicky mode is on, so a docstring's cross-reference to a name that does not exist (a renamed
 function, a private module) fails here; references to other projects are not checked (no network,
-no intersphinx; ``docs/conf.py`` lists them).
+no intersphinx; ``docs/conf.py`` lists them). The notebooks' pages are built here without running
+them (their text and references are checked); each notebook is executed and rendered by a test of
+its own in ``tests/test_notebooks.py``, so the six runs spread over the test workers.
 """
 
 from __future__ import annotations
@@ -32,9 +34,8 @@ def test_the_api_reference_builds_with_warnings_as_errors(tmp_path):
         str(DOCS),
         str(tmp_path / "html"),
     ]
-    # the notebooks run at build time (tiny settings): one that fails to run fails the build
-    env = {**os.environ, "JMESHTEX_DOCS_EXECUTE": "force", "JMESHTEX_NOTEBOOK_TINY": "1"}
-    env["JMESHTEX_NOTEBOOK_OUT"] = str(tmp_path / "notebook_outputs")
+    # the notebooks are not run here: tests/test_notebooks.py executes and renders each one
+    env = {**os.environ, "JMESHTEX_DOCS_EXECUTE": "off"}
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=1200, env=env)
     assert run.returncode == 0, f"sphinx failed ({run.returncode}):\n{run.stdout}\n{run.stderr}"
     pages = {p.stem for p in (tmp_path / "html" / "api").glob("*.html")}
@@ -59,10 +60,6 @@ def test_the_api_reference_builds_with_warnings_as_errors(tmp_path):
     assert expected and expected <= notebooks, (
         f"notebooks not rendered: {sorted(expected - notebooks)}"
     )
-    for name in expected:  # executed: every page shows outputs, none an error
-        page = (tmp_path / "html" / "_notebooks" / f"{name}.html").read_text()
-        assert page.count('class="cell_output') >= 2, f"{name}: no outputs rendered"
-        assert "output traceback" not in page and "Traceback (most recent call" not in page, name
     for guide in ("concepts", "own_model"):
         assert (tmp_path / "html" / f"{guide}.html").exists(), f"no {guide} page"
     api = (tmp_path / "html" / "api" / "jmeshtex.ops.html").read_text()
