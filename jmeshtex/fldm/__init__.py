@@ -24,8 +24,9 @@ Example:
   >>> config = fldm.Config.tiny(latent_channels=1, n_copies=2, copy_vertices=40, steps=2, bucket=32)
   >>> data = fldm.build_dataset(icosphere(1), config, encode=lambda m: m.vertices[:, :1] + 0j,
   ...                           key=jax.random.key(0), progress=False)
-  >>> result = fldm.train(data, config, key=jax.random.key(1), progress=False)
-  >>> samples = fldm.sample(result.model, icosphere(1), key=jax.random.key(2), num_samples=2, steps=3)
+  >>> # fldm.train(data, config, key=key).model trains one; here the weights it starts from:
+  >>> model = fldm.init(data, config, key=jax.random.key(1))
+  >>> samples = fldm.sample(model, icosphere(1), key=jax.random.key(2), num_samples=2, steps=3)
   >>> samples.latents.shape
   (2, 42, 1)
 """
