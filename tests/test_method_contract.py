@@ -336,6 +336,12 @@ def _train(name: str):
     return method, data, result
 
 
+#: for a test that trains a row again itself (``_train``): on the worker of the ``trained`` fixture's
+#: tests, whose persistent compilation cache holds the row's training step, the training compiles
+#: nothing (measured for FLDM: 60 CPU-s on the other worker, 17 here)
+_WITH_TRAINED = pytest.mark.xdist_group("tests/test_method_contract.py")
+
+
 @pytest.fixture(scope="module", params=_TRAINED, ids=_ids(_TRAINED))
 def trained(request):
     """``(method, data, train result)`` for each method that trains."""
@@ -567,6 +573,7 @@ def test_save_then_load_gives_the_same_result(method, tmp_path):
 # ----------------------------------------------------------- the parts only one method has
 
 
+@_WITH_TRAINED
 def test_dgts_interpolation_is_a_function_of_its_key():
     _, _, result = _train("dgts")
     target = torus(8, 6)
@@ -578,6 +585,7 @@ def test_dgts_interpolation_is_a_function_of_its_key():
     assert not np.allclose(a.vertices, c.vertices)
 
 
+@_WITH_TRAINED
 def test_fl_model_is_a_pytree_with_a_static_config_and_reconstruct_encodes_with_its_key():
     _, _, result = _train("fl")
     model = result.model
@@ -606,9 +614,7 @@ def test_fl_model_is_a_pytree_with_a_static_config_and_reconstruct_encodes_with_
     )
 
 
-# with the `trained` fixture's tests: its worker has the FLDM step compiled (the persistent cache), so
-# the same training here does not compile it again (measured: 60 CPU-s on the other worker, 19 here)
-@pytest.mark.xdist_group("tests/test_method_contract.py")
+@_WITH_TRAINED
 def test_fldm_trains_from_init_its_dataset_follows_its_key_and_inpainting_keeps_the_known():
     method, data, result = _train("fldm")
     assert result.steps == _FLDM.steps and result.losses["loss"].shape == (_FLDM.steps,)
