@@ -42,7 +42,9 @@ Rows (table ``quality``; sources vs the exemplar's renders from the same views):
   field scores like the reconstruction does.
 
 Table ``statistics`` is the training curve of the decoder-free statistics (one row per checkpoint),
-table ``training`` the step rate (wall and process CPU seconds per step).
+table ``denoising`` one denoiser call on a noised training copy at several noise levels (what the
+network restores, apart from the sampler), table ``training`` the step rate (wall and process CPU
+seconds per step).
 """
 
 from __future__ import annotations
@@ -325,6 +327,55 @@ def _nearest(src_vertices: np.ndarray, dst_vertices: np.ndarray) -> np.ndarray:
     return cKDTree(src_vertices).query(dst_vertices)[1]
 
 
+def denoising_probe(ctx: Context, model, report: Report, fractions=(0.025, 0.1, 0.25, 0.5, 0.75)):
+    """Table ``denoising``: one denoiser call on training copy 0 noised to ``t = f·T``.
+
+    Does the network restore what the samples lack? For each ``t``, the statistics of the one-step
+    estimate ``x̂₀`` against those of its input ``z_t`` and of the data (the ``statistics`` table's
+    last row): an ``x̂₀`` whose neighbour correlation of |z|² stays near its input's means the
+    denoiser does not use the neighbourhood at that noise level; one near the data's while the
+    samples stay low points at the sampler's path instead.
+    """
+    from jmeshtex.fldm import core as st
+
+    cfg = model.config
+    sched = st.make_schedule(cfg.schedule, num_steps=cfg.diffusion_steps)
+    geo = jax.tree.map(lambda a: jnp.asarray(a[0]), ctx.data.geometry)
+    scale = np.asarray(model.scale, np.float32)
+    vm = np.asarray(geo.fine.vertex_mask)
+    z0 = jnp.asarray(ctx.data.latents[0] * scale * vm[:, None], jnp.complex64)
+    denoise = jax.jit(lambda p, z, t, g: st.denoise(p, cfg, z, t, g))
+    rng = np.random.default_rng(ctx.args.seed + 202)
+    real = vm.astype(np.float64)[:, None]
+    for f in fractions:
+        t = int(round(f * (cfg.diffusion_steps - 1)))
+        noise = (rng.standard_normal(z0.shape) + 1j * rng.standard_normal(z0.shape)) / np.sqrt(2)
+        noise = jnp.asarray(noise * real, jnp.complex64)
+        tt = jnp.asarray(t, jnp.int32)
+        zt = st.q_sample(sched, z0, tt, noise)
+        eps = st.epsilon_from_output(
+            sched, cfg.prediction, zt, tt, denoise(model.params, zt, tt, geo)
+        )
+        ab = float(sched.alpha_bars[t])
+        x0 = np.asarray((zt - np.sqrt(1 - ab) * eps) / np.sqrt(ab))
+        err = float(np.sum(np.abs(x0 - np.asarray(z0)) ** 2) / np.sum(np.abs(np.asarray(z0)) ** 2))
+        s_in = st.latent_statistics(jnp.asarray(np.asarray(zt) / scale), geo.fine)
+        s_out = st.latent_statistics(jnp.asarray(x0 / scale), geo.fine)
+        report.add(
+            table="denoising",
+            source=f"t = {t} (ᾱ = {ab:.3f})",
+            concentration=s_out["concentration"],
+            energy_corr=s_out["energy_correlation"],
+            phase_coh=s_out["phase_coherence"],
+            rms=s_out["rms"],
+            what=(
+                f"one-step x̂₀ on training copy 0; input z_t: |z|² corr "
+                f"{s_in['energy_correlation']:.3f}, R {s_in['concentration']:.3f}; "
+                f"x̂₀ relative squared error {err:.3f}"
+            ),
+        )
+
+
 def eval_stage(ctx: Context, step: int | None) -> None:
     from jmeshtex import fl, fldm
     from jmeshtex.fldm import core as st
@@ -487,6 +538,7 @@ def eval_stage(ctx: Context, step: int | None) -> None:
             rms=data_ref["rms"],
             what="the target of the curve",
         )
+    denoising_probe(ctx, model, report)
     rates_path = ctx.work / "rates.jsonl"
     if rates_path.is_file():
         lines = [json.loads(x) for x in rates_path.read_text().splitlines() if x.strip()]
@@ -581,9 +633,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--train-only", action="store_true", help="train (resume), no evaluation")
     ap.add_argument("--eval-only", action="store_true", help="evaluate a snapshot, no training")
     ap.add_argument("--checkpoint-step", type=int, default=None, help="snapshot to evaluate")
+    ap.add_argument(
+        "--probe-only",
+        action="store_true",
+        help="print the denoising table of a snapshot (seconds), write nothing",
+    )
     args = ap.parse_args(argv)
     spot_path()  # fail before the heavy imports
     ctx = Context(args)
+    if args.probe_only:
+        model, _, step = _snapshot(ctx, args.checkpoint_step)
+        report = Report(args.name, ceilings=False)
+        denoising_probe(ctx, model, report)
+        for row in report.rows:
+            print(
+                f"step {step} {row['source']}: R {row['concentration']:.3f}, |z|² corr "
+                f"{row['energy_corr']:.3f} ({row['what']})"
+            )
+        return 0
     if not args.eval_only:
         train_stage(ctx)
     if not args.train_only:
