@@ -240,8 +240,8 @@ class Config(ConfigBase):
         1e-5 over 10,000 steps, batch 2, an EMA of the weights (0.999), 16 copies of 10,000 vertices
         with 4 FL-VAE encodings each, 2 DDIM-25 samples for the statistics at every checkpoint
         (every 500 steps), and the invariant stream (``invariants``, beyond the paper): on Spot it
-        took the samples' neighbour correlation of |z|² from 0.01 to 0.19 by step 1,500 where the
-        same preset without it stayed at 0.01–0.02 to step 2,500 (``fldm_spot_control.md``).
+        took the samples' neighbour correlation of ``|z|²`` from 0.01 to 0.19 by step 1,500 where
+        the same preset without it stayed at 0.01–0.02 to step 2,500 (``fldm_spot_control.md``).
 
         Example:
           >>> c = Config.cpu()
