@@ -368,11 +368,10 @@ def denoising_probe(ctx: Context, model, report: Report, fractions=(0.025, 0.1, 
             energy_corr=s_out["energy_correlation"],
             phase_coh=s_out["phase_coherence"],
             rms=s_out["rms"],
-            what=(
-                f"one-step x̂₀ on training copy 0; input z_t: |z|² corr "
-                f"{s_in['energy_correlation']:.3f}, R {s_in['concentration']:.3f}; "
-                f"x̂₀ relative squared error {err:.3f}"
-            ),
+            input_energy_corr=s_in["energy_correlation"],
+            input_concentration=s_in["concentration"],
+            x0_error=err,
+            what="one-step x̂₀ on training copy 0 (input: z_t; x0_error: relative squared error)",
         )
 
 
@@ -647,8 +646,9 @@ def main(argv: list[str] | None = None) -> int:
         denoising_probe(ctx, model, report)
         for row in report.rows:
             print(
-                f"step {step} {row['source']}: R {row['concentration']:.3f}, |z|² corr "
-                f"{row['energy_corr']:.3f} ({row['what']})"
+                f"step {step} {row['source']}: x̂₀ R {row['concentration']:.3f}, |z|² corr "
+                f"{row['energy_corr']:.3f}; input R {row['input_concentration']:.3f}, |z|² corr "
+                f"{row['input_energy_corr']:.3f}; error {row['x0_error']:.3f}"
             )
         return 0
     if not args.eval_only:

@@ -64,6 +64,11 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
     curve = [r for r in payload["rows"] if r["table"] == "statistics"]
     assert [r["source"] for r in curve] == ["step 2", "step 4", "training copy 0 (data)"]
     assert all(math.isfinite(r["concentration"]) for r in curve)
+    # the denoising probe: one denoiser call at five noise levels; at the lowest the estimate is
+    # nearly the data (relative squared error well below 1) whatever the training
+    probe = [r for r in payload["rows"] if r["table"] == "denoising"]
+    assert len(probe) == 5 and all(math.isfinite(r["energy_corr"]) for r in probe)
+    assert probe[0]["x0_error"] < 0.1 < probe[-1]["x0_error"]
     train = next(r for r in payload["rows"] if r["table"] == "training")
     assert train["n"] == payload["config"]["fldm"]["steps"] == 4
     assert train["s_per_step"] > 0 and train["cpu_s_per_step"] > 0
