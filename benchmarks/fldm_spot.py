@@ -43,7 +43,8 @@ Rows (table ``quality``; sources vs the exemplar's renders from the same views):
 
 Table ``statistics`` is the training curve of the decoder-free statistics (one row per checkpoint),
 table ``denoising`` one denoiser call on a noised training copy at several noise levels (what the
-network restores, apart from the sampler), table ``training`` the step rate (wall and process CPU
+network restores, apart from the sampler), table ``trajectory`` a DDIM path traced (where the
+samples' structure is made and lost), table ``training`` the step rate (wall and process CPU
 seconds per step).
 """
 
@@ -375,6 +376,51 @@ def denoising_probe(ctx: Context, model, report: Report, fractions=(0.025, 0.1, 
         )
 
 
+def trajectory_trace(ctx: Context, model, report: Report, steps: int = 50, every: int = 5):
+    """Table ``trajectory``: one DDIM trajectory (η = 0) on training copy 0, traced.
+
+    At every ``every``-th step, the statistics of the state ``z_t`` and of the step's estimate
+    ``x̂₀``: where along the path the samples' spatial structure (|z|² neighbour correlation) is
+    made, and whether later steps keep it.
+    """
+    from jmeshtex.fldm import core as st
+
+    cfg = model.config
+    sched = st.make_schedule(cfg.schedule, num_steps=cfg.diffusion_steps)
+    geo = jax.tree.map(lambda a: jnp.asarray(a[0]), ctx.data.geometry)
+    scale = np.asarray(model.scale, np.float32)
+    vm = np.asarray(geo.fine.vertex_mask)
+    denoise = jax.jit(lambda p, z, t: st.denoise(p, cfg, z, t, geo))
+    rng = np.random.default_rng(ctx.args.seed + 303)
+    shape = (vm.size, cfg.latent_channels)
+    z = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2)
+    z = jnp.asarray(z * vm[:, None], jnp.complex64)
+    ts = st.timestep_sequence(cfg.diffusion_steps, min(steps, cfg.diffusion_steps))
+
+    def stats(x):
+        return st.latent_statistics(jnp.asarray(np.asarray(x) / scale), geo.fine)
+
+    for i, t in enumerate(ts):
+        tt = jnp.asarray(int(t), jnp.int32)
+        eps = st.epsilon_from_output(sched, cfg.prediction, z, tt, denoise(model.params, z, tt))
+        ab = float(sched.alpha_bars[t])
+        if i % every == 0 or i == len(ts) - 1:
+            x0 = (z - np.sqrt(1 - ab) * eps) / np.sqrt(ab)
+            s_in, s_out = stats(z), stats(x0)
+            report.add(
+                table="trajectory",
+                source=f"step {i} of {len(ts)}, t = {int(t)} (ᾱ = {ab:.3f})",
+                concentration=s_out["concentration"],
+                energy_corr=s_out["energy_correlation"],
+                rms=s_out["rms"],
+                input_energy_corr=s_in["energy_correlation"],
+                input_concentration=s_in["concentration"],
+                what="DDIM (η = 0) on training copy 0: the step's x̂₀ (input: the state z_t)",
+            )
+        t_prev = jnp.asarray(int(ts[i + 1]) if i + 1 < len(ts) else -1, jnp.int32)
+        z = st.ddim_step(sched, z, tt, t_prev, eps, jnp.zeros_like(z))
+
+
 def eval_stage(ctx: Context, step: int | None) -> None:
     from jmeshtex import fl, fldm
     from jmeshtex.fldm import core as st
@@ -538,6 +584,7 @@ def eval_stage(ctx: Context, step: int | None) -> None:
             what="the target of the curve",
         )
     denoising_probe(ctx, model, report)
+    trajectory_trace(ctx, model, report)
     rates_path = ctx.work / "rates.jsonl"
     if rates_path.is_file():
         lines = [json.loads(x) for x in rates_path.read_text().splitlines() if x.strip()]
@@ -635,7 +682,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--probe-only",
         action="store_true",
-        help="print the denoising table of a snapshot (seconds), write nothing",
+        help="print the denoising and trajectory tables of a snapshot (a minute), write nothing",
     )
     args = ap.parse_args(argv)
     spot_path()  # fail before the heavy imports
@@ -644,11 +691,12 @@ def main(argv: list[str] | None = None) -> int:
         model, _, step = _snapshot(ctx, args.checkpoint_step)
         report = Report(args.name, ceilings=False)
         denoising_probe(ctx, model, report)
+        trajectory_trace(ctx, model, report)
         for row in report.rows:
             print(
                 f"step {step} {row['source']}: x̂₀ R {row['concentration']:.3f}, |z|² corr "
                 f"{row['energy_corr']:.3f}; input R {row['input_concentration']:.3f}, |z|² corr "
-                f"{row['input_energy_corr']:.3f}; error {row['x0_error']:.3f}"
+                f"{row['input_energy_corr']:.3f}; error {row.get('x0_error', float('nan')):.3f}"
             )
         return 0
     if not args.eval_only:

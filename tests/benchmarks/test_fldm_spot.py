@@ -69,6 +69,10 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
     probe = [r for r in payload["rows"] if r["table"] == "denoising"]
     assert len(probe) == 5 and all(math.isfinite(r["energy_corr"]) for r in probe)
     assert probe[0]["x0_error"] < 0.1 < probe[-1]["x0_error"]
+    # the traced DDIM path: every fifth of 50 steps and the last; at t = 0 the estimate is the state
+    path = [r for r in payload["rows"] if r["table"] == "trajectory"]
+    assert len(path) == 11 and path[-1]["source"].startswith("step 49 of 50, t = 0")
+    assert abs(path[-1]["energy_corr"] - path[-1]["input_energy_corr"]) < 0.05
     train = next(r for r in payload["rows"] if r["table"] == "training")
     assert train["n"] == payload["config"]["fldm"]["steps"] == 4
     assert train["s_per_step"] > 0 and train["cpu_s_per_step"] > 0
