@@ -42,6 +42,7 @@ Usage::
 
     python benchmarks/fl_vae.py                      # 5K and 30K, atlas 512², LPIPS, renders
     python benchmarks/fl_vae.py --sizes 5000 --atlas 256 --no-lpips --views 2 --no-throughput  # quick
+    python benchmarks/fl_vae.py --curve 250,500,1000   # log vs barycentric along one run each
 """
 
 from __future__ import annotations
@@ -253,6 +254,62 @@ def study(report, *, steps: int, variants: dict, base: dict) -> None:
         )
 
 
+def curve(
+    report, *, budgets: list[int], decoders: list[str], work: pathlib.Path, base: dict, out=None
+):
+    """One ``Config.small(**base)`` run per decoder, evaluated at each budget (held-out PSNR beside
+    the P1 codecs, per-channel KL): the log decoder against its barycentric ablation as training
+    goes on. Resumable: each run checkpoints in ``work/<decoder>`` and each budget's model is
+    kept as ``work/<decoder>/step_NNNNN.npz``; a re-run with larger budgets continues the same runs
+    (the learning-rate schedule is the preset's, so a budget is a point along one run)."""
+    from jmeshtex.io import Checkpoints
+
+    for decoder in decoders:
+        config = fl.Config.small(decoder=decoder, checkpoint_every=min(budgets), **base)
+        folder = work / decoder
+        for budget in sorted(budgets):
+            snapshot = folder / f"step_{budget:05d}.npz"
+            cpu0, t0 = time.process_time(), time.perf_counter()
+            kl = None
+            if snapshot.is_file():
+                model = fl.load(snapshot)
+            else:
+                with Checkpoints(folder) as ckpt:
+                    done = ckpt.latest_step() or 0
+                if done > budget:
+                    print(f"[curve] {decoder}: the run is past {budget} steps without its snapshot")
+                    continue
+                r = fl.train(
+                    None,
+                    config,
+                    key=jax.random.key(0),
+                    checkpoint_dir=folder,
+                    stop_after=budget - done,
+                    progress=False,
+                )
+                model = r.model
+                fl.save(model, snapshot)
+                if len(r.losses["l1"]):
+                    kl = [
+                        float(np.mean(r.losses[f"kl{c}"][-50:])) for c in range(config.latent_dim)
+                    ]
+            train_cpu, train_wall = time.process_time() - cpu0, time.perf_counter() - t0
+            quality = _held_out_quality(model)
+            report.add(
+                table="curve",
+                decoder=decoder,
+                steps=budget,
+                **{k: round(float(v), 3) for k, v in quality.items()},
+                kl_channels=" ".join(f"{x:.2f}" for x in kl) if kl else None,
+                channels_above_0p1=sum(x > 0.1 for x in kl) if kl else None,
+                train_cpu_s=round(train_cpu, 1),
+                train_wall_s=round(train_wall, 1),
+                load=load(),
+            )
+            print(f"[curve] {decoder} {budget}: {quality}", flush=True)
+            report.write(out)
+
+
 def step_profile(report, *, base: dict, steps: int = 6) -> None:
     """Where a training step's time goes: host batch building (meshes, one-ring sampling, colour
     lookup) against the jitted step, in CPU and wall seconds, at ``Config.small(**base)``."""
@@ -346,7 +403,34 @@ def main() -> None:
         "--profile also takes a list of them)",
     )
     ap.add_argument("--variants", default=None, help="comma-separated KL_VARIANTS names")
+    ap.add_argument(
+        "--curve",
+        default=None,
+        metavar="STEPS,...",
+        help="instead of the tables: held-out quality of one Config.small run per decoder at these "
+        "step budgets (resumable in --work; writes fl_vae_curve)",
+    )
+    ap.add_argument("--decoders", default="log,barycentric", help="decoders of --curve")
+    ap.add_argument(
+        "--work", type=pathlib.Path, default=None, help="--curve's runs (default runs/fl_vae_curve)"
+    )
     args = ap.parse_args()
+    if args.curve:
+        import json
+
+        base = json.loads(args.base)
+        report = Report("fl_vae_curve")
+        report.config = {"base": base, "budgets": args.curve}
+        work = args.work or pathlib.Path(__file__).resolve().parents[1] / "runs" / "fl_vae_curve"
+        curve(
+            report,
+            budgets=[int(b) for b in args.curve.split(",")],
+            decoders=args.decoders.split(","),
+            work=work,
+            base=base,
+            out=pathlib.Path(args.out) if args.out else None,
+        )
+        return
     if args.study or args.profile:
         import json
 
