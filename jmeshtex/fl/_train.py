@@ -21,13 +21,14 @@ float round-off whenever ``batch_size · max_vertices`` is a multiple of ``D`` (
 with it the noise's shape, differs). Under ``jmeshtex.parallel.initialize`` every process
 builds the same global batch from the key and feeds its devices their slices.
 
-Checkpoints (``checkpoint_dir``): :class:`jmeshtex.io.Checkpoints` steps holding the parameters
-and the optimiser state, with the loss history in their record, every ``checkpoint_every`` steps
+Checkpoints (``checkpoint_dir``): :class:`jmeshtex.io.Checkpoints` steps holding the parameters,
+the optimiser state and, with ``config.ema_decay > 0``, the weight average, with the loss history in their record, every ``checkpoint_every`` steps
 and at the end of each call; :func:`train` with the same folder resumes.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import threading
@@ -44,6 +45,7 @@ from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
 from .._types import PRNGKey
 from ..ops import conjugate_complex_grads
+from ..optim import ema_update
 from ..parallel import (
     batch_multiple,
     data_parallel,
@@ -62,6 +64,8 @@ from ._textures import _stream_meshes, image_levels, max_stream_vertices, traini
 #: config fields a resumed run may change (the schedule follows ``steps``; ``checkpoint_every`` only
 #: says how often state is written)
 _RESUMABLE_CHANGES = ("steps", "checkpoint_every")
+#: config fields added after checkpoints were written, with the value that reproduces those runs
+_ADDED_FIELDS = {"ema_decay": 0.0}
 
 
 def optimizer(config: Config) -> optax.GradientTransformation:
@@ -318,6 +322,9 @@ def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) 
         digest.update(repr(im.shape).encode())
         digest.update(np.ascontiguousarray(im, np.float64).tobytes())
     fixed = {k: v for k, v in config.to_dict().items() if k not in _RESUMABLE_CHANGES}
+    for field, default in _ADDED_FIELDS.items():  # runs from before the field existed resume
+        if fixed[field] == default:
+            del fixed[field]
     return {
         "config": fixed,
         "key": _key_data(key),
@@ -369,7 +376,8 @@ def train(
         step ``t`` runs (the same batches either way: each is a function of its step index).
 
     Returns:
-      :class:`~jmeshtex.TrainResult` with the :class:`~jmeshtex.fl.Model` in ``.model``; ``losses``
+      :class:`~jmeshtex.TrainResult` with the :class:`~jmeshtex.fl.Model` in ``.model`` (the weight
+      average when ``config.ema_decay > 0``); ``losses``
       has ``"loss"`` (total), ``"l1"`` (reconstruction term), ``"kl"`` (the KL term, before any
       free-bits floor) and ``"kl0"`` ... ``"kl{d-1}"`` (each latent channel's mean KL in nats: a
       channel near 0 has collapsed) per step, resumed steps included;
@@ -430,22 +438,29 @@ def train(
     if prefetch:
         batches = _prefetched(batches)
     vae_step = make_train_step(config, device_mesh)
+    use_ema = config.ema_decay > 0
+    ema_step = data_parallel(
+        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
+    )
 
     def step(state, batch):
-        params, opt_state, loss, aux = vae_step(*state, *batch)
-        return (params, opt_state), {
-            "loss": loss,
-            **{k: v for k, v in aux.items() if k != "kl_channels"},
-        }
+        params, opt_state, loss, aux = vae_step(*state[:2], *batch)
+        new = (
+            (params, opt_state, ema_step(state[2], params, batch[2]))
+            if use_ema
+            else (params, opt_state)
+        )
+        return new, {"loss": loss, **{k: v for k, v in aux.items() if k != "kl_channels"}}
 
     def curve(done: int, state, losses: dict) -> None:
         title = f"FL-VAE training ({done} steps)"
         plot_losses({"loss": losses["loss"], "l1": losses["l1"]}, loss_curve, title=title)
 
     params = init(config, key=k_init, dtype=dtype).params
+    names = ("params", "opt_state", "ema")[: 3 if use_ema else 2]
     return fit(
         step,
-        (params, optimizer(config).init(params)),
+        (params, optimizer(config).init(params), params)[: len(names)],
         batches,
         steps=config.steps,
         stop_after=stop_after,
@@ -453,12 +468,14 @@ def train(
             checkpoint_dir,
             fingerprint=_fingerprint(config, key, loaded, dtype),
             every=config.checkpoint_every,
-            saved=lambda state: {"params": state[0], "opt_state": state[1]},
-            restored=lambda tree: (tree["params"], tree["opt_state"]),
+            saved=lambda state: dict(zip(names, state, strict=True)),
+            restored=lambda tree: tuple(tree[n] for n in names),
             on_save=None if loss_curve is None else curve,
         ),
         device_mesh=device_mesh,
         progress=Progress(progress, "FL-VAE train", ("loss", "l1")),
-        model=lambda state: Model(jax.tree.map(jnp.asarray, fetch(state[0])), config),
+        model=lambda state: Model(
+            jax.tree.map(jnp.asarray, fetch(state[2 if use_ema else 0])), config
+        ),
         started=started,
     )

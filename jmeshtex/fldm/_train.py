@@ -56,6 +56,7 @@ from .._random import host_rng, key_ints
 from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
 from ..ops import conjugate_complex_grads, tangent_noise
+from ..optim import ema_update
 from ..parallel import (
     batch_multiple,
     data_parallel,
@@ -103,15 +104,6 @@ def optimizer(config: Config) -> optax.GradientTransformation:
       >>> state = opt.init({"w": jnp.zeros(3)})
     """
     return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(learning_rate_schedule(config)))
-
-
-def _ema_update(ema, params, step, *, decay: float):
-    """``ema ← d ema + (1 − d) params`` with ``d = min(decay, (1 + step) / (10 + step))`` (early steps
-    follow the weights closely; the usual warm-up of a weight EMA)."""
-    d = jnp.minimum(decay, (1.0 + step) / (10.0 + step))
-    return jax.tree.map(
-        lambda e, p: d.astype(p.dtype) * e + (1 - d).astype(p.dtype) * p, ema, params
-    )
 
 
 def _check_batch(config: Config, device_mesh: jax.sharding.Mesh) -> None:
@@ -434,7 +426,7 @@ def train(
         channel_weight=weight if config.collapsed_channels == "downweight" else None,
     )
     ema_step = data_parallel(
-        functools.partial(_ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
+        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
     )
 
     def step(state, batch):

@@ -196,3 +196,25 @@ def test_short_training_reconstructs_well_above_a_constant_colour():
         constant = metrics.psnr(np.broadcast_to(rgb.reshape(-1, 3).mean(0), rgb.shape), rgb)
         print(f"learning check: model {model:.2f} dB, constant colour {constant:.2f} dB")
         assert model > constant + margin
+
+
+def test_the_weight_average_is_the_model_its_recurrence_and_resumes(tmp_path):
+    """``ema_decay > 0``: the model is ``optim.ema_update`` applied to the very weights the plain run
+    trains (the average never feeds back), and a resumed run continues the average exactly."""
+    from jmeshtex.optim import ema_update
+
+    imgs = procedural_images(np.random.default_rng(0), 2)
+    key = jax.random.key(5)
+    averaged = TINY.replace(ema_decay=0.9)
+    weights = train(imgs, TINY, key=key, progress=False).model.params  # after step 4
+    part = train(imgs, averaged, key=key, progress=False, checkpoint_dir=tmp_path, stop_after=3)
+    full = train(imgs, averaged, key=key, progress=False, checkpoint_dir=tmp_path)
+    assert full.resumed_from == 3 and full.model.config.ema_decay == 0.9
+    expected = ema_update(part.model.params, weights, 3, decay=0.9)  # d = min(0.9, 4/13)
+    gap = [
+        float(jnp.max(jnp.abs(a - b)))
+        for a, b in zip(*map(jax.tree.leaves, (full.model.params, weights)), strict=True)
+    ]
+    assert max(gap) > 1e-4  # the average is not the last weights
+    for x, y in zip(jax.tree.leaves(expected), jax.tree.leaves(full.model.params), strict=True):
+        np.testing.assert_allclose(x, y, rtol=1e-5, atol=1e-6)
