@@ -192,11 +192,9 @@ def _setup(args):
     validate_mesh(
         mesh.vertices, mesh.faces
     )  # a clear typed error for a broken mesh before any work
-    if getattr(args, "unwrap", "mesh") == "xatlas" or mesh.uv is None:
-        _check_unwrap_scale(mesh, args.mesh)
-        from ..surfacecnn import unwrap_uv
-
-        mesh = mesh.replace(uv=unwrap_uv(mesh.vertices, mesh.faces), texture=None)
+    unwrap = getattr(args, "unwrap", "mesh")  # stylize keeps the mesh's UVs
+    if unwrap == "xatlas" or mesh.uv is None:
+        _check_unwrap_scale(mesh, args.mesh)  # synthesize (Config.unwrap) unwraps
     else:
         from ..surfacecnn.core import texel_density_spread
 
@@ -211,7 +209,13 @@ def _setup(args):
     if hasattr(args, "content_weight"):
         extra = {"content_weight": args.content_weight, "content_layer": args.content_layer}
     config = Config(
-        size=args.size, steps=args.steps, pool=args.pool, layers=layers, frames=args.frames, **extra
+        size=args.size,
+        steps=args.steps,
+        pool=args.pool,
+        layers=layers,
+        frames=args.frames,
+        unwrap=unwrap,
+        **extra,
     )
     weights = load_vgg19(args.vgg19) if args.vgg19 else None
     return mesh, config, weights

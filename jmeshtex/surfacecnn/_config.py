@@ -33,7 +33,7 @@ class Config(ConfigBase):
     ``relu1_1 … relu5_1`` (``block{1..5}_conv1``) plus a content term at ``relu4_2``
     (``block4_conv2``) weighted 1000 for VGG-19 with Caffe preprocessing. Tangent frames follow a
     global vector projected on the surface, failed boundary walks read the opposite tap, exemplar
-    taps outside the image read the centre pixel.
+    taps outside the image read the centre pixel, and synthesis re-unwraps the mesh with xatlas.
 
     Presets: :meth:`cpu` (the defaults, 512²), :meth:`paper` (1024²), :meth:`tiny` (tests); time
     and CPU-seconds per step in ``benchmarks/results/surfacecnn.md``.
@@ -56,6 +56,12 @@ class Config(ConfigBase):
         smoothest direction field, Knöppel et al. 2013) or ``"uv"`` (the UV layout's; jumps at
         chart seams — an ablation).
       frame_vector: the world vector of the ``"global"`` frames (reference: x, fallback y).
+      unwrap: the texture layout :func:`~jmeshtex.surfacecnn.synthesize` optimises: ``"xatlas"``
+        (the reference's: every mesh is re-unwrapped, so a texel covers about the same surface
+        everywhere) or ``"mesh"`` (the mesh's own UVs, whose texel density may vary a lot:
+        :func:`~jmeshtex.surfacecnn.core.texel_density_spread`). A mesh without UVs is unwrapped
+        either way; :func:`~jmeshtex.surfacecnn.stylize` always keeps the mesh's UVs (its content
+        texture lives in them).
       exemplar_padding: what the 2D network reads for exemplar taps outside the image:
         ``"centre"`` (the reference's: the centre pixel) or ``"zero"`` (``"SAME"`` zero padding).
       layers: names of the feature maps whose Gram matrices are matched (``"relu1_1"``, ...,
@@ -88,6 +94,7 @@ class Config(ConfigBase):
     boundary: str = "opposite"
     frames: str = "global"
     frame_vector: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    unwrap: str = "xatlas"
     exemplar_padding: str = "centre"
     layers: tuple[str, ...] | None = None
     content_layer: str = "relu4_2"
@@ -123,6 +130,7 @@ class Config(ConfigBase):
             lambda x: len(x) == 3 and all(is_finite_number(a) for a in x) and any(x),
             "three finite numbers, not all zero",
         ),
+        rule("unwrap", lambda x: x in ("xatlas", "mesh"), "'xatlas' or 'mesh'"),
         rule("exemplar_padding", lambda x: x in EXEMPLAR_PADDING, f"one of {EXEMPLAR_PADDING}"),
         rule("network", lambda x: x in ("vgg16", "vgg19"), "'vgg16' or 'vgg19'"),
         rule("weights_path", lambda x: x is None or isinstance(x, str), "None or a path string"),

@@ -171,8 +171,10 @@ def synthesize(
     ``config.halve_every`` steps, clipped to [0, 1], from uniform(``init_low``, ``init_high``) colours.
 
     Args:
-      mesh: a :class:`~jmeshtex.Mesh`; its UVs lay out the texture (a mesh without UVs, or a
-        ``(vertices, faces)`` pair, is unwrapped with xatlas).
+      mesh: a :class:`~jmeshtex.Mesh` or a ``(vertices, faces)`` pair. The texture's layout is an
+        xatlas unwrap (``config.unwrap = "xatlas"``, the reference's) or the mesh's own UVs
+        (``"mesh"``; a mesh without UVs is unwrapped either way); the result's ``mesh`` carries the
+        layout used. With ``surface``, the surface's layout.
       exemplar: ``[H, W, 3]`` RGB image in [0, 1] (or uint8).
       config: :class:`~jmeshtex.surfacecnn.Config` (default: the paper's settings).
       key: PRNG key of the initial colours.
@@ -205,6 +207,8 @@ def synthesize(
     mesh = as_mesh(mesh)
     check_mesh_scale(mesh, what="mesh")  # before xatlas or float32 geometry can loop or fail
     image = as_rgb(exemplar, "exemplar")
+    if surface is None and config.unwrap == "xatlas":
+        mesh = mesh.replace(uv=None, texture=None)  # prepare_surface unwraps it
     weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface)
     t0 = time.perf_counter()
     targets = gram_targets(
@@ -232,6 +236,7 @@ def synthesize(
         layers,
         _digest(image),
         init=[config.init_low, config.init_high],
+        unwrap=config.unwrap,
         key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
     )
     x, losses, final, stats = optimize_colors(

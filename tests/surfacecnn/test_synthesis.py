@@ -158,3 +158,27 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
         )
     with pytest.raises(InputError, match="past this run"):
         synthesize(mesh, ex, Config(size=16, steps=5), checkpoint=ckpt, **kw)
+
+
+def test_synthesis_re_unwraps_by_default_and_keeps_the_mesh_uvs_on_request():
+    """``Config.unwrap``: the reference re-unwraps every mesh with xatlas, so a texel covers about the
+    same surface everywhere; ``"mesh"`` keeps a layout whose density varies (here 9× by design)."""
+    from jmeshtex.data import grid
+    from jmeshtex.surfacecnn.core import texel_density_spread
+
+    v, f = grid(6)
+    uv = v[f][..., :2]
+    uv = np.stack([uv[..., 0] ** 3, uv[..., 1]], -1)  # x³: texels 9× wider at one end
+    mesh = Mesh(v, f, uv=uv)
+    ex = np.random.default_rng(0).uniform(size=(16, 16, 3))
+    kw = dict(key=jax.random.key(0), layers=("relu1_1",), progress=False)
+    own = synthesize(mesh, ex, Config(size=16, steps=1, unwrap="mesh"), **kw).mesh
+    even = synthesize(mesh, ex, Config(size=16, steps=1), **kw).mesh
+    np.testing.assert_allclose(own.uv, uv, atol=1e-6)
+    spread = {
+        n: texel_density_spread(m.vertices, m.faces, m.uv)["ratio_p95_p5"]
+        for n, m in (("own", own), ("even", even))
+    }
+    assert spread["own"] > 3.0 and spread["even"] < 1.5, spread
+    with pytest.raises(ConfigError, match="unwrap"):
+        Config(unwrap="uv")
