@@ -57,6 +57,7 @@ import pathlib
 import resource
 import sys
 import time
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -328,6 +329,53 @@ def _nearest(src_vertices: np.ndarray, dst_vertices: np.ndarray) -> np.ndarray:
     return cKDTree(src_vertices).query(dst_vertices)[1]
 
 
+class _Copy0(NamedTuple):
+    """What the probes of training copy 0 share: the model's config and schedule, the copy's
+    geometry and vertex mask, and the statistics of a latent in the model's scale."""
+
+    cfg: object
+    sched: object
+    geo: object
+    scale: np.ndarray
+    vm: np.ndarray
+
+    @classmethod
+    def of(cls, ctx: Context, model) -> _Copy0:
+        from jmeshtex.fldm import core as st
+
+        cfg = model.config
+        geo = jax.tree.map(lambda a: jnp.asarray(a[0]), ctx.data.geometry)
+        return cls(
+            cfg,
+            st.make_schedule(cfg.schedule, num_steps=cfg.diffusion_steps),
+            geo,
+            np.asarray(model.scale, np.float32),
+            np.asarray(geo.fine.vertex_mask),
+        )
+
+    def noise(self, rng: np.random.Generator) -> jax.Array:
+        shape = (self.vm.size, self.cfg.latent_channels)
+        z = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2)
+        return jnp.asarray(z * self.vm[:, None], jnp.complex64)
+
+    def row(self, z_in, x0) -> dict:
+        """The x̂₀ statistics with its input's beside them."""
+        from jmeshtex.fldm import core as st
+
+        s_in, s_out = (
+            st.latent_statistics(jnp.asarray(np.asarray(a) / self.scale), self.geo.fine)
+            for a in (z_in, x0)
+        )
+        return dict(
+            concentration=s_out["concentration"],
+            energy_corr=s_out["energy_correlation"],
+            phase_coh=s_out["phase_coherence"],
+            rms=s_out["rms"],
+            input_energy_corr=s_in["energy_correlation"],
+            input_concentration=s_in["concentration"],
+        )
+
+
 def denoising_probe(ctx: Context, model, report: Report, fractions=(0.025, 0.1, 0.25, 0.5, 0.75)):
     """Table ``denoising``: one denoiser call on training copy 0 noised to ``t = f·T``.
 
@@ -339,38 +387,23 @@ def denoising_probe(ctx: Context, model, report: Report, fractions=(0.025, 0.1, 
     """
     from jmeshtex.fldm import core as st
 
-    cfg = model.config
-    sched = st.make_schedule(cfg.schedule, num_steps=cfg.diffusion_steps)
-    geo = jax.tree.map(lambda a: jnp.asarray(a[0]), ctx.data.geometry)
-    scale = np.asarray(model.scale, np.float32)
-    vm = np.asarray(geo.fine.vertex_mask)
-    z0 = jnp.asarray(ctx.data.latents[0] * scale * vm[:, None], jnp.complex64)
-    denoise = jax.jit(lambda p, z, t, g: st.denoise(p, cfg, z, t, g))
+    c = _Copy0.of(ctx, model)
+    z0 = jnp.asarray(ctx.data.latents[0] * c.scale * c.vm[:, None], jnp.complex64)
+    denoise = jax.jit(lambda p, z, t, g: st.denoise(p, c.cfg, z, t, g))
     rng = np.random.default_rng(ctx.args.seed + 202)
-    real = vm.astype(np.float64)[:, None]
     for f in fractions:
-        t = int(round(f * (cfg.diffusion_steps - 1)))
-        noise = (rng.standard_normal(z0.shape) + 1j * rng.standard_normal(z0.shape)) / np.sqrt(2)
-        noise = jnp.asarray(noise * real, jnp.complex64)
+        t = int(round(f * (c.cfg.diffusion_steps - 1)))
         tt = jnp.asarray(t, jnp.int32)
-        zt = st.q_sample(sched, z0, tt, noise)
-        eps = st.epsilon_from_output(
-            sched, cfg.prediction, zt, tt, denoise(model.params, zt, tt, geo)
-        )
-        ab = float(sched.alpha_bars[t])
+        zt = st.q_sample(c.sched, z0, tt, c.noise(rng))
+        out = denoise(model.params, zt, tt, c.geo)
+        eps = st.epsilon_from_output(c.sched, c.cfg.prediction, zt, tt, out)
+        ab = float(c.sched.alpha_bars[t])
         x0 = np.asarray((zt - np.sqrt(1 - ab) * eps) / np.sqrt(ab))
         err = float(np.sum(np.abs(x0 - np.asarray(z0)) ** 2) / np.sum(np.abs(np.asarray(z0)) ** 2))
-        s_in = st.latent_statistics(jnp.asarray(np.asarray(zt) / scale), geo.fine)
-        s_out = st.latent_statistics(jnp.asarray(x0 / scale), geo.fine)
         report.add(
             table="denoising",
             source=f"t = {t} (ᾱ = {ab:.3f})",
-            concentration=s_out["concentration"],
-            energy_corr=s_out["energy_correlation"],
-            phase_coh=s_out["phase_coherence"],
-            rms=s_out["rms"],
-            input_energy_corr=s_in["energy_correlation"],
-            input_concentration=s_in["concentration"],
+            **c.row(zt, x0),
             x0_error=err,
             what="one-step x̂₀ on training copy 0 (input: z_t; x0_error: relative squared error)",
         )
@@ -385,40 +418,23 @@ def trajectory_trace(ctx: Context, model, report: Report, steps: int = 50, every
     """
     from jmeshtex.fldm import core as st
 
-    cfg = model.config
-    sched = st.make_schedule(cfg.schedule, num_steps=cfg.diffusion_steps)
-    geo = jax.tree.map(lambda a: jnp.asarray(a[0]), ctx.data.geometry)
-    scale = np.asarray(model.scale, np.float32)
-    vm = np.asarray(geo.fine.vertex_mask)
-    denoise = jax.jit(lambda p, z, t: st.denoise(p, cfg, z, t, geo))
-    rng = np.random.default_rng(ctx.args.seed + 303)
-    shape = (vm.size, cfg.latent_channels)
-    z = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2)
-    z = jnp.asarray(z * vm[:, None], jnp.complex64)
-    ts = st.timestep_sequence(cfg.diffusion_steps, min(steps, cfg.diffusion_steps))
-
-    def stats(x):
-        return st.latent_statistics(jnp.asarray(np.asarray(x) / scale), geo.fine)
-
+    c = _Copy0.of(ctx, model)
+    denoise = jax.jit(lambda p, z, t: st.denoise(p, c.cfg, z, t, c.geo))
+    z = c.noise(np.random.default_rng(ctx.args.seed + 303))
+    ts = st.timestep_sequence(c.cfg.diffusion_steps, min(steps, c.cfg.diffusion_steps))
     for i, t in enumerate(ts):
         tt = jnp.asarray(int(t), jnp.int32)
-        eps = st.epsilon_from_output(sched, cfg.prediction, z, tt, denoise(model.params, z, tt))
-        ab = float(sched.alpha_bars[t])
+        eps = st.epsilon_from_output(c.sched, c.cfg.prediction, z, tt, denoise(model.params, z, tt))
+        ab = float(c.sched.alpha_bars[t])
         if i % every == 0 or i == len(ts) - 1:
-            x0 = (z - np.sqrt(1 - ab) * eps) / np.sqrt(ab)
-            s_in, s_out = stats(z), stats(x0)
             report.add(
                 table="trajectory",
                 source=f"step {i} of {len(ts)}, t = {int(t)} (ᾱ = {ab:.3f})",
-                concentration=s_out["concentration"],
-                energy_corr=s_out["energy_correlation"],
-                rms=s_out["rms"],
-                input_energy_corr=s_in["energy_correlation"],
-                input_concentration=s_in["concentration"],
+                **c.row(z, (z - np.sqrt(1 - ab) * eps) / np.sqrt(ab)),
                 what="DDIM (η = 0) on training copy 0: the step's x̂₀ (input: the state z_t)",
             )
         t_prev = jnp.asarray(int(ts[i + 1]) if i + 1 < len(ts) else -1, jnp.int32)
-        z = st.ddim_step(sched, z, tt, t_prev, eps, jnp.zeros_like(z))
+        z = st.ddim_step(c.sched, z, tt, t_prev, eps, jnp.zeros_like(z))
 
 
 def eval_stage(ctx: Context, step: int | None) -> None:
