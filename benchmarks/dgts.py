@@ -21,6 +21,14 @@ Sections (float32, CPU, jit; compile time reported apart):
   truth, relief (height std) and its ratio, W1 of the heights, ACL and peak spacing (all in mean
   edges, heights relative to the shared base, one peak threshold: the truth's). Reconstruction
   errors per level are a diagnostic (level 0 is never trained to reconstruct from ``z*``).
+- ``--depth KIND [KIND ...]`` (alone): the run at depth. The paper's network (``dgts.Config()``: 7
+  layers, 32 → 128 channels) trained ``--depth-steps`` steps per level on ``--depth-levels`` levels
+  (default 4: 80 → 5120 faces from an icosphere(1) template) of a textured sphere of each kind
+  (``DEPTH_TEXTURES``), resumable in ``--work`` (``runs/dgts_depth/<kind>/``: fitted training meshes,
+  checkpoints every 250 steps, ``model.npz``), then scored as the quality section (in-domain;
+  transfers to the torus, the cow and fandisk against their oracles) into
+  ``benchmarks/results/dgts_depth.{json,md}`` with ``dgts_depth_<kind>.png`` (reference | training
+  levels | in-domain | transfers vs oracle, untrained and noise).
 - ``--margins [SETTING ...]`` (alone): the learning test's margins (``tests/dgts/test_learning.py``)
   over ``--seeds`` training keys, x64 on as in the tests: per seed the ``|log|`` peak-density error
   of the trained, untrained and noise transfers against the oracle, and their differences; a
@@ -90,18 +98,20 @@ def reference_mesh():
     return textured_sphere(KIND, subdivisions=4, period=PERIOD)
 
 
-def _targets() -> list[tuple[str, object]]:
+def _targets(real: tuple[str, ...] = ("cow",)) -> list[tuple[str, object]]:
+    """A torus and the shared real meshes named in ``real`` (those present)."""
+    import warnings
+
+    from jmeshtex.geometry import prepare_mesh
+    from jmeshtex.io import load_mesh
+
     out: list[tuple[str, object]] = [("torus 64x24", torus(64, 24))]
-    cow = SHARED / "cow.obj"
-    if cow.is_file():
-        import warnings
-
-        from jmeshtex.geometry import prepare_mesh
-        from jmeshtex.io import load_mesh
-
-        with warnings.catch_warnings():  # the cow has one bow-tie vertex: split it
-            warnings.simplefilter("ignore")
-            out.append(("cow", prepare_mesh(load_mesh(cow), repair=True)[0]))
+    for name in real:
+        path = SHARED / f"{name}.obj"
+        if path.is_file():
+            with warnings.catch_warnings():  # the cow has one bow-tie vertex: split it
+                warnings.simplefilter("ignore")
+                out.append((name, prepare_mesh(load_mesh(path), repair=True)[0]))
     return out
 
 
@@ -152,6 +162,42 @@ def quality(
         texture=KIND,
         period_mean_edges=period,
     )
+    evaluate(
+        report,
+        tag,
+        trained,
+        untrained,
+        tm,
+        reference,
+        KIND,
+        reference_period,
+        samples=samples,
+        starts=(None, 0),
+        png=None if png is None else png / f"dgts_quality_{reference_period}.png",
+        title=f"DGTS tiny ({KIND}, period {period:.2f} mean edges)",
+    )
+
+
+def evaluate(
+    report: Report,
+    tag: str,
+    trained,
+    untrained,
+    tm,
+    reference,
+    kind: str,
+    reference_period: float,
+    *,
+    samples: int,
+    starts=(None,),
+    png: pathlib.Path | None = None,
+    title: str = "DGTS",
+    real: tuple[str, ...] = ("cow",),
+) -> None:
+    """In-domain samples against the finest training mesh, transfers (to a torus and the shared
+    real meshes, from each of ``starts``) against their oracles, each beside untrained, zero
+    displacement and matched noise; level reconstruction errors as a diagnostic; a render figure."""
+    period = period_in_mean_edges(tm, reference_period)
     # in-domain: samples from the template (fresh noise at every level) against the training mesh
     truth = tm.mesh(-1)
     template = (tm.template, tm.faces[0])
@@ -183,8 +229,8 @@ def quality(
             note="mean edges; level 0 never reconstructs from z* (reconstruction_start = 1)",
         )
     figures = []
-    for target_name, target in _targets():
-        for start in (None, 0):
+    for target_name, target in _targets(real):
+        for start in starts:
             res = transfer(
                 trained, target, num_samples=samples, start_level=start, key=jax.random.key(1)
             )
@@ -192,7 +238,7 @@ def quality(
                 untrained, target, num_samples=samples, start_level=start, key=jax.random.key(1)
             )
             base = (res.base, res.faces)
-            oracle = oracle_texture(base, KIND, period=period)
+            oracle = oracle_texture(base, kind, period=period)
             own = texture_scores(oracle, oracle, base=base)
             section = (
                 f"{tag}transfer to {target_name} from level {res.start_level}"
@@ -204,7 +250,7 @@ def quality(
                 {
                     "oracle (truth)": [oracle],
                     "oracle, other centres": [
-                        oracle_texture(base, KIND, period=period, key=jax.random.key(s))
+                        oracle_texture(base, kind, period=period, key=jax.random.key(s))
                         for s in (1, 2)
                     ],
                     "trained": [res.mesh(i) for i in range(samples)],
@@ -221,33 +267,121 @@ def quality(
             )
             if start is None:
                 figures.append((target_name, res, res_u, oracle, base, own.relief))
-    if png is not None:
-        from jmeshtex.render import figure, render_mesh
+    if png is None:
+        return
+    from jmeshtex.render import figure, render_mesh
 
-        size = (320, 320)
-        panels = [
-            ("reference", render_mesh(reference, size=size)),
-            ("training level 1", render_mesh(truth, size=size)),
-            ("in-domain sample", render_mesh(cond.mesh(0), size=size)),
+    size = (320, 320)
+    panels = [("reference", render_mesh(reference, size=size))]
+    panels += [
+        (f"training level {level}", render_mesh(tm.mesh(level), size=size))
+        for level in range(1, len(tm.faces))
+    ]
+    panels.append(("in-domain sample", render_mesh(cond.mesh(0), size=size)))
+    for target_name, res, res_u, oracle, base, relief in figures:
+        panels += [
+            (f"{target_name}: trained", render_mesh(res.mesh(0), size=size)),
+            (f"{target_name}: oracle", render_mesh(oracle, size=size)),
+            (f"{target_name}: untrained", render_mesh(res_u.mesh(0), size=size)),
+            (
+                f"{target_name}: noise",
+                render_mesh(matched_noise(base, relief, key=jax.random.key(0)), size=size),
+            ),
         ]
-        for target_name, res, res_u, oracle, base, relief in figures:
-            panels += [
-                (f"{target_name}: trained", render_mesh(res.mesh(0), size=size)),
-                (f"{target_name}: oracle", render_mesh(oracle, size=size)),
-                (f"{target_name}: untrained", render_mesh(res_u.mesh(0), size=size)),
-                (
-                    f"{target_name}: noise",
-                    render_mesh(matched_noise(base, relief, key=jax.random.key(0)), size=size),
-                ),
-            ]
-        png.mkdir(parents=True, exist_ok=True)
-        figure(
-            panels,
-            columns=4,
-            title=f"DGTS tiny ({KIND}, period {period:.2f} mean edges): reference | in-domain | "
-            "transfers vs oracle and baselines",
-            path=png / f"dgts_quality_{reference_period}.png",
+    png.parent.mkdir(parents=True, exist_ok=True)
+    figure(
+        panels,
+        columns=4,
+        title=f"{title}: reference | training levels | in-domain | transfers vs oracle and baselines",
+        path=png,
+    )
+
+
+#: the run at depth (``--depth``): texture kinds and their periods on the unit sphere (0.45 is about
+#: 6 mean edges at level 3 of an icosphere(1) template, 3 at level 2: laid out at one, shaped at the
+#: next)
+DEPTH_TEXTURES = {"knobs": 0.45, "scales": 0.45, "spikes": 0.45, "craters": 0.45}
+
+
+def depth(
+    kinds: list[str],
+    *,
+    levels: int,
+    steps: int,
+    work: pathlib.Path,
+    samples: int,
+    checkpoint_every: int = 250,
+) -> None:
+    """The paper's network (``dgts.Config()``: 7 layers, 32 → 128 channels, ``steps`` per level) on
+    ``levels`` levels of each textured sphere, resumable in ``work/<kind>/`` (the fitted training
+    meshes, checkpoints every ``checkpoint_every`` steps, the final ``model.npz``); then
+    :func:`evaluate` into ``dgts_depth`` with one figure per kind."""
+    from jmeshtex.dgts import load_training_meshes, save, save_training_meshes
+
+    report = Report("dgts_depth")
+    previous = RESULTS / "dgts_depth.json"
+    if previous.is_file():  # rows of the kinds not run now are kept
+        report.rows.extend(
+            r
+            for r in json.loads(previous.read_text())["rows"]
+            if not any(str(r.get("name", "")).startswith(f"[{k} ") for k in kinds)
         )
+    for kind in kinds:
+        reference_period = DEPTH_TEXTURES[kind]
+        folder = work / kind
+        folder.mkdir(parents=True, exist_ok=True)
+        reference = textured_sphere(kind, subdivisions=levels + 1, period=reference_period)
+        meshes_file = folder / "training_meshes.npz"
+        t0, c0 = time.perf_counter(), time.process_time()
+        if meshes_file.is_file():
+            tm = load_training_meshes(meshes_file)
+        else:
+            tm = training_meshes(
+                reference, icosphere(1), config=PrepareConfig(levels=levels), key=jax.random.key(0)
+            )
+            save_training_meshes(tm, meshes_file)
+        prepare = (time.perf_counter() - t0, time.process_time() - c0)
+        cfg = Config(steps=steps)
+        t0, c0 = time.perf_counter(), time.process_time()
+        result = train(
+            tm,
+            cfg,
+            key=jax.random.key(0),
+            checkpoint_dir=folder / "checkpoints",
+            checkpoint_every=checkpoint_every,
+        )
+        trained = result.model
+        save(trained, folder / "model.npz")
+        untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
+        period = period_in_mean_edges(tm, reference_period)
+        tag = f"[{kind} {levels} levels, period {period:.2f} edges] "
+        report.add(
+            name=f"{tag}prepare + train (paper network)",
+            faces=len(tm.faces[-1]),
+            steps_per_level=steps,
+            prepare_s=prepare[0],
+            prepare_cpu_s=prepare[1],
+            train_s=time.perf_counter() - t0,
+            train_cpu_s=time.process_time() - c0,
+            resumed_from=result.resumed_from,
+            period_mean_edges=period,
+            load=os.getloadavg()[0],
+        )
+        evaluate(
+            report,
+            tag,
+            trained,
+            untrained,
+            tm,
+            reference,
+            kind,
+            reference_period,
+            samples=samples,
+            png=RESULTS / f"dgts_depth_{kind}.png",
+            real=("cow", "fandisk"),
+            title=f"DGTS, paper network, {levels} levels ({kind}, period {period:.2f} mean edges)",
+        )
+        report.write()
 
 
 #: the learning test's settings (tests/dgts/test_learning.py): name -> (Config changes, the
@@ -489,7 +623,31 @@ def main() -> None:
         "--seeds", type=int, default=5, help="training keys of --margins (0: summarise the file)"
     )
     ap.add_argument("--skip", nargs="*", default=(), choices=("quality", "timing", "fit"))
+    ap.add_argument(
+        "--depth",
+        nargs="+",
+        default=None,
+        choices=sorted(DEPTH_TEXTURES),
+        help="only the run at depth: the paper's network on these textures (dgts_depth)",
+    )
+    ap.add_argument("--depth-levels", type=int, default=4, help="levels of --depth")
+    ap.add_argument("--depth-steps", type=int, default=2000, help="steps per level of --depth")
+    ap.add_argument(
+        "--work",
+        type=pathlib.Path,
+        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "dgts_depth",
+        help="--depth's resumable runs",
+    )
     args = ap.parse_args()
+    if args.depth:
+        depth(
+            args.depth,
+            levels=args.depth_levels,
+            steps=args.depth_steps,
+            work=args.work,
+            samples=args.samples,
+        )
+        return
     if args.margins is not None:
         jax.config.update("jax_enable_x64", True)  # as the tests run (conftest.py): same numerics
         learning_margins(args.seeds, args.margins or ["tiny"])
