@@ -1,4 +1,4 @@
-"""Gradient transformations for jmeshtex's parameters, to compose with optax.
+"""Gradient transformations for jmeshtex's parameters, to compose with optax, and a weight average.
 
 :func:`complex_steepest` goes first in an ``optax.chain`` whenever the parameters have complex
 leaves (every ``jmeshtex.ops.init_*`` of a tangent-feature layer draws complex weights)::
