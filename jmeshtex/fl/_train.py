@@ -22,8 +22,9 @@ with it the noise's shape, differs). Under ``jmeshtex.parallel.initialize`` ever
 builds the same global batch from the key and feeds its devices their slices.
 
 Checkpoints (``checkpoint_dir``): :class:`jmeshtex.io.Checkpoints` steps holding the parameters,
-the optimiser state and, with ``config.ema_decay > 0``, the weight average, with the loss history in their record, every ``checkpoint_every`` steps
-and at the end of each call; :func:`train` with the same folder resumes.
+the optimiser state and, with ``config.ema_decay > 0``, the weight average, with the loss history
+in their record, every ``checkpoint_every`` steps and at the end of each call; :func:`train` with
+the same folder resumes.
 """
 
 from __future__ import annotations
@@ -444,12 +445,10 @@ def train(
     )
 
     def step(state, batch):
-        params, opt_state, loss, aux = vae_step(*state[:2], *batch)
-        new = (
-            (params, opt_state, ema_step(state[2], params, batch[2]))
-            if use_ema
-            else (params, opt_state)
-        )
+        params, opt_state, loss, aux = vae_step(state["params"], state["opt_state"], *batch)
+        new = {"params": params, "opt_state": opt_state}
+        if use_ema:
+            new["ema"] = ema_step(state["ema"], params, batch[2])
         return new, {"loss": loss, **{k: v for k, v in aux.items() if k != "kl_channels"}}
 
     def curve(done: int, state, losses: dict) -> None:
@@ -457,10 +456,12 @@ def train(
         plot_losses({"loss": losses["loss"], "l1": losses["l1"]}, loss_curve, title=title)
 
     params = init(config, key=k_init, dtype=dtype).params
-    names = ("params", "opt_state", "ema")[: 3 if use_ema else 2]
+    state = {"params": params, "opt_state": optimizer(config).init(params)}
+    if use_ema:
+        state["ema"] = params
     return fit(
         step,
-        (params, optimizer(config).init(params), params)[: len(names)],
+        state,
         batches,
         steps=config.steps,
         stop_after=stop_after,
@@ -468,14 +469,12 @@ def train(
             checkpoint_dir,
             fingerprint=_fingerprint(config, key, loaded, dtype),
             every=config.checkpoint_every,
-            saved=lambda state: dict(zip(names, state, strict=True)),
-            restored=lambda tree: tuple(tree[n] for n in names),
             on_save=None if loss_curve is None else curve,
         ),
         device_mesh=device_mesh,
         progress=Progress(progress, "FL-VAE train", ("loss", "l1")),
-        model=lambda state: Model(
-            jax.tree.map(jnp.asarray, fetch(state[2 if use_ema else 0])), config
+        model=lambda s: Model(
+            jax.tree.map(jnp.asarray, fetch(s["ema" if use_ema else "params"])), config
         ),
         started=started,
     )
