@@ -23,8 +23,13 @@ def _place(x: Any, sharding: NamedSharding) -> Any:
             _place(jax.random.key_data(x), sharding), impl=jax.random.key_impl(x)
         )
     if isinstance(x, jax.Array):
-        if x.sharding.is_equivalent_to(sharding, x.ndim):
+        if x.sharding == sharding:
             return x
+        if x.sharding.is_equivalent_to(sharding, x.ndim):
+            # same layout, other sharding object (e.g. a one-device array on a one-device mesh):
+            # relabel it, because the sharding is part of jit's cache key: a step fed its own
+            # outputs would otherwise trace and compile a second time
+            return jax.device_put(x, sharding)
         if not x.is_fully_addressable:  # a global array laid out differently: XLA moves it
             return jax.device_put(x, sharding)
     host = np.asarray(x)
