@@ -7,9 +7,9 @@ Usage (from the repository root)::
     python -m benchmarks.suite --seeds 30 --out /tmp/sweep -- tests/ops -k "not slow"  # seed sweep
 
 Runs pytest with ``--durations=0 -p no:cacheprovider --junitxml`` and this module as a plugin,
-which records every test's process CPU time (all threads: XLA compiles in its own) and wall time
-in its worker, setup and teardown included (a session fixture counts in the first test that takes
-it). Writes ``suite.json`` (machine, versions, totals, per folder and the 25 slowest tests) and
+which records every test's process CPU time (all threads: XLA compiles in its own), wall time and
+the time JAX reports compiling (``jax.monitoring``) in its worker, setup and teardown included (a
+session fixture counts in the first test that takes it). Writes ``suite.json`` (machine, versions, totals, per folder and the 25 slowest tests) and
 ``suite.md`` into ``--out`` (default ``benchmarks/results/``). Figures depend on the machine's load
 for wall time only; compare CPU time across runs.
 
@@ -65,16 +65,40 @@ def pytest_runtest_logreport(report):
         _write_record({"nodeid": report.nodeid, "failed": report.when})
 
 
+#: JAX's own timings of a compilation (tracing, lowering to MLIR, XLA's backend compile)
+_COMPILE_EVENTS = (
+    "/jax/core/compile/jaxpr_trace_duration",
+    "/jax/core/compile/jaxpr_to_mlir_module_duration",
+    "/jax/core/compile/backend_compile_duration",
+)
+_compile_s = [0.0]
+
+
+def _on_duration(event: str, duration: float, **_) -> None:
+    if event in _COMPILE_EVENTS:
+        _compile_s[0] += duration
+
+
+def pytest_configure(config):
+    if os.environ.get(_ENV):
+        import jax.monitoring
+
+        jax.monitoring.register_event_duration_secs_listener(_on_duration)
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
-    """Record ``nodeid, cpu_s, wall_s`` of one test (plugin side; active when ``$_ENV`` is set)."""
-    cpu, wall = time.process_time(), time.perf_counter()
+    """Record ``nodeid, cpu_s, wall_s, compile_s`` of one test (plugin side; active when ``$_ENV``
+    is set). ``compile_s`` is the wall time JAX reports tracing, lowering and compiling (a
+    persistent-cache hit skips the backend compile)."""
+    cpu, wall, compiled = time.process_time(), time.perf_counter(), _compile_s[0]
     yield
     _write_record(
         {
             "nodeid": item.nodeid,
             "cpu_s": time.process_time() - cpu,
             "wall_s": time.perf_counter() - wall,
+            "compile_s": _compile_s[0] - compiled,
         }
     )
 
@@ -102,14 +126,16 @@ def summarise(records: list[dict], *, wall_s: float, cpu_s: float, outcome: dict
     Example:
       >>> r = [{"nodeid": "tests/io/a.py::t", "cpu_s": 2.0, "wall_s": 3.0}]
       >>> summarise(r, wall_s=5.0, cpu_s=4.0, outcome={})["folders"]["tests/io"]
-      {'tests': 1, 'cpu_s': 2.0, 'wall_s': 3.0}
+      {'tests': 1, 'cpu_s': 2.0, 'wall_s': 3.0, 'compile_s': 0.0}
     """
-    folders: dict = collections.defaultdict(lambda: {"tests": 0, "cpu_s": 0.0, "wall_s": 0.0})
+    folders: dict = collections.defaultdict(
+        lambda: {"tests": 0, "cpu_s": 0.0, "wall_s": 0.0, "compile_s": 0.0}
+    )
     for r in records:
         f = folders[folder_of(r["nodeid"])]
         f["tests"] += 1
-        f["cpu_s"] += r["cpu_s"]
-        f["wall_s"] += r["wall_s"]
+        for k in ("cpu_s", "wall_s", "compile_s"):
+            f[k] += r.get(k, 0.0)
     slowest = sorted(records, key=lambda r: -r["cpu_s"])[:25]
     return {
         "machine": {
@@ -122,7 +148,7 @@ def summarise(records: list[dict], *, wall_s: float, cpu_s: float, outcome: dict
         "cpu_s": cpu_s,
         "outcome": outcome,
         "folders": {
-            k: {**v, "cpu_s": round(v["cpu_s"], 2), "wall_s": round(v["wall_s"], 2)}
+            k: {**v, **{t: round(v[t], 2) for t in ("cpu_s", "wall_s", "compile_s")}}
             for k, v in sorted(folders.items(), key=lambda kv: -kv[1]["cpu_s"])
         },
         "slowest": [
@@ -143,13 +169,26 @@ def markdown(doc: dict) -> str:
         f"Wall {doc['wall_s']:.0f} s, CPU {doc['cpu_s']:.0f} s (pytest and its workers); "
         + ", ".join(f"{v} {k}" for k, v in o.items()),
         "",
-        "| folder | tests | CPU s | wall s |",
-        "|---|---:|---:|---:|",
+        "| folder | tests | CPU s | wall s | JAX compile s |",
+        "|---|---:|---:|---:|---:|",
     ]
     for k, v in doc["folders"].items():
-        lines.append(f"| {k} | {v['tests']} | {v['cpu_s']:.1f} | {v['wall_s']:.1f} |")
-    lines += ["", "Slowest tests (CPU s):", ""]
-    lines += [f"- {r['cpu_s']:.1f} s `{r['nodeid']}`" for r in doc["slowest"]]
+        lines.append(
+            f"| {k} | {v['tests']} | {v['cpu_s']:.1f} | {v['wall_s']:.1f} "
+            f"| {v.get('compile_s', 0.0):.1f} |"
+        )
+    total = sum(v.get("compile_s", 0.0) for v in doc["folders"].values())
+    lines += [
+        "",
+        f"JAX compile (tracing, lowering, XLA; wall s inside the tests): {total:.0f} s in all.",
+        "",
+        "Slowest tests (CPU s; JAX compile s):",
+        "",
+    ]
+    lines += [
+        f"- {r['cpu_s']:.1f} s; {r.get('compile_s', 0.0):.1f} s `{r['nodeid']}`"
+        for r in doc["slowest"]
+    ]
     return "\n".join(lines) + "\n"
 
 
