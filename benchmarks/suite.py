@@ -9,9 +9,10 @@ Usage (from the repository root)::
 Runs pytest with ``--durations=0 -p no:cacheprovider --junitxml`` and this module as a plugin,
 which records every test's process CPU time (all threads: XLA compiles in its own), wall time and
 the time JAX reports compiling (``jax.monitoring``) in its worker, setup and teardown included (a
-session fixture counts in the first test that takes it). Writes ``suite.json`` (machine, versions, totals, per folder and the 25 slowest tests) and
-``suite.md`` into ``--out`` (default ``benchmarks/results/``). Figures depend on the machine's load
-for wall time only; compare CPU time across runs.
+session fixture counts in the first test that takes it). Writes ``suite.json`` (machine, versions,
+totals, per folder and the 25 slowest tests) and ``suite.md`` into ``--out`` (default
+``benchmarks/results/``). Figures depend on the machine's load for wall time only; compare CPU time
+across runs.
 
 ``--seeds N`` is a flakiness sweep (not for CI): every test that takes the ``seed`` fixture
 (directly or through ``key``/``rng``) runs once per seed ``0 .. N-1`` in one process, and
