@@ -102,11 +102,18 @@ def test_the_suite_budget_sums_cpu_time_per_folder():
     from benchmarks.suite import markdown, summarise
 
     records = [
-        {"nodeid": "tests/io/test_a.py::t", "cpu_s": 1.5, "wall_s": 2.0},
-        {"nodeid": "tests/io/test_b.py::t", "cpu_s": 0.5, "wall_s": 1.0},
+        {"nodeid": "tests/io/test_a.py::t", "cpu_s": 1.5, "wall_s": 2.0, "compile_s": 1.25},
+        {"nodeid": "tests/io/test_b.py::t", "cpu_s": 0.5, "wall_s": 1.0},  # an older record
         {"nodeid": "jmeshtex/ops/_x.py::jmeshtex.ops._x.f", "cpu_s": 3.0, "wall_s": 3.0},
     ]
     doc = summarise(records, wall_s=7.0, cpu_s=6.0, outcome={"tests": 3})
-    assert doc["folders"]["tests/io"] == {"tests": 2, "cpu_s": 2.0, "wall_s": 3.0}
+    assert doc["folders"]["tests/io"] == {
+        "tests": 2,
+        "cpu_s": 2.0,
+        "wall_s": 3.0,
+        "compile_s": 1.25,
+    }
     assert list(doc["folders"]) == ["jmeshtex (doctests)", "tests/io"]  # by CPU time
-    assert "| tests/io | 2 | 2.0 | 3.0 |" in markdown(doc)
+    md = markdown(doc)
+    assert "| tests/io | 2 | 2.0 | 3.0 | 1.2 |" in md
+    assert "(tracing, lowering, XLA; wall s inside the tests): 1 s in all" in md
