@@ -73,6 +73,8 @@ _COMPILE_EVENTS = (
     "/jax/core/compile/backend_compile_duration",
 )
 _compile_s = [0.0]
+#: the times a record holds, summed per folder
+_TIMES = ("cpu_s", "wall_s", "compile_s")
 
 
 def _on_duration(event: str, duration: float, **_) -> None:
@@ -129,13 +131,11 @@ def summarise(records: list[dict], *, wall_s: float, cpu_s: float, outcome: dict
       >>> summarise(r, wall_s=5.0, cpu_s=4.0, outcome={})["folders"]["tests/io"]
       {'tests': 1, 'cpu_s': 2.0, 'wall_s': 3.0, 'compile_s': 0.0}
     """
-    folders: dict = collections.defaultdict(
-        lambda: {"tests": 0, "cpu_s": 0.0, "wall_s": 0.0, "compile_s": 0.0}
-    )
+    folders: dict = collections.defaultdict(lambda: {"tests": 0, **dict.fromkeys(_TIMES, 0.0)})
     for r in records:
         f = folders[folder_of(r["nodeid"])]
         f["tests"] += 1
-        for k in ("cpu_s", "wall_s", "compile_s"):
+        for k in _TIMES:
             f[k] += r.get(k, 0.0)
     slowest = sorted(records, key=lambda r: -r["cpu_s"])[:25]
     return {
@@ -149,7 +149,7 @@ def summarise(records: list[dict], *, wall_s: float, cpu_s: float, outcome: dict
         "cpu_s": cpu_s,
         "outcome": outcome,
         "folders": {
-            k: {**v, **{t: round(v[t], 2) for t in ("cpu_s", "wall_s", "compile_s")}}
+            k: {**v, **{t: round(v[t], 2) for t in _TIMES}}
             for k, v in sorted(folders.items(), key=lambda kv: -kv[1]["cpu_s"])
         },
         "slowest": [

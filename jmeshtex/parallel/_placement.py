@@ -25,12 +25,10 @@ def _place(x: Any, sharding: NamedSharding) -> Any:
     if isinstance(x, jax.Array):
         if x.sharding == sharding:
             return x
-        if x.sharding.is_equivalent_to(sharding, x.ndim):
-            # same layout, other sharding object (e.g. a one-device array on a one-device mesh):
-            # relabel it, because the sharding is part of jit's cache key: a step fed its own
-            # outputs would otherwise trace and compile a second time
-            return jax.device_put(x, sharding)
-        if not x.is_fully_addressable:  # a global array laid out differently: XLA moves it
+        # XLA moves a global array laid out differently, and relabels one of the same layout but
+        # another sharding (a one-device array on a one-device mesh): the sharding is part of
+        # jit's cache key, so a step fed its own outputs would otherwise compile a second time
+        if not x.is_fully_addressable or x.sharding.is_equivalent_to(sharding, x.ndim):
             return jax.device_put(x, sharding)
     host = np.asarray(x)
     # every process holds the whole (global) value; each device takes its slice of it
