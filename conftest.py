@@ -10,9 +10,9 @@
   they pass ill-typed arguments on purpose to test the typed errors the functions raise themselves;
   ``JMESHTEX_TYPECHECK=0`` switches them off for a whole run;
 - BLAS runs one thread per test worker (the workers already use every core);
-- each process (xdist worker) keeps JAX's persistent compilation cache in a folder of its own
-  (``.pytest_cache/jax/<worker>``, ``JMESHTEX_TEST_JAX_CACHE`` moves it, ``0`` turns it off), so a
-  second run skips most compilation;
+- JAX's persistent compilation cache is on, in one folder all xdist workers share under a file
+  lock (``.pytest_cache/jax``, ``JMESHTEX_TEST_JAX_CACHE`` moves it, ``0`` turns it off): a program
+  is compiled once per run, not once per worker, and a second run skips most compilation;
 - the tests of a session fixture that trains a model run on one xdist worker (``xdist_group`` set
   below, ``--dist loadgroup`` in pyproject), so each trained fixture is built once per run;
 - a worker's JAX compilation caches are cleared when its memory mappings near the kernel's limit
@@ -58,47 +58,36 @@ jax.config.update("jax_platforms", os.environ.get("JMESHTEX_TEST_PLATFORMS", "cp
 threadpool_limits(1)
 
 # The CLI turns on JAX's persistent compilation cache in ~/.cache/jmeshtex/jax; tests that call the
-# CLI in-process must not use that folder (shared with other runs: a half-written entry read by
-# another process crashed a worker).
+# CLI in-process keep the suite's cache (below) and leave the user's folder alone.
 os.environ["JMESHTEX_JAX_CACHE"] = "0"
 
 
-def _worker_cache_folder() -> pathlib.Path | None:
-    """A persistent compilation cache folder this process holds alone (None: cache off).
+def _cache_folder() -> pathlib.Path | None:
+    """The persistent compilation cache folder every worker of every run shares (None: cache off).
 
     ``$JMESHTEX_TEST_JAX_CACHE`` (default ``.pytest_cache/jax`` under the repository; ``0`` turns it
-    off) holds one folder per xdist worker (``gw0``, ``gw1``, ``main`` without xdist). A process
-    takes the first of ``<worker>``, ``<worker>-1``, ... whose lock it can hold, so two runs at the
-    same time (or two workers) never write one folder.
+    off). One folder for all processes: a program one xdist worker compiled is read by the other
+    (JAX's cache key includes the folder, so separate folders never share an entry). A size limit
+    turns on JAX's least-recently-used eviction, which reads and writes every entry under a file
+    lock (``filelock``): a worker never reads an entry another is still writing.
     """
-    import fcntl
-
     env = os.environ.get("JMESHTEX_TEST_JAX_CACHE")
     if env is not None and env.strip() in ("", "0"):
         return None
-    base = pathlib.Path(env) if env else pathlib.Path(__file__).resolve().parent / ".pytest_cache"
-    base = base / "jax" if not env else base
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
-    for i in range(16):
-        folder = base / (worker if i == 0 else f"{worker}-{i}")
-        folder.mkdir(parents=True, exist_ok=True)
-        fd = os.open(folder / ".lock", os.O_RDWR | os.O_CREAT)  # held for the process's lifetime
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
-            continue
-        _LOCKS.append(fd)
-        return folder
-    return None
+    if env:
+        return pathlib.Path(env)
+    return pathlib.Path(__file__).resolve().parent / ".pytest_cache" / "jax"
 
 
-_LOCKS: list = []
-_JAX_CACHE = _worker_cache_folder()
+_JAX_CACHE = _cache_folder()
 if _JAX_CACHE is None:
     jax.config.update("jax_enable_compilation_cache", False)
 else:
+    import filelock  # noqa: F401  (jmeshtex[methods]'s; JAX locks the shared folder with it)
+
+    _JAX_CACHE.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(_JAX_CACHE))
+    jax.config.update("jax_compilation_cache_max_size", 8 << 30)  # bytes; turns the lock on
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 

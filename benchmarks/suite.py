@@ -14,6 +14,10 @@ totals, per folder and the 25 slowest tests) and ``suite.md`` into ``--out`` (de
 ``benchmarks/results/``). Figures depend on the machine's load for wall time only; compare CPU time
 across runs.
 
+``--records`` also writes every test's record (``records.jsonl``: node id, CPU, wall and compile
+seconds, the eight jitted functions that took longest to compile, worker) for a closer look than
+the 25 slowest.
+
 ``--seeds N`` is a flakiness sweep (not for CI): every test that takes the ``seed`` fixture
 (directly or through ``key``/``rng``) runs once per seed ``0 .. N-1`` in one process, and
 ``sweep.json`` / ``sweep.md`` list each such test's failing seeds (replay one with
@@ -73,13 +77,16 @@ _COMPILE_EVENTS = (
     "/jax/core/compile/backend_compile_duration",
 )
 _compile_s = [0.0]
+#: the compile seconds of the running test per jitted function name (``records.jsonl``)
+_compiled_functions: collections.Counter = collections.Counter()
 #: the times a record holds, summed per folder
 _TIMES = ("cpu_s", "wall_s", "compile_s")
 
 
-def _on_duration(event: str, duration: float, **_) -> None:
+def _on_duration(event: str, duration: float, fun_name: str = "?", **_) -> None:
     if event in _COMPILE_EVENTS:
         _compile_s[0] += duration
+        _compiled_functions[fun_name] += duration
 
 
 def pytest_configure(config):
@@ -95,6 +102,7 @@ def pytest_runtest_protocol(item, nextitem):
     is set). ``compile_s`` is the wall time JAX reports tracing, lowering and compiling (a
     persistent-cache hit skips the backend compile)."""
     cpu, wall, compiled = time.process_time(), time.perf_counter(), _compile_s[0]
+    _compiled_functions.clear()
     yield
     _write_record(
         {
@@ -102,6 +110,7 @@ def pytest_runtest_protocol(item, nextitem):
             "cpu_s": time.process_time() - cpu,
             "wall_s": time.perf_counter() - wall,
             "compile_s": _compile_s[0] - compiled,
+            "compiled": {k: round(v, 3) for k, v in _compiled_functions.most_common(8)},
         }
     )
 
@@ -248,6 +257,9 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--seeds", type=int, default=0, help="sweep: run every seeded test for seeds 0..N-1"
     )
+    ap.add_argument(
+        "--records", action="store_true", help="also write every test's record to records.jsonl"
+    )
     ap.add_argument("pytest_args", nargs="*", help="pytest arguments (after --); default: -n 2")
     args = ap.parse_args(argv)
     extra = args.pytest_args or ["-n", "2"]
@@ -274,6 +286,8 @@ def main(argv=None) -> int:
         )
     doc["command"] = " ".join(["pytest", *cmd[3:]]).replace(str(junit), "<junit>")
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.records:
+        (args.out / "records.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
     if args.seeds:
         sweep = seed_sweep(records, [r["nodeid"] for r in lines if "failed" in r], args.seeds)
         (args.out / "sweep.json").write_text(json.dumps(sweep, indent=1))

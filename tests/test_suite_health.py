@@ -48,25 +48,46 @@ def test_this_worker_is_below_the_guard_threshold():
     assert _maps() < 0.9 * int(limit.read_text())
 
 
-def test_this_worker_holds_its_own_compilation_cache_folder():
-    """The persistent compilation cache is on, in a folder named after this xdist worker, whose
-    lock this process holds (a second run or worker cannot take it)."""
-    import fcntl
+def test_a_program_another_process_compiled_is_read_from_the_shared_cache():
+    """One cache folder for every worker, with JAX's file lock on (a size limit turns it on): a
+    program a second process compiles and writes is a cache hit here, not a second compilation."""
     import os
+    import subprocess
+    import sys
+    import time
+
+    import jax.monitoring
 
     if os.environ.get("JMESHTEX_TEST_JAX_CACHE", "").strip() == "0":
         pytest.skip("JMESHTEX_TEST_JAX_CACHE=0 turned the cache off for this run")
     folder = pathlib.Path(jax.config.jax_compilation_cache_dir)
-    assert folder.name.split("-")[0] == os.environ.get("PYTEST_XDIST_WORKER", "main"), folder
-    fd = os.open(folder / ".lock", os.O_RDWR)
+    assert jax.config.jax_compilation_cache_max_size > 0  # eviction on: entries read under the lock
+    unique = time.time_ns() % 10**9  # a program no run has compiled before
+    program = f"jax.jit(lambda x: jnp.sin(x) * {unique}.0)(jnp.ones(3, jnp.float64))"
+    other = (
+        "import jax, jax.numpy as jnp; jax.config.update('jax_enable_x64', True); "
+        f"jax.config.update('jax_compilation_cache_dir', {str(folder)!r}); "
+        "jax.config.update('jax_compilation_cache_max_size', 8 << 30); "
+        "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0.0); "
+        "jax.config.update('jax_persistent_cache_min_entry_size_bytes', 0); "
+        f"{program}.block_until_ready()"
+    )
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    subprocess.run([sys.executable, "-c", other], check=True, env=env, timeout=300)
+    hits: list[str] = []
+    listener = lambda event, **_: hits.append(event)  # noqa: E731
+    jax.monitoring.register_event_listener(listener)
+    threshold = jax.config.jax_persistent_cache_min_compile_time_secs
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     try:
-        with pytest.raises(BlockingIOError):
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        eval(program, {"jax": jax, "jnp": jnp}).block_until_ready()
     finally:
-        os.close(fd)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", threshold)
+        jax.monitoring.unregister_event_listener(listener)
+    assert "/jax/compilation_cache/cache_hits" in hits, hits
 
 
-def test_compiled_programs_are_written_to_the_worker_cache():
+def test_compiled_programs_are_written_to_the_shared_cache():
     import os
     import time
 

@@ -285,6 +285,9 @@ def compilation_cache() -> pathlib.Path | None:
         folder = pathlib.Path(env)
     folder.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(folder))
+    # a size limit turns on JAX's LRU eviction, which reads and writes entries under a file lock
+    # (filelock): runs at the same time share the folder without reading a half-written entry
+    jax.config.update("jax_compilation_cache_max_size", 4 << 30)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
     return folder
 

@@ -59,6 +59,7 @@ from .._types import Array, Float, PRNGKey
 from ..geometry import pad_to
 from ..io import Checkpoints
 from ..ops import FaceConvStackParams, face_features, masked_mean
+from ..optim import flat
 from ._config import Config
 from ._model import Model, model_like, model_state
 from ._multiscale import TrainingMeshes
@@ -112,7 +113,7 @@ def _optimizer(config: Config, updates_per_step: int) -> optax.GradientTransform
         decay_rate=config.learning_rate_decay,
         staircase=True,
     )
-    return optax.adam(schedule, b1=config.beta1, b2=config.beta2)
+    return flat(optax.adam(schedule, b1=config.beta1, b2=config.beta2))
 
 
 def gradient_penalty(

@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import ConfigError, InputError
+from .._jit import jit_once
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ._config import Config
 from ._decoder import (
@@ -107,9 +108,10 @@ def init(config: Config, *, key: PRNGKey, dtype=jnp.float32) -> Model:
     return Model(_init_jit(key, config, jnp.dtype(dtype)), config)
 
 
-@functools.partial(jax.jit, static_argnums=(1, 2))
+@jit_once(static_argnums=(1, 2))
 def _init_jit(key, config, dtype):
-    # one compiled program: op-by-op, every random draw of a new shape compiles its own kernel
+    # one compiled program (op-by-op, every random draw of a new shape compiles its own kernel), at
+    # XLA's fastest compile: it runs once
     draw = _Draw(key, encoder_size(config) + decoder_size(config), dtype)
     return FLVAEParams(
         init_encoder(draw, config, dtype=dtype), init_decoder(draw, config, dtype=dtype)

@@ -46,7 +46,7 @@ from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
 from .._types import PRNGKey
 from ..ops import conjugate_complex_grads
-from ..optim import ema_update
+from ..optim import ema_update, flat
 from ..parallel import (
     batch_multiple,
     data_parallel,
@@ -93,7 +93,7 @@ def optimizer(config: Config) -> optax.GradientTransformation:
         decay_steps=max(config.steps, config.warmup_steps + 1),
         end_value=config.learning_rate * config.final_lr_fraction,
     )
-    return optax.chain(optax.clip_by_global_norm(config.grad_clip), optax.adam(schedule))
+    return flat(optax.chain(optax.clip_by_global_norm(config.grad_clip), optax.adam(schedule)))
 
 
 def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None):

@@ -294,6 +294,18 @@ class Config(ConfigBase):
         )
         return cls.tiny(**{**base, **changes})
 
+    def network(self) -> Config:
+        """This config with every field the denoiser network does not read reset to its default.
+
+        The denoiser's initialiser and forward pass are compiled once per ``network()``: two runs
+        that differ in schedule, steps, data or optimiser share those programs.
+
+        Example:
+          >>> Config.tiny(steps=5).network() == Config.tiny(steps=9, diffusion_steps=50).network()
+          True
+        """
+        return type(self)(**{f: getattr(self, f) for f in NETWORK_FIELDS})
+
     @classmethod
     def tiny(cls, **changes) -> Config:
         """Tests, demos and notebooks: 16/32 channels, 1+1+1 blocks, 4 copies of 400 vertices.
@@ -322,3 +334,21 @@ class Config(ConfigBase):
             bucket=64,
         )
         return cls(**{**base, **changes})
+
+
+#: the :class:`Config` fields the denoiser network reads (:meth:`Config.network`)
+NETWORK_FIELDS = (
+    "latent_channels",
+    "widths",
+    "blocks",
+    "hdim",
+    "mlp_layers",
+    "filter_layers",
+    "knn",
+    "activation",
+    "time_features",
+    "num_labels",
+    "mask_conditioning",
+    "invariants",
+    "remat",
+)

@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
+from .._jit import jit_once
 from .._mesh import Mesh, as_mesh
 from .._neighborhoods import scale_log_maps
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
@@ -303,7 +304,7 @@ def init_denoiser(
       ['down_0', 'embed_0', 'embed_1', 'lift', 'merge', 'mid_0', 'out', 'up_0']
     """
     del geo  # parameter shapes depend on the config only: initialise on one fixed small mesh
-    return _init(key, config, jnp.dtype(dtype))
+    return _init(key, config.network(), jnp.dtype(dtype))
 
 
 @functools.lru_cache(maxsize=4)
@@ -313,9 +314,10 @@ def _init_geometry(knn: int) -> DenoiserGeometry:
     return denoiser_geometry(icosphere(1), knn=knn, pool_ratio=0.5)
 
 
-@functools.partial(jax.jit, static_argnames=("config", "dtype"))
+@jit_once(static_argnames=("config", "dtype"))
 def _init(key, config: Config, dtype):
-    # jitted: eager initialisation dispatches (and compiles) every small op of every block separately
+    # jitted (eager initialisation dispatches and compiles every small op of every block separately),
+    # at XLA's fastest compile: it runs once
     geo = _as_jax(_init_geometry(config.knn), dtype)
     v = np.shape(geo.fine.index)[0]
     z = jnp.zeros((v, config.latent_channels), dtype)
@@ -386,7 +388,15 @@ def denoise(
     _check_mask(config, z_t, mask, known)
     geo = _as_jax(geo, z_t.dtype)
     return _apply(
-        params, config, z_t, jnp.asarray(t, jnp.int32), geo, labels, mask, known, filter_argument
+        params,
+        config.network(),
+        z_t,
+        jnp.asarray(t, jnp.int32),
+        geo,
+        labels,
+        mask,
+        known,
+        filter_argument,
     )
 
 

@@ -56,7 +56,7 @@ from .._random import host_rng, key_ints
 from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
 from ..ops import conjugate_complex_grads, tangent_noise
-from ..optim import ema_update
+from ..optim import ema_update, flat
 from ..parallel import (
     batch_multiple,
     data_parallel,
@@ -103,7 +103,9 @@ def optimizer(config: Config) -> optax.GradientTransformation:
       >>> opt = optimizer(Config.tiny())
       >>> state = opt.init({"w": jnp.zeros(3)})
     """
-    return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(learning_rate_schedule(config)))
+    return flat(
+        optax.chain(optax.clip_by_global_norm(1.0), optax.adam(learning_rate_schedule(config)))
+    )
 
 
 def _check_batch(config: Config, device_mesh: jax.sharding.Mesh) -> None:

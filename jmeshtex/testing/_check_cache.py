@@ -25,6 +25,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from .._jit import jit_once
 from ._fields import Field
 from ._state import MeshState
 
@@ -204,7 +205,8 @@ class CheckCache:
         )
         fn = self._jitted.get((entry.name, static[-1]))
         if fn is None:
-            fn = self._jitted[(entry.name, static[-1])] = jax.jit(
+            # a check runs its program a few times on small meshes: XLA's fastest compile
+            fn = self._jitted[(entry.name, static[-1])] = jit_once(
                 self._traced(entry), static_argnums=0
             )
         value = fn(static, geo, par, inputs)

@@ -228,3 +228,33 @@ def test_output_scales_with_input_at_high_noise():
             r4,
             r16,
         )  # linear: 4 and 4; the old network: ~1 and ~1
+
+
+def test_the_network_reads_only_the_fields_its_programs_are_keyed_on():
+    """``init_denoiser`` and ``denoise`` compile once per ``Config.network()``: a field the network
+    read but ``network()`` reset would silently take its default. Trace the module with a config
+    that records every field read (every option switched on) and check the reads."""
+    from jmeshtex.fldm._config import NETWORK_FIELDS
+    from jmeshtex.fldm._denoiser import Denoiser, _as_jax
+
+    read: set[str] = set()
+
+    class Recording:
+        def __init__(self, config):
+            object.__setattr__(self, "_config", config)
+
+        def __getattr__(self, name):
+            read.add(name)
+            return getattr(self._config, name)
+
+        def __hash__(self):
+            return hash(self._config)
+
+    cfg = CFG.replace(num_labels=2, mask_conditioning=True, invariants=True, remat=True)
+    v, f = icosphere(1)
+    geo = _as_jax(denoiser_geometry((v, f), knn=cfg.knn, pool_ratio=0.5), jnp.complex64)
+    z = jnp.zeros((len(v), 2), jnp.complex64)
+    args = (z, jnp.int32(3), geo, jnp.zeros(len(v), jnp.int32), jnp.zeros(len(v), bool), z)
+    jax.eval_shape(lambda k: Denoiser(Recording(cfg)).init(k, *args), jax.random.key(0))
+    assert read and read <= set(NETWORK_FIELDS), sorted(read - set(NETWORK_FIELDS))
+    assert cfg.replace(steps=3, diffusion_steps=7, batch_size=8).network() == cfg.network()
