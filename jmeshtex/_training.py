@@ -34,6 +34,7 @@ import numpy as np
 
 from ._config import is_int
 from ._errors import CheckpointMismatchError, ConfigError, TrainingDivergedError
+from ._jit import FULL_OPTIMISATION
 from ._train_result import TrainResult
 from .io import Checkpoints
 from .parallel import fetch, is_multiprocess, replicate
@@ -312,7 +313,8 @@ def fit(
 
 def _compiled_step(step, state, batch, compiled: dict):
     """``(callable, compile seconds)``: a :func:`jax.jit` ``step`` compiled ahead of time once per
-    argument shapes and dtypes into ``compiled`` (0 s on a hit); ``(step, None)`` for any other."""
+    argument shapes and dtypes into ``compiled`` (0 s on a hit), at XLA's full optimisation whatever
+    ``XLA_FLAGS`` say (it runs in a loop: ``jmeshtex._jit``); ``(step, None)`` for any other."""
     if not hasattr(step, "lower"):
         return step, None
     leaves, treedef = jax.tree.flatten((state, batch))
@@ -325,7 +327,7 @@ def _compiled_step(step, state, batch, compiled: dict):
     if hit is not None:
         return hit, 0.0
     t = time.perf_counter()
-    compiled[signature] = step.lower(state, batch).compile()
+    compiled[signature] = step.lower(state, batch).compile(FULL_OPTIMISATION)
     return compiled[signature], time.perf_counter() - t
 
 

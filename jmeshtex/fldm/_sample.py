@@ -21,7 +21,6 @@ Every function takes an explicit ``key``; the same key gives bit-identical sampl
 from __future__ import annotations
 
 import dataclasses
-import functools
 import os
 import pathlib
 
@@ -31,6 +30,7 @@ import numpy as np
 
 from .._config import is_int
 from .._errors import InputError
+from .._jit import jit_loop
 from .._mesh import Mesh, as_mesh
 from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, geometry_sizes, pad_geometry
 from ._diffusion import (
@@ -97,7 +97,7 @@ def sampling_geometry(mesh: Mesh, model: Model) -> DenoiserGeometry:
     return denoiser_geometry(mesh, knn=model.config.knn, pool_ratio=model.config.pool_ratio)
 
 
-@functools.partial(jax.jit, static_argnames=("config", "method", "num_steps", "eta"))
+@jit_loop(static_argnames=("config", "method", "num_steps", "eta"))
 def _run(
     params,
     config,

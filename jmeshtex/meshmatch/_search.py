@@ -37,6 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._jit import jit_loop
 from ._config import Config
 from ._prepare import LevelArrays
 from ._spectrum import _fan_summaries, fan_spectrum, rotation_distances
@@ -327,7 +328,7 @@ def _smallest(cands, bound, count: int):
     return jnp.concatenate(picked_c, axis=1), jnp.concatenate(picked_b, axis=1)
 
 
-@functools.partial(jax.jit, static_argnames=("options",))
+@jit_loop(static_argnames=("options",))
 def iterate(
     tgt: LevelArrays,
     src: Source,

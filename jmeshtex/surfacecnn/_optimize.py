@@ -19,6 +19,7 @@ import numpy as np
 import optax
 
 from .._errors import InputError
+from .._jit import jit_loop
 from ..io import Checkpoints
 from ._config import Config
 
@@ -59,7 +60,7 @@ def optimize_colors(
     schedule = optax.piecewise_constant_schedule(config.learning_rate, boundaries)
     optimizer = optax.adam(schedule)
 
-    @jax.jit
+    @jit_loop
     def step(x, state, aux):
         loss, grad = jax.value_and_grad(loss_fn)(x, aux)
         with jax.numpy_dtype_promotion("standard"):
