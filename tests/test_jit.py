@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import functools
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -51,7 +49,7 @@ def test_the_training_driver_compiles_its_step_with_full_optimisation(monkeypatc
         return real(self, compiler_options, **kw)
 
     monkeypatch.setattr(jax.stages.Lowered, "compile", spy)
-    step = jax.jit(functools.partial(lambda s, b: (s + b, s)))
+    step = jax.jit(lambda s, b: (s + b, s))
     fn, seconds = _training._compiled_step(step, jnp.zeros(2), jnp.ones(2), {})
     assert seen == [FULL_OPTIMISATION] and seconds is not None
     np.testing.assert_array_equal(fn(jnp.zeros(2), jnp.ones(2))[0], [1.0, 1.0])
