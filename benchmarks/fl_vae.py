@@ -412,6 +412,9 @@ def main() -> None:
     )
     ap.add_argument("--decoders", default="log,barycentric", help="decoders of --curve")
     ap.add_argument(
+        "--tag", default=None, help="--curve writes fl_vae_curve_TAG (a variant beside the default)"
+    )
+    ap.add_argument(
         "--work", type=pathlib.Path, default=None, help="--curve's runs (default runs/fl_vae_curve)"
     )
     args = ap.parse_args()
@@ -419,7 +422,7 @@ def main() -> None:
         import json
 
         base = json.loads(args.base)
-        report = Report("fl_vae_curve")
+        report = Report("fl_vae_curve" + (f"_{args.tag}" if args.tag else ""))
         report.config = {"base": base, "budgets": args.curve}
         work = args.work or pathlib.Path(__file__).resolve().parents[1] / "runs" / "fl_vae_curve"
         curve(

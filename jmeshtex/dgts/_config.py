@@ -119,6 +119,10 @@ class PrepareConfig(ConfigBase):
         return cls(**{"levels": 2, "steps": 150, "samples_per_level": 800, **changes})
 
 
+#: :attr:`Config.fake_inputs` choices
+FAKE_INPUTS = ("sampled", "reconstructed")
+
+
 @dataclasses.dataclass(frozen=True)
 class Config(ConfigBase):
     """The hierarchical WGAN-GP of DGTS (§3.4) with the reference code's defaults.
@@ -144,6 +148,12 @@ class Config(ConfigBase):
         WGAN-GP default would be 10).
       reconstruction_start: first level using the fixed noise z* for the reconstruction; below it
         the reconstruction uses fresh noise (the reference uses 1).
+      fake_inputs: what the frozen levels ``0 … L−1`` make the critic's fakes of level ``L`` from:
+        ``"sampled"`` (the reference's: fresh noise at every level, so level ``L`` sees coarse
+        shapes it cannot correct) or ``"reconstructed"`` (the reconstruction's noise below ``L``,
+        ``z*`` at level 0 and zero above, and fresh noise at level ``L`` only: the critic judges the
+        detail level ``L`` adds to the training mesh's own coarse shape, as a transfer feeds it a
+        real target; beyond the paper).
       steps: training steps per level (2000); one step is ``discriminator_steps`` critic updates
         followed by ``generator_steps`` generator updates.
       negative_slope: leaky-ReLU slope (0.2).
@@ -179,6 +189,7 @@ class Config(ConfigBase):
     reconstruction_weight: float = 5.0
     penalty_weight: float = 0.1
     reconstruction_start: int = 1
+    fake_inputs: str = "sampled"
     steps: int = 2000
     negative_slope: float = 0.2
     eps: float = 1e-5
@@ -201,6 +212,7 @@ class Config(ConfigBase):
         rule("beta1 beta2", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("learning_rate_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
         rule("reconstruction_start", lambda x: x >= 0, ">= 0"),
+        rule("fake_inputs", lambda x: x in FAKE_INPUTS, f"one of {FAKE_INPUTS}"),
         rule("negative_slope", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("eps", lambda x: x > 0, "> 0"),
         cross_rule(

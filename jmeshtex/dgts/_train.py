@@ -238,9 +238,16 @@ def level_batch(
         fixed = jnp.zeros((int(fixed_rec), sizes[level], 3), dtype)
         if level == 0 and fixed_rec:
             fixed = z_star.astype(dtype)[None]
-        z = _noise(
-            keys[level], fixed, shape=(n_fresh, sizes[level], 3), amplitude=float(c.noise_amplitude)
-        )
+        if level < L and c.fake_inputs == "reconstructed":  # the fakes share the reconstruction's
+            rec = z_star.astype(dtype) if level == 0 else jnp.zeros((sizes[level], 3), dtype)
+            z = jnp.concatenate([jnp.broadcast_to(rec, (n_fresh, *rec.shape)), fixed], axis=0)
+        else:
+            z = _noise(
+                keys[level],
+                fixed,
+                shape=(n_fresh, sizes[level], 3),
+                amplitude=float(c.noise_amplitude),
+            )
         if level < L:
             v = _advance(model_levels[level], v, z, geos[level], config=c)
         zs.append(z)
@@ -342,6 +349,11 @@ LOSS_NAMES = ("d_real", "d_fake", "penalty", "g_adv", "g_rec")
 # ----------------------------------------------------------------------------------------------
 
 
+#: fields added to :class:`Config` after checkpoints existed: left out of the fingerprint at
+#: these values (the behaviour the older folders were trained with)
+_ADDED_FIELDS = {"fake_inputs": "sampled"}
+
+
 def _fingerprint(meshes: TrainingMeshes, config: Config, key: PRNGKey) -> dict:
     """What a checkpoint folder is tied to: the config, the key and a hash of the training meshes."""
     h = hashlib.sha256()
@@ -349,8 +361,12 @@ def _fingerprint(meshes: TrainingMeshes, config: Config, key: PRNGKey) -> dict:
         a = np.ascontiguousarray(a)
         h.update(str((a.shape, a.dtype.str)).encode())
         h.update(a.tobytes())
+    stored = config.to_dict()
+    for name, default in _ADDED_FIELDS.items():  # folders written before a field existed resume
+        if stored.get(name) == default:
+            del stored[name]
     return {
-        "config": config.to_dict(),
+        "config": stored,
         "key": np.asarray(jax.random.key_data(key)).tolist(),
         "meshes": h.hexdigest(),
     }

@@ -226,3 +226,35 @@ def test_divergence_raises_naming_the_step_and_saves_no_nan_model(tiny_meshes, t
         )
     assert 0 <= err.value.step < 2 * TINY.steps
     assert Checkpoints(tmp_path / "ckpt").steps() == []  # nothing was saved
+
+
+@pytest.mark.parametrize("fake_inputs", ["sampled", "reconstructed"])
+def test_fake_inputs_choose_what_the_frozen_levels_make_the_fakes_from(
+    tiny_meshes, tiny_model, fake_inputs
+):
+    """``"reconstructed"``: every fake of level 1 starts from the reconstruction's level-0 output
+    (``z*``), only level 1's own noise is fresh; ``"sampled"`` (the reference's): the fakes' coarse
+    shapes differ from draw to draw."""
+    import jax.numpy as jnp
+
+    from jmeshtex.dgts._train import level_batch
+    from jmeshtex.dgts.core import hierarchy_geometry
+
+    cfg = TINY.replace(shared_levels=0, fake_inputs=fake_inputs)
+    geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 2)
+    template = jnp.asarray(tiny_meshes.template)
+    z_star = jnp.asarray(tiny_model.z_star)
+    batch = level_batch(
+        tiny_model.generators[:1], geos, template, z_star, jax.random.key(2), config=cfg, chunk=2
+    )
+    fakes = np.asarray(batch.fake_base).reshape(-1, *batch.fake_base.shape[-2:])
+    rec = np.asarray(batch.rec_base)[0, 0]
+    spread = np.abs(fakes - rec).max(axis=(1, 2))
+    if fake_inputs == "reconstructed":
+        np.testing.assert_allclose(spread, 0, atol=1e-6)
+    else:
+        assert spread.min() > 1e-3
+    noise = np.asarray(batch.fake_noise).reshape(len(fakes), -1)
+    assert np.abs(noise[0] - noise[1]).max() > 1e-3  # level 1's own noise stays fresh
+    with pytest.raises(ConfigError, match="fake_inputs"):
+        TINY.replace(fake_inputs="ground truth")
