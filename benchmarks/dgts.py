@@ -29,6 +29,9 @@ Sections (float32, CPU, jit; compile time reported apart):
   transfers to the torus, the cow and fandisk against their oracles) into
   ``benchmarks/results/dgts_depth.{json,md}`` with ``dgts_depth_<kind>.png`` (reference | training
   levels | in-domain | transfers vs oracle, untrained and noise).
+- ``--noise-response KIND`` (alone): ``Config.fake_inputs`` compared on the run at depth's meshes
+  (``--depth-levels``, ``--depth-steps``, ``--work``): each level's output under fresh noise at that
+  level alone, and transfers (:func:`noise_response`); writes ``dgts_noise_response``.
 - ``--margins [SETTING ...]`` (alone): the learning test's margins (``tests/dgts/test_learning.py``)
   over ``--seeds`` training keys, x64 on as in the tests: per seed the ``|log|`` peak-density error
   of the trained, untrained and noise transfers against the oracle, and their differences; a
@@ -303,6 +306,24 @@ def evaluate(
 DEPTH_TEXTURES = {"knobs": 0.45, "scales": 0.45, "spikes": 0.45, "craters": 0.45}
 
 
+def depth_meshes(kind: str, levels: int, folder: pathlib.Path):
+    """The run at depth's reference (a textured sphere, period ``DEPTH_TEXTURES[kind]``) and its
+    ``levels`` fitted training levels on an icosphere(1) template, kept in
+    ``folder/training_meshes.npz`` (fitted once, about 12 CPU-minutes at 4 levels)."""
+    from jmeshtex.dgts import load_training_meshes, save_training_meshes
+
+    folder.mkdir(parents=True, exist_ok=True)
+    reference = textured_sphere(kind, subdivisions=levels + 1, period=DEPTH_TEXTURES[kind])
+    meshes_file = folder / "training_meshes.npz"
+    if meshes_file.is_file():
+        return reference, load_training_meshes(meshes_file)
+    tm = training_meshes(
+        reference, icosphere(1), config=PrepareConfig(levels=levels), key=jax.random.key(0)
+    )
+    save_training_meshes(tm, meshes_file)
+    return reference, tm
+
+
 def depth(
     kinds: list[str],
     *,
@@ -316,7 +337,7 @@ def depth(
     ``levels`` levels of each textured sphere, resumable in ``work/<kind>/`` (the fitted training
     meshes, checkpoints every ``checkpoint_every`` steps, the final ``model.npz``); then
     :func:`evaluate` into ``dgts_depth`` with one figure per kind."""
-    from jmeshtex.dgts import load_training_meshes, save, save_training_meshes
+    from jmeshtex.dgts import save
 
     report = Report("dgts_depth")
     previous = RESULTS / "dgts_depth.json"
@@ -330,16 +351,8 @@ def depth(
         reference_period = DEPTH_TEXTURES[kind]
         folder = work / kind
         folder.mkdir(parents=True, exist_ok=True)
-        reference = textured_sphere(kind, subdivisions=levels + 1, period=reference_period)
-        meshes_file = folder / "training_meshes.npz"
         t0, c0 = time.perf_counter(), time.process_time()
-        if meshes_file.is_file():
-            tm = load_training_meshes(meshes_file)
-        else:
-            tm = training_meshes(
-                reference, icosphere(1), config=PrepareConfig(levels=levels), key=jax.random.key(0)
-            )
-            save_training_meshes(tm, meshes_file)
+        reference, tm = depth_meshes(kind, levels, folder)
         prepare = (time.perf_counter() - t0, time.process_time() - c0)
         cfg = Config(steps=steps)
         t0, c0 = time.perf_counter(), time.process_time()
@@ -382,6 +395,100 @@ def depth(
             title=f"DGTS, paper network, {levels} levels ({kind}, period {period:.2f} mean edges)",
         )
         report.write()
+
+
+def noise_response(
+    kind: str, *, levels: int, steps: int, work: pathlib.Path, samples: int, real=("cow", "fandisk")
+) -> None:
+    """Where a trained hierarchy's texture goes wrong under fresh noise, per ``Config.fake_inputs``.
+
+    The paper's network on the run at depth's training meshes (:func:`depth_meshes`), trained
+    ``steps`` per level once per ``fake_inputs`` choice (resumable in
+    ``work/<kind>/fake_inputs_<choice>_<steps>/``). Rows, as peak density and relief relative to the
+    truth: in-domain, every level reconstructed (``z*``) except fresh noise at level ``k`` alone
+    (the noise response of generator ``k`` given the training coarse shape); transfers to the torus
+    and the shared real meshes at the default start level and noise, and from level 2 with noise
+    at levels 2-3, against their oracles, beside untrained weights and matched noise. Writes
+    ``dgts_noise_response``."""
+    from jmeshtex.dgts import load, save
+    from jmeshtex.dgts._transfer import (
+        _noises,
+        _reconstruction_noise,
+        _synthesise,
+        plan_transfer,
+    )
+
+    report = Report("dgts_noise_response", ceilings=False)
+    folder = work / kind
+    _, tm = depth_meshes(kind, levels, folder)
+    period = period_in_mean_edges(tm, DEPTH_TEXTURES[kind])
+    truth = tm.mesh(-1)
+    template = (tm.template, tm.faces[0])
+    report.config = {"kind": kind, "levels": levels, "steps": steps, "period_mean_edges": period}
+    models = {}
+    for choice in ("sampled", "reconstructed"):
+        run = folder / f"fake_inputs_{choice}_{steps}"
+        if (run / "model.npz").is_file():
+            models[choice] = load(run / "model.npz")
+            continue
+        c0, t0 = time.process_time(), time.perf_counter()
+        result = train(
+            tm,
+            Config(steps=steps, fake_inputs=choice),
+            key=jax.random.key(0),
+            checkpoint_dir=run / "checkpoints",
+            checkpoint_every=250,
+            progress=False,
+        )
+        save(result.model, run / "model.npz")
+        models[choice] = result.model
+        report.add(
+            name=f"train ({choice})",
+            train_s=time.perf_counter() - t0,
+            train_cpu_s=time.process_time() - c0,
+            resumed_from=result.resumed_from,
+        )
+    models["untrained"] = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    for name, model in models.items():
+        plan = plan_transfer(model, template, start_level=0)
+        rec = _reconstruction_noise(model, plan.sizes)
+        rows = {}
+        for k in range(levels + 1):
+            draws = []
+            for i in range(samples):
+                fresh = _noises(
+                    jax.random.fold_in(jax.random.key(2), i),
+                    plan.sizes,
+                    model.config.noise_amplitude,
+                )
+                draws.append([fresh[j] if j == k else rec[j] for j in range(levels)])
+            out = _synthesise(model, plan, draws, per_level=False)
+            label = f"fresh noise at level {k} only" if k < levels else "reconstruction (no noise)"
+            rows[label] = [out.mesh(i) for i in range(samples)]
+        _score_rows(report, f"[{name}] in-domain vs training mesh", rows, truth, None, {})
+    for target_name, target in _targets(real):
+        for start in (None, 2):
+            rows = {}
+            for name, model in models.items():
+                res = transfer(
+                    model, target, num_samples=samples, start_level=start, key=jax.random.key(1)
+                )
+                rows[name] = [res.mesh(i) for i in range(samples)]
+            base = (res.base, res.faces)
+            oracle = oracle_texture(base, kind, period=period)
+            own = texture_scores(oracle, oracle, base=base)
+            rows["matched noise"] = [
+                matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(samples)
+            ]
+            at = "default start" if start is None else f"start {start}"
+            _score_rows(report, f"{target_name}, {at} (F={len(res.faces)})", rows, oracle, base, {})
+        report.write()
+    report.notes.append(
+        "density_vs_truth / relief_vs_truth: the mesh's peak density (peaks per squared mean edge) "
+        "and relief std over the truth's (the training mesh in-domain, the oracle on a transfer's "
+        "own base); transfers use the default noise (fresh at the first two levels run)."
+    )
+    report.write()
 
 
 #: the learning test's settings (tests/dgts/test_learning.py): name -> (Config changes, the
@@ -638,7 +745,23 @@ def main() -> None:
         default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "dgts_depth",
         help="--depth's resumable runs",
     )
+    ap.add_argument(
+        "--noise-response",
+        default=None,
+        choices=sorted(DEPTH_TEXTURES),
+        help="only the noise-response study of Config.fake_inputs on this texture (uses --work, "
+        "--depth-levels, --depth-steps; writes dgts_noise_response)",
+    )
     args = ap.parse_args()
+    if args.noise_response:
+        noise_response(
+            args.noise_response,
+            levels=args.depth_levels,
+            steps=args.depth_steps,
+            work=args.work,
+            samples=args.samples,
+        )
+        return
     if args.depth:
         depth(
             args.depth,
