@@ -409,7 +409,8 @@ def noise_response(
     (the noise response of generator ``k`` given the training coarse shape); transfers to the torus
     and the shared real meshes at the default start level and noise, and from level 2 with noise
     at levels 2-3, against their oracles, beside untrained weights and matched noise. Writes
-    ``dgts_noise_response``."""
+    ``dgts_noise_response`` and its figure (in-domain under level L−1's noise; each target's oracle
+    and transfers at the default start)."""
     from jmeshtex.dgts import load, save
     from jmeshtex.dgts._transfer import (
         _noises,
@@ -449,6 +450,8 @@ def noise_response(
             resumed_from=result.resumed_from,
         )
     models["untrained"] = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    panels = [("training mesh", truth)]
+    label_last = f"fresh noise at level {levels - 1} only"
     for name, model in models.items():
         plan = plan_transfer(model, template, start_level=0)
         rec = _reconstruction_noise(model, plan.sizes)
@@ -466,6 +469,7 @@ def noise_response(
             label = f"fresh noise at level {k} only" if k < levels else "reconstruction (no noise)"
             rows[label] = [out.mesh(i) for i in range(samples)]
         _score_rows(report, f"[{name}] in-domain vs training mesh", rows, truth, None, {})
+        panels.append((f"{name}: noise at level {levels - 1} only", rows[label_last][0]))
     for target_name, target in _targets(real):
         for start in (None, 2):
             rows = {}
@@ -482,7 +486,19 @@ def noise_response(
             ]
             at = "default start" if start is None else f"start {start}"
             _score_rows(report, f"{target_name}, {at} (F={len(res.faces)})", rows, oracle, base, {})
+            if start is None:
+                panels.append((f"{target_name}: oracle", oracle))
+                panels += [(f"{target_name}: {n}", rows[n][0]) for n in models]
         report.write()
+    from jmeshtex.render import figure, render_mesh
+
+    figure(
+        [(title, render_mesh(mesh, size=(320, 320))) for title, mesh in panels],
+        columns=4,
+        title=f"DGTS {kind}, {levels} levels x {steps} steps: fake_inputs sampled (reference) vs "
+        "reconstructed",
+        path=RESULTS / "dgts_noise_response.png",
+    )
     report.notes.append(
         "density_vs_truth / relief_vs_truth: the mesh's peak density (peaks per squared mean edge) "
         "and relief std over the truth's (the training mesh in-domain, the oracle on a transfer's "

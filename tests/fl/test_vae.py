@@ -186,8 +186,10 @@ def test_shipped_models_load():
         config = model.config
         # the stored config is the small preset's, trained 3500 steps (weights/README.md), with
         # the behaviour of the fields added since (Config.from_stored: the ring-mean token, the
-        # single-vertex log objective; no weight average)
-        small = Config.small().replace(token="ring_mean", log_objective="vertex", ema_decay=0.0)
+        # single-vertex log objective; no weight average) at the paper's λ, the preset's then
+        small = Config.small().replace(
+            token="ring_mean", log_objective="vertex", ema_decay=0.0, kl_weight=0.01
+        )
         assert config == dataclasses.replace(small, decoder=decoder, steps=3500), config
         assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(model.params))
     with pytest.raises(ConfigError, match="decoder must be one of"):
