@@ -364,7 +364,7 @@ def depth(
             checkpoint_every=checkpoint_every,
         )
         trained = result.model
-        save(trained, folder / "model.npz")
+        save(trained, folder)  # folder/model.npz
         untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
         period = period_in_mean_edges(tm, reference_period)
         tag = f"[{kind} {levels} levels, period {period:.2f} edges] "
@@ -411,13 +411,9 @@ def noise_response(
     at levels 2-3, against their oracles, beside untrained weights and matched noise. Writes
     ``dgts_noise_response`` and its figure (in-domain under level L−1's noise; each target's oracle
     and transfers at the default start)."""
+    from jmeshtex import Mesh
     from jmeshtex.dgts import load, save
-    from jmeshtex.dgts._transfer import (
-        _noises,
-        _reconstruction_noise,
-        _synthesise,
-        plan_transfer,
-    )
+    from jmeshtex.dgts.core import plan_transfer, run_plan
 
     report = Report("dgts_noise_response", ceilings=False)
     folder = work / kind
@@ -430,7 +426,7 @@ def noise_response(
     for choice in ("sampled", "reconstructed"):
         run = folder / f"fake_inputs_{choice}_{steps}"
         if (run / "model.npz").is_file():
-            models[choice] = load(run / "model.npz")
+            models[choice] = load(run)
             continue
         c0, t0 = time.process_time(), time.perf_counter()
         result = train(
@@ -441,7 +437,7 @@ def noise_response(
             checkpoint_every=250,
             progress=False,
         )
-        save(result.model, run / "model.npz")
+        save(result.model, run)  # run/model.npz
         models[choice] = result.model
         report.add(
             name=f"train ({choice})",
@@ -452,22 +448,22 @@ def noise_response(
     models["untrained"] = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
     panels = [("training mesh", truth)]
     label_last = f"fresh noise at level {levels - 1} only"
+
+    def only_at(model, plan, k: int, i: int) -> Mesh:
+        """The template through every level with the reconstruction's noise (``z*`` at level 0,
+        zero above) except fresh noise at level ``k`` (none when ``k`` is the level count)."""
+        noise = [np.asarray(model.z_star, np.float32)] + [0.0] * (levels - 1)
+        if k < levels:
+            draw = jax.random.normal(jax.random.fold_in(jax.random.key(2), i), (plan.sizes[k], 3))
+            noise[k] = model.config.noise_amplitude * draw
+        return Mesh(plan.to_target(run_plan(model, plan, noise)), plan.faces[-1])
+
     for name, model in models.items():
         plan = plan_transfer(model, template, start_level=0)
-        rec = _reconstruction_noise(model, plan.sizes)
         rows = {}
         for k in range(levels + 1):
-            draws = []
-            for i in range(samples):
-                fresh = _noises(
-                    jax.random.fold_in(jax.random.key(2), i),
-                    plan.sizes,
-                    model.config.noise_amplitude,
-                )
-                draws.append([fresh[j] if j == k else rec[j] for j in range(levels)])
-            out = _synthesise(model, plan, draws, per_level=False)
             label = f"fresh noise at level {k} only" if k < levels else "reconstruction (no noise)"
-            rows[label] = [out.mesh(i) for i in range(samples)]
+            rows[label] = [only_at(model, plan, k, i) for i in range(samples)]
         _score_rows(report, f"[{name}] in-domain vs training mesh", rows, truth, None, {})
         panels.append((f"{name}: noise at level {levels - 1} only", rows[label_last][0]))
     for target_name, target in _targets(real):
