@@ -232,15 +232,17 @@ def level_batch(
     fixed_rec = L >= c.reconstruction_start
     n_fresh = chunk * (D + G) + (0 if fixed_rec else chunk * G)
     keys = jax.random.split(key, L + 2)
-    v = jnp.broadcast_to(template, (n_fresh + int(fixed_rec), *template.shape))
-    zs = []
+    n_rows = n_fresh + int(fixed_rec)
+    # "reconstructed": every row's frozen levels run on the reconstruction's noise, so they run once
+    shared = c.fake_inputs == "reconstructed"
+    v = jnp.broadcast_to(template, (1 if shared else n_rows, *template.shape))
     for level in range(L + 1):
         fixed = jnp.zeros((int(fixed_rec), sizes[level], 3), dtype)
         if level == 0 and fixed_rec:
             fixed = z_star.astype(dtype)[None]
-        if level < L and c.fake_inputs == "reconstructed":  # the fakes share the reconstruction's
+        if level < L and shared:
             rec = z_star.astype(dtype) if level == 0 else jnp.zeros((sizes[level], 3), dtype)
-            z = jnp.concatenate([jnp.broadcast_to(rec, (n_fresh, *rec.shape)), fixed], axis=0)
+            z = rec[None]
         else:
             z = _noise(
                 keys[level],
@@ -250,8 +252,7 @@ def level_batch(
             )
         if level < L:
             v = _advance(model_levels[level], v, z, geos[level], config=c)
-        zs.append(z)
-    z = zs[L]
+    v = jnp.broadcast_to(v, (n_rows, *v.shape[1:]))  # z: level L's noise
     n_fake = chunk * (D + G)
     fake_base = v[:n_fake].reshape(chunk, D + G, sizes[L], 3)
     fake_noise = z[:n_fake].reshape(chunk, D + G, sizes[L], 3)
