@@ -290,7 +290,7 @@ class Config(ConfigBase):
         a weight EMA (0.999) and ``kl_weight = 1e-3`` (the paper: 0.01), both beyond the paper,
         whose training script is not public. At λ = 0.01 the log model's KL collapses to 4 live
         channels by 3,000 steps and the barycentric ablation leads; at 1e-3 every channel keeps
-        2–4 nats and the log model leads by 1.1 dB on held-out photographs
+        2–4 nats and the log model leads by 1.1 dB on held-out photographs at 3,000 steps (1.3 at 5,000)
         (``benchmarks/results/fl_vae_curve_kl.md``).
 
         Example:
