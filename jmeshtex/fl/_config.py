@@ -288,10 +288,9 @@ class Config(ConfigBase):
         5 × 128, 32 samples per one-ring (the paper: 64; halves the encoder's cost), the paper's loss
         and data density (64² textures, ≈ 158 vertices each), cosine 1e-3 → 1e-5 over 20K steps,
         a weight EMA (0.999) and ``kl_weight = 1e-3`` (the paper: 0.01), both beyond the paper,
-        whose training script is not public. At λ = 0.01 the log model's KL collapses to 4 live
-        channels by 3,000 steps and the barycentric ablation leads; at 1e-3 every channel keeps
-        2–4 nats and the log model leads by 1.1 dB on held-out photographs at 3,000 steps (1.3 at 5,000)
-        (``benchmarks/results/fl_vae_curve_kl.md``).
+        whose training script is not public. At λ = 0.01 the log model's KL collapses onto half of
+        the channels and its barycentric ablation leads; at 1e-3 every channel stays alive and the
+        log model leads on held-out photographs (``benchmarks/results/fl_vae_curve_kl.md``).
 
         Example:
           >>> c = Config.small()
