@@ -143,6 +143,19 @@ def baseline_metrics(mesh, r, *, lpips: bool) -> dict[str, dict]:
     }
 
 
+def vertex_p1_metrics(model, r, *, lpips: bool) -> dict:
+    """Atlas metrics of the model's own colours at the vertices (``D(z_p, 0)``), P1-interpolated:
+    what the latents give without the decoder's detail inside faces. Beside the P1 oracle (true
+    colours at the vertices) it separates the decoder's error at the vertices from what it adds
+    between them."""
+    vertex_colors = np.asarray(fl.decode_vertex_colors(model, r.latent_mesh, r.latents), np.float64)
+    row, col, face, bary = r.texels
+    corners = np.asarray(r.latent_mesh.faces)[face]
+    atlas = np.zeros_like(r.target)
+    atlas[row, col] = np.clip(fl.core.p1_interpolate(vertex_colors, corners, bary), 0.0, 1.0)
+    return fl.core.atlas_metrics(atlas, r.target, r.valid, lpips=lpips)
+
+
 def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
     """Held-out photographs as planar meshes at 26 and 18 pixels per vertex (module docstring)."""
     rng = np.random.default_rng(0)
@@ -508,6 +521,15 @@ def main() -> None:
                     seconds=time.perf_counter() - t0,
                     remesh_s=round(t_remesh, 2),
                     load=load(),
+                )
+                report.add(
+                    **common,
+                    model=f"{decoder} at vertices, P1",
+                    space="atlas",
+                    **{
+                        k: round(v, 4)
+                        for k, v in vertex_p1_metrics(model, r, lpips=not args.no_lpips).items()
+                    },
                 )
                 if args.views:
                     t0 = time.perf_counter()

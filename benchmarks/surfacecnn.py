@@ -236,7 +236,7 @@ def _exemplar(kind: str, n: int) -> np.ndarray:
     return np.repeat(brick[..., None], 3, axis=2)
 
 
-def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick") -> None:
+def frames(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick") -> None:
     import json
 
     from jmeshtex import render
@@ -393,8 +393,8 @@ def quality(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick"
     print(text)
     directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
     suffix = "" if kind == "brick" else f"_{kind}"
-    (directory / f"surfacecnn.quality{suffix}.md").write_text(text)
-    (directory / f"surfacecnn.quality{suffix}.json").write_text(json.dumps(rows, indent=1) + "\n")
+    (directory / f"surfacecnn_frames{suffix}.md").write_text(text)
+    (directory / f"surfacecnn_frames{suffix}.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -561,6 +561,217 @@ def seams(size: int, steps: int, out: pathlib.Path | None) -> None:
     (directory / "surfacecnn_seams.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 
+# ---------------------------------------------------------------------------------------------
+# quality: the issue-33 protocol (real meshes, native-resolution exemplars, paper settings)
+
+PROTOCOL_MESHES = {
+    "spot": ("spot/spot_triangulated.obj", "y"),
+    "cow": ("cow.obj", "y"),
+    "fandisk": ("fandisk.obj", "y"),
+}
+PROTOCOL_EXEMPLARS = ("brick", "grass", "immunohistochemistry")
+
+
+def protocol_exemplar(name: str) -> np.ndarray:
+    """A scikit-image photograph at its native 512² (1 exemplar pixel = 1 texel), RGB in [0, 1]."""
+    import skimage.data
+
+    image = getattr(skimage.data, name)().astype(np.float64) / 255.0
+    return image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
+
+
+def _protocol_mesh(name: str, work: pathlib.Path) -> Mesh:
+    """The shared mesh, unwrapped with xatlas once (the layout is kept in ``work`` so a resumed
+    run optimises the same texels)."""
+    from jmeshtex.geometry import prepare_mesh
+    from jmeshtex.io import load_mesh
+
+    path = work / f"{name}_xatlas.npz"
+    if path.is_file():
+        with np.load(path) as z:
+            return Mesh(z["vertices"], z["faces"], uv=z["uv"])
+    base = load_mesh(
+        pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED)) / PROTOCOL_MESHES[name][0]
+    )
+    base, _ = prepare_mesh(base.replace(uv=None, texture=None), repair=True)  # the cow: a bow-tie
+    mesh = Mesh(base.vertices, base.faces, uv=unwrap_uv(base.vertices, base.faces))
+    work.mkdir(parents=True, exist_ok=True)
+    np.savez(
+        path,
+        vertices=np.asarray(mesh.vertices),
+        faces=np.asarray(mesh.faces),
+        uv=np.asarray(mesh.uv),
+    )
+    return mesh
+
+
+def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps, weights, work):
+    """One (mesh, exemplar) cell: the surface CNN and UV-space 2D synthesis with the same
+    settings, each scored by seams, specks and surface patches; resumable (checkpoints and the
+    finished row in ``work``)."""
+    import json
+
+    from jmeshtex import render
+    from jmeshtex.io import atomic_write
+    from jmeshtex.metrics import surface_patch_table
+    from jmeshtex.surfacecnn import synthesize, synthesize_uv
+    from jmeshtex.surfacecnn.core import seam_ratio
+
+    cell = work / f"{mesh_name}_{ex_name}_{size}_{steps}"
+    done = cell / "row.json"
+    if done.is_file():
+        return json.loads(done.read_text())
+    exemplar = protocol_exemplar(ex_name)
+    config = Config(size=size, steps=steps)
+    valid = (surface.atlas.index_of >= 0).reshape(size, size)
+    cams = render.orbit_cameras(mesh, azimuths=4, elevations=(20.0,), size=(size, size), up=up)
+    row = {
+        "mesh": mesh_name,
+        "exemplar": ex_name,
+        "size": size,
+        "steps": steps,
+        "texels": int(surface.atlas.num_texels),
+    }
+    panels = [("exemplar", exemplar)]
+    for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
+        t0, c0 = time.perf_counter(), time.process_time()
+        r = run(
+            mesh,
+            exemplar,
+            config,
+            key=jax.random.key(0),
+            surface=surface,
+            weights=weights,
+            progress=False,
+            **({"checkpoint": cell / method} if method == "surface" else {}),
+        )
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        np.save(cell / f"{method}_texture.npy", np.asarray(r.texture, np.float32))
+        seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
+        textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture)
+        views = render.render_views(textured, cams, shading="unlit")
+        specks = [_specks(v) for v in views]
+        patches = surface_patch_table(
+            textured,
+            r.texture,
+            exemplar,
+            step=surface.atlas.texel_size,
+            key=jax.random.key(5),
+            num=32,
+            initial=np.random.default_rng(0).uniform(0.0, 0.2, size=(size, size, 3)),
+            valid=valid,
+            weights=weights,
+        )
+        row[method] = {
+            "seconds": wall,
+            "cpu_s": cpu,
+            "final_loss": float(r.final_loss),
+            "loss_500_over_250": float(r.losses[-1] / r.losses[len(r.losses) // 2]),
+            "seam_ratio": float(seams["ratio"]),
+            "speck_abs": float(np.mean([s["abs"] for s in specks])),
+            "speck_local": float(np.mean([s["local"] for s in specks])),
+            "patches": patches,
+        }
+        print(
+            json.dumps(
+                {
+                    "cell": cell.name,
+                    "method": method,
+                    **{k: v for k, v in row[method].items() if k != "patches"},
+                }
+            ),
+            flush=True,
+        )
+        panels += [(f"{method} view {i}", views[i]) for i in (0, 1)]
+    row["peak_rss_mb"] = _peak_mb()
+    render.figure(
+        panels,
+        columns=5,
+        title=f"{mesh_name}, {ex_name}, {size}², {steps} steps",
+        path=cell / "figure.png",
+    )
+    atomic_write(done, (json.dumps(row, indent=1) + "\n").encode())
+    return row
+
+
+def quality(
+    meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+) -> None:
+    """The issue-33 protocol: every (mesh, exemplar) cell at ``size``² and ``steps`` steps, every
+    VGG-16 ReLU and pool output, xatlas layouts, exemplars at native resolution."""
+
+    from jmeshtex.geometry import tracer_geometry
+
+    weights = load_vgg16()
+    levels = required_levels(weights, default_layers(weights))
+    rows, spreads = [], {}
+    for mesh_name in meshes:
+        mesh = _protocol_mesh(mesh_name, work)
+        spreads[mesh_name] = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)[
+            "ratio_p95_p5"
+        ]
+        surface, geometry = None, None
+        for ex_name in exemplars:
+            cell = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
+            if surface is None and not cell.is_file():
+                surface = prepare_surface(mesh, size=size, levels=levels)
+                geometry = tracer_geometry(mesh.vertices, mesh.faces)
+            rows.append(
+                _protocol_cell(
+                    mesh_name,
+                    mesh,
+                    PROTOCOL_MESHES[mesh_name][1],
+                    surface,
+                    geometry,
+                    ex_name,
+                    size,
+                    steps,
+                    weights,
+                    work,
+                )
+            )
+    _write_quality(rows, spreads, size, steps, out)
+
+
+def _write_quality(rows, spreads, size, steps, out):
+    import json
+
+    baselines = ("flat", "permuted", "initial", "uv_tiled", "floor")
+    lines = [
+        "# surfacecnn quality\n",
+        f"Protocol of issue 33: {size}² textures, {steps} steps (Adam 0.1 halved every 200), every "
+        "ReLU and pool output of the embedded VGG-16, xatlas layouts, exemplars at native 512² "
+        "(1 exemplar pixel = 1 texel). Surface patches: 32 geodesic patches of 32² texels in the "
+        "synthesis frames against exemplar crops; cells read patch Gram / log radial spectrum L1 "
+        "(network-free). Seam ratio: mean colour difference across chart seams over inside charts. "
+        "Specks: share of object pixels of 4 unlit views (one pixel ≈ one texel) whose chroma "
+        "exceeds its 7×7 median by 0.15.\n",
+        "| mesh | exemplar | method | patch Gram / spectrum | "
+        + " | ".join(baselines)
+        + " | charts / patch | seam ratio | specks | loss | CPU-s | wall s |",
+        "|---|---|---|---|" + "---|" * len(baselines) + "---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
+            m = r[method]
+            p = m["patches"]
+            cells = " | ".join(f"{p[k]['gram']:.3g} / {p[k]['spectrum']:.3f}" for k in baselines)
+            lines.append(
+                f"| {r['mesh']} | {r['exemplar']} | {label} | **{p['texture']['gram']:.3g} / "
+                f"{p['texture']['spectrum']:.3f}** | {cells} | {p['texture']['charts']:.2f} | "
+                f"{m['seam_ratio']:.3f} | {m['speck_local']:.4f} | {m['final_loss']:.4g} | "
+                f"{m['cpu_s']:.0f} | {m['seconds']:.0f} |"
+            )
+    lines += ["", "| mesh | texel-density spread p95/p5 (xatlas) |", "|---|---|"]
+    lines += [f"| {k} | {v:.2f} |" for k, v in spreads.items()]
+    lines.append(f"\nLoad average at the end {os.getloadavg()[0]:.1f} (shared 2-core machine).")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    (directory / "surfacecnn.quality.md").write_text(text)
+    (directory / "surfacecnn.quality.json").write_text(json.dumps(rows, indent=1) + "\n")
+
+
 if __name__ == "__main__":
     import sys
 
@@ -572,14 +783,37 @@ if __name__ == "__main__":
         sp.add_argument("--out", default=None)
         sa = sp.parse_args()
         seams(sa.size, sa.seam_steps, pathlib.Path(sa.out) if sa.out else None)
-    elif "--quality" in sys.argv:
+    elif "--frames" in sys.argv:
         qp = argparse.ArgumentParser()
-        qp.add_argument("--quality", action="store_true")
+        qp.add_argument("--frames", action="store_true")
         qp.add_argument("--size", type=int, default=96)
         qp.add_argument("--quality-steps", type=int, default=150)
         qp.add_argument("--exemplar", choices=("brick", "stripes"), default="brick")
         qp.add_argument("--out", default=None)
         qa = qp.parse_args()
-        quality(qa.size, qa.quality_steps, pathlib.Path(qa.out) if qa.out else None, qa.exemplar)
+        frames(qa.size, qa.quality_steps, pathlib.Path(qa.out) if qa.out else None, qa.exemplar)
+    elif "--quality" in sys.argv:
+        qp = argparse.ArgumentParser()
+        qp.add_argument("--quality", action="store_true")
+        qp.add_argument("--meshes", default=",".join(PROTOCOL_MESHES))
+        qp.add_argument("--exemplars", default=",".join(PROTOCOL_EXEMPLARS))
+        qp.add_argument("--size", type=int, default=512)
+        qp.add_argument("--quality-steps", type=int, default=500)
+        qp.add_argument(
+            "--work",
+            type=pathlib.Path,
+            default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
+            help="resumable cells (checkpoints, textures, finished rows)",
+        )
+        qp.add_argument("--out", default=None)
+        qa = qp.parse_args()
+        quality(
+            qa.meshes.split(","),
+            qa.exemplars.split(","),
+            qa.size,
+            qa.quality_steps,
+            qa.work,
+            pathlib.Path(qa.out) if qa.out else None,
+        )
     else:
         main()

@@ -3,8 +3,8 @@
 
 A model file is the one model format of :func:`jmeshtex.io.save_model` (one ``.npz``: the
 parameters by key path, the config and the ``extra`` metadata as JSON), written atomically. Files
-of the earlier layout (``leaf_0000`` ... in pytree order and a ``meta`` entry of UTF-8 JSON, as the
-shipped weights) are read behind a version check.
+of the earlier layout (``leaf_0000`` ... in pytree order and a ``meta`` entry of UTF-8 JSON) are
+read behind a version check.
 """
 
 from __future__ import annotations

@@ -184,13 +184,11 @@ def test_shipped_models_load():
     for decoder in ("log", "barycentric"):
         model = load_pretrained(decoder=decoder)
         config = model.config
-        # the stored config is the small preset's, trained 3500 steps (weights/README.md), with
-        # the behaviour of the fields added since (Config.from_stored: the ring-mean token, the
-        # single-vertex log objective; no weight average) at the paper's λ, the preset's then
-        small = Config.small().replace(
-            token="ring_mean", log_objective="vertex", ema_decay=0.0, kl_weight=0.01
-        )
-        assert config == dataclasses.replace(small, decoder=decoder, steps=3500), config
+        # the small preset's 20K-step schedule, stopped at step 5000 (weights/README.md)
+        assert config == Config.small(decoder=decoder, checkpoint_every=1000), config
+        extra = load_extra(_PRETRAINED[decoder])
+        assert extra["step"] == 5000 and len(extra["kl_channels"]) == config.latent_dim
+        assert min(extra["kl_channels"]) > 0.1  # no collapsed channel
         assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(model.params))
     with pytest.raises(ConfigError, match="decoder must be one of"):
         load_pretrained(decoder="bary")
@@ -200,13 +198,14 @@ def test_shipped_models_load():
 @pytest.mark.shared_data
 def test_shipped_model_reconstructs_a_held_out_photograph_on_spot(shared_data):
     """A photograph the shipped models never saw (``HELD_OUT_IMAGES``), mapped onto Spot's UVs: the
-    log decoder is well above the best constant colour, and within 1 dB of the barycentric ablation.
+    log decoder is ahead of its barycentric ablation (the paper's Table 1 ordering) and of the P1
+    oracle (the true colour at each vertex, interpolated linearly).
 
-    Measured (seed 0, 256² atlas, latents on Spot's 2930 vertices): log 24.16 dB, barycentric
-    24.71 dB, constant 17.75 dB. The paper's ordering (log ahead) is not reproduced by this small,
-    briefly trained model (weights/README.md); the 1 dB bound guards against a regression."""
+    Measured (seed 0, 256² atlas, latents on Spot's 2930 vertices): log 27.36 dB, barycentric
+    25.01, P1 oracle 25.05, constant 17.75 (coffee: 23.94 / 21.83 / 21.72; rocket: 30.87 /
+    28.76 / 28.97)."""
     from jmeshtex.fl import held_out_images, reconstruct
-    from jmeshtex.fl.core import HELD_OUT_IMAGES
+    from jmeshtex.fl.core import HELD_OUT_IMAGES, p1_baselines
     from jmeshtex.io import load_mesh
 
     spot = load_mesh(
@@ -223,5 +222,8 @@ def test_shipped_model_reconstructs_a_held_out_photograph_on_spot(shared_data):
         psnr[decoder] = float(rec.metrics["psnr"])
     used = rec.target[rec.valid]
     constant = 10 * np.log10(1.0 / np.mean((used - used.mean(axis=0)) ** 2))
-    assert psnr["log"] >= constant + 5.0, (psnr, constant)
-    assert psnr["log"] >= psnr["barycentric"] - 1.0, psnr
+    oracle = p1_baselines(mesh, rec)["p1_oracle"][rec.valid]
+    oracle_psnr = 10 * np.log10(1.0 / np.mean((oracle - used) ** 2))
+    assert psnr["log"] >= constant + 8.0, (psnr, constant)
+    assert psnr["log"] >= psnr["barycentric"] + 1.0, psnr
+    assert psnr["log"] >= oracle_psnr + 1.0, (psnr, oracle_psnr)

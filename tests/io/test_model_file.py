@@ -151,7 +151,7 @@ def _write_earlier_fl_layout(model, path):
     np.savez(path, **arrays)
 
 
-def test_fl_reads_its_earlier_layout_and_the_shipped_weights(tmp_path):
+def test_fl_reads_its_earlier_layout_and_the_shipped_weights_in_the_one_format(tmp_path):
     model = fl.init(fl.Config(latent_dim=2, features=8, num_heads=2), key=jax.random.key(0))
     _write_earlier_fl_layout(model, tmp_path / "old.npz")
     fl.save(model, tmp_path / "new.npz", extra={"step": 2})
@@ -164,7 +164,7 @@ def test_fl_reads_its_earlier_layout_and_the_shipped_weights(tmp_path):
         fl.core.decode_vertex_colors_from_latents(new.params, new.config, mu),
     )
     with zipfile.ZipFile(fl.load_pretrained.__globals__["_PRETRAINED"]["log"]) as z:
-        assert "meta.npy" in z.namelist()  # the shipped weights are in the earlier layout
+        assert "meta.npy" not in z.namelist()  # the shipped weights are in the one format
     assert fl.load_pretrained().config.latent_dim == 8
     with pytest.raises(CorruptModelError, match="earlier layout"):
         np.savez(tmp_path / "broken.npz", meta=np.frombuffer(b"{}", np.uint8), leaf_0000=mu)
