@@ -333,17 +333,12 @@ def test_config_dicts_written_before_the_refactor_still_load():
 @pytest.mark.parametrize("name", ["fl_vae.npz", "fl_vae_barycentric.npz"])
 def test_shipped_weights_store_every_config_field(name):
     # the shipped weights embed the complete fl.Config dict of their training run, read back exactly
-    with np.load(WEIGHTS / name, allow_pickle=False) as data:
-        stored = json.loads(data["meta"].tobytes().decode())["config"]
-    back = FLVAEConfig.from_dict(stored).to_dict()
-    assert {k: back[k] for k in stored} == stored
-    # fields added since are exactly those whose absence means the old behaviour (from_stored)
-    from jmeshtex.fl._config import LEGACY_VALUES
+    from jmeshtex.io import load_model
 
-    added = set(FLVAEConfig().to_dict()) - set(stored)
-    assert set(stored) <= set(FLVAEConfig().to_dict())
-    legacy = FLVAEConfig.from_stored(stored)
-    assert all(getattr(legacy, k) == LEGACY_VALUES.get(k, getattr(FLVAEConfig(), k)) for k in added)
+    stored = load_model(WEIGHTS / name, kind="jmeshtex.fl.Model").config
+    assert set(stored) == set(FLVAEConfig().to_dict())
+    assert FLVAEConfig.from_dict(stored).to_dict() == stored
+    assert FLVAEConfig.from_stored(stored) == FLVAEConfig.from_dict(stored)  # nothing to fill in
 
 
 @pytest.mark.parametrize(
