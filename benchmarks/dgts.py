@@ -306,19 +306,28 @@ def evaluate(
 DEPTH_TEXTURES = {"knobs": 0.45, "scales": 0.45, "spikes": 0.45, "craters": 0.45}
 
 
-def depth_meshes(kind: str, levels: int, folder: pathlib.Path):
+def depth_meshes(kind: str, levels: int, folder: pathlib.Path, coarse_levels: int = 0):
     """The run at depth's reference (a textured sphere, period ``DEPTH_TEXTURES[kind]``) and its
     ``levels`` fitted training levels on an icosphere(1) template, kept in
-    ``folder/training_meshes.npz`` (fitted once, about 12 CPU-minutes at 4 levels)."""
+    ``folder/training_meshes.npz`` (fitted once, about 12 CPU-minutes at 4 levels). With
+    ``coarse_levels`` the coarsest ones fit the sphere without its texture
+    (``training_meshes(coarse_reference=...)``; ``folder/training_meshes_coarse<K>.npz``)."""
     from jmeshtex.dgts import load_training_meshes, save_training_meshes
 
     folder.mkdir(parents=True, exist_ok=True)
     reference = textured_sphere(kind, subdivisions=levels + 1, period=DEPTH_TEXTURES[kind])
-    meshes_file = folder / "training_meshes.npz"
+    suffix = f"_coarse{coarse_levels}" if coarse_levels else ""
+    meshes_file = folder / f"training_meshes{suffix}.npz"
     if meshes_file.is_file():
         return reference, load_training_meshes(meshes_file)
+    smooth = textured_sphere(kind, subdivisions=levels + 1, period=1.0, amplitude=0.0)
     tm = training_meshes(
-        reference, icosphere(1), config=PrepareConfig(levels=levels), key=jax.random.key(0)
+        reference,
+        icosphere(1),
+        config=PrepareConfig(levels=levels),
+        key=jax.random.key(0),
+        coarse_reference=smooth if coarse_levels else None,
+        coarse_levels=coarse_levels,
     )
     save_training_meshes(tm, meshes_file)
     return reference, tm
@@ -398,7 +407,14 @@ def depth(
 
 
 def noise_response(
-    kind: str, *, levels: int, steps: int, work: pathlib.Path, samples: int, real=("cow", "fandisk")
+    kind: str,
+    *,
+    levels: int,
+    steps: int,
+    work: pathlib.Path,
+    samples: int,
+    real=("cow", "fandisk"),
+    coarse_levels: int = 0,
 ) -> None:
     """Where a trained hierarchy's texture goes wrong under fresh noise, per ``Config.fake_inputs``.
 
@@ -408,23 +424,32 @@ def noise_response(
     truth: in-domain, every level reconstructed (``z*``) except fresh noise at level ``k`` alone
     (the noise response of generator ``k`` given the training coarse shape); transfers to the torus
     and the shared real meshes at the default start level and noise, and from level 2 with noise
-    at levels 2-3, against their oracles, beside untrained weights and matched noise. Writes
-    ``dgts_noise_response`` and its figure (in-domain under level L−1's noise; each target's oracle
+    at levels 2-3, against their oracles, beside untrained weights and matched noise. With
+    ``coarse_levels`` the training meshes' coarsest levels fit the untextured sphere
+    (:func:`depth_meshes`; runs in ``coarse<K>_fake_inputs_...``). Writes
+    ``dgts_noise_response[_coarse<K>]`` and its figure (in-domain under level L−1's noise; each target's oracle
     and transfers at the default start)."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import load, save
     from jmeshtex.dgts.core import plan_transfer, run_plan
 
-    report = Report("dgts_noise_response", ceilings=False)
+    suffix = f"_coarse{coarse_levels}" if coarse_levels else ""
+    report = Report("dgts_noise_response" + suffix, ceilings=False)
     folder = work / kind
-    _, tm = depth_meshes(kind, levels, folder)
+    _, tm = depth_meshes(kind, levels, folder, coarse_levels)
     period = period_in_mean_edges(tm, DEPTH_TEXTURES[kind])
     truth = tm.mesh(-1)
     template = (tm.template, tm.faces[0])
-    report.config = {"kind": kind, "levels": levels, "steps": steps, "period_mean_edges": period}
+    report.config = {
+        "kind": kind,
+        "levels": levels,
+        "steps": steps,
+        "period_mean_edges": period,
+        "coarse_levels": coarse_levels,
+    }
     models = {}
     for choice in ("sampled", "reconstructed"):
-        run = folder / f"fake_inputs_{choice}_{steps}"
+        run = folder / f"{suffix[1:]}{'_' if suffix else ''}fake_inputs_{choice}_{steps}"
         if (run / "model.npz").is_file():
             models[choice] = load(run)
             continue
@@ -492,8 +517,9 @@ def noise_response(
         [(title, render_mesh(mesh, size=(320, 320))) for title, mesh in panels],
         columns=4,
         title=f"DGTS {kind}, {levels} levels x {steps} steps: fake_inputs sampled (reference) vs "
-        "reconstructed",
-        path=RESULTS / "dgts_noise_response.png",
+        "reconstructed"
+        + (f"; levels < {coarse_levels} fit the untextured sphere" if coarse_levels else ""),
+        path=RESULTS / f"dgts_noise_response{suffix}.png",
     )
     report.notes.append(
         "density_vs_truth / relief_vs_truth: the mesh's peak density (peaks per squared mean edge) "
@@ -764,6 +790,12 @@ def main() -> None:
         help="only the noise-response study of Config.fake_inputs on this texture (uses --work, "
         "--depth-levels, --depth-steps; writes dgts_noise_response)",
     )
+    ap.add_argument(
+        "--coarse-levels",
+        type=int,
+        default=0,
+        help="--noise-response: the training meshes' coarsest K levels fit the untextured sphere",
+    )
     args = ap.parse_args()
     if args.noise_response:
         noise_response(
@@ -772,6 +804,7 @@ def main() -> None:
             steps=args.depth_steps,
             work=args.work,
             samples=args.samples,
+            coarse_levels=args.coarse_levels,
         )
         return
     if args.depth:

@@ -24,7 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._errors import InputError, MeshIOError
+from .._config import is_int
+from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh, as_mesh
 from .._types import Array, Float, Int, PRNGKey
 from ..geometry import mean_edge_length, subdivide_midpoint, unique_edges, validate_mesh
@@ -377,6 +378,8 @@ def training_meshes(
     key: PRNGKey,
     config: PrepareConfig | None = None,
     progress: bool | Callable[[str, int, int], None] = True,
+    coarse_reference: Mesh | tuple[Float[np.ndarray, "C 3"], Int[np.ndarray, "H 3"]] | None = None,
+    coarse_levels: int = 0,
 ) -> TrainingMeshes:
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
 
@@ -392,6 +395,12 @@ def training_meshes(
       config: :class:`PrepareConfig` (default: its defaults).
       progress: True: a tqdm bar per level; False: none; a callable: called as
         ``progress(stage, done, total)`` instead (``stage`` is ``"level l"``).
+      coarse_reference: optional surface that levels ``0 … coarse_levels − 1`` are fitted to
+        instead of ``reference`` (beyond the paper: e.g. the reference without its texture, so the
+        coarse levels carry the shape and no aliased trace of the texture, and the first level fitted
+        to ``reference`` must lay the texture out from noise). It is placed by ``reference``'s
+        normalisation, so it must share its coordinates.
+      coarse_levels: how many levels (from the coarsest) fit ``coarse_reference``; 0: none.
 
     Returns:
       :class:`TrainingMeshes`.
@@ -399,6 +408,8 @@ def training_meshes(
     Raises:
       InputError: ``reference`` or ``template`` is not a mesh.
       MeshError: (a subclass) an invalid reference or template (:func:`jmeshtex.geometry.validate_mesh`).
+      ConfigError: ``coarse_levels`` outside ``[0, config.levels)``, or > 0 without a
+        ``coarse_reference``.
 
     Example:
       >>> from jmeshtex.data import icosphere, icosahedron
@@ -412,10 +423,24 @@ def training_meshes(
     tv, tf = as_mesh(template, what="training_meshes: template")
     validate_mesh(rv, rf)
     validate_mesh(tv, tf)
+    if not (is_int(coarse_levels) and 0 <= coarse_levels < config.levels):
+        raise ConfigError(
+            f"training_meshes: coarse_levels must be an int in [0, {config.levels}) (the finest "
+            f"level always fits the reference), got {coarse_levels!r}"
+        )
+    if coarse_levels and coarse_reference is None:
+        raise ConfigError(
+            f"training_meshes: coarse_levels={coarse_levels} needs a coarse_reference to fit"
+        )
     rv = np.asarray(rv, np.float64)
     rf = np.asarray(rf, np.int64)
     f = np.asarray(tf, np.int64)
     target, v, scale, center = normalize_pair(rv, np.asarray(tv, np.float64), f)
+    coarse = None
+    if coarse_levels:
+        cv, cf = as_mesh(coarse_reference, what="training_meshes: coarse_reference")
+        validate_mesh(cv, cf)
+        coarse = ((np.asarray(cv, np.float64) - center) * scale, np.asarray(cf, np.int64))
     template_out = v.copy()
     report = _progress_bars("prepare") if progress is True else (progress or None)
     verts, faces, edges, scales = [], [], [], []
@@ -425,6 +450,8 @@ def training_meshes(
             v, f = sub.vertices * config.scale_factor, sub.faces
             edges.append(sub.edge_vertices)
             target = target * config.scale_factor
+            if coarse is not None:
+                coarse = (coarse[0] * config.scale_factor, coarse[1])
             scale *= config.scale_factor
         stage = f"level {level}"
         cb = (
@@ -434,7 +461,7 @@ def training_meshes(
         )
         v, _ = fit_level(
             (v, f),
-            (target, rf),
+            coarse if level < coarse_levels else (target, rf),
             config=config,
             num_samples=config.samples_per_level * (level + 1),
             key=jax.random.fold_in(key, level),

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex import InputError, Mesh, MeshError, MeshIOError
+from jmeshtex import ConfigError, InputError, Mesh, MeshError, MeshIOError
 from jmeshtex.data import grid, icosahedron, icosphere
 from jmeshtex.dgts import PrepareConfig, load_training_meshes, save_training_meshes, training_meshes
 from jmeshtex.dgts._multiscale import normalize_pair
@@ -139,3 +139,39 @@ def test_errors(tmp_path):
         )
     with pytest.raises(InputError, match="reference"):
         training_meshes(v, (v, f), config=PrepareConfig(levels=1, steps=0), key=jax.random.key(0))
+
+
+def test_coarse_levels_fit_the_coarse_reference_in_the_references_frame(tiny_meshes):
+    cfg = PrepareConfig(levels=2, steps=20, samples_per_level=200)  # the fixture's settings
+    reference, template = icosphere(2), icosahedron()
+    same = training_meshes(
+        reference, template, config=cfg, key=jax.random.key(0), progress=False,
+        coarse_reference=reference, coarse_levels=1,
+    )  # fmt: skip
+    for level in range(2):  # the reference itself as the coarse one: the plain fit
+        np.testing.assert_allclose(same.vertices[level], tiny_meshes.vertices[level], atol=1e-9)
+    # a shrunken sphere in the reference's coordinates: level 0 follows it, level 1 the reference
+    shrunk = Mesh(0.8 * np.asarray(reference.vertices), reference.faces)
+    converged = cfg.replace(
+        steps=60
+    )  # fits close enough to read the radii (measured: 0.798, 1.000)
+    plain, tm = (
+        training_meshes(
+            reference, template, config=converged, key=jax.random.key(0), progress=False, **extra
+        )
+        for extra in ({}, {"coarse_reference": shrunk, "coarse_levels": 1})
+    )  # fmt: skip
+
+    def radius(v):
+        return float(np.linalg.norm(v - v.mean(0), axis=1).mean())
+
+    ratio0 = radius(tm.vertices[0]) / radius(plain.vertices[0])
+    ratio1 = radius(tm.vertices[1]) / radius(plain.vertices[1])
+    assert abs(ratio0 - 0.8) < 0.02 and abs(ratio1 - 1.0) < 0.02, (ratio0, ratio1)
+    with pytest.raises(ConfigError, match="needs a coarse_reference"):
+        training_meshes(reference, template, config=cfg, key=jax.random.key(0), coarse_levels=1)
+    with pytest.raises(ConfigError, match=r"coarse_levels must be an int in \[0, 2\)"):
+        training_meshes(
+            reference, template, config=cfg, key=jax.random.key(0), progress=False,
+            coarse_reference=shrunk, coarse_levels=2,
+        )  # fmt: skip
