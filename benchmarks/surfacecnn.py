@@ -241,7 +241,7 @@ def frames(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick")
 
     from jmeshtex import render
     from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.metrics import Protocol, baseline_table, surface_patch_table
+    from jmeshtex.metrics import Protocol, baseline_table
     from jmeshtex.surfacecnn import synthesize, synthesize_uv
     from jmeshtex.surfacecnn.core import frame_seam_turn, seam_ratio
 
@@ -284,15 +284,12 @@ def frames(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick")
                 protocol=protocol,
                 metrics=("sifid", "gram"),
             )
-            patches = surface_patch_table(
+            patches = _patch_scores(
                 Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv),
                 r.texture,
                 exemplar,
-                step=surface.atlas.texel_size,
-                key=jax.random.key(5),
-                num=32,
-                initial=np.random.default_rng(0).uniform(0.0, 0.2, size=(size, size, 3)),
-                valid=(surface.atlas.index_of >= 0).reshape(size, size),
+                surface,
+                None,
             )
             row = {
                 "mesh": name,
@@ -401,6 +398,25 @@ def frames(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick")
 # seams: coupling of chart-border texels (before/after) and the surface-patch measure
 
 
+def _patch_scores(textured, texture, exemplar, surface, weights) -> dict:
+    """:func:`jmeshtex.metrics.surface_patch_table` of a synthesis (32 patches at the texel scale;
+    the initial-noise baseline drawn as the synthesis draws its start, uniform in [0, 0.2])."""
+    from jmeshtex.metrics import surface_patch_table
+
+    size = texture.shape[0]
+    return surface_patch_table(
+        textured,
+        texture,
+        exemplar,
+        step=surface.atlas.texel_size,
+        key=jax.random.key(5),
+        num=32,
+        initial=np.random.default_rng(0).uniform(0.0, 0.2, size=(size, size, 3)),
+        valid=(surface.atlas.index_of >= 0).reshape(size, size),
+        weights=weights,
+    )
+
+
 def _specks(image: np.ndarray) -> dict:
     """Speck share of an unlit render: object pixels (2-px eroded mask) whose chroma exceeds 0.3,
     and whose chroma exceeds its 7×7 median by 0.15 (isolated coloured dots)."""
@@ -422,7 +438,6 @@ def seams(size: int, steps: int, out: pathlib.Path | None) -> None:
 
     from jmeshtex import render
     from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.metrics import surface_patch_table
     from jmeshtex.surfacecnn import synthesize
     from jmeshtex.surfacecnn.core import read_counts, seam_chroma, unread_share
 
@@ -469,19 +484,7 @@ def seams(size: int, steps: int, out: pathlib.Path | None) -> None:
             textured = r.mesh
             views = render.render_views(textured, cams, shading="unlit")
             specks = [_specks(v) for v in views]
-            valid = (surface.atlas.index_of >= 0).reshape(size, size)
-            noise = np.random.default_rng(0).uniform(0.0, 0.2, size=(size, size, 3))
-            table = surface_patch_table(
-                textured,
-                r.texture,
-                exemplar,
-                step=surface.atlas.texel_size,
-                key=jax.random.key(5),
-                num=32,
-                initial=noise,
-                valid=valid,
-                weights=weights,
-            )
+            table = _patch_scores(textured, r.texture, exemplar, surface, weights)
             row = {
                 "mesh": f"{name} ({unwrap} UVs)",
                 "density_p95_p5": spread,
@@ -613,7 +616,6 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
 
     from jmeshtex import render
     from jmeshtex.io import atomic_write
-    from jmeshtex.metrics import surface_patch_table
     from jmeshtex.surfacecnn import synthesize, synthesize_uv
     from jmeshtex.surfacecnn.core import seam_ratio
 
@@ -623,7 +625,6 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         return json.loads(done.read_text())
     exemplar = protocol_exemplar(ex_name)
     config = Config(size=size, steps=steps)
-    valid = (surface.atlas.index_of >= 0).reshape(size, size)
     cams = render.orbit_cameras(mesh, azimuths=4, elevations=(20.0,), size=(size, size), up=up)
     row = {
         "mesh": mesh_name,
@@ -651,17 +652,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture)
         views = render.render_views(textured, cams, shading="unlit")
         specks = [_specks(v) for v in views]
-        patches = surface_patch_table(
-            textured,
-            r.texture,
-            exemplar,
-            step=surface.atlas.texel_size,
-            key=jax.random.key(5),
-            num=32,
-            initial=np.random.default_rng(0).uniform(0.0, 0.2, size=(size, size, 3)),
-            valid=valid,
-            weights=weights,
-        )
+        patches = _patch_scores(textured, r.texture, exemplar, surface, weights)
         row[method] = {
             "seconds": wall,
             "cpu_s": cpu,
