@@ -15,12 +15,15 @@ The machine is shared; record ``uptime`` with the numbers and re-run on a quiet 
 precomputation is single-threaded NumPy, so its process CPU time (``cpu_s``) approximates the wall
 time of a quiet machine.
 
-Quality section (``--quality``): on Spot (its own UVs) and an xatlas-unwrapped icosphere, the
-surface CNN (global, smooth and — as the ablation — UV frames) against UV-space 2D synthesis (the
-same Gram optimisation on the flat texture image): the protocol's SIFID-VGG / Gram of 4 renders
-against the exemplar with its flat and permuted baselines, the seam ratio, and the frames' turn
-across seam edges. Writes ``results/surfacecnn.quality.{md,json}`` and renders to
-``/tmp/round2/surfacecnn_png/``.
+Quality section (``--quality``, issue 33's protocol): Spot, the cow and the fandisk (xatlas
+layouts) × scikit-image brick, grass and immunohistochemistry at native 512², 512² textures, 500
+steps, every VGG-16 ReLU and pool output; per cell the surface CNN and UV-space 2D synthesis with
+the surface-patch measure and its baselines, the seam ratio and render specks. Cells resume from
+``runs/surfacecnn_quality/``. Writes ``results/surfacecnn.quality.{md,json}``.
+
+Frames section (``--frames``): on Spot (its own UVs) and an xatlas-unwrapped icosphere at 96², the
+surface CNN with global, smooth and UV frames against UV-space 2D synthesis (render SIFID-VGG /
+Gram, seam ratio, frame turn across seams). Writes ``results/surfacecnn_frames.{md,json}``.
 
 Seams section (``--seams``): Spot with its own UVs and with xatlas, a grey brick exemplar at native
 resolution: synthesis without and with the coupling of chart-border texels (unread share, seam
@@ -31,8 +34,9 @@ Usage::
 
     python benchmarks/surfacecnn.py                       # precompute 512,1024; steps 256,512
     python benchmarks/surfacecnn.py --precompute 512 --steps 256
-    python benchmarks/surfacecnn.py --quality --size 96 --quality-steps 150
-    python benchmarks/surfacecnn.py --quality --size 96 --quality-steps 150 --exemplar stripes
+    python benchmarks/surfacecnn.py --quality                       # the protocol (hours; resumes)
+    python benchmarks/surfacecnn.py --quality --meshes spot --exemplars brick
+    python benchmarks/surfacecnn.py --frames --size 96 --quality-steps 150 --exemplar stripes
     python benchmarks/surfacecnn.py --seams --size 128 --seam-steps 150
 """
 

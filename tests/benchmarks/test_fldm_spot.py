@@ -58,7 +58,8 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
     # the decoder-free statistics separate the baselines: shuffling removes the spatial statistic,
     # random phases the pointwise one
     assert recon["energy_corr"] > 0.4 and abs(rows["shuffled latents"]["energy_corr"]) < 0.1
-    assert recon["concentration"] > 0.5 > 0.2 > rows["random channel phases"]["concentration"]
+    # the shipped FL-VAE's latents: R ≈ 0.5 (benchmarks/results/fldm_spot_flvae5k.md); random phases ≈ 0
+    assert recon["concentration"] > 0.35 > 0.2 > rows["random channel phases"]["concentration"]
     assert abs(rows["shuffled latents"]["nearest_copy_corr"]) < 0.1 < recon["nearest_copy_corr"]
     assert rows["samples DDIM-3"]["n"] == 2 and rows["samples DDIM-3"]["diversity_lpips"] > 0
     curve = [r for r in payload["rows"] if r["table"] == "statistics"]
