@@ -320,13 +320,13 @@ def depth_meshes(kind: str, levels: int, folder: pathlib.Path, coarse_levels: in
     meshes_file = folder / f"training_meshes{suffix}.npz"
     if meshes_file.is_file():
         return reference, load_training_meshes(meshes_file)
-    smooth = textured_sphere(kind, subdivisions=levels + 1, period=1.0, amplitude=0.0)
+    untextured = icosphere(levels + 1) if coarse_levels else None  # the sphere under the texture
     tm = training_meshes(
         reference,
         icosphere(1),
         config=PrepareConfig(levels=levels),
         key=jax.random.key(0),
-        coarse_reference=smooth if coarse_levels else None,
+        coarse_reference=untextured,
         coarse_levels=coarse_levels,
     )
     save_training_meshes(tm, meshes_file)
@@ -449,7 +449,7 @@ def noise_response(
     }
     models = {}
     for choice in ("sampled", "reconstructed"):
-        run = folder / f"{suffix[1:]}{'_' if suffix else ''}fake_inputs_{choice}_{steps}"
+        run = folder / f"{suffix[1:]}_fake_inputs_{choice}_{steps}".lstrip("_")
         if (run / "model.npz").is_file():
             models[choice] = load(run)
             continue
