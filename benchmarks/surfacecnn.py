@@ -648,7 +648,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
             surface=surface,
             weights=weights,
             progress=False,
-            **({"checkpoint": cell / method} if method == "surface" else {}),
+            checkpoint=cell / method,
         )
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         np.save(cell / f"{method}_texture.npy", np.asarray(r.texture, np.float32))
@@ -682,7 +682,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
     render.figure(
         panels,
         columns=5,
-        title=f"{mesh_name}, {ex_name}, {size}², {steps} steps",
+        title=f"{mesh_name}, {ex_name}, {size}x{size} texels, {steps} steps",  # the font has no ²
         path=cell / "figure.png",
     )
     atomic_write(done, (json.dumps(row, indent=1) + "\n").encode())

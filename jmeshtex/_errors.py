@@ -105,12 +105,18 @@ class NonFiniteVertexError(MeshError):
 
 class DegenerateFaceError(MeshError):
     what = "zero-area (degenerate) faces"
-    fix = "pass repair=True to drop them, or remesh"
+    fix = (
+        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), which drops them, "
+        "or remesh"
+    )
 
 
 class DuplicateFaceError(MeshError):
     what = "duplicate faces (same three vertices)"
-    fix = "pass repair=True to drop the duplicates"
+    fix = (
+        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), "
+        "which drops the duplicates"
+    )
 
 
 class NonManifoldEdgeError(MeshError):
@@ -120,12 +126,18 @@ class NonManifoldEdgeError(MeshError):
 
 class NonManifoldVertexError(MeshError):
     what = "non-manifold (bow-tie) vertices whose faces form several fans"
-    fix = "pass repair=True to split each such vertex into one copy per fan"
+    fix = (
+        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), "
+        "which splits each such vertex into one copy per fan"
+    )
 
 
 class InconsistentOrientationError(MeshError):
     what = "inconsistent face orientation: edges traversed in the same direction by two faces"
-    fix = "pass repair=True to re-orient faces consistently per component"
+    fix = (
+        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), "
+        "which re-orients faces consistently per component"
+    )
 
 
 class MeshScaleError(MeshError):

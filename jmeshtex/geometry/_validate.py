@@ -182,7 +182,7 @@ def validate_mesh(
           >>> validate_mesh(v, np.concatenate([f, f[:1, ::-1]]))
           Traceback (most recent call last):
           ...
-          jmeshtex._errors.DuplicateFaceError: duplicate faces (same three vertices), as (first, repeat) face pairs (count 1: (0, 20)). Fix: pass repair=True to drop the duplicates
+          jmeshtex._errors.DuplicateFaceError: duplicate faces (same three vertices), as (first, repeat) face pairs (count 1: (0, 20)). Fix: repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), which drops the duplicates
     """
     v, f = check_mesh_arrays(vertices, faces)
     _check_topology(v, f, area_tol)

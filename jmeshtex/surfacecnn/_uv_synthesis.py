@@ -37,6 +37,8 @@ def synthesize_uv(
     weights: VGGWeights | None = None,
     layers: tuple[str, ...] | None = None,
     progress: bool = True,
+    checkpoint=None,
+    checkpoint_every: int = 50,
 ) -> SynthesisResult:
     """UV-space 2D texture synthesis: Gram matching on the flat texture image (the baseline).
 
@@ -56,6 +58,8 @@ def synthesize_uv(
       weights: CNN weights (default ``config.network``).
       layers: Gram layers (default ``config.layers``, else every ReLU and pool output).
       progress: tqdm bar.
+      checkpoint, checkpoint_every: as in :func:`~jmeshtex.surfacecnn.synthesize` (the image,
+        Adam state and losses are saved there; a folder holding this run resumes it).
 
     Returns:
       :class:`~jmeshtex.surfacecnn.SynthesisResult` (``colors`` at the valid texels; ``texture``
@@ -113,7 +117,15 @@ def synthesize_uv(
         return sum(terms) / len(terms)
 
     t0 = time.perf_counter()
-    fingerprint = _fingerprint("synthesize_uv", config, surface, layers, _digest(image))
+    fingerprint = _fingerprint(
+        "synthesize_uv",
+        config,
+        surface,
+        layers,
+        _digest(image),
+        init=[config.init_low, config.init_high],
+        key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
+    )
     x, losses, final, stats = optimize_colors(
         x0,
         loss_fn,
@@ -121,6 +133,8 @@ def synthesize_uv(
         config,
         progress=progress,
         desc="surfacecnn synthesize_uv",
+        checkpoint=checkpoint,
+        checkpoint_every=checkpoint_every,
         fingerprint=fingerprint,
     )
     pixels = np.asarray(x).reshape(size * size, 3)[surface.atlas.texel]

@@ -160,6 +160,29 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
         synthesize(mesh, ex, Config(size=16, steps=5), checkpoint=ckpt, **kw)
 
 
+def test_uv_space_synthesis_resumes_from_its_checkpoint(tmp_path):
+    """The 2D baseline of a protocol cell costs more than the surface run; it resumes the same way."""
+    from jmeshtex.data import grid
+    from jmeshtex.surfacecnn import prepare_surface, synthesize_uv
+
+    v, f = grid(2)
+    mesh = Mesh(v, f, uv=v[f][..., :2])
+    ex = np.random.default_rng(0).uniform(size=(16, 16, 3))
+    surface = prepare_surface(mesh, size=16, levels=0)
+    kw = dict(key=jax.random.key(3), surface=surface, layers=("relu1_1",), progress=False)
+    full = synthesize_uv(mesh, ex, Config(size=16, steps=8), **kw)
+    ckpt = tmp_path / "uv"
+    synthesize_uv(mesh, ex, Config(size=16, steps=5), checkpoint=ckpt, **kw)
+    resumed = synthesize_uv(mesh, ex, Config(size=16, steps=8), checkpoint=ckpt, **kw)
+    assert resumed.stats["resumed_at"] == 5
+    np.testing.assert_array_equal(resumed.losses, full.losses)
+    np.testing.assert_array_equal(resumed.colors, full.colors)
+    with pytest.raises(CheckpointMismatchError, match="key"):
+        synthesize_uv(
+            mesh, ex, Config(size=16, steps=8), checkpoint=ckpt, **{**kw, "key": jax.random.key(4)}
+        )
+
+
 def test_synthesis_re_unwraps_by_default_and_keeps_the_mesh_uvs_on_request():
     """``Config.unwrap``: the reference re-unwraps every mesh with xatlas, so a texel covers about the
     same surface everywhere; ``"mesh"`` keeps a layout whose density varies (here 9× by design)."""
