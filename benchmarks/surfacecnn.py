@@ -1,7 +1,9 @@
 """Benchmark of the surface CNN: host precomputation and optimisation step time.
 
 Mesh: Spot (../shared/data/spot, 5856 faces, its own UV atlas); without the shared data a
-procedural icosphere(4) unwrapped with xatlas stands in (reported in the row names). Reports
+procedural icosphere(4) unwrapped with xatlas stands in (reported in the row names). ``--mesh cow``
+or ``fandisk``: a held-in real mesh in the protocol's xatlas layout (``--unwrap`` applies to Spot).
+Reports
 
 - precomputation (atlas, level-0 exp-map taps, pooling pyramid with 5 levels) at 512² and 1024²,
   next to the target (≤ 15 s at 1024² on 2 cores; the paper: 1:44 for a 5K-triangle bunny at 1024²
@@ -34,6 +36,7 @@ Usage::
 
     python benchmarks/surfacecnn.py                       # precompute 512,1024; steps 256,512
     python benchmarks/surfacecnn.py --precompute 512 --steps 256
+    python benchmarks/surfacecnn.py --mesh cow --steps 512,1024 --name surfacecnn_cow
     python benchmarks/surfacecnn.py --quality                       # the protocol (hours; resumes)
     python benchmarks/surfacecnn.py --quality --meshes spot --exemplars brick
     python benchmarks/surfacecnn.py --frames --size 96 --quality-steps 150 --exemplar stripes
@@ -110,12 +113,28 @@ def main() -> None:
         help="texture layout: xatlas (default, the paper's) or the mesh's own UVs",
     )
     ap.add_argument("--repeats", type=int, default=5, help="timed steps per size (after one)")
+    ap.add_argument(
+        "--mesh",
+        choices=("spot", "cow", "fandisk"),
+        default="spot",
+        help="spot (own UVs or xatlas) or a held-in real mesh of the protocol (its xatlas layout, "
+        "kept in --work)",
+    )
+    ap.add_argument(
+        "--work",
+        type=pathlib.Path,
+        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
+    )
+    ap.add_argument("--name", default="surfacecnn", help="report name (results/NAME.md)")
     args = ap.parse_args()
     load = os.getloadavg()
-    report = Report("surfacecnn")
+    report = Report(args.name)
     print(f"load average {load}")
-    name, mesh = _mesh()
-    if args.unwrap == "xatlas" or mesh.uv is None:
+    if args.mesh == "spot":
+        name, mesh = _mesh()
+    else:
+        name, mesh = args.mesh, _protocol_mesh(args.mesh, args.work)
+    if args.mesh == "spot" and (args.unwrap == "xatlas" or mesh.uv is None):
         mesh = mesh.replace(uv=unwrap_uv(mesh.vertices, mesh.faces))
     spread = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)["ratio_p95_p5"]
     name = f"{name} ({'xatlas' if args.unwrap == 'xatlas' else 'own UVs'}, density p95/p5 {spread:.2f})"
