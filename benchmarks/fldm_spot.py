@@ -341,13 +341,12 @@ class _Copy0(NamedTuple):
 
     @classmethod
     def of(cls, ctx: Context, model) -> _Copy0:
-        from jmeshtex.fldm import core as st
 
         cfg = model.config
         geo = jax.tree.map(lambda a: jnp.asarray(a[0]), ctx.data.geometry)
         return cls(
             cfg,
-            st.make_schedule(cfg.schedule, num_steps=cfg.diffusion_steps),
+            cfg.noise_schedule(),
             geo,
             np.asarray(model.scale, np.float32),
             np.asarray(geo.fine.vertex_mask),

@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 
 from .._config import ConfigBase, cross_rule, is_int, rule
-from ._diffusion import PREDICTIONS, SCHEDULES
+from ._diffusion import PREDICTIONS, SCHEDULES, Schedule, make_schedule
 
 LOSSES = ("l2", "l1")
 SCALINGS = ("per_channel", "global")
@@ -54,6 +54,8 @@ class Config(ConfigBase):
         (eq. 14), so it stays exact. False (default): the plain denoiser; inpainting by
         replacement alone.
       schedule: ``"linear"`` or ``"cosine"``.
+      schedule_shift: divide the schedule's signal-to-noise ratio by its square
+        (:func:`~jmeshtex.fldm.core.make_schedule`, beyond the paper); 1: the plain schedule.
       prediction: what the denoiser outputs: ``"epsilon"`` (paper, eq. 10) or ``"v"``
         (:func:`~jmeshtex.fldm.core.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
         over-shoots the latents' magnitude several times when sampled).
@@ -122,6 +124,7 @@ class Config(ConfigBase):
     num_labels: int = 0
     mask_conditioning: bool = False
     schedule: str = "linear"
+    schedule_shift: float = 1.0
     prediction: str = "epsilon"
     diffusion_steps: int = 1000
     learning_rate: float = 5e-4
@@ -173,6 +176,7 @@ class Config(ConfigBase):
         rule("end_learning_rate", lambda x: x >= 0, ">= 0"),
         rule("ema_decay", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("schedule", lambda x: x in SCHEDULES, f"one of {SCHEDULES}"),
+        rule("schedule_shift", lambda x: x > 0, "> 0"),
         rule("prediction", lambda x: x in PREDICTIONS, f"one of {PREDICTIONS}"),
         rule("num_labels", lambda x: is_int(x, 0), ">= 0"),
         rule(
@@ -293,6 +297,19 @@ class Config(ConfigBase):
             bucket=64,
         )
         return cls.tiny(**{**base, **changes})
+
+    def noise_schedule(self) -> Schedule:
+        """The noise schedule of training and sampling (``schedule``, ``diffusion_steps``,
+        ``schedule_shift``).
+
+        Example:
+          >>> s = Config.tiny(schedule="cosine", schedule_shift=2.0).noise_schedule()
+          >>> s.num_steps, bool(s.alpha_bars[499] < Config.tiny(schedule="cosine").noise_schedule().alpha_bars[499])
+          (1000, True)
+        """
+        return make_schedule(
+            self.schedule, num_steps=self.diffusion_steps, shift=float(self.schedule_shift)
+        )
 
     def network(self) -> Config:
         """This config with every field the denoiser network does not read reset to its default.

@@ -64,17 +64,24 @@ class Schedule(NamedTuple):
         return int(self.betas.shape[0])
 
 
-def make_schedule(kind: str = "linear", *, num_steps: int = 1000) -> Schedule:
-    """The linear (Ho et al. 2020) or cosine (Nichol & Dhariwal 2021) β schedule.
+def make_schedule(kind: str = "linear", *, num_steps: int = 1000, shift: float = 1.0) -> Schedule:
+    """The linear (Ho et al. 2020) or cosine (Nichol & Dhariwal 2021) β schedule, optionally shifted.
 
     .. math:: \\text{linear: } \\beta_t = \\beta_1 + \\tfrac{t}{T-1}(\\beta_T - \\beta_1),\\;
        \\beta_1 = 10^{-4}\\tfrac{1000}{T},\\ \\beta_T = 0.02\\tfrac{1000}{T};\\qquad
        \\text{cosine: } \\bar\\alpha(t) = \\frac{\\cos^2(\\frac{t/T + s}{1 + s}\\frac{\\pi}{2})}
        {\\cos^2(\\frac{s}{1+s}\\frac{\\pi}{2})},\\ s = 0.008,\\ \\beta_t \\le 0.999
 
+    ``shift`` > 1 moves every step to more noise, dividing its signal-to-noise ratio
+    ``ᾱ/(1 − ᾱ)`` by ``shift²`` (log-SNR − 2 log shift; Hoogeboom et al. 2023, "simple diffusion",
+    beyond the paper): a field of many vertices keeps its coarse layout visible at a per-vertex SNR
+    where a small image has lost it, so the unshifted schedule decides the layout in a few of its
+    first steps. ``β`` is recomputed from the shifted ``ᾱ`` (clipped at 0.999 as before).
+
     Args:
       kind: ``"linear"`` or ``"cosine"``.
       num_steps: ``T`` (the paper: 1000).
+      shift: the SNR shift factor (1: the plain schedule).
 
     Returns:
       :class:`Schedule`.
@@ -88,6 +95,8 @@ def make_schedule(kind: str = "linear", *, num_steps: int = 1000) -> Schedule:
         raise ConfigError(f"schedule must be one of {SCHEDULES}, got {kind!r}")
     if not is_int(num_steps, 2):
         raise ConfigError(f"num_steps must be an integer >= 2, got {num_steps!r}")
+    if not (isinstance(shift, (int, float)) and math.isfinite(shift) and shift > 0):
+        raise ConfigError(f"shift must be a finite number > 0, got {shift!r}")
     T = int(num_steps)
     if kind == "linear":
         scale = 1000.0 / T
@@ -97,6 +106,10 @@ def make_schedule(kind: str = "linear", *, num_steps: int = 1000) -> Schedule:
         x = np.arange(T + 1, dtype=np.float64) / T
         f = np.cos((x + s) / (1 + s) * math.pi / 2) ** 2
         betas = np.clip(1.0 - f[1:] / f[:-1], 0.0, 0.999)
+    if shift != 1.0:
+        ab = np.cumprod(1.0 - betas)
+        ab = ab / (ab + shift**2 * (1.0 - ab))  # SNR / shift²
+        betas = np.clip(1.0 - ab / np.concatenate([[1.0], ab[:-1]]), 0.0, 0.999)
     alphas = 1.0 - betas
     return Schedule(betas=betas, alphas=alphas, alpha_bars=np.cumprod(alphas))
 

@@ -37,7 +37,6 @@ from ._diffusion import (
     Inpaint,
     draw_sampling_noise,
     epsilon_from_output,
-    make_schedule,
     sample_from_noise,
 )
 from ._model import Model
@@ -113,7 +112,7 @@ def _run(
     num_steps,
     eta,
 ):
-    schedule = make_schedule(config.schedule, num_steps=config.diffusion_steps)
+    schedule = config.noise_schedule()
 
     cond = dict(mask=mask, known=known) if config.mask_conditioning else {}
 

@@ -66,7 +66,7 @@ from ..parallel import (
 from ._config import Config
 from ._data import Dataset, batch_geometry
 from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, init_denoiser
-from ._diffusion import epsilon_loss, make_schedule, prediction_target, q_sample
+from ._diffusion import epsilon_loss, prediction_target, q_sample
 from ._masks import batch_masks
 from ._model import Model
 
@@ -157,7 +157,7 @@ def make_train_step(
       >>> bool(jnp.isfinite(loss))
       True
     """
-    schedule = make_schedule(config.schedule, num_steps=config.diffusion_steps)
+    schedule = config.noise_schedule()
     opt = optimizer(config)
 
     def loss_fn(params, z0, geo, labels, t, eps, mask):

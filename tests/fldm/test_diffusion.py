@@ -43,6 +43,17 @@ def test_linear_and_cosine_schedules():
         make_schedule("quadratic")
     with pytest.raises(ConfigError, match="num_steps"):
         make_schedule("linear", num_steps=1)
+    # a shift divides every step's SNR by shift² (the clip at 0.999 only acts at the very end)
+    for kind in ("linear", "cosine"):
+        plain, shifted = make_schedule(kind), make_schedule(kind, shift=3.0)
+        assert np.array_equal(make_schedule(kind, shift=1.0).betas, plain.betas)
+        snr = lambda s: s.alpha_bars / (1 - s.alpha_bars)  # noqa: E731
+        ok = np.cumsum(shifted.betas >= 0.999) == 0
+        assert ok.sum() > 990
+        np.testing.assert_allclose(snr(shifted)[ok], snr(plain)[ok] / 9.0, rtol=1e-9)
+        np.testing.assert_allclose(shifted.alpha_bars, np.cumprod(1 - shifted.betas), rtol=1e-12)
+    with pytest.raises(ConfigError, match="shift"):
+        make_schedule("cosine", shift=0.0)
 
 
 def test_q_sample_formula_batched():
