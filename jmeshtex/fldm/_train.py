@@ -337,7 +337,7 @@ def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
     """What a checkpoint must have been written by to be resumed (module docstring)."""
     free = ("steps", "checkpoint_every", "remat", "stats_samples", "stats_ddim_steps")
     # options added after runs were written stay out while at their default: those runs resume
-    added = {"invariants": False}
+    added = {"invariants": False, "schedule_shift": 1.0}
     settings = {
         k: v
         for k, v in config.to_dict().items()
