@@ -137,7 +137,8 @@ def main() -> None:
     if args.mesh == "spot" and (args.unwrap == "xatlas" or mesh.uv is None):
         mesh = mesh.replace(uv=unwrap_uv(mesh.vertices, mesh.faces))
     spread = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)["ratio_p95_p5"]
-    name = f"{name} ({'xatlas' if args.unwrap == 'xatlas' else 'own UVs'}, density p95/p5 {spread:.2f})"
+    layout = "own UVs" if args.mesh == "spot" and args.unwrap == "mesh" else "xatlas"
+    name = f"{name} ({layout}, density p95/p5 {spread:.2f})"
     weights = load_vgg16()
     layers = default_layers(weights)
     levels = required_levels(weights, layers)
