@@ -267,6 +267,7 @@ def train_stage(ctx: Context) -> None:
             "steps_per_s": result.extra.get("steps_per_second"),
             "stats_s": stats.get("seconds"),
             "load": _load(),
+            "device": jax.devices()[0].device_kind,
             "loss": float(np.mean(result.losses["loss"][-ran:])) if ran else None,
         }
         if ran:
@@ -606,9 +607,10 @@ def eval_stage(ctx: Context, step: int | None) -> None:
         ran = sum(x["ran"] for x in lines)
         wall = sum(x["wall_s"] - (x.get("compile_s") or 0) - (x.get("stats_s") or 0) for x in lines)
         cpu = sum(x["cpu_s"] for x in lines)
+        devices = sorted({x.get("device", "cpu") for x in lines})  # the machine(s) it trained on
         report.add(
             table="training",
-            source=f"{cfg.copy_vertices} vertices, batch {cfg.batch_size}",
+            source=f"{cfg.copy_vertices} vertices, batch {cfg.batch_size}, on {' + '.join(devices)}",
             n=ran,
             s_per_step=wall / max(ran, 1),
             cpu_s_per_step=cpu / max(ran, 1),

@@ -22,6 +22,9 @@ Under :func:`jmeshtex.parallel.initialize` every process builds the same global 
 key and feeds its own devices their slices; losses and the model are read back with
 :func:`jmeshtex.parallel.fetch` on every process.
 
+On an accelerator (one process) the data set is sent to the device once and each step's batch is
+gathered there by one compiled call; :func:`training_batch` gives the same batch on the host.
+
 Randomness: :func:`train`'s ``key`` is split three ways, into the initialisation (the model
 :func:`init` returns for the same key), the batch draws (which copies, a NumPy generator seeded
 from the key and the step) and the step noise (``fold_in(key, step)``). Every step's batch and
@@ -246,16 +249,51 @@ def training_batch(
       ((2, 32, 1), 2, None)
     """
     idx = _batch_index(data, step, size, key)
-    latents = data.latents[idx]
+    which = None
     if data.encodings is not None:  # one of the copy's K encodings, drawn after the copies
         which = host_rng(key, step, 2).integers(0, data.encodings.shape[1] + 1, size=len(idx))
-        for b, (i, j) in enumerate(zip(idx, which, strict=True)):
-            if j:
-                latents[b] = data.encodings[i, j - 1]
-    z0 = (latents * data.scale).astype(dtype)
+    if isinstance(data.latents, np.ndarray):
+        return _gather(data, idx, which, dtype, np)
+    return _gather_on_device(data._replace(meshes=()), idx, which, jnp.dtype(dtype))
+
+
+def _gather(data: Dataset, idx, which, dtype, xp):
+    """The batch ``(z0, geometry, labels)`` of copies ``idx`` (encodings ``which``; 0: the first)."""
+    latents = data.latents[idx]
+    if which is not None:
+        drawn = data.encodings[idx, xp.maximum(which - 1, 0)].astype(latents.dtype)
+        latents = xp.where((which > 0)[:, None, None], drawn, latents)
+    z0 = (latents * xp.asarray(data.scale).astype(latents.dtype)).astype(dtype)
     geo = batch_geometry(data, idx)
     labels = None if data.labels is None else data.labels[idx]
     return z0, geo, labels
+
+
+@functools.partial(jax.jit, static_argnums=3)
+def _gather_on_device(data: Dataset, idx, which, dtype):
+    """:func:`_gather` as one compiled call: dispatched one by one, a step's two dozen small gathers
+    cost as much as the training step itself on an accelerator (25 ms on an H200; compiled: 0.9 ms)."""
+    return _gather(data, idx, which, dtype, jnp)
+
+
+def _device_resident(data: Dataset, dtype) -> Dataset:
+    """``data`` with its arrays on JAX's default device, so that a step's batch is gathered there.
+
+    On an accelerator, gathering a batch on the host and sending it costs about as much as the step
+    itself (on an H200: 20 ms for eight 10,000-vertex copies against a 28 ms step); the whole data
+    set (a few megabytes a copy) is sent once instead, and :func:`_gather_on_device` gathers a batch
+    in under a millisecond. :func:`training_batch` gives the same batch either way.
+    """
+    real = jnp.finfo(dtype).dtype
+    to_device = lambda a: jnp.asarray(  # noqa: E731
+        a, dtype if np.iscomplexobj(a) else real if np.issubdtype(a.dtype, np.floating) else None
+    )
+    return data._replace(
+        latents=to_device(data.latents),
+        geometry=jax.tree.map(to_device, data.geometry),
+        labels=None if data.labels is None else to_device(data.labels),
+        encodings=None if data.encodings is None else to_device(data.encodings),
+    )
 
 
 def _batch_index(data: Dataset, step: int, size: int, key: jax.Array) -> np.ndarray:
@@ -412,9 +450,11 @@ def train(
     k_init, k_batch, k_noise = _split(key)
     use_ema = config.ema_decay > 0
     weight, keep = channel_weights(data, config)
+    on_host = jax.default_backend() == "cpu" or jax.process_count() > 1
+    source = data if on_host else _device_resident(data, dtype)
 
     def batches(step: int):
-        z0, geo, labels = training_batch(data, step, config.batch_size, key=k_batch, dtype=dtype)
+        z0, geo, labels = training_batch(source, step, config.batch_size, key=k_batch, dtype=dtype)
         if not keep.all():  # collapsed_channels="drop"
             z0 = z0 * keep.astype(z0.real.dtype)
         masks = ()

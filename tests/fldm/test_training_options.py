@@ -15,7 +15,7 @@ from jmeshtex import ConfigError
 from jmeshtex.data import icosphere
 from jmeshtex.fldm import Config, build_dataset, load, save, train
 from jmeshtex.fldm._model import model_card
-from jmeshtex.fldm._train import channel_weights
+from jmeshtex.fldm._train import _device_resident, channel_weights
 from jmeshtex.fldm.core import (
     epsilon_loss,
     init_denoiser,
@@ -127,6 +127,15 @@ def test_encodings_per_copy_are_all_drawn(tmp_path):
                     if np.allclose(z0[b], o * d.scale, atol=1e-5):
                         seen.add((i, k))
     assert seen == {(i, k) for i in range(2) for k in range(3)}
+    # on an accelerator the data set is sent to the device once and batches are gathered there
+    resident = _device_resident(d, jnp.complex64)
+    assert isinstance(resident.encodings, jax.Array)
+    for step in range(4):
+        host = training_batch(d, step, 2, key=jax.random.key(1))
+        device = training_batch(resident, step, 2, key=jax.random.key(1))
+        np.testing.assert_allclose(np.asarray(device[0]), host[0], rtol=1e-6, atol=1e-7)
+        for a, b in zip(jax.tree.leaves(device[1]), jax.tree.leaves(host[1]), strict=True):
+            np.testing.assert_allclose(np.asarray(a), b, rtol=1e-6, atol=1e-7)
 
 
 def test_statistics_logged_at_checkpoints_resumed_and_carded(data, tmp_path):
