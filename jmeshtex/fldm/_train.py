@@ -280,7 +280,7 @@ def _device_resident(data: Dataset, dtype) -> Dataset:
     """``data`` with its arrays on JAX's default device, so that a step's batch is gathered there.
 
     On an accelerator, gathering a batch on the host and sending it costs about as much as the step
-    itself (on an H200: 20 ms for eight 10,000-vertex copies against a 28 ms step); the whole data
+    itself (on an H200: 14–20 ms for eight 10,000-vertex copies against a 28 ms step); the whole data
     set (a few megabytes a copy) is sent once instead, and :func:`_gather_on_device` gathers a batch
     in under a millisecond. :func:`training_batch` gives the same batch either way.
     """
