@@ -456,7 +456,7 @@ def train(
     def batches(step: int):
         z0, geo, labels = training_batch(source, step, config.batch_size, key=k_batch, dtype=dtype)
         if not keep.all():  # collapsed_channels="drop"
-            z0 = z0 * keep.astype(z0.real.dtype)
+            z0 = z0 * keep.astype(z0.dtype)  # (host or device batch alike)
         masks = ()
         if config.mask_conditioning:
             masks = (training_masks(data, step, config.batch_size, key=k_batch),)
