@@ -55,6 +55,7 @@ import numpy as np
 import optax
 
 from .._errors import ConfigError, InputError
+from .._neighborhoods import to_jax
 from .._random import host_rng, key_ints
 from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
@@ -284,16 +285,8 @@ def _device_resident(data: Dataset, dtype) -> Dataset:
     set (a few megabytes a copy) is sent once instead, and :func:`_gather_on_device` gathers a batch
     in under a millisecond. :func:`training_batch` gives the same batch either way.
     """
-    real = jnp.finfo(dtype).dtype
-    to_device = lambda a: jnp.asarray(  # noqa: E731
-        a, dtype if np.iscomplexobj(a) else real if np.issubdtype(a.dtype, np.floating) else None
-    )
-    return data._replace(
-        latents=to_device(data.latents),
-        geometry=jax.tree.map(to_device, data.geometry),
-        labels=None if data.labels is None else to_device(data.labels),
-        encodings=None if data.encodings is None else to_device(data.encodings),
-    )
+    arrays = {k: getattr(data, k) for k in ("latents", "geometry", "labels", "encodings")}
+    return data._replace(**to_jax(arrays, jnp.finfo(dtype).dtype))
 
 
 def _batch_index(data: Dataset, step: int, size: int, key: jax.Array) -> np.ndarray:
