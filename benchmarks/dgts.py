@@ -306,17 +306,24 @@ def evaluate(
 DEPTH_TEXTURES = {"knobs": 0.45, "scales": 0.45, "spikes": 0.45, "craters": 0.45}
 
 
-def depth_meshes(kind: str, levels: int, folder: pathlib.Path, coarse_levels: int = 0):
+def depth_meshes(
+    kind: str, levels: int, folder: pathlib.Path, coarse_levels: int = 0, remesh: int = 0
+):
     """The run at depth's reference (a textured sphere, period ``DEPTH_TEXTURES[kind]``) and its
     ``levels`` fitted training levels on an icosphere(1) template, kept in
     ``folder/training_meshes.npz`` (fitted once, about 12 CPU-minutes at 4 levels). With
     ``coarse_levels`` the coarsest ones fit the sphere without its texture
-    (``training_meshes(coarse_reference=...)``; ``folder/training_meshes_coarse<K>.npz``)."""
+    (``training_meshes(coarse_reference=...)``; ``folder/training_meshes_coarse<K>.npz``). Remesh
+    ``i > 0`` fits the template under a random rotation (seed ``i``), so the texture lies elsewhere
+    on its triangles (``folder/training_meshes_remesh<i>.npz``); remesh 0 is the plain fit."""
+    from scipy.spatial.transform import Rotation
+
     from jmeshtex.dgts import load_training_meshes, save_training_meshes
 
     folder.mkdir(parents=True, exist_ok=True)
     reference = textured_sphere(kind, subdivisions=levels + 1, period=DEPTH_TEXTURES[kind])
     suffix = f"_coarse{coarse_levels}" if coarse_levels else ""
+    suffix += f"_remesh{remesh}" if remesh else ""
     meshes_file = folder / f"training_meshes{suffix}.npz"
     if meshes_file.is_file():
         return reference, load_training_meshes(meshes_file)
@@ -328,6 +335,7 @@ def depth_meshes(kind: str, levels: int, folder: pathlib.Path, coarse_levels: in
         key=jax.random.key(0),
         coarse_reference=untextured,
         coarse_levels=coarse_levels,
+        rotation=Rotation.random(random_state=remesh).as_matrix() if remesh else None,
     )
     save_training_meshes(tm, meshes_file)
     return reference, tm

@@ -380,6 +380,7 @@ def training_meshes(
     progress: bool | Callable[[str, int, int], None] = True,
     coarse_reference: Mesh | tuple[Float[np.ndarray, "C 3"], Int[np.ndarray, "H 3"]] | None = None,
     coarse_levels: int = 0,
+    rotation: Float[np.ndarray, "3 3"] | None = None,
 ) -> TrainingMeshes:
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
 
@@ -401,6 +402,10 @@ def training_meshes(
         to ``reference`` must lay the texture out from noise). It is placed by ``reference``'s
         normalisation, so it must share its coordinates.
       coarse_levels: how many levels (from the coarsest) fit ``coarse_reference``; 0: none.
+      rotation: optional ``[3, 3]`` rotation applied to the normalised template before the first
+        fit: the same reference is remeshed with its texture at other places relative to the
+        template's triangles (several such remeshes train one model, :func:`~jmeshtex.dgts.train`;
+        beyond the paper). None: the template as given.
 
     Returns:
       :class:`TrainingMeshes`.
@@ -409,7 +414,7 @@ def training_meshes(
       InputError: ``reference`` or ``template`` is not a mesh.
       MeshError: (a subclass) an invalid reference or template (:func:`jmeshtex.geometry.validate_mesh`).
       ConfigError: ``coarse_levels`` outside ``[0, config.levels)``, or > 0 without a
-        ``coarse_reference``.
+        ``coarse_reference``; ``rotation`` not a ``[3, 3]`` rotation matrix.
 
     Example:
       >>> from jmeshtex.data import icosphere, icosahedron
@@ -436,6 +441,8 @@ def training_meshes(
     rf = np.asarray(rf, np.int64)
     f = np.asarray(tf, np.int64)
     target, v, scale, center = normalize_pair(rv, np.asarray(tv, np.float64), f)
+    if rotation is not None:
+        v = v @ _rotation_matrix(rotation).T
     coarse = None
     if coarse_levels:
         cv, cf = as_mesh(coarse_reference, what="training_meshes: coarse_reference")
@@ -473,6 +480,21 @@ def training_meshes(
     return TrainingMeshes(
         template_out, tuple(verts), tuple(faces), tuple(edges), np.asarray(scales), center
     )
+
+
+def _rotation_matrix(rotation) -> np.ndarray:
+    """``rotation`` as a float64 ``[3, 3]`` proper rotation, or a :class:`ConfigError` naming the fault."""
+    r = np.asarray(rotation, np.float64)
+    if r.shape != (3, 3) or not np.all(np.isfinite(r)):
+        raise ConfigError(
+            f"training_meshes: rotation must be a finite [3, 3] matrix, got shape {r.shape}"
+        )
+    if not (np.allclose(r @ r.T, np.eye(3), atol=1e-6) and np.linalg.det(r) > 0):
+        raise ConfigError(
+            "training_meshes: rotation must be a proper rotation (R R^T = I, det R = 1); "
+            "e.g. scipy.spatial.transform.Rotation.random().as_matrix()"
+        )
+    return r
 
 
 def _progress_bars(what: str) -> Callable[[str, int, int], None]:

@@ -43,6 +43,7 @@ import functools
 import hashlib
 import os
 import time
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import jax
@@ -184,6 +185,8 @@ class LevelBatch(NamedTuple):
       rec_base, rec_noise: ``[K, G, V_L, 3]`` the same for the reconstruction (``z*`` at level 0
         and zero above from ``reconstruction_start`` on, fresh noise below it).
       alpha: ``[K, D]`` gradient-penalty interpolation weights.
+      real: ``[K, V_L, 3]`` each step's real mesh: the level-``L`` training mesh of the step's
+        reference (one reference drawn per step when training on several).
     """
 
     fake_base: Float[Array, "K S V 3"]
@@ -191,6 +194,7 @@ class LevelBatch(NamedTuple):
     rec_base: Float[Array, "K G V 3"]
     rec_noise: Float[Array, "K G V 3"]
     alpha: Float[Array, "K D"]
+    real: Float[Array, "K V 3"]
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
@@ -211,7 +215,7 @@ def _noise(key, fixed, *, shape: tuple[int, ...], amplitude: float):
 
 
 def level_batch(
-    model_levels, geos, template, z_star, key, *, config: Config, chunk: int
+    model_levels, geos, templates, z_stars, reals, key, *, config: Config, chunk: int
 ) -> LevelBatch:
     """Draw the noise of ``chunk`` steps of level ``L = len(model_levels)`` and run the frozen
     levels ``0 … L−1`` on it (forward only).
@@ -220,29 +224,46 @@ def level_batch(
     level as one batch, level by level: the compiled level step depends only on that level's sizes
     and on the batch size, so it is compiled once and reused by every later level and chunk.
 
+    Args:
+      model_levels: the frozen levels' generators.
+      geos: the :class:`~jmeshtex.dgts.core.LevelGeometry` of levels ``0 … L``.
+      templates, z_stars: ``[R, V_0, 3]`` each reference's template and fixed noise ``z*``.
+      reals: ``[R, V_L, 3]`` each reference's level-``L`` training mesh.
+      key: PRNG key of the chunk's draws.
+      config, chunk: the training config and the steps of the chunk.
+
     Returns:
-      :class:`LevelBatch`; with ``L ≥ reconstruction_start`` the reconstruction is the one fixed
-      row (``z*`` at level 0, zero noise above), broadcast.
+      :class:`LevelBatch`. Each step draws one reference (always the first when ``R = 1``); its
+      fakes start from that reference's template, its reconstruction and real mesh are that
+      reference's. With ``L ≥ reconstruction_start`` the reconstructions are ``R`` fixed rows
+      (``z*`` at level 0, zero noise above), run once and gathered per step.
     """
     c = config
     L = len(model_levels)
     D, G = c.discriminator_steps, c.generator_steps
-    dtype = template.dtype
+    dtype = templates.dtype
+    R = int(templates.shape[0])
     sizes = [int(g.nbhd.vertex_mask.shape[0]) for g in geos[: L + 1]]
     fixed_rec = L >= c.reconstruction_start
-    n_fresh = chunk * (D + G) + (0 if fixed_rec else chunk * G)
+    n_fake = chunk * (D + G)
+    n_fresh = n_fake + (0 if fixed_rec else chunk * G)
     keys = jax.random.split(key, L + 2)
-    n_rows = n_fresh + int(fixed_rec)
-    # "reconstructed": every row's frozen levels run on the reconstruction's noise, so they run once
+    if R > 1:
+        ref = jax.random.randint(jax.random.fold_in(key, L + 2), (chunk,), 0, R, jnp.int32)
+    else:
+        ref = jnp.zeros((chunk,), jnp.int32)
+    rec_ref = jnp.arange(R, dtype=jnp.int32) if fixed_rec else jnp.repeat(ref, G)
+    rows = jnp.concatenate([jnp.repeat(ref, D + G), rec_ref])  # each row's reference
+    # "reconstructed": every row's frozen levels run on the reconstruction's noise, so they run
+    # once per reference
     shared = c.fake_inputs == "reconstructed"
-    v = jnp.broadcast_to(template, (1 if shared else n_rows, *template.shape))
+    v = templates.astype(dtype) if shared else templates.astype(dtype)[rows]
     for level in range(L + 1):
-        fixed = jnp.zeros((int(fixed_rec), sizes[level], 3), dtype)
+        fixed = jnp.zeros((R if fixed_rec else 0, sizes[level], 3), dtype)
         if level == 0 and fixed_rec:
-            fixed = z_star.astype(dtype)[None]
+            fixed = z_stars.astype(dtype)
         if level < L and shared:
-            rec = z_star.astype(dtype) if level == 0 else jnp.zeros((sizes[level], 3), dtype)
-            z = rec[None]
+            z = z_stars.astype(dtype) if level == 0 else jnp.zeros((R, sizes[level], 3), dtype)
         else:
             z = _noise(
                 keys[level],
@@ -252,22 +273,22 @@ def level_batch(
             )
         if level < L:
             v = _advance(model_levels[level], v, z, geos[level], config=c)
-    v = jnp.broadcast_to(v, (n_rows, *v.shape[1:]))  # z: level L's noise
-    n_fake = chunk * (D + G)
+    if shared:  # z: level L's noise
+        v = v[rows]
     fake_base = v[:n_fake].reshape(chunk, D + G, sizes[L], 3)
     fake_noise = z[:n_fake].reshape(chunk, D + G, sizes[L], 3)
     if fixed_rec:
-        rec_base = jnp.broadcast_to(v[n_fake], (chunk, G, sizes[L], 3))
-        rec_noise = jnp.broadcast_to(z[n_fake], (chunk, G, sizes[L], 3))
+        rec_base = jnp.broadcast_to(v[n_fake + ref][:, None], (chunk, G, sizes[L], 3))
+        rec_noise = jnp.broadcast_to(z[n_fake + ref][:, None], (chunk, G, sizes[L], 3))
     else:
         rec_base = v[n_fake:].reshape(chunk, G, sizes[L], 3)
         rec_noise = z[n_fake:].reshape(chunk, G, sizes[L], 3)
     alpha = jax.random.uniform(keys[L + 1], (chunk, D), dtype)
-    return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha)
+    return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha, reals.astype(dtype)[ref])
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
-def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: Config):
+def train_chunk(g, d, opt, nbhd, batch: LevelBatch, n, *, config: Config):
     """``n ≤ K`` WGAN-GP steps of one level on the inputs ``batch`` (one compiled call).
 
     Each step: ``discriminator_steps`` critic updates, then ``generator_steps`` generator
@@ -288,14 +309,14 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: Config):
     def produce(g, base, z):
         return base + generator_level(g, base, nbhd, z, **kw, y_sign=c.y_sign)
 
-    def d_loss(d, fake, alpha):
+    def d_loss(d, fake, alpha, real):
         real_f, fake_f = face_features(real, nbhd), face_features(fake, nbhd)
         s_real = masked_mean(discriminator_features(d, real_f, nbhd, **kw), nbhd.face_mask)
         s_fake = masked_mean(discriminator_features(d, fake_f, nbhd, **kw), nbhd.face_mask)
         gp = gradient_penalty(d, real_f, fake_f, nbhd, alpha, **kw)
         return s_fake - s_real + c.penalty_weight * gp, jnp.stack([s_real, s_fake, gp])
 
-    def g_loss(g, d, base, z, rec_base, rec_z):
+    def g_loss(g, d, base, z, rec_base, rec_z, real):
         # two calls, not a vmap over both: the vmapped gathers cost ~25 % more compile and run (CPU)
         fake, rec = produce(g, base, z), produce(g, rec_base, rec_z)
         adv = -masked_mean(discriminator(d, fake, nbhd, **kw), nbhd.face_mask)
@@ -316,13 +337,15 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: Config):
             d, state = carry
             base, z, alpha = inputs
             fake = jax.lax.stop_gradient(produce(g, base, z))
-            (_, aux), grads = jax.value_and_grad(d_loss, has_aux=True)(d, fake, alpha)
+            (_, aux), grads = jax.value_and_grad(d_loss, has_aux=True)(d, fake, alpha, b.real)
             return update(opt_d, grads, state, d), aux
 
         def g_step(carry, inputs):
             g, state = carry
             base, z, rbase, rz = inputs
-            (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(g, d, base, z, rbase, rz)
+            (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(
+                g, d, base, z, rbase, rz, b.real
+            )
             return update(opt_g, grads, state, g), aux
 
         (d, sd), d_aux = jax.lax.scan(
@@ -331,11 +354,11 @@ def train_chunk(g, d, opt, nbhd, real, batch: LevelBatch, n, *, config: Config):
         (g, sg), g_aux = jax.lax.scan(
             g_step, (g, opt.g), (b.fake_base[D:], b.fake_noise[D:], b.rec_base, b.rec_noise)
         )
-        last_d = d_aux[-1] if D else jnp.zeros(3, real.dtype)
+        last_d = d_aux[-1] if D else jnp.zeros(3, b.real.dtype)
         return g, d, _Opt(sg, sd), history.at[i].set(jnp.concatenate([last_d, g_aux[-1]]))
 
     K = batch.alpha.shape[0]
-    history = jnp.zeros((K, len(LOSS_NAMES)), real.dtype)
+    history = jnp.zeros((K, len(LOSS_NAMES)), batch.real.dtype)
     g, d, opt, history = jax.lax.fori_loop(0, n, step, (g, d, opt, history))
     return g, d, opt, {name: history[:, i] for i, name in enumerate(LOSS_NAMES)}
 
@@ -355,13 +378,15 @@ LOSS_NAMES = ("d_real", "d_fake", "penalty", "g_adv", "g_rec")
 _ADDED_FIELDS = {"fake_inputs": "sampled"}
 
 
-def _fingerprint(meshes: TrainingMeshes, config: Config, key: PRNGKey) -> dict:
-    """What a checkpoint folder is tied to: the config, the key and a hash of the training meshes."""
+def _fingerprint(references: tuple[TrainingMeshes, ...], config: Config, key: PRNGKey) -> dict:
+    """What a checkpoint folder is tied to: the config, the key and a hash of the training meshes
+    (of every reference, in order)."""
     h = hashlib.sha256()
-    for a in (meshes.template, *meshes.vertices, *meshes.faces):
-        a = np.ascontiguousarray(a)
-        h.update(str((a.shape, a.dtype.str)).encode())
-        h.update(a.tobytes())
+    for meshes in references:
+        for a in (meshes.template, *meshes.vertices, *meshes.faces):
+            a = np.ascontiguousarray(a)
+            h.update(str((a.shape, a.dtype.str)).encode())
+            h.update(a.tobytes())
     stored = config.to_dict()
     for name, default in _ADDED_FIELDS.items():  # folders written before a field existed resume
         if stored.get(name) == default:
@@ -406,7 +431,7 @@ def _checkpoint_like(config: Config, meta: dict, num_vertices: int) -> dict:
 
 
 def train(
-    meshes: TrainingMeshes,
+    meshes: TrainingMeshes | Sequence[TrainingMeshes],
     config: Config | None = None,
     *,
     key: PRNGKey,
@@ -419,7 +444,13 @@ def train(
     """Train the DGTS hierarchy on multi-scale training meshes, level by level (§3.4).
 
     Args:
-      meshes: from :func:`~jmeshtex.dgts.training_meshes`.
+      meshes: from :func:`~jmeshtex.dgts.training_meshes`; or several, fitted from one template
+        (same faces at every level: e.g. one reference remeshed under several template
+        rotations, ``training_meshes(..., rotation=)``, or several references of one texture).
+        Each step then draws one of them: the critic's real mesh and the reconstruction are that
+        one's, and each has its own ``z*`` (the first's is the key's as for one, the others' are
+        drawn from it); the model keeps the first's. Beyond the paper, which trains on one:
+        a single fit lets the generators key the texture to the template's triangles.
       config: :class:`~jmeshtex.dgts.Config` (default: its defaults, the paper's).
       key: PRNG key of the initialisation, ``z*`` and every noise draw.
       levels: train only the first ``levels`` levels (default: all of ``meshes``).
@@ -445,7 +476,8 @@ def train(
     Raises:
       ConfigError: ``levels`` outside ``[1, meshes.num_levels]``; ``checkpoint_every`` without a
         folder or below 1.
-      InputError: training meshes whose levels are not successive midpoint subdivisions.
+      InputError: training meshes whose levels are not successive midpoint subdivisions, or
+        several that do not share the first's levels and faces.
       CheckpointMismatchError: ``checkpoint_dir`` holds a run with another config, key or meshes.
 
     Example:
@@ -462,6 +494,8 @@ def train(
     """
     t_start = time.perf_counter()
     config = Config() if config is None else config
+    references = _references(meshes)
+    meshes = references[0]
     total = meshes.num_levels if levels is None else levels
     if not is_int(total, 1) or total > meshes.num_levels:
         raise ConfigError(
@@ -499,7 +533,7 @@ def train(
     resumed_from = None
     ckpt = None
     if checkpoint_dir is not None:
-        ckpt = Checkpoints(checkpoint_dir, fingerprint=_fingerprint(meshes, config, key))
+        ckpt = Checkpoints(checkpoint_dir, fingerprint=_fingerprint(references, config, key))
         step = ckpt.latest_step()
         if step is not None:
             meta = ckpt.read_meta(step)
@@ -515,8 +549,15 @@ def train(
             history = {name: list(meta["losses"][name]) for name in LOSS_NAMES}
             reports = [LevelReport(**r) for r in meta["levels"]]
             resumed_from = step
-    template = jnp.asarray(meshes.template, jnp.float32)
-    z_star_j = jnp.asarray(z_star, jnp.float32)
+    templates = jnp.asarray(np.stack([m.template for m in references]), jnp.float32)
+    z_stars = jnp.stack(
+        [jnp.asarray(z_star, jnp.float32)]
+        + [
+            config.noise_amplitude
+            * jax.random.normal(jax.random.fold_in(k_z, r), (V[0], 3), jnp.float32)
+            for r in range(1, len(references))
+        ]
+    )
     padded = _padded_sizes(geos_all, config.shared_levels)
     compiled: dict = {}  # this call's compiled steps (equal-sized levels share one)
     unpadded: dict = {}  # the newest level batch before padding
@@ -543,7 +584,7 @@ def train(
                 state, start = _level_state(config, level, g, d), 0
             geos = geos_all[: level + 1]
             nbhd = geos[-1].nbhd
-            real = jnp.asarray(meshes.vertices[level], jnp.float32)
+            reals = jnp.asarray(np.stack([m.vertices[level] for m in references]), jnp.float32)
             frozen = tuple(gs)
             k_level = jax.random.fold_in(k_train, level)
             t_batch = []  # the first chunk's frozen-level pass (compiles new shapes)
@@ -552,7 +593,7 @@ def train(
                 i: int,
                 level=level,
                 nbhd=nbhd,
-                real=real,
+                reals=reals,
                 frozen=frozen,
                 k_level=k_level,
                 t_batch=t_batch,
@@ -561,8 +602,9 @@ def train(
                 batch = level_batch(
                     frozen,
                     geos_all[: level + 1],
-                    template,
-                    z_star_j,
+                    templates,
+                    z_stars,
+                    reals,
                     jax.random.fold_in(k_level, i // CHUNK),
                     config=config,
                     chunk=CHUNK,
@@ -572,8 +614,8 @@ def train(
                     t_batch.append(time.perf_counter() - t)
                 unpadded["batch"] = nbhd, batch  # for the snapshots
                 if level < len(padded):
-                    nbhd, real, batch = pad_level(nbhd, real, batch, padded[level])
-                return nbhd, real, batch, jnp.int32(min(CHUNK, S - i))
+                    nbhd, batch = pad_level(nbhd, batch, padded[level])
+                return nbhd, batch, jnp.int32(min(CHUNK, S - i))
 
             def snapshot(done: int, state, batch, level=level) -> None:
                 if -(-done // CHUNK) % snap_every == 0 or done == S:
@@ -644,6 +686,27 @@ def train(
     )
 
 
+def _references(meshes) -> tuple[TrainingMeshes, ...]:
+    """``meshes`` as a non-empty tuple of :class:`TrainingMeshes` sharing the first's levels and faces."""
+    references = (meshes,) if isinstance(meshes, TrainingMeshes) else tuple(meshes)
+    if not references or not all(isinstance(m, TrainingMeshes) for m in references):
+        raise InputError(
+            "train: meshes must be TrainingMeshes (from dgts.training_meshes) or a non-empty "
+            "sequence of them"
+        )
+    first = references[0]
+    for r, m in enumerate(references[1:], 1):
+        same = m.num_levels == first.num_levels and all(
+            np.array_equal(a, b) for a, b in zip(m.faces, first.faces, strict=True)
+        )
+        if not same or np.shape(m.template) != np.shape(first.template):
+            raise InputError(
+                f"train: training meshes {r} do not share the levels and faces of training meshes "
+                "0; fit every reference from the same template with the same PrepareConfig.levels"
+            )
+    return references
+
+
 def _chunk_step(state: dict, batch: tuple, *, config: Config):
     """:func:`train_chunk` as the driver's ``(state, batch) -> (state, losses)``."""
     g, d, opt, losses = train_chunk(state["g"], state["d"], state["opt"], *batch, config=config)
@@ -686,22 +749,25 @@ def _padded_sizes(geos, shared_levels: int) -> list[dict[str, int]]:
     return [size] * len(shared)
 
 
-def pad_level(nbhd: FaceNeighborhood, real, batch: LevelBatch, size: dict[str, int]):
+def pad_level(nbhd: FaceNeighborhood, batch: LevelBatch, size: dict[str, int]):
     """Pad one level's training inputs to ``size`` (``F``, ``V``, ``M``): masked faces and vertices.
 
     Padded vertices sit at the origin with zero noise and belong to no real face, padded faces are
     masked out of every feature, norm and mean (:func:`train_chunk`), so training on the padded level
     gives the same parameters as on the level itself (tested).
     """
-    extra = size["V"] - int(real.shape[0])
+    extra = size["V"] - int(batch.real.shape[-2])
 
     def rows(x):
         return jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(0, extra), (0, 0)])
 
     batch = batch._replace(
-        **{k: rows(getattr(batch, k)) for k in ("fake_base", "fake_noise", "rec_base", "rec_noise")}
+        **{
+            k: rows(getattr(batch, k))
+            for k in ("fake_base", "fake_noise", "rec_base", "rec_noise", "real")
+        }
     )
-    return pad_to(nbhd, size), rows(real), batch
+    return pad_to(nbhd, size), batch
 
 
 def _initial_params(config: Config, level: int, key, gs: list, ds: list):

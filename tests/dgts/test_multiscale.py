@@ -175,3 +175,25 @@ def test_coarse_levels_fit_the_coarse_reference_in_the_references_frame(tiny_mes
             reference, template, config=cfg, key=jax.random.key(0), progress=False,
             coarse_reference=shrunk, coarse_levels=2,
         )  # fmt: skip
+
+
+def test_a_rotation_remeshes_the_reference_from_the_rotated_template(tiny_meshes):
+    """``rotation`` turns the normalised template before the fit: the template field is the turned
+    one, and steps=0 levels are the turned plain levels (the fit is what differs, not the frame)."""
+    cfg = PrepareConfig(levels=2, steps=0, samples_per_level=200)
+    r = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    plain, turned = (
+        training_meshes(
+            icosphere(2), icosahedron(), config=cfg, key=jax.random.key(0), progress=False, **extra
+        )
+        for extra in ({}, {"rotation": r})
+    )  # fmt: skip
+    np.testing.assert_allclose(turned.template, plain.template @ r.T, atol=1e-12)
+    for level in range(2):
+        np.testing.assert_allclose(turned.vertices[level], plain.vertices[level] @ r.T, atol=1e-9)
+    np.testing.assert_array_equal(turned.scales, plain.scales)
+    for bad, match in ((np.eye(2), r"\[3, 3\]"), (np.diag([1.0, 1.0, -1.0]), "proper rotation")):
+        with pytest.raises(ConfigError, match=match):
+            training_meshes(
+                icosphere(2), icosahedron(), config=cfg, key=jax.random.key(0), rotation=bad
+            )

@@ -194,13 +194,15 @@ def test_pad_level_changes_no_loss_and_no_update(tiny_meshes):
         _optimizer(cfg, cfg.generator_steps).init(g),
         _optimizer(cfg, cfg.discriminator_steps).init(d),
     )
-    template = jnp.asarray(tiny_meshes.template)
-    real = jnp.asarray(tiny_meshes.vertices[0])
-    batch = level_batch((), geos, template, 0.1 * template, jax.random.key(2), config=cfg, chunk=1)
+    template = jnp.asarray(tiny_meshes.template)[None]
+    real = jnp.asarray(tiny_meshes.vertices[0])[None]
+    batch = level_batch(
+        (), geos, template, 0.1 * template, real, jax.random.key(2), config=cfg, chunk=1
+    )
     nb = geos[0].nbhd
-    size = {"F": nb.faces.shape[0] + 7, "V": real.shape[0] + 5, "M": nb.vertex_faces.shape[1] + 2}
-    plain = train_chunk(g, d, opt, nb, real, batch, jnp.int32(1), config=cfg)
-    padded = train_chunk(g, d, opt, *pad_level(nb, real, batch, size), jnp.int32(1), config=cfg)
+    size = {"F": nb.faces.shape[0] + 7, "V": real.shape[1] + 5, "M": nb.vertex_faces.shape[1] + 2}
+    plain = train_chunk(g, d, opt, nb, batch, jnp.int32(1), config=cfg)
+    padded = train_chunk(g, d, opt, *pad_level(nb, batch, size), jnp.int32(1), config=cfg)
     assert set(plain[3]) == set(LOSS_NAMES)
     for k in plain[3]:
         np.testing.assert_allclose(
@@ -242,10 +244,18 @@ def test_fake_inputs_choose_what_the_frozen_levels_make_the_fakes_from(
 
     cfg = TINY.replace(shared_levels=0, fake_inputs=fake_inputs)
     geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 2)
-    template = jnp.asarray(tiny_meshes.template)
-    z_star = jnp.asarray(tiny_model.z_star)
+    template = jnp.asarray(tiny_meshes.template)[None]
+    z_star = jnp.asarray(tiny_model.z_star)[None]
+    real = jnp.asarray(tiny_meshes.vertices[1])[None]
     batch = level_batch(
-        tiny_model.generators[:1], geos, template, z_star, jax.random.key(2), config=cfg, chunk=2
+        tiny_model.generators[:1],
+        geos,
+        template,
+        z_star,
+        real,
+        jax.random.key(2),
+        config=cfg,
+        chunk=2,
     )
     fakes = np.asarray(batch.fake_base).reshape(-1, *batch.fake_base.shape[-2:])
     rec = np.asarray(batch.rec_base)[0, 0]
@@ -258,3 +268,92 @@ def test_fake_inputs_choose_what_the_frozen_levels_make_the_fakes_from(
     assert np.abs(noise[0] - noise[1]).max() > 1e-3  # level 1's own noise stays fresh
     with pytest.raises(ConfigError, match="fake_inputs"):
         TINY.replace(fake_inputs="ground truth")
+
+
+def _remeshed(tiny_meshes):
+    """The fixture's reference fitted from a turned template: a second remesh of one reference."""
+    from jmeshtex.data import icosahedron, icosphere
+    from jmeshtex.dgts import PrepareConfig, training_meshes
+
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    return training_meshes(
+        icosphere(2),
+        icosahedron(),
+        config=PrepareConfig(levels=2, steps=20, samples_per_level=200),
+        key=jax.random.key(0),
+        progress=False,
+        rotation=turn,
+    )
+
+
+def test_several_references_draw_one_per_step_with_its_own_real_mesh_and_reconstruction(
+    tiny_meshes,
+):
+    """Each step of a level batch uses one reference throughout: its real mesh, and (from
+    ``reconstruction_start`` on) its own reconstruction from its own ``z*``; both are drawn."""
+    import jax.numpy as jnp
+
+    from jmeshtex.dgts._train import level_batch
+    from jmeshtex.dgts.core import hierarchy_geometry, init_level
+
+    refs = (tiny_meshes, _remeshed(tiny_meshes))
+    cfg = TINY.replace(shared_levels=0)
+    geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 2)
+    templates = jnp.asarray(np.stack([m.template for m in refs]), jnp.float32)
+    z_stars = 0.1 * jax.random.normal(jax.random.key(5), templates.shape)
+    reals = jnp.asarray(np.stack([m.vertices[1] for m in refs]), jnp.float32)
+    g0 = init_level(cfg, 0, generator=True, key=jax.random.key(0))
+    chunk = 16
+    batch = level_batch(
+        (g0,), geos, templates, z_stars, reals, jax.random.key(2), config=cfg, chunk=chunk
+    )
+    real = np.asarray(batch.real)
+    which = [
+        int(np.argmin(np.abs(real[i] - np.asarray(reals)).max(axis=(1, 2)))) for i in range(chunk)
+    ]
+    assert set(which) == {0, 1}  # both drawn in 16 steps
+    for i in range(chunk):
+        np.testing.assert_array_equal(real[i], np.asarray(reals)[which[i]])
+    rec = np.asarray(batch.rec_base)[:, 0]
+    for i in range(chunk):  # the same reconstruction for the same reference, another for the other
+        for j in range(chunk):
+            same = np.allclose(rec[i], rec[j], atol=1e-6)
+            assert same == (which[i] == which[j]), (i, j)
+    single = level_batch(
+        (g0,), geos, templates[:1], z_stars[:1], reals[:1], jax.random.key(2), config=cfg,
+        chunk=chunk,
+    )  # fmt: skip
+    for i in np.flatnonzero(np.asarray(which) == 0):  # reference 0's reconstruction as if alone
+        np.testing.assert_allclose(rec[i], np.asarray(single.rec_base)[0, 0], atol=1e-6)
+
+
+def test_training_on_several_references(tmp_path, tiny_meshes, tiny_result):
+    """One reference in a list trains the same model as alone; two train, resume exactly and are
+    tied to their checkpoint folder; references of other faces are refused."""
+    from jmeshtex import InputError
+    from jmeshtex.data import icosphere
+    from jmeshtex.dgts import PrepareConfig, training_meshes
+
+    key = jax.random.key(TINY_KEY)
+    alone = train([tiny_meshes], TINY, key=key, progress=False)
+    _assert_same_model(alone.model, tiny_result.model)
+    refs = [tiny_meshes, _remeshed(tiny_meshes)]
+    whole = train(refs, TINY, key=key, progress=False)
+    np.testing.assert_array_equal(whole.model.z_star, tiny_result.model.z_star)  # the first's
+    assert all(np.isfinite(v).all() for v in whole.losses.values())
+    assert not np.array_equal(whole.losses["g_rec"], tiny_result.losses["g_rec"])
+    out = tmp_path / "run"
+    train(refs, TINY, key=key, checkpoint_dir=out, levels=1, progress=False)
+    resumed = train(refs, TINY, key=key, checkpoint_dir=out, progress=False)
+    assert resumed.resumed_from == TINY.steps
+    _assert_same_model(resumed.model, whole.model)
+    with pytest.raises(CheckpointMismatchError, match="meshes"):
+        train(refs[::-1], TINY, key=key, checkpoint_dir=out, progress=False)
+    other = training_meshes(
+        icosphere(2), icosphere(1), config=PrepareConfig(levels=2, steps=0), key=key,
+        progress=False,
+    )  # fmt: skip
+    with pytest.raises(InputError, match="do not share the levels and faces"):
+        train([tiny_meshes, other], TINY, key=key, progress=False)
+    with pytest.raises(InputError, match="non-empty sequence"):
+        train([], TINY, key=key, progress=False)
