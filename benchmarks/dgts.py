@@ -423,6 +423,9 @@ def noise_response(
     samples: int,
     real=("cow", "fandisk"),
     coarse_levels: int = 0,
+    remeshes: int = 1,
+    choices: tuple[str, ...] = ("sampled", "reconstructed"),
+    starts: tuple[int | None, ...] = (None, 2),
 ) -> None:
     """Where a trained hierarchy's texture goes wrong under fresh noise, per ``Config.fake_inputs``.
 
@@ -431,20 +434,27 @@ def noise_response(
     ``work/<kind>/fake_inputs_<choice>_<steps>/``). Rows, as peak density and relief relative to the
     truth: in-domain, every level reconstructed (``z*``) except fresh noise at level ``k`` alone
     (the noise response of generator ``k`` given the training coarse shape); transfers to the torus
-    and the shared real meshes at the default start level and noise, and from level 2 with noise
-    at levels 2-3, against their oracles, beside untrained weights and matched noise. With
+    and the shared real meshes at the default start level and noise, and from each level of
+    ``starts`` (default 2: noise at levels 2-3), against their oracles, beside untrained weights and matched noise. With
     ``coarse_levels`` the training meshes' coarsest levels fit the untextured sphere
-    (:func:`depth_meshes`; runs in ``coarse<K>_fake_inputs_...``). Writes
-    ``dgts_noise_response[_coarse<K>]`` and its figure (in-domain under level L−1's noise; each target's oracle
+    (:func:`depth_meshes`; runs in ``coarse<K>_fake_inputs_...``). With ``remeshes`` R > 1 each
+    model trains on R remeshes of the reference (the plain fit and R − 1 fits from turned
+    templates, one drawn per step; runs in ``remesh<R>_fake_inputs_...``); in-domain rows score
+    against the plain fit. ``choices``: the ``fake_inputs`` trained. Writes
+    ``dgts_noise_response[_coarse<K>][_remesh<R>]`` and its figure (in-domain under level L−1's noise; each target's oracle
     and transfers at the default start)."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import load, save
     from jmeshtex.dgts.core import plan_transfer, run_plan
 
     suffix = f"_coarse{coarse_levels}" if coarse_levels else ""
+    suffix += f"_remesh{remeshes}" if remeshes > 1 else ""
     report = Report("dgts_noise_response" + suffix, ceilings=False)
     folder = work / kind
     _, tm = depth_meshes(kind, levels, folder, coarse_levels)
+    references = [tm] + [
+        depth_meshes(kind, levels, folder, coarse_levels, remesh=i)[1] for i in range(1, remeshes)
+    ]
     period = period_in_mean_edges(tm, DEPTH_TEXTURES[kind])
     truth = tm.mesh(-1)
     template = (tm.template, tm.faces[0])
@@ -454,16 +464,17 @@ def noise_response(
         "steps": steps,
         "period_mean_edges": period,
         "coarse_levels": coarse_levels,
+        "remeshes": remeshes,
     }
     models = {}
-    for choice in ("sampled", "reconstructed"):
+    for choice in choices:
         run = folder / f"{suffix[1:]}_fake_inputs_{choice}_{steps}".lstrip("_")
         if (run / "model.npz").is_file():
             models[choice] = load(run)
             continue
         c0, t0 = time.process_time(), time.perf_counter()
         result = train(
-            tm,
+            references,
             Config(steps=steps, fake_inputs=choice),
             key=jax.random.key(0),
             checkpoint_dir=run / "checkpoints",
@@ -500,7 +511,7 @@ def noise_response(
         _score_rows(report, f"[{name}] in-domain vs training mesh", rows, truth, None, {})
         panels.append((f"{name}: noise at level {levels - 1} only", rows[label_last][0]))
     for target_name, target in _targets(real):
-        for start in (None, 2):
+        for start in starts:
             rows = {}
             for name, model in models.items():
                 res = transfer(
@@ -524,9 +535,10 @@ def noise_response(
     figure(
         [(title, render_mesh(mesh, size=(320, 320))) for title, mesh in panels],
         columns=4,
-        title=f"DGTS {kind}, {levels} levels x {steps} steps: fake_inputs sampled (reference) vs "
-        "reconstructed"
-        + (f"; levels < {coarse_levels} fit the untextured sphere" if coarse_levels else ""),
+        title=f"DGTS {kind}, {levels} levels x {steps} steps: fake_inputs "
+        + " vs ".join(choices)
+        + (f"; levels < {coarse_levels} fit the untextured sphere" if coarse_levels else "")
+        + (f"; trained on {remeshes} remeshes" if remeshes > 1 else ""),
         path=RESULTS / f"dgts_noise_response{suffix}.png",
     )
     report.notes.append(
@@ -804,6 +816,26 @@ def main() -> None:
         default=0,
         help="--noise-response: the training meshes' coarsest K levels fit the untextured sphere",
     )
+    ap.add_argument(
+        "--remeshes",
+        type=int,
+        default=1,
+        help="--noise-response: train on R remeshes of the reference (R - 1 from turned templates)",
+    )
+    ap.add_argument(
+        "--fake-inputs",
+        nargs="+",
+        default=["sampled", "reconstructed"],
+        choices=["sampled", "reconstructed"],
+        help="--noise-response: the Config.fake_inputs choices trained",
+    )
+    ap.add_argument(
+        "--starts",
+        nargs="+",
+        type=int,
+        default=[2],
+        help="--noise-response: transfer start levels scored beside the default one",
+    )
     args = ap.parse_args()
     if args.noise_response:
         noise_response(
@@ -813,6 +845,9 @@ def main() -> None:
             work=args.work,
             samples=args.samples,
             coarse_levels=args.coarse_levels,
+            remeshes=args.remeshes,
+            choices=tuple(args.fake_inputs),
+            starts=(None, *args.starts),
         )
         return
     if args.depth:

@@ -25,7 +25,10 @@ How it runs (each level is one run of the shared training driver):
   padded-neighbourhood contract: no loss or update changes, tested) to one size so equal-width
   levels reuse one compiled step within a call;
 - compilation is ahead of time, timed apart from the steps (:class:`LevelReport`); the CLI also
-  enables JAX's persistent compilation cache (``jmeshtex dgts --help``).
+  enables JAX's persistent compilation cache (``jmeshtex dgts --help``);
+- several training meshes of one template (e.g. remeshes of the reference from turned templates)
+  train one model: each step draws one, whose mesh is the critic's real one and whose own ``z*``
+  is reconstructed (beyond the paper).
 
 Checkpoints (``checkpoint_dir``, :class:`jmeshtex.io.Checkpoints`): after every level, and every
 ``checkpoint_every`` steps within a level, the parameters of the completed levels, ``z*``, the
