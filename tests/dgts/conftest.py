@@ -15,8 +15,7 @@ TINY = Config(
 TINY_KEY = 3
 
 
-@pytest.fixture(scope="session")
-def tiny_meshes():
+def _tiny_fit(**extra):
     """Two levels (20 → 80 faces) of an icosahedron fitted to an icosphere (few steps)."""
     return training_meshes(
         icosphere(2),
@@ -24,7 +23,19 @@ def tiny_meshes():
         config=PrepareConfig(levels=2, steps=20, samples_per_level=200),
         key=jax.random.key(0),
         progress=False,
+        **extra,
     )
+
+
+@pytest.fixture(scope="session")
+def tiny_meshes():
+    return _tiny_fit()
+
+
+@pytest.fixture(scope="session")
+def tiny_remeshed():
+    """The same reference fitted from a turned template: a second remesh of one reference."""
+    return _tiny_fit(rotation=[[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
 
 
 @pytest.fixture(scope="session")

@@ -270,24 +270,8 @@ def test_fake_inputs_choose_what_the_frozen_levels_make_the_fakes_from(
         TINY.replace(fake_inputs="ground truth")
 
 
-def _remeshed(tiny_meshes):
-    """The fixture's reference fitted from a turned template: a second remesh of one reference."""
-    from jmeshtex.data import icosahedron, icosphere
-    from jmeshtex.dgts import PrepareConfig, training_meshes
-
-    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
-    return training_meshes(
-        icosphere(2),
-        icosahedron(),
-        config=PrepareConfig(levels=2, steps=20, samples_per_level=200),
-        key=jax.random.key(0),
-        progress=False,
-        rotation=turn,
-    )
-
-
 def test_several_references_draw_one_per_step_with_its_own_real_mesh_and_reconstruction(
-    tiny_meshes,
+    tiny_meshes, tiny_remeshed
 ):
     """Each step of a level batch uses one reference throughout: its real mesh, and (from
     ``reconstruction_start`` on) its own reconstruction from its own ``z*``; both are drawn."""
@@ -296,7 +280,7 @@ def test_several_references_draw_one_per_step_with_its_own_real_mesh_and_reconst
     from jmeshtex.dgts._train import level_batch
     from jmeshtex.dgts.core import hierarchy_geometry, init_level
 
-    refs = (tiny_meshes, _remeshed(tiny_meshes))
+    refs = (tiny_meshes, tiny_remeshed)
     cfg = TINY.replace(shared_levels=0)
     geos, _ = hierarchy_geometry(tiny_meshes.faces[0], len(tiny_meshes.template), 2)
     templates = jnp.asarray(np.stack([m.template for m in refs]), jnp.float32)
@@ -327,7 +311,7 @@ def test_several_references_draw_one_per_step_with_its_own_real_mesh_and_reconst
         np.testing.assert_allclose(rec[i], np.asarray(single.rec_base)[0, 0], atol=1e-6)
 
 
-def test_training_on_several_references(tmp_path, tiny_meshes, tiny_result):
+def test_training_on_several_references(tmp_path, tiny_meshes, tiny_remeshed, tiny_result):
     """One reference in a list trains the same model as alone; two train, resume exactly and are
     tied to their checkpoint folder; references of other faces are refused."""
     from jmeshtex import InputError
@@ -337,7 +321,7 @@ def test_training_on_several_references(tmp_path, tiny_meshes, tiny_result):
     key = jax.random.key(TINY_KEY)
     alone = train([tiny_meshes], TINY, key=key, progress=False)
     _assert_same_model(alone.model, tiny_result.model)
-    refs = [tiny_meshes, _remeshed(tiny_meshes)]
+    refs = [tiny_meshes, tiny_remeshed]
     whole = train(refs, TINY, key=key, progress=False)
     np.testing.assert_array_equal(whole.model.z_star, tiny_result.model.z_star)  # the first's
     assert all(np.isfinite(v).all() for v in whole.losses.values())
