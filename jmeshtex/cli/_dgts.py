@@ -56,6 +56,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--steps", type=int, default=None, help="Adam steps per level (default: PrepareConfig's)"
     )
     q.add_argument("--samples", type=int, default=None, help="surface samples at level 0")
+    q.add_argument(
+        "--remeshes",
+        type=int_in(1, 16),
+        default=1,
+        help="fit the reference R times, R - 1 of them from randomly turned templates "
+        "(training_remesh<i>.npz), so the texture lies elsewhere on the template's triangles; "
+        "`dgts train` then trains on all R (beyond the paper; default 1)",
+    )
     add_common(q)
     q.set_defaults(func=cached(_prepare))
 
@@ -171,13 +179,25 @@ def _prepare(args) -> int:
             f"faces at the finest level, more than {2 * MAX_SPEC_VERTICES:,}: ask for fewer "
             "levels or a coarser --template"
         )
-    tm = training_meshes(
-        ref, tmpl, config=config, key=jax.random.key(args.seed), progress=not args.quiet
-    )
+    key = jax.random.key(args.seed)
+    tm = training_meshes(ref, tmpl, config=config, key=key, progress=not args.quiet)
     out = args.out
     save_training_meshes(tm, out / "training.npz")
+    for i in range(1, args.remeshes):
+        turn = training_meshes(
+            ref,
+            tmpl,
+            config=config,
+            key=key,
+            progress=not args.quiet,
+            rotation=_random_rotation(jax.random.fold_in(key, i)),
+        )
+        save_training_meshes(turn, out / f"training_remesh{i}.npz")
     atomic_write(
-        out / "prepare.json", json.dumps({**config.to_dict(), "seed": args.seed}, indent=2).encode()
+        out / "prepare.json",
+        json.dumps(
+            {**config.to_dict(), "seed": args.seed, "remeshes": args.remeshes}, indent=2
+        ).encode(),
     )
     save_mesh(ref, out / "reference.obj")
     images = [render_mesh(ref, size=(300, 300))]
@@ -206,6 +226,11 @@ def _train(args) -> int:
     if args.dir.is_dir():  # one process per folder: a second run would race on the checkpoints
         claim_output(args.dir, command="dgts train", overwrite=True, accept=("dgts prepare",))
     tm = load_training_meshes(args.dir / "training.npz")
+    prepared = args.dir / "prepare.json"
+    remeshes = json.loads(prepared.read_text()).get("remeshes", 1) if prepared.is_file() else 1
+    references = [tm] + [
+        load_training_meshes(args.dir / f"training_remesh{i}.npz") for i in range(1, remeshes)
+    ]
     changes = {"shared_levels": args.shared_levels}
     if args.steps is not None:
         changes["steps"] = args.steps
@@ -218,7 +243,7 @@ def _train(args) -> int:
     config = Config(**changes)
     key = jax.random.key(args.seed)
     result = train(
-        tm,
+        references if remeshes > 1 else tm,
         config,
         key=key,
         levels=args.levels,
@@ -255,6 +280,15 @@ def _train(args) -> int:
     render_mesh(sample, args.dir / "sample.png", size=(400, 400), title="sample from the template")
     print(f"wrote {out} ({result.model.num_levels} levels) and {args.dir / 'sample.png'}")
     return 0
+
+
+def _random_rotation(key):
+    """A Haar-random proper rotation ``[3, 3]`` (float64 NumPy) drawn from ``key``."""
+    import jax
+    import numpy as np
+
+    q = np.asarray(jax.random.orthogonal(key, 3), np.float64)
+    return q if np.linalg.det(q) > 0 else q * np.array([-1.0, 1.0, 1.0])
 
 
 def _model_dir(path: pathlib.Path) -> pathlib.Path:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import jax
 import matplotlib.image
 import numpy as np
+import pytest
 
 from jmeshtex.cli import main
 from jmeshtex.dgts import load
@@ -234,3 +235,32 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys, monkeypatch):
     assert "holds no DGTS model" in capsys.readouterr().err
     assert main(["dgts", "prepare", "--reference", "no-such-mesh.obj", "--out", str(tmp_path)]) == 2
     assert "neither a mesh file" in capsys.readouterr().err
+
+
+def test_prepare_remeshes_and_train_on_all_of_them(tmp_path, capsys, monkeypatch):
+    """``prepare --remeshes 2`` writes a second fit from a turned template (the same reference, the
+    same face counts, other positions), and ``train`` trains one model on both."""
+    from jmeshtex.dgts import load_training_meshes
+
+    monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")
+    d = tmp_path / "dgts"
+    prepare = ["dgts", "prepare", "--reference", "icosphere:2", "--template", "icosahedron"]
+    prepare += ["--levels", "2", "--steps", "5", "--samples", "100", "--remeshes", "2"]
+    assert main([*prepare, "--out", str(d), "--quiet"]) == 0
+    first, second = (load_training_meshes(d / n) for n in ("training.npz", "training_remesh1.npz"))
+    assert [len(f) for f in second.faces] == [20, 80]
+    turn = np.linalg.lstsq(first.template, second.template, rcond=None)[0]  # template @ turn
+    np.testing.assert_allclose(turn @ turn.T, np.eye(3), atol=1e-9)
+    assert np.abs(turn - np.eye(3)).max() > 0.1 and np.linalg.det(turn) > 0
+    train_args = ["dgts", "train", str(d), "--steps", "2", "--layers", "3"]
+    train_args += ["--features", "4", "4", "4", "--shared-levels", "2", "--quiet"]
+    assert main(train_args) == 0
+    model = load(d / "model")
+    from jmeshtex.dgts import train
+
+    direct = train([first, second], TINY, key=jax.random.key(0), progress=False).model  # seed 0
+    for a, b in zip(jax.tree.leaves(model), jax.tree.leaves(direct), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    with pytest.raises(SystemExit) as refused:  # argparse refuses it before anything runs
+        main(["dgts", "prepare", "--reference", "icosphere:2", "--remeshes", "0", "--out", str(d)])
+    assert refused.value.code == 2 and "--remeshes: 0 is out of range" in capsys.readouterr().err
