@@ -715,38 +715,45 @@ def quality(
     meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
 ) -> None:
     """The issue-33 protocol: every (mesh, exemplar) cell at ``size``² and ``steps`` steps, every
-    VGG-16 ReLU and pool output, xatlas layouts, exemplars at native resolution."""
+    VGG-16 ReLU and pool output, xatlas layouts, exemplars at native resolution. The report lists
+    every finished cell in ``work`` (of this call or an earlier one), in protocol order."""
+    import json
 
     from jmeshtex.geometry import tracer_geometry
 
     weights = load_vgg16()
     levels = required_levels(weights, default_layers(weights))
-    rows, spreads = [], {}
     for mesh_name in meshes:
         mesh = _protocol_mesh(mesh_name, work)
-        spreads[mesh_name] = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)[
-            "ratio_p95_p5"
-        ]
         surface, geometry = None, None
         for ex_name in exemplars:
             cell = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
             if surface is None and not cell.is_file():
                 surface = prepare_surface(mesh, size=size, levels=levels)
                 geometry = tracer_geometry(mesh.vertices, mesh.faces)
-            rows.append(
-                _protocol_cell(
-                    mesh_name,
-                    mesh,
-                    PROTOCOL_MESHES[mesh_name][1],
-                    surface,
-                    geometry,
-                    ex_name,
-                    size,
-                    steps,
-                    weights,
-                    work,
-                )
+            _protocol_cell(
+                mesh_name,
+                mesh,
+                PROTOCOL_MESHES[mesh_name][1],
+                surface,
+                geometry,
+                ex_name,
+                size,
+                steps,
+                weights,
+                work,
             )
+    rows, spreads = [], {}
+    for mesh_name in PROTOCOL_MESHES:
+        for ex_name in PROTOCOL_EXEMPLARS:
+            done = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
+            if done.is_file():
+                rows.append(json.loads(done.read_text()))
+                if mesh_name not in spreads:
+                    mesh = _protocol_mesh(mesh_name, work)
+                    spreads[mesh_name] = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)[
+                        "ratio_p95_p5"
+                    ]
     _write_quality(rows, spreads, size, steps, out)
 
 
