@@ -549,6 +549,119 @@ def noise_response(
     report.write()
 
 
+def receptive_field(
+    kind: str,
+    layer_counts: list[int],
+    *,
+    levels: int,
+    steps: int,
+    work: pathlib.Path,
+    samples: int,
+    remeshes: int,
+    real=("cow", "fandisk"),
+) -> None:
+    """Does a wider receptive field lay the texture out at the right density from noise?
+
+    The paper's widths with ``num_layers`` in ``layer_counts`` (7: the paper's; each face
+    convolution widens generator and critic by one ring of faces), ``fake_inputs="reconstructed"``,
+    trained ``steps`` per level on the first ``levels`` levels of ``remeshes`` remeshes of the run at
+    depth's reference (:func:`depth_meshes`; several, so no generator can key the layout to the
+    template's triangles), resumable in ``work/<kind>/receptive_field_<layers>_...``. The last level
+    trained is the one that must lay the texture out: rows score it under its own fresh noise alone
+    in-domain (every coarser level on the reconstruction's noise) against the training mesh of that
+    level, and transfers to a torus and the shared real meshes that start at that level (so it lays
+    the texture out on a surface it never saw) against their oracles, beside untrained weights and
+    matched noise. Writes ``dgts_receptive_field``."""
+    from jmeshtex import Mesh
+    from jmeshtex.dgts import Model, load, save
+    from jmeshtex.dgts.core import plan_transfer, run_plan
+
+    report = Report("dgts_receptive_field", ceilings=False)
+    folder = work / kind
+    references = [depth_meshes(kind, 4, folder, remesh=i)[1] for i in range(remeshes)]
+    tm = references[0]
+    last = levels - 1
+    period = period_in_mean_edges(tm, DEPTH_TEXTURES[kind]) / 2 ** (tm.num_levels - levels)
+    truth = tm.mesh(last)
+    template = (tm.template, tm.faces[0])
+    report.config = {"kind": kind, "levels": levels, "steps": steps, "remeshes": remeshes,
+                     "period_mean_edges_at_last_level": period}  # fmt: skip
+    models: dict[str, Model] = {}
+    for layers in layer_counts:
+        cfg = Config(steps=steps, fake_inputs="reconstructed", num_layers=layers)
+        run = (
+            folder / f"receptive_field_{layers}_layers_{levels}_levels_{remeshes}_remeshes_{steps}"
+        )
+        if (run / "model.npz").is_file():
+            models[f"{layers} layers"] = load(run)
+            continue
+        c0, t0 = time.process_time(), time.perf_counter()
+        result = train(
+            references,
+            cfg,
+            key=jax.random.key(0),
+            levels=levels,
+            checkpoint_dir=run / "checkpoints",
+            checkpoint_every=250,
+            progress=False,
+        )
+        save(result.model, run)
+        models[f"{layers} layers"] = result.model
+        report.add(
+            name=f"train ({layers} layers)",
+            train_s=time.perf_counter() - t0,
+            train_cpu_s=time.process_time() - c0,
+            resumed_from=result.resumed_from,
+        )
+    models["untrained (7 layers)"] = train(
+        references, Config(steps=0), key=jax.random.key(0), levels=levels, progress=False
+    ).model
+
+    def own_noise_only(model, plan, i: int) -> Mesh:
+        noise = [np.asarray(model.z_star, np.float32)] + [0.0] * last
+        draw = jax.random.normal(jax.random.fold_in(jax.random.key(2), i), (plan.sizes[last], 3))
+        noise[last] = model.config.noise_amplitude * draw
+        return Mesh(plan.to_target(run_plan(model, plan, noise)), plan.faces[-1])
+
+    rows = {
+        name: [
+            own_noise_only(m, plan_transfer(m, template, start_level=0), i) for i in range(samples)
+        ]
+        for name, m in models.items()
+    }
+    _score_rows(report, f"in-domain, fresh noise at level {last} only", rows, truth, None, {})
+    panels = [("training mesh", truth)] + [(f"in-domain: {n}", r[0]) for n, r in rows.items()]
+    for target_name, target in _targets(real):
+        rows = {}
+        for name, model in models.items():
+            res = transfer(
+                model, target, num_samples=samples, start_level=last, key=jax.random.key(1)
+            )
+            rows[name] = [res.mesh(i) for i in range(samples)]
+        base = (res.base, res.faces)
+        oracle = oracle_texture(base, kind, period=period)
+        own = texture_scores(oracle, oracle, base=base)
+        rows["matched noise"] = [
+            matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(samples)
+        ]
+        _score_rows(
+            report, f"{target_name}, start {last} (F={len(res.faces)})", rows, oracle, base, {}
+        )
+        panels.append((f"{target_name}: oracle", oracle))
+        panels += [(f"{target_name}: {n}", rows[n][0]) for n in models]
+        report.write()
+    from jmeshtex.render import figure, render_mesh
+
+    figure(
+        [(title, render_mesh(mesh, size=(320, 320))) for title, mesh in panels],
+        columns=len(models) + 1,
+        title=f"DGTS {kind}: layers per network, {levels} levels x {steps} steps, "
+        f"{remeshes} remeshes, fake_inputs reconstructed",
+        path=RESULTS / "dgts_receptive_field.png",
+    )
+    report.write()
+
+
 #: the learning test's settings (tests/dgts/test_learning.py): name -> (Config changes, the
 #: reference's knob period on the unit sphere)
 LEARNING_SETTINGS = {
@@ -836,7 +949,27 @@ def main() -> None:
         default=[2],
         help="--noise-response: transfer start levels scored beside the default one",
     )
+    ap.add_argument(
+        "--receptive-field",
+        default=None,
+        choices=sorted(DEPTH_TEXTURES),
+        help="only the receptive-field study on this texture (--layer-counts, --study-levels, "
+        "--depth-steps, --remeshes; writes dgts_receptive_field)",
+    )
+    ap.add_argument("--layer-counts", nargs="+", type=int, default=[7, 10])
+    ap.add_argument("--study-levels", type=int, default=3)
     args = ap.parse_args()
+    if args.receptive_field:
+        receptive_field(
+            args.receptive_field,
+            args.layer_counts,
+            levels=args.study_levels,
+            steps=args.depth_steps,
+            work=args.work,
+            samples=args.samples,
+            remeshes=args.remeshes,
+        )
+        return
     if args.noise_response:
         noise_response(
             args.noise_response,
