@@ -32,6 +32,11 @@ Sections (float32, CPU, jit; compile time reported apart):
 - ``--noise-response KIND`` (alone): ``Config.fake_inputs`` compared on the run at depth's meshes
   (``--depth-levels``, ``--depth-steps``, ``--work``): each level's output under fresh noise at that
   level alone, and transfers (:func:`noise_response`); writes ``dgts_noise_response``.
+  ``--remeshes R`` trains on R remeshes of the reference (the template fitted under R − 1 random
+  rotations too), ``--starts`` adds transfer start levels, ``--fake-inputs`` picks the choices.
+- ``--receptive-field KIND`` (alone): ``--layer-counts`` layers per network on ``--remeshes``
+  remeshes, ``--study-levels`` levels; the last level lays the texture out from its own noise,
+  in-domain and on new surfaces (:func:`receptive_field`); writes ``dgts_receptive_field``.
 - ``--margins [SETTING ...]`` (alone): the learning test's margins (``tests/dgts/test_learning.py``)
   over ``--seeds`` training keys, x64 on as in the tests: per seed the ``|log|`` peak-density error
   of the trained, untrained and noise transfers against the oracle, and their differences; a
