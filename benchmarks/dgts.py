@@ -571,21 +571,26 @@ def receptive_field(
     convolution widens generator and critic by one ring of faces), ``fake_inputs="reconstructed"``,
     trained ``steps`` per level on the first ``levels`` levels of ``remeshes`` remeshes of the run at
     depth's reference (:func:`depth_meshes`; several, so no generator can key the layout to the
-    template's triangles), resumable in ``work/<kind>/receptive_field_<layers>_...``. The last level
-    trained is the one that must lay the texture out: rows score it under its own fresh noise alone
-    in-domain (every coarser level on the reconstruction's noise) against the training mesh of that
-    level, and transfers to a torus and the shared real meshes that start at that level (so it lays
-    the texture out on a surface it never saw) against their oracles, beside untrained weights and
-    matched noise. Writes ``dgts_receptive_field``."""
+    template's triangles), resumable in ``work/<kind>/receptive_field_<layers>_...``. Level 2 (about
+    2.8 mean edges per period, the first that holds a knob) must lay the texture out: rows score the
+    finest level's output with fresh noise at level 2 alone in-domain (every other level on the
+    reconstruction's noise) against the finest training mesh, and transfers to a torus and the
+    shared real meshes that start at level 2 (so it lays the texture out on a surface it never saw)
+    against their oracles, beside untrained weights and matched noise. With 3 levels the scores are
+    read at level 2 itself, where peak density separates little; with 4, at level 3. Writes
+    ``dgts_receptive_field`` (``_<levels>_levels`` beyond 3)."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import Model, load, save
     from jmeshtex.dgts.core import plan_transfer, run_plan
 
-    report = Report("dgts_receptive_field", ceilings=False)
+    if levels < 3:
+        raise SystemExit("--study-levels must be >= 3 (level 2 lays the texture out)")
+    suffix = "" if levels == 3 else f"_{levels}_levels"
+    report = Report("dgts_receptive_field" + suffix, ceilings=False)
     folder = work / kind
     references = [depth_meshes(kind, 4, folder, remesh=i)[1] for i in range(remeshes)]
     tm = references[0]
-    last = levels - 1
+    last, layout = levels - 1, 2
     period = period_in_mean_edges(tm, DEPTH_TEXTURES[kind]) / 2 ** (tm.num_levels - levels)
     truth = tm.mesh(last)
     template = (tm.template, tm.faces[0])
@@ -624,8 +629,8 @@ def receptive_field(
 
     def own_noise_only(model, plan, i: int) -> Mesh:
         noise = [np.asarray(model.z_star, np.float32)] + [0.0] * last
-        draw = jax.random.normal(jax.random.fold_in(jax.random.key(2), i), (plan.sizes[last], 3))
-        noise[last] = model.config.noise_amplitude * draw
+        draw = jax.random.normal(jax.random.fold_in(jax.random.key(2), i), (plan.sizes[layout], 3))
+        noise[layout] = model.config.noise_amplitude * draw
         return Mesh(plan.to_target(run_plan(model, plan, noise)), plan.faces[-1])
 
     rows = {
@@ -634,13 +639,13 @@ def receptive_field(
         ]
         for name, m in models.items()
     }
-    _score_rows(report, f"in-domain, fresh noise at level {last} only", rows, truth, None, {})
+    _score_rows(report, f"in-domain, fresh noise at level {layout} only", rows, truth, None, {})
     panels = [("training mesh", truth)] + [(f"in-domain: {n}", r[0]) for n, r in rows.items()]
     for target_name, target in _targets(real):
         rows = {}
         for name, model in models.items():
             res = transfer(
-                model, target, num_samples=samples, start_level=last, key=jax.random.key(1)
+                model, target, num_samples=samples, start_level=layout, key=jax.random.key(1)
             )
             rows[name] = [res.mesh(i) for i in range(samples)]
         base = (res.base, res.faces)
@@ -662,7 +667,7 @@ def receptive_field(
         columns=len(models) + 1,
         title=f"DGTS {kind}: layers per network, {levels} levels x {steps} steps, "
         f"{remeshes} remeshes, fake_inputs reconstructed",
-        path=RESULTS / "dgts_receptive_field.png",
+        path=RESULTS / f"dgts_receptive_field{suffix}.png",
     )
     report.write()
 
