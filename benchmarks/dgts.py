@@ -655,7 +655,7 @@ def receptive_field(
             matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(samples)
         ]
         _score_rows(
-            report, f"{target_name}, start {last} (F={len(res.faces)})", rows, oracle, base, {}
+            report, f"{target_name}, start {layout} (F={len(res.faces)})", rows, oracle, base, {}
         )
         panels.append((f"{target_name}: oracle", oracle))
         panels += [(f"{target_name}: {n}", rows[n][0]) for n in models]
