@@ -419,6 +419,23 @@ def depth(
         report.write()
 
 
+def _score_transfers(report, section, models, target, start, kind, period, samples):
+    """Each model's transfers to ``target`` from ``start`` (None: the default) and matched noise,
+    scored against the oracle on the transfer's own base; returns ``(rows, oracle)``."""
+    rows = {}
+    for name, model in models.items():
+        res = transfer(model, target, num_samples=samples, start_level=start, key=jax.random.key(1))
+        rows[name] = [res.mesh(i) for i in range(samples)]
+    base = (res.base, res.faces)
+    oracle = oracle_texture(base, kind, period=period)
+    own = texture_scores(oracle, oracle, base=base)
+    rows["matched noise"] = [
+        matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(samples)
+    ]
+    _score_rows(report, f"{section} (F={len(res.faces)})", rows, oracle, base, {})
+    return rows, oracle
+
+
 def noise_response(
     kind: str,
     *,
@@ -517,20 +534,10 @@ def noise_response(
         panels.append((f"{name}: noise at level {levels - 1} only", rows[label_last][0]))
     for target_name, target in _targets(real):
         for start in starts:
-            rows = {}
-            for name, model in models.items():
-                res = transfer(
-                    model, target, num_samples=samples, start_level=start, key=jax.random.key(1)
-                )
-                rows[name] = [res.mesh(i) for i in range(samples)]
-            base = (res.base, res.faces)
-            oracle = oracle_texture(base, kind, period=period)
-            own = texture_scores(oracle, oracle, base=base)
-            rows["matched noise"] = [
-                matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(samples)
-            ]
             at = "default start" if start is None else f"start {start}"
-            _score_rows(report, f"{target_name}, {at} (F={len(res.faces)})", rows, oracle, base, {})
+            rows, oracle = _score_transfers(
+                report, f"{target_name}, {at}", models, target, start, kind, period, samples
+            )
             if start is None:
                 panels.append((f"{target_name}: oracle", oracle))
                 panels += [(f"{target_name}: {n}", rows[n][0]) for n in models]
@@ -642,20 +649,8 @@ def receptive_field(
     _score_rows(report, f"in-domain, fresh noise at level {layout} only", rows, truth, None, {})
     panels = [("training mesh", truth)] + [(f"in-domain: {n}", r[0]) for n, r in rows.items()]
     for target_name, target in _targets(real):
-        rows = {}
-        for name, model in models.items():
-            res = transfer(
-                model, target, num_samples=samples, start_level=layout, key=jax.random.key(1)
-            )
-            rows[name] = [res.mesh(i) for i in range(samples)]
-        base = (res.base, res.faces)
-        oracle = oracle_texture(base, kind, period=period)
-        own = texture_scores(oracle, oracle, base=base)
-        rows["matched noise"] = [
-            matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(samples)
-        ]
-        _score_rows(
-            report, f"{target_name}, start {layout} (F={len(res.faces)})", rows, oracle, base, {}
+        rows, oracle = _score_transfers(
+            report, f"{target_name}, start {layout}", models, target, layout, kind, period, samples
         )
         panels.append((f"{target_name}: oracle", oracle))
         panels += [(f"{target_name}: {n}", rows[n][0]) for n in models]
