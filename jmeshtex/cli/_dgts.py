@@ -243,7 +243,7 @@ def _train(args) -> int:
     config = Config(**changes)
     key = jax.random.key(args.seed)
     result = train(
-        references if remeshes > 1 else tm,
+        references,
         config,
         key=key,
         levels=args.levels,

@@ -3,7 +3,8 @@
 Pipeline: :func:`training_meshes` (multi-scale fitting of a template to the reference, §3.3,
 configured by :class:`PrepareConfig`) → :func:`train` (hierarchical WGAN-GP, §3.4, configured by
 :class:`Config`, resumable checkpoints, on one fit or several, e.g. remeshes from turned
-templates; returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`) → :func:`save` / :func:`load` → :func:`transfer` / :func:`interpolate` (any target
+templates; returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`) → :func:`save` /
+:func:`load` → :func:`transfer` / :func:`interpolate` (any target
 mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`; the start level follows a
 face budget, ``max_faces``).
 
