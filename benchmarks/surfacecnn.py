@@ -656,6 +656,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         "size": size,
         "steps": steps,
         "texels": int(surface.atlas.num_texels),
+        "texel_density_spread": _layout_spread(mesh_name, work),
     }
     panels = [("exemplar", exemplar)]
     for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
@@ -716,9 +717,7 @@ def quality(
 ) -> None:
     """The issue-33 protocol: every (mesh, exemplar) cell at ``size``² and ``steps`` steps, every
     VGG-16 ReLU and pool output, xatlas layouts, exemplars at native resolution. The report lists
-    every finished cell in ``work`` (of this call or an earlier one), in protocol order."""
-    import json
-
+    every finished cell (:func:`finished_rows`), in protocol order."""
     from jmeshtex.geometry import tracer_geometry
 
     weights = load_vgg16()
@@ -743,18 +742,42 @@ def quality(
                 weights,
                 work,
             )
-    rows, spreads = [], {}
+    record = pathlib.Path(__file__).resolve().parent / "results" / "surfacecnn.quality.json"
+    rows = finished_rows(work, record, size, steps)
+    spreads = {}
+    for row in rows:
+        if row["mesh"] not in spreads:
+            spreads[row["mesh"]] = row.get("texel_density_spread") or _layout_spread(
+                row["mesh"], work
+            )
+    _write_quality(rows, spreads, size, steps, out)
+
+
+def finished_rows(work: pathlib.Path, record: pathlib.Path, size: int, steps: int) -> list[dict]:
+    """Every finished protocol cell at ``size``² and ``steps`` steps, in protocol order: the row in
+    ``work`` where there is one, else the committed row in ``record`` (a cell finished in an
+    earlier session whose work folder is gone)."""
+    import json
+
+    committed = {}
+    if record.is_file():
+        for r in json.loads(record.read_text()):
+            committed[(r["mesh"], r["exemplar"], r["size"], r["steps"])] = r
+    rows = []
     for mesh_name in PROTOCOL_MESHES:
         for ex_name in PROTOCOL_EXEMPLARS:
             done = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
             if done.is_file():
                 rows.append(json.loads(done.read_text()))
-                if mesh_name not in spreads:
-                    mesh = _protocol_mesh(mesh_name, work)
-                    spreads[mesh_name] = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)[
-                        "ratio_p95_p5"
-                    ]
-    _write_quality(rows, spreads, size, steps, out)
+            elif (mesh_name, ex_name, size, steps) in committed:
+                rows.append(committed[mesh_name, ex_name, size, steps])
+    return rows
+
+
+def _layout_spread(mesh_name: str, work: pathlib.Path) -> float:
+    """The p95/p5 texel-density spread of the protocol's xatlas layout of ``mesh_name``."""
+    mesh = _protocol_mesh(mesh_name, work)
+    return float(texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)["ratio_p95_p5"])
 
 
 def _write_quality(rows, spreads, size, steps, out):

@@ -158,22 +158,24 @@ def test_opposite_boundary_rule_reads_the_mirrored_tap():
     assert opposite_source(taps.stopped)[0].tolist() == [8, 7, 4, 5, 4, 5, 4, 7, 8]
 
 
-def test_centre_padding_matches_a_direct_computation(rng):
+@pytest.mark.parametrize("shape", [(5, 6), (1, 4), (3, 1), (1, 1)])
+def test_centre_padding_matches_a_direct_computation(rng, shape):
+    H, W = shape
     w = load_vgg16()
-    img = rng.uniform(size=(5, 6, 3))
+    img = rng.uniform(size=(H, W, 3))
     got = np.asarray(
         vgg_features_centre_padded(jax.numpy.asarray(img), w, layers=("conv1_1",))["conv1_1"]
     )
     x = np.asarray(w.preprocess(jax.numpy.asarray(img)))
     kernel, bias = (np.asarray(a, np.float64) for a in w.convs[0])
-    want = np.zeros((5, 6, 64))
-    for i in range(5):
-        for j in range(6):
+    want = np.zeros((H, W, 64))
+    for i in range(H):
+        for j in range(W):
             acc = np.array(bias)
             for ky in range(3):
                 for kx in range(3):
                     r, c = i + ky - 1, j + kx - 1
-                    src = x[r, c] if 0 <= r < 5 and 0 <= c < 6 else x[i, j]
+                    src = x[r, c] if 0 <= r < H and 0 <= c < W else x[i, j]
                     acc = acc + src @ kernel[ky, kx]
             want[i, j] = acc
     np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
