@@ -750,7 +750,39 @@ def quality(
             spreads[row["mesh"]] = row.get("texel_density_spread") or _layout_spread(
                 row["mesh"], work
             )
+    tiled_seams(rows, work)
     _write_quality(rows, spreads, size, steps, out)
+
+
+def tiled_seams(rows: list[dict], work: pathlib.Path) -> None:
+    """Adds to each row the seam ratio of the exemplar tiled in UV space (the patch table's
+    ``uv_tiled`` baseline, which seams break and patches barely see) on the cell's layout; rows of
+    an earlier session gain it here. Checks that the layout is the cell's (same texel count)."""
+    from jmeshtex.geometry import tracer_geometry
+    from jmeshtex.surfacecnn.core import seam_ratio
+
+    layouts = {}
+    for row in rows:
+        if "uv_tiled" in row:
+            continue
+        key = (row["mesh"], row["size"])
+        if key not in layouts:
+            mesh = _protocol_mesh(row["mesh"], work)
+            surface = prepare_surface(mesh, size=row["size"], levels=0)
+            layouts[key] = (surface, tracer_geometry(mesh.vertices, mesh.faces))
+        surface, geometry = layouts[key]
+        if surface.atlas.num_texels != row["texels"]:
+            raise SystemExit(
+                f"{row['mesh']}: the xatlas layout in {work} has {surface.atlas.num_texels} texels, "
+                f"the cell was scored on {row['texels']}: not the same layout"
+            )
+        ex = protocol_exemplar(row["exemplar"])
+        n = row["size"]
+        rows_, cols = np.divmod(np.arange(n * n), n)
+        tiled = ex[rows_ % ex.shape[0], cols % ex.shape[1]]  # scale 1, as the patch table's
+        colors = tiled[surface.atlas.texel]
+        seams = seam_ratio(colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
+        row["uv_tiled"] = {"seam_ratio": float(seams["ratio"])}
 
 
 def finished_rows(work: pathlib.Path, record: pathlib.Path, size: int, steps: int) -> list[dict]:
@@ -790,12 +822,13 @@ def _write_quality(rows, spreads, size, steps, out):
         "ReLU and pool output of the embedded VGG-16, xatlas layouts, exemplars at native 512² "
         "(1 exemplar pixel = 1 texel). Surface patches: 32 geodesic patches of 32² texels in the "
         "synthesis frames against exemplar crops; cells read patch Gram / log radial spectrum L1 "
-        "(network-free). Seam ratio: mean colour difference across chart seams over inside charts. "
+        "(network-free). Seam ratio: mean colour difference across chart seams over inside charts "
+        "(in brackets: the exemplar tiled in UV space on the same layout). "
         "Specks: share of object pixels of 4 unlit views (one pixel ≈ one texel) whose chroma "
         "exceeds its 7×7 median by 0.15.\n",
         "| mesh | exemplar | method | patch Gram / spectrum | "
         + " | ".join(baselines)
-        + " | charts / patch | seam ratio | specks | loss | CPU-s | wall s |",
+        + " | charts / patch | seam ratio (uv_tiled) | specks | loss | CPU-s | wall s |",
         "|---|---|---|---|" + "---|" * len(baselines) + "---|---|---|---|---|---|",
     ]
     for r in rows:
@@ -806,7 +839,8 @@ def _write_quality(rows, spreads, size, steps, out):
             lines.append(
                 f"| {r['mesh']} | {r['exemplar']} | {label} | **{p['texture']['gram']:.3g} / "
                 f"{p['texture']['spectrum']:.3f}** | {cells} | {p['texture']['charts']:.2f} | "
-                f"{m['seam_ratio']:.3f} | {m['speck_local']:.4f} | {m['final_loss']:.4g} | "
+                f"{m['seam_ratio']:.3f} ({r['uv_tiled']['seam_ratio']:.3f}) | "
+                f"{m['speck_local']:.4f} | {m['final_loss']:.4g} | "
                 + (
                     f"{m['cpu_s']:.0f} | {m['seconds']:.0f} |"
                     if not m.get("resumed")
