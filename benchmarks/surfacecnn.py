@@ -759,6 +759,7 @@ def tiled_seams(rows: list[dict], work: pathlib.Path) -> None:
     ``uv_tiled`` baseline, which seams break and patches barely see) on the cell's layout; rows of
     an earlier session gain it here. Checks that the layout is the cell's (same texel count)."""
     from jmeshtex.geometry import tracer_geometry
+    from jmeshtex.metrics import tiled_exemplar
     from jmeshtex.surfacecnn.core import seam_ratio
 
     layouts = {}
@@ -776,11 +777,9 @@ def tiled_seams(rows: list[dict], work: pathlib.Path) -> None:
                 f"{row['mesh']}: the xatlas layout in {work} has {surface.atlas.num_texels} texels, "
                 f"the cell was scored on {row['texels']}: not the same layout"
             )
-        ex = protocol_exemplar(row["exemplar"])
         n = row["size"]
-        rows_, cols = np.divmod(np.arange(n * n), n)
-        tiled = ex[rows_ % ex.shape[0], cols % ex.shape[1]]  # scale 1, as the patch table's
-        colors = tiled[surface.atlas.texel]
+        tiled = tiled_exemplar(protocol_exemplar(row["exemplar"]), (n, n))  # the patch table's
+        colors = tiled.reshape(n * n, 3)[surface.atlas.texel]
         seams = seam_ratio(colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
         row["uv_tiled"] = {"seam_ratio": float(seams["ratio"])}
 

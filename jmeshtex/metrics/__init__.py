@@ -44,6 +44,7 @@ from ._surface_patches import patch_gram_distance as patch_gram_distance
 from ._surface_patches import patch_spectrum_distance as patch_spectrum_distance
 from ._surface_patches import surface_patch_table as surface_patch_table
 from ._surface_patches import surface_patches as surface_patches
+from ._surface_patches import tiled_exemplar as tiled_exemplar
 from ._surface_patches import uv_charts as uv_charts
 from ._vgg import LPIPS_LAYERS as LPIPS_LAYERS
 from ._vgg import VGG16_NAMES as VGG16_NAMES

@@ -243,6 +243,26 @@ def exemplar_crops(
     return np.asarray(sample_texture(ex, np.stack([u, vv], axis=-1)), np.float64)
 
 
+def tiled_exemplar(
+    exemplar: Float[np.ndarray, "E F 3"], shape: tuple[int, int], *, scale: float = 1.0
+) -> Float[np.ndarray, "H W 3"]:
+    """The exemplar repeated over an ``H × W`` texture image at ``scale`` texels per exemplar pixel,
+    ignoring the surface (nearest exemplar pixel): the UV-tiled baseline of
+    :func:`surface_patch_table`.
+
+    Example:
+      >>> ex = np.arange(4.0).reshape(2, 2, 1).repeat(3, axis=2)
+      >>> tiled_exemplar(ex, (3, 5))[..., 0].tolist()
+      [[0.0, 1.0, 0.0, 1.0, 0.0], [2.0, 3.0, 2.0, 3.0, 2.0], [0.0, 1.0, 0.0, 1.0, 0.0]]
+    """
+    ex = np.asarray(exemplar, np.float64)
+    rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
+    return ex[
+        (np.floor((rows + 0.5) / scale).astype(int)) % ex.shape[0],
+        (np.floor((cols + 0.5) / scale).astype(int)) % ex.shape[1],
+    ]
+
+
 def _mean_grams(patches, weights: VGGWeights, layers) -> dict:
     feats = vgg_features(jnp.asarray(patches, jnp.float32), weights, layers=tuple(layers))
     out = {}
@@ -342,8 +362,7 @@ def surface_patch_table(
 
     Rows: ``"texture"``; ``"flat"`` (the exemplar's mean colour); ``"permuted"`` (the texture's
     valid texels shuffled); ``"initial"`` (``initial``, e.g. the optimisation's starting noise,
-    when given); ``"uv_tiled"`` (the exemplar tiled over the texture image at ``scale``, ignoring
-    the surface); ``"floor"`` (a second set of exemplar crops: the measure's noise floor). Each
+    when given); ``"uv_tiled"`` (:func:`tiled_exemplar` at ``scale``); ``"floor"`` (a second set of exemplar crops: the measure's noise floor). Each
     row holds ``gram`` (:func:`patch_gram_distance`), ``spectrum``
     (:func:`patch_spectrum_distance`), and for surface rows ``charts`` (mean charts per patch) and
     ``off_chart`` (mean share of pixels across a seam).
@@ -380,11 +399,7 @@ def surface_patch_table(
     flat_valid = perm.reshape(-1, 3)[valid.ravel()]
     rng = np.random.default_rng(np.asarray(jax.random.key_data(k_perm)).ravel())
     perm.reshape(-1, 3)[valid.ravel()] = flat_valid[rng.permutation(len(flat_valid))]
-    rows, cols = np.mgrid[0:H, 0:W]
-    tiled = ex[
-        (np.floor((rows + 0.5) / scale).astype(int)) % ex.shape[0],
-        (np.floor((cols + 0.5) / scale).astype(int)) % ex.shape[1],
-    ]
+    tiled = tiled_exemplar(ex, (H, W), scale=scale)
     candidates = {
         "texture": texture,
         "flat": np.broadcast_to(ex.reshape(-1, 3).mean(axis=0), texture.shape),
