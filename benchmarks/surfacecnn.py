@@ -750,14 +750,17 @@ def quality(
             spreads[row["mesh"]] = row.get("texel_density_spread") or _layout_spread(
                 row["mesh"], work
             )
-    tiled_seams(rows, work)
+    tiled_baseline(rows, work)
     _write_quality(rows, spreads, size, steps, out)
 
 
-def tiled_seams(rows: list[dict], work: pathlib.Path) -> None:
-    """Adds to each row the seam ratio of the exemplar tiled in UV space (the patch table's
-    ``uv_tiled`` baseline, which seams break and patches barely see) on the cell's layout; rows of
-    an earlier session gain it here. Checks that the layout is the cell's (same texel count)."""
+def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
+    """Adds to each row the seam ratio and speck share of the exemplar tiled in UV space (the patch
+    table's ``uv_tiled`` baseline: seams break it, patches barely see it; its specks are the
+    exemplar's own colour detail, the floor of the speck measure) on the cell's layout, with the
+    cell's views. Rows of an earlier session gain it here, after a check that the layout is the
+    cell's (same texel count)."""
+    from jmeshtex import render
     from jmeshtex.geometry import tracer_geometry
     from jmeshtex.metrics import tiled_exemplar
     from jmeshtex.surfacecnn.core import seam_ratio
@@ -766,22 +769,30 @@ def tiled_seams(rows: list[dict], work: pathlib.Path) -> None:
     for row in rows:
         if "uv_tiled" in row:
             continue
-        key = (row["mesh"], row["size"])
-        if key not in layouts:
-            mesh = _protocol_mesh(row["mesh"], work)
-            surface = prepare_surface(mesh, size=row["size"], levels=0)
-            layouts[key] = (surface, tracer_geometry(mesh.vertices, mesh.faces))
-        surface, geometry = layouts[key]
+        name, n = row["mesh"], row["size"]
+        if (name, n) not in layouts:
+            mesh = _protocol_mesh(name, work)
+            surface = prepare_surface(mesh, size=n, levels=0)
+            cams = render.orbit_cameras(
+                mesh, azimuths=4, elevations=(20.0,), size=(n, n), up=PROTOCOL_MESHES[name][1]
+            )
+            layouts[name, n] = (mesh, surface, tracer_geometry(mesh.vertices, mesh.faces), cams)
+        mesh, surface, geometry, cams = layouts[name, n]
         if surface.atlas.num_texels != row["texels"]:
             raise SystemExit(
-                f"{row['mesh']}: the xatlas layout in {work} has {surface.atlas.num_texels} texels, "
+                f"{name}: the xatlas layout in {work} has {surface.atlas.num_texels} texels, "
                 f"the cell was scored on {row['texels']}: not the same layout"
             )
-        n = row["size"]
         tiled = tiled_exemplar(protocol_exemplar(row["exemplar"]), (n, n))  # the patch table's
         colors = tiled.reshape(n * n, 3)[surface.atlas.texel]
         seams = seam_ratio(colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
-        row["uv_tiled"] = {"seam_ratio": float(seams["ratio"])}
+        textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=tiled)
+        specks = [_specks(v) for v in render.render_views(textured, cams, shading="unlit")]
+        row["uv_tiled"] = {
+            "seam_ratio": float(seams["ratio"]),
+            "speck_abs": float(np.mean([s["abs"] for s in specks])),
+            "speck_local": float(np.mean([s["local"] for s in specks])),
+        }
 
 
 def finished_rows(work: pathlib.Path, record: pathlib.Path, size: int, steps: int) -> list[dict]:
@@ -824,10 +835,11 @@ def _write_quality(rows, spreads, size, steps, out):
         "(network-free). Seam ratio: mean colour difference across chart seams over inside charts "
         "(in brackets: the exemplar tiled in UV space on the same layout). "
         "Specks: share of object pixels of 4 unlit views (one pixel ≈ one texel) whose chroma "
-        "exceeds its 7×7 median by 0.15.\n",
+        "exceeds its 7×7 median by 0.15 (in brackets: the UV-tiled exemplar's, the exemplar's own "
+        "colour detail).\n",
         "| mesh | exemplar | method | patch Gram / spectrum | "
         + " | ".join(baselines)
-        + " | charts / patch | seam ratio (uv_tiled) | specks | loss | CPU-s | wall s |",
+        + " | charts / patch | seam ratio (uv_tiled) | specks (uv_tiled) | loss | CPU-s | wall s |",
         "|---|---|---|---|" + "---|" * len(baselines) + "---|---|---|---|---|---|",
     ]
     for r in rows:
@@ -839,7 +851,8 @@ def _write_quality(rows, spreads, size, steps, out):
                 f"| {r['mesh']} | {r['exemplar']} | {label} | **{p['texture']['gram']:.3g} / "
                 f"{p['texture']['spectrum']:.3f}** | {cells} | {p['texture']['charts']:.2f} | "
                 f"{m['seam_ratio']:.3f} ({r['uv_tiled']['seam_ratio']:.3f}) | "
-                f"{m['speck_local']:.4f} | {m['final_loss']:.4g} | "
+                f"{m['speck_local']:.4f} ({r['uv_tiled']['speck_local']:.4f}) | "
+                f"{m['final_loss']:.4g} | "
                 + (
                     f"{m['cpu_s']:.0f} | {m['seconds']:.0f} |"
                     if not m.get("resumed")
