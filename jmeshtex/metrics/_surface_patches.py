@@ -362,10 +362,10 @@ def surface_patch_table(
 
     Rows: ``"texture"``; ``"flat"`` (the exemplar's mean colour); ``"permuted"`` (the texture's
     valid texels shuffled); ``"initial"`` (``initial``, e.g. the optimisation's starting noise,
-    when given); ``"uv_tiled"`` (:func:`tiled_exemplar` at ``scale``); ``"floor"`` (a second set of exemplar crops: the measure's noise floor). Each
-    row holds ``gram`` (:func:`patch_gram_distance`), ``spectrum``
-    (:func:`patch_spectrum_distance`), and for surface rows ``charts`` (mean charts per patch) and
-    ``off_chart`` (mean share of pixels across a seam).
+    when given); ``"uv_tiled"`` (:func:`tiled_exemplar` at ``scale``); ``"floor"`` (a second set
+    of exemplar crops: the measure's noise floor). Each row holds ``gram``
+    (:func:`patch_gram_distance`), ``spectrum`` (:func:`patch_spectrum_distance`), and for surface
+    rows ``charts`` (mean charts per patch) and ``off_chart`` (mean share of pixels across a seam).
 
     Args:
       mesh: the mesh with ``uv``.
