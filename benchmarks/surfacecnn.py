@@ -635,7 +635,8 @@ def _protocol_mesh(name: str, work: pathlib.Path) -> Mesh:
 def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps, weights, work):
     """One (mesh, exemplar) cell: the surface CNN and UV-space 2D synthesis with the same
     settings, each scored by seams, specks and surface patches; resumable (checkpoints and the
-    finished row in ``work``)."""
+    finished row in ``work``). The 2D image does not depend on the mesh, so one run per exemplar
+    (``work/uv2d/<exemplar>_<size>_<steps>``) serves every mesh's cell."""
     import json
 
     from jmeshtex import render
@@ -659,8 +660,9 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         "texel_density_spread": _layout_spread(mesh_name, work),
     }
     panels = [("exemplar", exemplar)]
+    folders = {"surface": cell / "surface", "uv2d": work / "uv2d" / f"{ex_name}_{size}_{steps}"}
     for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
-        resumed = (cell / method).is_dir() and any((cell / method).iterdir())
+        resumed = folders[method].is_dir() and any(folders[method].iterdir())
         t0, c0 = time.perf_counter(), time.process_time()
         r = run(
             mesh,
@@ -670,7 +672,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
             surface=surface,
             weights=weights,
             progress=False,
-            checkpoint=cell / method,
+            checkpoint=folders[method],
         )
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         np.save(cell / f"{method}_texture.npy", np.asarray(r.texture, np.float32))

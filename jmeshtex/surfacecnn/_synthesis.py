@@ -113,11 +113,11 @@ def _setup(
     return weights, layers, surface, arrays, dtype
 
 
-def _fingerprint(task: str, config: Config, surface: Surface, layers, data: str, **extra) -> dict:
-    """What a checkpoint must share with this run to be resumed (the step count may grow)."""
+def _fingerprint(task: str, config: Config, layers, data: str, **extra) -> dict:
+    """What a checkpoint must share with this run to be resumed (the step count may grow); a run
+    on a surface adds its ``texels``."""
     return {
         "task": task,
-        "texels": surface.atlas.num_texels,
         "size": config.size,
         "learning_rate": config.learning_rate,
         "halve_every": config.halve_every,
@@ -232,11 +232,11 @@ def synthesize(
     fingerprint = _fingerprint(
         "synthesize",
         config,
-        surface,
         layers,
         _digest(image),
         init=[config.init_low, config.init_high],
         unwrap=config.unwrap,
+        texels=surface.atlas.num_texels,
         key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
     )
     x, losses, final, stats = optimize_colors(
@@ -348,11 +348,11 @@ def stylize(
     fingerprint = _fingerprint(
         "stylize",
         config,
-        surface,
         layers,
         _digest(content_image, style_image),
         content_layer=config.content_layer,
         content_weight=content_weight,
+        texels=surface.atlas.num_texels,
     )
     x, losses, final, stats = optimize_colors(
         content_colors,

@@ -59,7 +59,9 @@ def synthesize_uv(
       layers: Gram layers (default ``config.layers``, else every ReLU and pool output).
       progress: tqdm bar.
       checkpoint, checkpoint_every: as in :func:`~jmeshtex.surfacecnn.synthesize` (the image,
-        Adam state and losses are saved there; a folder holding this run resumes it).
+        Adam state and losses are saved there; a folder holding this run resumes it). The image
+        does not depend on the mesh, so a finished folder serves every mesh at the same size,
+        exemplar, layers and key: it only has to be read at the new atlas' texels.
 
     Returns:
       :class:`~jmeshtex.surfacecnn.SynthesisResult` (``colors`` at the valid texels; ``texture``
@@ -117,10 +119,9 @@ def synthesize_uv(
         return sum(terms) / len(terms)
 
     t0 = time.perf_counter()
-    fingerprint = _fingerprint(
+    fingerprint = _fingerprint(  # the image does not depend on the surface: any mesh may resume it
         "synthesize_uv",
         config,
-        surface,
         layers,
         _digest(image),
         init=[config.init_low, config.init_high],

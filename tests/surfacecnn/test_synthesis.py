@@ -181,6 +181,17 @@ def test_uv_space_synthesis_resumes_from_its_checkpoint(tmp_path):
         synthesize_uv(
             mesh, ex, Config(size=16, steps=8), checkpoint=ckpt, **{**kw, "key": jax.random.key(4)}
         )
+    # the image is the mesh's only through the atlas that reads it: another mesh's run resumes it
+    v2, f2 = grid(3)
+    other = Mesh(v2, f2, uv=0.6 * v2[f2][..., :2])  # covers a third of the image
+    s2 = prepare_surface(other, size=16, levels=0)
+    assert s2.atlas.num_texels != surface.atlas.num_texels
+    kw2 = {**kw, "surface": s2}
+    moved = synthesize_uv(other, ex, Config(size=16, steps=8), checkpoint=ckpt, **kw2)
+    assert moved.stats["resumed_at"] == 8
+    np.testing.assert_array_equal(
+        moved.colors, synthesize_uv(other, ex, Config(size=16, steps=8), **kw2).colors
+    )
 
 
 def test_synthesis_re_unwraps_by_default_and_keeps_the_mesh_uvs_on_request():
