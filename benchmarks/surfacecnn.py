@@ -753,7 +753,37 @@ def quality(
                 row["mesh"], work
             )
     tiled_baseline(rows, work)
+    speck_texels(rows, work)
     _write_quality(rows, spreads, size, steps, out)
+
+
+def speck_texels(rows: list[dict], work: pathlib.Path) -> None:
+    """Adds to each row whose textures are in ``work`` where its speck texels lie: the share of
+    valid texels whose chroma exceeds its 7×7 median by 0.15 (the render measure, in texture
+    space), within 2 texels of a chart border and deeper inside. Seam specks crowd the border; a
+    recipe's colour noise does not care."""
+    from scipy.ndimage import distance_transform_edt, median_filter
+
+    from jmeshtex.surfacecnn.core import texture_atlas
+
+    for row in rows:
+        cell = work / f"{row['mesh']}_{row['exemplar']}_{row['size']}_{row['steps']}"
+        if "speck_texels" in row["surface"] or not (cell / "uv2d_texture.npy").is_file():
+            continue
+        mesh, n = _protocol_mesh(row["mesh"], work), row["size"]
+        atlas = texture_atlas(mesh.vertices, mesh.faces, mesh.uv, size=n)
+        valid = np.zeros(n * n, bool)
+        valid[atlas.texel] = True
+        valid = valid.reshape(n, n)
+        border = valid & (distance_transform_edt(valid) <= 2)
+        for method in ("surface", "uv2d"):
+            t = np.load(cell / f"{method}_texture.npy").astype(np.float64)
+            chroma = t.max(-1) - t.min(-1)
+            speck = chroma - median_filter(chroma, size=7) > 0.15
+            row[method]["speck_texels"] = {
+                "border": float(speck[border].mean()),
+                "inside": float(speck[valid & ~border].mean()),
+            }
 
 
 def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
@@ -860,6 +890,23 @@ def _write_quality(rows, spreads, size, steps, out):
                     if not m.get("resumed")
                     else "resumed | resumed |"  # spread over sessions: the last call's is no cost
                 )
+            )
+    kept = [r for r in rows if "speck_texels" in r["surface"]]
+    if kept:
+        lines += [
+            "",
+            "Where the specks lie, in texture space (valid texels whose chroma exceeds its 7×7 "
+            "median by 0.15; cells whose textures were kept): within 2 texels of a chart border / "
+            "deeper inside.",
+            "",
+            "| mesh | exemplar | surface CNN | UV-space 2D |",
+            "|---|---|---|---|",
+        ]
+        for r in kept:
+            s, u = r["surface"]["speck_texels"], r["uv2d"]["speck_texels"]
+            lines.append(
+                f"| {r['mesh']} | {r['exemplar']} | {s['border']:.4f} / {s['inside']:.4f} | "
+                f"{u['border']:.4f} / {u['inside']:.4f} |"
             )
     lines += ["", "| mesh | texel-density spread p95/p5 (xatlas) |", "|---|---|"]
     lines += [f"| {k} | {v:.2f} |" for k, v in spreads.items()]

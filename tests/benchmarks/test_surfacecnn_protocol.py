@@ -41,3 +41,35 @@ def test_finished_rows_take_the_work_folder_over_the_record_in_protocol_order(tm
         ("fandisk", "brick", "record"),
     ]
     assert surfacecnn.finished_rows(work, tmp_path / "absent.json", 512, 150) == []
+
+
+def test_speck_texels_tell_seam_specks_from_colour_noise_inside_charts(tmp_path):
+    """A coloured dot on a chart's border counts as a border speck, one in the middle as an inside
+    speck; a committed row that already has the split, or a cell without textures, is left alone."""
+    import numpy as np
+
+    from jmeshtex.data import grid
+
+    n = 32
+    v, f = grid(4)
+    np.savez(tmp_path / "cow_xatlas.npz", vertices=v, faces=f, uv=0.5 * v[f][..., :2] + 0.25)
+    cell = tmp_path / f"cow_grass_{n}_5"
+    cell.mkdir()
+    grey = np.full((n, n, 3), 0.5, np.float32)
+    inside, border = grey.copy(), grey.copy()
+    inside[16, 16] = (1.0, 0.2, 0.2)  # the chart covers texels 8..23: the centre is 8 from its edge
+    border[8, 16] = (1.0, 0.2, 0.2)  # on its edge
+    np.save(cell / "surface_texture.npy", inside)
+    np.save(cell / "uv2d_texture.npy", border)
+    rows = [
+        {"mesh": "cow", "exemplar": "grass", "size": n, "steps": 5, "surface": {}, "uv2d": {}},
+        {"mesh": "cow", "exemplar": "brick", "size": n, "steps": 5, "surface": {}, "uv2d": {}},
+    ]
+    surfacecnn.speck_texels(rows, tmp_path)
+    s, u = rows[0]["surface"]["speck_texels"], rows[0]["uv2d"]["speck_texels"]
+    assert s["border"] == 0 and s["inside"] > 0
+    assert u["border"] > 0 and u["inside"] == 0
+    assert "speck_texels" not in rows[1]["surface"]  # no textures kept
+    rows[0]["surface"]["speck_texels"] = {"border": -1.0, "inside": -1.0}
+    surfacecnn.speck_texels(rows, tmp_path)
+    assert rows[0]["surface"]["speck_texels"]["border"] == -1.0
