@@ -868,7 +868,8 @@ def _write_quality(rows, spreads, size, steps, out):
         "(in brackets: the exemplar tiled in UV space on the same layout). "
         "Specks: share of object pixels of 4 unlit views (one pixel ≈ one texel) whose chroma "
         "exceeds its 7×7 median by 0.15 (in brackets: the UV-tiled exemplar's, the exemplar's own "
-        "colour detail).\n",
+        "colour detail). UV-space 2D runs once per exemplar (its image does not depend on the "
+        'mesh): the cells after the first read it back, so their cost reads "resumed".\n',
         "| mesh | exemplar | method | patch Gram / spectrum | "
         + " | ".join(baselines)
         + " | charts / patch | seam ratio (uv_tiled) | specks (uv_tiled) | loss | CPU-s | wall s |",
