@@ -31,7 +31,7 @@ Sections (float32, CPU, jit; compile time reported apart):
   levels | in-domain | transfers vs oracle, untrained and noise).
 - ``--noise-response KIND`` (alone): ``Config.fake_inputs`` compared on the run at depth's meshes
   (``--depth-levels``, ``--depth-steps``, ``--work``): each level's output under fresh noise at that
-  level alone, and transfers (:func:`noise_response`); writes ``dgts_noise_response``.
+  level alone, and transfers (:func:`noise_response`); writes ``dgts_noise_response_<kind>``.
   ``--remeshes R`` trains on R remeshes of the reference (the template fitted under R − 1 random
   rotations too), ``--starts`` adds transfer start levels, ``--fake-inputs`` picks the choices.
 - ``--receptive-field KIND`` (alone): ``--layer-counts`` layers per network on ``--remeshes``
@@ -463,7 +463,7 @@ def noise_response(
     model trains on R remeshes of the reference (the plain fit and R − 1 fits from turned
     templates, one drawn per step; runs in ``remesh<R>_fake_inputs_...``); in-domain rows score
     against the plain fit. ``choices``: the ``fake_inputs`` trained. Writes
-    ``dgts_noise_response[_coarse<K>][_remesh<R>]`` and its figure (in-domain under level L−1's noise; each target's oracle
+    ``dgts_noise_response_<kind>[_coarse<K>][_remesh<R>]`` and its figure (in-domain under level L−1's noise; each target's oracle
     and transfers at the default start)."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import load, save
@@ -471,7 +471,7 @@ def noise_response(
 
     suffix = f"_coarse{coarse_levels}" if coarse_levels else ""
     suffix += f"_remesh{remeshes}" if remeshes > 1 else ""
-    report = Report("dgts_noise_response" + suffix, ceilings=False)
+    report = Report(f"dgts_noise_response_{kind}{suffix}", ceilings=False)
     folder = work / kind
     _, tm = depth_meshes(kind, levels, folder, coarse_levels)
     references = [tm] + [
@@ -551,7 +551,7 @@ def noise_response(
         + " vs ".join(choices)
         + (f"; levels < {coarse_levels} fit the untextured sphere" if coarse_levels else "")
         + (f"; trained on {remeshes} remeshes" if remeshes > 1 else ""),
-        path=RESULTS / f"dgts_noise_response{suffix}.png",
+        path=RESULTS / f"dgts_noise_response_{kind}{suffix}.png",
     )
     report.notes.append(
         "density_vs_truth / relief_vs_truth: the mesh's peak density (peaks per squared mean edge) "
@@ -926,7 +926,7 @@ def main() -> None:
         default=None,
         choices=sorted(DEPTH_TEXTURES),
         help="only the noise-response study of Config.fake_inputs on this texture (uses --work, "
-        "--depth-levels, --depth-steps; writes dgts_noise_response)",
+        "--depth-levels, --depth-steps; writes dgts_noise_response_<kind>)",
     )
     ap.add_argument(
         "--coarse-levels",
