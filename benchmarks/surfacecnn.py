@@ -444,13 +444,20 @@ def _patch_scores(textured, texture, exemplar, surface, weights) -> dict:
 def _specks(image: np.ndarray) -> dict:
     """Speck share of an unlit render: object pixels (2-px eroded mask) whose chroma exceeds 0.3,
     and whose chroma exceeds its 7×7 median by 0.15 (isolated coloured dots)."""
-    from scipy.ndimage import binary_erosion, median_filter
+    from scipy.ndimage import binary_erosion
 
     a = np.asarray(image, np.float64) / 255.0
     obj = binary_erosion(~(a.min(-1) > 0.99), iterations=2)
     c = a.max(-1) - a.min(-1)
-    local = c - median_filter(c, size=7)
-    return {"abs": float((c[obj] > 0.3).mean()), "local": float((local[obj] > 0.15).mean())}
+    return {"abs": float((c[obj] > 0.3).mean()), "local": float(_speck_mask(a)[obj].mean())}
+
+
+def _speck_mask(rgb: np.ndarray) -> np.ndarray:
+    """Pixels whose chroma (max − min channel) exceeds its 7×7 median by 0.15: isolated dots."""
+    from scipy.ndimage import median_filter
+
+    chroma = rgb.max(-1) - rgb.min(-1)
+    return chroma - median_filter(chroma, size=7) > 0.15
 
 
 def seams(size: int, steps: int, out: pathlib.Path | None) -> None:
@@ -762,7 +769,7 @@ def speck_texels(rows: list[dict], work: pathlib.Path) -> None:
     valid texels whose chroma exceeds its 7×7 median by 0.15 (the render measure, in texture
     space), within 2 texels of a chart border and deeper inside. Seam specks crowd the border; a
     recipe's colour noise does not care."""
-    from scipy.ndimage import distance_transform_edt, median_filter
+    from scipy.ndimage import distance_transform_edt
 
     from jmeshtex.surfacecnn.core import texture_atlas
 
@@ -777,9 +784,7 @@ def speck_texels(rows: list[dict], work: pathlib.Path) -> None:
         valid = valid.reshape(n, n)
         border = valid & (distance_transform_edt(valid) <= 2)
         for method in ("surface", "uv2d"):
-            t = np.load(cell / f"{method}_texture.npy").astype(np.float64)
-            chroma = t.max(-1) - t.min(-1)
-            speck = chroma - median_filter(chroma, size=7) > 0.15
+            speck = _speck_mask(np.load(cell / f"{method}_texture.npy").astype(np.float64))
             row[method]["speck_texels"] = {
                 "border": float(speck[border].mean()),
                 "inside": float(speck[valid & ~border].mean()),
