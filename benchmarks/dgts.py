@@ -123,6 +123,17 @@ def _targets(real: tuple[str, ...] = ("cow",)) -> list[tuple[str, object]]:
     return out
 
 
+def layout_correlation(mesh, truth) -> float:
+    """Correlation, vertex by vertex, of a mesh's relief heights with those of ``truth`` (a mesh of
+    the same vertices: an in-domain sample and its training mesh). 1: the truth's layout, in place;
+    near 0: a layout of its own (or none)."""
+    h = relief_heights(mesh)
+    t = relief_heights(truth)
+    if h.shape != t.shape:
+        raise ValueError(f"layout_correlation: {h.shape[0]} vertices against {t.shape[0]}")
+    return float(np.corrcoef(h, t)[0, 1])
+
+
 def _score_rows(report, section: str, rows: dict, truth, base, samples: dict) -> None:
     """One row per mesh list in ``rows`` (mean over its meshes), scored against ``truth``."""
     own = texture_scores(truth, truth, base=base)
@@ -130,6 +141,9 @@ def _score_rows(report, section: str, rows: dict, truth, base, samples: dict) ->
         scores = [texture_scores(m, truth, base=base) for m in meshes]
         mean = {k: float(np.mean([getattr(s, k) for s in scores])) for k in own._fields}
         ratio = mean["peak_density"] / own.peak_density
+        layout = {}
+        if base is None:  # in-domain: the truth's own vertices, so its layout can be compared
+            layout["layout_corr"] = float(np.mean([layout_correlation(m, truth) for m in meshes]))
         report.add(
             name=f"{section}: {name}",
             samples=len(meshes),
@@ -142,6 +156,7 @@ def _score_rows(report, section: str, rows: dict, truth, base, samples: dict) ->
             autocorrelation_length=mean["autocorrelation_length"],
             peak_spacing=mean["spacing"],
             peaks=mean["peaks"],
+            **layout,
             **samples.get(name, {}),
         )
 
@@ -446,6 +461,7 @@ def noise_response(
     real=("cow", "fandisk"),
     coarse_levels: int = 0,
     remeshes: int = 1,
+    fixed_noise_levels: int = 1,
     choices: tuple[str, ...] = ("sampled", "reconstructed"),
     starts: tuple[int | None, ...] = (None, 2),
 ) -> None:
@@ -462,8 +478,10 @@ def noise_response(
     (:func:`depth_meshes`; runs in ``coarse<K>_fake_inputs_...``). With ``remeshes`` R > 1 each
     model trains on R remeshes of the reference (the plain fit and R − 1 fits from turned
     templates, one drawn per step; runs in ``remesh<R>_fake_inputs_...``); in-domain rows score
-    against the plain fit. ``choices``: the ``fake_inputs`` trained. Writes
-    ``dgts_noise_response_<kind>[_coarse<K>][_remesh<R>]`` and its figure (in-domain under level L−1's noise; each target's oracle
+    against the plain fit. With ``fixed_noise_levels`` N > 1 the reconstruction runs on fixed noise
+    up to level N − 1 (``Config.fixed_noise_levels``; runs in ``..._fixed<N>_fake_inputs_...``).
+    ``choices``: the ``fake_inputs`` trained. Writes
+    ``dgts_noise_response_<kind>[_coarse<K>][_remesh<R>][_fixed<N>]`` and its figure (in-domain under level L−1's noise; each target's oracle
     and transfers at the default start)."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import load, save
@@ -471,6 +489,7 @@ def noise_response(
 
     suffix = f"_coarse{coarse_levels}" if coarse_levels else ""
     suffix += f"_remesh{remeshes}" if remeshes > 1 else ""
+    suffix += f"_fixed{fixed_noise_levels}" if fixed_noise_levels > 1 else ""
     report = Report(f"dgts_noise_response_{kind}{suffix}", ceilings=False)
     folder = work / kind
     _, tm = depth_meshes(kind, levels, folder, coarse_levels)
@@ -487,17 +506,21 @@ def noise_response(
         "period_mean_edges": period,
         "coarse_levels": coarse_levels,
         "remeshes": remeshes,
+        "fixed_noise_levels": fixed_noise_levels,
     }
     models = {}
     for choice in choices:
         run = folder / f"{suffix[1:]}_fake_inputs_{choice}_{steps}".lstrip("_")
+        cost = run / "train.json"  # the training's cost, kept beside its model
         if (run / "model.npz").is_file():
             models[choice] = load(run)
+            if cost.is_file():
+                report.add(name=f"train ({choice})", **json.loads(cost.read_text()))
             continue
         c0, t0 = time.process_time(), time.perf_counter()
         result = train(
             references,
-            Config(steps=steps, fake_inputs=choice),
+            Config(steps=steps, fake_inputs=choice, fixed_noise_levels=fixed_noise_levels),
             key=jax.random.key(0),
             checkpoint_dir=run / "checkpoints",
             checkpoint_every=250,
@@ -505,20 +528,22 @@ def noise_response(
         )
         save(result.model, run)  # run/model.npz
         models[choice] = result.model
-        report.add(
-            name=f"train ({choice})",
-            train_s=time.perf_counter() - t0,
-            train_cpu_s=time.process_time() - c0,
-            resumed_from=result.resumed_from,
-        )
+        spent = {
+            "train_s": time.perf_counter() - t0,
+            "train_cpu_s": time.process_time() - c0,
+            "resumed_from": result.resumed_from,
+        }
+        cost.write_text(json.dumps(spent))
+        report.add(name=f"train ({choice})", **spent)
     models["untrained"] = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
     panels = [("training mesh", truth)]
     label_last = f"fresh noise at level {levels - 1} only"
 
     def only_at(model, plan, k: int, i: int) -> Mesh:
-        """The template through every level with the reconstruction's noise (``z*`` at level 0,
-        zero above) except fresh noise at level ``k`` (none when ``k`` is the level count)."""
-        noise = [np.asarray(model.z_star, np.float32)] + [0.0] * (levels - 1)
+        """The template through every level with the reconstruction's noise
+        (``Model.reconstruction_noise``) except fresh noise at level ``k`` (none when ``k`` is the
+        level count)."""
+        noise = model.reconstruction_noise(plan.sizes)
         if k < levels:
             draw = jax.random.normal(jax.random.fold_in(jax.random.key(2), i), (plan.sizes[k], 3))
             noise[k] = model.config.noise_amplitude * draw
@@ -550,7 +575,12 @@ def noise_response(
         title=f"DGTS {kind}, {levels} levels x {steps} steps: fake_inputs "
         + " vs ".join(choices)
         + (f"; levels < {coarse_levels} fit the untextured sphere" if coarse_levels else "")
-        + (f"; trained on {remeshes} remeshes" if remeshes > 1 else ""),
+        + (f"; trained on {remeshes} remeshes" if remeshes > 1 else "")
+        + (
+            f"; fixed reconstruction noise up to level {fixed_noise_levels - 1}"
+            if fixed_noise_levels > 1
+            else ""
+        ),
         path=RESULTS / f"dgts_noise_response_{kind}{suffix}.png",
     )
     report.notes.append(
@@ -635,7 +665,7 @@ def receptive_field(
     ).model
 
     def own_noise_only(model, plan, i: int) -> Mesh:
-        noise = [np.asarray(model.z_star, np.float32)] + [0.0] * last
+        noise = model.reconstruction_noise(plan.sizes)
         draw = jax.random.normal(jax.random.fold_in(jax.random.key(2), i), (plan.sizes[layout], 3))
         noise[layout] = model.config.noise_amplitude * draw
         return Mesh(plan.to_target(run_plan(model, plan, noise)), plan.faces[-1])
@@ -941,6 +971,13 @@ def main() -> None:
         help="--noise-response: train on R remeshes of the reference (R - 1 from turned templates)",
     )
     ap.add_argument(
+        "--fixed-noise-levels",
+        type=int,
+        default=1,
+        help="--noise-response: Config.fixed_noise_levels (the reconstruction's noise is fixed at "
+        "levels below N)",
+    )
+    ap.add_argument(
         "--fake-inputs",
         nargs="+",
         default=["sampled", "reconstructed"],
@@ -984,6 +1021,7 @@ def main() -> None:
             samples=args.samples,
             coarse_levels=args.coarse_levels,
             remeshes=args.remeshes,
+            fixed_noise_levels=args.fixed_noise_levels,
             choices=tuple(args.fake_inputs),
             starts=(None, *args.starts),
         )

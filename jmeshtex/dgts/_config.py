@@ -148,10 +148,16 @@ class Config(ConfigBase):
         WGAN-GP default would be 10).
       reconstruction_start: first level using the fixed noise z* for the reconstruction; below it
         the reconstruction uses fresh noise (the reference uses 1).
+      fixed_noise_levels: the reconstruction's noise is fixed (drawn once, kept in the model) at
+        levels ``0 … fixed_noise_levels − 1`` and zero above. The reference: 1 (``z*`` at the
+        coarsest level only). Beyond the paper: when the coarsest levels carry no texture
+        (``training_meshes(coarse_levels=K)``), ``K + 1`` makes the first textured level
+        reconstruct its layout from noise of its own, so its generator learns to lay the texture
+        out from noise rather than to key it to the template's triangles.
       fake_inputs: what the frozen levels ``0 … L−1`` make the critic's fakes of level ``L`` from:
         ``"sampled"`` (the reference's: fresh noise at every level, so level ``L`` sees coarse
-        shapes it cannot correct) or ``"reconstructed"`` (the reconstruction's noise below ``L``,
-        ``z*`` at level 0 and zero above, and fresh noise at level ``L`` only: the critic judges the
+        shapes it cannot correct) or ``"reconstructed"`` (the reconstruction's noise below ``L``
+        and fresh noise at level ``L`` only: the critic judges the
         detail level ``L`` adds to the training mesh's own coarse shape, as a transfer feeds it a
         real target; beyond the paper).
       steps: training steps per level (2000); one step is ``discriminator_steps`` critic updates
@@ -189,6 +195,7 @@ class Config(ConfigBase):
     reconstruction_weight: float = 5.0
     penalty_weight: float = 0.1
     reconstruction_start: int = 1
+    fixed_noise_levels: int = 1
     fake_inputs: str = "sampled"
     steps: int = 2000
     negative_slope: float = 0.2
@@ -199,7 +206,8 @@ class Config(ConfigBase):
     _RULES = (
         rule("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
         rule(
-            "start_features min_features learning_rate_decay_every generator_steps",
+            "start_features min_features learning_rate_decay_every generator_steps "
+            "fixed_noise_levels",
             lambda x: x >= 1,
             ">= 1",
         ),

@@ -12,6 +12,7 @@ import dataclasses
 import functools
 import os
 import pathlib
+from collections.abc import Sequence
 from typing import Any
 
 import jax
@@ -34,14 +35,14 @@ _WHAT = "DGTS model"
 
 @functools.partial(
     jax.tree_util.register_dataclass,
-    data_fields=["generators", "discriminators", "z_star"],
+    data_fields=["generators", "discriminators", "z_star", "z_star_finer"],
     meta_fields=["config"],
 )
 @dataclasses.dataclass(frozen=True, eq=False)
 class Model:
     """A trained (or partly trained) DGTS hierarchy: the parameters bundled with their config.
 
-    A pytree: the parameters and ``z_star`` are its leaves, ``config`` is static.
+    A pytree: the parameters and the fixed noise are its leaves, ``config`` is static.
 
     Attributes:
       config: the :class:`~jmeshtex.dgts.Config` it was trained with (widths, activation, noise
@@ -49,6 +50,8 @@ class Model:
       generators: one :class:`~jmeshtex.ops.FaceConvStackParams` per trained level, coarsest first.
       discriminators: the matching critics (kept to warm-start the next level).
       z_star: ``[V_0, 3]`` float32 fixed reconstruction noise of the coarsest level.
+      z_star_finer: the fixed reconstruction noise of levels ``1 … config.fixed_noise_levels − 1``
+        (``[V_l, 3]`` float32 each, as far as the training meshes went); empty by default.
 
     Example:
       >>> import jax.numpy as jnp
@@ -64,11 +67,47 @@ class Model:
     generators: tuple[FaceConvStackParams, ...]
     discriminators: tuple[FaceConvStackParams, ...]
     z_star: np.ndarray
+    z_star_finer: tuple[np.ndarray, ...] = ()
 
     @property
     def num_levels(self) -> int:
         """Number of trained levels."""
         return len(self.generators)
+
+    def reconstruction_noise(self, sizes: Sequence[int]) -> list[np.ndarray]:
+        """The training reconstruction's noise on levels of ``sizes`` vertices: ``z*`` at level 0,
+        :attr:`z_star_finer` up to ``config.fixed_noise_levels − 1``, zero above.
+
+        Raises:
+          InputError: ``sizes[0]`` is not ``z*``'s vertex count (not the training template), or a
+            level's fixed noise is missing or of another size.
+
+        Example:
+          >>> m = Model(Config(), (), (), np.ones((12, 3), np.float32))
+          >>> [float(z.sum()) for z in m.reconstruction_noise([12, 42])]
+          [36.0, 0.0]
+        """
+        z = np.asarray(self.z_star, np.float32)
+        if z.shape != (sizes[0], 3):
+            raise InputError(
+                f"the template has {sizes[0]} vertices but the model's z* has {z.shape[0]} rows: "
+                "pass the training template (TrainingMeshes.template with faces[0])"
+            )
+        noise = [z]
+        for level, size in enumerate(sizes[1:], start=1):
+            if level >= self.config.fixed_noise_levels:
+                noise.append(np.zeros((size, 3), np.float32))
+                continue
+            fixed = self.z_star_finer[level - 1] if level <= len(self.z_star_finer) else None
+            if fixed is None or np.shape(fixed) != (size, 3):
+                raise InputError(
+                    f"the model reconstructs level {level} from fixed noise "
+                    f"(fixed_noise_levels={self.config.fixed_noise_levels}) but holds "
+                    f"{'none' if fixed is None else np.shape(fixed)} for its {size} vertices: "
+                    "pass the training template, or a model saved by this jmeshtex"
+                )
+            noise.append(np.asarray(fixed, np.float32))
+        return noise
 
     def replace(self, **changes: Any) -> Model:
         """A copy with some fields replaced."""
@@ -81,11 +120,13 @@ def model_state(model: Model) -> dict:
         "generators": tuple(model.generators),
         "discriminators": tuple(model.discriminators),
         "z_star": np.asarray(model.z_star, np.float32),
+        "z_star_finer": tuple(np.asarray(z, np.float32) for z in model.z_star_finer),
     }
 
 
-def model_like(config: Config, levels: int, num_vertices: int) -> dict:
-    """The structure, shapes and dtypes of :func:`model_state` for ``levels`` levels (for restoring)."""
+def model_like(config: Config, levels: int, num_vertices: int, finer: Sequence[int] = ()) -> dict:
+    """The structure, shapes and dtypes of :func:`model_state` for ``levels`` levels (for
+    restoring); ``finer``: the vertex counts of ``z_star_finer``'s levels."""
     key = jax.random.key(0)
     return {
         "generators": tuple(init_level(config, i, generator=True, key=key) for i in range(levels)),
@@ -93,6 +134,7 @@ def model_like(config: Config, levels: int, num_vertices: int) -> dict:
             init_level(config, i, generator=False, key=key) for i in range(levels)
         ),
         "z_star": np.zeros((num_vertices, 3), np.float32),
+        "z_star_finer": tuple(np.zeros((n, 3), np.float32) for n in finer),
     }
 
 
@@ -179,11 +221,16 @@ def load(path: str | os.PathLike) -> Model:
         raise CorruptModelError(
             f"{file}: no generators or no z_star [V, 3] array: not a DGTS model"
         )
-    like = jax.eval_shape(lambda: model_like(config, len(levels), int(z_star.shape[0])))
+    finer = [
+        int(stored.arrays[f"z_star_finer/{i}"].shape[0])
+        for i in range(sum(n.startswith("z_star_finer/") for n in stored.arrays))
+    ]
+    like = jax.eval_shape(lambda: model_like(config, len(levels), int(z_star.shape[0]), finer))
     state = stored.restore(like)
     return Model(
         config,
         tuple(state["generators"]),
         tuple(state["discriminators"]),
         np.asarray(state["z_star"], np.float32),
+        tuple(np.asarray(z, np.float32) for z in state["z_star_finer"]),
     )

@@ -12,7 +12,7 @@ patch discriminator scores every face of the result against the level-``L`` trai
 
 (gradient penalty on interpolated face features, one ``α ~ U(0, 1)`` per critic update, per-face
 gradient norms; reconstruction with the fixed noise ``z*`` at the coarsest level and zero noise
-above). Adam with step decay; one training step is ``discriminator_steps`` critic updates then
+above, or fixed noise up to ``Config.fixed_noise_levels − 1``). Adam with step decay; one training step is ``discriminator_steps`` critic updates then
 ``generator_steps`` generator updates.
 
 How it runs (each level is one run of the shared training driver):
@@ -185,8 +185,9 @@ class LevelBatch(NamedTuple):
       fake_base: ``[K, S, V_L, 3]`` outputs of the frozen levels ``0 … L−1`` (subdivided and scaled
         into level ``L``'s frame) for fresh noise; the template itself at level 0.
       fake_noise: ``[K, S, V_L, 3]`` the level-``L`` noise of those fakes.
-      rec_base, rec_noise: ``[K, G, V_L, 3]`` the same for the reconstruction (``z*`` at level 0
-        and zero above from ``reconstruction_start`` on, fresh noise below it).
+      rec_base, rec_noise: ``[K, G, V_L, 3]`` the same for the reconstruction (its fixed noise,
+        ``z*`` at level 0 and zero above unless ``Config.fixed_noise_levels`` says otherwise, from
+        ``reconstruction_start`` on; fresh noise below it).
       alpha: ``[K, D]`` gradient-penalty interpolation weights.
       real: ``[K, V_L, 3]`` each step's real mesh: the level-``L`` training mesh of the step's
         reference (one reference drawn per step when training on several).
@@ -218,7 +219,16 @@ def _noise(key, fixed, *, shape: tuple[int, ...], amplitude: float):
 
 
 def level_batch(
-    model_levels, geos, templates, z_stars, reals, key, *, config: Config, chunk: int
+    model_levels,
+    geos,
+    templates,
+    z_stars,
+    reals,
+    key,
+    *,
+    config: Config,
+    chunk: int,
+    z_finer: Sequence = (),
 ) -> LevelBatch:
     """Draw the noise of ``chunk`` steps of level ``L = len(model_levels)`` and run the frozen
     levels ``0 … L−1`` on it (forward only).
@@ -234,12 +244,14 @@ def level_batch(
       reals: ``[R, V_L, 3]`` each reference's level-``L`` training mesh.
       key: PRNG key of the chunk's draws.
       config, chunk: the training config and the steps of the chunk.
+      z_finer: ``[R, V_l, 3]`` each reference's fixed reconstruction noise of levels ``1, 2, …``
+        below ``config.fixed_noise_levels`` (zero noise at the levels it does not reach).
 
     Returns:
       :class:`LevelBatch`. Each step draws one reference (always the first when ``R = 1``); its
       fakes start from that reference's template, its reconstruction and real mesh are that
       reference's. With ``L ≥ reconstruction_start`` the reconstructions are ``R`` fixed rows
-      (``z*`` at level 0, zero noise above), run once and gathered per step.
+      (``z*`` at level 0, ``z_finer`` above it, then zero noise), run once and gathered per step.
     """
     c = config
     L = len(model_levels)
@@ -261,12 +273,18 @@ def level_batch(
     # once per reference
     shared = c.fake_inputs == "reconstructed"
     v = templates.astype(dtype) if shared else templates.astype(dtype)[rows]
+
+    def rec_noise(level: int):  # the reconstruction's noise of every reference at ``level``
+        if level == 0:
+            return z_stars.astype(dtype)
+        if level <= len(z_finer):
+            return jnp.asarray(z_finer[level - 1], dtype)
+        return jnp.zeros((R, sizes[level], 3), dtype)
+
     for level in range(L + 1):
-        fixed = jnp.zeros((R if fixed_rec else 0, sizes[level], 3), dtype)
-        if level == 0 and fixed_rec:
-            fixed = z_stars.astype(dtype)
+        fixed = rec_noise(level) if fixed_rec else jnp.zeros((0, sizes[level], 3), dtype)
         if level < L and shared:
-            z = z_stars.astype(dtype) if level == 0 else jnp.zeros((R, sizes[level], 3), dtype)
+            z = rec_noise(level)
         else:
             z = _noise(
                 keys[level],
@@ -378,7 +396,7 @@ LOSS_NAMES = ("d_real", "d_fake", "penalty", "g_adv", "g_rec")
 
 #: fields added to :class:`Config` after checkpoints existed: left out of the fingerprint at
 #: these values (the behaviour the older folders were trained with)
-_ADDED_FIELDS = {"fake_inputs": "sampled"}
+_ADDED_FIELDS = {"fake_inputs": "sampled", "fixed_noise_levels": 1}
 
 
 def _fingerprint(references: tuple[TrainingMeshes, ...], config: Config, key: PRNGKey) -> dict:
@@ -413,9 +431,11 @@ def _level_state(config: Config, level: int, g, d) -> dict:
     }
 
 
-def _checkpoint_like(config: Config, meta: dict, num_vertices: int) -> dict:
-    """The structure, shapes and dtypes of the checkpoint ``meta`` describes (for restoring)."""
-    like = {"model": model_like(config, int(meta["completed_levels"]), num_vertices)}
+def _checkpoint_like(config: Config, meta: dict, sizes: Sequence[int]) -> dict:
+    """The structure, shapes and dtypes of the checkpoint ``meta`` describes (for restoring);
+    ``sizes``: the training levels' vertex counts."""
+    finer = sizes[1 : config.fixed_noise_levels]
+    like = {"model": model_like(config, int(meta["completed_levels"]), sizes[0], finer)}
     if meta["level_steps"]:
         level = int(meta["completed_levels"])
         key = jax.random.key(0)
@@ -531,6 +551,13 @@ def train(
     history: dict[str, list[float]] = {name: [] for name in LOSS_NAMES}
     reports: list[LevelReport] = []
     z_star = np.asarray(config.noise_amplitude * jax.random.normal(k_z, (V[0], 3), jnp.float32))
+    z_star_finer = tuple(  # reference r's at level l: key fold_in(k_finer, l), then r
+        np.asarray(
+            config.noise_amplitude
+            * jax.random.normal(_finer_key(k_z, level, 0), (V[level], 3), jnp.float32)
+        )
+        for level in range(1, min(config.fixed_noise_levels, len(V)))
+    )
     current = None  # the restored state of a level in progress, and its steps done
     current_steps = 0
     resumed_from = None
@@ -544,9 +571,10 @@ def train(
                 raise InputError(
                     f"{checkpoint_dir} holds {meta.get('kind')!r}, not DGTS training checkpoints"
                 )
-            state, meta = ckpt.restore(_checkpoint_like(config, meta, V[0]), step=step)
+            state, meta = ckpt.restore(_checkpoint_like(config, meta, V), step=step)
             gs, ds = list(state["model"]["generators"]), list(state["model"]["discriminators"])
             z_star = np.asarray(state["model"]["z_star"], np.float32)
+            z_star_finer = tuple(np.asarray(z, np.float32) for z in state["model"]["z_star_finer"])
             current = state.get("current")
             current_steps = int(meta["level_steps"])
             history = {name: list(meta["losses"][name]) for name in LOSS_NAMES}
@@ -561,13 +589,24 @@ def train(
             for r in range(1, len(references))
         ]
     )
+    z_finer = tuple(
+        jnp.stack(
+            [jnp.asarray(z, jnp.float32)]
+            + [
+                config.noise_amplitude
+                * jax.random.normal(_finer_key(k_z, level, r), z.shape, jnp.float32)
+                for r in range(1, len(references))
+            ]
+        )
+        for level, z in enumerate(z_star_finer, start=1)
+    )
     padded = _padded_sizes(geos_all, config.shared_levels)
     compiled: dict = {}  # this call's compiled steps (equal-sized levels share one)
     unpadded: dict = {}  # the newest level batch before padding
     chunk_step = jax.jit(functools.partial(_chunk_step, config=config))
 
     def frozen_state() -> dict:
-        return model_state(Model(config, tuple(gs), tuple(ds), z_star))
+        return model_state(Model(config, tuple(gs), tuple(ds), z_star, z_star_finer))
 
     def record(level: int, done: int) -> dict:
         return {
@@ -611,6 +650,7 @@ def train(
                     jax.random.fold_in(k_level, i // CHUNK),
                     config=config,
                     chunk=CHUNK,
+                    z_finer=z_finer,
                 )
                 if not t_batch:
                     jax.block_until_ready(batch)
@@ -672,7 +712,7 @@ def train(
     finally:
         if ckpt is not None:
             ckpt.close()
-    model = Model(config, tuple(gs[:total]), tuple(ds[:total]), z_star)
+    model = Model(config, tuple(gs[:total]), tuple(ds[:total]), z_star, z_star_finer)
     losses = {k: np.asarray(v[: total * S], np.float64) for k, v in history.items()}
     return TrainResult(
         model=model,
@@ -687,6 +727,11 @@ def train(
             **({"snapshots": snapshots} if snap_every else {}),
         },
     )
+
+
+def _finer_key(k_z, level: int, reference: int):
+    """The key of reference ``reference``'s fixed reconstruction noise at ``level ≥ 1``."""
+    return jax.random.fold_in(jax.random.fold_in(jax.random.fold_in(k_z, 2**31), level), reference)
 
 
 def _references(meshes) -> tuple[TrainingMeshes, ...]:

@@ -6,8 +6,9 @@ growing mesh of the paper's Fig. 6, ``per_level=True``):
 - :func:`transfer`: fresh noise on the first two levels run and none above (the official
   ``growing`` / ``animate``); ``zero_noise_from=k`` sets the noise of levels ``≥ k`` to zero instead
   (deterministic from the start level on when ``k ≤ start_level``; ``k = L``: noise everywhere);
-- :func:`reconstruct`: the template through all levels with the reconstruction noise (``z*`` at
-  level 0, zero above): the training meshes' reconstruction;
+- :func:`reconstruct`: the template through all levels with the reconstruction noise
+  (:meth:`Model.reconstruction_noise`: ``z*`` at level 0, zero above by default): the training
+  meshes' reconstruction;
 - :func:`conditional`: generation from the template at scale ``k`` (Fig. 5): the reconstruction's
   noise below level ``k``, fresh noise from ``k`` on, so levels ``< k`` reproduce the reconstruction;
 - :func:`interpolate`: frames between two noise draws.
@@ -485,17 +486,6 @@ def transfer(
     return _synthesise(model, plan, _zero_above(draws, plan, zero_noise_from), per_level=per_level)
 
 
-def _reconstruction_noise(model: Model, sizes: Sequence[int]) -> list[np.ndarray]:
-    """``z*`` at level 0 and zero above (the noise of the training reconstruction)."""
-    z = np.asarray(model.z_star, np.float32)
-    if z.shape != (sizes[0], 3):
-        raise InputError(
-            f"the template has {sizes[0]} vertices but the model's z* has {z.shape[0]} rows: pass the "
-            "training template (TrainingMeshes.template with faces[0])"
-        )
-    return [z] + [np.zeros((s, 3), np.float32) for s in sizes[1:]]
-
-
 def conditional(
     model: Model,
     template: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
@@ -507,8 +497,8 @@ def conditional(
 ) -> DGTSTransfer:
     """Generation conditioned on the training shape at scale ``level`` (the paper's Fig. 5).
 
-    The template runs through every level; levels ``< level`` get the reconstruction noise (``z*``
-    at level 0, zero above), levels ``≥ level`` fresh noise. The coarse shape up to ``level − 1`` is
+    The template runs through every level; levels ``< level`` get the reconstruction noise
+    (:meth:`Model.reconstruction_noise`), levels ``≥ level`` fresh noise. The coarse shape up to ``level − 1`` is
     therefore the reconstruction's and only finer detail varies between samples.
 
     Args:
@@ -544,7 +534,7 @@ def conditional(
     if not is_int(num_samples, 1):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     plan = plan_transfer(model, template, start_level=0)
-    rec = _reconstruction_noise(model, plan.sizes)
+    rec = model.reconstruction_noise(plan.sizes)
     draws = []
     for s in range(int(num_samples)):
         fresh = _noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude)
@@ -558,7 +548,7 @@ def reconstruct(
     *,
     per_level: bool = True,
 ) -> DGTSTransfer:
-    """The training reconstruction: the template through every level with ``z*`` at level 0, zero above.
+    """The training reconstruction: the template through every level with the reconstruction noise.
 
     Deterministic (no key). Level ``l``'s output times ``scale_factor**l`` is the reconstruction
     the generator ``l`` was trained to match against ``meshes.vertices[l]`` (template coordinates

@@ -341,3 +341,45 @@ def test_training_on_several_references(tmp_path, tiny_meshes, tiny_remeshed, ti
         train([tiny_meshes, other], TINY, key=key, progress=False)
     with pytest.raises(InputError, match="non-empty sequence"):
         train([], TINY, key=key, progress=False)
+
+
+def test_fixed_noise_levels_reconstruct_every_fixed_level_from_noise_kept_in_the_model(
+    tmp_path, tiny_meshes, tiny_result
+):
+    """``fixed_noise_levels=2``: level 1's reconstruction runs on a fixed draw of its own (not
+    zero), kept in the model, saved, restored on resume and used by ``reconstruct``; the default
+    (1, the reference's) is untouched."""
+    from jmeshtex.dgts import reconstruct
+
+    assert tiny_result.model.z_star_finer == ()
+    cfg = TINY.replace(fixed_noise_levels=2)
+    key = jax.random.key(TINY_KEY)
+    whole = train(tiny_meshes, cfg, key=key, progress=False)
+    (z1,) = whole.model.z_star_finer
+    assert z1.shape == tiny_meshes.vertices[1].shape and 0.05 < z1.std() < 0.2
+    np.testing.assert_array_equal(whole.model.z_star, tiny_result.model.z_star)
+    S = TINY.steps  # level 0 trains as before; level 1 reconstructs from z1, not from zero
+    np.testing.assert_array_equal(whole.losses["g_rec"][:S], tiny_result.losses["g_rec"][:S])
+    assert not np.array_equal(whole.losses["g_rec"][S:], tiny_result.losses["g_rec"][S:])
+    noise = whole.model.reconstruction_noise([len(v) for v in tiny_meshes.vertices])
+    np.testing.assert_array_equal(noise[1], z1)
+    # the level-1 reconstruction the generator was trained on is the one reconstruct() gives
+    rec = reconstruct(whole.model, (tiny_meshes.template, tiny_meshes.faces[0]))
+    zero = whole.model.replace(z_star_finer=(np.zeros_like(z1),), config=TINY)
+    rec0 = reconstruct(zero, (tiny_meshes.template, tiny_meshes.faces[0]))
+    assert np.abs(rec.level_vertices[1] - rec0.level_vertices[1]).max() > 1e-4
+    np.testing.assert_array_equal(rec.level_vertices[0], rec0.level_vertices[0])
+    # saved and loaded; resumed from the level-0 checkpoint to the same model
+    back = load(save(whole.model, tmp_path / "model"))
+    _assert_same_model(back, whole.model)
+    out = tmp_path / "run"
+    train(tiny_meshes, cfg, key=key, checkpoint_dir=out, levels=1, progress=False)
+    resumed = train(tiny_meshes, cfg, key=key, checkpoint_dir=out, progress=False)
+    assert resumed.resumed_from == TINY.steps
+    _assert_same_model(resumed.model, whole.model)
+    with pytest.raises(ConfigError, match="fixed_noise_levels"):
+        TINY.replace(fixed_noise_levels=0)
+    from jmeshtex import InputError
+
+    with pytest.raises(InputError, match="fixed noise"):
+        whole.model.replace(z_star_finer=()).reconstruction_noise([12, 42])
