@@ -34,6 +34,11 @@ Sections (float32, CPU, jit; compile time reported apart):
   level alone, and transfers (:func:`noise_response`); writes ``dgts_noise_response_<kind>``.
   ``--remeshes R`` trains on R remeshes of the reference (the template fitted under R − 1 random
   rotations too), ``--starts`` adds transfer start levels, ``--fake-inputs`` picks the choices.
+- ``--tessellations KIND`` (alone): the study models of ``--runs`` (run folders under
+  ``--work/KIND``, trained by ``--noise-response``) transferred to one surface under two
+  tessellations each (the torus grid and an isotropic remesh of it; the icosphere of the training
+  mesh's connectivity and an isotropic sphere) from the default and ``--starts`` levels, against
+  their oracles (:func:`tessellations`); writes ``dgts_tessellations_<kind>``.
 - ``--receptive-field KIND`` (alone): ``--layer-counts`` layers per network on ``--remeshes``
   remeshes, ``--study-levels`` levels; the last level lays the texture out from its own noise,
   in-domain and on new surfaces (:func:`receptive_field`); writes ``dgts_receptive_field``.
@@ -591,6 +596,74 @@ def noise_response(
     report.write()
 
 
+def tessellations(
+    kind: str,
+    runs: list[str],
+    *,
+    levels: int,
+    work: pathlib.Path,
+    samples: int,
+    starts: tuple[int | None, ...] = (None, 2),
+) -> None:
+    """New surface or new tessellation? Each study model in ``work/<kind>/<run>/`` (trained by
+    :func:`noise_response`; its name tells its training meshes: ``coarse<K>_…`` fitted the
+    coarsest K levels to the untextured sphere) and untrained weights, transferred to a torus as a
+    64 × 24 grid and as an isotropic remesh of the same vertex count, and to a sphere as the
+    icosphere of the training mesh's connectivity (one level coarser than the finest) and as an
+    isotropic remesh of the same vertex count; scored against each output's oracle at the model's
+    own period, beside matched noise. Writes ``dgts_tessellations_<kind>`` and its figure (each
+    target's oracle and every model's transfer from the last of ``starts``)."""
+    from jmeshtex.dgts import load
+    from jmeshtex.geometry import remesh
+
+    report = Report(f"dgts_tessellations_{kind}", ceilings=False)
+    grid = torus(64, 24)
+    sphere = icosphere(levels - 1)  # icosphere(1) subdivided levels - 2 times: level L-2's faces
+    targets = [
+        ("torus grid", grid),
+        ("torus isotropic", remesh(torus(128, 48), n_vertices=len(grid.vertices), key=jax.random.key(0))),
+        (f"icosphere({levels - 1})", sphere),
+        ("sphere isotropic", remesh(icosphere(levels + 1), n_vertices=len(sphere.vertices), key=jax.random.key(0))),
+    ]  # fmt: skip
+    report.config = {"kind": kind, "levels": levels, "runs": runs, "starts": list(starts)}
+    models = {}
+    for run in runs:
+        coarse = int(run[6]) if run.startswith("coarse") else 0
+        _, tm = depth_meshes(kind, levels, work / kind, coarse)
+        models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
+    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    models["untrained"] = (untrained, models[runs[-1]][1])
+    panels = []
+    for target_name, target in targets:
+        for start in starts:
+            at = "default start" if start is None else f"start {start}"
+            for name, (model, period) in models.items():
+                rows, oracle = _score_transfers(
+                    report, f"{target_name}, {at} [{name}]", {name: model}, target, start, kind, period,
+                    samples,
+                )  # fmt: skip
+                if start == starts[-1]:
+                    if name == runs[0]:
+                        panels.append((f"{target_name}: oracle", oracle))
+                    short = name.replace("fake_inputs_", "").replace("_", " ")
+                    panels.append((f"{target_name}: {short}", rows[name][0]))
+        report.write()
+    from jmeshtex.render import figure, render_mesh
+
+    figure(
+        [(title, render_mesh(mesh, size=(300, 300))) for title, mesh in panels],
+        columns=len(models) + 1,
+        title=f"DGTS {kind}: transfers from level {starts[-1]} to two tessellations of each surface",
+        path=RESULTS / f"dgts_tessellations_{kind}.png",
+    )
+    report.notes.append(
+        "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
+        "transfer's own base, at the model's own period in mean edges; matched noise: Gaussian "
+        "relief of the oracle's std."
+    )
+    report.write()
+
+
 def receptive_field(
     kind: str,
     layer_counts: list[int],
@@ -998,9 +1071,32 @@ def main() -> None:
         help="only the receptive-field study on this texture (--layer-counts, --study-levels, "
         "--depth-steps, --remeshes; writes dgts_receptive_field)",
     )
+    ap.add_argument(
+        "--tessellations",
+        default=None,
+        choices=sorted(DEPTH_TEXTURES),
+        help="only the tessellation study of --runs on this texture (--work, --depth-levels, "
+        "--starts; writes dgts_tessellations_<kind>)",
+    )
+    ap.add_argument(
+        "--runs",
+        nargs="+",
+        default=["fake_inputs_sampled_2000"],
+        help="--tessellations: study run folders under --work/KIND",
+    )
     ap.add_argument("--layer-counts", nargs="+", type=int, default=[7, 10])
     ap.add_argument("--study-levels", type=int, default=3)
     args = ap.parse_args()
+    if args.tessellations:
+        tessellations(
+            args.tessellations,
+            args.runs,
+            levels=args.depth_levels,
+            work=args.work,
+            samples=args.samples,
+            starts=(None, *args.starts),
+        )
+        return
     if args.receptive_field:
         receptive_field(
             args.receptive_field,
