@@ -25,6 +25,14 @@ def _assert_same_model(a: Model, b: Model):
         np.testing.assert_array_equal(x, y)
 
 
+def _assert_resumes_after_level_0(meshes, cfg, key, folder, whole: Model):
+    """Training level 0 into ``folder``, then all levels from it, gives ``whole``."""
+    train(meshes, cfg, key=key, checkpoint_dir=folder, levels=1, progress=False)
+    resumed = train(meshes, cfg, key=key, checkpoint_dir=folder, progress=False)
+    assert resumed.resumed_from == cfg.steps
+    _assert_same_model(resumed.model, whole)
+
+
 def test_train_returns_a_train_result_with_per_step_losses(tiny_result):
     r = tiny_result
     assert isinstance(r, TrainResult) and isinstance(r.model, Model)
@@ -327,10 +335,7 @@ def test_training_on_several_references(tmp_path, tiny_meshes, tiny_remeshed, ti
     assert all(np.isfinite(v).all() for v in whole.losses.values())
     assert not np.array_equal(whole.losses["g_rec"], tiny_result.losses["g_rec"])
     out = tmp_path / "run"
-    train(refs, TINY, key=key, checkpoint_dir=out, levels=1, progress=False)
-    resumed = train(refs, TINY, key=key, checkpoint_dir=out, progress=False)
-    assert resumed.resumed_from == TINY.steps
-    _assert_same_model(resumed.model, whole.model)
+    _assert_resumes_after_level_0(refs, TINY, key, out, whole.model)
     with pytest.raises(CheckpointMismatchError, match="meshes"):
         train(refs[::-1], TINY, key=key, checkpoint_dir=out, progress=False)
     other = training_meshes(
@@ -372,11 +377,7 @@ def test_fixed_noise_levels_reconstruct_every_fixed_level_from_noise_kept_in_the
     # saved and loaded; resumed from the level-0 checkpoint to the same model
     back = load(save(whole.model, tmp_path / "model"))
     _assert_same_model(back, whole.model)
-    out = tmp_path / "run"
-    train(tiny_meshes, cfg, key=key, checkpoint_dir=out, levels=1, progress=False)
-    resumed = train(tiny_meshes, cfg, key=key, checkpoint_dir=out, progress=False)
-    assert resumed.resumed_from == TINY.steps
-    _assert_same_model(resumed.model, whole.model)
+    _assert_resumes_after_level_0(tiny_meshes, cfg, key, tmp_path / "run", whole.model)
     with pytest.raises(ConfigError, match="fixed_noise_levels"):
         TINY.replace(fixed_noise_levels=0)
     from jmeshtex import InputError
