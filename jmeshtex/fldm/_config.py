@@ -239,20 +239,26 @@ class Config(ConfigBase):
     def cpu(cls, **changes) -> Config:
         """A CPU preset sized by measurement (``benchmarks/results/fldm_spot.md``).
 
-        The :meth:`tiny` denoiser (16/32 channels, 1+1+1 blocks, one-hidden-layer ReLU filters) with
-        v-prediction, the cosine noise schedule, Adam 2e-3 with 200 warm-up steps and cosine decay to
+        The :meth:`tiny` denoiser (16/32 channels, one-hidden-layer ReLU filters) with three blocks
+        at the coarse level (1+3+1: the paper's deeper middle, where each field convolution reaches
+        twice as far as at the fine level), v-prediction, the cosine noise schedule, Adam 2e-3 with 200 warm-up steps and cosine decay to
         1e-5 over 10,000 steps, batch 2, an EMA of the weights (0.999), 16 copies of 10,000 vertices
         with 4 FL-VAE encodings each, 2 DDIM-25 samples for the statistics at every checkpoint
         (every 500 steps), and the invariant stream (``invariants``, beyond the paper): on Spot it
         took the samples' neighbour correlation of ``|z|²`` from 0.01 to 0.19 by step 1,500 where
         the same preset without it stayed at 0.01–0.02 to step 2,500 (``fldm_spot_control.md``).
+        The deeper middle costs 1.4× the CPU per step (1.0 against 0.73 CPU-s) and, on the FL-VAE's
+        latents shipped now, took that correlation to 0.11 at step 2,000 where 1+1+1 blocks on the
+        same schedule reached 0.04 (``fldm_spot_mid3.md``; its samples show dark patches on Spot's
+        body where 1+1+1 shows speckle).
 
         Example:
           >>> c = Config.cpu()
-          >>> c.widths, c.schedule, c.steps, c.learning_rate, c.encodings_per_copy, c.invariants
-          ((16, 32), 'cosine', 10000, 0.002, 4, True)
+          >>> c.widths, c.blocks, c.schedule, c.steps, c.learning_rate, c.encodings_per_copy, c.invariants
+          ((16, 32), (1, 3, 1), 'cosine', 10000, 0.002, 4, True)
         """
         base = dict(
+            blocks=(1, 3, 1),
             prediction="v",
             schedule="cosine",
             learning_rate=2e-3,
