@@ -67,6 +67,7 @@ import argparse
 import json
 import os
 import pathlib
+import re
 import time
 
 import jax
@@ -628,7 +629,7 @@ def tessellations(
     report.config = {"kind": kind, "levels": levels, "runs": runs, "starts": list(starts)}
     models = {}
     for run in runs:
-        coarse = int(run[6]) if run.startswith("coarse") else 0
+        coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
         _, tm = depth_meshes(kind, levels, work / kind, coarse)
         models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
     untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model

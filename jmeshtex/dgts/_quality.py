@@ -233,9 +233,10 @@ def reconstruction_errors(model: Model, meshes: TrainingMeshes) -> Float[np.ndar
 
     .. math:: e_l = \\frac{1}{V_l \\bar\\ell_l} \\sum_i \\big| \\hat v^{(l)}_i - v^{(l)}_i \\big|
 
-    with ``v̂^{(l)}`` the output of level ``l`` for the reconstruction noise (:func:`~jmeshtex.dgts.reconstruct`,
-    :meth:`~jmeshtex.dgts.Model.reconstruction_noise`; training uses fresh noise for level 0's own reconstruction while
-    ``Config.reconstruction_start`` = 1) and ``ℓ̄_l`` the training mesh's mean edge.
+    with ``v̂^{(l)}`` the output of level ``l`` for the reconstruction noise
+    (:func:`~jmeshtex.dgts.reconstruct`, :meth:`~jmeshtex.dgts.Model.reconstruction_noise`; training
+    uses fresh noise for level 0's own reconstruction while ``Config.reconstruction_start`` = 1) and
+    ``ℓ̄_l`` the training mesh's mean edge.
 
     Args:
       model: a trained model (its levels are compared).

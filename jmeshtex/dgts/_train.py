@@ -11,9 +11,9 @@ patch discriminator scores every face of the result against the level-``L`` trai
 .. math:: \\mathcal L_G = -\\overline{D(G(z))} + \\gamma\\, \\mathrm{MSE}\\big(G(z^*, 0, …, 0), x_L\\big)
 
 (gradient penalty on interpolated face features, one ``α ~ U(0, 1)`` per critic update, per-face
-gradient norms; reconstruction with the fixed noise ``z*`` at the coarsest level and zero noise
-above, or fixed noise up to ``Config.fixed_noise_levels − 1``). Adam with step decay; one training step is ``discriminator_steps`` critic updates then
-``generator_steps`` generator updates.
+gradient norms; reconstruction with the fixed noise ``z*`` at the coarsest level, or at levels up
+to ``Config.fixed_noise_levels − 1``, and zero noise above). Adam with step decay; one training
+step is ``discriminator_steps`` critic updates then ``generator_steps`` generator updates.
 
 How it runs (each level is one run of the shared training driver):
 
