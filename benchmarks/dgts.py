@@ -39,6 +39,14 @@ Sections (float32, CPU, jit; compile time reported apart):
   tessellations each (the torus grid and an isotropic remesh of it; the icosphere of the training
   mesh's connectivity and an isotropic sphere) from the default and ``--starts`` levels, against
   their oracles (:func:`tessellations`); writes ``dgts_tessellations_<kind>``.
+- ``--noise-amplitudes A [A ...]`` (alone): the study models of ``--runs`` (texture
+  ``--noise-amplitude-kind``) transferred with their transfer noise scaled by each ``A`` (0: none),
+  to the torus grid, the icosphere of the training connectivity and the cow, against their oracles,
+  with each output's layout correlation to the noiseless one (:func:`noise_amplitudes`); writes
+  ``dgts_noise_amplitudes_<kind>``.
+- ``--curvature KIND`` (alone): the study models of ``--runs`` transferred from level 2 to a torus
+  and a sphere at three resolutions each (2× more edges across: half the curvature per edge, the
+  same period in edges) against their oracles (:func:`curvature`); writes ``dgts_curvature_<kind>``.
 - ``--receptive-field KIND`` (alone): ``--layer-counts`` layers per network on ``--remeshes``
   remeshes, ``--study-levels`` levels; the last level lays the texture out from its own noise,
   in-domain and on new surfaces (:func:`receptive_field`); writes ``dgts_receptive_field``.
@@ -665,6 +673,135 @@ def tessellations(
     report.write()
 
 
+def noise_amplitudes(
+    kind: str,
+    runs: list[str],
+    amplitudes: list[float],
+    *,
+    levels: int,
+    work: pathlib.Path,
+    samples: int,
+) -> None:
+    """Does a transfer's layout come from its noise? Each study model in ``work/<kind>/<run>/``
+    (as :func:`tessellations`) and untrained weights, transferred with the transfer noise scaled by
+    each of ``amplitudes`` (× ``Config.noise_amplitude``; 0: no noise at all) to the torus grid
+    (default start), the icosphere of the training mesh's connectivity (from level 2) and the shared
+    cow (default start), against their oracles. ``layout_vs_zero``: the correlation, vertex by
+    vertex, of each output's relief heights with the same model's noiseless output on the same base
+    (1: the noise moves nothing). Writes ``dgts_noise_amplitudes_<kind>``."""
+    import dataclasses
+
+    from jmeshtex.dgts import load
+
+    report = Report(f"dgts_noise_amplitudes_{kind}", ceilings=False)
+    targets = [
+        ("torus grid", torus(64, 24), None),
+        (f"icosphere({levels - 1})", icosphere(levels - 1), 2),
+    ]
+    targets += [(name, mesh, None) for name, mesh in _targets(("cow",))[1:]]
+    report.config = {"kind": kind, "levels": levels, "runs": runs, "amplitudes": amplitudes}
+    models = {}
+    for run in runs:
+        coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
+        _, tm = depth_meshes(kind, levels, work / kind, coarse)
+        models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
+    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    models["untrained"] = (untrained, models[runs[-1]][1])
+    for target_name, target, start in targets:
+        at = "default start" if start is None else f"start {start}"
+        for name, (model, period) in models.items():
+            rows, extra, zero = {}, {}, None
+            for a in sorted(amplitudes):
+                scaled = dataclasses.replace(
+                    model,
+                    config=model.config.replace(noise_amplitude=a * model.config.noise_amplitude),
+                )
+                res = transfer(
+                    scaled, target, num_samples=samples, start_level=start, key=jax.random.key(1)
+                )
+                meshes = [res.mesh(i) for i in range(samples)]
+                zero = meshes[0] if zero is None else zero  # the smallest amplitude (0 when asked)
+                rows[f"noise x{a:g}"] = meshes
+                corr = np.mean([layout_correlation(m, zero) for m in meshes])
+                extra[f"noise x{a:g}"] = {"layout_vs_zero": float(corr)}
+            oracle = oracle_texture((res.base, res.faces), kind, period=period)
+            _score_rows(report, f"{target_name}, {at} [{name}] (F={len(res.faces)})", rows, oracle,
+                        (res.base, res.faces), extra)  # fmt: skip
+        report.write()
+    report.notes.append(
+        "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
+        "transfer's own base; noise xA: transfer noise A times Config.noise_amplitude; "
+        "layout_vs_zero: correlation of relief heights with the smallest amplitude's output."
+    )
+    report.write()
+
+
+def curvature(
+    kind: str,
+    runs: list[str],
+    *,
+    levels: int,
+    work: pathlib.Path,
+    samples: int,
+    start: int = 2,
+    real=("cow", "fandisk"),
+) -> None:
+    """Does transfer density follow the target's curvature in edges? Each study model in
+    ``work/<kind>/<run>/`` (as :func:`tessellations`) and untrained weights, transferred from level
+    ``start`` to one torus and one sphere each at three resolutions: the same shape with 2× more
+    edges across is half as curved per edge, while the texture's period in edges (and so the
+    oracle's density per squared edge) stays. Tori: grids 32 × 12, 64 × 24, 128 × 48 (tube
+    circumference 12 / 24 / 48 edges at the start level); spheres: icosphere(2…4); and the middle
+    torus from one level coarser (``start`` − 1: the user's way to make a texture finer relative to
+    a given target), and midpoint-subdivided once from ``start`` (the same output, but no
+    generator at ``start`` − 1); the shared real meshes named in ``real`` from ``start`` and
+    ``start`` − 1.
+    Writes ``dgts_curvature_<kind>``."""
+    from jmeshtex import Mesh
+    from jmeshtex.dgts import load
+    from jmeshtex.geometry import subdivide_midpoint
+
+    report = Report(f"dgts_curvature_{kind}", ceilings=False)
+    targets = [(f"torus {n * 8}x{n * 3}", torus(n * 8, n * 3), start) for n in (4, 8, 16)]
+    targets += [(f"icosphere({k})", icosphere(k), start) for k in (2, 3, 4)]
+    targets.append(("torus 64x24", torus(64, 24), start - 1))  # the middle torus, one level coarser
+    fine = subdivide_midpoint(*torus(64, 24))  # ... and subdivided once, flat, from `start`
+    targets.append(("torus 64x24 subdivided", Mesh(fine.vertices, fine.faces), start))
+    targets += [(name, mesh, at) for name, mesh in _targets(real)[1:] for at in (start, start - 1)]
+    report.config = {"kind": kind, "levels": levels, "runs": runs, "start": start}
+    models = {}
+    for run in runs:
+        coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
+        _, tm = depth_meshes(kind, levels, work / kind, coarse)
+        models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
+    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    models["untrained"] = (untrained, models[runs[-1]][1])
+    panels = []
+    for target_name, target, at in targets:
+        for name, (model, period) in models.items():
+            rows, oracle = _score_transfers(
+                report, f"{target_name}, start {at} [{name}]", {name: model}, target, at, kind,
+                period, samples,
+            )  # fmt: skip
+            if name == runs[0]:
+                panels.append((f"{target_name} from {at}: oracle", oracle))
+                panels.append((f"{target_name} from {at}: {name.split('_fake')[0]}", rows[name][0]))
+        report.write()
+    from jmeshtex.render import figure, render_mesh
+
+    figure(
+        [(title, render_mesh(mesh, size=(300, 300))) for title, mesh in panels],
+        columns=4,
+        title=f"DGTS {kind}: transfers to a torus and a sphere at three resolutions",
+        path=RESULTS / f"dgts_curvature_{kind}.png",
+    )
+    report.notes.append(
+        "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
+        "transfer's own base, at the model's own period in mean edges."
+    )
+    report.write()
+
+
 def receptive_field(
     kind: str,
     layer_counts: list[int],
@@ -1085,9 +1222,44 @@ def main() -> None:
         default=["fake_inputs_sampled_2000"],
         help="--tessellations: study run folders under --work/KIND",
     )
+    ap.add_argument(
+        "--noise-amplitudes",
+        nargs="+",
+        type=float,
+        default=None,
+        help="only the noise-amplitude study of --runs on --noise-amplitude-kind (--work, "
+        "--depth-levels; writes dgts_noise_amplitudes_<kind>)",
+    )
+    ap.add_argument("--noise-amplitude-kind", default="knobs", choices=sorted(DEPTH_TEXTURES))
+    ap.add_argument(
+        "--curvature",
+        default=None,
+        choices=sorted(DEPTH_TEXTURES),
+        help="only the curvature study of --runs on this texture (--work, --depth-levels; writes "
+        "dgts_curvature_<kind>)",
+    )
     ap.add_argument("--layer-counts", nargs="+", type=int, default=[7, 10])
     ap.add_argument("--study-levels", type=int, default=3)
     args = ap.parse_args()
+    if args.curvature:
+        curvature(
+            args.curvature,
+            args.runs,
+            levels=args.depth_levels,
+            work=args.work,
+            samples=args.samples,
+        )
+        return
+    if args.noise_amplitudes:
+        noise_amplitudes(
+            args.noise_amplitude_kind,
+            args.runs,
+            args.noise_amplitudes,
+            levels=args.depth_levels,
+            work=args.work,
+            samples=args.samples,
+        )
+        return
     if args.tessellations:
         tessellations(
             args.tessellations,

@@ -429,6 +429,15 @@ def transfer(
     the target's resolution (not the coarsest), with noise on the first two levels run only, since
     the coarse generators were trained on one shape each and the finer ones shape the texture.
 
+    The texture's period is fixed in mean edges of each level, so the target's resolution sets its
+    size on the surface. Choose it so the target is no more curved per edge than the training mesh:
+    the generators see curvature through their edge features, and on a more curved target they
+    leave their training distribution. Measured (``benchmarks/dgts.py --curvature``, a knobs model
+    trained on a sphere, from level 2): a torus whose tube circumference is 12 / 24 / 48 edges at
+    the start level gets 4.4× / 2.1× / 1.6× the density of an oracle carrying the same knobs, spheres
+    1.3–1.6× at any resolution. A finer target (or a lower ``start_level``, which subdivides it
+    more) makes the texture smaller relative to the shape.
+
     .. math:: v_{l+1} = 2\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start\\_level} \\ldots L-1,
        \\quad v_{\\text{start}} = \\text{target} / \\bar\\ell
 
