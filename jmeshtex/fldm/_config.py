@@ -249,8 +249,8 @@ class Config(ConfigBase):
         the same preset without it stayed at 0.01–0.02 to step 2,500 (``fldm_spot_control.md``).
         The deeper middle costs 1.4× the CPU per step (1.0 against 0.73 CPU-s) and, on the FL-VAE's
         latents shipped now, took that correlation to 0.11 at step 2,000 where 1+1+1 blocks on the
-        same schedule reached 0.04 (``fldm_spot_mid3.md``; its samples show dark patches on Spot's
-        body where 1+1+1 shows speckle).
+        same schedule reached 0.04, and to 0.31–0.34 in the samples after the 10,000 steps
+        (``fldm_spot_mid3.md``; they show dark patches on Spot's body where 1+1+1 shows speckle).
 
         Example:
           >>> c = Config.cpu()
