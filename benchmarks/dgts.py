@@ -605,6 +605,22 @@ def noise_response(
     report.write()
 
 
+def _study_models(kind: str, runs: list[str], levels: int, work: pathlib.Path) -> dict:
+    """``{run: (model, period in mean edges)}`` for the study models in ``work/<kind>/<run>/``
+    (trained by :func:`noise_response`; a ``coarse<K>_…`` name tells its training meshes), and
+    untrained weights at the last run's period as ``"untrained"``."""
+    from jmeshtex.dgts import load
+
+    models = {}
+    for run in runs:
+        coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
+        _, tm = depth_meshes(kind, levels, work / kind, coarse)
+        models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
+    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    models["untrained"] = (untrained, models[runs[-1]][1])
+    return models
+
+
 def tessellations(
     kind: str,
     runs: list[str],
@@ -622,7 +638,6 @@ def tessellations(
     isotropic remesh of the same vertex count; scored against each output's oracle at the model's
     own period, beside matched noise. Writes ``dgts_tessellations_<kind>`` and its figure (each
     target's oracle and every model's transfer from the last of ``starts``)."""
-    from jmeshtex.dgts import load
     from jmeshtex.geometry import remesh
 
     report = Report(f"dgts_tessellations_{kind}", ceilings=False)
@@ -635,13 +650,7 @@ def tessellations(
         ("sphere isotropic", remesh(icosphere(levels + 1), n_vertices=len(sphere.vertices), key=jax.random.key(0))),
     ]  # fmt: skip
     report.config = {"kind": kind, "levels": levels, "runs": runs, "starts": list(starts)}
-    models = {}
-    for run in runs:
-        coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
-        _, tm = depth_meshes(kind, levels, work / kind, coarse)
-        models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
-    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
-    models["untrained"] = (untrained, models[runs[-1]][1])
+    models = _study_models(kind, runs, levels, work)
     panels = []
     for target_name, target in targets:
         for start in starts:
@@ -676,8 +685,8 @@ def tessellations(
 def noise_amplitudes(
     kind: str,
     runs: list[str],
-    amplitudes: list[float],
     *,
+    amplitudes: list[float],
     levels: int,
     work: pathlib.Path,
     samples: int,
@@ -691,8 +700,6 @@ def noise_amplitudes(
     (1: the noise moves nothing). Writes ``dgts_noise_amplitudes_<kind>``."""
     import dataclasses
 
-    from jmeshtex.dgts import load
-
     report = Report(f"dgts_noise_amplitudes_{kind}", ceilings=False)
     targets = [
         ("torus grid", torus(64, 24), None),
@@ -700,13 +707,7 @@ def noise_amplitudes(
     ]
     targets += [(name, mesh, None) for name, mesh in _targets(("cow",))[1:]]
     report.config = {"kind": kind, "levels": levels, "runs": runs, "amplitudes": amplitudes}
-    models = {}
-    for run in runs:
-        coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
-        _, tm = depth_meshes(kind, levels, work / kind, coarse)
-        models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
-    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
-    models["untrained"] = (untrained, models[runs[-1]][1])
+    models = _study_models(kind, runs, levels, work)
     for target_name, target, start in targets:
         at = "default start" if start is None else f"start {start}"
         for name, (model, period) in models.items():
@@ -758,7 +759,6 @@ def curvature(
     ``start`` − 1.
     Writes ``dgts_curvature_<kind>``."""
     from jmeshtex import Mesh
-    from jmeshtex.dgts import load
     from jmeshtex.geometry import subdivide_midpoint
 
     report = Report(f"dgts_curvature_{kind}", ceilings=False)
@@ -769,13 +769,7 @@ def curvature(
     targets.append(("torus 64x24 subdivided", Mesh(fine.vertices, fine.faces), start))
     targets += [(name, mesh, at) for name, mesh in _targets(real)[1:] for at in (start, start - 1)]
     report.config = {"kind": kind, "levels": levels, "runs": runs, "start": start}
-    models = {}
-    for run in runs:
-        coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
-        _, tm = depth_meshes(kind, levels, work / kind, coarse)
-        models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
-    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
-    models["untrained"] = (untrained, models[runs[-1]][1])
+    models = _study_models(kind, runs, levels, work)
     panels = []
     for target_name, target, at in targets:
         for name, (model, period) in models.items():
@@ -1241,35 +1235,23 @@ def main() -> None:
     ap.add_argument("--layer-counts", nargs="+", type=int, default=[7, 10])
     ap.add_argument("--study-levels", type=int, default=3)
     args = ap.parse_args()
-    if args.curvature:
-        curvature(
-            args.curvature,
-            args.runs,
-            levels=args.depth_levels,
-            work=args.work,
-            samples=args.samples,
-        )
-        return
-    if args.noise_amplitudes:
-        noise_amplitudes(
-            args.noise_amplitude_kind,
-            args.runs,
-            args.noise_amplitudes,
-            levels=args.depth_levels,
-            work=args.work,
-            samples=args.samples,
-        )
-        return
-    if args.tessellations:
-        tessellations(
-            args.tessellations,
-            args.runs,
-            levels=args.depth_levels,
-            work=args.work,
-            samples=args.samples,
-            starts=(None, *args.starts),
-        )
-        return
+    studies = (  # the studies of trained --runs: (function, texture or None, its own arguments)
+        (curvature, args.curvature, {}),
+        (noise_amplitudes, args.noise_amplitudes and args.noise_amplitude_kind,
+         {"amplitudes": args.noise_amplitudes}),
+        (tessellations, args.tessellations, {"starts": (None, *args.starts)}),
+    )  # fmt: skip
+    for study, kind, own in studies:
+        if kind:
+            study(
+                kind,
+                args.runs,
+                levels=args.depth_levels,
+                work=args.work,
+                samples=args.samples,
+                **own,
+            )
+            return
     if args.receptive_field:
         receptive_field(
             args.receptive_field,
