@@ -250,8 +250,15 @@ def _face_lengths(level: _Level) -> np.ndarray:
 # decimation
 
 
-def _decimate(level: _Level, target: int, step: float) -> tuple[_Level, np.ndarray]:
-    """Collapse rounds until ``target`` vertices remain (or no admissible collapse is left)."""
+def _decimate(
+    level: _Level, target: int, step: float, shortest_first: bool = False
+) -> tuple[_Level, np.ndarray]:
+    """Collapse rounds until ``target`` vertices remain (or no admissible collapse is left).
+
+    A round collapses an independent set of admissible edges, ranked shortest first; with
+    ``shortest_first`` only those within one half-octave band of the round's shortest, so that the
+    decimation evens edge lengths out (an isotropic remesh of a graded mesh) instead of thinning
+    every region alike (a hierarchy that keeps the input's grading)."""
     n = len(level.index)
     faces, keys, log, tr = level.faces, level.keys, level.log, level.tr
     alive = np.ones(n, bool)
@@ -260,7 +267,9 @@ def _decimate(level: _Level, target: int, step: float) -> tuple[_Level, np.ndarr
         rings = one_rings(faces, n)
         if max_degree is None:
             max_degree = max(_MAX_DEGREE, int(rings.degree.max()))
-        u, w = _select_collapses(rings, n, keys, log, step, int(alive.sum()) - target, max_degree)
+        u, w = _select_collapses(
+            rings, n, keys, log, step, int(alive.sum()) - target, max_degree, shortest_first
+        )
         if len(u) == 0:
             break
         faces, keys, log, tr = _collapse(rings, n, faces, keys, log, tr, u, w)
@@ -286,7 +295,7 @@ def _hash(x: np.ndarray) -> np.ndarray:
     return (z >> np.uint64(1)).astype(np.int64)
 
 
-def _select_collapses(rings, n, keys, log, step, need, max_degree):
+def _select_collapses(rings, n, keys, log, step, need, max_degree, shortest_first=False):
     """Admissible collapses ``u → w`` that can be applied together (see :func:`_compatible_set`)."""
     deg, bnd = rings.degree.astype(np.int64), rings.boundary
     u = np.nonzero(deg > 0)[0]  # vertices still in the mesh; rows below are local to u
@@ -349,6 +358,9 @@ def _select_collapses(rings, n, keys, log, step, need, max_degree):
     pick = np.argmax(ok[has], axis=1)
     cost = slot_q[has, j[has, pick]]
     band = np.floor(2.0 * np.log2(cost.astype(np.float64))).astype(np.int64)
+    if shortest_first:  # only the shortest edges of this round: lengths even out
+        short = band <= band.min() + 1
+        has, pick, cost, band = has[short], pick[short], cost[short], band[short]
     star = np.where(mask[has], slot_q[has], 0).sum(axis=1)
     rank = np.empty(len(has), np.int64)
     rank[np.lexsort((_hash(u[has]), star, _hash(cost), band))] = np.arange(len(has))

@@ -71,6 +71,27 @@ def test_isotropic_and_well_shaped():
     assert deg.min() >= 3 and deg.max() <= 12
 
 
+def test_even_lengths_evens_a_graded_mesh_out():
+    """Vertices crowded towards one pole (edges 8.3× apart, p95 / p5): ``even_lengths`` evens them
+    out (measured 2.9-3.0 over three keys); the default, which thins every region alike, keeps the
+    grading (9.2)."""
+    v, f = icosphere(4)
+    theta = np.pi * (np.arccos(np.clip(v[:, 2], -1, 1)) / np.pi) ** 2  # crowd towards z = 1
+    phi = np.arctan2(v[:, 1], v[:, 0])
+    graded = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], -1)
+
+    def spread(vertices, faces):
+        e = vertices[faces] - vertices[np.roll(faces, -1, axis=1)]
+        p5, p95 = np.percentile(np.linalg.norm(e, axis=-1), [5, 95])
+        return p95 / p5
+
+    assert spread(graded, f) > 8.0
+    even = remesh(Mesh(graded, f), n_vertices=800, key=jax.random.key(0), even_lengths=True)
+    assert spread(even.vertices, even.faces) < 4.0
+    kept = remesh(Mesh(graded, f), n_vertices=800, key=jax.random.key(0))
+    assert spread(kept.vertices, kept.faces) > 6.0
+
+
 def test_seed_reproducible_and_different():
     v, f = icosphere(3)
     a = remesh(Mesh(v, f), n_vertices=300, key=jax.random.key(1))
