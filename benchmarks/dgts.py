@@ -756,10 +756,11 @@ def curvature(
     torus from one level coarser (``start`` − 1: the user's way to make a texture finer relative to
     a given target), and midpoint-subdivided once from ``start`` (the same output, but no
     generator at ``start`` − 1); the shared real meshes named in ``real`` from ``start`` and
-    ``start`` − 1.
+    ``start`` − 1, and remeshed with even edge lengths (:func:`~jmeshtex.geometry.remesh`,
+    ``even_lengths=True``, as many vertices) from ``start`` − 1.
     Writes ``dgts_curvature_<kind>``."""
     from jmeshtex import Mesh
-    from jmeshtex.geometry import subdivide_midpoint
+    from jmeshtex.geometry import remesh, subdivide_midpoint
 
     report = Report(f"dgts_curvature_{kind}", ceilings=False)
     targets = [(f"torus {n * 8}x{n * 3}", torus(n * 8, n * 3), start) for n in (4, 8, 16)]
@@ -767,7 +768,10 @@ def curvature(
     targets.append(("torus 64x24", torus(64, 24), start - 1))  # the middle torus, one level coarser
     fine = subdivide_midpoint(*torus(64, 24))  # ... and subdivided once, flat, from `start`
     targets.append(("torus 64x24 subdivided", Mesh(fine.vertices, fine.faces), start))
-    targets += [(name, mesh, at) for name, mesh in _targets(real)[1:] for at in (start, start - 1)]
+    for name, mesh in _targets(real)[1:]:  # as given from two levels, isotropic from one
+        targets += [(name, mesh, start), (name, mesh, start - 1)]
+        iso = remesh(mesh, n_vertices=mesh.num_vertices, key=jax.random.key(0), even_lengths=True)
+        targets.append((f"{name} isotropic", iso, start - 1))
     report.config = {"kind": kind, "levels": levels, "runs": runs, "start": start}
     models = _study_models(kind, runs, levels, work)
     panels = []
