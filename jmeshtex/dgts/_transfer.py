@@ -434,10 +434,10 @@ def transfer(
     the generators see curvature through their edge features, and on a more curved target they
     leave their training distribution. Measured (``benchmarks/dgts.py --curvature``, a knobs model
     trained on a sphere, from level 2): a torus whose tube circumference is 12 / 24 / 48 edges at
-    the start level gets 4.4× / 2.1× / 1.6× the density of an oracle carrying the same knobs, spheres
-    1.3–1.6× at any resolution. A lower ``start_level`` subdivides the target more, so the texture
-    is smaller relative to the shape and the level that lays it out sees a subdivided input, as in
-    training: the 24-edge torus from level 1 gets 0.99× the oracle's density.
+    the start level gets 4.4× / 2.1× / 1.6× the density of an oracle carrying the same knobs,
+    spheres 1.3–1.6× at any resolution. A lower ``start_level`` subdivides the target more, so the
+    texture is smaller relative to the shape and the level that lays it out sees a subdivided
+    input, as in training: the 24-edge torus from level 1 gets 0.99× the oracle's density.
 
     .. math:: v_{l+1} = 2\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start\\_level} \\ldots L-1,
        \\quad v_{\\text{start}} = \\text{target} / \\bar\\ell

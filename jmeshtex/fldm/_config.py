@@ -241,8 +241,9 @@ class Config(ConfigBase):
 
         The :meth:`tiny` denoiser (16/32 channels, one-hidden-layer ReLU filters) with three blocks
         at the coarse level (1+3+1: the paper's deeper middle, where each field convolution reaches
-        twice as far as at the fine level), v-prediction, the cosine noise schedule, Adam 2e-3 with 200 warm-up steps and cosine decay to
-        1e-5 over 10,000 steps, batch 2, an EMA of the weights (0.999), 16 copies of 10,000 vertices
+        twice as far as at the fine level), v-prediction, the cosine noise schedule, Adam 2e-3 with
+        200 warm-up steps and cosine decay to 1e-5 over 10,000 steps, batch 2, an EMA of the
+        weights (0.999), 16 copies of 10,000 vertices
         with 4 FL-VAE encodings each, 2 DDIM-25 samples for the statistics at every checkpoint
         (every 500 steps), and the invariant stream (``invariants``, beyond the paper): on Spot it
         took the samples' neighbour correlation of ``|z|²`` from 0.01 to 0.19 by step 1,500 where

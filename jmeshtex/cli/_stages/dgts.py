@@ -1,5 +1,5 @@
-"""A small DGTS run for ``jmeshtex demo``, the notebook and the learning check: a knobs sphere's
-texture learned from an icosphere template, transferred to a torus and scored against its oracle.
+"""A small DGTS run for ``jmeshtex demo``: a knobs sphere's texture learned from an icosphere
+template, transferred to a torus and scored against its oracle.
 """
 
 from __future__ import annotations
@@ -36,13 +36,14 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     """Run a tiny DGTS train + transfer, write ``dgts.png`` and return a summary dict.
 
     The reference is a knobs sphere (:func:`~jmeshtex.data.textured_sphere`, period ``PERIOD``),
-    the template an icosphere(2), the target a 64 × 24 torus (quick: 32 × 12), transferred from level 0 (every
-    generator runs: the target is subdivided before the levels that lay the texture out, as in
-    training). Each output is scored against its oracle, the reference's knobs at the reference's
-    period in mean edges on the output's own base (:func:`~jmeshtex.dgts.core.oracle_texture`): peak
-    density and relief as ratios to the oracle's, beside untrained weights, no displacement and
-    Gaussian relief of the oracle's std. The figure (:func:`jmeshtex.render.figure`, smooth-shaded geometry): the
-    reference, the finest training mesh, the oracle, two transferred samples and the two baselines.
+    the template an icosphere(2), the target a 64 × 24 torus (quick: 32 × 12), transferred from
+    level 0 (every generator runs: the target is subdivided before the levels that lay the texture
+    out, as in training). Each output is scored against its oracle, the reference's knobs at the
+    reference's period in mean edges on the output's own base
+    (:func:`~jmeshtex.dgts.core.oracle_texture`): peak density and relief as ratios to the
+    oracle's, beside untrained weights, no displacement and Gaussian relief of the oracle's std.
+    The figure (:func:`jmeshtex.render.figure`, smooth-shaded geometry): the reference, the finest
+    training mesh, the oracle, two transferred samples and two baselines.
 
     Args:
       out_dir: folder for ``dgts.png``.
