@@ -181,134 +181,176 @@ def fit(
     """
     t_call = time.perf_counter() if started is None else started
     progress = progress if isinstance(progress, Progress) else Progress(bool(progress))
-    desc = progress.desc
-    if checkpoints is None:
-        policy = CheckpointPolicy(final=False)
-    elif isinstance(checkpoints, CheckpointPolicy):
-        policy = checkpoints
-    else:
-        policy = CheckpointPolicy(checkpoints)
-    checkpoint_offset = policy.offset
+    policy = _as_policy(checkpoints)
     if policy.folder is not None and is_multiprocess():
         raise ConfigError(
-            f"{desc}: checkpoints with several processes (jax.distributed) are not supported yet; "
-            "train without checkpoints, or in one process"
+            f"{progress.desc}: checkpoints with several processes (jax.distributed) are not "
+            "supported yet; train without checkpoints, or in one process"
         )
     own_ckpt = policy.folder is not None and not isinstance(policy.folder, Checkpoints)
     ckpt = Checkpoints(policy.folder, fingerprint=policy.fingerprint) if own_ckpt else policy.folder
-    saved = policy.saved or (lambda s: s)
-    restored = policy.restored or (lambda s: s)
-    compiled = {} if compiled is None else compiled
-    losses = {k: [float(x) for x in v] for k, v in (history or {}).items()}
-    resumed_from = None
-    if device_mesh is not None:
-        state = replicate(state, device_mesh)
+    run = _Run(
+        step=step,
+        batches=batches,
+        policy=policy,
+        ckpt=ckpt,
+        desc=progress.desc,
+        compiled={} if compiled is None else compiled,
+        losses={k: [float(x) for x in v] for k, v in (history or {}).items()},
+        state=state if device_mesh is None else replicate(state, device_mesh),
+    )
     bar = None
     try:
         if start is None:
-            start = 0
-            latest = None if ckpt is None else ckpt.latest_step()
-            if latest is not None:
-                tree, record = ckpt.restore(saved(state), step=latest)
-                state = restored(tree)
-                if device_mesh is not None:
-                    state = replicate(state, device_mesh)
-                if not isinstance(record.get("losses"), dict):
-                    raise CheckpointMismatchError(
-                        f"{desc}: checkpoint {latest} in {ckpt.directory} has no loss record of "
-                        "this driver (written by an older jmeshtex?); resume with that version, or "
-                        "use another folder"
-                    )
-                resumed_from = latest
-                start = latest - checkpoint_offset
-                losses = {k: [float(x) for x in v][:start] for k, v in record["losses"].items()}
-        end = steps if stop_after is None else min(steps, start + int(stop_after))
-        end = max(end, start)
+            start = run.resume(device_mesh)
+        end = max(start, steps if stop_after is None else min(steps, start + int(stop_after)))
         if progress.bar and start < end:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(
-                total=steps,
-                initial=start,
-                desc=desc,
-                unit="step",
-                mininterval=0.5 if sys.stderr.isatty() else 30.0,
-            )
-
-        def save(done: int) -> None:
-            _check_finite_state(state, desc, checkpoint_offset + done)
-            if ckpt is not None:
-                record = {**(policy.meta(done) if policy.meta else {}), "losses": losses}
-                ckpt.save(checkpoint_offset + done, saved(state), meta=record)
-            if policy.on_save is not None:
-                policy.on_save(done, state, losses)
-
-        compile_seconds, t_first = 0.0, None
-        for i in range(start, end, steps_per_call):
-            n = min(steps_per_call, end - i)
-            batch = batches(i)
-            run, t_compile = _compiled_step(step, state, batch, compiled)
-            if t_compile is None:  # not a jitted step: time its first call instead
-                t0 = time.perf_counter()
-                state, out = run(state, batch)
-                if t_first is None:
-                    jax.block_until_ready((state, out))
-                    compile_seconds += time.perf_counter() - t0
-            else:
-                compile_seconds += t_compile
-                state, out = run(state, batch)
-            out = fetch(out)
-            for name, values in out.items():
-                values = np.asarray(values, np.float64).reshape(-1)[:n]
-                bad = np.flatnonzero(~np.isfinite(values))
-                if bad.size:
-                    at = checkpoint_offset + i + int(bad[0])
-                    raise TrainingDivergedError(
-                        f"{desc}: loss {name!r} is {values[bad[0]]} at step {at}; nothing non-finite "
-                        "was saved (lower learning_rate, or check the data's scale)",
-                        step=at,
-                    )
-                losses.setdefault(name, []).extend(values.tolist())
-            if t_first is None:
-                t_first = time.perf_counter()
-            done = i + n
-            if bar is not None:
-                bar.update(n)
-                bar.set_postfix(
-                    {
-                        k: f"{np.mean(losses[k][-_SHOWN_WINDOW:]):.4g}"
-                        for k in progress.show
-                        if k in losses
-                    },
-                    refresh=False,
-                )
-            if on_step is not None:
-                on_step(done, state, batch)
-            every = policy.every
-            periodic = every is not None and done % every == 0 and done < end
-            if periodic or (policy.final and done == end):
-                save(done)
-        jax.block_until_ready(state)
-        _check_finite_state(state, desc, checkpoint_offset + end)
+            bar = _progress_bar(progress, steps, start)
+        run.loop(start, end, steps_per_call, bar, progress.show, on_step)
     finally:
         if bar is not None:
             bar.close()
         if own_ckpt:
             ckpt.close()
     ran = end - start
-    after_first = time.perf_counter() - t_first if t_first is not None else 0.0
+    after_first = time.perf_counter() - run.t_first if run.t_first is not None else 0.0
     rate = (
         (ran - steps_per_call) / after_first if ran > steps_per_call and after_first > 0 else None
     )
     return TrainResult(
-        model=state if model is None else model(state),
-        losses={k: np.asarray(v, np.float64) for k, v in losses.items()},
+        model=run.state if model is None else model(run.state),
+        losses={k: np.asarray(v, np.float64) for k, v in run.losses.items()},
         steps=end,
         seconds=time.perf_counter() - t_call,
-        compile_seconds=compile_seconds,
-        resumed_from=resumed_from,
+        compile_seconds=run.compile_seconds,
+        resumed_from=run.resumed_from,
         extra={"steps_per_second": float("nan") if rate is None else rate},
     )
+
+
+def _as_policy(checkpoints) -> CheckpointPolicy:
+    """:func:`fit`'s ``checkpoints`` argument as a :class:`CheckpointPolicy`."""
+    if checkpoints is None:
+        return CheckpointPolicy(final=False)
+    if isinstance(checkpoints, CheckpointPolicy):
+        return checkpoints
+    return CheckpointPolicy(checkpoints)
+
+
+def _progress_bar(progress: Progress, steps: int, start: int):
+    """A tqdm bar on stderr (redrawn every 0.5 s on a terminal, every 30 s into a log)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(
+        total=steps,
+        initial=start,
+        desc=progress.desc,
+        unit="step",
+        mininterval=0.5 if sys.stderr.isatty() else 30.0,
+    )
+
+
+@dataclasses.dataclass
+class _Run:
+    """The mutable state of one :func:`fit` call: the training state, the loss histories, the
+    resume point and the timings, with the three things a call does (resume, step, save)."""
+
+    step: Callable
+    batches: Callable[[int], Any]
+    policy: CheckpointPolicy
+    ckpt: Checkpoints | None
+    desc: str
+    compiled: dict
+    losses: dict[str, list[float]]
+    state: Any
+    resumed_from: int | None = None
+    compile_seconds: float = 0.0
+    t_first: float | None = None
+
+    def resume(self, device_mesh) -> int:
+        """Restore the newest checkpoint, if any; the steps already done."""
+        latest = None if self.ckpt is None else self.ckpt.latest_step()
+        if latest is None:
+            return 0
+        saved = self.policy.saved or (lambda s: s)
+        restored = self.policy.restored or (lambda s: s)
+        tree, record = self.ckpt.restore(saved(self.state), step=latest)
+        self.state = restored(tree)
+        if device_mesh is not None:
+            self.state = replicate(self.state, device_mesh)
+        if not isinstance(record.get("losses"), dict):
+            raise CheckpointMismatchError(
+                f"{self.desc}: checkpoint {latest} in {self.ckpt.directory} has no loss record of "
+                "this driver (written by an older jmeshtex?); resume with that version, or use "
+                "another folder"
+            )
+        self.resumed_from = latest
+        start = latest - self.policy.offset
+        self.losses = {k: [float(x) for x in v][:start] for k, v in record["losses"].items()}
+        return start
+
+    def loop(self, start: int, end: int, per_call: int, bar, show, on_step) -> None:
+        """Steps ``start`` to ``end``, ``per_call`` a call, saving where the policy says."""
+        for i in range(start, end, per_call):
+            n = min(per_call, end - i)
+            batch = self.batches(i)
+            out = self.advance(batch)
+            self.record(out, i, n)
+            if self.t_first is None:
+                self.t_first = time.perf_counter()
+            done = i + n
+            if bar is not None:
+                bar.update(n)
+                recent = {k: self.losses[k][-_SHOWN_WINDOW:] for k in show if k in self.losses}
+                bar.set_postfix({k: f"{np.mean(v):.4g}" for k, v in recent.items()}, refresh=False)
+            if on_step is not None:
+                on_step(done, self.state, batch)
+            every = self.policy.every
+            periodic = every is not None and done % every == 0 and done < end
+            if periodic or (self.policy.final and done == end):
+                self.save(done)
+        jax.block_until_ready(self.state)
+        _check_finite_state(self.state, self.desc, self.policy.offset + end)
+
+    def advance(self, batch):
+        """One call of the step (compiled ahead of time once per shapes); its losses."""
+        run, t_compile = _compiled_step(self.step, self.state, batch, self.compiled)
+        if t_compile is None:  # not a jitted step: time its first call instead
+            t0 = time.perf_counter()
+            self.state, out = run(self.state, batch)
+            if self.t_first is None:
+                jax.block_until_ready((self.state, out))
+                self.compile_seconds += time.perf_counter() - t0
+        else:
+            self.compile_seconds += t_compile
+            self.state, out = run(self.state, batch)
+        return fetch(out)
+
+    def record(self, out: Mapping[str, Any], i: int, n: int) -> None:
+        """Append the first ``n`` values of each loss; a non-finite one raises, naming its step."""
+        for name, values in out.items():
+            values = np.asarray(values, np.float64).reshape(-1)[:n]
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                at = self.policy.offset + i + int(bad[0])
+                raise TrainingDivergedError(
+                    f"{self.desc}: loss {name!r} is {values[bad[0]]} at step {at}; nothing "
+                    "non-finite was saved (lower learning_rate, or check the data's scale)",
+                    step=at,
+                )
+            self.losses.setdefault(name, []).extend(values.tolist())
+
+    def save(self, done: int) -> None:
+        """Check the state is finite, then checkpoint it and call ``on_save``."""
+        _check_finite_state(self.state, self.desc, self.policy.offset + done)
+        if self.ckpt is not None:
+            meta = self.policy.meta(done) if self.policy.meta else {}
+            saved = self.policy.saved or (lambda s: s)
+            self.ckpt.save(
+                self.policy.offset + done, saved(self.state), meta={**meta, "losses": self.losses}
+            )
+        if self.policy.on_save is not None:
+            self.policy.on_save(done, self.state, self.losses)
 
 
 def _compiled_step(step, state, batch, compiled: dict):
