@@ -56,7 +56,7 @@ def laplacian_eigenpairs(
     ``scipy.sparse.linalg.eigsh`` in shift-invert mode around a small negative shift (``L - σM`` is
     then positive definite and one sparse LU factorisation serves every iteration); the starting
     vector is fixed, so results are deterministic. Cost grows about linearly with V at k = 100
-    (figures in ``benchmarks/geometry.py``'s results), mostly ARPACK's reorthogonalisation.
+    (``docs/performance.md``), mostly ARPACK's reorthogonalisation.
 
     Args:
       vertices: ``[V, 3]`` positions.

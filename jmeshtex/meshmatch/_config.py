@@ -46,7 +46,7 @@ class Config(ConfigBase):
     The default assumes source and target in a common pose (the same orientation and up axis, up to
     a per-axis scale and offset: positions are compared after per-axis moment standardisation, see
     ``aligned``); :meth:`Config.intrinsic` gives the pose-free features (HKS and ``n · up``). The
-    measurements behind each default are in ``benchmarks/results/meshmatch_*.md``; the reasoning in
+    measurements behind each default are in ``docs/results.md`` (MeshMatch); the reasoning in
     ``docs/design_notes.md`` (MeshMatch).
 
     Attributes:
@@ -63,11 +63,11 @@ class Config(ConfigBase):
         HKS and ``n · up`` with :meth:`Config.intrinsic`; each feature standardised), one value for
         every level or a tuple from the finest level to the coarsest (the last entry repeats for
         further levels). Default (0.3, 3, 30): the shape places patches at the coarse levels, the
-        colours refine them at the finest (``benchmarks/results/meshmatch_cross.md``).
+        colours refine them at the finest (``docs/design_notes.md``, ``shape_weight``).
       affinity_weight: weight of the correspondence affinities (only with correspondences).
       hks_times: number of log-spaced heat kernel signature times.
       hks_eigenpairs: Laplacian eigenpairs used for the HKS (32: more cost time and did not help
-        across shapes, ``benchmarks/results/meshmatch_cross.md``).
+        across shapes, ``docs/design_notes.md``, ``hks_eigenpairs``).
       hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
         vertices and copied down to the finer levels through the parent maps (it is smooth).
       up: the "up" direction of the ``n · up`` shape feature: a 3-vector or an axis name
@@ -86,12 +86,12 @@ class Config(ConfigBase):
         non-uniform stretch) join the HKS as shape features, instead of ``n · up`` / ``n · side``
         (``up`` is then ignored; ``side`` must stay None). False (:meth:`Config.intrinsic`): the
         pose-free features, HKS and ``n · up`` only, for meshes in different poses or
-        correspondences that contradict the pose (``benchmarks/results/meshmatch_cross.md``).
+        correspondences that contradict the pose (``docs/design_notes.md``, ``aligned``).
       normal_weight: the weight of each ``n · axis`` feature block relative to the HKS block;
         None (default): 2 with ``aligned``, 1 without.
       position_weight: with ``aligned``, the weight of the per-axis standardised positions as
         one more feature block (a pose prior); None (default): 8 with ``aligned``
-        (``benchmarks/results/meshmatch_cross.md``); 0 leaves it out. Without ``aligned`` it must
+        (``docs/design_notes.md``, ``position_weight``); 0 leaves it out. Without ``aligned`` it must
         be None or 0.
       steps: most PatchMatch iterations (E-step + M-step) per level.
       coarse_steps: most iterations at the coarsest level, which starts from a random field
@@ -109,7 +109,7 @@ class Config(ConfigBase):
         breadth-first wavefronts from vertex 0 one after the other, every wavefront proposing from
         the matches the earlier ones just found; odd sweeps run backwards from the far end). The
         default is parallel: as accurate, several times faster
-        (``benchmarks/results/meshmatch_sequential.md``, ``meshmatch_cross.md``).
+        (``docs/design_notes.md``, ``propagation``).
       exact_candidates: per candidate set (random search + first sweep, then each further sweep)
         only this many candidates, those with the smallest rotation-invariant lower bound of the
         patch distance, get the exact rotation search (a number at least the candidate count,
@@ -126,7 +126,7 @@ class Config(ConfigBase):
         ``(r, a + k_q)`` of its match onto the corners of the target face it lies in with their
         barycentric weights, times a Gaussian of the ring radius (``vote_sigma`` in the fans' edge
         lengths), plus q's centre with weight 1. The default is ``"ring"``: cheaper, sharper, the
-        same final colours (``benchmarks/results/meshmatch_vote_cross.md``, ``meshmatch_real.md``).
+        same final colours (``docs/design_notes.md``, ``vote``).
       upsample: how a finer level starts from the coarser one, ``"copy"`` (default: each vertex
         takes its coarse parent's match and rotation and colour) or ``"offset"`` (the paper's): the
         parent's match moved by the vertex's geodesic offset from its parent (the tangent-plane
@@ -134,14 +134,14 @@ class Config(ConfigBase):
         landing on the source vertex of the finer source level nearest that point, with the
         rotation carried the same way, then a re-vote of the level's colours before its
         iterations. The default is ``"copy"``: the level's iterations erase the offset start's
-        head start (``benchmarks/results/meshmatch_cross.md``, ``meshmatch_real.md``).
+        head start (``docs/design_notes.md``, ``upsample``).
       bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
         common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
         (see :func:`~jmeshtex.meshmatch.core.level_groups`); 0 pads nothing (every level
         compiles its own step).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths
         (of the target level with ``vote="ring"``; of the fans, as ``fan_radius``, with
-        ``vote="fan"``; ``benchmarks/results/meshmatch_vote_cross_small.md``).
+        ``vote="fan"``; ``docs/design_notes.md``, ``vote_sigma``).
       interp_sigma: standard deviation of the Gaussian that reads a source colour at an offset
         inside the matched vertex's star (the vote's resampling), in the source level's mean edge
         lengths. At 0.5 a vertex read at its own position keeps only about 55 % of its own colour

@@ -138,7 +138,7 @@ def meshmatch(
       initial_nnf: ``[Vt]`` source vertex per target vertex to start the coarsest level from
         (moved to the levels' ancestors), with the source colours there, instead of random
         matches: a warm start from an earlier field, or the truth when measuring how far the
-        iterations move it (``benchmarks/meshmatch.py --suite cross``, the seeded rows).
+        iterations move it (the seeded rows of ``docs/results.md``, MeshMatch).
 
     Returns:
       :class:`MeshMatchResult`.

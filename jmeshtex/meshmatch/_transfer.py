@@ -253,7 +253,7 @@ def transfer(
     (MeshMatch, Chen et al. 2012: coarse-to-fine PatchMatch, final nearest copy; with
     ``voted=True`` the finest level's Gaussian-weighted vote instead, which interpolates between
     the matched source vertices: smoother, and higher PSNR on smooth fields —
-    ``benchmarks/results/meshmatch_cross.md``.) A target with UVs also gets a baked texture
+    ``docs/design_notes.md``, ``vote``.) A target with UVs also gets a baked texture
     (:func:`bake_texture`).
 
     Args:

@@ -128,7 +128,7 @@ def nearest_neighbor(
       target_mask: ``[M]`` True for real targets (default: all).
       chunk_size: query points per block; bounds peak memory to ``chunk_size × M`` values and does
         not change the result. The default keeps a block in cache for ``M`` up to a few 10K
-        (fastest of 128 / 512 / 2048 at 20K × 20K on CPU, ``benchmarks/ops_chamfer.py``).
+        (fastest of 128 / 512 / 2048 at 20K × 20K on CPU; ``docs/performance.md``).
 
     Returns:
       :class:`NearestNeighbors` (``index [N]``, ``sq_distance [N]``).

@@ -8,7 +8,7 @@ inside the face keep a 64-bit key ``(quantised depth << 25) | face`` and ``np.mi
 nearest key per pixel. Barycentrics and depth of the winning face are then computed once per pixel,
 perspective-correct.
 
-Measured against ray casting through Embree (the ``embreex`` wheel) in ``benchmarks/render.py``.
+Measured against ray casting through Embree (the ``embreex`` wheel): ``docs/performance.md``.
 """
 
 from __future__ import annotations
