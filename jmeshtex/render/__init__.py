@@ -23,7 +23,7 @@ from ._render_mesh import render_mesh as render_mesh
 from ._shade import Lighting as Lighting
 from ._shade import camera_lighting as camera_lighting
 from ._shade import mip_pyramid as mip_pyramid
-from ._shade import sample_texture as sample_texture
+from ._shade import sample_mipmapped as sample_mipmapped
 from ._shade import shade as shade
 from ._visibility import Visibility as Visibility
 from ._visibility import rasterize as rasterize

@@ -74,7 +74,7 @@ def _bilinear_level(flat, offset, h, w, u, v):
     return bilinear_blend(t(ya, xa), t(ya, xb), t(yb, xa), t(yb, xb), fx[..., None], fy[..., None])
 
 
-def sample_texture(
+def sample_mipmapped(
     texture: Float[ArrayLike, "H W C"],
     uv: Float[ArrayLike, "*N 2"],
     lod: Float[ArrayLike, "*N"] | None = None,
@@ -90,7 +90,7 @@ def sample_texture(
 
     Example:
       >>> tex = jnp.arange(12.0).reshape(2, 2, 3)
-      >>> sample_texture(tex, jnp.array([[0.25, 0.75]]))  # the top-left texel's centre
+      >>> sample_mipmapped(tex, jnp.array([[0.25, 0.75]]))  # the top-left texel's centre
       Array([[0., 1., 2.]], dtype=float64)
     """
     tex = jnp.asarray(texture)
@@ -225,7 +225,7 @@ def shade(
     elif texture is not None:
         st = (columns["uv"] * b).sum(axis=-2)
         lod_px = columns["lod"][..., 0] if lod is not None else None
-        albedo = sample_texture(jnp.asarray(texture, dtype), st, lod_px)[..., :3]
+        albedo = sample_mipmapped(jnp.asarray(texture, dtype), st, lod_px)[..., :3]
     else:
         albedo = jnp.broadcast_to(jnp.asarray(GREY, dtype), face.shape + (3,))
     if lit:

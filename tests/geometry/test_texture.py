@@ -209,14 +209,14 @@ def test_bad_input_raises(call, match):
 
 
 def test_the_renderer_s_lookup_is_the_geometry_lookup_at_level_zero():
-    # one bilinear kernel: render.sample_texture without a mip level equals geometry's, clamped
+    # one bilinear kernel: render.sample_mipmapped without a mip level equals geometry's, clamped
     from jmeshtex import render
 
     rng = np.random.default_rng(3)
     texture = rng.random((7, 5, 3))
     uv = rng.uniform(0.0, 0.999, (200, 2))
     np.testing.assert_allclose(
-        np.asarray(render.sample_texture(texture, uv)), sample_texture(texture, uv), atol=1e-15
+        np.asarray(render.sample_mipmapped(texture, uv)), sample_texture(texture, uv), atol=1e-15
     )
 
 
