@@ -55,6 +55,15 @@ Sections (float32, CPU, jit; compile time reported apart):
   of the trained, untrained and noise transfers against the oracle, and their differences; a
   summary row per setting. Writes ``benchmarks/results/dgts_learning_margins.{json,md}`` (rows of
   other settings kept; ``--seeds 0`` only summarises).
+- ``--rescore`` (alone): the committed knobs model (``KNOBS_MODEL``) and untrained weights of its
+  architecture scored by the tessellation-independent measure (``dgts.core.knob_scores``: knobs per
+  squared period of the shared base, the patch distance) over ``--samples`` noise seeds, in-domain
+  and transferred from level 1 to the 64 × 24 torus, icosphere(3) and the cow and fandisk remeshed
+  isotropically to ``--rescore-vertices`` (800) vertices, with the floor (oracle with other
+  centres) and ceilings (untrained, matched noise, zero displacement) (:func:`rescore`); writes
+  ``dgts_rescore.{json,md,png}``. Every study's rows lead with the same two columns
+  (``knob_density_vs_truth``, ``patch_distance``) when they have a shared base; the former
+  ``peak_density`` columns follow as diagnostics.
 - ``train level l``: seconds per WGAN-GP step (2 critic + 3 generator updates) with the default
   widths (``dgts.Config``: 7 layers, 32 → 128 channels) on a 5-level hierarchy of icosphere(1)
   (80 → 20480 faces), measured for the first ``--measured-levels`` levels over ``--measure`` steps,
