@@ -59,7 +59,8 @@ Sections (float32, CPU, jit; compile time reported apart):
   architecture scored by the tessellation-independent measure (``dgts.core.knob_scores``: knobs per
   squared period of the shared base, the patch distance) over ``--samples`` noise seeds, in-domain
   and transferred from level 1 to the 64 × 24 torus, icosphere(3) and the cow and fandisk remeshed
-  isotropically to ``--rescore-vertices`` (800) vertices, with the floor (oracle with other
+  isotropically to ``--rescore-vertices`` (800) vertices (and the curvature study's tori and
+  spheres from level 2), with the floor (oracle with other
   centres) and ceilings (untrained, matched noise, zero displacement) (:func:`rescore`); writes
   ``dgts_rescore.{json,md,png}``. Every study's rows lead with the same two columns
   (``knob_density_vs_truth``, ``patch_distance``) when they have a shared base; the former
@@ -1153,7 +1154,14 @@ def _knob_rows(report, section: str, rows: dict, truth, ops, extra: dict | None 
     return means
 
 
-def rescore(*, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = None) -> None:
+#: the committed scales model (``--rescore --rescore-kind scales``) and its period in mean edges of
+#: its finest training level (``dgts_depth.md``; its training meshes are not committed)
+SCALES_MODEL, SCALES_PERIOD = RESULTS / "dgts_depth_scales_model", 5.44
+
+
+def rescore(
+    *, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = None, kind: str = "knobs"
+) -> None:
     """The committed knobs model (``KNOBS_MODEL``) and untrained weights of its architecture,
     scored by ``dgts.core.knob_scores`` over ``seeds`` noise draws: in-domain (unconditional
     samples from the template against the finest training mesh, on the subdivided template as
@@ -1164,20 +1172,23 @@ def rescore(*, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = N
     oracle's band-passed relief (``texture_noise``); in-domain, where no oracle of the training
     mesh exists, the floor is the training mesh described at other centres (the distance's
     sampling noise). The old per-mesh-edge peak density (``peak_statistics`` over Taubin heights,
-    the truth's mean + std as threshold) is a diagnostic column. Writes ``dgts_rescore.{json,md}`` (and a figure
-    with ``png``)."""
+    the truth's mean + std as threshold) is a diagnostic column. Writes ``dgts_rescore.{json,md}``
+    (and a figure with ``png``). ``kind="scales"``: the committed scales model (``SCALES_MODEL``,
+    the same architecture; untrained weights as for knobs) transferred to the same level-1
+    targets against the scales oracle, the patch distance its meaningful column (no in-domain
+    rows: its training meshes are not committed); writes ``dgts_rescore_scales``."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import load, load_training_meshes
     from jmeshtex.geometry import mean_edge_length, remesh
 
-    report = Report("dgts_rescore", ceilings=False)
-    report.config = {"seeds": seeds, "vertices": vertices, "start": RESCORE_START}
+    report = Report("dgts_rescore" if kind == "knobs" else f"dgts_rescore_{kind}", ceilings=False)
+    report.config = {"kind": kind, "seeds": seeds, "vertices": vertices, "start": RESCORE_START}
     tm = load_training_meshes(KNOBS_MODEL / "training_meshes_coarse2.npz")
-    trained = load(KNOBS_MODEL)
+    trained = load(KNOBS_MODEL if kind == "knobs" else SCALES_MODEL)
     untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
     models = {"trained": trained, "untrained": untrained}
-    kind, reference_period = "knobs", DEPTH_TEXTURES["knobs"]
-    period = period_in_mean_edges(tm, reference_period)
+    reference_period = DEPTH_TEXTURES[kind]
+    period = period_in_mean_edges(tm, reference_period) if kind == "knobs" else SCALES_PERIOD
     keys = [jax.random.key(s) for s in range(seeds)]
     panels = []
 
@@ -1232,44 +1243,59 @@ def rescore(*, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = N
     # in-domain: the template through every level with fresh noise (conditional at level 0);
     # the finest training mesh in the template's frame is the truth, the subdivided template the base
     template = (tm.template, tm.faces[0])
-    outputs = {
-        name: [conditional(m, template, level=0, key=k).mesh(0) for k in keys]
-        for name, m in models.items()
-    }
-    cond = conditional(trained, template, level=0, key=keys[0])
-    levels = trained.num_levels
-    frame = trained.config.scale_factor ** (levels - 1)
-    truth = Mesh(np.asarray(tm.vertices[-1], np.float64) / frame, cond.faces)
-    base = Mesh(cond.base, cond.faces)
-    p = reference_period * float(tm.scales[-1]) / frame / mean_edge_length(cond.base, cond.faces)
-    score(f"in-domain (period {p:.2f} base edges)", outputs, base, p, truth)
-    panels += [
-        ("in-domain: training mesh", truth),
-        ("in-domain: trained", outputs["trained"][0]),
-        ("in-domain: untrained", outputs["untrained"][0]),
-    ]
-    targets = [("torus 64x24", torus(64, 24)), ("icosphere(3)", icosphere(3))]
+    outputs = (
+        {}
+        if kind != "knobs"
+        else {
+            name: [conditional(m, template, level=0, key=k).mesh(0) for k in keys]
+            for name, m in models.items()
+        }
+    )
+    if outputs:
+        cond = conditional(trained, template, level=0, key=keys[0])
+        levels = trained.num_levels
+        frame = trained.config.scale_factor ** (levels - 1)
+        truth = Mesh(np.asarray(tm.vertices[-1], np.float64) / frame, cond.faces)
+        base = Mesh(cond.base, cond.faces)
+        p = reference_period * float(tm.scales[-1]) / frame / mean_edge_length(*base)
+        score(f"in-domain (period {p:.2f} base edges)", outputs, base, p, truth)
+        panels += [
+            ("in-domain: training mesh", truth),
+            ("in-domain: trained", outputs["trained"][0]),
+            ("in-domain: untrained", outputs["untrained"][0]),
+        ]
+    targets = [("torus 64x24", torus(64, 24), RESCORE_START)]
+    targets.append(("icosphere(3)", icosphere(3), RESCORE_START))
     for name, mesh in _targets(("cow", "fandisk"))[1:]:
         iso = remesh(mesh, n_vertices=vertices, key=jax.random.key(0), even_lengths=True)
-        targets.append((f"{name} isotropic {vertices} V", iso))
-    for target_name, target in targets:
-        res = {
-            name: transfer(m, target, start_level=RESCORE_START, key=jax.random.key(0))
-            for name, m in models.items()
-        }
-        outputs = {
-            name: [transfer(m, target, start_level=RESCORE_START, key=k).mesh(0) for k in keys]
-            for name, m in models.items()
-        }
-        base = Mesh(res["trained"].base, res["trained"].faces)
-        oracle = score(
-            f"{target_name} from level {RESCORE_START} ({len(base.faces)} F)", outputs, base, period
-        )
-        panels += [
-            (f"{target_name}: oracle", oracle),
-            (f"{target_name}: trained", outputs["trained"][0]),
-            (f"{target_name}: untrained", outputs["untrained"][0]),
+        targets.append((f"{name} isotropic {vertices} V", iso, RESCORE_START))
+    # the curvature study's cases (its torus and spheres from level 2), rescored
+    targets += (
+        []
+        if kind != "knobs"
+        else [
+            ("torus 32x12", torus(32, 12), 2),
+            ("torus 64x24", torus(64, 24), 2),
+            ("icosphere(2)", icosphere(2), 2),
+            ("icosphere(3)", icosphere(3), 2),
         ]
+    )
+    for target_name, target, start in targets:
+        results = {
+            name: [transfer(m, target, start_level=start, key=k) for k in keys]
+            for name, m in models.items()
+        }
+        outputs = {name: [r.mesh(0) for r in rs] for name, rs in results.items()}
+        base = Mesh(results["trained"][0].base, results["trained"][0].faces)
+        oracle = score(
+            f"{target_name} from level {start} ({len(base.faces)} F)", outputs, base, period
+        )
+        if start == RESCORE_START:
+            panels += [
+                (f"{target_name}: oracle", oracle),
+                (f"{target_name}: trained", outputs["trained"][0]),
+                (f"{target_name}: untrained", outputs["untrained"][0]),
+            ]
     report.notes += [
         "knob_density: knobs per squared period of the shared undisplaced base (maxima of the "
         "band-passed normal displacement, G(P/8) - G(P/2), suppressed within P/2, above half the "
@@ -1288,7 +1314,8 @@ def rescore(*, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = N
         figure(
             [(title, render_mesh(mesh, size=(300, 300))) for title, mesh in panels],
             columns=3,
-            title=f"DGTS knobs (committed model) from level {RESCORE_START}: oracle | trained | untrained",
+            title=f"DGTS {kind} (committed model) from level {RESCORE_START}: "
+            "oracle | trained | untrained",
             path=png,
         )
 
@@ -1455,12 +1482,18 @@ def main() -> None:
         help="the committed knobs model scored by dgts.core.knob_scores (writes dgts_rescore)",
     )
     ap.add_argument("--rescore-vertices", type=int, default=800)
+    ap.add_argument("--rescore-kind", default="knobs", choices=["knobs", "scales"])
     args = ap.parse_args()
     if args.rescore:
         rescore(
             seeds=args.samples,
             vertices=args.rescore_vertices,
-            png=RESULTS / "dgts_rescore.png" if args.png is None else args.png,
+            png=(
+                RESULTS / f"dgts_rescore{'' if args.rescore_kind == 'knobs' else '_scales'}.png"
+                if args.png is None
+                else args.png
+            ),
+            kind=args.rescore_kind,
         )
         return
     studies = (  # the studies of trained --runs: (function, texture or None, its own arguments)
