@@ -55,6 +55,16 @@ Sections (float32, CPU, jit; compile time reported apart):
   of the trained, untrained and noise transfers against the oracle, and their differences; a
   summary row per setting. Writes ``benchmarks/results/dgts_learning_margins.{json,md}`` (rows of
   other settings kept; ``--seeds 0`` only summarises).
+- ``--rescore`` (alone): the committed knobs model (``KNOBS_MODEL``) and untrained weights of its
+  architecture scored by the tessellation-independent measure (``dgts.core.knob_scores``: knobs per
+  squared period of the shared base, the patch distance) over ``--samples`` noise seeds, in-domain
+  and transferred from level 1 to the 64 × 24 torus, icosphere(3) and the cow and fandisk remeshed
+  isotropically to ``--rescore-vertices`` (800) vertices (and the curvature study's tori and
+  spheres from level 2), with the floor (oracle with other
+  centres) and ceilings (untrained, matched noise, zero displacement) (:func:`rescore`); writes
+  ``dgts_rescore.{json,md,png}``. Every study's rows lead with the same two columns
+  (``knob_density_vs_truth``, ``patch_distance``) when they have a shared base; the former
+  ``peak_density`` columns follow as diagnostics.
 - ``train level l``: seconds per WGAN-GP step (2 critic + 3 generator updates) with the default
   widths (``dgts.Config``: 7 layers, 32 → 128 channels) on a 5-level hierarchy of icosphere(1)
   (80 → 20480 faces), measured for the first ``--measured-levels`` levels over ``--measure`` steps,
@@ -94,12 +104,19 @@ from jmeshtex.dgts import (
 )
 from jmeshtex.dgts.core import (
     density_error,
+    knob_scores,
     matched_noise,
     oracle_texture,
+    patch_descriptors,
+    peak_statistics,
     period_in_mean_edges,
     reconstruction_errors,
     relief_heights,
     sample_points,
+    sliced_wasserstein,
+    texture_heights,
+    texture_noise,
+    texture_operators,
     texture_scores,
 )
 
@@ -148,9 +165,16 @@ def layout_correlation(mesh, truth) -> float:
     return float(np.corrcoef(h, t)[0, 1])
 
 
-def _score_rows(report, section: str, rows: dict, truth, base, samples: dict) -> None:
-    """One row per mesh list in ``rows`` (mean over its meshes), scored against ``truth``."""
+def _score_rows(
+    report, section: str, rows: dict, truth, base, samples: dict, period: float | None = None
+) -> None:
+    """One row per mesh list in ``rows`` (mean over its meshes), scored against ``truth``. With a
+    shared ``base`` and the ``period`` (its mean edges) the headline columns come first: knobs per
+    squared period against the truth's and the patch distance (``dgts.core.knob_scores``); the
+    older per-mesh-edge columns (``peak_density`` …) follow as diagnostics."""
     own = texture_scores(truth, truth, base=base)
+    ops = None if base is None or period is None else texture_operators(base, period=period)
+    knob_own = None if ops is None else knob_scores(truth, truth, ops=ops)
     for name, meshes in rows.items():
         scores = [texture_scores(m, truth, base=base) for m in meshes]
         mean = {k: float(np.mean([getattr(s, k) for s in scores])) for k in own._fields}
@@ -158,9 +182,18 @@ def _score_rows(report, section: str, rows: dict, truth, base, samples: dict) ->
         layout = {}
         if base is None:  # in-domain: the truth's own vertices, so its layout can be compared
             layout["layout_corr"] = float(np.mean([layout_correlation(m, truth) for m in meshes]))
+        headline = {}
+        if ops is not None:
+            knobs = [knob_scores(m, truth, ops=ops) for m in meshes]
+            density = float(np.mean([k.density for k in knobs]))
+            headline = {
+                "knob_density_vs_truth": density / knob_own.density,
+                "patch_distance": float(np.mean([k.distance for k in knobs])),
+            }
         report.add(
             name=f"{section}: {name}",
             samples=len(meshes),
+            **headline,
             peak_density=mean["peak_density"],
             density_vs_truth=ratio,
             density_error=float(np.mean([density_error(s, own) for s in scores])),
@@ -301,6 +334,7 @@ def evaluate(
                 oracle,
                 base,
                 {},
+                period,
             )
             if start is None:
                 figures.append((target_name, res, res_u, oracle, base, own.relief))
@@ -461,7 +495,7 @@ def _score_transfers(report, section, models, target, start, kind, period, sampl
     rows["matched noise"] = [
         matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(samples)
     ]
-    _score_rows(report, f"{section} (F={len(res.faces)})", rows, oracle, base, {})
+    _score_rows(report, f"{section} (F={len(res.faces)})", rows, oracle, base, {}, period)
     return rows, oracle
 
 
@@ -727,7 +761,7 @@ def noise_amplitudes(
                 extra[f"noise x{a:g}"] = {"layout_vs_zero": float(corr)}
             oracle = oracle_texture((res.base, res.faces), kind, period=period)
             _score_rows(report, f"{target_name}, {at} [{name}] (F={len(res.faces)})", rows, oracle,
-                        (res.base, res.faces), extra)  # fmt: skip
+                        (res.base, res.faces), extra, period)  # fmt: skip
         report.write()
     report.notes.append(
         "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
@@ -1082,6 +1116,210 @@ def _surface_error(a, b, n: int = 20000) -> tuple[float, float]:
     )
 
 
+#: the committed knobs model (the paper's network, 4 levels; ``--rescore``) and its training meshes
+KNOBS_MODEL = RESULTS / "dgts_knobs_coarse2_fixed3_model"
+#: the start level of ``--rescore``'s transfers: the official default (``--gen-levels [1, 4]``)
+RESCORE_START = 1
+
+
+def _knob_rows(report, section: str, rows: dict, truth, ops, extra: dict | None = None) -> dict:
+    """One row per mesh list (mean and std over its meshes) of ``dgts.core.knob_scores`` against
+    ``truth``; the ratios to the truth's density, knob height and relief, and of the distance to
+    the untrained and noise rows' (those rows first in ``rows``'s order). Returns the means."""
+    own = knob_scores(truth, truth, ops=ops)
+    means = {}
+    for name, meshes in rows.items():
+        k = [knob_scores(m, truth, ops=ops) for m in meshes]
+        d = np.array([s.distance for s in k])
+        rho = np.array([s.density for s in k])
+        means[name] = float(d.mean())
+        row = {
+            "samples": len(meshes),
+            "knob_density": float(rho.mean()),
+            "knob_density_sd": float(rho.std()),
+            "density_vs_oracle": float(rho.mean() / own.density),
+            "patch_distance": float(d.mean()),
+            "patch_distance_sd": float(d.std()),
+        }
+        for ceiling in ("untrained", "noise (matched heights)"):
+            if ceiling in means:
+                row[f"distance_vs_{ceiling.split()[0]}"] = float(d.mean() / means[ceiling])
+        heights = [s.knob_height for s in k if np.isfinite(s.knob_height)]
+        row["knob_height_vs_oracle"] = (
+            float(np.mean(heights) / own.knob_height) if heights else float("nan")
+        )
+        row["relief_vs_oracle"] = float(np.mean([s.relief for s in k]) / own.relief)
+        row.update((extra or {}).get(name, {}))
+        report.add(name=f"{section}: {name}", **row)
+    return means
+
+
+#: the committed scales model (``--rescore --rescore-kind scales``) and its period in mean edges of
+#: its finest training level (``dgts_depth.md``; its training meshes are not committed)
+SCALES_MODEL, SCALES_PERIOD = RESULTS / "dgts_depth_scales_model", 5.44
+
+
+def rescore(
+    *, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = None, kind: str = "knobs"
+) -> None:
+    """The committed knobs model (``KNOBS_MODEL``) and untrained weights of its architecture,
+    scored by ``dgts.core.knob_scores`` over ``seeds`` noise draws: in-domain (unconditional
+    samples from the template against the finest training mesh, on the subdivided template as
+    the shared base) and transferred from level ``RESCORE_START`` to the 64 × 24 torus (the old
+    headline's target), icosphere(3), and the cow and fandisk remeshed isotropically to
+    ``vertices`` vertices, each against its oracle. Rows: the oracle, the oracle with other
+    centres (the floor), trained, untrained, zero displacement, Gaussian noise matched to the
+    oracle's band-passed relief (``texture_noise``); in-domain, where no oracle of the training
+    mesh exists, the floor is the training mesh described at other centres (the distance's
+    sampling noise). The old per-mesh-edge peak density (``peak_statistics`` over Taubin heights,
+    the truth's mean + std as threshold) is a diagnostic column. Writes ``dgts_rescore.{json,md}``
+    (and a figure with ``png``). ``kind="scales"``: the committed scales model (``SCALES_MODEL``,
+    the same architecture; untrained weights as for knobs) transferred to the same level-1
+    targets against the scales oracle, the patch distance its meaningful column (no in-domain
+    rows: its training meshes are not committed); writes ``dgts_rescore_scales``."""
+    from jmeshtex import Mesh
+    from jmeshtex.dgts import load, load_training_meshes
+    from jmeshtex.geometry import mean_edge_length, remesh
+
+    report = Report("dgts_rescore" if kind == "knobs" else f"dgts_rescore_{kind}", ceilings=False)
+    report.config = {"kind": kind, "seeds": seeds, "vertices": vertices, "start": RESCORE_START}
+    tm = load_training_meshes(KNOBS_MODEL / "training_meshes_coarse2.npz")
+    trained = load(KNOBS_MODEL if kind == "knobs" else SCALES_MODEL)
+    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    models = {"trained": trained, "untrained": untrained}
+    reference_period = DEPTH_TEXTURES[kind]
+    period = period_in_mean_edges(tm, reference_period) if kind == "knobs" else SCALES_PERIOD
+    keys = [jax.random.key(s) for s in range(seeds)]
+    panels = []
+
+    def score(section, outputs, base, p, truth=None):
+        ops = texture_operators(base, period=p)
+        oracle = oracle_texture(base, kind, period=p)
+        truth = oracle if truth is None else truth
+        own = knob_scores(truth, truth, ops=ops)
+        rows = {"oracle (truth)" if truth is oracle else "training mesh (truth)": [truth]}
+        if truth is oracle:
+            rows["oracle, other centres (floor)"] = [
+                oracle_texture(base, kind, period=p, key=jax.random.key(100 + s))
+                for s in range(seeds)
+            ]
+        rows |= {
+            "zero displacement": [base],
+            "noise (matched heights)": [texture_noise(base, ops, own.relief, key=k) for k in keys],
+            "untrained": outputs["untrained"],
+            "trained": outputs["trained"],
+        }
+        h_truth = relief_heights(truth, base)
+        thr = float(h_truth.mean() + h_truth.std())
+
+        def old_density(m) -> float:  # the former headline: peaks per squared mean edge
+            return peak_statistics(m, relief_heights(m, base), threshold=thr).density
+
+        extra = {
+            name: {
+                "old_peak_density_vs_truth": float(
+                    np.mean([old_density(m) for m in meshes]) / old_density(truth)
+                )
+            }
+            for name, meshes in rows.items()
+        }
+        _knob_rows(report, section, rows, truth, ops, extra)
+        if truth is not oracle:  # no oracle of the training mesh: the descriptors' sampling floor
+            d0 = patch_descriptors(texture_heights(truth, ops), ops)
+            floors = []
+            for s in range(1, seeds + 1):
+                other = texture_operators(base, period=p, seed=s)
+                d = patch_descriptors(texture_heights(truth, other), other)
+                floors.append(sliced_wasserstein(d, d0))
+            report.add(
+                name=f"{section}: training mesh at other descriptor centres (floor)",
+                samples=seeds,
+                patch_distance=float(np.mean(floors)),
+                patch_distance_sd=float(np.std(floors)),
+            )
+        report.write()
+        return oracle
+
+    # in-domain: the template through every level with fresh noise (conditional at level 0);
+    # the finest training mesh in the template's frame is the truth, the subdivided template the base
+    template = (tm.template, tm.faces[0])
+    outputs = (
+        {}
+        if kind != "knobs"
+        else {
+            name: [conditional(m, template, level=0, key=k).mesh(0) for k in keys]
+            for name, m in models.items()
+        }
+    )
+    if outputs:
+        cond = conditional(trained, template, level=0, key=keys[0])
+        levels = trained.num_levels
+        frame = trained.config.scale_factor ** (levels - 1)
+        truth = Mesh(np.asarray(tm.vertices[-1], np.float64) / frame, cond.faces)
+        base = Mesh(cond.base, cond.faces)
+        p = reference_period * float(tm.scales[-1]) / frame / mean_edge_length(*base)
+        score(f"in-domain (period {p:.2f} base edges)", outputs, base, p, truth)
+        panels += [
+            ("in-domain: training mesh", truth),
+            ("in-domain: trained", outputs["trained"][0]),
+            ("in-domain: untrained", outputs["untrained"][0]),
+        ]
+    targets = [("torus 64x24", torus(64, 24), RESCORE_START)]
+    targets.append(("icosphere(3)", icosphere(3), RESCORE_START))
+    for name, mesh in _targets(("cow", "fandisk"))[1:]:
+        iso = remesh(mesh, n_vertices=vertices, key=jax.random.key(0), even_lengths=True)
+        targets.append((f"{name} isotropic {vertices} V", iso, RESCORE_START))
+    # the curvature study's cases (its torus and spheres from level 2), rescored
+    targets += (
+        []
+        if kind != "knobs"
+        else [
+            ("torus 32x12", torus(32, 12), 2),
+            ("torus 64x24", torus(64, 24), 2),
+            ("icosphere(2)", icosphere(2), 2),
+            ("icosphere(3)", icosphere(3), 2),
+        ]
+    )
+    for target_name, target, start in targets:
+        results = {
+            name: [transfer(m, target, start_level=start, key=k) for k in keys]
+            for name, m in models.items()
+        }
+        outputs = {name: [r.mesh(0) for r in rs] for name, rs in results.items()}
+        base = Mesh(results["trained"][0].base, results["trained"][0].faces)
+        oracle = score(
+            f"{target_name} from level {start} ({len(base.faces)} F)", outputs, base, period
+        )
+        if start == RESCORE_START:
+            panels += [
+                (f"{target_name}: oracle", oracle),
+                (f"{target_name}: trained", outputs["trained"][0]),
+                (f"{target_name}: untrained", outputs["untrained"][0]),
+            ]
+    report.notes += [
+        "knob_density: knobs per squared period of the shared undisplaced base (maxima of the "
+        "band-passed normal displacement, G(P/8) - G(P/2), suppressed within P/2, above half the "
+        "truth's median maximum); patch_distance: sliced Wasserstein-1 distance (periods) of "
+        "rotation-invariant ring descriptors (mean and std of the heights in 4 rings to one "
+        "period) at 512 area-uniform centres, to the truth's; mean (sd) over the seeds.",
+        "Targets (issue 54): density_vs_oracle in [0.75, 1.25] (in-domain [0.8, 1.2]); "
+        "distance_vs_untrained and distance_vs_noise <= 0.5.",
+        "old_peak_density_vs_truth: the former headline (peaks per squared mean edge of each "
+        "mesh, Taubin heights), a diagnostic only.",
+    ]
+    report.write()
+    if png is not None:
+        from jmeshtex.render import figure, render_mesh
+
+        figure(
+            [(title, render_mesh(mesh, size=(300, 300))) for title, mesh in panels],
+            columns=3,
+            title=f"DGTS {kind} (committed model) from level {RESCORE_START}: "
+            "oracle | trained | untrained",
+            path=png,
+        )
+
+
 def fit_compare(report: Report, iterations: int) -> None:
     ref = reference_mesh()
     for name, cfg in (
@@ -1238,7 +1476,26 @@ def main() -> None:
     )
     ap.add_argument("--layer-counts", nargs="+", type=int, default=[7, 10])
     ap.add_argument("--study-levels", type=int, default=3)
+    ap.add_argument(
+        "--rescore",
+        action="store_true",
+        help="the committed knobs model scored by dgts.core.knob_scores (writes dgts_rescore)",
+    )
+    ap.add_argument("--rescore-vertices", type=int, default=800)
+    ap.add_argument("--rescore-kind", default="knobs", choices=["knobs", "scales"])
     args = ap.parse_args()
+    if args.rescore:
+        rescore(
+            seeds=args.samples,
+            vertices=args.rescore_vertices,
+            png=(
+                RESULTS / f"dgts_rescore{'' if args.rescore_kind == 'knobs' else '_scales'}.png"
+                if args.png is None
+                else args.png
+            ),
+            kind=args.rescore_kind,
+        )
+        return
     studies = (  # the studies of trained --runs: (function, texture or None, its own arguments)
         (curvature, args.curvature, {}),
         (noise_amplitudes, args.noise_amplitudes and args.noise_amplitude_kind,

@@ -1,5 +1,11 @@
 """Structure-aware quality measures of a DGTS displacement field (host NumPy/SciPy).
 
+These are diagnostics. The headline is the tessellation-independent measure
+:func:`~jmeshtex.dgts.core.knob_scores` (knobs per squared period of the shared base, a patch
+distribution distance): the peak density here normalises each mesh by its own mean edge, which
+moves with the output's tessellation, and counts raw one-ring maxima. The oracle, the relief
+heights and the reconstruction errors live here too.
+
 A geometric texture is more than its distribution of heights: two fields with the same histogram
 can have bumps of very different size and spacing. The measures here look at spatial structure of
 the normal heights ``h`` (:func:`~jmeshtex.dgts.core.normal_heights`, in mean edges), with every length
@@ -16,8 +22,7 @@ resolutions or sizes compare directly:
   (:func:`jmeshtex.data.textured_mesh`) at the reference's period in mean edges
   (:func:`period_in_mean_edges`) on the transfer's own undisplaced output, and
   :func:`texture_scores` scores a mesh against it on that shared base: peak density (peaks per
-  squared mean edge, the headline: it does not move with curvature or resolution, while ACL and
-  nearest-peak spacing do), relief, W1 of the heights, ACL and spacing;
+  squared mean edge, a diagnostic), relief, W1 of the heights, ACL and spacing;
   :func:`matched_noise` is the "right relief, no structure" baseline.
 """
 
@@ -401,7 +406,8 @@ class TextureScores(NamedTuple):
     """A mesh's texture against a ground truth (:func:`texture_scores`); lengths in mean edges.
 
     Attributes:
-      peak_density: peaks per squared mean edge (the headline).
+      peak_density: peaks per squared mean edge (a diagnostic; the headline is
+        :func:`~jmeshtex.dgts.core.knob_scores`).
       relief: std of the relief heights.
       w1: Wasserstein-1 distance between the mesh's and the truth's relief heights.
       autocorrelation_length: :func:`height_autocorrelation_length` of the relief heights.

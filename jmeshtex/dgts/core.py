@@ -16,7 +16,12 @@ one level up, in :mod:`jmeshtex.dgts`.
   :func:`~jmeshtex.dgts.transfer`), :func:`choose_start_level`, :func:`matching_level`, :func:`output_faces`,
   :func:`normal_heights`.
 - Official weights: :func:`official_level_params`, :func:`to_official_state_dict`.
-- Structure measures: :func:`peak_statistics` / :class:`PeakStatistics`,
+- The texture measure (tessellation-independent, on the shared undisplaced base, lengths in
+  periods): :func:`knob_scores` / :class:`KnobScores` (knobs per squared period, the patch
+  distribution distance), :func:`texture_operators` / :class:`TextureOperators`,
+  :func:`texture_heights`, :func:`detect_knobs`, :func:`knob_threshold`,
+  :func:`patch_descriptors`, :func:`sliced_wasserstein`, :func:`texture_noise`.
+- Older structure measures (per-mesh mean edges; diagnostics only): :func:`peak_statistics` / :class:`PeakStatistics`,
   :func:`height_autocorrelation` and :func:`height_autocorrelation_length`,
   :func:`reconstruction_errors`; against a procedural oracle: :func:`texture_scores` /
   :class:`TextureScores`, :func:`oracle_texture`, :func:`relief_heights`, :func:`density_error`,
@@ -48,6 +53,16 @@ from ._quality import period_in_mean_edges as period_in_mean_edges
 from ._quality import reconstruction_errors as reconstruction_errors
 from ._quality import relief_heights as relief_heights
 from ._quality import texture_scores as texture_scores
+from ._texture_measure import KnobScores as KnobScores
+from ._texture_measure import TextureOperators as TextureOperators
+from ._texture_measure import detect_knobs as detect_knobs
+from ._texture_measure import knob_scores as knob_scores
+from ._texture_measure import knob_threshold as knob_threshold
+from ._texture_measure import patch_descriptors as patch_descriptors
+from ._texture_measure import sliced_wasserstein as sliced_wasserstein
+from ._texture_measure import texture_heights as texture_heights
+from ._texture_measure import texture_noise as texture_noise
+from ._texture_measure import texture_operators as texture_operators
 from ._train import LOSS_NAMES as LOSS_NAMES
 from ._train import gradient_penalty as gradient_penalty
 from ._transfer import TransferPlan as TransferPlan

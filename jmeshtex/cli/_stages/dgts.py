@@ -39,9 +39,10 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     the template an icosphere(2), the target a 64 × 24 torus (quick: 32 × 12), transferred from
     level 0 (every generator runs: the target is subdivided before the levels that lay the texture
     out, as in training). Each output is scored against its oracle, the reference's knobs at the
-    reference's period in mean edges on the output's own base
-    (:func:`~jmeshtex.dgts.core.oracle_texture`): peak density and relief as ratios to the
-    oracle's, beside untrained weights, no displacement and Gaussian relief of the oracle's std.
+    reference's period on the output's own base (:func:`~jmeshtex.dgts.core.oracle_texture`), by
+    :func:`~jmeshtex.dgts.core.knob_scores`: knobs per squared period as a ratio to the oracle's,
+    and the patch distance to the oracle, beside untrained weights, no displacement and Gaussian
+    noise of the oracle's band-passed relief (:func:`~jmeshtex.dgts.core.texture_noise`).
     The figure (:func:`jmeshtex.render.figure`, smooth-shaded geometry): the reference, the finest
     training mesh, the oracle, two transferred samples and two baselines.
 
@@ -54,12 +55,20 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     Returns:
       ``{"png": path, "seconds": ..., "levels": ..., "faces": ..., "density_trained": ...,
       "density_untrained": ..., "density_noise": ..., "density_flat": ..., "relief_trained": ...,
-      "summary": str}``
-      (densities and relief as ratios to the oracle's, means over two samples).
+      "distance_trained": ..., "distance_untrained": ..., "distance_noise": ...,
+      "distance_flat": ..., "summary": str}``
+      (knob densities and relief as ratios to the oracle's, patch distances in periods; means
+      over two samples).
     """
     from ...data import icosphere, textured_sphere, torus
     from ...dgts import train, training_meshes, transfer
-    from ...dgts.core import matched_noise, oracle_texture, period_in_mean_edges, texture_scores
+    from ...dgts.core import (
+        knob_scores,
+        oracle_texture,
+        period_in_mean_edges,
+        texture_noise,
+        texture_operators,
+    )
     from ...render import figure
 
     t0 = time.perf_counter()
@@ -86,15 +95,18 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     res = transfer(model, target, num_samples=2, start_level=0, key=k_transfer)
     res_untrained = transfer(untrained, target, num_samples=2, start_level=0, key=k_transfer)
     base = (res.base, res.faces)
-    oracle = oracle_texture(base, "knobs", period=period_in_mean_edges(tm, PERIOD))
-    own = texture_scores(oracle, oracle, base=base)
-    noise = [matched_noise(base, own.relief, key=jax.random.key(i)) for i in range(2)]
+    period = period_in_mean_edges(tm, PERIOD)
+    ops = texture_operators(base, period=period)
+    oracle = oracle_texture(base, "knobs", period=period)
+    own = knob_scores(oracle, oracle, ops=ops)
+    noise = [texture_noise(base, ops, own.relief, key=jax.random.key(i)) for i in range(2)]
 
-    def ratios(meshes) -> tuple[float, float]:
-        """Mean peak density and relief of ``meshes`` over the oracle's."""
-        scores = [texture_scores(m, oracle, base=base) for m in meshes]
-        density = np.mean([s.peak_density for s in scores]) / own.peak_density
-        return float(density), float(np.mean([s.relief for s in scores]) / own.relief)
+    def ratios(meshes) -> tuple[float, float, float]:
+        """Mean knob density and relief of ``meshes`` over the oracle's; mean patch distance."""
+        scores = [knob_scores(m, oracle, ops=ops) for m in meshes]
+        density = np.mean([s.density for s in scores]) / own.density
+        relief = np.mean([s.relief for s in scores]) / own.relief
+        return float(density), float(relief), float(np.mean([s.distance for s in scores]))
 
     trained_r = ratios([res.mesh(0), res.mesh(1)])
     untrained_r = ratios([res_untrained.mesh(0), res_untrained.mesh(1)])
@@ -106,22 +118,26 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
             ("reference", view(ref)),
             (f"training level {tm.num_levels - 1}", view(tm.mesh(-1))),
             ("oracle on the torus", view(oracle)),
-            (f"transfer: density {trained_r[0]:.2f}x", view(res.mesh(0))),
+            (f"transfer: {trained_r[0]:.2f}x, d {trained_r[2]:.4f}", view(res.mesh(0))),
             ("transfer 2", view(res.mesh(1))),
-            (f"untrained: {untrained_r[0]:.2f}x", view(res_untrained.mesh(0))),
-            (f"noise: {noise_r[0]:.2f}x", view(noise[0])),
+            (
+                f"untrained: {untrained_r[0]:.2f}x, d {untrained_r[2]:.4f}",
+                view(res_untrained.mesh(0)),
+            ),
+            (f"noise: {noise_r[0]:.2f}x, d {noise_r[2]:.4f}", view(noise[0])),
         ],
         columns=7,
         title="DGTS: knobs learnt on a sphere, transferred to a torus "
-        "(peak density over the oracle's)",
+        "(knob density over the oracle's, patch distance d)",
         path=out / "dgts.png",
     )
     seconds = time.perf_counter() - t0
     summary = (
         f"DGTS: {tm.num_levels} levels, reference {ref.num_faces} F, torus → {len(res.faces)} F, "
-        f"peak density / relief over the oracle's {trained_r[0]:.2f} / {trained_r[1]:.2f} "
-        f"(untrained {untrained_r[0]:.2f} / {untrained_r[1]:.2f}, no displacement "
-        f"{flat_r[0]:.2f} / {flat_r[1]:.2f}, noise {noise_r[0]:.2f}), "
+        f"knob density / relief over the oracle's {trained_r[0]:.2f} / {trained_r[1]:.2f}, "
+        f"patch distance {trained_r[2]:.4f} (untrained {untrained_r[0]:.2f} / "
+        f"{untrained_r[1]:.2f} / {untrained_r[2]:.4f}, no displacement {flat_r[2]:.4f}, noise "
+        f"{noise_r[0]:.2f} / {noise_r[2]:.4f}), "
         f"{seconds:.1f} s"
     )
     return {
@@ -134,5 +150,9 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
         "density_noise": noise_r[0],
         "density_flat": flat_r[0],
         "relief_trained": trained_r[1],
+        "distance_trained": trained_r[2],
+        "distance_untrained": untrained_r[2],
+        "distance_noise": noise_r[2],
+        "distance_flat": flat_r[2],
         "summary": summary,
     }
