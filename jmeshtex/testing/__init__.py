@@ -4,6 +4,7 @@ from .._extras import needs_testing as _needs_testing  # noqa: F401 (names a mis
 from ._assert import assert_equivariant as assert_equivariant
 from ._check_cache import CheckCache as CheckCache
 from ._equivariance import Convergence as Convergence
+from ._equivariance import check_dtype as check_dtype
 from ._equivariance import convergence as convergence
 from ._equivariance import equivariance_error as equivariance_error
 from ._equivariance import relative_error as relative_error

@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._check_cache import CheckCache
-from ._equivariance import DEFAULT_TOLERANCE, convergence, equivariance_error
+from ._equivariance import DEFAULT_TOLERANCE, check_dtype, convergence, equivariance_error
 from ._fields import (
     FACE_EDGE,
     FACE_SCALAR,
@@ -273,7 +273,7 @@ def check(
     entry: Entry,
     transform_name: str,
     *,
-    dtype=jnp.float64,
+    dtype=None,
     seed: int = 0,
     cache: CheckCache | None = None,
     meshes: Sequence[str] | None = None,
@@ -283,7 +283,9 @@ def check(
     Args:
       entry: the registered operator.
       transform_name: a name in ``CATALOGUE``.
-      dtype: ``jnp.float64`` or ``jnp.float32``.
+      dtype: ``jnp.float64``, ``jnp.float32`` or None (default): follow JAX's x64 setting
+        (float64 when ``jax_enable_x64`` is on, else float32 with the float32 bound; the result's
+        ``dtype`` and ``tolerance`` say which). float64 with x64 off raises :class:`ConfigError`.
       seed: seed of the parameters, the draws and the inputs.
       cache: compiled operators and geometry shared with other checks (a fresh one by default).
       meshes: for transforms of any mesh, the names of the ``sample_meshes`` to draw on
@@ -293,6 +295,7 @@ def check(
       The :class:`CheckResult`.
     """
     transform = CATALOGUE[transform_name]
+    dtype = check_dtype(dtype, f"check({entry.name!r}, {transform_name!r})")
     cache = CheckCache() if cache is None else cache
     params = cache.params(entry, dtype, seed)
 
