@@ -25,6 +25,7 @@ from ._isometries import hinge as hinge
 from ._registry import EXACT as EXACT
 from ._registry import EXTRINSIC as EXTRINSIC
 from ._registry import INTRINSIC as INTRINSIC
+from ._registry import MAX_EXCLUDED as MAX_EXCLUDED
 from ._registry import REGISTRY as REGISTRY
 from ._registry import CheckResult as CheckResult
 from ._registry import Entry as Entry
