@@ -185,7 +185,7 @@ def convergence(
       make_inputs: ``(source_state, rng) -> inputs`` on each resolution's source mesh.
       resolutions: doubling sequence of resolutions.
       dtype: operator dtype; None (default) follows JAX's x64 setting (orders are only
-        meaningful in float64; see :func:`check_dtype`).
+        meaningful in float64; see :func:`~jmeshtex.testing.check_dtype`).
       seed: seed of the draws.
       floor: errors below this are round-off; if every error is, ``floor=True`` and no order is
         asserted (the operator is exactly invariant under the family).

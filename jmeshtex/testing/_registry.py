@@ -10,8 +10,8 @@ bound of its class:
 - smooth isometries (cylinder, cone, catenoid): the error must fall by a factor ≥ 3 per halving of
   the mesh spacing over three refinements (observed order ≳ 1.6), checked in float64; float32 is
   reported only (its round-off floor hides the order). Vertices whose discrete choices flipped
-  (``Entry.selection``, within ``Entry.hops``) are left out, at most :data:`MAX_EXCLUDED` of them
-  at the finest resolution;
+  (``Entry.selection``, within ``Entry.hops``) are left out, at most
+  :data:`~jmeshtex.testing.MAX_EXCLUDED` of them at the finest resolution;
 - re-triangulation: reported, not asserted.
 
 Negative controls are registered with ``expect_fail``: deliberately broken operators that the named
@@ -300,7 +300,8 @@ def check(
       transform_name: a name in ``CATALOGUE``.
       dtype: ``jnp.float64``, ``jnp.float32`` or None (default): follow JAX's x64 setting
         (float64 when ``jax_enable_x64`` is on, else float32 with the float32 bound; the result's
-        ``dtype`` and ``tolerance`` say which). float64 with x64 off raises :class:`ConfigError`.
+        ``dtype`` and ``tolerance`` say which). float64 with x64 off raises
+        :class:`~jmeshtex.ConfigError`.
       seed: seed of the parameters, the draws and the inputs.
       cache: compiled operators and geometry shared with other checks (a fresh one by default).
       meshes: for transforms of any mesh, the names of the ``sample_meshes`` to draw on
