@@ -205,11 +205,18 @@ def _temp_bytes(jitted, *args) -> float:
         return float("nan")
 
 
-def side_by_side(sizes, repeats: int, report: Report | None = None) -> Report:
+CONFIGS = {
+    "reference": ("reference layer C=64 h=8", 64, 8),
+    "released": ("released 96 / h=16", 96, 16),
+}
+
+
+def side_by_side(
+    sizes, repeats: int, report: Report | None = None, configs=("reference", "released")
+) -> Report:
     """jmeshtex vs the reference formula (module docstring), forward and value-and-grad."""
     report = report or Report("ops_field_conv_side_by_side")
-    configs = [("reference layer C=64 h=8", 64, 8), ("released 96 / h=16", 96, 16)]
-    for label, c, h in configs:
+    for label, c, h in (CONFIGS[name] for name in configs):
         two = init_field_conv(jax.random.key(0), c, c, hdim=h, hidden_layers=2)
         one = init_field_conv(jax.random.key(0), c, c, hdim=h)
         for v in sizes:
@@ -298,10 +305,17 @@ def main(argv=None):
         action="store_true",
         help="only the comparison with the reference formula (module docstring)",
     )
+    ap.add_argument(
+        "--configs",
+        nargs="+",
+        default=list(CONFIGS),
+        choices=list(CONFIGS),
+        help="side by side: which configurations (default: both)",
+    )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     report = (
-        side_by_side(args.sizes, args.repeats)
+        side_by_side(args.sizes, args.repeats, configs=args.configs)
         if args.side_by_side
         else run(args.sizes, args.activations, args.repeats)
     )

@@ -1,6 +1,7 @@
 """Optional dependencies: the lean install (``pip install jmeshtex``) carries what ``jmeshtex.ops``,
-``jmeshtex.nn``, ``jmeshtex.optim`` and the neighbourhood pytrees need; every other package checks
-its extra when imported and names it in one line when something is missing.
+``jmeshtex.optim`` and the neighbourhood pytrees need (flax, for ``jmeshtex.nn``, is the ``[nn]``
+extra); every other package checks its extra when imported and names it in one line when something
+is missing.
 
 A package checks with an import, first in its ``__init__``
 (``from .._extras import needs_geometry as _needs_geometry``): the name is computed on access
@@ -19,7 +20,9 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "geometry": ("scipy", "igl", "trimesh", "robust_laplacian", "PIL"),
     "render": ("scipy", "igl", "trimesh", "robust_laplacian", "PIL", "matplotlib"),
     "metrics": ("skimage",),
+    "nn": ("flax",),
     "methods": (
+        "flax",
         "scipy",
         "igl",
         "trimesh",

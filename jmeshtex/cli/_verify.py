@@ -21,13 +21,23 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("--json", type=pathlib.Path, help="also write the results as JSON to this path")
-    p.add_argument("--only", nargs="+", metavar="NAME", help="operators to check (default: all)")
+    p.add_argument(
+        "--only", nargs="+", metavar="NAME", help="operators to check (default: all selected)"
+    )
     p.add_argument(
         "--module",
         nargs="+",
         metavar="MOD",
         default=[],
-        help="import these modules first (e.g. pkg.entries): their register(...) calls add operators",
+        help=(
+            "import these modules (e.g. pkg.entries; the working directory is searched first) and "
+            "check only the operators their register(...) calls add"
+        ),
+    )
+    p.add_argument(
+        "--all",
+        action="store_true",
+        help="with --module: check the built-in operators too",
     )
     p.add_argument(
         "--transforms", nargs="+", metavar="T", help="transforms to check (default: all declared)"
@@ -52,12 +62,26 @@ def _run(args: argparse.Namespace) -> int:
     from .._memory_maps import release_if_near_limit
     from ..testing import transforms_of
 
-    testing.load_entries()
+    if args.module and str(pathlib.Path.cwd()) not in sys.path:
+        sys.path.insert(0, str(pathlib.Path.cwd()))  # as `python -m` does: the user's own folder
+    before = set(testing.REGISTRY)
     for module in args.module:
         try:
             importlib.import_module(module)
         except ImportError as e:
             raise InputError(f"--module {module}: cannot import it ({e})") from e
+    own = [  # registered by the import, or earlier by code of the same modules
+        n
+        for n, e in testing.REGISTRY.items()
+        if n not in before or getattr(e.apply, "__module__", None) in args.module
+    ]
+    if args.module and not own:
+        raise InputError(
+            f"--module {' '.join(args.module)}: the import registered no operator; a module adds "
+            "one with jmeshtex.testing.register(Entry(...)) at import time"
+        )
+    if args.all or args.only or not args.module:
+        testing.load_entries()
     unknown = [n for n in args.only or () if n not in testing.REGISTRY]
     if unknown:
         raise InputError(
@@ -78,8 +102,13 @@ def _run(args: argparse.Namespace) -> int:
         "float64": (jnp.float64,),
         "float32": (jnp.float32,),
     }
-    names = args.only or list(testing.REGISTRY)
+    names = args.only or (own if args.module and not args.all else list(testing.REGISTRY))
     transforms = args.transforms
+    bogus = [t for t in transforms or () if t not in testing.CATALOGUE]
+    if bogus:
+        raise InputError(
+            f"--transforms: unknown {', '.join(bogus)}; known: {', '.join(testing.CATALOGUE)}"
+        )
     total = sum(
         len(
             [t for t in transforms_of(testing.REGISTRY[n]) if transforms is None or t in transforms]

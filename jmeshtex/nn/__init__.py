@@ -1,5 +1,6 @@
-"""Thin flax modules that only create parameters and call :mod:`jmeshtex.ops`."""
+"""Thin flax modules that only create parameters and call :mod:`jmeshtex.ops` (``jmeshtex[nn]``)."""
 
+from .._extras import needs_nn as _needs_nn  # noqa: F401 (names a missing extra)
 from ._complex import FRN as FRN
 from ._complex import ComplexAttention as ComplexAttention
 from ._complex import ComplexDense as ComplexDense

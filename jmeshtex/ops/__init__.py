@@ -25,9 +25,9 @@ from ._face_conv import face_to_vertex_displacement as face_to_vertex_displaceme
 from ._face_conv import init_face_conv as init_face_conv
 from ._face_conv import init_face_conv_stack as init_face_conv_stack
 from ._face_conv import instance_norm as instance_norm
-from ._field_conv import FieldConvParams as FieldConvParams
 from ._field_conv import field_conv as field_conv
-from ._field_conv import init_field_conv as init_field_conv
+from ._field_conv_params import FieldConvParams as FieldConvParams
+from ._field_conv_params import init_field_conv as init_field_conv
 from ._field_conv_stages import FieldConvTerms as FieldConvTerms
 from ._field_conv_stages import field_conv_filter_sums as field_conv_filter_sums
 from ._field_conv_stages import field_conv_mix as field_conv_mix

@@ -13,22 +13,25 @@ These functions run the same numerics over the whole mesh at once, so each stage
 own (``benchmarks/ops_field_conv.py``); composed, they give ``field_conv``'s output to rounding.
 """
 
+import functools
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 
 from .._errors import ConfigError, InputError
 from .._neighborhoods import VertexNeighborhood
 from .._types import Array, ArrayLike, Complex, Float
-from ._field_conv import (
-    _ACTIVATIONS,
-    FieldConvParams,
-    _as_complex,
-    _filtered_sums,
-    _gather_terms,
-    _mix_halves,
-    _responses,
-    _slot_geometry,
+from ._field_conv_params import FieldConvParams
+from ._field_conv_terms import (
+    ACTIVATIONS,
+    as_complex,
+    filtered_sums_fused,
+    filtered_sums_plain,
+    gather_terms,
+    mix_halves,
+    responses,
+    slot_geometry,
 )
 from ._numerics import check_complex, check_delta, complex_dtype, real_dtype
 
@@ -87,8 +90,8 @@ def field_conv_terms(
             f"field_conv_terms: x must be [V, C] with V = nbhd.index.shape[0], got {x.shape} and "
             f"{jnp.shape(nbhd.index)}"
         )
-    index, slots = _slot_geometry(nbhd, real_dtype(x.dtype))
-    return FieldConvTerms(*_gather_terms(x.real, x.imag, index, slots, delta, blocked=False))
+    index, slots = slot_geometry(nbhd, real_dtype(x.dtype))
+    return FieldConvTerms(*gather_terms(x.real, x.imag, index, slots, delta, blocked=False))
 
 
 def _filter_inputs(params: FieldConvParams, v: int, rdt, embedding):
@@ -109,8 +112,8 @@ def _filter_inputs(params: FieldConvParams, v: int, rdt, embedding):
 
 
 def _check_activation(activation: str, name: str) -> None:
-    if activation not in _ACTIVATIONS:
-        raise ConfigError(f"{name}: activation must be one of {_ACTIVATIONS}, got {activation!r}")
+    if activation not in ACTIVATIONS:
+        raise ConfigError(f"{name}: activation must be one of {ACTIVATIONS}, got {activation!r}")
 
 
 def field_conv_responses(
@@ -148,7 +151,7 @@ def field_conv_responses(
     """
     _check_activation(activation, "field_conv_responses")
     a_w, bias = _filter_inputs(params, arg_real.shape[0], arg_real.dtype, embedding)
-    return _responses(arg_real, arg_imag, a_w, bias, activation)
+    return responses(arg_real, arg_imag, a_w, bias, activation)
 
 
 def field_conv_filter_sums(
@@ -162,9 +165,10 @@ def field_conv_filter_sums(
 
     .. math:: S_{phc} = \\sum_{q} z_{pqc}\\, \\varphi_h(a_{pqc}, e_p)
 
-    One fused reduction that evaluates every response once and never stores it, with a hand-written
-    VJP that recomputes them over the whole mesh (``field_conv``'s own reverse mode differentiates
-    block by block from its kept sums instead; the two agree to rounding).
+    One fused reduction that evaluates every response once and never stores it; its derivatives
+    (every mode and order, through a ``custom_jvp``) are those of the plain formula, which
+    materialises the ``[V, K, H, C]`` responses (``field_conv`` itself differentiates block by
+    block instead; the two agree to rounding).
 
     Args:
       terms: :class:`FieldConvTerms` from :func:`field_conv_terms`.
@@ -218,5 +222,23 @@ def field_conv_mix(
         raise InputError(
             f"field_conv_mix: sums {s_r.shape} do not match mix [C, H, D] = {params.mix.shape}"
         )
-    m_r, m_i = _mix_halves(params.mix.astype(complex_dtype(s_r.dtype)))
-    return _as_complex(s_r.reshape(v, -1) @ m_r + s_i.reshape(v, -1) @ m_i)
+    m_r, m_i = mix_halves(params.mix.astype(complex_dtype(s_r.dtype)))
+    return as_complex(s_r.reshape(v, -1) @ m_r + s_i.reshape(v, -1) @ m_i)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(6,))
+def _filtered_sums(zr, zi, ar, ai, a_w, bias, activation):
+    """:func:`~._field_conv_terms.filtered_sums_fused`, differentiated as the plain formula."""
+    return filtered_sums_fused(zr, zi, ar, ai, a_w, bias, activation)
+
+
+def _filtered_sums_jvp(activation, primals, tangents):
+    out = _filtered_sums(*primals, activation)  # higher orders re-enter this rule
+
+    def plain(*args):
+        return filtered_sums_plain(*args, activation)
+
+    return out, jax.jvp(plain, primals, tangents)[1]
+
+
+_filtered_sums.defjvp(_filtered_sums_jvp)

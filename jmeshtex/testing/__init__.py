@@ -4,6 +4,7 @@ from .._extras import needs_testing as _needs_testing  # noqa: F401 (names a mis
 from ._assert import assert_equivariant as assert_equivariant
 from ._check_cache import CheckCache as CheckCache
 from ._equivariance import Convergence as Convergence
+from ._equivariance import check_dtype as check_dtype
 from ._equivariance import convergence as convergence
 from ._equivariance import equivariance_error as equivariance_error
 from ._equivariance import relative_error as relative_error
@@ -24,6 +25,7 @@ from ._isometries import hinge as hinge
 from ._registry import EXACT as EXACT
 from ._registry import EXTRINSIC as EXTRINSIC
 from ._registry import INTRINSIC as INTRINSIC
+from ._registry import MAX_EXCLUDED as MAX_EXCLUDED
 from ._registry import REGISTRY as REGISTRY
 from ._registry import CheckResult as CheckResult
 from ._registry import Entry as Entry

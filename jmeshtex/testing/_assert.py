@@ -8,12 +8,11 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
 from ._check_cache import CheckCache
-from ._equivariance import DEFAULT_TOLERANCE, _to_device, relative_error
+from ._equivariance import DEFAULT_TOLERANCE, _to_device, check_dtype, relative_error
 from ._fields import Field
 from ._registry import EXACT, Entry, check, random_inputs
 from ._transforms import CATALOGUE, Realisation
@@ -27,7 +26,7 @@ def assert_equivariant(
     inputs: Mapping[str, tuple[str, int] | Field],
     *,
     transforms: Sequence[str | Realisation] = EXACT,
-    dtype=jnp.float64,
+    dtype=None,
     rtol: float | None = None,
     hops: int = 1,
     selection: Callable | None = None,
@@ -44,8 +43,9 @@ def assert_equivariant(
         ``EXACT``), checked with the registry's bounds (exact: ``rtol``;
         smooth isometries: a convergence order), or drawn :class:`~jmeshtex.testing.Realisation`
         objects of your own mesh.
-      dtype: ``jnp.float64`` (bounds 1e-10 / order) or ``jnp.float32`` (1e-5; smooth isometries
-        reported only).
+      dtype: ``jnp.float64`` (bounds 1e-10 / order), ``jnp.float32`` (1e-5; smooth isometries
+        reported only) or None (default): float64 when JAX's x64 mode is on, else float32.
+        float64 with x64 off raises :class:`~jmeshtex.ConfigError` (JAX would compute in float32).
       rtol: the relative bound of exact checks (default: 1e-10 in float64, 1e-5 in float32).
       hops: depth of the receptive field (number of stacked k-NN layers): where k-NN choices flip
         under a smooth isometry, every vertex within ``hops`` hops is left out (needs ``selection``).
@@ -75,7 +75,8 @@ def assert_equivariant(
       (['permute_vertices', 'rigid'], True)
     """
     seed = _seed(key)
-    tol = DEFAULT_TOLERANCE[np.dtype(dtype)] if rtol is None else float(rtol)
+    dtype = check_dtype(dtype, "assert_equivariant")
+    tol = DEFAULT_TOLERANCE[dtype] if rtol is None else float(rtol)
     specs = {k: v for k, v in inputs.items() if not isinstance(v, Field)}
     fixed = {k: v for k, v in inputs.items() if isinstance(v, Field)}
     names = [t for t in transforms if isinstance(t, str)]
@@ -123,7 +124,7 @@ def assert_equivariant(
                 f"  {real.name}: relative error {err:.3e} > {tol:.1e}; per output channel: {worst}"
             )
     if failures:
-        raise AssertionError("not equivariant:\n" + "\n".join(failures))
+        raise AssertionError(f"not equivariant ({dtype.name}):\n" + "\n".join(failures))
     return errors
 
 

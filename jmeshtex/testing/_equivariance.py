@@ -20,10 +20,41 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import ConfigError
 from ._fields import Field
 from ._transforms import Realisation, Transform
 
 DEFAULT_TOLERANCE = {np.dtype("float64"): 1e-10, np.dtype("float32"): 1e-5}
+
+
+def check_dtype(dtype, where: str) -> np.dtype:
+    """The dtype a check runs in: ``None`` follows JAX's x64 setting (float64 when it is on, else
+    float32, each checked against its own bound); float64 asked for with x64 off is refused.
+
+    JAX silently computes in float32 when ``jax_enable_x64`` is off, so a float64 check would
+    compare float32 round-off (~1e-7) with the float64 bound (1e-10) and fail for no fault of the
+    operator.
+
+    Raises:
+      ConfigError: ``dtype`` is float64 and x64 is off, or ``dtype`` is neither float32 nor float64.
+
+    Example:
+      >>> check_dtype(None, "check") == (np.float64 if jax.config.jax_enable_x64 else np.float32)
+      True
+    """
+    x64 = bool(jax.config.jax_enable_x64)
+    if dtype is None:
+        return np.dtype(np.float64 if x64 else np.float32)
+    dt = np.dtype(dtype)
+    if dt not in DEFAULT_TOLERANCE:
+        raise ConfigError(f"{where}: dtype must be float32, float64 or None, got {dt}")
+    if dt == np.float64 and not x64:
+        raise ConfigError(
+            f"{where}: dtype=float64 but JAX's x64 mode is off, so the check would run in float32 "
+            "against the float64 bound (1e-10); call jax.config.update('jax_enable_x64', True) at "
+            "the start of the program, or pass dtype=None (follow x64: float32 here, bound 1e-5)"
+        )
+    return dt
 
 
 def relative_error(actual, expected) -> float:
@@ -140,7 +171,7 @@ def convergence(
     make_inputs: Callable[[object, np.random.Generator], Mapping[str, Field]],
     *,
     resolutions: Sequence[int] = (8, 16, 32, 64),
-    dtype=jnp.float64,
+    dtype=None,
     seed: int = 0,
     floor: float = 1e-12,
     selection: Callable[[object], np.ndarray] | None = None,
@@ -153,7 +184,8 @@ def convergence(
       transform: a ``family=True`` transform (``cylinder``, ``cone``, ``catenoid``).
       make_inputs: ``(source_state, rng) -> inputs`` on each resolution's source mesh.
       resolutions: doubling sequence of resolutions.
-      dtype: operator dtype (orders are only meaningful in float64).
+      dtype: operator dtype; None (default) follows JAX's x64 setting (orders are only
+        meaningful in float64; see :func:`~jmeshtex.testing.check_dtype`).
       seed: seed of the draws.
       floor: errors below this are round-off; if every error is, ``floor=True`` and no order is
         asserted (the operator is exactly invariant under the family).
@@ -171,6 +203,7 @@ def convergence(
         raise ValueError(f"convergence: hops must be an integer ≥ 1, got {hops!r}")
     if not transform.family:
         raise ValueError(f"{transform.name!r} is not a family of meshes")
+    dtype = check_dtype(dtype, "convergence")
     errors, excluded = [], []
     for n in resolutions:
         rng = np.random.default_rng(seed)

@@ -55,7 +55,8 @@ class MeshState:
       faces: ``[F, 3]`` int64.
       gauge: ``[V]`` rotation of each vertex frame relative to the intrinsic gauge of
         :mod:`jmeshtex.geometry` (0 everywhere for a freshly built mesh).
-      dtype: the real dtype the operators run in (``jnp.float32`` or ``jnp.float64``).
+      dtype: the real dtype the operators run in (``jnp.float32`` or ``jnp.float64``); None
+        (default): float64 when JAX's x64 mode is on, else float32.
 
     Example:
       >>> from jmeshtex.data import icosahedron
@@ -64,11 +65,13 @@ class MeshState:
       (12, 12)
     """
 
-    def __init__(self, vertices, faces, *, gauge=None, dtype=jnp.float64):
+    def __init__(self, vertices, faces, *, gauge=None, dtype=None):
         self.vertices = np.asarray(vertices, dtype=np.float64)
         self.faces = np.asarray(faces, dtype=np.int64)
         V = self.vertices.shape[0]
         self.gauge = np.zeros(V) if gauge is None else np.asarray(gauge, dtype=np.float64)
+        if dtype is None:
+            dtype = jnp.float64 if jax.config.jax_enable_x64 else jnp.float32
         self.dtype = jnp.dtype(dtype)
         self._cache: dict[Any, Any] = {}  # values holding JAX arrays (in ``dtype``)
         self._host: dict[Any, Any] = {}  # host (NumPy) values: the same in every dtype

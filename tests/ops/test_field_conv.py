@@ -16,14 +16,15 @@ from jmeshtex.data import grid
 from jmeshtex.geometry import VertexNeighborhood, pad_to, to_jax
 from jmeshtex.ops import (
     FieldConvParams,
-    _field_conv,
+    _field_conv_fast,
+    _field_conv_terms,
     field_conv,
     field_conv_filter_sums,
     field_conv_mix,
     field_conv_responses,
     field_conv_terms,
 )
-from jmeshtex.ops._field_conv import _filtered_sums, _sums_impl
+from jmeshtex.ops._field_conv_stages import _filtered_sums
 
 _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
 # one shape for most tests (V vertices, K slots, C -> D channels, H responses, E embedding): the
@@ -271,21 +272,21 @@ def test_filter_responses_are_silu_to_float32_accuracy():
     ar = jnp.asarray(p, jnp.float32).reshape(1, 1, -1)  # one vertex, one slot, C = len(p)
     a_w, bias = jnp.array([[1.0], [0.0]], jnp.float32), jnp.zeros((1, 1), jnp.float32)
     got = np.asarray(
-        _field_conv._responses(ar, jnp.zeros_like(ar), a_w, bias, "silu"), np.float64
+        _field_conv_terms.responses(ar, jnp.zeros_like(ar), a_w, bias, "silu"), np.float64
     ).ravel()
     want = p / (1.0 + np.exp(-p))
     assert np.max(np.abs(got - want)) < 4e-6
     relu = np.asarray(
-        _field_conv._responses(ar, jnp.zeros_like(ar), a_w, bias, "relu"), np.float64
+        _field_conv_terms.responses(ar, jnp.zeros_like(ar), a_w, bias, "relu"), np.float64
     ).ravel()
     np.testing.assert_array_equal(relu, np.maximum(np.asarray(ar, np.float64).ravel(), 0))
 
 
 @pytest.mark.parametrize("activation", ["silu", "relu"])
 def test_vertex_blocks_match_loop_reference_and_reverse_mode_path(rng, monkeypatch, activation):
-    # evaluation runs in vertex blocks (the last one overlapping the one before); reverse mode runs
-    # the whole-mesh path. Blocks of 4 on 11 vertices: three blocks, padded slots, and under vmap.
-    monkeypatch.setattr(_field_conv, "_BLOCK", 4)
+    # evaluation runs in vertex blocks (the last one overlapping the one before); reverse mode's
+    # primal too. Blocks of 4 on 11 vertices: three blocks, padded slots, and under vmap.
+    monkeypatch.setattr(_field_conv_fast, "BLOCK", 4)
     v = 11
     nbs = [random_nbhd(rng, v, K) for _ in range(2)]
     xs, embs = [crandn(rng, v, C) for _ in nbs], [rng.standard_normal((v, E)) for _ in nbs]
@@ -422,17 +423,17 @@ def _grad_args(rng):
 
 @pytest.mark.parametrize("activation", ["silu", "relu"])
 def test_check_grads_real_and_imaginary_parts(rng, activation):
-    # reverse mode only: the op has a hand-written VJP and no JVP rule
+    # forward and reverse mode of the jitted op, every argument (x, filter, mix, embedding)
     f = _real_view(random_nbhd(rng, 4, 3), activation)
     # small step: ReLU filters have kinks, which a step of 1e-6 reaches with probability ~1e-4
     check_grads(
-        jax.jit(f), _grad_args(rng), order=1, modes=("rev",), atol=1e-5, rtol=1e-5, eps=1e-6
+        jax.jit(f), _grad_args(rng), order=1, modes=("fwd", "rev"), atol=1e-5, rtol=1e-5, eps=1e-6
     )
 
 
-def test_hand_written_vjp_matches_autodiff_to_second_order(rng):
-    # the filter-sum core against plain autodiff of its straightforward implementation: first order
-    # (VJP) and second order (reverse over the hand-written VJP). SiLU: the ReLU path shares the code
+def test_fused_filter_sums_differentiate_as_the_plain_formula_to_second_order(rng):
+    # the fused filter-sum stage (custom_jvp) against plain autodiff of the straightforward sums:
+    # first order (VJP) and second order (reverse over reverse). SiLU: the ReLU path shares the code
     # and has no second-order terms; its first order is covered by check_grads above.
     activation = "silu"
     args = [rng.standard_normal((3, 2, 2)) for _ in range(4)] + [
@@ -456,7 +457,7 @@ def test_hand_written_vjp_matches_autodiff_to_second_order(rng):
 
     for order in (lambda core: jax.grad(loss(core), argnums=range(6)), second):
         got = jax.jit(order(_filtered_sums))(*args)
-        want = jax.jit(order(_sums_impl))(*args)
+        want = jax.jit(order(_field_conv_terms.filtered_sums_plain))(*args)
         for g, r in zip(got, want, strict=False):
             np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
 
@@ -512,9 +513,9 @@ def plain_formula(x, nb, params, emb=None, chan=None, activation="silu", delta=1
 @pytest.mark.parametrize("activation", ["silu", "relu"])
 @pytest.mark.parametrize("channel", [False, True], ids=["embedding", "channel-embedding"])
 def test_reverse_mode_matches_autodiff_of_the_plain_formula(rng, monkeypatch, activation, channel):
-    # the blocked hand-written VJP (blocks of 4 on 11 vertices: the last block padded) against jax.grad
-    # of the materialised formula, for x, every parameter and both embeddings, in float64
-    monkeypatch.setattr(_field_conv, "_BWD_BLOCK", 4)
+    # the blocked tangent, transposed (blocks of 4 on 11 vertices: the last block padded) against
+    # jax.grad of the materialised formula, for x, every parameter and both embeddings, in float64
+    monkeypatch.setattr(_field_conv_fast, "TANGENT_BLOCK", 4)
     v = 11
     nb = random_nbhd(rng, v, K)
     params = make_params(21)
@@ -555,8 +556,8 @@ def test_reverse_mode_matches_autodiff_of_the_plain_formula(rng, monkeypatch, ac
 
 
 def test_gradient_with_respect_to_the_neighbourhood_geometry(rng, monkeypatch):
-    # differentiating the log maps, transports and weights takes the autodiff route of the reverse mode
-    monkeypatch.setattr(_field_conv, "_BWD_BLOCK", 4)
+    # the log maps, transports and weights get tangents too (blocks of 4 on 9 vertices)
+    monkeypatch.setattr(_field_conv_fast, "TANGENT_BLOCK", 4)
     v = 9
     nb = random_nbhd(rng, v, K)
     params = make_params(22)
@@ -582,7 +583,7 @@ def test_gradient_with_respect_to_the_neighbourhood_geometry(rng, monkeypatch):
 
 
 def test_nested_reverse_mode_matches_the_plain_formula(rng):
-    # reverse over the blocked hand-written VJP: a Hessian-vector product in x
+    # reverse over the transposed blocked tangent: a Hessian-vector product in x
     nb, params = random_nbhd(rng, V, K), make_params(23)
     emb, x, t = (
         rng.standard_normal((V, E)),

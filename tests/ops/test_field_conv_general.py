@@ -12,7 +12,7 @@ from jax.test_util import check_grads
 from jmeshtex import ConfigError, InputError
 from jmeshtex.geometry import VertexNeighborhood, pad_to
 from jmeshtex.ops import FieldConvParams, field_conv, init_field_conv
-from jmeshtex.ops import _field_conv as fc_module
+from jmeshtex.ops import _field_conv_general as fc_module
 
 V, K, C, D, H = 7, 5, 3, 2, 4
 
@@ -155,9 +155,9 @@ def test_blocks_of_the_general_path_cover_every_vertex(case, monkeypatch):
     params = general_params(3)
     whole = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
     monkeypatch.setattr(
-        fc_module, "_GENERAL_BLOCK", 3
+        fc_module, "GENERAL_BLOCK", 3
     )  # 7 vertices: blocks of 3, the last one padded
-    monkeypatch.setattr(fc_module, "_GENERAL_SINGLE", 0)
+    monkeypatch.setattr(fc_module, "GENERAL_SINGLE", 0)
     blocked = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
     assert rel_err(blocked, whole) < 1e-13
 
