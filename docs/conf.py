@@ -29,9 +29,9 @@ extensions = [
     "myst_nb",
 ]
 
-# notebooks live in ../notebooks, committed without outputs; they are copied next to the sources and
-# executed at build time with their tiny settings (JMESHTEX_NOTEBOOK_TINY), so every page shows its
-# outputs and figures. "cache" (default) re-runs a notebook only when it changed; "force" re-runs all.
+# notebooks live in ../notebooks, committed with their outputs (notebooks/run.py); they are copied
+# next to the sources and executed again at build time with their tiny settings
+# (JMESHTEX_NOTEBOOK_TINY), so every page shows its outputs and figures. "cache" (default) re-runs a notebook only when it changed; "force" re-runs all.
 # The test suite builds with JMESHTEX_DOCS_EXECUTE=off (tests/test_docs.py) and executes each notebook
 # in a one-page build of its own with these myst-nb settings (tests/test_notebooks.py), so that the
 # notebook runs spread over the test workers.

@@ -1,5 +1,5 @@
-"""The notebooks: committed without outputs, and each executes top to bottom with tiny settings
-(JMESHTEX_NOTEBOOK_TINY=1) and renders its outputs.
+"""The notebooks: committed with their outputs (``python notebooks/run.py``), which match their code,
+and each executes top to bottom with tiny settings (JMESHTEX_NOTEBOOK_TINY=1) and renders its outputs.
 
 Each notebook runs in a test of its own (so the runs spread over the test workers) as a one-page
 Sphinx build with myst-nb, the extension and execution settings of ``docs/conf.py``, and warnings
@@ -10,6 +10,7 @@ cross-references.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import pathlib
@@ -34,11 +35,48 @@ html_theme = "alabaster"
 """
 
 
-def test_notebooks_are_committed_without_outputs():
-    for nb in NOTEBOOKS:
-        cells = json.loads(nb.read_text())["cells"]
-        dirty = [i for i, c in enumerate(cells) if c.get("outputs") or c.get("execution_count")]
-        assert not dirty, f"{nb.name}: cells {dirty} have outputs; clear them before committing"
+def _run_script():
+    spec = importlib.util.spec_from_file_location("notebooks_run", NOTEBOOKS[0].parent / "run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def stale_notebooks(paths) -> list[str]:
+    """Names of notebooks whose committed outputs do not belong to their code, with the reason."""
+    digest = _run_script().source_digest
+    stale = []
+    for path in paths:
+        nb = json.loads(path.read_text())
+        stamp = nb.get("metadata", {}).get("jmeshtex", {}).get("source_sha256")
+        code = [c for c in nb["cells"] if c["cell_type"] == "code"]
+        images = sum("image/png" in o.get("data", {}) for c in code for o in c.get("outputs", []))
+        errors = [o for c in code for o in c.get("outputs", []) if o.get("output_type") == "error"]
+        if stamp != digest(nb):
+            stale.append(f"{path.name}: code changed since its outputs were made")
+        elif not images or errors:
+            stale.append(f"{path.name}: {images} figures, {len(errors)} errors in its outputs")
+    return stale
+
+
+def test_notebooks_are_committed_with_the_outputs_of_their_code():
+    stale = stale_notebooks(NOTEBOOKS)
+    assert not stale, "run `python notebooks/run.py NAME` and commit:\n" + "\n".join(stale)
+
+
+def test_the_stale_check_can_fail(tmp_path):
+    nb = json.loads(NOTEBOOKS[0].read_text())
+    code = next(c for c in nb["cells"] if c["cell_type"] == "code")
+    code["source"] = ["x = 1  # an edit after the run\n", *code["source"]]
+    edited = tmp_path / NOTEBOOKS[0].name
+    edited.write_text(json.dumps(nb))
+    assert stale_notebooks([edited]) == [f"{edited.name}: code changed since its outputs were made"]
+    for c in nb["cells"]:
+        if c["cell_type"] == "code":
+            c["outputs"] = []
+    nb["metadata"]["jmeshtex"] = {"source_sha256": _run_script().source_digest(nb)}
+    edited.write_text(json.dumps(nb))
+    assert stale_notebooks([edited]) == [f"{edited.name}: 0 figures, 0 errors in its outputs"]
 
 
 def test_there_are_notebooks():
