@@ -303,3 +303,51 @@ def test_one_training_step_gives_the_official_weights_and_adam_moments(off, leve
     }
     for name, value in expected.items():
         assert _rel(losses[name][0], value) < RTOL, name
+
+
+@pytest.mark.parametrize("L", [0, 1])
+def test_adam_on_the_official_gradients_gives_the_official_weights(off, L):
+    """jmeshtex's optimiser (``_optimizer``: Adam, lr 5e-4, betas (0.5, 0.99), the flat wrapper)
+    fed the official gradients, update after update, gives the official weights after every
+    update and the official moments: every entry, the normed biases included (same inputs)."""
+    from jmeshtex.dgts._train import _optimizer
+
+    for net, updates in (("d", D), ("g", G)):
+        critic = net == "d"
+        params = _net(off, f"l{L}_{net}_init", L, critic=critic)
+        opt = _optimizer(CONFIG, updates)
+        state = opt.init(params)
+        for k in range(updates):
+            p = f"l{L}_{net}{k}"
+            assert _rel(_official_layout(params, L), _official_flat(off, f"{p}_before")) < RTOL
+            grads = _net(off, f"{p}_grad", L, critic=critic)
+            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+                step, state = opt.update(grads, state, params)
+            params = jax.tree.map(lambda w, u: w + u, params, step)
+        assert _rel(_official_layout(params, L), _official_flat(off, f"l{L}_{net}_final")) < RTOL
+        m, v, count = _adam_moments(state, params, L)
+        assert count == updates
+        assert _rel(m, _official_flat(off, f"l{L}_{net}_adam_m")) < RTOL
+        assert _rel(v, _official_flat(off, f"l{L}_{net}_adam_v")) < RTOL
+
+
+def test_the_learning_rate_halves_after_every_500_iterations_as_the_official_loop():
+    """``training.py``: ``lr_decay_every = 500``, ``decay`` (``ExponentialLR(0.5).step()``) after
+    iterations 499, 999, …, so iteration ``i`` runs at ``5e-4 · 0.5^⌊i/500⌋`` for all its updates.
+    Adam on a constant gradient moves by the learning rate itself (``m̂/√v̂ = 1``)."""
+    from jmeshtex.dgts._train import _optimizer
+
+    for updates in (D, G):
+        opt = _optimizer(CONFIG, updates)
+        iterations = 1002
+        x = jnp.zeros(2, jnp.float32)
+
+        def body(carry, _, opt=opt):
+            x, state = carry
+            with jax.numpy_dtype_promotion("standard"):
+                step, state = opt.update(jnp.ones_like(x), state, x)
+            return (x + step, state), -step[0]
+
+        _, lr = jax.lax.scan(body, (x, opt.init(x)), None, length=iterations * updates)
+        i = np.arange(iterations * updates) // updates  # the official iteration of each update
+        np.testing.assert_allclose(np.asarray(lr), 5e-4 * 0.5 ** (i // 500), rtol=RTOL)
