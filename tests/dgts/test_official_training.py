@@ -1,8 +1,8 @@
 """Training-step parity with the official DGTS code (amirhertz/geometric-textures @087c967).
 
-``official_train/dgts_official_train.npz`` holds one official training iteration (2 critic + 3
+``official/dgts_official_train.npz`` holds one official training iteration (2 critic + 3
 generator updates) at each of two levels, recorded from the official ``Trainer`` run unchanged
-(``official_train/README.md``: the command, the driver, every array). Fed the same weights (through
+(``official/README.md``: the command, the driver, every array). Fed the same weights (through
 the official-weights converter), training meshes, noise and gradient-penalty ``α``, jmeshtex's
 training step must give the official losses, gradients, updated weights and Adam moments, and its
 level chaining (frozen level 0, midpoint subdivision, ×2, level-1 noise, the reconstruction from
@@ -37,7 +37,7 @@ from jmeshtex.dgts._train import (
 )
 from jmeshtex.dgts.core import discriminator, generator_level, hierarchy_geometry
 
-FIXTURE = pathlib.Path(__file__).parent / "official_train" / "dgts_official_train.npz"
+FIXTURE = pathlib.Path(__file__).parent / "official" / "dgts_official_train.npz"
 
 #: the official run's options (``TrainOption(num_layers=5, start_nf=8, min_nf=8, max_nf=8)``)
 CONFIG = Config(num_layers=5, start_features=8, min_features=8, max_features=8, official_axes=True)
