@@ -25,6 +25,9 @@ halves of a transfer, the template fit of one level) are in :mod:`jmeshtex.dgts.
 Models trained with the official code (amirhertz/geometric-textures): export the generator's
 ``state_dict`` to ``.npz`` and read it with :func:`load_official` (or :func:`from_official_state_dict`);
 the converted model reproduces the official outputs (tested against the official network's outputs on the same weights, ``tests/dgts/test_official_parity.py``).
+One official training iteration at two levels (``tests/dgts/test_official_training.py``) and the
+official inference with ``--gen-levels`` (``tests/dgts/test_official_inference.py``) are reproduced
+too, from numbers the official code produced.
 
 Example:
   >>> import jax

@@ -13,7 +13,13 @@ patch discriminator scores every face of the result against the level-``L`` trai
 (gradient penalty on interpolated face features, one ``α ~ U(0, 1)`` per critic update, per-face
 gradient norms; reconstruction with the fixed noise ``z*`` at the coarsest level, or at levels up
 to ``Config.fixed_noise_levels − 1``, and zero noise above). Adam with step decay; one training
-step is ``discriminator_steps`` critic updates then ``generator_steps`` generator updates.
+step is ``discriminator_steps`` critic updates then ``generator_steps`` generator updates
+(:func:`critic_loss`, :func:`generator_loss`).
+
+Equal to the official ``training.py``: from the same weights, training meshes, noise and ``α``, one
+official iteration at each of two levels (the losses, the penalty, every gradient, Adam's moments,
+the updated weights, and level 1's inputs from the frozen level 0) is reproduced to float32
+rounding (``tests/dgts/test_official_training.py``, numbers from the official code run unchanged).
 
 How it runs (each level is one run of the shared training driver):
 
