@@ -182,6 +182,29 @@ def test_fixture_documents_how_it_was_made(off):
     }
 
 
+def test_fresh_noise_and_alpha_are_drawn_as_the_official_ones(off):
+    """The draws the parity tests replay: vertex noise ``0.1·N(0, 1)`` (``noise_amplitude``; the
+    official draws' std is 0.1 within sampling error) and ``α ~ U(0, 1)``, one per critic update."""
+    z = np.concatenate([off[k].ravel() for k in off if "_z" in k and off[k].ndim == 2])
+    assert len(z) > 2000 and abs(z.std() / 0.1 - 1) < 0.05 and abs(z.mean()) < 0.01
+    assert CONFIG.noise_amplitude == 0.1
+    lv = Level(off, 0)
+    b = level_batch(
+        (),
+        lv.geos,
+        jnp.asarray(off["template"])[None],
+        jnp.asarray(lv.z_star)[None],
+        jnp.asarray(lv.real)[None],
+        jax.random.key(1),
+        config=CONFIG,
+        chunk=20,
+    )
+    for ours in (np.asarray(b.fake_noise), np.asarray(b.rec_noise)):
+        assert abs(ours.std() / CONFIG.noise_amplitude - 1) < 0.05
+    a = np.asarray(b.alpha)
+    assert a.shape == (20, D) and a.min() >= 0 and a.max() <= 1 and abs(a.mean() - 0.5) < 0.15
+
+
 def test_level_chaining_gives_the_official_level_inputs(off, level):
     """Frozen level 0 on fresh noise, subdivision, ×2 (the fakes' inputs), and the reconstruction
     from ``z*`` then zero noise: jmeshtex's level batch equals the official generator inputs."""
