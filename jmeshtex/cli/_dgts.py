@@ -126,6 +126,13 @@ def register(sub: argparse._SubParsersAction) -> None:
             "target's face count, at least 1, raised until the output fits --max-faces)",
         )
         r.add_argument(
+            "--stop-level",
+            type=int,
+            default=None,
+            help="last generator level to run (default: the last; the official --gen-levels "
+            "default is --start-level 1 --stop-level 4)",
+        )
+        r.add_argument(
             "--max-faces",
             type=int,
             default=500_000,
@@ -341,6 +348,7 @@ def _transfer(args) -> int:
         model,
         target,
         start_level=args.start_level,
+        stop_level=args.stop_level,
         num_samples=args.samples,
         max_faces=args.max_faces,
         zero_noise_from=args.zero_noise_from,
@@ -368,6 +376,7 @@ def _interpolate(args) -> int:
         model,
         target,
         start_level=args.start_level,
+        stop_level=args.stop_level,
         num_frames=args.frames,
         max_faces=args.max_faces,
         key=jax.random.key(args.seed),

@@ -5,8 +5,11 @@ configured by :class:`PrepareConfig`) → :func:`train` (hierarchical WGAN-GP, �
 :class:`Config`, resumable checkpoints, on one fit or several, e.g. remeshes from turned
 templates; returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`) → :func:`save` /
 :func:`load` → :func:`transfer` / :func:`interpolate` (any target
-mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`; the start level follows a
-face budget, ``max_faces``).
+mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`). Levels run: by default
+jmeshtex's own choice, from the level whose training mesh has the target's face count (within a
+face budget, ``max_faces``) to the last; the official code's ``--gen-levels`` (default ``[1, 4]``)
+are ``start_level`` / ``stop_level``, clipped to the model as the official code does by
+:func:`official_gen_levels`.
 
 Inference modes: zero noise above a level (``transfer(..., zero_noise_from=k)``), the training
 reconstruction (:func:`reconstruct`), conditional generation at scale ``k`` (:func:`conditional`:
@@ -22,6 +25,9 @@ halves of a transfer, the template fit of one level) are in :mod:`jmeshtex.dgts.
 Models trained with the official code (amirhertz/geometric-textures): export the generator's
 ``state_dict`` to ``.npz`` and read it with :func:`load_official` (or :func:`from_official_state_dict`);
 the converted model reproduces the official outputs (tested against the official network's outputs on the same weights, ``tests/dgts/test_official_parity.py``).
+One official training iteration at two levels (``tests/dgts/test_official_training.py``) and the
+official inference with ``--gen-levels`` (``tests/dgts/test_official_inference.py``) are reproduced
+too, from numbers the official code produced.
 
 Example:
   >>> import jax
@@ -56,5 +62,6 @@ from ._train import train as train
 from ._transfer import DGTSTransfer as DGTSTransfer
 from ._transfer import conditional as conditional
 from ._transfer import interpolate as interpolate
+from ._transfer import official_gen_levels as official_gen_levels
 from ._transfer import reconstruct as reconstruct
 from ._transfer import transfer as transfer

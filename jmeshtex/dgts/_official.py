@@ -67,8 +67,11 @@ def _official_layers(
     return levels
 
 
-def official_level_params(state_dict: Mapping[str, np.ndarray], level: int) -> FaceConvStackParams:
-    """Convert one level of an official ``SingleMeshGenerator`` state dict to jmeshtex parameters.
+def official_level_params(
+    state_dict: Mapping[str, np.ndarray], level: int, *, critic: bool = False
+) -> FaceConvStackParams:
+    """Convert one level of an official ``SingleMeshGenerator`` (or ``SingleMeshDiscriminator``)
+    state dict to jmeshtex parameters.
 
     With ``W_i`` the official ``Conv1d`` weights ``[out, in, 1]``:
 
@@ -77,12 +80,14 @@ def official_level_params(state_dict: Mapping[str, np.ndarray], level: int) -> F
 
     (the feature reorder and the ``y`` sign of the module docstring). The output coefficients are
     the official ones, ``(c_x, c_y, c_z)`` with ``c_y`` along ``x × n``: run the level with
-    ``generator_level(..., y_sign=-1.0)`` (what ``Config(official_axes=True)`` does).
+    ``generator_level(..., y_sign=-1.0)`` (what ``Config(official_axes=True)`` does). A critic's
+    single score needs no such care: its converted level gives the official scores as they are.
 
     Args:
       state_dict: name → array, e.g. ``np.load("official.npz")`` (names ``levels.<l>.layers.<i>.0.conv.weight``
         / ``.bias``, the last layer without the ``.0``); other keys are ignored.
       level: which level to convert.
+      critic: a discriminator's level (last width 1) instead of a generator's (last width 3).
 
     Returns:
       :class:`~jmeshtex.ops.FaceConvStackParams` (float32) for :func:`~jmeshtex.dgts.core.generator_level`.
@@ -142,9 +147,10 @@ def official_level_params(state_dict: Mapping[str, np.ndarray], level: int) -> F
             )
         width = w.shape[1]
         convs.append([w, b])
-    if width != 3:
+    if width != (1 if critic else 3):
         raise InputError(
-            f"official_level_params: the last layer must give 3 displacement coefficients, got {width}"
+            "official_level_params: the last layer must give "
+            f"{'1 critic score' if critic else '3 displacement coefficients'}, got {width}"
         )
     return FaceConvStackParams(
         embed,
@@ -184,15 +190,43 @@ def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:
         )
     out = {}
     for level, p in enumerate(model.generators):
-        w0 = np.zeros((4, np.shape(p.embed.weight)[1]), np.float32)
-        w0[_FEATURE_FROM_OFFICIAL] = np.asarray(p.embed.weight, np.float32) * _FEATURE_SIGN[:, None]
-        layers = [(w0, np.asarray(p.embed.bias, np.float32))]
-        for c in p.convs:
-            layers.append((np.asarray(c.weight, np.float32), np.asarray(c.bias, np.float32)))
-        for i, (w, b) in enumerate(layers):
-            name = f"levels.{level}.layers.{i}" + ("" if i == len(layers) - 1 else ".0")
-            out[f"{name}.conv.weight"] = np.ascontiguousarray(w.T[:, :, None], np.float32)
-            out[f"{name}.conv.bias"] = np.asarray(b, np.float32)
+        out.update(official_level_state(p, level))
+    return out
+
+
+def official_level_state(params: FaceConvStackParams, level: int) -> dict[str, np.ndarray]:
+    """The inverse of :func:`official_level_params`: one level under official state-dict names.
+
+    Linear in ``params`` (a reorder and one sign), so it also maps gradients and Adam first
+    moments of a converted level to the official layout (second moments: take ``abs`` after).
+
+    Args:
+      params: a level's stack (a generator's or a critic's).
+      level: the level index in the names.
+
+    Returns:
+      ``{"levels.<level>.layers.<i>.0.conv.weight": [out, in, 1], ...}`` float32, the last layer
+      without the ``.0``.
+
+    Example:
+      >>> import jax
+      >>> from jmeshtex.ops import init_face_conv_stack
+      >>> p = init_face_conv_stack(jax.random.key(0), (8, 1))
+      >>> sorted(official_level_state(p, 2))[-1], official_level_state(p, 2)["levels.2.layers.1.conv.weight"].shape
+      ('levels.2.layers.1.conv.weight', (1, 16, 1))
+    """
+    w0 = np.zeros((4, np.shape(params.embed.weight)[1]), np.float32)
+    w0[_FEATURE_FROM_OFFICIAL] = (
+        np.asarray(params.embed.weight, np.float32) * _FEATURE_SIGN[:, None]
+    )
+    layers = [(w0, np.asarray(params.embed.bias, np.float32))]
+    for c in params.convs:
+        layers.append((np.asarray(c.weight, np.float32), np.asarray(c.bias, np.float32)))
+    out = {}
+    for i, (w, b) in enumerate(layers):
+        name = f"levels.{level}.layers.{i}" + ("" if i == len(layers) - 1 else ".0")
+        out[f"{name}.conv.weight"] = np.ascontiguousarray(w.T[:, :, None], np.float32)
+        out[f"{name}.conv.bias"] = np.asarray(b, np.float32)
     return out
 
 

@@ -13,7 +13,13 @@ patch discriminator scores every face of the result against the level-``L`` trai
 (gradient penalty on interpolated face features, one ``α ~ U(0, 1)`` per critic update, per-face
 gradient norms; reconstruction with the fixed noise ``z*`` at the coarsest level, or at levels up
 to ``Config.fixed_noise_levels − 1``, and zero noise above). Adam with step decay; one training
-step is ``discriminator_steps`` critic updates then ``generator_steps`` generator updates.
+step is ``discriminator_steps`` critic updates then ``generator_steps`` generator updates
+(:func:`critic_loss`, :func:`generator_loss`).
+
+Equal to the official ``training.py``: from the same weights, training meshes, noise and ``α``, one
+official iteration at each of two levels (the losses, the penalty, every gradient, Adam's moments,
+the updated weights, and level 1's inputs from the frozen level 0) is reproduced to float32
+rounding (``tests/dgts/test_official_training.py``, numbers from the official code run unchanged).
 
 How it runs (each level is one run of the shared training driver):
 
@@ -229,6 +235,8 @@ def level_batch(
     config: Config,
     chunk: int,
     z_finer: Sequence = (),
+    noise: Sequence | None = None,
+    alpha: Float[Array, "K D"] | None = None,
 ) -> LevelBatch:
     """Draw the noise of ``chunk`` steps of level ``L = len(model_levels)`` and run the frozen
     levels ``0 … L−1`` on it (forward only).
@@ -246,6 +254,12 @@ def level_batch(
       config, chunk: the training config and the steps of the chunk.
       z_finer: ``[R, V_l, 3]`` each reference's fixed reconstruction noise of levels ``1, 2, …``
         below ``config.fixed_noise_levels`` (zero noise at the levels it does not reach).
+      noise, alpha: given, used instead of the draws from ``key`` (to replay another
+        implementation's draws, e.g. the official code's): ``noise[l]`` the fresh
+        noise of level ``l = 0 … L``, ``[N, V_l, 3]`` already scaled by the amplitude, rows as
+        drawn: the ``chunk·(D + G)`` fakes step by step (each step's ``D`` critic updates, then its
+        ``G`` generator updates), then, below ``reconstruction_start``, the ``chunk·G``
+        reconstructions; ``alpha`` ``[chunk, D]`` the penalty's weights.
 
     Returns:
       :class:`LevelBatch`. Each step draws one reference (always the first when ``R = 1``); its
@@ -285,6 +299,13 @@ def level_batch(
         fixed = rec_noise(level) if fixed_rec else jnp.zeros((0, sizes[level], 3), dtype)
         if level < L and shared:
             z = rec_noise(level)
+        elif noise is not None:
+            z = jnp.concatenate([jnp.asarray(noise[level], dtype), fixed], axis=0)
+            if z.shape != (n_fresh + fixed.shape[0], sizes[level], 3):
+                raise InputError(
+                    f"level_batch: noise[{level}] must be [{n_fresh}, {sizes[level]}, 3], "
+                    f"got {tuple(np.shape(noise[level]))}"
+                )
         else:
             z = _noise(
                 keys[level],
@@ -304,8 +325,116 @@ def level_batch(
     else:
         rec_base = v[n_fake:].reshape(chunk, G, sizes[L], 3)
         rec_noise = z[n_fake:].reshape(chunk, G, sizes[L], 3)
-    alpha = jax.random.uniform(keys[L + 1], (chunk, D), dtype)
+    if alpha is None:
+        alpha = jax.random.uniform(keys[L + 1], (chunk, D), dtype)
+    elif np.shape(alpha) != (chunk, D):
+        raise InputError(f"level_batch: alpha must be [{chunk}, {D}], got {np.shape(alpha)}")
+    alpha = jnp.asarray(alpha, dtype)
     return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha, reals.astype(dtype)[ref])
+
+
+def critic_loss(
+    d: FaceConvStackParams,
+    fake: Float[Array, "V 3"],
+    real: Float[Array, "V 3"],
+    alpha: Float[Array, ""],
+    nbhd: FaceNeighborhood,
+    *,
+    config: Config,
+) -> tuple[Float[Array, ""], Float[Array, "3"]]:
+    """The critic's loss of one update (module docstring, :math:`\\mathcal L_D`).
+
+    .. math:: \\overline{D(\\text{fake})} - \\overline{D(\\text{real})}
+       + w_{gp}\\, \\mathrm{GP}(\\alpha)
+
+    (the reference ``discriminator_iter``: ``error_fake − error_real`` plus ``penalty_weight`` times
+    the penalty, means over the real faces ``nbhd.face_mask``).
+
+    Args:
+      d: the critic's face-convolution stack.
+      fake, real: ``[V, 3]`` a generated mesh (treated as a constant) and the level's training mesh.
+      alpha: the penalty's interpolation weight.
+      nbhd: their face neighbourhood.
+      config: ``penalty_weight``, ``negative_slope``, ``eps``.
+
+    Returns:
+      ``(loss, [mean score on real, mean score on fake, penalty])`` (the penalty unweighted).
+
+    Example:
+      >>> from jmeshtex.data import icosahedron
+      >>> from jmeshtex.geometry import face_neighborhood, to_jax
+      >>> from jmeshtex.ops import init_face_conv_stack
+      >>> v, f = icosahedron()
+      >>> nb, x = to_jax(face_neighborhood(f)), jnp.asarray(v, jnp.float32)
+      >>> d = init_face_conv_stack(jax.random.key(0), (8, 1))
+      >>> loss, aux = critic_loss(d, 1.1 * x, x, jnp.float32(0.5), nb, config=Config())
+      >>> loss.shape, aux.shape
+      ((), (3,))
+    """
+    c = config
+    kw = {"negative_slope": c.negative_slope, "eps": c.eps}
+    real_f, fake_f = face_features(real, nbhd), face_features(fake, nbhd)
+    s_real = masked_mean(discriminator_features(d, real_f, nbhd, **kw), nbhd.face_mask)
+    s_fake = masked_mean(discriminator_features(d, fake_f, nbhd, **kw), nbhd.face_mask)
+    gp = gradient_penalty(d, real_f, fake_f, nbhd, alpha, **kw)
+    return s_fake - s_real + c.penalty_weight * gp, jnp.stack([s_real, s_fake, gp])
+
+
+def generator_loss(
+    g: FaceConvStackParams,
+    d: FaceConvStackParams,
+    base: Float[Array, "V 3"],
+    z: Float[Array, "V 3"],
+    rec_base: Float[Array, "V 3"],
+    rec_z: Float[Array, "V 3"],
+    real: Float[Array, "V 3"],
+    nbhd: FaceNeighborhood,
+    *,
+    config: Config,
+) -> tuple[Float[Array, ""], Float[Array, "2"]]:
+    """The generator's loss of one update (module docstring, :math:`\\mathcal L_G`).
+
+    .. math:: -\\overline{D(b + G(b, z))} + \\gamma\\,
+       \\mathrm{MSE}\\big(b^* + G(b^*, z^*),\\ x_L\\big)
+
+    (the reference ``generator_iter``: ``reconstruction_weight · error_rec − error_fake``, the MSE
+    over all vertex coordinates, ``nn.MSELoss``).
+
+    Args:
+      g, d: the generator and the critic of the level.
+      base, z: ``[V, 3]`` the fake's input (the frozen levels' output, or the template at level 0)
+        and its level noise.
+      rec_base, rec_z: the same for the reconstruction.
+      real: ``[V, 3]`` the level's training mesh.
+      nbhd: the level's face neighbourhood.
+      config: ``reconstruction_weight``, ``negative_slope``, ``eps``, ``y_sign``.
+
+    Returns:
+      ``(loss, [−mean critic score on the fake, reconstruction MSE])``.
+
+    Example:
+      >>> from jmeshtex.data import icosahedron
+      >>> from jmeshtex.geometry import face_neighborhood, to_jax
+      >>> from jmeshtex.ops import init_face_conv_stack
+      >>> v, f = icosahedron()
+      >>> nb, x = to_jax(face_neighborhood(f)), jnp.asarray(v, jnp.float32)
+      >>> g = init_face_conv_stack(jax.random.key(0), (8, 3))
+      >>> d = init_face_conv_stack(jax.random.key(1), (8, 1))
+      >>> loss, aux = generator_loss(g, d, x, 0.1 * x, x, 0 * x, x, nb, config=Config())
+      >>> aux.shape
+      (2,)
+    """
+    c = config
+    kw = {"negative_slope": c.negative_slope, "eps": c.eps}
+
+    def produce(b, noise):
+        return b + generator_level(g, b, nbhd, noise, **kw, y_sign=c.y_sign)
+
+    # two calls, not a vmap over both: the vmapped gathers cost ~25 % more compile and run (CPU)
+    fake, rec = produce(base, z), produce(rec_base, rec_z)
+    adv = -masked_mean(discriminator(d, fake, nbhd, **kw), nbhd.face_mask)
+    mse = masked_mean(jnp.mean((rec - real) ** 2, axis=1), nbhd.vertex_mask)
+    return adv + c.reconstruction_weight * mse, jnp.stack([adv, mse])
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
@@ -322,27 +451,19 @@ def train_chunk(g, d, opt, nbhd, batch: LevelBatch, n, *, config: Config):
       entries (the last critic and generator update of each step) and 0 after them.
     """
     c = config
-    kw = {"negative_slope": c.negative_slope, "eps": c.eps}
     opt_d = _optimizer(c, c.discriminator_steps)
     opt_g = _optimizer(c, c.generator_steps)
-    vmask = nbhd.vertex_mask
 
     def produce(g, base, z):
-        return base + generator_level(g, base, nbhd, z, **kw, y_sign=c.y_sign)
+        return base + generator_level(
+            g, base, nbhd, z, negative_slope=c.negative_slope, eps=c.eps, y_sign=c.y_sign
+        )
 
     def d_loss(d, fake, alpha, real):
-        real_f, fake_f = face_features(real, nbhd), face_features(fake, nbhd)
-        s_real = masked_mean(discriminator_features(d, real_f, nbhd, **kw), nbhd.face_mask)
-        s_fake = masked_mean(discriminator_features(d, fake_f, nbhd, **kw), nbhd.face_mask)
-        gp = gradient_penalty(d, real_f, fake_f, nbhd, alpha, **kw)
-        return s_fake - s_real + c.penalty_weight * gp, jnp.stack([s_real, s_fake, gp])
+        return critic_loss(d, fake, real, alpha, nbhd, config=c)
 
     def g_loss(g, d, base, z, rec_base, rec_z, real):
-        # two calls, not a vmap over both: the vmapped gathers cost ~25 % more compile and run (CPU)
-        fake, rec = produce(g, base, z), produce(g, rec_base, rec_z)
-        adv = -masked_mean(discriminator(d, fake, nbhd, **kw), nbhd.face_mask)
-        mse = masked_mean(jnp.mean((rec - real) ** 2, axis=1), vmask)
-        return adv + c.reconstruction_weight * mse, jnp.stack([adv, mse])
+        return generator_loss(g, d, base, z, rec_base, rec_z, real, nbhd, config=c)
 
     def update(opt, grads, state, params):
         with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats

@@ -3,9 +3,11 @@
 Inference modes (all through one jit-compiled pass that also returns every level's output, the
 growing mesh of the paper's Fig. 6, ``per_level=True``):
 
-- :func:`transfer`: fresh noise on the first two levels run and none above (the official
-  ``growing`` / ``animate``); ``zero_noise_from=k`` sets the noise of levels ``≥ k`` to zero instead
-  (deterministic from the start level on when ``k ≤ start_level``; ``k = L``: noise everywhere);
+- :func:`transfer`: the generators ``start_level … stop_level`` (default: the last) on the target,
+  fresh noise on the first two levels run and none above (the official ``growing`` / ``animate``,
+  ``zero_places = (0, 0, 1, 1, 1)``); ``zero_noise_from=k`` sets the noise of levels ``≥ k`` to
+  zero instead (deterministic from the start level on when ``k ≤ start_level``; ``k = L``: noise
+  everywhere);
 - :func:`reconstruct`: the template through all levels with the reconstruction noise
   (:meth:`Model.reconstruction_noise`: ``z*`` at level 0, zero above by default): the training
   meshes' reconstruction;
@@ -13,16 +15,22 @@ growing mesh of the paper's Fig. 6, ``per_level=True``):
   noise below level ``k``, fresh noise from ``k`` on, so levels ``< k`` reproduce the reconstruction;
 - :func:`interpolate`: frames between two noise draws.
 
-Start level: with ``start_level=None`` :func:`transfer` and :func:`interpolate` start at the level
-whose training mesh has the target's resolution, never the coarsest of a deeper model, raised until
-the output (``F_out = F_target · 4^{L − 1 − start}``) fits ``max_faces`` (:func:`choose_start_level`;
-default 500 000); :class:`FaceBudgetError` when none does.
+Start and stop levels. The official code runs the generators ``--gen-levels start stop`` (default
+``[1, 4]``, clipped to the model: :func:`official_gen_levels`) on the raw target scaled to unit
+edge; ``transfer(..., start_level=1, stop_level=min(4, L − 1))`` does exactly that
+(:data:`OFFICIAL_GEN_LEVELS`). jmeshtex's own default (``start_level=None``, not the official one)
+starts at the level whose training mesh has the target's resolution, never the coarsest of a deeper
+model, raised until the output (``F_out = F_target · 4^{stop − start}``) fits ``max_faces``
+(:func:`choose_start_level`; default 500 000; :class:`FaceBudgetError` when none does), and stops at
+the last level (``stop_level=None``).
 
 The target is scaled about its centroid so its mean edge is 1 (the frame the generators were trained
-in), the generators ``start_level … L−1`` run on it with fresh Gaussian vertex noise, subdividing 1 → 4
-and rescaling ×2 between levels, and the result is mapped back to the target's coordinates. No
-re-meshing: the target's own triangles are subdivided, so open meshes, several components and any
-genus work (boundary edges are handled by the face neighbourhood's substitute opposite vertex).
+in, the official ``to_unit_edge``), the generators ``start_level … stop_level`` run on it with fresh
+Gaussian vertex noise, subdividing 1 → 4 and rescaling ×2 between levels (not after the last), and
+the result is mapped back to the target's coordinates (the official code exports it in the
+unit-edge frame). No re-meshing: the target's own triangles are subdivided, so open meshes, several
+components and any genus work (boundary edges are handled by the face neighbourhood's substitute
+opposite vertex).
 """
 
 from __future__ import annotations
@@ -64,6 +72,7 @@ class DGTSTransfer(NamedTuple):
       level_vertices: with ``per_level=True``, one ``[S, V_l, 3]`` float64 array per level run:
         that level's output (target coordinates, before subdivision); else empty.
       level_faces: the matching ``[F_l, 3]`` triangles; else empty.
+      stop_level: the last generator level run.
     """
 
     vertices: np.ndarray
@@ -74,6 +83,7 @@ class DGTSTransfer(NamedTuple):
     start_level: int = 0
     level_vertices: tuple = ()
     level_faces: tuple = ()
+    stop_level: int = -1
 
     def mesh(self, sample: int = 0) -> Mesh:
         """Sample (or frame) ``sample`` as a :class:`~jmeshtex.Mesh`."""
@@ -91,7 +101,7 @@ class TransferPlan(NamedTuple):
       sizes: vertices per level run (the shapes of the noise, ``[V_l, 3]``).
       center: ``[3]`` the target's centroid (input coordinates).
       factor: input-to-output scale: the output's frame is ``(x − center) · factor``.
-      start_level: the first generator run.
+      start_level: the first generator run (the last is ``start_level + len(sizes) − 1``).
       scale_factor: the rescaling between levels (``Config.scale_factor``).
     """
 
@@ -103,6 +113,11 @@ class TransferPlan(NamedTuple):
     factor: float
     start_level: int
     scale_factor: float = 2.0
+
+    @property
+    def stop_level(self) -> int:
+        """The last generator level run."""
+        return self.start_level + len(self.sizes) - 1
 
     def to_target(
         self, vertices: Float[Array, "Vn 3"], level: int | None = None
@@ -118,23 +133,28 @@ class TransferPlan(NamedTuple):
         return np.asarray(vertices, np.float64) / factor + self.center
 
 
-def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -> TransferPlan:
-    """Prepare a target mesh for the generators ``start_level … L−1`` (host side, once per target).
+def plan_transfer(
+    model: Model, target: Mesh | tuple, *, start_level: int = 0, stop_level: int | None = None
+) -> TransferPlan:
+    """Prepare a target mesh for the generators ``start_level … stop_level`` (host side, once per target).
 
     The target is scaled about its centroid so its mean edge is 1 (the frame the generators were
-    trained in), and the connectivity of ``L − start_level`` levels of midpoint subdivision is built.
+    trained in), and the connectivity of ``stop_level − start_level + 1`` levels of midpoint
+    subdivision is built.
 
     Args:
       model: a trained :class:`~jmeshtex.dgts.Model`.
       target: a :class:`~jmeshtex.Mesh` or ``(vertices [V, 3], faces [F, 3])`` (open or closed, any
         genus, any scale and placement).
       start_level: first generator to run (0: coarsest).
+      stop_level: last generator to run, in ``[start_level, L − 1]``; None: the last (``L − 1``).
 
     Returns:
       :class:`TransferPlan`, the input of :func:`run_plan`.
 
     Raises:
-      InputError: a bad ``start_level``, an untrained model, or a target that is not a mesh;
+      InputError: a bad ``start_level`` or ``stop_level``, an untrained model, or a target that is
+        not a mesh;
       MeshError: (a subclass) an invalid target.
 
     Example:
@@ -157,11 +177,12 @@ def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -
         raise InputError(
             f"start_level must be an int in [0, {L - 1}] (the model has {L} levels), got {start_level!r}"
         )
+    stop = _stop(model, start_level, stop_level)
     v = np.asarray(v, np.float64)
     f = np.asarray(f, np.int64)
     center = v.mean(axis=0)
     scale = 1.0 / mean_edge_length(v, f)
-    n = L - int(start_level)
+    n = stop - int(start_level) + 1
     geos, faces_all = hierarchy_geometry(f, len(v), n)
     sizes = [len(v)]
     for g in geos[:-1]:
@@ -177,6 +198,63 @@ def plan_transfer(model: Model, target: Mesh | tuple, *, start_level: int = 0) -
         int(start_level),
         float(model.config.scale_factor),
     )
+
+
+def _stop(model: Model, start_level: int, stop_level: int | None) -> int:
+    """``stop_level`` checked against the model and the start level (None: the last level)."""
+    L = model.num_levels
+    if stop_level is None:
+        return L - 1
+    if not is_int(stop_level, 0) or not int(start_level) <= stop_level <= L - 1:
+        raise InputError(
+            f"stop_level must be an int in [start_level, {L - 1}] = [{start_level}, {L - 1}] "
+            f"(the model has {L} levels), got {stop_level!r}"
+        )
+    return int(stop_level)
+
+
+#: the official inference levels, ``--gen-levels`` (``options.py``, default ``[1, 4]``): the
+#: generators 1 … 4, clipped to the model by :func:`official_gen_levels`
+OFFICIAL_GEN_LEVELS = (1, 4)
+
+
+def official_gen_levels(
+    model: Model, gen_levels: Sequence[int] = OFFICIAL_GEN_LEVELS
+) -> tuple[int, int]:
+    """``(start_level, stop_level)`` as the official inference takes them from ``--gen-levels``.
+
+    The official ``Mesh2Mesh.trim``: a stop level below 0 or past the model's last level becomes the
+    last level, and a start level past the stop level becomes the stop level. With the default
+    ``[1, 4]`` a 5-level model runs its generators 1 … 4, a 3-level model 1 … 2.
+
+    Args:
+      model: a trained model (``L`` levels).
+      gen_levels: ``(start, stop)``, the official ``--gen-levels`` (default ``[1, 4]``).
+
+    Returns:
+      ``(start_level, stop_level)`` for :func:`transfer` / :func:`interpolate`.
+
+    Raises:
+      InputError: not two ints, or a negative start level.
+
+    Example:
+      >>> from jmeshtex.dgts import Config
+      >>> from jmeshtex.dgts.core import init_level
+      >>> c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+      >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(3))
+      >>> model = Model(c, gs, gs, np.zeros((12, 3), np.float32))
+      >>> official_gen_levels(model), official_gen_levels(model, (4, 7))
+      ((1, 2), (2, 2))
+    """
+    if len(gen_levels) != 2 or not all(is_int(x) for x in gen_levels) or int(gen_levels[0]) < 0:
+        raise InputError(f"gen_levels must be two ints (start >= 0, stop), got {gen_levels!r}")
+    L = model.num_levels
+    if L == 0:
+        raise InputError("the model has no trained level: train it first")
+    start, stop = int(gen_levels[0]), int(gen_levels[1])
+    if stop < 0 or stop > L - 1:
+        stop = L - 1
+    return min(start, stop), stop
 
 
 @jax.jit(static_argnums=(0, 1, 2, 3, 4))
@@ -199,7 +277,7 @@ def run_plan(
 ) -> Float[Array, "Vn 3"]:
     """Run the generators on a prepared target with the given noise (jit-compiled, pure JAX).
 
-    .. math:: v_{l+1} = s\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start} \\ldots L-1
+    .. math:: v_{l+1} = s\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start} \\ldots \\text{stop}
 
     Args:
       model: the :class:`~jmeshtex.dgts.Model` the plan was made for.
@@ -224,7 +302,7 @@ def run_plan(
     if len(noise) != len(plan.sizes):
         raise InputError(f"run_plan: got {len(noise)} noises for {len(plan.sizes)} levels")
     c = model.config
-    params = tuple(model.generators[plan.start_level :])
+    params = tuple(model.generators[plan.start_level : plan.stop_level + 1])
     return _generate_jit(
         c.scale_factor,
         c.negative_slope,
@@ -238,8 +316,11 @@ def run_plan(
     )
 
 
-def output_faces(model: Model, num_faces: int, start_level: int) -> int:
-    """Faces of a transfer's output: ``F · 4^{L − 1 − start}`` (midpoint subdivision 1 → 4 per level).
+def output_faces(
+    model: Model, num_faces: int, start_level: int, stop_level: int | None = None
+) -> int:
+    """Faces of a transfer's output: ``F · 4^{stop − start}`` (midpoint subdivision 1 → 4 per level;
+    ``stop_level`` None: the last level, ``L − 1``).
 
     Example:
       >>> from jmeshtex.dgts import Config
@@ -249,7 +330,8 @@ def output_faces(model: Model, num_faces: int, start_level: int) -> int:
       >>> output_faces(Model(c, gs, gs, np.zeros((12, 3), np.float32)), 100, 0)
       1600
     """
-    return int(num_faces) * 4 ** (model.num_levels - 1 - int(start_level))
+    stop = model.num_levels - 1 if stop_level is None else int(stop_level)
+    return int(num_faces) * 4 ** (stop - int(start_level))
 
 
 def matching_level(model: Model, num_faces: int) -> int:
@@ -260,10 +342,11 @@ def matching_level(model: Model, num_faces: int) -> int:
 
     (``V_0`` the template's vertices, the rows of ``z*``; a closed template has ``F_0 ≈ 2 V_0``.)
     Equal face counts mean equal mean edges relative to the surface's size, so the generator that
-    starts sees a shape as coarse, in its own edges, as the one it was trained on. Level 0 is
-    skipped (the official code starts at level 1, the paper at 2–3): its generator lays out the
-    training shape itself and, with ``Config.reconstruction_start`` = 1, never learns to leave a
-    given shape alone.
+    starts sees a shape as coarse, in its own edges, as the one it was trained on. This choice is
+    jmeshtex's own (the official code starts where ``--gen-levels`` says, level 1 by default,
+    whatever the target: :func:`official_gen_levels`). Level 0 is skipped, as the official default
+    does (the paper starts at 2–3): its generator lays out the training shape itself and, with
+    ``Config.reconstruction_start`` = 1, never learns to leave a given shape alone.
 
     Example:
       >>> from jmeshtex.dgts import Config
@@ -280,15 +363,19 @@ def matching_level(model: Model, num_faces: int) -> int:
     return int(min(max(s, min(1, L - 1)), L - 1))
 
 
-def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000) -> int:
-    """The default start level: :func:`matching_level`, raised until the output fits ``max_faces``.
+def choose_start_level(
+    model: Model, num_faces: int, *, max_faces: int = 500_000, stop_level: int | None = None
+) -> int:
+    """jmeshtex's default start level (not the official one, which is 1: :func:`official_gen_levels`):
+    :func:`matching_level`, raised until the output fits ``max_faces``.
 
-    .. math:: s = \\min\\{\\,s \\in [s_m, L) : F \\cdot 4^{L-1-s} \\le F_{\\max}\\,\\}
+    .. math:: s = \\min\\{\\,s \\in [\\min(s_m, t), t] : F \\cdot 4^{t-s} \\le F_{\\max}\\,\\}
 
     Args:
       model: the trained model (``L`` levels).
       num_faces: faces of the target.
       max_faces: the face budget of the output.
+      stop_level: the last level to run, ``t`` (None: ``L − 1``).
 
     Returns:
       The start level.
@@ -311,8 +398,9 @@ def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000
         raise InputError("the model has no trained level: train it first")
     if not is_int(max_faces, 1):
         raise InputError(f"max_faces must be a positive int, got {max_faces!r}")
-    for start in range(matching_level(model, num_faces), L):
-        if output_faces(model, num_faces, start) <= max_faces:
+    stop = _stop(model, 0, stop_level)
+    for start in range(min(matching_level(model, num_faces), stop), stop + 1):
+        if output_faces(model, num_faces, start, stop) <= max_faces:
             return start
     raise FaceBudgetError(
         f"the target has {num_faces} faces: even from the last level (no subdivision) the output "
@@ -320,20 +408,30 @@ def choose_start_level(model: Model, num_faces: int, *, max_faces: int = 500_000
     )
 
 
-def _resolve_start(model: Model, target, start_level: int | None, max_faces: int | None) -> int:
+def _resolve_start(
+    model: Model,
+    target,
+    start_level: int | None,
+    max_faces: int | None,
+    stop_level: int | None = None,
+) -> int:
     _, f = as_mesh(target, what="target")
     F = int(np.shape(f)[0])
     if start_level is None:
-        return choose_start_level(model, F, max_faces=500_000 if max_faces is None else max_faces)
-    if (
-        max_faces is not None
-        and 0 <= start_level < model.num_levels
-        and output_faces(model, F, start_level) > max_faces
-    ):
-        raise FaceBudgetError(
-            f"start_level={start_level} on {F} faces gives {output_faces(model, F, start_level)} "
-            f"faces, over max_faces={max_faces}; use start_level=None to choose one that fits"
+        return choose_start_level(
+            model,
+            F,
+            max_faces=500_000 if max_faces is None else max_faces,
+            stop_level=stop_level,
         )
+    if max_faces is not None and is_int(start_level, 0) and start_level < model.num_levels:
+        stop = _stop(model, start_level, stop_level)
+        if output_faces(model, F, start_level, stop) > max_faces:
+            raise FaceBudgetError(
+                f"start_level={start_level} on {F} faces gives "
+                f"{output_faces(model, F, start_level, stop)} faces, over max_faces={max_faces}; "
+                "use start_level=None to choose one that fits"
+            )
     return start_level
 
 
@@ -351,7 +449,7 @@ def _synthesise(
     """Run the generators of ``plan`` once per noise list in ``draws`` (one ``[V_l, 3]`` array per level
     run) and map the results back to the target's frame."""
     c = model.config
-    params = tuple(model.generators[plan.start_level :])
+    params = tuple(model.generators[plan.start_level : plan.stop_level + 1])
     outs = [
         _generate_jit(
             c.scale_factor,
@@ -388,11 +486,14 @@ def _synthesise(
         plan.start_level,
         levels,
         tuple(plan.faces) if per_level else (),
+        plan.stop_level,
     )
 
 
 #: levels run with fresh noise by default, from the start level on (the official ``growing`` and
-#: ``animate``: ``zero_places = (0, 0, 1, 1, 1)``, amirhertz/geometric-textures ``dgts_base.py``)
+#: ``animate``: ``zero_places = (0, 0, 1, 1, 1)``, amirhertz/geometric-textures ``dgts_base.py``).
+#: That tuple has 5 entries, so an official run of more than 5 levels gets fresh noise again from
+#: its 6th level on; jmeshtex keeps zero noise there (a default model has 5 levels)
 OFFICIAL_NOISY_LEVELS = 2
 
 
@@ -418,6 +519,7 @@ def transfer(
     *,
     key: PRNGKey,
     start_level: int | None = None,
+    stop_level: int | None = None,
     num_samples: int = 1,
     max_faces: int | None = 500_000,
     zero_noise_from: int | None = None,
@@ -425,9 +527,13 @@ def transfer(
 ) -> DGTSTransfer:
     """Synthesise the learned texture on a target mesh, ``num_samples`` times with different noise.
 
-    By default as the official code and the paper transfer: from the level whose training mesh has
-    the target's resolution (not the coarsest), with noise on the first two levels run only, since
-    the coarse generators were trained on one shape each and the finer ones shape the texture.
+    Noise on the first two levels run only, as the official code (``zero_places = (0, 0, 1, 1,
+    1)``), since the coarse generators were trained on one shape each and the finer ones shape the
+    texture. The start level by default is jmeshtex's own choice, the level whose training mesh has
+    the target's resolution (:func:`~jmeshtex.dgts.core.choose_start_level`); the official code
+    runs ``--gen-levels``, default ``[1, 4]``, whatever the target:
+    ``start, stop = official_gen_levels(model)`` then ``transfer(model, target,
+    start_level=start, stop_level=stop, key=key)`` (``1`` and ``min(4, L − 1)``).
 
     The texture's period is fixed in mean edges of each level, so the target's resolution sets its
     size on the surface. Choose it so the target is no more curved per edge than the training mesh:
@@ -439,8 +545,8 @@ def transfer(
     texture is smaller relative to the shape and the level that lays it out sees a subdivided
     input, as in training: the 24-edge torus from level 1 gets 0.99× the oracle's density.
 
-    .. math:: v_{l+1} = 2\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start\\_level} \\ldots L-1,
-       \\quad v_{\\text{start}} = \\text{target} / \\bar\\ell
+    .. math:: v_{l+1} = 2\\,U_l\\big(v_l + G_l(v_l, z_l)\\big),\\quad l = \\text{start\\_level} \\ldots
+       \\text{stop\\_level},\\quad v_{\\text{start}} = (\\text{target} - \\bar v) / \\bar\\ell
 
     Args:
       model: a trained :class:`~jmeshtex.dgts.Model`.
@@ -448,9 +554,12 @@ def transfer(
         placement; open or closed, any genus).
       key: PRNG key of the noise.
       start_level: first generator to run (0: coarsest); the target is treated as a level-``start``
-        mesh, so ``L − start_level − 1`` subdivisions follow. None: :func:`~jmeshtex.dgts.core.choose_start_level` (the
-        level matching the target's resolution, at least 1, within ``max_faces``; the result's
-        ``start_level`` says which).
+        mesh, so ``stop_level − start_level`` subdivisions follow. None: jmeshtex's default,
+        :func:`~jmeshtex.dgts.core.choose_start_level` (the level matching the target's
+        resolution, at least 1, within ``max_faces``; the result's ``start_level`` says which);
+        the official default is 1.
+      stop_level: last generator to run, in ``[start_level, L − 1]`` (the official
+        ``--gen-levels`` stop, default 4 clipped to ``L − 1``); None: the last level.
       num_samples: independent noise draws.
       max_faces: face budget of the output (checked for an explicit ``start_level`` too); None: no
         budget (with ``start_level=None`` then 500 000).
@@ -485,8 +594,8 @@ def transfer(
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
     if zero_noise_from is not None:
         _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
-    start = _resolve_start(model, target, start_level, max_faces)
-    plan = plan_transfer(model, target, start_level=start)
+    start = _resolve_start(model, target, start_level, max_faces, stop_level)
+    plan = plan_transfer(model, target, start_level=start, stop_level=stop_level)
     draws = [
         _noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude)
         for s in range(int(num_samples))
@@ -593,6 +702,7 @@ def interpolate(
     *,
     key: PRNGKey,
     start_level: int | None = None,
+    stop_level: int | None = None,
     num_frames: int = 8,
     max_faces: int | None = 500_000,
     zero_noise_from: int | None = None,
@@ -602,7 +712,8 @@ def interpolate(
     .. math:: z(t) = (1 - t)\\, z_a + t\\, z_b,\\qquad t = 0, \\tfrac{1}{N-1}, \\ldots, 1
 
     Args:
-      model, target, start_level, max_faces, zero_noise_from: as :func:`transfer` (both draws).
+      model, target, start_level, stop_level, max_faces, zero_noise_from: as :func:`transfer`
+        (both draws).
       key: PRNG key of ``z_a`` and ``z_b``.
       num_frames: frames including both ends (≥ 2).
 
@@ -624,8 +735,8 @@ def interpolate(
         raise InputError(f"num_frames must be an int >= 2, got {num_frames!r}")
     if zero_noise_from is not None:
         _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
-    start = _resolve_start(model, target, start_level, max_faces)
-    plan = plan_transfer(model, target, start_level=start)
+    start = _resolve_start(model, target, start_level, max_faces, stop_level)
+    plan = plan_transfer(model, target, start_level=start, stop_level=stop_level)
     ka, kb = jax.random.split(key)
     k = start + OFFICIAL_NOISY_LEVELS if zero_noise_from is None else zero_noise_from
     za, zb = _zero_above(

@@ -151,6 +151,9 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
         == 0
     )
     assert "start level 0 (given): 96 target faces -> 384" in capsys.readouterr().out
+    stop = ["--model", str(d), "--target", "torus:8:6", "--start-level", "0", "--stop-level", "0"]
+    assert main(["dgts", "transfer", *stop, "--out", str(tmp_path / "stop")]) == 0
+    assert "start level 0 (given): 96 target faces -> 96" in capsys.readouterr().out
     assert (
         main(
             [

@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh
+from jmeshtex import InputError, Mesh
 from jmeshtex.data import icosahedron, icosphere, torus
 from jmeshtex.dgts import (
     Config,
@@ -147,3 +147,81 @@ def test_training_snapshots_match_the_reconstruction(tiny_meshes):
     )
     with pytest.raises(Exception, match="snapshot_every"):
         train(tiny_meshes, TINY, key=jax.random.key(0), progress=False, snapshot_every=0)
+
+
+def test_official_gen_levels_clip_as_the_official_trim():
+    """``--gen-levels`` (default [1, 4]) through ``Mesh2Mesh.trim``: a stop past the last level (or
+    below 0) becomes the last level, a start past the stop becomes the stop."""
+    from jmeshtex.dgts import official_gen_levels
+    from jmeshtex.dgts._transfer import OFFICIAL_GEN_LEVELS
+
+    assert OFFICIAL_GEN_LEVELS == (1, 4)
+    assert official_gen_levels(_model(5, 12)) == (1, 4)
+    assert official_gen_levels(_model(7, 12)) == (1, 4)
+    assert official_gen_levels(_model(3, 12)) == (1, 2)
+    assert official_gen_levels(_model(1, 12)) == (0, 0)
+    assert official_gen_levels(_model(5, 12), (3, -1)) == (3, 4)
+    assert official_gen_levels(_model(5, 12), (4, 2)) == (2, 2)
+    with pytest.raises(InputError, match="gen_levels"):
+        official_gen_levels(_model(5, 12), (-1, 3))
+
+
+def test_stop_level_runs_the_generators_start_to_stop_and_subdivides_between_only():
+    """``start_level … stop_level``: ``stop − start`` subdivisions, the generators of those levels
+    only (the same result as :func:`generate` on them with the returned noise), noise on the
+    first two levels run."""
+    from jmeshtex.dgts.core import generate, plan_transfer
+
+    model = _model(5, 12)
+    target = icosahedron()
+    res = transfer(model, target, start_level=1, stop_level=3, key=jax.random.key(0))
+    assert (res.start_level, res.stop_level) == (1, 3)
+    assert len(res.faces) == 20 * 4**2 == output_faces(model, 20, 1, 3)
+    assert [bool(np.any(z)) for z in res.noise[0]] == [True, True, False]
+    plan = plan_transfer(model, target, start_level=1, stop_level=3)
+    assert plan.stop_level == 3 and len(plan.sizes) == 3
+    expected = generate(model.generators[1:4], plan.vertices, plan.geometry, res.noise[0])
+    np.testing.assert_allclose(res.vertices[0], plan.to_target(expected), rtol=0, atol=1e-5)
+    # the same levels with stop_level = the last one give one more level and its subdivision
+    full = transfer(model, target, start_level=1, key=jax.random.key(0))
+    assert full.stop_level == 4 and len(full.faces) == 20 * 4**3
+    one = transfer(model, target, start_level=2, stop_level=2, key=jax.random.key(0))
+    assert len(one.faces) == 20 and [bool(np.any(z)) for z in one.noise[0]] == [True]
+    for bad in (0, 5, 1.5):
+        with pytest.raises(InputError, match="stop_level"):
+            transfer(model, target, start_level=1, stop_level=bad, key=jax.random.key(0))
+    frames = interpolate(
+        model, target, start_level=0, stop_level=1, num_frames=2, key=jax.random.key(1)
+    )
+    assert frames.stop_level == 1 and len(frames.faces) == 80
+    # jmeshtex's default start (by face count) respects the stop level and its budget
+    assert transfer(model, icosphere(3), stop_level=2, key=jax.random.key(0)).start_level == 2
+    assert choose_start_level(model, 20 * 4**3, stop_level=2) == 2
+    assert choose_start_level(model, 20, stop_level=3, max_faces=20 * 4) == 2
+
+
+def test_the_official_default_levels_on_the_raw_target_scaled_to_unit_edge():
+    """The official inference (``dgts_base.py`` ``animate``): the raw target to unit edge
+    (``to_unit_edge``: minus the vertex mean, over the mean edge length), the generators
+    ``--gen-levels`` 1 … 4, noise on the first two levels run (``zero_places = (0, 0, 1, 1, 1)``)."""
+    from jmeshtex.dgts import official_gen_levels
+    from jmeshtex.dgts.core import generate, plan_transfer
+
+    model = _model(5, 12)
+    v, f = icosahedron()
+    raw = (np.asarray(v) * 3.7 + [1.0, -2.0, 0.5], f)  # any scale and placement
+    start, stop = official_gen_levels(model)
+    res = transfer(model, raw, start_level=start, stop_level=stop, key=jax.random.key(0))
+    assert (res.start_level, res.stop_level) == (1, 4)
+    assert [bool(np.any(z)) for z in res.noise[0]] == [True, True, False, False]
+    plan = plan_transfer(model, raw, start_level=start, stop_level=stop)
+    edges = np.unique(
+        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1), axis=0
+    )
+    ell = np.linalg.norm(raw[0][edges[:, 0]] - raw[0][edges[:, 1]], axis=1).mean()
+    np.testing.assert_allclose(plan.vertices, (raw[0] - raw[0].mean(0)) / ell, rtol=0, atol=1e-6)
+    out = generate(model.generators[1:5], plan.vertices, plan.geometry, res.noise[0])
+    # the official output is in the unit-edge frame of the target (``export`` divides by 2^level);
+    # jmeshtex maps it back to the target's own coordinates
+    unit = np.asarray(out, np.float64) / 2.0 ** (stop - start)
+    np.testing.assert_allclose(res.vertices[0], unit * ell + raw[0].mean(0), rtol=0, atol=1e-4)
