@@ -5,11 +5,13 @@
 - ``train DIR``: trains the hierarchy with checkpoints in ``DIR/checkpoints`` (run it again to
   resume), saves the model into ``DIR/model`` and writes a sample generated from the template
   (``DIR/sample.obj`` / ``.png``).
-- ``transfer --model DIR --target M [--start-level l | --max-faces N] --samples n --out OUT``:
-  ``OUT/sample_XX.obj`` and ``OUT/transfer.png`` (coloured by displacement along the normal). Without
-  ``--start-level`` the level whose training mesh has the target's face count (at least 1) is
-  chosen, raised until the output fits ``--max-faces`` (default 500000), and printed; noise goes on
-  the first two levels run (the official practice), ``--zero-noise-from k`` zeroes it from level k.
+- ``transfer --model DIR --target M [--start-level l | --max-faces N] [--stop-level s] --samples n
+  --out OUT``: ``OUT/sample_XX.obj`` and ``OUT/transfer.png`` (coloured by displacement along the
+  normal). Without ``--start-level`` the level whose training mesh has the target's face count (at
+  least 1) is chosen (jmeshtex's own default; the official code starts at ``--gen-levels``' 1),
+  raised until the output fits ``--max-faces`` (default 500000), and printed; ``--stop-level``
+  stops early (the official ``--gen-levels`` stop); noise goes on the first two levels run (the
+  official practice), ``--zero-noise-from k`` zeroes it from level k.
 - ``interpolate --model DIR --target M --frames n --out OUT``: ``OUT/frame_XX.obj`` and
   ``OUT/interpolate.png``.
 
