@@ -4,10 +4,10 @@ A colour seam measure does not see stripes that meet at an angle with matching c
 reads the *direction* of the texture on every face and compares it with the faces across each edge.
 
 **Per face.** The texture's luminance gradient ``g`` (Sobel, in texel coordinates ``(x, y) = (u S,
-(1 − v) S)``) is taken at every texel whose 3×3 stencil lies inside one UV chart. The gradients of
-the texels of the face's chart within ``radius`` texels of the face's UV centroid are carried to
-3D through the face's map ``M`` (``dP = M dT``, a 3×2 matrix): ``G = M (MᵀM)⁻¹ g``, the surface
-gradient. Their structure tensor ``S_f = Σ G Gᵀ`` has the stripe normal as dominant eigenvector
+(1 − v) S)``) is taken at every texel whose 3×3 stencil lies inside one UV chart and carried to 3D
+through the map ``M`` of the texel's own face (``dP = M dT``, a 3×2 matrix): ``G = M (MᵀM)⁻¹ g``,
+the surface gradient. Over the texels of the face's chart within ``radius`` texels of the face's UV
+centroid, the structure tensor ``S_f = Σ G Gᵀ``, projected on the face's plane, has the stripe normal as dominant eigenvector
 ``ν_f`` (a line, sign-free) and the coherence ``(λ₁ − λ₂) / (λ₁ + λ₂)``.
 
 **Per edge.** Across an edge with unit direction ``e`` shared by faces ``f`` and ``g``, ``ν_g`` is
@@ -199,13 +199,23 @@ def seam_orientation(
     good = usable & (np.abs(np.linalg.det(MtM)) > 1e-300)
     Q = M @ np.linalg.inv(np.where(good[:, None, None], MtM, np.eye(2)))  # G = Q g
 
+    # every usable texel's surface gradient, through its own face's map
+    face_px = np.full((S, S), -1, np.int64)
+    face_px[raster.row, raster.col] = raster.face
+    ok &= face_px >= 0
+    ok &= good[np.maximum(face_px, 0)]
+    Qp = Q[np.maximum(face_px, 0)]  # [S, S, 3, 2]
+    G = Qp[..., 0] * gx[..., None] + Qp[..., 1] * gy[..., None]  # [S, S, 3]
+    G = np.where(ok[..., None], G, 0.0)
+    outer = G[..., :, None] * G[..., None, :]  # [S, S, 3, 3]
+
     centre = tex.mean(axis=1) - 0.5  # texel-centre coordinates (col, row)
     r = int(np.ceil(radius))
     off = np.arange(-r, r + 1)
     dc, dr = np.meshgrid(off, off)
     base_c = np.round(centre[:, 0]).astype(np.int64)
     base_r = np.round(centre[:, 1]).astype(np.int64)
-    J = np.zeros((F, 2, 2))
+    S3 = np.zeros((F, 3, 3))
     count = np.zeros(F)
     for ddr, ddc in zip(dr.ravel(), dc.ravel(), strict=True):
         rr, cc = base_r + ddr, base_c + ddc
@@ -213,13 +223,11 @@ def seam_orientation(
         rr, cc = np.clip(rr, 0, S - 1), np.clip(cc, 0, S - 1)
         near = (cc - centre[:, 0]) ** 2 + (rr - centre[:, 1]) ** 2 <= radius**2
         use = inside & near & ok[rr, cc] & (chart_px[rr, cc] == chart)
-        x, y = np.where(use, gx[rr, cc], 0.0), np.where(use, gy[rr, cc], 0.0)
-        J[:, 0, 0] += x * x
-        J[:, 0, 1] += x * y
-        J[:, 1, 1] += y * y
+        S3 += np.where(use[:, None, None], outer[rr, cc], 0.0)
         count += use
-    J[:, 1, 0] = J[:, 0, 1]
-    S3 = Q @ J @ np.swapaxes(Q, 1, 2)  # [F, 3, 3] surface structure tensor
+    fn = _face_normals(V, faces)
+    proj = np.eye(3) - fn[:, :, None] * fn[:, None, :]  # onto the face's plane
+    S3 = proj @ S3 @ proj  # [F, 3, 3] surface structure tensor
     w, vec = np.linalg.eigh(S3)
     normal = vec[:, :, 2]
     lam1, lam2 = w[:, 2], w[:, 1]
@@ -232,7 +240,6 @@ def seam_orientation(
     f, g = pairs[:, 0], pairs[:, 1]
     e = V[verts[:, 1]] - V[verts[:, 0]]
     e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-300)
-    fn = _face_normals(V, faces)
     bf, bg = np.cross(fn[f], e), np.cross(fn[g], e)
     vg = normal[g]
     unfolded = np.sum(vg * e, 1)[:, None] * e + np.sum(vg * bg, 1)[:, None] * bf
