@@ -838,6 +838,8 @@ def orientation(
                         texture, colors, loss, cpu = z["texture"], z["colors"], z["loss"], z["cpu"]
                 else:
                     c0 = time.process_time()
+                    # the 2D image does not depend on the mesh: one optimisation serves every mesh
+                    shared = work / "uv2d" / f"{ex_name}_{size}_{steps}_orientation"
                     r = run(
                         mesh,
                         exemplar,
@@ -846,6 +848,7 @@ def orientation(
                         surface=surface,
                         weights=weights,
                         progress=False,
+                        **({"checkpoint": shared} if method == "uv2d" else {}),
                     )
                     texture, colors, loss = r.texture, r.colors, r.final_loss
                     cpu = time.process_time() - c0
@@ -886,14 +889,90 @@ def orientation(
                 f"| {r['mesh']} | {r['exemplar']} | {label} | **{m['seam']:.3f}** | "
                 f"{m['interior']:.3f} | {m['seam'] / c['seam']:.2f} | {c['seam']:.3f} / "
                 f"{c['interior']:.3f} | {m['seam_ratio']:.3f} | {m['final_loss']:.4g} | "
-                f"{m['cpu_s']:.0f} |"
+                + (f"{m['cpu_s']:.0f} |" if np.isfinite(m["cpu_s"]) else "— |")
             )
+    lines.append(
+        "\nCPU-s: process CPU time of the call (a UV-space 2D run read back from the shared "
+        "checkpoint costs only its scoring; — where the texture came from an earlier identical "
+        "run whose time was not recorded)."
+    )
     lines.append(f"\nLoad average at the end {os.getloadavg()[0]:.1f} (shared 2-core machine).")
     text = "\n".join(lines) + "\n"
     print(text)
     directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
     (directory / "surfacecnn_orientation.md").write_text(text)
     (directory / "surfacecnn_orientation.json").write_text(json.dumps(rows, indent=1) + "\n")
+
+
+def orientation_figure(
+    mesh_name: str, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+) -> None:
+    """Stripes on a protocol mesh from the ``--orientation`` textures in ``work``: the surface CNN
+    and UV-space 2D synthesis, a whole view and a close view across a UV seam (with the charts
+    seen from the same camera), and both UV images. Writes
+    ``results/surfacecnn_orientation_<mesh>.png``."""
+    from jmeshtex import render
+    from jmeshtex.metrics import seam_orientation, uv_charts
+
+    mesh = _protocol_mesh(mesh_name, work)
+    tex = {}
+    for method in ("surface", "uv2d"):
+        path = work / "orientation" / f"{mesh_name}_stripes_{size}_{steps}_{method}.npz"
+        with np.load(path) as z:
+            tex[method] = np.asarray(z["texture"], np.float64)
+    up = PROTOCOL_MESHES[mesh_name][1]
+    px = (384, 384)
+    whole = render.orbit_cameras(mesh, azimuths=[60.0], elevations=(15.0,), up=up, size=px)[0]
+    # the close view: the front-facing seam edge whose two faces have the most coherent stripes
+    o = seam_orientation(mesh, tex["surface"])
+    faces = np.asarray(mesh.faces)
+    V = np.asarray(mesh.vertices, np.float64)
+    centre = V[faces].mean(axis=1)
+    n = np.cross(V[faces[:, 1]] - V[faces[:, 0]], V[faces[:, 2]] - V[faces[:, 0]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    eye = np.asarray(whole.eye, np.float64)
+    view = eye - centre
+    facing = np.sum(n * view, axis=1) / np.linalg.norm(view, axis=1)
+    pair = o.edge_faces
+    score = np.where(
+        o.edge_seam & np.isfinite(o.edge_alignment) & (facing[pair].min(axis=1) > 0.85),
+        o.coherence[pair].min(axis=1),
+        -1.0,
+    )
+    best = pair[int(np.argmax(score))]
+    target = centre[best].mean(axis=0)
+    normal = n[best].sum(axis=0)
+    normal /= np.linalg.norm(normal)
+    radius = float(np.linalg.norm(V - V.mean(axis=0), axis=1).max())
+    close = render.look_at(
+        target + 0.6 * radius * normal,
+        target,
+        up=up,
+        half_height=0.3 * radius,
+        size=px,
+    )
+    chart = uv_charts(faces, mesh.uv)
+    palette = np.random.default_rng(1).uniform(0.25, 1.0, size=(chart.max() + 1, 3))
+    big = lambda image: np.repeat(np.repeat(image, 3, axis=0), 3, axis=1)  # noqa: E731 (readable)
+    panels = [("exemplar (stripes, period 8 px)", big(_exemplar("stripes", 128)))]
+    for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
+        textured = Mesh(mesh.vertices, mesh.faces, uv=mesh.uv, texture=tex[method])
+        views = render.render_views(textured, [whole, close])
+        panels += [(label, views[0]), (f"{label}, close to a seam", views[1])]
+    panels.append(
+        ("charts, same close view", render.render(mesh, close, face_colors=palette[chart]))
+    )
+    panels += [
+        ("surface CNN, UV image", big(tex["surface"])),
+        ("UV-space 2D, UV image", big(tex["uv2d"])),
+    ]
+    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    render.figure(
+        panels,
+        columns=4,
+        title=f"{mesh_name}, stripes, {size}x{size} texels, {steps} steps",
+        path=directory / f"surfacecnn_orientation_{mesh_name}.png",
+    )
 
 
 def speck_texels(rows: list[dict], work: pathlib.Path) -> None:
@@ -1086,7 +1165,26 @@ def _write_quality(rows, spreads, size, steps, out):
 if __name__ == "__main__":
     import sys
 
-    if "--orientation" in sys.argv:
+    if "--orientation-figure" in sys.argv:
+        fp = argparse.ArgumentParser()
+        fp.add_argument("--orientation-figure", default="spot")
+        fp.add_argument("--size", type=int, default=128)
+        fp.add_argument("--orientation-steps", type=int, default=150)
+        fp.add_argument(
+            "--work",
+            type=pathlib.Path,
+            default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
+        )
+        fp.add_argument("--out", default=None)
+        fa = fp.parse_args()
+        orientation_figure(
+            fa.orientation_figure,
+            fa.size,
+            fa.orientation_steps,
+            fa.work,
+            pathlib.Path(fa.out) if fa.out else None,
+        )
+    elif "--orientation" in sys.argv:
         op = argparse.ArgumentParser()
         op.add_argument("--orientation", action="store_true")
         op.add_argument("--meshes", default=",".join(PROTOCOL_MESHES))
