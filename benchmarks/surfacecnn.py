@@ -829,7 +829,12 @@ def orientation(
                 "steps": steps,
                 "texels": int(surface.atlas.num_texels),
                 "prepare_s": prep,
-                "control": {"seam": control.seam, "interior": control.interior},
+                "control": {
+                    "seam": control.seam,
+                    "seam_smooth": control.seam_at(0.0, 30.0),
+                    "seam_crease": control.seam_at(30.0, 180.0),
+                    "interior": control.interior,
+                },
             }
             for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
                 path = work / "orientation" / f"{mesh_name}_{ex_name}_{size}_{steps}_{method}.npz"
@@ -860,6 +865,8 @@ def orientation(
                 )
                 row[method] = {
                     "seam": o.seam,
+                    "seam_smooth": o.seam_at(0.0, 30.0),
+                    "seam_crease": o.seam_at(30.0, 180.0),
                     "interior": o.interior,
                     "seam_edges": o.seam_edges,
                     "seam_ratio": float(seams["ratio"]),
@@ -876,10 +883,12 @@ def orientation(
         "the face's chart), unfolded across the edge; seam edges vs interior edges; random line "
         "fields give 2/π = 0.637. Control: stripes along x (period 8 texels) baked into the same "
         "atlas, the seam alignment the layout allows. Seam ratio: colour difference across seams "
-        "over inside charts.\n",
+        "over inside charts. Seams < 30° / ≥ 30°: the seam alignment over seam edges whose faces "
+        "meet at a dihedral angle below / above 30° (smooth seams / creases and coarse bends).\n",
         "| mesh | exemplar | method | seam alignment | interior | seam / control seam | "
-        "control seam / interior | seam ratio | loss | CPU-s |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "control seam / interior | seams < 30° / ≥ 30° dihedral (control) | seam ratio | loss | "
+        "CPU-s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         c = r["control"]
@@ -888,7 +897,9 @@ def orientation(
             lines.append(
                 f"| {r['mesh']} | {r['exemplar']} | {label} | **{m['seam']:.3f}** | "
                 f"{m['interior']:.3f} | {m['seam'] / c['seam']:.2f} | {c['seam']:.3f} / "
-                f"{c['interior']:.3f} | {m['seam_ratio']:.3f} | {m['final_loss']:.4g} | "
+                f"{c['interior']:.3f} | {m['seam_smooth']:.3f} / {m['seam_crease']:.3f} "
+                f"({c['seam_smooth']:.3f} / {c['seam_crease']:.3f}) | "
+                f"{m['seam_ratio']:.3f} | {m['final_loss']:.4g} | "
                 + (f"{m['cpu_s']:.0f} |" if np.isfinite(m["cpu_s"]) else "— |")
             )
     lines.append(

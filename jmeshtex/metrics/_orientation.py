@@ -51,6 +51,8 @@ class SeamOrientation(NamedTuple):
       edge_faces: ``[E, 2]`` the two faces of every interior edge.
       edge_alignment: ``[E]`` alignment per interior edge (NaN where a face has no direction).
       edge_seam: ``[E]`` bool, True on seam edges.
+      edge_dihedral: ``[E]`` angle between the two faces' normals, degrees (0 on a flat sheet;
+        the control's alignment drops over creases, where level lines kink).
     """
 
     seam: float
@@ -62,6 +64,13 @@ class SeamOrientation(NamedTuple):
     edge_faces: Int[np.ndarray, "E 2"]
     edge_alignment: Float[np.ndarray, " E"]
     edge_seam: np.ndarray
+    edge_dihedral: Float[np.ndarray, " E"]
+
+    def seam_at(self, low: float, high: float) -> float:
+        """Mean seam alignment over seam edges with a dihedral angle in ``[low, high)`` degrees."""
+        keep = self.edge_seam & (self.edge_dihedral >= low) & (self.edge_dihedral < high)
+        keep &= np.isfinite(self.edge_alignment)
+        return float(self.edge_alignment[keep].mean()) if keep.any() else float("nan")
 
 
 def _luminance(texture: np.ndarray) -> np.ndarray:
@@ -257,6 +266,7 @@ def seam_orientation(
         edge_faces=pairs,
         edge_alignment=align,
         edge_seam=seam,
+        edge_dihedral=np.degrees(np.arccos(np.clip(np.sum(fn[f] * fn[g], axis=1), -1.0, 1.0))),
     )
 
 

@@ -48,6 +48,8 @@ def test_a_fold_does_not_change_alignment():
     folded = Mesh(v, mesh.faces, uv=mesh.uv)
     r = seam_orientation(folded, stripe_texture(folded, 128, direction=(0.3, 1, 0), period=0.1))
     assert r.seam > 0.98
+    np.testing.assert_allclose(r.edge_dihedral[r.edge_seam], np.degrees(0.6), atol=1e-6)
+    assert r.seam_at(30.0, 180.0) == r.seam and np.isnan(r.seam_at(0.0, 30.0))
 
 
 def test_rejects_bad_input():
