@@ -792,6 +792,19 @@ def _orientation_control(mesh: Mesh, surface, config: Config) -> np.ndarray:
     )
 
 
+def _agreement(result, control) -> tuple[float, float]:
+    """Mean ``|⟨ν_result, ν_control⟩|`` on the same face (both
+    :class:`~jmeshtex.metrics.SeamOrientation`), over the faces of seam edges and over the other
+    faces: whether the texture follows the control's (the frames') direction at seams as well as
+    inside charts, without the edge comparison's first-order loss where the control itself turns."""
+    pairs = result.edge_faces
+    at_seam = np.zeros(len(result.normal), bool)
+    at_seam[pairs[result.edge_seam].ravel()] = True
+    both = (np.abs(result.normal).sum(axis=1) > 0) & (np.abs(control.normal).sum(axis=1) > 0)
+    cos = np.abs(np.sum(result.normal * control.normal, axis=1))
+    return float(cos[both & at_seam].mean()), float(cos[both & ~at_seam].mean())
+
+
 def orientation(
     meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
 ) -> None:
@@ -860,6 +873,7 @@ def orientation(
                     path.parent.mkdir(parents=True, exist_ok=True)
                     np.savez(path, texture=texture, colors=colors, loss=loss, cpu=cpu)
                 o = seam_orientation(laid, texture)
+                agree_seam, agree_inside = _agreement(o, control)
                 seams = seam_ratio(
                     colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry
                 )
@@ -868,6 +882,8 @@ def orientation(
                     "seam_smooth": o.seam_at(0.0, 30.0),
                     "seam_crease": o.seam_at(30.0, 180.0),
                     "interior": o.interior,
+                    "agreement_seam_faces": agree_seam,
+                    "agreement_other_faces": agree_inside,
                     "seam_edges": o.seam_edges,
                     "seam_ratio": float(seams["ratio"]),
                     "final_loss": float(loss),
@@ -884,11 +900,14 @@ def orientation(
         "fields give 2/π = 0.637. Control: stripes along x (period 8 texels) baked into the same "
         "atlas, the seam alignment the layout allows. Seam ratio: colour difference across seams "
         "over inside charts. Seams < 30° / ≥ 30°: the seam alignment over seam edges whose faces "
-        "meet at a dihedral angle below / above 30° (smooth seams / creases and coarse bends).\n",
+        "meet at a dihedral angle below / above 30° (smooth seams / creases and coarse bends). "
+        "Agreement: |cos| between the texture's and the control's stripe normals on the same "
+        "face (the control's normal is the frames' projected x), over faces of seam edges and "
+        "over the other faces.\n",
         "| mesh | exemplar | method | seam alignment | interior | seam / control seam | "
-        "control seam / interior | seams < 30° / ≥ 30° dihedral (control) | seam ratio | loss | "
-        "CPU-s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "control seam / interior | seams < 30° / ≥ 30° dihedral (control) | agreement with the "
+        "control: seam faces / other faces | seam ratio | loss | CPU-s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         c = r["control"]
@@ -899,6 +918,7 @@ def orientation(
                 f"{m['interior']:.3f} | {m['seam'] / c['seam']:.2f} | {c['seam']:.3f} / "
                 f"{c['interior']:.3f} | {m['seam_smooth']:.3f} / {m['seam_crease']:.3f} "
                 f"({c['seam_smooth']:.3f} / {c['seam_crease']:.3f}) | "
+                f"{m['agreement_seam_faces']:.3f} / {m['agreement_other_faces']:.3f} | "
                 f"{m['seam_ratio']:.3f} | {m['final_loss']:.4g} | "
                 + (f"{m['cpu_s']:.0f} |" if np.isfinite(m["cpu_s"]) else "— |")
             )
