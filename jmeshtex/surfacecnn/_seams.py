@@ -382,9 +382,9 @@ def tap_fidelity(mesh: Mesh | tuple, surface) -> list[dict]:
       surface: :func:`~jmeshtex.surfacecnn.prepare_surface`'s :class:`~jmeshtex.surfacecnn.Surface`.
 
     Returns:
-      One dict per level: ``{"level": l, "seam": stats, "inside": stats}``, ``stats`` =
-      ``{"nodes", "angle_deg" (median over taps), "length" (median), "self" (share of taps that
-      read the node itself)}`` (NaN where a class has no tap).
+      A list with one dict per level, ``{"level": l, "seam": stats, "inside": stats}``, where
+      ``stats`` holds ``"nodes"``, ``"angle_deg"`` (median over taps), ``"length"`` (median) and
+      ``"self"`` (share of taps that read the node itself); NaN where a class has no tap.
 
     Example:
       >>> from jmeshtex import Mesh
