@@ -27,6 +27,11 @@ Frames section (``--frames``): on Spot (its own UVs) and an xatlas-unwrapped ico
 surface CNN with global, smooth and UV frames against UV-space 2D synthesis (render SIFID-VGG /
 Gram, seam ratio, frame turn across seams). Writes ``results/surfacecnn_frames.{md,json}``.
 
+Orientation section (``--orientation``, issue 58): the protocol meshes' xatlas layouts with a stripes
+exemplar (default 128², 150 steps): orientation across UV seams (:func:`jmeshtex.metrics.seam_orientation`)
+of the surface CNN and UV-space 2D synthesis beside the seamless control and the colour seam ratio.
+Writes ``results/surfacecnn_orientation.{md,json}``.
+
 Seams section (``--seams``): Spot with its own UVs and with xatlas, a grey brick exemplar at native
 resolution: synthesis without and with the coupling of chart-border texels (unread share, seam
 chroma, render specks) and the surface-patch measure with its baselines
@@ -41,6 +46,7 @@ Usage::
     python benchmarks/surfacecnn.py --quality --meshes spot --exemplars brick
     python benchmarks/surfacecnn.py --frames --size 96 --quality-steps 150 --exemplar stripes
     python benchmarks/surfacecnn.py --seams --size 128 --seam-steps 150
+    python benchmarks/surfacecnn.py --orientation --size 128 --orientation-steps 150
 """
 
 from __future__ import annotations
@@ -648,6 +654,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
 
     from jmeshtex import render
     from jmeshtex.io import atomic_write
+    from jmeshtex.metrics import seam_orientation
     from jmeshtex.surfacecnn import synthesize, synthesize_uv
     from jmeshtex.surfacecnn.core import seam_ratio
 
@@ -666,6 +673,9 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         "texels": int(surface.atlas.num_texels),
         "texel_density_spread": _layout_spread(mesh_name, work),
     }
+    laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
+    control = seam_orientation(laid, _orientation_control(mesh, surface, config))
+    row["orientation_control"] = {"seam": control.seam, "interior": control.interior}
     panels = [("exemplar", exemplar)]
     folders = {"surface": cell / "surface", "uv2d": work / "uv2d" / f"{ex_name}_{size}_{steps}"}
     for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
@@ -688,6 +698,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         views = render.render_views(textured, cams, shading="unlit")
         specks = [_specks(v) for v in views]
         patches = _patch_scores(textured, r.texture, exemplar, surface, weights)
+        orient = seam_orientation(textured, r.texture)
         row[method] = {
             "seconds": wall,
             "cpu_s": cpu,
@@ -695,6 +706,8 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
             "final_loss": float(r.final_loss),
             "loss_500_over_250": float(r.losses[-1] / r.losses[len(r.losses) // 2]),
             "seam_ratio": float(seams["ratio"]),
+            "orientation_seam": orient.seam,
+            "orientation_interior": orient.interior,
             "speck_abs": float(np.mean([s["abs"] for s in specks])),
             "speck_local": float(np.mean([s["local"] for s in specks])),
             "patches": patches,
@@ -764,6 +777,235 @@ def quality(
     _write_quality(rows, spreads, size, steps, out)
 
 
+def _orientation_control(mesh: Mesh, surface, config: Config) -> np.ndarray:
+    """The seamless control of the orientation measure on ``surface``'s layout: stripes along the
+    frames' world vector (their normal is the projected ``frame_vector``, the direction a
+    column-sine exemplar's stripe normal takes under the ``"global"`` frames), period 8 texels."""
+    from jmeshtex.metrics import stripe_texture
+
+    laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
+    return stripe_texture(
+        laid,
+        surface.atlas.size,
+        direction=config.frame_vector,
+        period=8.0 * surface.atlas.texel_size,
+    )
+
+
+def _agreement(result, control) -> tuple[float, float]:
+    """Mean ``|⟨ν_result, ν_control⟩|`` on the same face (both
+    :class:`~jmeshtex.metrics.SeamOrientation`), over the faces of seam edges and over the other
+    faces: whether the texture follows the control's (the frames') direction at seams as well as
+    inside charts, without the edge comparison's first-order loss where the control itself turns."""
+    pairs = result.edge_faces
+    at_seam = np.zeros(len(result.normal), bool)
+    at_seam[pairs[result.edge_seam].ravel()] = True
+    both = (np.abs(result.normal).sum(axis=1) > 0) & (np.abs(control.normal).sum(axis=1) > 0)
+    cos = np.abs(np.sum(result.normal * control.normal, axis=1))
+    return float(cos[both & at_seam].mean()), float(cos[both & ~at_seam].mean())
+
+
+def orientation(
+    meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+) -> None:
+    """Orientation across UV seams (:func:`jmeshtex.metrics.seam_orientation`) of the surface CNN
+    and of UV-space 2D synthesis on the protocol's xatlas layouts, beside the seamless control
+    (:func:`_orientation_control`) and the colour seam ratio; textures kept in ``work`` (a rerun
+    only re-scores). Writes ``results/surfacecnn_orientation.{md,json}``."""
+    import json
+
+    from jmeshtex.geometry import tracer_geometry
+    from jmeshtex.metrics import seam_orientation
+    from jmeshtex.surfacecnn import synthesize, synthesize_uv
+    from jmeshtex.surfacecnn.core import seam_ratio
+
+    weights = load_vgg16()
+    levels = required_levels(weights, default_layers(weights))
+    config = Config(size=size, steps=steps)
+    rows = []
+    for mesh_name in meshes:
+        mesh = _protocol_mesh(mesh_name, work)
+        t0 = time.perf_counter()
+        surface = prepare_surface(mesh, size=size, levels=levels)
+        prep = time.perf_counter() - t0
+        geometry = tracer_geometry(mesh.vertices, mesh.faces)
+        laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
+        control = seam_orientation(laid, _orientation_control(mesh, surface, config))
+        for ex_name in exemplars:
+            exemplar = (
+                _exemplar(ex_name, 128) if ex_name == "stripes" else protocol_exemplar(ex_name)
+            )
+            row = {
+                "mesh": mesh_name,
+                "exemplar": ex_name,
+                "size": size,
+                "steps": steps,
+                "texels": int(surface.atlas.num_texels),
+                "prepare_s": prep,
+                "control": {
+                    "seam": control.seam,
+                    "seam_smooth": control.seam_at(0.0, 30.0),
+                    "seam_crease": control.seam_at(30.0, 180.0),
+                    "interior": control.interior,
+                },
+            }
+            for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
+                path = work / "orientation" / f"{mesh_name}_{ex_name}_{size}_{steps}_{method}.npz"
+                if path.is_file():
+                    with np.load(path) as z:
+                        texture, colors, loss, cpu = z["texture"], z["colors"], z["loss"], z["cpu"]
+                else:
+                    c0 = time.process_time()
+                    # the 2D image does not depend on the mesh: one optimisation serves every mesh
+                    shared = work / "uv2d" / f"{ex_name}_{size}_{steps}_orientation"
+                    r = run(
+                        mesh,
+                        exemplar,
+                        config,
+                        key=jax.random.key(0),
+                        surface=surface,
+                        weights=weights,
+                        progress=False,
+                        **({"checkpoint": shared} if method == "uv2d" else {}),
+                    )
+                    texture, colors, loss = r.texture, r.colors, r.final_loss
+                    cpu = time.process_time() - c0
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                    np.savez(path, texture=texture, colors=colors, loss=loss, cpu=cpu)
+                o = seam_orientation(laid, texture)
+                agree_seam, agree_inside = _agreement(o, control)
+                seams = seam_ratio(
+                    colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry
+                )
+                row[method] = {
+                    "seam": o.seam,
+                    "seam_smooth": o.seam_at(0.0, 30.0),
+                    "seam_crease": o.seam_at(30.0, 180.0),
+                    "interior": o.interior,
+                    "agreement_seam_faces": agree_seam,
+                    "agreement_other_faces": agree_inside,
+                    "seam_edges": o.seam_edges,
+                    "seam_ratio": float(seams["ratio"]),
+                    "final_loss": float(loss),
+                    "cpu_s": float(cpu),
+                }
+            print(json.dumps(row), flush=True)
+            rows.append(row)
+    lines = [
+        "# surfacecnn orientation across UV seams\n",
+        f"{size}² textures, {steps} steps, every ReLU and pool output of the embedded VGG-16, "
+        "global frames (x), the protocol's xatlas layouts. Alignment: mean |cos| between the "
+        "structure-tensor stripe normals of the two faces of an edge (disk of radius 6 texels in "
+        "the face's chart), unfolded across the edge; seam edges vs interior edges; random line "
+        "fields give 2/π = 0.637. Control: stripes along x (period 8 texels) baked into the same "
+        "atlas, the seam alignment the layout allows. Seam ratio: colour difference across seams "
+        "over inside charts. Seams < 30° / ≥ 30°: the seam alignment over seam edges whose faces "
+        "meet at a dihedral angle below / above 30° (smooth seams / creases and coarse bends). "
+        "Agreement: |cos| between the texture's and the control's stripe normals on the same "
+        "face (the control's normal is the frames' projected x), over faces of seam edges and "
+        "over the other faces.\n",
+        "| mesh | exemplar | method | seam alignment | interior | seam / control seam | "
+        "control seam / interior | seams < 30° / ≥ 30° dihedral (control) | agreement with the "
+        "control: seam faces / other faces | seam ratio | loss | CPU-s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        c = r["control"]
+        for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
+            m = r[method]
+            lines.append(
+                f"| {r['mesh']} | {r['exemplar']} | {label} | **{m['seam']:.3f}** | "
+                f"{m['interior']:.3f} | {m['seam'] / c['seam']:.2f} | {c['seam']:.3f} / "
+                f"{c['interior']:.3f} | {m['seam_smooth']:.3f} / {m['seam_crease']:.3f} "
+                f"({c['seam_smooth']:.3f} / {c['seam_crease']:.3f}) | "
+                f"{m['agreement_seam_faces']:.3f} / {m['agreement_other_faces']:.3f} | "
+                f"{m['seam_ratio']:.3f} | {m['final_loss']:.4g} | "
+                + (f"{m['cpu_s']:.0f} |" if np.isfinite(m["cpu_s"]) else "— |")
+            )
+    lines.append(
+        "\nCPU-s: process CPU time of the call (a UV-space 2D run read back from the shared "
+        "checkpoint costs only its scoring; — where the texture came from an earlier identical "
+        "run whose time was not recorded)."
+    )
+    lines.append(f"\nLoad average at the end {os.getloadavg()[0]:.1f} (shared 2-core machine).")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    (directory / "surfacecnn_orientation.md").write_text(text)
+    (directory / "surfacecnn_orientation.json").write_text(json.dumps(rows, indent=1) + "\n")
+
+
+def orientation_figure(
+    mesh_name: str, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+) -> None:
+    """Stripes on a protocol mesh from the ``--orientation`` textures in ``work``: the surface CNN
+    and UV-space 2D synthesis, a whole view and a close view across a UV seam (with the charts
+    seen from the same camera), and both UV images. Writes
+    ``results/surfacecnn_orientation_<mesh>.png``."""
+    from jmeshtex import render
+    from jmeshtex.metrics import seam_orientation, uv_charts
+
+    mesh = _protocol_mesh(mesh_name, work)
+    tex = {}
+    for method in ("surface", "uv2d"):
+        path = work / "orientation" / f"{mesh_name}_stripes_{size}_{steps}_{method}.npz"
+        with np.load(path) as z:
+            tex[method] = np.asarray(z["texture"], np.float64)
+    up = PROTOCOL_MESHES[mesh_name][1]
+    px = (384, 384)
+    whole = render.orbit_cameras(mesh, azimuths=[60.0], elevations=(15.0,), up=up, size=px)[0]
+    # the close view: the front-facing seam edge whose two faces have the most coherent stripes
+    o = seam_orientation(mesh, tex["surface"])
+    faces = np.asarray(mesh.faces)
+    V = np.asarray(mesh.vertices, np.float64)
+    centre = V[faces].mean(axis=1)
+    n = np.cross(V[faces[:, 1]] - V[faces[:, 0]], V[faces[:, 2]] - V[faces[:, 0]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    eye = np.asarray(whole.eye, np.float64)
+    view = eye - centre
+    facing = np.sum(n * view, axis=1) / np.linalg.norm(view, axis=1)
+    pair = o.edge_faces
+    score = np.where(
+        o.edge_seam & np.isfinite(o.edge_alignment) & (facing[pair].min(axis=1) > 0.85),
+        o.coherence[pair].min(axis=1),
+        -1.0,
+    )
+    best = pair[int(np.argmax(score))]
+    target = centre[best].mean(axis=0)
+    normal = n[best].sum(axis=0)
+    normal /= np.linalg.norm(normal)
+    radius = float(np.linalg.norm(V - V.mean(axis=0), axis=1).max())
+    close = render.look_at(
+        target + 0.6 * radius * normal,
+        target,
+        up=up,
+        half_height=0.3 * radius,
+        size=px,
+    )
+    chart = uv_charts(faces, mesh.uv)
+    palette = np.random.default_rng(1).uniform(0.25, 1.0, size=(chart.max() + 1, 3))
+    big = lambda image: np.repeat(np.repeat(image, 3, axis=0), 3, axis=1)  # noqa: E731 (readable)
+    panels = [("exemplar (stripes, period 8 px)", big(_exemplar("stripes", 128)))]
+    for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
+        textured = Mesh(mesh.vertices, mesh.faces, uv=mesh.uv, texture=tex[method])
+        views = render.render_views(textured, [whole, close])
+        panels += [(label, views[0]), (f"{label}, close to a seam", views[1])]
+    panels.append(
+        ("charts, same close view", render.render(mesh, close, face_colors=palette[chart]))
+    )
+    panels += [
+        ("surface CNN, UV image", big(tex["surface"])),
+        ("UV-space 2D, UV image", big(tex["uv2d"])),
+    ]
+    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    render.figure(
+        panels,
+        columns=4,
+        title=f"{mesh_name}, stripes, {size}x{size} texels, {steps} steps",
+        path=directory / f"surfacecnn_orientation_{mesh_name}.png",
+    )
+
+
 def speck_texels(rows: list[dict], work: pathlib.Path) -> None:
     """Adds to each row whose textures are in ``work`` where its speck texels lie: the share of
     valid texels whose chroma exceeds its 7×7 median by 0.15 (the render measure, in texture
@@ -799,7 +1041,7 @@ def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
     cell's (same texel count)."""
     from jmeshtex import render
     from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.metrics import tiled_exemplar
+    from jmeshtex.metrics import seam_orientation, tiled_exemplar
     from jmeshtex.surfacecnn.core import seam_ratio
 
     layouts = {}
@@ -825,8 +1067,11 @@ def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
         seams = seam_ratio(colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
         textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=tiled)
         specks = [_specks(v) for v in render.render_views(textured, cams, shading="unlit")]
+        orient = seam_orientation(textured, tiled)
         row["uv_tiled"] = {
             "seam_ratio": float(seams["ratio"]),
+            "orientation_seam": orient.seam,
+            "orientation_interior": orient.interior,
             "speck_abs": float(np.mean([s["abs"] for s in specks])),
             "speck_local": float(np.mean([s["local"] for s in specks])),
         }
@@ -859,6 +1104,21 @@ def _layout_spread(mesh_name: str, work: pathlib.Path) -> float:
     return float(texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)["ratio_p95_p5"])
 
 
+def _orientation_cell(row: dict, m: dict) -> str:
+    """``seam / interior (control seam / interior; uv_tiled seam / interior)`` or — for a cell
+    scored before the orientation measure."""
+    if "orientation_seam" not in m:
+        return "—"
+    c, t = row.get("orientation_control", {}), row.get("uv_tiled", {})
+    control = f"{c['seam']:.3f} / {c['interior']:.3f}" if c else "—"
+    tiled = (
+        f"{t['orientation_seam']:.3f} / {t['orientation_interior']:.3f}"
+        if "orientation_seam" in t
+        else "—"
+    )
+    return f"{m['orientation_seam']:.3f} / {m['orientation_interior']:.3f} ({control}; {tiled})"
+
+
 def _write_quality(rows, spreads, size, steps, out):
     import json
 
@@ -877,8 +1137,9 @@ def _write_quality(rows, spreads, size, steps, out):
         'mesh): the cells after the first read it back, so their cost reads "resumed".\n',
         "| mesh | exemplar | method | patch Gram / spectrum | "
         + " | ".join(baselines)
-        + " | charts / patch | seam ratio (uv_tiled) | specks (uv_tiled) | loss | CPU-s | wall s |",
-        "|---|---|---|---|" + "---|" * len(baselines) + "---|---|---|---|---|---|",
+        + " | charts / patch | seam ratio (uv_tiled) | orientation seam / interior (control; "
+        "uv_tiled) | specks (uv_tiled) | loss | CPU-s | wall s |",
+        "|---|---|---|---|" + "---|" * len(baselines) + "---|---|---|---|---|---|---|",
     ]
     for r in rows:
         for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
@@ -889,6 +1150,7 @@ def _write_quality(rows, spreads, size, steps, out):
                 f"| {r['mesh']} | {r['exemplar']} | {label} | **{p['texture']['gram']:.3g} / "
                 f"{p['texture']['spectrum']:.3f}** | {cells} | {p['texture']['charts']:.2f} | "
                 f"{m['seam_ratio']:.3f} ({r['uv_tiled']['seam_ratio']:.3f}) | "
+                f"{_orientation_cell(r, m)} | "
                 f"{m['speck_local']:.4f} ({r['uv_tiled']['speck_local']:.4f}) | "
                 f"{m['final_loss']:.4g} | "
                 + (
@@ -897,6 +1159,13 @@ def _write_quality(rows, spreads, size, steps, out):
                     else "resumed | resumed |"  # spread over sessions: the last call's is no cost
                 )
             )
+    lines.append(
+        "\nOrientation: mean alignment |cos| of the structure-tensor stripe normals of the two "
+        "faces of each seam edge / interior edge (jmeshtex.metrics.seam_orientation; random line "
+        "fields 0.637), beside a seamless control (3D stripes along x, period 8 texels, baked "
+        "into the same atlas) and the UV-tiled exemplar; — where a cell was scored before the "
+        "measure existed."
+    )
     kept = [r for r in rows if "speck_texels" in r["surface"]]
     if kept:
         lines += [
@@ -927,7 +1196,48 @@ def _write_quality(rows, spreads, size, steps, out):
 if __name__ == "__main__":
     import sys
 
-    if "--seams" in sys.argv:
+    if "--orientation-figure" in sys.argv:
+        fp = argparse.ArgumentParser()
+        fp.add_argument("--orientation-figure", default="spot")
+        fp.add_argument("--size", type=int, default=128)
+        fp.add_argument("--orientation-steps", type=int, default=150)
+        fp.add_argument(
+            "--work",
+            type=pathlib.Path,
+            default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
+        )
+        fp.add_argument("--out", default=None)
+        fa = fp.parse_args()
+        orientation_figure(
+            fa.orientation_figure,
+            fa.size,
+            fa.orientation_steps,
+            fa.work,
+            pathlib.Path(fa.out) if fa.out else None,
+        )
+    elif "--orientation" in sys.argv:
+        op = argparse.ArgumentParser()
+        op.add_argument("--orientation", action="store_true")
+        op.add_argument("--meshes", default=",".join(PROTOCOL_MESHES))
+        op.add_argument("--exemplars", default="stripes")
+        op.add_argument("--size", type=int, default=128)
+        op.add_argument("--orientation-steps", type=int, default=150)
+        op.add_argument(
+            "--work",
+            type=pathlib.Path,
+            default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
+        )
+        op.add_argument("--out", default=None)
+        oa = op.parse_args()
+        orientation(
+            oa.meshes.split(","),
+            oa.exemplars.split(","),
+            oa.size,
+            oa.orientation_steps,
+            oa.work,
+            pathlib.Path(oa.out) if oa.out else None,
+        )
+    elif "--seams" in sys.argv:
         sp = argparse.ArgumentParser()
         sp.add_argument("--seams", action="store_true")
         sp.add_argument("--size", type=int, default=128)

@@ -12,7 +12,9 @@ feature distributions, :func:`frechet_distance`), :func:`gram_distance`, :func:`
 :func:`protocol_views`, :func:`evaluate_views`), sample :func:`diversity`, and the baselines that bound
 every number (:func:`flat_baseline`, :func:`permuted_baseline`, :func:`baseline_table`).
 Mesh textures are also measured on the surface itself: :func:`surface_patches` (geodesic patches at
-the texel scale) against :func:`exemplar_crops`, scored by :func:`surface_patch_table`.
+the texel scale) against :func:`exemplar_crops`, scored by :func:`surface_patch_table`; the direction of
+the texture across UV chart seams against the interior and a seamless control by
+:func:`seam_orientation` (:func:`stripe_texture` bakes the control).
 """
 
 from .._extras import needs_metrics as _needs_metrics  # noqa: F401 (names a missing extra)
@@ -23,6 +25,10 @@ from ._frechet import frechet_distance as frechet_distance
 from ._frechet import frechet_from_moments as frechet_from_moments
 from ._image import dssim as dssim
 from ._image import psnr as psnr
+from ._orientation import RANDOM_ALIGNMENT as RANDOM_ALIGNMENT
+from ._orientation import SeamOrientation as SeamOrientation
+from ._orientation import seam_orientation as seam_orientation
+from ._orientation import stripe_texture as stripe_texture
 from ._perceptual import gram_distance as gram_distance
 from ._perceptual import lpips as lpips
 from ._protocol import DISTRIBUTION_METRICS as DISTRIBUTION_METRICS

@@ -325,3 +325,113 @@ def seam_chroma(
         "ratio": b / i if i > 0 else float("nan"),
         "border_share": float(border.mean()),
     }
+
+
+def seam_texels(
+    mesh: Mesh | tuple, atlas: TextureAtlas, *, geometry: TracerGeometry | None = None
+) -> np.ndarray:
+    """Chart-border texels that lie at a UV seam: :func:`border_texels` whose surface point is
+    within two local texel sizes of a seam edge (mesh-boundary borders are left out).
+
+    Returns:
+      ``[N]`` bool (atlas order).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn.core import texture_atlas
+      >>> v, f = grid(2)
+      >>> int(seam_texels((v, f), texture_atlas(v, f, v[f][..., :2], size=4)).sum())  # no seam
+      0
+    """
+    from scipy.spatial import cKDTree
+
+    mesh = as_mesh(mesh)
+    vertices = np.asarray(mesh.vertices, np.float64)
+    if geometry is None:
+        geometry = tracer_geometry(vertices, mesh.faces)
+    border = border_texels(atlas, geometry)
+    f, k = seam_edges(geometry, atlas.uv)
+    if not f.size or not border.any():
+        return np.zeros(atlas.num_texels, bool)
+    faces = np.asarray(mesh.faces)
+    a, b = vertices[faces[f, k]], vertices[faces[f, (k + 1) % 3]]
+    step = 0.5 * float(atlas.local_size.min())
+    count = np.ceil(np.linalg.norm(b - a, axis=1) / step).astype(np.int64) + 1
+    s = np.concatenate([np.linspace(0.0, 1.0, c) for c in count])
+    edge = np.repeat(np.arange(len(f)), count)
+    samples = a[edge] + s[:, None] * (b - a)[edge]
+    dist, _ = cKDTree(samples).query(atlas.point[border])
+    near = np.zeros(atlas.num_texels, bool)
+    near[np.nonzero(border)[0]] = dist <= 2.0 * atlas.local_size[border] + step
+    return near
+
+
+def tap_fidelity(mesh: Mesh | tuple, surface) -> list[dict]:
+    """Per pyramid level, where the taps of seam nodes and of inside nodes land, in the node's frame.
+
+    Tap ``t`` of a level-``l`` node should read the node ``(dx_t, dy_t) · 2^l h`` away along its
+    frame ``(t, d)``. With ``z`` the displacement from the node's centroid to the read node's
+    centroid, in the representative texel's frame and in units of ``2^l h``, each tap has an angle
+    error ``|arg(z / (dx + i dy))|`` and a length ``|z| / |dx + i dy|`` (1 is exact). A node is a
+    *seam* node when one of its texels is a :func:`seam_texels` texel, else an *inside* node; a
+    chart border that builds neighbourhoods as a continuous surface does gives seam nodes the
+    inside nodes' errors (the nearest-texel and grouping quantisation every node has).
+
+    Args:
+      mesh: the mesh (vertices, faces) of the surface.
+      surface: :func:`~jmeshtex.surfacecnn.prepare_surface`'s :class:`~jmeshtex.surfacecnn.Surface`.
+
+    Returns:
+      A list with one dict per level, ``{"level": l, "seam": stats, "inside": stats}``, where
+      ``stats`` holds ``"nodes"``, ``"angle_deg"`` (median over taps), ``"length"`` (median) and
+      ``"self"`` (share of taps that read the node itself); NaN where a class has no tap.
+
+    Example:
+      >>> from jmeshtex import Mesh
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.surfacecnn import prepare_surface
+      >>> v, f = grid(2)
+      >>> s = prepare_surface(Mesh(v, f, uv=v[f][..., :2]), size=8, levels=1)
+      >>> tap_fidelity((v, f), s)[0]["inside"]["length"]
+      1.0
+    """
+    atlas, pyramid = surface.atlas, surface.pyramid
+    seam = seam_texels(mesh, atlas)
+    dx, dy = np.tile(np.arange(3) - 1, 3), np.repeat(np.arange(3) - 1, 3)
+    ideal = (dx + 1j * dy)[[0, 1, 2, 3, 5, 6, 7, 8]]
+    out = []
+    for level in range(len(pyramid.nearest)):
+        of = pyramid.node_of_texel[level]
+        rep = pyramid.representative[level]
+        G = len(rep)
+        count = np.bincount(of, minlength=G)
+        centroid = (
+            np.stack([np.bincount(of, atlas.point[:, c], minlength=G) for c in range(3)], axis=1)
+            / np.maximum(count, 1)[:, None]
+        )
+        at_seam = np.bincount(of, seam.astype(np.float64), minlength=G) > 0
+        taps = [0, 1, 2, 3, 5, 6, 7, 8]
+        read = np.asarray(pyramid.nearest[level].index)[:, taps, 0].astype(np.int64)
+        live = np.asarray(pyramid.nearest[level].weight)[:, taps, 0] > 0
+        frame = atlas.frame[rep]
+        disp = centroid[read] - centroid[:, None]
+        step = 2.0**level * atlas.texel_size
+        z = (
+            np.einsum("gtk,gk->gt", disp, frame[:, 0])
+            + 1j * np.einsum("gtk,gk->gt", disp, frame[:, 1])
+        ) / step
+        self_read = read == np.arange(G)[:, None]
+        ok = live & ~self_read
+        angle = np.degrees(np.abs(np.angle(z / ideal)))
+        length = np.abs(z) / np.abs(ideal)
+        row = {"level": level}
+        for name, sel in (("seam", at_seam), ("inside", ~at_seam)):
+            use = ok & sel[:, None]
+            row[name] = {
+                "nodes": int(sel.sum()),
+                "angle_deg": float(np.median(angle[use])) if use.any() else float("nan"),
+                "length": float(np.median(length[use])) if use.any() else float("nan"),
+                "self": float(self_read[sel].mean()) if sel.any() else float("nan"),
+            }
+        out.append(row)
+    return out

@@ -57,4 +57,6 @@ from ._seams import seam_chroma as seam_chroma
 from ._seams import seam_edges as seam_edges
 from ._seams import seam_pairs as seam_pairs
 from ._seams import seam_ratio as seam_ratio
+from ._seams import seam_texels as seam_texels
+from ._seams import tap_fidelity as tap_fidelity
 from ._synthesis import network_weights as network_weights

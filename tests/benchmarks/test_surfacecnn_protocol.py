@@ -73,3 +73,40 @@ def test_speck_texels_tell_seam_specks_from_colour_noise_inside_charts(tmp_path)
     rows[0]["surface"]["speck_texels"] = {"border": -1.0, "inside": -1.0}
     surfacecnn.speck_texels(rows, tmp_path)
     assert rows[0]["surface"]["speck_texels"]["border"] == -1.0
+
+
+def test_the_quality_table_shows_orientation_beside_control_and_tiled_or_a_dash():
+    row = {
+        "orientation_control": {"seam": 0.9, "interior": 0.99},
+        "uv_tiled": {"orientation_seam": 0.6, "orientation_interior": 0.98},
+    }
+    cell = surfacecnn._orientation_cell(
+        row, {"orientation_seam": 0.88, "orientation_interior": 0.97}
+    )
+    assert cell == "0.880 / 0.970 (0.900 / 0.990; 0.600 / 0.980)"
+    assert surfacecnn._orientation_cell({}, {"seam_ratio": 1.0}) == "—"  # scored before the measure
+
+
+def test_the_orientation_control_runs_straight_across_seams():
+    """The control the benchmark bakes (stripes along the frames' vector) is seamless on a layout
+    with a seam: its seam alignment is the interior's."""
+    import numpy as np
+
+    from jmeshtex import Mesh
+    from jmeshtex.data import grid
+    from jmeshtex.metrics import seam_orientation
+    from jmeshtex.surfacecnn import Config, prepare_surface
+
+    v, f = grid(12)
+    xy = v[f][..., :2]
+    left = (xy[..., 0].mean(axis=1) < 0.5)[:, None, None]
+    uv = np.where(
+        left,
+        0.02 + 0.45 * xy,
+        np.stack([0.5 + 0.45 * xy[..., 1], 0.5 + 0.45 * (1 - xy[..., 0])], -1),
+    )
+    mesh = Mesh(v, f, uv=uv)
+    surface = prepare_surface(mesh, size=96, levels=0)
+    control = surfacecnn._orientation_control(mesh, surface, Config(size=96))
+    r = seam_orientation(mesh.replace(uv=surface.atlas.uv), control)
+    assert r.seam_edges == 12 and r.seam > 0.98 and r.interior > 0.98
