@@ -9,7 +9,7 @@ mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`). Levels
 jmeshtex's own choice, from the level whose training mesh has the target's face count (within a
 face budget, ``max_faces``) to the last; the official code's ``--gen-levels`` (default ``[1, 4]``)
 are ``start_level`` / ``stop_level``, clipped to the model as the official code does by
-:func:`official_gen_levels`.
+:func:`~jmeshtex.dgts.official_gen_levels`.
 
 Inference modes: zero noise above a level (``transfer(..., zero_noise_from=k)``), the training
 reconstruction (:func:`reconstruct`), conditional generation at scale ``k`` (:func:`conditional`:

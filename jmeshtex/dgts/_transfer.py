@@ -16,7 +16,7 @@ growing mesh of the paper's Fig. 6, ``per_level=True``):
 - :func:`interpolate`: frames between two noise draws.
 
 Start and stop levels. The official code runs the generators ``--gen-levels start stop`` (default
-``[1, 4]``, clipped to the model: :func:`official_gen_levels`) on the raw target scaled to unit
+``[1, 4]``, clipped to the model: :func:`~jmeshtex.dgts.official_gen_levels`) on the raw target scaled to unit
 edge; ``transfer(..., start_level=1, stop_level=min(4, L − 1))`` does exactly that
 (:data:`OFFICIAL_GEN_LEVELS`). jmeshtex's own default (``start_level=None``, not the official one)
 starts at the level whose training mesh has the target's resolution, never the coarsest of a deeper
@@ -214,7 +214,7 @@ def _stop(model: Model, start_level: int, stop_level: int | None) -> int:
 
 
 #: the official inference levels, ``--gen-levels`` (``options.py``, default ``[1, 4]``): the
-#: generators 1 … 4, clipped to the model by :func:`official_gen_levels`
+#: generators 1 … 4, clipped to the model by :func:`~jmeshtex.dgts.official_gen_levels`
 OFFICIAL_GEN_LEVELS = (1, 4)
 
 
@@ -344,7 +344,7 @@ def matching_level(model: Model, num_faces: int) -> int:
     Equal face counts mean equal mean edges relative to the surface's size, so the generator that
     starts sees a shape as coarse, in its own edges, as the one it was trained on. This choice is
     jmeshtex's own (the official code starts where ``--gen-levels`` says, level 1 by default,
-    whatever the target: :func:`official_gen_levels`). Level 0 is skipped, as the official default
+    whatever the target: :func:`~jmeshtex.dgts.official_gen_levels`). Level 0 is skipped, as the official default
     does (the paper starts at 2–3): its generator lays out the training shape itself and, with
     ``Config.reconstruction_start`` = 1, never learns to leave a given shape alone.
 
@@ -366,7 +366,7 @@ def matching_level(model: Model, num_faces: int) -> int:
 def choose_start_level(
     model: Model, num_faces: int, *, max_faces: int = 500_000, stop_level: int | None = None
 ) -> int:
-    """jmeshtex's default start level (not the official one, which is 1: :func:`official_gen_levels`):
+    """jmeshtex's default start level (not the official one, which is 1: :func:`~jmeshtex.dgts.official_gen_levels`):
     :func:`matching_level`, raised until the output fits ``max_faces``.
 
     .. math:: s = \\min\\{\\,s \\in [\\min(s_m, t), t] : F \\cdot 4^{t-s} \\le F_{\\max}\\,\\}
