@@ -1228,7 +1228,7 @@ def rescore(
             d0 = patch_descriptors(texture_heights(truth, ops), ops)
             floors = []
             for s in range(1, seeds + 1):
-                other = texture_operators(base, period=p, seed=s)
+                other = texture_operators(base, period=p, key=jax.random.key(s))
                 d = patch_descriptors(texture_heights(truth, other), other)
                 floors.append(sliced_wasserstein(d, d0))
             report.add(

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import numpy as np
 import scipy.sparse
 import scipy.spatial
@@ -88,7 +89,7 @@ def _row_normalised(rows, cols, w, shape) -> scipy.sparse.csr_matrix:
 
 
 def texture_operators(
-    base: MeshLike, *, period: float, centres: int = 512, seed: int = 0
+    base: MeshLike, *, period: float, centres: int = 512, key: jax.Array | None = None
 ) -> TextureOperators:
     """Band-pass, suppression discs and ring averages of ``base`` at ``period`` (base mean edges).
 
@@ -96,7 +97,8 @@ def texture_operators(
       base: the shared undisplaced mesh (a transfer's ``(base, faces)``).
       period: the texture's period in mean edges of ``base`` (as :func:`oracle_texture` takes it).
       centres: number of descriptor centres (vertices drawn by area, without replacement).
-      seed: NumPy seed of the centres (fixed: every mesh on one base is described at one set).
+      key: draws the centres; None (default) draws one fixed set, so every mesh on one base is
+        described at the same centres.
 
     Returns:
       :class:`TextureOperators`.
@@ -133,7 +135,11 @@ def texture_operators(
     band = (gauss(FINE) - gauss(COARSE)).tocsr()
     near = d <= NMS_RADIUS
     nms = scipy.sparse.csr_matrix((np.ones(int(near.sum())), (i[near], j[near])), shape=shape)
-    rng = np.random.default_rng(seed)
+    rng = (
+        np.random.default_rng(0)
+        if key is None
+        else host_rng(check_key(key, "texture_operators: key"))
+    )
     m = min(int(centres), len(v))
     c = np.sort(rng.choice(len(v), m, replace=False, p=va / va.sum()))
     row_of = np.full(len(v), -1)
