@@ -12,6 +12,7 @@ from ._atomic import unprotect_all as unprotect_all
 from ._checkpoint import Checkpoints as Checkpoints
 from ._load import load_mesh as load_mesh
 from ._load import load_texture as load_texture
+from ._load import referenced_files as referenced_files
 from ._model_file import ModelFile as ModelFile
 from ._model_file import load_model as load_model
 from ._model_file import read_arrays as read_arrays

@@ -186,6 +186,16 @@ class Checkpoints:
         self._verified: dict[int, tuple] = {}  # step -> signature of the files checked intact
 
     def _check_folder(self) -> None:
+        from ._atomic import _check_protected
+
+        try:
+            _check_protected(self.directory / RECORD)
+        except MeshIOError as err:
+            raise MeshIOError(
+                f"cannot keep checkpoints in {self.directory}: that folder was there before this "
+                "command claimed its output folder (--overwrite never writes into or deletes "
+                "foreign files). Fix: move it away, or pick a new output folder"
+            ) from err
         if self.directory.is_symlink():
             raise MeshIOError(
                 f"checkpoint folder {self.directory} is a symbolic link: refusing to write or "

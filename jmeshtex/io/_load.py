@@ -35,7 +35,11 @@ def _open_image(path: pathlib.Path, what: str):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # e.g. PIL's DecompressionBombWarning: the budget decides
-        image = Image.open(path)
+        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            image = Image.open(path)
+        finally:
+            Image.MAX_IMAGE_PIXELS = limit
         try:
             width, height = image.size
             check_memory(
@@ -510,6 +514,9 @@ def _visual_attributes(loaded, path: pathlib.Path):
                 colors = raw[1][match]
     elif getattr(visual, "kind", None) == "vertex":
         colors = np.asarray(visual.vertex_colors)
+        raw = _raw_vertex_colors(loaded, path)  # trimesh turns NaN colours into black
+        if raw is not None and raw[1].dtype.kind == "f" and not np.isfinite(raw[1]).all():
+            colors = np.asarray(raw[1], np.float64)
     if colors is not None:
         colors = np.asarray(colors)
         if colors.dtype.kind == "f" and not np.isfinite(colors).all():
