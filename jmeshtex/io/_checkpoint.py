@@ -14,7 +14,8 @@ not list is refused with a typed error. The folder itself may not be a symbolic 
 
 **Damage.** A recorded step whose files are missing, truncated or changed (checksums differ) is
 skipped with a :class:`~jmeshtex.CheckpointSkippedWarning` naming it, and resume falls back to the
-newest intact step before it; saving that step number again replaces it.
+newest intact step before it; saving that step number again replaces it. A recorded step whose
+folder was deleted as a whole (by hand, or by an interrupted retention) is left out silently.
 
 A *fingerprint* (a JSON-able dict: the config, a hash of the data) is stored with every step; a
 folder whose fingerprint differs from the caller's cannot be resumed by mistake: :meth:`restore`
@@ -237,7 +238,7 @@ class Checkpoints:
         """Why recorded ``step`` cannot be resumed from, or None when all its files are intact."""
         folder = self.directory / str(step)
         if folder.is_symlink() or not folder.is_dir():
-            return "its folder is missing (deleted, or the save was interrupted)"
+            return "it is not a folder (a link or a file replaced it)"
         signature = _signature(folder)
         if self._verified.get(step) == signature:
             return None
@@ -263,13 +264,17 @@ class Checkpoints:
         """The saved, intact steps this mechanism wrote, oldest first (empty when none).
 
         A recorded step whose files are missing or damaged is left out, with a
-        :class:`~jmeshtex.CheckpointSkippedWarning` naming it (once per step and object).
-        Folders the record does not list are ignored.
+        :class:`~jmeshtex.CheckpointSkippedWarning` naming it (once per step and object); one whose
+        folder was deleted as a whole is left out silently. Folders the record does not list are
+        ignored.
         """
         if not self.directory.is_dir():
             return []
         valid = []
         for step, files in sorted(self._read_record().items()):
+            folder = self.directory / str(step)
+            if not folder.exists() and not folder.is_symlink():
+                continue  # deleted as a whole (by a user, or retention cut short): nothing to say
             problem = self._damage(step, files)
             if problem is None:
                 valid.append(step)
