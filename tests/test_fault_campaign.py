@@ -632,6 +632,11 @@ def _cause10(tmp: pathlib.Path, rng: np.random.Generator) -> list[Case]:
     zero.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 0 1 2\nf 1 3 2\n")
     v, f = icosphere(1)
     scale = float(rng.choice([1e200, 1e-200, 1e150, 1e-150]))
+    from jmeshtex.io import load_model, save_model
+
+    weights = rng.standard_normal(6)
+    weights[int(rng.integers(6))] = rng.choice([np.nan, np.inf, -np.inf])
+    model = save_model(folder / "m.npz", kind="k", config={}, params={"w": weights})
     return [
         Case(
             10,
@@ -640,6 +645,9 @@ def _cause10(tmp: pathlib.Path, rng: np.random.Generator) -> list[Case]:
             "ok",
             [tabs],
             lambda m: m.num_faces == 1,
+        ),
+        Case(
+            10, "NaN weights in a model file", lambda: load_model(model, kind="k"), "typed", [model]
         ),
         Case(
             10,

@@ -263,6 +263,20 @@ def spec_for_record(spec: str | os.PathLike | None) -> str | None:
     return str(path.absolute()) if path.exists() else str(spec)
 
 
+def for_render(mesh):
+    """``mesh`` as a render shows it: UVs without a texture image (an OBJ without its material)
+    are dropped, so the shape is drawn instead of the renderer refusing a texture it lacks.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> for_render(icosphere(1)).uv is None
+      True
+    """
+    if getattr(mesh, "uv", None) is not None and getattr(mesh, "texture", None) is None:
+        return mesh.replace(uv=None)
+    return mesh
+
+
 def load_array(path: str | os.PathLike, what: str):
     """A NumPy array from a ``.npy`` file (no pickles), or one typed error naming the file.
 

@@ -27,7 +27,7 @@ import json
 import pathlib
 
 from .._errors import InputError
-from ._common import MAX_SPEC_VERTICES, add_common, cached, int_in, load_mesh_spec
+from ._common import MAX_SPEC_VERTICES, add_common, cached, for_render, int_in, load_mesh_spec
 from ._output import claim_output
 
 
@@ -223,7 +223,7 @@ def _prepare(args) -> int:
         ).encode(),
     )
     save_mesh(ref, out / "reference.obj")
-    images = [render_mesh(ref, size=(300, 300))]
+    images = [render_mesh(for_render(ref), size=(300, 300))]
     for level in range(tm.num_levels):
         save_mesh(tm.mesh(level), out / f"level_{level:02d}.obj")
         images.append(render_mesh(tm.mesh(level), size=(300, 300)))
