@@ -41,6 +41,7 @@ def _campaign_module():
         "fault_campaign", ROOT / "tests" / "test_fault_campaign.py"
     )
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up
     spec.loader.exec_module(module)
     return module
 

@@ -246,7 +246,25 @@ def load_mesh_spec(spec: str | os.PathLike, *, texture: str | os.PathLike | None
             f"{str(spec)!r} is neither a mesh file nor one of the procedural names "
             f"{sorted(PROCEDURAL)} (e.g. icosphere:3)"
         )
+    if texture is not None:  # never ignored silently
+        if mesh.uv is None:
+            raise InputError(
+                f"--texture {texture}: the procedural mesh {str(spec)!r} has no UVs to map an "
+                "image with. Fix: give a mesh file with UVs, or leave --texture out"
+            )
+        from ..io import load_texture
+
+        mesh = mesh.replace(texture=load_texture(texture))
     return mesh
+
+
+def check_checkpoints(folder: str | os.PathLike) -> None:
+    """Refuse, before any work, a checkpoint folder a command could not use (a link, a file, or a
+    folder that was in ``--out`` before the command claimed it): the typed error of
+    :class:`~jmeshtex.io.Checkpoints`, at once instead of at the first save."""
+    from ..io import Checkpoints
+
+    Checkpoints(folder)
 
 
 def spec_for_record(spec: str | os.PathLike | None) -> str | None:

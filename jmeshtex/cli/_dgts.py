@@ -27,7 +27,15 @@ import json
 import pathlib
 
 from .._errors import InputError
-from ._common import MAX_SPEC_VERTICES, add_common, cached, for_render, int_in, load_mesh_spec
+from ._common import (
+    MAX_SPEC_VERTICES,
+    add_common,
+    cached,
+    check_checkpoints,
+    for_render,
+    int_in,
+    load_mesh_spec,
+)
 from ._output import claim_output
 
 
@@ -250,6 +258,7 @@ def _train(args) -> int:
         claim_output(
             args.dir, command="dgts train", overwrite=args.overwrite, accept=("dgts prepare",)
         )
+        check_checkpoints(args.dir / "checkpoints")
     remeshes = _prepared_remeshes(args.dir / "prepare.json")
     tm = load_training_meshes(args.dir / "training.npz")
     references = [tm] + [

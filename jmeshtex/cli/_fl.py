@@ -25,6 +25,7 @@ from ._common import (
     MAX_TEXTURE_SIZE,
     add_common,
     cached,
+    check_checkpoints,
     int_in,
     load_mesh_spec,
 )
@@ -145,6 +146,7 @@ def _train(args) -> int:
     claim_output(
         args.out, command="fl train", inputs=(args.config, args.images), overwrite=args.overwrite
     )
+    check_checkpoints(args.out / "checkpoints")
     data = {}
     if args.config is not None:
         try:

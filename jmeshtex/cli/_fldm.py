@@ -31,6 +31,7 @@ from ._common import (
     MAX_TEXTURE_SIZE,
     add_common,
     cached,
+    check_checkpoints,
     float_in,
     int_in,
     load_array,
@@ -179,6 +180,7 @@ def _train(args) -> int:
         inputs=(args.mesh, args.texture, args.labels, args.vae),
         overwrite=args.overwrite,
     )
+    check_checkpoints(args.out / "checkpoints")
     mesh = _load_mesh(args.mesh, args.texture)
     labels = None if args.labels is None else load_labels(args.labels)
     k_codec, k_data, k_train = jax.random.split(jax.random.key(args.seed), 3)

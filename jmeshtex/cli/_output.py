@@ -139,7 +139,8 @@ def check_output_file(
         raise InputError(f"{flag} {out} is a folder; this command writes a file there")
     from ..io import protect
 
-    protect(inputs, "an input of this command")
+    # input files (a folder input, such as a model folder, may hold this command's --out)
+    protect([p for p in inputs if not p.is_dir()], "an input of this command")
 
 
 def claim_output(
@@ -208,7 +209,8 @@ def claim_output(
     _PREVIOUS_OWNER[out.resolve()] = owner
     from ..io import protect
 
-    protect(inputs, "an input of this command")
+    # input files (a folder input, such as a model folder, may hold this command's --out)
+    protect([p for p in inputs if not p.is_dir()], "an input of this command")
     theirs = set(_foreign_entries(out))
     if foreign and owner not in allowed:
         theirs |= set(foreign)
