@@ -416,7 +416,7 @@ def reproducers(tmp: pathlib.Path, rng: np.random.Generator):
             ["info", d / "uv.obj", "--render", d / "uv.png"],
             0,
             [d / "uv.obj"],
-            lambda: (d / "uv.png").is_file(),
+            lambda d=d: (d / "uv.png").is_file(),
             None,
         ),
         (10, "tab-separated OBJ", ["info", d / "tabs.obj"], 0, [d / "tabs.obj"], None, None),
@@ -436,7 +436,7 @@ def reproducers(tmp: pathlib.Path, rng: np.random.Generator):
     d = tmp / "r11"
     d.mkdir()
 
-    def distinct():
+    def distinct(d=d):
         import json
 
         summary = json.loads((d / "o" / "summary.json").read_text())
@@ -456,7 +456,7 @@ def reproducers(tmp: pathlib.Path, rng: np.random.Generator):
                 "meshmatch",
                 "transfer",
                 "--source",
-                "bumpy-sphere:2",
+                "striped-sphere:2",
                 "--target",
                 d / "uv.obj",
                 "--out",
