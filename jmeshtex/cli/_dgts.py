@@ -334,11 +334,16 @@ def _prepared_remeshes(path: pathlib.Path) -> int:
             f"{path} is not the JSON record `dgts prepare` writes ({err}). Fix: run `jmeshtex dgts "
             "prepare` again into this folder"
         ) from err
-    remeshes = record.get("remeshes", 1) if isinstance(record, dict) else None
+    if not isinstance(record, dict):
+        raise InputError(
+            f"{path} holds a JSON {type(record).__name__}, not the object `dgts prepare` writes. "
+            "Fix: run `jmeshtex dgts prepare` again into this folder"
+        )
+    remeshes = record.get("remeshes", 1)
     if isinstance(remeshes, bool) or not isinstance(remeshes, int) or not 1 <= remeshes <= 16:
         raise InputError(
-            f"{path}: 'remeshes' must be a whole number from 1 to 16 in a JSON object, not "
-            f"{remeshes!r}. Fix: run `jmeshtex dgts prepare` again into this folder"
+            f"{path}: 'remeshes' must be a whole number from 1 to 16, not {remeshes!r}. Fix: "
+            "run `jmeshtex dgts prepare` again into this folder"
         )
     return remeshes
 
