@@ -59,7 +59,7 @@ def robust_edge_mean(vertices: np.ndarray, faces: np.ndarray) -> float:
 
 def check_float_range(vertices: np.ndarray, faces: np.ndarray, *, what: str = "mesh") -> float:
     """Raise :class:`~jmeshtex.MeshScaleError` when the mean edge length is outside
-    :data:`EDGE_RANGE` (or coordinate differences overflow); return the mean edge length."""
+    ``EDGE_RANGE`` (or coordinate differences overflow); return the mean edge length."""
     edge = robust_edge_mean(vertices, faces)
     low, high = EDGE_RANGE
     if edge != 0.0 and not low <= edge <= high:  # 0: every face collapsed, a degenerate-face error

@@ -2,9 +2,9 @@
 
 :func:`check_input_file` accepts only a regular file (a FIFO, a device such as ``/dev/zero`` -- also
 through a symbolic link -- or a socket would block or never end) no larger than
-:data:`MAX_INPUT_BYTES`, and records it as an input (:func:`~jmeshtex.io.protect_reads`).
+``jmeshtex.io.MAX_INPUT_BYTES``, and records it as an input (:func:`~jmeshtex.io.protect_reads`).
 :func:`check_memory` refuses, before anything is allocated, an array a file describes (an image's
-pixels, a header's counts) that would need more than :data:`MEMORY_BUDGET_BYTES`.
+pixels, a header's counts) that would need more than ``jmeshtex.io.MEMORY_BUDGET_BYTES``.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def check_input_file(
     Args:
       path: the file.
       what: what it holds, for the error (``"mesh"``, ``"texture"``, ``"--labels"``).
-      max_bytes: the size cap (default :data:`MAX_INPUT_BYTES`).
+      max_bytes: the size cap (default ``jmeshtex.io.MAX_INPUT_BYTES``).
 
     Raises:
       MeshIOError: not a path, missing, a folder, not a regular file (FIFO, device, socket),
