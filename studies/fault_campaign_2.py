@@ -435,6 +435,11 @@ def reproducers(tmp: pathlib.Path, rng: np.random.Generator):
     # 11: meshmatch onto a target with UVs: the render and the texture keep apart
     d = tmp / "r11"
     d.mkdir()
+    from jmeshtex import Mesh
+    from jmeshtex.io import save_mesh
+
+    v3, f3 = icosphere(3)
+    save_mesh(Mesh(v3, f3, uv=v3[f3][..., :2] * 0.5 + 0.5), d / "uv.obj")  # UVs, no texture
 
     def distinct(d=d):
         import json
@@ -456,7 +461,7 @@ def reproducers(tmp: pathlib.Path, rng: np.random.Generator):
                 "meshmatch",
                 "transfer",
                 "--source",
-                "striped-sphere:2",
+                "striped-sphere:3",
                 "--target",
                 d / "uv.obj",
                 "--out",
@@ -469,7 +474,6 @@ def reproducers(tmp: pathlib.Path, rng: np.random.Generator):
             None,
         )
     )
-    (d / "uv.obj").write_text((tmp / "r10" / "uv.obj").read_text())
     return out
 
 
