@@ -31,6 +31,13 @@ from .._errors import InputError
 #: typos or attempts to exhaust memory, refused before anything is built)
 MAX_SPEC_VERTICES = 2_000_000
 
+#: the largest texture side (texels) a command may ask for: 4096^2 RGB float32 is 200 MB, and the
+#: per-texel work of the methods grows from there
+MAX_TEXTURE_SIZE = 4096
+
+#: the most distinct labels a label map may hold (each label gets an embedding row)
+MAX_LABELS = 4096
+
 #: the procedural names a mesh argument may take, and their default numbers
 PROCEDURAL = {
     "icosahedron": (),
@@ -175,7 +182,12 @@ def procedural_mesh(spec: str):
         numbers = [int(x) for x in nums] or list(PROCEDURAL[name])
     except ValueError as err:
         raise InputError(f"bad procedural mesh {spec!r}: whole numbers expected after ':'") from err
-    if len(numbers) > max(1, len(PROCEDURAL[name])):
+    if len(numbers) > len(PROCEDURAL[name]):
+        if not PROCEDURAL[name]:
+            raise InputError(
+                f"bad procedural mesh {spec!r}: {name} takes no number (for a subdivided one use "
+                f"icosphere:N)"
+            )
         raise InputError(f"bad procedural mesh {spec!r}: too many numbers after the name")
     _check_spec_size(spec, name, numbers)
     builders: dict[str, Callable] = {
@@ -226,7 +238,7 @@ def load_mesh_spec(spec: str | os.PathLike, *, texture: str | os.PathLike | None
     from ..io import load_mesh
 
     path = pathlib.Path(spec)
-    if path.exists():
+    if path.exists() or path.is_symlink():
         return load_mesh(path, texture=texture)
     mesh = procedural_mesh(str(spec))
     if mesh is None:
@@ -234,6 +246,52 @@ def load_mesh_spec(spec: str | os.PathLike, *, texture: str | os.PathLike | None
             f"{str(spec)!r} is neither a mesh file nor one of the procedural names "
             f"{sorted(PROCEDURAL)} (e.g. icosphere:3)"
         )
+    if texture is not None:  # never ignored silently
+        if mesh.uv is None:
+            raise InputError(
+                f"--texture {texture}: the procedural mesh {str(spec)!r} has no UVs to map an "
+                "image with. Fix: give a mesh file with UVs, or leave --texture out"
+            )
+        from ..io import load_texture
+
+        mesh = mesh.replace(texture=load_texture(texture))
+    return mesh
+
+
+def check_checkpoints(folder: str | os.PathLike) -> None:
+    """Refuse, before any work, a checkpoint folder a command could not use (a link, a file, or a
+    folder that was in ``--out`` before the command claimed it): the typed error of
+    :class:`~jmeshtex.io.Checkpoints`, at once instead of at the first save."""
+    from ..io import Checkpoints
+
+    Checkpoints(folder)
+
+
+def spec_for_record(spec: str | os.PathLike | None) -> str | None:
+    """A mesh/file argument as a record should store it: an existing file as its absolute path
+    (so the record works from any folder), a procedural name or None unchanged.
+
+    Example:
+      >>> spec_for_record("icosphere:2"), spec_for_record(None)
+      ('icosphere:2', None)
+    """
+    if spec is None:
+        return None
+    path = pathlib.Path(spec)
+    return str(path.absolute()) if path.exists() else str(spec)
+
+
+def for_render(mesh):
+    """``mesh`` as a render shows it: UVs without a texture image (an OBJ without its material)
+    are dropped, so the shape is drawn instead of the renderer refusing a texture it lacks.
+
+    Example:
+      >>> from jmeshtex.data import icosphere
+      >>> for_render(icosphere(1)).uv is None
+      True
+    """
+    if getattr(mesh, "uv", None) is not None and getattr(mesh, "texture", None) is None:
+        return mesh.replace(uv=None)
     return mesh
 
 
@@ -253,7 +311,9 @@ def load_array(path: str | os.PathLike, what: str):
     import numpy as np
 
     from .._errors import MeshIOError
+    from ..io import check_input_file
 
+    check_input_file(path, what)
     try:
         array = np.load(path, allow_pickle=False)
     except FileNotFoundError:
@@ -265,6 +325,45 @@ def load_array(path: str | os.PathLike, what: str):
             array.close()
         raise MeshIOError(f"cannot read {what} {path}: an .npz archive, not one .npy array")
     return array
+
+
+def load_labels(path: str | os.PathLike, what: str = "--labels"):
+    """A per-vertex label map: a non-empty 1-D ``.npy`` of whole numbers in ``[0, MAX_LABELS)``.
+
+    Raises:
+      MeshIOError: the file cannot be read as one array (:func:`load_array`).
+      InputError: empty, not 1-D, not whole numbers (NaN, 0.5), negative, or too many labels.
+
+    Example:
+      >>> import tempfile, numpy as np
+      >>> path = pathlib.Path(tempfile.mkdtemp()) / "labels.npy"
+      >>> np.save(path, np.array([0, 1, 1]))
+      >>> load_labels(path).tolist()
+      [0, 1, 1]
+    """
+    import numpy as np
+
+    array = load_array(path, what)
+    if array.ndim != 1 or array.size == 0:
+        raise InputError(
+            f"{what} {path}: a non-empty 1-D array of one label per vertex expected, got shape "
+            f"{array.shape}"
+        )
+    if array.dtype.kind == "b" or array.dtype.kind not in "iuf":
+        raise InputError(f"{what} {path}: whole-number labels expected, got dtype {array.dtype}")
+    if array.dtype.kind == "f":
+        if not np.isfinite(array).all() or not np.all(array == np.round(array)):
+            raise InputError(
+                f"{what} {path}: labels must be whole numbers; the float array holds NaN, inf or "
+                "fractions. Fix: save integer labels (np.save(path, labels.astype(np.int64)))"
+            )
+    low, high = float(array.min()), float(array.max())
+    if low < 0 or high >= MAX_LABELS:
+        raise InputError(
+            f"{what} {path}: labels must lie in [0, {MAX_LABELS - 1}] (one class per number), "
+            f"found {low:g} to {high:g}. Fix: renumber the classes 0, 1, 2, ..."
+        )
+    return array.astype(np.int64)
 
 
 def compilation_cache() -> pathlib.Path | None:
@@ -283,7 +382,20 @@ def compilation_cache() -> pathlib.Path | None:
         folder = pathlib.Path(base) / "jmeshtex" / "jax"
     else:
         folder = pathlib.Path(env)
-    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
+            raise NotADirectoryError(
+                "not a writable folder" if folder.is_dir() else "exists and is not a folder"
+            )
+    except OSError as err:
+        if env is None:  # the default place is unusable: run without the cache
+            return None
+        reason = err.strerror or str(err)
+        raise InputError(
+            f"JMESHTEX_JAX_CACHE={env}: cannot use it as the compilation cache ({reason}). Fix: "
+            "point it to a writable folder, or set JMESHTEX_JAX_CACHE=0 to turn the cache off"
+        ) from err
     jax.config.update("jax_compilation_cache_dir", str(folder))
     # a size limit turns on JAX's LRU eviction, which reads and writes entries under a file lock
     # (filelock): runs at the same time share the folder without reading a half-written entry

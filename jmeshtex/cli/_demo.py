@@ -344,13 +344,25 @@ def run_demo(
     force: bool = False,
     progress: bool = True,
 ) -> pathlib.Path:
-    """Run every :data:`STEPS` entry, write ``demo.png`` and ``report.txt``; return the folder."""
+    """Run every :data:`STEPS` entry, write ``demo.png`` and ``report.txt``; return the folder.
+
+    The folder is claimed like every command's ``--out`` (:mod:`jmeshtex.cli._output`: a lock, the
+    owner manifest; with ``force`` files already there are kept and never replaced)."""
+    from ._output import claim_output, release
+
+    folder = output_folder(out, force=force)
+    claim_output(folder, command="demo", overwrite=force)  # lock, manifest, foreign files kept
+    try:
+        return _run_steps(folder, quick=quick, progress=progress)
+    finally:
+        release(folder)
+
+
+def _run_steps(folder: pathlib.Path, *, quick: bool, progress: bool) -> pathlib.Path:
     from tqdm import tqdm
 
     from .. import __version__
 
-    folder = output_folder(out, force=force)
-    folder.mkdir(parents=True, exist_ok=True)
     ctx: dict[str, Any] = {"quick": quick, "out": folder}
     t_start, c_start = time.perf_counter(), time.process_time()
     from .. import geometry, render  # noqa: F401  (imports are timed apart from the steps)
@@ -393,10 +405,9 @@ def run_demo(
         "",
         f"total: {total:.2f} s (process CPU time {cpu_total:.2f} s)",
     ]
-    report = folder / "report.txt"
-    tmp = report.with_name(f".{report.name}.tmp")
-    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    os.replace(tmp, report)
+    from ..io import atomic_write
+
+    atomic_write(folder / "report.txt", "\n".join(lines) + "\n")
     return folder
 
 

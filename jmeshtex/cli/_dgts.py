@@ -29,7 +29,15 @@ import json
 import pathlib
 
 from .._errors import InputError
-from ._common import MAX_SPEC_VERTICES, add_common, cached, int_in, load_mesh_spec
+from ._common import (
+    MAX_SPEC_VERTICES,
+    add_common,
+    cached,
+    check_checkpoints,
+    for_render,
+    int_in,
+    load_mesh_spec,
+)
 from ._output import claim_output
 
 
@@ -55,9 +63,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="number of levels, 1 to 10 (default 5, the paper's depth)",
     )
     q.add_argument(
-        "--steps", type=int, default=None, help="Adam steps per level (default: PrepareConfig's)"
+        "--steps",
+        type=int_in(1, 1_000_000),
+        default=None,
+        help="Adam steps per level (default: PrepareConfig's)",
     )
-    q.add_argument("--samples", type=int, default=None, help="surface samples at level 0")
+    q.add_argument(
+        "--samples",
+        type=int_in(1, MAX_SAMPLES),
+        default=None,
+        help=f"surface samples at level 0 (at most {MAX_SAMPLES:,})",
+    )
     q.add_argument(
         "--remeshes",
         type=int_in(1, 16),
@@ -72,40 +88,53 @@ def register(sub: argparse._SubParsersAction) -> None:
     t = dsub.add_parser("train", help="train the generator hierarchy (WGAN-GP), resumable")
     t.add_argument("dir", type=pathlib.Path, metavar="DIR", help="folder written by `dgts prepare`")
     t.add_argument(
-        "--steps", type=int, default=None, help="training steps per level (default 2000)"
+        "--steps",
+        type=int_in(1, 10_000_000),
+        default=None,
+        help="training steps per level (default 2000)",
     )
-    t.add_argument("--layers", type=int, default=None, help="layers per network (default 7)")
+    t.add_argument(
+        "--layers", type=int_in(1, 64), default=None, help="layers per network (default 7)"
+    )
     t.add_argument(
         "--features",
-        type=int,
+        type=int_in(1, 4096),
         nargs=3,
         default=None,
         metavar=("START", "MIN", "MAX"),
         help="width schedule (default 32 32 128)",
     )
-    t.add_argument("--levels", type=int, default=None, help="train only the first N levels")
+    t.add_argument(
+        "--levels", type=int_in(1, 10), default=None, help="train only the first N levels"
+    )
     t.add_argument(
         "--shared-levels",
-        type=int,
+        type=int_in(0, 10),
         default=0,
         metavar="N",
         help="pad levels 0..N-1 to one size so equal-width levels share one compiled step (default 0)",
     )
     t.add_argument(
         "--checkpoint-every",
-        type=int,
+        type=int_in(1),
         default=None,
         metavar="N",
         help="also checkpoint every N steps within a level (default: after each level only)",
     )
     t.add_argument(
         "--snapshot-every",
-        type=int,
+        type=int_in(1),
         default=None,
         metavar="N",
         help="record the current sample and reconstruction every N steps (DIR/snapshots.npz)",
     )
     add_common(t, out=None)
+    t.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="train in a DIR that holds another command's output or foreign files (files jmeshtex "
+        "did not write are never replaced)",
+    )
     t.set_defaults(func=cached(_train))
 
     for name, helptext in (
@@ -141,7 +170,9 @@ def register(sub: argparse._SubParsersAction) -> None:
             help="face budget of the output (default 500000)",
         )
         if name == "transfer":
-            r.add_argument("--samples", type=int, default=1, help="number of samples (default 1)")
+            r.add_argument(
+                "--samples", type=int_in(1, 1000), default=1, help="number of samples (default 1)"
+            )
             r.add_argument(
                 "--zero-noise-from",
                 type=int,
@@ -209,7 +240,7 @@ def _prepare(args) -> int:
         ).encode(),
     )
     save_mesh(ref, out / "reference.obj")
-    images = [render_mesh(ref, size=(300, 300))]
+    images = [render_mesh(for_render(ref), size=(300, 300))]
     for level in range(tm.num_levels):
         save_mesh(tm.mesh(level), out / f"level_{level:02d}.obj")
         images.append(render_mesh(tm.mesh(level), size=(300, 300)))
@@ -233,10 +264,12 @@ def _train(args) -> int:
     from ..render import render_mesh
 
     if args.dir.is_dir():  # one process per folder: a second run would race on the checkpoints
-        claim_output(args.dir, command="dgts train", overwrite=True, accept=("dgts prepare",))
+        claim_output(
+            args.dir, command="dgts train", overwrite=args.overwrite, accept=("dgts prepare",)
+        )
+        check_checkpoints(args.dir / "checkpoints")
+    remeshes = _prepared_remeshes(args.dir / "prepare.json")
     tm = load_training_meshes(args.dir / "training.npz")
-    prepared = args.dir / "prepare.json"
-    remeshes = json.loads(prepared.read_text()).get("remeshes", 1) if prepared.is_file() else 1
     references = [tm] + [
         load_training_meshes(args.dir / f"training_remesh{i}.npz") for i in range(1, remeshes)
     ]
@@ -289,6 +322,39 @@ def _train(args) -> int:
     render_mesh(sample, args.dir / "sample.png", size=(400, 400), title="sample from the template")
     print(f"wrote {out} ({result.model.num_levels} levels) and {args.dir / 'sample.png'}")
     return 0
+
+
+#: the most surface samples `dgts prepare --samples` may ask for (each level fits a Chamfer
+#: distance against them; 1e9 would need hundreds of GB)
+MAX_SAMPLES = 2_000_000
+
+
+def _prepared_remeshes(path: pathlib.Path) -> int:
+    """``remeshes`` from ``dgts prepare``'s record (1 without one), or one typed error naming it."""
+    if not path.exists():
+        return 1
+    from ..io import check_input_file
+
+    check_input_file(path, "dgts prepare record", max_bytes=1 << 20)
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError) as err:
+        raise InputError(
+            f"{path} is not the JSON record `dgts prepare` writes ({err}). Fix: run `jmeshtex dgts "
+            "prepare` again into this folder"
+        ) from err
+    if not isinstance(record, dict):
+        raise InputError(
+            f"{path} holds a JSON {type(record).__name__}, not the object `dgts prepare` writes. "
+            "Fix: run `jmeshtex dgts prepare` again into this folder"
+        )
+    remeshes = record.get("remeshes", 1)
+    if isinstance(remeshes, bool) or not isinstance(remeshes, int) or not 1 <= remeshes <= 16:
+        raise InputError(
+            f"{path}: 'remeshes' must be a whole number from 1 to 16, not {remeshes!r}. Fix: "
+            "run `jmeshtex dgts prepare` again into this folder"
+        )
+    return remeshes
 
 
 def _random_rotation(key):

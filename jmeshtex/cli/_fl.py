@@ -20,7 +20,15 @@ import argparse
 import json
 import pathlib
 
-from ._common import add_common, cached, int_in, load_mesh_spec
+from ._common import (
+    MAX_SPEC_VERTICES,
+    MAX_TEXTURE_SIZE,
+    add_common,
+    cached,
+    check_checkpoints,
+    int_in,
+    load_mesh_spec,
+)
 from ._output import check_output_file, claim_output
 
 
@@ -43,7 +51,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_common(t, out="output folder (fl_vae.npz, checkpoints/); an existing run there resumes")
     t.add_argument(
-        "--steps", type=int, default=None, help="optimiser steps (default: Config.steps)"
+        "--steps",
+        type=int_in(1, 10_000_000),
+        default=None,
+        help="optimiser steps (default: Config.steps)",
     )
     t.add_argument(
         "--decoder",
@@ -85,11 +96,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     _mesh_args(r)
     add_common(r, out="output folder", quiet=False)
     r.add_argument(
-        "--size", type=int, default=None, help="atlas side in texels (default: the texture's)"
+        "--size",
+        type=int_in(8, MAX_TEXTURE_SIZE),
+        default=None,
+        help=f"atlas side in texels, at most {MAX_TEXTURE_SIZE} (default: the texture's)",
     )
     r.add_argument(
         "--vertices",
-        type=int,
+        type=int_in(4, MAX_SPEC_VERTICES),
         default=None,
         help="remesh to about this many vertices first (latents on the remeshed surface)",
     )
@@ -132,6 +146,7 @@ def _train(args) -> int:
     claim_output(
         args.out, command="fl train", inputs=(args.config, args.images), overwrite=args.overwrite
     )
+    check_checkpoints(args.out / "checkpoints")
     data = {}
     if args.config is not None:
         try:

@@ -26,7 +26,19 @@ import pathlib
 import numpy as np
 
 from .._errors import InputError, MeshIOError
-from ._common import add_common, cached, float_in, int_in, load_array, load_mesh_spec
+from ._common import (
+    MAX_SPEC_VERTICES,
+    MAX_TEXTURE_SIZE,
+    add_common,
+    cached,
+    check_checkpoints,
+    float_in,
+    int_in,
+    load_array,
+    load_labels,
+    load_mesh_spec,
+    spec_for_record,
+)
 from ._output import claim_output
 
 PRESETS = ("tiny", "cpu", "paper")
@@ -54,9 +66,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument(
         "--preset", choices=PRESETS, default="cpu", help="denoiser/data preset (default cpu)"
     )
-    t.add_argument("--copies", type=int, default=None, help="re-triangulated copies")
-    t.add_argument("--vertices", type=int, default=None, help="vertices per copy")
-    t.add_argument("--steps", type=int, default=None, help="training steps")
+    t.add_argument("--copies", type=int_in(1, 10_000), default=None, help="re-triangulated copies")
+    t.add_argument(
+        "--vertices", type=int_in(4, MAX_SPEC_VERTICES), default=None, help="vertices per copy"
+    )
+    t.add_argument("--steps", type=int_in(1, 10_000_000), default=None, help="training steps")
     t.add_argument(
         "--prediction",
         choices=PREDICTIONS,
@@ -85,11 +99,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         )
         s.add_argument(
             "--vertices",
-            type=int,
+            type=int_in(4, MAX_SPEC_VERTICES),
             default=None,
             help="re-triangulate the mesh to this many vertices first",
         )
-        s.add_argument("--steps", type=int, default=50, help="DDIM steps (default 50)")
+        s.add_argument(
+            "--steps", type=int_in(1, 100_000), default=50, help="DDIM steps (default 50)"
+        )
         s.add_argument("--ddim", action="store_true", help="DDIM sampling (the default)")
         s.add_argument("--ddpm", action="store_true", help="ancestral DDPM with all T steps")
         s.add_argument("--eta", type=float_in(0.0), default=0.0, help="DDIM eta (default 0)")
@@ -105,7 +121,10 @@ def register(sub: argparse._SubParsersAction) -> None:
             "--labels", default=None, type=pathlib.Path, help="[V] int label map (.npy) on the mesh"
         )
         s.add_argument(
-            "--size", type=int, default=512, help="texture atlas size when the mesh has UVs"
+            "--size",
+            type=int_in(8, MAX_TEXTURE_SIZE),
+            default=512,
+            help="texture atlas size when the mesh has UVs",
         )
         add_common(s, out="output folder (latents.npz, PNGs)")
         if name == "inpaint":
@@ -161,8 +180,9 @@ def _train(args) -> int:
         inputs=(args.mesh, args.texture, args.labels, args.vae),
         overwrite=args.overwrite,
     )
+    check_checkpoints(args.out / "checkpoints")
     mesh = _load_mesh(args.mesh, args.texture)
-    labels = None if args.labels is None else load_array(args.labels, "--labels")
+    labels = None if args.labels is None else load_labels(args.labels)
     k_codec, k_data, k_train = jax.random.split(jax.random.key(args.seed), 3)
     encode, _, d = _codec(args.codec, args.vae, mesh, key=k_codec)
     changes = {"latent_channels": d}
@@ -196,13 +216,13 @@ def _train(args) -> int:
     from ..fldm.core import model_card
 
     save(res.model, out, card=model_card(res))
-    meta = {
-        "mesh": args.mesh,
-        "texture": args.texture,
+    meta = {  # files as absolute paths: the record is read from other folders too
+        "mesh": spec_for_record(args.mesh),
+        "texture": spec_for_record(args.texture),
         "codec": args.codec,
-        "vae": args.vae,
+        "vae": spec_for_record(args.vae),
         "seed": args.seed,
-        "labels": None if args.labels is None else str(args.labels),
+        "labels": spec_for_record(args.labels),
     }
     atomic_write(out / "fldm.json", json.dumps(meta, indent=2))
     done = res.steps - (res.resumed_from or 0)
@@ -256,7 +276,7 @@ def _run_sampling(args, *, inpaint: bool) -> int:
     encode, decode, _ = _codec(meta["codec"], meta["vae"], original, key=k_codec)
     if args.ddim and args.ddpm:
         raise InputError("choose one of --ddim and --ddpm")
-    labels = None if args.labels is None else load_array(args.labels, "--labels")
+    labels = None if args.labels is None else load_labels(args.labels)
     kwargs = dict(
         key=k_sample,
         num_samples=args.num_samples,

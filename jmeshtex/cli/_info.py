@@ -85,5 +85,8 @@ def _run(args: argparse.Namespace) -> int:
 
 def _render(mesh, path: pathlib.Path) -> None:
     from .. import render
+    from ._common import for_render
 
-    render.render_mesh(mesh, path, title=mesh.name)  # in its own texture or vertex colours
+    render.render_mesh(
+        for_render(mesh), path, title=mesh.name
+    )  # in its own texture or vertex colours

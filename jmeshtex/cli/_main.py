@@ -52,13 +52,21 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 1
+    from ..io import protect_reads, unprotect_all
     from ._output import release_all
 
     rc = 1
+    protect_reads()  # no output may replace a file this command read
     try:
         rc = int(args.func(args) or 0)
     except JmeshtexError as err:
         print(f"jmeshtex {args.command}: error: {err}", file=sys.stderr)
+        rc = 2
+    except MemoryError:
+        print(
+            f"jmeshtex {args.command}: error: out of memory; use a smaller mesh, image or size",
+            file=sys.stderr,
+        )
         rc = 2
     except KeyboardInterrupt:
         print(f"jmeshtex {args.command}: interrupted", file=sys.stderr)
@@ -71,6 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         rc = 141
     finally:
         release_all(failed=rc != 0)
+        unprotect_all()
     return rc
 
 

@@ -31,7 +31,7 @@ import argparse
 import json
 import pathlib
 
-from ._common import add_common, cached, float_in, load_array, load_mesh_spec
+from ._common import add_common, cached, float_in, int_in, load_array, load_mesh_spec
 from ._output import claim_output
 
 
@@ -101,7 +101,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     d.add_argument(
         "--smoothing-steps",
-        type=int,
+        type=int_in(0, 10_000),
         default=10,
         metavar="N",
         help="Taubin pairs that define the source's smooth base (default 10)",
@@ -119,7 +119,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _options(p: argparse.ArgumentParser) -> None:
     add_common(p)
     p.add_argument(
-        "--steps", type=int, default=None, help="PatchMatch iterations per level (Config.steps)"
+        "--steps",
+        type=int_in(1, 100_000),
+        default=None,
+        help="PatchMatch iterations per level (Config.steps)",
     )
     p.add_argument(
         "--up",
@@ -156,7 +159,11 @@ def _options(p: argparse.ArgumentParser) -> None:
         help="outer fan radius in mean edge lengths, at most 64 (Config.fan_radius)",
     )
     p.add_argument(
-        "--levels", type=int, default=None, metavar="N", help="hierarchy levels (Config.levels)"
+        "--levels",
+        type=int_in(1, 16),
+        default=None,
+        metavar="N",
+        help="hierarchy levels (Config.levels)",
     )
     p.add_argument(
         "--aligned",
@@ -348,11 +355,19 @@ def _write_outputs(out: pathlib.Path, source, result, title: str) -> dict:
         ),
     ]
     render.render_grid(images, out / "meshmatch.png", columns=3)
-    mesh_path = out / ("target.obj" if target_mesh.uv is not None else "target.ply")
+    # a textured OBJ brings its <stem>.mtl and <stem>.png: a stem apart from the renders' names
+    if target_mesh.uv is not None:
+        mesh_path, extra = (
+            out / "target_textured.obj",
+            {"texture": str(out / "target_textured.png")},
+        )
+    else:
+        mesh_path, extra = out / "target.ply", {}
     save_mesh(target_mesh.replace(name="target"), mesh_path)
     save(result, out)
     summary = {
         "mesh": str(mesh_path),
+        **extra,
         "renders": [str(out / n) for n in ("source.png", "target.png", "nnf.png", "meshmatch.png")],
         **{k: v for k, v in match.stats.items()},
     }

@@ -10,6 +10,9 @@ Every subcommand that writes calls :func:`claim_output` before any work. It
   non-empty folder is only written into by its owner (or a command the caller accepts, such as
   ``dgts train`` in the folder of ``dgts prepare``); another command's folder or one with foreign
   files needs ``--overwrite``;
+- protects (:func:`jmeshtex.io.protect`) every input, the MTL files and textures an OBJ input
+  names, and every entry that is not the owner's: no output of the command may replace them, even
+  with ``--overwrite`` (a typed error names the file);
 - takes a lock (``.jmeshtex.lock``, ``flock``): one process per output folder, a second run gets
   :class:`~jmeshtex.OutputLockedError`. The lock is released by :func:`release_all` (``main`` calls
   it after every command) or when the process ends.
@@ -35,6 +38,7 @@ MANIFEST = ".jmeshtex-owner.json"
 LOCK = ".jmeshtex.lock"
 
 _HELD: list[int] = []  # file descriptors of the locks this process holds
+_HELD_FOLDER: dict[int, pathlib.Path] = {}  # lock file descriptor -> its output folder
 _CREATED: list[pathlib.Path] = []  # output folders this process created (removed if left empty)
 _PREVIOUS_OWNER: dict[pathlib.Path, str | None] = {}
 
@@ -80,6 +84,23 @@ def _foreign_entries(folder: str | os.PathLike) -> set[str]:
     return {e for e in entries if isinstance(e, str)} if isinstance(entries, list) else set()
 
 
+def _with_referenced(inputs: Iterable[str | os.PathLike | None]) -> list[pathlib.Path]:
+    """The inputs plus the files they make jmeshtex read (an OBJ's MTL files and textures)."""
+    from ..io import referenced_files
+
+    out = []
+    for given in inputs:
+        if given is None:
+            continue
+        try:
+            path = pathlib.Path(given)
+        except TypeError:
+            continue
+        out.append(path)
+        out.extend(referenced_files(path))
+    return out
+
+
 def check_output_file(
     out: str | os.PathLike, inputs: Iterable[str | os.PathLike | None], *, flag: str = "--out"
 ) -> None:
@@ -105,10 +126,8 @@ def check_output_file(
       refusing to write --out ...m.obj
     """
     out = pathlib.Path(out)
-    for given in inputs:
-        if given is None:
-            continue
-        path = pathlib.Path(given)
+    inputs = _with_referenced(inputs)
+    for path in inputs:
         if path.exists() and (_same(out, path) or out.resolve() == path.resolve()):
             raise InputError(
                 f"refusing to write {flag} {out}: it is the input {path}, which the output would "
@@ -118,6 +137,10 @@ def check_output_file(
         raise InputError(f"{flag} {out} is a symbolic link: pick a plain path")
     if out.is_dir():
         raise InputError(f"{flag} {out} is a folder; this command writes a file there")
+    from ..io import protect
+
+    # input files (a folder input, such as a model folder, may hold this command's --out)
+    protect([p for p in inputs if not p.is_dir()], "an input of this command")
 
 
 def claim_output(
@@ -153,10 +176,8 @@ def claim_output(
       demo example False
     """
     out = pathlib.Path(out)
-    for given in inputs:
-        if given is None:
-            continue
-        path = pathlib.Path(given)
+    inputs = _with_referenced(inputs)
+    for path in inputs:
         if not path.exists():
             continue
         if _same(out, path) or (out.exists() and _inside(path, out)):
@@ -186,6 +207,18 @@ def claim_output(
         )
     _lock(out, command)
     _PREVIOUS_OWNER[out.resolve()] = owner
+    from ..io import protect
+
+    # input files (a folder input, such as a model folder, may hold this command's --out)
+    protect([p for p in inputs if not p.is_dir()], "an input of this command")
+    theirs = set(_foreign_entries(out))
+    if foreign and owner not in allowed:
+        theirs |= set(foreign)
+    protect(
+        (out / name for name in sorted(theirs)),
+        "a file that was in --out before this command claimed it (--overwrite never replaces "
+        "foreign files)",
+    )
     if owner is None or owner not in allowed or not foreign:
         from ..io import atomic_write
 
@@ -235,6 +268,17 @@ def _lock(out: pathlib.Path, command: str) -> None:
             f"finish, or pick another --out"
         ) from err
     _HELD.append(fd)
+    _HELD_FOLDER[fd] = out.resolve()
+
+
+def release(out: str | os.PathLike) -> None:
+    """Release the lock this process holds on one output folder (a library caller's run is done)."""
+    folder = pathlib.Path(out).resolve()
+    for fd in [fd for fd in _HELD if _HELD_FOLDER.get(fd) == folder]:
+        _HELD.remove(fd)
+        _HELD_FOLDER.pop(fd, None)
+        with contextlib.suppress(OSError):
+            os.close(fd)
 
 
 def release_all(*, failed: bool = False) -> None:
@@ -246,6 +290,7 @@ def release_all(*, failed: bool = False) -> None:
     """
     while _HELD:
         fd = _HELD.pop()
+        _HELD_FOLDER.pop(fd, None)
         with contextlib.suppress(OSError):
             os.close(fd)
     while _CREATED:

@@ -89,11 +89,13 @@ def _options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--size",
-        type=int,
+        type=int_in(8, 2048),
         default=512,
         help="texture resolution (default 512, the CPU preset; --size 1024 is the paper's)",
     )
-    p.add_argument("--steps", type=int, default=500, help="optimisation steps (default 500)")
+    p.add_argument(
+        "--steps", type=int_in(1, 10_000_000), default=500, help="optimisation steps (default 500)"
+    )
     p.add_argument(
         "--exemplar-scale",
         type=float_in(1 / 64, 64),
@@ -264,6 +266,11 @@ def _checkpoint(args) -> pathlib.Path:
     from .._errors import InputError
 
     path = args.out / CHECKPOINTS
+    if path.is_symlink() or (path.exists() and not path.is_dir()):
+        raise InputError(
+            f"{path} is a symbolic link or not a folder: refusing to write, delete or resume "
+            "through it. Fix: remove it, or pick a new --out folder"
+        )
     if path.exists() and not owns(args.out, CHECKPOINTS, _OWNERS):
         raise InputError(
             f"{path} was not written by jmeshtex surfacecnn: refusing to delete or resume from it. "

@@ -58,4 +58,10 @@ def mean_edge_length(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, 
     edges = unique_edges(f, len(v))
     if not len(edges):
         return 0.0
-    return float(np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1).mean())
+    d = v[edges[:, 0]] - v[edges[:, 1]]
+    with np.errstate(over="ignore", invalid="ignore"):
+        lengths = np.hypot(np.hypot(d[:, 0], d[:, 1]), d[:, 2])  # no overflow at 1e200
+    top = float(lengths.max())
+    if not np.isfinite(top) or top == 0.0:
+        return top
+    return float((lengths / top).mean() * top)

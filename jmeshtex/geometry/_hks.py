@@ -18,7 +18,7 @@ from .._config import is_int
 from .._errors import InputError
 from .._mesh import accepts_mesh
 from .._types import ArrayLike, Float, Int
-from ._validate import check_mesh_arrays
+from ._validate import check_float_range, check_mesh_arrays
 
 # relative threshold under which an eigenvalue counts as zero (one per connected component); the
 # shift-invert solve returns the null space at ~1e-12 relative, the first non-zero mode is far above
@@ -81,6 +81,7 @@ def laplacian_eigenpairs(
     import scipy.sparse.linalg as spla
 
     v, f = check_mesh_arrays(vertices, faces)
+    check_float_range(v, f)  # SuperLU fails on the overflowing or vanishing mass matrix outside
     n = len(v)
     if not is_int(k, 1) or k >= n:
         raise InputError(

@@ -37,8 +37,11 @@ def edge_lengths(
       >>> edge_lengths(*single_triangle()).round(4).tolist()
       [[1.0, 1.4142, 1.0]]
     """
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces, dtype=np.int64)
+    from .._mesh_arrays import check_indices, coerce_faces, coerce_vertices
+
+    v = coerce_vertices(vertices)
+    f = coerce_faces(faces)
+    check_indices(f, len(v))  # a -1 would silently read the last vertex
     return np.linalg.norm(v[np.roll(f, -1, axis=1)] - v[f], axis=-1)
 
 

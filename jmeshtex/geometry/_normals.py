@@ -27,6 +27,10 @@ def vertex_normals(
     Returns:
       ``[V, 3]`` float64 unit normals; 0 for vertices in no (non-degenerate) face.
 
+    Raises:
+      InputError, NonTriangleFaceError, FaceIndexError, NonFiniteVertexError: arrays that are not
+        a triangle mesh (wrong shapes, ragged or 4-column faces, indices out of range or negative).
+
     Example:
       >>> from jmeshtex.data import single_triangle
       >>> vertex_normals(*single_triangle()).tolist()[0]
@@ -38,8 +42,18 @@ def vertex_normals(
         raise InputError(
             f"vertex_normals: weighting must be one of {_WEIGHTINGS}, got {weighting!r}"
         )
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(faces, np.int64)
+    from .._mesh_arrays import check_indices, coerce_faces, coerce_vertices
+
+    v = coerce_vertices(vertices)
+    f = coerce_faces(faces)
+    check_indices(f, len(v))
+    if not np.isfinite(v).all():
+        from .._errors import NonFiniteVertexError
+
+        raise NonFiniteVertexError(indices=np.nonzero(~np.isfinite(v).all(axis=1))[0])
+    top = float(np.abs(v).max(initial=0.0))
+    if top > 0:  # unit normals are scale-free: a power-of-two rescale is exact and cannot overflow
+        v = v * 2.0 ** -np.floor(np.log2(top))
     cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # |cross| = 2 area
     if weighting == "area":
         w = np.repeat(cross[:, None, :], 3, axis=1)

@@ -26,6 +26,7 @@ from .._errors import (
     DuplicateFaceError,
     EmptyMeshError,
     InconsistentOrientationError,
+    MeshScaleError,
     NonFiniteVertexError,
     NonManifoldEdgeError,
     NonManifoldVertexError,
@@ -36,7 +37,37 @@ from .._types import ArrayLike, Float, Int
 
 AREA_TOL = 1e-7
 
-__all__ = ["AREA_TOL", "check_mesh_arrays", "validate_mesh"]
+#: mean edge lengths between which float64 squared lengths, areas and cotangent weights stay finite
+#: and normal (outside it, validation would call every face degenerate and solvers fail)
+EDGE_RANGE = (1e-100, 1e100)
+
+__all__ = ["AREA_TOL", "EDGE_RANGE", "check_float_range", "check_mesh_arrays", "validate_mesh"]
+
+
+def robust_edge_mean(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Mean length of the face edges (each side of each face), without overflow or underflow."""
+    if len(faces) == 0:
+        return 0.0
+    d = vertices[np.roll(faces, -1, axis=1)] - vertices[faces]
+    with np.errstate(over="ignore", invalid="ignore"):
+        lengths = np.hypot(np.hypot(d[..., 0], d[..., 1]), d[..., 2])
+    top = float(lengths.max())
+    if not np.isfinite(top) or top == 0.0:
+        return top
+    return float((lengths / top).mean() * top)
+
+
+def check_float_range(vertices: np.ndarray, faces: np.ndarray, *, what: str = "mesh") -> float:
+    """Raise :class:`~jmeshtex.MeshScaleError` when the mean edge length is outside
+    ``EDGE_RANGE`` (or coordinate differences overflow); return the mean edge length."""
+    edge = robust_edge_mean(vertices, faces)
+    low, high = EDGE_RANGE
+    if edge != 0.0 and not low <= edge <= high:  # 0: every face collapsed, a degenerate-face error
+        raise MeshScaleError(
+            f"{what}: mean edge length {edge:.3g} is outside [{low:.0e}, {high:.0e}], where float64 "
+            "areas and angles can be computed"
+        )
+    return edge
 
 
 # ----------------------------------------------------------------------------------------------
@@ -102,6 +133,7 @@ def _misoriented_edges(faces: np.ndarray, num_vertices: int) -> np.ndarray:
 def _check_topology(vertices: np.ndarray, faces: np.ndarray, area_tol: float) -> None:
     """Degenerate → duplicate → non-manifold edge → orientation → bow-tie, raising the first."""
     V = len(vertices)
+    check_float_range(vertices, faces)  # a scale error, not every face "degenerate"
     bad = np.nonzero(_degenerate_faces(vertices, faces, area_tol))[0]
     if bad.size:
         raise DegenerateFaceError(indices=bad)

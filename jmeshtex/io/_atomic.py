@@ -1,6 +1,12 @@
 """Atomic file writes: every file jmeshtex writes goes through a temporary file in the same folder and
 ``os.replace``, so a crash or a full disk never leaves a half-written output or destroys the
-file it replaces."""
+file it replaces; a symbolic link at the path is replaced, never written through.
+
+The ``jmeshtex`` command also protects what is not its own (one mechanism, :func:`protect`): the
+files it read (a mesh, the MTL and textures an OBJ names, images, arrays) and the entries an
+``--overwrite`` found in its output folder. :func:`atomic_write` refuses to replace a protected
+path or to write below a protected folder, with a :class:`~jmeshtex.MeshIOError` naming it. The
+library itself protects nothing unless :func:`protect_reads` was turned on (the CLI does)."""
 
 from __future__ import annotations
 
@@ -13,6 +19,64 @@ import tempfile
 import numpy as np
 
 from .._errors import MeshIOError
+
+_PROTECTED: dict[str, str] = {}  # real path -> why atomic_write may not replace it
+_RECORD_READS = False
+
+
+def protect(paths, why: str) -> None:
+    """Forbid :func:`atomic_write` to replace any of ``paths`` (files or folders) in this process.
+
+    Args:
+      paths: paths (None entries and paths that do not exist are skipped).
+      why: what the paths are, for the error (``"an input of this command"``).
+    """
+    for p in paths:
+        if p is None:
+            continue
+        with contextlib.suppress(OSError, TypeError, ValueError):
+            if os.path.lexists(p):
+                _PROTECTED.setdefault(os.path.realpath(p), why)
+
+
+def protect_reads(on: bool = True) -> None:
+    """Protect every file jmeshtex's readers open from now on (``load_mesh``, ``load_texture``,
+    the MTL and textures an OBJ names, ...): the CLI turns this on, so no output replaces an input."""
+    global _RECORD_READS
+    _RECORD_READS = on
+
+
+def note_read(path) -> None:
+    """Record that ``path`` was read (protected when :func:`protect_reads` is on)."""
+    if _RECORD_READS:
+        protect([path], "an input this command read")
+
+
+def unprotect_all() -> None:
+    """Forget every protected path and stop protecting reads (the CLI calls it after a command)."""
+    global _RECORD_READS
+    _PROTECTED.clear()
+    _RECORD_READS = False
+
+
+def _check_protected(path: pathlib.Path) -> None:
+    if not _PROTECTED:
+        return
+    # a link at the path is replaced, not followed: only its folder is resolved
+    real = os.path.join(os.path.realpath(path.parent), path.name)
+    probe = real
+    while True:
+        why = _PROTECTED.get(probe)
+        if why is not None:
+            inside = "" if probe == real else f" (inside {probe})"
+            raise MeshIOError(
+                f"refusing to write {path}{inside}: it is {why}, not a file this command wrote. "
+                "Fix: pick another output path (or move the file away)"
+            )
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            return
+        probe = parent
 
 
 def _new_file_mode(path: pathlib.Path) -> int:
@@ -41,7 +105,8 @@ def atomic_write(
       ``path`` as a :class:`pathlib.Path`.
 
     Raises:
-      MeshIOError: the folder is missing (``parents=False``), ``path`` is a folder, or the OS refused.
+      MeshIOError: the folder is missing (``parents=False``), ``path`` is a folder or protected
+        (:func:`protect`), or the OS refused.
 
     Example:
       >>> import tempfile
@@ -54,8 +119,9 @@ def atomic_write(
     if isinstance(data, str):
         data = data.encode("utf-8")
     folder = path.parent
-    if path.is_dir():
+    if path.is_dir() and not path.is_symlink():
         raise MeshIOError(f"cannot write {path}: it is a directory")
+    _check_protected(path)
     if not folder.is_dir():
         if not parents:
             raise MeshIOError(

@@ -20,21 +20,37 @@ from .._errors import MeshIOError, MeshRepairWarning, NonTriangleFaceError
 from .._mesh import Mesh
 from .._mesh_arrays import coincident_vertex_map
 from .._types import Float
+from ._read import check_input_file, check_memory
 from ._save import MESH_SUFFIXES, _unique_rows
 
 
 def _readable_file(path: str | os.PathLike, what: str) -> pathlib.Path:
-    try:
-        path = pathlib.Path(path)
-    except TypeError:
-        raise MeshIOError(f"cannot read {what}: {path!r} is not a path") from None
-    if not path.exists():
-        raise MeshIOError(f"cannot read {what} {path}: no such file")
-    if path.is_dir():
-        raise MeshIOError(f"cannot read {what} {path}: it is a directory")
-    if not os.access(path, os.R_OK):
-        raise MeshIOError(f"cannot read {what} {path}: permission denied")
-    return path
+    """``path`` if it is a readable regular file of bounded size (:func:`check_input_file`)."""
+    return check_input_file(path, what)
+
+
+def _open_image(path: pathlib.Path, what: str):
+    """A decoded PIL image of ``path``, refused before decoding when its pixels exceed the budget."""
+    from PIL import Image
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # e.g. PIL's DecompressionBombWarning: the budget decides
+        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            image = Image.open(path)
+        finally:
+            Image.MAX_IMAGE_PIXELS = limit
+        try:
+            width, height = image.size
+            check_memory(
+                4.0 * width * height * max(1, len(image.getbands())),
+                f"{what} {path} ({width} x {height} pixels)",
+            )
+            image.load()
+        except BaseException:
+            image.close()
+            raise
+    return image
 
 
 def _image_to_float(image) -> np.ndarray:
@@ -55,6 +71,16 @@ def _image_to_float(image) -> np.ndarray:
         out = arr.astype(np.float32) / np.float32(255)
     if out.ndim == 2:
         out = out[:, :, None]
+    if out.size and not (np.isfinite(out).all() and out.min() >= 0 and out.max() <= 1):
+        finite = out[np.isfinite(out)]
+        bad = int(out.size - finite.size)
+        span = f"values from {finite.min():.3g} to {finite.max():.3g}" if finite.size else ""
+        nonfinite = f"{bad} non-finite texel value(s)" if bad else ""
+        raise MeshIOError(
+            f"the {image.mode} image has {', '.join(x for x in (nonfinite, span) if x)}; texels "
+            "must lie in [0, 1]. Fix: save it as an 8- or 16-bit image, or scale float data to "
+            "[0, 1]"
+        )
     return np.ascontiguousarray(out)
 
 
@@ -71,7 +97,8 @@ def load_texture(path: str | os.PathLike) -> Float[np.ndarray, "H W C"]:
       ``[H, W, C]`` float32.
 
     Raises:
-      MeshIOError: missing, unreadable or not an image.
+      MeshIOError: missing, not a regular file, larger than the read cap or the memory budget,
+        unreadable, not an image, or with texels outside [0, 1] (float images: NaN, inf, 1e6).
 
     Example:
       >>> import numpy as np, pathlib, tempfile
@@ -82,17 +109,14 @@ def load_texture(path: str | os.PathLike) -> Float[np.ndarray, "H W C"]:
       >>> t.shape, t.dtype
       ((4, 8, 3), dtype('float32'))
     """
-    from PIL import Image
-
     path = _readable_file(path, "texture")
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter(
-                "ignore"
-            )  # e.g. PIL's DecompressionBombWarning: we read on purpose
-            with Image.open(path) as image:
-                image.load()
-                return _image_to_float(image)
+        with _open_image(path, "texture") as image:
+            return _image_to_float(image)
+    except MeshIOError as err:
+        if str(err).startswith("cannot read"):
+            raise
+        raise MeshIOError(f"cannot read texture {path}: {err}") from err
     except Exception as err:  # PIL raises OSError, UnidentifiedImageError, SyntaxError, ...
         raise MeshIOError(f"cannot read texture {path}: {err}") from err
 
@@ -100,41 +124,175 @@ def load_texture(path: str | os.PathLike) -> Float[np.ndarray, "H W C"]:
 _BOM = b"\xef\xbb\xbf"
 
 
-def _check_obj_text(path: pathlib.Path, text: str) -> None:
-    """Refuse ``v`` lines with fewer than 3 coordinates; warn about missing or bad MTL/textures."""
+def _obj_index(token: str, count: int, kind: str, path: pathlib.Path, number: int, line: str):
+    """Check one OBJ index (1-based, or negative = relative); a typed error names the line."""
+    try:
+        value = int(token)
+    except ValueError:
+        raise MeshIOError(
+            f"cannot read mesh {path}: line {number} has a bad {kind} index {token!r} "
+            f"({line.strip()[:80]!r})"
+        ) from None
+    if value == 0:
+        raise MeshIOError(
+            f"cannot read mesh {path}: line {number} uses {kind} index 0 ({line.strip()[:80]!r}); "
+            "OBJ indices start at 1. Fix: the file looks 0-based: add 1 to every index"
+        )
+    if not -count <= value <= count:
+        raise MeshIOError(
+            f"cannot read mesh {path}: line {number} uses {kind} index {value}, but the file has "
+            f"{count} {kind} line(s) before it ({line.strip()[:80]!r})"
+        )
+
+
+def _check_obj_text(path: pathlib.Path, text: str) -> set[str]:
+    """Refuse bad ``v`` lines and face indices (0-based, out of range, also ``vt``); warn about
+    faces with fewer than 3 corners and missing or bad MTL/textures. Returns the referenced files
+    that may not be read (trimesh's resolver refuses them)."""
+    counts = {"v": 0, "vt": 0, "vn": 0}
+    short = 0
     for number, line in enumerate(text.splitlines(), 1):
         fields = line.split("#", 1)[0].split()
-        if fields and fields[0] == "v" and len(fields) < 4:
+        if not fields:
+            continue
+        head = fields[0]
+        if head == "v" and len(fields) < 4:
             raise MeshIOError(
                 f"cannot read mesh {path}: line {number} is a vertex with {len(fields) - 1} "
                 f"coordinate{'s' if len(fields) != 2 else ''} ({line.strip()!r}); OBJ vertices "
                 "need x y z"
             )
+        if head in counts:
+            counts[head] += 1
+        elif head == "f":
+            if len(fields) < 4:
+                short += 1
+            for corner in fields[1:]:
+                parts = corner.split("/")
+                for part, kind in zip(parts, ("v", "vt", "vn"), strict=False):
+                    if part:
+                        _obj_index(part, counts[kind], kind, path, number, line)
+    if short:
+        warnings.warn(
+            f"load_mesh: {path.name}: dropped {short} face line(s) with fewer than 3 corners",
+            MeshRepairWarning,
+            stacklevel=4,
+        )
+    refused: set[str] = set()
     for name in re.findall(r"^[ \t]*mtllib[ \t]+([^\n#]+?)[ \t]*$", text, flags=re.MULTILINE):
         mtl = path.parent / name.strip()
-        if not mtl.is_file():
+        if not mtl.exists():
             _dropped(path, f"its material file {mtl.name} is missing ({mtl})")
             continue
         try:
+            check_input_file(mtl, "material file")
             mtl_text = mtl.read_text(encoding="utf-8", errors="replace")
-        except OSError as err:
-            _dropped(path, f"its material file {mtl} cannot be read ({err.strerror or err})")
+        except (MeshIOError, OSError) as err:
+            refused.add(name.strip())
+            _dropped(path, f"its material file {mtl} cannot be read ({err})")
             continue
-        maps = re.findall(r"^[ \t]*map_Kd[ \t]+([^\n#]+?)[ \t]*$", mtl_text, flags=re.MULTILINE)
+        maps = re.findall(
+            r"^[ \t]*map_[A-Za-z]+[ \t]+([^\n#]+?)[ \t]*$", mtl_text, flags=re.MULTILINE
+        )
         for entry in maps:
             image = path.parent / entry.split()[-1]
-            if not image.is_file():
+            if not image.exists():
                 _dropped(path, f"the texture {image.name} named by {mtl.name} is missing ({image})")
                 continue
             try:
-                from PIL import Image
-
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    with Image.open(image) as img:
-                        img.load()
+                check_input_file(image, "texture")
+                with _open_image(image, "texture") as img:
+                    _image_to_float(img)
             except Exception as err:  # PIL raises OSError, UnidentifiedImageError, SyntaxError
+                refused.add(entry.split()[-1])
                 _dropped(path, f"the texture {image} named by {mtl.name} cannot be read ({err})")
+    return refused
+
+
+def referenced_files(path: str | os.PathLike) -> list[pathlib.Path]:
+    """The files a mesh file makes jmeshtex read besides itself: an OBJ's MTL files and the
+    texture images they name (existing ones only).
+
+    Example:
+      >>> referenced_files("no-such.obj")
+      []
+    """
+    path = pathlib.Path(path)
+    if path.suffix.lower() != ".obj" or not path.is_file():
+        return []
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return []
+    out = []
+    for name in re.findall(r"^[ \t]*mtllib[ \t]+([^\n#]+?)[ \t]*$", text, flags=re.MULTILINE):
+        mtl = path.parent / name.strip()
+        if not mtl.is_file():
+            continue
+        out.append(mtl)
+        try:
+            mtl_text = mtl.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            continue
+        for entry in re.findall(
+            r"^[ \t]*map_[A-Za-z]+[ \t]+([^\n#]+?)[ \t]*$", mtl_text, flags=re.MULTILINE
+        ):
+            image = path.parent / entry.split()[-1]
+            if image.exists():
+                out.append(image)
+    return out
+
+
+def _resolver(path: pathlib.Path, refused: set[str]):
+    """trimesh's file resolver for ``path``'s folder that reads only checked regular files."""
+    import trimesh
+
+    class _CheckedResolver(trimesh.resolvers.FilePathResolver):
+        def get(self, name):
+            if name in refused:
+                raise MeshIOError(f"{name} refused")
+            check_input_file(path.parent / name, "file referenced by the mesh")
+            return super().get(name)
+
+    return _CheckedResolver(str(path))
+
+
+def _check_off(path: pathlib.Path, data: bytes) -> None:
+    """Refuse an OFF file whose header counts do not match its body (lying or truncated)."""
+    lines = [
+        line.split("#")[0].split() for line in data.decode("ascii", errors="replace").splitlines()
+    ]
+    tokens = [t for t in lines if t]
+    if not tokens:
+        raise MeshIOError(f"cannot read mesh {path}: the file is empty")
+    head = tokens[0][1:] if tokens[0][0].upper().endswith("OFF") else tokens[0]
+    body = tokens[1:]
+    if not head:
+        if not body:
+            raise MeshIOError(f"cannot read mesh {path}: no counts line after OFF")
+        head, body = body[0], body[1:]
+    try:
+        nv, nf = int(head[0]), int(head[1])
+    except (ValueError, IndexError):
+        raise MeshIOError(
+            f"cannot read mesh {path}: bad OFF counts line {' '.join(head)!r}"
+        ) from None
+    if nv < 0 or nf < 0 or len(body) != nv + nf:
+        raise MeshIOError(
+            f"cannot read mesh {path}: the header declares {nv} vertices and {nf} faces "
+            f"({nv + nf} lines) but the body has {len(body)} lines; the file is truncated or its "
+            "header is wrong"
+        )
+    for number, fields in enumerate(body[nv:], 1):
+        try:
+            corners = int(fields[0])
+        except ValueError:
+            raise MeshIOError(f"cannot read mesh {path}: face {number} is {fields!r}") from None
+        if corners < 3 or len(fields) < 1 + corners:
+            raise MeshIOError(
+                f"cannot read mesh {path}: face {number} ({' '.join(fields)[:80]!r}) lists "
+                f"{len(fields) - 1} of {corners} corners; faces need 3 or more"
+            )
 
 
 def _dropped(path: pathlib.Path, what: str) -> None:
@@ -182,7 +340,7 @@ def _trimesh_mesh(path: pathlib.Path):
     suffix = path.suffix.lower()
     source: str | io.BytesIO = str(path)
     resolver = None
-    if suffix in (".obj", ".ply"):
+    if suffix in (".obj", ".ply", ".off"):
         try:
             data = path.read_bytes()
         except OSError as err:
@@ -190,9 +348,12 @@ def _trimesh_mesh(path: pathlib.Path):
         if suffix == ".obj":
             if data.startswith(_BOM):  # trimesh would read "\ufeffv" as an unknown keyword
                 data = data[len(_BOM) :]
-                source = io.BytesIO(data)
-                resolver = trimesh.resolvers.FilePathResolver(str(path))
-            _check_obj_text(path, data.decode("utf-8", errors="replace"))
+            data = data.replace(b"\t", b" ")  # trimesh splits OBJ fields on spaces only
+            refused = _check_obj_text(path, data.decode("utf-8", errors="replace"))
+            source = io.BytesIO(data)
+            resolver = _resolver(path, refused)
+        elif suffix == ".off":
+            _check_off(path, data)
         elif data.startswith(b"ply"):
             _check_ascii_ply(path, data)
     try:
@@ -342,7 +503,10 @@ def _visual_attributes(loaded, path: pathlib.Path):
         if image is None:
             image = getattr(material, "baseColorTexture", None)
         if image is not None and not _is_placeholder(image):
-            texture = _image_to_float(image)
+            try:
+                texture = _image_to_float(image)
+            except Exception as err:  # a texture trimesh read but cannot be decoded or is bad
+                _dropped(path, f"its texture cannot be used ({err})")
         raw = _raw_vertex_colors(loaded, path)
         if raw is not None:
             match = _lookup_rows(raw[0], np.asarray(loaded.vertices, dtype=np.float64))
@@ -350,8 +514,17 @@ def _visual_attributes(loaded, path: pathlib.Path):
                 colors = raw[1][match]
     elif getattr(visual, "kind", None) == "vertex":
         colors = np.asarray(visual.vertex_colors)
+        raw = _raw_vertex_colors(loaded, path)  # trimesh turns NaN colours into black
+        if raw is not None and raw[1].dtype.kind == "f" and not np.isfinite(raw[1]).all():
+            colors = np.asarray(raw[1], np.float64)
     if colors is not None:
         colors = np.asarray(colors)
+        if colors.dtype.kind == "f" and not np.isfinite(colors).all():
+            rows = np.nonzero(~np.isfinite(colors).all(axis=1))[0]
+            raise MeshIOError(
+                f"cannot read mesh {path}: {rows.size} vertex colour(s) are NaN or infinite "
+                f"(first at vertex {int(rows[0])}). Fix: give every vertex a finite colour"
+            )
         if colors.dtype != np.uint8:  # OBJ colours are floats in [0, 1]
             colors = np.round(np.clip(colors.astype(np.float64), 0, 1) * 255).astype(np.uint8)
         if colors.shape[1] == 4 and np.all(colors[:, 3] == 255):

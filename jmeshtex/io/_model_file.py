@@ -246,7 +246,8 @@ def load_model(
 
     Raises:
       CorruptModelError: the file is missing, truncated or not a model file, holds another kind or
-        a version not in ``format_versions``, or (with ``like``) arrays that do not match.
+        a version not in ``format_versions``, NaN or infinite numbers, or (with ``like``) arrays
+        that do not match.
 
     Example:
       >>> import tempfile, numpy as np
@@ -289,6 +290,17 @@ def load_model(
         raise CorruptModelError(
             f"{path}: {what} format version {version!r}; this jmeshtex reads "
             f"{', '.join(map(str, format_versions))} (written by another jmeshtex version)"
+        )
+    bad = sorted(
+        name
+        for name, a in arrays.items()
+        if a.dtype.kind in "fc" and a.size and not np.isfinite(a).all()
+    )
+    if bad:  # a model trained to NaN, or bytes flipped inside an array
+        shown = ", ".join(bad[:5]) + (f", ... ({len(bad) - 5} more)" if len(bad) > 5 else "")
+        raise CorruptModelError(
+            f"{path}: the {what} holds NaN or infinite numbers in {shown}; the file is damaged or "
+            "was saved from a diverged run. Fix: train again, or use an earlier model file"
         )
     file = ModelFile(path, stored_kind, int(version), config, extra, arrays, _nested(arrays))
     if like is not None:

@@ -17,6 +17,25 @@ from .._errors import ConfigError, InputError
 from .._types import Array, ArrayLike, Bool, Complex, Float, Inexact
 
 
+def _numeric(x, name: str, where: str):
+    """``x`` as a JAX array of numbers (trace-time check: dtype and convertibility only)."""
+    if isinstance(x, (str, bytes)):
+        raise InputError(f"{where}: {name} must be an array of numbers, got {type(x).__name__}")
+    try:
+        arr = jnp.asarray(x)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"{where}: {name} must be an array of numbers ({err})") from None
+    if arr.dtype.kind not in "biufc":
+        raise InputError(f"{where}: {name} must hold numbers, got dtype {arr.dtype}")
+    return arr
+
+
+def _check_axis(axis, ndim: int, where: str) -> int:
+    if isinstance(axis, bool) or not isinstance(axis, int) or not -ndim <= axis < ndim:
+        raise InputError(f"{where}: axis={axis!r} is not an axis of a {ndim}-d array")
+    return axis % ndim
+
+
 def safe_norm(
     x: Inexact[ArrayLike, "..."], *, axis: int = -1, keepdims: bool = False
 ) -> Float[Array, "..."]:
@@ -42,6 +61,10 @@ def safe_norm(
       >>> jax.grad(lambda v: safe_norm(v))(jnp.zeros(3)).tolist()
       [0.0, 0.0, 0.0]
     """
+    x = _numeric(x, "x", "safe_norm")
+    _check_axis(axis, max(x.ndim, 1), "safe_norm")
+    if x.ndim == 0:
+        raise InputError("safe_norm: x must have at least one axis, got a scalar")
     sq = jnp.sum(jnp.real(x * jnp.conj(x)), axis=axis, keepdims=keepdims)
     positive = sq > 0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, sq, 1)), 0)
@@ -55,6 +78,10 @@ def safe_normalize(x: Float[ArrayLike, "... D"], *, axis: int = -1) -> Float[Arr
       >>> safe_normalize(jnp.array([[0.0, 2.0], [0.0, 0.0]])).tolist()
       [[0.0, 1.0], [0.0, 0.0]]
     """
+    x = _numeric(x, "x", "safe_normalize")
+    if x.ndim == 0:
+        raise InputError("safe_normalize: x must have at least one axis, got a scalar")
+    _check_axis(axis, x.ndim, "safe_normalize")
     sq = jnp.sum(jnp.real(x * jnp.conj(x)), axis=axis, keepdims=True)
     positive = sq > 0
     inv = jnp.where(positive, 1 / jnp.sqrt(jnp.where(positive, sq, 1)), 0)
@@ -85,7 +112,18 @@ def masked_mean(
       >>> masked_mean(jnp.array([[1.0], [3.0], [100.0]]), jnp.array([True, True, False])).tolist()
       [2.0]
     """
-    axis = axis % x.ndim
+    x = _numeric(x, "x", "masked_mean")
+    if x.ndim == 0:
+        raise InputError("masked_mean: x must have at least one axis, got a scalar")
+    axis = _check_axis(axis, x.ndim, "masked_mean")
+    mask = _numeric(mask, "mask", "masked_mean")
+    if mask.shape != (x.shape[axis],):
+        raise InputError(
+            f"masked_mean: mask must have shape ({x.shape[axis]},), one entry per row along axis "
+            f"{axis} of x {x.shape}, got {mask.shape}"
+        )
+    if x.dtype.kind in "biu":
+        raise InputError(f"masked_mean: x must be floating or complex, got dtype {x.dtype}")
     w = jnp.asarray(mask).astype(x.real.dtype)
     w = w.reshape(w.shape + (1,) * (x.ndim - axis - 1))
     count = jnp.maximum(jnp.sum(w), 1)
@@ -284,7 +322,6 @@ def conjugate_complex_grads(grads):
     return jax.tree.map(conj, grads)
 
 
-@jax.custom_jvp
 def elementwise_max(xs: tuple[Float[ArrayLike, "..."], ...]) -> Float[Array, "..."]:
     """Elementwise maximum of a tuple of same-shape arrays, with a lean derivative.
 
@@ -310,16 +347,35 @@ def elementwise_max(xs: tuple[Float[ArrayLike, "..."], ...]) -> Float[Array, "..
       >>> [g.tolist() for g in jax.grad(lambda xs: elementwise_max(xs).sum())((a, b))]
       [[0.0, 1.0], [1.0, 0.0]]
     """
+    if not isinstance(xs, (tuple, list)) or not xs:
+        raise InputError(
+            f"elementwise_max: xs must be a non-empty tuple of arrays, got {type(xs).__name__}"
+        )
+    arrays = tuple(_numeric(x, f"xs[{i}]", "elementwise_max") for i, x in enumerate(xs))
+    shapes = {a.shape for a in arrays}
+    dtypes = {a.dtype for a in arrays}
+    if len(shapes) > 1 or len(dtypes) > 1:
+        raise InputError(
+            "elementwise_max: every array in xs must have one shape and dtype, got shapes "
+            f"{sorted(map(str, shapes))} and dtypes {sorted(map(str, dtypes))}"
+        )
+    if any(a.dtype.kind == "c" for a in arrays):
+        raise InputError("elementwise_max: complex numbers have no order; pass real arrays")
+    return _elementwise_max(tuple(xs))
+
+
+@jax.custom_jvp
+def _elementwise_max(xs: tuple) -> Array:
     out = xs[0]
     for x in xs[1:]:
         out = jnp.maximum(out, x)
     return out
 
 
-@elementwise_max.defjvp
+@_elementwise_max.defjvp
 def _elementwise_max_jvp(primals, tangents):
     (xs,), (ts,) = primals, tangents
-    out = elementwise_max(xs)
+    out = _elementwise_max(xs)
     which = jnp.full(out.shape, len(xs) - 1, jnp.int32)
     for k in range(len(xs) - 2, -1, -1):  # the first input attaining the maximum wins
         which = jnp.where(xs[k] == out, k, which)

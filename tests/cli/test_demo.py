@@ -62,10 +62,14 @@ def test_existing_non_empty_folder_is_not_overwritten(tmp_path, monkeypatch, cap
     assert f"wrote {tmp_path / 'run-1'}" in capsys.readouterr().out
     assert main(["demo", "--out", str(tmp_path), "--quick", "--no-progress"]) == 0
     assert (tmp_path / "run-2" / "report.txt").exists()
-    # --force writes into the folder itself
-    assert main(["demo", "--out", str(tmp_path), "--quick", "--force", "--no-progress"]) == 0
-    report = (tmp_path / "report.txt").read_text()
-    assert "procedural meshes" in report
+    # --force writes into the folder itself, but never replaces a file jmeshtex did not write
+    assert main(["demo", "--out", str(tmp_path), "--quick", "--force", "--no-progress"]) == 2
+    assert "not a file this command wrote" in capsys.readouterr().err
+    assert (tmp_path / "report.txt").read_text() == "an earlier run"
+    # ... while its own earlier output is replaced
+    run = tmp_path / "run-1"
+    assert main(["demo", "--out", str(run), "--quick", "--force", "--no-progress"]) == 0
+    assert "procedural meshes" in (run / "report.txt").read_text()
 
 
 def test_out_is_a_file_gives_a_clear_error(tmp_path, capsys):

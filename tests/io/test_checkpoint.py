@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from jmeshtex import CheckpointMismatchError, CheckpointSkippedWarning, MeshIOError
+from jmeshtex import CheckpointMismatchError, CheckpointSkippedWarning, InputError, MeshIOError
 from jmeshtex.io import Checkpoints
 
 
@@ -27,24 +27,68 @@ def test_a_corrupt_newest_step_resumes_from_the_previous(tmp_path):
         assert ckpt.latest_step() == 1
     state, meta = ckpt.restore({"w": np.zeros(3)})
     assert state["w"].tolist() == [1.0, 1.0, 1.0] and meta == {"step": 1}
-    # and the run goes on: step 2 is written again over the unreadable one
+    # and the run goes on: step 2 is written again over the damaged one (it is jmeshtex's)
     ckpt.save(2, {"w": np.full(3, 4.0)}, meta={"step": 2})
     assert ckpt.latest_step() == 2
     assert ckpt.restore({"w": np.zeros(3)})[0]["w"].tolist() == [4.0, 4.0, 4.0]
 
 
-def test_a_stray_or_empty_step_folder_is_skipped(tmp_path):
+def _data_files(step_folder):
+    return sorted(p for p in (step_folder / "state").rglob("d/*") if p.is_file())
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip", "delete", "manifest"])
+def test_any_damage_to_the_newest_step_falls_back_to_the_older_one(tmp_path, damage, capfd):
     _two_steps(tmp_path).close()
-    (tmp_path / "999").mkdir()
-    (tmp_path / "998").mkdir()
-    (tmp_path / "998" / "notes.txt").write_text("not a checkpoint")
+    step = tmp_path / "2"
+    if damage == "manifest":
+        targets = [step / "state" / "manifest.ocdbt"]
+    else:
+        targets = _data_files(step)
+    assert targets and all(p.is_file() for p in targets)
+    for p in targets:
+        raw = bytearray(p.read_bytes())
+        if damage == "truncate":
+            p.write_bytes(bytes(raw[: len(raw) // 2]))
+        elif damage == "delete":
+            p.unlink()
+        else:
+            for i in range(0, len(raw), 7):
+                raw[i] ^= 0xFF
+            p.write_bytes(bytes(raw))
     ckpt = Checkpoints(tmp_path, fingerprint={"run": 1})
-    with pytest.warns(CheckpointSkippedWarning) as record:
-        assert ckpt.latest_step() == 2
-    named = sorted(str(w.message).split(" skipped")[0].rsplit("/", 1)[1] for w in record)
-    assert named == ["998", "999"]
-    assert ckpt.read_meta()["step"] == 2
-    assert ckpt.restore({"w": np.zeros(3)})[0]["w"].tolist() == [2.0, 2.0, 2.0]
+    with pytest.warns(CheckpointSkippedWarning, match=r"2 skipped: its checksums differ"):
+        assert ckpt.latest_step() == 1
+    assert ckpt.restore({"w": np.zeros(3)})[0]["w"].tolist() == [1.0, 1.0, 1.0]
+    assert "Event loop is closed" not in capfd.readouterr().err
+
+
+def test_foreign_folders_are_ignored_and_never_deleted(tmp_path):
+    """Numbered folders jmeshtex did not write (a user's photos, a '²') survive saves and retention."""
+    for name in ("1", "100", "\u00b2", "998"):
+        (tmp_path / name).mkdir()
+    (tmp_path / "100" / "holiday.jpg").write_bytes(b"x")
+    ckpt = Checkpoints(tmp_path, fingerprint={"run": 1}, keep=1)
+    assert ckpt.latest_step() is None
+    for step in (2, 3, 4):
+        ckpt.save(step, {"w": np.full(3, float(step))}, meta={"step": step})
+    names = sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("."))
+    assert names == sorted(["1", "100", "\u00b2", "998", "4"])
+    assert (tmp_path / "100" / "holiday.jpg").read_bytes() == b"x"
+    assert ckpt.latest_step() == 4
+    with pytest.raises(MeshIOError, match="jmeshtex did not write"):
+        ckpt.save(100, {"w": np.zeros(3)})
+    assert (tmp_path / "100" / "holiday.jpg").read_bytes() == b"x"
+
+
+def test_a_symlinked_folder_and_bad_keep_are_typed_errors(tmp_path):
+    (tmp_path / "real").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    with pytest.raises(MeshIOError, match="symbolic link"):
+        Checkpoints(tmp_path / "link")
+    for keep in (0, -1, 1.5, "2", True):
+        with pytest.raises(InputError, match="keep"):
+            Checkpoints(tmp_path / "c", keep=keep)
 
 
 def test_wrong_typed_meta_is_skipped_and_a_foreign_run_is_still_a_mismatch(tmp_path):
@@ -61,37 +105,21 @@ def test_wrong_typed_meta_is_skipped_and_a_foreign_run_is_still_a_mismatch(tmp_p
         other.restore({"w": np.zeros(3)})
 
 
-def test_flipped_data_bytes_are_one_typed_error(tmp_path, capfd):
-    _two_steps(tmp_path).close()
-    data = [p for p in (tmp_path / "2" / "state").rglob("d/*") if p.is_file()]
-    assert data
-    for p in data:
-        raw = bytearray(p.read_bytes())
-        for i in range(0, len(raw), 7):
-            raw[i] ^= 0xFF
-        p.write_bytes(bytes(raw))
-    ckpt = Checkpoints(tmp_path, fingerprint={"run": 1})
-    with pytest.raises(MeshIOError, match=r"2 cannot be read|does not match"):
-        ckpt.restore({"w": np.zeros(3)})
-    assert ckpt.restore({"w": np.zeros(3)}, step=1)[0]["w"].tolist() == [1.0, 1.0, 1.0]
-    assert "Event loop is closed" not in capfd.readouterr().err
-
-
 def test_a_full_disk_is_one_typed_error_and_leaves_no_temporary_folder(tmp_path, monkeypatch):
     import orbax.checkpoint as ocp
 
     ckpt = _two_steps(tmp_path)
 
-    def full(self, step, *args, **kwargs):
-        (tmp_path / f"{step}.orbax-checkpoint-tmp-123").mkdir()
+    def full(self, path, *args, **kwargs):
+        path.parent.joinpath("state.orbax-checkpoint-tmp-123").mkdir()
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(ocp.CheckpointManager, "save", full)
+    monkeypatch.setattr(ocp.Checkpointer, "save", full)
     with pytest.raises(MeshIOError, match="ENOSPC") as info:
         ckpt.save(3, {"w": np.full(3, 3.0)}, meta={"step": 3})
     assert "\n" not in str(info.value)
     monkeypatch.undo()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["1", "2"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".jmeshtex-checkpoints.json", "1", "2"]
     assert ckpt.latest_step() == 2
 
 

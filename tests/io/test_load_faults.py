@@ -87,3 +87,98 @@ def test_info_shows_what_was_dropped(tmp_path, capsys):
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "note: m.obj: the texture" in out and "is missing" in out
+
+
+def test_fifos_and_devices_are_refused_before_any_read(tmp_path):
+    import os
+
+    from jmeshtex.io import load_texture
+
+    fifo = tmp_path / "m.obj"
+    os.mkfifo(fifo)
+    zero = tmp_path / "z.obj"
+    zero.symlink_to("/dev/zero")
+    with pytest.raises(MeshIOError, match="FIFO"):
+        load_mesh(fifo)
+    with pytest.raises(MeshIOError, match="character device"):
+        load_mesh(zero)
+    with pytest.raises(MeshIOError, match="FIFO"):
+        load_texture(fifo)
+    # a FIFO named by the MTL is dropped with a note, never opened
+    (tmp_path / "t.obj").write_text("mtllib p.mtl\n" + OBJ)
+    os.mkfifo(tmp_path / "p.mtl")
+    with pytest.warns(MeshRepairWarning, match="p.mtl cannot be read"):
+        assert load_mesh(tmp_path / "t.obj").num_faces == 4
+
+
+def test_the_size_cap_and_the_memory_budget_name_their_limits(tmp_path, monkeypatch):
+    import struct
+    import zlib
+
+    from jmeshtex.io import _read, load_texture
+
+    path = tmp_path / "m.obj"
+    path.write_text(OBJ)
+    monkeypatch.setattr(_read, "MAX_INPUT_BYTES", 10)
+    with pytest.raises(MeshIOError, match=r"more than the 10 bytes"):
+        load_mesh(path)
+    monkeypatch.undo()
+
+    def chunk(tag, data):
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data))
+
+    big = tmp_path / "big.png"
+    ihdr = struct.pack(">IIBBBBB", 100_000, 100_000, 8, 2, 0, 0, 0)
+    big.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IEND", b""))
+    with pytest.raises(MeshIOError, match=r"GiB budget"):
+        load_texture(big)
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "OBJ indices start at 1"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "v index 4, but the file has 3"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/2\n", "vt index 2, but the file has 1"),
+        ("v 0 0 0 nan 0 0\nv 1 0 0 1 0 0\nv 0 1 0 0 1 0\nf 1 2 3\n", "vertex colour"),
+    ],
+)
+def test_bad_obj_indices_and_colours_are_typed_errors(tmp_path, text, match):
+    path = tmp_path / "bad.obj"
+    path.write_text(text)
+    with pytest.raises(MeshIOError, match=match):
+        load_mesh(path)
+
+
+def test_tabs_load_and_short_faces_are_counted(tmp_path):
+    tabs = tmp_path / "tabs.obj"
+    tabs.write_text(OBJ.replace(" ", "\t"))
+    assert load_mesh(tabs).num_faces == 4
+    short = tmp_path / "short.obj"
+    short.write_text(OBJ + "f 1 2\nf 3\n")
+    with pytest.warns(MeshRepairWarning, match="dropped 2 face line"):
+        assert load_mesh(short).num_faces == 4
+
+
+@pytest.mark.parametrize("faces", [3, 5])  # header says 4
+def test_off_counts_must_match_the_body(tmp_path, faces):
+    body = ["0 0 0", "1 0 0", "0 1 0", "0 0 1"] + ["3 0 1 2", "3 0 2 3", "3 0 3 1", "3 1 3 2"]
+    body += ["3 0 1 3"] * (faces == 5)
+    path = tmp_path / "m.off"
+    path.write_text("OFF\n4 4 0\n" + "\n".join(body[: 4 + faces]) + "\n")
+    with pytest.raises(MeshIOError, match="declares 4 vertices and 4 faces"):
+        load_mesh(path)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, 1e6, -1.0])
+def test_float_images_must_hold_texels_in_0_1(tmp_path, bad):
+    from PIL import Image
+
+    from jmeshtex.io import load_texture
+
+    data = np.full((4, 4), 0.5, np.float32)
+    data[1, 2] = bad
+    path = tmp_path / "f.tiff"
+    Image.fromarray(data, mode="F").save(path)
+    with pytest.raises(MeshIOError, match=r"texels must lie in \[0, 1\]"):
+        load_texture(path)

@@ -223,3 +223,10 @@ def test_a_model_whose_arrays_do_not_fit_its_config_is_corrupt(tmp_path):
     )
     with pytest.raises(CorruptModelError, match="stored config is not a valid Config"):
         fldm.load(tmp_path / "cfg")
+
+
+def test_non_finite_weights_are_refused_naming_the_entry(tmp_path):
+    params = {"w": np.array([1.0, np.nan]), "b": np.ones(2)}
+    path = save_model(tmp_path / "m.npz", kind="k", config={}, params=params)
+    with pytest.raises(CorruptModelError, match=r"NaN or infinite numbers in w"):
+        load_model(path, kind="k")
