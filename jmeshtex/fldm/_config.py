@@ -26,7 +26,8 @@ from .._config import ConfigBase, cross_rule, is_int, rule
 from ._diffusion import PREDICTIONS, SCHEDULES, Schedule, make_schedule
 
 LOSSES = ("l2", "l1")
-SCALINGS = ("per_channel", "global")
+SCALINGS = ("per_channel", "global", "released")
+PHASE_SYNC = ("none", "flat", "all")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -81,8 +82,12 @@ class Config(ConfigBase):
         batch 1) XLA's CPU memory analysis gives 11.6 GiB with or without it.
       loss: the training loss: ``"l2"`` (the paper's eq. 10: mean squared modulus of the error)
         or ``"l1"`` (the released ``get_l1_loss``: mean modulus of the error).
-      latent_scaling: ``"per_channel"`` (every channel to unit mean power, eq. 38–39) or
-        ``"global"`` (one σ for all channels, as released: collapsed channels stay small).
+      latent_scaling: ``"per_channel"`` (every channel to unit mean power, eq. 38–39),
+        ``"global"`` (one σ for all channels to unit mean power: collapsed channels stay small;
+        one σ as released, but the released code does not reach unit power) or ``"released"``
+        (the released ``train.py``'s noise scale, ``σ = √2·mean|μ|`` per real noise component
+        on the raw latents: :func:`~jmeshtex.fldm.core.latent_scale` with ``released=True``;
+        noise power 2.6× the data's on the shipped FL-VAE's Spot latents).
       collapsed_channels: what to do with channels whose raw mean power is below
         ``collapsed_below`` × the strongest channel's: ``"keep"``; ``"downweight"`` (their loss
         weight is that power ratio); ``"drop"`` (their latents are zeroed in training, so the
@@ -98,10 +103,16 @@ class Config(ConfigBase):
       invariants: an invariant stream, beyond the paper: every block's embedding (the filter input
         of its second field convolution) also sees, per vertex and channel, the block input's
         normalised power and its mean over the k-NN neighbourhood
-        (:func:`~jmeshtex.fldm.core.magnitude_context`). The FL-VAE's latents have a common phase
-        per vertex that is sampling noise, so the field convolutions' sums over neighbours cancel
-        and the layout of magnitudes (where a texture's patches live) has no other way in.
-        False (default, the paper's denoiser).
+        (:func:`~jmeshtex.fldm.core.magnitude_context`). On flat rings the FL-VAE's latents have
+        a common phase per vertex that is sampling noise (``phase_sync="none"``), so the field
+        convolutions' sums over neighbours cancel there and the layout of magnitudes (where a
+        texture's patches live) has no other way in. False (default, the paper's denoiser).
+      phase_sync: coherent latents, beyond the paper (:func:`~jmeshtex.fldm.core.synchronize_phases`):
+        ``"none"`` (the encoder's phases, the paper's); ``"flat"`` (every encoding's flat rings,
+        :func:`~jmeshtex.fldm.core.ring_color_spread` below ``flat_spread``, turned to agree with
+        their neighbours after transport; textured rings keep their phase; for the log decoder);
+        ``"all"`` (every ring; for the barycentric decoder, which reads no phase).
+      flat_spread: the RGB RMS colour spread under which a ring counts as flat (``phase_sync="flat"``).
 
     Randomness (copies, initialisation, training noise) comes from the ``key`` of
     :func:`~jmeshtex.fldm.build_dataset` and :func:`~jmeshtex.fldm.train`, not from the config.
@@ -149,6 +160,8 @@ class Config(ConfigBase):
     stats_samples: int = 0
     stats_ddim_steps: int = 25
     invariants: bool = False
+    phase_sync: str = "none"
+    flat_spread: float = 0.02
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
     _RULES = (
@@ -189,6 +202,8 @@ class Config(ConfigBase):
         rule("remat", lambda x: isinstance(x, bool), "True or False"),
         rule("loss", lambda x: x in LOSSES, f"one of {LOSSES}"),
         rule("latent_scaling", lambda x: x in SCALINGS, f"one of {SCALINGS}"),
+        rule("phase_sync", lambda x: x in PHASE_SYNC, f"one of {PHASE_SYNC}"),
+        rule("flat_spread", lambda x: 0 <= x < 2, "in [0, 2)"),
         rule(
             "collapsed_channels",
             lambda x: x in ("keep", "downweight", "drop"),
