@@ -7,7 +7,7 @@ diffusion schedule, the training data (re-triangulated copies) and the optimiser
   (google-research ``mesh_diffusion/sin_mesh_ddm/configs/default.py`` and
   ``default_train_labeled.py``): 96 / 192 channels, 2 + 4 + 4 FCResNet blocks, ``hdim`` 16,
   two-hidden-layer filters, ``mlp_layers`` 2, ``k_conv`` 8, ε-prediction, cosine noise schedule,
-  L1 loss, one global latent σ, batch 16, Adam 5e-4 with 1000 warm-up steps and cosine decay to
+  L1 loss, the released noise scale (one σ = √2·mean|μ| per real noise component), batch 16, Adam 5e-4 with 1000 warm-up steps and cosine decay to
   1e-5 over 200K steps; 500 copies of ~30K vertices, T = 1000;
 - :meth:`Config.cpu`: the ``tiny`` denoiser on a 10,000-step budget (sized by measurement);
 - :meth:`Config.tiny`: tests, demos and notebooks (16 / 32 channels, 1 + 1 + 1 blocks, few copies).
@@ -230,15 +230,17 @@ class Config(ConfigBase):
         """The released labelled configuration (module docstring).
 
         Cosine noise schedule, batch 16 (4 micro-batches of 4 copies, gradient accumulation),
-        200K steps, the released L1 loss and one global latent σ; ``loss="l2"`` gives the
-        paper's eq. 10 and ``latent_scaling="per_channel"`` eq. 38–39 per channel.
+        200K steps, the released L1 loss and the released noise scale (``σ = √2·mean|μ|`` per
+        real component, ``latent_scaling="released"``); ``loss="l2"`` gives the paper's eq. 10
+        and ``latent_scaling="per_channel"`` eq. 38–39 per channel. Not as released: the FRN
+        gain is real here (the paper's eq. 20 and the released norm: complex).
 
         Example:
           >>> c = Config.paper()
           >>> c.widths, c.blocks, c.hdim, c.filter_layers, c.mlp_layers, c.knn, c.prediction
           ((96, 192), (2, 4, 4), 16, 2, 2, 8, 'epsilon')
           >>> c.schedule, c.batch_size, c.accumulate, c.steps, c.loss, c.latent_scaling
-          ('cosine', 16, 4, 200000, 'l1', 'global')
+          ('cosine', 16, 4, 200000, 'l1', 'released')
         """
         base = dict(
             schedule="cosine",
@@ -246,7 +248,7 @@ class Config(ConfigBase):
             accumulate=4,
             steps=200000,
             loss="l1",
-            latent_scaling="global",
+            latent_scaling="released",
         )
         return cls(**{**base, **changes})
 

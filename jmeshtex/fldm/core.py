@@ -16,8 +16,8 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
   :class:`Inpaint`, :func:`latent_scale`.
 - Training: :func:`~jmeshtex.fldm.init`, :func:`make_train_step`, :func:`optimizer`,
   :func:`learning_rate_schedule`, :func:`training_batch`, :func:`training_masks`,
-  :func:`stack_copies`, :func:`channel_weights`, :func:`model_card`, :func:`data_digest` (what a
-  checkpoint folder is keyed by).
+  :func:`copy_mesh`, :func:`stack_copies`, :func:`channel_weights`, :func:`model_card`,
+  :func:`data_digest` (what a checkpoint folder is keyed by).
 - Coherent latents (beyond the paper): :func:`synchronize_phases` (flat rings' phases agreeing
   over the k-NN connection), :func:`ring_color_spread` (which rings are flat).
 - Decoder-free statistics of latent fields: :func:`latent_statistics`,
@@ -29,6 +29,7 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
 """
 
 from ._blocks import magnitude_context as magnitude_context
+from ._data import copy_mesh as copy_mesh
 from ._data import stack_copies as stack_copies
 from ._denoiser import DenoiserGeometry as DenoiserGeometry
 from ._denoiser import denoise as denoise
