@@ -12,7 +12,8 @@ feature distributions, :func:`frechet_distance`), :func:`gram_distance`, :func:`
 :func:`protocol_views`, :func:`evaluate_views`), sample :func:`diversity`, and the baselines that bound
 every number (:func:`flat_baseline`, :func:`permuted_baseline`, :func:`baseline_table`).
 Mesh textures are also measured on the surface itself: :func:`surface_patches` (geodesic patches at
-the texel scale) against :func:`exemplar_crops`, scored by :func:`surface_patch_table`.
+the texel scale) against :func:`exemplar_crops`, scored by :func:`surface_patch_table`; colours
+alone, layout ignored, by :func:`palette_distance`.
 """
 
 from .._extras import needs_metrics as _needs_metrics  # noqa: F401 (names a missing extra)
@@ -23,6 +24,7 @@ from ._frechet import frechet_distance as frechet_distance
 from ._frechet import frechet_from_moments as frechet_from_moments
 from ._image import dssim as dssim
 from ._image import psnr as psnr
+from ._palette import palette_distance as palette_distance
 from ._perceptual import gram_distance as gram_distance
 from ._perceptual import lpips as lpips
 from ._protocol import DISTRIBUTION_METRICS as DISTRIBUTION_METRICS
