@@ -55,7 +55,7 @@ def palette_distance(
       bins: histogram cells per channel.
 
     Returns:
-      A float in [0, 1]: 0 for the same palette, 1 for disjoint ones.
+      The distance as a float in [0, 1] (0 for the same palette, 1 for disjoint ones).
 
     Example:
       >>> black, white = np.zeros((4, 4, 3)), np.ones((4, 4, 3))
