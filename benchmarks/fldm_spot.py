@@ -9,7 +9,9 @@ Run::
     .venv/bin/python benchmarks/fldm_spot.py --quick          # a smoke run (tiny model, ~2 min)
 
 Writes ``benchmarks/results/fldm_spot.{json,md}`` and ``fldm_spot.png`` (``--out`` to change the
-folder, ``--name`` the file name; ``--set FIELD=JSON`` changes a field of the preset's config). The
+folder, ``--name`` the file name; ``--set FIELD=JSON`` changes a field of the preset's config, e.g.
+``--set phase_sync=flat --set invariants=false`` for coherent latents, beyond the paper;
+``--decoder barycentric --set phase_sync=all`` for the synchronised barycentric codec). The
 work folder (``runs/fldm_spot[_quick]/``, git-ignored; ``--work``) holds the training
 copies (``data/``), the resumable checkpoints (``train/``: re-running the same command resumes after
 the newest) and a model snapshot with its card after every ``checkpoint_every`` steps
@@ -183,7 +185,7 @@ class Context:
         self.spot = load_mesh(
             spot_dir / "spot_triangulated.obj", texture=spot_dir / "spot_texture.png"
         )
-        self.vae = fl.load_pretrained()
+        self.vae = fl.load_pretrained(decoder=args.decoder)
         self.cfg, self.run = presets(args.quick, self.vae.config.latent_dim, args.vertices)
         if args.steps is not None:
             self.cfg = self.cfg.replace(steps=args.steps)
@@ -764,6 +766,12 @@ def main(argv: list[str] | None = None) -> int:
         default=[],
         metavar="FIELD=JSON",
         help="change a field of the preset's fldm.Config, e.g. --set invariants=true (repeatable)",
+    )
+    ap.add_argument(
+        "--decoder",
+        choices=("log", "barycentric"),
+        default="log",
+        help="which shipped FL-VAE encodes and decodes (barycentric: pair with --set phase_sync=all)",
     )
     ap.add_argument("--train-only", action="store_true", help="train (resume), no evaluation")
     ap.add_argument("--eval-only", action="store_true", help="evaluate a snapshot, no training")
