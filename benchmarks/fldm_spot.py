@@ -490,6 +490,12 @@ def eval_stage(ctx: Context, step: int | None) -> None:
 
     # 2. reference latents and baselines on the sampling mesh
     recon = np.asarray(fl.encode(ctx.vae, target, key=ctx.k_codec).mu)
+    if cfg.phase_sync != "none":  # the codec's latents as the model was trained on them
+        pinned = None
+        if cfg.phase_sync == "flat":
+            spread = st.ring_color_spread(target, fl.core.surface_colors(spot))
+            pinned = spread >= cfg.flat_spread
+        recon = st.synchronize_phases(recon, nb, pinned=pinned)
     kb = jax.random.key(args.seed + 101)
     shuffled = np.asarray(st.shuffle_latents(jnp.asarray(recon), key=kb))
     phased = np.asarray(st.random_channel_phases(jnp.asarray(recon), key=kb))
