@@ -8,7 +8,9 @@
   ``--out/loss_curve.png``, resumable from ``--out/checkpoints`` (run the same command again);
 - ``encode`` writes a mesh's latents (``mu``, ``log_sigma``) to an ``.npz``;
 - ``reconstruct`` encodes a textured mesh (optionally remeshed to ``--vertices``) and writes the
-  reconstructed texture atlas PNG, a side-by-side render and ``metrics.json`` (PSNR, DSSIM, LPIPS).
+  reconstructed texture atlas PNG, a side-by-side render and ``metrics.json`` (PSNR, DSSIM, LPIPS),
+  each beside the same metrics of its baselines: the P1 oracle, the least-squares P1 fit and the
+  best flat colour (:func:`~jmeshtex.fl.core.baseline_metrics`).
 
 Every mesh argument is a file or a procedural spec (``icosphere:3``, ``striped-sphere``, ...;
 :func:`~jmeshtex.cli._common.load_mesh_spec`); ``--seed`` makes the ``key`` of the library call.
@@ -246,7 +248,7 @@ def _reconstruct(args) -> int:
     import jax
 
     from ..fl import reconstruct
-    from ..fl.core import side_by_side
+    from ..fl.core import baseline_metrics, side_by_side
     from ..geometry import remesh
     from ..io import atomic_write, save_png
 
@@ -273,12 +275,14 @@ def _reconstruct(args) -> int:
     )
     args.out.mkdir(parents=True, exist_ok=True)
     save_png(result.texture, args.out / "reconstructed_texture.png")
-    side_by_side(mesh, result, args.out / "side_by_side.png")
+    baselines = baseline_metrics(mesh, result, lpips=not args.no_lpips)
+    side_by_side(mesh, result, args.out / "side_by_side.png", baselines=baselines)
     metrics = {
         **result.metrics,
         "latent_vertices": result.latent_mesh.num_vertices,
         "decoder": model.config.decoder,
         "texels": int(result.valid.sum()),
+        "baselines": baselines,  # the same metrics of P1 oracle, P1 least-squares fit, flat colour
     }
     atomic_write(args.out / "metrics.json", json.dumps(metrics, indent=2).encode())
     print(json.dumps(metrics, indent=2))

@@ -10,7 +10,8 @@ latent mesh, scored on the same texels as the model:
   (the best any P1 field can do, in PSNR).
 
 An FL-VAE that does not beat them carries no more than a vertex colour. :func:`p1_baselines` builds
-both atlases for a :class:`~jmeshtex.fl.Reconstruction`.
+both atlases for a :class:`~jmeshtex.fl.Reconstruction`; :func:`baseline_metrics` scores them, and
+the best flat colour (the used texels' mean: the do-nothing codec), like the reconstruction.
 """
 
 from __future__ import annotations
@@ -191,3 +192,43 @@ def p1_baselines(mesh: Mesh, result) -> dict[str, np.ndarray]:
         atlas[row, col] = np.clip(p1_interpolate(vc, corners, bary), 0.0, 1.0)
         out[name] = atlas
     return out
+
+
+def baseline_metrics(mesh: Mesh, result, *, lpips: bool = True) -> dict[str, dict]:
+    """PSNR / DSSIM / LPIPS of the P1 oracle, the least-squares P1 fit and the best flat colour.
+
+    Scored like ``result.metrics`` (:func:`~jmeshtex.fl.core.atlas_metrics` on the same texels),
+    so the three bound the reconstruction: the flat colour from below (no texture at all), the P1
+    codecs from what one colour per latent vertex carries.
+
+    Args:
+      mesh: the textured reference given to :func:`~jmeshtex.fl.reconstruct`.
+      result: its :class:`~jmeshtex.fl.Reconstruction`.
+      lpips: score LPIPS-VGG too.
+
+    Returns:
+      ``{"p1_oracle": {...}, "p1_fit": {...}, "flat_color": {...}}``, each a metrics dict.
+
+    Example:
+      >>> import jax
+      >>> from jmeshtex import Mesh
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.fl import Config, init, reconstruct
+      >>> v, f = grid(3)
+      >>> tex = np.full((16, 16, 3), 0.5, np.float32); tex[:, :8] = 0.2
+      >>> mesh = Mesh(v, f, uv=v[f][..., :2], texture=tex)
+      >>> r = reconstruct(init(Config(num_samples=4), key=jax.random.key(0)), mesh, key=jax.random.key(1), lpips=False)
+      >>> m = baseline_metrics(mesh, r, lpips=False)
+      >>> sorted(m), m["p1_fit"]["psnr"] > m["flat_color"]["psnr"]
+      (['flat_color', 'p1_fit', 'p1_oracle'], True)
+    """
+    from ._reconstruct import atlas_metrics
+
+    atlases = p1_baselines(mesh, result)
+    valid = np.asarray(result.valid, bool)
+    flat = np.zeros_like(result.target)
+    flat[valid] = result.target[valid].mean(0)
+    atlases["flat_color"] = flat
+    return {
+        name: atlas_metrics(a, result.target, valid, lpips=lpips) for name, a in atlases.items()
+    }

@@ -90,9 +90,11 @@ class Config(ConfigBase):
         is also a reconstruction target) or ``"ring_mean"`` (the mean sample colour; the shipped
         models', which a stored config without this field means).
       log_objective: how the log decoder is trained: ``"blended"`` (each sample decoded from its
-        face's three corner latents and blended barycentrically, as at inference) or ``"vertex"``
-        (each ring decoded from its own vertex's latent; the shipped models', which a stored config
-        without this field means). The barycentric decoder ignores it.
+        face's three corner latents and blended barycentrically, as at inference; beyond the
+        paper, which trains each ring on its own vertex's latent and blends only at inference) or
+        ``"vertex"`` (each ring decoded from its own vertex's latent: the paper's objective, and
+        the shipped models', which a stored config without this field means). The barycentric
+        decoder ignores it.
       vn_norm: the VN-Transformer's normalisation (:func:`~jmeshtex.ops.vn_transformer_block`):
         ``"element"`` (each feature by its own magnitude; the shipped models') or ``"channel"``
         (each channel by its mean square over all vertices and samples, the reference's).

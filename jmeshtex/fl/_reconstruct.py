@@ -154,6 +154,14 @@ def reconstruct(
     )
 
 
+_SHORT = {"p1_oracle": "P1", "p1_fit": "P1 fit", "flat_color": "flat"}
+
+
+def _baseline_caption(baselines: dict) -> str:
+    parts = [f"{_SHORT.get(k, k)} {m['psnr']:.1f}" for k, m in baselines.items() if "psnr" in m]
+    return "original; " + ", ".join(parts) + " dB"
+
+
 def side_by_side(
     mesh: Mesh,
     result: Reconstruction,
@@ -162,6 +170,7 @@ def side_by_side(
     view=(15.0, 35.0),
     size=(384, 384),
     y_up: bool = True,
+    baselines: dict | None = None,
 ) -> np.ndarray:
     """Render the reference with its original and with the reconstructed texture, side by side.
 
@@ -173,6 +182,8 @@ def side_by_side(
       view: ``(elevation, azimuth)`` of the camera in degrees.
       size: ``(height, width)`` of each of the two renders.
       y_up: the mesh's up axis is +y (as Spot and most OBJ files); the renderer's is +z.
+      baselines: ``{name: metrics}`` (:func:`~jmeshtex.fl.core.baseline_metrics`) whose PSNRs are
+        printed under the original's render, beside the reconstruction's.
 
     Returns:
       ``[H, 2 W, 3]`` image: the original left, the reconstruction (with its PSNR) right.
@@ -201,7 +212,7 @@ def side_by_side(
         Mesh(v, mesh.faces, uv=mesh.uv, texture=result.target),
         view=view,
         size=size,
-        title="original",
+        title="original" if not baselines else _baseline_caption(baselines),
     )
     right = render_mesh(
         Mesh(v, mesh.faces, uv=mesh.uv, texture=result.texture),

@@ -19,9 +19,11 @@ encode/decode verbs) lives one level up, in :mod:`jmeshtex.fl`.
   :func:`planar_pool`, :func:`builtin_images` (``TRAINING_IMAGES``; ``HELD_OUT_IMAGES`` are for
   evaluation only).
 - Evaluation: :func:`atlas_metrics`, :func:`side_by_side`; the per-vertex codecs that bound a
-  reconstruction: :func:`p1_baselines` (:func:`p1_interpolate`, :func:`p1_least_squares`).
+  reconstruction: :func:`p1_baselines` (:func:`p1_interpolate`, :func:`p1_least_squares`),
+  scored with the best flat colour by :func:`baseline_metrics`.
 """
 
+from ._baselines import baseline_metrics as baseline_metrics
 from ._baselines import p1_baselines as p1_baselines
 from ._baselines import p1_interpolate as p1_interpolate
 from ._baselines import p1_least_squares as p1_least_squares

@@ -38,8 +38,9 @@ def magnitude_context(x, nbhd):
     ``s̄_pc`` the mean of ``s_qc`` over ``p``'s real neighbourhood slots: ``[V, 2C]`` real,
     gauge-invariant (powers need no transport), 0 on padding vertices.
 
-    Why: the FL-VAE's latents have a common phase per vertex that is sampling noise, so a field
-    convolution's sum over neighbours adds vectors of random phase and cancels; the pattern of
+    Why: on flat rings the FL-VAE's latents have a common phase per vertex that is sampling noise
+    (unless ``Config.phase_sync`` synchronises it), so a field convolution's sum over such
+    neighbours adds vectors of random phase and cancels; the pattern of
     magnitudes over the surface has no other path into a block. Fed to the filters of ``FC_e``,
     whose centre tap scales the vertex's own vector, it lets a vertex's output follow its
     neighbours' power.

@@ -7,7 +7,7 @@ diffusion schedule, the training data (re-triangulated copies) and the optimiser
   (google-research ``mesh_diffusion/sin_mesh_ddm/configs/default.py`` and
   ``default_train_labeled.py``): 96 / 192 channels, 2 + 4 + 4 FCResNet blocks, ``hdim`` 16,
   two-hidden-layer filters, ``mlp_layers`` 2, ``k_conv`` 8, ε-prediction, cosine noise schedule,
-  L1 loss, one global latent σ, batch 16, Adam 5e-4 with 1000 warm-up steps and cosine decay to
+  L1 loss, the released noise scale (one σ = √2·mean|μ| per real noise component), batch 16, Adam 5e-4 with 1000 warm-up steps and cosine decay to
   1e-5 over 200K steps; 500 copies of ~30K vertices, T = 1000;
 - :meth:`Config.cpu`: the ``tiny`` denoiser on a 10,000-step budget (sized by measurement);
 - :meth:`Config.tiny`: tests, demos and notebooks (16 / 32 channels, 1 + 1 + 1 blocks, few copies).
@@ -26,7 +26,8 @@ from .._config import ConfigBase, cross_rule, is_int, rule
 from ._diffusion import PREDICTIONS, SCHEDULES, Schedule, make_schedule
 
 LOSSES = ("l2", "l1")
-SCALINGS = ("per_channel", "global")
+SCALINGS = ("per_channel", "global", "released")
+PHASE_SYNC = ("none", "flat", "all")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -81,8 +82,12 @@ class Config(ConfigBase):
         batch 1) XLA's CPU memory analysis gives 11.6 GiB with or without it.
       loss: the training loss: ``"l2"`` (the paper's eq. 10: mean squared modulus of the error)
         or ``"l1"`` (the released ``get_l1_loss``: mean modulus of the error).
-      latent_scaling: ``"per_channel"`` (every channel to unit mean power, eq. 38–39) or
-        ``"global"`` (one σ for all channels, as released: collapsed channels stay small).
+      latent_scaling: ``"per_channel"`` (every channel to unit mean power, eq. 38–39),
+        ``"global"`` (one σ for all channels to unit mean power: collapsed channels stay small;
+        one σ as released, but the released code does not reach unit power) or ``"released"``
+        (the released ``train.py``'s noise scale, ``σ = √2·mean|μ|`` per real noise component
+        on the raw latents: :func:`~jmeshtex.fldm.core.latent_scale` with ``released=True``;
+        noise power 2.6× the data's on the shipped FL-VAE's Spot latents).
       collapsed_channels: what to do with channels whose raw mean power is below
         ``collapsed_below`` × the strongest channel's: ``"keep"``; ``"downweight"`` (their loss
         weight is that power ratio); ``"drop"`` (their latents are zeroed in training, so the
@@ -98,10 +103,16 @@ class Config(ConfigBase):
       invariants: an invariant stream, beyond the paper: every block's embedding (the filter input
         of its second field convolution) also sees, per vertex and channel, the block input's
         normalised power and its mean over the k-NN neighbourhood
-        (:func:`~jmeshtex.fldm.core.magnitude_context`). The FL-VAE's latents have a common phase
-        per vertex that is sampling noise, so the field convolutions' sums over neighbours cancel
-        and the layout of magnitudes (where a texture's patches live) has no other way in.
-        False (default, the paper's denoiser).
+        (:func:`~jmeshtex.fldm.core.magnitude_context`). On flat rings the FL-VAE's latents have
+        a common phase per vertex that is sampling noise (``phase_sync="none"``), so the field
+        convolutions' sums over neighbours cancel there and the layout of magnitudes (where a
+        texture's patches live) has no other way in. False (default, the paper's denoiser).
+      phase_sync: coherent latents, beyond the paper (:func:`~jmeshtex.fldm.core.synchronize_phases`):
+        ``"none"`` (the encoder's phases, the paper's); ``"flat"`` (every encoding's flat rings,
+        :func:`~jmeshtex.fldm.core.ring_color_spread` below ``flat_spread``, turned to agree with
+        their neighbours after transport; textured rings keep their phase; for the log decoder);
+        ``"all"`` (every ring; for the barycentric decoder, which reads no phase).
+      flat_spread: the RGB RMS colour spread under which a ring counts as flat (``phase_sync="flat"``).
 
     Randomness (copies, initialisation, training noise) comes from the ``key`` of
     :func:`~jmeshtex.fldm.build_dataset` and :func:`~jmeshtex.fldm.train`, not from the config.
@@ -149,6 +160,8 @@ class Config(ConfigBase):
     stats_samples: int = 0
     stats_ddim_steps: int = 25
     invariants: bool = False
+    phase_sync: str = "none"
+    flat_spread: float = 0.02
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
     _RULES = (
@@ -189,6 +202,8 @@ class Config(ConfigBase):
         rule("remat", lambda x: isinstance(x, bool), "True or False"),
         rule("loss", lambda x: x in LOSSES, f"one of {LOSSES}"),
         rule("latent_scaling", lambda x: x in SCALINGS, f"one of {SCALINGS}"),
+        rule("phase_sync", lambda x: x in PHASE_SYNC, f"one of {PHASE_SYNC}"),
+        rule("flat_spread", lambda x: 0 <= x < 2, "in [0, 2)"),
         rule(
             "collapsed_channels",
             lambda x: x in ("keep", "downweight", "drop"),
@@ -215,15 +230,17 @@ class Config(ConfigBase):
         """The released labelled configuration (module docstring).
 
         Cosine noise schedule, batch 16 (4 micro-batches of 4 copies, gradient accumulation),
-        200K steps, the released L1 loss and one global latent σ; ``loss="l2"`` gives the
-        paper's eq. 10 and ``latent_scaling="per_channel"`` eq. 38–39 per channel.
+        200K steps, the released L1 loss and the released noise scale (``σ = √2·mean|μ|`` per
+        real component, ``latent_scaling="released"``); ``loss="l2"`` gives the paper's eq. 10
+        and ``latent_scaling="per_channel"`` eq. 38–39 per channel. Not as released: the FRN
+        gain is real here (the paper's eq. 20 and the released norm: complex).
 
         Example:
           >>> c = Config.paper()
           >>> c.widths, c.blocks, c.hdim, c.filter_layers, c.mlp_layers, c.knn, c.prediction
           ((96, 192), (2, 4, 4), 16, 2, 2, 8, 'epsilon')
           >>> c.schedule, c.batch_size, c.accumulate, c.steps, c.loss, c.latent_scaling
-          ('cosine', 16, 4, 200000, 'l1', 'global')
+          ('cosine', 16, 4, 200000, 'l1', 'released')
         """
         base = dict(
             schedule="cosine",
@@ -231,7 +248,7 @@ class Config(ConfigBase):
             accumulate=4,
             steps=200000,
             loss="l1",
-            latent_scaling="global",
+            latent_scaling="released",
         )
         return cls(**{**base, **changes})
 

@@ -10,10 +10,15 @@ that it learns the texture and not the connectivity. For each copy ``i`` (:func:
 3. its latents from an ``encode`` callable ``Mesh -> complex [V, d]`` — normally the FL-VAE reading
    the *original* surface's colours at the copy's one-ring samples (:func:`fl_vae_encoder`), in the
    copy's ``one_ring_neighborhood`` frames, which are the denoiser's fine frames;
-4. optional per-vertex labels, carried from the original by the closest surface point.
+4. with ``config.phase_sync`` (beyond the paper), every encoding's phases synchronised over the
+   copy's k-NN connection (:func:`~jmeshtex.fldm.core.synchronize_phases`; ``"flat"``: textured
+   rings, :func:`~jmeshtex.fldm.core.ring_color_spread` ≥ ``flat_spread``, pinned);
+5. optional per-vertex labels, carried from the original by the closest surface point.
 
 Copies are cached on disk one ``.npz`` each (``copy_0000.npz`` …) next to ``data.json`` that records
-what they were built from; a rebuild with the same settings reuses them. All copies are then padded
+what they were built from: the geometry, colours (texture, UVs, vertex colours) and labels of the
+input, the encoder's identity, every config field that changes a copy, and the cache format
+(``DATA_VERSION``); a rebuild reuses them only when all of these agree. All copies are then padded
 to one bucketed shape (``V₀``, ``V₁`` rounded up to a multiple of ``config.bucket``) and stacked.
 """
 
@@ -37,8 +42,11 @@ from ..geometry import PoolingMap, VertexNeighborhood, remesh, surface_correspon
 from ._config import Config
 from ._denoiser import DenoiserGeometry, denoiser_geometry, geometry_sizes, pad_geometry
 from ._diffusion import latent_scale
+from ._phase import ring_color_spread, synchronize_phases
 
 DATA_FILE = "data.json"
+#: format of the cached copies; a cache written with another one is rebuilt
+DATA_VERSION = 2
 
 
 class Dataset(NamedTuple):
@@ -108,15 +116,29 @@ def fl_vae_encoder(vae, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], n
         k = jax.random.fold_in(key, counter[0])
         return np.asarray(fl.encode(vae, copy, colors=colors, key=k).mu, np.complex128)
 
-    encode.identity = f"fl_vae:{_digest(jax.tree.leaves(vae.params))}:{vae.config!r}"  # type: ignore[attr-defined]
+    encode.identity = (  # type: ignore[attr-defined]
+        f"fl_vae:{_digest(jax.tree.leaves(vae.params))}:{vae.config!r}:"
+        f"colors={_digest(_color_arrays(original))}:key={key_ints(key)}"
+    )
+    encode.colors = colors  # type: ignore[attr-defined]  # type: ignore[attr-defined]
     return encode
 
 
 def _digest(arrays) -> str:
     h = hashlib.sha1()
     for a in arrays:
-        h.update(np.ascontiguousarray(np.asarray(a)).tobytes())
+        a = np.ascontiguousarray(np.asarray(a))
+        h.update(f"{a.dtype.str}{a.shape}".encode())  # equal bytes in another shape differ
+        h.update(a.tobytes())
     return h.hexdigest()[:16]
+
+
+def _color_arrays(mesh: Mesh) -> list[np.ndarray]:
+    """What a mesh's colours are read from (absent parts as empty arrays, so that they differ)."""
+    return [
+        np.zeros(0) if a is None else np.asarray(a)
+        for a in (mesh.uv, mesh.texture, mesh.vertex_colors)
+    ]
 
 
 def transfer_labels(original: Mesh, labels: np.ndarray, target: Mesh) -> np.ndarray:
@@ -244,7 +266,12 @@ def stack_copies(
             encodings[i, :, : m.num_vertices] = extras[i]
     nv = np.array([m.num_vertices for m, _, _, _ in copies])
     mask = np.arange(V0)[None] < nv[:, None]
-    scale = latent_scale(latents, mask, per_channel=config.latent_scaling == "per_channel")
+    scale = latent_scale(
+        latents,
+        mask,
+        per_channel=config.latent_scaling == "per_channel",
+        released=config.latent_scaling == "released",
+    )
     return Dataset(
         latents, geometry, labels, nv, scale, tuple(m for m, _, _, _ in copies), encodings
     )
@@ -314,8 +341,11 @@ def build_dataset(
     elif config.num_labels:
         raise ConfigError(f"config.num_labels={config.num_labels} but no labels were given")
     cache = None if cache_dir is None else pathlib.Path(cache_dir)
+    sync = _phase_synchronizer(mesh, config, encode)
     meta = {
+        "format": DATA_VERSION,
         "mesh": _digest([mesh.vertices, mesh.faces]),
+        "colors": _digest(_color_arrays(mesh)),
         "labels": None if labels is None else _digest([np.asarray(labels)]),
         "encoder": getattr(encode, "identity", None),
         "copy_vertices": config.copy_vertices,
@@ -323,9 +353,10 @@ def build_dataset(
         "pool_ratio": config.pool_ratio,
         "key": key_ints(key),
         "latent_channels": config.latent_channels,
+        "encodings_per_copy": config.encodings_per_copy,
+        "phase_sync": config.phase_sync,
+        "flat_spread": config.flat_spread if config.phase_sync == "flat" else None,
     }
-    if config.encodings_per_copy > 1:  # (absent for one: caches built before the option stay valid)
-        meta["encodings_per_copy"] = config.encodings_per_copy
     reuse = False
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
@@ -357,15 +388,43 @@ def build_dataset(
                 f"{config.latent_channels}) (set latent_channels to the FL-VAE's latent_dim)"
             )
         lab = None if labels is None else transfer_labels(mesh, labels, copy)
+        fix = sync(copy, geo)
+        mu = fix(mu)
         extra = None
         if config.encodings_per_copy > 1:
             extra = np.stack(
-                [np.asarray(encode(copy)) for _ in range(config.encodings_per_copy - 1)]
+                [fix(np.asarray(encode(copy))) for _ in range(config.encodings_per_copy - 1)]
             ).astype(np.complex64)
         if path is not None:
             _save_copy(path, copy, geo, mu, lab, extra)
         copies.append((copy, geo, mu, lab) + (() if extra is None else (extra,)))
     return stack_copies(copies, config)
+
+
+def _phase_synchronizer(mesh: Mesh, config: Config, encode):
+    """``sync(copy, geometry) -> (mu -> mu)``: ``config.phase_sync`` applied to one copy's encodings."""
+    if config.phase_sync == "none":
+        return lambda copy, geo: lambda mu: mu
+    colors = None
+    if config.phase_sync == "flat":
+        colors = getattr(encode, "colors", None)
+        if colors is None:
+            if not (mesh.has_texture or mesh.vertex_colors is not None):
+                raise ConfigError(
+                    "phase_sync='flat' needs the input's colours to find its flat rings, but the mesh "
+                    "has neither a texture nor vertex colours; use phase_sync='none' (or 'all')"
+                )
+            from .. import fl
+
+            colors = fl.core.surface_colors(mesh)
+
+    def for_copy(copy: Mesh, geo: DenoiserGeometry):
+        pinned = None
+        if colors is not None:
+            pinned = ring_color_spread(copy, colors) >= config.flat_spread
+        return lambda mu: synchronize_phases(mu, geo.fine, pinned=pinned)
+
+    return for_copy
 
 
 def batch_geometry(data: Dataset, index: np.ndarray) -> DenoiserGeometry:

@@ -275,6 +275,7 @@ def latent_scale(
     vertex_mask: Bool[Array, "*B V"] | None = None,
     *,
     per_channel: bool = True,
+    released: bool = False,
 ) -> Float[np.ndarray, " C"]:
     """Per-channel scale that gives the latents unit mean squared modulus (eq. 38–39).
 
@@ -285,8 +286,12 @@ def latent_scale(
     Args:
       mu: latents (any leading batch dims).
       vertex_mask: True for real vertices; None: all.
-      per_channel: True: one scale per channel; False: one σ for all channels (the released
-        code's), repeated ``C`` times (the mean power over channels becomes 1).
+      per_channel: True: one scale per channel; False: one σ for all channels, repeated ``C``
+        times (the mean power over channels becomes 1).
+      released: the released ``train.py``'s noise scale instead (``per_channel`` ignored): it
+        trains on the raw latents with noise ``σ·N(0, 1)`` per real component, ``σ = √2·mean|μ|``
+        over all channels, which is unit complex noise on ``μ / (√2 σ)``: ``s = 1 / (2 mean|μ|)``
+        for every channel (the data's mean power becomes ``E|μ|² / (4 (E|μ|)²)``, below 1).
 
     Returns:
       ``[C]`` float64 NumPy scales; train on ``s·μ``, decode ``z/s``.
@@ -295,6 +300,13 @@ def latent_scale(
       >>> latent_scale(np.array([[2.0 + 0j, 1j], [2j, -1.0 + 0j]])).tolist()
       [0.5, 1.0]
     """
+    if released:
+        a = np.abs(np.asarray(mu))
+        w = np.ones(a.shape[:-1]) if vertex_mask is None else np.asarray(vertex_mask, np.float64)
+        mean_mag = (a * w[..., None]).sum() / max(w.sum() * a.shape[-1], 1.0)
+        if not np.isfinite(mean_mag) or mean_mag <= 0:
+            raise InputError("latent_scale: latents must be finite and not identically zero")
+        return np.full(a.shape[-1], 1.0 / (2.0 * mean_mag))
     m = np.abs(np.asarray(mu)) ** 2
     if vertex_mask is None:
         mean = m.reshape(-1, m.shape[-1]).mean(0)

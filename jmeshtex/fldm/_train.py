@@ -34,7 +34,8 @@ Checkpoints (``checkpoint_dir``): every ``checkpoint_every`` steps and after the
 parameters, the optimiser state and the losses so far go to a :class:`jmeshtex.io.Checkpoints`
 folder (atomic; the newest two kept), fingerprinted with the run's settings (the config apart from
 ``steps``, ``checkpoint_every``, ``remat`` and the statistics settings, the key, the dtype, the data's
-shape and scale). Calling :func:`train` again with the same folder resumes after the newest step and
+shape, scale and a hash of its contents, :func:`data_digest`). Calling :func:`train` again with the
+same folder resumes after the newest step and
 gives the same parameters and losses as an uninterrupted run; a folder written by another run raises
 :class:`~jmeshtex.CheckpointMismatchError`. With ``config.stats_samples`` every checkpoint also
 records the decoder-free statistics (:func:`~jmeshtex.fldm.core.latent_statistics`) of a few DDIM
@@ -368,7 +369,7 @@ def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
     """What a checkpoint must have been written by to be resumed (module docstring)."""
     free = ("steps", "checkpoint_every", "remat", "stats_samples", "stats_ddim_steps")
     # options added after runs were written stay out while at their default: those runs resume
-    added = {"invariants": False, "schedule_shift": 1.0}
+    added = {"invariants": False, "schedule_shift": 1.0, "phase_sync": "none", "flat_spread": 0.02}
     settings = {
         k: v
         for k, v in config.to_dict().items()
@@ -381,8 +382,38 @@ def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
         "data": {
             "shape": list(data.latents.shape),
             "scale": np.asarray(data.scale, np.float64).tolist(),
+            # the latents themselves (and labels, further encodings, geometry): a folder trained
+            # on other colours with the same shapes is another run, never resumed
+            "digest": data_digest(data),
         },
     }
+
+
+def data_digest(data: Dataset) -> str:
+    """A hash of everything training reads from ``data`` (latents, further encodings, labels,
+    vertex counts, geometry), for the checkpoint fingerprint.
+
+    Example:
+      >>> from jmeshtex.fldm import Config, build_dataset
+      >>> from jmeshtex.data import icosphere
+      >>> cfg = Config.tiny(n_copies=1, copy_vertices=40, latent_channels=1, bucket=32)
+      >>> d = build_dataset(icosphere(1), cfg, encode=lambda m: m.vertices[:, :1] + 0j,
+      ...                   key=jax.random.key(0), progress=False)
+      >>> data_digest(d) == data_digest(d._replace(latents=2 * d.latents))
+      False
+    """
+    import hashlib
+
+    h = hashlib.sha1()
+    parts = [getattr(data, f, None) for f in ("latents", "num_vertices", "encodings", "labels")]
+    for a in [*parts, *jax.tree.leaves(getattr(data, "geometry", None))]:
+        if a is None:
+            h.update(b"none")
+            continue
+        a = np.ascontiguousarray(np.asarray(a))
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:16]
 
 
 def train(

@@ -16,7 +16,10 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
   :class:`Inpaint`, :func:`latent_scale`.
 - Training: :func:`~jmeshtex.fldm.init`, :func:`make_train_step`, :func:`optimizer`,
   :func:`learning_rate_schedule`, :func:`training_batch`, :func:`training_masks`,
-  :func:`stack_copies`, :func:`channel_weights`, :func:`model_card`.
+  :func:`copy_mesh`, :func:`stack_copies`, :func:`channel_weights`, :func:`model_card`,
+  :func:`data_digest` (what a checkpoint folder is keyed by).
+- Coherent latents (beyond the paper): :func:`synchronize_phases` (flat rings' phases agreeing
+  over the k-NN connection), :func:`ring_color_spread` (which rings are flat).
 - Decoder-free statistics of latent fields: :func:`latent_statistics`,
   :func:`relative_phase_concentration`, :func:`pointwise_concentration`,
   :func:`pair_mean_phasors`, :func:`neighbour_energy_correlation`,
@@ -26,6 +29,7 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
 """
 
 from ._blocks import magnitude_context as magnitude_context
+from ._data import copy_mesh as copy_mesh
 from ._data import stack_copies as stack_copies
 from ._denoiser import DenoiserGeometry as DenoiserGeometry
 from ._denoiser import denoise as denoise
@@ -52,6 +56,8 @@ from ._diffusion import q_sample as q_sample
 from ._diffusion import sample_from_noise as sample_from_noise
 from ._diffusion import timestep_sequence as timestep_sequence
 from ._model import model_card as model_card
+from ._phase import ring_color_spread as ring_color_spread
+from ._phase import synchronize_phases as synchronize_phases
 from ._sample import sampling_geometry as sampling_geometry
 from ._statistics import energy_field_correlation as energy_field_correlation
 from ._statistics import latent_statistics as latent_statistics
@@ -64,6 +70,7 @@ from ._statistics import relative_phase_concentration as relative_phase_concentr
 from ._statistics import shuffle_latents as shuffle_latents
 from ._statistics import transported_phase_coherence as transported_phase_coherence
 from ._train import channel_weights as channel_weights
+from ._train import data_digest as data_digest
 from ._train import learning_rate_schedule as learning_rate_schedule
 from ._train import make_train_step as make_train_step
 from ._train import optimizer as optimizer

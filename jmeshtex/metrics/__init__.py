@@ -14,7 +14,8 @@ every number (:func:`flat_baseline`, :func:`permuted_baseline`, :func:`baseline_
 Mesh textures are also measured on the surface itself: :func:`surface_patches` (geodesic patches at
 the texel scale) against :func:`exemplar_crops`, scored by :func:`surface_patch_table`; the direction of
 the texture across UV chart seams against the interior and a seamless control by
-:func:`seam_orientation` (:func:`stripe_texture` bakes the control).
+:func:`seam_orientation` (:func:`stripe_texture` bakes the control); colours alone, layout
+ignored, by :func:`palette_distance`.
 """
 
 from .._extras import needs_metrics as _needs_metrics  # noqa: F401 (names a missing extra)
@@ -29,6 +30,7 @@ from ._orientation import RANDOM_ALIGNMENT as RANDOM_ALIGNMENT
 from ._orientation import SeamOrientation as SeamOrientation
 from ._orientation import seam_orientation as seam_orientation
 from ._orientation import stripe_texture as stripe_texture
+from ._palette import palette_distance as palette_distance
 from ._perceptual import gram_distance as gram_distance
 from ._perceptual import lpips as lpips
 from ._protocol import DISTRIBUTION_METRICS as DISTRIBUTION_METRICS

@@ -46,10 +46,19 @@ def test_quick_run_writes_a_table_with_every_row(shared_data, tmp_path):
         "random channel phases",
         "samples DDIM-3",
         "samples DDPM-1000",
+        "exemplar (floor)",
     ]
     assert list(rows) == sources
+    floor = rows.pop("exemplar (floor)")
     for r in rows.values():
         assert math.isfinite(r["fidelity_gram"]) and r["fidelity_gram"] >= 0, r
+        assert all(math.isfinite(r[k]) for k in ("patch_gram", "patch_spectrum", "palette_tv")), r
+    # the surface-patch measure and the palette: the exemplar against itself (the floor) and the
+    # codec's reconstruction closer than a flat colour
+    flat = rows["masked flat colour"]
+    assert floor["patch_gram"] < flat["patch_gram"] and floor["palette_tv"] == 0
+    assert rows["reconstruction"]["patch_gram"] < flat["patch_gram"]
+    assert rows["reconstruction"]["palette_tv"] < flat["palette_tv"]
     # the codec reconstructs the exemplar better than the flat colour, the shuffled latents and the
     # latents with a random phase each (the decoder reads the relative phases)
     recon = rows["reconstruction"]

@@ -162,6 +162,10 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
     )
     metrics = json.loads((out / "metrics.json").read_text())
     assert set(metrics) >= {"psnr", "dssim", "texels"} and metrics["texels"] == 256
+    # the baselines that bound it, scored on the same texels
+    assert set(metrics["baselines"]) == {"p1_oracle", "p1_fit", "flat_color"}
+    assert all({"psnr", "dssim"} <= set(m) for m in metrics["baselines"].values())
+    assert metrics["baselines"]["p1_fit"]["psnr"] >= metrics["baselines"]["flat_color"]["psnr"]
     assert matplotlib.image.imread(out / "reconstructed_texture.png").shape[:2] == (16, 16)
     assert (out / "side_by_side.png").exists()
 

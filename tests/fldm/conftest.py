@@ -52,6 +52,8 @@ TINY_DATA_FIELDS = (
     "num_labels",
     "encodings_per_copy",
     "latent_scaling",
+    "phase_sync",
+    "flat_spread",
 )
 #: the dataset settings of ``tiny_data`` (the training fields are the tests' own)
 TINY_DATA = fldm.Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, knn=7, bucket=32)

@@ -183,7 +183,7 @@ def test_new_config_rules():
         "cosine",
         4,
         "l1",
-        "global",
+        "released",
     )
 
 
