@@ -712,9 +712,10 @@ def _cause10(tmp: pathlib.Path, rng: np.random.Generator) -> list[Case]:
 
 def _cause12(tmp: pathlib.Path, rng: np.random.Generator) -> list[Case]:
     """Public entries validate what they are given."""
+    import jax
     import jax.numpy as jnp
 
-    from jmeshtex import geometry, ops
+    from jmeshtex import Mesh, fl, geometry, meshmatch, ops
     from jmeshtex.data import icosphere
     from jmeshtex.io import Checkpoints
 
@@ -769,6 +770,20 @@ def _cause12(tmp: pathlib.Path, rng: np.random.Generator) -> list[Case]:
             "typed",
         ),
         Case(12, "Checkpoints(keep=0)", lambda: Checkpoints(tmp / "k", keep=0), "typed"),
+        Case(
+            12,
+            "fl.encode(key=None)",
+            lambda: fl.encode(fl.load_pretrained(), (v, f), key=None),
+            "typed",
+        ),
+        Case(
+            12,
+            "meshmatch.transfer(config=dict)",
+            lambda: meshmatch.transfer(
+                Mesh(v, f, vertex_colors=np.ones_like(v)), (v, f), key=jax.random.key(0), config={}
+            ),
+            "typed",
+        ),
     ]
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
+from .._random import check_key
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ..geometry import rasterize_uv
 from ._colors import SurfaceColors, surface_colors
@@ -94,6 +95,7 @@ def encode(
       ((25, 8), (25, 8))
     """
     model = _check_model(model)
+    check_key(key, "encode: key")
     mesh = as_mesh(mesh, what="mesh")
     if colors is None:
         colors = surface_colors(mesh)

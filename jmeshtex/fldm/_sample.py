@@ -203,6 +203,8 @@ def sample(
 
     if not _is_count(num_samples):
         raise InputError(f"num_samples must be an integer >= 1, got {num_samples!r}")
+    if not (isinstance(eta, (int, float)) and not isinstance(eta, bool) and 0.0 <= eta <= 1.0):
+        raise InputError(f"eta must be a number in [0, 1] (0: deterministic DDIM), got {eta!r}")
     geo = target if isinstance(target, DenoiserGeometry) else sampling_geometry(target, model)
     V, d = geo.num_vertices, model.config.latent_channels
     lab = _check_labels(model, labels, V)

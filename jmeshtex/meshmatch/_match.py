@@ -166,6 +166,11 @@ def meshmatch(
       ((162, 3), True)
     """
     config = Config() if config is None else config
+    if not isinstance(config, Config):
+        raise InputError(
+            f"config must be a jmeshtex.meshmatch.Config (Config.from_dict(d) reads a dict), "
+            f"got {type(config).__name__}"
+        )
     source, target = as_mesh(source, what="source"), as_mesh(target, what="target")
     t_start = time.perf_counter()
     # no UV unwrapper here: only float32's range bounds the edge length from below

@@ -364,6 +364,11 @@ def paint_by_example(
     base = _colors_of(mesh, colors)
     pin = np.where(mask, np.arange(V), -1)
     config = Config.intrinsic() if config is None else config
+    if not isinstance(config, Config):
+        raise InputError(
+            f"config must be a jmeshtex.meshmatch.Config (Config.from_dict(d) reads a dict), "
+            f"got {type(config).__name__}"
+        )
     result = meshmatch(
         mesh, base, mesh, key=key, config=config, source_mask=mask, pin=pin, progress=progress
     )

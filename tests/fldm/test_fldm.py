@@ -213,6 +213,9 @@ def test_sampling_reproducible_inpainting_exact_and_transfer(data, trained):
         sample(model, mesh, key=jax.random.key(0), known=known)
     with pytest.raises(InputError, match="target must be a jmeshtex.Mesh"):
         sample(model, "sphere.obj", key=jax.random.key(0))
+    for eta in (float("nan"), -1.0, 2.0, "0.5", True):
+        with pytest.raises(InputError, match="eta must be a number in"):
+            sample(model, mesh, key=jax.random.key(0), eta=eta)
 
 
 @pytest.mark.slow
