@@ -96,8 +96,11 @@ def rasterize(
     Returns:
       A :class:`Visibility`.
 
+    A mesh in the frame that covers no pixel centre (a flat mesh seen edge-on, or one thinner than
+    a pixel) gives an empty buffer: every ``face`` is -1.
+
     Raises:
-      InputError: the camera sees no face (everything outside the image or behind the eye).
+      InputError: the camera sees no vertex (everything outside the image or behind the eye).
 
     Example:
       >>> from jmeshtex.data import icosphere
@@ -136,7 +139,7 @@ def rasterize(
         ok &= facing
     idx = np.nonzero(ok)[0]
     if len(idx) == 0:
-        raise _sees_nothing(camera)
+        return _nothing_drawn(screen, z, camera, W, H, s)
     dmin, dmax = float(key_depth[idx].min()), float(key_depth[idx].max())
     dscale = _DEPTH_LEVELS / (dmax - dmin) if dmax > dmin else 0.0
 
@@ -183,7 +186,7 @@ def rasterize(
             np.minimum.at(zbuf, py[rows, cols] * W + px[rows, cols], keys)
     hit = zbuf != _EMPTY
     if not hit.any():
-        raise _sees_nothing(camera)
+        return _nothing_drawn(screen, z, camera, W, H, s)
     face = np.full(W * H, -1, dtype=np.int64)
     face[hit] = zbuf[hit] & ((1 << _FACE_BITS) - 1)
     mf, p0f, zff = (np.zeros((len(faces),) + x.shape[1:]) for x in (m, p0, kd))
@@ -248,6 +251,24 @@ def _barycentrics(face, hit, m, p0, zf, W, orthographic):
     bary[pix, 0], bary[pix, 1], bary[pix, 2] = b0, b1, b2
     depth[pix] = d
     return bary, depth
+
+
+def _nothing_drawn(screen, z, camera: Camera, W: int, H: int, s: int) -> Visibility:
+    """An empty buffer where the mesh is in the frame but covers no pixel centre (seen edge-on, or
+    thinner than a pixel); the error of :func:`_sees_nothing` where it is not in the frame."""
+    inside = np.isfinite(screen).all(axis=1)
+    inside &= (screen >= 0).all(axis=1) & (screen[:, 0] <= W) & (screen[:, 1] <= H)
+    if not camera.orthographic:
+        inside &= z > 0
+    if not inside.any():
+        raise _sees_nothing(camera)
+    return Visibility(
+        face=np.full((H, W), -1, np.int32),
+        bary=np.zeros((H, W, 3)),
+        depth=np.full((H, W), np.inf),
+        camera=camera,
+        supersample=s,
+    )
 
 
 def _sees_nothing(camera: Camera) -> InputError:

@@ -358,6 +358,25 @@ def test_turntable_writes_a_strip_and_a_gif(tmp_path):
 # -------------------------------------------------------------------------------------------------
 
 
+def test_a_mesh_in_the_frame_that_covers_no_pixel_renders_as_background():
+    # a flat square seen exactly edge-on, and a triangle far thinner than a pixel: in the frame,
+    # nothing drawn; the image is the background, not an error (the mesh is not out of view)
+    square = (
+        np.array([[-1.0, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]]),
+        np.array([[0, 1, 2], [0, 2, 3]]),
+    )
+    edge_on = look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0), up="y", half_height=2.0, size=(32, 32))
+    sliver = (np.array([[0.0, 0, 0], [1e-6, 0, 0], [0, 1e-6, 0]]), np.array([[0, 1, 2]]))
+    for mesh in (square, sliver):
+        vis = rasterize(*mesh, edge_on)
+        assert not vis.mask.any() and (vis.face == -1).all()
+        img = np.asarray(render(mesh, edge_on))  # white background
+        assert img.shape[:2] == (32, 32) and np.allclose(img[..., :3], img[..., :3].max())
+    # the same square seen from above is drawn
+    above = look_at((0.0, 5.0, 0.0), (0.0, 0.0, 0.0), up="z", half_height=2.0, size=(32, 32))
+    assert rasterize(*square, above).mask.mean() > 0.2
+
+
 def test_bad_input_raises_typed_errors():
     v, f = icosphere(1)
     away = look_at(
