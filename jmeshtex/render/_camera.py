@@ -164,7 +164,8 @@ def look_at(
     eye_, target_ = _point(eye, "eye"), _point(target, "target")
     u = up_vector(up)
     dist = float(np.linalg.norm(target_ - eye_))
-    if dist < 1e-12:
+    # relative to the positions' magnitude, so a camera framing a mesh of any scale is accepted
+    if dist <= 1e-12 * max(float(np.abs(eye_).max()), float(np.abs(target_).max())) or dist == 0:
         raise InputError(
             f"eye and target coincide at {eye_.tolist()}: the camera has no viewing direction"
         )

@@ -377,6 +377,14 @@ def test_a_mesh_in_the_frame_that_covers_no_pixel_renders_as_background():
     assert rasterize(*square, above).mask.mean() > 0.2
 
 
+def test_a_mesh_of_any_scale_is_framed_and_drawn_alike():
+    v, f = icosphere(2)
+    ref = np.asarray(render((v, f), orbit_cameras((v, f), azimuths=1, size=(48, 48))[0]))
+    for scale in (1e-30, 1e30):
+        cam = orbit_cameras((v * scale, f), azimuths=1, size=(48, 48))[0]
+        np.testing.assert_allclose(np.asarray(render((v * scale, f), cam)), ref, atol=2.0)
+
+
 def test_bad_input_raises_typed_errors():
     v, f = icosphere(1)
     away = look_at(
