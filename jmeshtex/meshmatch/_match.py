@@ -27,7 +27,7 @@ from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
 from ..geometry import check_mesh_scale, vertex_normals
-from ._config import Config
+from ._config import MAX_FAN_RADIUS, Config
 from ._features import ancestors
 from ._prepare import (
     LevelArrays,
@@ -146,7 +146,8 @@ def meshmatch(
     Raises:
       InputError: shapes of colours, masks, pins; an empty source mask; a mesh that is neither a
         ``Mesh`` nor a pair; source and target sizes differing by more than
-        ``config.max_scale_ratio``; fans that would span more than 8 bounding-box diagonals of
+        ``config.max_scale_ratio``; fans that would cross more than ``MAX_FAN_RADIUS`` mean edges
+        of the finer mesh or span more than 8 bounding-box diagonals of
         the smaller mesh (a unit mismatch with ``max_scale_ratio=None``); an ``initial_nnf`` of
         the wrong shape or range.
       MeshScaleError: a mesh with a mean edge outside ``[1e-6, 1e8]`` or too far from the origin
@@ -261,14 +262,24 @@ _MAX_FAN_WRAP = 8.0
 
 def _check_fan_extent(source: Mesh, target: Mesh, edges: tuple[float, float], fan_radius) -> None:
     """Raise when the finest level's fans (``fan_radius`` times the coarser mesh's mean edge) would
-    wrap around the smaller mesh more than ``_MAX_FAN_WRAP`` times: each trace would then walk
-    without bound in faces (a ×1e6 scale mismatch with ``max_scale_ratio=None``)."""
+    cross more than ``MAX_FAN_RADIUS`` mean edges of the finer mesh (the traces' length, and so the
+    compiled program's size, grows with it: a 60x edge ratio compiled for minutes to an allocation
+    failure), or wrap around the smaller mesh more than ``_MAX_FAN_WRAP`` times (a ×1e6 scale
+    mismatch with ``max_scale_ratio=None``)."""
     radius = float(fan_radius) * max(edges)
     diagonals = [
         float(np.linalg.norm(np.ptp(np.asarray(m.vertices, np.float64), axis=0)))
         for m in (source, target)
     ]
     smaller = min(diagonals)
+    if radius > MAX_FAN_RADIUS * min(edges):  # each trace walks about radius / edge faces
+        raise InputError(
+            f"fans of radius {radius:.3g} (fan_radius {fan_radius:g} x the coarser mesh's mean edge "
+            f"{max(edges):.3g}) would cross {radius / min(edges):.3g} mean edges of the finer mesh "
+            f"(at most {MAX_FAN_RADIUS:g}; mean edges differ {max(edges) / min(edges):.3g}x): "
+            "remesh the finer mesh coarser or the coarser finer, rescale one mesh to the other's "
+            "units, or lower Config.fan_radius"
+        )
     if radius > _MAX_FAN_WRAP * smaller:
         ratio = max(edges) / min(edges)
         raise InputError(

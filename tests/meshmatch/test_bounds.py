@@ -45,6 +45,23 @@ def test_a_million_fold_target_with_the_ratio_check_off_is_refused_at_once():
     assert time.perf_counter() - start < 5.0
 
 
+def test_fans_that_would_cross_too_many_edges_of_the_finer_mesh_are_refused_at_once():
+    """A fine small source and a coarse target 4x its size (edges 31x longer): the fans wrap the
+    source less than 8 times, but each trace would cross ~120 source edges; refused first."""
+    v, f = icosphere(4)
+    tv, tf = icosphere(1)
+    start = time.perf_counter()
+    with pytest.raises(InputError, match="would cross .* mean edges of the finer mesh"):
+        meshmatch(
+            (v, f),
+            0.5 + 0.4 * np.sin(5 * v),
+            (4.0 * tv, tf),
+            key=jax.random.key(0),
+            config=Config(max_scale_ratio=None, **_TINY),
+        )
+    assert time.perf_counter() - start < 5.0
+
+
 @pytest.mark.parametrize(
     ("scale", "offset", "error"),
     [(1e30, 0.0, MeshScaleError), (1e12, 0.0, MeshScaleError), (1.0, 1e8, MeshScaleError)],
