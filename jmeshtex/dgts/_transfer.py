@@ -450,6 +450,12 @@ def _synthesise(
     run) and map the results back to the target's frame."""
     c = model.config
     params = tuple(model.generators[plan.start_level : plan.stop_level + 1])
+    for level, p in enumerate(params, start=plan.start_level):
+        if not all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(p)):
+            raise InputError(
+                f"the model's generator at level {level} has non-finite parameters (a diverged or "
+                "damaged model): retrain it, or load another model"
+            )
     outs = [
         _generate_jit(
             c.scale_factor,
@@ -464,6 +470,14 @@ def _synthesise(
         )
         for zs in draws
     ]
+    for o in outs:
+        bad = [i for i, level in enumerate(o) if not np.isfinite(np.asarray(level)).all()]
+        if bad:
+            raise InputError(
+                f"level {plan.start_level + bad[0]} of the transfer is not finite although the "
+                "model's parameters are: the target's geometry breaks the face features there "
+                "(degenerate or coincident faces? `jmeshtex info` on the target says)"
+            )
     base = plan.vertices
     for g in plan.geometry[:-1]:
         base = upsample(base, g.edge_vertices, scale=c.scale_factor)

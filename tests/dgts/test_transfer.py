@@ -120,3 +120,19 @@ def _edges(faces):
     from jmeshtex.geometry import unique_edges
 
     return unique_edges(faces)
+
+
+def test_a_model_with_non_finite_parameters_is_refused_naming_the_level():
+    from jmeshtex.dgts import Config, Model
+    from jmeshtex.dgts.core import init_level
+
+    c = Config(num_layers=3, start_features=4, min_features=4, max_features=4)
+    gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
+    ok = Model(c, gs, gs, np.zeros((12, 3), np.float32))
+    assert np.isfinite(
+        transfer(ok, icosahedron(), key=jax.random.key(0), start_level=0).vertices
+    ).all()
+    nan_level = jax.tree.map(lambda x: np.full_like(np.asarray(x), np.nan), gs[1])
+    bad = Model(c, (gs[0], nan_level), gs, np.zeros((12, 3), np.float32))
+    with pytest.raises(InputError, match="generator at level 1 has non-finite parameters"):
+        transfer(bad, icosahedron(), key=jax.random.key(0), start_level=0)
