@@ -72,10 +72,11 @@ def test_sharded_training_follows_one_device_and_resumes_across_meshes(tmp_path)
     assert np.ptp(full_4) > 1e-3  # the trajectory moves: the equality below is not of constants
     # a few Adam steps: each step's round-off compounds a little (Adam divides by sqrt(v))
     np.testing.assert_allclose(full_4, full_1.losses["loss"], rtol=1e-4)
-    # atol 1e-4 of each leaf's largest entry: the blocked field-convolution VJP sums in another order
-    # on four devices, and Adam's normalised step turns that round-off into up to 4.3e-7 absolute on
-    # an entry 1/100th of its leaf's largest (measured; 1e-5 of the largest was 4e-7)
-    _close(out["full_4_model"], leaves(full_1.model.params), rtol=1e-4, atol_scale=1e-4)
+    # atol 5e-4 of each leaf's largest entry: the field convolution's reverse mode (JAX's transpose
+    # of its blocked custom_jvp tangent) sums in another order on four devices, and Adam's
+    # normalised step turns that round-off into up to 1.1e-6 absolute on an entry 1/80th of its
+    # leaf's largest (measured: 1.9e-4 of the largest; a wrong sharding moves entries by O(1))
+    _close(out["full_4_model"], leaves(full_1.model.params), rtol=1e-4, atol_scale=5e-4)
     # resumed on the same mesh: the same programs on the same state, so the same numbers
     assert out["resumed_4_from"] == 2
     np.testing.assert_allclose(out["resumed_4"], full_4, rtol=1e-6)
