@@ -1196,38 +1196,27 @@ def _write_quality(rows, spreads, size, steps, out):
 if __name__ == "__main__":
     import sys
 
-    if "--orientation-figure" in sys.argv:
-        fp = argparse.ArgumentParser()
-        fp.add_argument("--orientation-figure", default="spot")
-        fp.add_argument("--size", type=int, default=128)
-        fp.add_argument("--orientation-steps", type=int, default=150)
-        fp.add_argument(
+    def orientation_parser(flag: str, **kwargs) -> argparse.ArgumentParser:
+        """The arguments --orientation and --orientation-figure share."""
+        parser = argparse.ArgumentParser()
+        parser.add_argument(flag, **kwargs)
+        parser.add_argument("--size", type=int, default=128)
+        parser.add_argument("--orientation-steps", type=int, default=150)
+        parser.add_argument(
             "--work",
             type=pathlib.Path,
             default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
         )
-        fp.add_argument("--out", default=None)
-        fa = fp.parse_args()
-        orientation_figure(
-            fa.orientation_figure,
-            fa.size,
-            fa.orientation_steps,
-            fa.work,
-            pathlib.Path(fa.out) if fa.out else None,
-        )
+        parser.add_argument("--out", type=pathlib.Path, default=None)
+        return parser
+
+    if "--orientation-figure" in sys.argv:
+        fa = orientation_parser("--orientation-figure", default="spot").parse_args()
+        orientation_figure(fa.orientation_figure, fa.size, fa.orientation_steps, fa.work, fa.out)
     elif "--orientation" in sys.argv:
-        op = argparse.ArgumentParser()
-        op.add_argument("--orientation", action="store_true")
+        op = orientation_parser("--orientation", action="store_true")
         op.add_argument("--meshes", default=",".join(PROTOCOL_MESHES))
         op.add_argument("--exemplars", default="stripes")
-        op.add_argument("--size", type=int, default=128)
-        op.add_argument("--orientation-steps", type=int, default=150)
-        op.add_argument(
-            "--work",
-            type=pathlib.Path,
-            default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
-        )
-        op.add_argument("--out", default=None)
         oa = op.parse_args()
         orientation(
             oa.meshes.split(","),
@@ -1235,7 +1224,7 @@ if __name__ == "__main__":
             oa.size,
             oa.orientation_steps,
             oa.work,
-            pathlib.Path(oa.out) if oa.out else None,
+            oa.out,
         )
     elif "--seams" in sys.argv:
         sp = argparse.ArgumentParser()
