@@ -353,6 +353,9 @@ class ConfigBase:
 
     _RULES: ClassVar[tuple[Rule, ...]] = ()
     _MESSAGE: ClassVar[str] = "{cls}.{name} must be {must}, got {value!r}"
+    #: fields a run may change when it resumes from a checkpoint (step counts, checkpoint cadence):
+    #: left out of :meth:`fingerprint`
+    _RESUMABLE: ClassVar[frozenset[str]] = frozenset()
 
     def __post_init__(self) -> None:
         hints = _hints(type(self))
@@ -398,6 +401,23 @@ class ConfigBase:
         return cls(
             **{k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in data.items()}
         )
+
+    def fingerprint(self) -> dict[str, Any]:
+        """The fields a checkpoint must have been written with to be resumed under this config:
+        :meth:`to_dict` without the class's ``_RESUMABLE`` fields. Every method's checkpoint
+        fingerprint takes its config part from here, so one rule decides what a resumption may change.
+
+        Example:
+          >>> import dataclasses
+          >>> @dataclasses.dataclass(frozen=True)
+          ... class Run(ConfigBase):
+          ...     width: int = 8
+          ...     steps: int = 100
+          ...     _RESUMABLE = frozenset({"steps"})
+          >>> Run(steps=200).fingerprint() == Run().fingerprint()
+          True
+        """
+        return {k: v for k, v in self.to_dict().items() if k not in self._RESUMABLE}
 
     def replace(self: _C, **changes: Any) -> _C:
         """A copy with some fields changed (validated again); unknown names raise ConfigError."""
