@@ -57,6 +57,9 @@ from ._multiscale import save_training_meshes as save_training_meshes
 from ._multiscale import training_meshes as training_meshes
 from ._official import from_official_state_dict as from_official_state_dict
 from ._official import load_official as load_official
+from ._pretrained import load_pretrained as load_pretrained
+from ._pretrained import pretrained_period as pretrained_period
+from ._pretrained import pretrained_training_meshes as pretrained_training_meshes
 from ._train import LevelReport as LevelReport
 from ._train import train as train
 from ._transfer import DGTSTransfer as DGTSTransfer
