@@ -17,6 +17,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))  # the harness and the benchmarks i
 
 import _harness  # noqa: E402
 
+Size, size_label = _harness.Size, _harness.size_label
+
 #: where the studies' tables and figures land
 RESULTS = ROOT / "studies" / "results"
 

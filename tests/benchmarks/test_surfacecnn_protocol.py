@@ -107,6 +107,6 @@ def test_the_orientation_control_runs_straight_across_seams():
     )
     mesh = Mesh(v, f, uv=uv)
     surface = prepare_surface(mesh, size=96, levels=0)
-    control = surfacecnn._orientation_control(mesh, surface, Config(size=96))
+    control = surfacecnn.orientation_control(mesh, surface, Config(size=96))
     r = seam_orientation(mesh.replace(uv=surface.atlas.uv), control)
     assert r.seam_edges == 12 and r.seam > 0.98 and r.interior > 0.98

@@ -20,7 +20,7 @@ def tiny_configs(quick: bool = True) -> tuple[PrepareConfig, Config]:
 
     Both share one width at every level and ``shared_levels`` = all levels, so training compiles
     one step for the whole hierarchy; the full one adds a third level (a finer output) and more
-    steps. The learning test and ``benchmarks/dgts.py`` use the quick one.
+    steps. The learning test and the tiny DGTS study use the quick one.
     """
     if quick:  # equal widths at both levels and shared_levels=2: one compiled step for both
         return PrepareConfig.tiny(), Config.tiny()
