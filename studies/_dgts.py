@@ -7,6 +7,7 @@ imported from ``benchmarks/dgts.py``."""
 
 from __future__ import annotations
 
+import argparse
 import pathlib
 import re
 
@@ -275,3 +276,23 @@ def study_models(kind: str, runs: list[str], levels: int, work: pathlib.Path) ->
     untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
     models["untrained"] = (untrained, models[runs[-1]][1])
     return models
+
+
+def add_study_arguments(ap: argparse.ArgumentParser, *, runs: bool = False) -> None:
+    """The arguments the studies at depth share: ``--samples``, ``--work`` (the resumable runs, a
+    folder per texture) and, for the studies of trained runs, ``--runs`` and ``--levels``."""
+    if runs:
+        ap.add_argument(
+            "--runs",
+            nargs="+",
+            default=["fake_inputs_sampled_2000"],
+            help="study run folders under --work/KIND (trained by dgts_noise_response.py)",
+        )
+        ap.add_argument("--levels", type=int, default=4, help="levels of the runs at depth")
+    ap.add_argument("--samples", type=int, default=3, help="transfer samples per row")
+    ap.add_argument(
+        "--work",
+        type=pathlib.Path,
+        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "dgts_depth",
+        help="the resumable runs at depth (folder per texture)",
+    )

@@ -16,6 +16,7 @@ import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
+    add_study_arguments,
     score_transfers,
     study_models,
 )
@@ -90,20 +91,7 @@ def curvature(
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("kind", choices=sorted(DEPTH_TEXTURES))
-    ap.add_argument(
-        "--runs",
-        nargs="+",
-        default=["fake_inputs_sampled_2000"],
-        help="study run folders under --work/KIND (trained by dgts_noise_response.py)",
-    )
-    ap.add_argument("--levels", type=int, default=4, help="levels of the runs at depth")
-    ap.add_argument("--samples", type=int, default=3, help="transfer samples per row")
-    ap.add_argument(
-        "--work",
-        type=pathlib.Path,
-        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "dgts_depth",
-        help="the resumable runs at depth (folder per texture)",
-    )
+    add_study_arguments(ap, runs=True)
     args = ap.parse_args(argv)
     curvature(args.kind, args.runs, levels=args.levels, work=args.work, samples=args.samples)
 

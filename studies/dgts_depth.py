@@ -21,6 +21,7 @@ import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
+    add_study_arguments,
     depth_meshes,
     evaluate,
 )
@@ -103,13 +104,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("kinds", nargs="+", choices=sorted(DEPTH_TEXTURES))
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--steps", type=int, default=2000, help="steps per level")
-    ap.add_argument("--samples", type=int, default=3, help="transfer samples per row")
-    ap.add_argument(
-        "--work",
-        type=pathlib.Path,
-        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "dgts_depth",
-        help="the resumable runs at depth (folder per texture)",
-    )
+    add_study_arguments(ap)
     args = ap.parse_args(argv)
     depth(args.kinds, levels=args.levels, steps=args.steps, work=args.work, samples=args.samples)
 

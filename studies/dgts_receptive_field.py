@@ -16,6 +16,7 @@ import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
+    add_study_arguments,
     depth_meshes,
     score_rows,
     score_transfers,
@@ -142,13 +143,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--levels", type=int, default=3)
     ap.add_argument("--steps", type=int, default=2000, help="steps per level")
     ap.add_argument("--remeshes", type=int, default=1)
-    ap.add_argument("--samples", type=int, default=3, help="transfer samples per row")
-    ap.add_argument(
-        "--work",
-        type=pathlib.Path,
-        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "dgts_depth",
-        help="the resumable runs at depth (folder per texture)",
-    )
+    add_study_arguments(ap)
     args = ap.parse_args(argv)
     receptive_field(
         args.kind,

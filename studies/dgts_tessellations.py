@@ -17,6 +17,7 @@ import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
+    add_study_arguments,
     score_transfers,
     study_models,
 )
@@ -89,20 +90,7 @@ def tessellations(
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("kind", choices=sorted(DEPTH_TEXTURES))
-    ap.add_argument(
-        "--runs",
-        nargs="+",
-        default=["fake_inputs_sampled_2000"],
-        help="study run folders under --work/KIND (trained by dgts_noise_response.py)",
-    )
-    ap.add_argument("--levels", type=int, default=4, help="levels of the runs at depth")
-    ap.add_argument("--samples", type=int, default=3, help="transfer samples per row")
-    ap.add_argument(
-        "--work",
-        type=pathlib.Path,
-        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "dgts_depth",
-        help="the resumable runs at depth (folder per texture)",
-    )
+    add_study_arguments(ap, runs=True)
     ap.add_argument("--starts", nargs="+", type=int, default=[2], help="extra start levels")
     args = ap.parse_args(argv)
     tessellations(
