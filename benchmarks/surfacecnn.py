@@ -419,8 +419,7 @@ def quality(
                 weights,
                 work,
             )
-    record = pathlib.Path(__file__).resolve().parent / "results" / "surfacecnn.quality.json"
-    rows = finished_rows(work, record, size, steps)
+    rows = finished_rows(work, size, steps)
     spreads = {}
     for row in rows:
         if row["mesh"] not in spreads:
@@ -518,24 +517,18 @@ def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
         }
 
 
-def finished_rows(work: pathlib.Path, record: pathlib.Path, size: int, steps: int) -> list[dict]:
-    """Every finished protocol cell at ``size``² and ``steps`` steps, in protocol order: the row in
-    ``work`` where there is one, else the committed row in ``record`` (a cell finished in an
-    earlier session whose work folder is gone)."""
+def finished_rows(work: pathlib.Path, size: int, steps: int) -> list[dict]:
+    """Every protocol cell at ``size``² and ``steps`` steps finished in ``work`` (this run's
+    resumable cells), in protocol order. No row comes from an earlier results file: a cell whose
+    work folder is gone is run again."""
     import json
 
-    committed = {}
-    if record.is_file():
-        for r in json.loads(record.read_text()):
-            committed[(r["mesh"], r["exemplar"], r["size"], r["steps"])] = r
     rows = []
     for mesh_name in PROTOCOL_MESHES:
         for ex_name in PROTOCOL_EXEMPLARS:
             done = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
             if done.is_file():
                 rows.append(json.loads(done.read_text()))
-            elif (mesh_name, ex_name, size, steps) in committed:
-                rows.append(committed[mesh_name, ex_name, size, steps])
     return rows
 
 
