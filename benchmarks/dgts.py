@@ -65,7 +65,7 @@ def reference_mesh():
     return textured_sphere(KIND, subdivisions=4, period=PERIOD)
 
 
-def targets(real: tuple[str, ...] = ("cow",)) -> list[tuple[str, object]]:
+def transfer_targets(real: tuple[str, ...] = ("cow",)) -> list[tuple[str, object]]:
     """A torus and the shared real meshes named in ``real`` (those present)."""
     import warnings
 
@@ -182,6 +182,58 @@ def _knob_rows(report, section: str, rows: dict, truth, ops, extra: dict | None 
 SCALES_MODEL, SCALES_PERIOD = RESULTS / "dgts_depth_scales_model", 5.44
 
 
+def _score(report, section, outputs, base, p, *, kind: str, seeds: int, truth=None):
+    """One target's rows (:func:`_knob_rows`): the truth (the oracle, or the training mesh
+    in-domain), the floor, zero displacement, matched noise, untrained and trained outputs, with
+    the former per-mesh-edge peak density as a diagnostic. Returns the oracle."""
+    keys = [jax.random.key(s) for s in range(seeds)]
+    ops = texture_operators(base, period=p)
+    oracle = oracle_texture(base, kind, period=p)
+    truth = oracle if truth is None else truth
+    own = knob_scores(truth, truth, ops=ops)
+    rows = {"oracle (truth)" if truth is oracle else "training mesh (truth)": [truth]}
+    if truth is oracle:
+        rows["oracle, other centres (floor)"] = [
+            oracle_texture(base, kind, period=p, key=jax.random.key(100 + s)) for s in range(seeds)
+        ]
+    rows |= {
+        "zero displacement": [base],
+        "noise (matched heights)": [texture_noise(base, ops, own.relief, key=k) for k in keys],
+        "untrained": outputs["untrained"],
+        "trained": outputs["trained"],
+    }
+    h_truth = relief_heights(truth, base)
+    thr = float(h_truth.mean() + h_truth.std())
+
+    def old_density(m) -> float:  # the former headline: peaks per squared mean edge
+        return peak_statistics(m, relief_heights(m, base), threshold=thr).density
+
+    extra = {
+        name: {
+            "old_peak_density_vs_truth": float(
+                np.mean([old_density(m) for m in meshes]) / old_density(truth)
+            )
+        }
+        for name, meshes in rows.items()
+    }
+    _knob_rows(report, section, rows, truth, ops, extra)
+    if truth is not oracle:  # no oracle of the training mesh: the descriptors' sampling floor
+        d0 = patch_descriptors(texture_heights(truth, ops), ops)
+        floors = []
+        for s in range(1, seeds + 1):
+            other = texture_operators(base, period=p, key=jax.random.key(s))
+            d = patch_descriptors(texture_heights(truth, other), other)
+            floors.append(sliced_wasserstein(d, d0))
+        report.add(
+            name=f"{section}: training mesh at other descriptor centres (floor)",
+            samples=seeds,
+            patch_distance=float(np.mean(floors)),
+            patch_distance_sd=float(np.std(floors)),
+        )
+    report.write()
+    return oracle
+
+
 def rescore(
     *, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = None, kind: str = "knobs"
 ) -> None:
@@ -215,54 +267,6 @@ def rescore(
     keys = [jax.random.key(s) for s in range(seeds)]
     panels = []
 
-    def score(section, outputs, base, p, truth=None):
-        ops = texture_operators(base, period=p)
-        oracle = oracle_texture(base, kind, period=p)
-        truth = oracle if truth is None else truth
-        own = knob_scores(truth, truth, ops=ops)
-        rows = {"oracle (truth)" if truth is oracle else "training mesh (truth)": [truth]}
-        if truth is oracle:
-            rows["oracle, other centres (floor)"] = [
-                oracle_texture(base, kind, period=p, key=jax.random.key(100 + s))
-                for s in range(seeds)
-            ]
-        rows |= {
-            "zero displacement": [base],
-            "noise (matched heights)": [texture_noise(base, ops, own.relief, key=k) for k in keys],
-            "untrained": outputs["untrained"],
-            "trained": outputs["trained"],
-        }
-        h_truth = relief_heights(truth, base)
-        thr = float(h_truth.mean() + h_truth.std())
-
-        def old_density(m) -> float:  # the former headline: peaks per squared mean edge
-            return peak_statistics(m, relief_heights(m, base), threshold=thr).density
-
-        extra = {
-            name: {
-                "old_peak_density_vs_truth": float(
-                    np.mean([old_density(m) for m in meshes]) / old_density(truth)
-                )
-            }
-            for name, meshes in rows.items()
-        }
-        _knob_rows(report, section, rows, truth, ops, extra)
-        if truth is not oracle:  # no oracle of the training mesh: the descriptors' sampling floor
-            d0 = patch_descriptors(texture_heights(truth, ops), ops)
-            floors = []
-            for s in range(1, seeds + 1):
-                other = texture_operators(base, period=p, key=jax.random.key(s))
-                d = patch_descriptors(texture_heights(truth, other), other)
-                floors.append(sliced_wasserstein(d, d0))
-            report.add(
-                name=f"{section}: training mesh at other descriptor centres (floor)",
-                samples=seeds,
-                patch_distance=float(np.mean(floors)),
-                patch_distance_sd=float(np.std(floors)),
-            )
-        report.write()
-        return oracle
-
     # in-domain: the template through every level with fresh noise (conditional at level 0);
     # the finest training mesh in the template's frame is the truth, the subdivided template the base
     template = (tm.template, tm.faces[0])
@@ -281,7 +285,16 @@ def rescore(
         truth = Mesh(np.asarray(tm.vertices[-1], np.float64) / frame, cond.faces)
         base = Mesh(cond.base, cond.faces)
         p = reference_period * float(tm.scales[-1]) / frame / mean_edge_length(*base)
-        score(f"in-domain (period {p:.2f} base edges)", outputs, base, p, truth)
+        _score(
+            report,
+            f"in-domain (period {p:.2f} base edges)",
+            outputs,
+            base,
+            p,
+            kind=kind,
+            seeds=seeds,
+            truth=truth,
+        )
         panels += [
             ("in-domain: training mesh", truth),
             ("in-domain: trained", outputs["trained"][0]),
@@ -289,7 +302,7 @@ def rescore(
         ]
     targets = [("torus 64x24", torus(64, 24), RESCORE_START)]
     targets.append(("icosphere(3)", icosphere(3), RESCORE_START))
-    for name, mesh in targets(("cow", "fandisk"))[1:]:
+    for name, mesh in transfer_targets(("cow", "fandisk"))[1:]:
         iso = remesh(mesh, n_vertices=vertices, key=jax.random.key(0), even_lengths=True)
         targets.append((f"{name} isotropic {vertices} V", iso, RESCORE_START))
     # the curvature study's cases (its torus and spheres from level 2), rescored
@@ -310,9 +323,8 @@ def rescore(
         }
         outputs = {name: [r.mesh(0) for r in rs] for name, rs in results.items()}
         base = Mesh(results["trained"][0].base, results["trained"][0].faces)
-        oracle = score(
-            f"{target_name} from level {start} ({len(base.faces)} F)", outputs, base, period
-        )
+        section = f"{target_name} from level {start} ({len(base.faces)} F)"
+        oracle = _score(report, section, outputs, base, period, kind=kind, seeds=seeds)
         if start == RESCORE_START:
             panels += [
                 (f"{target_name}: oracle", oracle),

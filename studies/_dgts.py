@@ -14,7 +14,7 @@ import re
 import jax
 import numpy as np
 from _study import Report
-from dgts import DEPTH_TEXTURES, KIND, PERIOD, targets  # noqa: F401  (the benchmark's own)
+from dgts import DEPTH_TEXTURES, KIND, PERIOD, transfer_targets  # noqa: F401  (the benchmark's own)
 
 from jmeshtex.data import icosphere, textured_sphere
 from jmeshtex.dgts import Config, PrepareConfig, conditional, train, training_meshes, transfer
@@ -141,7 +141,7 @@ def evaluate(
             note="mean edges; level 0 never reconstructs from z* (reconstruction_start = 1)",
         )
     figures = []
-    for target_name, target in targets(real):
+    for target_name, target in transfer_targets(real):
         for start in starts:
             res = transfer(
                 trained, target, num_samples=samples, start_level=start, key=jax.random.key(1)

@@ -19,6 +19,7 @@ from _dgts import (
     add_study_arguments,
     score_transfers,
     study_models,
+    transfer_targets,
 )
 from _study import RESULTS, Report
 
@@ -56,7 +57,7 @@ def curvature(
     targets.append(("torus 64x24", torus(64, 24), start - 1))  # the middle torus, one level coarser
     fine = subdivide_midpoint(*torus(64, 24))  # ... and subdivided once, flat, from `start`
     targets.append(("torus 64x24 subdivided", Mesh(fine.vertices, fine.faces), start))
-    for name, mesh in targets(real)[1:]:  # as given from two levels, isotropic from one
+    for name, mesh in transfer_targets(real)[1:]:  # as given from two levels, isotropic from one
         targets += [(name, mesh, start), (name, mesh, start - 1)]
         iso = remesh(mesh, n_vertices=mesh.num_vertices, key=jax.random.key(0), even_lengths=True)
         targets.append((f"{name} isotropic", iso, start - 1))

@@ -20,6 +20,7 @@ from _dgts import (
     layout_correlation,
     score_rows,
     study_models,
+    transfer_targets,
 )
 from _study import Report
 
@@ -53,7 +54,7 @@ def noise_amplitudes(
         ("torus grid", torus(64, 24), None),
         (f"icosphere({levels - 1})", icosphere(levels - 1), 2),
     ]
-    targets += [(name, mesh, None) for name, mesh in targets(("cow",))[1:]]
+    targets += [(name, mesh, None) for name, mesh in transfer_targets(("cow",))[1:]]
     report.config = {"kind": kind, "levels": levels, "runs": runs, "amplitudes": amplitudes}
     models = study_models(kind, runs, levels, work)
     for target_name, target, start in targets:

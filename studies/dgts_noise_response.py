@@ -24,7 +24,7 @@ from _dgts import (
     depth_meshes,
     score_rows,
     score_transfers,
-    targets,
+    transfer_targets,
 )
 from _study import RESULTS, Report
 
@@ -140,7 +140,7 @@ def noise_response(
             rows[label] = [only_at(model, plan, k, i) for i in range(samples)]
         score_rows(report, f"[{name}] in-domain vs training mesh", rows, truth, None, {})
         panels.append((f"{name}: noise at level {levels - 1} only", rows[label_last][0]))
-    for target_name, target in targets(real):
+    for target_name, target in transfer_targets(real):
         for start in starts:
             at = "default start" if start is None else f"start {start}"
             rows, oracle = score_transfers(

@@ -20,7 +20,7 @@ from _dgts import (
     depth_meshes,
     score_rows,
     score_transfers,
-    targets,
+    transfer_targets,
 )
 from _study import RESULTS, Report
 
@@ -117,7 +117,7 @@ def receptive_field(
     }
     score_rows(report, f"in-domain, fresh noise at level {layout} only", rows, truth, None, {})
     panels = [("training mesh", truth)] + [(f"in-domain: {n}", r[0]) for n, r in rows.items()]
-    for target_name, target in targets(real):
+    for target_name, target in transfer_targets(real):
         rows, oracle = score_transfers(
             report, f"{target_name}, start {layout}", models, target, layout, kind, period, samples
         )
