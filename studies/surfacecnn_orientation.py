@@ -182,7 +182,7 @@ def orientation(
 def orientation_figure(
     mesh_name: str, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
 ) -> None:
-    """Stripes on a protocol mesh from the ``--orientation`` textures in ``work``: the surface CNN
+    """Stripes on a protocol mesh from the orientation textures in ``work``: the surface CNN
     and UV-space 2D synthesis, a whole view and a close view across a UV seam (with the charts
     seen from the same camera), and both UV images. Writes
     ``results/surfacecnn_orientation_<mesh>.png``."""
