@@ -135,7 +135,7 @@ BENCHMARKS: dict[str, Benchmark] = {
             quick_args=("--points", "400", "--chunks", "128"),
         ),
         Benchmark("geometry", size_args=_flag("--sizes", join=","), quick_args=("--sizes", "400")),
-        Benchmark("fldm", size_args=_flag("--sizes"), preset_args=lambda p: ["--presets", p]),
+        Benchmark("fldm_step", size_args=_flag("--sizes"), preset_args=lambda p: ["--presets", p]),
         Benchmark("fl_vae", size_args=_flag("--sizes", join=",")),
         Benchmark(
             "surfacecnn", size_args=lambda s: ["--precompute", ",".join(s), "--steps", ",".join(s)]
@@ -143,8 +143,8 @@ BENCHMARKS: dict[str, Benchmark] = {
         Benchmark("meshmatch", size_args=_flag("--sizes", join=",")),
         Benchmark("meshmatch_cross", script="meshmatch", extra_args=("--suite", "cross")),
         Benchmark("render", size_args=_flag("--faces"), per_size=True, quick_args=("--smoke",)),
-        Benchmark("dgts"),
-        Benchmark("fldm_spot", quick_args=("--quick",)),
+        Benchmark("dgts", extra_args=("--sections", "timing"), report="dgts_timing"),
+        Benchmark("fldm_spot", script="fldm", quick_args=("--quick",)),
     )
 }
 
@@ -412,7 +412,7 @@ def _cell_argv(
         argv += bench.size_args(sizes)
     if preset is not None:
         if bench.preset_args is None:
-            raise SystemExit(f"benchmark {bench.name} has no preset axis (presets: fldm)")
+            raise SystemExit(f"benchmark {bench.name} has no preset axis (presets: fldm_step)")
         argv += bench.preset_args(preset)
     if dtype is not None:
         if bench.dtype_args is None:

@@ -42,7 +42,9 @@ Usage::
 
     python benchmarks/fl_vae.py                      # 5K and 30K, atlas 512², LPIPS, renders
     python benchmarks/fl_vae.py --sizes 5000 --atlas 256 --no-lpips --views 2 --no-throughput  # quick
-    python benchmarks/fl_vae.py --curve 250,500,1000   # log vs barycentric along one run each
+
+The studies that train (KL variants, the decoder curve that produced the shipped weights, the
+step profile) are standalone scripts in ``studies/`` (``studies/README.md``).
 """
 
 from __future__ import annotations
@@ -66,23 +68,6 @@ PAPER = {
     "log": 22.38,
     "barycentric": 21.33,
 }  # PSNR at 30K vertices, Google Scanned Objects (Table 1)
-#: images the shipped models (jmeshtex/fl/weights/README.md) were trained on
-SHIPPED_TRAINING_IMAGES = (
-    "astronaut",
-    "brick",
-    "camera",
-    "chelsea",
-    "coffee",
-    "coins",
-    "colorwheel",
-    "grass",
-    "gravel",
-    "hubble_deep_field",
-    "immunohistochemistry",
-    "moon",
-    "retina",
-    "rocket",
-)
 
 
 def textured_meshes() -> dict[str, tuple[pathlib.Path, pathlib.Path]]:
@@ -202,282 +187,25 @@ def channel_kl(latents) -> dict:
 
 def model_images(model) -> tuple[str, ...]:
     """The scikit-image names a model's training saw (the stream mode's split, else the shipped pool)."""
-    return (
-        fl.core.TRAINING_IMAGES if model.config.pixels_per_vertex > 0 else SHIPPED_TRAINING_IMAGES
-    )
+    return fl.core.TRAINING_IMAGES if model.config.pixels_per_vertex > 0 else fl.core.BUILTIN_IMAGES
 
 
 def load() -> float:
     return os.getloadavg()[0]
 
 
-#: KL-control variants of the ``--study`` mode (changes to ``Config.small``)
-KL_VARIANTS = {
-    "lambda=0.01": {},
-    "warm-up": {"kl_warmup_steps": -1},  # -1: the run's first half
-    "free bits 0.25": {"free_bits": 0.25},
-    "lambda=1e-3": {"kl_weight": 1e-3},
-}
-
-
-def _held_out_quality(model, *, size: int = 96) -> dict:
-    """Mean held-out atlas PSNR of ``model`` and of the P1 codecs (planar meshes at 26 ppv)."""
-    rng = np.random.default_rng(0)
-    rows = []
-    for image in fl.held_out_images(max_size=size):
-        mesh = fl.core.density_mesh(image, 26.0, rng=rng)
-        r = fl.reconstruct(model, mesh, key=jax.random.key(0), size=size, lpips=False)
-        base = baseline_metrics(mesh, r, lpips=False)
-        rows.append(
-            [r.metrics["psnr"], base["p1_oracle"]["psnr"], base["p1_fit"]["psnr"]]
-            + [base["constant"]["psnr"]]
-        )
-    m = np.mean(rows, axis=0)
-    return {"psnr": m[0], "p1_oracle_psnr": m[1], "p1_fit_psnr": m[2], "constant_psnr": m[3]}
-
-
-def study(report, *, steps: int, variants: dict, base: dict) -> None:
-    """Short training runs of ``Config.small(**base)`` per variant: per-channel KL, held-out PSNR
-    next to the P1 codecs, CPU seconds per step (one run at a time)."""
-    for name, changes in variants.items():
-        changes = dict(changes)
-        if changes.get("kl_warmup_steps") == -1:
-            changes["kl_warmup_steps"] = max(1, steps // 2)
-        config = fl.Config.small(
-            steps=steps, warmup_steps=min(50, steps // 4), checkpoint_every=steps, **base
-        ).replace(**changes)
-        cpu0, t0 = time.process_time(), time.perf_counter()
-        r = fl.train(None, config, key=jax.random.key(0), progress=False)
-        cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
-        kl = [float(np.mean(r.losses[f"kl{c}"][-50:])) for c in range(config.latent_dim)]
-        quality = _held_out_quality(r.model)
-        report.add(
-            table="study",
-            variant=name,
-            **{k: v for k, v in base.items()},
-            steps=steps,
-            kl_channels=" ".join(f"{x:.2f}" for x in kl),
-            channels_above_0p1=sum(x > 0.1 for x in kl),
-            l1_last50=round(float(np.mean(r.losses["l1"][-50:])), 4),
-            **{k: round(float(v), 3) for k, v in quality.items()},
-            cpu_s_per_step=round(cpu / steps, 3),
-            wall_s=round(wall, 1),
-            compile_s=round(r.compile_seconds, 1),
-            load=load(),
-        )
-
-
-def curve(
-    report, *, budgets: list[int], decoders: list[str], work: pathlib.Path, base: dict, out=None
-):
-    """One ``Config.small(**base)`` run per decoder, evaluated at each budget (held-out PSNR beside
-    the P1 codecs, per-channel KL): the log decoder against its barycentric ablation as training
-    goes on. Resumable: each run checkpoints in ``work/<decoder>`` and each budget's model is
-    kept as ``work/<decoder>/step_NNNNN.npz``; a re-run with larger budgets continues the same runs
-    (the learning-rate schedule is the preset's, so a budget is a point along one run)."""
-    from jmeshtex.io import Checkpoints
-
-    for decoder in decoders:
-        config = fl.Config.small(decoder=decoder, checkpoint_every=min(budgets), **base)
-        folder = work / decoder
-        for budget in sorted(budgets):
-            snapshot = folder / f"step_{budget:05d}.npz"
-            cpu0, t0 = time.process_time(), time.perf_counter()
-            kl = None
-            if snapshot.is_file():
-                model = fl.load(snapshot)
-            else:
-                with Checkpoints(folder) as ckpt:
-                    done = ckpt.latest_step() or 0
-                if done > budget:
-                    print(f"[curve] {decoder}: the run is past {budget} steps without its snapshot")
-                    continue
-                r = fl.train(
-                    None,
-                    config,
-                    key=jax.random.key(0),
-                    checkpoint_dir=folder,
-                    stop_after=budget - done,
-                    progress=False,
-                )
-                model = r.model
-                fl.save(model, snapshot)
-                if len(r.losses["l1"]):
-                    kl = [
-                        float(np.mean(r.losses[f"kl{c}"][-50:])) for c in range(config.latent_dim)
-                    ]
-            train_cpu, train_wall = time.process_time() - cpu0, time.perf_counter() - t0
-            quality = _held_out_quality(model)
-            report.add(
-                table="curve",
-                decoder=decoder,
-                steps=budget,
-                **{k: round(float(v), 3) for k, v in quality.items()},
-                kl_channels=" ".join(f"{x:.2f}" for x in kl) if kl else None,
-                channels_above_0p1=sum(x > 0.1 for x in kl) if kl else None,
-                train_cpu_s=round(train_cpu, 1),
-                train_wall_s=round(train_wall, 1),
-                load=load(),
-            )
-            print(f"[curve] {decoder} {budget}: {quality}", flush=True)
-            report.write(out)
-
-
-def step_profile(report, *, base: dict, steps: int = 6) -> None:
-    """Where a training step's time goes: host batch building (meshes, one-ring sampling, colour
-    lookup) against the jitted step, in CPU and wall seconds, at ``Config.small(**base)``."""
-    config = fl.Config.small(**base)
-    images = fl.training_images(max_size=config.max_image_size)
-    n = config.batch_size * max(
-        int(round(config.texture_size**2 / (config.pixels_per_vertex / config.density_spread))), 4
-    )
-    params = fl.init(config, key=jax.random.key(0)).params
-    opt_state = fl.core.optimizer(config).init(params)
-    train_step = fl.core.make_train_step(config)
-    stages = {"meshes": [], "samples": [], "step": []}
-    cpu = {k: [] for k in stages}
-    for i in range(steps):
-        rng = np.random.default_rng(i)
-        c0, t0 = time.process_time(), time.perf_counter()
-        # (training_meshes also builds each image's pyramid, which fl.train does once per run)
-        meshes = fl.core.training_meshes(jax.random.key(i), config, images=images)
-        c1, t1 = time.process_time(), time.perf_counter()
-        batch = fl.core.mesh_batch(meshes, config, rng, num_vertices=n)
-        c2, t2 = time.process_time(), time.perf_counter()
-        params, opt_state, loss, aux = train_step(
-            params, opt_state, batch, jax.random.key(i), np.int32(i)
-        )
-        jax.block_until_ready(loss)
-        c3, t3 = time.process_time(), time.perf_counter()
-        if i == 0:
-            compile_s = t3 - t2
-            continue
-        for k, (a, b, ca, cb) in {
-            "meshes": (t0, t1, c0, c1),
-            "samples": (t1, t2, c1, c2),
-            "step": (t2, t3, c2, c3),
-        }.items():
-            stages[k].append(b - a)
-            cpu[k].append(cb - ca)
-    for k in stages:
-        report.add(
-            table="step_profile",
-            stage={
-                "meshes": "host: textures + planar meshes",
-                "samples": "host: one-ring sampling + colours + corner logs (mesh_batch)",
-                "step": "jitted step (encoder, decoder, grad, Adam)",
-            }[k],
-            **{kk: v for kk, v in base.items()},
-            padded_vertices=n,
-            wall_s=round(float(np.median(stages[k])), 4),
-            cpu_s=round(float(np.median(cpu[k])), 4),
-            first_step_compile_s=round(compile_s, 1) if k == "step" else None,
-            load=load(),
-        )
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--sizes", default="5000,30000", help="remeshed vertex counts")
-    ap.add_argument("--atlas", type=int, default=512, help="atlas side in texels")
-    ap.add_argument("--no-lpips", action="store_true")
-    ap.add_argument(
-        "--models", default=None, help="comma-separated model files (default: the two shipped ones)"
-    )
-    ap.add_argument(
-        "--views",
-        type=int,
-        default=8,
-        help="render views (azimuths at 20° elevation); 0: no renders",
-    )
-    ap.add_argument("--view-size", type=int, default=256, help="render side in pixels")
-    ap.add_argument(
-        "--held-out-size", type=int, default=192, help="held-out image side (0: skip that table)"
-    )
-    ap.add_argument("--no-throughput", action="store_true")
-    ap.add_argument("--out", default=None)
-    ap.add_argument(
-        "--study",
-        type=int,
-        default=0,
-        metavar="STEPS",
-        help="instead of the tables: short Config.small runs of STEPS steps per KL variant "
-        "(writes fl_vae_study)",
-    )
-    ap.add_argument(
-        "--profile",
-        action="store_true",
-        help="instead of the tables: where a training step's time goes",
-    )
-    ap.add_argument(
-        "--base",
-        default="{}",
-        help="JSON changes to Config.small for --study / --profile (e.g. texture_size; "
-        "--profile also takes a list of them)",
-    )
-    ap.add_argument("--variants", default=None, help="comma-separated KL_VARIANTS names")
-    ap.add_argument(
-        "--curve",
-        default=None,
-        metavar="STEPS,...",
-        help="instead of the tables: held-out quality of one Config.small run per decoder at these "
-        "step budgets (resumable in --work; writes fl_vae_curve)",
-    )
-    ap.add_argument("--decoders", default="log,barycentric", help="decoders of --curve")
-    ap.add_argument(
-        "--tag", default=None, help="--curve writes fl_vae_curve_TAG (a variant beside the default)"
-    )
-    ap.add_argument(
-        "--work", type=pathlib.Path, default=None, help="--curve's runs (default runs/fl_vae_curve)"
-    )
-    args = ap.parse_args()
-    if args.curve:
-        import json
-
-        base = json.loads(args.base)
-        report = Report("fl_vae_curve" + (f"_{args.tag}" if args.tag else ""))
-        report.config = {"base": base, "budgets": args.curve}
-        work = args.work or pathlib.Path(__file__).resolve().parents[1] / "runs" / "fl_vae_curve"
-        curve(
-            report,
-            budgets=[int(b) for b in args.curve.split(",")],
-            decoders=args.decoders.split(","),
-            work=work,
-            base=base,
-            out=pathlib.Path(args.out) if args.out else None,
-        )
-        return
-    if args.study or args.profile:
-        import json
-
-        base = json.loads(args.base)
-        report = Report("fl_vae_study" if args.study else "fl_vae_profile")
-        report.config = {"base": base, "study_steps": args.study}
-        if args.profile:  # --base may be a list of changes: one profile each
-            for one in base if isinstance(base, list) else [base]:
-                step_profile(report, base=one)
-        else:
-            names = args.variants.split(",") if args.variants else list(KL_VARIANTS)
-            study(report, steps=args.study, variants={n: KL_VARIANTS[n] for n in names}, base=base)
-        report.write(pathlib.Path(args.out) if args.out else None)
-        return
-    report = Report("fl_vae")
-    if args.models is None:
-        loaded = [fl.load_pretrained(decoder=d) for d in ("log", "barycentric")]
-    else:
-        loaded = [fl.load(p) for p in args.models.split(",")]
-    models = {m.config.decoder: m for m in loaded}
-    sizes = [int(s) for s in args.sizes.split(",")]
-
-    report.config = {
-        "sizes": sizes,
-        "atlas": args.atlas,
-        "views": args.views,
-        "view_size": args.view_size,
-        "held_out_size": args.held_out_size,
-        "lpips": not args.no_lpips,
-        "models": {d: m.config.to_dict() for d, m in models.items()},
-    }
+def reconstruction_rows(
+    report: Report,
+    models: dict,
+    *,
+    sizes: list[int],
+    atlas: int,
+    views: int,
+    view_size: int,
+    lpips: bool,
+) -> None:
+    """The Table-1 protocol on every textured mesh of ``../shared/data`` at each size: each model
+    in the atlas (and rendered), its P1 at the latent vertices, and the baselines."""
     from jmeshtex.geometry import remesh
     from jmeshtex.io import load_mesh
 
@@ -499,15 +227,15 @@ def main() -> None:
                     model,
                     mesh,
                     key=jax.random.key(0),
-                    size=args.atlas,
+                    size=atlas,
                     latent_mesh=latent,
-                    lpips=not args.no_lpips,
+                    lpips=lpips,
                 )
                 common = dict(
                     table="reconstruction",
                     mesh=name,
                     vertices=latent.num_vertices,
-                    atlas=args.atlas,
+                    atlas=atlas,
                     ppv_atlas=round(int(r.valid.sum()) / latent.num_vertices, 2),
                     ppv_texture=round(native / latent.num_vertices, 2),
                 )
@@ -526,15 +254,12 @@ def main() -> None:
                     **common,
                     model=f"{decoder} at vertices, P1",
                     space="atlas",
-                    **{
-                        k: round(v, 4)
-                        for k, v in vertex_p1_metrics(model, r, lpips=not args.no_lpips).items()
-                    },
+                    **{k: round(v, 4) for k, v in vertex_p1_metrics(model, r, lpips=lpips).items()},
                 )
-                if args.views:
+                if views:
                     t0 = time.perf_counter()
                     rend, rend_const = render_metrics(
-                        mesh, r, views=args.views, size=args.view_size, lpips=not args.no_lpips
+                        mesh, r, views=views, size=view_size, lpips=lpips
                     )
                     report.add(
                         **common,
@@ -544,33 +269,31 @@ def main() -> None:
                         seconds=time.perf_counter() - t0,
                         load=load(),
                     )
-            for base, values in baseline_metrics(mesh, r, lpips=not args.no_lpips).items():
+            for base, values in baseline_metrics(mesh, r, lpips=lpips).items():
                 report.add(
                     **common,
                     model=base,
                     space="atlas",
                     **{k: round(v, 4) for k, v in values.items()},
                 )
-            if args.views:
+            if views:
                 report.add(
                     **common,
                     model="constant",
                     space="render",
                     **{k: round(v, 4) for k, v in rend_const.items()},
                 )
-    if args.held_out_size:
-        held_out_rows(models, report, size=args.held_out_size, lpips=not args.no_lpips)
-    if args.no_throughput:
-        report.write(pathlib.Path(args.out) if args.out else None)
-        return
+
+
+def encode_decode_rows(report: Report, model, *, n: int, atlas: int) -> None:
+    """Encoding (host sampling and the jitted encoder apart) and atlas decoding at ``n`` vertices
+    of Spot (a procedural sphere if Spot is absent)."""
+    from jmeshtex.geometry import remesh
+    from jmeshtex.io import load_mesh
+
+    config = model.config
     if (SPOT / "spot_triangulated.obj").exists():
         spot = load_mesh(SPOT / "spot_triangulated.obj", texture=SPOT / "spot_texture.png")
-
-    # -------- throughput at the largest size (on a procedural sphere if Spot is absent)
-    model = models.get("log", next(iter(models.values())))
-    config = model.config
-    n = max(sizes)
-    if (SPOT / "spot_triangulated.obj").exists():
         mesh = remesh(spot, n_vertices=n, key=jax.random.key(1))
         colors = fl.core.surface_colors(spot)
     else:
@@ -582,7 +305,11 @@ def main() -> None:
         colors = fl.core.surface_colors(mesh)
     t0 = time.perf_counter()
     s = fl.core.one_ring_samples(
-        mesh.vertices, mesh.faces, config.num_samples, rng=np.random.default_rng(0)
+        mesh.vertices,
+        mesh.faces,
+        config.num_samples,
+        rng=np.random.default_rng(0),
+        center=config.token == "centre",
     )
     points = np.einsum("vsk,vskd->vsd", s.bary, mesh.vertices[mesh.faces[s.face]])
     rgb = colors.at_points(points.reshape(-1, 3)).reshape(*s.face.shape, 3)
@@ -620,7 +347,7 @@ def main() -> None:
         load=load(),
     )
     if (SPOT / "spot_triangulated.obj").exists():
-        texels = rasterize_uv(spot.uv, args.atlas)
+        texels = rasterize_uv(spot.uv, atlas)
         face, bary = texels.face, texels.bary
         from jmeshtex.geometry import surface_correspondence
 
@@ -641,7 +368,10 @@ def main() -> None:
             load=load(),
         )
 
-    # -------- training steps/s at the shipped configuration
+
+def train_step_rows(report: Report, model) -> None:
+    """Training steps/s at the shipped configuration."""
+    config = model.config
     cfg = config.replace(steps=10)
     params = model.params
     pool = fl.core.planar_pool(
@@ -680,6 +410,62 @@ def main() -> None:
         unit="steps/s",
         load=load(),
     )
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", default="5000,30000", help="remeshed vertex counts")
+    ap.add_argument("--atlas", type=int, default=512, help="atlas side in texels")
+    ap.add_argument("--no-lpips", action="store_true")
+    ap.add_argument(
+        "--models", default=None, help="comma-separated model files (default: the two shipped ones)"
+    )
+    ap.add_argument(
+        "--views",
+        type=int,
+        default=8,
+        help="render views (azimuths at 20° elevation); 0: no renders",
+    )
+    ap.add_argument("--view-size", type=int, default=256, help="render side in pixels")
+    ap.add_argument(
+        "--held-out-size", type=int, default=192, help="held-out image side (0: skip that table)"
+    )
+    ap.add_argument("--no-throughput", action="store_true")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args(argv)
+    report = Report("fl_vae")
+    if args.models is None:
+        loaded = [fl.load_pretrained(decoder=d) for d in ("log", "barycentric")]
+    else:
+        loaded = [fl.load(p) for p in args.models.split(",")]
+    models = {m.config.decoder: m for m in loaded}
+    sizes = [int(s) for s in args.sizes.split(",")]
+
+    report.config = {
+        "sizes": sizes,
+        "atlas": args.atlas,
+        "views": args.views,
+        "view_size": args.view_size,
+        "held_out_size": args.held_out_size,
+        "lpips": not args.no_lpips,
+        "models": {d: m.config.to_dict() for d, m in models.items()},
+    }
+    lpips = not args.no_lpips
+    reconstruction_rows(
+        report,
+        models,
+        sizes=sizes,
+        atlas=args.atlas,
+        views=args.views,
+        view_size=args.view_size,
+        lpips=lpips,
+    )
+    if args.held_out_size:
+        held_out_rows(models, report, size=args.held_out_size, lpips=lpips)
+    if not args.no_throughput:
+        model = models.get("log", next(iter(models.values())))
+        encode_decode_rows(report, model, n=max(sizes), atlas=args.atlas)
+        train_step_rows(report, model)
     report.write(pathlib.Path(args.out) if args.out else None)
 
 

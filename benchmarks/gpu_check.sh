@@ -101,7 +101,7 @@ if [ $TINY -eq 1 ]; then
   BENCHES=("ops_field_conv --quick" "ops_face_conv --quick")
 else
   BENCHES=("ops_field_conv --sizes 5000 30000 80000" "ops_face_conv --sizes 5 6 7"
-           "fldm --sizes 5000 30000 --presets paper" "surfacecnn --sizes 256 512")
+           "fldm_step --sizes 5000 30000 --presets paper" "surfacecnn --sizes 256 512")
 fi
 for spec in "${BENCHES[@]}"; do
   name=${spec%% *}

@@ -56,14 +56,14 @@ Usage::
     python benchmarks/meshmatch.py --suite cross [--small] [--variants TEXT ...]
     python benchmarks/meshmatch.py --suite figure  # results/meshmatch_cross.png
     python benchmarks/meshmatch.py --suite real [--large] [--meshes cow ...] [--variants TEXT ...]
-    python benchmarks/meshmatch.py --sizes 16 --set vote="'fan'" --name meshmatch_vote_fan   # the fan vote's cost
-    python benchmarks/meshmatch.py --sizes 16 --set propagation="'sequential'" --name meshmatch_sequential
+
+The speed suite with other ``Config`` fields (the fan vote's, sequential propagation's cost) is a
+study: ``studies/meshmatch_options.py``.
 """
 
 from __future__ import annotations
 
 import argparse
-import ast
 import os
 import pathlib
 import time
@@ -506,7 +506,7 @@ REAL_VARIANTS = {
 def real(args) -> None:
     """The real-mesh suite: each mesh of ``../shared/data`` (cheburashka, fandisk, cow, Spot with its
     texture) → ``remesh`` of the same surface at about 5K, 20K (and with ``--large`` 60K) vertices."""
-    report = Report(args.name if args.name != "meshmatch" else "meshmatch_real", ceilings=False)
+    report = Report("meshmatch_real", ceilings=False)
     sizes = [5000, 20000] + ([60000] if args.large else [])
     if args.real_sizes:
         sizes = [int(x) for x in args.real_sizes.split(",")]
@@ -630,59 +630,12 @@ EXTRA_REAL = {
 }
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument(
-        "--suite",
-        choices=("speed", "cross", "figure", "real"),
-        default="speed",
-        help="figure: results/meshmatch_cross.png (intrinsic vs the aligned default, two pairs)",
-    )
-    ap.add_argument(
-        "--small", action="store_true", help="cross suite at half resolution (the test's sizes)"
-    )
-    ap.add_argument("--sizes", default="16,64", help="target sizes in K vertices (16 and/or 64)")
-    ap.add_argument("--out", default=None)
-    ap.add_argument(
-        "--variants",
-        nargs="*",
-        default=None,
-        metavar="TEXT",
-        help="cross suite: run only the variants whose label contains one of these (no diagnosis rows)",
-    )
-    ap.add_argument(
-        "--set",
-        nargs="*",
-        default=[],
-        metavar="FIELD=VALUE",
-        help="speed suite: Config fields over the default (Python literals, e.g. aligned=False)",
-    )
-    ap.add_argument(
-        "--name",
-        default="meshmatch",
-        help="speed suite: the report's name (results/NAME.{json,md})",
-    )
-    ap.add_argument("--large", action="store_true", help="real suite: also the 60K targets")
-    ap.add_argument("--real-sizes", default=None, help="real suite: target sizes, e.g. 5000,20000")
-    ap.add_argument("--meshes", nargs="*", default=None, help="real suite: only these meshes")
-    args = ap.parse_args()
-    if args.suite == "real":
-        real(args)
-        return
-        return
-    if args.suite == "cross":
-        cross(args)
-        return
-    if args.suite == "figure":
-        figure(args)
-        return
-    report = Report(args.name)
-    cfg = Config(**{k: ast.literal_eval(v) for k, v in (item.split("=", 1) for item in args.set)})
-    if args.set:
-        report.notes.append(f"Config overrides: {', '.join(args.set)}")
+def speed(report: Report, cfg: Config, sizes: list[int]) -> None:
+    """The speed suite (module docstring) with ``cfg``, at each of ``sizes`` (16 and/or 64: K target
+    vertices)."""
     source, source_colors = _torus(128, 80)  # 10240 vertices
     print(f"source {source.num_vertices} vertices")
-    for size in [int(s) for s in args.sizes.split(",")]:
+    for size in sizes:
         n_major = {16: 128, 64: 256}[size]
         target, truth = _torus(n_major, n_major)
         tv = target.vertices
@@ -783,6 +736,43 @@ def main() -> None:
             psnr_db=round(psnr(np.clip(r.voted, 0, 1), truth), 2),
             load=load,
         )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument(
+        "--suite",
+        choices=("speed", "cross", "figure", "real"),
+        default="speed",
+        help="figure: results/meshmatch_cross.png (intrinsic vs the aligned default, two pairs)",
+    )
+    ap.add_argument(
+        "--small", action="store_true", help="cross suite at half resolution (the test's sizes)"
+    )
+    ap.add_argument("--sizes", default="16,64", help="target sizes in K vertices (16 and/or 64)")
+    ap.add_argument("--out", default=None)
+    ap.add_argument(
+        "--variants",
+        nargs="*",
+        default=None,
+        metavar="TEXT",
+        help="cross suite: run only the variants whose label contains one of these (no diagnosis rows)",
+    )
+    ap.add_argument("--large", action="store_true", help="real suite: also the 60K targets")
+    ap.add_argument("--real-sizes", default=None, help="real suite: target sizes, e.g. 5000,20000")
+    ap.add_argument("--meshes", nargs="*", default=None, help="real suite: only these meshes")
+    args = ap.parse_args()
+    if args.suite == "real":
+        real(args)
+        return
+    if args.suite == "cross":
+        cross(args)
+        return
+    if args.suite == "figure":
+        figure(args)
+        return
+    report = Report("meshmatch")
+    speed(report, Config(), [int(s) for s in args.sizes.split(",")])
     report.write(pathlib.Path(args.out) if args.out else None)
 
 

@@ -23,19 +23,8 @@ steps, every VGG-16 ReLU and pool output; per cell the surface CNN and UV-space 
 the surface-patch measure and its baselines, the seam ratio and render specks. Cells resume from
 ``runs/surfacecnn_quality/``. Writes ``results/surfacecnn.quality.{md,json}``.
 
-Frames section (``--frames``): on Spot (its own UVs) and an xatlas-unwrapped icosphere at 96², the
-surface CNN with global, smooth and UV frames against UV-space 2D synthesis (render SIFID-VGG /
-Gram, seam ratio, frame turn across seams). Writes ``results/surfacecnn_frames.{md,json}``.
-
-Orientation section (``--orientation``, issue 58): the protocol meshes' xatlas layouts with a stripes
-exemplar (default 128², 150 steps): orientation across UV seams (:func:`jmeshtex.metrics.seam_orientation`)
-of the surface CNN and UV-space 2D synthesis beside the seamless control and the colour seam ratio.
-Writes ``results/surfacecnn_orientation.{md,json}``.
-
-Seams section (``--seams``): Spot with its own UVs and with xatlas, a grey brick exemplar at native
-resolution: synthesis without and with the coupling of chart-border texels (unread share, seam
-chroma, render specks) and the surface-patch measure with its baselines
-(:func:`jmeshtex.metrics.surface_patch_table`). Writes ``results/surfacecnn_seams.{md,json}``.
+The one-change-at-a-time studies (frames, seams, orientation across seams) are standalone scripts
+in ``studies/`` (``studies/README.md``).
 
 Usage::
 
@@ -44,9 +33,6 @@ Usage::
     python benchmarks/surfacecnn.py --mesh cow --steps 512,1024 --name surfacecnn_cow
     python benchmarks/surfacecnn.py --quality                       # the protocol (hours; resumes)
     python benchmarks/surfacecnn.py --quality --meshes spot --exemplars brick
-    python benchmarks/surfacecnn.py --frames --size 96 --quality-steps 150 --exemplar stripes
-    python benchmarks/surfacecnn.py --seams --size 128 --seam-steps 150
-    python benchmarks/surfacecnn.py --orientation --size 128 --orientation-steps 150
 """
 
 from __future__ import annotations
@@ -77,7 +63,7 @@ from jmeshtex.surfacecnn.core import (
 SHARED = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
-def _mesh():
+def benchmark_mesh():
     spot = (
         pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED))
         / "spot"
@@ -92,7 +78,7 @@ def _mesh():
     return "icosphere4+xatlas", icosphere(4)  # no UVs: unwrapped with xatlas
 
 
-def _peak_mb() -> float:
+def peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
@@ -137,9 +123,9 @@ def main() -> None:
     report = Report(args.name)
     print(f"load average {load}")
     if args.mesh == "spot":
-        name, mesh = _mesh()
+        name, mesh = benchmark_mesh()
     else:
-        name, mesh = args.mesh, _protocol_mesh(args.mesh, args.work)
+        name, mesh = args.mesh, protocol_mesh(args.mesh, args.work)
     if args.mesh == "spot" and (args.unwrap == "xatlas" or mesh.uv is None):
         mesh = mesh.replace(uv=unwrap_uv(mesh.vertices, mesh.faces))
     spread = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)["ratio_p95_p5"]
@@ -171,7 +157,7 @@ def main() -> None:
             taps_s=s["taps"],
             pyramid_s=s["pyramid"],
             arrays_mb=arrays_mb,
-            peak_rss_mb=_peak_mb(),
+            peak_rss_mb=peak_mb(),
             load=load[0],
         )
     config = Config()
@@ -218,7 +204,7 @@ def main() -> None:
             compile_s=t.compile_s,
             flops=flops,
             bound="flops",
-            peak_rss_mb=_peak_mb(),
+            peak_rss_mb=peak_mb(),
             load=os.getloadavg()[0],
         )
     report.write(pathlib.Path(args.out) if args.out else None)
@@ -227,208 +213,12 @@ def main() -> None:
 # ---------------------------------------------------------------------------------------------
 # quality: surface CNN against UV-space 2D synthesis, seams, frame jumps
 
-QUALITY_LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1", "relu2_2", "pool2", "relu3_1")
-PNG_DIR = pathlib.Path("/tmp/round2/surfacecnn_png")
-
-
-def _quality_meshes():
-    from jmeshtex import Mesh
-    from jmeshtex.data import icosphere
-    from jmeshtex.surfacecnn import unwrap_uv
-
-    out = []
-    spot = (
-        pathlib.Path(os.environ.get("JMESHTEX_SHARED_DATA", SHARED))
-        / "spot"
-        / "spot_triangulated.obj"
-    )
-    if spot.is_file():
-        from jmeshtex.io import load_mesh
-
-        out.append(("spot (own UVs)", load_mesh(spot), "y"))
-    v, f = icosphere(3)
-    out.append(("icosphere3 + xatlas", Mesh(v, f, uv=unwrap_uv(v, f)), "z"))
-    return out
-
-
-def _exemplar(kind: str, n: int) -> np.ndarray:
-    """``brick`` (skimage's, grey) or ``stripes`` (a sine along the columns, period 8 pixels: smooth at
-    texel scale, so colour jumps at seams stand out from the pattern's own variation)."""
-    import skimage.data
-    import skimage.transform
-
-    if kind == "stripes":
-        s = 0.5 + 0.5 * np.sin(2 * np.pi * np.arange(n) / 8.0)
-        return np.repeat(np.repeat(s[None, :, None], n, 0), 3, 2)
-
-    brick = skimage.data.brick().astype(np.float64) / 255.0
-    brick = skimage.transform.resize(brick, (n, n), anti_aliasing=True)
-    return np.repeat(brick[..., None], 3, axis=2)
-
-
-def frames(size: int, steps: int, out: pathlib.Path | None, kind: str = "brick") -> None:
-    import json
-
-    from jmeshtex import render
-    from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.metrics import Protocol, baseline_table
-    from jmeshtex.surfacecnn import synthesize, synthesize_uv
-    from jmeshtex.surfacecnn.core import frame_seam_turn, seam_ratio
-
-    PNG_DIR.mkdir(parents=True, exist_ok=True)
-    exemplar = _exemplar(kind, 96 if kind == "brick" else 32)
-    config = Config(size=size, steps=steps, layers=QUALITY_LAYERS)
-    levels = required_levels(load_vgg16(), QUALITY_LAYERS)
-    rows, lines = [], []
-    for name, mesh, up in _quality_meshes():
-        g = tracer_geometry(mesh.vertices, mesh.faces)
-        turns = {
-            fr: frame_seam_turn(mesh, frames=fr, geometry=g) for fr in ("uv", "global", "smooth")
-        }
-        protocol = Protocol(azimuths=4, elevations=(20.0,), size=192, up=up)
-        panels = [("exemplar", exemplar)]
-        for method, frames in (
-            ("surface CNN, global frames", "global"),
-            ("surface CNN, smooth frames", "smooth"),
-            ("surface CNN, uv frames", "uv"),
-            ("UV-space 2D synthesis", "global"),
-        ):
-            t0 = time.perf_counter()
-            surface = prepare_surface(
-                mesh, size=size, levels=levels, boundary=config.boundary, frames=frames
-            )
-            if method.startswith("UV"):
-                r = synthesize_uv(
-                    mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False
-                )
-            else:
-                r = synthesize(
-                    mesh, exemplar, config, key=jax.random.key(0), surface=surface, progress=False
-                )
-            seconds = time.perf_counter() - t0
-            seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=g)
-            table = baseline_table(
-                Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture),
-                key=jax.random.key(1),
-                exemplar=exemplar,
-                protocol=protocol,
-                metrics=("sifid", "gram"),
-            )
-            patches = _patch_scores(
-                Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv),
-                r.texture,
-                exemplar,
-                surface,
-                None,
-            )
-            row = {
-                "mesh": name,
-                "method": method,
-                "size": size,
-                "steps": steps,
-                "seconds": seconds,
-                "seam_ratio": seams["ratio"],
-                "seam_pairs": seams["seam_pairs"],
-                "patches": patches,
-                **{
-                    f"{k}_{m}": v
-                    for k, vals in table.rows.items()
-                    for m, v in vals.items()
-                    if m != "views"
-                },
-            }
-            rows.append(row)
-            print(json.dumps(row))
-            views = render.render_views(
-                Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture),
-                protocol.cameras(mesh),
-            )
-            tag = kind + "_" + name.split()[0] + "_" + method.replace(" ", "_").replace(",", "")
-            render.figure(
-                [(f"view {i}", im) for i, im in enumerate(views)] + [("texture", r.texture)],
-                columns=5,
-                title=f"{name}: {method}",
-                path=PNG_DIR / f"{tag}.png",
-            )
-            panels.append((method, views[0]))
-        render.figure(
-            panels,
-            columns=len(panels),
-            title=name,
-            path=PNG_DIR / f"{kind}_{name.split()[0]}_compare.png",
-        )
-        for fr, t in turns.items():
-            rows.append(
-                {
-                    "mesh": name,
-                    "frames": fr,
-                    "seam_edges": len(t),
-                    "turn_max_deg": float(np.degrees(t.max())),
-                    "turn_median_deg": float(np.degrees(np.median(t))),
-                }
-            )
-            print(json.dumps(rows[-1]))
-    lines.append(
-        "| mesh | method | seam ratio | sifid | gram | flat sifid | flat gram | permuted sifid | "
-        "permuted gram | s |"
-    )
-    lines.append("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    for r in rows:
-        if "method" in r:
-            lines.append(
-                f"| {r['mesh']} | {r['method']} | {r['seam_ratio']:.3f} | {r['result_sifid']:.4g} | "
-                f"{r['result_gram']:.4g} | {r['flat_sifid']:.4g} | {r['flat_gram']:.4g} | "
-                f"{r['permuted_sifid']:.4g} | {r['permuted_gram']:.4g} | {r['seconds']:.0f} |"
-            )
-    lines += [
-        "",
-        "Surface patches (32 geodesic patches of 32² at the texel scale, global frames, against "
-        "exemplar crops; Gram on VGG-16 relu1_1…relu3_3, spectrum: log radial power L1):",
-        "",
-        "| mesh | method | patch Gram | spectrum | flat | permuted | initial | UV-tiled | floor | "
-        "charts / patch |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    for r in rows:
-        if "patches" in r:
-            p = r["patches"]
-            cells = " | ".join(
-                f"{p[k]['gram']:.3g} / {p[k]['spectrum']:.3f}"
-                for k in ("flat", "permuted", "initial", "uv_tiled", "floor")
-            )
-            lines.append(
-                f"| {r['mesh']} | {r['method']} | {p['texture']['gram']:.3g} | "
-                f"{p['texture']['spectrum']:.3f} | {cells} | {p['texture']['charts']:.2f} |"
-            )
-    lines += [
-        "",
-        "| mesh | frames | seam edges | max turn (°) | median turn (°) |",
-        "| --- | --- | --- | --- | --- |",
-    ]
-    for r in rows:
-        if "frames" in r:
-            lines.append(
-                f"| {r['mesh']} | {r['frames']} | {r['seam_edges']} | {r['turn_max_deg']:.3g} | "
-                f"{r['turn_median_deg']:.3g} |"
-            )
-    note = (
-        f"\nsize {size}², {steps} steps, Gram layers {', '.join(QUALITY_LAYERS)} (VGG-16, embedded), exemplar "
-        f"{kind} ({'skimage brick 96²' if kind == 'brick' else 'sine stripes 32², period 8'}), protocol: 4 views at elevation 20°, 192² (sifid/gram: VGG-16 features, not "
-        "Inception). Seam ratio: mean colour difference across UV chart seams / inside charts (1 = seamless)."
-    )
-    text = "\n".join(lines) + "\n" + note + "\n"
-    print(text)
-    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
-    suffix = "" if kind == "brick" else f"_{kind}"
-    (directory / f"surfacecnn_frames{suffix}.md").write_text(text)
-    (directory / f"surfacecnn_frames{suffix}.json").write_text(json.dumps(rows, indent=1) + "\n")
-
 
 # ---------------------------------------------------------------------------------------------
 # seams: coupling of chart-border texels (before/after) and the surface-patch measure
 
 
-def _patch_scores(textured, texture, exemplar, surface, weights) -> dict:
+def patch_scores(textured, texture, exemplar, surface, weights) -> dict:
     """:func:`jmeshtex.metrics.surface_patch_table` of a synthesis (32 patches at the texel scale;
     the initial-noise baseline drawn as the synthesis draws its start, uniform in [0, 0.2])."""
     from jmeshtex.metrics import surface_patch_table
@@ -447,7 +237,7 @@ def _patch_scores(textured, texture, exemplar, surface, weights) -> dict:
     )
 
 
-def _specks(image: np.ndarray) -> dict:
+def specks(image: np.ndarray) -> dict:
     """Speck share of an unlit render: object pixels (2-px eroded mask) whose chroma exceeds 0.3,
     and whose chroma exceeds its 7×7 median by 0.15 (isolated coloured dots)."""
     from scipy.ndimage import binary_erosion
@@ -464,141 +254,6 @@ def _speck_mask(rgb: np.ndarray) -> np.ndarray:
 
     chroma = rgb.max(-1) - rgb.min(-1)
     return chroma - median_filter(chroma, size=7) > 0.15
-
-
-def seams(size: int, steps: int, out: pathlib.Path | None) -> None:
-    """Spot (own UVs and xatlas), a grey brick exemplar at native resolution (1 pixel = 1 texel):
-    synthesis without and with texel coupling; unread share, seam chroma, specks, surface patches."""
-    import json
-
-    import skimage.data
-
-    from jmeshtex import render
-    from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.surfacecnn import synthesize
-    from jmeshtex.surfacecnn.core import read_counts, seam_chroma, unread_share
-
-    name, base = _mesh()
-    grey = skimage.data.brick()[:256, :256].astype(np.float64) / 255.0
-    exemplar = np.repeat(grey[..., None], 3, axis=2)
-    weights = load_vgg16()
-    levels = required_levels(weights, default_layers(weights))
-    PNG_DIR.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for unwrap in ("own", "xatlas"):
-        mesh = base if unwrap == "own" else base.replace(uv=unwrap_uv(base.vertices, base.faces))
-        g = tracer_geometry(mesh.vertices, mesh.faces)
-        spread = texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)["ratio_p95_p5"]
-        cams = render.orbit_cameras(mesh, azimuths=4, elevations=(20.0,), size=(256, 256), up="y")
-        unread_before = None
-        panels = [("exemplar", exemplar)]
-        for couple in (False, True):
-            surface = prepare_surface(mesh, size=size, levels=levels, couple=couple)
-            taps = surface.pyramid
-            counts = read_counts(taps.nearest[0])
-            if unread_before is None:
-                unread_before = counts == 0
-            shares = unread_share(
-                type(
-                    "T",
-                    (),
-                    {"nearest": taps.nearest[0], "bilinear": taps.bilinear, "tie": taps.tie},
-                )
-            )
-            t0, c0 = time.perf_counter(), time.process_time()
-            r = synthesize(
-                mesh,
-                exemplar,
-                Config(size=size, steps=steps),
-                key=jax.random.key(0),
-                surface=surface,
-                progress=False,
-            )
-            seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
-            colors = np.asarray(r.colors, np.float64)
-            chroma = colors.max(1) - colors.min(1)
-            sc = seam_chroma(surface.atlas, colors, g)
-            textured = r.mesh
-            views = render.render_views(textured, cams, shading="unlit")
-            specks = [_specks(v) for v in views]
-            table = _patch_scores(textured, r.texture, exemplar, surface, weights)
-            row = {
-                "mesh": f"{name} ({unwrap} UVs)",
-                "density_p95_p5": spread,
-                "couple": couple,
-                "size": size,
-                "steps": steps,
-                "seconds": seconds,
-                "cpu_s": cpu,
-                "final_loss": r.final_loss,
-                "unread_nearest": shares["nearest"],
-                "unread_either": shares["either"],
-                "tied_share": 0.0
-                if taps.tie is None
-                else float(
-                    1 - np.mean(taps.tie[1][:, 0] * (taps.tie[0][:, 0] == np.arange(len(chroma))))
-                ),
-                "chroma_border": sc["border"],
-                "chroma_interior": sc["interior"],
-                "chroma_ratio": sc["ratio"],
-                "border_share": sc["border_share"],
-                "chroma_unread_before": float(chroma[unread_before].mean()),
-                "speck_abs": float(np.mean([s["abs"] for s in specks])),
-                "speck_local": float(np.mean([s["local"] for s in specks])),
-                "patches": table,
-            }
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-            tag = f"seams_{unwrap}_{'coupled' if couple else 'loose'}"
-            render.figure(
-                [(f"view {i}", im) for i, im in enumerate(views)] + [("texture", r.texture)],
-                columns=5,
-                title=f"{row['mesh']}, coupling {'on' if couple else 'off'}",
-                path=PNG_DIR / f"{tag}.png",
-            )
-            panels.append((f"coupling {'on' if couple else 'off'}", views[1]))
-        render.figure(panels, columns=3, title=name, path=PNG_DIR / f"seams_{unwrap}_compare.png")
-    lines = [
-        "| mesh | coupling | unread (nearest) | tied | chroma border | chroma interior | ratio | "
-        "chroma of texels unread before | speck px (chroma > 0.3) | speck px (local) | loss | s | CPU-s |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r['mesh']} | {'on' if r['couple'] else 'off'} | {r['unread_nearest']:.4f} | "
-            f"{r['tied_share']:.3f} | {r['chroma_border']:.3f} | {r['chroma_interior']:.3f} | "
-            f"{r['chroma_ratio']:.3f} | {r['chroma_unread_before']:.3f} | {r['speck_abs']:.4f} | "
-            f"{r['speck_local']:.4f} | {r['final_loss']:.4g} | {r['seconds']:.0f} | {r['cpu_s']:.0f} |"
-        )
-    lines += [
-        "",
-        "Surface patches (32 patches of 32², geodesic, texel scale, global frames; Gram: VGG-16 "
-        "relu1_1…relu3_3, the network the synthesis optimised; spectrum: log10 radial power L1, "
-        "network-free):",
-        "",
-        "| mesh | coupling | row | patch Gram | spectrum L1 | charts / patch | off-chart px |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    for r in rows:
-        for k, v in r["patches"].items():
-            lines.append(
-                f"| {r['mesh']} | {'on' if r['couple'] else 'off'} | {k} | {v['gram']:.4g} | "
-                f"{v['spectrum']:.3f} | {v.get('charts', float('nan')):.2f} | "
-                f"{v.get('off_chart', float('nan')):.3f} |"
-            )
-    note = (
-        f"\n{name}, {size}² texels, {steps} steps, every ReLU and pool output of the embedded "
-        "VGG-16, grey skimage brick 256² at native resolution (1 exemplar pixel = 1 texel). Chroma: "
-        "max − min of RGB per texel (all colour is error on a grey exemplar); border: texels with an "
-        "image 8-neighbour invalid or in another chart. Specks: 4 unlit 256² views at elevation 20°. "
-        f"Texel-density spread p95/p5 per layout in the rows' json. Load average at the end "
-        f"{os.getloadavg()[0]:.1f} (shared 2-core machine, nice 10)."
-    )
-    text = "\n".join(lines) + "\n" + note + "\n"
-    print(text)
-    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
-    (directory / "surfacecnn_seams.md").write_text("# surfacecnn seams\n\n" + text)
-    (directory / "surfacecnn_seams.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -620,7 +275,7 @@ def protocol_exemplar(name: str) -> np.ndarray:
     return image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
 
 
-def _protocol_mesh(name: str, work: pathlib.Path) -> Mesh:
+def protocol_mesh(name: str, work: pathlib.Path) -> Mesh:
     """The shared mesh, unwrapped with xatlas once (the layout is kept in ``work`` so a resumed
     run optimises the same texels)."""
     from jmeshtex.geometry import prepare_mesh
@@ -674,7 +329,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         "texel_density_spread": _layout_spread(mesh_name, work),
     }
     laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
-    control = seam_orientation(laid, _orientation_control(mesh, surface, config))
+    control = seam_orientation(laid, orientation_control(mesh, surface, config))
     row["orientation_control"] = {"seam": control.seam, "interior": control.interior}
     panels = [("exemplar", exemplar)]
     folders = {"surface": cell / "surface", "uv2d": work / "uv2d" / f"{ex_name}_{size}_{steps}"}
@@ -696,8 +351,8 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
         seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
         textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture)
         views = render.render_views(textured, cams, shading="unlit")
-        specks = [_specks(v) for v in views]
-        patches = _patch_scores(textured, r.texture, exemplar, surface, weights)
+        specks = [specks(v) for v in views]
+        patches = patch_scores(textured, r.texture, exemplar, surface, weights)
         orient = seam_orientation(textured, r.texture)
         row[method] = {
             "seconds": wall,
@@ -723,7 +378,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
             flush=True,
         )
         panels += [(f"{method} view {i}", views[i]) for i in (0, 1)]
-    row["peak_rss_mb"] = _peak_mb()
+    row["peak_rss_mb"] = peak_mb()
     render.figure(
         panels,
         columns=5,
@@ -745,7 +400,7 @@ def quality(
     weights = load_vgg16()
     levels = required_levels(weights, default_layers(weights))
     for mesh_name in meshes:
-        mesh = _protocol_mesh(mesh_name, work)
+        mesh = protocol_mesh(mesh_name, work)
         surface, geometry = None, None
         for ex_name in exemplars:
             cell = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
@@ -764,8 +419,7 @@ def quality(
                 weights,
                 work,
             )
-    record = pathlib.Path(__file__).resolve().parent / "results" / "surfacecnn.quality.json"
-    rows = finished_rows(work, record, size, steps)
+    rows = finished_rows(work, size, steps)
     spreads = {}
     for row in rows:
         if row["mesh"] not in spreads:
@@ -777,7 +431,7 @@ def quality(
     _write_quality(rows, spreads, size, steps, out)
 
 
-def _orientation_control(mesh: Mesh, surface, config: Config) -> np.ndarray:
+def orientation_control(mesh: Mesh, surface, config: Config) -> np.ndarray:
     """The seamless control of the orientation measure on ``surface``'s layout: stripes along the
     frames' world vector (their normal is the projected ``frame_vector``, the direction a
     column-sine exemplar's stripe normal takes under the ``"global"`` frames), period 8 texels."""
@@ -789,220 +443,6 @@ def _orientation_control(mesh: Mesh, surface, config: Config) -> np.ndarray:
         surface.atlas.size,
         direction=config.frame_vector,
         period=8.0 * surface.atlas.texel_size,
-    )
-
-
-def _agreement(result, control) -> tuple[float, float]:
-    """Mean ``|⟨ν_result, ν_control⟩|`` on the same face (both
-    :class:`~jmeshtex.metrics.SeamOrientation`), over the faces of seam edges and over the other
-    faces: whether the texture follows the control's (the frames') direction at seams as well as
-    inside charts, without the edge comparison's first-order loss where the control itself turns."""
-    pairs = result.edge_faces
-    at_seam = np.zeros(len(result.normal), bool)
-    at_seam[pairs[result.edge_seam].ravel()] = True
-    both = (np.abs(result.normal).sum(axis=1) > 0) & (np.abs(control.normal).sum(axis=1) > 0)
-    cos = np.abs(np.sum(result.normal * control.normal, axis=1))
-    return float(cos[both & at_seam].mean()), float(cos[both & ~at_seam].mean())
-
-
-def orientation(
-    meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
-) -> None:
-    """Orientation across UV seams (:func:`jmeshtex.metrics.seam_orientation`) of the surface CNN
-    and of UV-space 2D synthesis on the protocol's xatlas layouts, beside the seamless control
-    (:func:`_orientation_control`) and the colour seam ratio; textures kept in ``work`` (a rerun
-    only re-scores). Writes ``results/surfacecnn_orientation.{md,json}``."""
-    import json
-
-    from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.metrics import seam_orientation
-    from jmeshtex.surfacecnn import synthesize, synthesize_uv
-    from jmeshtex.surfacecnn.core import seam_ratio
-
-    weights = load_vgg16()
-    levels = required_levels(weights, default_layers(weights))
-    config = Config(size=size, steps=steps)
-    rows = []
-    for mesh_name in meshes:
-        mesh = _protocol_mesh(mesh_name, work)
-        t0 = time.perf_counter()
-        surface = prepare_surface(mesh, size=size, levels=levels)
-        prep = time.perf_counter() - t0
-        geometry = tracer_geometry(mesh.vertices, mesh.faces)
-        laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
-        control = seam_orientation(laid, _orientation_control(mesh, surface, config))
-        for ex_name in exemplars:
-            exemplar = (
-                _exemplar(ex_name, 128) if ex_name == "stripes" else protocol_exemplar(ex_name)
-            )
-            row = {
-                "mesh": mesh_name,
-                "exemplar": ex_name,
-                "size": size,
-                "steps": steps,
-                "texels": int(surface.atlas.num_texels),
-                "prepare_s": prep,
-                "control": {
-                    "seam": control.seam,
-                    "seam_smooth": control.seam_at(0.0, 30.0),
-                    "seam_crease": control.seam_at(30.0, 180.0),
-                    "interior": control.interior,
-                },
-            }
-            for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
-                path = work / "orientation" / f"{mesh_name}_{ex_name}_{size}_{steps}_{method}.npz"
-                if path.is_file():
-                    with np.load(path) as z:
-                        texture, colors, loss, cpu = z["texture"], z["colors"], z["loss"], z["cpu"]
-                else:
-                    c0 = time.process_time()
-                    # the 2D image does not depend on the mesh: one optimisation serves every mesh
-                    shared = work / "uv2d" / f"{ex_name}_{size}_{steps}_orientation"
-                    r = run(
-                        mesh,
-                        exemplar,
-                        config,
-                        key=jax.random.key(0),
-                        surface=surface,
-                        weights=weights,
-                        progress=False,
-                        **({"checkpoint": shared} if method == "uv2d" else {}),
-                    )
-                    texture, colors, loss = r.texture, r.colors, r.final_loss
-                    cpu = time.process_time() - c0
-                    path.parent.mkdir(parents=True, exist_ok=True)
-                    np.savez(path, texture=texture, colors=colors, loss=loss, cpu=cpu)
-                o = seam_orientation(laid, texture)
-                agree_seam, agree_inside = _agreement(o, control)
-                seams = seam_ratio(
-                    colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry
-                )
-                row[method] = {
-                    "seam": o.seam,
-                    "seam_smooth": o.seam_at(0.0, 30.0),
-                    "seam_crease": o.seam_at(30.0, 180.0),
-                    "interior": o.interior,
-                    "agreement_seam_faces": agree_seam,
-                    "agreement_other_faces": agree_inside,
-                    "seam_edges": o.seam_edges,
-                    "seam_ratio": float(seams["ratio"]),
-                    "final_loss": float(loss),
-                    "cpu_s": float(cpu),
-                }
-            print(json.dumps(row), flush=True)
-            rows.append(row)
-    lines = [
-        "# surfacecnn orientation across UV seams\n",
-        f"{size}² textures, {steps} steps, every ReLU and pool output of the embedded VGG-16, "
-        "global frames (x), the protocol's xatlas layouts. Alignment: mean |cos| between the "
-        "structure-tensor stripe normals of the two faces of an edge (disk of radius 6 texels in "
-        "the face's chart), unfolded across the edge; seam edges vs interior edges; random line "
-        "fields give 2/π = 0.637. Control: stripes along x (period 8 texels) baked into the same "
-        "atlas, the seam alignment the layout allows. Seam ratio: colour difference across seams "
-        "over inside charts. Seams < 30° / ≥ 30°: the seam alignment over seam edges whose faces "
-        "meet at a dihedral angle below / above 30° (smooth seams / creases and coarse bends). "
-        "Agreement: |cos| between the texture's and the control's stripe normals on the same "
-        "face (the control's normal is the frames' projected x), over faces of seam edges and "
-        "over the other faces.\n",
-        "| mesh | exemplar | method | seam alignment | interior | seam / control seam | "
-        "control seam / interior | seams < 30° / ≥ 30° dihedral (control) | agreement with the "
-        "control: seam faces / other faces | seam ratio | loss | CPU-s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        c = r["control"]
-        for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
-            m = r[method]
-            lines.append(
-                f"| {r['mesh']} | {r['exemplar']} | {label} | **{m['seam']:.3f}** | "
-                f"{m['interior']:.3f} | {m['seam'] / c['seam']:.2f} | {c['seam']:.3f} / "
-                f"{c['interior']:.3f} | {m['seam_smooth']:.3f} / {m['seam_crease']:.3f} "
-                f"({c['seam_smooth']:.3f} / {c['seam_crease']:.3f}) | "
-                f"{m['agreement_seam_faces']:.3f} / {m['agreement_other_faces']:.3f} | "
-                f"{m['seam_ratio']:.3f} | {m['final_loss']:.4g} | "
-                + (f"{m['cpu_s']:.0f} |" if np.isfinite(m["cpu_s"]) else "— |")
-            )
-    lines.append(
-        "\nCPU-s: process CPU time of the call (a UV-space 2D run read back from the shared "
-        "checkpoint costs only its scoring; — where the texture came from an earlier identical "
-        "run whose time was not recorded)."
-    )
-    lines.append(f"\nLoad average at the end {os.getloadavg()[0]:.1f} (shared 2-core machine).")
-    text = "\n".join(lines) + "\n"
-    print(text)
-    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
-    (directory / "surfacecnn_orientation.md").write_text(text)
-    (directory / "surfacecnn_orientation.json").write_text(json.dumps(rows, indent=1) + "\n")
-
-
-def orientation_figure(
-    mesh_name: str, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
-) -> None:
-    """Stripes on a protocol mesh from the ``--orientation`` textures in ``work``: the surface CNN
-    and UV-space 2D synthesis, a whole view and a close view across a UV seam (with the charts
-    seen from the same camera), and both UV images. Writes
-    ``results/surfacecnn_orientation_<mesh>.png``."""
-    from jmeshtex import render
-    from jmeshtex.metrics import seam_orientation, uv_charts
-
-    mesh = _protocol_mesh(mesh_name, work)
-    tex = {}
-    for method in ("surface", "uv2d"):
-        path = work / "orientation" / f"{mesh_name}_stripes_{size}_{steps}_{method}.npz"
-        with np.load(path) as z:
-            tex[method] = np.asarray(z["texture"], np.float64)
-    up = PROTOCOL_MESHES[mesh_name][1]
-    px = (384, 384)
-    whole = render.orbit_cameras(mesh, azimuths=[60.0], elevations=(15.0,), up=up, size=px)[0]
-    # the close view: the front-facing seam edge whose two faces have the most coherent stripes
-    o = seam_orientation(mesh, tex["surface"])
-    faces = np.asarray(mesh.faces)
-    V = np.asarray(mesh.vertices, np.float64)
-    centre = V[faces].mean(axis=1)
-    n = np.cross(V[faces[:, 1]] - V[faces[:, 0]], V[faces[:, 2]] - V[faces[:, 0]])
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    eye = np.asarray(whole.eye, np.float64)
-    view = eye - centre
-    facing = np.sum(n * view, axis=1) / np.linalg.norm(view, axis=1)
-    pair = o.edge_faces
-    score = np.where(
-        o.edge_seam & np.isfinite(o.edge_alignment) & (facing[pair].min(axis=1) > 0.85),
-        o.coherence[pair].min(axis=1),
-        -1.0,
-    )
-    best = pair[int(np.argmax(score))]
-    target = centre[best].mean(axis=0)
-    normal = n[best].sum(axis=0)
-    normal /= np.linalg.norm(normal)
-    radius = float(np.linalg.norm(V - V.mean(axis=0), axis=1).max())
-    close = render.look_at(
-        target + 0.6 * radius * normal,
-        target,
-        up=up,
-        half_height=0.3 * radius,
-        size=px,
-    )
-    chart = uv_charts(faces, mesh.uv)
-    palette = np.random.default_rng(1).uniform(0.25, 1.0, size=(chart.max() + 1, 3))
-    big = lambda image: np.repeat(np.repeat(image, 3, axis=0), 3, axis=1)  # noqa: E731 (readable)
-    panels = [("exemplar (stripes, period 8 px)", big(_exemplar("stripes", 128)))]
-    for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
-        textured = Mesh(mesh.vertices, mesh.faces, uv=mesh.uv, texture=tex[method])
-        views = render.render_views(textured, [whole, close])
-        panels += [(label, views[0]), (f"{label}, close to a seam", views[1])]
-    panels.append(
-        ("charts, same close view", render.render(mesh, close, face_colors=palette[chart]))
-    )
-    panels += [
-        ("surface CNN, UV image", big(tex["surface"])),
-        ("UV-space 2D, UV image", big(tex["uv2d"])),
-    ]
-    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
-    render.figure(
-        panels,
-        columns=4,
-        title=f"{mesh_name}, stripes, {size}x{size} texels, {steps} steps",
-        path=directory / f"surfacecnn_orientation_{mesh_name}.png",
     )
 
 
@@ -1019,7 +459,7 @@ def speck_texels(rows: list[dict], work: pathlib.Path) -> None:
         cell = work / f"{row['mesh']}_{row['exemplar']}_{row['size']}_{row['steps']}"
         if "speck_texels" in row["surface"] or not (cell / "uv2d_texture.npy").is_file():
             continue
-        mesh, n = _protocol_mesh(row["mesh"], work), row["size"]
+        mesh, n = protocol_mesh(row["mesh"], work), row["size"]
         atlas = texture_atlas(mesh.vertices, mesh.faces, mesh.uv, size=n)
         valid = np.zeros(n * n, bool)
         valid[atlas.texel] = True
@@ -1050,7 +490,7 @@ def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
             continue
         name, n = row["mesh"], row["size"]
         if (name, n) not in layouts:
-            mesh = _protocol_mesh(name, work)
+            mesh = protocol_mesh(name, work)
             surface = prepare_surface(mesh, size=n, levels=0)
             cams = render.orbit_cameras(
                 mesh, azimuths=4, elevations=(20.0,), size=(n, n), up=PROTOCOL_MESHES[name][1]
@@ -1066,7 +506,7 @@ def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
         colors = tiled.reshape(n * n, 3)[surface.atlas.texel]
         seams = seam_ratio(colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
         textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=tiled)
-        specks = [_specks(v) for v in render.render_views(textured, cams, shading="unlit")]
+        specks = [specks(v) for v in render.render_views(textured, cams, shading="unlit")]
         orient = seam_orientation(textured, tiled)
         row["uv_tiled"] = {
             "seam_ratio": float(seams["ratio"]),
@@ -1077,30 +517,24 @@ def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
         }
 
 
-def finished_rows(work: pathlib.Path, record: pathlib.Path, size: int, steps: int) -> list[dict]:
-    """Every finished protocol cell at ``size``² and ``steps`` steps, in protocol order: the row in
-    ``work`` where there is one, else the committed row in ``record`` (a cell finished in an
-    earlier session whose work folder is gone)."""
+def finished_rows(work: pathlib.Path, size: int, steps: int) -> list[dict]:
+    """Every protocol cell at ``size``² and ``steps`` steps finished in ``work`` (this run's
+    resumable cells), in protocol order. No row comes from an earlier results file: a cell whose
+    work folder is gone is run again."""
     import json
 
-    committed = {}
-    if record.is_file():
-        for r in json.loads(record.read_text()):
-            committed[(r["mesh"], r["exemplar"], r["size"], r["steps"])] = r
     rows = []
     for mesh_name in PROTOCOL_MESHES:
         for ex_name in PROTOCOL_EXEMPLARS:
             done = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
             if done.is_file():
                 rows.append(json.loads(done.read_text()))
-            elif (mesh_name, ex_name, size, steps) in committed:
-                rows.append(committed[mesh_name, ex_name, size, steps])
     return rows
 
 
 def _layout_spread(mesh_name: str, work: pathlib.Path) -> float:
     """The p95/p5 texel-density spread of the protocol's xatlas layout of ``mesh_name``."""
-    mesh = _protocol_mesh(mesh_name, work)
+    mesh = protocol_mesh(mesh_name, work)
     return float(texel_density_spread(mesh.vertices, mesh.faces, mesh.uv)["ratio_p95_p5"])
 
 
@@ -1193,78 +627,35 @@ def _write_quality(rows, spreads, size, steps, out):
     (directory / "surfacecnn.quality.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 
+def quality_main(argv: list[str] | None = None) -> None:
+    qp = argparse.ArgumentParser(description="the quality protocol (issue 33)")
+    qp.add_argument("--quality", action="store_true")
+    qp.add_argument("--meshes", default=",".join(PROTOCOL_MESHES))
+    qp.add_argument("--exemplars", default=",".join(PROTOCOL_EXEMPLARS))
+    qp.add_argument("--size", type=int, default=512)
+    qp.add_argument("--quality-steps", type=int, default=500)
+    qp.add_argument(
+        "--work",
+        type=pathlib.Path,
+        default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
+        help="resumable cells (checkpoints, textures, finished rows)",
+    )
+    qp.add_argument("--out", default=None)
+    qa = qp.parse_args(argv)
+    quality(
+        qa.meshes.split(","),
+        qa.exemplars.split(","),
+        qa.size,
+        qa.quality_steps,
+        qa.work,
+        pathlib.Path(qa.out) if qa.out else None,
+    )
+
+
 if __name__ == "__main__":
     import sys
 
-    def orientation_parser(flag: str, **kwargs) -> argparse.ArgumentParser:
-        """The arguments --orientation and --orientation-figure share."""
-        parser = argparse.ArgumentParser()
-        parser.add_argument(flag, **kwargs)
-        parser.add_argument("--size", type=int, default=128)
-        parser.add_argument("--orientation-steps", type=int, default=150)
-        parser.add_argument(
-            "--work",
-            type=pathlib.Path,
-            default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
-        )
-        parser.add_argument("--out", type=pathlib.Path, default=None)
-        return parser
-
-    if "--orientation-figure" in sys.argv:
-        fa = orientation_parser("--orientation-figure", default="spot").parse_args()
-        orientation_figure(fa.orientation_figure, fa.size, fa.orientation_steps, fa.work, fa.out)
-    elif "--orientation" in sys.argv:
-        op = orientation_parser("--orientation", action="store_true")
-        op.add_argument("--meshes", default=",".join(PROTOCOL_MESHES))
-        op.add_argument("--exemplars", default="stripes")
-        oa = op.parse_args()
-        orientation(
-            oa.meshes.split(","),
-            oa.exemplars.split(","),
-            oa.size,
-            oa.orientation_steps,
-            oa.work,
-            oa.out,
-        )
-    elif "--seams" in sys.argv:
-        sp = argparse.ArgumentParser()
-        sp.add_argument("--seams", action="store_true")
-        sp.add_argument("--size", type=int, default=128)
-        sp.add_argument("--seam-steps", type=int, default=150)
-        sp.add_argument("--out", default=None)
-        sa = sp.parse_args()
-        seams(sa.size, sa.seam_steps, pathlib.Path(sa.out) if sa.out else None)
-    elif "--frames" in sys.argv:
-        qp = argparse.ArgumentParser()
-        qp.add_argument("--frames", action="store_true")
-        qp.add_argument("--size", type=int, default=96)
-        qp.add_argument("--quality-steps", type=int, default=150)
-        qp.add_argument("--exemplar", choices=("brick", "stripes"), default="brick")
-        qp.add_argument("--out", default=None)
-        qa = qp.parse_args()
-        frames(qa.size, qa.quality_steps, pathlib.Path(qa.out) if qa.out else None, qa.exemplar)
-    elif "--quality" in sys.argv:
-        qp = argparse.ArgumentParser()
-        qp.add_argument("--quality", action="store_true")
-        qp.add_argument("--meshes", default=",".join(PROTOCOL_MESHES))
-        qp.add_argument("--exemplars", default=",".join(PROTOCOL_EXEMPLARS))
-        qp.add_argument("--size", type=int, default=512)
-        qp.add_argument("--quality-steps", type=int, default=500)
-        qp.add_argument(
-            "--work",
-            type=pathlib.Path,
-            default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
-            help="resumable cells (checkpoints, textures, finished rows)",
-        )
-        qp.add_argument("--out", default=None)
-        qa = qp.parse_args()
-        quality(
-            qa.meshes.split(","),
-            qa.exemplars.split(","),
-            qa.size,
-            qa.quality_steps,
-            qa.work,
-            pathlib.Path(qa.out) if qa.out else None,
-        )
+    if "--quality" in sys.argv:
+        quality_main()
     else:
         main()

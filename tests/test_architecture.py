@@ -3,7 +3,7 @@
 ``testing`` / ``cli``.
 
 The private-import rule (:func:`private_imports`) covers every module under ``jmeshtex/`` and
-``benchmarks/`` and the code cells of ``notebooks/*.ipynb``; ``tests/`` may import the private
+``benchmarks/`` and ``studies/`` and the code cells of ``notebooks/*.ipynb``; ``tests/`` may import the private
 modules of the package they test and are not checked. Root-level private modules (``jmeshtex/_*.py``)
 are the designated shared internals and may be imported from anywhere. Tests import neither the
 CLI's demo stages (``jmeshtex.cli._stages``: shared fixtures live in ``jmeshtex.testing``) nor error
@@ -127,7 +127,13 @@ def _notebook_cells(path: pathlib.Path):
 
 def _sources():
     """``(relative path shown in messages, path for the rules, source)`` of every checked module."""
-    for path in sorted([*ROOT.glob("jmeshtex/**/*.py"), *ROOT.glob("benchmarks/**/*.py")]):
+    for path in sorted(
+        [
+            *ROOT.glob("jmeshtex/**/*.py"),
+            *ROOT.glob("benchmarks/**/*.py"),
+            *ROOT.glob("studies/**/*.py"),
+        ]
+    ):
         rel = pathlib.PurePosixPath(path.relative_to(ROOT).as_posix())
         yield str(rel), rel, path.read_text()
     for path in sorted(ROOT.glob("notebooks/*.ipynb")):

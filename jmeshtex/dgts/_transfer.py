@@ -552,7 +552,7 @@ def transfer(
     The texture's period is fixed in mean edges of each level, so the target's resolution sets its
     size on the surface. Choose it so the target is no more curved per edge than the training mesh:
     the generators see curvature through their edge features, and on a more curved target they
-    leave their training distribution. Measured (``benchmarks/dgts.py --curvature``, a knobs model
+    leave their training distribution. Measured (``docs/results.md``, the curvature study; a knobs model
     trained on a sphere, from level 2): a torus whose tube circumference is 12 / 24 / 48 edges at
     the start level gets 4.4× / 2.1× / 1.6× the density of an oracle carrying the same knobs,
     spheres 1.3–1.6× at any resolution. A lower ``start_level`` subdivides the target more, so the

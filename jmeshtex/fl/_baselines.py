@@ -1,4 +1,4 @@
-"""Trivial per-vertex codecs that bound an FL-VAE reconstruction from below (the oracle rows of ``benchmarks/results/fl_vae.md``).
+"""Trivial per-vertex codecs that bound an FL-VAE reconstruction from below (the oracle rows in ``docs/results.md``).
 
 A field latent stores ``d`` complex numbers per vertex; the simplest codec stores 3 real ones, a
 colour per vertex, and interpolates it linearly over each triangle (P1). Two such codecs on the

@@ -292,7 +292,7 @@ class Config(ConfigBase):
         a weight EMA (0.999) and ``kl_weight = 1e-3`` (the paper: 0.01), both beyond the paper,
         whose training script is not public. At λ = 0.01 the log model's KL collapses onto half of
         the channels and its barycentric ablation leads; at 1e-3 every channel stays alive and the
-        log model leads on held-out photographs (``benchmarks/results/fl_vae_curve_kl.md``).
+        log model leads on held-out photographs (``docs/results.md``).
 
         Example:
           >>> c = Config.small()

@@ -165,7 +165,7 @@ def load_pretrained(*, decoder: str = "log") -> Model:
 
     Args:
       decoder: ``"log"`` (the FL-VAE, default) or ``"barycentric"`` (the paper's ablation, trained
-        with the same data and steps; used by ``benchmarks/fl_vae.py``).
+        with the same data and steps; scored in ``docs/results.md``).
 
     Returns:
       :class:`~jmeshtex.fl.Model`.

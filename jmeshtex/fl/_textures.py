@@ -16,7 +16,7 @@ the fly, every texture a pure function of a key:
 The scikit-image images split into ``TRAINING_IMAGES`` and ``HELD_OUT_IMAGES`` (three
 natural colour photographs, never used by :func:`training_images` and so never trained on by
 :func:`~jmeshtex.fl.train` with its default images): the held-out reconstruction of
-``benchmarks/fl_vae.py`` separates under-training from domain shift.
+the FL-VAE benchmark (``docs/results.md``) separates under-training from domain shift.
 """
 
 from __future__ import annotations

@@ -43,6 +43,7 @@ from ._model import decode_barycentric as decode_barycentric
 from ._model import decode_points as decode_points
 from ._model import decode_vertex_colors_from_latents as decode_vertex_colors_from_latents
 from ._model import encode_samples as encode_samples
+from ._planar import BUILTIN_IMAGES as BUILTIN_IMAGES
 from ._planar import builtin_images as builtin_images
 from ._planar import planar_mesh as planar_mesh
 from ._planar import planar_pool as planar_pool

@@ -254,7 +254,7 @@ class Config(ConfigBase):
 
     @classmethod
     def cpu(cls, **changes) -> Config:
-        """A CPU preset sized by measurement (``benchmarks/results/fldm_spot.md``).
+        """A CPU preset sized by measurement (``docs/results.md``).
 
         The :meth:`tiny` denoiser (16/32 channels, one-hidden-layer ReLU filters) with three blocks
         at the coarse level (1+3+1: the paper's deeper middle, where each field convolution reaches

@@ -13,7 +13,7 @@ step below commutes with frame rotations as long as the denoiser does.
   ``|v − v̂|² = |ε − ε̂|² + |z_0 − ẑ_0|²``: at high noise the ε-loss is blind to an error that the
   samplers amplify by ``√((1 − ᾱ_t)/ᾱ_t)`` (156 at ``t = T−1`` of the linear schedule) in
   ``ẑ_0``, and a small denoiser's ε-residual of a few percent there drives the samples' magnitude
-  several times past the data's (measured on Spot, ``benchmarks/results/fldm_spot*.md``);
+  several times past the data's (measured on Spot, ``docs/results.md``);
 - latent scaling (eq. 38–39): per channel ``s_c = (E_v |μ_vc|²)^{-1/2}`` so that the scaled latents
   have ``E|z|² = 1`` like the noise; the sampler divides by ``s`` before decoding;
 - ancestral DDPM (eq. 11, 29–31):

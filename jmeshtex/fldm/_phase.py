@@ -28,7 +28,7 @@ from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 
 #: default flat-ring threshold of :func:`ring_color_spread` (RGB RMS; measured in
-#: ``benchmarks/results/fldm_phase_sync.md``)
+#: ``docs/results.md``, the phase-sync study)
 FLAT_SPREAD = 0.02
 
 

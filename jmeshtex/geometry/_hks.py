@@ -94,7 +94,7 @@ def laplacian_eigenpairs(
     sigma = -1e-8 * float(np.mean(L.diagonal() / mass))
     # factor L - σM once, ourselves, with SuperLU's COLAMD column ordering: on mesh Laplacians the
     # minimum-degree orderings (MMD_AT_PLUS_A, MMD_ATA) have a fill cliff, 300x slower at 35K
-    # vertices (benchmarks/geometry.py, the "eigen-solve" cases)
+    # vertices (docs/performance.md)
     lu = spla.splu(sp.csc_matrix(L - sigma * M), permc_spec="COLAMD")
     shift_invert = spla.LinearOperator(L.shape, matvec=lu.solve, dtype=np.float64)
     v0 = np.random.default_rng(0).standard_normal(n)  # fixed start vector: deterministic output

@@ -10,7 +10,7 @@
 3. :func:`field_conv_mix`: the complex dense layer ``y_{pd} = Σ_{c,h} S_{phc} M_{chd}``.
 
 These functions run the same numerics over the whole mesh at once, so each stage can be timed on its
-own (``benchmarks/ops_field_conv.py``); composed, they give ``field_conv``'s output to rounding.
+own (``docs/performance.md``); composed, they give ``field_conv``'s output to rounding.
 """
 
 import functools

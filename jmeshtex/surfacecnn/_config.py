@@ -36,7 +36,7 @@ class Config(ConfigBase):
     taps outside the image read the centre pixel, and synthesis re-unwraps the mesh with xatlas.
 
     Presets: :meth:`cpu` (the defaults, 512²), :meth:`paper` (1024²), :meth:`tiny` (tests); time
-    and CPU-seconds per step in ``benchmarks/results/surfacecnn.md``.
+    and CPU-seconds per step in ``docs/results.md``.
 
     Attributes:
       size: texture resolution (``size × size`` texels; 512 is the CPU preset, the paper's 1024 is
@@ -167,7 +167,7 @@ class Config(ConfigBase):
     @classmethod
     def cpu(cls, **changes) -> Config:
         """The CPU preset (the defaults): 512² texels, 500 steps, every ReLU and pool output; time
-        per step in ``benchmarks/results/surfacecnn.md``.
+        per step in ``docs/results.md``.
 
         Example:
           >>> Config.cpu() == Config()

@@ -26,7 +26,7 @@ texel whose centre lies outside its UV triangle is *tied* (:func:`border_ties`):
 bilinear sample, at its surface point, of the abutting texels whose centres lie inside; the bilinear
 taps read tied texels through the tie and results show it (:func:`apply_tie`).
 :func:`unread_share` reports the free texels still unread (0 on the meshes tested; border chroma
-in ``benchmarks/results/surfacecnn_seams.md``).
+in ``docs/results.md``).
 
 **Failed walks.** A walk that reaches a mesh boundary before its full length stops there
 (``stopped``). Its tap then reads what the opposite tap (``8 − t``) reads if that walk succeeded,
@@ -266,7 +266,7 @@ def texel_taps(
         atlas frame. Turning by π/2 reads the texture rotated by 90° (the gauge check).
       couple: True (default) so that every texel is read by another texel's taps: chart-border
         texels that no walk ends in take over nearby taps (module docstring; measured in
-        ``benchmarks/results/surfacecnn_seams.md``); False keeps the pure geometric reads.
+        ``docs/results.md``); False keeps the pure geometric reads.
       geometry: tracer tables (:func:`~jmeshtex.geometry.tracer_geometry`).
 
     Returns:

@@ -17,30 +17,26 @@ def _row(mesh, exemplar, origin, size=512, steps=500):
     return {"mesh": mesh, "exemplar": exemplar, "size": size, "steps": steps, "origin": origin}
 
 
-def test_finished_rows_take_the_work_folder_over_the_record_in_protocol_order(tmp_path):
-    record = tmp_path / "surfacecnn.quality.json"
-    committed = [
-        _row("fandisk", "brick", "record"),
-        _row("spot", "brick", "record"),
-        _row("spot", "grass", "record"),
-        _row("cow", "brick", "record", steps=150),  # another protocol setting: not this report's
-    ]
-    record.write_text(json.dumps(committed))
+def test_finished_rows_come_from_the_work_folder_alone_in_protocol_order(tmp_path):
+    """No row is carried over from an earlier results file: only the cells this work folder
+    finished, at this protocol setting, in protocol order."""
     work = tmp_path / "work"
-    for mesh, exemplar in (("spot", "grass"), ("cow", "grass")):
+    for mesh, exemplar in (("cow", "grass"), ("spot", "grass")):
         cell = work / f"{mesh}_{exemplar}_512_500"
         cell.mkdir(parents=True)
         (cell / "row.json").write_text(json.dumps(_row(mesh, exemplar, "work")))
     (work / "cow_brick_512_500").mkdir()  # started, not finished
+    (work / "fandisk_brick_512_150").mkdir()
+    (work / "fandisk_brick_512_150" / "row.json").write_text(
+        json.dumps(_row("fandisk", "brick", "work", steps=150))  # another protocol setting
+    )
 
-    rows = surfacecnn.finished_rows(work, record, 512, 500)
+    rows = surfacecnn.finished_rows(work, 512, 500)
     assert [(r["mesh"], r["exemplar"], r["origin"]) for r in rows] == [
-        ("spot", "brick", "record"),
         ("spot", "grass", "work"),
         ("cow", "grass", "work"),
-        ("fandisk", "brick", "record"),
     ]
-    assert surfacecnn.finished_rows(work, tmp_path / "absent.json", 512, 150) == []
+    assert surfacecnn.finished_rows(tmp_path / "empty", 512, 500) == []
 
 
 def test_speck_texels_tell_seam_specks_from_colour_noise_inside_charts(tmp_path):
@@ -107,6 +103,6 @@ def test_the_orientation_control_runs_straight_across_seams():
     )
     mesh = Mesh(v, f, uv=uv)
     surface = prepare_surface(mesh, size=96, levels=0)
-    control = surfacecnn._orientation_control(mesh, surface, Config(size=96))
+    control = surfacecnn.orientation_control(mesh, surface, Config(size=96))
     r = seam_orientation(mesh.replace(uv=surface.atlas.uv), control)
     assert r.seam_edges == 12 and r.seam > 0.98 and r.interior > 0.98

@@ -54,8 +54,8 @@ def test_trained_texture_is_closer_to_the_reference_than_untrained_or_noise():
 
 #: the density test's seed (training key; transfer key 100 + seed), one of the five measured
 SEED = 0
-#: bounds from the margins over seeds 0-4 (benchmarks/results/dgts_learning_margins.md, setting
-#: "tiny, period 0.45", x64 as here; `benchmarks/dgts.py --margins`), with a safety factor of
+#: bounds from the margins over seeds 0-4 (studies/results/dgts_learning_margins.md, setting
+#: "tiny, period 0.45", x64 as here; `studies/dgts_learning_margins.py`), with a safety factor of
 #: 1.5-2 (training is not bit-reproducible across runs: seed 0 read 0.15 and 0.21 in two runs):
 #: trained |log(density / oracle's)| at most 0.227 -> bound log(1.4)
 MAX_DENSITY_ERROR = float(np.log(1.4))

@@ -2,7 +2,7 @@
 
 Each stage lays its panels out with :func:`jmeshtex.render.figure` (exemplar | result(s) |
 baselines); :func:`view` renders one panel from :func:`jmeshtex.render.orbit_cameras`, so stages,
-the README figures (``benchmarks/figures.py``) and the evaluation protocol share one rig.
+the README figures and the evaluation protocol share one rig.
 """
 
 from __future__ import annotations

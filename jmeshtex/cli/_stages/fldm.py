@@ -10,7 +10,7 @@ with ``ĝ_v`` the unit tangent direction of the meridian (the stripes' gradient 
 frame, and decoding ``s = ½ (|z_0| − a) + ½ (1 + a − |z_1|)`` clipped to [0, 1]. Magnitudes carry the
 colour, phases the stripes' orientation: a model must learn both the stripe statistics and a
 coherent direction field. With a trained FL-VAE (:func:`jmeshtex.fldm.fl_vae_encoder`) the same
-pipeline runs on real textures (see ``benchmarks/fldm_spot.py``).
+pipeline runs on real textures (``docs/results.md``).
 
 The learning check on the same sphere is :func:`jmeshtex.testing.fldm_learning_check`.
 """

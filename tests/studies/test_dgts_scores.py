@@ -1,4 +1,4 @@
-"""The DGTS benchmark's scores: the in-domain layout (1 for the truth's own layout, near 0 for
+"""The DGTS studies' scores: the in-domain layout (1 for the truth's own layout, near 0 for
 another) and the rows' headline columns."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ import sys
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "benchmarks"))  # the benchmark imports its harness as a sibling
+sys.path.insert(0, str(ROOT / "studies"))  # a study imports its helpers as siblings
 
-import dgts  # noqa: E402
+import _dgts as dgts  # noqa: E402
 
 from jmeshtex.data import icosphere, textured_sphere  # noqa: E402
 
@@ -29,14 +29,14 @@ def test_layout_correlation_tells_the_truths_layout_from_another(kind):
 def test_score_rows_lead_with_the_knob_measure():
     """The studies' rows: knobs per squared period and the patch distance come before the former
     per-mesh-edge peak density, which stays as a diagnostic."""
-    from _harness import Report
+    from _study import Report
 
     from jmeshtex.dgts.core import oracle_texture
 
     base = icosphere(3)
     truth = oracle_texture(base, "knobs", period=4.0)
     report = Report("test_dgts_scores", ceilings=False)
-    dgts._score_rows(report, "s", {"truth": [truth], "zero": [base]}, truth, base, {}, 4.0)
+    dgts.score_rows(report, "s", {"truth": [truth], "zero": [base]}, truth, base, {}, 4.0)
     keys = list(report.rows[0])
     assert keys.index("knob_density_vs_truth") < keys.index("peak_density")
     assert report.rows[0]["patch_distance"] == 0 and report.rows[0]["knob_density_vs_truth"] == 1

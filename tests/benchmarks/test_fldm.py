@@ -1,4 +1,4 @@
-"""Smoke test of ``benchmarks/fldm_spot.py --quick``: it runs end to end on Spot and its table has
+"""Smoke test of ``benchmarks/fldm.py --quick``: it runs end to end on Spot and its table has
 every row with finite numbers; without Spot it exits with a message that says what is missing."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import sys
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-SCRIPT = ROOT / "benchmarks" / "fldm_spot.py"
+SCRIPT = ROOT / "benchmarks" / "fldm.py"
 
 
 def _run(args: list[str], env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess:

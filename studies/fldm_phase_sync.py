@@ -1,11 +1,11 @@
-"""Benchmark: coherent field latents on Spot (``fldm.Config.phase_sync``; beyond the paper).
+"""Study: coherent field latents on Spot (``fldm.Config.phase_sync``; beyond the paper).
 
 Run::
 
-    .venv/bin/python benchmarks/fldm_phase_sync.py                   # 3,000-vertex copies (~3 CPU-min)
-    .venv/bin/python benchmarks/fldm_phase_sync.py --vertices 10000 --name fldm_phase_sync_10k
+    python studies/fldm_phase_sync.py                   # 3,000-vertex copies (~3 CPU-min)
+    python studies/fldm_phase_sync.py --vertices 10000 --name fldm_phase_sync_10k
 
-Writes ``benchmarks/results/fldm_phase_sync.{json,md}``. Two re-triangulated copies of Spot
+Writes ``studies/results/fldm_phase_sync.{json,md}``. Two re-triangulated copies of Spot
 (``fldm.core`` ``copy_mesh`` with the FLDM data key) are encoded with the shipped FL-VAE pair (the
 log decoder and its barycentric ablation), and each encoding's phases are left as they are
 (``none``), synchronised on flat rings (``flat``: textured rings, colour spread ≥ ``flat_spread``,
@@ -36,7 +36,7 @@ import time
 
 import jax
 import numpy as np
-from _harness import Report, Size, size_label
+from _study import Report, Size, size_label
 
 from jmeshtex import fl, fldm
 from jmeshtex.fldm.core import (
@@ -152,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
                 row(f"log flat_spread={thr}", vae, mus, [s >= thr for s in spreads], base)
     report.notes += [
         "Beyond the paper: `fldm.Config(phase_sync=...)`; see the module docstring of "
-        "`benchmarks/fldm_phase_sync.py` for the columns. `dpsnr` is the change of the decoded "
+        "`studies/fldm_phase_sync.py` for the columns. `dpsnr` is the change of the decoded "
         "colours' PSNR against the same codec's `none` row; `lin_err_*` the best local "
         "gauge-equivariant linear denoiser's relative x̂₀ error (lower: more structure a denoiser "
         "can use)."
