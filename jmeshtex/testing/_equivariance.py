@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import is_int
 from .._errors import ConfigError
 from ._fields import Field
 from ._transforms import Realisation, Transform
@@ -199,7 +200,7 @@ def convergence(
         contains q, so the vertices that select a left-out vertex are left out too, ``hops - 1``
         times over; the selection must then be ``[V, k]`` neighbour indices (negative: padding).
     """
-    if isinstance(hops, bool) or not isinstance(hops, (int, np.integer)) or hops < 1:
+    if not is_int(hops, 1):
         raise ValueError(f"convergence: hops must be an integer ≥ 1, got {hops!r}")
     if not transform.family:
         raise ValueError(f"{transform.name!r} is not a family of meshes")
