@@ -141,10 +141,6 @@ def float_in(low: float | None = None, high: float | None = None, *, open_low: b
     return parse
 
 
-#: the values ``--up`` takes (the same as ``jmeshtex.render.UP_AXES``)
-UP_CHOICES = ("x", "y", "z", "-x", "-y", "-z")
-
-
 def add_up(p: argparse.ArgumentParser, *, default: str = "z") -> None:
     """Add ``--up``: the mesh's up axis for renders (pass it on as ``up=`` to :mod:`jmeshtex.render`).
 
@@ -156,12 +152,14 @@ def add_up(p: argparse.ArgumentParser, *, default: str = "z") -> None:
       >>> p.parse_args(["--up", "y"]).up, p.parse_args([]).up
       ('y', 'z')
     """
+    from ..geometry import UP_AXES  # here: the other flags need no geometry
+
     p.add_argument(
         "--up",
         default=default,
-        choices=UP_CHOICES,
+        choices=UP_AXES,
         metavar="AXIS",
-        help=f"up axis of the mesh in renders: {'|'.join(UP_CHOICES)} (default {default}; "
+        help=f"up axis of the mesh in renders: {'|'.join(UP_AXES)} (default {default}; "
         "most OBJ files are y)",
     )
 
