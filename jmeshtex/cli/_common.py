@@ -141,6 +141,29 @@ def float_in(low: float | None = None, high: float | None = None, *, open_low: b
     return parse
 
 
+def add_method(
+    sub: argparse._SubParsersAction, name: str, *, help: str, description: str
+) -> argparse._SubParsersAction:
+    """Add a method's command ``jmeshtex NAME`` and return the parsers of its actions
+    (``jmeshtex NAME ACTION``; the chosen one lands in ``args.NAME_command``); without an action
+    the command prints its help and exits with status 1.
+
+    Example:
+      >>> parser = argparse.ArgumentParser()
+      >>> inner = add_method(parser.add_subparsers(dest="command"), "m", help="h", description="d")
+      >>> _ = inner.add_parser("run")
+      >>> parser.parse_args(["m", "run"]).m_command
+      'run'
+      >>> parser.parse_args(["m"]).func(None)  # doctest: +ELLIPSIS
+      usage: ... m [-h] ACTION ...
+      ...
+      1
+    """
+    p = sub.add_parser(name, help=help, description=description)
+    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
+    return p.add_subparsers(dest=f"{name}_command", metavar="ACTION")
+
+
 def add_up(p: argparse.ArgumentParser, *, default: str = "z") -> None:
     """Add ``--up``: the mesh's up axis for renders (pass it on as ``up=`` to :mod:`jmeshtex.render`).
 
