@@ -51,7 +51,7 @@ class FieldConv(nn.Module):
     in its own vertex's frame.
 
     Example:
-      >>> import numpy as np
+      >>> import jax, numpy as np
       >>> from jmeshtex.geometry import VertexNeighborhood
       >>> from jmeshtex.ops import FieldConvParams, field_conv
       >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
@@ -120,7 +120,7 @@ class FieldConvEmb(nn.Module):
     timestep embedding; broadcast to every vertex).
 
     Example:
-      >>> import numpy as np
+      >>> import jax, numpy as np
       >>> from jmeshtex.geometry import VertexNeighborhood
       >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
       ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
