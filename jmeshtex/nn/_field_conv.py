@@ -83,17 +83,8 @@ class FieldConv(nn.Module):
 
     @nn.compact
     def __call__(self, x, nbhd, channel_embedding=None):
-        params = pytree_params(
-            self,
-            lambda key: init_field_conv(
-                key,
-                x.shape[-1],
-                self.features,
-                hdim=self.hdim,
-                channel_embedding=self.channel_embedding,
-                hidden_layers=self.filter_layers,
-                dtype=self.param_dtype,
-            ),
+        params = _params(
+            self, x, channel_embedding=self.channel_embedding, hidden_layers=self.filter_layers
         )
         return field_conv(
             x,
@@ -141,17 +132,7 @@ class FieldConvEmb(nn.Module):
     @nn.compact
     def __call__(self, x, nbhd, embedding):
         embedding = _per_vertex(embedding, x)
-        params = pytree_params(
-            self,
-            lambda key: init_field_conv(
-                key,
-                x.shape[-1],
-                self.features,
-                hdim=self.hdim,
-                embedding_features=embedding.shape[-1],
-                dtype=self.param_dtype,
-            ),
-        )
+        params = _params(self, x, embedding_features=embedding.shape[-1])
         return field_conv(
             x, nbhd, params, embedding=embedding, delta=self.delta, activation=self.activation
         )
@@ -162,3 +143,19 @@ def _per_vertex(embedding, x):
     if emb.ndim == 1:
         emb = jnp.broadcast_to(emb, (x.shape[0], emb.shape[0]))
     return emb
+
+
+def _params(module: nn.Module, x, **options):
+    """A field-convolution module's :class:`~jmeshtex.ops.FieldConvParams` from ``x``'s channels to
+    ``module.features``, drawn by :func:`jmeshtex.ops.init_field_conv` with ``options``."""
+    return pytree_params(
+        module,
+        lambda key: init_field_conv(
+            key,
+            x.shape[-1],
+            module.features,
+            hdim=module.hdim,
+            dtype=module.param_dtype,
+            **options,
+        ),
+    )
