@@ -340,7 +340,7 @@ def pad_to(tree: T, sizes: dict[str, int]) -> T:
         for axis_name, current in zip(names, leaf.shape, strict=False):
             target = sizes.get(axis_name, current)
             if target < current:
-                raise ValueError(
+                raise InputError(
                     f"pad_to: cannot shrink axis {axis_name} of {name} from {current} to {target}"
                 )
             widths.append((0, target - current))

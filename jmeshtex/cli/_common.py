@@ -141,8 +141,27 @@ def float_in(low: float | None = None, high: float | None = None, *, open_low: b
     return parse
 
 
-#: the values ``--up`` takes (the same as ``jmeshtex.render.UP_AXES``)
-UP_CHOICES = ("x", "y", "z", "-x", "-y", "-z")
+def add_method(
+    sub: argparse._SubParsersAction, name: str, *, help: str, description: str
+) -> argparse._SubParsersAction:
+    """Add a method's command ``jmeshtex NAME`` and return the parsers of its actions
+    (``jmeshtex NAME ACTION``; the chosen one lands in ``args.NAME_command``); without an action
+    the command prints its help and exits with status 1.
+
+    Example:
+      >>> parser = argparse.ArgumentParser()
+      >>> inner = add_method(parser.add_subparsers(dest="command"), "m", help="h", description="d")
+      >>> _ = inner.add_parser("run")
+      >>> parser.parse_args(["m", "run"]).m_command
+      'run'
+      >>> parser.parse_args(["m"]).func(None)  # doctest: +ELLIPSIS
+      usage: ... m [-h] ACTION ...
+      ...
+      1
+    """
+    p = sub.add_parser(name, help=help, description=description)
+    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
+    return p.add_subparsers(dest=f"{name}_command", metavar="ACTION")
 
 
 def add_up(p: argparse.ArgumentParser, *, default: str = "z") -> None:
@@ -156,12 +175,14 @@ def add_up(p: argparse.ArgumentParser, *, default: str = "z") -> None:
       >>> p.parse_args(["--up", "y"]).up, p.parse_args([]).up
       ('y', 'z')
     """
+    from ..geometry import UP_AXES  # here: the other flags need no geometry
+
     p.add_argument(
         "--up",
         default=default,
-        choices=UP_CHOICES,
+        choices=UP_AXES,
         metavar="AXIS",
-        help=f"up axis of the mesh in renders: {'|'.join(UP_CHOICES)} (default {default}; "
+        help=f"up axis of the mesh in renders: {'|'.join(UP_AXES)} (default {default}; "
         "most OBJ files are y)",
     )
 

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._config import is_finite_number
+from .._errors import InputError
 from .._mesh import Mesh
 from .._types import Float
 from ._meshes import icosphere, torus
@@ -95,8 +97,11 @@ def texture_centers(
       >>> bool(d.min() >= 0.5), bool(0.5 <= d.min(axis=1).mean() < 0.7)
       (True, True)
     """
-    if not period > 0:
-        raise ValueError(f"period must be > 0, got {period!r}")
+    if not is_finite_number(period) or not period > 0:
+        raise InputError(
+            f"texture_centers: period must be a number > 0 (the spacing of the centres in mesh "
+            f"units), got {period!r}"
+        )
     rng = np.random.default_rng(seed)
     if surface == "sphere":
         candidates = fibonacci_sphere(max(2000, int(60 / period**2)))
@@ -106,7 +111,10 @@ def texture_centers(
             max(2000, int(15 * area / period**2)), major_radius, minor_radius, rng
         )
     else:
-        raise ValueError(f"surface must be 'sphere' or 'torus', got {surface!r}")
+        raise InputError(
+            f"texture_centers: surface must be 'sphere' or 'torus', got {surface!r}; for another "
+            "mesh use textured_mesh"
+        )
     return _poisson_disc(candidates, float(period), rng)
 
 
@@ -128,7 +136,9 @@ def texture_height(
       [0.125, 0.002]
     """
     if kind not in GEOMETRIC_TEXTURES:
-        raise ValueError(f"kind must be one of {GEOMETRIC_TEXTURES}, got {kind!r}")
+        raise InputError(
+            f"texture_height: kind must be one of {', '.join(GEOMETRIC_TEXTURES)}, got {kind!r}"
+        )
     p = float(period)
     a = _AMPLITUDE[kind] * p if amplitude is None else float(amplitude)
     d, nearest = _nearest(points, centers)
@@ -283,8 +293,11 @@ def textured_mesh(
         (v, f), name = mesh, "mesh"
     v = np.asarray(v, np.float64)
     f = np.asarray(f, np.int64)
-    if not period > 0:
-        raise ValueError(f"period must be > 0, got {period!r}")
+    if not is_finite_number(period) or not period > 0:
+        raise InputError(
+            f"textured_mesh: period must be a number > 0 (the spacing of the centres in mesh units), "
+            f"got {period!r}"
+        )
     rng = np.random.default_rng(seed)
     tri = v[f]
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)

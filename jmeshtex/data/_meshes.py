@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._config import is_int
+from .._errors import InputError
 from .._mesh import Mesh
 
 
@@ -126,10 +128,12 @@ def grid(
       ((12, 3), (12, 3))
     """
     ny = nx if ny is None else ny
-    if nx < 1 or ny < 1:
-        raise ValueError(f"grid needs at least one cell each way, got nx={nx}, ny={ny}")
+    if not (is_int(nx, 1) and is_int(ny, 1)):
+        raise InputError(
+            f"grid: nx and ny (cells each way) must be integers >= 1, got nx={nx!r}, ny={ny!r}"
+        )
     if diagonals not in ("alternate", "uniform"):
-        raise ValueError(f"diagonals must be 'alternate' or 'uniform', got {diagonals!r}")
+        raise InputError(f"grid: diagonals must be 'alternate' or 'uniform', got {diagonals!r}")
     xs = np.linspace(0.0, size[0], nx + 1)
     ys = np.linspace(0.0, size[1], ny + 1)
     X, Y = np.meshgrid(xs, ys)
@@ -157,8 +161,11 @@ def torus(
       >>> v.shape, f.shape
       ((48, 3), (96, 3))
     """
-    if n_major < 3 or n_minor < 3:
-        raise ValueError(f"torus needs n_major, n_minor >= 3, got {n_major}, {n_minor}")
+    if not (is_int(n_major, 3) and is_int(n_minor, 3)):
+        raise InputError(
+            f"torus: n_major and n_minor (segments around each circle) must be integers >= 3, "
+            f"got {n_major!r}, {n_minor!r}"
+        )
     u = np.arange(n_major) * 2 * np.pi / n_major
     w = np.arange(n_minor) * 2 * np.pi / n_minor
     U, W = np.meshgrid(u, w, indexing="ij")

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
@@ -122,7 +123,7 @@ def p1_least_squares(
         )
     if len(corners) == 0:
         raise InputError("p1_least_squares: no points to fit")
-    if not (isinstance(num_vertices, (int, np.integer)) and num_vertices >= 1):
+    if not is_int(num_vertices, 1):
         raise InputError(
             f"p1_least_squares: num_vertices must be an int >= 1, got {num_vertices!r}"
         )

@@ -115,16 +115,14 @@ class FCResBlock(nn.Module):
       param_dtype: complex dtype of the complex weights.
 
     Example:
-      >>> import numpy as np
-      >>> from jmeshtex.geometry import VertexNeighborhood
-      >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
-      ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
-      ...     np.ones(2), np.ones(2, bool))
-      >>> x, t = jnp.ones((2, 3), jnp.complex64), jnp.array([0.5, 0.1])
+      >>> from jmeshtex.data import icosahedron
+      >>> from jmeshtex.geometry import one_ring_neighborhood
+      >>> nb = one_ring_neighborhood(icosahedron())
+      >>> x, t = jnp.ones((12, 3), jnp.complex64), jnp.array([0.5, 0.1])
       >>> m = FCResBlock(4, hdim=4, mlp_layers=2)
       >>> v = m.init(jax.random.key(0), x, nb, t)
       >>> m.apply(v, x, nb, t).shape, sorted(v["params"])
-      ((2, 4), ['conv_0', 'conv_1', 'embed_0', 'embed_1', 'mlp_0', 'mlp_1', 'residual'])
+      ((12, 4), ['conv_0', 'conv_1', 'embed_0', 'embed_1', 'mlp_0', 'mlp_1', 'residual'])
     """
 
     features: int

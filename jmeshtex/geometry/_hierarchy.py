@@ -103,6 +103,21 @@ class _Level(NamedTuple):
     tr: np.ndarray  # [E] rho^0_{b->a}
 
 
+def _finest_level(v: np.ndarray, f: np.ndarray):
+    """The input mesh as the first level: ``(level, edge lengths, one-ring neighbourhoods,
+    quantisation step of the lengths)``."""
+    n0 = len(v)
+    lengths = edge_lengths(v, f)
+    nb = _neighborhood_from_lengths(f, lengths, n0)
+    src, slot = np.nonzero(nb.mask)
+    keys = src * n0 + nb.index[src, slot].astype(np.int64)
+    order = np.argsort(keys)
+    level = _Level(
+        f, np.arange(n0), keys[order], nb.log[src, slot][order], nb.transport[src, slot][order]
+    )
+    return level, lengths, nb, _quantization_step(lengths)
+
+
 @accepts_mesh
 def mesh_hierarchy(
     vertices: Float[np.ndarray, "V 3"],
@@ -169,16 +184,7 @@ def mesh_hierarchy(
             "remove unreferenced vertices first (jmeshtex.io loaders do)"
         )
 
-    lengths0 = edge_lengths(v, f)
-    nb0 = _neighborhood_from_lengths(f, lengths0, n0)
-    step = _quantization_step(lengths0)
-    src, slot = np.nonzero(nb0.mask)
-    dst = nb0.index[src, slot].astype(np.int64)
-    keys = src * n0 + dst
-    order = np.argsort(keys)
-    level = _Level(
-        f, np.arange(n0), keys[order], nb0.log[src, slot][order], nb0.transport[src, slot][order]
-    )
+    level, lengths0, nb0, step = _finest_level(v, f)
 
     out_levels = [level]
     out_lengths = [lengths0]

@@ -43,10 +43,7 @@ from .._mesh import Mesh, accepts_mesh
 from .._random import check_key, host_rng
 from .._types import Float, Int
 from ._edges import unique_edges
-from ._hierarchy import _decimate, _Level
-from ._intrinsic import edge_lengths
-from ._knn import _quantization_step
-from ._log_map import _neighborhood_from_lengths
+from ._hierarchy import _decimate, _finest_level
 from ._texture import sample_texture, uv_at
 from ._validate import validate_mesh
 
@@ -72,17 +69,7 @@ def _decimate_to(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Half-edge-collapse decimation of (v, f) to ``target`` vertices (the hierarchy's rules;
     ``even_lengths``: shortest band first, :func:`remesh`)."""
-    n0 = len(v)
-    lengths = edge_lengths(v, f)
-    nb = _neighborhood_from_lengths(f, lengths, n0)
-    step = _quantization_step(lengths)
-    src, slot = np.nonzero(nb.mask)
-    dst = nb.index[src, slot].astype(np.int64)
-    keys = src * n0 + dst
-    order = np.argsort(keys)
-    level = _Level(
-        f, np.arange(n0), keys[order], nb.log[src, slot][order], nb.transport[src, slot][order]
-    )
+    level, _, _, step = _finest_level(v, f)
     coarse, _ = _decimate(level, target, step, shortest_first=even_lengths)
     return coarse.index, coarse.faces
 

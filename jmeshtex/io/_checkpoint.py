@@ -55,6 +55,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from .._config import is_int
 from .._errors import CheckpointMismatchError, CheckpointSkippedWarning, InputError, MeshIOError
 
 _FINGERPRINT = "fingerprint"
@@ -174,7 +175,7 @@ class Checkpoints:
     def __init__(
         self, directory: str | os.PathLike, *, keep: int = 2, fingerprint: dict | None = None
     ):
-        if isinstance(keep, bool) or not isinstance(keep, (int, np.integer)) or keep < 1:
+        if not is_int(keep, 1):
             raise InputError(f"Checkpoints(keep={keep!r}): keep must be a whole number >= 1")
         try:
             self.directory = pathlib.Path(directory).absolute()
@@ -304,7 +305,7 @@ class Checkpoints:
 
         from ._atomic import atomic_write
 
-        if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 0:
+        if not is_int(step, 0):
             raise InputError(f"Checkpoints.save: step must be a whole number >= 0, not {step!r}")
         step = int(step)
         record_meta = _jsonable(dict(meta or {}))

@@ -21,7 +21,7 @@ from .._mesh import Mesh
 from .._mesh_arrays import coincident_vertex_map
 from .._types import Float
 from ._read import check_input_file, check_memory
-from ._save import MESH_SUFFIXES, _unique_rows
+from ._save import _unique_rows, mesh_suffix
 
 
 def _readable_file(path: str | os.PathLike, what: str) -> pathlib.Path:
@@ -591,12 +591,7 @@ def load_mesh(
       load_mesh: quad.obj: split 1 polygon face (4 corners) into 2 triangles (pass strict=True to refuse polygons)
     """
     path = _readable_file(path, "mesh")
-    suffix = path.suffix.lower()
-    if suffix not in MESH_SUFFIXES:
-        raise MeshIOError(
-            f"cannot read mesh {path}: unsupported format {suffix or '(no suffix)'!r}; "
-            f"supported: {', '.join(MESH_SUFFIXES)}. Fix: convert it (e.g. with trimesh or Blender)"
-        )
+    mesh_suffix(path, "read mesh", fix="convert it (e.g. with trimesh or Blender)")
     loaded = _trimesh_mesh(path)
     _check_polygons(loaded, path, strict=strict)
     vertices = np.array(loaded.vertices, dtype=np.float64)

@@ -193,7 +193,9 @@ def _read(path: pathlib.Path, what: str) -> dict[str, np.ndarray]:
         with open(path, "rb") as fh:  # closed even when np.load fails half-way
             data = np.load(fh, allow_pickle=False)
             if not hasattr(data, "files"):
-                raise ValueError("a bare .npy array, not an .npz archive")
+                raise CorruptModelError(
+                    f"cannot read {what} {path}: not a readable model file (a bare .npy array, not an .npz)"
+                )
             with data:
                 return {k: data[k] for k in data.files}
     except CorruptModelError:
@@ -271,12 +273,14 @@ def load_model(
     try:
         header = json.loads(str(arrays.pop(HEADER)))
         if not isinstance(header, dict):
-            raise ValueError("the header is not a JSON object")
+            raise CorruptModelError(f"{path}: damaged model header (not a JSON object)")
         container = header["container"]
         stored_kind, version = header["kind"], header["format_version"]
         config, extra = header["config"], header.get("extra", {})
         if not isinstance(config, dict) or not isinstance(extra, dict):
-            raise ValueError("config and extra must be JSON objects")
+            raise CorruptModelError(
+                f"{path}: damaged model header (config and extra must be JSON objects)"
+            )
     except (ValueError, KeyError, TypeError) as err:
         raise CorruptModelError(f"{path}: damaged model header ({err})") from None
     if container != CONTAINER_VERSION:

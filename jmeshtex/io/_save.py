@@ -334,6 +334,19 @@ def _encode_glb(mesh: Mesh, stem: str) -> dict[str, bytes]:
     return {f"{stem}.glb": data}
 
 
+def mesh_suffix(path: pathlib.Path, action: str, *, fix: str) -> str:
+    """``path``'s suffix, lower case, or :class:`~jmeshtex.MeshIOError` unless it names a mesh
+    format jmeshtex reads and writes (:data:`MESH_SUFFIXES`); the message says ``action`` failed
+    and ends with ``fix``."""
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise MeshIOError(
+            f"cannot {action} {path}: unsupported mesh format {suffix or '(no suffix)'!r}; "
+            f"supported: {', '.join(MESH_SUFFIXES)}. Fix: {fix}"
+        )
+    return suffix
+
+
 _ENCODERS = {".obj": _encode_obj, ".ply": _encode_ply, ".off": _encode_off, ".glb": _encode_glb}
 
 
@@ -367,12 +380,7 @@ def save_mesh(mesh: Mesh | tuple, path: str | os.PathLike) -> None:
       (12, 20, True)
     """
     path = pathlib.Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in _ENCODERS:
-        raise MeshIOError(
-            f"cannot save {path}: unsupported mesh format {suffix or '(no suffix)'!r}; "
-            f"supported: {', '.join(MESH_SUFFIXES)}"
-        )
+    suffix = mesh_suffix(path, "save", fix="give the file one of those suffixes")
     mesh = _checked_mesh(mesh)
     if suffix == ".off" and (
         mesh.uv is not None or mesh.texture is not None or mesh.vertex_colors is not None

@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
+from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from ..geometry import (
     MeshHierarchy,
@@ -232,7 +233,10 @@ def pad_axis(x: np.ndarray, axis: int, size: int, fill=0) -> np.ndarray:
     """``x`` padded with ``fill`` along ``axis`` to ``size`` (unchanged when already that long)."""
     extra = size - x.shape[axis]
     if extra < 0:
-        raise ValueError(f"cannot pad axis {axis} of {x.shape} down to {size}")
+        raise InputError(
+            f"pad_axis: cannot pad axis {axis} of shape {x.shape} down to {size}; pass a size of "
+            f"at least {x.shape[axis]}"
+        )
     if extra == 0:
         return x
     shape = list(x.shape)

@@ -37,6 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import InputError
 from .._jit import jit_loop
 from ._config import Config
 from ._prepare import LevelArrays
@@ -471,7 +472,10 @@ def iterate(
     cost0, rot0 = exact_cost(nnf)
     if options.propagation == "sequential":
         if order is None:
-            raise ValueError("propagation='sequential' needs the scan order (scan_order)")
+            raise InputError(
+                "propagation='sequential' needs the breadth-first wavefronts: pass "
+                "order=jmeshtex.meshmatch.core.scan_order(...), or use propagation='parallel'"
+            )
         state = (nnf, cost0, rot0)
         for sweep_index, sub in enumerate(jax.random.split(key, options.sweeps)):
             # alternate the direction: odd sweeps run the wavefronts backwards, from the far end

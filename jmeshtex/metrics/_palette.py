@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._types import Bool, Float
 
@@ -63,7 +64,7 @@ def palette_distance(
       >>> palette_distance(cow, cow), palette_distance(black, cow), palette_distance(black, white)
       (0.0, 0.5, 1.0)
     """
-    if not isinstance(bins, int) or isinstance(bins, bool) or not 1 <= bins <= 64:
+    if not is_int(bins, 1) or bins > 64:
         raise InputError(f"palette_distance: bins must be an int in [1, 64], got {bins!r}")
     p, q = _histogram(a, mask_a, bins), _histogram(b, mask_b, bins)
     return float(0.5 * np.abs(p - q).sum())

@@ -7,7 +7,6 @@ from ._complex import ComplexDense as ComplexDense
 from ._complex import VNNonlinearity as VNNonlinearity
 from ._complex import VNTransformerBlock as VNTransformerBlock
 from ._face_conv import FaceConvStack as FaceConvStack
-from ._field_conv import FCResNetBlock as FCResNetBlock
 from ._field_conv import FieldConv as FieldConv
 from ._field_conv import FieldConvEmb as FieldConvEmb
 from ._texel import TexelConv as TexelConv

@@ -11,11 +11,10 @@ from __future__ import annotations
 from typing import Any
 
 import flax.linen as nn
-import jax
 import jax.numpy as jnp
 
 from ..ops import field_conv, init_field_conv, real_dtype
-from ._complex import FRN, ComplexDense, VNNonlinearity, pytree_params
+from ._complex import pytree_params
 
 
 class FieldConv(nn.Module):
@@ -24,8 +23,8 @@ class FieldConv(nn.Module):
     .. math:: y_{pd} = \\sum_{c,h} M_{chd} \\sum_{q \\in N(p)} \\hat w_{pq}\\, \\rho_{q\\to p}\\,
        x_{qc}\\; \\varphi_h\\big(\\log_p(q)\\,\\overline{\\hat u_{pqc}},\\, e_{pc}\\big)
 
-    The one implementation of the layer: :class:`FieldConvEmb`, :class:`FCResNetBlock` and the FLDM
-    denoiser's blocks (:mod:`jmeshtex.fldm`) all use it or the op it wraps. The filter ``φ`` is an
+    The one implementation of the layer: :class:`FieldConvEmb` and the FLDM denoiser's blocks
+    (:mod:`jmeshtex.fldm`) all use it or the op it wraps. The filter ``φ`` is an
     MLP with ``filter_layers`` hidden layers of width ``H``; with ``channel_embedding=True`` each
     input channel ``c``'s filter also sees its own real scalar ``e_{pc}`` (the reference's
     ``FieldConvEmb``: the timestep/label embedding processed to one value per channel), passed as
@@ -52,7 +51,7 @@ class FieldConv(nn.Module):
     in its own vertex's frame.
 
     Example:
-      >>> import numpy as np
+      >>> import jax, numpy as np
       >>> from jmeshtex.geometry import VertexNeighborhood
       >>> from jmeshtex.ops import FieldConvParams, field_conv
       >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
@@ -84,17 +83,8 @@ class FieldConv(nn.Module):
 
     @nn.compact
     def __call__(self, x, nbhd, channel_embedding=None):
-        params = pytree_params(
-            self,
-            lambda key: init_field_conv(
-                key,
-                x.shape[-1],
-                self.features,
-                hdim=self.hdim,
-                channel_embedding=self.channel_embedding,
-                hidden_layers=self.filter_layers,
-                dtype=self.param_dtype,
-            ),
+        params = _params(
+            self, x, channel_embedding=self.channel_embedding, hidden_layers=self.filter_layers
         )
         return field_conv(
             x,
@@ -121,7 +111,7 @@ class FieldConvEmb(nn.Module):
     timestep embedding; broadcast to every vertex).
 
     Example:
-      >>> import numpy as np
+      >>> import jax, numpy as np
       >>> from jmeshtex.geometry import VertexNeighborhood
       >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
       ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
@@ -142,84 +132,10 @@ class FieldConvEmb(nn.Module):
     @nn.compact
     def __call__(self, x, nbhd, embedding):
         embedding = _per_vertex(embedding, x)
-        params = pytree_params(
-            self,
-            lambda key: init_field_conv(
-                key,
-                x.shape[-1],
-                self.features,
-                hdim=self.hdim,
-                embedding_features=embedding.shape[-1],
-                dtype=self.param_dtype,
-            ),
-        )
+        params = _params(self, x, embedding_features=embedding.shape[-1])
         return field_conv(
             x, nbhd, params, embedding=embedding, delta=self.delta, activation=self.activation
         )
-
-
-class FCResNetBlock(nn.Module):
-    """Field-convolution ResNet block with an embedding (the FLDM's FCResNet block, 2024 §4).
-
-    .. math:: y = r(x) + \\mathrm{FC}_{e}\\big(\\mathrm{VN}(\\mathrm{FRN}(\\mathrm{FC}(x)))\\big)
-
-    ``FC`` is :class:`FieldConv`, ``FRN`` the mesh-wide normalisation (areas and vertex mask from the
-    neighbourhood), ``VN`` the residual-form :class:`VNNonlinearity`, ``FC_e`` a :class:`FieldConvEmb`
-    whose filters also see ``e = SiLU(W₂ SiLU(W₁ embedding))`` (a real two-layer MLP, as in the
-    reference code), and ``r`` the identity when the widths agree, else a bias-free
-    :class:`ComplexDense`. Every piece is gauge-equivariant, so the block is.
-
-    Attributes:
-      features: output channels ``D``.
-      hdim: filter responses per input channel.
-      embedding_features: width ``E`` of the processed embedding fed to the filters; default ``D``.
-      delta: ``δ`` of the field convolutions' smoothed directions.
-      activation: filter nonlinearity of both convolutions.
-      param_dtype: complex dtype of the complex weights.
-
-    Example:
-      >>> import numpy as np
-      >>> from jmeshtex.geometry import VertexNeighborhood
-      >>> nb = VertexNeighborhood(np.array([[0, 1], [1, 0]]), np.ones((2, 2), bool),
-      ...     np.array([[0, 1], [0, -1]], complex), np.ones((2, 2), complex), np.ones((2, 2)),
-      ...     np.ones(2), np.ones(2, bool))
-      >>> x, t = jnp.ones((2, 3), jnp.complex64), jnp.array([0.5])
-      >>> m = FCResNetBlock(3, hdim=4)
-      >>> v = jax.eval_shape(m.init, jax.random.key(0), x, nb, t)  # shapes only; m.init for values
-      >>> jax.eval_shape(m.apply, v, x, nb, t).shape, sorted(v["params"])
-      ((2, 3), ['act', 'conv_0', 'conv_1', 'embed_0', 'embed_1', 'norm'])
-    """
-
-    features: int
-    hdim: int = 16
-    embedding_features: int | None = None
-    delta: float = 1e-4
-    activation: str = "silu"
-    param_dtype: Any = jnp.complex64
-
-    @nn.compact
-    def __call__(self, x, nbhd, embedding):
-        width = self.features if self.embedding_features is None else self.embedding_features
-        rdt = real_dtype(x.dtype)
-        emb = jnp.asarray(embedding)
-        emb = jax.nn.silu(nn.Dense(width, dtype=rdt, name="embed_0")(emb))
-        emb = jax.nn.silu(nn.Dense(width, dtype=rdt, name="embed_1")(emb))
-        conv = dict(
-            hdim=self.hdim,
-            delta=self.delta,
-            activation=self.activation,
-            param_dtype=self.param_dtype,
-        )
-        h = FieldConv(self.features, name="conv_0", **conv)(x, nbhd)
-        h = FRN(name="norm")(h, area=nbhd.area, vertex_mask=nbhd.vertex_mask)
-        h = VNNonlinearity(param_dtype=self.param_dtype, name="act")(h)
-        h = FieldConvEmb(self.features, name="conv_1", **conv)(h, nbhd, emb)
-        res = (
-            x
-            if x.shape[-1] == self.features
-            else ComplexDense(self.features, self.param_dtype, name="skip")(x)
-        )
-        return h + res
 
 
 def _per_vertex(embedding, x):
@@ -227,3 +143,19 @@ def _per_vertex(embedding, x):
     if emb.ndim == 1:
         emb = jnp.broadcast_to(emb, (x.shape[0], emb.shape[0]))
     return emb
+
+
+def _params(module: nn.Module, x, **options):
+    """A field-convolution module's :class:`~jmeshtex.ops.FieldConvParams` from ``x``'s channels to
+    ``module.features``, drawn by :func:`jmeshtex.ops.init_field_conv` with ``options``."""
+    return pytree_params(
+        module,
+        lambda key: init_field_conv(
+            key,
+            x.shape[-1],
+            module.features,
+            hdim=module.hdim,
+            dtype=module.param_dtype,
+            **options,
+        ),
+    )

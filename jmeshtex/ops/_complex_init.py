@@ -8,8 +8,8 @@ import math
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._types import Array, PRNGKey
 from ._numerics import check_key, check_size, complex_dtype, real_dtype
@@ -86,9 +86,7 @@ def _check_shape(shape, where: str) -> None:
         dims = tuple(shape)
     except TypeError:
         dims = None
-    if dims is None or not all(
-        isinstance(d, (int, np.integer)) and not isinstance(d, bool) and d >= 0 for d in dims
-    ):
+    if dims is None or not all(is_int(d, 0) for d in dims):
         raise InputError(
             f"{where}: weight shape must be a tuple of integers >= 0 (layer widths), got {shape!r}"
         )

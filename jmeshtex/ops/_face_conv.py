@@ -32,7 +32,14 @@ import jax.numpy as jnp
 from .._errors import InputError
 from .._neighborhoods import FaceNeighborhood
 from .._types import Array, ArrayLike, Bool, Float, PRNGKey
-from ._numerics import check_key, elementwise_max, masked_mean, safe_norm, safe_normalize
+from ._numerics import (
+    check_key,
+    check_size,
+    elementwise_max,
+    masked_mean,
+    safe_norm,
+    safe_normalize,
+)
 
 
 class EdgeFrames(NamedTuple):
@@ -416,8 +423,7 @@ def init_face_conv(
       ((16, 3), (3,))
     """
     for name, value in (("in_features", in_features), ("out_features", out_features)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise InputError(f"init_face_conv: {name} must be a positive integer, got {value!r}")
+        check_size(value, name, "init_face_conv")
     check_key(key, "init_face_conv")
     bound = 1.0 / math.sqrt(2 * in_features)
     k_w, k_b = jax.random.split(key)

@@ -4,12 +4,12 @@ A real, rotation-invariant rescale per channel: no bias and no mean subtraction,
 features keep their frame.
 """
 
-import math
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
+from .._config import is_finite_number
 from .._errors import InputError
 from .._types import Array, ArrayLike, Bool, Complex, Float
 from ._numerics import abs2, check_complex, check_delta, check_size, real_dtype
@@ -35,7 +35,7 @@ def init_frn(features: int, *, dtype=jnp.float32, eps: float = 1e-3) -> FRNParam
       [1.0, 1.0, 1.0]
     """
     check_size(features, "features", "init_frn")
-    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not math.isfinite(eps):
+    if not is_finite_number(eps):
         raise InputError(f"init_frn: eps must be a finite number (|eps| is used), got {eps!r}")
     dtype = real_dtype(dtype)
     return FRNParams(scale=jnp.ones((features,), dtype), eps=jnp.full((features,), eps, dtype))

@@ -13,6 +13,7 @@ import math
 import jax
 import jax.numpy as jnp
 
+from .._config import is_int
 from .._errors import ConfigError, InputError
 from .._types import Array, ArrayLike, Bool, Complex, Float, Inexact
 
@@ -31,7 +32,7 @@ def _numeric(x, name: str, where: str):
 
 
 def _check_axis(axis, ndim: int, where: str) -> int:
-    if isinstance(axis, bool) or not isinstance(axis, int) or not -ndim <= axis < ndim:
+    if not is_int(axis) or not -ndim <= axis < ndim:
         raise InputError(f"{where}: axis={axis!r} is not an axis of a {ndim}-d array")
     return axis % ndim
 
@@ -195,11 +196,7 @@ def check_key(key, name: str) -> None:
 def check_size(value, name: str, where: str, *, minimum: int = 1) -> int:
     """Return ``int(value)`` or raise :class:`~jmeshtex.InputError` unless it is an integer
     ``>= minimum`` (a static shape argument: bools and floats are refused, NumPy integers pass)."""
-    import numpy as np
-
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{where}: {name} must be an integer >= {minimum}, got {value!r}")
-    if value < minimum:
+    if not is_int(value, minimum):
         raise InputError(f"{where}: {name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
 

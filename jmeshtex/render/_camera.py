@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from .._mesh import as_mesh
 from ..geometry import up_vector
@@ -282,10 +283,10 @@ def orbit_cameras(
         raise InputError(f"vertices must be [V, 3] with V >= 1, got shape {v.shape}")
     if not np.isfinite(v).all():
         raise InputError("vertices hold NaN or infinite values: cannot frame the camera rig")
-    if isinstance(azimuths, (int, np.integer)):
-        if azimuths < 1:
+    if np.ndim(azimuths) == 0:
+        if not is_int(azimuths, 1):
             raise InputError(
-                f"azimuths must be >= 1 (a count) or a list of degrees, got {azimuths}"
+                f"azimuths must be an integer >= 1 (a count) or a list of degrees, got {azimuths!r}"
             )
         az = [360.0 * k / int(azimuths) for k in range(int(azimuths))]
     else:

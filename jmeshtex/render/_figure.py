@@ -15,7 +15,7 @@ import numpy as np
 from .._errors import InputError
 from ..io import atomic_write, save_png
 from ._camera import orbit_cameras
-from ._render import render_views
+from ._render import image01, render_views
 from ._render_mesh import title_strip
 
 _STRIP = 20  # title strip above each tile, pixels
@@ -27,30 +27,12 @@ def as_rgb(image, name: str) -> np.ndarray:
     RGBA images are composited over white.
     """
     img = np.asarray(image)
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, axis=2)
-    if (
-        img.ndim != 3
-        or img.shape[2] not in (3, 4)
-        or min(img.shape[:2]) < 1
-        or not np.issubdtype(img.dtype, np.number)
-    ):
-        raise InputError(
-            f"{name} must be an image [H, W], [H, W, 3] or [H, W, 4], got shape {img.shape}"
-        )
-    if img.dtype == np.uint8:
-        f = img.astype(np.float64) / 255.0
-    elif np.issubdtype(img.dtype, np.integer):
-        raise InputError(f"{name}: integer images must be uint8, got {img.dtype}")
-    else:
-        if not np.isfinite(img).all():
-            raise InputError(f"{name} holds NaN or infinite values")
-        f = np.clip(img.astype(np.float64), 0.0, 1.0)
-    if img.shape[2] == 4:
-        f = f[..., :3] * f[..., 3:] + (1.0 - f[..., 3:])
-    elif img.dtype == np.uint8:
+    if img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3 and min(img.shape[:2]) >= 1:
         return img
-    return np.round(f[..., :3] * 255.0).astype(np.uint8)
+    f = image01(img, name)
+    if f.shape[2] == 4:
+        f = f[..., :3] * f[..., 3:] + (1.0 - f[..., 3:])
+    return np.round(f * 255.0).astype(np.uint8)
 
 
 def render_grid(

@@ -105,9 +105,15 @@ def colors01(values, rows: int, name: str) -> np.ndarray:
     return np.clip(c[:, :3].astype(np.float64), 0.0, 1.0)
 
 
-def texture01(texture, name: str = "texture") -> np.ndarray:
-    """An image ``[H, W]`` / ``[H, W, 3|4]`` (uint8 or float in [0, 1]) as float32 RGB ``[H, W, 3]``."""
-    img = np.asarray(texture)
+def image01(image, name: str) -> np.ndarray:
+    """An image ``[H, W]`` / ``[H, W, 3|4]`` (uint8 or float in [0, 1]) as float64 ``[H, W, 3|4]``
+    in [0, 1] (alpha kept); a typed error for any other shape, dtype or non-finite value.
+
+    Example:
+      >>> image01(np.array([[0, 255]], np.uint8), "image").shape
+      (1, 2, 3)
+    """
+    img = np.asarray(image)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
     if (
@@ -119,14 +125,19 @@ def texture01(texture, name: str = "texture") -> np.ndarray:
         raise InputError(
             f"{name} must be an image [H, W], [H, W, 3] or [H, W, 4], got shape {img.shape}"
         )
-    img = img[..., :3]
     if img.dtype == np.uint8:
-        return img.astype(np.float32) / 255.0
+        return img.astype(np.float64) / 255.0
     if np.issubdtype(img.dtype, np.integer):
         raise InputError(f"{name}: integer images must be uint8, got {img.dtype}")
     if not np.isfinite(img).all():
         raise InputError(f"{name} holds NaN or infinite values")
-    return np.clip(img, 0.0, 1.0).astype(np.float32)
+    return np.clip(img.astype(np.float64), 0.0, 1.0)
+
+
+def texture01(texture, name: str = "texture") -> np.ndarray:
+    """An image ``[H, W]`` / ``[H, W, 3|4]`` (uint8 or float in [0, 1]) as float32 RGB ``[H, W, 3]``
+    (alpha ignored)."""
+    return image01(texture, name)[..., :3].astype(np.float32)
 
 
 def scalar_colors(scalars, n_v: int, n_f: int, cmap: str, clim) -> tuple[np.ndarray, bool]:

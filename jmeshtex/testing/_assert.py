@@ -10,6 +10,7 @@ from collections.abc import Callable, Mapping, Sequence
 import jax
 import numpy as np
 
+from .._config import is_int
 from .._errors import InputError
 from ._check_cache import CheckCache
 from ._equivariance import DEFAULT_TOLERANCE, _to_device, check_dtype, relative_error
@@ -129,7 +130,7 @@ def assert_equivariant(
 
 
 def _seed(key) -> int:
-    if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
+    if is_int(key):
         return int(key)
     try:
         data = np.asarray(jax.random.key_data(key))

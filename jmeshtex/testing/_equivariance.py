@@ -20,7 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ConfigError
+from .._config import is_int
+from .._errors import ConfigError, InputError
 from ._fields import Field
 from ._transforms import Realisation, Transform
 
@@ -67,7 +68,7 @@ def relative_error(actual, expected) -> float:
     a = [np.asarray(x) for x in jax.tree.leaves(actual)]
     b = [np.asarray(x) for x in jax.tree.leaves(expected)]
     if len(a) != len(b) or any(x.shape != y.shape for x, y in zip(a, b, strict=True)):
-        raise ValueError(
+        raise InputError(
             f"output structures differ: {[x.shape for x in a]} vs {[y.shape for y in b]}"
         )
     num = np.sqrt(
@@ -199,10 +200,13 @@ def convergence(
         contains q, so the vertices that select a left-out vertex are left out too, ``hops - 1``
         times over; the selection must then be ``[V, k]`` neighbour indices (negative: padding).
     """
-    if isinstance(hops, bool) or not isinstance(hops, (int, np.integer)) or hops < 1:
-        raise ValueError(f"convergence: hops must be an integer ≥ 1, got {hops!r}")
+    if not is_int(hops, 1):
+        raise InputError(f"convergence: hops must be an integer ≥ 1, got {hops!r}")
     if not transform.family:
-        raise ValueError(f"{transform.name!r} is not a family of meshes")
+        raise InputError(
+            f"convergence: {transform.name!r} is not a family of meshes; pass a transform with "
+            "family=True (a smooth-isometry family, see jmeshtex.testing.CATALOGUE)"
+        )
     dtype = check_dtype(dtype, "convergence")
     errors, excluded = [], []
     for n in resolutions:
@@ -238,7 +242,7 @@ def _within_hops(same: np.ndarray, neighbours: np.ndarray, hops: int) -> np.ndar
         return keep
     nb = np.asarray(neighbours).reshape(len(keep), -1)
     if not np.issubdtype(nb.dtype, np.integer):
-        raise ValueError(
+        raise InputError(
             "convergence: hops > 1 needs a selection of [V, k] integer neighbour indices, "
             f"got dtype {nb.dtype}"
         )

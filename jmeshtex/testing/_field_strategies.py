@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import strategies as st
 
+from .._errors import InputError
 from ._fields import FACE_SCALAR, VERTEX_SCALAR, VERTEX_TANGENT, VERTEX_VECTOR, Field
 
 
@@ -54,7 +55,10 @@ def features(draw, kind: str, n: int, channels: int = 4, *, zero_rows: bool = Tr
     elif kind == VERTEX_VECTOR:
         x = rng.standard_normal((n, channels, 3))
     else:
-        raise ValueError(f"no feature strategy for kind {kind!r}")
+        raise InputError(
+            f"no feature strategy for kind {kind!r}; use one of {VERTEX_SCALAR!r}, "
+            f"{FACE_SCALAR!r}, {VERTEX_TANGENT!r}, {VERTEX_VECTOR!r}"
+        )
     x = x * scale
     if zero_rows and draw(st.booleans()):
         x[:: max(n // 4, 1)] = 0

@@ -13,6 +13,7 @@ from typing import TypeVar
 import numpy as np
 from hypothesis import HealthCheck, settings
 
+from .._config import is_int
 from .._errors import InputError
 from .._neighborhoods import _AXES, pad_to
 
@@ -39,12 +40,10 @@ def hypothesis_profile(*, max_examples: int = 20, load: bool = True) -> settings
       >>> hypothesis_profile(max_examples=5, load=False).deadline is None
       True
     """
-    if isinstance(max_examples, bool) or not isinstance(max_examples, (int, np.integer)):
+    if not is_int(max_examples, 1):
         raise InputError(
-            f"hypothesis_profile: max_examples must be an integer, got {max_examples!r}"
+            f"hypothesis_profile: max_examples must be ≥ 1 (an integer), got {max_examples!r}"
         )
-    if max_examples < 1:
-        raise InputError(f"hypothesis_profile: max_examples must be ≥ 1, got {max_examples}")
     settings.register_profile(
         PROFILE,
         max_examples=int(max_examples),
@@ -65,7 +64,7 @@ def bucket(n: int, minimum: int = 8) -> int:
       [8, 8, 16, 64, 64, 128]
     """
     for name, value in (("n", n), ("minimum", minimum)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        if not is_int(value, 0):
             raise InputError(f"bucket: {name} must be a non-negative integer, got {value!r}")
     return 1 << (max(int(n), int(minimum), 1) - 1).bit_length()
 

@@ -33,6 +33,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import InputError
 from ._check_cache import CheckCache
 from ._equivariance import DEFAULT_TOLERANCE, check_dtype, convergence, equivariance_error
 from ._fields import (
@@ -151,14 +152,14 @@ def register(entry: Entry, *, replace: bool = False) -> Entry:
       >>> _ = REGISTRY.pop("user.scale")
     """
     if entry.name in REGISTRY and not replace:
-        raise ValueError(
+        raise InputError(
             f"an operator named {entry.name!r} is already registered (replace=True replaces it)"
         )
     unknown = [
         t for t in (*entry.transforms, *entry.expect_fail, *entry.report) if t not in CATALOGUE
     ]
     if unknown:
-        raise ValueError(
+        raise InputError(
             f"{entry.name}: unknown transforms {unknown}; see jmeshtex.testing.CATALOGUE"
         )
     REGISTRY[entry.name] = entry
@@ -220,7 +221,9 @@ def random_inputs(
         elif kind == FACE_VECTOR:
             value = rng.standard_normal((F, c, 3))
         else:
-            raise ValueError(f"{name}: cannot draw random inputs of kind {kind!r}")
+            raise InputError(
+                f"{name}: cannot draw random inputs of kind {kind!r}; give the entry a make_inputs"
+            )
         out[name] = Field(kind, value)
     return out
 

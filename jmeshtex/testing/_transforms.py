@@ -33,6 +33,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .._errors import InputError
 from ._fields import (
     EXTRINSIC_KINDS,
     FACE_EDGE,
@@ -121,7 +122,9 @@ class Realisation:
         """Carry a source value to the target (see ``jmeshtex/testing/_fields.py`` for the rules)."""
         kind, x = field
         if not self.acts_on(kind):
-            raise ValueError(f"transform {self.name!r} has no action on {kind!r} values")
+            raise InputError(
+                f"transform {self.name!r} has no action on {kind!r} values; check acts_on(kind) first"
+            )
         x = np.asarray(x)
         if kind == INVARIANT:
             return field
@@ -145,7 +148,9 @@ class Realisation:
             return Field(kind, (x @ self.rotation.T)[self.fperm].astype(x.dtype))
         if kind == POINTS:
             return Field(kind, (x @ self.rotation.T + self.translation)[self.vperm].astype(x.dtype))
-        raise ValueError(f"unknown kind {kind!r}")
+        raise InputError(
+            f"unknown field kind {kind!r}; see jmeshtex/testing/_fields.py for the kinds"
+        )
 
 
 def _identity(state: MeshState, target: MeshState, name: str, **kw) -> Realisation:
@@ -229,7 +234,6 @@ class Transform:
           >>> CATALOGUE["fold"].draw(rng, resolution=4).source.num_vertices
           25
         """
-        from .._errors import InputError
 
         if self.family:
             if state is not None:

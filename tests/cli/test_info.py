@@ -70,7 +70,7 @@ def test_invalid_mesh_prints_the_typed_error_and_exits_2(tmp_path, capsys):
     [
         ("missing.obj", None, "neither a mesh file nor one of the procedural names"),
         ("junk.ply", b"not a ply file", "cannot read mesh"),
-        ("mesh.stl", b"solid x\n", "unsupported format"),
+        ("mesh.stl", b"solid x\n", "unsupported mesh format"),
     ],
 )
 def test_unreadable_files_give_a_clean_message(tmp_path, capsys, name, content, message):

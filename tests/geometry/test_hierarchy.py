@@ -27,13 +27,7 @@ from jmeshtex.geometry import (
     validate_mesh,
 )
 from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes, fold_sheet, valid_meshes
-
-
-def _euler(v, f):
-    edges = np.unique(
-        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
-    )
-    return len(v) - len(edges) + len(f)
+from tests.geometry._helpers import euler
 
 
 def _level_graph(h, level):
@@ -71,7 +65,7 @@ def test_levels_keep_topology_and_are_subsets(make, chi, loops, stretch):
     for level in range(h.num_levels):
         vl, fl = h.vertices[level], h.faces[level]
         validate_mesh(vl, fl)  # manifold, oriented, no degenerate faces
-        assert _euler(vl, fl) == chi and len(boundary_loops(fl)) == loops
+        assert euler(vl, fl) == chi and len(boundary_loops(fl)) == loops
         np.testing.assert_array_equal(vl, v[h.vertex_index[level]])
         if level:
             assert set(h.vertex_index[level]) <= set(h.vertex_index[level - 1])
@@ -239,7 +233,7 @@ def test_several_components_and_boundaries():
     for fl, vl in zip(h.faces, h.vertices, strict=True):
         validate_mesh(vl, fl)
         assert connected_components(fl).max() == 1 and len(boundary_loops(fl)) == 1
-        assert _euler(vl, fl) == 1
+        assert euler(vl, fl) == 1
 
 
 def test_level_zero_is_the_input_neighborhood():
@@ -286,7 +280,7 @@ def test_real_open_mesh_with_several_components(shared_data):
     for vl, fl in zip(h.vertices, h.faces, strict=True):
         validate_mesh(vl, fl)
         assert len(boundary_loops(fl)) == loops and connected_components(fl).max() == parts
-        assert _euler(vl, fl) == _euler(v, f)
+        assert euler(vl, fl) == euler(v, f)
     assert len(h.vertices[2]) == math.ceil(0.5 * math.ceil(0.5 * len(v)))
 
 
@@ -297,7 +291,7 @@ def test_property_any_valid_mesh_decimates_with_its_topology(mesh):
     loops, parts = len(boundary_loops(f)), connected_components(f).max()
     for level, (vl, fl) in enumerate(zip(h.vertices, h.faces, strict=True)):
         validate_mesh(vl, fl)
-        assert _euler(vl, fl) == _euler(v, f)
+        assert euler(vl, fl) == euler(v, f)
         assert len(boundary_loops(fl)) == loops and connected_components(fl).max() == parts
         if level:
             n = len(h.vertices[level - 1])

@@ -17,13 +17,7 @@ from jmeshtex.geometry import (
     surface_correspondence,
     validate_mesh,
 )
-
-
-def _euler(v, f):
-    edges = np.unique(
-        np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0
-    )
-    return len(v) - len(edges) + len(f)
+from tests.geometry._helpers import euler
 
 
 def _two_spheres():
@@ -48,7 +42,7 @@ def test_same_surface_same_topology(make, n):
     validate_mesh(m.vertices, m.faces)
     assert m.num_vertices == n
     assert m.uv is None and m.texture is None and m.vertex_colors is None
-    assert _euler(m.vertices, m.faces) == _euler(v, f)
+    assert euler(m.vertices, m.faces) == euler(v, f)
     assert len(boundary_loops(m.faces)) == len(boundary_loops(f))
     assert connected_components(m.faces).max() == connected_components(f).max()
     dist2, _, _ = igl.point_mesh_squared_distance(m.vertices, v, f)

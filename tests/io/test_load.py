@@ -194,8 +194,8 @@ def test_foreign_glb_scene_with_two_meshes_is_concatenated(tmp_path):
         ("bad_index.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 5\n", "outside the range"),
         ("junk.ply", bytes(range(256)) * 2, "Not a ply"),
         ("junk.glb", b"glTF" + bytes(100), "cannot read mesh"),
-        ("mesh.stl", b"solid x\nendsolid x\n", "unsupported format '.stl'"),
-        ("noext", b"v 0 0 0\n", "unsupported format"),
+        ("mesh.stl", b"solid x\nendsolid x\n", "unsupported mesh format '.stl'"),
+        ("noext", b"v 0 0 0\n", "unsupported mesh format"),
     ],
 )
 def test_unreadable_files_raise_mesh_io_error(tmp_path, name, content, match):

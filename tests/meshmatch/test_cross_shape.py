@@ -141,22 +141,20 @@ def test_y_up_models_match_as_their_z_up_copies():
     source, sc, target, _, _, _ = _pair()
     turn = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # z -> y
     cfg = dict(levels=2, steps=3, coarse_steps=6, hks_eigenpairs=8)
-    z = meshmatch(source, sc, target, key=jax.random.key(0), config=Config.intrinsic(up="z", **cfg))
-    y = meshmatch(
-        Mesh(source.vertices @ turn.T, source.faces),
-        sc,
-        Mesh(target.vertices @ turn.T, target.faces),
-        key=jax.random.key(0),
-        config=Config.intrinsic(up="y", **cfg),
-    )
+
+    def match(rotation, up):
+        return meshmatch(
+            Mesh(source.vertices @ rotation.T, source.faces),
+            sc,
+            Mesh(target.vertices @ rotation.T, target.faces),
+            key=jax.random.key(0),
+            config=Config.intrinsic(up=up, **cfg),
+        )
+
+    z = match(np.eye(3), "z")
+    y = match(turn, "y")
     assert np.mean(z.nnf == y.nnf) > 0.95
-    wrong = meshmatch(
-        Mesh(source.vertices @ turn.T, source.faces),
-        sc,
-        Mesh(target.vertices @ turn.T, target.faces),
-        key=jax.random.key(0),
-        config=Config.intrinsic(up="z", **cfg),
-    )
+    wrong = match(turn, "z")
     assert np.mean(wrong.nnf == z.nnf) < 0.9  # the up axis matters: a wrong one changes the match
 
 

@@ -503,5 +503,5 @@ def test_one_layer_init_is_the_stacks_layer_and_checks_its_widths():
     assert face_conv(x, face_neighborhood(mesh), params).shape == (mesh.num_faces, 3)
     bound = 1 / (2 * 5) ** 0.5  # Conv1d's default on [x_j ; x_f]
     assert 0.5 * bound < float(abs(params.weight).max()) <= bound
-    with pytest.raises(InputError, match="out_features must be a positive integer"):
+    with pytest.raises(InputError, match="out_features must be an integer >= 1"):
         init_face_conv(jax.random.key(0), 5, 0)

@@ -7,6 +7,8 @@ the README figures and the evaluation protocol share one rig.
 
 from __future__ import annotations
 
+import os
+import pathlib
 from collections.abc import Callable
 
 import numpy as np
@@ -59,3 +61,10 @@ def say(progress: Progress, text: str) -> None:
     """Report ``text`` to a stage's progress hook (no-op without one)."""
     if progress is not None:
         progress(text)
+
+
+def folder(out_dir: str | os.PathLike) -> pathlib.Path:
+    """A stage's output folder, created (with its parents) if missing."""
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return out

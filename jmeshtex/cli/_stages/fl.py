@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import pathlib
 import time
 
 import numpy as np
 
-from ._views import Progress, say, view
+from ._views import Progress, folder, say, view
 
 
 def demo_mesh(quick: bool = True):
@@ -48,10 +47,6 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
       ``{"summary": str, "psnr_db": float, "dssim": float, "flat_psnr_db": float,
       "permuted_psnr_db": float, "p1_oracle_psnr_db": float, "p1_fit_psnr_db": float,
       "seconds": float, "files": [...]}``.
-
-    Example:
-      >>> import tempfile
-      >>> out = demo_stage(tempfile.mkdtemp(), quick=True)  # doctest: +SKIP
     """
     import jax
 
@@ -61,8 +56,7 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     from ...metrics import flat_baseline, permuted_baseline
     from ...render import figure
 
-    out = pathlib.Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = folder(out_dir)
     t0 = time.perf_counter()
     model = load_pretrained()
     config = model.config

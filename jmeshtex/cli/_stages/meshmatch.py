@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import pathlib
 import time
 
 import numpy as np
 
-from ._views import Progress, say, view
+from ._views import Progress, folder, say, view
 
 
 def demo_meshes(quick: bool = True):
@@ -34,10 +33,6 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     Returns:
       ``{"summary": str, "psnr_db": float, "random_psnr_db": float, "flat_psnr_db": float,
       "seconds": float, "files": [...]}``.
-
-    Example:
-      >>> import tempfile
-      >>> out = demo_stage(tempfile.mkdtemp(), quick=True)  # doctest: +SKIP
     """
     import jax
 
@@ -46,8 +41,7 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     from ...meshmatch.core import nnf_colors
     from ...metrics import flat_baseline, psnr
 
-    out = pathlib.Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = folder(out_dir)
     t0 = time.perf_counter()
     source, target, truth = demo_meshes(quick)
     sc = source.vertex_colors

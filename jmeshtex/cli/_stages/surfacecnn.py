@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import pathlib
 import time
 
 import numpy as np
 
-from ._views import Progress, say, view
+from ._views import Progress, folder, say, view
 
 #: the Gram layers of the quick demo (the first three VGG blocks: fast to compile on a CPU)
 QUICK_LAYERS = ("relu1_1", "relu1_2", "pool1", "relu2_1", "relu2_2", "pool2", "relu3_1")
@@ -43,10 +42,6 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
 
     Returns:
       ``{"summary": str, "loss_drop": float, "seconds": float, "files": [...]}``.
-
-    Example:
-      >>> import tempfile
-      >>> out = demo_stage(tempfile.mkdtemp(), quick=True)  # doctest: +SKIP
     """
     import jax
 
@@ -55,8 +50,7 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
     from ...metrics import flat_baseline, permuted_baseline
     from ...render import figure
 
-    out = pathlib.Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = folder(out_dir)
     t0 = time.perf_counter()
     exemplar = demo_exemplar()
     config = surfacecnn.Config(size=128, steps=40 if quick else 150)
