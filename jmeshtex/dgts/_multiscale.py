@@ -237,33 +237,29 @@ def regularizer_loss(
 _CHUNK = 50
 
 
-@functools.lru_cache(maxsize=16)
-def _fit_runner(config: PrepareConfig, num_samples: int):
-    """A jit-compiled runner of up to ``_CHUNK`` Adam steps (one per config and sample count, so a
-    second :func:`fit_level` call with the same shapes does not recompile)."""
+@functools.partial(jax.jit, static_argnames=("config", "num_samples"))
+def _fit_chunk(v, state, key, geo, n, *, config: PrepareConfig, num_samples: int):
+    """Up to ``_CHUNK`` Adam steps (``n`` of them) of :func:`fitting_loss` in one compiled call;
+    ``state``: ``optax.adam(config.learning_rate)``'s. Returns ``(v, state, the last terms)``."""
     opt = optax.adam(config.learning_rate)
 
-    @jax.jit
-    def run_chunk(v, state, key, geo, n):
-        def body(i, carry):
-            v, state, _ = carry
-            (_, terms), g = jax.value_and_grad(
-                lambda x: fitting_loss(
-                    x, geo, key=jax.random.fold_in(key, i), config=config, num_samples=num_samples
-                ),
-                has_aux=True,
-            )(v)
-            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-                updates, state = opt.update(g, state, v)
-            return optax.apply_updates(v, updates), state, terms
+    def body(i, carry):
+        v, state, _ = carry
+        (_, terms), g = jax.value_and_grad(
+            lambda x: fitting_loss(
+                x, geo, key=jax.random.fold_in(key, i), config=config, num_samples=num_samples
+            ),
+            has_aux=True,
+        )(v)
+        with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+            updates, state = opt.update(g, state, v)
+        return optax.apply_updates(v, updates), state, terms
 
-        terms0 = jax.eval_shape(
-            lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v
-        )
-        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
-        return jax.lax.fori_loop(0, n, body, (v, state, zeros))
-
-    return run_chunk, opt
+    terms0 = jax.eval_shape(
+        lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v
+    )
+    zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
+    return jax.lax.fori_loop(0, n, body, (v, state, zeros))
 
 
 def fit_level(
@@ -319,16 +315,23 @@ def fit_level(
             progress=progress,
         )
         return np.asarray(v, np.float64), terms
-    run_chunk, opt = _fit_runner(config, int(num_samples))
     chunk = _CHUNK
     v = jnp.asarray(vertices, jnp.float32)
-    state = opt.init(v)
+    state = optax.adam(config.learning_rate).init(v)
     terms: dict = {}
     done = 0
     n_chunks = -(-int(config.steps) // chunk)
     for c in range(n_chunks):
         n = min(chunk, int(config.steps) - done)
-        v, state, terms = run_chunk(v, state, jax.random.fold_in(key, c), geo, jnp.int32(n))
+        v, state, terms = _fit_chunk(
+            v,
+            state,
+            jax.random.fold_in(key, c),
+            geo,
+            jnp.int32(n),
+            config=config,
+            num_samples=int(num_samples),
+        )
         done += n
         if progress is not None:
             progress(done)
