@@ -439,15 +439,9 @@ def depth(
         t0, c0 = time.perf_counter(), time.process_time()
         reference, tm = depth_meshes(kind, levels, folder)
         prepare = (time.perf_counter() - t0, time.process_time() - c0)
-        cfg = Config(steps=steps)
+        cfg = Config(steps=steps, checkpoint_every=checkpoint_every)
         t0, c0 = time.perf_counter(), time.process_time()
-        result = train(
-            tm,
-            cfg,
-            key=jax.random.key(0),
-            checkpoint_dir=folder / "checkpoints",
-            checkpoint_every=checkpoint_every,
-        )
+        result = train(tm, cfg, key=jax.random.key(0), checkpoint_dir=folder / "checkpoints")
         trained = result.model
         save(trained, folder)  # folder/model.npz
         untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
@@ -568,10 +562,14 @@ def noise_response(
         c0, t0 = time.process_time(), time.perf_counter()
         result = train(
             references,
-            Config(steps=steps, fake_inputs=choice, fixed_noise_levels=fixed_noise_levels),
+            Config(
+                steps=steps,
+                fake_inputs=choice,
+                fixed_noise_levels=fixed_noise_levels,
+                checkpoint_every=250,
+            ),
             key=jax.random.key(0),
             checkpoint_dir=run / "checkpoints",
-            checkpoint_every=250,
             progress=False,
         )
         save(result.model, run)  # run/model.npz
@@ -888,11 +886,10 @@ def receptive_field(
         c0, t0 = time.process_time(), time.perf_counter()
         result = train(
             references,
-            cfg,
+            cfg.replace(checkpoint_every=250),
             key=jax.random.key(0),
             levels=levels,
             checkpoint_dir=run / "checkpoints",
-            checkpoint_every=250,
             progress=False,
         )
         save(result.model, run)

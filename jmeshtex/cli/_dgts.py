@@ -273,7 +273,7 @@ def _train(args) -> int:
     references = [tm] + [
         load_training_meshes(args.dir / f"training_remesh{i}.npz") for i in range(1, remeshes)
     ]
-    changes = {"shared_levels": args.shared_levels}
+    changes = {"shared_levels": args.shared_levels, "checkpoint_every": args.checkpoint_every}
     if args.steps is not None:
         changes["steps"] = args.steps
     if args.layers is not None:
@@ -291,7 +291,6 @@ def _train(args) -> int:
         levels=args.levels,
         progress=not args.quiet,
         checkpoint_dir=args.dir / "checkpoints",
-        checkpoint_every=args.checkpoint_every,
         snapshot_every=args.snapshot_every,
     )
     if args.snapshot_every is not None:
