@@ -242,8 +242,7 @@ def level_batch(
     levels ``0 … L−1`` on it (forward only).
 
     All draws of the chunk (``chunk·(D + G)`` fakes, and the reconstruction) go through each frozen
-    level as one batch, level by level: the compiled level step depends only on that level's sizes
-    and on the batch size, so it is compiled once and reused by every later level and chunk.
+    level as one batch, so each level's compiled pass is reused by every later level and chunk.
 
     Args:
       model_levels: the frozen levels' generators.
@@ -262,25 +261,19 @@ def level_batch(
         reconstructions; ``alpha`` ``[chunk, D]`` the penalty's weights.
 
     Returns:
-      :class:`LevelBatch`. Each step draws one reference (always the first when ``R = 1``); its
-      fakes start from that reference's template, its reconstruction and real mesh are that
-      reference's. With ``L ≥ reconstruction_start`` the reconstructions are ``R`` fixed rows
+      :class:`LevelBatch`. Each step draws one reference (the first when ``R = 1``): its fakes
+      start from its template, its reconstruction and real mesh are its own. With ``L ≥ reconstruction_start`` the reconstructions are ``R`` fixed rows
       (``z*`` at level 0, ``z_finer`` above it, then zero noise), run once and gathered per step.
     """
-    c = config
-    L = len(model_levels)
+    c, L, dtype, R = config, len(model_levels), templates.dtype, int(templates.shape[0])
     D, G = c.discriminator_steps, c.generator_steps
-    dtype = templates.dtype
-    R = int(templates.shape[0])
     sizes = [int(g.nbhd.vertex_mask.shape[0]) for g in geos[: L + 1]]
     fixed_rec = L >= c.reconstruction_start
-    n_fake = chunk * (D + G)
-    n_fresh = n_fake + (0 if fixed_rec else chunk * G)
+    n_fresh = chunk * (D + G) + (0 if fixed_rec else chunk * G)
     keys = jax.random.split(key, L + 2)
+    ref = jnp.zeros((chunk,), jnp.int32)  # each step's reference
     if R > 1:
         ref = jax.random.randint(jax.random.fold_in(key, L + 2), (chunk,), 0, R, jnp.int32)
-    else:
-        ref = jnp.zeros((chunk,), jnp.int32)
     rec_ref = jnp.arange(R, dtype=jnp.int32) if fixed_rec else jnp.repeat(ref, G)
     rows = jnp.concatenate([jnp.repeat(ref, D + G), rec_ref])  # each row's reference
     # "reconstructed": every row's frozen levels run on the reconstruction's noise, so they run
@@ -299,38 +292,47 @@ def level_batch(
         fixed = rec_noise(level) if fixed_rec else jnp.zeros((0, sizes[level], 3), dtype)
         if level < L and shared:
             z = rec_noise(level)
-        elif noise is not None:
-            z = jnp.concatenate([jnp.asarray(noise[level], dtype), fixed], axis=0)
-            if z.shape != (n_fresh + fixed.shape[0], sizes[level], 3):
-                raise InputError(
-                    f"level_batch: noise[{level}] must be [{n_fresh}, {sizes[level]}, 3], "
-                    f"got {tuple(np.shape(noise[level]))}"
-                )
         else:
-            z = _noise(
-                keys[level],
-                fixed,
-                shape=(n_fresh, sizes[level], 3),
-                amplitude=float(c.noise_amplitude),
-            )
+            given = None if noise is None else noise[level]
+            z = _fresh_noise(keys[level], fixed, given, (n_fresh, sizes[level], 3), c, level)
         if level < L:
             v = _advance(model_levels[level], v, z, geos[level], config=c)
     if shared:  # z: level L's noise
         v = v[rows]
-    fake_base = v[:n_fake].reshape(chunk, D + G, sizes[L], 3)
-    fake_noise = z[:n_fake].reshape(chunk, D + G, sizes[L], 3)
-    if fixed_rec:
-        rec_base = jnp.broadcast_to(v[n_fake + ref][:, None], (chunk, G, sizes[L], 3))
-        rec_noise = jnp.broadcast_to(z[n_fake + ref][:, None], (chunk, G, sizes[L], 3))
-    else:
-        rec_base = v[n_fake:].reshape(chunk, G, sizes[L], 3)
-        rec_noise = z[n_fake:].reshape(chunk, G, sizes[L], 3)
     if alpha is None:
         alpha = jax.random.uniform(keys[L + 1], (chunk, D), dtype)
     elif np.shape(alpha) != (chunk, D):
         raise InputError(f"level_batch: alpha must be [{chunk}, {D}], got {np.shape(alpha)}")
-    alpha = jnp.asarray(alpha, dtype)
-    return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha, reals.astype(dtype)[ref])
+    return _batch_of_rows(v, z, ref, jnp.asarray(alpha, dtype), reals.astype(dtype), c, fixed_rec)
+
+
+def _fresh_noise(key, fixed, given, shape: tuple[int, int, int], config: Config, level: int):
+    """``[n + m, V, 3]``: ``n`` fresh draws (from ``key``, or ``given`` ones) then ``fixed``'s rows."""
+    if given is None:
+        return _noise(key, fixed, shape=shape, amplitude=float(config.noise_amplitude))
+    z = jnp.concatenate([jnp.asarray(given, fixed.dtype), fixed], axis=0)
+    if z.shape != (shape[0] + fixed.shape[0], *shape[1:]):
+        raise InputError(
+            f"level_batch: noise[{level}] must be [{shape[0]}, {shape[1]}, 3], "
+            f"got {tuple(np.shape(given))}"
+        )
+    return z
+
+
+def _batch_of_rows(v, z, ref, alpha, reals, config: Config, fixed_rec: bool) -> LevelBatch:
+    """The :class:`LevelBatch` of level-``L`` rows: bases ``v`` and noises ``z`` (``[N, V, 3]``: the
+    fakes step by step, then the reconstructions), each step's reference ``ref`` ``[K]``."""
+    (chunk,), D, G, V = ref.shape, config.discriminator_steps, config.generator_steps, v.shape[1]
+    n_fake = chunk * (D + G)
+    fake_base = v[:n_fake].reshape(chunk, D + G, V, 3)
+    fake_noise = z[:n_fake].reshape(chunk, D + G, V, 3)
+    if fixed_rec:  # one row per reference, gathered per step
+        rec_base = jnp.broadcast_to(v[n_fake + ref][:, None], (chunk, G, V, 3))
+        rec_noise = jnp.broadcast_to(z[n_fake + ref][:, None], (chunk, G, V, 3))
+    else:
+        rec_base = v[n_fake:].reshape(chunk, G, V, 3)
+        rec_noise = z[n_fake:].reshape(chunk, G, V, 3)
+    return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha, reals[ref])
 
 
 def critic_loss(
