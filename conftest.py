@@ -11,7 +11,9 @@
   ``JMESHTEX_TYPECHECK=0`` switches them off for a whole run;
 - BLAS runs one thread per test worker (the workers already use every core);
 - XLA compiles at its lowest optimisation level, except the programs that run in a loop
-  (``jmeshtex._jit.jit_loop``; ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully);
+  (``jmeshtex._jit.jit_loop``, the training driver's steps, ``parallel.data_parallel``), which this
+  file gives XLA's full level (``jmeshtex._jit.set_compiler_options``; the library alone leaves
+  ``XLA_FLAGS`` in charge); ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully;
 - JAX's persistent compilation cache is on, in one folder all xdist workers share under a file
   lock (``.pytest_cache/jax``, ``JMESHTEX_TEST_JAX_CACHE`` moves it, ``0`` turns it off): a program
   is compiled once per run, not once per worker, and a second run skips most compilation;
@@ -34,8 +36,9 @@ import sys
 # XLA compiles every program at its lowest optimisation level (read when JAX's backend starts, so
 # set before anything runs; subprocesses inherit it): most of the suite's programs run once, and
 # its compile-bound tests cost about 25 % less CPU (tests/ops: 148 -> 107 s). Programs that run in a
-# loop (training steps, samplers: ``jmeshtex._jit.jit_loop`` and the training driver) keep XLA's
-# full optimisation whatever this says. ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully.
+# loop (training steps, samplers: ``jmeshtex._jit.jit_loop`` and the training driver) get XLA's full
+# optimisation back below (at the lowest level an FLDM training step runs about 2.5x slower).
+# ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully.
 if os.environ.get("JMESHTEX_TEST_XLA_FULL") != "1":
     os.environ["XLA_FLAGS"] = " ".join(
         [
@@ -64,6 +67,12 @@ from hypothesis import HealthCheck, settings
 from threadpoolctl import threadpool_limits
 
 jax.config.update("jax_enable_x64", True)
+
+# the suite's trade-off, set before any module applies ``jit_loop`` / ``jit_once``: loops compile
+# fully whatever ``XLA_FLAGS`` above say; everything else follows them
+from jmeshtex._jit import FULL_OPTIMISATION, set_compiler_options  # noqa: E402
+
+set_compiler_options(loop=FULL_OPTIMISATION)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_debug_nans", True)
 # CPU unless JMESHTEX_TEST_PLATFORMS says otherwise (benchmarks/gpu_check.sh runs a subset on "cuda")

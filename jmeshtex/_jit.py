@@ -1,43 +1,74 @@
-"""How long XLA may spend optimising a program: by how often it runs.
+"""The library's jit: plain :func:`jax.jit`, marked by how often a program runs.
 
-- :func:`jit_once`: programs that run once or a few times on small inputs (parameter initialisers,
-  the equivariance harness's checks) compile at XLA's lowest optimisation level, where its passes
-  cost more than they save: an FLDM denoiser's initialiser (64 random draws) compiles in about half
-  the time (measured: 9.2 → 3.8 s on a loaded 2-core machine) and still runs in milliseconds.
-- :func:`jit_loop`: programs that run in a loop (training steps, samplers, texture optimisation)
-  compile at XLA's default, full optimisation (:data:`FULL_OPTIMISATION`) *whatever* ``XLA_FLAGS``
-  say, so a process that lowers XLA's level for everything else (the test suite does) keeps its
-  loops fast: at the lowest level an FLDM training step runs about 2.5× slower. The one training
-  driver (``jmeshtex._training.fit``) compiles every method's step with the same options.
+:func:`jit_once` marks programs that run once or a few times on small inputs (parameter
+initialisers, the equivariance harness's checks); :func:`jit_loop` marks programs that run in a
+loop (training steps, samplers, texture optimisation; the training driver ``jmeshtex._training.fit``
+compiles its steps as such). By default both *are* ``jax.jit(fun, **kwargs)``: the user's
+``XLA_FLAGS`` and JAX settings decide how everything compiles, and nothing is checked per call.
 
-Everything else keeps plain :func:`jax.jit`, so ``XLA_FLAGS`` decide.
+A process that owns its compilation trade-off may give each kind its own XLA options with
+:func:`set_compiler_options` *before* the modules that use these decorators are imported (they
+decide when they are applied). The test suite does (``conftest.py``: it lowers XLA's optimisation
+level for everything and keeps the loops at XLA's full level); the library itself never does.
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping
 
 import jax
 
-#: XLA options of :func:`jit_once` (both are plain ``DebugOptions``, valid on every backend)
+#: XLA options that compile fast (both are plain ``DebugOptions``, valid on every backend)
 FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
-#: XLA options of :func:`jit_loop`: XLA's own defaults (jaxlib 0.10), stated so that they win over
-#: ``XLA_FLAGS``
+#: XLA's own default, full optimisation (jaxlib 0.10), stated so that it can win over ``XLA_FLAGS``
 FULL_OPTIMISATION = {
     "xla_backend_optimization_level": 3,
     "xla_llvm_disable_expensive_passes": False,
 }
 
+#: the process's XLA options per kind of program; None: plain ``jax.jit`` (the default)
+_OPTIONS: dict[str, dict | None] = {"once": None, "loop": None}
 
-def _jit_with(options: dict, fun, kwargs: dict):
-    """``jax.jit(fun, **kwargs)`` compiled with ``options`` when called at top level.
 
-    JAX takes compiler options on a top-level call only: called with traced arguments (inside
-    another ``jit``, ``grad`` or ``vmap``) the function is the plain ``jax.jit`` one, compiled with
-    its caller.
+def set_compiler_options(
+    *, once: Mapping | None = None, loop: Mapping | None = None
+) -> dict[str, dict | None]:
+    """Give :func:`jit_once` / :func:`jit_loop` programs their own XLA options in this process.
+
+    For a process owner (a test suite, a benchmark), never called by the library. Applies to
+    functions decorated after the call; None restores plain ``jax.jit`` for that kind.
+
+    Returns:
+      The options before the call (to restore them).
+
+    Example:
+      >>> before = set_compiler_options(loop=FULL_OPTIMISATION)
+      >>> loop_options() == FULL_OPTIMISATION
+      True
+      >>> _ = set_compiler_options(**before)
     """
-    tuned = jax.jit(fun, compiler_options=options, **kwargs)
+    before = dict(_OPTIONS)
+    _OPTIONS.update(once=None if once is None else dict(once))
+    _OPTIONS.update(loop=None if loop is None else dict(loop))
+    return before
+
+
+def loop_options() -> dict | None:
+    """The XLA options of loop programs in this process (None: ``XLA_FLAGS`` decide); the training
+    driver passes them to its ahead-of-time compiles."""
+    return _OPTIONS["loop"]
+
+
+def _jit(kind: str, fun, kwargs: dict):
+    """``jax.jit(fun, **kwargs)``; with options set for ``kind``, compiled with them when called at
+    top level (JAX takes compiler options on a top-level call only: called with traced arguments,
+    inside another ``jit``, ``grad`` or ``vmap``, it is the plain ``jax.jit`` one)."""
+    options = _OPTIONS[kind]
     plain = jax.jit(fun, **kwargs)
+    if options is None:
+        return plain
+    tuned = jax.jit(fun, compiler_options=options, **kwargs)
 
     @functools.wraps(fun)
     def call(*args, **kw):
@@ -49,16 +80,16 @@ def _jit_with(options: dict, fun, kwargs: dict):
 
 
 def jit_once(fun=None, /, **kwargs):
-    """:func:`jax.jit` with :data:`FAST_COMPILE`; use as ``jit_once(f, ...)`` or a decorator
-    (``@jit_once`` or ``@jit_once(static_argnums=...)``). Traced arguments: plain ``jax.jit``."""
+    """:func:`jax.jit` of a program that runs once or a few times; use as ``jit_once(f, ...)`` or a
+    decorator (``@jit_once`` or ``@jit_once(static_argnums=...)``)."""
     if fun is None:
         return functools.partial(jit_once, **kwargs)
-    return _jit_with(FAST_COMPILE, fun, kwargs)
+    return _jit("once", fun, kwargs)
 
 
 def jit_loop(fun=None, /, **kwargs):
-    """:func:`jax.jit` with :data:`FULL_OPTIMISATION`; use as ``jit_loop(f, ...)`` or a decorator
-    (``@jit_loop`` or ``@jit_loop(static_argnames=...)``). Traced arguments: plain ``jax.jit``."""
+    """:func:`jax.jit` of a program that runs in a loop; use as ``jit_loop(f, ...)`` or a decorator
+    (``@jit_loop`` or ``@jit_loop(static_argnames=...)``)."""
     if fun is None:
         return functools.partial(jit_loop, **kwargs)
-    return _jit_with(FULL_OPTIMISATION, fun, kwargs)
+    return _jit("loop", fun, kwargs)

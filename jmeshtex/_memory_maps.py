@@ -7,6 +7,10 @@ worker, ``jmeshtex verify`` over the whole registry — passes the kernel's per-
 Cannot allocate memory") and the compile crashes the process. :func:`release_if_near_limit` clears
 JAX's compilation caches once the process nears that limit; callers run it between units of work.
 On systems without ``/proc`` it does nothing.
+
+Clearing the caches is process-wide, so only processes that own their whole lifetime call it: the
+``jmeshtex verify`` command (``cli/_verify.py``, between two checks) and the test suite's workers
+(``conftest.py``, after a test). No library function does.
 """
 
 from __future__ import annotations

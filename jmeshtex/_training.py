@@ -17,6 +17,18 @@ Example:
   >>> r = fit(step, jnp.zeros(2), lambda i: jnp.ones(2), steps=3, progress=False)
   >>> r.steps, r.losses["loss"].tolist(), r.model.tolist()
   (3, [2.0, 0.5, 0.125], [0.875, 0.875])
+
+A run stopped early (``stop_after``) continues from its checkpoint as if never interrupted:
+
+  >>> import tempfile
+  >>> step = jax.jit(lambda s, x: ({"w": s["w"] + x}, {"loss": jnp.sum(s["w"])}))
+  >>> state, policy = {"w": jnp.zeros(1)}, CheckpointPolicy(tempfile.mkdtemp(), every=1)
+  >>> part = fit(step, state, lambda i: jnp.ones(1), steps=4, stop_after=2,
+  ...            checkpoints=policy, progress=False)
+  >>> rest = fit(step, state, lambda i: jnp.ones(1), steps=4, checkpoints=policy,
+  ...            progress=False)
+  >>> rest.resumed_from, rest.losses["loss"].tolist()
+  (2, [0.0, 1.0, 2.0, 3.0])
 """
 
 from __future__ import annotations
@@ -34,7 +46,7 @@ import numpy as np
 
 from ._config import is_int
 from ._errors import CheckpointMismatchError, ConfigError, TrainingDivergedError
-from ._jit import FULL_OPTIMISATION
+from ._jit import loop_options
 from ._train_result import TrainResult
 from .io import Checkpoints
 from .parallel import fetch, is_multiprocess, replicate
@@ -167,65 +179,19 @@ def fit(
       ConfigError: checkpoints in a multi-process run (not supported yet).
       CheckpointMismatchError: the folder holds a checkpoint of another run (or one without
         this driver's loss record).
-
-    Example:
-      >>> import jax, jax.numpy as jnp, tempfile
-      >>> step = jax.jit(lambda s, x: ({"w": s["w"] + x}, {"loss": jnp.sum(s["w"])}))
-      >>> state, policy = {"w": jnp.zeros(1)}, CheckpointPolicy(tempfile.mkdtemp(), every=1)
-      >>> part = fit(step, state, lambda i: jnp.ones(1), steps=4, stop_after=2,
-      ...            checkpoints=policy, progress=False)
-      >>> rest = fit(step, state, lambda i: jnp.ones(1), steps=4, checkpoints=policy,
-      ...            progress=False)
-      >>> rest.resumed_from, rest.losses["loss"].tolist()
-      (2, [0.0, 1.0, 2.0, 3.0])
     """
     t_call = time.perf_counter() if started is None else started
     progress = progress if isinstance(progress, Progress) else Progress(bool(progress))
-    policy = _as_policy(checkpoints)
-    if policy.folder is not None and is_multiprocess():
-        raise ConfigError(
-            f"{progress.desc}: checkpoints with several processes (jax.distributed) are not "
-            "supported yet; train without checkpoints, or in one process"
-        )
-    own_ckpt = policy.folder is not None and not isinstance(policy.folder, Checkpoints)
-    ckpt = Checkpoints(policy.folder, fingerprint=policy.fingerprint) if own_ckpt else policy.folder
-    run = _Run(
-        step=step,
-        batches=batches,
-        policy=policy,
-        ckpt=ckpt,
-        desc=progress.desc,
-        compiled={} if compiled is None else compiled,
-        losses={k: [float(x) for x in v] for k, v in (history or {}).items()},
-        state=state if device_mesh is None else replicate(state, device_mesh),
-    )
-    bar = None
+    run = _Run.open(step, state, batches, _as_policy(checkpoints), progress.desc, device_mesh)
+    run.compiled = {} if compiled is None else compiled
+    run.losses = {k: [float(x) for x in v] for k, v in (history or {}).items()}
     try:
-        if start is None:
-            start = run.resume(device_mesh)
+        start = run.resume(device_mesh) if start is None else start
         end = max(start, steps if stop_after is None else min(steps, start + int(stop_after)))
-        if progress.bar and start < end:
-            bar = _progress_bar(progress, steps, start)
-        run.loop(start, end, steps_per_call, bar, progress.show, on_step)
+        run.loop(start, end, steps_per_call, progress, steps, on_step)
     finally:
-        if bar is not None:
-            bar.close()
-        if own_ckpt:
-            ckpt.close()
-    ran = end - start
-    after_first = time.perf_counter() - run.t_first if run.t_first is not None else 0.0
-    rate = (
-        (ran - steps_per_call) / after_first if ran > steps_per_call and after_first > 0 else None
-    )
-    return TrainResult(
-        model=run.state if model is None else model(run.state),
-        losses={k: np.asarray(v, np.float64) for k, v in run.losses.items()},
-        steps=end,
-        seconds=time.perf_counter() - t_call,
-        compile_seconds=run.compile_seconds,
-        resumed_from=run.resumed_from,
-        extra={"steps_per_second": float("nan") if rate is None else rate},
-    )
+        run.close()
+    return run.result(end - start, steps_per_call, end, t_call, model)
 
 
 def _as_policy(checkpoints) -> CheckpointPolicy:
@@ -266,6 +232,49 @@ class _Run:
     resumed_from: int | None = None
     compile_seconds: float = 0.0
     t_first: float | None = None
+    own_ckpt: bool = False
+
+    @classmethod
+    def open(cls, step, state, batches, policy: CheckpointPolicy, desc: str, device_mesh) -> _Run:
+        """A run with its checkpoint folder open (one given by path is opened here and closed by
+        :meth:`close`) and its state replicated on ``device_mesh``."""
+        if policy.folder is not None and is_multiprocess():
+            raise ConfigError(
+                f"{desc}: checkpoints with several processes (jax.distributed) are not "
+                "supported yet; train without checkpoints, or in one process"
+            )
+        own = policy.folder is not None and not isinstance(policy.folder, Checkpoints)
+        ckpt = Checkpoints(policy.folder, fingerprint=policy.fingerprint) if own else policy.folder
+        return cls(
+            step=step,
+            batches=batches,
+            policy=policy,
+            ckpt=ckpt,
+            desc=desc,
+            compiled={},
+            losses={},
+            state=state if device_mesh is None else replicate(state, device_mesh),
+            own_ckpt=own,
+        )
+
+    def close(self) -> None:
+        """Close the checkpoint folder if this run opened it."""
+        if self.own_ckpt:
+            self.ckpt.close()
+
+    def result(self, ran: int, per_call: int, end: int, t_call: float, model) -> TrainResult:
+        """The :class:`~jmeshtex.TrainResult` of ``ran`` steps ending at ``end``."""
+        after_first = time.perf_counter() - self.t_first if self.t_first is not None else 0.0
+        fast = ran > per_call and after_first > 0
+        return TrainResult(
+            model=self.state if model is None else model(self.state),
+            losses={k: np.asarray(v, np.float64) for k, v in self.losses.items()},
+            steps=end,
+            seconds=time.perf_counter() - t_call,
+            compile_seconds=self.compile_seconds,
+            resumed_from=self.resumed_from,
+            extra={"steps_per_second": (ran - per_call) / after_first if fast else float("nan")},
+        )
 
     def resume(self, device_mesh) -> int:
         """Restore the newest checkpoint, if any; the steps already done."""
@@ -289,8 +298,16 @@ class _Run:
         self.losses = {k: [float(x) for x in v][:start] for k, v in record["losses"].items()}
         return start
 
-    def loop(self, start: int, end: int, per_call: int, bar, show, on_step) -> None:
+    def loop(self, start: int, end: int, per_call: int, progress: Progress, steps: int, on_step):
         """Steps ``start`` to ``end``, ``per_call`` a call, saving where the policy says."""
+        bar = _progress_bar(progress, steps, start) if progress.bar and start < end else None
+        try:
+            self._loop(start, end, per_call, bar, progress.show, on_step)
+        finally:
+            if bar is not None:
+                bar.close()
+
+    def _loop(self, start: int, end: int, per_call: int, bar, show, on_step) -> None:
         for i in range(start, end, per_call):
             n = min(per_call, end - i)
             batch = self.batches(i)
@@ -355,8 +372,8 @@ class _Run:
 
 def _compiled_step(step, state, batch, compiled: dict):
     """``(callable, compile seconds)``: a :func:`jax.jit` ``step`` compiled ahead of time once per
-    argument shapes and dtypes into ``compiled`` (0 s on a hit), at XLA's full optimisation whatever
-    ``XLA_FLAGS`` say (it runs in a loop: ``jmeshtex._jit``); ``(step, None)`` for any other."""
+    argument shapes and dtypes into ``compiled`` (0 s on a hit), with the process's loop options
+    (``jmeshtex._jit``: none by default, so ``XLA_FLAGS`` decide); ``(step, None)`` for any other."""
     if not hasattr(step, "lower"):
         return step, None
     leaves, treedef = jax.tree.flatten((state, batch))
@@ -369,7 +386,7 @@ def _compiled_step(step, state, batch, compiled: dict):
     if hit is not None:
         return hit, 0.0
     t = time.perf_counter()
-    compiled[signature] = step.lower(state, batch).compile(FULL_OPTIMISATION)
+    compiled[signature] = step.lower(state, batch).compile(loop_options())
     return compiled[signature], time.perf_counter() - t
 
 

@@ -56,14 +56,13 @@ def depth(
         t0, c0 = time.perf_counter(), time.process_time()
         reference, tm = depth_meshes(kind, levels, folder)
         prepare = (time.perf_counter() - t0, time.process_time() - c0)
-        cfg = Config(steps=steps)
+        cfg = Config(steps=steps, checkpoint_every=checkpoint_every)
         t0, c0 = time.perf_counter(), time.process_time()
         result = train(
             tm,
             cfg,
             key=jax.random.key(0),
             checkpoint_dir=folder / "checkpoints",
-            checkpoint_every=checkpoint_every,
         )
         trained = result.model
         save(trained, folder)  # folder/model.npz

@@ -103,10 +103,14 @@ def noise_response(
         c0, t0 = time.process_time(), time.perf_counter()
         result = train(
             references,
-            Config(steps=steps, fake_inputs=choice, fixed_noise_levels=fixed_noise_levels),
+            Config(
+                steps=steps,
+                fake_inputs=choice,
+                fixed_noise_levels=fixed_noise_levels,
+                checkpoint_every=250,
+            ),
             key=jax.random.key(0),
             checkpoint_dir=run / "checkpoints",
-            checkpoint_every=250,
             progress=False,
         )
         save(result.model, run)  # run/model.npz

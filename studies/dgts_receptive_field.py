@@ -84,11 +84,10 @@ def receptive_field(
         c0, t0 = time.process_time(), time.perf_counter()
         result = train(
             references,
-            cfg,
+            cfg.replace(checkpoint_every=250),
             key=jax.random.key(0),
             levels=levels,
             checkpoint_dir=run / "checkpoints",
-            checkpoint_every=250,
             progress=False,
         )
         save(result.model, run)

@@ -213,7 +213,7 @@ _METHODS_UNDER_TEST = (
         verb=lambda model, mesh, key: dgts.transfer(model, mesh, key=key, num_samples=2),
         mesh=lambda: torus(8, 6),
         verbs=("transfer", "interpolate"),
-        result_type=dgts.DGTSTransfer,
+        result_type=dgts.Transfer,
         train_kwargs={"progress": False},
         check=_check_dgts,
         other_configs=(dgts.PrepareConfig(),),
@@ -580,7 +580,7 @@ def test_dgts_interpolation_is_a_function_of_its_key():
     a = dgts.interpolate(result.model, target, num_frames=2, key=jax.random.key(3))
     b = dgts.interpolate(result.model, target, num_frames=2, key=jax.random.key(3))
     c = dgts.interpolate(result.model, target, num_frames=2, key=jax.random.key(4))
-    assert isinstance(a, dgts.DGTSTransfer) and a.vertices.shape[0] == 2
+    assert isinstance(a, dgts.Transfer) and a.vertices.shape[0] == 2
     np.testing.assert_array_equal(a.vertices, b.vertices)
     assert not np.allclose(a.vertices, c.vertices)
 

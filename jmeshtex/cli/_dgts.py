@@ -49,6 +49,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     dsub = p.add_subparsers(dest="dgts_command", metavar="STEP")
 
+    _add_prepare(dsub)
+    _add_train(dsub)
+    _add_transfer_and_interpolate(dsub)
+    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
+
+
+def _add_prepare(dsub) -> None:
+    """``jmeshtex dgts prepare``: fit the template to the reference at every level."""
     q = dsub.add_parser(
         "prepare", help="fit a template to the reference at every level (training meshes)"
     )
@@ -85,6 +93,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_common(q)
     q.set_defaults(func=cached(_prepare))
 
+
+def _add_train(dsub) -> None:
+    """``jmeshtex dgts train``: train the generator hierarchy from a prepared folder."""
     t = dsub.add_parser("train", help="train the generator hierarchy (WGAN-GP), resumable")
     t.add_argument("dir", type=pathlib.Path, metavar="DIR", help="folder written by `dgts prepare`")
     t.add_argument(
@@ -137,6 +148,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     t.set_defaults(func=cached(_train))
 
+
+def _add_transfer_and_interpolate(dsub) -> None:
+    """``jmeshtex dgts transfer`` and ``interpolate``: run a trained model on a target mesh."""
     for name, helptext in (
         ("transfer", "synthesise the texture on a target mesh"),
         ("interpolate", "animate between two noises on a target mesh"),
@@ -187,7 +201,6 @@ def register(sub: argparse._SubParsersAction) -> None:
             )
         add_common(r, quiet=False)
         r.set_defaults(func=cached(_transfer if name == "transfer" else _interpolate))
-    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _prepare(args) -> int:
@@ -273,7 +286,7 @@ def _train(args) -> int:
     references = [tm] + [
         load_training_meshes(args.dir / f"training_remesh{i}.npz") for i in range(1, remeshes)
     ]
-    changes = {"shared_levels": args.shared_levels}
+    changes = {"shared_levels": args.shared_levels, "checkpoint_every": args.checkpoint_every}
     if args.steps is not None:
         changes["steps"] = args.steps
     if args.layers is not None:
@@ -291,7 +304,6 @@ def _train(args) -> int:
         levels=args.levels,
         progress=not args.quiet,
         checkpoint_dir=args.dir / "checkpoints",
-        checkpoint_every=args.checkpoint_every,
         snapshot_every=args.snapshot_every,
     )
     if args.snapshot_every is not None:

@@ -5,7 +5,7 @@ configured by :class:`PrepareConfig`) → :func:`train` (hierarchical WGAN-GP, �
 :class:`Config`, resumable checkpoints, on one fit or several, e.g. remeshes from turned
 templates; returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`) → :func:`save` /
 :func:`load` → :func:`transfer` / :func:`interpolate` (any target
-mesh, open or closed, any genus, no re-meshing; a :class:`DGTSTransfer`). Levels run: by default
+mesh, open or closed, any genus, no re-meshing; a :class:`Transfer`). Levels run: by default
 jmeshtex's own choice, from the level whose training mesh has the target's face count (within a
 face budget, ``max_faces``) to the last; the official code's ``--gen-levels`` (default ``[1, 4]``)
 are ``start_level`` / ``stop_level``, clipped to the model as the official code does by
@@ -62,7 +62,7 @@ from ._pretrained import pretrained_period as pretrained_period
 from ._pretrained import pretrained_training_meshes as pretrained_training_meshes
 from ._train import LevelReport as LevelReport
 from ._train import train as train
-from ._transfer import DGTSTransfer as DGTSTransfer
+from ._transfer import Transfer as Transfer
 from ._transfer import conditional as conditional
 from ._transfer import interpolate as interpolate
 from ._transfer import official_gen_levels as official_gen_levels

@@ -172,6 +172,9 @@ class Config(ConfigBase):
         change no output) to the size of level ``shared_levels − 1``, so that, when their widths
         agree, they run one compiled training step instead of one each (0 or 1: no padding). Worth
         it for small, equal-width configurations (tests, demo), where compilation dominates.
+      checkpoint_every: with ``train(checkpoint_dir=)``, also checkpoint every this many steps
+        within a level (rounded up to a multiple of ``CHUNK``); None: only after each level. A
+        resumed run may change it.
 
     Example:
       >>> c = Config(steps=300, learning_rate=1e-3)
@@ -202,6 +205,10 @@ class Config(ConfigBase):
     eps: float = 1e-5
     shared_levels: int = 0
     official_axes: bool = False
+    checkpoint_every: int | None = None
+
+    #: what a resumed run may change (:meth:`~jmeshtex.ConfigBase.fingerprint`)
+    _RESUMABLE = frozenset({"checkpoint_every"})
 
     _RULES = (
         rule("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
@@ -223,6 +230,7 @@ class Config(ConfigBase):
         rule("fake_inputs", lambda x: x in FAKE_INPUTS, f"one of {FAKE_INPUTS}"),
         rule("negative_slope", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("eps", lambda x: x > 0, "> 0"),
+        rule("checkpoint_every", lambda x: x is None or x >= 1, ">= 1 or None"),
         cross_rule(
             lambda c: c.min_features <= c.max_features,
             "need min_features <= max_features, got {c.min_features}, {c.max_features}",

@@ -237,33 +237,29 @@ def regularizer_loss(
 _CHUNK = 50
 
 
-@functools.lru_cache(maxsize=16)
-def _fit_runner(config: PrepareConfig, num_samples: int):
-    """A jit-compiled runner of up to ``_CHUNK`` Adam steps (one per config and sample count, so a
-    second :func:`fit_level` call with the same shapes does not recompile)."""
+@functools.partial(jax.jit, static_argnames=("config", "num_samples"))
+def _fit_chunk(v, state, key, geo, n, *, config: PrepareConfig, num_samples: int):
+    """Up to ``_CHUNK`` Adam steps (``n`` of them) of :func:`fitting_loss` in one compiled call;
+    ``state``: ``optax.adam(config.learning_rate)``'s. Returns ``(v, state, the last terms)``."""
     opt = optax.adam(config.learning_rate)
 
-    @jax.jit
-    def run_chunk(v, state, key, geo, n):
-        def body(i, carry):
-            v, state, _ = carry
-            (_, terms), g = jax.value_and_grad(
-                lambda x: fitting_loss(
-                    x, geo, key=jax.random.fold_in(key, i), config=config, num_samples=num_samples
-                ),
-                has_aux=True,
-            )(v)
-            with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-                updates, state = opt.update(g, state, v)
-            return optax.apply_updates(v, updates), state, terms
+    def body(i, carry):
+        v, state, _ = carry
+        (_, terms), g = jax.value_and_grad(
+            lambda x: fitting_loss(
+                x, geo, key=jax.random.fold_in(key, i), config=config, num_samples=num_samples
+            ),
+            has_aux=True,
+        )(v)
+        with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+            updates, state = opt.update(g, state, v)
+        return optax.apply_updates(v, updates), state, terms
 
-        terms0 = jax.eval_shape(
-            lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v
-        )
-        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
-        return jax.lax.fori_loop(0, n, body, (v, state, zeros))
-
-    return run_chunk, opt
+    terms0 = jax.eval_shape(
+        lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v
+    )
+    zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), terms0)
+    return jax.lax.fori_loop(0, n, body, (v, state, zeros))
 
 
 def fit_level(
@@ -319,16 +315,23 @@ def fit_level(
             progress=progress,
         )
         return np.asarray(v, np.float64), terms
-    run_chunk, opt = _fit_runner(config, int(num_samples))
     chunk = _CHUNK
     v = jnp.asarray(vertices, jnp.float32)
-    state = opt.init(v)
+    state = optax.adam(config.learning_rate).init(v)
     terms: dict = {}
     done = 0
     n_chunks = -(-int(config.steps) // chunk)
     for c in range(n_chunks):
         n = min(chunk, int(config.steps) - done)
-        v, state, terms = run_chunk(v, state, jax.random.fold_in(key, c), geo, jnp.int32(n))
+        v, state, terms = _fit_chunk(
+            v,
+            state,
+            jax.random.fold_in(key, c),
+            geo,
+            jnp.int32(n),
+            config=config,
+            num_samples=int(num_samples),
+        )
         done += n
         if progress is not None:
             progress(done)
@@ -385,8 +388,7 @@ def training_meshes(
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
 
     For level ``l = 0 … L−1``: (``l > 0``) subdivide the previous level 1 → 4 at edge midpoints and
-    scale it and the reference by ``scale_factor``; fit with :func:`~jmeshtex.dgts.core.fit_level` on
-    ``samples_per_level·(l + 1)`` samples.
+    scale it and the reference by ``scale_factor``; fit on ``samples_per_level·(l + 1)`` samples.
 
     Args:
       reference: the textured reference (open or closed, any genus): a :class:`~jmeshtex.Mesh` or
@@ -402,10 +404,9 @@ def training_meshes(
         to ``reference`` must lay the texture out from noise). It is placed by ``reference``'s
         normalisation, so it must share its coordinates.
       coarse_levels: how many levels (from the coarsest) fit ``coarse_reference``; 0: none.
-      rotation: optional ``[3, 3]`` rotation applied to the normalised template before the first
-        fit: the same reference is remeshed with its texture at other places relative to the
-        template's triangles (several such remeshes train one model, :func:`~jmeshtex.dgts.train`;
-        beyond the paper). None: the template as given.
+      rotation: optional ``[3, 3]`` rotation of the normalised template before the first fit: the
+        reference remeshed with its texture elsewhere on the template's triangles (several such
+        remeshes train one model, beyond the paper). None: the template as given.
 
     Returns:
       :class:`TrainingMeshes`.
@@ -438,7 +439,6 @@ def training_meshes(
             f"training_meshes: coarse_levels={coarse_levels} needs a coarse_reference to fit"
         )
     rv = np.asarray(rv, np.float64)
-    rf = np.asarray(rf, np.int64)
     f = np.asarray(tf, np.int64)
     target, v, scale, center = normalize_pair(rv, np.asarray(tv, np.float64), f)
     if rotation is not None:
@@ -448,8 +448,19 @@ def training_meshes(
         cv, cf = as_mesh(coarse_reference, what="training_meshes: coarse_reference")
         validate_mesh(cv, cf)
         coarse = ((np.asarray(cv, np.float64) - center) * scale, np.asarray(cf, np.int64))
-    template_out = v.copy()
     report = _progress_bars("prepare") if progress is True else (progress or None)
+    surfaces = (coarse, (target, np.asarray(rf, np.int64)))
+    levels = _fit_levels(
+        v, f, surfaces, coarse_levels, scale, config=config, key=key, report=report
+    )
+    return TrainingMeshes(v.copy(), *levels, center)
+
+
+def _fit_levels(v, f, surfaces, coarse_levels: int, scale: float, *, config, key, report):
+    """Subdivide, rescale and fit level after level (:func:`training_meshes`); ``surfaces``: the
+    coarse reference (or None) and the reference, normalised. Returns ``(vertices, faces,
+    edge_vertices, scales)`` of the levels."""
+    coarse, (target, rf) = surfaces
     verts, faces, edges, scales = [], [], [], []
     for level in range(config.levels):
         if level > 0:
@@ -461,11 +472,7 @@ def training_meshes(
                 coarse = (coarse[0] * config.scale_factor, coarse[1])
             scale *= config.scale_factor
         stage = f"level {level}"
-        cb = (
-            None
-            if report is None
-            else (lambda done, stage=stage: report(stage, done, config.steps))
-        )
+        cb = None if report is None else (lambda d, s=stage: report(s, d, config.steps))
         v, _ = fit_level(
             (v, f),
             coarse if level < coarse_levels else (target, rf),
@@ -477,9 +484,7 @@ def training_meshes(
         verts.append(v)
         faces.append(f)
         scales.append(scale)
-    return TrainingMeshes(
-        template_out, tuple(verts), tuple(faces), tuple(edges), np.asarray(scales), center
-    )
+    return tuple(verts), tuple(faces), tuple(edges), np.asarray(scales)
 
 
 def _rotation_matrix(rotation) -> np.ndarray:

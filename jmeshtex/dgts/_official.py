@@ -109,26 +109,7 @@ def official_level_params(
             f"official_level_params: no level {level} in the state dict (levels found: "
             f"{sorted(levels)}); names must look like 'levels.<l>.layers.<i>.0.conv.weight'"
         )
-    layers = levels[level]
-    if sorted(layers) != list(range(len(layers))) or len(layers) < 2:
-        raise InputError(
-            f"official_level_params: level {level} has layers {sorted(layers)}; expected 0 … n−1, n ≥ 2"
-        )
-    out = []
-    for i in range(len(layers)):
-        entry = layers[i]
-        if set(entry) != {"weight", "bias"}:
-            raise InputError(
-                f"official_level_params: level {level} layer {i} lacks its "
-                f"{'bias' if 'weight' in entry else 'weight'}"
-            )
-        w, b = entry["weight"], entry["bias"]
-        if w.ndim != 3 or w.shape[2] != 1 or b.shape != w.shape[:1]:
-            raise InputError(
-                f"official_level_params: level {level} layer {i}: Conv1d weight [out, in, 1] and "
-                f"bias [out] expected, got {w.shape} and {b.shape}"
-            )
-        out.append((w[:, :, 0].T.copy(), b.copy()))
+    out = _official_level_arrays(levels[level], level)
     w0, b0 = out[0]
     if w0.shape[0] != 4:
         raise InputError(
@@ -158,6 +139,30 @@ def official_level_params(
             FaceConvParams(np.asarray(w, np.float32), np.asarray(b, np.float32)) for w, b in convs
         ),
     )
+
+
+def _official_level_arrays(layers: Mapping[int, dict], level: int) -> list[tuple]:
+    """``(weight [in, out], bias [out])`` of each layer of one official level, checked."""
+    if sorted(layers) != list(range(len(layers))) or len(layers) < 2:
+        raise InputError(
+            f"official_level_params: level {level} has layers {sorted(layers)}; expected 0 … n−1, n ≥ 2"
+        )
+    out = []
+    for i in range(len(layers)):
+        entry = layers[i]
+        if set(entry) != {"weight", "bias"}:
+            raise InputError(
+                f"official_level_params: level {level} layer {i} lacks its "
+                f"{'bias' if 'weight' in entry else 'weight'}"
+            )
+        w, b = entry["weight"], entry["bias"]
+        if w.ndim != 3 or w.shape[2] != 1 or b.shape != w.shape[:1]:
+            raise InputError(
+                f"official_level_params: level {level} layer {i}: Conv1d weight [out, in, 1] and "
+                f"bias [out] expected, got {w.shape} and {b.shape}"
+            )
+        out.append((w[:, :, 0].T.copy(), b.copy()))
+    return out
 
 
 def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:

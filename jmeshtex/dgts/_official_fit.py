@@ -27,67 +27,74 @@ from ._config import PrepareConfig
 from ._multiscale import _FitGeometry, regularizer_loss, sample_points
 
 
-@functools.lru_cache(maxsize=16)
-def _official_steps(config: PrepareConfig, num_samples: int):
-    """Jitted ``(regulariser step, sampler, Chamfer step)`` for one config and sample count."""
+def _apply(opt, v, state, g):
+    with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
+        updates, state = opt.update(g, state, v)
+    return optax.apply_updates(v, updates), state
+
+
+@functools.partial(jax.jit, static_argnames=("config",))
+def _reg_steps(v, state, geo, *, config: PrepareConfig):
+    """``config.regularizer_steps`` Adam steps on the regularisers (one compiled call)."""
     opt = optax.adam(config.learning_rate)
+
+    def body(_, carry):
+        v, state = carry
+        g = jax.grad(lambda x: regularizer_loss(x, geo, config=config)[0])(v)
+        return _apply(opt, v, state, g)
+
+    return jax.lax.fori_loop(0, config.regularizer_steps, body, (v, state))
+
+
+@functools.partial(jax.jit, static_argnames=("num_samples",))
+def _sample(v, geo, key, *, num_samples: int):
+    k_s, k_t = jax.random.split(key)
+    ps, ns = sample_points(v, geo.faces, num_samples, key=k_s)
+    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
+    return ps, ns, pt, nt
+
+
+def _chamfer_loss(v, geo, key, pt, nt, s2t, t2s, *, config: PrepareConfig, num_samples: int):
+    """The Chamfer and normal terms with the correspondences ``s2t``, ``t2s`` fixed."""
     c = config
-
-    def apply(v, state, g):
-        with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-            updates, state = opt.update(g, state, v)
-        return optax.apply_updates(v, updates), state
-
-    @jax.jit
-    def reg_steps(v, state, geo):
-        def body(_, carry):
-            v, state = carry
-            g = jax.grad(lambda x: regularizer_loss(x, geo, config=c)[0])(v)
-            return apply(v, state, g)
-
-        return jax.lax.fori_loop(0, c.regularizer_steps, body, (v, state))
-
-    @jax.jit
-    def sample(v, geo, key):
-        k_s, k_t = jax.random.split(key)
-        ps, ns = sample_points(v, geo.faces, num_samples, key=k_s)
-        pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
-        return ps, ns, pt, nt
 
     def dist(a, b):
         d = safe_norm(a - b)
         return d * d if c.squared_chamfer else d
 
-    def chamfer_loss(v, geo, key, pt, nt, s2t, t2s):
-        ps, ns = sample_points(v, geo.faces, num_samples, key=jax.random.split(key)[0])
-        terms = {
-            "s2t": jnp.mean(dist(ps, pt[s2t])),
-            "t2s": jnp.mean(dist(pt, ps[t2s])),
-            "normal_s2t": jnp.mean(1 - jnp.sum(ns * nt[s2t], -1)),
-            "normal_t2s": jnp.mean(1 - jnp.sum(nt * ns[t2s], -1)),
-        }
-        loss = (
-            c.weight_s2t * terms["s2t"]
-            + c.weight_t2s * terms["t2s"]
-            + c.weight_normal_s2t * terms["normal_s2t"]
-            + c.weight_normal_t2s * terms["normal_t2s"]
-        )
-        return loss, terms
-
-    @jax.jit
-    def chamfer_step(v, state, geo, key, pt, nt, s2t, t2s):
-        (_, terms), g = jax.value_and_grad(chamfer_loss, has_aux=True)(
-            v, geo, key, pt, nt, s2t, t2s
-        )
-        v, state = apply(v, state, g)
-        return v, state, terms
-
-    return opt, reg_steps, sample, chamfer_step, jax.jit(lambda *args: chamfer_loss(*args)[1])
+    ps, ns = sample_points(v, geo.faces, num_samples, key=jax.random.split(key)[0])
+    terms = {
+        "s2t": jnp.mean(dist(ps, pt[s2t])),
+        "t2s": jnp.mean(dist(pt, ps[t2s])),
+        "normal_s2t": jnp.mean(1 - jnp.sum(ns * nt[s2t], -1)),
+        "normal_t2s": jnp.mean(1 - jnp.sum(nt * ns[t2s], -1)),
+    }
+    loss = (
+        c.weight_s2t * terms["s2t"]
+        + c.weight_t2s * terms["t2s"]
+        + c.weight_normal_s2t * terms["normal_s2t"]
+        + c.weight_normal_t2s * terms["normal_t2s"]
+    )
+    return loss, terms
 
 
-def _correspondences(sample, v, geo, key):
+@functools.partial(jax.jit, static_argnames=("config", "num_samples"))
+def _chamfer_step(v, state, geo, key, pt, nt, s2t, t2s, *, config, num_samples):
+    (_, terms), g = jax.value_and_grad(_chamfer_loss, has_aux=True)(
+        v, geo, key, pt, nt, s2t, t2s, config=config, num_samples=num_samples
+    )
+    v, state = _apply(optax.adam(config.learning_rate), v, state, g)
+    return v, state, terms
+
+
+@functools.partial(jax.jit, static_argnames=("config", "num_samples"))
+def _chamfer_terms(v, geo, key, pt, nt, s2t, t2s, *, config, num_samples):
+    return _chamfer_loss(v, geo, key, pt, nt, s2t, t2s, config=config, num_samples=num_samples)[1]
+
+
+def _correspondences(v, geo, key, num_samples: int):
     """Fresh samples on both surfaces and their nearest neighbours (KD-trees on the host)."""
-    ps, _, pt, nt = jax.device_get(sample(v, geo, key))
+    ps, _, pt, nt = jax.device_get(_sample(v, geo, key, num_samples=num_samples))
     s2t = scipy.spatial.cKDTree(pt).query(ps, workers=1)[1]
     t2s = scipy.spatial.cKDTree(ps).query(pt, workers=1)[1]
     return (
@@ -108,20 +115,20 @@ def fit_official(
     progress: Callable[[int], None] | None = None,
 ) -> tuple[Float[Array, "V 3"], dict[str, float]]:
     """``config.steps`` official iterations on one level (module docstring); returns ``(vertices, terms)``."""
-    opt, reg_steps, sample, chamfer_step, chamfer_eval = _official_steps(config, int(num_samples))
+    kw = {"config": config, "num_samples": int(num_samples)}
     v = vertices
-    state = opt.init(v)
-    terms: dict = {}
+    state = optax.adam(config.learning_rate).init(v)  # one Adam state for both kinds of step
     for it in range(int(config.steps)):
         if config.regularizer_steps:
-            v, state = reg_steps(v, state, geo)
+            v, state = _reg_steps(v, state, geo, config=config)
         for j in range(config.chamfer_steps):
             k = jax.random.fold_in(jax.random.fold_in(key, it), j)
-            v, state, _ = chamfer_step(v, state, geo, k, *_correspondences(sample, v, geo, k))
+            pairs = _correspondences(v, geo, k, kw["num_samples"])
+            v, state, _ = _chamfer_step(v, state, geo, k, *pairs, **kw)
         if progress is not None and ((it + 1) % 50 == 0 or it + 1 == config.steps):
             progress(it + 1)
     k = jax.random.fold_in(key, int(config.steps) + 1)  # the final terms, on fresh samples
-    terms = chamfer_eval(v, geo, k, *_correspondences(sample, v, geo, k))
+    terms = _chamfer_terms(v, geo, k, *_correspondences(v, geo, k, kw["num_samples"]), **kw)
     reg = regularizer_loss(v, geo, config=config)[1]
     out = {k: float(x) for k, x in {**jax.device_get(terms), **jax.device_get(reg)}.items()}
     return v, out

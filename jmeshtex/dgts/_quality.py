@@ -304,7 +304,7 @@ def relief_heights(mesh: MeshLike, base: MeshLike | None = None) -> Float[np.nda
     if np.shape(vb) != np.shape(v) or not np.array_equal(np.asarray(fb), np.asarray(f)):
         raise InputError(
             "relief_heights: base must have the mesh's faces and vertex count (the transfer's "
-            "undisplaced output, DGTSTransfer.base with .faces)"
+            "undisplaced output, Transfer.base with .faces)"
         )
     return h - normal_heights((vb, fb), smoothing=SMOOTHING)
 
@@ -342,7 +342,7 @@ def oracle_texture(
 
     :func:`jmeshtex.data.textured_mesh` with the period (and amplitude) given in mean edges of
     ``base``: the reference's texture at the reference's scale, on the transfer's own surface and
-    tessellation (``DGTSTransfer.base`` and ``.faces``).
+    tessellation (``Transfer.base`` and ``.faces``).
 
     Args:
       base: the undisplaced output of the transfer.

@@ -1,7 +1,7 @@
 """A texture measure independent of tessellation: knobs per area and a patch distribution distance.
 
 A transfer's output and its ground truth (:func:`~jmeshtex.dgts.core.oracle_texture`) share one
-undisplaced base (``DGTSTransfer.base`` with ``.faces``). Everything here is measured on that base,
+undisplaced base (``Transfer.base`` with ``.faces``). Everything here is measured on that base,
 in units of the texture's period ``P`` (given in mean edges of the *base*, one length for every mesh
 scored on it; no mesh is normalised by its own edges):
 
@@ -169,7 +169,7 @@ def texture_heights(mesh: MeshLike, ops: TextureOperators) -> Float[np.ndarray, 
     if v.shape != ops.base.shape or not np.array_equal(np.asarray(f), ops.faces):
         raise InputError(
             "texture_heights: the mesh must have the base's faces and vertex count (a transfer's "
-            "output and its DGTSTransfer.base with .faces)"
+            "output and its Transfer.base with .faces)"
         )
     d = np.einsum("vd,vd->v", v - ops.base, ops.normals) / ops.period
     return ops.band @ d

@@ -37,7 +37,7 @@ How it runs (each level is one run of the shared training driver):
   is reconstructed (beyond the paper).
 
 Checkpoints (``checkpoint_dir``, :class:`jmeshtex.io.Checkpoints`): after every level, and every
-``checkpoint_every`` steps within a level, the parameters of the completed levels, ``z*``, the
+``Config.checkpoint_every`` steps within a level (and where ``stop_after`` stops a call), the parameters of the completed levels, ``z*``, the
 current level's networks and optimiser states and the loss histories are saved, numbered by the
 steps done in all. :func:`train` with the same folder resumes from the newest one and gives the same
 parameters as a run that was never interrupted (the noise of every chunk is drawn from the key and
@@ -242,8 +242,7 @@ def level_batch(
     levels ``0 … L−1`` on it (forward only).
 
     All draws of the chunk (``chunk·(D + G)`` fakes, and the reconstruction) go through each frozen
-    level as one batch, level by level: the compiled level step depends only on that level's sizes
-    and on the batch size, so it is compiled once and reused by every later level and chunk.
+    level as one batch, so each level's compiled pass is reused by every later level and chunk.
 
     Args:
       model_levels: the frozen levels' generators.
@@ -262,25 +261,19 @@ def level_batch(
         reconstructions; ``alpha`` ``[chunk, D]`` the penalty's weights.
 
     Returns:
-      :class:`LevelBatch`. Each step draws one reference (always the first when ``R = 1``); its
-      fakes start from that reference's template, its reconstruction and real mesh are that
-      reference's. With ``L ≥ reconstruction_start`` the reconstructions are ``R`` fixed rows
+      :class:`LevelBatch`. Each step draws one reference (the first when ``R = 1``): its fakes
+      start from its template, its reconstruction and real mesh are its own. With ``L ≥ reconstruction_start`` the reconstructions are ``R`` fixed rows
       (``z*`` at level 0, ``z_finer`` above it, then zero noise), run once and gathered per step.
     """
-    c = config
-    L = len(model_levels)
+    c, L, dtype, R = config, len(model_levels), templates.dtype, int(templates.shape[0])
     D, G = c.discriminator_steps, c.generator_steps
-    dtype = templates.dtype
-    R = int(templates.shape[0])
     sizes = [int(g.nbhd.vertex_mask.shape[0]) for g in geos[: L + 1]]
     fixed_rec = L >= c.reconstruction_start
-    n_fake = chunk * (D + G)
-    n_fresh = n_fake + (0 if fixed_rec else chunk * G)
+    n_fresh = chunk * (D + G) + (0 if fixed_rec else chunk * G)
     keys = jax.random.split(key, L + 2)
+    ref = jnp.zeros((chunk,), jnp.int32)  # each step's reference
     if R > 1:
         ref = jax.random.randint(jax.random.fold_in(key, L + 2), (chunk,), 0, R, jnp.int32)
-    else:
-        ref = jnp.zeros((chunk,), jnp.int32)
     rec_ref = jnp.arange(R, dtype=jnp.int32) if fixed_rec else jnp.repeat(ref, G)
     rows = jnp.concatenate([jnp.repeat(ref, D + G), rec_ref])  # each row's reference
     # "reconstructed": every row's frozen levels run on the reconstruction's noise, so they run
@@ -299,38 +292,47 @@ def level_batch(
         fixed = rec_noise(level) if fixed_rec else jnp.zeros((0, sizes[level], 3), dtype)
         if level < L and shared:
             z = rec_noise(level)
-        elif noise is not None:
-            z = jnp.concatenate([jnp.asarray(noise[level], dtype), fixed], axis=0)
-            if z.shape != (n_fresh + fixed.shape[0], sizes[level], 3):
-                raise InputError(
-                    f"level_batch: noise[{level}] must be [{n_fresh}, {sizes[level]}, 3], "
-                    f"got {tuple(np.shape(noise[level]))}"
-                )
         else:
-            z = _noise(
-                keys[level],
-                fixed,
-                shape=(n_fresh, sizes[level], 3),
-                amplitude=float(c.noise_amplitude),
-            )
+            given = None if noise is None else noise[level]
+            z = _fresh_noise(keys[level], fixed, given, (n_fresh, sizes[level], 3), c, level)
         if level < L:
             v = _advance(model_levels[level], v, z, geos[level], config=c)
     if shared:  # z: level L's noise
         v = v[rows]
-    fake_base = v[:n_fake].reshape(chunk, D + G, sizes[L], 3)
-    fake_noise = z[:n_fake].reshape(chunk, D + G, sizes[L], 3)
-    if fixed_rec:
-        rec_base = jnp.broadcast_to(v[n_fake + ref][:, None], (chunk, G, sizes[L], 3))
-        rec_noise = jnp.broadcast_to(z[n_fake + ref][:, None], (chunk, G, sizes[L], 3))
-    else:
-        rec_base = v[n_fake:].reshape(chunk, G, sizes[L], 3)
-        rec_noise = z[n_fake:].reshape(chunk, G, sizes[L], 3)
     if alpha is None:
         alpha = jax.random.uniform(keys[L + 1], (chunk, D), dtype)
     elif np.shape(alpha) != (chunk, D):
         raise InputError(f"level_batch: alpha must be [{chunk}, {D}], got {np.shape(alpha)}")
-    alpha = jnp.asarray(alpha, dtype)
-    return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha, reals.astype(dtype)[ref])
+    return _batch_of_rows(v, z, ref, jnp.asarray(alpha, dtype), reals.astype(dtype), c, fixed_rec)
+
+
+def _fresh_noise(key, fixed, given, shape: tuple[int, int, int], config: Config, level: int):
+    """``[n + m, V, 3]``: ``n`` fresh draws (from ``key``, or ``given`` ones) then ``fixed``'s rows."""
+    if given is None:
+        return _noise(key, fixed, shape=shape, amplitude=float(config.noise_amplitude))
+    z = jnp.concatenate([jnp.asarray(given, fixed.dtype), fixed], axis=0)
+    if z.shape != (shape[0] + fixed.shape[0], *shape[1:]):
+        raise InputError(
+            f"level_batch: noise[{level}] must be [{shape[0]}, {shape[1]}, 3], "
+            f"got {tuple(np.shape(given))}"
+        )
+    return z
+
+
+def _batch_of_rows(v, z, ref, alpha, reals, config: Config, fixed_rec: bool) -> LevelBatch:
+    """The :class:`LevelBatch` of level-``L`` rows: bases ``v`` and noises ``z`` (``[N, V, 3]``: the
+    fakes step by step, then the reconstructions), each step's reference ``ref`` ``[K]``."""
+    (chunk,), D, G, V = ref.shape, config.discriminator_steps, config.generator_steps, v.shape[1]
+    n_fake = chunk * (D + G)
+    fake_base = v[:n_fake].reshape(chunk, D + G, V, 3)
+    fake_noise = z[:n_fake].reshape(chunk, D + G, V, 3)
+    if fixed_rec:  # one row per reference, gathered per step
+        rec_base = jnp.broadcast_to(v[n_fake + ref][:, None], (chunk, G, V, 3))
+        rec_noise = jnp.broadcast_to(z[n_fake + ref][:, None], (chunk, G, V, 3))
+    else:
+        rec_base = v[n_fake:].reshape(chunk, G, V, 3)
+        rec_noise = z[n_fake:].reshape(chunk, G, V, 3)
+    return LevelBatch(fake_base, fake_noise, rec_base, rec_noise, alpha, reals[ref])
 
 
 def critic_loss(
@@ -515,26 +517,17 @@ LOSS_NAMES = ("d_real", "d_fake", "penalty", "g_adv", "g_rec")
 # ----------------------------------------------------------------------------------------------
 
 
-#: fields added to :class:`Config` after checkpoints existed: left out of the fingerprint at
-#: these values (the behaviour the older folders were trained with)
-_ADDED_FIELDS = {"fake_inputs": "sampled", "fixed_noise_levels": 1}
-
-
 def _fingerprint(references: tuple[TrainingMeshes, ...], config: Config, key: PRNGKey) -> dict:
-    """What a checkpoint folder is tied to: the config, the key and a hash of the training meshes
-    (of every reference, in order)."""
+    """What a checkpoint folder is tied to: the config (``Config.fingerprint``), the key and a hash
+    of the training meshes (of every reference, in order)."""
     h = hashlib.sha256()
     for meshes in references:
         for a in (meshes.template, *meshes.vertices, *meshes.faces):
             a = np.ascontiguousarray(a)
             h.update(str((a.shape, a.dtype.str)).encode())
             h.update(a.tobytes())
-    stored = config.to_dict()
-    for name, default in _ADDED_FIELDS.items():  # folders written before a field existed resume
-        if stored.get(name) == default:
-            del stored[name]
     return {
-        "config": stored,
+        "config": config.fingerprint(),
         "key": np.asarray(jax.random.key_data(key)).tolist(),
         "meshes": h.hexdigest(),
     }
@@ -576,53 +569,52 @@ def _checkpoint_like(config: Config, meta: dict, sizes: Sequence[int]) -> dict:
 
 def train(
     meshes: TrainingMeshes | Sequence[TrainingMeshes],
-    config: Config | None = None,
+    config: Config,
     *,
     key: PRNGKey,
     levels: int | None = None,
     progress: bool = True,
     checkpoint_dir: str | os.PathLike | None = None,
-    checkpoint_every: int | None = None,
+    stop_after: int | None = None,
     snapshot_every: int | None = None,
 ) -> TrainResult[Model]:
     """Train the DGTS hierarchy on multi-scale training meshes, level by level (§3.4).
 
     Args:
-      meshes: from :func:`~jmeshtex.dgts.training_meshes`; or several, fitted from one template
-        (same faces at every level: e.g. one reference remeshed under several template
-        rotations, ``training_meshes(..., rotation=)``, or several references of one texture).
-        Each step then draws one of them: the critic's real mesh and the reconstruction are that
-        one's, and each has its own ``z*`` (the first's is the key's as for one, the others' are
-        drawn from it); the model keeps the first's. Beyond the paper, which trains on one:
-        a single fit lets the generators key the texture to the template's triangles.
-      config: :class:`~jmeshtex.dgts.Config` (default: its defaults, the paper's).
+      meshes: from :func:`~jmeshtex.dgts.training_meshes`; or several fitted from one template
+        (same faces at every level, e.g. one reference remeshed under several template rotations,
+        ``training_meshes(..., rotation=)``). Each step then draws one: the critic's real mesh and
+        the reconstruction are that one's, each with its own ``z*`` (the model keeps the first's).
+        Beyond the paper, which trains on one.
+      config: :class:`~jmeshtex.dgts.Config` (``Config()`` is the paper's; ``checkpoint_every``).
       key: PRNG key of the initialisation, ``z*`` and every noise draw.
       levels: train only the first ``levels`` levels (default: all of ``meshes``).
       progress: show a tqdm progress bar with ETA per level.
       checkpoint_dir: checkpoint folder (module docstring); when it already holds checkpoints of
-        this run (same config, key and meshes), training resumes from the newest.
-      checkpoint_every: also checkpoint every this many steps within a level (rounded up to a
-        multiple of ``CHUNK``); None: only after each level. Needs ``checkpoint_dir``.
+        this run (same config up to ``checkpoint_every``, key and meshes), training resumes from
+        the newest. None: nothing on disk.
+      stop_after: run at most this many steps (over all levels) in this call, checkpointing where
+        it stops (call again with the same folder to continue); None: to the end.
       snapshot_every: every this many steps (rounded up to a multiple of ``CHUNK``) and at the end
-        of each level, record the level's current output: one sample (the chunk's first fresh
-        noise draw through the frozen levels and the current generator) and the reconstruction,
-        both ``[V_l, 3]`` float64 in level ``l``'s frame, in ``extra["snapshots"]`` as dicts
-        ``{"level", "step", "sample", "reconstruction"}`` (training progress, for figures). None: none.
+        of each level, record one sample and the reconstruction of the level's current generator
+        (``[V_l, 3]`` float64, level ``l``'s frame) in ``extra["snapshots"]`` as dicts
+        ``{"level", "step", "sample", "reconstruction"}`` (training progress, for figures).
 
     Returns:
-      :class:`~jmeshtex.TrainResult`: ``model`` (a :class:`~jmeshtex.dgts.Model` of ``levels``
+      :class:`~jmeshtex.TrainResult`: ``model`` (a :class:`~jmeshtex.dgts.Model` of the completed
       levels), ``losses[name]`` (``LOSS_NAMES``) of every step done, level after level (level
-      ``l``'s at ``[l·steps, (l+1)·steps)``), ``steps`` (steps done in all levels), ``seconds``,
-      ``resumed_from`` (the checkpoint step resumed from, or None) and ``extra["levels"]``: one
-      :class:`LevelReport` per completed level, ``extra["compiled_steps"]`` (level steps compiled
+      ``l``'s at ``[l·steps, (l+1)·steps)``), ``steps`` (done in all), ``seconds``,
+      ``resumed_from`` (the checkpoint step resumed from, or None), ``extra["levels"]`` (one
+      :class:`LevelReport` per completed level), ``extra["compiled_steps"]`` (level steps compiled
       by this call; padded levels share one) and ``extra["snapshots"]`` with ``snapshot_every``.
 
     Raises:
-      ConfigError: ``levels`` outside ``[1, meshes.num_levels]``; ``checkpoint_every`` without a
-        folder or below 1.
+      ConfigError: ``levels`` outside ``[1, meshes.num_levels]``; ``stop_after`` or
+        ``snapshot_every`` not a non-negative / positive integer.
       InputError: training meshes whose levels are not successive midpoint subdivisions, or
         several that do not share the first's levels and faces.
       CheckpointMismatchError: ``checkpoint_dir`` holds a run with another config, key or meshes.
+      TrainingDivergedError: a loss or a parameter is not finite (nothing non-finite is saved).
 
     Example:
       >>> from jmeshtex.data import icosahedron
@@ -637,217 +629,273 @@ def train(
       [20, 80]
     """
     t_start = time.perf_counter()
-    config = Config() if config is None else config
-    references = _references(meshes)
-    meshes = references[0]
-    total = meshes.num_levels if levels is None else levels
-    if not is_int(total, 1) or total > meshes.num_levels:
-        raise ConfigError(
-            f"levels must be an int in [1, {meshes.num_levels}] (the training meshes' levels), "
-            f"got {levels!r}"
-        )
-    total = int(total)
-    if checkpoint_every is not None and (checkpoint_dir is None or not is_int(checkpoint_every, 1)):
-        raise ConfigError(
-            f"checkpoint_every={checkpoint_every!r} needs a checkpoint_dir and a value >= 1"
-        )
-    every = None if checkpoint_every is None else -(-int(checkpoint_every) // CHUNK)  # in chunks
-    if snapshot_every is not None and not is_int(snapshot_every, 1):
-        raise ConfigError(f"snapshot_every must be an int >= 1, got {snapshot_every!r}")
-    snap_every = None if snapshot_every is None else -(-int(snapshot_every) // CHUNK)  # in chunks
-    snapshots: list[dict] = []
-    V = [len(v) for v in meshes.vertices]
-    # the padded sizes come from the training meshes, not from `levels`: resuming stays exact
-    n_geo = max(total, min(config.shared_levels, meshes.num_levels))
-    geos_all, faces = hierarchy_geometry(meshes.faces[0], V[0], n_geo)
-    for level in range(n_geo):
-        if not np.array_equal(faces[level], meshes.faces[level]):
-            raise InputError(
-                f"training mesh level {level} is not the midpoint subdivision of level {level - 1}"
-            )
-    k_init, k_z, k_train = jax.random.split(key, 3)
-    S = config.steps
-    gs: list = []
-    ds: list = []
-    history: dict[str, list[float]] = {name: [] for name in LOSS_NAMES}
-    reports: list[LevelReport] = []
-    z_star = np.asarray(config.noise_amplitude * jax.random.normal(k_z, (V[0], 3), jnp.float32))
-    z_star_finer = tuple(  # reference r's at level l: key fold_in(k_finer, l), then r
-        np.asarray(
-            config.noise_amplitude
-            * jax.random.normal(_finer_key(k_z, level, 0), (V[level], 3), jnp.float32)
-        )
-        for level in range(1, min(config.fixed_noise_levels, len(V)))
-    )
-    current = None  # the restored state of a level in progress, and its steps done
-    current_steps = 0
-    resumed_from = None
-    ckpt = None
-    if checkpoint_dir is not None:
-        ckpt = Checkpoints(checkpoint_dir, fingerprint=_fingerprint(references, config, key))
-        step = ckpt.latest_step()
-        if step is not None:
-            meta = ckpt.read_meta(step)
-            if meta.get("kind") != CHECKPOINT_KIND:
-                raise InputError(
-                    f"{checkpoint_dir} holds {meta.get('kind')!r}, not DGTS training checkpoints"
-                )
-            state, meta = ckpt.restore(_checkpoint_like(config, meta, V), step=step)
-            gs, ds = list(state["model"]["generators"]), list(state["model"]["discriminators"])
-            z_star = np.asarray(state["model"]["z_star"], np.float32)
-            z_star_finer = tuple(np.asarray(z, np.float32) for z in state["model"]["z_star_finer"])
-            current = state.get("current")
-            current_steps = int(meta["level_steps"])
-            history = {name: list(meta["losses"][name]) for name in LOSS_NAMES}
-            reports = [LevelReport(**r) for r in meta["levels"]]
-            resumed_from = step
-    templates = jnp.asarray(np.stack([m.template for m in references]), jnp.float32)
-    z_stars = jnp.stack(
-        [jnp.asarray(z_star, jnp.float32)]
-        + [
-            config.noise_amplitude
-            * jax.random.normal(jax.random.fold_in(k_z, r), (V[0], 3), jnp.float32)
-            for r in range(1, len(references))
-        ]
-    )
-    z_finer = tuple(
-        jnp.stack(
-            [jnp.asarray(z, jnp.float32)]
-            + [
-                config.noise_amplitude
-                * jax.random.normal(_finer_key(k_z, level, r), z.shape, jnp.float32)
-                for r in range(1, len(references))
-            ]
-        )
-        for level, z in enumerate(z_star_finer, start=1)
-    )
-    padded = _padded_sizes(geos_all, config.shared_levels)
-    compiled: dict = {}  # this call's compiled steps (equal-sized levels share one)
-    unpadded: dict = {}  # the newest level batch before padding
-    chunk_step = jax.jit(functools.partial(_chunk_step, config=config))
-
-    def frozen_state() -> dict:
-        return model_state(Model(config, tuple(gs), tuple(ds), z_star, z_star_finer))
-
-    def record(level: int, done: int) -> dict:
-        return {
-            "kind": CHECKPOINT_KIND,
-            "config": config.to_dict(),
-            "completed_levels": len(gs),
-            "level_steps": done,
-            "levels": [dataclasses.asdict(r) for r in reports],
-        }
-
+    if stop_after is not None and not is_int(stop_after, 0):
+        raise ConfigError(f"stop_after must be an int >= 0 or None, got {stop_after!r}")
+    run, budget = _Hierarchy.start(meshes, config, key, levels, snapshot_every), stop_after
+    fingerprint = _fingerprint(run.references, config, key)
+    ckpt = None if checkpoint_dir is None else Checkpoints(checkpoint_dir, fingerprint=fingerprint)
     try:
-        for level in range(len(gs), total):
-            if current is not None:
-                state, start, current = current, current_steps, None
-            else:
-                g, d = _initial_params(config, level, k_init, gs, ds)
-                state, start = _level_state(config, level, g, d), 0
-            geos = geos_all[: level + 1]
-            nbhd = geos[-1].nbhd
-            reals = jnp.asarray(np.stack([m.vertices[level] for m in references]), jnp.float32)
-            frozen = tuple(gs)
-            k_level = jax.random.fold_in(k_train, level)
-            t_batch = []  # the first chunk's frozen-level pass (compiles new shapes)
-
-            def batches(
-                i: int,
-                level=level,
-                nbhd=nbhd,
-                reals=reals,
-                frozen=frozen,
-                k_level=k_level,
-                t_batch=t_batch,
-            ):
-                t = time.perf_counter()
-                batch = level_batch(
-                    frozen,
-                    geos_all[: level + 1],
-                    templates,
-                    z_stars,
-                    reals,
-                    jax.random.fold_in(k_level, i // CHUNK),
-                    config=config,
-                    chunk=CHUNK,
-                    z_finer=z_finer,
-                )
-                if not t_batch:
-                    jax.block_until_ready(batch)
-                    t_batch.append(time.perf_counter() - t)
-                unpadded["batch"] = nbhd, batch  # for the snapshots
-                if level < len(padded):
-                    nbhd, batch = pad_level(nbhd, batch, padded[level])
-                return nbhd, batch, jnp.int32(min(CHUNK, S - i))
-
-            def snapshot(done: int, state, batch, level=level) -> None:
-                if -(-done // CHUNK) % snap_every == 0 or done == S:
-                    sample, rec = _snapshot(state["g"], *unpadded["batch"], config=config)
-                    snapshots.append(
-                        {"level": level, "step": done, "sample": sample, "reconstruction": rec}
-                    )
-
-            frozen_now = frozen_state() if ckpt is not None else None
-            run = fit(
-                chunk_step,
-                state,
-                batches,
-                steps=S,
-                steps_per_call=CHUNK,
-                checkpoints=CheckpointPolicy(
-                    ckpt,
-                    every=None if every is None else every * CHUNK,
-                    final=False,
-                    offset=level * S,
-                    saved=lambda state, m=frozen_now: {"model": m, "current": state},
-                    meta=functools.partial(record, level),
-                ),
-                start=start,
-                history=history,
-                progress=Progress(progress, f"DGTS level {level + 1}/{total}", ("g_rec", "g_adv")),
-                on_step=None if snap_every is None else snapshot,
-                compiled=compiled,
-            )
-            history = {k: list(v) for k, v in run.losses.items()}
-            compile_seconds = run.compile_seconds + (t_batch[0] if t_batch else 0.0)
-            reports.append(
-                LevelReport(
-                    level=level,
-                    steps=S,
-                    faces=int(len(meshes.faces[level])),
-                    compile_seconds=compile_seconds,
-                    seconds=run.seconds,
-                    seconds_per_step=(run.seconds - compile_seconds) / max(S - start, 1),
-                    losses={k: v[-1] for k, v in history.items()} if S else {},
-                )
-            )
-            gs.append(run.model["g"])
-            ds.append(run.model["d"])
-            if ckpt is not None:
-                ckpt.save(
-                    (level + 1) * S,
-                    {"model": frozen_state()},
-                    meta={**record(level, 0), "losses": history},
-                )
+        if ckpt is not None:
+            run.restore(ckpt)
+        for level in range(len(run.gs), run.total):
+            ran, complete = run.train_level(level, ckpt, progress, budget)
+            budget = None if budget is None else budget - ran
+            if not complete:
+                break
     finally:
         if ckpt is not None:
             ckpt.close()
-    model = Model(config, tuple(gs[:total]), tuple(ds[:total]), z_star, z_star_finer)
-    losses = {k: np.asarray(v[: total * S], np.float64) for k, v in history.items()}
-    return TrainResult(
-        model=model,
-        losses=losses,
-        steps=min(len(gs), total) * S,
-        seconds=time.perf_counter() - t_start,
-        compile_seconds=sum(r.compile_seconds for r in reports[:total]),
-        resumed_from=resumed_from,
-        extra={
-            "levels": reports[:total],
-            "compiled_steps": len(compiled),
-            **({"snapshots": snapshots} if snap_every else {}),
-        },
-    )
+    return run.result(t_start)
+
+
+@dataclasses.dataclass
+class _Hierarchy:
+    """One :func:`train` call: the level-independent inputs, the frozen levels trained so far, the
+    loss histories and reports, and the level in progress restored from a checkpoint."""
+
+    config: Config
+    references: tuple[TrainingMeshes, ...]
+    total: int
+    geos: list
+    padded: list
+    keys: tuple  # (initialisation, fixed noise, training)
+    z_star: np.ndarray
+    z_star_finer: tuple
+    snap_every: int | None
+    chunk_step: Any  # the jitted chunk of steps, one per call: equal-sized levels share its compile
+    gs: list = dataclasses.field(default_factory=list)
+    ds: list = dataclasses.field(default_factory=list)
+    history: dict = dataclasses.field(default_factory=lambda: {n: [] for n in LOSS_NAMES})
+    reports: list = dataclasses.field(default_factory=list)
+    snapshots: list = dataclasses.field(default_factory=list)
+    current: dict | None = None  # the restored state of the level in progress
+    current_steps: int = 0
+    resumed_from: int | None = None
+    partial: int = 0  # steps done in a level this call stopped in (``stop_after``)
+    compiled: dict = dataclasses.field(default_factory=dict)  # equal-sized levels share one
+    unpadded: dict = dataclasses.field(default_factory=dict)  # the newest batch, for snapshots
+
+    @classmethod
+    def start(cls, meshes, config: Config, key, levels, snapshot_every) -> _Hierarchy:
+        """Check the arguments, build the (padded) geometry of the levels and draw ``z*``."""
+        references = _references(meshes)
+        meshes = references[0]
+        total = meshes.num_levels if levels is None else levels
+        if not is_int(total, 1) or total > meshes.num_levels:
+            raise ConfigError(
+                f"levels must be an int in [1, {meshes.num_levels}] (the training meshes' levels), "
+                f"got {levels!r}"
+            )
+        if snapshot_every is not None and not is_int(snapshot_every, 1):
+            raise ConfigError(f"snapshot_every must be an int >= 1, got {snapshot_every!r}")
+        V = [len(v) for v in meshes.vertices]
+        # the padded sizes come from the training meshes, not from `levels`: resuming stays exact
+        n_geo = max(int(total), min(config.shared_levels, meshes.num_levels))
+        geos, faces = hierarchy_geometry(meshes.faces[0], V[0], n_geo)
+        for level in range(n_geo):
+            if not np.array_equal(faces[level], meshes.faces[level]):
+                raise InputError(
+                    f"training mesh level {level} is not the midpoint subdivision of level "
+                    f"{level - 1}"
+                )
+        keys = tuple(jax.random.split(key, 3))
+        k_z, amplitude = keys[1], config.noise_amplitude
+        return cls(
+            config=config,
+            references=references,
+            total=int(total),
+            geos=geos,
+            padded=_padded_sizes(geos, config.shared_levels),
+            keys=keys,
+            z_star=np.asarray(amplitude * jax.random.normal(k_z, (V[0], 3), jnp.float32)),
+            z_star_finer=tuple(  # reference r's at level l: key fold_in(k_finer, l), then r
+                np.asarray(
+                    amplitude
+                    * jax.random.normal(_finer_key(k_z, level, 0), (V[level], 3), jnp.float32)
+                )
+                for level in range(1, min(config.fixed_noise_levels, len(V)))
+            ),
+            snap_every=None if snapshot_every is None else -(-int(snapshot_every) // CHUNK),
+            chunk_step=jax.jit(functools.partial(_chunk_step, config=config)),
+        )
+
+    def restore(self, ckpt: Checkpoints) -> None:
+        """The frozen levels, ``z*``, histories and the level in progress of the newest checkpoint."""
+        step = ckpt.latest_step()
+        if step is None:
+            return
+        meta = ckpt.read_meta(step)
+        if meta.get("kind") != CHECKPOINT_KIND:
+            raise InputError(
+                f"{ckpt.directory} holds {meta.get('kind')!r}, not DGTS training checkpoints"
+            )
+        sizes = [len(v) for v in self.references[0].vertices]
+        state, meta = ckpt.restore(_checkpoint_like(self.config, meta, sizes), step=step)
+        model = state["model"]
+        self.gs, self.ds = list(model["generators"]), list(model["discriminators"])
+        self.z_star = np.asarray(model["z_star"], np.float32)
+        self.z_star_finer = tuple(np.asarray(z, np.float32) for z in model["z_star_finer"])
+        self.current, self.current_steps = state.get("current"), int(meta["level_steps"])
+        self.history = {name: list(meta["losses"][name]) for name in LOSS_NAMES}
+        self.reports = [LevelReport(**r) for r in meta["levels"]]
+        self.resumed_from = step
+
+    def fixed_noise(self) -> tuple[jax.Array, tuple]:
+        """Every reference's ``z*`` ``[R, V_0, 3]`` and fixed finer noise (the first's restored)."""
+        c, k_z, R = self.config, self.keys[1], len(self.references)
+
+        def draw(first, key_of):
+            first = jnp.asarray(first, jnp.float32)
+            rest = [
+                c.noise_amplitude * jax.random.normal(key_of(r), first.shape, jnp.float32)
+                for r in range(1, R)
+            ]
+            return jnp.stack([first, *rest])
+
+        z_stars = draw(self.z_star, lambda r: jax.random.fold_in(k_z, r))
+        z_finer = tuple(
+            draw(z, lambda r, level=level: _finer_key(k_z, level, r))
+            for level, z in enumerate(self.z_star_finer, start=1)
+        )
+        return z_stars, z_finer
+
+    def model(self) -> Model:
+        c = self.config
+        return Model(c, tuple(self.gs), tuple(self.ds), self.z_star, self.z_star_finer)
+
+    def record(self, done: int) -> dict:
+        """The meta data of a checkpoint ``done`` steps into the level in progress."""
+        return {
+            "kind": CHECKPOINT_KIND,
+            "config": self.config.to_dict(),
+            "completed_levels": len(self.gs),
+            "level_steps": done,
+            "levels": [dataclasses.asdict(r) for r in self.reports],
+        }
+
+    def batches(self, level: int, t_batch: list):
+        """The level's ``first step -> (nbhd, batch, n)`` (its frozen levels' pass per chunk)."""
+        c, nbhd = self.config, self.geos[level].nbhd
+        reals = jnp.stack([jnp.asarray(m.vertices[level], jnp.float32) for m in self.references])
+        templates = jnp.stack([jnp.asarray(m.template, jnp.float32) for m in self.references])
+        frozen, k_level = tuple(self.gs), jax.random.fold_in(self.keys[2], level)
+        z_stars, z_finer = self.fixed_noise()
+
+        def batches(i: int):
+            t = time.perf_counter()
+            key = jax.random.fold_in(k_level, i // CHUNK)
+            args = (frozen, self.geos[: level + 1], templates, z_stars, reals, key)
+            batch = level_batch(*args, config=c, chunk=CHUNK, z_finer=z_finer)
+            if not t_batch:  # the first chunk's frozen-level pass compiles new shapes
+                jax.block_until_ready(batch)
+                t_batch.append(time.perf_counter() - t)
+            self.unpadded["batch"] = padded = nbhd, batch
+            if level < len(self.padded):
+                padded = pad_level(nbhd, batch, self.padded[level])
+            return (*padded, jnp.int32(min(CHUNK, c.steps - i)))
+
+        return batches
+
+    def snapshot(self, level: int):
+        """``fit``'s ``on_step``: record the level's sample and reconstruction (``snapshot_every``)."""
+
+        def on_step(done: int, state, batch) -> None:
+            if -(-done // CHUNK) % self.snap_every == 0 or done == self.config.steps:
+                sample, rec = _snapshot(state["g"], *self.unpadded["batch"], config=self.config)
+                self.snapshots.append(
+                    {"level": level, "step": done, "sample": sample, "reconstruction": rec}
+                )
+
+        return None if self.snap_every is None else on_step
+
+    def train_level(self, level: int, ckpt, progress: bool, budget: int | None) -> tuple[int, bool]:
+        """Train ``level`` (one :func:`fit` call) from its restored or initial state; the steps run
+        and whether the level is complete (it is unless ``budget`` ran out)."""
+        c, S = self.config, self.config.steps
+        if self.current is not None:
+            state, start, self.current = self.current, self.current_steps, None
+        else:
+            state, start = (
+                _level_state(c, level, *_initial_params(c, level, self.keys[0], self.gs, self.ds)),
+                0,
+            )
+        end = S if budget is None else min(S, start + budget)
+        every = c.checkpoint_every
+        frozen = self.model_state() if ckpt is not None else None
+        t_batch: list = []
+        run = fit(
+            self.chunk_step,
+            state,
+            self.batches(level, t_batch),
+            steps=S,
+            stop_after=end - start,
+            steps_per_call=CHUNK,
+            checkpoints=CheckpointPolicy(
+                ckpt,
+                every=None if every is None else -(-every // CHUNK) * CHUNK,
+                final=end < S,  # a level that stops early is saved where it stops
+                offset=level * S,
+                saved=lambda state: {"model": frozen, "current": state},
+                meta=self.record,
+            ),
+            start=start,
+            history=self.history,
+            progress=Progress(progress, f"DGTS level {level + 1}/{self.total}", ("g_rec", "g_adv")),
+            on_step=self.snapshot(level),
+            compiled=self.compiled,
+        )
+        self.history = {k: list(v) for k, v in run.losses.items()}
+        if end < S:
+            self.partial = end
+            return end - start, False
+        self.finish_level(level, run, start, t_batch[0] if t_batch else 0.0, ckpt)
+        return end - start, True
+
+    def model_state(self) -> dict:
+        return model_state(self.model())
+
+    def finish_level(self, level: int, run: TrainResult, start: int, t_batch: float, ckpt) -> None:
+        """Report the level, freeze its networks and checkpoint the completed levels."""
+        S, compile_seconds = self.config.steps, run.compile_seconds + t_batch
+        self.reports.append(
+            LevelReport(
+                level=level,
+                steps=S,
+                faces=int(len(self.references[0].faces[level])),
+                compile_seconds=compile_seconds,
+                seconds=run.seconds,
+                seconds_per_step=(run.seconds - compile_seconds) / max(S - start, 1),
+                losses={k: v[-1] for k, v in self.history.items()} if S else {},
+            )
+        )
+        self.gs.append(run.model["g"])
+        self.ds.append(run.model["d"])
+        if ckpt is not None:
+            meta = {**self.record(0), "losses": self.history}
+            ckpt.save((level + 1) * S, {"model": self.model_state()}, meta=meta)
+
+    def result(self, t_start: float) -> TrainResult[Model]:
+        total, S = self.total, self.config.steps
+        done = len(self.gs[:total])
+        return TrainResult(
+            model=Model(
+                self.config,
+                tuple(self.gs[:total]),
+                tuple(self.ds[:total]),
+                self.z_star,
+                self.z_star_finer,
+            ),
+            losses={k: np.asarray(v[: total * S], np.float64) for k, v in self.history.items()},
+            steps=done * S + self.partial,
+            seconds=time.perf_counter() - t_start,
+            compile_seconds=sum(r.compile_seconds for r in self.reports[:total]),
+            resumed_from=self.resumed_from,
+            extra={
+                "levels": self.reports[:total],
+                "compiled_steps": len(self.compiled),
+                **({"snapshots": self.snapshots} if self.snap_every else {}),
+            },
+        )
 
 
 def _finer_key(k_z, level: int, reference: int):

@@ -57,7 +57,7 @@ from ._model import Model
 from ._networks import LevelGeometry, generate, hierarchy_geometry, upsample
 
 
-class DGTSTransfer(NamedTuple):
+class Transfer(NamedTuple):
     """Meshes produced by :func:`transfer` and :func:`interpolate` (all in the target's coordinates).
 
     Attributes:
@@ -445,7 +445,7 @@ def _noises(key: PRNGKey, sizes: Sequence[int], amplitude: float) -> list[jax.Ar
 
 def _synthesise(
     model: Model, plan: TransferPlan, draws: Sequence[Sequence], *, per_level: bool
-) -> DGTSTransfer:
+) -> Transfer:
     """Run the generators of ``plan`` once per noise list in ``draws`` (one ``[V_l, 3]`` array per level
     run) and map the results back to the target's frame."""
     c = model.config
@@ -491,7 +491,7 @@ def _synthesise(
         levels = tuple(
             np.stack([plan.to_target(o[i], level=i) for o in outs]) for i in range(len(plan.sizes))
         )
-    return DGTSTransfer(
+    return Transfer(
         vertices,
         plan.faces[-1],
         plan.to_target(base),
@@ -538,7 +538,7 @@ def transfer(
     max_faces: int | None = 500_000,
     zero_noise_from: int | None = None,
     per_level: bool = False,
-) -> DGTSTransfer:
+) -> Transfer:
     """Synthesise the learned texture on a target mesh, ``num_samples`` times with different noise.
 
     Noise on the first two levels run only, as the official code (``zero_places = (0, 0, 1, 1,
@@ -583,7 +583,7 @@ def transfer(
       per_level: also return every level's output (``level_vertices``, ``level_faces``: Fig. 6).
 
     Returns:
-      :class:`DGTSTransfer` in the target's coordinates.
+      :class:`Transfer` in the target's coordinates.
 
     Raises:
       FaceBudgetError: the output would exceed ``max_faces`` (an :class:`~jmeshtex.InputError`).
@@ -627,7 +627,7 @@ def conditional(
     key: PRNGKey,
     num_samples: int = 1,
     per_level: bool = False,
-) -> DGTSTransfer:
+) -> Transfer:
     """Generation conditioned on the training shape at scale ``level`` (the paper's Fig. 5).
 
     The template runs through every level; levels ``< level`` get the reconstruction noise
@@ -645,7 +645,7 @@ def conditional(
       per_level: also return every level's output.
 
     Returns:
-      :class:`DGTSTransfer` in the template's coordinates.
+      :class:`Transfer` in the template's coordinates.
 
     Raises:
       InputError: a bad ``level`` or a template that does not match ``z*``.
@@ -680,7 +680,7 @@ def reconstruct(
     template: Mesh | tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]],
     *,
     per_level: bool = True,
-) -> DGTSTransfer:
+) -> Transfer:
     """The training reconstruction: the template through every level with the reconstruction noise.
 
     Deterministic (no key). Level ``l``'s output times ``scale_factor**l`` is the reconstruction
@@ -693,7 +693,7 @@ def reconstruct(
       per_level: return every level's output (default True).
 
     Returns:
-      :class:`DGTSTransfer` with one sample.
+      :class:`Transfer` with one sample.
 
     Example:
       >>> from jmeshtex.data import icosahedron
@@ -720,7 +720,7 @@ def interpolate(
     num_frames: int = 8,
     max_faces: int | None = 500_000,
     zero_noise_from: int | None = None,
-) -> DGTSTransfer:
+) -> Transfer:
     """Frames of a latent interpolation between two noise draws (the reference code's animation).
 
     .. math:: z(t) = (1 - t)\\, z_a + t\\, z_b,\\qquad t = 0, \\tfrac{1}{N-1}, \\ldots, 1
@@ -732,7 +732,7 @@ def interpolate(
       num_frames: frames including both ends (≥ 2).
 
     Returns:
-      :class:`DGTSTransfer` with one "sample" per frame; ``noise[0]`` is ``z_a`` and
+      :class:`Transfer` with one "sample" per frame; ``noise[0]`` is ``z_a`` and
       ``noise[-1]`` is ``z_b``.
 
     Example:

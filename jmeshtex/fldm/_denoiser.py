@@ -307,8 +307,8 @@ def init_denoiser(
     return _init(key, config.network(), jnp.dtype(dtype))
 
 
-@functools.lru_cache(maxsize=4)
 def _init_geometry(knn: int) -> DenoiserGeometry:
+    """The small fixed mesh parameters are initialised on (built when ``_init`` is traced)."""
     from ..data import icosphere
 
     return denoiser_geometry(icosphere(1), knn=knn, pool_ratio=0.5)
@@ -316,8 +316,8 @@ def _init_geometry(knn: int) -> DenoiserGeometry:
 
 @jit_once(static_argnames=("config", "dtype"))
 def _init(key, config: Config, dtype):
-    # jitted (eager initialisation dispatches and compiles every small op of every block separately),
-    # at XLA's fastest compile: it runs once
+    # jitted (eager initialisation dispatches and compiles every small op of every block separately);
+    # it runs once
     geo = _as_jax(_init_geometry(config.knn), dtype)
     v = np.shape(geo.fine.index)[0]
     z = jnp.zeros((v, config.latent_channels), dtype)

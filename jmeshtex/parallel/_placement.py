@@ -11,7 +11,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding
 
 from .._errors import InputError
-from .._jit import FULL_OPTIMISATION
+from .._jit import loop_options
 from ._mesh import DATA_AXIS, batch_multiple, batch_sharding, replicated
 
 
@@ -150,9 +150,9 @@ def data_parallel(
             f"data_parallel needs a mesh with a {DATA_AXIS!r} axis, got {mesh.axis_names}"
         )
     batch_argnums = tuple(int(i) for i in batch_argnums)
-    jitted = jax.jit(  # a step runs in a loop: XLA's full optimisation, whatever XLA_FLAGS say
+    jitted = jax.jit(  # a step runs in a loop: the process's loop options (`jmeshtex._jit`)
         fn,
-        compiler_options=FULL_OPTIMISATION,
+        compiler_options=loop_options(),
         out_shardings=replicated(mesh) if out_shardings is None else out_shardings,
         donate_argnums=tuple(donate_argnums),
     )

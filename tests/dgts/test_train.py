@@ -101,29 +101,35 @@ def test_resume_within_a_level_is_exact(tmp_path, tiny_meshes):
     """Checkpoints every chunk: an interrupted level resumes from its last chunk, bit for bit."""
     from jmeshtex.dgts._train import CHUNK
 
-    cfg = TINY.replace(steps=3 * CHUNK)
+    cfg = TINY.replace(steps=3 * CHUNK, checkpoint_every=CHUNK)
     key = jax.random.key(7)
-    whole = train(tiny_meshes, cfg, key=key, progress=False)
+    whole = train(
+        tiny_meshes, cfg, key=key, progress=False
+    )  # checkpoint_every: no folder, no effect
     out = tmp_path / "run"
-    train(
-        tiny_meshes,
-        cfg,
-        key=key,
-        checkpoint_dir=out,
-        checkpoint_every=CHUNK,
-        levels=1,
-        progress=False,
-    )
+    train(tiny_meshes, cfg, key=key, checkpoint_dir=out, levels=1, progress=False)
     # keep only the mid-level checkpoint of level 0 (step 2·CHUNK), as if the run had stopped there
     assert Checkpoints(out).steps() == [2 * CHUNK, 3 * CHUNK]
     shutil.rmtree(out / str(3 * CHUNK))
-    resumed = train(
-        tiny_meshes, cfg, key=key, checkpoint_dir=out, checkpoint_every=CHUNK, progress=False
-    )
+    resumed = train(tiny_meshes, cfg, key=key, checkpoint_dir=out, progress=False)
     assert resumed.resumed_from == 2 * CHUNK
     _assert_same_model(resumed.model, whole.model)
     for name in LOSS_NAMES:
         np.testing.assert_array_equal(resumed.losses[name], whole.losses[name])
+    # time-boxed calls (stop_after) that stop within a level and at a level's end continue exactly
+    boxed = tmp_path / "boxed"
+    part = train(tiny_meshes, cfg, key=key, checkpoint_dir=boxed, stop_after=CHUNK, progress=False)
+    assert part.steps == CHUNK and part.model.num_levels == 0
+    assert Checkpoints(boxed).steps() == [CHUNK]  # saved where it stopped
+    part = train(
+        tiny_meshes, cfg, key=key, checkpoint_dir=boxed, stop_after=2 * CHUNK, progress=False
+    )
+    assert part.resumed_from == CHUNK and part.steps == 3 * CHUNK and part.model.num_levels == 1
+    rest = train(tiny_meshes, cfg, key=key, checkpoint_dir=boxed, progress=False)
+    assert rest.resumed_from == 3 * CHUNK and rest.steps == whole.steps
+    _assert_same_model(rest.model, whole.model)
+    for name in LOSS_NAMES:
+        np.testing.assert_array_equal(rest.losses[name], whole.losses[name])
 
 
 def test_resume_with_another_config_or_key_is_refused(tmp_path, tiny_meshes):
@@ -175,7 +181,11 @@ def test_errors(tmp_path, tiny_meshes):
     with pytest.raises(ConfigError, match="levels"):
         train(tiny_meshes, TINY, key=jax.random.key(0), levels=3, progress=False)
     with pytest.raises(ConfigError, match="checkpoint_every"):
-        train(tiny_meshes, TINY, key=jax.random.key(0), checkpoint_every=10, progress=False)
+        TINY.replace(checkpoint_every=0)
+    with pytest.raises(ConfigError, match="stop_after"):
+        train(tiny_meshes, TINY, key=jax.random.key(0), stop_after=-1, progress=False)
+    with pytest.raises(TypeError, match="config"):
+        train(tiny_meshes, key=jax.random.key(0), progress=False)  # no default config
 
 
 def test_padded_levels_share_one_compiled_step(tiny_result, tiny_meshes):

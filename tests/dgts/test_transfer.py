@@ -8,7 +8,7 @@ import pytest
 
 from jmeshtex import InputError, Mesh, MeshError
 from jmeshtex.data import grid, icosahedron, icosphere, torus
-from jmeshtex.dgts import DGTSTransfer, interpolate, transfer
+from jmeshtex.dgts import Transfer, interpolate, transfer
 from jmeshtex.dgts.core import normal_heights, plan_transfer, run_plan
 from jmeshtex.geometry import subdivide_midpoint, vertex_normals
 
@@ -18,7 +18,7 @@ def test_transfer_any_topology(tiny_model, mesh, key):
     v, f = mesh
     v = 3.0 * v + 7.0  # any scale and placement
     res = transfer(tiny_model, Mesh(v, f), num_samples=2, start_level=0, key=key)
-    assert isinstance(res, DGTSTransfer)
+    assert isinstance(res, Transfer)
     sub = subdivide_midpoint(v, f)
     np.testing.assert_array_equal(
         res.faces, sub.faces
