@@ -28,6 +28,7 @@ one level up, in :mod:`jmeshtex.dgts`.
   :func:`period_in_mean_edges`, :func:`matched_noise`.
 """
 
+from ._baselines import scores_beside_baselines as scores_beside_baselines
 from ._multiscale import fit_level as fit_level
 from ._multiscale import sample_points as sample_points
 from ._networks import Discriminator as Discriminator

@@ -9,7 +9,6 @@ import pathlib
 import time
 
 import jax
-import numpy as np
 
 from ._views import Progress, say, view
 
@@ -52,13 +51,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
         train,
         transfer,
     )
-    from ...dgts.core import (
-        knob_scores,
-        oracle_texture,
-        period_in_mean_edges,
-        texture_noise,
-        texture_operators,
-    )
+    from ...dgts.core import period_in_mean_edges, scores_beside_baselines
     from ...render import figure
 
     t0 = time.perf_counter()
@@ -76,24 +69,18 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     res_untrained = transfer(
         untrained, target, num_samples=2, start_level=START_LEVEL, key=k_transfer
     )
-    base = (res.base, res.faces)
-    period = period_in_mean_edges(tm, pretrained_period("knobs"))
-    ops = texture_operators(base, period=period)
-    oracle = oracle_texture(base, "knobs", period=period)
-    own = knob_scores(oracle, oracle, ops=ops)
-    noise = [texture_noise(base, ops, own.relief, key=jax.random.key(i)) for i in range(2)]
-
-    def ratios(meshes) -> tuple[float, float, float]:
-        """Mean knob density and relief of ``meshes`` over the oracle's; mean patch distance."""
-        scores = [knob_scores(m, oracle, ops=ops) for m in meshes]
-        density = np.mean([s.density for s in scores]) / own.density
-        relief = np.mean([s.relief for s in scores]) / own.relief
-        return float(density), float(relief), float(np.mean([s.distance for s in scores]))
-
-    trained_r = ratios([res.mesh(0), res.mesh(1)])
-    untrained_r = ratios([res_untrained.mesh(0), res_untrained.mesh(1)])
-    noise_r = ratios(noise)
-    flat_r = ratios([base])  # no displacement: no peak above the oracle's threshold
+    scores, oracle, noise = scores_beside_baselines(
+        {
+            "trained": [res.mesh(0), res.mesh(1)],
+            "untrained": [res_untrained.mesh(0), res_untrained.mesh(1)],
+        },
+        (res.base, res.faces),
+        kind="knobs",
+        period=period_in_mean_edges(tm, pretrained_period("knobs")),
+        key=jax.random.key(0),
+    )
+    trained_r, untrained_r = scores["trained"], scores["untrained"]
+    noise_r, flat_r = scores["noise"], scores["no displacement"]
     say(progress, "rendering")
     figure(
         [
