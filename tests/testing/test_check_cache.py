@@ -20,6 +20,8 @@ def test_every_exact_transform_of_a_mesh_reuses_one_compilation():
     assert cache.eager == {}
     # one trace per sample mesh (closed and open), shared by the source and target of every draw
     assert len(cache._kinds) == 2, list(cache._kinds)
+    # and the geometry it reads was found once: every later state had it built without a trace
+    assert cache.probes == 1
 
 
 def test_compiled_operator_matches_the_eager_one():
