@@ -91,7 +91,7 @@ class VertexNeighborhood(NamedTuple):
     log_unit: Float[ArrayLike, ""] | None = None
 
 
-#: an unrecorded neighbourhood whose typical edge in log units (:func:`typical_edge`) lies outside
+#: an unrecorded neighbourhood whose typical edge in log units (``typical_edge``) lies outside
 #: this range warns: the issue's first user mesh had edges of 11.7, a unit sphere at 40K vertices 0.02
 LOG_SCALE_RANGE = (0.2, 5.0)
 
@@ -127,7 +127,8 @@ def check_log_scale(
     Checks only what can be read without tracing: a neighbourhood with a recorded ``log_unit`` is
     at the scale its builder chose (the unit must be positive and finite, else
     :class:`~jmeshtex.InputError`); one without is checked when its arrays are concrete (not under
-    ``jax.jit`` / ``vmap`` / ``grad``), by its :func:`typical_edge` against ``LOG_SCALE_RANGE``
+    ``jax.jit`` / ``vmap`` / ``grad``), by its typical edge (the mean over vertices of the nearest
+    neighbour's ``|log|``, about one edge length) against ``LOG_SCALE_RANGE``
     (0.2 to 5).
 
     Args:
