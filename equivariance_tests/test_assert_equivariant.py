@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex import InputError
+from jmeshtex import InputError, MeshError
 from jmeshtex.data import icosphere
 from jmeshtex.testing import (
     CATALOGUE,
@@ -103,3 +103,70 @@ def test_two_stacked_knn_layers_converge_only_with_a_two_hop_selection():
     assert all(b >= a for a, b in zip(one.excluded, two.excluded, strict=True))
     with pytest.raises(ValueError, match="hops must be an integer"):
         convergence(_two_knn_layers, CATALOGUE["cylinder"], lambda s, r: {}, hops=0)
+
+
+def _two_field_convs(params, x, nb):
+    from jmeshtex import ops
+
+    h = ops.field_conv(x, nb, params[0])
+    return ops.field_conv(h * jax.nn.sigmoid(jnp.abs(h)).astype(h.dtype), nb, params[1])
+
+
+def test_a_model_is_checked_on_its_own_mesh_and_the_catalogue_with_a_one_line_adapter():
+    from jmeshtex import ops
+
+    keys = jax.random.split(jax.random.key(0), 2)
+    params = [
+        ops.init_field_conv(keys[0], 2, 4, hdim=4),
+        ops.init_field_conv(keys[1], 4, 2, hdim=4),
+    ]
+    v, f = icosphere(1)
+    # the mesh units (edges of ~5); jittered: exact ties in path lengths would make the
+    # k-NN selection follow the vertex labels, and permute_vertices rightly fail
+    v = 11.7 * (v + 0.03 * np.random.default_rng(0).standard_normal(v.shape))
+    errors = assert_equivariant(
+        lambda state, x: _two_field_convs(params, x, state.knn(8)),  # the whole adapter
+        jax.random.key(1),
+        {"x": ("vertex_tangent", 2)},
+        output="vertex_tangent",
+        mesh=(v, f),
+        transforms=("rigid", "gauge", "permute_vertices", "fold"),
+    )
+    assert set(errors) == {"rigid", "gauge", "permute_vertices", "fold"}
+    bound = 1e-10 if jax.config.jax_enable_x64 else 1e-5
+    assert max(errors.values()) < bound
+
+
+def test_a_failure_on_your_own_mesh_says_so():
+    v, f = icosphere(1)
+    v = v + 0.03 * np.random.default_rng(0).standard_normal(v.shape)
+
+    def frozen(state, x):  # a tangent output that ignores the frame: not gauge-equivariant
+        return jnp.ones_like(x) + 0 * state.knn(6).log[:, :1]
+
+    with pytest.raises(AssertionError) as info:
+        assert_equivariant(
+            frozen,
+            0,
+            {"x": ("vertex_tangent", 1)},
+            output="vertex_tangent",
+            mesh=(v, f),
+            transforms=("gauge", "permute_vertices"),
+        )
+    message = str(info.value)
+    assert "gauge on your mesh: relative error" in message and "\n  gauge: relative" in message
+
+
+def test_the_short_path_refuses_what_it_cannot_read():
+    v, f = icosphere(1)
+    spec = {"x": ("vertex_scalar", 1)}
+    with pytest.raises(TypeError, match="output='vertex_tangent'"):
+        assert_equivariant(lambda s, x: 2 * x, 0, spec, transforms=("rigid",))
+    with pytest.raises(InputError, match="output must be one of"):
+        assert_equivariant(lambda s, x: 2 * x, 0, spec, output="vector", transforms=("rigid",))
+    with pytest.raises(InputError, match="mesh must be"):
+        assert_equivariant(lambda s, x: 2 * x, 0, spec, output="vertex_scalar", mesh="cow.obj")
+    with pytest.raises(MeshError, match="out of range"):  # as the loaders name it
+        assert_equivariant(
+            lambda s, x: 2 * x, 0, spec, output="vertex_scalar", mesh=(v, f + len(v))
+        )

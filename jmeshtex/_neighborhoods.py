@@ -74,10 +74,11 @@ class VertexNeighborhood(NamedTuple):
       area: ``[V]`` vertex area of p (barycentric, a third of incident face areas); 0 on padding.
       vertex_mask: ``[V]`` True for real vertices.
       log_unit: the length, in mesh units, of one unit of ``log`` (a 0-d array), set by
-        :func:`scale_log_maps` and by the builders' ``scale=`` (e.g. the mean edge length, so
-        that ``|log|`` is about 1 for a neighbour one edge away, the scale a filter's weights
-        start at); ``None`` (the default): ``log`` is in mesh units, as built without ``scale=``.
-        A leaf of the pytree when set (``vmap`` a stacked batch with ``[B]`` units).
+        :func:`scale_log_maps` and by the builders' ``scale=`` (by default the mean edge length,
+        so that ``|log|`` is about 1 for a neighbour one edge away, the scale a filter's weights
+        start at); ``None``: unrecorded (``scale=None``, hand-built or hierarchy
+        neighbourhoods: ``log`` in mesh units). A leaf of the pytree when set (``vmap`` a stacked
+        batch with ``[B]`` units).
     """
 
     index: Int[Array, "V K"]
@@ -90,27 +91,51 @@ class VertexNeighborhood(NamedTuple):
     log_unit: Float[ArrayLike, ""] | None = None
 
 
-#: typical ``|log|`` (the median over real, non-self slots) outside this range warns
-LOG_SCALE_RANGE = (1.0 / 32.0, 32.0)
+#: an unrecorded neighbourhood whose typical edge in log units (``typical_edge``) lies outside
+#: this range warns: the issue's first user mesh had edges of 11.7, a unit sphere at 40K vertices 0.02
+LOG_SCALE_RANGE = (0.2, 5.0)
+
+_WARNED: set[str] = set()  # callers that warned once (``check_log_scale(once=True)``)
+
+
+def typical_edge(nbhd: VertexNeighborhood) -> float | None:
+    """The mean over vertices of the shortest positive ``|log|`` in each row: about one edge length.
+
+    In a one-ring or a k-NN neighbourhood the nearest neighbour is an edge neighbour, so this is
+    the mean shortest edge at a vertex in the units of ``log`` (≈ 0.6–0.9 at unit scale). None when
+    no real slot has a positive ``|log|``.
+
+    Example:
+      >>> import numpy as np
+      >>> nb = VertexNeighborhood(np.zeros((2, 3), np.int32), np.ones((2, 3), bool),
+      ...     np.array([[0, 2, 3j], [0, 0.5, -4]]), np.ones((2, 3), complex), np.ones((2, 3)),
+      ...     np.ones(2), np.ones(2, bool))
+      >>> typical_edge(nb)  # (2 + 0.5) / 2
+      1.25
+    """
+    r = np.where(np.asarray(nbhd.mask, bool), np.abs(np.asarray(nbhd.log)), 0.0)
+    r = np.where(r > 0, r, np.inf).min(axis=1)
+    r = r[np.isfinite(r)]
+    return float(r.mean()) if r.size else None
 
 
 def check_log_scale(
-    nbhd: VertexNeighborhood, caller: str = "check_log_scale", *, unrecorded: bool = True
+    nbhd: VertexNeighborhood, caller: str = "check_log_scale", *, once: bool = False
 ) -> None:
-    """Warn (:class:`LogScaleWarning`) when ``nbhd``'s log maps are far from unit scale.
+    """Warn (:class:`LogScaleWarning`) when ``nbhd``'s log maps have no recorded unit and are far from one.
 
     Checks only what can be read without tracing: a neighbourhood with a recorded ``log_unit`` is
     at the scale its builder chose (the unit must be positive and finite, else
     :class:`~jmeshtex.InputError`); one without is checked when its arrays are concrete (not under
-    ``jax.jit`` / ``vmap`` / ``grad``), by the median ``|log|`` of its real non-self slots against
-    ``LOG_SCALE_RANGE`` (1/32 to 32).
+    ``jax.jit`` / ``vmap`` / ``grad``), by its typical edge (the mean over vertices of the nearest
+    neighbour's ``|log|``, about one edge length) against ``LOG_SCALE_RANGE``
+    (0.2 to 5).
 
     Args:
       nbhd: a :class:`VertexNeighborhood`.
       caller: the calling function's name, for the messages.
-      unrecorded: also check a neighbourhood without ``log_unit`` (its typical ``|log|``);
-        :func:`jmeshtex.ops.field_conv` passes False (the equivariance harness scales meshes on
-        purpose).
+      once: warn at most once per process for this ``caller`` (:func:`jmeshtex.ops.field_conv`
+        passes True: a network calls it once per layer and step).
 
     Example:
       >>> import numpy as np, warnings
@@ -122,7 +147,7 @@ def check_log_scale(
       ...     check_log_scale(nb, "field_conv")
       >>> caught[0].category.__name__
       'LogScaleWarning'
-      >>> check_log_scale(scale_log_maps(nb, 0.001), "field_conv")  # unit scale: silent
+      >>> check_log_scale(scale_log_maps(nb, 0.001), "field_conv")  # unit recorded: silent
     """
     unit, log, mask = nbhd.log_unit, nbhd.log, nbhd.mask
     if unit is not None:
@@ -132,22 +157,25 @@ def check_log_scale(
         if not (np.all(np.isfinite(u)) and np.all(u > 0)):
             raise InputError(f"{caller}: nbhd.log_unit must be positive and finite, got {u!r}")
         return
-    if not unrecorded or isinstance(log, jax.core.Tracer) or isinstance(mask, jax.core.Tracer):
+    if once and caller in _WARNED:
         return
-    r = np.abs(np.asarray(log))
-    r = r[np.asarray(mask, bool) & (r > 0)]
-    if not r.size:
+    if isinstance(log, jax.core.Tracer) or isinstance(mask, jax.core.Tracer):
         return
-    typical = float(np.median(r))
+    edge = typical_edge(nbhd)
     lo, hi = LOG_SCALE_RANGE
-    if not lo <= typical <= hi:
-        warnings.warn(
-            f"{caller}: the neighbourhood's log maps have a typical |log| of {typical:.3g}, far "
-            "from the unit scale the filters see (the output then hardly depends on the "
-            'geometry); build it with scale="mean_edge" or call jmeshtex.scale_log_maps',
-            LogScaleWarning,
-            stacklevel=3,
-        )
+    if edge is None or lo <= edge <= hi:
+        return
+    if once:
+        _WARNED.add(caller)
+    warnings.warn(
+        f"{caller}: the neighbourhood has no recorded unit (log_unit None) and its log maps put "
+        f"a typical edge at |log| = {edge:.3g}, outside [{lo}, {hi}], far from the unit scale the "
+        "filters see (the output then hardly depends on the geometry, or saturates); build it "
+        'with scale="mean_edge" (the builders\' default) or call jmeshtex.scale_log_maps(nbhd, '
+        "mean_edge_length(v, f))" + (" (said once)" if once else ""),
+        LogScaleWarning,
+        stacklevel=3,
+    )
 
 
 def scale_log_maps(nbhd: VertexNeighborhood, unit: float) -> VertexNeighborhood:
@@ -292,12 +320,18 @@ def to_jax(tree: T, dtype=jnp.float32) -> T:
     def convert(leaf):
         leaf_dtype = np.asarray(leaf).dtype if not isinstance(leaf, jax.Array) else leaf.dtype
         if jnp.issubdtype(leaf_dtype, jnp.complexfloating):
-            return jnp.asarray(leaf, dtype=cplx)
-        if jnp.issubdtype(leaf_dtype, jnp.floating):
-            return jnp.asarray(leaf, dtype=real)
-        if jnp.issubdtype(leaf_dtype, jnp.integer):
-            return jnp.asarray(leaf, dtype=jnp.int32)
-        return jnp.asarray(leaf)
+            target = cplx
+        elif jnp.issubdtype(leaf_dtype, jnp.floating):
+            target = real
+        elif jnp.issubdtype(leaf_dtype, jnp.integer):
+            target = jnp.dtype(jnp.int32)
+        else:  # booleans (masks) keep their dtype
+            target = leaf_dtype
+        if isinstance(leaf, jax.Array):
+            return jnp.asarray(leaf, dtype=target)
+        # host arrays convert on the host and are put on the device as they are: jnp.asarray would
+        # compile a conversion (or a staging copy) per shape under jax.ensure_compile_time_eval
+        return jax.device_put(np.asarray(leaf, dtype=target))
 
     return jax.tree.map(convert, tree)
 

@@ -122,7 +122,7 @@ def _knn(ctx: dict[str, Any]) -> str:
     v, f = ctx["torus"]
     nb = geodesic_knn_neighborhood(v, f, k=8)
     radius = np.abs(nb.log[:, -1])
-    return f"torus: [{nb.index.shape[0]}, {nb.index.shape[1]}] slots, geodesic radius of slot 8: {radius.min():.3g}–{radius.max():.3g}"
+    return f"torus: [{nb.index.shape[0]}, {nb.index.shape[1]}] slots, geodesic radius of slot 8: {radius.min():.3g}–{radius.max():.3g} mean edges"
 
 
 def _hierarchy(ctx: dict[str, Any]) -> str:

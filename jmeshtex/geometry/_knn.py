@@ -43,7 +43,7 @@ def geodesic_knn_neighborhood(
     faces: Int[np.ndarray, "F 3"],
     *,
     k: int = 8,
-    scale: str | float | None = None,
+    scale: str | float | None = "mean_edge",
 ) -> VertexNeighborhood:
     """The vertex itself and its k-1 nearest vertices by edge path, with composed log map and transport.
 
@@ -66,10 +66,10 @@ def geodesic_knn_neighborhood(
       k: slots per vertex including the vertex itself (≥ 1). Vertices whose connected component
         has fewer than k vertices get padded slots (index 0, mask False, log 0, transport 1,
         weight 0).
-      scale: the unit of ``log``: ``None`` (default) mesh units; ``"mean_edge"`` the mean edge
-        length (a neighbour one edge away at ``|log|`` ≈ 1 on any mesh: what field-convolution
-        filters need; recommended for new models); or a positive length. Recorded in
-        ``log_unit``. The default keeps the units the shipped models were trained with.
+      scale: the unit of ``log``: ``"mean_edge"`` (default) the mean edge length (a neighbour
+        one edge away at ``|log|`` ≈ 1 on any mesh: what field-convolution filters need), or a
+        positive length; either is recorded in ``log_unit``. ``None``: mesh units, unrecorded.
+        (The shipped FLDM models build their own k-NN maps and record their unit.)
 
     Returns:
       :class:`~jmeshtex.VertexNeighborhood` ``[V, k]``; ``weight`` is the barycentric
@@ -79,11 +79,11 @@ def geodesic_knn_neighborhood(
       >>> import numpy as np
       >>> from jmeshtex.data import grid
       >>> v, f = grid(4)
-      >>> nb = geodesic_knn_neighborhood(v, f, k=5)
+      >>> nb = geodesic_knn_neighborhood(v, f, k=5, scale=None)  # in mesh units
       >>> p = 12  # the centre (1/2, 1/2), degree 4: its edge neighbours come first
       >>> nb.index[p].tolist(), np.round(np.abs(nb.log[p]), 12).tolist()
       ([12, 7, 11, 13, 17], [0.0, 0.25, 0.25, 0.25, 0.25])
-      >>> unit = geodesic_knn_neighborhood(v, f, k=5, scale="mean_edge")  # 40 edges 1/4, 16 √2/4
+      >>> unit = geodesic_knn_neighborhood(v, f, k=5)  # the default: mean edges (40 of 1/4, 16 of √2/4)
       >>> np.round(np.abs(unit.log[p]), 6).tolist(), round(float(unit.log_unit), 6)
       ([0.0, 0.894177, 0.894177, 0.894177, 0.894177], 0.279587)
     """

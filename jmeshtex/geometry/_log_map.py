@@ -96,7 +96,7 @@ def one_ring_neighborhood(
     faces: Int[np.ndarray, "F 3"],
     *,
     lengths: Float[np.ndarray, "F 3"] | None = None,
-    scale: str | float | None = None,
+    scale: str | float | None = "mean_edge",
 ) -> VertexNeighborhood:
     """Intrinsic one-ring neighbourhoods: log map, transport and areas of every vertex.
 
@@ -115,11 +115,12 @@ def one_ring_neighborhood(
         level, whose copied positions can make a face flat in space). Then only the arrays' shapes
         and indices are checked (the faces must already be a valid manifold), and the lengths
         must be finite, positive and give every face a positive area.
-      scale: the unit of ``log``. ``None`` (default): mesh units (``log_unit`` None).
-        ``"mean_edge"``: the mean edge length (:func:`~jmeshtex.geometry.mean_edge_length`, or
-        of ``lengths``), so a neighbour one edge away sits at ``|log|`` ≈ 1 on any mesh, the
-        scale field-convolution filters see (recommended for new models). A positive float: that
-        length. The unit is recorded in ``log_unit`` (:func:`~jmeshtex.scale_log_maps`).
+      scale: the unit of ``log``. ``"mean_edge"`` (default): the mean edge length
+        (:func:`~jmeshtex.geometry.mean_edge_length`, or of ``lengths``), so a neighbour one edge
+        away sits at ``|log|`` ≈ 1 on any mesh, the scale field-convolution filters see. A
+        positive float: that length. Either is recorded in ``log_unit``
+        (:func:`~jmeshtex.scale_log_maps`). ``None``: mesh units, unrecorded (``log_unit`` None;
+        for geometry that measures lengths, e.g. MeshMatch's fans).
 
     Returns:
       :class:`~jmeshtex.VertexNeighborhood` with ``K`` = maximum degree: ``index`` the
@@ -130,13 +131,16 @@ def one_ring_neighborhood(
     Example:
       >>> import numpy as np
       >>> from jmeshtex.data import grid
-      >>> nb = one_ring_neighborhood(*grid(2))
+      >>> nb = one_ring_neighborhood(*grid(2), scale=None)  # in mesh units
       >>> p = 4  # the centre vertex (1/2, 1/2)
       >>> nb.index[p, :nb.mask[p].sum()].tolist()  # counter-clockwise, from the corner (0, 0)
       [0, 1, 2, 5, 8, 7, 6, 3]
       >>> z = nb.log[p, :3] / nb.log[p, 0]  # 45° steps; the diagonal neighbours are √2 farther
       >>> np.round(np.angle(z, deg=True), 9).tolist(), np.round(np.abs(z) ** 2, 12).tolist()
       ([0.0, 45.0, 90.0], [1.0, 0.5, 1.0])
+      >>> unit = one_ring_neighborhood(*grid(2))  # default: mean edges (12 of 1/2, 4 of √2/2), recorded
+      >>> round(float(unit.log_unit), 6), round(float(abs(unit.log[p, 0]) * unit.log_unit), 6)
+      (0.551777, 0.707107)
     """
     check_scale(scale)
     if lengths is None:

@@ -80,10 +80,10 @@ def _level_tables(vertices, faces, level: int):
     lengths = edge_lengths(vertices, faces)
     mean = float(np.mean(lengths))
     if level == 0 or (face_areas(lengths) > 1e-12 * mean**2).all():
-        return one_ring_neighborhood(vertices, faces), tracer_geometry(vertices, faces)
+        return one_ring_neighborhood(vertices, faces, scale=None), tracer_geometry(vertices, faces)
     lengths = mollified_lengths(lengths, 1e-4 * mean)
     return (
-        one_ring_neighborhood(vertices, faces, lengths=lengths),
+        one_ring_neighborhood(vertices, faces, lengths=lengths, scale=None),
         tracer_geometry(vertices, faces, lengths=lengths),
     )
 

@@ -70,10 +70,10 @@ def field_conv(
     all live in ``p``'s frame, so a gauge change ``x_p → x_p e^{-iα_p}`` (with the matching log maps
     and transports) gives ``y_p → y_p e^{-iα_p}`` exactly. The filter argument scales with the log
     map, so neighbourhoods should come with log maps of about unit scale: build them with
-    ``scale="mean_edge"`` or call :func:`jmeshtex.scale_log_maps` (a recorded ``log_unit`` must
-    be positive and finite); :func:`jmeshtex.check_log_scale` warns
-    (:class:`jmeshtex.LogScaleWarning`) when a neighbourhood's typical ``|log|`` is outside
-    ``[1/32, 32]``.
+    ``scale="mean_edge"`` (the builders' default) or call :func:`jmeshtex.scale_log_maps` (a
+    recorded ``log_unit`` must be positive and finite); a concrete neighbourhood without a
+    recorded unit whose typical edge (:func:`jmeshtex.check_log_scale`) is outside ``[0.2, 5]``
+    warns once (:class:`jmeshtex.LogScaleWarning`).
 
     Args:
       x: ``[V, C]`` complex tangent features, each in its own vertex's frame.
@@ -135,7 +135,7 @@ def field_conv(
         raise ConfigError(f"field_conv: argument must be one of {ARGUMENTS}, got {argument!r}")
     v, c, h, d, n_emb = _check_shapes(x, nbhd, params, embedding)
     _check_extra(params, channel_embedding, v, c, h)
-    check_log_scale(nbhd, "field_conv", unrecorded=False)
+    check_log_scale(nbhd, "field_conv", once=True)
     rdt = real_dtype(x.dtype)
     a_w = params.filter_weight.astype(rdt)
     bias = jnp.broadcast_to(params.filter_bias.astype(rdt), (v, h))

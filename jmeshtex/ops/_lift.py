@@ -45,7 +45,8 @@ def tangent_gradient(
       >>> from jmeshtex.data import grid
       >>> from jmeshtex.geometry import one_ring_neighborhood
       >>> v, faces = grid(4, 4)
-      >>> g = tangent_gradient(2 * v[:, :1] - v[:, 1:2], one_ring_neighborhood(v, faces))
+      >>> nb = one_ring_neighborhood(v, faces, scale=None)  # log maps in mesh units
+      >>> g = tangent_gradient(2 * v[:, :1] - v[:, 1:2], nb)
       >>> bool(np.allclose(np.abs(g), np.sqrt(5)))  # |∇(2x − y)| everywhere on the sheet
       True
     """

@@ -91,7 +91,8 @@ def _to_device(field: Field, dtype) -> Field:
         target = dtype
     else:
         return Field(field.kind, jnp.asarray(x))
-    return Field(field.kind, jnp.asarray(x, dtype=target))
+    # converted on the host: a device conversion would compile once per shape
+    return Field(field.kind, jax.device_put(np.asarray(x, dtype=target)))
 
 
 def equivariance_error(

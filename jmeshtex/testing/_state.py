@@ -107,34 +107,65 @@ class MeshState:
         return value
 
     # -- host geometry (NumPy, float64, in this state's gauge) ---------------------------------
-    def host_one_ring(self) -> VertexNeighborhood:
+    def host_one_ring(self, *, scale: str | float | None = "mean_edge") -> VertexNeighborhood:
+        """One-ring :class:`~jmeshtex.VertexNeighborhood` as NumPy float64 arrays (``scale``: see
+        :func:`~jmeshtex.geometry.one_ring_neighborhood`)."""
         from ..geometry import one_ring_neighborhood
 
         return self._cached(
-            "host_one_ring",
+            ("host_one_ring", scale),
             lambda: regauge_neighborhood(
-                one_ring_neighborhood(self.vertices, self.faces), self.gauge
+                one_ring_neighborhood(self.vertices, self.faces, scale=scale), self.gauge
             ),
         )
 
-    def host_knn(self, k: int = 8) -> VertexNeighborhood:
+    def host_knn(
+        self, k: int = 8, *, scale: str | float | None = "mean_edge"
+    ) -> VertexNeighborhood:
+        """k-NN :class:`~jmeshtex.VertexNeighborhood` as NumPy float64 arrays (``scale``: see
+        :func:`~jmeshtex.geometry.geodesic_knn_neighborhood`)."""
         from ..geometry import geodesic_knn_neighborhood
 
         return self._cached(
-            ("host_knn", k),
+            ("host_knn", k, scale),
             lambda: regauge_neighborhood(
-                geodesic_knn_neighborhood(self.vertices, self.faces, k=k), self.gauge
+                geodesic_knn_neighborhood(self.vertices, self.faces, k=k, scale=scale), self.gauge
             ),
         )
 
     # -- JAX geometry in this state's dtype ---------------------------------------------------
-    def one_ring(self) -> VertexNeighborhood:
-        """One-ring :class:`~jmeshtex.VertexNeighborhood` as JAX arrays in ``dtype``."""
-        return self._cached("one_ring", lambda: to_jax(self.host_one_ring(), self.dtype))
+    def one_ring(self, *, scale: str | float | None = "mean_edge") -> VertexNeighborhood:
+        """One-ring :class:`~jmeshtex.VertexNeighborhood` as JAX arrays in ``dtype``.
 
-    def knn(self, k: int = 8) -> VertexNeighborhood:
-        """k-NN geodesic :class:`~jmeshtex.VertexNeighborhood` as JAX arrays in ``dtype``."""
-        return self._cached(("knn", k), lambda: to_jax(self.host_knn(k), self.dtype))
+        Args:
+          scale: the unit of ``log``: ``"mean_edge"`` (default: this mesh's mean edge, recorded in
+            ``log_unit``), a positive length, or None (mesh units), as
+            :func:`~jmeshtex.geometry.one_ring_neighborhood`.
+        """
+        return self._cached(
+            ("one_ring", scale), lambda: to_jax(self.host_one_ring(scale=scale), self.dtype)
+        )
+
+    def knn(self, k: int = 8, *, scale: str | float | None = "mean_edge") -> VertexNeighborhood:
+        """k-NN geodesic :class:`~jmeshtex.VertexNeighborhood` as JAX arrays in ``dtype``.
+
+        Args:
+          k: slots per vertex, the vertex itself included.
+          scale: the unit of ``log``: ``"mean_edge"`` (default: this mesh's mean edge, so filters
+            see one edge as about 1 on every mesh the harness draws; recorded in ``log_unit``), a
+            positive length, or None (mesh units), as
+            :func:`~jmeshtex.geometry.geodesic_knn_neighborhood`.
+
+        Example:
+          >>> from jmeshtex.data import icosahedron
+          >>> s = MeshState(*icosahedron())
+          >>> nb = s.knn(6)
+          >>> round(float(abs(nb.log[0, 1])), 6), s.knn(6, scale=None).log_unit is None
+          (1.0, True)
+        """
+        return self._cached(
+            ("knn", k, scale), lambda: to_jax(self.host_knn(k, scale=scale), self.dtype)
+        )
 
     def face_neighborhood(self):
         """:class:`~jmeshtex.FaceNeighborhood` as JAX arrays."""
@@ -147,7 +178,25 @@ class MeshState:
 
     def points(self):
         """Vertex positions as a JAX array in ``dtype``."""
-        return self._cached("points", lambda: jnp.asarray(self.vertices, dtype=self.dtype))
+        return self._cached(
+            "points", lambda: jax.device_put(np.asarray(self.vertices, dtype=self.dtype))
+        )
+
+    def _rebuild(self, key) -> bool:
+        """Build the geometry one of this class's methods caches under ``key``; False for a key of
+        :meth:`cached` (its build is the caller's), whose geometry only the operator can build."""
+        if key in self._cache or key in self._host:
+            return True
+        name, args = (key[0], key[1:]) if isinstance(key, tuple) and key else (key, ())
+        if name in ("one_ring", "host_one_ring") and len(args) == 1:
+            getattr(self, name)(scale=args[0])
+        elif name in ("knn", "host_knn") and len(args) == 2:
+            getattr(self, name)(args[0], scale=args[1])
+        elif name in ("face_nbhd", "points") and not args:
+            {"face_nbhd": self.face_neighborhood, "points": self.points}[name]()
+        else:
+            return False
+        return True
 
     def cached(self, key, build):
         """Cache any other per-state geometry (e.g. a hierarchy) under ``key``."""

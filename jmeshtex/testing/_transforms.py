@@ -94,8 +94,8 @@ class Realisation:
             return np.zeros(self.target.num_vertices)
         from ..geometry import one_ring_neighborhood
 
-        src = one_ring_neighborhood(self.source.vertices, self.source.faces)
-        tgt = one_ring_neighborhood(self.target.vertices, self.target.faces)
+        src = one_ring_neighborhood(self.source.vertices, self.source.faces, scale=None)
+        tgt = one_ring_neighborhood(self.target.vertices, self.target.faces, scale=None)
         ref = self.vperm[tgt.index[:, 0]]  # target's reference neighbour, in source labels
         s = self.vperm
         hit = (np.asarray(src.index)[s] == ref[:, None]) & np.asarray(src.mask)[s]

@@ -21,7 +21,7 @@ encode = jax.jit(encode_samples, static_argnums=1)
 def test_corner_logs_reproduce_the_one_ring_log_map_at_ring_vertices():
     v, f = icosphere(2)
     v = v * (1 + 0.1 * np.sin(3 * v[:, :1]))  # irregular
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)  # mesh units, as the encoder's radii
     g = ring_geometry(v, f)
     p, j = np.nonzero(g.wedge_mask)
     face = g.wedge_faces[p, j]

@@ -44,7 +44,7 @@ def test_fine_frames_are_the_one_ring_frames_of_the_fl_vae(make):
     the denoiser's k-NN log map that first neighbour must be real-positive, and every one-ring
     neighbour must have the same direction as in the one-ring log map."""
     v, f = make()
-    ring = one_ring_neighborhood(v, f)
+    ring = one_ring_neighborhood(v, f, scale=None)  # mesh units
     geo = denoiser_geometry((v, f), knn=CFG.knn)
     h = mean_edge_length(v, f)
     V = len(v)

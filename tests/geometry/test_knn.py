@@ -25,7 +25,7 @@ def _graph(ring):
 
 def _reference(v, f, k):
     """Loop reference: full Dijkstra per vertex, walk each path and compose one-ring maps."""
-    ring = one_ring_neighborhood(v, f)
+    ring = one_ring_neighborhood(v, f, scale=None)
     step = {}
     for p, j in zip(*np.nonzero(ring.mask), strict=True):
         step[p, ring.index[p, j]] = (ring.log[p, j], ring.transport[p, j])
@@ -54,7 +54,7 @@ def test_matches_dijkstra_and_loop_composition(make, rng):
     v, f = make()
     v = v + 0.01 * rng.normal(size=v.shape)  # no ties: shortest paths are unique
     k = 10
-    nb = geodesic_knn_neighborhood(v, f, k=k)
+    nb = geodesic_knn_neighborhood(v, f, k=k, scale=None)
     ref = _reference(v, f, k)
     assert nb.index.shape == (len(v), k) and nb.mask.all()
     np.testing.assert_array_equal(nb.index[:, 0], np.arange(len(v)))
@@ -68,7 +68,7 @@ def test_matches_dijkstra_and_loop_composition(make, rng):
         np.testing.assert_allclose(
             nb.transport[p], [ref[p, q][1] for q in nb.index[p]], rtol=0, atol=1e-12
         )
-    ring = one_ring_neighborhood(v, f)
+    ring = one_ring_neighborhood(v, f, scale=None)
     np.testing.assert_allclose(nb.area, ring.area, rtol=0)
     np.testing.assert_allclose(nb.weight, ring.area[nb.index], rtol=0)
     assert nb.log[:, 0].tolist() == [0j] * len(v) and nb.transport[:, 0].tolist() == [1 + 0j] * len(
@@ -79,16 +79,16 @@ def test_matches_dijkstra_and_loop_composition(make, rng):
 def test_selected_distances_are_the_k_smallest_even_with_ties():
     v, f = grid(6, diagonals="uniform")  # many equal path lengths
     k = 12
-    nb = geodesic_knn_neighborhood(v, f, k=k)
-    dist = dijkstra(_graph(one_ring_neighborhood(v, f)))
+    nb = geodesic_knn_neighborhood(v, f, k=k, scale=None)
+    dist = dijkstra(_graph(one_ring_neighborhood(v, f, scale=None)))
     got = dist[np.arange(len(v))[:, None], nb.index]
     np.testing.assert_allclose(got, np.sort(dist, axis=1)[:, :k], rtol=1e-12)
 
 
 def test_flat_grid_exact_including_the_boundary():
     v, f = grid(6, 5, size=(1.2, 1.0))
-    nb = geodesic_knn_neighborhood(v, f, k=16)
-    ring = one_ring_neighborhood(v, f)
+    nb = geodesic_knn_neighborhood(v, f, k=16, scale=None)
+    ring = one_ring_neighborhood(v, f, scale=None)
     z = v[:, 0] + 1j * v[:, 1]
     frame = z[ring.index[:, 0]] - z
     frame /= np.abs(frame)
@@ -101,7 +101,7 @@ def test_flat_grid_exact_including_the_boundary():
 def test_gauge_consistency_for_mutual_neighbours(rng):
     v, f = icosphere(2)
     v = v + 0.01 * rng.normal(size=v.shape)
-    nb = geodesic_knn_neighborhood(v, f, k=12)
+    nb = geodesic_knn_neighborhood(v, f, k=12, scale=None)
     checked = 0
     for p in range(len(v)):
         for j in range(1, 12):
@@ -120,7 +120,7 @@ def test_small_components_are_padded():
     v2, f2 = icosahedron()
     v = np.concatenate([v1, v2 + 5.0])
     f = np.concatenate([f1, f2 + 3])
-    nb = geodesic_knn_neighborhood(v, f, k=14)
+    nb = geodesic_knn_neighborhood(v, f, k=14, scale=None)
     assert nb.mask[:3].sum(axis=1).tolist() == [3, 3, 3]
     assert nb.mask[3:].sum(axis=1).tolist() == [12] * 12
     pad = ~nb.mask
@@ -130,15 +130,15 @@ def test_small_components_are_padded():
     assert np.all(nb.weight[pad] == 0)
     assert set(nb.index[0, :3].tolist()) == {0, 1, 2}
     # k = 1 is the vertex alone
-    one = geodesic_knn_neighborhood(v, f, k=1)
+    one = geodesic_knn_neighborhood(v, f, k=1, scale=None)
     assert one.index[:, 0].tolist() == list(range(len(v))) and one.mask.all()
 
 
 def test_unchanged_under_folds():
     v, f = grid(8, 8)  # a regular grid: ties everywhere, broken identically after folding
     folded = fold_sheet(v, f, lines=[("x", 0.375), ("x", 0.75)], angles=[2.0, -1.2])
-    a = geodesic_knn_neighborhood(v, f, k=12)
-    b = geodesic_knn_neighborhood(folded, f, k=12)
+    a = geodesic_knn_neighborhood(v, f, k=12, scale=None)
+    b = geodesic_knn_neighborhood(folded, f, k=12, scale=None)
     np.testing.assert_array_equal(a.index, b.index)
     np.testing.assert_array_equal(a.mask, b.mask)
     for name in ("log", "transport", "weight", "area"):
@@ -156,8 +156,10 @@ def test_unchanged_under_folds():
 def test_distances_agree_with_exact_geodesics(mesh, bound):
     v, f = mesh
     k = 16
-    nb = geodesic_knn_neighborhood(v, f, k=k)
-    path = dijkstra(_graph(one_ring_neighborhood(v, f)), indices=np.arange(0, len(v), len(v) // 30))
+    nb = geodesic_knn_neighborhood(v, f, k=k, scale=None)
+    path = dijkstra(
+        _graph(one_ring_neighborhood(v, f, scale=None)), indices=np.arange(0, len(v), len(v) // 30)
+    )
     worst_log, worst_path = 0.0, 0.0
     for row, p in enumerate(np.arange(0, len(v), len(v) // 30)):
         q = nb.index[p, 1:]
@@ -173,8 +175,8 @@ def test_distances_agree_with_exact_geodesics(mesh, bound):
 
 def test_knn_from_a_precomputed_one_ring_is_the_same():
     v, f = torus(8, 6)
-    a = geodesic_knn_neighborhood(v, f, k=7)
-    b = knn_from_one_ring(one_ring_neighborhood(v, f), 7)
+    a = geodesic_knn_neighborhood(v, f, k=7, scale=None)
+    b = knn_from_one_ring(one_ring_neighborhood(v, f, scale=None), 7)
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
 
@@ -184,14 +186,14 @@ def test_knn_from_a_precomputed_one_ring_is_the_same():
 def test_bad_k(k):
     v, f = icosahedron()
     with pytest.raises(InputError):
-        geodesic_knn_neighborhood(v, f, k=k)
+        geodesic_knn_neighborhood(v, f, k=k, scale=None)
 
 
 @given(valid_meshes(max_vertices=150), st.integers(1, 20))
 def test_property_selection_is_the_k_nearest(mesh, k):
     v, f = mesh.vertices, mesh.faces
-    nb = geodesic_knn_neighborhood(v, f, k=k)
-    dist = dijkstra(_graph(one_ring_neighborhood(v, f)))
+    nb = geodesic_knn_neighborhood(v, f, k=k, scale=None)
+    dist = dijkstra(_graph(one_ring_neighborhood(v, f, scale=None)))
     want = np.sort(np.pad(dist, ((0, 0), (0, k)), constant_values=np.inf), axis=1)[:, :k]
     got = np.where(nb.mask, dist[np.arange(len(v))[:, None], nb.index], np.inf)
     np.testing.assert_allclose(got, want, rtol=1e-9)

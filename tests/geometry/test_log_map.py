@@ -64,7 +64,7 @@ def _perturbed(mesh, rng, amount):
 )
 def test_matches_loop_reference(make, rng):
     v, f = _perturbed(make(), rng, 0.01)
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     log, transport, area = _reference(v, f)
     p, j, q = _slots(nb)
     assert len(p) == len(log)
@@ -91,7 +91,7 @@ def test_matches_loop_reference(make, rng):
 
 def test_regular_icosahedron_exact():
     v, f = icosahedron()
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     rings, theta, scale = one_ring_angles(v, f)
     step = 2 * np.pi / 5
     np.testing.assert_allclose(scale, 2 * np.pi / (5 * np.pi / 3), rtol=1e-14)  # = 6/5
@@ -111,7 +111,7 @@ def test_flat_grid_log_is_the_rotated_offset_and_transport_the_frame_rotation():
     for diagonals in ("alternate", "uniform"):
         v, f = grid(5, 4, size=(1.3, 0.9), diagonals=diagonals)
         v = v + np.array([0.2, -0.1, 0.7])  # any placement in a plane z = const
-        nb = one_ring_neighborhood(v, f)
+        nb = one_ring_neighborhood(v, f, scale=None)
         z = v[:, 0] + 1j * v[:, 1]
         frame = z[nb.index[:, 0]] - z  # global direction of each vertex's reference edge
         frame /= np.abs(frame)
@@ -129,7 +129,7 @@ def test_flat_grid_log_is_the_rotated_offset_and_transport_the_frame_rotation():
 def test_gauge_consistency_per_edge(make, rng):
     """ρ_{q→p} log_q(p) = -log_p(q) and ρ_{q→p} ρ_{p→q} = 1 for every edge."""
     v, f = _perturbed(make(), rng, 0.02)
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     p, j, q = _slots(nb)
     rev = np.array([np.nonzero(nb.index[b] == a)[0][0] for a, b in zip(p, q, strict=True)])
     np.testing.assert_allclose(
@@ -160,7 +160,7 @@ def _face_holonomy_angles(v, f):
 def test_holonomy_flat_cone_and_sphere(rng):
     # flat grid: transport around any interior vertex is the identity
     v, f = grid(4)
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     rings = one_rings(f, len(v))
     for p in np.nonzero(~rings.boundary)[0]:
         assert abs(_ring_holonomy(nb, p) - 1) < 1e-13
@@ -171,19 +171,19 @@ def test_holonomy_flat_cone_and_sphere(rng):
     )
     v = np.concatenate([[[0.0, 0.0, 0.7]], ring])
     f = np.array([[0, 1 + i, 1 + (i + 1) % 6] for i in range(6)])
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     defect = 2 * np.pi - corner_angles(edge_lengths(v, f))[:, 0].sum()
     assert abs(_ring_holonomy(nb, 0) - np.exp(1j * defect)) < 1e-13
     # icosahedron: each of the 5 faces around a vertex turns by 3 · (π/3)(6/5 - 1) = π/5
     v, f = icosahedron()
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     for p in range(12):
         assert abs(_ring_holonomy(nb, p) + 1) < 1e-13
     # any closed mesh: the ring holonomy is the product of its faces' holonomies, and the face
     # holonomies add up to 2πχ (discrete Gauss-Bonnet)
     for (v, f), chi in [(icosphere(2), 2), (torus(10, 7), 0)]:
         v = v + 0.02 * rng.normal(size=v.shape)
-        nb = one_ring_neighborhood(v, f)
+        nb = one_ring_neighborhood(v, f, scale=None)
         face_h = _face_holonomy_angles(v, f)
         assert abs(face_h.sum() - 2 * np.pi * chi) < 1e-10
         rings = one_rings(f, len(v))
@@ -209,7 +209,7 @@ def test_one_ring_angles_contract_for_the_tracer(rng):
     v = v + 0.03 * rng.normal(size=v.shape)
     rings, theta, scale = one_ring_angles(v, f)
     alpha = corner_angles(edge_lengths(v, f))
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     np.testing.assert_allclose(
         np.exp(1j * theta[nb.mask]), nb.log[nb.mask] / np.abs(nb.log[nb.mask]), atol=1e-14
     )
@@ -231,8 +231,8 @@ def test_unchanged_under_folds():
         v, f, lines=[("x", 0.25), ("x", 0.625), ("y", -1.0)], angles=[1.1, -2.0, 0.3]
     )
     assert np.abs(folded[:, 2]).max() > 0.3  # really folded
-    a = one_ring_neighborhood(v, f)
-    b = one_ring_neighborhood(folded, f)
+    a = one_ring_neighborhood(v, f, scale=None)
+    b = one_ring_neighborhood(folded, f, scale=None)
     for name in ("index", "mask"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     for name in ("log", "transport", "weight", "area"):
@@ -241,7 +241,7 @@ def test_unchanged_under_folds():
 
 def _pp3d_errors(v, f, sources):
     """Max angle errors (log-map directions, transport) against potpourri3d's vector heat method."""
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     solver = pp3d.MeshVectorHeatSolver(v, f, use_intrinsic_delaunay=False)  # per-edge comparison
     bx, by, _ = solver.get_tangent_frames()
     # gauge alignment: potpourri3d's x-axis is (up to ~1e-4) the projection of one ring edge; its
@@ -293,7 +293,7 @@ def test_agrees_with_potpourri3d_on_a_sphere(rng):
 @given(valid_meshes(max_vertices=120))
 def test_property_matches_reference_and_is_gauge_consistent(mesh):
     v, f = mesh.vertices, mesh.faces
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     log, transport, area = _reference(v, f)
     p, j, q = _slots(nb)
     scale = np.abs(nb.log[nb.mask]).max()
@@ -323,7 +323,7 @@ def _reverse(nb, p, q):
 def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case
     with pytest.raises(BAD_MESH_KINDS[kind]):
-        one_ring_neighborhood(v, f)
+        one_ring_neighborhood(v, f, scale=None)
 
 
 def test_unreferenced_vertices_get_empty_rings_and_zero_area():
@@ -331,9 +331,9 @@ def test_unreferenced_vertices_get_empty_rings_and_zero_area():
 
     v, f = grid(2)
     v = np.concatenate([v, [[5.0, 5.0, 5.0]]])  # validate_mesh allows unreferenced vertices
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     assert not nb.mask[-1].any() and nb.area[-1] == 0 and np.all(nb.transport[-1] == 1)
-    knn = geodesic_knn_neighborhood(v, f, k=4)
+    knn = geodesic_knn_neighborhood(v, f, k=4, scale=None)
     assert knn.mask[-1].tolist() == [True, False, False, False] and knn.index[-1, 0] == 9
     fr = tangent_frames(v, f)
     np.testing.assert_allclose(np.cross(fr.normal[-1], fr.x[-1]), fr.y[-1])

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import jmeshtex._neighborhoods as neighborhoods
 from jmeshtex import (
     InputError,
     LogScaleWarning,
@@ -17,6 +18,7 @@ from jmeshtex import (
     check_log_scale,
     scale_log_maps,
 )
+from jmeshtex._neighborhoods import LOG_SCALE_RANGE
 from jmeshtex.data import grid, icosphere
 from jmeshtex.geometry import (
     geodesic_knn_neighborhood,
@@ -35,10 +37,13 @@ def _small(mesh, factor):
 @pytest.mark.parametrize("builder", [one_ring_neighborhood, geodesic_knn_neighborhood])
 def test_mean_edge_scale_divides_by_the_mean_edge_and_records_it(builder):
     v, f = _small(icosphere(1), 0.01)
-    raw = builder(v, f)
+    raw = builder(v, f, scale=None)
     unit = builder(v, f, scale="mean_edge")
     edge = mean_edge_length(v, f)
     assert raw.log_unit is None
+    default = builder(v, f)  # the default is the mean edge, recorded
+    np.testing.assert_array_equal(default.log, unit.log)
+    assert float(default.log_unit) == float(unit.log_unit)
     np.testing.assert_allclose(float(unit.log_unit), edge, rtol=1e-12)
     np.testing.assert_allclose(unit.log * edge, raw.log, rtol=1e-12, atol=1e-15)
     for name in ("index", "mask", "transport", "weight", "area", "vertex_mask"):
@@ -58,7 +63,9 @@ def test_scale_is_invariant_to_the_mesh_size():
 def test_a_float_scale_and_scale_log_maps_compose():
     v, f = grid(3)
     nb = one_ring_neighborhood(v, f, scale=0.5)
-    np.testing.assert_allclose(nb.log, one_ring_neighborhood(v, f).log / 0.5, rtol=1e-12)
+    np.testing.assert_allclose(
+        nb.log, one_ring_neighborhood(v, f, scale=None).log / 0.5, rtol=1e-12
+    )
     assert float(scale_log_maps(nb, 4.0).log_unit) == 2.0
 
 
@@ -74,8 +81,8 @@ def test_pad_to_and_to_jax_keep_the_unit():
     padded = pad_to(to_jax(nb), {"V": 20, "K": 6})
     assert padded.index.shape == (20, 6) and padded.log_unit.shape == ()
     np.testing.assert_allclose(float(padded.log_unit), float(nb.log_unit), rtol=1e-6)
-    old = pad_to(geodesic_knn_neighborhood(*grid(3), k=4), {"V": 20})
-    assert old.log_unit is None  # old constructions keep their pytree structure
+    old = pad_to(geodesic_knn_neighborhood(*grid(3), k=4, scale=None), {"V": 20})
+    assert old.log_unit is None  # unrecorded neighbourhoods keep their pytree structure
 
 
 def _conv_inputs(nb):
@@ -84,20 +91,43 @@ def _conv_inputs(nb):
     return x, p
 
 
-def test_check_log_scale_warns_on_tiny_log_maps_and_not_at_unit_scale():
+def test_check_log_scale_warns_on_tiny_log_maps_and_not_at_unit_scale(monkeypatch):
     v, f = _small(icosphere(1), 0.01)
-    raw = to_jax(geodesic_knn_neighborhood(v, f, k=5), jnp.float64)
+    raw = to_jax(geodesic_knn_neighborhood(v, f, k=5, scale=None), jnp.float64)
     with pytest.warns(LogScaleWarning, match="mean_edge"):
         check_log_scale(raw)
-    unit = to_jax(geodesic_knn_neighborhood(v, f, k=5, scale="mean_edge"), jnp.float64)
+    unit = to_jax(geodesic_knn_neighborhood(v, f, k=5), jnp.float64)
     x, p = _conv_inputs(unit)
+    monkeypatch.setattr(neighborhoods, "_WARNED", set())
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_log_scale(unit)
         check_log_scale(unit._replace(log_unit=None))  # unit scale, unrecorded: silent too
         jax.jit(check_log_scale)(raw)  # traced: nothing to read, no warning
-        y = field_conv(x, raw, p)  # field_conv checks recorded units only
+        jax.jit(field_conv)(x, raw, p)  # traced: silent
+    with pytest.warns(LogScaleWarning, match="said once"):
+        field_conv(x, raw, p)  # unrecorded and tiny: warns, once
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        y = field_conv(x, raw, p)  # not again
+        field_conv(x, raw._replace(log=raw.log * 1e5), p)  # huge: also not again (once)
     assert y.shape == (x.shape[0], 3)
+
+
+@pytest.mark.parametrize("factor", [1e-3, 50.0])
+def test_field_conv_warns_on_unrecorded_units_far_from_one_and_not_near_one(monkeypatch, factor):
+    v, f = icosphere(1).vertices, icosphere(1).faces
+    unit = geodesic_knn_neighborhood(v, f, k=5)
+    x, p = _conv_inputs(unit)
+    monkeypatch.setattr(neighborhoods, "_WARNED", set())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for near in (0.3, 1.0, 4.0):  # unrecorded, but a typical edge of 0.3 to 4 is fine
+            field_conv(x, to_jax(unit._replace(log=unit.log * near, log_unit=None)), p)
+    far = to_jax(unit._replace(log=unit.log * factor, log_unit=None))
+    assert not LOG_SCALE_RANGE[0] <= neighborhoods.typical_edge(far) <= LOG_SCALE_RANGE[1]
+    with pytest.warns(LogScaleWarning, match="no recorded unit"):
+        field_conv(x, far, p)
 
 
 def test_field_conv_refuses_a_bad_recorded_unit():
@@ -123,7 +153,7 @@ def test_the_unit_changes_what_the_filters_see():
         y0 = conv(x, nb._replace(log=jnp.zeros_like(nb.log)), p)
         return float(jnp.linalg.norm(y - y0) / jnp.linalg.norm(y))
 
-    assert sensitivity(geodesic_knn_neighborhood(v, f, k=6)) < 0.1
+    assert sensitivity(geodesic_knn_neighborhood(v, f, k=6, scale=None)) < 0.1
     assert sensitivity(geodesic_knn_neighborhood(v, f, k=6, scale="mean_edge")) > 0.3
 
 

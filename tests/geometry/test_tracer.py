@@ -279,7 +279,7 @@ def test_exp_of_log_is_the_neighbour(mesh):
 def test_exp_of_log_with_the_log_map_module(mesh):
     """One source of truth: the logs of `one_ring_neighborhood` land exactly on their neighbours."""
     v, f = mesh()
-    nb = G.one_ring_neighborhood(v, f)
+    nb = G.one_ring_neighborhood(v, f, scale=None)  # mesh units: traced lengths
     p, k = np.nonzero(nb.mask)
     q, log = nb.index[p, k], nb.log[p, k]
     # and they agree with the loop reference above

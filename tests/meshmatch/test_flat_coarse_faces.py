@@ -46,7 +46,7 @@ def test_a_flat_coarse_face_uses_the_intrinsic_lengths():
     assert 0.5e-4 * mean < gap.max() < 3e-4 * mean and gap.min() > -1e-12
     # a level whose positions are fine keeps the unmollified tables
     np.testing.assert_allclose(
-        side.neighborhoods[2].log, one_ring_neighborhood(h.vertices[2], h.faces[2]).log
+        side.neighborhoods[2].log, one_ring_neighborhood(h.vertices[2], h.faces[2], scale=None).log
     )
     # the traced fans of that level are finite too
     n = len(h.vertices[1])

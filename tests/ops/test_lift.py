@@ -26,7 +26,7 @@ def _invariants(state, x):
 def test_the_gradient_of_a_linear_function_on_a_flat_irregular_sheet_is_exact():
     v, f = grid(6, 5, diagonals="alternate")
     v = v + 0.02 * np.random.default_rng(0).standard_normal(v.shape) * np.array([1, 1, 0])
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)  # mesh units: the slope per unit of x
     scalars = np.stack([3 * v[:, 0] - 2 * v[:, 1], v[:, 1]], axis=1)
     g = np.asarray(tangent_gradient(scalars, nb))
     # in each vertex's frame the gradient has the function's slope as its length
