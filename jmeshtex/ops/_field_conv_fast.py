@@ -6,19 +6,15 @@ mix, so a block's ``[B, K, C]`` terms and ``[B, H, C]`` sums stay in cache and n
 written to memory.
 
 Derivatives: the forward's fused reduction cannot be transposed by JAX, so it sits behind a
-``jax.custom_jvp`` whose tangent is linear in the tangents and written in plain JAX, so every
-transformation follows from JAX's own rules, in any order and under ``jax.jit``: ``jvp``,
-``linearize``, ``jacfwd``, ``vmap``, reverse mode (``grad``, ``vjp``, ``jacrev``) as JAX's
-transpose of the tangent, higher orders by re-entering the same rule (its primal output calls the
-rule's own function). Inputs without a tangent arrive as symbolic zeros and cost nothing.
-
-Which tangent: with the neighbourhood held fixed (the usual case), the tangent is
-``jax.linear_transpose`` of a hand-written blocked VJP (:func:`sums_vjp`), so reverse mode, JAX's
-transpose of that transpose, runs the hand-written VJP itself (each block's responses recomputed
-in cache, no ``V·K·H·C`` array stored); forward mode runs its transpose. With a tangent on the
-neighbourhood's geometry, the forward-mode derivative of the plain formula
-(:func:`sums_tangent_plain`, block by block under ``jax.checkpoint``). Reverse mode keeps the
-forward's ``V·2·H·C`` filtered sums for the mix's gradient.
+``jax.custom_jvp``. Its tangent is the forward-mode derivative of the plain formula
+(:func:`~._field_conv_terms.filtered_sums_plain`), taken block by block under ``jax.checkpoint``.
+Every transformation then follows from JAX's own rules, in any order and under ``jax.jit``:
+``jvp``, ``linearize``, ``jacfwd``, ``vmap``; reverse mode (``grad``, ``vjp``, ``jacrev``)
+transposes the tangent, recomputing each block's responses instead of storing the ``V·K·H·C`` of
+them (the checkpoint keeps only the inputs), and keeps the forward's ``V·2·H·C`` filtered sums for
+the mix's gradient. Higher orders re-enter the same rule (its primal output calls the rule's own
+function). Inputs without a tangent (usually the neighbourhood) arrive as symbolic zeros and cost
+nothing.
 """
 
 from __future__ import annotations
@@ -31,7 +27,6 @@ from jax.custom_derivatives import SymbolicZero
 
 from ._field_conv_terms import (
     as_complex,
-    bias3,
     filtered_sums_fused,
     filtered_sums_plain,
     from_blocks,
@@ -140,127 +135,6 @@ _conv_and_sums.defjvp(_conv_and_sums_jvp, symbolic_zeros=True)
 
 def sums_tangent(x, index, slots, a_w, bias, dx, dslots, da_w, dbias, delta, activation):
     """The filtered sums' tangent ``Ṡ [V, 2·H·C]``, linear in ``(ẋ, slots', Ȧ, ḃ)``; None if all zero.
-
-    Without a slot tangent (the neighbourhood held fixed, the usual case), ``Ṡ`` is the transpose of
-    :func:`sums_vjp`, taken by ``jax.linear_transpose``: reverse mode transposes it back, so it runs
-    the hand-written blocked VJP (measured against JAX's transpose of the plain formula's tangent:
-    docs/design_notes.md, "Field convolution"). With a slot tangent, :func:`sums_tangent_plain`.
-    """
-    if not _all_zero(dslots):
-        return sums_tangent_plain(
-            x, index, slots, a_w, bias, dx, dslots, da_w, dbias, delta, activation
-        )
-    named = {"x": dx, "a_w": da_w, "bias": dbias}
-    live = {k: t for k, t in named.items() if not _all_zero(t)}
-    if not live:
-        return None
-    v, c, h = x.shape[0], x.shape[1], a_w.shape[1]
-    want = tuple(live)
-
-    def vjp(g):
-        return sums_vjp(x, index, slots, a_w, bias, g, delta, activation, want)
-
-    transpose = jax.linear_transpose(vjp, jax.ShapeDtypeStruct((v, 2 * h * c), x.real.dtype))
-    if "x" in live:  # the tangents' gather: linear, outside the loop (one scatter transposed)
-        live["x"] = tuple(jnp.take(p, index, axis=0, mode="clip") for p in (dx.real, dx.imag))
-    (ds,) = transpose(live)
-    return ds
-
-
-def sums_vjp(x, index, slots, a_w, bias, g, delta, activation, want):
-    """The VJP of the filtered sums for fixed slots, block by block: ``g [V, 2·H·C]`` → a dict of
-    cotangents for the names in ``want``: ``"x"`` (of the gathered features ``x_q``, real and
-    imaginary ``[V, K, C]``), ``"a_w"`` ``[2, H]``, ``"bias"`` (the offsets' shape).
-
-    Per block of :data:`TANGENT_BLOCK` vertices under ``jax.checkpoint``: :func:`block_vjp`, which
-    recomputes the block's responses from the gathered features.
-    """
-    v, c, h = x.shape[0], x.shape[1], a_w.shape[1]
-    block = min(v, TANGENT_BLOCK)
-    n_blocks = -(-v // block)
-    xr, xi = x.real, x.imag
-    per_vertex = {"index": index, "slots": slots, "bias": bias, "g": g.reshape(v, 2, h, c)}
-
-    def body(pv):
-        xqr = jnp.take(xr, pv["index"], axis=0, mode="clip")
-        xqi = jnp.take(xi, pv["index"], axis=0, mode="clip")
-        return block_vjp(xqr, xqi, pv["slots"], a_w, pv["bias"], pv["g"], delta, activation, want)
-
-    out = jax.lax.map(
-        jax.checkpoint(body, prevent_cse=False), to_blocks(per_vertex, n_blocks, block)
-    )
-    if "a_w" in out:
-        out["a_w"] = jnp.sum(out["a_w"], axis=0)
-    return {k: (t if k == "a_w" else from_blocks(t, v)) for k, t in out.items()}
-
-
-def block_vjp(xqr, xqi, slots, a_w, bias, g, delta, activation, want):
-    """Hand-written VJP of one block's filtered sums for fixed slots (see :func:`sums_vjp`).
-
-    With ``p = a_r A_0 + a_i A_1 + b``, ``φ = act(p)``, ``G_s = ∂L/∂S_s`` and
-    ``g_p = (G_r z_r + G_i z_i) act'(p)`` per ``(b, k, h, c)``: ``∂z_s = Σ_h G_s φ`` and
-    ``∂a_j = Σ_h g_p A_j``, ``∂b = Σ_{k,c} g_p``, ``∂A_j = Σ_{b,k,c} g_p a_j``; then the chain
-    through ``a = log · conj(u) / |u|_δ``, ``z = ŵ u`` and ``u = ρ x_q``.
-
-    Linear in ``g`` and plain ``jnp``, so JAX transposes it (the forward-mode tangent) and
-    differentiates it in the primal inputs (higher orders). The sums over ``h`` are unrolled into
-    ``[B, K, C]`` terms, which XLA fuses into one loop that evaluates each response once (sums over
-    the ``h`` axis of ``[B, K, H, C]`` arrays materialise the responses and their products: 2.2x
-    slower at 10K vertices); for the filter's gradients ``g_p`` is written once per block
-    (``[H, B, K, C]``, in cache) and reduced.
-    """
-    w, tr, ti, lr, li = (a[..., None] for a in slots)
-    ur = tr * xqr - ti * xqi
-    ui = tr * xqi + ti * xqr
-    inv = jax.lax.rsqrt(ur * ur + ui * ui + jnp.asarray(delta * delta, xqr.dtype))
-    num_r, num_i = lr * ur + li * ui, li * ur - lr * ui
-    ar, ai = num_r * inv, num_i * inv
-    zr, zi = w * ur, w * ui
-    b3 = bias3(bias)  # [B, H, C] or [B, H, 1]
-    g_r, g_i = g[:, 0], g[:, 1]  # [B, H, C]
-    params = "a_w" in want or "bias" in want
-    dzr = dzi = dar = dai = 0
-    gps = []
-    for j in range(a_w.shape[1]):
-        pre = ar * a_w[0, j] + ai * a_w[1, j] + b3[:, None, j, :]  # [B, K, C]
-        phi, dphi = act_and_grad(pre, activation)
-        gr_j, gi_j = g_r[:, None, j, :], g_i[:, None, j, :]
-        gp = (gr_j * zr + gi_j * zi) * dphi
-        gps.append(gp)
-        dzr, dzi = dzr + gr_j * phi, dzi + gi_j * phi
-        dar, dai = dar + gp * a_w[0, j], dai + gp * a_w[1, j]
-    out = {}
-    if "x" in want:
-        common = (num_r * dar + num_i * dai) * inv * inv * inv  # ∂|u|_δ⁻¹ terms
-        dur = w * dzr + inv * (lr * dar + li * dai) - ur * common
-        dui = w * dzi + inv * (li * dar - lr * dai) - ui * common
-        out["x"] = (tr * dur + ti * dui, tr * dui - ti * dur)
-    if params:  # g_p written once per block ([B, K, H, C], in cache), then reduced once
-        gp = jax.lax.optimization_barrier(jnp.stack(gps))  # [H, B, K, C]
-        coef = jnp.stack([jnp.ones_like(ar), ar, ai])  # [3, B, K, C]
-        red = jnp.sum(gp[:, None] * coef[None], axis=(3, 4)).transpose(2, 0, 1)  # [B, H, 3]
-        if "a_w" in want:
-            out["a_w"] = jnp.sum(red[:, :, 1:], axis=0).T
-        if "bias" in want:
-            if bias.ndim == 3 and bias.shape[2] > 1:  # per-channel offsets: no sum over c
-                out["bias"] = jnp.sum(gp, axis=2).transpose(1, 0, 2)
-            else:
-                out["bias"] = red[:, :, 0, None] if bias.ndim == 3 else red[:, :, 0]
-    return out
-
-
-def act_and_grad(p, activation: str):
-    """:func:`~._field_conv_terms.act` and its derivative, in differentiable ``jnp``."""
-    if activation == "silu":
-        q = p * jnp.asarray(0.5, p.dtype)
-        t = jnp.tanh(q)
-        half = jnp.asarray(0.5, p.dtype)
-        return q + q * t, half + half * t + q * half * (1 - t * t)
-    return jnp.maximum(p, 0), (p > 0).astype(p.dtype)
-
-
-def sums_tangent_plain(x, index, slots, a_w, bias, dx, dslots, da_w, dbias, delta, activation):
-    """The filtered sums' tangent as the forward-mode derivative of the plain block formula.
 
     Per block of :data:`TANGENT_BLOCK` vertices under ``jax.checkpoint``: the block gathers its
     neighbours' features from ``x`` and takes the forward-mode derivative of the plain block

@@ -200,9 +200,9 @@ def test_the_fast_and_general_implementations_are_equal(activation, monkeypatch)
 def test_fixed_neighbourhood_derivatives_equal_the_plain_formula(
     activation, per_channel, monkeypatch
 ):
-    # the neighbourhood held fixed (no slot tangent): the fast path's tangent is the transpose of
-    # its hand-written blocked VJP and its reverse mode that VJP; both must equal the plain
-    # formula's derivatives, in x, the filter rows and the offsets ([V, H] or per channel [V, H, C])
+    # the neighbourhood held fixed (its tangent a symbolic zero, as in training): the fast path's
+    # blocked tangent and its transpose must equal the plain whole-mesh formula's derivatives in
+    # x, the filter rows and the offsets ([V, H], or per channel [V, H, C])
     monkeypatch.setattr(_field_conv_fast, "BLOCK", 2)
     monkeypatch.setattr(_field_conv_fast, "TANGENT_BLOCK", 2)
     x, nbhd, params = _setup(4)
