@@ -195,6 +195,64 @@ def test_the_fast_and_general_implementations_are_equal(activation, monkeypatch)
     assert np.abs(np.asarray(dy_f)).max() > 0 and np.abs(np.asarray(y_f)).max() > 0
 
 
+@pytest.mark.parametrize("per_channel", [False, True])
+@pytest.mark.parametrize("activation", ["silu", "relu"])
+def test_fixed_neighbourhood_derivatives_equal_the_plain_formula(
+    activation, per_channel, monkeypatch
+):
+    # the neighbourhood held fixed (its tangent a symbolic zero, as in training): the fast path's
+    # blocked tangent and its transpose must equal the plain whole-mesh formula's derivatives in
+    # x, the filter rows and the offsets ([V, H], or per channel [V, H, C])
+    monkeypatch.setattr(_field_conv_fast, "BLOCK", 2)
+    monkeypatch.setattr(_field_conv_fast, "TANGENT_BLOCK", 2)
+    x, nbhd, params = _setup(4)
+    from jmeshtex.ops._field_conv_terms import slot_geometry
+
+    index, slots = slot_geometry(nbhd, jnp.float64)
+    rng = np.random.default_rng(5)
+    shape = (V, H, C) if per_channel else (V, H)
+    bias = jnp.asarray(rng.standard_normal(shape))
+    a_w = params.filter_weight
+
+    def fast(x, a_w, bias, mix):
+        return _field_conv_fast.conv_fast(x, index, slots, a_w, bias, mix, 1e-4, activation)
+
+    def plain(x, a_w, bias, mix):
+        return _plain(x, index, slots, a_w, bias, mix, activation)
+
+    args = (x, a_w, bias, params.mix)
+    tangents = jax.tree.map(
+        lambda a: jnp.cos(jnp.arange(a.size).reshape(a.shape)).astype(a.dtype), args
+    )
+    s = jnp.sin(jnp.arange(V * D, dtype=jnp.float64).reshape(V, D))
+    cot = jax.lax.complex(s, -0.5 * s)
+    y_f, dy_f = jax.jvp(fast, args, tangents)
+    y_g, dy_g = jax.jvp(plain, args, tangents)
+    np.testing.assert_allclose(y_f, y_g, rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(dy_f, dy_g, rtol=1e-11, atol=1e-12)
+    g_f = jax.vjp(fast, *args)[1](cot)
+    g_g = jax.vjp(plain, *args)[1](cot)
+    for a, b in zip(jax.tree.leaves(g_f), jax.tree.leaves(g_g), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-12)
+        assert np.abs(np.asarray(a)).max() > 0
+
+
+def _plain(x, index, slots, a_w, bias, mix, activation):
+    """The one-hidden-layer transported convolution as the plain whole-mesh formula (an oracle)."""
+    from jmeshtex.ops._field_conv_terms import (
+        as_complex,
+        filtered_sums_plain,
+        gather_terms,
+        mix_halves,
+    )
+
+    zr, zi, ar, ai = gather_terms(x.real, x.imag, index, slots, 1e-4, blocked=False)
+    s_r, s_i = filtered_sums_plain(zr, zi, ar, ai, a_w, bias, activation)
+    m_r, m_i = mix_halves(mix)
+    v = x.shape[0]
+    return as_complex(s_r.reshape(v, -1) @ m_r + s_i.reshape(v, -1) @ m_i)
+
+
 def test_no_private_jax_import():
     import pathlib
 
