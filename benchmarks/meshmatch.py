@@ -6,7 +6,7 @@ Source: a bumpy torus (10K vertices) with a procedural colour field; target: the
 at 16K / 64K vertices. Reports preprocessing (hierarchies, HKS, tracer
 tables; fans are traced per level inside the transfer and reported apart), compile time, the time
 of one PatchMatch iteration at the finest level (E-step + M-step: the median of that level's
-iterations after its first, from the per-iteration times in ``MeshMatchResult.stats``),
+iterations after its first, from the per-iteration times in ``Match.stats``),
 the total transfer time and the self-transfer PSNR, next to the targets (≤ 0.65 s per iteration at
 64K, ≤ 60 s total) and the paper's figures (6.5 s per iteration, ~100 s + 160 s preprocessing).
 
@@ -30,7 +30,7 @@ positions, of position weights 4 and 2, of the intrinsic ``n · side`` feature (
 the cow's left/right axis, x elsewhere); and three diagnosis rows that start the finest level
 alone from the truth
 (``initial_nnf``) at shape weights 0, 0.3 and 3 (what its iterations lose). Each row gives the
-final colours' PSNR and the finest vote's (``MeshMatchResult.voted``), the median placement
+final colours' PSNR and the finest vote's (``Match.voted``), the median placement
 error (distance from the true source point, in source mean edges), the total seconds and the
 finest level's seconds per iteration; next to the nearest-3D copy after alignment through the
 known map (the ceiling the source's resolution sets), the unaligned nearest-3D copy, the
@@ -223,7 +223,7 @@ def cross(args) -> None:
             )
     report.notes.append(
         "psnr_db: the final colours (each vertex copies its match's colour); voted_psnr_db: the "
-        "finest level's vote (MeshMatchResult.voted). seconds include compiling the PatchMatch "
+        "finest level's vote (Match.voted). seconds include compiling the PatchMatch "
         "steps (no persistent cache) and preprocessing; finest_iteration_s: median wall time of "
         "the finest level's iterations after the first; the machine is shared (load = 1-minute "
         "load average)."

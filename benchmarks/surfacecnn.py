@@ -344,7 +344,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
             surface=surface,
             weights=weights,
             progress=False,
-            checkpoint=folders[method],
+            checkpoint_dir=folders[method],
         )
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         np.save(cell / f"{method}_texture.npy", np.asarray(r.texture, np.float32))

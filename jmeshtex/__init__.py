@@ -9,6 +9,7 @@ holds what every layer shares: :class:`Mesh` and :func:`as_mesh`, the typed erro
 :class:`TrainResult`.
 """
 
+from ._errors import CheckpointError as CheckpointError
 from ._errors import CheckpointMismatchError as CheckpointMismatchError
 from ._errors import CheckpointSkippedWarning as CheckpointSkippedWarning
 from ._errors import ConfigError as ConfigError

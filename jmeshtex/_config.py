@@ -425,6 +425,35 @@ class ConfigBase:
         return dataclasses.replace(self, **changes)  # type: ignore[type-var]
 
 
+def stored_config(cls: type[_C], data: Mapping[str, Any], where: Any) -> _C:
+    """The config a model file or checkpoint stored: every field must be there (no defaults filled
+    in, so a file never reads as trained with settings it was not), none unknown.
+
+    Args:
+      cls: the config class.
+      data: the stored dict (:meth:`ConfigBase.to_dict` output).
+      where: the file, for the message.
+
+    Raises:
+      ConfigError: fields missing, unknown or invalid; the message names them and the file.
+
+    Example:
+      >>> from jmeshtex.surfacecnn import Config
+      >>> stored_config(Config, {"size": 8}, "m.npz")
+      Traceback (most recent call last):
+      ...
+      jmeshtex._errors.ConfigError: m.npz: its stored surfacecnn.Config lacks fields [...
+    """
+    if isinstance(data, Mapping):
+        missing = sorted({f.name for f in dataclasses.fields(cls)} - set(data))  # type: ignore[arg-type]
+        if missing:
+            raise ConfigError(
+                f"{where}: its stored {display_name(cls)} lacks fields {missing} (written by "
+                "an earlier jmeshtex version); convert it once with that version's values"
+            )
+    return cls.from_dict(data)
+
+
 def _reject_unknown(cls: type, data: Mapping[str, Any]) -> None:
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - names, key=str)  # keys of any type (JSON gives strings)

@@ -44,10 +44,17 @@ class MissingExtraError(JmeshtexError, ImportError):
 
 
 class MeshIOError(JmeshtexError, OSError):
-    """A mesh, texture or checkpoint file cannot be read or written."""
+    """A file cannot be read or written: a mesh or texture here, a model file or a checkpoint in
+    the subclasses (:class:`CorruptModelError`, :class:`CheckpointError`), so ``except MeshIOError``
+    catches every file error and the subclasses say which file failed."""
 
 
-class CheckpointMismatchError(MeshIOError):
+class CheckpointError(MeshIOError):
+    """A checkpoint folder cannot be used: no intact step in it, a step that cannot be read or
+    written, a state that does not match the run, or a path that is not a checkpoint folder."""
+
+
+class CheckpointMismatchError(CheckpointError):
     """A checkpoint folder holds a different run (config or data differ) and cannot be resumed."""
 
 

@@ -4,7 +4,7 @@
 - ``train`` (alias ``pretrain``) trains an FL-VAE on planar meshes over images (``--images builtin``
   = scikit-image's bundled images, or a folder; ``--preset small|paper`` = ``Config.small()`` /
   ``Config.paper()`` of :class:`jmeshtex.fl.Config`, the stream of
-  augmented crops and procedural textures at ≈ 26 pixels per vertex): ``--out/fl_vae.npz``,
+  augmented crops and procedural textures at ≈ 26 pixels per vertex): ``--out/model.npz`` (:func:`jmeshtex.fl.save`),
   ``--out/loss_curve.png``, resumable from ``--out/checkpoints`` (run the same command again);
 - ``encode`` writes a mesh's latents (``mu``, ``log_sigma``) to an ``.npz``;
 - ``reconstruct`` encodes a textured mesh (optionally remeshed to ``--vertices``) and writes the
@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="DIR|builtin",
         help="folder of PNG/JPEG images, or 'builtin' (scikit-image's bundled images)",
     )
-    add_common(t, out="output folder (fl_vae.npz, checkpoints/); an existing run there resumes")
+    add_common(t, out="output folder (model.npz, checkpoints/); an existing run there resumes")
     t.add_argument(
         "--steps",
         type=int_in(1, 10_000_000),
@@ -128,8 +128,8 @@ def _mesh_args(p: argparse.ArgumentParser) -> None:
         "--model",
         type=pathlib.Path,
         default=None,
-        metavar="FILE.npz",
-        help="FL-VAE file from `fl train` (default: the shipped pre-trained model)",
+        metavar="DIR",
+        help="FL-VAE folder of `fl train` (default: the shipped pre-trained model)",
     )
 
 
@@ -182,7 +182,7 @@ def _train(args) -> int:
         if len(result.losses.get(f"kl{c}", ()))
     ]
     summary = {
-        "out": str(args.out / "fl_vae.npz"),
+        "out": str(args.out),
         "steps": result.steps,
         "final_loss": float(loss[-50:].mean()) if len(loss) else None,
         "final_l1": float(l1[-50:].mean()) if len(l1) else None,
@@ -194,7 +194,7 @@ def _train(args) -> int:
     }
     save(
         result.model,
-        args.out / "fl_vae.npz",
+        args.out,
         extra={
             k: summary[k]
             for k in ("steps", "final_loss", "final_l1", "kl_channels", "channels_above_0.1_nat")

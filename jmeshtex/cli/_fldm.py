@@ -10,7 +10,7 @@
 - ``inpaint --model DIR --mask MASK.npy [--mesh N] ... --out OUT``: keeps the latents of the mesh's
   own colours where the ``[V]`` boolean mask is True.
 
-Latent codec: ``--codec fl-vae`` (default) uses ``--vae PATH`` (an ``fl_vae.npz``) or the shipped
+Latent codec: ``--codec fl-vae`` (default) uses ``--vae PATH`` (a folder written by :func:`jmeshtex.fl.save`, or a model file) or the shipped
 pre-trained FL-VAE; ``--codec stripes`` is the analytic codec of the demo (vertex colours on a
 blue/yellow ramp, ``jmeshtex/cli/_stages/fldm.py``). Meshes are files or procedural names
 (``icosphere:N``, ``striped-sphere[:N]``, ...; ``cli._common.load_mesh_spec``). ``--seed``
@@ -85,7 +85,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument(
         "--codec", choices=("fl-vae", "stripes"), default="fl-vae", help="latent encoder/decoder"
     )
-    t.add_argument("--vae", default=None, help="FL-VAE file (default: the shipped pre-trained one)")
+    t.add_argument(
+        "--vae",
+        default=None,
+        help="FL-VAE folder of `fl train` (default: the shipped pre-trained one)",
+    )
     t.set_defaults(func=cached(_train))
 
     for name, helptext in (

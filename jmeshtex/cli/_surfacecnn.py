@@ -15,6 +15,7 @@ Every mesh argument is a file or a procedural spec (``icosphere:3``, ``torus``, 
 from __future__ import annotations
 
 import argparse
+import json
 import pathlib
 
 from ..geometry import UP_AXES
@@ -343,9 +344,9 @@ def _synthesize(args: argparse.Namespace) -> int:
         key=jax.random.key(args.seed),
         weights=weights,
         progress=not args.quiet,
-        checkpoint=checkpoint,
+        checkpoint_dir=checkpoint,
     )
-    summary = save(result, args.out)
+    summary = json.loads((save(result, args.out) / "summary.json").read_text())
     _render(result, args.out, exemplar=exemplar, title="synthesised", up=render_up(args))
     _report(summary, args.out)
     return 0
@@ -373,9 +374,9 @@ def _stylize(args: argparse.Namespace) -> int:
         key=jax.random.key(args.seed),
         weights=weights,
         progress=not args.quiet,
-        checkpoint=checkpoint,
+        checkpoint_dir=checkpoint,
     )
-    summary = save(result, args.out)
+    summary = json.loads((save(result, args.out) / "summary.json").read_text())
     _render(result, args.out, exemplar=style, title="stylised", up=render_up(args))
     _report(summary, args.out)
     return 0

@@ -23,9 +23,6 @@ LOG_OBJECTIVES = ("blended", "vertex")
 #: the VN-Transformer's normalisation: per element (the shipped models') or per channel over all
 #: vertices and samples (the reference's ``square_mag_norm_encoder``)
 VN_NORMS = ("element", "channel")
-#: what a stored config that lacks these fields was trained with (files written before they
-#: existed): :meth:`Config.from_stored` fills them in, so old models keep their numbers
-LEGACY_VALUES = {"token": "ring_mean", "log_objective": "vertex"}
 
 
 #: fields that do not change the model's function (data, optimiser, batching, chunking)
@@ -93,7 +90,7 @@ class Config(ConfigBase):
         face's three corner latents and blended barycentrically, as at inference; beyond the
         paper, which trains each ring on its own vertex's latent and blends only at inference) or
         ``"vertex"`` (each ring decoded from its own vertex's latent: the paper's objective, and
-        the shipped models', which a stored config without this field means). The barycentric
+        the shipped models'). The barycentric
         decoder ignores it.
       vn_norm: the VN-Transformer's normalisation (:func:`~jmeshtex.ops.vn_transformer_block`):
         ``"element"`` (each feature by its own magnitude; the shipped models') or ``"channel"``
@@ -196,6 +193,9 @@ class Config(ConfigBase):
     encode_chunk: int = 2048
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
+    #: what a resumed run may change: the schedule follows ``steps``; ``checkpoint_every`` only
+    #: says how often state is written
+    _RESUMABLE = frozenset({"steps", "checkpoint_every"})
     _RULES = (
         rule("latent_dim num_samples", lambda x: int(x) >= 1, ">= 1"),
         cross_rule(
@@ -321,25 +321,6 @@ class Config(ConfigBase):
             checkpoint_every=250,
         )
         return cls(**{**base, **changes})
-
-    @classmethod
-    def from_stored(cls, data) -> Config:
-        """A config read back from a model or checkpoint file: fields the file lacks mean the
-        behaviour of the version that wrote it (``LEGACY_VALUES``), not today's defaults.
-
-        Example:
-          >>> old = {k: v for k, v in Config().to_dict().items() if k not in LEGACY_VALUES}
-          >>> c = Config.from_stored(old)
-          >>> c.token, c.log_objective, Config.from_dict(old).token
-          ('ring_mean', 'vertex', 'centre')
-        """
-        from .._errors import ConfigError
-
-        if not isinstance(data, dict):
-            raise ConfigError(
-                f"fl.Config.from_stored needs a dict of fields, got {type(data).__name__}"
-            )
-        return cls.from_dict({**{k: v for k, v in LEGACY_VALUES.items() if k not in data}, **data})
 
     def architecture(self) -> Config:
         """The same network with every data/training field at its default: a cache key for jitted

@@ -2,14 +2,13 @@
 ``jmeshtex/fl/weights``.
 
 A model file is the one model format of :func:`jmeshtex.io.save_model` (one ``.npz``: the
-parameters by key path, the config and the ``extra`` metadata as JSON), written atomically. Files
-of the earlier layout (``leaf_0000`` ... in pytree order and a ``meta`` entry of UTF-8 JSON) are
-read behind a version check.
+parameters by key path, the config and the ``extra`` metadata as JSON), written atomically. One format version is read (:data:`FORMAT_VERSION`, whose header holds every
+config field); a file of another version is refused with a :class:`~jmeshtex.CorruptModelError`
+that names its version.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import pathlib
 
@@ -17,8 +16,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ConfigError, CorruptModelError, MeshIOError
-from ..io import load_model, read_arrays, save_model
+from .._config import stored_config
+from .._errors import ConfigError, CorruptModelError, InputError, MeshIOError
+from ..io import load_model, save_model
 from ._config import Config
 from ._model import Model, init
 
@@ -28,85 +28,81 @@ _PRETRAINED = {
     "log": WEIGHTS_DIR / "fl_vae.npz",
     "barycentric": WEIGHTS_DIR / "fl_vae_barycentric.npz",
 }
+#: the file :func:`save` writes into its folder
+MODEL_FILE = "model.npz"
 #: the ``kind`` recorded in an FL-VAE model file
 MODEL_KIND = "jmeshtex.fl.Model"
-#: the layout of the parameters in the file (0: the earlier ``leaf_0000`` layout, read only)
-FORMAT_VERSION = 1
+#: the layout of the file: parameters by key path, every config field in the header
+FORMAT_VERSION = 2
 _WHAT = "FL-VAE model"
 
 
 def save(model: Model, path: str | os.PathLike, *, extra: dict | None = None) -> pathlib.Path:
-    """Write a model (parameters and config) to one ``.npz`` file atomically.
+    """Write a model (parameters and config) as ``model.npz`` into the folder ``path``, atomically.
 
     Args:
       model: :class:`~jmeshtex.fl.Model`.
-      path: target file (``.npz``); folders are created.
-      extra: optional JSON-serialisable metadata (e.g. the training step) stored alongside; read it
-        back with :func:`load_extra`.
+      path: the folder (created if needed; a model already there is replaced).
+      extra: optional JSON-serialisable metadata (e.g. the training step) stored in the file; read
+        it back with :func:`load_extra`.
 
     Returns:
-      The path written.
+      The folder.
+
+    Raises:
+      InputError: ``model`` is not a :class:`~jmeshtex.fl.Model` (e.g. the arguments swapped).
 
     Example:
-      >>> import jax, tempfile, pathlib
+      >>> import jax, tempfile
       >>> from jmeshtex.fl import Config, init
       >>> model = init(Config(features=8, num_heads=2), key=jax.random.key(0))
-      >>> path = save(model, pathlib.Path(tempfile.mkdtemp()) / "m.npz", extra={"step": 3})
-      >>> back = load(path)
+      >>> folder = save(model, tempfile.mkdtemp(), extra={"step": 3})
+      >>> back = load(folder)
       >>> back.config == model.config and all(bool((a == b).all()) for a, b in
       ...     zip(jax.tree.leaves(model.params), jax.tree.leaves(back.params)))
       True
-      >>> load_extra(path)
-      {'step': 3}
+      >>> load_extra(folder), sorted(p.name for p in folder.iterdir())
+      ({'step': 3}, ['model.npz'])
     """
     if not isinstance(model, Model):
-        raise ConfigError(f"save expects a jmeshtex.fl.Model, got {type(model).__name__}")
-    return save_model(
-        path,
+        raise InputError(
+            f"save(model, path): expected a jmeshtex.fl.Model first, got {type(model).__name__}"
+        )
+    out = pathlib.Path(path)
+    save_model(
+        out / MODEL_FILE,
         kind=MODEL_KIND,
         params=jax.tree.map(np.asarray, model.params),
         config=model.config.to_dict(),
         extra=extra,
         format_version=FORMAT_VERSION,
     )
+    return out
+
+
+def _file(path: str | os.PathLike) -> pathlib.Path:
+    """The model file of ``path``: ``path/model.npz`` for a folder, else ``path`` itself (a model
+    file, such as the shipped ones)."""
+    path = pathlib.Path(path)
+    if path.is_dir():
+        if not (path / MODEL_FILE).is_file():
+            raise CorruptModelError(
+                f"no FL-VAE model in {path} (expected {MODEL_FILE}; train one with "
+                "`jmeshtex fl train`)"
+            )
+        return path / MODEL_FILE
+    return path
 
 
 def _like(config: Config, real) -> object:
     return jax.eval_shape(lambda k: init(config, key=k, dtype=real).params, jax.random.key(0))
 
 
-def _is_legacy(arrays: dict) -> bool:
-    return "meta" in arrays and all(k == "meta" or k.startswith("leaf_") for k in arrays)
-
-
-def _load_legacy(path: pathlib.Path, arrays: dict) -> tuple[Model, dict]:
-    """Format version 0: ``leaf_0000`` ... in pytree order, ``meta`` UTF-8 JSON bytes."""
-    try:
-        meta = json.loads(arrays.pop("meta").tobytes().decode())
-        config = Config.from_stored(meta["config"])  # fields it lacks: the writer's behaviour
-        leaves = [arrays[f"leaf_{i:04d}"] for i in range(int(meta["num_leaves"]))]
-        extra = meta.get("extra", {})
-    except (ValueError, KeyError, TypeError) as err:
-        raise CorruptModelError(f"cannot read {_WHAT} {path} (earlier layout): {err}") from None
-    real = jnp.float64 if leaves and leaves[0].dtype == np.float64 else jnp.float32
-    flat, treedef = jax.tree.flatten(_like(config, real))
-    if len(flat) != len(leaves) or any(
-        a.shape != tuple(b.shape) for a, b in zip(flat, leaves, strict=True)
-    ):
-        raise CorruptModelError(
-            f"{_WHAT} {path}: stored arrays do not match its config (corrupt or foreign file)"
-        )
-    return Model(jax.tree.unflatten(treedef, [jnp.asarray(x) for x in leaves]), config), extra
-
-
 def _load(path: str | os.PathLike) -> tuple[Model, dict]:
-    path = pathlib.Path(path)
-    arrays = read_arrays(path, what=_WHAT)
-    if _is_legacy(arrays):
-        return _load_legacy(path, arrays)
+    path = _file(path)
     file = load_model(path, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT)
-    try:  # fields the file lacks mean the behaviour of the version that wrote it
-        config = Config.from_stored(file.config)
+    try:
+        config = stored_config(Config, file.config, path)
     except (ValueError, TypeError, KeyError) as err:
         raise CorruptModelError(
             f"model file {path}: its stored config is not a valid fl.Config: {err}"
@@ -121,7 +117,7 @@ def load(path: str | os.PathLike) -> Model:
     """Read a model written by :func:`save`.
 
     Args:
-      path: the ``.npz`` file.
+      path: the folder :func:`save` wrote (or a model file itself, such as the shipped ones).
 
     Returns:
       :class:`~jmeshtex.fl.Model`.
@@ -142,7 +138,7 @@ def load_extra(path: str | os.PathLike) -> dict:
     """The ``extra`` metadata stored with a model by :func:`save` (``{}`` if none).
 
     Args:
-      path: the ``.npz`` file.
+      path: as in :func:`load`.
 
     Returns:
       The JSON metadata as a dict (the CLI stores the training step, seed and data there).
@@ -154,7 +150,7 @@ def load_extra(path: str | os.PathLike) -> dict:
       >>> import jax, tempfile, pathlib
       >>> from jmeshtex.fl import Config, init
       >>> model = init(Config(features=8, num_heads=2), key=jax.random.key(0))
-      >>> load_extra(save(model, pathlib.Path(tempfile.mkdtemp()) / "m.npz", extra={"seed": 1}))
+      >>> load_extra(save(model, pathlib.Path(tempfile.mkdtemp()) / "m", extra={"seed": 1}))
       {'seed': 1}
     """
     return _load(path)[1]
@@ -185,6 +181,6 @@ def load_pretrained(*, decoder: str = "log") -> Model:
     if not path.is_file():
         raise MeshIOError(
             f"no pre-trained FL-VAE shipped at {path}. Fix: train one with "
-            "`jmeshtex fl train --preset small --out DIR` and load it with jmeshtex.fl.load(DIR/'fl_vae.npz')"
+            "`jmeshtex fl train --preset small --out DIR` and load it with jmeshtex.fl.load(DIR)"
         )
     return load(path)

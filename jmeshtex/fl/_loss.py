@@ -14,7 +14,7 @@ from .._errors import InputError
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ._config import Config
 from ._decoder import blend_log_predictions, decode_barycentric_raw, decode_points_raw
-from ._model import FieldLatents, FLVAEParams, _check_samples, encode_samples
+from ._model import FieldLatents, Params, _check_samples, encode_samples
 
 
 def kl_per_channel(latents: FieldLatents) -> Float[Array, "V d"]:
@@ -75,7 +75,7 @@ def sample_latents(latents: FieldLatents, *, key: PRNGKey) -> Complex[Array, "V 
 
 
 def vae_loss(
-    params: FLVAEParams,
+    params: Params,
     config: Config,
     log_q: Complex[Array, "V S"],
     rgb: Float[Array, "V S 3"],
@@ -111,7 +111,7 @@ def vae_loss(
     warm-up of :func:`~jmeshtex.fl.train`).
 
     Args:
-      params: :class:`FLVAEParams`.
+      params: :class:`Params`.
       config: :class:`~jmeshtex.fl.Config` (static).
       log_q, rgb, mask: one-ring samples of all ``V`` vertices (:func:`encode_samples`).
       key: PRNG key of the reparameterisation noise.

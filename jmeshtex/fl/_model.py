@@ -31,7 +31,7 @@ from ._decoder import (
 from ._encoder import EncoderParams, _Draw, encode_samples_raw, encoder_size, init_encoder
 
 
-class FLVAEParams(NamedTuple):
+class Params(NamedTuple):
     """All FL-VAE parameters (a plain pytree).
 
     Attributes:
@@ -56,7 +56,7 @@ class Model:
     ``jax.jit`` and ``jax.tree`` maps as it is.
 
     Attributes:
-      params: :class:`~jmeshtex.fl.core.FLVAEParams`.
+      params: :class:`~jmeshtex.fl.core.Params`.
       config: :class:`~jmeshtex.fl.Config`.
 
     Example:
@@ -66,7 +66,7 @@ class Model:
       (4, (32, 4), dtype('float32'))
     """
 
-    params: FLVAEParams
+    params: Params
     config: Config
 
     def __post_init__(self) -> None:
@@ -113,9 +113,7 @@ def _init_jit(key, config, dtype):
     # one compiled program (op-by-op, every random draw of a new shape compiles its own kernel), at
     # XLA's fastest compile: it runs once
     draw = _Draw(key, encoder_size(config) + decoder_size(config), dtype)
-    return FLVAEParams(
-        init_encoder(draw, config, dtype=dtype), init_decoder(draw, config, dtype=dtype)
-    )
+    return Params(init_encoder(draw, config, dtype=dtype), init_decoder(draw, config, dtype=dtype))
 
 
 @functools.partial(
@@ -156,7 +154,7 @@ def _check_samples(log_q, rgb, mask):
 
 
 def encode_samples(
-    params: FLVAEParams,
+    params: Params,
     config: Config,
     log_q: Complex[Array, "V S"],
     rgb: Float[Array, "V S 3"],
@@ -169,7 +167,7 @@ def encode_samples(
        \\mu = u W_\\mu, \\quad \\log\\sigma = \\tanh(\\mathrm{Re}(u \\overline{u W_s})) A + b
 
     Args:
-      params: :class:`FLVAEParams`.
+      params: :class:`Params`.
       config: :class:`~jmeshtex.fl.Config` (static).
       log_q: ``[V, S]`` complex ``log_p(q_i) / r_p`` in p's frame (:func:`one_ring_samples`).
       rgb: ``[V, S, 3]`` colours in [0, 1] at the samples.
@@ -196,14 +194,14 @@ def encode_samples(
 
 
 def decode_points(
-    params: FLVAEParams, config: Config, mu: Complex[Array, "V d"], log_q: Complex[Array, "V S"]
+    params: Params, config: Config, mu: Complex[Array, "V d"], log_q: Complex[Array, "V S"]
 ) -> Float[Array, "V S 3"]:
     """Decode colours at points around each vertex from its latent alone (log decoder, eq. 5, 18).
 
     .. math:: \\mathrm{rgb}(q) = 0.5 + \\mathrm{MLP}\\big(|z_c|^2, z_i\\bar z_j, \\log_p(q)\\bar z_c\\big)
 
     Args:
-      params: :class:`FLVAEParams`.
+      params: :class:`Params`.
       config: :class:`~jmeshtex.fl.Config`; with ``decoder="barycentric"`` the log coordinates
         are ignored (the ablation has none).
       mu: ``[V, d]`` complex latents in each vertex's frame.
@@ -233,7 +231,7 @@ def decode_points(
 
 
 def decode_barycentric(
-    params: FLVAEParams,
+    params: Params,
     config: Config,
     mu: Complex[Array, "V d"],
     corners: Int[Array, "N 3"],
@@ -246,7 +244,7 @@ def decode_barycentric(
     ``decoder="barycentric"`` (ablation): ``D(Σ_k b_k φ(z_{v_k}))`` on interpolated invariants.
 
     Args:
-      params: :class:`FLVAEParams`.
+      params: :class:`Params`.
       config: :class:`~jmeshtex.fl.Config`.
       mu: ``[V, d]`` complex latents.
       corners: ``[N, 3]`` vertex of each corner of the point's triangle.
@@ -276,7 +274,7 @@ def decode_barycentric(
 
 
 def decode_vertex_colors_from_latents(
-    params: FLVAEParams, config: Config, mu: Complex[Array, "V d"]
+    params: Params, config: Config, mu: Complex[Array, "V d"]
 ) -> Float[Array, "V 3"]:
     """Colour at each vertex itself, ``D(z_p, log = 0)``, from its latent alone (pure; not clipped).
 
@@ -284,7 +282,7 @@ def decode_vertex_colors_from_latents(
     corner (weight 1 on the vertex).
 
     Args:
-      params: :class:`FLVAEParams`.
+      params: :class:`Params`.
       config: :class:`~jmeshtex.fl.Config` (static).
       mu: ``[V, d]`` complex latents.
 

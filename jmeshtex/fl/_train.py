@@ -62,12 +62,6 @@ from ._model import Model, init
 from ._planar import _to_rgb01, builtin_images, downscale, folder_images, planar_pool
 from ._textures import _stream_meshes, image_levels, max_stream_vertices, training_images
 
-#: config fields a resumed run may change (the schedule follows ``steps``; ``checkpoint_every`` only
-#: says how often state is written)
-_RESUMABLE_CHANGES = ("steps", "checkpoint_every")
-#: config fields added after checkpoints were written, with the value that reproduces those runs
-_ADDED_FIELDS = {"ema_decay": 0.0}
-
 
 def optimizer(config: Config) -> optax.GradientTransformation:
     """Adam with linear warm-up and cosine decay to ``learning_rate · final_lr_fraction``, after norm clipping.
@@ -77,7 +71,7 @@ def optimizer(config: Config) -> optax.GradientTransformation:
         ``final_lr_fraction``, ``grad_clip``).
 
     Returns:
-      An optax transformation over :class:`~jmeshtex.fl.core.FLVAEParams` (complex gradients must be
+      An optax transformation over :class:`~jmeshtex.fl.core.Params` (complex gradients must be
       conjugated first: :func:`make_train_step` does).
 
     Example:
@@ -322,12 +316,8 @@ def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) 
     for im in images:
         digest.update(repr(im.shape).encode())
         digest.update(np.ascontiguousarray(im, np.float64).tobytes())
-    fixed = {k: v for k, v in config.to_dict().items() if k not in _RESUMABLE_CHANGES}
-    for field, default in _ADDED_FIELDS.items():  # runs from before the field existed resume
-        if fixed[field] == default:
-            del fixed[field]
     return {
-        "config": fixed,
+        "config": config.fingerprint(),
         "key": _key_data(key),
         "images": digest.hexdigest(),
         "dtype": jnp.dtype(dtype).name,

@@ -5,7 +5,7 @@ The functions here take ``(params, config, arrays)`` and are jit/grad-safe, or b
 on the host; the method's contract (``Config``, ``Model``, ``train`` / ``save`` / ``load``, the
 encode/decode verbs) lives one level up, in :mod:`jmeshtex.fl`.
 
-- Parameters: :func:`~jmeshtex.fl.init` (an untrained :class:`~jmeshtex.fl.Model`), :class:`FLVAEParams`,
+- Parameters: :func:`~jmeshtex.fl.init` (an untrained :class:`~jmeshtex.fl.Model`), :class:`Params`,
   :class:`EncoderParams`.
 - Encoder: :func:`one_ring_samples` / :class:`OneRingSamples` (colours read in each vertex's
   one-ring), :func:`encode_samples`, :func:`encode_one_rings`; colours on a surface:
@@ -38,7 +38,7 @@ from ._loss import kl_divergence as kl_divergence
 from ._loss import kl_per_channel as kl_per_channel
 from ._loss import sample_latents as sample_latents
 from ._loss import vae_loss as vae_loss
-from ._model import FLVAEParams as FLVAEParams
+from ._model import Params as Params
 from ._model import decode_barycentric as decode_barycentric
 from ._model import decode_points as decode_points
 from ._model import decode_vertex_colors_from_latents as decode_vertex_colors_from_latents

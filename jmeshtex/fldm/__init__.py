@@ -11,7 +11,7 @@ The method's shape is that of every jmeshtex method:
 - :func:`build_dataset` (a :class:`~jmeshtex.Mesh` and an ``encode`` callable in, a :class:`Dataset` out);
 - :func:`train` (resumable, returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`),
   :func:`save` / :func:`load`;
-- the task verbs :func:`sample` and :func:`inpaint` (a mesh and ``key=`` in, :class:`FLDMSamples`
+- the task verbs :func:`sample` and :func:`inpaint` (a mesh and ``key=`` in, :class:`Samples`
   out).
 
 The denoiser, the diffusion maths (schedules, DDPM/DDIM steps) and the training step are building
@@ -42,7 +42,7 @@ from ._masks import random_mask as random_mask
 from ._model import Model as Model
 from ._model import load as load
 from ._model import save as save
-from ._sample import FLDMSamples as FLDMSamples
+from ._sample import Samples as Samples
 from ._sample import decode_samples as decode_samples
 from ._sample import inpaint as inpaint
 from ._sample import render_samples as render_samples

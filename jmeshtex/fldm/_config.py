@@ -164,6 +164,11 @@ class Config(ConfigBase):
     flat_spread: float = 0.02
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
+    #: what a resumed run may change: step counts, checkpoint cadence, the checkpoint statistics'
+    #: sampling and rematerialisation (memory against time, same numbers)
+    _RESUMABLE = frozenset(
+        {"steps", "checkpoint_every", "remat", "stats_samples", "stats_ddim_steps"}
+    )
     _RULES = (
         rule(
             "latent_channels hdim knn time_features diffusion_steps batch_size steps checkpoint_every n_copies "

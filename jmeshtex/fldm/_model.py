@@ -3,33 +3,41 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import json
 import os
 import pathlib
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import CorruptModelError, InputError
-from ..io import load_model, read_arrays, save_model
+from .._config import stored_config
+from .._errors import ConfigError, CorruptModelError, InputError
+from ..io import load_model, save_model
 from ._config import Config
 from ._denoiser import init_denoiser
 
 MODEL_FILE = "model.npz"
-#: the JSON file of the earlier layout (format version 0, read only)
-LEGACY_JSON = "model.json"
 CARD_FILE = "card.json"
 #: the ``kind`` recorded in an FLDM model file
 MODEL_KIND = "jmeshtex.fldm.Model"
-#: the layout of the arrays in the file
-FORMAT_VERSION = 1
+#: the layout of the file: parameters under ``params/...``, ``scale``, every config field in the
+#: header; a file of another version is refused with a CorruptModelError naming it
+FORMAT_VERSION = 2
 _WHAT = "FLDM model"
 
 
-class Model(NamedTuple):
+@functools.partial(
+    jax.tree_util.register_dataclass, data_fields=["params", "scale"], meta_fields=["config"]
+)
+@dataclasses.dataclass(frozen=True, eq=False)
+class Model:
     """A trained (or freshly initialised) FLDM: the denoiser's parameters with their config and scale.
+
+    A pytree whose config is static metadata (as every method's ``Model``): the parameters and
+    the scale are its leaves, so a ``Model`` passes through ``jax.jit`` and ``jax.tree`` maps.
 
     Attributes:
       params: denoiser parameters (flax ``params`` dict, :func:`~jmeshtex.fldm.core.init_denoiser`).
@@ -40,6 +48,12 @@ class Model(NamedTuple):
     params: dict
     config: Config
     scale: np.ndarray
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.config, Config):
+            raise ConfigError(
+                f"Model.config must be a jmeshtex.fldm.Config, got {type(self.config).__name__}"
+            )
 
 
 def save(model: Model, path: str | os.PathLike, *, card: dict | None = None) -> pathlib.Path:
@@ -115,28 +129,6 @@ def _model(params: dict, config: Config, scale) -> Model:
     return Model(jax.tree.map(jnp.asarray, params), config, np.asarray(scale, np.float64))
 
 
-def _load_legacy(out: pathlib.Path) -> Model:
-    """Format version 0: ``model.npz`` (``/``-keyed parameters) + ``model.json`` (config, scale)."""
-    arrays = read_arrays(out / MODEL_FILE, what=_WHAT)
-    try:
-        meta = json.loads((out / LEGACY_JSON).read_text())
-        config, scale = Config.from_dict(meta["config"]), meta["scale"]
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise CorruptModelError(f"cannot read {_WHAT} {out / LEGACY_JSON}: {err}") from None
-    return _model(_nested(arrays), config, scale)
-
-
-def _nested(arrays: dict) -> dict:
-    params: dict = {}
-    for name, value in arrays.items():
-        node = params
-        *parents, leaf = name.split("/")
-        for p in parents:
-            node = node.setdefault(p, {})
-        node[leaf] = value
-    return params
-
-
 def load(path: str | os.PathLike) -> Model:
     """Read a model written by :func:`save`.
 
@@ -161,15 +153,15 @@ def load(path: str | os.PathLike) -> Model:
         raise CorruptModelError(
             f"no FLDM model in {out} (expected {MODEL_FILE}; train one with `jmeshtex fldm train`)"
         )
+    file = load_model(
+        out / MODEL_FILE, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT
+    )
     try:
-        file = load_model(
-            out / MODEL_FILE, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT
-        )
-    except CorruptModelError:
-        if (out / LEGACY_JSON).is_file():  # a folder of the earlier layout
-            return _load_legacy(out)
-        raise
-    config = file.config_as(Config)
+        config = stored_config(Config, file.config, out / MODEL_FILE)
+    except ConfigError as err:
+        raise CorruptModelError(
+            f"model file {out / MODEL_FILE}: its stored config is not a valid Config: {err}"
+        ) from err
     shapes = jax.eval_shape(lambda k: init_denoiser(k, config), jax.random.key(0))
     # parameters saved from a float64 run (complex128 weights) are restored as such
     if any(a.dtype == np.complex128 for n, a in file.arrays.items() if n.startswith("params/")):

@@ -6,7 +6,7 @@ mesh (*generative transfer*, §6.6). The denoiser's filters see log maps in unit
 mean edge length, so the resolution of the target mesh sets the textural scale: the same model on a
 mesh with twice the vertex density gives a texture about √2 times smaller in world units.
 
-- :func:`sample`: ``num_samples`` samples (:class:`FLDMSamples`) with DDIM (default, 50 steps) or
+- :func:`sample`: ``num_samples`` samples (:class:`Samples`) with DDIM (default, 50 steps) or
   ancestral DDPM (all ``T``);
   label-guided when the model was trained with labels (pass a per-vertex ``labels`` map);
 - :func:`inpaint`: keeps given latents where ``mask`` is True (eq. 14), ancestral DDPM by default;
@@ -43,7 +43,7 @@ from ._model import Model
 
 
 @dataclasses.dataclass(frozen=True)
-class FLDMSamples:
+class Samples:
     """Latent fields drawn by :func:`sample` or :func:`inpaint` on one mesh.
 
     Attributes:
@@ -55,7 +55,7 @@ class FLDMSamples:
       steps: the number of denoising steps each sample ran.
 
     Example:
-      >>> s = FLDMSamples(np.zeros((2, 5, 3), np.complex128), None, "ddim", 4)
+      >>> s = Samples(np.zeros((2, 5, 3), np.complex128), None, "ddim", 4)
       >>> s.num_samples, s.num_vertices
       (2, 5)
     """
@@ -163,7 +163,7 @@ def sample(
     mask: np.ndarray | None = None,
     progress: bool = False,
     dtype=jnp.complex64,
-) -> FLDMSamples:
+) -> Samples:
     """Draw ``num_samples`` latent fields on ``target`` (unscaled: ready for the FL-VAE decoder).
 
     .. math:: z_T \\sim \\mathcal{CN}(0, I) \\xrightarrow{\\text{DDIM / DDPM (eq. 11, 29–31)}} z_0,
@@ -184,7 +184,7 @@ def sample(
       dtype: complex dtype.
 
     Returns:
-      :class:`FLDMSamples`: ``latents`` ``[num_samples, V, d]`` complex128 in the target's one-ring
+      :class:`Samples`: ``latents`` ``[num_samples, V, d]`` complex128 in the target's one-ring
       frames.
 
     Example:
@@ -270,7 +270,7 @@ def sample(
         )
         out.append(np.asarray(z, np.complex128)[:V] / scale)
     ran = model.config.diffusion_steps if method == "ddpm" else int(steps)
-    return FLDMSamples(np.stack(out), mask.copy() if inpainting else None, str(method), ran)
+    return Samples(np.stack(out), mask.copy() if inpainting else None, str(method), ran)
 
 
 def _is_count(value) -> bool:
@@ -286,7 +286,7 @@ def inpaint(
     key: jax.Array,
     num_samples: int = 1,
     **kwargs,
-) -> FLDMSamples:
+) -> Samples:
     """Inpaint: sample the latents where ``mask`` is False, keep ``known`` where it is True (eq. 14).
 
     A thin wrapper of :func:`sample` (same keyword arguments) whose default sampler is ancestral
@@ -310,7 +310,7 @@ def inpaint(
       **kwargs: :func:`sample`'s other keywords (``method``, ``steps``, ``eta``, ``labels``, ...).
 
     Returns:
-      :class:`FLDMSamples`: ``latents`` ``[num_samples, V, d]`` complex128, equal to ``known``
+      :class:`Samples`: ``latents`` ``[num_samples, V, d]`` complex128, equal to ``known``
       where ``known_mask`` (= ``mask``) is True.
 
     Example:
@@ -330,14 +330,14 @@ def inpaint(
 
 
 def decode_samples(
-    vae, mesh: Mesh, latents: FLDMSamples | np.ndarray, *, size: int = 256
+    vae, mesh: Mesh, latents: Samples | np.ndarray, *, size: int = 256
 ) -> list[dict]:
     """Decode latent samples with the FL-VAE: a texture atlas if ``mesh`` has UVs, else vertex colours.
 
     Args:
       vae: the FL-VAE (:class:`jmeshtex.fl.Model`) the training latents were encoded with.
       mesh: the :class:`~jmeshtex.Mesh` the latents live on.
-      latents: :class:`FLDMSamples` (:func:`sample`, :func:`inpaint`) or their ``[n, V, d]``
+      latents: :class:`Samples` (:func:`sample`, :func:`inpaint`) or their ``[n, V, d]``
         unscaled latents.
       size: atlas size in texels (meshes with UVs).
 
@@ -348,7 +348,7 @@ def decode_samples(
     from ..fl import decode_texture, decode_vertex_colors
 
     mesh = as_mesh(mesh)
-    if isinstance(latents, FLDMSamples):
+    if isinstance(latents, Samples):
         latents = latents.latents
     out = []
     for mu in np.asarray(latents):

@@ -367,16 +367,8 @@ def init(data: Dataset, config: Config, *, key: jax.Array, dtype=jnp.complex64) 
 
 def _fingerprint(data: Dataset, config: Config, key: jax.Array, dtype) -> dict:
     """What a checkpoint must have been written by to be resumed (module docstring)."""
-    free = ("steps", "checkpoint_every", "remat", "stats_samples", "stats_ddim_steps")
-    # options added after runs were written stay out while at their default: those runs resume
-    added = {"invariants": False, "schedule_shift": 1.0, "phase_sync": "none", "flat_spread": 0.02}
-    settings = {
-        k: v
-        for k, v in config.to_dict().items()
-        if k not in free and not (k in added and v == added[k])
-    }
     return {
-        "config": settings,
+        "config": config.fingerprint(),
         "key": key_ints(key),
         "dtype": jnp.dtype(dtype).name,
         "data": {

@@ -20,7 +20,7 @@ folder was deleted as a whole (by hand, or by an interrupted retention) is left 
 A *fingerprint* (a JSON-able dict: the config, a hash of the data) is stored with every step; a
 folder whose fingerprint differs from the caller's cannot be resumed by mistake: :meth:`restore`
 raises :class:`~jmeshtex.CheckpointMismatchError` naming the keys that differ. Errors reading or
-writing a step (corrupt data, a full or read-only disk) are one :class:`~jmeshtex.MeshIOError`
+writing a step (corrupt data, a full or read-only disk) are one :class:`~jmeshtex.CheckpointError`
 naming the folder; a failed save leaves no temporary folder behind.
 
 Restoring takes a ``like`` pytree with the structure, shapes and dtypes of the saved state (e.g.
@@ -56,7 +56,13 @@ import jax
 import numpy as np
 
 from .._config import is_int
-from .._errors import CheckpointMismatchError, CheckpointSkippedWarning, InputError, MeshIOError
+from .._errors import (
+    CheckpointError,
+    CheckpointMismatchError,
+    CheckpointSkippedWarning,
+    InputError,
+    MeshIOError,
+)
 
 _FINGERPRINT = "fingerprint"
 
@@ -169,7 +175,7 @@ class Checkpoints:
 
     Raises:
       InputError: ``keep`` is not a whole number >= 1.
-      MeshIOError: ``directory`` exists and is not a folder, or is a symbolic link.
+      CheckpointError: ``directory`` exists and is not a folder, or is a symbolic link.
     """
 
     def __init__(
@@ -193,18 +199,18 @@ class Checkpoints:
         try:
             _check_protected(self.directory / RECORD)
         except MeshIOError as err:
-            raise MeshIOError(
+            raise CheckpointError(
                 f"cannot keep checkpoints in {self.directory}: that folder was there before this "
                 "command claimed its output folder (--overwrite never writes into or deletes "
                 "foreign files). Fix: move it away, or pick a new output folder"
             ) from err
         if self.directory.is_symlink():
-            raise MeshIOError(
+            raise CheckpointError(
                 f"checkpoint folder {self.directory} is a symbolic link: refusing to write or "
                 "delete through it. Fix: remove the link (or pick another output folder)"
             )
         if self.directory.exists() and not self.directory.is_dir():
-            raise MeshIOError(f"checkpoint folder {self.directory} exists and is not a folder")
+            raise CheckpointError(f"checkpoint folder {self.directory} exists and is not a folder")
 
     # -- the record ---------------------------------------------------------------------------
     def _read_record(self) -> dict[int, dict]:
@@ -299,7 +305,7 @@ class Checkpoints:
         """Write ``state`` (an array pytree) and ``meta`` (JSON-able) as ``step``, atomically.
 
         Saving a step this mechanism wrote before replaces it; a step folder of that number that
-        it did not write is refused (:class:`~jmeshtex.MeshIOError`), never deleted.
+        it did not write is refused (:class:`~jmeshtex.CheckpointError`), never deleted.
         """
         import orbax.checkpoint as ocp
 
@@ -315,7 +321,7 @@ class Checkpoints:
         target = self.directory / str(step)
         steps = self._read_record()
         if (target.exists() or target.is_symlink()) and step not in steps:
-            raise MeshIOError(
+            raise CheckpointError(
                 f"cannot write checkpoint {target}: a folder of that name exists that jmeshtex did "
                 "not write (it is not in the folder's record); refusing to replace it. Fix: move it "
                 "away, or use another output folder"
@@ -344,7 +350,7 @@ class Checkpoints:
         except Exception as err:
             if tmp is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
-            raise MeshIOError(
+            raise CheckpointError(
                 f"cannot write checkpoint {target}: {_first_line(_root(err))}. The previous "
                 "steps are kept; free space or fix the folder's permissions, then run again"
             ) from err
@@ -381,14 +387,16 @@ class Checkpoints:
         """The state and meta of ``step`` (default: the newest intact one), shaped like ``like``.
 
         Raises:
-          MeshIOError: no intact checkpoint in the folder, or the state does not match ``like``.
+          CheckpointError: no intact checkpoint in the folder, or the state does not match ``like``.
           CheckpointMismatchError: the stored fingerprint differs from this object's.
         """
         import orbax.checkpoint as ocp
 
         step = self.latest_step() if step is None else step
         if step is None or step not in self.steps():
-            raise MeshIOError(f"no checkpoint {'' if step is None else step} in {self.directory}")
+            raise CheckpointError(
+                f"no checkpoint {'' if step is None else step} in {self.directory}"
+            )
         meta = self.read_meta(step)
         self._check_fingerprint(meta.get(_FINGERPRINT), step)
         like = _to_arrays(like)
@@ -397,12 +405,12 @@ class Checkpoints:
             with ocp.Checkpointer(ocp.StandardCheckpointHandler()) as checkpointer:
                 out = checkpointer.restore(folder / "state", args=ocp.args.StandardRestore(like))
         except (ValueError, KeyError, TypeError) as err:
-            raise MeshIOError(
+            raise CheckpointError(
                 f"checkpoint {folder} does not match the state to resume: {_first_line(err)}. "
                 "Resume with the same settings, or use another output folder"
             ) from err
         except Exception as err:  # corrupt data: orbax/tensorstore errors of many types
-            raise MeshIOError(
+            raise CheckpointError(
                 f"checkpoint {folder} cannot be read: {_first_line(_root(err))}"
             ) from err
         state = jax.tree.map(
@@ -415,14 +423,18 @@ class Checkpoints:
         """The JSON record of ``step`` (default: the newest intact one), fingerprint included."""
         step = self.latest_step() if step is None else step
         if step is None or step not in self.steps():
-            raise MeshIOError(f"no checkpoint {'' if step is None else step} in {self.directory}")
+            raise CheckpointError(
+                f"no checkpoint {'' if step is None else step} in {self.directory}"
+            )
         path = self.directory / str(step) / "meta" / "metadata"
         try:
             record = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError, UnicodeDecodeError) as err:
-            raise MeshIOError(f"checkpoint {path} cannot be read: {_first_line(err)}") from err
+            raise CheckpointError(f"checkpoint {path} cannot be read: {_first_line(err)}") from err
         if not isinstance(record, dict):
-            raise MeshIOError(f"checkpoint {self.directory / str(step)}: meta is not a JSON object")
+            raise CheckpointError(
+                f"checkpoint {self.directory / str(step)}: meta is not a JSON object"
+            )
         return record
 
     def _check_fingerprint(self, stored: Any, step: int) -> None:

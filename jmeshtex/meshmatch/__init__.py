@@ -17,7 +17,7 @@ rotations, and a Gaussian-weighted vote synthesises the target's colours. Nothin
     (162, 3)
 
 Task verbs (:func:`transfer`, :func:`paint_by_example`, :func:`transfer_displacement`) take
-:class:`~jmeshtex.Mesh` inputs and ``key=`` and return a :class:`MeshMatchTransfer`, written and read
+:class:`~jmeshtex.Mesh` inputs and ``key=`` and return a :class:`Transfer`, written and read
 with :func:`save` / :func:`load`; :func:`meshmatch` is the matcher behind them, on any per-vertex
 signal; its building blocks (fans, features, the padded hierarchy) are in
 :mod:`jmeshtex.meshmatch.core`.
@@ -29,9 +29,9 @@ from ._config import Config as Config
 from ._displacement import transfer_displacement as transfer_displacement
 from ._io import load as load
 from ._io import save as save
-from ._match import MeshMatchResult as MeshMatchResult
+from ._match import Match as Match
 from ._match import meshmatch as meshmatch
-from ._transfer import MeshMatchTransfer as MeshMatchTransfer
+from ._transfer import Transfer as Transfer
 from ._transfer import bake_texture as bake_texture
 from ._transfer import paint_by_example as paint_by_example
 from ._transfer import transfer as transfer

@@ -25,7 +25,7 @@ from .._types import Float
 from ..geometry import tangent_frames, taubin_smooth
 from ._config import Config
 from ._match import meshmatch
-from ._transfer import MeshMatchTransfer
+from ._transfer import Transfer
 
 
 def base_surface(mesh: Mesh | tuple, *, smoothing_steps: int = 10) -> Mesh:
@@ -89,7 +89,7 @@ def transfer_displacement(
     smoothing_steps: int = 10,
     voted: bool = False,
     progress: bool | Callable[[str], Any] = False,
-) -> MeshMatchTransfer:
+) -> Transfer:
     """Transfer geometric detail (normal displacements) from source to target by MeshMatch.
 
     .. math:: x'_t = x_t + \\hat d_t\\, n_t
@@ -112,7 +112,7 @@ def transfer_displacement(
       progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
 
     Returns:
-      :class:`~jmeshtex.meshmatch.MeshMatchTransfer` whose mesh is the target with displaced
+      :class:`~jmeshtex.meshmatch.Transfer` whose mesh is the target with displaced
       ``[Vt, 3]`` vertices and ``vertex_colors`` None; ``match.colors`` / ``match.voted`` hold
       the nearest and voted detail ``[Vt, 1]``.
 
@@ -134,4 +134,4 @@ def transfer_displacement(
     tv = np.asarray(target.vertices, np.float64)
     normal = tangent_frames(tv, target.faces).normal
     mesh = target.replace(vertices=tv + height[:, None] * normal, vertex_colors=None)
-    return MeshMatchTransfer(mesh, result)
+    return Transfer(mesh, result)

@@ -1,4 +1,4 @@
-"""Writing and reading a :class:`~jmeshtex.meshmatch.MeshMatchTransfer`: one folder, atomically.
+"""Writing and reading a :class:`~jmeshtex.meshmatch.Transfer`: one folder, atomically.
 
 The folder holds ``transfer.npz`` (the target mesh's arrays and the match's arrays, no pickles) and
 ``transfer.json`` (the mesh's name, the match statistics, a format tag), written last so a folder
@@ -16,16 +16,16 @@ import numpy as np
 
 from .._errors import InputError, MeshIOError
 from .._mesh import Mesh
-from ._match import MeshMatchResult
-from ._transfer import MeshMatchTransfer
+from ._match import Match
+from ._transfer import Transfer
 
 ARRAYS_FILE = "transfer.npz"
 META_FILE = "transfer.json"
-KIND = "jmeshtex.meshmatch.MeshMatchTransfer"
+KIND = "jmeshtex.meshmatch.Transfer"
 
 #: the Mesh fields stored as arrays (the rest, ``name``, goes to the JSON)
 _MESH_ARRAYS = tuple(f.name for f in dataclasses.fields(Mesh) if f.name != "name")
-_MATCH_ARRAYS = tuple(f for f in MeshMatchResult._fields if f != "stats")
+_MATCH_ARRAYS = tuple(f for f in Match._fields if f != "stats")
 
 
 def _json_default(value):
@@ -34,11 +34,11 @@ def _json_default(value):
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
-def save(result: MeshMatchTransfer, path: str | os.PathLike) -> pathlib.Path:
+def save(result: Transfer, path: str | os.PathLike) -> pathlib.Path:
     """Write a transfer result into the folder ``path``, atomically (read it back with :func:`load`).
 
     Args:
-      result: a :class:`~jmeshtex.meshmatch.MeshMatchTransfer` (from
+      result: a :class:`~jmeshtex.meshmatch.Transfer` (from
         :func:`~jmeshtex.meshmatch.transfer`, :func:`~jmeshtex.meshmatch.paint_by_example`
         or :func:`~jmeshtex.meshmatch.transfer_displacement`).
       path: the folder; created if needed, a result already there is replaced.
@@ -47,21 +47,21 @@ def save(result: MeshMatchTransfer, path: str | os.PathLike) -> pathlib.Path:
       The folder.
 
     Raises:
-      InputError: ``result`` is not a ``MeshMatchTransfer``.
+      InputError: ``result`` is not a ``Transfer``.
 
     Example:
       >>> import tempfile
       >>> from jmeshtex.data import icosphere
-      >>> match = MeshMatchResult(*(np.zeros(12) for _ in range(5)), stats={"levels": []})
-      >>> folder = save(MeshMatchTransfer(icosphere(0), match), tempfile.mkdtemp())
+      >>> match = Match(*(np.zeros(12) for _ in range(5)), stats={"levels": []})
+      >>> folder = save(Transfer(icosphere(0), match), tempfile.mkdtemp())
       >>> load(folder).mesh.num_vertices
       12
     """
     from ..io import atomic_save_npz, atomic_write
 
-    if not isinstance(result, MeshMatchTransfer):
+    if not isinstance(result, Transfer):
         raise InputError(
-            f"save(result, path): expected a jmeshtex.meshmatch.MeshMatchTransfer first, "
+            f"save(result, path): expected a jmeshtex.meshmatch.Transfer first, "
             f"got {type(result).__name__}"
         )
     folder = pathlib.Path(path)
@@ -79,14 +79,14 @@ def save(result: MeshMatchTransfer, path: str | os.PathLike) -> pathlib.Path:
     return folder
 
 
-def load(path: str | os.PathLike) -> MeshMatchTransfer:
+def load(path: str | os.PathLike) -> Transfer:
     """Read a transfer result written by :func:`save`.
 
     Args:
       path: the folder that holds ``transfer.npz`` and ``transfer.json``.
 
     Returns:
-      The :class:`~jmeshtex.meshmatch.MeshMatchTransfer`, its arrays with their saved dtypes.
+      The :class:`~jmeshtex.meshmatch.Transfer`, its arrays with their saved dtypes.
 
     Raises:
       MeshIOError: the folder holds no transfer result, or its files are damaged.
@@ -128,7 +128,7 @@ def load(path: str | os.PathLike) -> MeshMatchTransfer:
         **{name: arrays.get(f"mesh/{name}") for name in _MESH_ARRAYS},
         name=str(meta.get("mesh_name", "mesh")),
     )
-    match = MeshMatchResult(
+    match = Match(
         **{name: arrays[f"match/{name}"] for name in _MATCH_ARRAYS}, stats=meta.get("stats", {})
     )
-    return MeshMatchTransfer(mesh, match)
+    return Transfer(mesh, match)

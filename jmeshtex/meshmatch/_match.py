@@ -47,7 +47,7 @@ from ._prepare import (
 from ._search import SearchOptions, Source, StepWeights, iterate, make_source, vote_step
 
 
-class MeshMatchResult(NamedTuple):
+class Match(NamedTuple):
     """Output of :func:`meshmatch`: the nearest-neighbour field and the signal it carries.
 
     Attributes:
@@ -82,7 +82,7 @@ def nnf_colors(source: Mesh | tuple, nnf: Int[np.ndarray, " Vt"]) -> Float[np.nd
 
     Args:
       source: the source :class:`~jmeshtex.Mesh` or ``(vertices [Vs, 3], faces)``.
-      nnf: ``[Vt]`` matched source vertex per target vertex (:attr:`~jmeshtex.meshmatch.MeshMatchResult.nnf`).
+      nnf: ``[Vt]`` matched source vertex per target vertex (:attr:`~jmeshtex.meshmatch.Match.nnf`).
 
     Returns:
       ``[Vt, 3]`` float64 colours in ``[0, 1]``.
@@ -110,7 +110,7 @@ def meshmatch(
     progress: bool | Callable[[str], Any] = False,
     prepared: tuple[Side, Side] | None = None,
     initial_nnf: Int[np.ndarray, " Vt"] | None = None,
-) -> MeshMatchResult:
+) -> Match:
     """Transfer per-vertex signals from a source mesh to a target mesh by PatchMatch (MeshMatch).
 
     .. math:: \\text{NNF}(t) = \\arg\\min_{s, k} D_k(t, s), \\qquad
@@ -141,7 +141,7 @@ def meshmatch(
         iterations move it (the seeded rows of ``docs/results.md``, MeshMatch).
 
     Returns:
-      :class:`MeshMatchResult`.
+      :class:`Match`.
 
     Raises:
       InputError: shapes of colours, masks, pins; an empty source mask; a mesh that is neither a
@@ -569,7 +569,7 @@ def match_levels(
     pin: np.ndarray | None,
     progress: bool | Callable[[str], Any] = False,
     initial: np.ndarray | None = None,
-) -> MeshMatchResult:
+) -> Match:
     """Coarse-to-fine PatchMatch of prepared sides (the loop of :func:`meshmatch`).
 
     Args:
@@ -585,7 +585,7 @@ def match_levels(
       initial: ``[Vt]`` (input indexing) matches to start the coarsest level from, or None.
 
     Returns:
-      :class:`MeshMatchResult` whose ``stats`` holds ``levels`` and ``fans_s``.
+      :class:`Match` whose ``stats`` holds ``levels`` and ``fans_s``.
     """
     dtype = jnp.float32 if config.dtype == "float32" else jnp.float64
     pairing = level_pairing(source, target)
@@ -722,7 +722,7 @@ def match_levels(
     bar.close()
 
     nnf_input = sh.vertex_index[pairing[0]][nnf]
-    return MeshMatchResult(
+    return Match(
         colors=colors[nnf_input],
         voted=np.asarray(colors_t, np.float64),
         nnf=nnf_input,

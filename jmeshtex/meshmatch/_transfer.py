@@ -12,7 +12,7 @@ All three reduce to :func:`~jmeshtex.meshmatch.meshmatch` on per-vertex signals:
 - detail transfer (``jmeshtex/meshmatch/_displacement.py``) moves the signed normal offset of the
   source from its Taubin-smoothed base.
 
-Each returns a :class:`MeshMatchTransfer`: the synthesised target mesh and the match behind it.
+Each returns a :class:`Transfer`: the synthesised target mesh and the match behind it.
 """
 
 from __future__ import annotations
@@ -28,22 +28,22 @@ from .._mesh import Mesh, as_mesh
 from .._types import Float, Int
 from ..geometry import fill_unused_texels, rasterize_uv, sample_texture
 from ._config import Config
-from ._match import MeshMatchResult, meshmatch
+from ._match import Match, meshmatch
 
 
-class MeshMatchTransfer(NamedTuple):
+class Transfer(NamedTuple):
     """A synthesised target: what :func:`transfer`, :func:`paint_by_example` and
     :func:`~jmeshtex.meshmatch.transfer_displacement` return (write it with :func:`~jmeshtex.meshmatch.save`).
 
     Attributes:
       mesh: the target :class:`~jmeshtex.Mesh` with ``vertex_colors`` set (and ``texture`` filled
         when the target has UVs), or with displaced ``vertices`` (displacement transfer).
-      match: the :class:`~jmeshtex.meshmatch.MeshMatchResult` (nearest-neighbour field,
+      match: the :class:`~jmeshtex.meshmatch.Match` (nearest-neighbour field,
         rotations, costs, timings).
     """
 
     mesh: Mesh
-    match: MeshMatchResult
+    match: Match
 
 
 #: the most texture samples :func:`vertex_colors_from_texture` takes per face (a 16 × 16
@@ -245,7 +245,7 @@ def transfer(
     voted: bool = False,
     texture_prefilter: str = "area",
     progress: bool | Callable[[str], Any] = False,
-) -> MeshMatchTransfer:
+) -> Transfer:
     """Transfer a source mesh's colours (vertex colours or UV texture) onto a target mesh.
 
     .. math:: c_t = c^{src}_{\\text{NNF}(t)}
@@ -272,7 +272,7 @@ def transfer(
       progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
 
     Returns:
-      :class:`MeshMatchTransfer` whose mesh carries ``[Vt, 3]`` float32 vertex colours in [0, 1].
+      :class:`Transfer` whose mesh carries ``[Vt, 3]`` float32 vertex colours in [0, 1].
 
     Example:
       >>> import jax
@@ -299,7 +299,7 @@ def transfer(
     mesh = target.replace(vertex_colors=out)
     if target.uv is not None:
         mesh = mesh.replace(texture=bake_texture(target, out, size=texture_size))
-    return MeshMatchTransfer(mesh, result)
+    return Transfer(mesh, result)
 
 
 def paint_by_example(
@@ -310,7 +310,7 @@ def paint_by_example(
     colors: Float[np.ndarray, "V C"] | None = None,
     config: Config | None = None,
     progress: bool | Callable[[str], Any] = False,
-) -> MeshMatchTransfer:
+) -> Transfer:
     """Propagate the painted part of a mesh (``mask``) to the unpainted part, by example.
 
     The mesh is matched against itself with matches restricted to painted vertices; painted
@@ -328,7 +328,7 @@ def paint_by_example(
       progress: see :func:`~jmeshtex.meshmatch.meshmatch`.
 
     Returns:
-      :class:`MeshMatchTransfer` whose mesh carries the completed ``[V, 3]`` vertex colours.
+      :class:`Transfer` whose mesh carries the completed ``[V, 3]`` vertex colours.
 
     Raises:
       InputError: an empty or complete mask, wrong shapes.
@@ -373,6 +373,4 @@ def paint_by_example(
         mesh, base, mesh, key=key, config=config, source_mask=mask, pin=pin, progress=progress
     )
     out = np.where(mask[:, None], base, result.colors)
-    return MeshMatchTransfer(
-        mesh.replace(vertex_colors=np.clip(out, 0.0, 1.0).astype(np.float32)), result
-    )
+    return Transfer(mesh.replace(vertex_colors=np.clip(out, 0.0, 1.0).astype(np.float32)), result)

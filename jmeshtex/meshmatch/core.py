@@ -1,7 +1,7 @@
 """MeshMatch building blocks: the fans, features and PatchMatch arrays behind
 :func:`jmeshtex.meshmatch.meshmatch`, for building your own matcher or descriptor.
 
-The method's contract (``Config``, the task verbs and their :class:`~jmeshtex.meshmatch.MeshMatchTransfer`,
+The method's contract (``Config``, the task verbs and their :class:`~jmeshtex.meshmatch.Transfer`,
 ``save`` / ``load``) lives one level up, in :mod:`jmeshtex.meshmatch`.
 
 - Geodesic fans: :func:`geodesic_fans` / :class:`GeodesicFans`, :func:`sample_fans`,

@@ -77,6 +77,7 @@ class Config(ConfigBase):
         preprocessing). A ``weights=`` argument of the task verbs overrides both.
       weights_path: the VGG-19 weights file (``.npz`` or Keras ``.h5``).
       dtype: ``"float32"`` (default) or ``"float64"`` for the network and the optimisation.
+      checkpoint_every: steps between checkpoints (with the task verbs' ``checkpoint_dir``).
 
     Example:
       >>> c = Config(size=64, steps=10)
@@ -102,11 +103,14 @@ class Config(ConfigBase):
     network: str = "vgg16"
     weights_path: str | None = None
     dtype: str = "float32"
+    checkpoint_every: int = 50
 
+    #: what a resumed run may change: the step count and the checkpoint cadence
+    _RESUMABLE = frozenset({"steps", "checkpoint_every"})
     _RULES = (
         integers("size", 4),
         integers("steps", 0),
-        integers("halve_every", 1),
+        integers("halve_every checkpoint_every", 1),
         rule(
             "learning_rate init_low init_high",
             lambda x: is_finite_number(x) and x >= 0,

@@ -26,7 +26,7 @@ def _plain(value):
     return value
 
 
-def save(result: SynthesisResult, path: str | os.PathLike) -> dict:
+def save(result: SynthesisResult, path: str | os.PathLike) -> pathlib.Path:
     """Write a synthesis result's data to a folder (created if needed); :func:`load` reads it back.
 
     Files in ``path``: ``result.npz`` (the arrays :func:`load` reads); ``texture.png`` (the texture
@@ -39,7 +39,8 @@ def save(result: SynthesisResult, path: str | os.PathLike) -> dict:
       path: the output folder.
 
     Returns:
-      The summary dict (also in ``summary.json``), with the paths written under ``"files"``.
+      The folder (as every method's ``save``); ``summary.json`` in it lists the files written
+      under ``"files"``.
 
     Raises:
       InputError: ``result`` is not a :class:`~jmeshtex.surfacecnn.SynthesisResult`.
@@ -52,8 +53,8 @@ def save(result: SynthesisResult, path: str | os.PathLike) -> dict:
       >>> v, f = grid(2)
       >>> r = synthesize(Mesh(v, f, uv=v[f][..., :2]), np.full((8, 8, 3), 0.5), Config(size=8, steps=2),
       ...                key=jax.random.key(0), layers=("relu1_1",), progress=False)
-      >>> sorted(p.rsplit("/", 1)[-1] for p in save(r, tempfile.mkdtemp())["files"])
-      ['result.npz', 'summary.json', 'texture.png', 'textured.obj']
+      >>> sorted(p.name for p in save(r, tempfile.mkdtemp()).iterdir())
+      ['result.npz', 'summary.json', 'texture.png', 'textured.mtl', 'textured.obj', 'textured.png']
     """
     from .._errors import InputError
     from ..io import atomic_save_npz, atomic_write, save_mesh, save_png
@@ -87,7 +88,7 @@ def save(result: SynthesisResult, path: str | os.PathLike) -> dict:
         "files": files,
     }
     atomic_write(out / "summary.json", (json.dumps(summary, indent=2) + "\n").encode())
-    return summary
+    return out
 
 
 def load(path: str | os.PathLike) -> SynthesisResult:

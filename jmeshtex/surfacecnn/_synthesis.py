@@ -10,6 +10,7 @@ clipped to [0, 1] after every step and initialised uniformly in [0, 0.2]. Style 
 from __future__ import annotations
 
 import hashlib
+import os
 import time
 from typing import NamedTuple
 
@@ -114,21 +115,14 @@ def _setup(
 
 
 def _fingerprint(task: str, config: Config, layers, data: str, **extra) -> dict:
-    """What a checkpoint must share with this run to be resumed (the step count may grow); a run
-    on a surface adds its ``texels``."""
+    """What a checkpoint must share with this run to be resumed: the config apart from its
+    resumable fields (:meth:`~jmeshtex._config.ConfigBase.fingerprint`), the Gram layers, the
+    images' digest; a run on a surface adds its ``texels``."""
     return {
         "task": task,
-        "size": config.size,
-        "learning_rate": config.learning_rate,
-        "halve_every": config.halve_every,
-        "pool": config.pool,
-        "dtype": config.dtype,
+        "config": config.fingerprint(),
         "layers": list(layers),
         "data": data,
-        "frames": config.frames,
-        "frame_vector": list(config.frame_vector),
-        "boundary": config.boundary,
-        "exemplar_padding": config.exemplar_padding,
         **extra,
     }
 
@@ -161,8 +155,7 @@ def synthesize(
     layers: tuple[str, ...] | None = None,
     surface: Surface | None = None,
     progress: bool = True,
-    checkpoint=None,
-    checkpoint_every: int = 50,
+    checkpoint_dir: str | os.PathLike | None = None,
 ) -> SynthesisResult:
     """Synthesise a texture for a mesh whose CNN Gram statistics match a 2D exemplar's.
 
@@ -183,12 +176,11 @@ def synthesize(
       layers: Gram layers (default ``config.layers``, else every ReLU and pool output).
       surface: a precomputed :class:`~jmeshtex.surfacecnn.Surface` to reuse.
       progress: show a tqdm bar with the loss.
-      checkpoint: a folder (:class:`jmeshtex.io.Checkpoints`): colours, Adam state and losses are
-        saved there every ``checkpoint_every`` steps and at the end; if it already holds this run
+      checkpoint_dir: a folder (:class:`jmeshtex.io.Checkpoints`): colours, Adam state and losses
+        are saved there every ``config.checkpoint_every`` steps and at the end; if it already holds this run
         (same texels, exemplar, key, layers and optimiser settings), the optimisation resumes from it and
         gives the result of an uninterrupted run (a different run raises
         :class:`~jmeshtex.CheckpointMismatchError`).
-      checkpoint_every: steps between checkpoints.
 
     Returns:
       :class:`~jmeshtex.surfacecnn.SynthesisResult`.
@@ -234,8 +226,6 @@ def synthesize(
         config,
         layers,
         _digest(image),
-        init=[config.init_low, config.init_high],
-        unwrap=config.unwrap,
         texels=surface.atlas.num_texels,
         key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
     )
@@ -246,8 +236,8 @@ def synthesize(
         config,
         progress=progress,
         desc="surfacecnn synthesize",
-        checkpoint=checkpoint,
-        checkpoint_every=checkpoint_every,
+        checkpoint=checkpoint_dir,
+        checkpoint_every=config.checkpoint_every,
         fingerprint=fingerprint,
     )
     return _result(mesh, surface, x, losses, final, {**stats, "targets_s": target_s})
@@ -264,8 +254,7 @@ def stylize(
     layers: tuple[str, ...] | None = None,
     surface: Surface | None = None,
     progress: bool = True,
-    checkpoint=None,
-    checkpoint_every: int = 50,
+    checkpoint_dir: str | os.PathLike | None = None,
 ) -> SynthesisResult:
     """Neural style transfer on a mesh texture: Gram term of ``style`` plus a content term.
 
@@ -285,7 +274,7 @@ def stylize(
         layers default to ``relu1_1 … relu5_1``, :func:`~jmeshtex.surfacecnn.core.style_transfer_layers`).
       key: accepted for the common task-verb signature; style transfer starts from the content
         texture and draws no random numbers, so the result does not depend on it.
-      weights, layers, surface, progress, checkpoint, checkpoint_every: as in
+      weights, layers, surface, progress, checkpoint_dir: as in
         :func:`~jmeshtex.surfacecnn.synthesize`.
 
     Returns:
@@ -361,8 +350,8 @@ def stylize(
         config,
         progress=progress,
         desc="surfacecnn stylize",
-        checkpoint=checkpoint,
-        checkpoint_every=checkpoint_every,
+        checkpoint=checkpoint_dir,
+        checkpoint_every=config.checkpoint_every,
         fingerprint=fingerprint,
     )
     return _result(mesh, surface, x, losses, final, stats)

@@ -9,6 +9,7 @@ chart's layout (Kovács et al. 2024, Fig. 1 and Sec. 7's comparison).
 
 from __future__ import annotations
 
+import os
 import time
 
 import jax
@@ -37,8 +38,7 @@ def synthesize_uv(
     weights: VGGWeights | None = None,
     layers: tuple[str, ...] | None = None,
     progress: bool = True,
-    checkpoint=None,
-    checkpoint_every: int = 50,
+    checkpoint_dir: str | os.PathLike | None = None,
 ) -> SynthesisResult:
     """UV-space 2D texture synthesis: Gram matching on the flat texture image (the baseline).
 
@@ -58,7 +58,7 @@ def synthesize_uv(
       weights: CNN weights (default ``config.network``).
       layers: Gram layers (default ``config.layers``, else every ReLU and pool output).
       progress: tqdm bar.
-      checkpoint, checkpoint_every: as in :func:`~jmeshtex.surfacecnn.synthesize` (the image,
+      checkpoint_dir: as in :func:`~jmeshtex.surfacecnn.synthesize` (the image,
         Adam state and losses are saved there; a folder holding this run resumes it). The image
         does not depend on the mesh, so a finished folder serves every mesh at the same size,
         exemplar, layers and key: it only has to be read at the new atlas' texels.
@@ -124,7 +124,6 @@ def synthesize_uv(
         config,
         layers,
         _digest(image),
-        init=[config.init_low, config.init_high],
         key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
     )
     x, losses, final, stats = optimize_colors(
@@ -134,8 +133,8 @@ def synthesize_uv(
         config,
         progress=progress,
         desc="surfacecnn synthesize_uv",
-        checkpoint=checkpoint,
-        checkpoint_every=checkpoint_every,
+        checkpoint=checkpoint_dir,
+        checkpoint_every=config.checkpoint_every,
         fingerprint=fingerprint,
     )
     pixels = np.asarray(x).reshape(size * size, 3)[surface.atlas.texel]

@@ -6,7 +6,7 @@ argv: a work folder. Writes ``result.json`` there:
 - ``full_4``: the losses of an uninterrupted 4-step run on four devices (the parent runs it on one);
 - ``resumed_4``: the same run stopped after 2 steps and resumed from its checkpoint, on four;
 - ``from_1``: resumed on four devices from ``ckpt_1`` (a checkpoint the parent wrote on one device).
-Leaves ``ckpt_4`` (a four-device checkpoint at step 2) and ``model_4.npz`` for the parent to load.
+Leaves ``ckpt_4`` (a four-device checkpoint at step 2) and ``model_4/`` for the parent to load.
 """
 
 from __future__ import annotations
@@ -116,7 +116,7 @@ def main(work: pathlib.Path) -> None:
         checkpoint_dir=work / "ckpt_4",
         stop_after=2,
     )
-    fl.save(full.model, work / "model_4.npz")
+    fl.save(full.model, work / "model_4")
     out["resumed_4"] = (
         fl.train(
             images(),

@@ -58,10 +58,10 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
         )
         == 0
     )
-    assert (run / "fl_vae.npz").exists() and Checkpoints(run / "checkpoints").latest_step() == 2
+    assert (run / "model.npz").exists() and Checkpoints(run / "checkpoints").latest_step() == 2
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 2 and np.isfinite(summary["final_loss"])
-    model, extra = fl.load(run / "fl_vae.npz"), fl.load_extra(run / "fl_vae.npz")
+    model, extra = fl.load(run), fl.load_extra(run)
     assert model.config.latent_dim == 3 and model.config.batch_size == 1 and extra["seed"] == 3
     # the CLI is the library call with key = jax.random.key(--seed)
     direct = fl.train(str(images), model.config, key=jax.random.key(3), progress=False)
@@ -106,7 +106,7 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
                 "--texture",
                 str(tex),
                 "--model",
-                str(run / "fl_vae.npz"),
+                str(run),
                 "--out",
                 str(tmp_path / "lat.npz"),
             ]
@@ -150,7 +150,7 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
                 "--texture",
                 str(tex),
                 "--model",
-                str(run / "fl_vae.npz"),
+                str(run),
                 "--out",
                 str(out),
                 "--size",
@@ -241,7 +241,7 @@ def test_train_preset_stops_after_and_draws_the_loss_curve(tmp_path, capsys):
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 2 and summary["preset"] == "small"
     assert (run / "loss_curve.png").read_bytes()[:4] == b"\x89PNG"
-    model = fl.load(run / "fl_vae.npz")
+    model = fl.load(run)
     assert model.config == fl.Config.small(**over, steps=3)  # the preset under the JSON overrides
     assert main(args) == 0  # the same command continues the run
     assert json.loads(capsys.readouterr().out)["steps"] == 3

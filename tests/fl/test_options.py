@@ -3,8 +3,6 @@ rings, the per-channel norm and the attention's linear path; old configs keep th
 
 from __future__ import annotations
 
-import json
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -13,7 +11,6 @@ import pytest
 from jmeshtex import ConfigError, InputError
 from jmeshtex.data import grid
 from jmeshtex.fl import Config, init, load, load_pretrained
-from jmeshtex.fl._config import LEGACY_VALUES
 from jmeshtex.fl._decoder import blend_log_predictions
 from jmeshtex.fl._train import boundary_vertices
 from jmeshtex.fl.core import (
@@ -203,28 +200,28 @@ def test_per_channel_norm_and_linear_path_keep_gauge_equivariance_and_add_parame
     np.testing.assert_allclose(padded.mu[: len(log)], enc(params, c, log, rgb, mask).mu, atol=1e-5)
 
 
-def test_a_stored_config_without_the_new_fields_means_the_old_behaviour(tmp_path):
-    old = {k: v for k, v in Config().to_dict().items() if k not in LEGACY_VALUES}
-    legacy = Config.from_stored(old)
-    assert (legacy.token, legacy.log_objective) == ("ring_mean", "vertex")
-    assert Config.from_stored(Config().to_dict()) == Config()  # a complete dict reads as written
-    # a model file of the earlier layout (format 0) written before the fields existed
+def test_a_model_file_of_another_version_or_lacking_fields_is_refused_by_name(tmp_path):
+    from jmeshtex import CorruptModelError
+    from jmeshtex.fl._io import FORMAT_VERSION, MODEL_KIND
+    from jmeshtex.io import save_model
+
     model = init(TINY, key=jax.random.key(0))
-    leaves = jax.tree.leaves(model.params)
-    stored = {k: v for k, v in TINY.to_dict().items() if k not in LEGACY_VALUES}
-    meta = {"config": stored, "num_leaves": len(leaves)}
-    np.savez(
-        tmp_path / "old.npz",
-        meta=np.frombuffer(json.dumps(meta).encode(), np.uint8),
-        **{f"leaf_{i:04d}": np.asarray(x) for i, x in enumerate(leaves)},
-    )
-    cfg = load(tmp_path / "old.npz").config
-    assert (cfg.token, cfg.log_objective, cfg.vn_norm, cfg.attention_linear) == (
-        "ring_mean", "vertex", "element", False,
-    )  # fmt: skip
-    assert (cfg.kl_warmup_steps, cfg.free_bits, cfg.boundary_in_loss) == (0, 0.0, True)
-    assert cfg.log_sigma_init == -2.0 and cfg.extra_images is False
-    # the shipped models were written with every field
+    params = jax.tree.map(np.asarray, model.params)
+    # a file of format version 1 (before every config field was stored): refused, naming it
+    save_model(tmp_path / "v1.npz", kind=MODEL_KIND, params=params, config=TINY.to_dict(),
+               format_version=1)  # fmt: skip
+    with pytest.raises(CorruptModelError, match="format version 1; this jmeshtex reads 2"):
+        load(tmp_path / "v1.npz")
+    # the current version with fields missing: refused, naming them (never filled with defaults)
+    stored = {k: v for k, v in TINY.to_dict().items() if k not in ("token", "log_objective")}
+    save_model(tmp_path / "v2.npz", kind=MODEL_KIND, params=params, config=stored,
+               format_version=FORMAT_VERSION)  # fmt: skip
+    with pytest.raises(CorruptModelError, match=r"lacks fields \['log_objective', 'token'\]"):
+        load(tmp_path / "v2.npz")
+    # a complete file reads back as written; the shipped models were converted to it
+    save_model(tmp_path / "ok.npz", kind=MODEL_KIND, params=params, config=TINY.to_dict(),
+               format_version=FORMAT_VERSION)  # fmt: skip
+    assert load(tmp_path / "ok.npz").config == TINY
     for name in ("log", "barycentric"):
         assert load_pretrained(decoder=name).config.token == "centre"
 

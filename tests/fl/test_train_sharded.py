@@ -80,7 +80,7 @@ def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tm
     back = fl.train(images(), CONFIG, key=key, progress=False, checkpoint_dir=tmp_path / "ckpt_4")
     assert back.resumed_from == 2
     np.testing.assert_allclose(back.losses["loss"], full_4, rtol=1e-4)
-    model = fl.load(tmp_path / "model_4.npz")
+    model = fl.load(tmp_path / "model_4")
     assert model.config == CONFIG
     for a, b in zip(jax.tree.leaves(model.params), jax.tree.leaves(back.model.params), strict=True):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-6)

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jmeshtex import InputError, Mesh, MeshIOError
+from jmeshtex import CorruptModelError, InputError, Mesh, MeshIOError
 from jmeshtex.data import grid, icosphere
 from jmeshtex.fl import (
     Config,
@@ -158,18 +158,23 @@ def test_decode_texture_fills_the_used_texels_and_agrees_with_vertex_colours(key
 
 def test_save_and_load_round_trip_atomically(tmp_path: pathlib.Path, key):
     model = init(SMALL, key=key)
-    path = save(model, tmp_path / "sub" / "m.npz", extra={"step": 3})
+    path = save(model, tmp_path / "sub" / "m", extra={"step": 3})
+    assert path == tmp_path / "sub" / "m"  # the folder, as every method's save returns
     loaded, extra = load(path), load_extra(path)
     assert isinstance(loaded, Model) and loaded.config == SMALL and extra == {"step": 3}
     for a, b in zip(jax.tree.leaves(model.params), jax.tree.leaves(loaded.params), strict=True):
         np.testing.assert_array_equal(a, b)
         assert a.dtype == b.dtype
-    assert [p.name for p in (tmp_path / "sub").iterdir()] == ["m.npz"]  # no temporary files left
+    assert [p.name for p in path.iterdir()] == ["model.npz"]  # no temporary files left
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(MeshIOError, match="cannot read FL-VAE model"):
         load(tmp_path / "bad.npz")
     with pytest.raises(MeshIOError, match="no such file"):
         load(tmp_path / "missing.npz")
+    with pytest.raises(CorruptModelError, match="no FL-VAE model in"):
+        load(tmp_path / "sub")  # a folder without a model
+    with pytest.raises(InputError, match="expected a jmeshtex.fl.Model first"):
+        save(path, model)
 
 
 def test_missing_pretrained_weights_are_a_typed_error(tmp_path, monkeypatch):

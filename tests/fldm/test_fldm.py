@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import jax
@@ -168,7 +169,7 @@ def test_v_prediction_is_trained_saved_and_sampled_through(tmp_path, data, train
     mesh = data.meshes[0]
     as_v = sample(model, mesh, key=jax.random.key(0), num_samples=1, steps=5).latents
     as_eps = sample(
-        model._replace(config=cfg.replace(prediction="epsilon")),
+        dataclasses.replace(model, config=cfg.replace(prediction="epsilon")),
         mesh,
         key=jax.random.key(0),
         num_samples=1,

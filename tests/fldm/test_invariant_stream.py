@@ -37,7 +37,7 @@ def test_magnitude_context_is_normalised_power_and_its_neighbourhood_mean():
     np.testing.assert_allclose(magnitude_context(turned, nb), out, rtol=1e-12, atol=1e-15)
 
 
-def test_runs_written_before_the_option_resume_and_runs_with_it_do_not_mix():
+def test_runs_with_and_without_the_option_do_not_mix():
     from jmeshtex.fldm._train import _fingerprint
 
     cfg = fldm.Config.tiny(latent_channels=2)
@@ -48,5 +48,6 @@ def test_runs_written_before_the_option_resume_and_runs_with_it_do_not_mix():
 
     off = _fingerprint(_Data, cfg, jax.random.key(0), jnp.complex64)
     on = _fingerprint(_Data, cfg.replace(invariants=True), jax.random.key(0), jnp.complex64)
-    assert "invariants" not in off["config"]  # as written by runs from before the option
+    assert off["config"] == cfg.fingerprint()  # the one rule: every field but the resumable ones
+    assert off["config"]["invariants"] is False
     assert on["config"]["invariants"] is True and on != off

@@ -142,40 +142,28 @@ def test_the_write_is_atomic_and_replaces_a_link_instead_of_writing_through_it(t
     assert not (tmp_path / "x.npz").exists()
 
 
-def _write_earlier_fl_layout(model, path):
-    """The FL-VAE file layout before the one model format (format version 0)."""
-    leaves = jax.tree.leaves(model.params)
-    arrays = {f"leaf_{i:04d}": np.asarray(leaf) for i, leaf in enumerate(leaves)}
-    meta = {"config": model.config.to_dict(), "num_leaves": len(leaves), "extra": {"step": 2}}
-    arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    np.savez(path, **arrays)
-
-
-def test_fl_reads_its_earlier_layout_and_the_shipped_weights_in_the_one_format(tmp_path):
+def test_fl_refuses_its_earlier_layout_and_reads_the_shipped_weights_in_the_one_format(tmp_path):
     model = fl.init(fl.Config(latent_dim=2, features=8, num_heads=2), key=jax.random.key(0))
-    _write_earlier_fl_layout(model, tmp_path / "old.npz")
-    fl.save(model, tmp_path / "new.npz", extra={"step": 2})
-    old, new = fl.load(tmp_path / "old.npz"), fl.load(tmp_path / "new.npz")
-    assert old.config == new.config == model.config
-    assert fl.load_extra(tmp_path / "old.npz") == fl.load_extra(tmp_path / "new.npz") == {"step": 2}
-    mu = np.ones((3, 2), np.complex64)
-    np.testing.assert_array_equal(
-        fl.core.decode_vertex_colors_from_latents(old.params, old.config, mu),
-        fl.core.decode_vertex_colors_from_latents(new.params, new.config, mu),
+    leaves = jax.tree.leaves(model.params)  # the layout before the one model format (version 0)
+    arrays = {f"leaf_{i:04d}": np.asarray(leaf) for i, leaf in enumerate(leaves)}
+    meta = {"config": model.config.to_dict(), "num_leaves": len(leaves)}
+    np.savez(
+        tmp_path / "old.npz", meta=np.frombuffer(json.dumps(meta).encode(), np.uint8), **arrays
     )
+    with pytest.raises(CorruptModelError, match="not a jmeshtex model file"):
+        fl.load(tmp_path / "old.npz")
+    new = fl.save(model, tmp_path / "new", extra={"step": 2})
+    assert fl.load(new).config == model.config and fl.load_extra(new) == {"step": 2}
     with zipfile.ZipFile(fl.load_pretrained.__globals__["_PRETRAINED"]["log"]) as z:
         assert "meta.npy" not in z.namelist()  # the shipped weights are in the one format
     assert fl.load_pretrained().config.latent_dim == 8
-    with pytest.raises(CorruptModelError, match="earlier layout"):
-        np.savez(tmp_path / "broken.npz", meta=np.frombuffer(b"{}", np.uint8), leaf_0000=mu)
-        fl.load(tmp_path / "broken.npz")
 
 
 def test_each_method_refuses_another_methods_model(tmp_path):
     from jmeshtex import dgts, fldm
 
     model = fl.init(fl.Config(latent_dim=2, features=8, num_heads=2), key=jax.random.key(0))
-    fl.save(model, tmp_path / "fl" / "model.npz")
+    fl.save(model, tmp_path / "fl")
     with pytest.raises(CorruptModelError, match="holds a 'jmeshtex.fl.Model', not a 'jmeshtex.d"):
         dgts.load(tmp_path / "fl")
     with pytest.raises(CorruptModelError, match="not a 'jmeshtex.fldm.Model'"):
@@ -201,7 +189,11 @@ def test_a_model_whose_arrays_do_not_fit_its_config_is_corrupt(tmp_path):
     params = {"params": jax.tree.map(np.asarray, model.params), "scale": np.ones(2)}
     other = cfg.replace(widths=tuple(2 * w for w in cfg.widths)).to_dict()
     save_model(
-        tmp_path / "bad" / "model.npz", kind="jmeshtex.fldm.Model", params=params, config=other
+        tmp_path / "bad" / "model.npz",
+        kind="jmeshtex.fldm.Model",
+        params=params,
+        config=other,
+        format_version=2,
     )
     with pytest.raises(
         CorruptModelError, match=r"bad/model\.npz: array 'params/.*its config needs"
@@ -212,6 +204,7 @@ def test_a_model_whose_arrays_do_not_fit_its_config_is_corrupt(tmp_path):
         kind="jmeshtex.fldm.Model",
         params={**params, "scale": np.ones(3)},
         config=cfg.to_dict(),
+        format_version=2,
     )
     with pytest.raises(CorruptModelError, match="'scale' is float64\\[3\\]"):
         fldm.load(tmp_path / "scale")
@@ -220,6 +213,7 @@ def test_a_model_whose_arrays_do_not_fit_its_config_is_corrupt(tmp_path):
         kind="jmeshtex.fldm.Model",
         params=params,
         config={**cfg.to_dict(), "steps": -1},
+        format_version=2,
     )
     with pytest.raises(CorruptModelError, match="stored config is not a valid Config"):
         fldm.load(tmp_path / "cfg")

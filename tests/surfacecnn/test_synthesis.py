@@ -120,9 +120,9 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
     full = synthesize(mesh, ex, Config(size=16, steps=10), **kw)
     # a shorter run, then a longer one continuing from its last checkpoint
     ckpt = tmp_path / "ckpt"
-    synthesize(mesh, ex, Config(size=16, steps=6), checkpoint=ckpt, **kw)
+    synthesize(mesh, ex, Config(size=16, steps=6), checkpoint_dir=ckpt, **kw)
     resumed = synthesize(
-        mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, checkpoint_every=3, **kw
+        mesh, ex, Config(size=16, steps=10, checkpoint_every=3), checkpoint_dir=ckpt, **kw
     )
     assert resumed.stats["resumed_at"] == 6
     np.testing.assert_array_equal(resumed.losses, full.losses)
@@ -138,26 +138,32 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
 
     monkeypatch.setattr(Checkpoints, "save", save_then_die)
     with pytest.raises(KeyboardInterrupt):
-        synthesize(mesh, ex, Config(size=16, steps=10), checkpoint=killed, checkpoint_every=4, **kw)
+        synthesize(
+            mesh, ex, Config(size=16, steps=10, checkpoint_every=4), checkpoint_dir=killed, **kw
+        )
     monkeypatch.setattr(Checkpoints, "save", save)
     assert Checkpoints(killed).steps() == [4]
     again = synthesize(
-        mesh, ex, Config(size=16, steps=10), checkpoint=killed, checkpoint_every=4, **kw
+        mesh, ex, Config(size=16, steps=10, checkpoint_every=4), checkpoint_dir=killed, **kw
     )
     assert again.stats["resumed_at"] == 4
     np.testing.assert_array_equal(again.losses, full.losses)
     np.testing.assert_array_equal(again.colors, full.colors)
     # a different run is refused: texels, exemplar, key
     with pytest.raises(CheckpointMismatchError, match="different run.*texels"):
-        synthesize(mesh, ex, Config(size=8, steps=10), checkpoint=ckpt, **kw)
+        synthesize(mesh, ex, Config(size=8, steps=10), checkpoint_dir=ckpt, **kw)
     with pytest.raises(CheckpointMismatchError, match="data"):
-        synthesize(mesh, ex[::-1], Config(size=16, steps=10), checkpoint=ckpt, **kw)
+        synthesize(mesh, ex[::-1], Config(size=16, steps=10), checkpoint_dir=ckpt, **kw)
     with pytest.raises(CheckpointMismatchError, match="key"):
         synthesize(
-            mesh, ex, Config(size=16, steps=10), checkpoint=ckpt, **{**kw, "key": jax.random.key(4)}
+            mesh,
+            ex,
+            Config(size=16, steps=10),
+            checkpoint_dir=ckpt,
+            **{**kw, "key": jax.random.key(4)},
         )
     with pytest.raises(InputError, match="past this run"):
-        synthesize(mesh, ex, Config(size=16, steps=5), checkpoint=ckpt, **kw)
+        synthesize(mesh, ex, Config(size=16, steps=5), checkpoint_dir=ckpt, **kw)
 
 
 def test_uv_space_synthesis_resumes_from_its_checkpoint(tmp_path):
@@ -172,14 +178,18 @@ def test_uv_space_synthesis_resumes_from_its_checkpoint(tmp_path):
     kw = dict(key=jax.random.key(3), surface=surface, layers=("relu1_1",), progress=False)
     full = synthesize_uv(mesh, ex, Config(size=16, steps=8), **kw)
     ckpt = tmp_path / "uv"
-    synthesize_uv(mesh, ex, Config(size=16, steps=5), checkpoint=ckpt, **kw)
-    resumed = synthesize_uv(mesh, ex, Config(size=16, steps=8), checkpoint=ckpt, **kw)
+    synthesize_uv(mesh, ex, Config(size=16, steps=5), checkpoint_dir=ckpt, **kw)
+    resumed = synthesize_uv(mesh, ex, Config(size=16, steps=8), checkpoint_dir=ckpt, **kw)
     assert resumed.stats["resumed_at"] == 5
     np.testing.assert_array_equal(resumed.losses, full.losses)
     np.testing.assert_array_equal(resumed.colors, full.colors)
     with pytest.raises(CheckpointMismatchError, match="key"):
         synthesize_uv(
-            mesh, ex, Config(size=16, steps=8), checkpoint=ckpt, **{**kw, "key": jax.random.key(4)}
+            mesh,
+            ex,
+            Config(size=16, steps=8),
+            checkpoint_dir=ckpt,
+            **{**kw, "key": jax.random.key(4)},
         )
     # the image is the mesh's only through the atlas that reads it: another mesh's run resumes it
     v2, f2 = grid(3)
@@ -187,7 +197,7 @@ def test_uv_space_synthesis_resumes_from_its_checkpoint(tmp_path):
     s2 = prepare_surface(other, size=16, levels=0)
     assert s2.atlas.num_texels != surface.atlas.num_texels
     kw2 = {**kw, "surface": s2}
-    moved = synthesize_uv(other, ex, Config(size=16, steps=8), checkpoint=ckpt, **kw2)
+    moved = synthesize_uv(other, ex, Config(size=16, steps=8), checkpoint_dir=ckpt, **kw2)
     assert moved.stats["resumed_at"] == 8
     np.testing.assert_array_equal(
         moved.colors, synthesize_uv(other, ex, Config(size=16, steps=8), **kw2).colors
