@@ -24,7 +24,7 @@ Usage::
     python studies/fl_gamut_finetune.py --steps 1000 --work runs/fl_gamut   # resumable
     python studies/fl_gamut_finetune.py --steps 1000 --work runs/fl_gamut --eval-only
 
-Writes ``studies/results/fl_gamut_finetune.md`` and ``runs/fl_gamut/fl_vae.npz`` (the fine-tuned
+Writes ``studies/results/fl_gamut_finetune.md`` and ``runs/fl_gamut/model/`` (the fine-tuned
 model; copying it over the shipped file is a separate, deliberate step).
 """
 
@@ -107,7 +107,7 @@ def decoder_step(config: fl.Config, learning_rate: float, warmup: int):
     )
 
     def loss_fn(decoder, encoder, batch, key):
-        params = fl.core.FLVAEParams(encoder, decoder)
+        params = fl.core.Params(encoder, decoder)
         loss, aux = vae_loss(
             params,
             config,
@@ -236,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
 
     shipped = fl.load_pretrained()
     config = shipped.config
-    out = args.work / "fl_vae.npz"
+    out = args.work / "model"  # fl.save writes a folder
     if not args.eval_only:
         step, opt = decoder_step(config, args.learning_rate, args.warmup)
         state = {
@@ -260,9 +260,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         if result.steps < args.steps:
             return 0
-        tuned = fl.Model(
-            fl.core.FLVAEParams(shipped.params.encoder, result.model["decoder"]), config
-        )
+        tuned = fl.Model(fl.core.Params(shipped.params.encoder, result.model["decoder"]), config)
         args.work.mkdir(parents=True, exist_ok=True)
         fl.save(tuned, out, extra={"finetune": "decoder on gamut colours", "steps": args.steps})
     tuned = fl.load(out)

@@ -495,16 +495,8 @@ def test_result_types_have_distinct_names_exported_by_their_method():
         assert m.module.TrainResult is TrainResult
 
 
-#: dgts's contract lands from branch h59l (DGTS belongs to it): its rows here are strict xfails,
-#: flipped at the merge
-_DGTS_PENDING = pytest.mark.xfail(strict=True, reason="dgts contract lands from branch h59l")
-
-
-def _rows(*, pending: frozenset = frozenset({"dgts"}), methods=_METHODS_UNDER_TEST):
-    return [
-        pytest.param(m, id=m.name, marks=_DGTS_PENDING if m.name in pending else ())
-        for m in methods
-    ]
+def _rows(*, methods=_METHODS_UNDER_TEST):
+    return [pytest.param(m, id=m.name) for m in methods]
 
 
 #: every run keyword, its default, and which runs take it (``"all"`` or only what trains)
@@ -565,7 +557,7 @@ def _model_of(method):
     return _train(method.name)[2].model
 
 
-@pytest.mark.parametrize("method", _rows(pending=frozenset(), methods=_TRAINED))
+@pytest.mark.parametrize("method", _rows(methods=_TRAINED))
 def test_a_model_is_a_pytree_of_arrays_with_a_static_config(method):
     model = _model_of(method)
     leaves = jax.tree.leaves(model)
@@ -576,7 +568,7 @@ def test_a_model_is_a_pytree_of_arrays_with_a_static_config(method):
     assert isinstance(copied, method.module.Model) and copied.config is model.config
 
 
-@pytest.mark.parametrize("method", _rows(pending=frozenset(), methods=_TRAINED))
+@pytest.mark.parametrize("method", _rows(methods=_TRAINED))
 def test_save_writes_a_folder_and_returns_it(method, tmp_path):
     model = _model_of(method)
     written = method.module.save(model, tmp_path / "model")

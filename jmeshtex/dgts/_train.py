@@ -576,6 +576,7 @@ def train(
     progress: bool = True,
     checkpoint_dir: str | os.PathLike | None = None,
     stop_after: int | None = None,
+    device_mesh: jax.sharding.Mesh | None = None,
     snapshot_every: int | None = None,
 ) -> TrainResult[Model]:
     """Train the DGTS hierarchy on multi-scale training meshes, level by level (§3.4).
@@ -595,6 +596,9 @@ def train(
         the newest. None: nothing on disk.
       stop_after: run at most this many steps (over all levels) in this call, checkpointing where
         it stops (call again with the same folder to continue); None: to the end.
+      device_mesh: a one-device :class:`jax.sharding.Mesh` to train on (None: JAX's default
+        device). A DGTS step reads one training mesh, so there is no batch to split: a mesh of
+        several devices is refused (the contract's keyword, kept so every method takes it).
       snapshot_every: every this many steps (rounded up to a multiple of ``CHUNK``) and at the end
         of each level, record one sample and the reconstruction of the level's current generator
         (``[V_l, 3]`` float64, level ``l``'s frame) in ``extra["snapshots"]`` as dicts
@@ -610,7 +614,8 @@ def train(
 
     Raises:
       ConfigError: ``levels`` outside ``[1, meshes.num_levels]``; ``stop_after`` or
-        ``snapshot_every`` not a non-negative / positive integer.
+        ``snapshot_every`` not a non-negative / positive integer; a ``device_mesh`` of several
+        devices.
       InputError: training meshes whose levels are not successive midpoint subdivisions, or
         several that do not share the first's levels and faces.
       CheckpointMismatchError: ``checkpoint_dir`` holds a run with another config, key or meshes.
@@ -631,21 +636,37 @@ def train(
     t_start = time.perf_counter()
     if stop_after is not None and not is_int(stop_after, 0):
         raise ConfigError(f"stop_after must be an int >= 0 or None, got {stop_after!r}")
+    device = _one_device(device_mesh)
     run, budget = _Hierarchy.start(meshes, config, key, levels, snapshot_every), stop_after
     fingerprint = _fingerprint(run.references, config, key)
     ckpt = None if checkpoint_dir is None else Checkpoints(checkpoint_dir, fingerprint=fingerprint)
-    try:
-        if ckpt is not None:
-            run.restore(ckpt)
-        for level in range(len(run.gs), run.total):
-            ran, complete = run.train_level(level, ckpt, progress, budget)
-            budget = None if budget is None else budget - ran
-            if not complete:
-                break
-    finally:
-        if ckpt is not None:
-            ckpt.close()
+    with jax.default_device(device):
+        try:
+            if ckpt is not None:
+                run.restore(ckpt)
+            for level in range(len(run.gs), run.total):
+                ran, complete = run.train_level(level, ckpt, progress, budget)
+                budget = None if budget is None else budget - ran
+                if not complete:
+                    break
+        finally:
+            if ckpt is not None:
+                ckpt.close()
     return run.result(t_start)
+
+
+def _one_device(device_mesh: jax.sharding.Mesh | None):
+    """The device of a one-device mesh (None: JAX's default); a larger mesh is refused."""
+    if device_mesh is None:
+        return None
+    if not isinstance(device_mesh, jax.sharding.Mesh):
+        raise ConfigError(f"device_mesh must be a jax.sharding.Mesh or None, got {device_mesh!r}")
+    if device_mesh.size != 1:
+        raise ConfigError(
+            f"dgts.train reads one training mesh per step, so a device_mesh of "
+            f"{device_mesh.size} devices has no batch to split. Fix: pass None, or a one-device mesh"
+        )
+    return device_mesh.devices.flat[0]
 
 
 @dataclasses.dataclass

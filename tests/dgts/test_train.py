@@ -394,3 +394,18 @@ def test_fixed_noise_levels_reconstruct_every_fixed_level_from_noise_kept_in_the
 
     with pytest.raises(InputError, match="fixed noise"):
         whole.model.replace(z_star_finer=()).reconstruction_noise([12, 42])
+
+
+def test_a_one_device_mesh_trains_as_the_default_and_a_larger_one_is_refused(
+    tiny_meshes, tiny_result
+):
+    from jax.sharding import Mesh
+
+    one = Mesh(np.array(jax.devices()[:1]), ("data",))
+    result = train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), progress=False, device_mesh=one)
+    _assert_same_model(result.model, tiny_result.model)
+    with pytest.raises(ConfigError, match="device_mesh must be a jax.sharding.Mesh"):
+        train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), progress=False, device_mesh="cpu")
+    two = Mesh(np.array(jax.devices()[:1] * 2), ("data",))
+    with pytest.raises(ConfigError, match="2 devices has no batch to split"):
+        train(tiny_meshes, TINY, key=jax.random.key(TINY_KEY), progress=False, device_mesh=two)
