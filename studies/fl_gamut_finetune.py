@@ -42,7 +42,7 @@ import numpy as np
 import optax
 
 from jmeshtex import Mesh, fl
-from jmeshtex._training import fit  # the one training driver (private: the methods run on it)
+from jmeshtex._training import CheckpointPolicy, fit  # the training driver (private)
 from jmeshtex.data import grid
 from jmeshtex.fl.core import density_mesh, mesh_batch, planar_mesh, training_meshes, vae_loss
 
@@ -251,7 +251,11 @@ def main(argv: list[str] | None = None) -> int:
             batches_for(config, args.seed),
             steps=args.steps,
             stop_after=args.stop_after,
-            checkpoints=args.work / "checkpoints",
+            checkpoints=CheckpointPolicy(
+                args.work / "checkpoints",
+                every=50,
+                fingerprint={"lr": args.learning_rate, "warmup": args.warmup, "seed": args.seed},
+            ),
             progress=True,
         )
         print(
