@@ -32,6 +32,7 @@ from .._errors import InputError
 from ._common import (
     MAX_SPEC_VERTICES,
     add_common,
+    add_method,
     cached,
     check_checkpoints,
     for_render,
@@ -42,17 +43,16 @@ from ._output import claim_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    dsub = add_method(
+        sub,
         "dgts",
         help="DGTS: learn a geometric texture from one mesh, transfer it to any mesh",
         description="Deep Geometric Texture Synthesis (Hertz et al. 2020) on the CPU.",
     )
-    dsub = p.add_subparsers(dest="dgts_command", metavar="STEP")
 
     _add_prepare(dsub)
     _add_train(dsub)
     _add_transfer_and_interpolate(dsub)
-    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _add_prepare(dsub) -> None:

@@ -26,6 +26,7 @@ from ._common import (
     MAX_SPEC_VERTICES,
     MAX_TEXTURE_SIZE,
     add_common,
+    add_method,
     cached,
     check_checkpoints,
     int_in,
@@ -35,12 +36,12 @@ from ._output import check_output_file, claim_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    inner = add_method(
+        sub,
         "fl",
         help="Field Latents VAE: train, encode, reconstruct textures",
         description="FL-VAE (Mitchel et al. 2024): textures as tangent-vector latents at vertices.",
     )
-    inner = p.add_subparsers(dest="fl_command", metavar="ACTION")
 
     t = inner.add_parser(
         "train", aliases=["pretrain"], help="train an FL-VAE on planar meshes over images"
@@ -111,7 +112,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     r.add_argument("--no-lpips", action="store_true", help="skip LPIPS (a VGG-16 pass)")
     r.set_defaults(func=cached(_reconstruct))
-    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _mesh_args(p: argparse.ArgumentParser) -> None:

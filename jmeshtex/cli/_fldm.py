@@ -30,6 +30,7 @@ from ._common import (
     MAX_SPEC_VERTICES,
     MAX_TEXTURE_SIZE,
     add_common,
+    add_method,
     cached,
     check_checkpoints,
     float_in,
@@ -47,12 +48,12 @@ PREDICTIONS = ("epsilon", "v")  # jmeshtex.fldm.PREDICTIONS, spelled out so that
 
 def register(sub: argparse._SubParsersAction) -> None:
 
-    p = sub.add_parser(
+    fsub = add_method(
+        sub,
         "fldm",
         help="Field Latent Diffusion: generate / inpaint / transfer textures on a mesh",
         description="Field Latent Diffusion (Mitchel et al. 2024) trained on one textured mesh.",
     )
-    fsub = p.add_subparsers(dest="fldm_command", metavar="STEP")
 
     t = fsub.add_parser(
         "train", help="train a diffusion model on re-triangulated copies of one mesh (resumable)"
@@ -136,7 +137,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                 "--mask", required=True, type=pathlib.Path, help="[V] bool mask (.npy): True = keep"
             )
         s.set_defaults(func=cached(_sample if name == "sample" else _inpaint))
-    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _load_mesh(spec: str, texture: str | None = None):

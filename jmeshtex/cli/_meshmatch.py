@@ -31,17 +31,17 @@ import argparse
 import json
 import pathlib
 
-from ._common import add_common, cached, float_in, int_in, load_array, load_mesh_spec
+from ._common import add_common, add_method, cached, float_in, int_in, load_array, load_mesh_spec
 from ._output import claim_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    inner = add_method(
+        sub,
         "meshmatch",
         help="PatchMatch texture transfer between meshes (MeshMatch)",
         description="MeshMatch (Chen et al. 2012): non-parametric texture transfer.",
     )
-    inner = p.add_subparsers(dest="meshmatch_command", metavar="ACTION")
     t = inner.add_parser("transfer", help="transfer a source mesh's texture onto a target mesh")
     t.add_argument(
         "--source",
@@ -113,7 +113,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     _options(d)
     d.set_defaults(func=cached(_displace))
-    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _options(p: argparse.ArgumentParser) -> None:

@@ -19,7 +19,15 @@ import json
 import pathlib
 
 from ..geometry import UP_AXES
-from ._common import add_common, cached, float_in, int_in, load_mesh_spec, procedural_mesh
+from ._common import (
+    add_common,
+    add_method,
+    cached,
+    float_in,
+    int_in,
+    load_mesh_spec,
+    procedural_mesh,
+)
 from ._output import claim_output, owns
 
 #: the folder under ``--out`` that holds the resumable checkpoints
@@ -27,12 +35,12 @@ CHECKPOINTS = "checkpoints"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    inner = add_method(
+        sub,
         "surfacecnn",
         help="texture synthesis with a pre-trained 2D CNN run on the mesh",
         description="Surface-aware mesh texture synthesis (Kovács et al. 2024).",
     )
-    inner = p.add_subparsers(dest="surfacecnn_command", metavar="ACTION")
     s = inner.add_parser("synthesize", help="synthesise a texture matching an exemplar image")
     s.add_argument(
         "--mesh",
@@ -75,7 +83,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     _options(t)
     t.set_defaults(func=cached(_stylize))
-    p.set_defaults(func=lambda args: (p.print_help(), 1)[1])
 
 
 def _options(p: argparse.ArgumentParser) -> None:
