@@ -100,5 +100,5 @@ def demo_stage(out_dir, *, quick: bool, progress: Progress = None) -> dict:
         ),
         "loss_drop": drop,
         "seconds": seconds,
-        "files": [str(out / "surfacecnn.png"), *saved["files"]],
+        "files": [str(out / "surfacecnn.png"), *(str(p) for p in sorted(saved.iterdir()))],
     }
