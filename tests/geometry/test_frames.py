@@ -26,7 +26,7 @@ def test_frames_are_orthonormal_and_follow_the_reference_edge(make, rng):
         np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1.0, rtol=0, atol=1e-14)
     np.testing.assert_allclose(np.sum(fr.normal * fr.x, axis=1), 0.0, atol=1e-14)
     np.testing.assert_allclose(fr.y, np.cross(fr.normal, fr.x), atol=1e-15)
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     edge = v[nb.index[:, 0]] - v
     proj = edge - np.sum(edge * fr.normal, axis=1, keepdims=True) * fr.normal
     np.testing.assert_allclose(fr.x, proj / np.linalg.norm(proj, axis=1, keepdims=True), atol=1e-14)
@@ -44,7 +44,7 @@ def test_flat_sheet_log_map_converts_exactly_to_edge_vectors():
     v, f = grid(4, 3, size=(1.0, 0.6))
     fr = tangent_frames(v, f)
     np.testing.assert_allclose(fr.normal, np.tile([0.0, 0.0, 1.0], (len(v), 1)), atol=0)
-    nb = one_ring_neighborhood(v, f)
+    nb = one_ring_neighborhood(v, f, scale=None)
     got = tangent_to_3d(nb.log, fr)  # [V, K, 3]
     want = np.where(nb.mask[..., None], v[nb.index] - v[:, None, :], 0.0)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
@@ -66,7 +66,7 @@ def test_folded_sheet_frames_follow_each_flat_piece():
     v, f = grid(8)
     folded = fold_sheet(v, f, lines=[("x", 0.5)], angles=[np.pi / 3])
     fr = tangent_frames(folded, f)
-    nb = one_ring_neighborhood(folded, f)
+    nb = one_ring_neighborhood(folded, f, scale=None)
     inside = (v[:, 0] < 0.5 - 1e-9) | (v[:, 0] > 0.5 + 1e-9)  # off the fold line
     got = tangent_to_3d(nb.log, fr)[inside]
     want = np.where(nb.mask[..., None], folded[nb.index] - folded[:, None, :], 0.0)[inside]
@@ -113,7 +113,7 @@ def test_intrinsic_and_extrinsic_angles_agree_to_second_order():
     def mismatch(s):
         v, f = icosphere(s)
         fr = tangent_frames(v, f)
-        nb = one_ring_neighborhood(v, f)
+        nb = one_ring_neighborhood(v, f, scale=None)
         d3 = tangent_to_3d(nb.log, fr)
         rel = v[nb.index] - v[:, None]
         rel = rel - np.sum(rel * fr.normal[:, None], -1)[..., None] * fr.normal[:, None]
