@@ -44,7 +44,7 @@ import optax
 from jmeshtex import Mesh, fl
 from jmeshtex._training import CheckpointPolicy, fit  # the training driver (private)
 from jmeshtex.data import grid
-from jmeshtex.fl.core import density_mesh, mesh_batch, planar_mesh, training_meshes, vae_loss
+from jmeshtex.fl.core import batch_loss, density_mesh, mesh_batch, planar_mesh, training_meshes
 
 #: the probe's colours: greys, colours inside the cube and on its faces, its corners
 PROBE = (
@@ -107,20 +107,7 @@ def decoder_step(config: fl.Config, learning_rate: float, warmup: int):
     )
 
     def loss_fn(decoder, encoder, batch, key):
-        params = fl.core.Params(encoder, decoder)
-        loss, aux = vae_loss(
-            params,
-            config,
-            batch["log"],
-            batch["rgb"],
-            batch["mask"],
-            key=key,
-            corners=batch["corners"],
-            bary=batch["bary"],
-            vertex_mask=batch["vertex_mask"],
-            corner_logs=batch.get("corner_logs"),
-        )
-        return loss, aux
+        return batch_loss(fl.core.Params(encoder, decoder), config, batch, key=key)
 
     @jax.jit
     def step(state, inputs):

@@ -90,6 +90,23 @@ def optimizer(config: Config) -> optax.GradientTransformation:
     return flat(optax.chain(optax.clip_by_global_norm(config.grad_clip), optax.adam(schedule)))
 
 
+def batch_loss(params, config: Config, batch: dict, *, key, kl_scale=1.0):
+    """:func:`~jmeshtex.fl.core.vae_loss` of one :func:`mesh_batch` dict: ``(loss, aux)``."""
+    return vae_loss(
+        params,
+        config,
+        batch["log"],
+        batch["rgb"],
+        batch["mask"],
+        key=key,
+        corners=batch["corners"],
+        bary=batch["bary"],
+        vertex_mask=batch["vertex_mask"],
+        corner_logs=batch.get("corner_logs"),
+        kl_scale=kl_scale,
+    )
+
+
 def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None):
     """The jitted training step ``(params, opt_state, batch, key[, step]) -> (params, opt_state, loss, aux)``.
 
@@ -122,19 +139,7 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
     opt = optimizer(config)
 
     def loss_fn(params, batch, key, scale):
-        return vae_loss(
-            params,
-            config,
-            batch["log"],
-            batch["rgb"],
-            batch["mask"],
-            key=key,
-            corners=batch["corners"],
-            bary=batch["bary"],
-            vertex_mask=batch["vertex_mask"],
-            corner_logs=batch.get("corner_logs"),
-            kl_scale=scale,
-        )
+        return batch_loss(params, config, batch, key=key, kl_scale=scale)
 
     def step(params, opt_state, batch, key, step=0):
         if config.kl_warmup_steps > 0:

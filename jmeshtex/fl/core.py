@@ -59,6 +59,7 @@ from ._textures import matplotlib_images as matplotlib_images
 from ._textures import procedural_texture as procedural_texture
 from ._textures import training_meshes as training_meshes
 from ._textures import training_texture as training_texture
+from ._train import batch_loss as batch_loss
 from ._train import make_train_step as make_train_step
 from ._train import mesh_batch as mesh_batch
 from ._train import optimizer as optimizer
