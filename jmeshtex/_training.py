@@ -172,7 +172,8 @@ def fit(
     Returns:
       :class:`~jmeshtex.TrainResult`: ``losses`` (1-D float64 arrays, earlier steps included),
       ``steps`` (done in all), ``seconds`` (the whole call), ``compile_seconds``, ``resumed_from``
-      and ``extra["steps_per_second"]`` (this call's rate after its first call).
+      and ``extra["steps_per_second"]`` (this call's rate after its first call; ``None`` when
+      no call after the first ran, so nothing was measured).
 
     Raises:
       TrainingDivergedError: a loss or, at a save point or the end, a parameter is not finite.
@@ -273,7 +274,7 @@ class _Run:
             seconds=time.perf_counter() - t_call,
             compile_seconds=self.compile_seconds,
             resumed_from=self.resumed_from,
-            extra={"steps_per_second": (ran - per_call) / after_first if fast else float("nan")},
+            extra={"steps_per_second": (ran - per_call) / after_first if fast else None},
         )
 
     def resume(self, device_mesh) -> int:

@@ -27,6 +27,7 @@ from jmeshtex._config import (
 from jmeshtex.dgts import Config as DGTSConfig
 from jmeshtex.dgts import PrepareConfig
 from jmeshtex.fl import Config as FLVAEConfig
+from jmeshtex.fl._io import FORMAT_VERSION as FL_FORMAT_VERSION
 from jmeshtex.fldm import Config as FLDMConfig
 from jmeshtex.meshmatch import Config as MeshMatchConfig
 from jmeshtex.surfacecnn import Config as SurfaceCNNConfig
@@ -335,7 +336,9 @@ def test_shipped_weights_store_every_config_field(name):
     # the shipped weights embed the complete fl.Config dict of their training run, read back exactly
     from jmeshtex.io import load_model
 
-    stored = load_model(WEIGHTS / name, kind="jmeshtex.fl.Model").config
+    stored = load_model(
+        WEIGHTS / name, kind="jmeshtex.fl.Model", format_versions=(FL_FORMAT_VERSION,)
+    ).config
     assert set(stored) == set(FLVAEConfig().to_dict())
     assert FLVAEConfig.from_dict(stored).to_dict() == stored
 

@@ -96,7 +96,7 @@ def optimize_colors(
     stats = {
         "optimize_s": run.seconds,
         "first_step_s": run.compile_seconds,
-        "step_s": 1.0 / rate if rate > 0 else float("nan"),
+        "step_s": 1.0 / rate if rate else None,  # None: one step, no rate measured
         "resumed_at": run.resumed_from or 0,
     }
     return run.model["x"], run.losses.get("loss", np.zeros(0)), float(out["loss"]), stats
