@@ -182,45 +182,21 @@ def meshmatch(
     colors, valid, pins = _checked_signals(source, target, source_colors, source_mask, pin)
     _check_scales(source, target, config.max_scale_ratio)
     _check_fan_extent(source, target, edges, config.fan_radius)
-    if initial_nnf is not None:
-        initial_nnf = np.asarray(initial_nnf)
-        if (
-            initial_nnf.shape != (target.num_vertices,)
-            or not np.issubdtype(initial_nnf.dtype, np.integer)
-            or initial_nnf.min(initial=0) < 0
-            or initial_nnf.max(initial=0) >= source.num_vertices
-        ):
-            raise InputError(
-                f"initial_nnf must be [Vt={target.num_vertices}] source vertices in "
-                f"[0, {source.num_vertices}), got {initial_nnf.dtype} {initial_nnf.shape}"
-            )
+    initial_nnf = _checked_initial(source, target, initial_nnf)
     timings: dict[str, float] = {}
     if prepared is None:
         t0 = time.perf_counter()
-        s_side = prepare_side(source, config)
-        same = (
-            source.vertices.shape == target.vertices.shape
-            and source.faces.shape == target.faces.shape
-            and np.array_equal(source.vertices, target.vertices)
-            and np.array_equal(source.faces, target.faces)
-        )
-        t_side = s_side if same else prepare_side(target, config, hks_times=s_side.hks_times)
+        s_side, t_side = _prepare_sides(source, target, config)
         timings["prepare_s"] = time.perf_counter() - t0
     else:
         s_side, t_side = prepared
-    s_feat, t_feat = s_side.features, t_side.features
-    if correspondences is not None:
-        a_s, a_t = side_affinities(s_side, t_side, correspondences)
-        w = math.sqrt(config.affinity_weight)
-        s_feat = np.concatenate([s_feat, w * a_s], axis=1)
-        t_feat = np.concatenate([t_feat, w * a_t], axis=1)
     result = match_levels(
         s_side,
         t_side,
         colors,
         config,
         key=key,
-        features=(s_feat, t_feat),
+        features=_side_features(s_side, t_side, correspondences, config),
         source_mask=valid,
         pin=pins,
         progress=progress,
@@ -233,6 +209,51 @@ def meshmatch(
         "total_s": time.perf_counter() - t_start,
     }
     return result._replace(stats=stats)
+
+
+def _checked_initial(source: Mesh, target: Mesh, initial_nnf) -> np.ndarray | None:
+    """``initial_nnf`` as an array, checked: ``[Vt]`` integer source vertices (or None)."""
+    if initial_nnf is None:
+        return None
+    initial_nnf = np.asarray(initial_nnf)
+    if (
+        initial_nnf.shape != (target.num_vertices,)
+        or not np.issubdtype(initial_nnf.dtype, np.integer)
+        or initial_nnf.min(initial=0) < 0
+        or initial_nnf.max(initial=0) >= source.num_vertices
+    ):
+        raise InputError(
+            f"initial_nnf must be [Vt={target.num_vertices}] source vertices in "
+            f"[0, {source.num_vertices}), got {initial_nnf.dtype} {initial_nnf.shape}"
+        )
+    return initial_nnf
+
+
+def _prepare_sides(source: Mesh, target: Mesh, config: Config) -> tuple[Side, Side]:
+    """Both meshes prepared; one side serves both when they are the same mesh, and the target's
+    heat-kernel signature uses the source's times."""
+    s_side = prepare_side(source, config)
+    same = (
+        source.vertices.shape == target.vertices.shape
+        and source.faces.shape == target.faces.shape
+        and np.array_equal(source.vertices, target.vertices)
+        and np.array_equal(source.faces, target.faces)
+    )
+    return s_side, s_side if same else prepare_side(target, config, hks_times=s_side.hks_times)
+
+
+def _side_features(
+    s_side: Side, t_side: Side, correspondences, config: Config
+) -> tuple[np.ndarray, np.ndarray]:
+    """``([Vs, D], [Vt, D])`` the shape features of both sides, with the geodesic affinities to
+    the ``correspondences`` appended (weighted by ``sqrt(config.affinity_weight)``) when given."""
+    s_feat, t_feat = s_side.features, t_side.features
+    if correspondences is not None:
+        a_s, a_t = side_affinities(s_side, t_side, correspondences)
+        w = math.sqrt(config.affinity_weight)
+        s_feat = np.concatenate([s_feat, w * a_s], axis=1)
+        t_feat = np.concatenate([t_feat, w * a_t], axis=1)
+    return s_feat, t_feat
 
 
 def _check_scales(source: Mesh, target: Mesh, max_ratio: float | None) -> None:
@@ -324,6 +345,7 @@ class _Level(NamedTuple):
     num_padded_source: int
     valid_index: np.ndarray
     num_valid: int
+    source_level: int
     order: jax.Array | None = None
 
 
@@ -348,6 +370,54 @@ def _wavefronts(target: Side, level: int, pad_to=None, fill=None) -> np.ndarray:
     return scan_order(np.asarray(nb.index), np.asarray(nb.mask), pad_to=pad_to, fill=fill)
 
 
+def _pad_to_dims(s_arr, t_arr, up, down, valid_index, dims: dict):
+    """Both sides' level arrays and the source's search tables padded to a group's common sizes
+    ``dims`` (:func:`~jmeshtex.meshmatch.core.bucket_dims`)."""
+    s_arr = pad_level_arrays(
+        s_arr, num_vertices=dims["Vs"], ring=dims["Ks"], smooth_ring=dims["Kss"]
+    )
+    t_arr = pad_level_arrays(
+        t_arr, num_vertices=dims["Vt"], ring=dims["Kt"], smooth_ring=dims["Kst"]
+    )
+    up = [pad_axis(u, 0, dims["Vs"]) for u in up]
+    down = [
+        (pad_axis(pad_axis(c, 0, n), 1, k), pad_axis(cnt, 0, n, 1))
+        for (c, cnt), (n, k) in zip(down, dims["down"], strict=True)
+    ]
+    valid_index = pad_axis(valid_index, 0, dims["Vs"], valid_index[0])
+    return s_arr, t_arr, up, down, valid_index
+
+
+def _step_weights(
+    source: Side, target: Side, level: int, m: int, variance: float, config: Config, C: int, dtype
+) -> StepWeights:
+    """The weights of one level's E- and M-steps (``variance``: of the valid source colours)."""
+    R, A = config.num_radii, config.num_angles
+    fan_weight = None
+    if config.vote == "fan":  # the fan vote's ring weights: a Gaussian of the ring radius
+        radius = np.arange(1, R + 1) * config.fan_radius / R  # in the fans' edge lengths
+        fan_weight = jnp.asarray(np.exp(-(radius**2) / (2 * config.vote_sigma**2)), dtype)
+    return StepWeights(
+        ring_weight=jnp.ones(R, dtype) / R,
+        color_scale=jnp.asarray(config.color_weight / (R * A * C * variance), dtype),
+        shape_weight=jnp.asarray(config.shape_weight_at(level), dtype),
+        sigma2=jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype),
+        tau2=jnp.asarray((config.interp_sigma * source.edge[m]) ** 2, dtype),
+        fan_weight=fan_weight,
+    )
+
+
+def _level_pin(source: Side, target: Side, level: int, m: int, pin) -> np.ndarray:
+    """``[Vt]`` int32 the source vertex (level ``m`` indexing) each target vertex of ``level`` is
+    pinned to, -1 where free."""
+    Vt = len(target.hierarchy.vertices[level])
+    if pin is None:
+        return np.full(Vt, -1, np.int32)
+    p = pin[target.hierarchy.vertex_index[level]]
+    mapped = np.where(p >= 0, source.inverse[m][np.maximum(p, 0)], -1)
+    return np.where(mapped >= 0, mapped, -1).astype(np.int32)
+
+
 def _level_inputs(
     source: Side,
     target: Side,
@@ -366,7 +436,6 @@ def _level_inputs(
     t0 = time.perf_counter()
     s_feat, t_feat = features
     sh = source.hierarchy
-    R, A, C = config.num_radii, config.num_angles, colors.shape[1]
     # fans never smaller than the paired source level's edges: a target level finer than the
     # source's finest would otherwise sample within a source triangle or two (64K torus
     # self-transfer from 10K: 26.7 -> 28.0 dB)
@@ -377,24 +446,22 @@ def _level_inputs(
     s_arr, s_steps = level_arrays(source, m, radii, config, colors, valid_m, s_feat, dtype)
     Vt = len(target.hierarchy.vertices[level])
     t_arr, t_steps = level_arrays(
-        target, level, radii, config, np.zeros((Vt, C)), np.ones(Vt, bool), t_feat, dtype
+        target,
+        level,
+        radii,
+        config,
+        np.zeros((Vt, colors.shape[1])),
+        np.ones(Vt, bool),
+        t_feat,
+        dtype,
     )
     up, down = search_tables(sh, m, config.random_search_levels)
     valid_index = np.nonzero(valid_m)[0].astype(np.int32)
     num_valid = len(valid_index)
     if dims is not None:
-        s_arr = pad_level_arrays(
-            s_arr, num_vertices=dims["Vs"], ring=dims["Ks"], smooth_ring=dims["Kss"]
+        s_arr, t_arr, up, down, valid_index = _pad_to_dims(
+            s_arr, t_arr, up, down, valid_index, dims
         )
-        t_arr = pad_level_arrays(
-            t_arr, num_vertices=dims["Vt"], ring=dims["Kt"], smooth_ring=dims["Kst"]
-        )
-        up = [pad_axis(u, 0, dims["Vs"]) for u in up]
-        down = [
-            (pad_axis(pad_axis(c, 0, n), 1, k), pad_axis(cnt, 0, n, 1))
-            for (c, cnt), (n, k) in zip(down, dims["down"], strict=True)
-        ]
-        valid_index = pad_axis(valid_index, 0, dims["Vs"], valid_index[0])
     Vp = t_arr.nb_index.shape[0]
     order = None
     if config.propagation == "sequential":
@@ -404,45 +471,31 @@ def _level_inputs(
     t_arr = jax.tree.map(jnp.asarray, t_arr)
     fan_seconds = time.perf_counter() - t0
 
-    ring_weight = jnp.ones(R, dtype) / R
-    src = make_source(
-        s_arr, up, down, valid_index, num_valid, ring_weight, steps=s_steps, num_angles=A
-    )
     variance = float(np.var(colors[valid_m])) + 1e-8
-    weights = StepWeights(
-        ring_weight=ring_weight,
-        color_scale=jnp.asarray(config.color_weight / (R * A * C * variance), dtype),
-        shape_weight=jnp.asarray(config.shape_weight_at(level), dtype),
-        sigma2=jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype),
-        tau2=jnp.asarray((config.interp_sigma * source.edge[m]) ** 2, dtype),
-        # the fan vote's ring weights: a Gaussian of the ring radius (in the fans' edge lengths)
-        fan_weight=jnp.asarray(
-            np.exp(
-                -((np.arange(1, R + 1) * config.fan_radius / R) ** 2) / (2 * config.vote_sigma**2)
-            ),
-            dtype,
-        )
-        if config.vote == "fan"
-        else None,
-    )
-    if pin is None:
-        pin_l = np.full(Vt, -1, np.int32)
-    else:
-        p = pin[target.hierarchy.vertex_index[level]]
-        mapped = np.where(p >= 0, source.inverse[m][np.maximum(p, 0)], -1)
-        pin_l = np.where(mapped >= 0, mapped, -1).astype(np.int32)
-    level_in = _Level(
-        t_arr,
-        src,
-        jnp.asarray(pad_axis(pin_l, 0, Vp, -1)),
-        weights,
-        SearchOptions.of(config, t_steps),
-        Vt,
-        Vp,
-        s_arr.nb_index.shape[0],
+    weights = _step_weights(source, target, level, m, variance, config, colors.shape[1], dtype)
+    src = make_source(
+        s_arr,
+        up,
+        down,
         valid_index,
         num_valid,
-        order,
+        weights.ring_weight,
+        steps=s_steps,
+        num_angles=config.num_angles,
+    )
+    level_in = _Level(
+        tgt=t_arr,
+        src=src,
+        pin=jnp.asarray(pad_axis(_level_pin(source, target, level, m, pin), 0, Vp, -1)),
+        weights=weights,
+        options=SearchOptions.of(config, t_steps),
+        num_target=Vt,
+        num_padded=Vp,
+        num_padded_source=s_arr.nb_index.shape[0],
+        valid_index=valid_index,
+        num_valid=num_valid,
+        source_level=m,
+        order=order,
     )
     return level_in, fan_seconds
 
@@ -557,6 +610,140 @@ class _Progress:
             self.bar.close()
 
 
+def _start_matches(
+    source: Side,
+    target: Side,
+    level: int,
+    lv: _Level,
+    s_colors: np.ndarray,
+    config: Config,
+    *,
+    key: jax.Array,
+    initial: np.ndarray | None,
+    previous: tuple | None,
+    frames: dict,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, jax.Array]:
+    """Where the search of target level ``level`` starts: ``(nnf [Vt], rotation [Vt], colours
+    [Vt, C] or None (re-vote them), key)``.
+
+    The coarsest level (``previous`` None) starts from ``initial`` or from random valid source
+    vertices; a finer level from ``previous``, the coarser level's ``(source level, nnf, rotation,
+    colours)``, upsampled as ``config.upsample`` says (``s_colors``: the pooled source colours at
+    this level's source level).
+    """
+    sh, m, Vt = source.hierarchy, lv.source_level, lv.num_target
+    if previous is None and initial is not None:  # coarsest level from the given matches
+        src0 = source.inverse[0][initial[target.hierarchy.vertex_index[level]]]  # level-0 source
+        nnf = ancestors(sh, 0, m)[np.maximum(src0, 0)].astype(np.int32)
+        return nnf, np.zeros(Vt, np.int32), np.asarray(s_colors[nnf]), key
+    if previous is None:  # coarsest level: random matches among the valid source vertices
+        key, sub = jax.random.split(key)
+        pick = np.asarray(jax.random.randint(sub, (Vt,), 0, lv.num_valid))
+        nnf = lv.valid_index[pick]
+        return nnf, np.zeros(Vt, np.int32), np.asarray(s_colors[nnf]), key
+    prev_m, nnf_c, rot_c, colors_c = previous
+    if config.upsample == "offset":  # the parent's match moved by the geodesic offset, re-voted
+        valid_m = np.zeros(lv.num_padded_source, bool)
+        valid_m[lv.valid_index[: lv.num_valid]] = True
+        nnf, rot = _offset_upsample(
+            source, target, level, m, prev_m, nnf_c, rot_c, valid_m, config.num_angles, frames
+        )
+        return nnf, rot, None, key
+    # each vertex starts from its parent's match, moved to this source level
+    parent = np.asarray(target.hierarchy.pooling[level].parent)
+    nnf = source.inverse[m][sh.vertex_index[prev_m][nnf_c[parent]]].astype(np.int32)
+    return nnf, rot_c[parent], colors_c[parent], key
+
+
+def _start_arrays(
+    lv: _Level, nnf: np.ndarray, rot: np.ndarray, colors: np.ndarray | None, config: Config, dtype
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """The starting matches padded to the level's padded size on the device, ``(nnf, rotation,
+    colours)``; colours None are voted from the matches."""
+    Vp = lv.num_padded
+    nnf_j = jnp.asarray(pad_axis(nnf.astype(np.int32), 0, Vp, lv.valid_index[0]))
+    rot_j = jnp.asarray(pad_axis(rot.astype(np.int32), 0, Vp))
+    if colors is not None:
+        return nnf_j, rot_j, jnp.asarray(pad_axis(np.asarray(colors), 0, Vp), dtype)
+    colors_j = vote_step(
+        lv.tgt,
+        lv.src.arr,
+        nnf_j,
+        rot_j,
+        lv.weights,
+        lv.pin,
+        num_angles=config.num_angles,
+        vote=config.vote,
+    )
+    return nnf_j, rot_j, colors_j
+
+
+def _search_level(
+    lv: _Level,
+    start: tuple[jax.Array, jax.Array, jax.Array],
+    config: Config,
+    *,
+    key: jax.Array,
+    budget: int,
+    shape_only_first: bool,
+) -> tuple[tuple, int, list[float], list[float], jax.Array]:
+    """Up to ``budget`` PatchMatch iterations of one level from ``start`` (``(nnf, rotation,
+    colours)``), stopping when fewer than ``config.tolerance`` of the vertices change.
+
+    ``shape_only_first``: the first iteration matches shape only (a random start's colours mean
+    nothing). Returns ``((nnf, rotation, cost, colours), changed, wall seconds, CPU seconds per
+    iteration, key)``.
+    """
+    nnf_j, rot_j, colors_j = start
+    Vt = lv.num_target
+    wall, cpu = [], []
+    changed, cost = Vt, None
+    for it in range(budget):
+        t0, c0 = time.perf_counter(), time.process_time()
+        key, sub = jax.random.split(key)
+        weights = lv.weights
+        if shape_only_first and it == 0:
+            weights = weights._replace(color_scale=weights.color_scale * 0)
+        nnf_j, rot_j, cost, colors_j, changed = iterate(
+            lv.tgt,
+            lv.src,
+            nnf_j,
+            rot_j,
+            colors_j,
+            sub,
+            weights,
+            lv.pin,
+            lv.order,
+            options=lv.options,
+        )
+        changed = int(changed)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+        if changed < config.tolerance * Vt:
+            break
+    return (nnf_j, rot_j, cost, colors_j), changed, wall, cpu, key
+
+
+def _level_record(
+    level: int, lv: _Level, cost: np.ndarray, changed: int, wall: list, cpu: list, t_level: float
+) -> dict:
+    """One row of ``Match.stats["levels"]`` (``t_level``: when the level started)."""
+    finite = np.isfinite(cost)
+    return {
+        "level": level,
+        "source_level": lv.source_level,
+        "vertices": lv.num_target,
+        "padded_vertices": lv.num_padded,
+        "padded_source_vertices": lv.num_padded_source,
+        "steps": len(wall),
+        "changed": changed,
+        "mean_cost": float(cost[finite].mean()) if finite.any() else float("inf"),
+        "seconds": time.perf_counter() - t_level,
+        "iteration_seconds": wall,
+        "iteration_cpu_seconds": cpu,
+    }
+
+
 def match_levels(
     source: Side,
     target: Side,
@@ -592,10 +779,8 @@ def match_levels(
     s_colors = pool_colors(source.hierarchy, colors)
     dims_of = _group_dims(source, target, pairing, config)
     bar = _Progress(progress, target.num_levels)
-    sh = source.hierarchy
     level_stats, fan_s = [], 0.0
-    nnf = rot = colors_t = cost_np = None
-    prev_src_level = None
+    previous = cost = None
     frames: dict = {}  # per (side, level) 3D frame axes, for offset upsampling
     for level in range(target.num_levels - 1, -1, -1):
         t_level = time.perf_counter()
@@ -614,119 +799,42 @@ def match_levels(
             dims_of.get(level),
         )
         fan_s += seconds
-        Vt, Vp = lv.num_target, lv.num_padded
-        if nnf is None and initial is not None:  # coarsest level from the given matches
-            th = target.hierarchy
-            src0 = source.inverse[0][initial[th.vertex_index[level]]]  # level-0 source vertices
-            nnf_h = ancestors(sh, 0, m)[np.maximum(src0, 0)].astype(np.int32)
-            rot_h = np.zeros(Vt, np.int32)
-            colors_h = np.asarray(s_colors[m][nnf_h])
-        elif nnf is None:  # coarsest level: random matches among the valid source vertices
-            key, sub = jax.random.split(key)
-            pick = np.asarray(jax.random.randint(sub, (Vt,), 0, lv.num_valid))
-            nnf_h = lv.valid_index[pick]
-            rot_h = np.zeros(Vt, np.int32)
-            colors_h = np.asarray(s_colors[m][nnf_h])
-        elif (
-            config.upsample == "offset"
-        ):  # the parent's match moved by the geodesic offset, re-voted
-            valid_m = np.zeros(lv.num_padded_source, bool)
-            valid_m[lv.valid_index[: lv.num_valid]] = True
-            nnf_h, rot_h = _offset_upsample(
-                source,
-                target,
-                level,
-                m,
-                prev_src_level,
-                nnf,
-                rot,
-                valid_m,
-                config.num_angles,
-                frames,
-            )
-            colors_h = None
-        else:  # upsample: each vertex starts from its parent's match, moved to this source level
-            parent = np.asarray(target.hierarchy.pooling[level].parent)
-            nnf_h = source.inverse[m][sh.vertex_index[prev_src_level][nnf[parent]]].astype(np.int32)
-            rot_h = rot[parent]
-            colors_h = colors_t[parent]
-        nnf_j = jnp.asarray(pad_axis(nnf_h.astype(np.int32), 0, Vp, lv.valid_index[0]))
-        rot_j = jnp.asarray(pad_axis(rot_h.astype(np.int32), 0, Vp))
-        if colors_h is None:  # the re-vote of the upsampled matches
-            colors_j = vote_step(
-                lv.tgt,
-                lv.src.arr,
-                nnf_j,
-                rot_j,
-                lv.weights,
-                lv.pin,
-                num_angles=config.num_angles,
-                vote=config.vote,
-            )
-        else:
-            colors_j = jnp.asarray(pad_axis(np.asarray(colors_h), 0, Vp), dtype)
+        *start, key = _start_matches(
+            source,
+            target,
+            level,
+            lv,
+            s_colors[m],
+            config,
+            key=key,
+            initial=initial,
+            previous=previous,
+            frames=frames,
+        )
         coarsest = level == target.num_levels - 1
-        budget = config.coarse_steps if coarsest else config.steps
-        wall, cpu = [], []
-        changed, cost = Vt, None
-        for it in range(budget):
-            t0, c0 = time.perf_counter(), time.process_time()
-            key, sub = jax.random.split(key)
-            weights = lv.weights
-            if coarsest and it == 0 and config.shape_weight_at(level) > 0 and initial is None:
-                # the random start's colours mean nothing: its first E-step matches shape only
-                weights = weights._replace(color_scale=weights.color_scale * 0)
-            nnf_j, rot_j, cost, colors_j, changed = iterate(
-                lv.tgt,
-                lv.src,
-                nnf_j,
-                rot_j,
-                colors_j,
-                sub,
-                weights,
-                lv.pin,
-                lv.order,
-                options=lv.options,
-            )
-            changed = int(changed)
-            wall.append(time.perf_counter() - t0)
-            cpu.append(time.process_time() - c0)
-            if changed < config.tolerance * Vt:
-                break
-        nnf = np.asarray(nnf_j)[:Vt]
-        rot = np.asarray(rot_j)[:Vt]
-        colors_t = np.asarray(colors_j)[:Vt]
-        cost_np = np.asarray(cost)[:Vt]
-        finite = np.isfinite(cost_np)
-        mean_cost = float(cost_np[finite].mean()) if finite.any() else float("inf")
-        level_stats.append(
-            {
-                "level": level,
-                "source_level": m,
-                "vertices": Vt,
-                "padded_vertices": Vp,
-                "padded_source_vertices": lv.num_padded_source,
-                "steps": len(wall),
-                "changed": changed,
-                "mean_cost": mean_cost,
-                "seconds": time.perf_counter() - t_level,
-                "iteration_seconds": wall,
-                "iteration_cpu_seconds": cpu,
-            }
+        found, changed, wall, cpu, key = _search_level(
+            lv,
+            _start_arrays(lv, *start, config, dtype),
+            config,
+            key=key,
+            budget=config.coarse_steps if coarsest else config.steps,
+            shape_only_first=coarsest and config.shape_weight_at(level) > 0 and initial is None,
         )
+        nnf, rot, cost, colors_t = (np.asarray(a)[: lv.num_target] for a in found)
+        level_stats.append(_level_record(level, lv, cost, changed, wall, cpu, t_level))
         bar.level(
-            f"level {level}: {Vt} vertices, {len(wall)} iterations, mean cost {mean_cost:.4g}, "
-            f"{changed} changed"
+            f"level {level}: {lv.num_target} vertices, {len(wall)} iterations, mean cost "
+            f"{level_stats[-1]['mean_cost']:.4g}, {changed} changed"
         )
-        prev_src_level = m
+        previous = (m, nnf, rot, colors_t)
     bar.close()
 
-    nnf_input = sh.vertex_index[pairing[0]][nnf]
+    nnf_input = source.hierarchy.vertex_index[pairing[0]][nnf]
     return Match(
         colors=colors[nnf_input],
         voted=np.asarray(colors_t, np.float64),
         nnf=nnf_input,
         rotation=rot,
-        cost=cost_np,
+        cost=cost,
         stats={"levels": level_stats, "fans_s": fan_s},
     )

@@ -329,6 +329,158 @@ def _smallest(cands, bound, count: int):
     return jnp.concatenate(picked_c, axis=1), jnp.concatenate(picked_b, axis=1)
 
 
+class _Sweeps(NamedTuple):
+    """What every sweep of one iteration reads: the level's arrays, the target's fan spectra (of the
+    previous vote's colours, fixed during the sweeps) and both sides' pre-scoring descriptors."""
+
+    tgt: LevelArrays
+    src: Source
+    t_re: jax.Array
+    t_im: jax.Array
+    t_energy: jax.Array
+    t_desc: jax.Array
+    s_desc: jax.Array
+    color_scale: jax.Array
+    shape_weight: jax.Array
+    options: SearchOptions
+
+
+class _Rows(NamedTuple):
+    """The target rows one update touches (all of them, or one wavefront's): their one-ring
+    neighbourhoods, current ``(match, cost, rotation)``, descriptors and exact-cost terms."""
+
+    nb_index: jax.Array
+    nb_mask: jax.Array
+    nb_log: jax.Array
+    nb_transport: jax.Array
+    cur: jax.Array
+    cur_cost: jax.Array
+    cur_rot: jax.Array
+    desc: jax.Array
+    terms: tuple  # (re, im, energy, features) of the exact cost
+
+
+def _sweeps(tgt: LevelArrays, src: Source, colors, weights: StepWeights, options) -> _Sweeps:
+    """The target's fan spectra of ``colors`` and the descriptors of the rotation-invariant bound
+    (fan summaries and shape features, scaled by the square roots of their weights)."""
+    t_re, t_im, t_energy = fan_spectrum(
+        _fan_values(tgt, colors, options.prefilter_steps), weights.ring_weight
+    )
+    sc, sw = jnp.sqrt(weights.color_scale), jnp.sqrt(weights.shape_weight)
+    t_desc = jnp.concatenate(
+        [sc * _fan_summaries(t_re, t_im, options.num_angles), sw * tgt.features], axis=1
+    )
+    s_desc = jnp.concatenate([sc * src.summary, sw * src.arr.features], axis=1)
+    return _Sweeps(
+        tgt,
+        src,
+        t_re,
+        t_im,
+        t_energy,
+        t_desc,
+        s_desc,
+        weights.color_scale,
+        weights.shape_weight,
+        options,
+    )
+
+
+def _exact(sw: _Sweeps, terms: tuple, cand):
+    """Exact patch distance and best rotation of candidates ``cand`` for the rows of ``terms``."""
+    A = sw.options.num_angles
+    return _exact_cost(*terms, sw.src, cand, A, sw.color_scale, sw.shape_weight)
+
+
+def _rows(sw: _Sweeps, state, rows) -> _Rows:
+    """The :class:`_Rows` of target vertices ``rows`` (None: all of them) in ``state``."""
+    tgt = sw.tgt
+    nb = (tgt.nb_index, tgt.nb_mask, tgt.nb_log, tgt.nb_transport)
+    terms = (sw.t_re, sw.t_im, sw.t_energy, tgt.features)
+    if rows is None:
+        return _Rows(*nb, *state, sw.t_desc, terms)
+    return _Rows(
+        *(_gather(x, rows) for x in nb),
+        *(_gather(x, rows) for x in (*state, sw.t_desc)),
+        tuple(_gather(x, rows) for x in terms),
+    )
+
+
+def _candidates(sw: _Sweeps, r: _Rows, best, best_rot, key):
+    """The rows' candidates, ``([B, N], [B, N])`` with their lower bounds (inf: not to use):
+    random-search ones and those propagated from the neighbours' matches ``best`` / ``best_rot``
+    (all target vertices), the ``exact_candidates`` smallest bounds kept."""
+    src, options = sw.src, sw.options
+    if options.star_candidates:  # every vertex of each neighbour's matched star
+        idx, _, smask = _star(src.arr, _gather(best, r.nb_index))  # [B, K, 1 + Ks]
+        prop = idx.reshape(idx.shape[0], -1)
+        prop_ok = (r.nb_mask[:, :, None] & smask).reshape(prop.shape)
+    else:
+        prop = _star_nearest(
+            src.arr,
+            _gather(best, r.nb_index),
+            _ring_offsets(r.nb_index, r.nb_log, r.nb_transport, best_rot, options.num_angles),
+        )
+        prop_ok = r.nb_mask
+    if len(src.up) + options.global_candidates:
+        cands = jnp.stack(_random_candidates(src, r.cur, key, options.global_candidates), axis=1)
+    else:
+        cands = prop[:, :0]
+    allowed = jnp.concatenate([jnp.ones(cands.shape, bool), prop_ok], axis=1)
+    cands = jnp.concatenate([cands, prop], axis=1)  # [B, N]
+    diff = r.desc[:, None, :] - _gather(sw.s_desc, cands)
+    bound = jnp.sum(diff * diff, axis=-1)
+    bound = jnp.where(
+        allowed & (cands != r.cur[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf
+    )
+    if cands.shape[1] > options.exact_candidates:
+        cands, bound = _smallest(cands, bound, options.exact_candidates)
+    return cands, bound
+
+
+def _improve(sw: _Sweeps, rows, state, key):
+    """One sweep's update of target vertices ``rows`` (None: all of them, in parallel): pre-score
+    random-search and propagated candidates (from ``state``), exact-score the
+    ``exact_candidates`` best, keep improvements. Returns the rows' ``(best, cost, rot)``."""
+    best, _, best_rot = state
+    r = _rows(sw, state, rows)
+    cands, bound = _candidates(sw, r, best, best_rot, key)
+
+    def body(carry, xs):
+        b, bc, br = carry
+        cand, lb = xs
+        c, k = _exact(sw, r.terms, cand)
+        better = (c < bc) & jnp.isfinite(lb)  # an infinite bound marks a slot not to use
+        return (
+            jnp.where(better, cand, b),
+            jnp.where(better, c, bc),
+            jnp.where(better, k, br),
+        ), None
+
+    out, _ = jax.lax.scan(body, (r.cur, r.cur_cost, r.cur_rot), (cands.T, bound.T))
+    return out
+
+
+def _sequential_sweeps(sw: _Sweeps, state, key, order):
+    """``sweeps`` Gauss–Seidel sweeps: each runs through the breadth-first wavefronts of ``order``
+    (a ``lax.scan`` over its rows; padded slots, index ``V``, write nothing), odd sweeps
+    backwards from the far end."""
+    if order is None:
+        raise InputError(
+            "propagation='sequential' needs the breadth-first wavefronts: pass "
+            "order=jmeshtex.meshmatch.core.scan_order(...), or use propagation='parallel'"
+        )
+
+    def wavefront(state, xs):
+        rows, key = xs
+        new = _improve(sw, rows, state, key)
+        return tuple(x.at[rows].set(y, mode="drop") for x, y in zip(state, new, strict=True)), None
+
+    for sweep_index, sub in enumerate(jax.random.split(key, sw.options.sweeps)):
+        rows = order if sweep_index % 2 == 0 else order[::-1, ::-1]
+        state, _ = jax.lax.scan(wavefront, state, (rows, jax.random.split(sub, rows.shape[0])))
+    return state
+
+
 @jit_loop(static_argnames=("options",))
 def iterate(
     tgt: LevelArrays,
@@ -376,121 +528,23 @@ def iterate(
       ``(nnf, rot, cost, colors, changed)``: the new matches, rotations, patch distances ``[Vt]``,
       voted colours ``[Vt, C]`` and the number of real target vertices whose match changed.
     """
-    A, globals_, exact = options.num_angles, options.global_candidates, options.exact_candidates
-    color_scale, shape_weight = weights.color_scale, weights.shape_weight
-    t_re, t_im, t_energy = fan_spectrum(
-        _fan_values(tgt, colors, options.prefilter_steps), weights.ring_weight
-    )
-    sc, sw = jnp.sqrt(color_scale), jnp.sqrt(shape_weight)
-    t_desc = jnp.concatenate([sc * _fan_summaries(t_re, t_im, A), sw * tgt.features], axis=1)
-    s_desc = jnp.concatenate([sc * src.summary, sw * src.arr.features], axis=1)
-
-    def exact_cost(cand):
-        return _exact_cost(
-            t_re, t_im, t_energy, tgt.features, src, cand, A, color_scale, shape_weight
-        )
-
-    def improve(rows, state, key):
-        """One sweep's update of target vertices ``rows`` (None: all of them, in parallel): pre-score
-        random-search and propagated candidates (from ``state``), exact-score the ``exact`` best,
-        keep improvements. Returns the rows' ``(best, cost, rot)``."""
-        best, best_cost, best_rot = state
-        if rows is None:
-            nb_index, nb_mask, nb_log, nb_tr = (
-                tgt.nb_index,
-                tgt.nb_mask,
-                tgt.nb_log,
-                tgt.nb_transport,
-            )
-            cur, cur_cost, cur_rot, desc = best, best_cost, best_rot, t_desc
-            rows_cost = exact_cost
-        else:
-            nb_index, nb_mask, nb_log, nb_tr = (
-                _gather(x, rows) for x in (tgt.nb_index, tgt.nb_mask, tgt.nb_log, tgt.nb_transport)
-            )
-            cur, cur_cost, cur_rot, desc = (
-                _gather(x, rows) for x in (best, best_cost, best_rot, t_desc)
-            )
-            t_rows = tuple(_gather(x, rows) for x in (t_re, t_im, t_energy, tgt.features))
-
-            def rows_cost(cand):
-                return _exact_cost(*t_rows, src, cand, A, color_scale, shape_weight)
-
-        if options.star_candidates:  # every vertex of each neighbour's matched star
-            idx, _, smask = _star(src.arr, _gather(best, nb_index))  # [B, K, 1 + Ks]
-            prop = idx.reshape(idx.shape[0], -1)
-            prop_ok = (nb_mask[:, :, None] & smask).reshape(prop.shape)
-        else:
-            prop = _star_nearest(
-                src.arr,
-                _gather(best, nb_index),
-                _ring_offsets(nb_index, nb_log, nb_tr, best_rot, A),
-            )
-            prop_ok = nb_mask
-        cands = (
-            jnp.stack(_random_candidates(src, cur, key, globals_), axis=1)
-            if num_random
-            else prop[:, :0]
-        )
-        allowed = jnp.concatenate([jnp.ones(cands.shape, bool), prop_ok], axis=1)
-        cands = jnp.concatenate([cands, prop], axis=1)  # [B, N]
-        diff = desc[:, None, :] - _gather(s_desc, cands)
-        bound = jnp.sum(diff * diff, axis=-1)
-        bound = jnp.where(
-            allowed & (cands != cur[:, None]) & _gather(src.arr.valid, cands), bound, jnp.inf
-        )
-        if cands.shape[1] > exact:
-            cands, bound = _smallest(cands, bound, exact)
-
-        def body(carry, xs):
-            b, bc, br = carry
-            cand, lb = xs
-            c, k = rows_cost(cand)
-            better = (c < bc) & jnp.isfinite(lb)  # an infinite bound marks a slot not to use
-            return (
-                jnp.where(better, cand, b),
-                jnp.where(better, c, bc),
-                jnp.where(better, k, br),
-            ), None
-
-        out, _ = jax.lax.scan(body, (cur, cur_cost, cur_rot), (cands.T, bound.T))
-        return out
-
-    def sweep(state, key):
-        return improve(None, state, key), None
-
-    def wavefront(state, xs):
-        """Gauss–Seidel: one breadth-first wavefront (a row of ``order``) proposes from the matches
-        the earlier wavefronts of this sweep found; padded slots (index ``V``) write nothing."""
-        rows, key = xs
-        new = improve(rows, state, key)
-        return tuple(x.at[rows].set(y, mode="drop") for x, y in zip(state, new, strict=True)), None
-
-    num_random = len(src.up) + globals_
+    sw = _sweeps(tgt, src, colors, weights, options)
     # the current match is re-scored once (its cost changes with the target's colours, which stay
     # fixed during the sweeps)
-    cost0, rot0 = exact_cost(nnf)
+    cost0, rot0 = _exact(sw, (sw.t_re, sw.t_im, sw.t_energy, tgt.features), nnf)
     if options.propagation == "sequential":
-        if order is None:
-            raise InputError(
-                "propagation='sequential' needs the breadth-first wavefronts: pass "
-                "order=jmeshtex.meshmatch.core.scan_order(...), or use propagation='parallel'"
-            )
-        state = (nnf, cost0, rot0)
-        for sweep_index, sub in enumerate(jax.random.split(key, options.sweeps)):
-            # alternate the direction: odd sweeps run the wavefronts backwards, from the far end
-            rows = order if sweep_index % 2 == 0 else order[::-1, ::-1]
-            state, _ = jax.lax.scan(wavefront, state, (rows, jax.random.split(sub, rows.shape[0])))
-        best, best_cost, best_rot = state
+        state = _sequential_sweeps(sw, (nnf, cost0, rot0), key, order)
     else:
-        (best, best_cost, best_rot), _ = jax.lax.scan(
-            sweep, (nnf, cost0, rot0), jax.random.split(key, options.sweeps)
-        )
 
+        def sweep(state, key):
+            return _improve(sw, None, state, key), None
+
+        state, _ = jax.lax.scan(sweep, (nnf, cost0, rot0), jax.random.split(key, options.sweeps))
+    best, best_cost, best_rot = state
     best = jnp.where(pin >= 0, jnp.maximum(pin, 0), best)
     best_rot = jnp.where(pin >= 0, 0, best_rot)
     colors = vote_colors(
-        tgt, src.arr, best, best_rot, weights, pin, num_angles=A, vote=options.vote
+        tgt, src.arr, best, best_rot, weights, pin, num_angles=options.num_angles, vote=options.vote
     )
     changed = jnp.sum((best != nnf) & tgt.valid)
     return best, best_rot, jnp.where(pin >= 0, 0.0, best_cost), colors, changed
