@@ -306,6 +306,68 @@ def _default_max_steps(geometry: TracerGeometry, length: np.ndarray) -> int:
     return int(64 + 4 * (max_degree + 2) * (2.0 + 2.0 * span))
 
 
+class _Finished:
+    """The traces that ended, collected in chunks while walking and scattered once at the end."""
+
+    def __init__(self):
+        self.idx, self.face, self.state, self.stopped = [], [], [], []
+
+    def retire(self, mask, stop: bool, idx, f, state):
+        """Move the traces under ``mask`` out of the walking ``(idx, f, state)``; returns those of
+        the traces that walk on and the ``keep`` mask."""
+        self.idx.append(np.compress(mask, idx))
+        self.face.append(np.compress(mask, f))
+        self.state.append(np.compress(mask, state, axis=1))
+        self.stopped.append(np.full(self.idx[-1].size, stop))
+        keep = ~mask
+        return np.compress(keep, idx), np.compress(keep, f), np.compress(keep, state, axis=1), keep
+
+    def ends(self, face, position, direction):
+        """``(face, position, direction, stopped, remaining)`` of every trace: the retired ones'
+        ends, the start for those that never walked (zero length)."""
+        end_face = face.copy()
+        end = np.stack(
+            [position.real, position.imag, direction.real, direction.imag, np.zeros(len(face))]
+        )
+        stopped = np.zeros(len(face), bool)
+        if self.idx:
+            out = np.concatenate(self.idx)
+            end_face[out] = np.concatenate(self.face)
+            end[:, out] = np.concatenate(self.state, axis=1)
+            stopped[out] = np.concatenate(self.stopped)
+        end_position = end[0] + 1j * end[1]
+        end_direction = end[2] + 1j * end[3]
+        end_direction = end_direction / np.where(end_direction == 0, 1.0, np.abs(end_direction))
+        return end_face, end_position, end_direction, stopped, end[4]
+
+
+def _exit_times(table, f, state):
+    """``(t0, t1, t_exit)``: the distances along each walking trace's unit direction to the edges
+    opposite corners 0 and 1 of its face, and to the nearest edge it leaves through (inf: none
+    ahead)."""
+    x, y, dx, dy, _ = state
+    n0x, n0y, n1x, n1y, c0 = np.take(table, f, axis=1)
+    # distance to the edge opposite corner k shrinks at rate -cos_k along the unit direction
+    cos0 = n0x * dx + n0y * dy
+    cos1 = n1x * dx + n1y * dy
+    t0 = np.maximum(n0x * x + n0y * y - c0, 0.0) / -cos0
+    t1 = np.maximum(n1x * x + n1y * y, 0.0) / -cos1
+    t2 = np.maximum(y, 0.0) / -dy
+    t0[cos0 >= -_PARALLEL_COS] = np.inf
+    t1[cos1 >= -_PARALLEL_COS] = np.inf
+    t2[dy >= -_PARALLEL_COS] = np.inf
+    return t0, t1, np.minimum(np.minimum(t0, t1), t2)
+
+
+def _unfold(state, unfold, fe) -> None:
+    """Carry positions and directions (rows 0-3 of ``state``, in place) across the face edges
+    ``fe`` (``3 * face + edge``) into the next faces' frames."""
+    x, y, dx, dy, _ = state
+    ar, ai, br, bi = np.take(unfold, fe, axis=1)
+    state[0], state[1] = ar * x - ai * y + br, ai * x + ar * y + bi
+    state[2], state[3] = ar * dx - ai * dy, ai * dx + ar * dy
+
+
 def _walk(
     geometry: TracerGeometry,
     face: np.ndarray,
@@ -319,7 +381,6 @@ def _walk(
     ``position`` and ``direction`` are complex, in the start face's frame. Returns ``(face,
     position, direction, stopped, remaining)`` at the ends, in the end faces' frames.
     """
-    n_total = len(face)
     if max_steps is None:
         max_steps = _default_max_steps(geometry, length)
     # row-major tables gathered with np.take (several times faster than fancy indexing)
@@ -340,17 +401,7 @@ def _walk(
     f = face[idx]
     state = np.stack([position.real, position.imag, direction.real, direction.imag, length])
     state = np.take(state, idx, axis=1)
-    # finished traces are collected in chunks and scattered once at the end
-    chunks_idx, chunks_face, chunks_state, chunks_stopped = [], [], [], []
-
-    def retire(mask, stop):
-        chunks_idx.append(np.compress(mask, idx))
-        chunks_face.append(np.compress(mask, f))
-        chunks_state.append(np.compress(mask, state, axis=1))
-        chunks_stopped.append(np.full(chunks_idx[-1].size, stop))
-        keep = ~mask
-        return np.compress(keep, idx), np.compress(keep, f), np.compress(keep, state, axis=1), keep
-
+    finished = _Finished()
     steps = 0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         while idx.size:
@@ -360,18 +411,8 @@ def _walk(
                     "larger max_steps (very long traces) or check the mesh for near-degenerate faces"
                 )
             steps += 1
+            t0, t1, t_exit = _exit_times(table, f, state)
             x, y, dx, dy, r = state
-            n0x, n0y, n1x, n1y, c0 = np.take(table, f, axis=1)
-            # distance to the edge opposite corner k shrinks at rate -cos_k along the unit direction
-            cos0 = n0x * dx + n0y * dy
-            cos1 = n1x * dx + n1y * dy
-            t0 = np.maximum(n0x * x + n0y * y - c0, 0.0) / -cos0
-            t1 = np.maximum(n1x * x + n1y * y, 0.0) / -cos1
-            t2 = np.maximum(y, 0.0) / -dy
-            t0[cos0 >= -_PARALLEL_COS] = np.inf
-            t1[cos1 >= -_PARALLEL_COS] = np.inf
-            t2[dy >= -_PARALLEL_COS] = np.inf
-            t_exit = np.minimum(np.minimum(t0, t1), t2)
             # reaching the exit edge within rounding of the remaining length ends the walk there
             done = t_exit >= r - length_tol
             step = np.minimum(t_exit, r)
@@ -380,7 +421,7 @@ def _walk(
             r -= step
             r[done] = 0.0
             if done.any():
-                idx, f, state, keep = retire(done, False)
+                idx, f, state, keep = finished.retire(done, False, idx, f, state)
                 if not idx.size:
                     break
                 t0, t1, t_exit = (
@@ -396,28 +437,11 @@ def _walk(
             g = np.take(neighbor, fe)
             wall = g < 0
             if wall.any():
-                idx, f, state, keep = retire(wall, True)
+                idx, f, state, keep = finished.retire(wall, True, idx, f, state)
                 fe, g = np.compress(keep, fe), np.compress(keep, g)
-            x, y, dx, dy, _ = state
-            ar, ai, br, bi = np.take(unfold, fe, axis=1)
-            state[0], state[1] = ar * x - ai * y + br, ai * x + ar * y + bi
-            state[2], state[3] = ar * dx - ai * dy, ai * dx + ar * dy
+            _unfold(state, unfold, fe)
             f = g
-
-    end_face = face.copy()
-    end = np.stack(
-        [position.real, position.imag, direction.real, direction.imag, np.zeros(n_total)]
-    )
-    stopped = np.zeros(n_total, bool)
-    if chunks_idx:
-        out = np.concatenate(chunks_idx)
-        end_face[out] = np.concatenate(chunks_face)
-        end[:, out] = np.concatenate(chunks_state, axis=1)
-        stopped[out] = np.concatenate(chunks_stopped)
-    end_position = end[0] + 1j * end[1]
-    end_direction = end[2] + 1j * end[3]
-    end_direction = end_direction / np.where(end_direction == 0, 1.0, np.abs(end_direction))
-    return end_face, end_position, end_direction, stopped, end[4]
+    return finished.ends(face, position, direction)
 
 
 def _barycentric(geometry: TracerGeometry, face: np.ndarray, position: np.ndarray) -> np.ndarray:
