@@ -239,6 +239,84 @@ def _split_bowties(
     return new_id[labels].reshape(faces.shape), fan_vertex[extra], split
 
 
+class _Faces:
+    """The faces under repair (in input vertex ids, bow-tie copies appended) and what follows
+    each face: its input index, its stored-indexing corners and its per-corner ``uv``."""
+
+    def __init__(self, cur: np.ndarray, stored: np.ndarray, uv: np.ndarray | None):
+        self.cur, self.stored, self.uv = cur, stored, uv
+        self.source = np.arange(len(cur))
+
+    def keep(self, mask: np.ndarray) -> None:
+        """Keep only the faces under ``mask``."""
+        self.cur, self.source, self.stored = self.cur[mask], self.source[mask], self.stored[mask]
+        self.uv = None if self.uv is None else self.uv[mask]
+
+    def flip(self, flip: np.ndarray) -> None:
+        """Reverse the corner order of the faces under ``flip``."""
+
+        def swap(x):
+            return np.where(flip.reshape((-1,) + (1,) * (x.ndim - 1)), x[:, [0, 2, 1]], x)
+
+        self.cur, self.stored = swap(self.cur), swap(self.stored)
+        self.uv = None if self.uv is None else swap(self.uv)
+
+
+def _repair_faces(vertices: np.ndarray, faces: _Faces, area_tol: float):
+    """Drop zero-area and repeated faces, orient the faces consistently and split bow-tie vertices
+    (``prepare_mesh(repair=True)``), in place on ``faces``.
+
+    Returns ``(dropped degenerate faces, dropped duplicate faces, flipped faces, split vertices,
+    copy source)``, the first four in input indices; ``copy source``: the current vertex id each
+    appended bow-tie copy was split from.
+    """
+    num_vertices = len(vertices)
+    deg = _degenerate_faces(vertices, faces.cur, area_tol)
+    dropped_deg = faces.source[deg]
+    faces.keep(~deg)
+    dup = _duplicate_faces(faces.cur)[:, 1]
+    dropped_dup = faces.source[dup]
+    mask = np.ones(len(faces.cur), bool)
+    mask[dup] = False
+    faces.keep(mask)
+    if len(faces.cur) == 0:
+        raise EmptyMeshError("no faces left after dropping degenerate and duplicate faces")
+    edges = _nonmanifold_edges(faces.cur, num_vertices)
+    if edges.size:
+        raise NonManifoldEdgeError(indices=edges)
+    flip = _orientation_flips(vertices, faces.cur)
+    flipped = faces.source[flip]
+    faces.flip(flip)
+    faces.cur, copy_src, split = _split_bowties(faces.cur, num_vertices)
+    return dropped_deg, dropped_dup, flipped, split, copy_src
+
+
+def _stored_indexing(stored: np.ndarray, out_faces: np.ndarray, num_used: int, had_split: bool):
+    """``(split_faces, split_to_merged)`` of the output: one stored vertex per (old stored vertex,
+    new merged vertex) pair; ``(None, None)`` when there was none and no seam needs one."""
+    pair_keys = stored.ravel() * num_used + out_faces.ravel()
+    uniq, stored_faces = np.unique(pair_keys, return_inverse=True)
+    stored_faces = stored_faces.reshape(out_faces.shape)
+    split_to_merged = uniq % num_used
+    if not had_split and len(uniq) == num_used:
+        return None, None  # no seams: the plain indexing is the stored one
+    return stored_faces, split_to_merged
+
+
+def _warn_cleanup(report: RepairReport) -> None:
+    """The :class:`~jmeshtex.MeshRepairWarning` of removed and merged vertices (none: silent),
+    attributed to the caller of :func:`prepare_mesh`."""
+    n_unref, n_merged = len(report.unreferenced_vertices), len(report.merged_vertices)
+    if n_unref or n_merged:
+        done = [f"removed {n_unref} unreferenced vertices"] if n_unref else []
+        done += [f"merged {n_merged} exactly coincident vertices into others"] if n_merged else []
+        warnings.warn(
+            f"prepare_mesh: {' and '.join(done)}; the RepairReport lists them",
+            MeshRepairWarning,
+            stacklevel=3,
+        )
+
+
 def prepare_mesh(
     mesh: Mesh | tuple,
     *,
@@ -296,42 +374,21 @@ def prepare_mesh(
     referenced[faces.ravel()] = True
     rep, kept_apart = coincident_vertex_map(vertices, faces)
     merged_mask = rep != np.arange(V0)
-    cur = rep[faces]  # current faces, in input vertex ids (copies of split vertices appended)
-    src = np.arange(V0)  # input vertex of each current vertex id
-    face_src = np.arange(F0)
-    uv = None if mesh.uv is None else np.array(mesh.uv, dtype=np.float64)
     had_split = mesh.split_faces is not None
-    stored = np.array(mesh.split_faces if had_split else faces, dtype=np.int64)
+    current = _Faces(
+        rep[faces],  # in input vertex ids (copies of split vertices appended)
+        np.array(mesh.split_faces if had_split else faces, dtype=np.int64),
+        None if mesh.uv is None else np.array(mesh.uv, dtype=np.float64),
+    )
+    src = np.arange(V0)  # input vertex of each current vertex id
     empty = np.zeros(0, np.int64)
     dropped_deg = dropped_dup = flipped_faces = split = empty
-
-    def keep(mask):
-        nonlocal cur, face_src, uv, stored
-        cur, face_src, stored = cur[mask], face_src[mask], stored[mask]
-        uv = None if uv is None else uv[mask]
-
     if repair:
-        deg = _degenerate_faces(vertices, cur, area_tol)
-        dropped_deg = face_src[deg]
-        keep(~deg)
-        dup = _duplicate_faces(cur)[:, 1]
-        dropped_dup = face_src[dup]
-        mask = np.ones(len(cur), bool)
-        mask[dup] = False
-        keep(mask)
-        if len(cur) == 0:
-            raise EmptyMeshError("no faces left after dropping degenerate and duplicate faces")
-        edges = _nonmanifold_edges(cur, V0)
-        if edges.size:
-            raise NonManifoldEdgeError(indices=edges)
-        flip = _orientation_flips(vertices, cur)
-        flipped_faces = face_src[flip]
-        swap = lambda x: np.where(flip.reshape((-1,) + (1,) * (x.ndim - 1)), x[:, [0, 2, 1]], x)  # noqa: E731
-        cur, stored = swap(cur), swap(stored)
-        uv = None if uv is None else swap(uv)
-        cur, copy_src, split = _split_bowties(cur, V0)
+        dropped_deg, dropped_dup, flipped_faces, split, copy_src = _repair_faces(
+            vertices, current, area_tol
+        )
         src = np.concatenate([src, src[copy_src]])
-
+    cur = current.cur
     _check_topology(vertices[src], cur, area_tol)  # in input ids, so errors name the user's indices
 
     used = np.unique(cur)
@@ -339,45 +396,30 @@ def prepare_mesh(
     new_id[used] = np.arange(len(used))
     out_faces = new_id[cur]
     vertex_index = src[used]
-    out_vertices = vertices[vertex_index]
     colors = None if mesh.vertex_colors is None else np.array(mesh.vertex_colors)[vertex_index]
-
-    # stored indexing: one stored vertex per (old stored vertex, new merged vertex) pair
-    pair_keys = stored.ravel() * len(used) + out_faces.ravel()
-    uniq, stored_faces = np.unique(pair_keys, return_inverse=True)
-    stored_faces = stored_faces.reshape(out_faces.shape)
-    split_to_merged = uniq % len(used)
-    if not had_split and len(uniq) == len(used):
-        stored_faces = split_to_merged = None  # no seams: the plain indexing is the stored one
+    stored_faces, split_to_merged = _stored_indexing(
+        current.stored, out_faces, len(used), had_split
+    )
 
     still_referenced = np.zeros(V0, bool)
     still_referenced[src[used]] = True
-    orphaned = np.nonzero(referenced & ~merged_mask & ~still_referenced)[0]
     report = RepairReport(
         unreferenced_vertices=np.nonzero(~referenced)[0],
         merged_vertices=np.stack([np.nonzero(merged_mask)[0], rep[merged_mask]], axis=1),
         kept_apart_vertices=kept_apart,
         dropped_degenerate_faces=np.sort(dropped_deg),
         dropped_duplicate_faces=np.sort(dropped_dup),
-        orphaned_vertices=orphaned,
+        orphaned_vertices=np.nonzero(referenced & ~merged_mask & ~still_referenced)[0],
         flipped_faces=np.sort(flipped_faces),
         split_vertices=split,
         vertex_index=vertex_index,
-        face_index=face_src,
+        face_index=current.source,
     )
-    n_unref, n_merged = len(report.unreferenced_vertices), len(report.merged_vertices)
-    if n_unref or n_merged:
-        done = [f"removed {n_unref} unreferenced vertices"] if n_unref else []
-        done += [f"merged {n_merged} exactly coincident vertices into others"] if n_merged else []
-        warnings.warn(
-            f"prepare_mesh: {' and '.join(done)}; the RepairReport lists them",
-            MeshRepairWarning,
-            stacklevel=2,
-        )
+    _warn_cleanup(report)
     out = mesh.replace(
-        vertices=out_vertices,
+        vertices=vertices[vertex_index],
         faces=out_faces,
-        uv=uv,
+        uv=current.uv,
         vertex_colors=colors,
         split_faces=stored_faces,
         split_to_merged=split_to_merged,
