@@ -165,24 +165,39 @@ def mesh_statistics(mesh: Mesh | tuple, *, area_tol: float = AREA_TOL) -> MeshSt
         if not np.isfinite(v).all():
             raise NonFiniteVertexError()
     except (InputError, MeshError):
-        none = dict.fromkeys(
-            [
-                "edges",
-                "unreferenced_vertices",
-                "coincident_vertices",
-                "components",
-                "boundary_edges",
-                "boundary_loops",
-                "euler_characteristic",
-                "genus",
-                "closed",
-                "mean_edge_length",
-                "bbox_min",
-                "bbox_max",
-            ]
-        )
-        return MeshStatistics(**common, **none, **verdict)
+        return MeshStatistics(**common, **dict.fromkeys(_MEASURED), **verdict)
+    return MeshStatistics(**common, **_measure(v, f, valid=error is None), **verdict)
 
+
+#: the fields of :class:`MeshStatistics` measured on the arrays (None when they cannot be read)
+_MEASURED = (
+    "edges",
+    "unreferenced_vertices",
+    "coincident_vertices",
+    "components",
+    "boundary_edges",
+    "boundary_loops",
+    "euler_characteristic",
+    "genus",
+    "closed",
+    "mean_edge_length",
+    "bbox_min",
+    "bbox_max",
+)
+
+
+def _boundary_loops(a: np.ndarray, b: np.ndarray, num_vertices: int) -> int:
+    """Number of boundary loops: connected components of the boundary edges ``(a, b)``."""
+    if not a.size:
+        return 0
+    graph = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(num_vertices, num_vertices))
+    _, lab = _graph_components(graph, directed=False)
+    return len(np.unique(lab[np.concatenate([a, b])]))
+
+
+def _measure(v: np.ndarray, f: np.ndarray, *, valid: bool) -> dict[str, Any]:
+    """The :data:`_MEASURED` fields of readable arrays (``v`` finite, ``f`` in range); the genus
+    only when ``valid`` and the Euler characteristic gives a whole one."""
     V, F = len(v), len(f)
     referenced = np.zeros(V, bool)
     referenced[f.ravel()] = True
@@ -190,23 +205,13 @@ def mesh_statistics(mesh: Mesh | tuple, *, area_tol: float = AREA_TOL) -> MeshSt
     edges = edges[edges[:, 0] != edges[:, 1]]  # a face with a repeated index has no edge there
     a, b, _, inverse, counts = edge_keys(f, max(V, 1))
     boundary = (a != b) & (counts[inverse] == 1)
-    ba, bb = a[boundary], b[boundary]
-    if ba.size:
-        graph = sp.coo_matrix((np.ones(ba.size), (ba, bb)), shape=(V, V))
-        _, lab = _graph_components(graph, directed=False)
-        loops = len(np.unique(lab[np.concatenate([ba, bb])]))
-    else:
-        loops = 0
-    if F:
-        n_comp = int(connected_components(f, V).max()) + 1
-    else:
-        n_comp = 0
+    loops = _boundary_loops(a[boundary], b[boundary], V)
+    n_comp = int(connected_components(f, V).max()) + 1 if F else 0
     chi = int(referenced.sum()) - len(edges) + F
     genus = None
-    if error is None and (2 * n_comp - loops - chi) % 2 == 0:
+    if valid and (2 * n_comp - loops - chi) % 2 == 0:
         genus = (2 * n_comp - loops - chi) // 2
-    return MeshStatistics(
-        **common,
+    return dict(
         edges=len(edges),
         unreferenced_vertices=int((~referenced).sum()),
         coincident_vertices=_count_coincident(v, referenced),
@@ -221,7 +226,6 @@ def mesh_statistics(mesh: Mesh | tuple, *, area_tol: float = AREA_TOL) -> MeshSt
         else 0.0,
         bbox_min=tuple(float(x) for x in v.min(axis=0)) if V else None,
         bbox_max=tuple(float(x) for x in v.max(axis=0)) if V else None,
-        **verdict,
     )
 
 
