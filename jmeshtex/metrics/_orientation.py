@@ -175,38 +175,18 @@ def seam_orientation(
       (0, 1.0)
     """
     mesh = as_mesh(mesh)
-    if mesh.uv is None:
-        raise InputError("seam_orientation: the mesh has no UVs")
-    texture = mesh.texture if texture is None else texture
-    if texture is None:
-        raise InputError("seam_orientation: give a texture (the mesh has none)")
-    lum = _luminance(texture)
-    H, W = lum.shape
-    if H != W:
-        raise InputError(f"seam_orientation: the texture must be square, got {H}×{W}")
-    if not (np.isfinite(radius) and radius >= 1.0):
-        raise InputError(f"seam_orientation: radius must be >= 1 texel, got {radius!r}")
-    S = H
+    lum = _checked_luminance(mesh, texture, radius)
+    S = lum.shape[0]
     V = np.asarray(mesh.vertices, np.float64)
     faces = np.asarray(mesh.faces, np.int64)
     uv = np.asarray(mesh.uv, np.float64)
-    F = len(faces)
     chart = uv_charts(faces, uv)
     raster = rasterize_uv(uv, S, coverage="center")
     chart_px = np.full((S, S), -1, np.int64)
     chart_px[raster.row, raster.col] = chart[raster.face]
     gx, gy, ok = _sobel(lum, chart_px)
-
-    # per face: texel-to-3D map and the disk of same-chart texels around its UV centroid
-    tex = np.stack([uv[..., 0] * S, (1.0 - uv[..., 1]) * S], axis=-1)  # [F, 3, 2]
-    T = np.stack([tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]], axis=2)  # [F, 2, 2]
-    P = np.stack([V[faces[:, 1]] - V[faces[:, 0]], V[faces[:, 2]] - V[faces[:, 0]]], axis=2)
-    det = np.linalg.det(T)
-    usable = np.abs(det) > 1e-12
-    M = P @ np.linalg.inv(np.where(usable[:, None, None], T, np.eye(2)))  # [F, 3, 2]
-    MtM = np.swapaxes(M, 1, 2) @ M
-    good = usable & (np.abs(np.linalg.det(MtM)) > 1e-300)
-    Q = M @ np.linalg.inv(np.where(good[:, None, None], MtM, np.eye(2)))  # G = Q g
+    tex = np.stack([uv[..., 0] * S, (1.0 - uv[..., 1]) * S], axis=-1)  # [F, 3, 2] in texels
+    Q, good = _gradient_maps(V, faces, tex)
 
     # every usable texel's surface gradient, through its own face's map
     face_px = np.full((S, S), -1, np.int64)
@@ -218,22 +198,7 @@ def seam_orientation(
     G = np.where(ok[..., None], G, 0.0)
     outer = G[..., :, None] * G[..., None, :]  # [S, S, 3, 3]
 
-    centre = tex.mean(axis=1) - 0.5  # texel-centre coordinates (col, row)
-    r = int(np.ceil(radius))
-    off = np.arange(-r, r + 1)
-    dc, dr = np.meshgrid(off, off)
-    base_c = np.round(centre[:, 0]).astype(np.int64)
-    base_r = np.round(centre[:, 1]).astype(np.int64)
-    S3 = np.zeros((F, 3, 3))
-    count = np.zeros(F)
-    for ddr, ddc in zip(dr.ravel(), dc.ravel(), strict=True):
-        rr, cc = base_r + ddr, base_c + ddc
-        inside = (rr >= 0) & (rr < S) & (cc >= 0) & (cc < S)
-        rr, cc = np.clip(rr, 0, S - 1), np.clip(cc, 0, S - 1)
-        near = (cc - centre[:, 0]) ** 2 + (rr - centre[:, 1]) ** 2 <= radius**2
-        use = inside & near & ok[rr, cc] & (chart_px[rr, cc] == chart)
-        S3 += np.where(use[:, None, None], outer[rr, cc], 0.0)
-        count += use
+    S3, count = _disk_sums(outer, ok, chart_px, chart, tex, radius)
     fn = _face_normals(V, faces)
     proj = np.eye(3) - fn[:, :, None] * fn[:, None, :]  # onto the face's plane
     S3 = proj @ S3 @ proj  # [F, 3, 3] surface structure tensor
@@ -247,12 +212,7 @@ def seam_orientation(
 
     pairs, verts, seam = _interior_edge_faces(faces, uv)
     f, g = pairs[:, 0], pairs[:, 1]
-    e = V[verts[:, 1]] - V[verts[:, 0]]
-    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-300)
-    bf, bg = np.cross(fn[f], e), np.cross(fn[g], e)
-    vg = normal[g]
-    unfolded = np.sum(vg * e, 1)[:, None] * e + np.sum(vg * bg, 1)[:, None] * bf
-    align = np.abs(np.sum(normal[f] * unfolded, axis=1))
+    align = _unfolded_alignment(V[verts[:, 1]] - V[verts[:, 0]], fn[f], fn[g], normal[f], normal[g])
     valid = has[f] & has[g]
     align = np.where(valid, np.minimum(align, 1.0), np.nan)
     s, i = valid & seam, valid & ~seam
@@ -268,6 +228,71 @@ def seam_orientation(
         edge_seam=seam,
         edge_dihedral=np.degrees(np.arccos(np.clip(np.sum(fn[f] * fn[g], axis=1), -1.0, 1.0))),
     )
+
+
+def _checked_luminance(mesh: Mesh, texture, radius: float) -> np.ndarray:
+    """``[S, S]`` the luminance of ``texture`` (default ``mesh.texture``), checked: the mesh has
+    UVs, the texture is square, ``radius`` at least one texel."""
+    if mesh.uv is None:
+        raise InputError("seam_orientation: the mesh has no UVs")
+    texture = mesh.texture if texture is None else texture
+    if texture is None:
+        raise InputError("seam_orientation: give a texture (the mesh has none)")
+    lum = _luminance(texture)
+    H, W = lum.shape
+    if H != W:
+        raise InputError(f"seam_orientation: the texture must be square, got {H}×{W}")
+    if not (np.isfinite(radius) and radius >= 1.0):
+        raise InputError(f"seam_orientation: radius must be >= 1 texel, got {radius!r}")
+    return lum
+
+
+def _gradient_maps(V: np.ndarray, faces: np.ndarray, tex: np.ndarray):
+    """``([F, 3, 2], [F])`` per face the map ``Q`` taking a texel-space gradient ``g`` to the
+    surface gradient ``G = Q g`` (from the face's texel corners ``tex`` ``[F, 3, 2]``), and where
+    it exists (the face's UV and 3D triangles are not degenerate)."""
+    T = np.stack([tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]], axis=2)  # [F, 2, 2]
+    P = np.stack([V[faces[:, 1]] - V[faces[:, 0]], V[faces[:, 2]] - V[faces[:, 0]]], axis=2)
+    det = np.linalg.det(T)
+    usable = np.abs(det) > 1e-12
+    M = P @ np.linalg.inv(np.where(usable[:, None, None], T, np.eye(2)))  # [F, 3, 2]
+    MtM = np.swapaxes(M, 1, 2) @ M
+    good = usable & (np.abs(np.linalg.det(MtM)) > 1e-300)
+    Q = M @ np.linalg.inv(np.where(good[:, None, None], MtM, np.eye(2)))  # G = Q g
+    return Q, good
+
+
+def _disk_sums(outer, ok, chart_px, chart, tex, radius: float):
+    """``([F, 3, 3], [F])`` per face the sum of the texels' gradient outer products ``outer``
+    ``[S, S, 3, 3]`` over the usable (``ok``) texels of the face's chart within ``radius`` of its
+    UV centroid, and their count."""
+    S = outer.shape[0]
+    centre = tex.mean(axis=1) - 0.5  # texel-centre coordinates (col, row)
+    r = int(np.ceil(radius))
+    off = np.arange(-r, r + 1)
+    dc, dr = np.meshgrid(off, off)
+    base_c = np.round(centre[:, 0]).astype(np.int64)
+    base_r = np.round(centre[:, 1]).astype(np.int64)
+    S3 = np.zeros((len(tex), 3, 3))
+    count = np.zeros(len(tex))
+    for ddr, ddc in zip(dr.ravel(), dc.ravel(), strict=True):
+        rr, cc = base_r + ddr, base_c + ddc
+        inside = (rr >= 0) & (rr < S) & (cc >= 0) & (cc < S)
+        rr, cc = np.clip(rr, 0, S - 1), np.clip(cc, 0, S - 1)
+        near = (cc - centre[:, 0]) ** 2 + (rr - centre[:, 1]) ** 2 <= radius**2
+        use = inside & near & ok[rr, cc] & (chart_px[rr, cc] == chart)
+        S3 += np.where(use[:, None, None], outer[rr, cc], 0.0)
+        count += use
+    return S3, count
+
+
+def _unfolded_alignment(edge, nf, ng, vf, vg) -> np.ndarray:
+    """``|<v_f, unfold(v_g)>|`` per interior edge: face g's direction ``vg`` unfolded about the
+    shared ``edge`` into face f's plane (normals ``nf``, ``ng``), against f's direction ``vf``."""
+    e = edge / np.maximum(np.linalg.norm(edge, axis=1, keepdims=True), 1e-300)
+    bf, bg = np.cross(nf, e), np.cross(ng, e)
+    unfolded = np.sum(vg * e, 1)[:, None] * e + np.sum(vg * bg, 1)[:, None] * bf
+    return np.abs(np.sum(vf * unfolded, axis=1))
 
 
 def _face_normals(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
