@@ -453,18 +453,10 @@ def baseline_table(
     kw = {"masks": masks, "metrics": metrics, "weights": weights}
     if exemplar is not None:
         ex = as_float_images(exemplar, "baseline_table", batched=False)
-        pool = ex.reshape(-1, 3)
-        target = np.asarray(result.texture if textured else result.vertex_colors)
-        sites = int(np.prod(target.shape[:-1]))
-        pick = host_rng(key).choice(len(pool), sites, replace=sites > len(pool))
-        drawn = pool[pick].reshape(*target.shape[:-1], 3).astype(np.float64)
-        mean_colors = np.broadcast_to(
-            pool.astype(np.float64).mean(0), (geometry.num_vertices, 3)
-        ).copy()
-        permuted = {"uv": result.uv, "texture": drawn} if textured else {"vertex_colors": drawn}
+        flat, permuted = _exemplar_baselines(result, ex, key=key)
         rows = {
             "result": evaluate_images(result_views, ex, **kw),
-            "flat": evaluate_images(views(vertex_colors=mean_colors)[0], ex, **kw),
+            "flat": evaluate_images(views(**flat)[0], ex, **kw),
             "permuted": evaluate_images(views(**permuted)[0], ex, **kw),
             "exemplar": evaluate_images(ex[None], ex, metrics=metrics, weights=weights),
         }
@@ -473,30 +465,7 @@ def baseline_table(
             "exemplar; SIFID/Gram on VGG-16 features (SIFID not comparable in value with Inception SIFID)"
         )
         return BaselineTable(rows, note)
-    reference = as_mesh(reference, what="baseline_table: reference")
-    if reference.num_vertices != geometry.num_vertices or reference.num_faces != geometry.num_faces:
-        raise InputError(
-            "baseline_table: the reference must be the result's geometry with the true colouring, "
-            f"got {reference.num_vertices} vertices / {reference.num_faces} faces for "
-            f"{geometry.num_vertices} / {geometry.num_faces}"
-        )
-    if reference.texture is not None:
-        ruv = result.uv if reference.uv is None else reference.uv
-        if ruv is None:
-            raise InputError(
-                "baseline_table: the reference texture needs uv (its own or the result's)"
-            )
-        rtex = np.asarray(reference.texture)
-        ref = {"uv": ruv, "texture": rtex}
-        flat = {"uv": ruv, "texture": flat_baseline(rtex, mask=texel_mask)}
-        perm = {"uv": ruv, "texture": permuted_baseline(rtex, key=key, mask=texel_mask)}
-    elif reference.vertex_colors is not None:
-        rc = np.asarray(reference.vertex_colors)
-        ref = {"vertex_colors": rc}
-        flat = {"vertex_colors": flat_baseline(rc)}
-        perm = {"vertex_colors": permuted_baseline(rc, key=key)}
-    else:
-        raise InputError("baseline_table: the reference has no vertex_colors and no texture")
+    ref, flat, perm = _reference_baselines(result, reference, texel_mask, key=key)
     ref_views = views(**ref)[0]
     rows = {
         "result": evaluate_images(result_views, ref_views, **kw),
@@ -510,3 +479,49 @@ def baseline_table(
         "Inception SIFID)"
     )
     return BaselineTable(rows, note)
+
+
+def _exemplar_baselines(result: Mesh, ex: np.ndarray, *, key) -> tuple[dict, dict]:
+    """The colourings of the 2D-exemplar setting's baselines, ``(flat, permuted)``: the exemplar's
+    mean colour on every vertex, and exemplar pixels drawn onto the result's vertices / texels."""
+    textured = result.uv is not None and result.texture is not None
+    pool = ex.reshape(-1, 3)
+    target = np.asarray(result.texture if textured else result.vertex_colors)
+    sites = int(np.prod(target.shape[:-1]))
+    pick = host_rng(key).choice(len(pool), sites, replace=sites > len(pool))
+    drawn = pool[pick].reshape(*target.shape[:-1], 3).astype(np.float64)
+    mean_colors = np.broadcast_to(pool.astype(np.float64).mean(0), (result.num_vertices, 3)).copy()
+    permuted = {"uv": result.uv, "texture": drawn} if textured else {"vertex_colors": drawn}
+    return {"vertex_colors": mean_colors}, permuted
+
+
+def _reference_baselines(result: Mesh, reference, texel_mask, *, key) -> tuple[dict, dict, dict]:
+    """The colourings of the reference setting, ``(reference, flat, permuted)``, checked: the
+    reference on the result's geometry, with vertex colours or a texture (on uv)."""
+    reference = as_mesh(reference, what="baseline_table: reference")
+    if reference.num_vertices != result.num_vertices or reference.num_faces != result.num_faces:
+        raise InputError(
+            "baseline_table: the reference must be the result's geometry with the true colouring, "
+            f"got {reference.num_vertices} vertices / {reference.num_faces} faces for "
+            f"{result.num_vertices} / {result.num_faces}"
+        )
+    if reference.texture is not None:
+        ruv = result.uv if reference.uv is None else reference.uv
+        if ruv is None:
+            raise InputError(
+                "baseline_table: the reference texture needs uv (its own or the result's)"
+            )
+        rtex = np.asarray(reference.texture)
+        return (
+            {"uv": ruv, "texture": rtex},
+            {"uv": ruv, "texture": flat_baseline(rtex, mask=texel_mask)},
+            {"uv": ruv, "texture": permuted_baseline(rtex, key=key, mask=texel_mask)},
+        )
+    if reference.vertex_colors is not None:
+        rc = np.asarray(reference.vertex_colors)
+        return (
+            {"vertex_colors": rc},
+            {"vertex_colors": flat_baseline(rc)},
+            {"vertex_colors": permuted_baseline(rc, key=key)},
+        )
+    raise InputError("baseline_table: the reference has no vertex_colors and no texture")
