@@ -121,6 +121,41 @@ def rasterize(
     zf = z[faces]  # [F, 3]
     # depth that interpolates linearly in screen space: z (orthographic) or -1/z (perspective)
     key_depth = zf if camera.orthographic else -1.0 / np.where(zf > 0, zf, 1.0)
+    idx, lo, hi, e1, e2, det = _drawn_faces(vertices, faces, camera, tri, zf, W, H)
+    if len(idx) == 0:
+        return _nothing_drawn(screen, z, camera, W, H, s)
+    inv_det = 1.0 / det[idx]
+    m = np.stack(
+        [e2[idx, 1] * inv_det, -e2[idx, 0] * inv_det, -e1[idx, 1] * inv_det, e1[idx, 0] * inv_det],
+        axis=1,
+    )
+    p0 = tri[idx, 0]
+    kd = key_depth[idx]
+    zbuf = _depth_buffer(idx, lo[idx], hi[idx], m, p0, kd, W, H)
+    hit = zbuf != _EMPTY
+    if not hit.any():
+        return _nothing_drawn(screen, z, camera, W, H, s)
+    face = np.full(W * H, -1, dtype=np.int64)
+    face[hit] = zbuf[hit] & ((1 << _FACE_BITS) - 1)
+    mf, p0f, zff = (np.zeros((len(faces),) + x.shape[1:]) for x in (m, p0, kd))
+    mf[idx], p0f[idx], zff[idx] = m, p0, zf[idx]
+    bary, depth = _barycentrics(face, hit, mf, p0f, zff, W, camera.orthographic)
+    return Visibility(
+        face=face.reshape(H, W).astype(np.int32),
+        bary=bary.reshape(H, W, 3),
+        depth=depth.reshape(H, W),
+        camera=camera,
+        supersample=s,
+    )
+
+
+def _drawn_faces(vertices, faces, camera: Camera, tri, zf, W: int, H: int):
+    """The faces that may cover a pixel centre, ``(idx, lo, hi, e1, e2, det)``: their indices,
+    every face's first and last pixel centres ``[F, 2]`` (clipped to the image), edge vectors
+    ``[F, 2]`` and signed doubled screen areas ``[F]``.
+
+    Left out: corners off the image's finite projection (or, perspective, at or behind the eye),
+    boxes with no pixel centre, degenerate screen triangles and culled back faces."""
     ok = np.isfinite(tri).all(axis=(1, 2))
     if not camera.orthographic:
         ok &= (zf > 0).all(axis=1)
@@ -137,23 +172,22 @@ def rasterize(
     facing = _front_facing(vertices, faces, camera)
     if facing is not None:
         ok &= facing
-    idx = np.nonzero(ok)[0]
-    if len(idx) == 0:
-        return _nothing_drawn(screen, z, camera, W, H, s)
-    dmin, dmax = float(key_depth[idx].min()), float(key_depth[idx].max())
-    dscale = _DEPTH_LEVELS / (dmax - dmin) if dmax > dmin else 0.0
+    return np.nonzero(ok)[0], lo, hi, e1, e2, det
 
-    lo_i = lo[idx].astype(np.int64)
-    span = (hi[idx] - lo[idx]).astype(np.int64) + 1  # [n, 2] bounding box sizes in pixels
-    # box per face: exact up to 8 pixels a side, the next power of two above (few groups, little waste)
+
+def _depth_buffer(idx, lo, hi, m, p0, kd, W: int, H: int) -> np.ndarray:
+    """``[H · W]`` int64 per pixel the smallest key ``(quantised depth << _FACE_BITS) | face``
+    over the faces ``idx`` covering its centre (``_EMPTY``: none).
+
+    Per face: its pixel box ``lo``..``hi`` ``[n, 2]``, inverse edge matrix ``m`` ``[n, 4]``,
+    first corner ``p0`` and corner depths ``kd`` ``[n, 3]``. Boxes are visited in groups of one
+    size (exact up to 8 pixels a side, the next power of two above: few groups, little waste).
+    """
+    dmin, dmax = float(kd.min()), float(kd.max())
+    dscale = _DEPTH_LEVELS / (dmax - dmin) if dmax > dmin else 0.0
+    lo_i = lo.astype(np.int64)
+    span = (hi - lo).astype(np.int64) + 1  # [n, 2] bounding box sizes in pixels
     bucket = np.where(span <= 8, span, 1 << np.ceil(np.log2(np.maximum(span, 1))).astype(np.int64))
-    inv_det = 1.0 / det[idx]
-    m = np.stack(
-        [e2[idx, 1] * inv_det, -e2[idx, 0] * inv_det, -e1[idx, 1] * inv_det, e1[idx, 0] * inv_det],
-        axis=1,
-    )
-    p0 = tri[idx, 0]
-    kd = key_depth[idx]
     zbuf = np.full(W * H, _EMPTY, dtype=np.int64)
     group = bucket[:, 0] * (1 << 20) + bucket[:, 1]
     order = np.argsort(group, kind="stable")
@@ -184,21 +218,7 @@ def rasterize(
             q = np.clip((d - dmin) * dscale, 0, _DEPTH_LEVELS).astype(np.int64)
             keys = (q << _FACE_BITS) | idx[sel][rows]
             np.minimum.at(zbuf, py[rows, cols] * W + px[rows, cols], keys)
-    hit = zbuf != _EMPTY
-    if not hit.any():
-        return _nothing_drawn(screen, z, camera, W, H, s)
-    face = np.full(W * H, -1, dtype=np.int64)
-    face[hit] = zbuf[hit] & ((1 << _FACE_BITS) - 1)
-    mf, p0f, zff = (np.zeros((len(faces),) + x.shape[1:]) for x in (m, p0, kd))
-    mf[idx], p0f[idx], zff[idx] = m, p0, zf[idx]
-    bary, depth = _barycentrics(face, hit, mf, p0f, zff, W, camera.orthographic)
-    return Visibility(
-        face=face.reshape(H, W).astype(np.int32),
-        bary=bary.reshape(H, W, 3),
-        depth=depth.reshape(H, W),
-        camera=camera,
-        supersample=s,
-    )
+    return zbuf
 
 
 def _front_facing(vertices: np.ndarray, faces: np.ndarray, camera: Camera) -> np.ndarray | None:
