@@ -115,105 +115,141 @@ def register(sub: argparse._SubParsersAction) -> None:
     d.set_defaults(func=cached(_displace))
 
 
-def _options(p: argparse.ArgumentParser) -> None:
-    add_common(p)
-    p.add_argument(
+#: the options every meshmatch action takes besides add_common's: one Config field each
+_CONFIG_OPTIONS: tuple[tuple[str, dict], ...] = (
+    (
         "--steps",
-        type=int_in(1, 100_000),
-        default=None,
-        help="PatchMatch iterations per level (Config.steps)",
-    )
-    p.add_argument(
+        dict(
+            type=int_in(1, 100_000),
+            default=None,
+            help="PatchMatch iterations per level (Config.steps)",
+        ),
+    ),
+    (
         "--up",
-        default=None,
-        metavar="AXIS",
-        help="with --no-aligned, up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector "
-        "'a,b,c', or none (Config.up; default z; use y for Y-up models)",
-    )
-    p.add_argument(
+        dict(
+            default=None,
+            metavar="AXIS",
+            help="with --no-aligned, up axis of the n·up shape feature: x, y, z, -x, -y, -z, a vector "
+            "'a,b,c', or none (Config.up; default z; use y for Y-up models)",
+        ),
+    ),
+    (
         "--side",
-        default=None,
-        metavar="AXIS",
-        help="with --no-aligned, a second axis for an n·side feature, e.g. the left/right axis of a "
-        "symmetric model (Config.side; default none)",
-    )
-    p.add_argument(
+        dict(
+            default=None,
+            metavar="AXIS",
+            help="with --no-aligned, a second axis for an n·side feature, e.g. the left/right axis of a "
+            "symmetric model (Config.side; default none)",
+        ),
+    ),
+    (
         "--color-weight",
-        type=float,
-        default=None,
-        metavar="W",
-        help="colour term weight (Config.color_weight)",
-    )
-    p.add_argument(
+        dict(
+            type=float,
+            default=None,
+            metavar="W",
+            help="colour term weight (Config.color_weight)",
+        ),
+    ),
+    (
         "--shape-weight",
-        default=None,
-        metavar="W[,W...]",
-        help="shape term weight, or a comma list from the finest level to the coarsest (Config.shape_weight)",
-    )
-    p.add_argument(
+        dict(
+            default=None,
+            metavar="W[,W...]",
+            help="shape term weight, or a comma list from the finest level to the coarsest (Config.shape_weight)",
+        ),
+    ),
+    (
         "--fan-radius",
-        type=float_in(0.0, 64.0, open_low=True),
-        default=None,
-        metavar="R",
-        help="outer fan radius in mean edge lengths, at most 64 (Config.fan_radius)",
-    )
-    p.add_argument(
+        dict(
+            type=float_in(0.0, 64.0, open_low=True),
+            default=None,
+            metavar="R",
+            help="outer fan radius in mean edge lengths, at most 64 (Config.fan_radius)",
+        ),
+    ),
+    (
         "--levels",
-        type=int_in(1, 16),
-        default=None,
-        metavar="N",
-        help="hierarchy levels (Config.levels)",
-    )
-    p.add_argument(
+        dict(
+            type=int_in(1, 16),
+            default=None,
+            metavar="N",
+            help="hierarchy levels (Config.levels)",
+        ),
+    ),
+    (
         "--aligned",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="source and target share a pose and up axis (default): the whole normal and the per-axis "
-        "standardised positions join the HKS as shape features (Config.aligned); --no-aligned: "
-        "the pose-free features HKS + n·up (Config.intrinsic) for meshes in different poses",
-    )
-    p.add_argument(
+        dict(
+            action=argparse.BooleanOptionalAction,
+            default=None,
+            help="source and target share a pose and up axis (default): the whole normal and the per-axis "
+            "standardised positions join the HKS as shape features (Config.aligned); --no-aligned: "
+            "the pose-free features HKS + n·up (Config.intrinsic) for meshes in different poses",
+        ),
+    ),
+    (
         "--normal-weight",
-        type=float,
-        default=None,
-        metavar="W",
-        help="weight of each n·axis feature relative to the HKS (Config.normal_weight; default 2 "
-        "aligned, 1 with --no-aligned)",
-    )
-    p.add_argument(
+        dict(
+            type=float,
+            default=None,
+            metavar="W",
+            help="weight of each n·axis feature relative to the HKS (Config.normal_weight; default 2 "
+            "aligned, 1 with --no-aligned)",
+        ),
+    ),
+    (
         "--position-weight",
-        type=float,
-        default=None,
-        metavar="W",
-        help="weight of the per-axis standardised positions (Config.position_weight; default 8; "
-        "not with --no-aligned)",
-    )
-    p.add_argument(
+        dict(
+            type=float,
+            default=None,
+            metavar="W",
+            help="weight of the per-axis standardised positions (Config.position_weight; default 8; "
+            "not with --no-aligned)",
+        ),
+    ),
+    (
         "--propagation",
-        choices=("parallel", "sequential"),
-        default=None,
-        help="PatchMatch propagation: parallel sweeps (default) or the paper's sequential "
-        "breadth-first scan (Config.propagation; slower)",
-    )
-    p.add_argument(
+        dict(
+            choices=("parallel", "sequential"),
+            default=None,
+            help="PatchMatch propagation: parallel sweeps (default) or the paper's sequential "
+            "breadth-first scan (Config.propagation; slower)",
+        ),
+    ),
+    (
         "--vote",
-        choices=("ring", "fan"),
-        default=None,
-        help="M-step vote: the one-ring (default) or the paper's fan footprint (Config.vote; slower)",
-    )
-    p.add_argument(
+        dict(
+            choices=("ring", "fan"),
+            default=None,
+            help="M-step vote: the one-ring (default) or the paper's fan footprint (Config.vote; slower)",
+        ),
+    ),
+    (
         "--upsample",
-        choices=("copy", "offset"),
-        default=None,
-        help="finer level's start: the parent's match (default) or the paper's geodesic offset + "
-        "re-vote (Config.upsample)",
-    )
-    p.add_argument(
+        dict(
+            choices=("copy", "offset"),
+            default=None,
+            help="finer level's start: the parent's match (default) or the paper's geodesic offset + "
+            "re-vote (Config.upsample)",
+        ),
+    ),
+    (
         "--max-scale-ratio",
-        default=None,
-        metavar="X",
-        help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)",
-    )
+        dict(
+            default=None,
+            metavar="X",
+            help="largest source/target size ratio accepted, or none (Config.max_scale_ratio; default 2)",
+        ),
+    ),
+)
+
+
+def _options(p: argparse.ArgumentParser) -> None:
+    """The shared options and the Config flags of :data:`_CONFIG_OPTIONS`."""
+    add_common(p)
+    for flag, keywords in _CONFIG_OPTIONS:
+        p.add_argument(flag, **keywords)
 
 
 def _parse_up(text: str):
@@ -223,6 +259,31 @@ def _parse_up(text: str):
     if "," in name:
         return tuple(float(x) for x in name.split(","))
     return name  # Config validates the axis name
+
+
+def _parse_weights(text: str):
+    """``--shape-weight``: one number, or a tuple from the finest level to the coarsest."""
+    weights = tuple(float(x) for x in text.split(","))
+    return weights[0] if len(weights) == 1 else weights
+
+
+def _parse_ratio(text: str):
+    """``--max-scale-ratio``: a number, or None for ``none``."""
+    text = text.strip().lower()
+    return None if text == "none" else float(text)
+
+
+def _as_parsed(value):
+    return value
+
+
+#: how the text of a Config flag becomes its field's value (the others: as argparse parsed them)
+_PARSERS = {
+    "up": _parse_up,
+    "side": _parse_up,
+    "shape_weight": _parse_weights,
+    "max_scale_ratio": _parse_ratio,
+}
 
 
 def _config(args, *, aligned: bool = True):
@@ -241,36 +302,10 @@ def _config(args, *, aligned: bool = True):
             "source and target share a pose)"
         )
     try:
-        if args.steps is not None:
-            fields["steps"] = args.steps
-        if args.up is not None:
-            fields["up"] = _parse_up(args.up)
-        if args.side is not None:
-            fields["side"] = _parse_up(args.side)
-        if args.color_weight is not None:
-            fields["color_weight"] = args.color_weight
-        if args.shape_weight is not None:
-            weights = tuple(float(x) for x in args.shape_weight.split(","))
-            fields["shape_weight"] = weights[0] if len(weights) == 1 else weights
-        if args.fan_radius is not None:
-            fields["fan_radius"] = args.fan_radius
-        if args.levels is not None:
-            fields["levels"] = args.levels
-        if args.aligned is not None:
-            fields["aligned"] = args.aligned
-        if args.propagation is not None:
-            fields["propagation"] = args.propagation
-        if args.vote is not None:
-            fields["vote"] = args.vote
-        if args.upsample is not None:
-            fields["upsample"] = args.upsample
-        if args.normal_weight is not None:
-            fields["normal_weight"] = args.normal_weight
-        if args.position_weight is not None:
-            fields["position_weight"] = args.position_weight
-        if args.max_scale_ratio is not None:
-            text = args.max_scale_ratio.strip().lower()
-            fields["max_scale_ratio"] = None if text == "none" else float(text)
+        for flag, _ in _CONFIG_OPTIONS:
+            name = flag[2:].replace("-", "_")  # the flag's dest, the Config field it sets
+            if getattr(args, name) is not None:
+                fields[name] = _PARSERS.get(name, _as_parsed)(getattr(args, name))
     except ValueError as err:
         raise InputError(f"bad number in a meshmatch flag: {err}") from err
     return Config(**fields)
