@@ -52,37 +52,71 @@ def _run(args: argparse.Namespace) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    import importlib
-
     import jax.numpy as jnp
-    from tqdm import tqdm
+
+    from .. import testing
+
+    own = _import_modules(args.module)
+    if args.all or args.only or not args.module:
+        testing.load_entries()
+    _check_only(args.only)
+    if args.list:
+        _print_registry()
+        return 0
+    dtypes = {
+        "both": (jnp.float64, jnp.float32),
+        "float64": (jnp.float64,),
+        "float32": (jnp.float32,),
+    }[args.dtype]
+    names = args.only or (own if args.module and not args.all else list(testing.REGISTRY))
+    results = _run_checks(names, dtypes, args)
+    print(testing.format_table(results))
+    failed = [r for r in results if r.passed is False]
+    print(
+        f"\n{len(results)} checks: {sum(r.passed is True for r in results)} passed, "
+        f"{len(failed)} failed, {sum(r.passed is None for r in results)} reported"
+    )
+    if args.json:
+        atomic_write(args.json, testing.to_json(results))
+        print(f"wrote {args.json}")
+    return 1 if failed else 0
+
+
+def _import_modules(modules: list[str]) -> list[str]:
+    """Import the ``--module`` modules (the working directory searched first); returns the
+    operators they register (by the import, or earlier by code of the same modules)."""
+    import importlib
 
     from .. import testing
     from .._errors import InputError
-    from .._memory_maps import release_if_near_limit
-    from ..testing import transforms_of
 
-    if args.module and str(pathlib.Path.cwd()) not in sys.path:
+    if modules and str(pathlib.Path.cwd()) not in sys.path:
         sys.path.insert(0, str(pathlib.Path.cwd()))  # as `python -m` does: the user's own folder
     before = set(testing.REGISTRY)
-    for module in args.module:
+    for module in modules:
         try:
             importlib.import_module(module)
         except ImportError as e:
             raise InputError(f"--module {module}: cannot import it ({e})") from e
-    own = [  # registered by the import, or earlier by code of the same modules
+    own = [
         n
         for n, e in testing.REGISTRY.items()
-        if n not in before or getattr(e.apply, "__module__", None) in args.module
+        if n not in before or getattr(e.apply, "__module__", None) in modules
     ]
-    if args.module and not own:
+    if modules and not own:
         raise InputError(
-            f"--module {' '.join(args.module)}: the import registered no operator; a module adds "
+            f"--module {' '.join(modules)}: the import registered no operator; a module adds "
             "one with jmeshtex.testing.register(Entry(...)) at import time"
         )
-    if args.all or args.only or not args.module:
-        testing.load_entries()
-    unknown = [n for n in args.only or () if n not in testing.REGISTRY]
+    return own
+
+
+def _check_only(only: list[str] | None) -> None:
+    """Refuse ``--only`` operators that are not registered."""
+    from .. import testing
+    from .._errors import InputError
+
+    unknown = [n for n in only or () if n not in testing.REGISTRY]
     if unknown:
         raise InputError(
             f"not registered: {', '.join(unknown)}; registered operators: "
@@ -90,19 +124,28 @@ def _run(args: argparse.Namespace) -> int:
             "its module: --module pkg.mod)"
         )
 
-    if args.list:
-        for name, e in testing.REGISTRY.items():
-            print(f"{name:32s} {e.group:9s} {', '.join(e.transforms)}")
-        print("\ntransforms:")
-        for name, t in testing.CATALOGUE.items():
-            print(f"  {name:17s} {'exact ' if t.exact else 'smooth'} {t.doc}")
-        return 0
-    dtypes = {
-        "both": (jnp.float64, jnp.float32),
-        "float64": (jnp.float64,),
-        "float32": (jnp.float32,),
-    }
-    names = args.only or (own if args.module and not args.all else list(testing.REGISTRY))
+
+def _print_registry() -> None:
+    """``--list``: the registered operators with their transforms, then the transforms."""
+    from .. import testing
+
+    for name, e in testing.REGISTRY.items():
+        print(f"{name:32s} {e.group:9s} {', '.join(e.transforms)}")
+    print("\ntransforms:")
+    for name, t in testing.CATALOGUE.items():
+        print(f"  {name:17s} {'exact ' if t.exact else 'smooth'} {t.doc}")
+
+
+def _run_checks(names: list[str], dtypes: tuple, args: argparse.Namespace) -> list:
+    """Run the registry's checks of ``names`` in ``dtypes`` with a progress bar on stderr
+    (unknown ``--transforms`` refused)."""
+    from tqdm import tqdm
+
+    from .. import testing
+    from .._errors import InputError
+    from .._memory_maps import release_if_near_limit
+    from ..testing import transforms_of
+
     transforms = args.transforms
     bogus = [t for t in transforms or () if t not in testing.CATALOGUE]
     if bogus:
@@ -113,7 +156,7 @@ def _run(args: argparse.Namespace) -> int:
         len(
             [t for t in transforms_of(testing.REGISTRY[n]) if transforms is None or t in transforms]
         )
-        * len(dtypes[args.dtype])
+        * len(dtypes)
         for n in names
         if n in testing.REGISTRY
     )
@@ -132,16 +175,7 @@ def _run(args: argparse.Namespace) -> int:
         bar.update(1)
 
     results = testing.run_registry(
-        names, dtypes=dtypes[args.dtype], seed=args.seed, transforms=transforms, progress=progress
+        names, dtypes=dtypes, seed=args.seed, transforms=transforms, progress=progress
     )
     bar.close()
-    print(testing.format_table(results))
-    failed = [r for r in results if r.passed is False]
-    print(
-        f"\n{len(results)} checks: {sum(r.passed is True for r in results)} passed, "
-        f"{len(failed)} failed, {sum(r.passed is None for r in results)} reported"
-    )
-    if args.json:
-        atomic_write(args.json, testing.to_json(results))
-        print(f"wrote {args.json}")
-    return 1 if failed else 0
+    return results
