@@ -47,14 +47,19 @@ PREDICTIONS = ("epsilon", "v")  # jmeshtex.fldm.PREDICTIONS, spelled out so that
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-
     fsub = add_method(
         sub,
         "fldm",
         help="Field Latent Diffusion: generate / inpaint / transfer textures on a mesh",
         description="Field Latent Diffusion (Mitchel et al. 2024) trained on one textured mesh.",
     )
+    _add_train(fsub)
+    _add_sampling(fsub, "sample", "sample textures (optionally on another mesh)")
+    _add_sampling(fsub, "inpaint", "fill in the unmasked part of a mesh's texture")
 
+
+def _add_train(fsub: argparse._SubParsersAction) -> None:
+    """``fldm train``."""
     t = fsub.add_parser(
         "train", help="train a diffusion model on re-triangulated copies of one mesh (resumable)"
     )
@@ -93,50 +98,45 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     t.set_defaults(func=cached(_train))
 
-    for name, helptext in (
-        ("sample", "sample textures (optionally on another mesh)"),
-        ("inpaint", "fill in the unmasked part of a mesh's texture"),
-    ):
-        s = fsub.add_parser(name, help=helptext)
-        s.add_argument("--model", required=True, type=pathlib.Path, help="folder of `fldm train`")
+
+def _add_sampling(fsub: argparse._SubParsersAction, name: str, helptext: str) -> None:
+    """``fldm sample`` or ``fldm inpaint`` (``name``): the same options, inpaint adds ``--mask``."""
+    s = fsub.add_parser(name, help=helptext)
+    s.add_argument("--model", required=True, type=pathlib.Path, help="folder of `fldm train`")
+    s.add_argument("--mesh", default=None, help="mesh to sample on (default: the training mesh)")
+    s.add_argument(
+        "--vertices",
+        type=int_in(4, MAX_SPEC_VERTICES),
+        default=None,
+        help="re-triangulate the mesh to this many vertices first",
+    )
+    s.add_argument("--steps", type=int_in(1, 100_000), default=50, help="DDIM steps (default 50)")
+    s.add_argument("--ddim", action="store_true", help="DDIM sampling (the default)")
+    s.add_argument("--ddpm", action="store_true", help="ancestral DDPM with all T steps")
+    s.add_argument("--eta", type=float_in(0.0), default=0.0, help="DDIM eta (default 0)")
+    s.add_argument(
+        "--num-samples",
+        "--n",
+        dest="num_samples",
+        type=int_in(1, 4096),
+        default=4,
+        help="number of samples (default 4)",
+    )
+    s.add_argument(
+        "--labels", default=None, type=pathlib.Path, help="[V] int label map (.npy) on the mesh"
+    )
+    s.add_argument(
+        "--size",
+        type=int_in(8, MAX_TEXTURE_SIZE),
+        default=512,
+        help="texture atlas size when the mesh has UVs",
+    )
+    add_common(s, out="output folder (latents.npz, PNGs)")
+    if name == "inpaint":
         s.add_argument(
-            "--mesh", default=None, help="mesh to sample on (default: the training mesh)"
+            "--mask", required=True, type=pathlib.Path, help="[V] bool mask (.npy): True = keep"
         )
-        s.add_argument(
-            "--vertices",
-            type=int_in(4, MAX_SPEC_VERTICES),
-            default=None,
-            help="re-triangulate the mesh to this many vertices first",
-        )
-        s.add_argument(
-            "--steps", type=int_in(1, 100_000), default=50, help="DDIM steps (default 50)"
-        )
-        s.add_argument("--ddim", action="store_true", help="DDIM sampling (the default)")
-        s.add_argument("--ddpm", action="store_true", help="ancestral DDPM with all T steps")
-        s.add_argument("--eta", type=float_in(0.0), default=0.0, help="DDIM eta (default 0)")
-        s.add_argument(
-            "--num-samples",
-            "--n",
-            dest="num_samples",
-            type=int_in(1, 4096),
-            default=4,
-            help="number of samples (default 4)",
-        )
-        s.add_argument(
-            "--labels", default=None, type=pathlib.Path, help="[V] int label map (.npy) on the mesh"
-        )
-        s.add_argument(
-            "--size",
-            type=int_in(8, MAX_TEXTURE_SIZE),
-            default=512,
-            help="texture atlas size when the mesh has UVs",
-        )
-        add_common(s, out="output folder (latents.npz, PNGs)")
-        if name == "inpaint":
-            s.add_argument(
-                "--mask", required=True, type=pathlib.Path, help="[V] bool mask (.npy): True = keep"
-            )
-        s.set_defaults(func=cached(_sample if name == "sample" else _inpaint))
+    s.set_defaults(func=cached(_sample if name == "sample" else _inpaint))
 
 
 def _load_mesh(spec: str, texture: str | None = None):
