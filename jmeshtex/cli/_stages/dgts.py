@@ -52,7 +52,6 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
         transfer,
     )
     from ...dgts.core import period_in_mean_edges, scores_beside_baselines
-    from ...render import figure
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
@@ -79,9 +78,17 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
         period=period_in_mean_edges(tm, pretrained_period("knobs")),
         key=jax.random.key(0),
     )
-    trained_r, untrained_r = scores["trained"], scores["untrained"]
-    noise_r, flat_r = scores["noise"], scores["no displacement"]
     say(progress, "rendering")
+    _figure(out / "dgts.png", tm, oracle, res, res_untrained, noise[0], scores)
+    return _summary(out / "dgts.png", time.perf_counter() - t0, tm, res, scores)
+
+
+def _figure(path: pathlib.Path, tm, oracle, res, res_untrained, noise, scores: dict) -> None:
+    """``dgts.png``: the finest training mesh, the oracle, two transfers, the untrained weights'
+    transfer and the noise baseline, with their knob densities and patch distances."""
+    from ...render import figure
+
+    trained_r, untrained_r, noise_r = scores["trained"], scores["untrained"], scores["noise"]
     figure(
         [
             (f"training level {tm.num_levels - 1}", view(tm.mesh(-1))),
@@ -92,14 +99,19 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
                 f"untrained: {untrained_r[0]:.2f}x, d {untrained_r[2]:.4f}",
                 view(res_untrained.mesh(0)),
             ),
-            (f"noise: {noise_r[0]:.2f}x, d {noise_r[2]:.4f}", view(noise[0])),
+            (f"noise: {noise_r[0]:.2f}x, d {noise_r[2]:.4f}", view(noise)),
         ],
         columns=6,
         title="DGTS: the shipped knobs model (learnt on a sphere) transferred to a torus from "
         f"level {START_LEVEL} (knob density over the oracle's, patch distance d)",
-        path=out / "dgts.png",
+        path=path,
     )
-    seconds = time.perf_counter() - t0
+
+
+def _summary(png: pathlib.Path, seconds: float, tm, res, scores: dict) -> dict:
+    """The stage's summary dict (:func:`demo_stage`'s Returns) from the scores of each row."""
+    trained_r, untrained_r = scores["trained"], scores["untrained"]
+    noise_r, flat_r = scores["noise"], scores["no displacement"]
     summary = (
         f"DGTS: shipped knobs model ({tm.num_levels} levels), torus from level {START_LEVEL} → "
         f"{len(res.faces)} F, "
@@ -110,7 +122,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
         f"{seconds:.1f} s"
     )
     return {
-        "png": str(out / "dgts.png"),
+        "png": str(png),
         "seconds": seconds,
         "levels": tm.num_levels,
         "faces": int(len(res.faces)),
