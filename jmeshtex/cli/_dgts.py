@@ -411,28 +411,41 @@ def _say_start(res, target, args) -> None:
     )
 
 
-def _transfer(args) -> int:
-    import jax
-
-    from ..dgts import load, transfer
+def _model_and_target(args, command: str):
+    """Claim ``--out`` for ``command``, then load ``--model`` and ``--target``."""
+    from ..dgts import load
 
     claim_output(
         args.out,
-        command="dgts transfer",
+        command=command,
         inputs=(args.model, args.target),
         overwrite=args.overwrite,
     )
-    model = load(_model_dir(args.model))
-    target = load_mesh_spec(args.target)
+    return load(_model_dir(args.model)), load_mesh_spec(args.target)
+
+
+def _levels(args) -> dict:
+    """The level keywords ``transfer`` and ``interpolate`` share."""
+    return {
+        "start_level": args.start_level,
+        "stop_level": args.stop_level,
+        "max_faces": args.max_faces,
+    }
+
+
+def _transfer(args) -> int:
+    import jax
+
+    from ..dgts import transfer
+
+    model, target = _model_and_target(args, "dgts transfer")
     res = transfer(
         model,
         target,
-        start_level=args.start_level,
-        stop_level=args.stop_level,
         num_samples=args.samples,
-        max_faces=args.max_faces,
         zero_noise_from=args.zero_noise_from,
         key=jax.random.key(args.seed),
+        **_levels(args),
     )
     _say_start(res, target, args)
     _write_results(res, args.out, "sample", "transfer")
@@ -442,24 +455,11 @@ def _transfer(args) -> int:
 def _interpolate(args) -> int:
     import jax
 
-    from ..dgts import interpolate, load
+    from ..dgts import interpolate
 
-    claim_output(
-        args.out,
-        command="dgts interpolate",
-        inputs=(args.model, args.target),
-        overwrite=args.overwrite,
-    )
-    model = load(_model_dir(args.model))
-    target = load_mesh_spec(args.target)
+    model, target = _model_and_target(args, "dgts interpolate")
     res = interpolate(
-        model,
-        target,
-        start_level=args.start_level,
-        stop_level=args.stop_level,
-        num_frames=args.frames,
-        max_faces=args.max_faces,
-        key=jax.random.key(args.seed),
+        model, target, num_frames=args.frames, key=jax.random.key(args.seed), **_levels(args)
     )
     _say_start(res, target, args)
     _write_results(res, args.out, "frame", "interpolate")

@@ -336,34 +336,19 @@ def _report(summary: dict, out: pathlib.Path) -> None:
 
 
 def _synthesize(args: argparse.Namespace) -> int:
-    import jax
-
-    from ..surfacecnn import save, synthesize
+    from ..surfacecnn import synthesize
 
     _claim(args, "surfacecnn synthesize", args.mesh, args.exemplar, args.vgg19)
     checkpoint = _checkpoint(args)
     mesh, config, weights = _setup(args)
     exemplar = _image(args.exemplar, args.max_image_size, args.exemplar_scale)
-    result = synthesize(
-        mesh,
-        exemplar,
-        config,
-        key=jax.random.key(args.seed),
-        weights=weights,
-        progress=not args.quiet,
-        checkpoint_dir=checkpoint,
-    )
-    summary = json.loads((save(result, args.out) / "summary.json").read_text())
-    _render(result, args.out, exemplar=exemplar, title="synthesised", up=render_up(args))
-    _report(summary, args.out)
-    return 0
+    result = synthesize(mesh, exemplar, config, **_run_keywords(args, weights, checkpoint))
+    return _save_and_report(result, args, exemplar, "synthesised")
 
 
 def _stylize(args: argparse.Namespace) -> int:
-    import jax
-
     from .._errors import InputError
-    from ..surfacecnn import save, stylize
+    from ..surfacecnn import stylize
 
     _claim(args, "surfacecnn stylize", args.mesh, args.content, args.style, args.vgg19)
     checkpoint = _checkpoint(args)
@@ -373,17 +358,27 @@ def _stylize(args: argparse.Namespace) -> int:
             f"{args.mesh} references no texture; give the content texture with --content"
         )
     style = _image(args.style, args.max_image_size, args.exemplar_scale)
-    result = stylize(
-        mesh,
-        mesh.texture,
-        style,
-        config,
-        key=jax.random.key(args.seed),
-        weights=weights,
-        progress=not args.quiet,
-        checkpoint_dir=checkpoint,
-    )
+    result = stylize(mesh, mesh.texture, style, config, **_run_keywords(args, weights, checkpoint))
+    return _save_and_report(result, args, style, "stylised")
+
+
+def _run_keywords(args: argparse.Namespace, weights, checkpoint) -> dict:
+    """The keywords ``synthesize`` and ``stylize`` share: key, VGG weights, progress, checkpoints."""
+    import jax
+
+    return {
+        "key": jax.random.key(args.seed),
+        "weights": weights,
+        "progress": not args.quiet,
+        "checkpoint_dir": checkpoint,
+    }
+
+
+def _save_and_report(result, args: argparse.Namespace, exemplar, title: str) -> int:
+    """Save ``result`` in ``--out``, render it beside ``exemplar`` and print its summary."""
+    from ..surfacecnn import save
+
     summary = json.loads((save(result, args.out) / "summary.json").read_text())
-    _render(result, args.out, exemplar=style, title="stylised", up=render_up(args))
+    _render(result, args.out, exemplar=exemplar, title=title, up=render_up(args))
     _report(summary, args.out)
     return 0
