@@ -98,20 +98,45 @@ def fldm_learning_check(
       ConfigError: unknown ``codec``.
     """
     from .. import fldm
-    from .._errors import ConfigError
-    from ..data import (
-        intensity_to_rgb,
-        rgb_to_intensity,
-        stripe_decoder,
-        stripe_encoder,
-        striped_sphere,
-    )
-    from ..metrics import gram_distance, load_vgg16, lpips
+    from ..data import striped_sphere
 
     t0 = time.perf_counter()
     key = jax.random.key(0) if key is None else key
     k_codec, k_data, k_train, k_sample = jax.random.split(key, 4)
     exemplar = striped_sphere(subdivisions=3)
+    cfg = _learning_config(quick, steps)
+    encode, decode, cfg = _learning_codec(codec, exemplar, cfg, key=k_codec)
+    data = fldm.build_dataset(exemplar, cfg, encode=encode, key=k_data, progress=progress)
+    result = fldm.train(data, cfg, key=k_train, progress=progress)
+    target = data.meshes[0]
+    geo = fldm.core.sampling_geometry(target, result.model)
+    untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
+    sample_steps = 25
+    z_tr = fldm.sample(
+        result.model, geo, key=k_sample, num_samples=n_samples, steps=sample_steps
+    ).latents
+    z_un = fldm.sample(untrained, geo, key=k_sample, num_samples=n_samples, steps=sample_steps)
+    z_un = z_un.latents
+    scores = _learning_scores(
+        target, decode, z_tr, z_un, data.latents[0, : target.num_vertices], key=k_sample
+    )
+    return {
+        **scores,
+        "losses": result.losses["loss"],
+        "seconds": time.perf_counter() - t0,
+        "model": result.model,
+        "target": target,
+        "samples": z_tr,
+        "untrained_samples": z_un,
+        "exemplar": exemplar,
+        "codec": codec,
+    }
+
+
+def _learning_config(quick: bool, steps: int | None):
+    """The check's :class:`~jmeshtex.fldm.Config`: the demo preset, or a larger CPU one."""
+    from .. import fldm
+
     cfg = (
         fldm.Config.demo()
         if quick
@@ -124,37 +149,45 @@ def fldm_learning_check(
             invariants=False,
         )
     )
-    if steps is not None:
-        cfg = cfg.replace(steps=int(steps))
+    return cfg if steps is None else cfg.replace(steps=int(steps))
+
+
+def _learning_codec(codec: str, exemplar: Mesh, cfg, *, key: jax.Array):
+    """``(encode, decode, config)`` of ``codec``: the stripe codec, or the shipped FL-VAE (the
+    config's latent channels set to its latent size); ``decode(mesh, z)`` gives ``[V, 3]`` RGB."""
+    from .. import fldm
+    from .._errors import ConfigError
+    from ..data import intensity_to_rgb, stripe_decoder, stripe_encoder
+
     if codec == "stripes":
-        encode = stripe_encoder
 
         def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
             return intensity_to_rgb(stripe_decoder(z))
-    elif codec == "fl_vae":
+
+        return stripe_encoder, decode, cfg
+    if codec == "fl_vae":
         from ..fl import decode_vertex_colors, load_pretrained
 
         vae = load_pretrained()
-        encode = fldm.fl_vae_encoder(vae, exemplar, key=k_codec)
-        cfg = cfg.replace(latent_channels=vae.config.latent_dim)
+        encode = fldm.fl_vae_encoder(vae, exemplar, key=key)
 
         def decode(mesh: Mesh, z: np.ndarray) -> np.ndarray:
             return np.asarray(
                 decode_vertex_colors(vae, mesh, jnp.asarray(z, jnp.complex64)), np.float64
             )
-    else:
-        raise ConfigError(f"codec must be 'stripes' or 'fl_vae', got {codec!r}")
-    data = fldm.build_dataset(exemplar, cfg, encode=encode, key=k_data, progress=progress)
-    result = fldm.train(data, cfg, key=k_train, progress=progress)
-    target = data.meshes[0]
-    geo = fldm.core.sampling_geometry(target, result.model)
-    untrained = fldm.init(data, cfg, key=k_train)  # the weights training started from
-    sample_steps = 25
-    z_tr = fldm.sample(
-        result.model, geo, key=k_sample, num_samples=n_samples, steps=sample_steps
-    ).latents
-    z_un = fldm.sample(untrained, geo, key=k_sample, num_samples=n_samples, steps=sample_steps)
-    z_un = z_un.latents
+
+        return encode, decode, cfg.replace(latent_channels=vae.config.latent_dim)
+    raise ConfigError(f"codec must be 'stripes' or 'fl_vae', got {codec!r}")
+
+
+def _learning_scores(target: Mesh, decode, z_tr, z_un, z_copy, *, key: jax.Array) -> dict:
+    """The Gram distances of the trained and untrained samples ``z_tr`` / ``z_un`` and of the
+    baselines (the codec's reconstruction of the copy's latents ``z_copy``, a flat colour, the
+    latents shuffled over vertices with ``key``) to the exemplar's renders, and the trained
+    samples' pairwise LPIPS diversity."""
+    from ..data import rgb_to_intensity
+    from ..metrics import gram_distance, load_vgg16, lpips
+
     weights = load_vgg16()
 
     def views(rgb):  # central crops (texture only) on the copy the samples live on
@@ -163,20 +196,20 @@ def fldm_learning_check(
     ref = render_intensity_views(target, rgb_to_intensity(target.vertex_colors), size=96, crop=True)
     tr = [views(decode(target, z)) for z in z_tr]
     un = [views(decode(target, z)) for z in z_un]
-    z_copy = data.latents[0, : target.num_vertices]
     rec = views(decode(target, z_copy))
     # baselines: a flat colour (the exemplar's mean) and the training latents shuffled over vertices
     # (the right marginal, no spatial structure)
     mean = np.mean(decode(target, z_copy), axis=0)
     flat = views(np.broadcast_to(mean, (target.num_vertices, 3)))
-    perm = host_rng(k_sample, 1).permutation(target.num_vertices)
+    perm = host_rng(key, 1).permutation(target.num_vertices)
     shuffled = views(decode(target, z_copy[perm]))
 
     def gram(imgs):
         d = [gram_distance(jnp.asarray(i), jnp.asarray(ref), weights=weights) for i in imgs]
         return float(np.mean([np.asarray(x) for x in d]))
 
-    pairs = [(a, b) for a in range(n_samples) for b in range(a + 1, n_samples)]
+    n = len(tr)
+    pairs = [(a, b) for a in range(n) for b in range(a + 1, n)]
     div = [lpips(jnp.asarray(tr[a]), jnp.asarray(tr[b]), weights=weights) for a, b in pairs]
     return {
         "gram_trained": gram(tr),
@@ -185,12 +218,4 @@ def fldm_learning_check(
         "gram_flat": gram([flat]),
         "gram_shuffled": gram([shuffled]),
         "lpips_diversity": float(np.mean([np.asarray(x) for x in div])) if div else 0.0,
-        "losses": result.losses["loss"],
-        "seconds": time.perf_counter() - t0,
-        "model": result.model,
-        "target": target,
-        "samples": z_tr,
-        "untrained_samples": z_un,
-        "exemplar": exemplar,
-        "codec": codec,
     }
