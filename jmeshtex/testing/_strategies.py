@@ -282,86 +282,140 @@ def bad_meshes(
     if kind not in BAD_MESH_KINDS:
         raise InputError(f"unknown bad-mesh kind {kind!r}; choose from {list(BAD_MESH_KINDS)}")
     base = valid_meshes(max_vertices=max_vertices)
+    breaker = _BREAKERS[kind]
 
     @st.composite
     def draw_bad(draw):
         mesh = draw(base)
         v, f = mesh.vertices.copy(), mesh.faces.copy()
-        V, F = len(v), len(f)
         rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
-        if kind == "non_triangle":
-            variant = draw(st.sampled_from(["columns", "flat", "ragged"]))
-            if variant == "columns":
-                k = draw(st.sampled_from([1, 2, 4, 5]))
-                extra = rng.integers(0, V, (F, max(k - 3, 0)))
-                return v, np.concatenate([f, extra], axis=1)[:, :k]
-            if variant == "flat":
-                return v, f.ravel()
-            rows = f.tolist()
-            at = int(rng.integers(0, F))
-            rows[at] = rows[at] + [int(rng.integers(0, V))]
-            return v, rows
-        if kind in ("index_out_of_range", "negative_index"):
-            n_bad = draw(st.integers(1, min(3, F)))
-            at = rng.choice(F, n_bad, replace=False)
-            corner = rng.integers(0, 3, n_bad)
-            if kind == "index_out_of_range":
-                f[at, corner] = V + rng.integers(0, 10, n_bad)
-            else:
-                f[at, corner] = -rng.integers(1, V + 1, n_bad)
-            return v, f
-        if kind == "non_finite":
-            value = draw(st.sampled_from([np.nan, np.inf, -np.inf]))
-            v[rng.integers(0, V), rng.integers(0, 3)] = value
-            return v, f
-        if kind == "empty":
-            keep_vertices = draw(st.booleans())
-            return (v if keep_vertices else np.zeros((0, 3))), np.zeros((0, 3), np.int64)
-        if kind == "degenerate_face":
-            at = int(rng.integers(0, F))
-            a, b, c = f[at, rng.permutation(3)]
-            if draw(st.booleans()):
-                v[c] = v[a]  # two corners coincide
-            else:
-                v[b] = v[a]
-                v[c] = v[a]  # the whole face collapses to a point
-            return v, f
-        if kind == "duplicate_face":
-            at = int(rng.integers(0, F))
-            order = [
-                list(p) for p in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (0, 2, 1), (2, 1, 0), (1, 0, 2))
-            ]
-            copy = f[at, draw(st.sampled_from(order))]
-            return v, np.insert(f, int(rng.integers(0, F + 1)), copy, axis=0)
-        if kind == "non_manifold_edge":
-            at = int(rng.integers(0, F))
-            k = int(rng.integers(0, 3))
-            a, b = f[at, k], f[at, (k + 1) % 3]
-            normal, size = _face_normal_and_size(v, f[at])
-            shared = np.sum(np.any(f == a, axis=1) & np.any(f == b, axis=1))
-            n_fins = 3 - int(shared)  # enough fins for three faces on the edge
-            mid = 0.5 * (v[a] + v[b])
-            apex = mid + size * np.array([1.0, -1.0][:n_fins])[:, None] * normal
-            new = V + np.arange(n_fins)
-            fins = np.stack([np.full(n_fins, b), np.full(n_fins, a), new], 1)
-            return np.concatenate([v, apex]), np.concatenate([f, fins])
-        if kind == "inconsistent_orientation":
-            if draw(st.booleans()):
-                return _mobius_strip(draw(st.integers(5, 16)), rng)
-            n_flip = draw(st.integers(1, F - 1))
-            at = rng.choice(F, n_flip, replace=False)
-            f[at] = f[at][:, [0, 2, 1]]
-            return v, f
-        # non_manifold_vertex
-        a = int(f[rng.integers(0, F), 0])
-        normal, size = _face_normal_and_size(v, f[np.nonzero(np.any(f == a, axis=1))[0][0]])
-        tangent = np.cross(normal, rng.normal(size=3))
-        tangent /= np.linalg.norm(tangent)
-        apexes = v[a] + size * np.stack([normal + tangent, normal - tangent])
-        fin = np.array([[a, V, V + 1]])
-        return np.concatenate([v, apexes]), np.concatenate([f, fin])
+        return breaker(draw, v, f, rng)
 
     return draw_bad()
+
+
+# Each breaker takes hypothesis's ``draw``, a valid mesh's ``(vertices, faces)`` (copies it may
+# change) and a seeded generator, and returns the mesh broken the way ``bad_meshes`` describes.
+
+
+def _break_non_triangle(draw, v, f, rng):
+    """Faces with 1, 2, 4 or 5 columns, a flat index list, or a ragged list."""
+    V, F = len(v), len(f)
+    variant = draw(st.sampled_from(["columns", "flat", "ragged"]))
+    if variant == "columns":
+        k = draw(st.sampled_from([1, 2, 4, 5]))
+        extra = rng.integers(0, V, (F, max(k - 3, 0)))
+        return v, np.concatenate([f, extra], axis=1)[:, :k]
+    if variant == "flat":
+        return v, f.ravel()
+    rows = f.tolist()
+    at = int(rng.integers(0, F))
+    rows[at] = rows[at] + [int(rng.integers(0, V))]
+    return v, rows
+
+
+def _bad_indices(negative: bool):
+    """The breaker setting one to three corners to ``>= V`` (or, ``negative``, to ``< 0``)."""
+
+    def breaker(draw, v, f, rng):
+        V, F = len(v), len(f)
+        n_bad = draw(st.integers(1, min(3, F)))
+        at = rng.choice(F, n_bad, replace=False)
+        corner = rng.integers(0, 3, n_bad)
+        if negative:
+            f[at, corner] = -rng.integers(1, V + 1, n_bad)
+        else:
+            f[at, corner] = V + rng.integers(0, 10, n_bad)
+        return v, f
+
+    return breaker
+
+
+def _break_non_finite(draw, v, f, rng):
+    """A coordinate set to NaN, +inf or -inf."""
+    value = draw(st.sampled_from([np.nan, np.inf, -np.inf]))
+    v[rng.integers(0, len(v)), rng.integers(0, 3)] = value
+    return v, f
+
+
+def _break_empty(draw, v, f, rng):
+    """No faces, with or without the vertices."""
+    keep_vertices = draw(st.booleans())
+    return (v if keep_vertices else np.zeros((0, 3))), np.zeros((0, 3), np.int64)
+
+
+def _break_degenerate_face(draw, v, f, rng):
+    """One corner moved onto another of its face, or all three onto one point."""
+    at = int(rng.integers(0, len(f)))
+    a, b, c = f[at, rng.permutation(3)]
+    if draw(st.booleans()):
+        v[c] = v[a]  # two corners coincide
+    else:
+        v[b] = v[a]
+        v[c] = v[a]  # the whole face collapses to a point
+    return v, f
+
+
+def _break_duplicate_face(draw, v, f, rng):
+    """A face repeated, its corners in any of the 6 orders."""
+    F = len(f)
+    at = int(rng.integers(0, F))
+    order = [list(p) for p in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (0, 2, 1), (2, 1, 0), (1, 0, 2))]
+    copy = f[at, draw(st.sampled_from(order))]
+    return v, np.insert(f, int(rng.integers(0, F + 1)), copy, axis=0)
+
+
+def _break_non_manifold_edge(draw, v, f, rng):
+    """Fin triangles (new apex vertices) on an existing edge until it has three faces."""
+    at = int(rng.integers(0, len(f)))
+    k = int(rng.integers(0, 3))
+    a, b = f[at, k], f[at, (k + 1) % 3]
+    normal, size = _face_normal_and_size(v, f[at])
+    shared = np.sum(np.any(f == a, axis=1) & np.any(f == b, axis=1))
+    n_fins = 3 - int(shared)  # enough fins for three faces on the edge
+    mid = 0.5 * (v[a] + v[b])
+    apex = mid + size * np.array([1.0, -1.0][:n_fins])[:, None] * normal
+    new = len(v) + np.arange(n_fins)
+    fins = np.stack([np.full(n_fins, b), np.full(n_fins, a), new], 1)
+    return np.concatenate([v, apex]), np.concatenate([f, fins])
+
+
+def _break_orientation(draw, v, f, rng):
+    """A proper subset of faces flipped, or a Möbius strip."""
+    if draw(st.booleans()):
+        return _mobius_strip(draw(st.integers(5, 16)), rng)
+    F = len(f)
+    n_flip = draw(st.integers(1, F - 1))
+    at = rng.choice(F, n_flip, replace=False)
+    f[at] = f[at][:, [0, 2, 1]]
+    return v, f
+
+
+def _break_non_manifold_vertex(draw, v, f, rng):
+    """A separate triangle attached at one existing vertex (a bow-tie)."""
+    V = len(v)
+    a = int(f[rng.integers(0, len(f)), 0])
+    normal, size = _face_normal_and_size(v, f[np.nonzero(np.any(f == a, axis=1))[0][0]])
+    tangent = np.cross(normal, rng.normal(size=3))
+    tangent /= np.linalg.norm(tangent)
+    apexes = v[a] + size * np.stack([normal + tangent, normal - tangent])
+    fin = np.array([[a, V, V + 1]])
+    return np.concatenate([v, apexes]), np.concatenate([f, fin])
+
+
+#: the breaker of each key of ``BAD_MESH_KINDS``
+_BREAKERS = {
+    "non_triangle": _break_non_triangle,
+    "index_out_of_range": _bad_indices(negative=False),
+    "negative_index": _bad_indices(negative=True),
+    "non_finite": _break_non_finite,
+    "empty": _break_empty,
+    "degenerate_face": _break_degenerate_face,
+    "duplicate_face": _break_duplicate_face,
+    "non_manifold_edge": _break_non_manifold_edge,
+    "inconsistent_orientation": _break_orientation,
+    "non_manifold_vertex": _break_non_manifold_vertex,
+}
 
 
 BAD_MESH_FILES: tuple[str, ...] = (
