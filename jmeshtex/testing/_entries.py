@@ -18,7 +18,7 @@ from ._fields import (
     VERTEX_VECTOR,
     Field,
 )
-from ._registry import EXACT, EXTRINSIC, INTRINSIC, Entry, register
+from ._registry import EXACT, EXTRINSIC, FACE_OPS, INTRINSIC, Entry, face_conv_init, register
 
 # ---------------------------------------------------------------------------------------------
 # geometry exposed as operators
@@ -152,9 +152,6 @@ for _e in _GEOMETRY:
 # face convolutions (DGTS)
 # ---------------------------------------------------------------------------------------------
 
-#: transforms of a face operator on positions: rigid motions and every relabelling
-FACE_OPS = ("rigid", "permute_vertices", "permute_faces", "rotate_corners")
-
 
 def _face_features(state, params, points):
     from .. import ops
@@ -167,12 +164,6 @@ def _face_conv_stack(state, params, points):
 
     nb = state.face_neighborhood()
     return Field(FACE_SCALAR, ops.face_conv_stack(ops.face_features(points, nb), nb, params))
-
-
-def _init_face_conv_stack(key, dtype):
-    from .. import ops
-
-    return ops.init_face_conv_stack(key, (8, 8, 8, 4), dtype=dtype)
 
 
 def _face_to_vertex(state, params, points, d):
@@ -195,7 +186,7 @@ _FACE = [
         _face_conv_stack,
         {"points": (POINTS, 3)},
         FACE_OPS,
-        init=_init_face_conv_stack,
+        init=face_conv_init((8, 8, 8, 4)),
         doc="embedding + 3 face convolutions (instance norm, leaky ReLU)",
     ),
     Entry(

@@ -66,6 +66,20 @@ EXACT = (
 INTRINSIC = (*EXACT, "cylinder", "cone", "catenoid", "retriangulate")
 #: transforms an extrinsic (3D) operator must commute with
 EXTRINSIC = ("rigid", "gauge", "permute_vertices", "permute_faces", "rotate_corners")
+#: transforms of a face operator on positions (DGTS): rigid motions and every relabelling
+FACE_OPS = ("rigid", "permute_vertices", "permute_faces", "rotate_corners")
+
+
+def face_conv_init(widths: tuple[int, ...]) -> Callable:
+    """The ``Entry.init`` of a face-convolution stack of ``widths``
+    (:func:`jmeshtex.ops.init_face_conv_stack`)."""
+
+    def init(key, dtype):
+        from ..ops import init_face_conv_stack
+
+        return init_face_conv_stack(key, widths, dtype=dtype)
+
+    return init
 
 
 @dataclasses.dataclass(frozen=True)
@@ -328,54 +342,8 @@ def check(
     smooth = transform.family and not transform.exact
 
     if smooth and transform_name != "retriangulate" and np.dtype(dtype) == np.float64:
-        conv = convergence(
-            fn,
-            transform,
-            lambda s, rng: random_inputs(entry.inputs, s, rng),
-            resolutions=entry.resolutions,
-            dtype=dtype,
-            seed=seed,
-            selection=entry.selection,
-            hops=entry.hops,
-        )
-        if conv.floor:
-            passed = True
-        else:
-            passed = len(conv.ratios) >= 3 and all(r >= 3.0 for r in conv.ratios)
-            # discrete choices may flip near ties: at the finest resolution only at a few vertices
-            passed = passed and (not conv.excluded or conv.excluded[-1] <= MAX_EXCLUDED)
-        if expect_fail:
-            passed = not passed
-        if report_only:
-            passed = None
-        return CheckResult(
-            entry.name,
-            transform_name,
-            name,
-            conv.errors[-1],
-            None,
-            passed,
-            "order",
-            order=None if conv.floor else conv.order,
-            ratios=conv.ratios,
-            expect_fail=expect_fail,
-            detail=_order_detail(conv, entry, passed),
-        )
-
-    errors = []
-    if transform.family:
-        rng = np.random.default_rng(seed)
-        real = transform.draw(rng, resolution=entry.resolutions[1] if smooth else 8, dtype=dtype)
-        errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, real.source, rng)))
-    else:
-        rng = np.random.default_rng(seed)
-        for mesh, v, f in sample_meshes(rng):
-            if meshes is not None and mesh not in meshes:
-                continue
-            state = MeshState(v, f, dtype=dtype)
-            real = transform.draw(rng, state)
-            errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, state, rng)))
-    err = float(max(errors))
+        return _order_check(entry, transform_name, fn, dtype=dtype, seed=seed)
+    err = _largest_error(entry, transform, fn, dtype=dtype, seed=seed, meshes=meshes)
     if smooth or report_only:  # float32 smooth isometries, re-triangulation, declared reports
         return CheckResult(
             entry.name, transform_name, name, err, None, None, "report", expect_fail=expect_fail
@@ -386,6 +354,66 @@ def check(
     return CheckResult(
         entry.name, transform_name, name, err, tol, passed, "exact", expect_fail=expect_fail
     )
+
+
+def _order_check(entry: Entry, transform_name: str, fn, *, dtype, seed: int) -> CheckResult:
+    """A smooth isometry in float64: the convergence order of the error over the entry's
+    resolutions (passes at a floor, or with every error ratio at least 3 and few vertices
+    excluded at the finest resolution)."""
+    expect_fail = transform_name in entry.expect_fail
+    conv = convergence(
+        fn,
+        CATALOGUE[transform_name],
+        lambda s, rng: random_inputs(entry.inputs, s, rng),
+        resolutions=entry.resolutions,
+        dtype=dtype,
+        seed=seed,
+        selection=entry.selection,
+        hops=entry.hops,
+    )
+    if conv.floor:
+        passed = True
+    else:
+        passed = len(conv.ratios) >= 3 and all(r >= 3.0 for r in conv.ratios)
+        # discrete choices may flip near ties: at the finest resolution only at a few vertices
+        passed = passed and (not conv.excluded or conv.excluded[-1] <= MAX_EXCLUDED)
+    if expect_fail:
+        passed = not passed
+    if transform_name in entry.report:
+        passed = None
+    return CheckResult(
+        entry.name,
+        transform_name,
+        np.dtype(dtype).name,
+        conv.errors[-1],
+        None,
+        passed,
+        "order",
+        order=None if conv.floor else conv.order,
+        ratios=conv.ratios,
+        expect_fail=expect_fail,
+        detail=_order_detail(conv, entry, passed),
+    )
+
+
+def _largest_error(entry: Entry, transform, fn, *, dtype, seed: int, meshes) -> float:
+    """The largest equivariance error of one draw of a transform family (at the entry's second
+    resolution when smooth), or of one draw on each of the ``sample_meshes`` (those in
+    ``meshes``, None: all) for transforms of any mesh."""
+    smooth = transform.family and not transform.exact
+    rng = np.random.default_rng(seed)
+    errors = []
+    if transform.family:
+        real = transform.draw(rng, resolution=entry.resolutions[1] if smooth else 8, dtype=dtype)
+        errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, real.source, rng)))
+    else:
+        for mesh, v, f in sample_meshes(rng):
+            if meshes is not None and mesh not in meshes:
+                continue
+            state = MeshState(v, f, dtype=dtype)
+            real = transform.draw(rng, state)
+            errors.append(equivariance_error(fn, real, random_inputs(entry.inputs, state, rng)))
+    return float(max(errors))
 
 
 def run_registry(

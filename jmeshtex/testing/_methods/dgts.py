@@ -13,9 +13,7 @@ from __future__ import annotations
 
 from .. import Entry, Field, register
 from .._fields import FACE_SCALAR, POINTS, VERTEX_VECTOR
-
-#: transforms of a face-based operator on positions: rigid motions and every relabelling
-DGTS_TRANSFORMS = ("rigid", "permute_vertices", "permute_faces", "rotate_corners")
+from .._registry import FACE_OPS, face_conv_init
 
 
 def _generator(state, params, points):
@@ -25,22 +23,10 @@ def _generator(state, params, points):
     return Field(VERTEX_VECTOR, out[:, None, :])
 
 
-def _init_generator(key, dtype):
-    from ...ops import init_face_conv_stack
-
-    return init_face_conv_stack(key, (8, 3), dtype=dtype)
-
-
 def _discriminator(state, params, points):
     from ...dgts.core import discriminator
 
     return Field(FACE_SCALAR, discriminator(params, points, state.face_neighborhood())[:, None])
-
-
-def _init_discriminator(key, dtype):
-    from ...ops import init_face_conv_stack
-
-    return init_face_conv_stack(key, (8, 1), dtype=dtype)
 
 
 ENTRIES = (
@@ -48,8 +34,8 @@ ENTRIES = (
         "dgts.generator_level",
         _generator,
         {"points": (POINTS, 3)},
-        DGTS_TRANSFORMS,
-        init=_init_generator,
+        FACE_OPS,
+        init=face_conv_init((8, 3)),
         group="models",
         doc="DGTS generator level: displacements rotate with the mesh, follow relabelling",
     ),
@@ -57,8 +43,8 @@ ENTRIES = (
         "dgts.discriminator",
         _discriminator,
         {"points": (POINTS, 3)},
-        DGTS_TRANSFORMS,
-        init=_init_discriminator,
+        FACE_OPS,
+        init=face_conv_init((8, 1)),
         group="models",
         doc="DGTS patch discriminator: per-face scores invariant to rigid motions and relabelling",
     ),

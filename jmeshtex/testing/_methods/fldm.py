@@ -191,36 +191,44 @@ def _sampler(state, params, z_T, noise):
     return Field(VERTEX_TANGENT, out)
 
 
+def _fldm_entry(name: str, apply, inputs: dict, config, doc: str) -> Entry:
+    """Register an FLDM entry: the FLDM transforms and reports, parameters of ``config``."""
+    return register(
+        Entry(
+            name,
+            apply,
+            inputs,
+            FLDM_TRANSFORMS,
+            init=_init_for(config),
+            group="fldm",
+            report=FLDM_REPORT,
+            doc=doc,
+        )
+    )
+
+
+#: a tangent input with the latent channels of ``CONFIG``
+_LATENTS = (VERTEX_TANGENT, CONFIG.latent_channels)
 ENTRIES = (
-    register(
-        Entry(
-            "fldm.denoiser",
-            _denoiser,
-            {"z": (VERTEX_TANGENT, CONFIG.latent_channels)},
-            FLDM_TRANSFORMS,
-            init=_init_for(CONFIG),
-            group="fldm",
-            report=FLDM_REPORT,
-            doc="FLDM U-Net ε̂(z_t, t): field convs with timestep in the filters, pool/unpool",
-        )
+    _fldm_entry(
+        "fldm.denoiser",
+        _denoiser,
+        {"z": _LATENTS},
+        CONFIG,
+        "FLDM U-Net ε̂(z_t, t): field convs with timestep in the filters, pool/unpool",
     ),
-    register(
-        Entry(
-            "fldm.denoiser_labels",
-            _denoiser_labels,
-            {"z": (VERTEX_TANGENT, CONFIG.latent_channels), "s": (VERTEX_SCALAR, 3)},
-            FLDM_TRANSFORMS,
-            init=_init_for(LABEL_CONFIG),
-            group="fldm",
-            report=FLDM_REPORT,
-            doc="FLDM U-Net with a per-vertex label map (argmax of s) in the filters",
-        )
+    _fldm_entry(
+        "fldm.denoiser_labels",
+        _denoiser_labels,
+        {"z": _LATENTS, "s": (VERTEX_SCALAR, 3)},
+        LABEL_CONFIG,
+        "FLDM U-Net with a per-vertex label map (argmax of s) in the filters",
     ),
     register(
         Entry(
             "fldm.denoiser_reference_argument",
             _denoiser_reference_argument,
-            {"z": (VERTEX_TANGENT, CONFIG.latent_channels)},
+            {"z": _LATENTS},
             ("permute_vertices",),
             init=_init_for(CONFIG),
             expect_fail=("gauge",),
@@ -228,53 +236,31 @@ ENTRIES = (
             doc="FLDM U-Net with the reference code's untransported filter argument: breaks gauge",
         )
     ),
-    register(
-        Entry(
-            "fldm.denoiser_mask",
-            _denoiser_mask,
-            {
-                "z": (VERTEX_TANGENT, CONFIG.latent_channels),
-                "known": (VERTEX_TANGENT, CONFIG.latent_channels),
-                "s": (VERTEX_SCALAR, 1),
-            },
-            FLDM_TRANSFORMS,
-            init=_init_for(MASK_CONFIG),
-            group="fldm",
-            report=FLDM_REPORT,
-            doc="mask-conditioned FLDM U-Net: inpainting mask in the filters, known latents as channels",
-        )
+    _fldm_entry(
+        "fldm.denoiser_mask",
+        _denoiser_mask,
+        {"z": _LATENTS, "known": _LATENTS, "s": (VERTEX_SCALAR, 1)},
+        MASK_CONFIG,
+        "mask-conditioned FLDM U-Net: inpainting mask in the filters, known latents as channels",
     ),
-    register(
-        Entry(
-            "fldm.sampler_inpaint",
-            _sampler_inpaint,
-            {
-                "z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
-                "noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
-                "known_noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
-                "known": (VERTEX_TANGENT, CONFIG.latent_channels),
-                "s": (VERTEX_SCALAR, 1),
-            },
-            FLDM_TRANSFORMS,
-            init=_init_for(MASK_CONFIG),
-            group="fldm",
-            report=FLDM_REPORT,
-            doc="ancestral DDPM inpainting (4 steps) with the mask-conditioned denoiser, as a map of its noise",
-        )
+    _fldm_entry(
+        "fldm.sampler_inpaint",
+        _sampler_inpaint,
+        {
+            "z_T": _LATENTS,
+            "noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
+            "known_noise": (VERTEX_TANGENT, CONFIG.latent_channels * DDPM_SCHEDULE.num_steps),
+            "known": _LATENTS,
+            "s": (VERTEX_SCALAR, 1),
+        },
+        MASK_CONFIG,
+        "ancestral DDPM inpainting (4 steps) with the mask-conditioned denoiser, as a map of its noise",
     ),
-    register(
-        Entry(
-            "fldm.sampler",
-            _sampler,
-            {
-                "z_T": (VERTEX_TANGENT, CONFIG.latent_channels),
-                "noise": (VERTEX_TANGENT, CONFIG.latent_channels * SAMPLER_STEPS),
-            },
-            FLDM_TRANSFORMS,
-            init=_init_for(CONFIG),
-            group="fldm",
-            report=FLDM_REPORT,
-            doc="DDIM sampler (3 steps, η=0.5) as a map of its noise: samples commute with transforms",
-        )
+    _fldm_entry(
+        "fldm.sampler",
+        _sampler,
+        {"z_T": _LATENTS, "noise": (VERTEX_TANGENT, CONFIG.latent_channels * SAMPLER_STEPS)},
+        CONFIG,
+        "DDIM sampler (3 steps, η=0.5) as a map of its noise: samples commute with transforms",
     ),
 )
