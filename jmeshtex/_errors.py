@@ -110,20 +110,18 @@ class NonFiniteVertexError(MeshError):
     fix = "remove or fix those vertices"
 
 
+#: the start of the fix of every error that ``prepare_mesh(repair=True)`` repairs
+_REPAIR = "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), "
+
+
 class DegenerateFaceError(MeshError):
     what = "zero-area (degenerate) faces"
-    fix = (
-        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), which drops them, "
-        "or remesh"
-    )
+    fix = _REPAIR + "which drops them, or remesh"
 
 
 class DuplicateFaceError(MeshError):
     what = "duplicate faces (same three vertices)"
-    fix = (
-        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), "
-        "which drops the duplicates"
-    )
+    fix = _REPAIR + "which drops the duplicates"
 
 
 class NonManifoldEdgeError(MeshError):
@@ -133,18 +131,12 @@ class NonManifoldEdgeError(MeshError):
 
 class NonManifoldVertexError(MeshError):
     what = "non-manifold (bow-tie) vertices whose faces form several fans"
-    fix = (
-        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), "
-        "which splits each such vertex into one copy per fan"
-    )
+    fix = _REPAIR + "which splits each such vertex into one copy per fan"
 
 
 class InconsistentOrientationError(MeshError):
     what = "inconsistent face orientation: edges traversed in the same direction by two faces"
-    fix = (
-        "repair first with jmeshtex.geometry.prepare_mesh(mesh, repair=True), "
-        "which re-orients faces consistently per component"
-    )
+    fix = _REPAIR + "which re-orients faces consistently per component"
 
 
 class MeshScaleError(MeshError):
