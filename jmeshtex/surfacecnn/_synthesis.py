@@ -127,7 +127,7 @@ def _fingerprint(task: str, config: Config, layers, data: str, **extra) -> dict:
     }
 
 
-def exemplar_targets(image, weights: VGGWeights, layers, config: Config, dtype) -> dict:
+def _exemplar_targets(image, weights: VGGWeights, layers, config: Config, dtype) -> dict:
     """The exemplar's Gram targets through the 2D network, with ``config``'s pooling and padding."""
     return gram_targets(
         image,
@@ -139,7 +139,7 @@ def exemplar_targets(image, weights: VGGWeights, layers, config: Config, dtype) 
     )
 
 
-def run_optimization(
+def _run_optimization(
     x0, loss_fn, aux, config: Config, task: str, progress: bool, checkpoint_dir, fingerprint: dict
 ) -> tuple:
     """:func:`~jmeshtex.surfacecnn.core.optimize_colors` of one task, checkpointed every
@@ -233,7 +233,7 @@ def synthesize(
         mesh = mesh.replace(uv=None, texture=None)  # prepare_surface unwraps it
     weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface)
     t0 = time.perf_counter()
-    targets = exemplar_targets(image, weights, layers, config, dtype)
+    targets = _exemplar_targets(image, weights, layers, config, dtype)
     targets = jax.block_until_ready(targets)
     target_s = time.perf_counter() - t0
     x0 = jax.random.uniform(
@@ -252,7 +252,7 @@ def synthesize(
         texels=surface.atlas.num_texels,
         key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
     )
-    x, losses, final, stats = run_optimization(
+    x, losses, final, stats = _run_optimization(
         x0,
         loss_fn,
         (arrays, weights, targets),
@@ -327,7 +327,7 @@ def stylize(
         mesh, config, weights, layers, surface, extra_layers=(config.content_layer,), task="stylize"
     )
     content_colors = jnp.asarray(image_to_texels(surface.atlas, content_image), dtype)
-    targets = exemplar_targets(style_image, weights, layers, config, dtype)
+    targets = _exemplar_targets(style_image, weights, layers, config, dtype)
     content_feats = mesh_cnn_features(
         content_colors, arrays, weights, layers=(config.content_layer,), pool=config.pool
     )[config.content_layer]
@@ -345,7 +345,7 @@ def stylize(
         content_weight=content_weight,
         texels=surface.atlas.num_texels,
     )
-    x, losses, final, stats = run_optimization(
+    x, losses, final, stats = _run_optimization(
         content_colors, loss_fn, aux, config, "stylize", progress, checkpoint_dir, fingerprint
     )
     return _result(mesh, surface, x, losses, final, stats)

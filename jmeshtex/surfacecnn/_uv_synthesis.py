@@ -27,11 +27,11 @@ from ._surface import Surface
 from ._synthesis import (
     SynthesisResult,
     _digest,
+    _exemplar_targets,
     _fingerprint,
     _result,
-    exemplar_targets,
+    _run_optimization,
     network_weights,
-    run_optimization,
 )
 
 
@@ -94,7 +94,7 @@ def synthesize_uv(
     layers = tuple(layers or config.layers or default_layers(weights))
     dtype = jnp.dtype(config.dtype)
     weights = jax.tree.map(lambda a: jnp.asarray(a, dtype), weights)
-    targets = exemplar_targets(image, weights, layers, config, dtype)
+    targets = _exemplar_targets(image, weights, layers, config, dtype)
     size = config.size
     x0 = jax.random.uniform(key, (size * size, 3), dtype, config.init_low, config.init_high)
     loss_fn = _image_gram_loss(size, config)
@@ -106,7 +106,7 @@ def synthesize_uv(
         _digest(image),
         key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
     )
-    x, losses, final, stats = run_optimization(
+    x, losses, final, stats = _run_optimization(
         x0,
         loss_fn,
         (weights, targets),
