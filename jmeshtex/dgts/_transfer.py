@@ -521,6 +521,20 @@ def _zero_above(draws: list, plan: TransferPlan, zero_noise_from: int | None) ->
     ]
 
 
+def _noise_plan(
+    model: Model, target, start_level, stop_level, max_faces, zero_noise_from
+) -> tuple[TransferPlan, int]:
+    """The plan of a noisy run (:func:`transfer`, :func:`interpolate`) and the level from which its
+    noise is zero (default: the start level plus ``OFFICIAL_NOISY_LEVELS``)."""
+    if zero_noise_from is not None:
+        _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
+    start = _resolve_start(model, target, start_level, max_faces, stop_level)
+    plan = plan_transfer(model, target, start_level=start, stop_level=stop_level)
+    if zero_noise_from is None:
+        zero_noise_from = start + OFFICIAL_NOISY_LEVELS
+    return plan, zero_noise_from
+
+
 def _check_level(name: str, value, low: int, high: int) -> int:
     if not is_int(value, low) or value > high:
         raise InputError(f"{name} must be an int in [{low}, {high}], got {value!r}")
@@ -606,17 +620,14 @@ def transfer(
     """
     if not is_int(num_samples, 1):
         raise InputError(f"num_samples must be a positive int, got {num_samples!r}")
-    if zero_noise_from is not None:
-        _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
-    start = _resolve_start(model, target, start_level, max_faces, stop_level)
-    plan = plan_transfer(model, target, start_level=start, stop_level=stop_level)
+    plan, zero_from = _noise_plan(
+        model, target, start_level, stop_level, max_faces, zero_noise_from
+    )
     draws = [
         _noises(jax.random.fold_in(key, s), plan.sizes, model.config.noise_amplitude)
         for s in range(int(num_samples))
     ]
-    if zero_noise_from is None:
-        zero_noise_from = start + OFFICIAL_NOISY_LEVELS
-    return _synthesise(model, plan, _zero_above(draws, plan, zero_noise_from), per_level=per_level)
+    return _synthesise(model, plan, _zero_above(draws, plan, zero_from), per_level=per_level)
 
 
 def conditional(
@@ -747,19 +758,17 @@ def interpolate(
     """
     if not is_int(num_frames, 2):
         raise InputError(f"num_frames must be an int >= 2, got {num_frames!r}")
-    if zero_noise_from is not None:
-        _check_level("zero_noise_from", zero_noise_from, 0, model.num_levels)
-    start = _resolve_start(model, target, start_level, max_faces, stop_level)
-    plan = plan_transfer(model, target, start_level=start, stop_level=stop_level)
+    plan, zero_from = _noise_plan(
+        model, target, start_level, stop_level, max_faces, zero_noise_from
+    )
     ka, kb = jax.random.split(key)
-    k = start + OFFICIAL_NOISY_LEVELS if zero_noise_from is None else zero_noise_from
     za, zb = _zero_above(
         [
             _noises(ka, plan.sizes, model.config.noise_amplitude),
             _noises(kb, plan.sizes, model.config.noise_amplitude),
         ],
         plan,
-        k,
+        zero_from,
     )
     weights = [np.float32(t) for t in np.linspace(0.0, 1.0, int(num_frames))]
     draws = [[(1 - w) * a + w * b for a, b in zip(za, zb, strict=True)] for w in weights]

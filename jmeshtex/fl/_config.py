@@ -299,28 +299,21 @@ class Config(ConfigBase):
           >>> c.features, c.num_blocks, c.decoder_features, c.pixels_per_vertex, c.loss_normalization
           (32, 2, 128, 26.0, 'paper')
         """
-        base = dict(
+        cpu_size = dict(  # the paper's recipe (loss, data density, schedule) at CPU size
             features=32,
             num_heads=4,
             num_blocks=2,
             decoder_features=128,
-            decoder_layers=5,
             num_samples=32,
-            loss_normalization="paper",
-            pixels_per_vertex=26.0,
-            density_spread=1.5,
             texture_size=64,
-            max_image_size=512,
             batch_size=2,
             steps=20_000,
-            learning_rate=1e-3,
-            final_lr_fraction=0.01,
             warmup_steps=500,
             ema_decay=0.999,
             kl_weight=1e-3,
             checkpoint_every=250,
         )
-        return cls(**{**base, **changes})
+        return cls.paper(**{**cpu_size, **changes})
 
     def architecture(self) -> Config:
         """The same network with every data/training field at its default: a cache key for jitted

@@ -329,6 +329,49 @@ def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) 
     }
 
 
+def _mesh_source(loaded: list[np.ndarray], config: Config, k_pool: PRNGKey):
+    """How a step draws its planar meshes from its NumPy generator (module docstring: fresh
+    textures in the stream mode, else a fixed pool built once from ``k_pool``), and the most
+    vertices one mesh may have."""
+    if config.pixels_per_vertex > 0:
+        levels = [image_levels(im) for im in loaded]
+        if not levels and config.procedural_fraction < 1:
+            raise InputError("fl.train: no images given and procedural_fraction < 1")
+        return (lambda rng: _stream_meshes(rng, levels, config)), max_stream_vertices(config)
+    pool = planar_pool(
+        loaded,
+        per_image=config.meshes_per_image,
+        min_vertices=config.min_vertices,
+        max_vertices=config.max_vertices,
+        rng=_numpy_rng(k_pool),
+    )
+
+    def draw(rng: np.random.Generator) -> list:
+        chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
+        return [pool[i] for i in chosen]
+
+    return draw, config.max_vertices
+
+
+def _driver_step(config: Config, device_mesh: jax.sharding.Mesh):
+    """The training driver's step: one Adam step of the VAE and, with ``config.ema_decay > 0``, the
+    weight average; it records the loss and its terms (the per-channel KL vector left out)."""
+    vae_step = make_train_step(config, device_mesh)
+    use_ema = config.ema_decay > 0
+    ema_step = data_parallel(
+        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
+    )
+
+    def step(state, batch):
+        params, opt_state, loss, aux = vae_step(state["params"], state["opt_state"], *batch)
+        new = {"params": params, "opt_state": opt_state}
+        if use_ema:
+            new["ema"] = ema_step(state["ema"], params, batch[2])
+        return new, {"loss": loss, **{k: v for k, v in aux.items() if k != "kl_channels"}}
+
+    return step
+
+
 def train(
     images,
     config: Config,
@@ -402,49 +445,23 @@ def train(
     np_dtype = np.float64 if jnp.dtype(dtype) == jnp.float64 else np.float32
     device_mesh = resolve_mesh(device_mesh, devices)
     k_init, k_pool, k_data, k_noise = jax.random.split(key, 4)
-    stream = config.pixels_per_vertex > 0
-    loaded = _load_images(images, config.max_image_size, stream, config.extra_images)
-    if stream:
-        levels = [image_levels(im) for im in loaded]
-        if not levels and config.procedural_fraction < 1:
-            raise InputError("fl.train: no images given and procedural_fraction < 1")
-        max_vertices = max_stream_vertices(config)
-    else:
-        pool = planar_pool(
-            loaded,
-            per_image=config.meshes_per_image,
-            min_vertices=config.min_vertices,
-            max_vertices=config.max_vertices,
-            rng=_numpy_rng(k_pool),
-        )
-        max_vertices = config.max_vertices
+    loaded = _load_images(
+        images, config.max_image_size, config.pixels_per_vertex > 0, config.extra_images
+    )
+    draw_meshes, max_vertices = _mesh_source(loaded, config, k_pool)
     per = batch_multiple(device_mesh)
     num_vertices = -(-config.batch_size * max_vertices // per) * per
 
     def batches(step: int):
         rng = _numpy_rng(jax.random.fold_in(k_data, step))
-        if stream:
-            meshes = _stream_meshes(rng, levels, config)
-        else:
-            chosen = rng.choice(len(pool), size=min(config.batch_size, len(pool)), replace=False)
-            meshes = [pool[i] for i in chosen]
+        meshes = draw_meshes(rng)
         batch = mesh_batch(meshes, config, rng, num_vertices=num_vertices, dtype=np_dtype)
         return batch, jax.random.fold_in(k_noise, step), np.int32(step)
 
     if prefetch:
         batches = _prefetched(batches)
-    vae_step = make_train_step(config, device_mesh)
     use_ema = config.ema_decay > 0
-    ema_step = data_parallel(
-        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
-    )
-
-    def step(state, batch):
-        params, opt_state, loss, aux = vae_step(state["params"], state["opt_state"], *batch)
-        new = {"params": params, "opt_state": opt_state}
-        if use_ema:
-            new["ema"] = ema_step(state["ema"], params, batch[2])
-        return new, {"loss": loss, **{k: v for k, v in aux.items() if k != "kl_channels"}}
+    step = _driver_step(config, device_mesh)
 
     def curve(done: int, state, losses: dict) -> None:
         title = f"FL-VAE training ({done} steps)"

@@ -324,6 +324,26 @@ def build_dataset(
     from tqdm.auto import tqdm
 
     mesh = as_mesh(mesh)
+    _check_encoder_and_labels(encode, labels, config)
+    sync = _phase_synchronizer(mesh, config, encode)
+    meta = _cache_record(mesh, config, encode, labels, key)
+    cache, reuse = _open_cache(cache_dir, meta)
+    copies = []
+    bar = tqdm(range(config.n_copies), desc="FLDM copies", unit="copy", disable=not progress)
+    for i in bar:
+        path = None if cache is None else cache / f"copy_{i:04d}.npz"
+        if path is not None and reuse and path.is_file():
+            copies.append(_load_copy(path))
+            continue
+        copy = _build_copy(mesh, config, i, key=key, encode=encode, labels=labels, sync=sync)
+        if path is not None:
+            _save_copy(path, *copy)
+        copies.append(copy)
+    return stack_copies(copies, config)
+
+
+def _check_encoder_and_labels(encode, labels: np.ndarray | None, config: Config) -> None:
+    """Refuse a non-callable ``encode`` and labels that do not match ``config.num_labels``."""
     if not callable(encode):  # checked before the cache is touched: a stale cache is cleared below
         raise ConfigError(
             f"encode must be a callable Mesh -> complex [V, d] (e.g. fl_vae_encoder), got {encode!r}"
@@ -340,9 +360,11 @@ def build_dataset(
             )
     elif config.num_labels:
         raise ConfigError(f"config.num_labels={config.num_labels} but no labels were given")
-    cache = None if cache_dir is None else pathlib.Path(cache_dir)
-    sync = _phase_synchronizer(mesh, config, encode)
-    meta = {
+
+
+def _cache_record(mesh: Mesh, config: Config, encode, labels, key: jax.Array) -> dict:
+    """What ``data.json`` records: everything a cached copy was built from (module docstring)."""
+    return {
         "format": DATA_VERSION,
         "mesh": _digest([mesh.vertices, mesh.faces]),
         "colors": _digest(_color_arrays(mesh)),
@@ -357,48 +379,51 @@ def build_dataset(
         "phase_sync": config.phase_sync,
         "flat_spread": config.flat_spread if config.phase_sync == "flat" else None,
     }
-    reuse = False
-    if cache is not None:
-        cache.mkdir(parents=True, exist_ok=True)
-        meta_path = cache / DATA_FILE
-        reuse = (
-            meta_path.is_file()
-            and meta["encoder"] is not None
-            and json.loads(meta_path.read_text()) == meta
-        )
-        if not reuse:
-            from ..io import atomic_write
 
-            for old in cache.glob("copy_*.npz"):
-                old.unlink()
-            atomic_write(meta_path, json.dumps(meta, indent=2).encode())
-    copies = []
-    bar = tqdm(range(config.n_copies), desc="FLDM copies", unit="copy", disable=not progress)
-    for i in bar:
-        path = None if cache is None else cache / f"copy_{i:04d}.npz"
-        if path is not None and reuse and path.is_file():
-            copies.append(_load_copy(path))
-            continue
-        copy = copy_mesh(mesh, config, i, key=key)
-        geo = denoiser_geometry(copy, knn=config.knn, pool_ratio=config.pool_ratio)
-        mu = np.asarray(encode(copy))
-        if mu.shape != (copy.num_vertices, config.latent_channels) or not np.iscomplexobj(mu):
-            raise ConfigError(
-                f"encode returned {mu.dtype} {mu.shape}; expected complex [V, d] = ({copy.num_vertices}, "
-                f"{config.latent_channels}) (set latent_channels to the FL-VAE's latent_dim)"
-            )
-        lab = None if labels is None else transfer_labels(mesh, labels, copy)
-        fix = sync(copy, geo)
-        mu = fix(mu)
-        extra = None
-        if config.encodings_per_copy > 1:
-            extra = np.stack(
-                [fix(np.asarray(encode(copy))) for _ in range(config.encodings_per_copy - 1)]
-            ).astype(np.complex64)
-        if path is not None:
-            _save_copy(path, copy, geo, mu, lab, extra)
-        copies.append((copy, geo, mu, lab) + (() if extra is None else (extra,)))
-    return stack_copies(copies, config)
+
+def _open_cache(cache_dir, meta: dict) -> tuple[pathlib.Path | None, bool]:
+    """The cache folder (None: no cache) and whether its copies can be reused: its ``data.json``
+    equals ``meta`` and the encoder has an identity; otherwise its copies are deleted and ``meta``
+    written."""
+    if cache_dir is None:
+        return None, False
+    cache = pathlib.Path(cache_dir)
+    cache.mkdir(parents=True, exist_ok=True)
+    meta_path = cache / DATA_FILE
+    reuse = (
+        meta_path.is_file()
+        and meta["encoder"] is not None
+        and json.loads(meta_path.read_text()) == meta
+    )
+    if not reuse:
+        from ..io import atomic_write
+
+        for old in cache.glob("copy_*.npz"):
+            old.unlink()
+        atomic_write(meta_path, json.dumps(meta, indent=2).encode())
+    return cache, reuse
+
+
+def _build_copy(mesh: Mesh, config: Config, i: int, *, key, encode, labels, sync) -> tuple:
+    """Copy ``i`` (module docstring, steps 1–5): ``(mesh, geometry, latents, labels)`` plus, with
+    ``config.encodings_per_copy > 1``, its further encodings ``[K − 1, V, d]`` complex64."""
+    copy = copy_mesh(mesh, config, i, key=key)
+    geo = denoiser_geometry(copy, knn=config.knn, pool_ratio=config.pool_ratio)
+    mu = np.asarray(encode(copy))
+    if mu.shape != (copy.num_vertices, config.latent_channels) or not np.iscomplexobj(mu):
+        raise ConfigError(
+            f"encode returned {mu.dtype} {mu.shape}; expected complex [V, d] = ({copy.num_vertices}, "
+            f"{config.latent_channels}) (set latent_channels to the FL-VAE's latent_dim)"
+        )
+    lab = None if labels is None else transfer_labels(mesh, labels, copy)
+    fix = sync(copy, geo)
+    mu = fix(mu)
+    if config.encodings_per_copy <= 1:
+        return (copy, geo, mu, lab)
+    extra = np.stack(
+        [fix(np.asarray(encode(copy))) for _ in range(config.encodings_per_copy - 1)]
+    ).astype(np.complex64)
+    return (copy, geo, mu, lab, extra)
 
 
 def _phase_synchronizer(mesh: Mesh, config: Config, encode):

@@ -209,26 +209,10 @@ def sample(
     V, d = geo.num_vertices, model.config.latent_channels
     lab = _check_labels(model, labels, V)
     scale = np.asarray(model.scale, np.float64)
-    if (known is None) != (mask is None):
-        raise InputError("inpainting needs both known [V, d] latents and mask [V]")
     inpainting = known is not None
-    if (
-        known is None
-    ):  # plain sampling is inpainting with an empty mask: one compiled program for both
-        known, mask = np.zeros((V, d), np.complex128), np.zeros(V, bool)
-    known = np.asarray(known)
-    mask = np.asarray(mask, bool)
-    if known.shape != (V, d) or mask.shape != (V,):
-        raise InputError(
-            f"known must be [V, d] = ({V}, {d}) and mask [V], got {known.shape} and {mask.shape}"
-        )
+    known, mask = _known_region(known, mask, V, d)
     # pad to bucketed sizes (padding never changes real outputs): nearby sizes share one compilation
-    sizes = geometry_sizes(geo)
-    b = model.config.bucket
-    Vp = _round_up(V, b)
-    geo = pad_geometry(
-        geo, V0=Vp, V1=_round_up(sizes["V1"], max(b // 4, 1)), M=_round_up(sizes["M"], 4)
-    )
+    geo, Vp = _bucketed_geometry(geo, model.config.bucket)
     kn = jnp.asarray(np.pad(known * scale, ((0, Vp - V), (0, 0))), dtype)
     mk = jnp.asarray(np.pad(mask, (0, Vp - V)))
     if lab is not None:
@@ -271,6 +255,36 @@ def sample(
         out.append(np.asarray(z, np.complex128)[:V] / scale)
     ran = model.config.diffusion_steps if method == "ddpm" else int(steps)
     return Samples(np.stack(out), mask.copy() if inpainting else None, str(method), ran)
+
+
+def _known_region(known, mask, V: int, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """The inpainting inputs checked, ``(known [V, d], mask [V] bool)``; plain sampling is
+    inpainting with an empty mask (one compiled program for both)."""
+    if (known is None) != (mask is None):
+        raise InputError("inpainting needs both known [V, d] latents and mask [V]")
+    if known is None:
+        known, mask = np.zeros((V, d), np.complex128), np.zeros(V, bool)
+    known = np.asarray(known)
+    mask = np.asarray(mask, bool)
+    if known.shape != (V, d) or mask.shape != (V,):
+        raise InputError(
+            f"known must be [V, d] = ({V}, {d}) and mask [V], got {known.shape} and {mask.shape}"
+        )
+    return known, mask
+
+
+def _bucketed_geometry(geo: DenoiserGeometry, bucket: int) -> tuple[DenoiserGeometry, int]:
+    """``geo`` padded to sizes rounded up to ``bucket`` (``bucket // 4`` for the coarse level, 4 for
+    the pooling width), and the padded vertex count."""
+    sizes = geometry_sizes(geo)
+    Vp = _round_up(geo.num_vertices, bucket)
+    geo = pad_geometry(
+        geo,
+        V0=Vp,
+        V1=_round_up(sizes["V1"], max(bucket // 4, 1)),
+        M=_round_up(sizes["M"], 4),
+    )
+    return geo, Vp
 
 
 def _is_count(value) -> bool:

@@ -408,6 +408,45 @@ def data_digest(data: Dataset) -> str:
     return h.hexdigest()[:16]
 
 
+def _batch_source(data: Dataset, config: Config, keep: np.ndarray, *, k_batch, k_noise, dtype):
+    """``batches(step) -> ((z0, geo, labels, noise key[, masks]), step)``, a function of the step
+    (module docstring); the copies stay on the host on CPU and in multi-process runs, else on the
+    device. Dropped channels (``keep`` False) are zeroed."""
+    on_host = jax.default_backend() == "cpu" or jax.process_count() > 1
+    source = data if on_host else _device_resident(data, dtype)
+
+    def batches(step: int):
+        z0, geo, labels = training_batch(source, step, config.batch_size, key=k_batch, dtype=dtype)
+        if not keep.all():  # collapsed_channels="drop"
+            z0 = z0 * keep.astype(z0.dtype)  # (host or device batch alike)
+        masks = ()
+        if config.mask_conditioning:
+            masks = (training_masks(data, step, config.batch_size, key=k_batch),)
+        return (z0, geo, labels, jax.random.fold_in(k_noise, step), *masks), np.float32(step)
+
+    return batches
+
+
+def _driver_step(config: Config, device_mesh: jax.sharding.Mesh, *, channel_weight):
+    """The training driver's step: one optimiser step of the denoiser and, with
+    ``config.ema_decay > 0``, the weight average; it records the loss."""
+    denoiser_step = make_train_step(config, device_mesh, channel_weight=channel_weight)
+    use_ema = config.ema_decay > 0
+    ema_step = data_parallel(
+        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
+    )
+
+    def step(state, batch):
+        args, t = batch
+        params, opt_state, loss = denoiser_step(state["params"], state["opt_state"], *args)
+        new = {"params": params, "opt_state": opt_state}
+        if use_ema:
+            new["ema"] = ema_step(state["ema"], params, t)
+        return new, {"loss": loss}
+
+    return step
+
+
 def train(
     data: Dataset,
     config: Config,
@@ -466,35 +505,12 @@ def train(
     k_init, k_batch, k_noise = _split(key)
     use_ema = config.ema_decay > 0
     weight, keep = channel_weights(data, config)
-    on_host = jax.default_backend() == "cpu" or jax.process_count() > 1
-    source = data if on_host else _device_resident(data, dtype)
-
-    def batches(step: int):
-        z0, geo, labels = training_batch(source, step, config.batch_size, key=k_batch, dtype=dtype)
-        if not keep.all():  # collapsed_channels="drop"
-            z0 = z0 * keep.astype(z0.dtype)  # (host or device batch alike)
-        masks = ()
-        if config.mask_conditioning:
-            masks = (training_masks(data, step, config.batch_size, key=k_batch),)
-        return (z0, geo, labels, jax.random.fold_in(k_noise, step), *masks), np.float32(step)
-
-    denoiser_step = make_train_step(
+    batches = _batch_source(data, config, keep, k_batch=k_batch, k_noise=k_noise, dtype=dtype)
+    step = _driver_step(
         config,
         device_mesh,
         channel_weight=weight if config.collapsed_channels == "downweight" else None,
     )
-    ema_step = data_parallel(
-        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
-    )
-
-    def step(state, batch):
-        args, t = batch
-        params, opt_state, loss = denoiser_step(state["params"], state["opt_state"], *args)
-        new = {"params": params, "opt_state": opt_state}
-        if use_ema:
-            new["ema"] = ema_step(state["ema"], params, t)
-        return new, {"loss": loss}
-
     params = init_denoiser(k_init, config, dtype=dtype)
     state = {"params": params, "opt_state": optimizer(config).init(params)}
     if use_ema:

@@ -310,6 +310,35 @@ def texture_atlas(
     faces = np.asarray(faces, dtype=np.int64)
     if geometry is None:
         geometry = tracer_geometry(vertices, faces)
+    uv = _checked_uv(vertices, faces, uv)
+    texel, index_of, face, bary = _nearest_triangle_texels(uv, size)
+    point = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
+    if frames not in FRAME_MODES:
+        raise InputError(f"texture_atlas: frames must be one of {FRAME_MODES}, got {frames!r}")
+    tangent, down, frame = _texel_frames(
+        vertices, faces, geometry, uv, face, bary, frames=frames, frame_vector=frame_vector
+    )
+    ratio, usable = _world_per_texel(geometry, uv, size)
+    return TextureAtlas(
+        size=size,
+        texel=texel,
+        index_of=index_of,
+        face=face,
+        bary=bary,
+        point=point,
+        tangent=tangent,
+        down=down,
+        frame=frame,
+        uv=uv,
+        texel_size=float(np.median(ratio[usable])),
+        local_size=ratio[face],
+    )
+
+
+def _checked_uv(
+    vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"], uv
+) -> Float[np.ndarray, "F 3 2"]:
+    """Per-corner UVs as float64 ``[F, 3, 2]``, unwrapped when None; bad shape or values refused."""
     if uv is None:
         uv = unwrap_uv(vertices, faces)
     uv = np.asarray(uv, dtype=np.float64)
@@ -321,15 +350,14 @@ def texture_atlas(
         raise InputError(
             "texture_atlas: uv contains NaN or infinite values; fix the UVs or pass uv=None to unwrap"
         )
-    tex = np.stack(
-        [uv[..., 0] * size, (1.0 - uv[..., 1]) * size], axis=-1
-    )  # [F, 3, 2] (x=col, y=row)
-    tex_edge1, tex_edge2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
-    tex_det = tex_edge1[:, 0] * tex_edge2[:, 1] - tex_edge1[:, 1] * tex_edge2[:, 0]
-    usable = np.abs(tex_det) > 1e-12 * np.maximum(
-        np.abs(tex_edge1).max(axis=1) * np.abs(tex_edge2).max(axis=1), 1e-300
-    )
+    return uv
 
+
+def _nearest_triangle_texels(uv: Float[np.ndarray, "F 3 2"], size: int) -> tuple:
+    """Valid texels (increasing flat pixel index), each with the UV triangle that holds its surface
+    point: the nearest overlapping one, the lowest face index on ties.
+
+    Returns ``(texel [N], index_of [size²], face [N], bary [N, 3])``."""
     texels = rasterize_uv(uv, size, coverage="overlap")
     if texels.face.size == 0:
         raise InputError(
@@ -345,15 +373,12 @@ def texture_atlas(
     texel, face, bary = pixel[first], tri[first], bary[first]
     index_of = np.full(size * size, -1, np.int64)
     index_of[texel] = np.arange(len(texel))
-    point = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
+    return texel, index_of, face, bary
 
-    if frames not in FRAME_MODES:
-        raise InputError(f"texture_atlas: frames must be one of {FRAME_MODES}, got {frames!r}")
-    corners = geometry.corners
-    dp = np.stack(
-        [corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1
-    )  # [F, 2] complex
-    P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
+
+def _texel_frames(vertices, faces, geometry, uv, face, bary, *, frames, frame_vector) -> tuple:
+    """Each texel's tangent ``t`` and ``down`` in its face's frame and its world frame
+    ``[N, 3 (t, d, n), 3]`` (module docstring, "Frames")."""
     t, side = uv_face_tangents(geometry, uv)
     if frames == "uv":
         tangent = t[face]
@@ -364,28 +389,32 @@ def texture_atlas(
         tangent = surface_tangents(vertices, faces, field, face, bary, frame_vector=frame_vector)
         down = -1j * tangent  # t turned clockwise seen from outside: the exemplar is not mirrored
         normal_sign = -1.0
-
     tw = face_frame_to_world(vertices, faces, face, tangent)
     dw = face_frame_to_world(vertices, faces, face, down)
-    frame = np.stack([tw, dw, np.cross(tw, dw) * normal_sign], axis=1)
+    return tangent, down, np.stack([tw, dw, np.cross(tw, dw) * normal_sign], axis=1)
 
+
+def _world_per_texel(
+    geometry: TracerGeometry, uv: Float[np.ndarray, "F 3 2"], size: int
+) -> tuple[Float[np.ndarray, " F"], np.ndarray]:
+    """Per face, world length per texel ``sqrt(A3D / Atex)`` and whether its UV triangle is
+    non-degenerate (the faces the median texel size is taken over)."""
+    tex = np.stack(
+        [uv[..., 0] * size, (1.0 - uv[..., 1]) * size], axis=-1
+    )  # [F, 3, 2] (x=col, y=row)
+    tex_edge1, tex_edge2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
+    tex_det = tex_edge1[:, 0] * tex_edge2[:, 1] - tex_edge1[:, 1] * tex_edge2[:, 0]
+    usable = np.abs(tex_det) > 1e-12 * np.maximum(
+        np.abs(tex_edge1).max(axis=1) * np.abs(tex_edge2).max(axis=1), 1e-300
+    )
+    corners = geometry.corners
+    dp = np.stack(
+        [corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1
+    )  # [F, 2] complex
+    P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
     area3 = 0.5 * np.abs(P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0])
     ratio = np.sqrt(area3 / np.where(usable, 0.5 * np.abs(tex_det), 1.0))
-    texel_size = float(np.median(ratio[usable]))
-    return TextureAtlas(
-        size=size,
-        texel=texel,
-        index_of=index_of,
-        face=face,
-        bary=bary,
-        point=point,
-        tangent=tangent,
-        down=down,
-        frame=frame,
-        uv=uv,
-        texel_size=texel_size,
-        local_size=ratio[face],
-    )
+    return ratio, usable
 
 
 def texels_to_image(

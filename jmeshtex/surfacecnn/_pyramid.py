@@ -171,14 +171,7 @@ def texel_pyramid(
       >>> pyr.nearest[1].index[0, :, 0].tolist()      # block (0, 0): right, below, diagonal
       [0, 0, 0, 0, 0, 1, 0, 2, 3]
     """
-    if not is_int(levels, 0):
-        raise InputError(f"texel_pyramid: levels must be an integer >= 0, got {levels!r}")
-    if boundary not in BOUNDARY_MODES:
-        raise InputError(
-            f"texel_pyramid: boundary must be one of {BOUNDARY_MODES}, got {boundary!r}"
-        )
-    if not all(0.0 < b < 1.0 for b in backoff):
-        raise InputError(f"texel_pyramid: backoff fractions must lie in (0, 1), got {backoff!r}")
+    _check_pyramid_args(levels, boundary, backoff)
     vertices = np.asarray(vertices, dtype=np.float64)
     if geometry is None:
         geometry = tracer_geometry(vertices, faces)
@@ -191,12 +184,7 @@ def texel_pyramid(
     origin = vertices.min(axis=0)
     h = atlas.texel_size
 
-    reached0 = taps.nearest.index[..., 0].astype(np.int64)
-    live = ~taps.stopped
-    centre = np.broadcast_to(np.arange(N)[:, None], reached0.shape)
-    a, b = _image_neighbors(atlas)
-    edges = _undirected(np.concatenate([centre[live], a]), np.concatenate([reached0[live], b]))
-
+    edges = _level0_edges(atlas, taps)
     node_of_texel = [np.arange(N)]
     representative = [np.arange(N)]
     nearest = [taps.nearest]
@@ -204,31 +192,10 @@ def texel_pyramid(
     centroid = atlas.point.copy()
     count = np.ones(N)
     for level in range(1, int(levels) + 1):
-        n_prev = len(centroid)
-        voxel = np.floor((centroid - origin) / (2.0**level * h)).astype(np.int64)
-        voxel -= voxel.min(axis=0)
-        dims = voxel.max(axis=0) + 1
-        vid = (voxel[:, 0] * dims[1] + voxel[:, 1]) * dims[2] + voxel[:, 2]
-        intra = edges[vid[edges[:, 0]] == vid[edges[:, 1]]]
-        graph = sp.coo_matrix(
-            (np.ones(len(intra)), (intra[:, 0], intra[:, 1])), shape=(n_prev, n_prev)
-        )
-        num_groups, labels = connected_components(graph, directed=False)
-        labels = labels.astype(np.int64)
+        num_groups, labels = _voxel_components(centroid, edges, origin, 2.0**level * h)
         pools.append(_group(labels, num_groups))
         parent.append(labels.astype(np.int32))
-        weight_sum = np.bincount(labels, count, minlength=num_groups)
-        centroid = (
-            np.stack(
-                [
-                    np.bincount(labels, count * centroid[:, k], minlength=num_groups)
-                    for k in range(3)
-                ],
-                axis=1,
-            )
-            / weight_sum[:, None]
-        )
-        count = weight_sum
+        centroid, count = _group_centroids(labels, num_groups, centroid, count)
         rep_prev = representative[-1]
         dist = np.linalg.norm(atlas.point[rep_prev] - centroid[labels], axis=1)
         rep = _first_per_group(labels, dist, rep_prev, num_groups)
@@ -260,6 +227,59 @@ def texel_pyramid(
         parent=tuple(parent),
         tie=taps.tie,
     )
+
+
+def _check_pyramid_args(levels: int, boundary: str, backoff: tuple[float, ...]) -> None:
+    """Refuse a bad level count, boundary mode or back-off fraction with a typed error."""
+    if not is_int(levels, 0):
+        raise InputError(f"texel_pyramid: levels must be an integer >= 0, got {levels!r}")
+    if boundary not in BOUNDARY_MODES:
+        raise InputError(
+            f"texel_pyramid: boundary must be one of {BOUNDARY_MODES}, got {boundary!r}"
+        )
+    if not all(0.0 < b < 1.0 for b in backoff):
+        raise InputError(f"texel_pyramid: backoff fractions must lie in (0, 1), got {backoff!r}")
+
+
+def _level0_edges(atlas: TextureAtlas, taps: TexelTaps) -> Int[np.ndarray, "E 2"]:
+    """Level-0 adjacency (module docstring): each texel to the texels its live nearest taps read,
+    plus its image 8-neighbours that are also surface neighbours."""
+    reached0 = taps.nearest.index[..., 0].astype(np.int64)
+    live = ~taps.stopped
+    centre = np.broadcast_to(np.arange(atlas.num_texels)[:, None], reached0.shape)
+    a, b = _image_neighbors(atlas)
+    return _undirected(np.concatenate([centre[live], a]), np.concatenate([reached0[live], b]))
+
+
+def _voxel_components(
+    centroid: Float[np.ndarray, "N 3"],
+    edges: Int[np.ndarray, "E 2"],
+    origin: Float[np.ndarray, " 3"],
+    side: float,
+) -> tuple[int, Int[np.ndarray, " N"]]:
+    """The next level's groups: connected components of the adjacency restricted to each voxel of
+    side ``side`` (anchored at ``origin``) that the nodes' centroids fall into."""
+    n_prev = len(centroid)
+    voxel = np.floor((centroid - origin) / side).astype(np.int64)
+    voxel -= voxel.min(axis=0)
+    dims = voxel.max(axis=0) + 1
+    vid = (voxel[:, 0] * dims[1] + voxel[:, 1]) * dims[2] + voxel[:, 2]
+    intra = edges[vid[edges[:, 0]] == vid[edges[:, 1]]]
+    graph = sp.coo_matrix((np.ones(len(intra)), (intra[:, 0], intra[:, 1])), shape=(n_prev, n_prev))
+    num_groups, labels = connected_components(graph, directed=False)
+    return num_groups, labels.astype(np.int64)
+
+
+def _group_centroids(
+    labels: Int[np.ndarray, " N"],
+    num_groups: int,
+    centroid: Float[np.ndarray, "N 3"],
+    count: Float[np.ndarray, " N"],
+) -> tuple[Float[np.ndarray, "G 3"], Float[np.ndarray, " G"]]:
+    """Texel-count-weighted centroids of the groups, and each group's texel count."""
+    weight_sum = np.bincount(labels, count, minlength=num_groups)
+    sums = [np.bincount(labels, count * centroid[:, k], minlength=num_groups) for k in range(3)]
+    return np.stack(sums, axis=1) / weight_sum[:, None], weight_sum
 
 
 def _coarse_taps(

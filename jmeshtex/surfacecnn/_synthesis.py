@@ -127,6 +127,36 @@ def _fingerprint(task: str, config: Config, layers, data: str, **extra) -> dict:
     }
 
 
+def _exemplar_targets(image, weights: VGGWeights, layers, config: Config, dtype) -> dict:
+    """The exemplar's Gram targets through the 2D network, with ``config``'s pooling and padding."""
+    return gram_targets(
+        image,
+        weights,
+        layers=layers,
+        pool=config.pool,
+        padding=config.exemplar_padding,
+        dtype=dtype,
+    )
+
+
+def _run_optimization(
+    x0, loss_fn, aux, config: Config, task: str, progress: bool, checkpoint_dir, fingerprint: dict
+) -> tuple:
+    """:func:`~jmeshtex.surfacecnn.core.optimize_colors` of one task, checkpointed every
+    ``config.checkpoint_every`` steps into ``checkpoint_dir`` under ``fingerprint``."""
+    return optimize_colors(
+        x0,
+        loss_fn,
+        aux,
+        config,
+        progress=progress,
+        desc=f"surfacecnn {task}",
+        checkpoint=checkpoint_dir,
+        checkpoint_every=config.checkpoint_every,
+        fingerprint=fingerprint,
+    )
+
+
 def _result(mesh: Mesh, surface: Surface, x, losses, final, stats, *, tie=True) -> SynthesisResult:
     """The result of optimised texel colours ``x``; ``tie``: tied texels show their tie (the
     surface network never reads their own values)."""
@@ -203,14 +233,7 @@ def synthesize(
         mesh = mesh.replace(uv=None, texture=None)  # prepare_surface unwraps it
     weights, layers, surface, arrays, dtype = _setup(mesh, config, weights, layers, surface)
     t0 = time.perf_counter()
-    targets = gram_targets(
-        image,
-        weights,
-        layers=layers,
-        pool=config.pool,
-        padding=config.exemplar_padding,
-        dtype=dtype,
-    )
+    targets = _exemplar_targets(image, weights, layers, config, dtype)
     targets = jax.block_until_ready(targets)
     target_s = time.perf_counter() - t0
     x0 = jax.random.uniform(
@@ -229,16 +252,15 @@ def synthesize(
         texels=surface.atlas.num_texels,
         key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
     )
-    x, losses, final, stats = optimize_colors(
+    x, losses, final, stats = _run_optimization(
         x0,
         loss_fn,
         (arrays, weights, targets),
         config,
-        progress=progress,
-        desc="surfacecnn synthesize",
-        checkpoint=checkpoint_dir,
-        checkpoint_every=config.checkpoint_every,
-        fingerprint=fingerprint,
+        "synthesize",
+        progress,
+        checkpoint_dir,
+        fingerprint,
     )
     return _result(mesh, surface, x, losses, final, {**stats, "targets_s": target_s})
 
@@ -305,21 +327,33 @@ def stylize(
         mesh, config, weights, layers, surface, extra_layers=(config.content_layer,), task="stylize"
     )
     content_colors = jnp.asarray(image_to_texels(surface.atlas, content_image), dtype)
-    targets = gram_targets(
-        style_image,
-        weights,
-        layers=layers,
-        pool=config.pool,
-        padding=config.exemplar_padding,
-        dtype=dtype,
-    )
+    targets = _exemplar_targets(style_image, weights, layers, config, dtype)
     content_feats = mesh_cnn_features(
         content_colors, arrays, weights, layers=(config.content_layer,), pool=config.pool
     )[config.content_layer]
     content_weight = (
         default_content_weight(weights) if config.content_weight is None else config.content_weight
     )
-    weight = jnp.asarray(content_weight, dtype)
+    loss_fn = _style_transfer_loss(layers, config, jnp.asarray(content_weight, dtype))
+    aux = (arrays, weights, targets, content_feats)
+    fingerprint = _fingerprint(
+        "stylize",
+        config,
+        layers,
+        _digest(content_image, style_image),
+        content_layer=config.content_layer,
+        content_weight=content_weight,
+        texels=surface.atlas.num_texels,
+    )
+    x, losses, final, stats = _run_optimization(
+        content_colors, loss_fn, aux, config, "stylize", progress, checkpoint_dir, fingerprint
+    )
+    return _result(mesh, surface, x, losses, final, stats)
+
+
+def _style_transfer_loss(layers: tuple[str, ...], config: Config, weight: jax.Array):
+    """``loss_fn(x, (arrays, weights, targets, content_feats))``: the Gram term plus ``weight``
+    times the content term at ``config.content_layer`` (:func:`stylize`)."""
 
     def loss_fn(x, aux):
         arrays, weights, targets, content_feats = aux
@@ -333,25 +367,4 @@ def stylize(
         content_term = jnp.mean((feats[config.content_layer] - content_feats) ** 2)
         return gram_term(feats, targets) + weight * content_term
 
-    aux = (arrays, weights, targets, content_feats)
-    fingerprint = _fingerprint(
-        "stylize",
-        config,
-        layers,
-        _digest(content_image, style_image),
-        content_layer=config.content_layer,
-        content_weight=content_weight,
-        texels=surface.atlas.num_texels,
-    )
-    x, losses, final, stats = optimize_colors(
-        content_colors,
-        loss_fn,
-        aux,
-        config,
-        progress=progress,
-        desc="surfacecnn stylize",
-        checkpoint=checkpoint_dir,
-        checkpoint_every=config.checkpoint_every,
-        fingerprint=fingerprint,
-    )
-    return _result(mesh, surface, x, losses, final, stats)
+    return loss_fn

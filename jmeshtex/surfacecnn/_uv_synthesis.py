@@ -22,10 +22,17 @@ from ..metrics import VGGWeights, vgg_features
 from ..ops import gram_matrix
 from ._config import Config
 from ._image import as_rgb
-from ._loss import default_layers, gram_targets, vgg_features_centre_padded
-from ._optimize import optimize_colors
+from ._loss import default_layers, vgg_features_centre_padded
 from ._surface import Surface
-from ._synthesis import SynthesisResult, _digest, _fingerprint, _result, network_weights
+from ._synthesis import (
+    SynthesisResult,
+    _digest,
+    _exemplar_targets,
+    _fingerprint,
+    _result,
+    _run_optimization,
+    network_weights,
+)
 
 
 def synthesize_uv(
@@ -87,16 +94,44 @@ def synthesize_uv(
     layers = tuple(layers or config.layers or default_layers(weights))
     dtype = jnp.dtype(config.dtype)
     weights = jax.tree.map(lambda a: jnp.asarray(a, dtype), weights)
-    targets = gram_targets(
-        image,
-        weights,
-        layers=layers,
-        pool=config.pool,
-        padding=config.exemplar_padding,
-        dtype=dtype,
-    )
+    targets = _exemplar_targets(image, weights, layers, config, dtype)
     size = config.size
     x0 = jax.random.uniform(key, (size * size, 3), dtype, config.init_low, config.init_high)
+    loss_fn = _image_gram_loss(size, config)
+    t0 = time.perf_counter()
+    fingerprint = _fingerprint(  # the image does not depend on the surface: any mesh may resume it
+        "synthesize_uv",
+        config,
+        layers,
+        _digest(image),
+        key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
+    )
+    x, losses, final, stats = _run_optimization(
+        x0,
+        loss_fn,
+        (weights, targets),
+        config,
+        "synthesize_uv",
+        progress,
+        checkpoint_dir,
+        fingerprint,
+    )
+    pixels = np.asarray(x).reshape(size * size, 3)[surface.atlas.texel]
+    result = _result(  # a 2D image: every pixel was optimised, no tie
+        mesh,
+        surface,
+        pixels,
+        losses,
+        final,
+        {**stats, "uv_total_s": time.perf_counter() - t0},
+        tie=False,
+    )
+    return result
+
+
+def _image_gram_loss(size: int, config: Config):
+    """``loss_fn(x, (weights, targets))``: the mean Gram loss of the flat image ``x`` (``[size², 3]``)
+    through the 2D network, padded as the exemplar was (``config.exemplar_padding``)."""
     centre = config.exemplar_padding == "centre"
     pool = config.pool
 
@@ -118,33 +153,4 @@ def synthesize_uv(
         ]
         return sum(terms) / len(terms)
 
-    t0 = time.perf_counter()
-    fingerprint = _fingerprint(  # the image does not depend on the surface: any mesh may resume it
-        "synthesize_uv",
-        config,
-        layers,
-        _digest(image),
-        key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
-    )
-    x, losses, final, stats = optimize_colors(
-        x0,
-        loss_fn,
-        (weights, targets),
-        config,
-        progress=progress,
-        desc="surfacecnn synthesize_uv",
-        checkpoint=checkpoint_dir,
-        checkpoint_every=config.checkpoint_every,
-        fingerprint=fingerprint,
-    )
-    pixels = np.asarray(x).reshape(size * size, 3)[surface.atlas.texel]
-    result = _result(  # a 2D image: every pixel was optimised, no tie
-        mesh,
-        surface,
-        pixels,
-        losses,
-        final,
-        {**stats, "uv_total_s": time.perf_counter() - t0},
-        tie=False,
-    )
-    return result
+    return loss_fn
