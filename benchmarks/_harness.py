@@ -225,6 +225,18 @@ def roofline(report: Report, flops: float, nbytes: float, seconds: float) -> dic
     }
 
 
+def timed(t: Timing) -> dict[str, float]:
+    """A row's timing columns: ``seconds`` (the median run) and ``compile_s``."""
+    return {"seconds": t.run_s, "compile_s": t.compile_s}
+
+
+def rated(report: Report, t: Timing, flops: float, nbytes: float) -> dict:
+    """A row's timing, work and :func:`roofline` columns (``flops`` left out when 0: a row that
+    only moves memory)."""
+    work = {"flops": flops} if flops else {}
+    return {**timed(t), **work, "bytes": nbytes, **roofline(report, flops, nbytes, t.run_s)}
+
+
 class Report:
     """Collects rows and writes ``results/<name>.json`` and ``results/<name>.md`` atomically."""
 

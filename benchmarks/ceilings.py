@@ -15,7 +15,7 @@ import argparse
 
 import jax
 import jax.numpy as jnp
-from _harness import Report, time_jax
+from _harness import Report, time_jax, timed
 
 jax.config.update("jax_enable_x64", True)
 
@@ -38,8 +38,7 @@ def main(argv=None) -> None:
             name="matmul",
             size=f"{n}x{n}",
             dtype=args.dtype,
-            seconds=t.run_s,
-            compile_s=t.compile_s,
+            **timed(t),
             flops=2.0 * n**3,
             bound="flops",
         )
@@ -48,8 +47,7 @@ def main(argv=None) -> None:
             name="copy",
             size=f"{n}x{n}",
             dtype=args.dtype,
-            seconds=t.run_s,
-            compile_s=t.compile_s,
+            **timed(t),
             bytes=2.0 * n * n * dtype.itemsize,
             bound="bytes",
         )

@@ -148,16 +148,22 @@ def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
         for ppv in (26.0, 18.0):
             mesh = fl.core.density_mesh(image, ppv, rng=rng)
             measured = image.shape[0] * image.shape[1] / mesh.num_vertices
+
+            # the columns that name a row (its model filled in per row, in this place)
+            cell = dict(
+                table="held_out",
+                image=name,
+                model=None,
+                vertices=mesh.num_vertices,
+                ppv_texture=round(measured, 2),
+                atlas=size,
+            )
+
             for decoder, model in models.items():
                 t0 = time.perf_counter()
                 r = fl.reconstruct(model, mesh, key=jax.random.key(0), size=size, lpips=lpips)
                 report.add(
-                    table="held_out",
-                    image=name,
-                    model=decoder,
-                    vertices=mesh.num_vertices,
-                    ppv_texture=round(measured, 2),
-                    atlas=size,
+                    **(cell | {"model": decoder}),
                     seen_in_training=name in model_images(model),
                     **{k: round(v, 4) for k, v in r.metrics.items()},
                     **channel_kl(r.latents),
@@ -166,13 +172,7 @@ def held_out_rows(models: dict, report, *, size: int, lpips: bool) -> None:
                 )
             for base, values in baseline_metrics(mesh, r, lpips=lpips).items():
                 report.add(
-                    table="held_out",
-                    image=name,
-                    model=base,
-                    vertices=mesh.num_vertices,
-                    ppv_texture=round(measured, 2),
-                    atlas=size,
-                    **{k: round(v, 4) for k, v in values.items()},
+                    **(cell | {"model": base}), **{k: round(v, 4) for k, v in values.items()}
                 )
 
 

@@ -26,7 +26,7 @@ import argparse
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _harness import Report, Size, size_label, time_jax
+from _harness import Report, Size, size_label, time_jax, timed
 
 from jmeshtex.ops import chamfer_distance
 
@@ -83,12 +83,23 @@ def main() -> None:
         name="min-reduce only (ceiling)",
         size=size,
         chunk=chunk0,
-        seconds=t.run_s,
-        compile_s=t.compile_s,
+        **timed(t),
         flops=pairs * 9,
         bytes=nbytes,
         bound="elementwise",
     )
+
+    def chamfer_row(name: str, chunk: int, t) -> None:
+        report.add(
+            name=name,
+            size=size,
+            chunk=chunk,
+            **timed(t),
+            flops=flops,
+            bytes=nbytes,
+            bound="elementwise",
+            pct_of_min_reduce=100.0 * ceiling_s / t.run_s,
+        )
 
     for i, chunk in enumerate(args.chunks):
         fwd = jax.jit(
@@ -97,17 +108,7 @@ def main() -> None:
             )
         )
         t = time_jax(fwd, p, q, pn, qn, repeats=3)
-        report.add(
-            name="chamfer fwd",
-            size=size,
-            chunk=chunk,
-            seconds=t.run_s,
-            compile_s=t.compile_s,
-            flops=flops,
-            bytes=nbytes,
-            bound="elementwise",
-            pct_of_min_reduce=100.0 * ceiling_s / t.run_s,
-        )
+        chamfer_row("chamfer fwd", chunk, t)
         if i == 0:
 
             def loss(p, q, chunk=chunk):
@@ -116,17 +117,7 @@ def main() -> None:
 
             bwd = jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))
             t = time_jax(bwd, p, q, repeats=3)
-            report.add(
-                name="chamfer fwd+bwd",
-                size=size,
-                chunk=chunk,
-                seconds=t.run_s,
-                compile_s=t.compile_s,
-                flops=flops,
-                bytes=nbytes,
-                bound="elementwise",
-                pct_of_min_reduce=100.0 * ceiling_s / t.run_s,
-            )
+            chamfer_row("chamfer fwd+bwd", chunk, t)
 
     report.write(args.out)
 

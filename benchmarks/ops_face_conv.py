@@ -23,7 +23,7 @@ import argparse
 
 import jax
 import jax.numpy as jnp
-from _harness import Report, Size, roofline, size_label, time_host, time_jax
+from _harness import Report, Size, rated, size_label, time_host, time_jax
 
 from jmeshtex.data import icosphere
 from jmeshtex.geometry import face_neighborhood
@@ -82,23 +82,13 @@ def main() -> None:
         repeats = 1 if F > 200_000 else 3 if F > 50_000 else 5  # keeps the default run ~3 min
         t = time_jax(fwd, vj, nb, params, repeats=repeats, min_time=0.0)
         report.add(
-            name="stack fwd",
-            size=size,
-            seconds=t.run_s,
-            compile_s=t.compile_s,
-            flops=dense_flops(F),
-            bytes=forward_bytes(F),
-            **roofline(report, dense_flops(F), forward_bytes(F), t.run_s),
+            name="stack fwd", size=size, **rated(report, t, dense_flops(F), forward_bytes(F))
         )
         t = time_jax(fwd_bwd, params, vj, nb, repeats=repeats, min_time=0.0)
         report.add(
             name="stack fwd+bwd",
             size=size,
-            seconds=t.run_s,
-            compile_s=t.compile_s,
-            flops=3 * dense_flops(F),
-            bytes=3 * forward_bytes(F),
-            **roofline(report, 3 * dense_flops(F), 3 * forward_bytes(F), t.run_s),
+            **rated(report, t, 3 * dense_flops(F), 3 * forward_bytes(F)),
         )
         x = jnp.ones((F, WIDTH), jnp.float32)
         t = time_jax(gemms_only, x, repeats=repeats)

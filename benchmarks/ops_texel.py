@@ -24,7 +24,7 @@ import argparse
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _harness import Report, Size, roofline, size_label, time_jax
+from _harness import Report, Size, rated, size_label, time_jax
 
 from jmeshtex.ops import TexelNeighborhood, grouped_pool, image_pool_groups, texel_conv
 
@@ -81,15 +81,7 @@ def main() -> None:
 
     fwd = jax.jit(texel_conv)
     t = time_jax(fwd, x, taps, kernel, bias)
-    report.add(
-        name="texel_conv fwd",
-        size=size,
-        seconds=t.run_s,
-        compile_s=t.compile_s,
-        flops=gemm + gather,
-        bytes=io + block,
-        **roofline(report, gemm + gather, io + block, t.run_s),
-    )
+    report.add(name="texel_conv fwd", size=size, **rated(report, t, gemm + gather, io + block))
     bwd = jax.jit(
         jax.grad(lambda x, k, taps: jnp.sum(texel_conv(x, taps, k, bias) ** 2), argnums=(0, 1))
     )
@@ -97,11 +89,7 @@ def main() -> None:
     report.add(
         name="texel_conv fwd+bwd",
         size=size,
-        seconds=t.run_s,
-        compile_s=t.compile_s,
-        flops=3 * gemm + 2 * gather,
-        bytes=3 * (io + block),
-        **roofline(report, 3 * gemm + 2 * gather, 3 * (io + block), t.run_s),
+        **rated(report, t, 3 * gemm + 2 * gather, 3 * (io + block)),
     )
 
     img = x.reshape(1, S, S, C)
@@ -112,24 +100,14 @@ def main() -> None:
     )
     t = time_jax(dense, img, kernel)
     report.add(
-        name="lax.conv 3x3 (ceiling)",
-        size=size,
-        seconds=t.run_s,
-        compile_s=t.compile_s,
-        flops=gemm,
-        bytes=4.0 * (N * C + N * D),
-        **roofline(report, gemm, 4.0 * (N * C + N * D), t.run_s),
+        name="lax.conv 3x3 (ceiling)", size=size, **rated(report, t, gemm, 4.0 * (N * C + N * D))
     )
     dense_bwd = jax.jit(jax.grad(lambda img, k: jnp.sum(dense(img, k) ** 2), argnums=(0, 1)))
     t = time_jax(dense_bwd, img, kernel)
     report.add(
         name="lax.conv 3x3 fwd+bwd (ceiling)",
         size=size,
-        seconds=t.run_s,
-        compile_s=t.compile_s,
-        flops=3 * gemm,
-        bytes=3 * 4.0 * (N * C + N * D),
-        **roofline(report, 3 * gemm, 3 * 4.0 * (N * C + N * D), t.run_s),
+        **rated(report, t, 3 * gemm, 3 * 4.0 * (N * C + N * D)),
     )
 
     G = groups.index.shape[0]
@@ -138,12 +116,7 @@ def main() -> None:
         pool = jax.jit(lambda x, g, mode=mode: grouped_pool(x, g, mode=mode))
         t = time_jax(pool, x, groups)
         report.add(
-            name=f"grouped_pool 2x2 {mode} fwd",
-            size=size,
-            seconds=t.run_s,
-            compile_s=t.compile_s,
-            bytes=pool_bytes,
-            **roofline(report, 0.0, pool_bytes, t.run_s),
+            name=f"grouped_pool 2x2 {mode} fwd", size=size, **rated(report, t, 0.0, pool_bytes)
         )
         pool_bwd = jax.jit(
             jax.grad(lambda x, g, mode=mode: jnp.sum(grouped_pool(x, g, mode=mode) ** 2))
@@ -152,10 +125,7 @@ def main() -> None:
         report.add(
             name=f"grouped_pool 2x2 {mode} fwd+bwd",
             size=size,
-            seconds=t.run_s,
-            compile_s=t.compile_s,
-            bytes=2 * pool_bytes + 4.0 * N * C,
-            **roofline(report, 0.0, 2 * pool_bytes + 4.0 * N * C, t.run_s),
+            **rated(report, t, 0.0, 2 * pool_bytes + 4.0 * N * C),
         )
     ceiling = jax.jit(
         lambda img: jax.lax.reduce_window(
@@ -166,10 +136,7 @@ def main() -> None:
     report.add(
         name="lax.reduce_window 2x2 max (ceiling)",
         size=size,
-        seconds=t.run_s,
-        compile_s=t.compile_s,
-        bytes=4.0 * (N * C + G * C),
-        **roofline(report, 0.0, 4.0 * (N * C + G * C), t.run_s),
+        **rated(report, t, 0.0, 4.0 * (N * C + G * C)),
     )
     report.write(args.out)
 

@@ -300,6 +300,35 @@ def protocol_mesh(name: str, work: pathlib.Path) -> Mesh:
     return mesh
 
 
+def cell_columns(mesh_name: str, ex_name: str, size: int, steps: int, surface) -> dict:
+    """The columns that name a protocol cell: its mesh, exemplar, texture size, steps and texels."""
+    return {
+        "mesh": mesh_name,
+        "exemplar": ex_name,
+        "size": size,
+        "steps": steps,
+        "texels": int(surface.atlas.num_texels),
+    }
+
+
+def synthesize_cell(method, mesh, exemplar, config, surface, weights, checkpoint_dir=None):
+    """A protocol cell's optimisation: ``method`` ``"surface"`` (the surface CNN) or ``"uv2d"``
+    (UV-space 2D synthesis) from key 0, quiet, resumable in ``checkpoint_dir``."""
+    from jmeshtex.surfacecnn import synthesize, synthesize_uv
+
+    run = {"surface": synthesize, "uv2d": synthesize_uv}[method]
+    return run(
+        mesh,
+        exemplar,
+        config,
+        key=jax.random.key(0),
+        surface=surface,
+        weights=weights,
+        progress=False,
+        checkpoint_dir=checkpoint_dir,
+    )
+
+
 def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps, weights, work):
     """One (mesh, exemplar) cell: the surface CNN and UV-space 2D synthesis with the same
     settings, each scored by seams, specks and surface patches; resumable (checkpoints and the
@@ -310,7 +339,6 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
     from jmeshtex import render
     from jmeshtex.io import atomic_write
     from jmeshtex.metrics import seam_orientation
-    from jmeshtex.surfacecnn import synthesize, synthesize_uv
     from jmeshtex.surfacecnn.core import seam_ratio
 
     cell = work / f"{mesh_name}_{ex_name}_{size}_{steps}"
@@ -320,32 +348,17 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
     exemplar = protocol_exemplar(ex_name)
     config = Config(size=size, steps=steps)
     cams = render.orbit_cameras(mesh, azimuths=4, elevations=(20.0,), size=(size, size), up=up)
-    row = {
-        "mesh": mesh_name,
-        "exemplar": ex_name,
-        "size": size,
-        "steps": steps,
-        "texels": int(surface.atlas.num_texels),
-        "texel_density_spread": _layout_spread(mesh_name, work),
-    }
+    row = cell_columns(mesh_name, ex_name, size, steps, surface)
+    row["texel_density_spread"] = _layout_spread(mesh_name, work)
     laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
     control = seam_orientation(laid, orientation_control(mesh, surface, config))
     row["orientation_control"] = {"seam": control.seam, "interior": control.interior}
     panels = [("exemplar", exemplar)]
     folders = {"surface": cell / "surface", "uv2d": work / "uv2d" / f"{ex_name}_{size}_{steps}"}
-    for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
-        resumed = folders[method].is_dir() and any(folders[method].iterdir())
+    for method, folder in folders.items():
+        resumed = folder.is_dir() and any(folder.iterdir())
         t0, c0 = time.perf_counter(), time.process_time()
-        r = run(
-            mesh,
-            exemplar,
-            config,
-            key=jax.random.key(0),
-            surface=surface,
-            weights=weights,
-            progress=False,
-            checkpoint_dir=folders[method],
-        )
+        r = synthesize_cell(method, mesh, exemplar, config, surface, weights, folder)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         np.save(cell / f"{method}_texture.npy", np.asarray(r.texture, np.float32))
         seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)

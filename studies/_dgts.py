@@ -278,6 +278,36 @@ def study_models(kind: str, runs: list[str], levels: int, work: pathlib.Path) ->
     return models
 
 
+#: the truth-relative columns of :func:`score_transfers` rows (a study's note adds its own)
+TRANSFER_SCORES_NOTE = (
+    "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
+    "transfer's own base"
+)
+
+
+def study_parser(
+    doc: str, *, kind: bool = True, runs: bool = False, train_levels: int | None = None
+) -> argparse.ArgumentParser:
+    """The parser of a study at depth: described by the first line of ``doc``, with the texture
+    ``kind`` (positional, when ``kind``), ``--levels`` (default ``train_levels``) and ``--steps``
+    of the runs it trains (when ``train_levels`` is given), and :func:`add_study_arguments`."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
+    if kind:
+        ap.add_argument("kind", choices=sorted(DEPTH_TEXTURES))
+    if train_levels is not None:
+        ap.add_argument("--levels", type=int, default=train_levels)
+        ap.add_argument("--steps", type=int, default=2000, help="steps per level")
+    add_study_arguments(ap, runs=runs)
+    return ap
+
+
+def study_arguments(args: argparse.Namespace) -> dict:
+    """The shared settings a :func:`study_parser` parsed: ``levels``, ``steps`` (where it has them),
+    ``work`` and ``samples``, as keywords of the study's function."""
+    names = ("levels", "steps", "work", "samples")
+    return {name: getattr(args, name) for name in names if hasattr(args, name)}
+
+
 def add_study_arguments(ap: argparse.ArgumentParser, *, runs: bool = False) -> None:
     """The arguments the studies at depth share: ``--samples``, ``--work`` (the resumable runs, a
     folder per texture) and, for the studies of trained runs, ``--runs`` and ``--levels``."""

@@ -9,16 +9,16 @@ against their oracles (:func:`curvature`). Writes
 
 from __future__ import annotations
 
-import argparse
 import pathlib
 
 import jax
 import numpy as np
 from _dgts import (
-    DEPTH_TEXTURES,
-    add_study_arguments,
+    TRANSFER_SCORES_NOTE,
     score_transfers,
+    study_arguments,
     study_models,
+    study_parser,
     transfer_targets,
 )
 from _study import RESULTS, Report
@@ -82,19 +82,13 @@ def curvature(
         title=f"DGTS {kind}: transfers to a torus and a sphere at three resolutions",
         path=RESULTS / f"dgts_curvature_{kind}.png",
     )
-    report.notes.append(
-        "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
-        "transfer's own base, at the model's own period in mean edges."
-    )
+    report.notes.append(f"{TRANSFER_SCORES_NOTE}, at the model's own period in mean edges.")
     report.write()
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("kind", choices=sorted(DEPTH_TEXTURES))
-    add_study_arguments(ap, runs=True)
-    args = ap.parse_args(argv)
-    curvature(args.kind, args.runs, levels=args.levels, work=args.work, samples=args.samples)
+    args = study_parser(__doc__, runs=True).parse_args(argv)
+    curvature(args.kind, args.runs, **study_arguments(args))
 
 
 if __name__ == "__main__":

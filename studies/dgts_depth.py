@@ -12,7 +12,6 @@ untrained and noise).
 
 from __future__ import annotations
 
-import argparse
 import os
 import pathlib
 import time
@@ -21,9 +20,10 @@ import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
-    add_study_arguments,
     depth_meshes,
     evaluate,
+    study_arguments,
+    study_parser,
 )
 from _study import RESULTS, Report
 
@@ -99,13 +99,10 @@ def depth(
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = study_parser(__doc__, kind=False, train_levels=4)
     ap.add_argument("kinds", nargs="+", choices=sorted(DEPTH_TEXTURES))
-    ap.add_argument("--levels", type=int, default=4)
-    ap.add_argument("--steps", type=int, default=2000, help="steps per level")
-    add_study_arguments(ap)
     args = ap.parse_args(argv)
-    depth(args.kinds, levels=args.levels, steps=args.steps, work=args.work, samples=args.samples)
+    depth(args.kinds, **study_arguments(args))
 
 
 if __name__ == "__main__":

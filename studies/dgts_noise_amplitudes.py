@@ -9,17 +9,18 @@ Writes ``studies/results/dgts_noise_amplitudes_<kind>.{json,md}``.
 
 from __future__ import annotations
 
-import argparse
 import pathlib
 
 import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
-    add_study_arguments,
+    TRANSFER_SCORES_NOTE,
     layout_correlation,
     score_rows,
+    study_arguments,
     study_models,
+    study_parser,
     transfer_targets,
 )
 from _study import Report
@@ -79,27 +80,18 @@ def noise_amplitudes(
                         (res.base, res.faces), extra, period)  # fmt: skip
         report.write()
     report.notes.append(
-        "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
-        "transfer's own base; noise xA: transfer noise A times Config.noise_amplitude; "
+        f"{TRANSFER_SCORES_NOTE}; noise xA: transfer noise A times Config.noise_amplitude; "
         "layout_vs_zero: correlation of relief heights with the smallest amplitude's output."
     )
     report.write()
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = study_parser(__doc__, kind=False, runs=True)
     ap.add_argument("amplitudes", nargs="+", type=float)
     ap.add_argument("--kind", default="knobs", choices=sorted(DEPTH_TEXTURES))
-    add_study_arguments(ap, runs=True)
     args = ap.parse_args(argv)
-    noise_amplitudes(
-        args.kind,
-        args.runs,
-        amplitudes=args.amplitudes,
-        levels=args.levels,
-        work=args.work,
-        samples=args.samples,
-    )
+    noise_amplitudes(args.kind, args.runs, amplitudes=args.amplitudes, **study_arguments(args))
 
 
 if __name__ == "__main__":

@@ -11,7 +11,6 @@ the ones ``dgts_tessellations.py``, ``dgts_noise_amplitudes.py`` and ``dgts_curv
 
 from __future__ import annotations
 
-import argparse
 import json
 import pathlib
 import time
@@ -20,10 +19,11 @@ import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
-    add_study_arguments,
     depth_meshes,
     score_rows,
     score_transfers,
+    study_arguments,
+    study_parser,
     transfer_targets,
 )
 from _study import RESULTS, Report
@@ -179,11 +179,7 @@ def noise_response(
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("kind", choices=sorted(DEPTH_TEXTURES))
-    ap.add_argument("--levels", type=int, default=4)
-    ap.add_argument("--steps", type=int, default=2000, help="steps per level")
-    add_study_arguments(ap)
+    ap = study_parser(__doc__, train_levels=4)
     ap.add_argument(
         "--coarse-levels",
         type=int,
@@ -210,10 +206,7 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     noise_response(
         args.kind,
-        levels=args.levels,
-        steps=args.steps,
-        work=args.work,
-        samples=args.samples,
+        **study_arguments(args),
         coarse_levels=args.coarse_levels,
         remeshes=args.remeshes,
         fixed_noise_levels=args.fixed_noise_levels,

@@ -8,7 +8,6 @@ surfaces (:func:`receptive_field`). Writes ``studies/results/dgts_receptive_fiel
 
 from __future__ import annotations
 
-import argparse
 import pathlib
 import time
 
@@ -16,10 +15,11 @@ import jax
 import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
-    add_study_arguments,
     depth_meshes,
     score_rows,
     score_transfers,
+    study_arguments,
+    study_parser,
     transfer_targets,
 )
 from _study import RESULTS, Report
@@ -136,23 +136,11 @@ def receptive_field(
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("kind", choices=sorted(DEPTH_TEXTURES))
+    ap = study_parser(__doc__, train_levels=3)
     ap.add_argument("--layer-counts", nargs="+", type=int, default=[7, 10])
-    ap.add_argument("--levels", type=int, default=3)
-    ap.add_argument("--steps", type=int, default=2000, help="steps per level")
     ap.add_argument("--remeshes", type=int, default=1)
-    add_study_arguments(ap)
     args = ap.parse_args(argv)
-    receptive_field(
-        args.kind,
-        args.layer_counts,
-        levels=args.levels,
-        steps=args.steps,
-        work=args.work,
-        samples=args.samples,
-        remeshes=args.remeshes,
-    )
+    receptive_field(args.kind, args.layer_counts, **study_arguments(args), remeshes=args.remeshes)
 
 
 if __name__ == "__main__":

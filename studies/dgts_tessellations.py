@@ -10,16 +10,16 @@ isotropic sphere) from the default and ``--starts`` levels, against their oracle
 
 from __future__ import annotations
 
-import argparse
 import pathlib
 
 import jax
 import numpy as np
 from _dgts import (
-    DEPTH_TEXTURES,
-    add_study_arguments,
+    TRANSFER_SCORES_NOTE,
     score_transfers,
+    study_arguments,
     study_models,
+    study_parser,
 )
 from _study import RESULTS, Report
 
@@ -80,27 +80,17 @@ def tessellations(
         path=RESULTS / f"dgts_tessellations_{kind}.png",
     )
     report.notes.append(
-        "density_vs_truth / relief_vs_truth: peak density and relief std over the oracle's on the "
-        "transfer's own base, at the model's own period in mean edges; matched noise: Gaussian "
-        "relief of the oracle's std."
+        f"{TRANSFER_SCORES_NOTE}, at the model's own period in mean edges; matched noise: "
+        "Gaussian relief of the oracle's std."
     )
     report.write()
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("kind", choices=sorted(DEPTH_TEXTURES))
-    add_study_arguments(ap, runs=True)
+    ap = study_parser(__doc__, runs=True)
     ap.add_argument("--starts", nargs="+", type=int, default=[2], help="extra start levels")
     args = ap.parse_args(argv)
-    tessellations(
-        args.kind,
-        args.runs,
-        levels=args.levels,
-        work=args.work,
-        samples=args.samples,
-        starts=(None, *args.starts),
-    )
+    tessellations(args.kind, args.runs, **study_arguments(args), starts=(None, *args.starts))
 
 
 if __name__ == "__main__":

@@ -16,15 +16,16 @@ import os
 import pathlib
 import time
 
-import jax
 import numpy as np
 from _study import ROOT  # noqa: F401  (puts the benchmarks on the path)
 from _surfacecnn import exemplar_image
 from surfacecnn import (
     PROTOCOL_MESHES,
+    cell_columns,
     orientation_control,
     protocol_exemplar,
     protocol_mesh,
+    synthesize_cell,
 )
 
 from jmeshtex import Mesh
@@ -60,7 +61,6 @@ def orientation(
 
     from jmeshtex.geometry import tracer_geometry
     from jmeshtex.metrics import seam_orientation
-    from jmeshtex.surfacecnn import synthesize, synthesize_uv
     from jmeshtex.surfacecnn.core import seam_ratio
 
     weights = load_vgg16()
@@ -80,11 +80,7 @@ def orientation(
                 exemplar_image(ex_name, 128) if ex_name == "stripes" else protocol_exemplar(ex_name)
             )
             row = {
-                "mesh": mesh_name,
-                "exemplar": ex_name,
-                "size": size,
-                "steps": steps,
-                "texels": int(surface.atlas.num_texels),
+                **cell_columns(mesh_name, ex_name, size, steps, surface),
                 "prepare_s": prep,
                 "control": {
                     "seam": control.seam,
@@ -93,7 +89,7 @@ def orientation(
                     "interior": control.interior,
                 },
             }
-            for method, run in (("surface", synthesize), ("uv2d", synthesize_uv)):
+            for method in ("surface", "uv2d"):
                 path = work / "orientation" / f"{mesh_name}_{ex_name}_{size}_{steps}_{method}.npz"
                 if path.is_file():
                     with np.load(path) as z:
@@ -102,16 +98,8 @@ def orientation(
                     c0 = time.process_time()
                     # the 2D image does not depend on the mesh: one optimisation serves every mesh
                     shared = work / "uv2d" / f"{ex_name}_{size}_{steps}_orientation"
-                    r = run(
-                        mesh,
-                        exemplar,
-                        config,
-                        key=jax.random.key(0),
-                        surface=surface,
-                        weights=weights,
-                        progress=False,
-                        **({"checkpoint": shared} if method == "uv2d" else {}),
-                    )
+                    folder = shared if method == "uv2d" else None
+                    r = synthesize_cell(method, mesh, exemplar, config, surface, weights, folder)
                     texture, colors, loss = r.texture, r.colors, r.final_loss
                     cpu = time.process_time() - c0
                     path.parent.mkdir(parents=True, exist_ok=True)

@@ -26,6 +26,7 @@ from hypothesis import strategies as st
 from jmeshtex import JmeshtexError, Mesh, dgts, fl, fldm, geometry, meshmatch, metrics, surfacecnn
 from jmeshtex.data import icosahedron, icosphere, torus
 from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes
+from tests._presets import FLDM_MICRO
 
 #: seconds one case may take in one entry (a refusal takes milliseconds; the control runs a tiny
 #: configuration of each method, whose first call compiles)
@@ -103,17 +104,7 @@ def _colour_latents(mesh: Mesh) -> np.ndarray:
 
 _KEY = jax.random.key(0)
 _EXEMPLAR = np.random.default_rng(0).uniform(size=(8, 8, 3))
-_FLDM = fldm.Config.tiny(
-    latent_channels=2,
-    n_copies=1,
-    copy_vertices=40,
-    widths=(4, 6),
-    hdim=2,
-    knn=5,
-    diffusion_steps=20,
-    bucket=16,
-    batch_size=1,
-)
+_FLDM = FLDM_MICRO.replace(n_copies=1, batch_size=1)
 _VIEWS = metrics.Protocol(azimuths=2, elevations=(20.0,), size=16, supersample=1)
 _MESHMATCH = meshmatch.Config(levels=1, steps=1, coarse_steps=2, hks_eigenpairs=8)
 

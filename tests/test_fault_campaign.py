@@ -84,6 +84,13 @@ def _cli(*argv: str) -> int:
     return rc
 
 
+def _fldm_train_labels(labels, out) -> int:
+    """``jmeshtex fldm train`` on icosphere:1 with the labels file ``labels``."""
+    return _cli(
+        "fldm", "train", "--mesh", "icosphere:1", "--labels", labels, "--out", out, "--quiet"
+    )
+
+
 def _outcome(case: Case) -> tuple[str, float]:
     """``("good" | "bad: why", seconds)`` for one case."""
     before = _digests(case.user_files)
@@ -370,17 +377,7 @@ def _cause5(tmp: pathlib.Path, rng: np.random.Generator) -> list[Case]:
         Case(
             5,
             "FIFO --labels",
-            lambda: _cli(
-                "fldm",
-                "train",
-                "--mesh",
-                "icosphere:1",
-                "--labels",
-                labels_fifo,
-                "--out",
-                out,
-                "--quiet",
-            ),
+            lambda: _fldm_train_labels(labels_fifo, out),
             "typed",
         ),
         Case(
@@ -502,17 +499,7 @@ def _cause7(tmp: pathlib.Path, rng: np.random.Generator) -> list[Case]:
         Case(
             7,
             "labels with a huge maximum",
-            lambda: _cli(
-                "fldm",
-                "train",
-                "--mesh",
-                "icosphere:1",
-                "--labels",
-                labels,
-                "--out",
-                out,
-                "--quiet",
-            ),
+            lambda: _fldm_train_labels(labels, out),
             "typed",
             [labels],
         ),

@@ -58,6 +58,7 @@ from jmeshtex import (
 )
 from jmeshtex._config import ConfigBase
 from jmeshtex.data import grid, icosahedron, icosphere, striped_sphere, torus
+from tests._presets import FL_MICRO_MESHES, FLDM_MICRO
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,20 +112,8 @@ def _dgts_data():
     )
 
 
-_FL = fl.Config(
-    latent_dim=2,
-    features=8,
-    num_heads=2,
-    num_blocks=1,
-    num_samples=8,
-    decoder_features=16,
-    min_vertices=10,
-    max_vertices=12,
-    meshes_per_image=1,
-    batch_size=1,
-    max_image_size=16,
-    steps=2,
-    warmup_steps=0,
+_FL = FL_MICRO_MESHES.replace(
+    latent_dim=2, meshes_per_image=1, batch_size=1, steps=2, warmup_steps=0
 )
 
 
@@ -140,19 +129,7 @@ def _sheet() -> Mesh:
     return Mesh(v, f, uv=v[f][..., :2], texture=texture)
 
 
-_FLDM = fldm.Config.tiny(
-    latent_channels=2,
-    n_copies=2,
-    copy_vertices=40,
-    steps=3,
-    checkpoint_every=2,
-    widths=(4, 6),
-    hdim=2,
-    knn=5,
-    diffusion_steps=20,
-    bucket=16,
-    batch_size=2,
-)
+_FLDM = FLDM_MICRO.replace(n_copies=2, steps=3, checkpoint_every=2, batch_size=2)
 
 
 def _colour_latents(mesh: Mesh) -> np.ndarray:

@@ -49,29 +49,9 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
     ):
         assert (d / name).exists(), name
     assert load_mesh(d / "level_01.obj").num_faces == 80
-    assert (
-        main(
-            [
-                "dgts",
-                "train",
-                str(d),
-                "--steps",
-                "2",
-                "--layers",
-                "3",
-                "--features",
-                "4",
-                "4",
-                "4",
-                "--seed",
-                "3",
-                "--shared-levels",
-                "2",
-                "--quiet",
-            ]
-        )
-        == 0
-    )
+    train = ["dgts", "train", str(d), "--steps", "2", "--layers", "3", "--features", "4", "4", "4"]
+    train += ["--seed", "3", "--shared-levels", "2", "--quiet"]
+    assert main(train) == 0
     assert (d / "sample.png").exists() and (d / "checkpoints").is_dir()
     model = load(d / "model")
     assert model.num_levels == 2 and model.config == TINY
@@ -79,98 +59,26 @@ def test_prepare_train_transfer_interpolate(tmp_path, capsys, tiny_model, monkey
     for a, b in zip(jax.tree.leaves(model), jax.tree.leaves(tiny_model), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert "resumed" not in capsys.readouterr().out
-    assert (
-        main(
-            [
-                "dgts",
-                "train",
-                str(d),
-                "--steps",
-                "2",
-                "--layers",
-                "3",
-                "--features",
-                "4",
-                "4",
-                "4",
-                "--seed",
-                "3",
-                "--shared-levels",
-                "2",
-                "--quiet",
-            ]
-        )
-        == 0
-    )
+    assert main(train) == 0
     assert (
         "resumed from checkpoint step 4" in capsys.readouterr().out
     )  # a second run resumes, nothing to do
     out = tmp_path / "out"
-    assert (
-        main(
-            [
-                "dgts",
-                "transfer",
-                "--model",
-                str(d),
-                "--target",
-                "torus:8:6",
-                "--samples",
-                "2",
-                "--out",
-                str(out),
-            ]
-        )
-        == 0
-    )
+    transfer = ["dgts", "transfer", "--model", str(d), "--target", "torus:8:6"]
+    assert main([*transfer, "--samples", "2", "--out", str(out)]) == 0
     m = load_mesh(out / "sample_01.obj")
     assert m.num_faces == 96 and np.isfinite(m.vertices).all()  # a 20-face template: level 1
     assert (
         "start level 1 (matched to the target's faces, within --max-faces 500000): 96 target "
         "faces -> 96" in capsys.readouterr().out
     )
-    assert (
-        main(
-            [
-                "dgts",
-                "transfer",
-                "--model",
-                str(d),
-                "--target",
-                "torus:8:6",
-                "--start-level",
-                "0",
-                "--max-faces",
-                "384",
-                "--zero-noise-from",
-                "0",
-                "--out",
-                str(tmp_path / "budget"),
-            ]
-        )
-        == 0
-    )
+    budget = ["--start-level", "0", "--max-faces", "384", "--zero-noise-from", "0"]
+    assert main([*transfer, *budget, "--out", str(tmp_path / "budget")]) == 0
     assert "start level 0 (given): 96 target faces -> 384" in capsys.readouterr().out
-    stop = ["--model", str(d), "--target", "torus:8:6", "--start-level", "0", "--stop-level", "0"]
-    assert main(["dgts", "transfer", *stop, "--out", str(tmp_path / "stop")]) == 0
+    stop = ["--start-level", "0", "--stop-level", "0", "--out", str(tmp_path / "stop")]
+    assert main([*transfer, *stop]) == 0
     assert "start level 0 (given): 96 target faces -> 96" in capsys.readouterr().out
-    assert (
-        main(
-            [
-                "dgts",
-                "transfer",
-                "--model",
-                str(d),
-                "--target",
-                "torus:8:6",
-                "--max-faces",
-                "95",
-                "--out",
-                str(tmp_path / "budget"),
-            ]
-        )
-        == 2
-    )
+    assert main([*transfer, "--max-faces", "95", "--out", str(tmp_path / "budget")]) == 2
     assert "max_faces=95" in capsys.readouterr().err
     img = matplotlib.image.imread(out / "transfer.png")
     assert (img[..., :3] < 0.9).any(axis=2).mean() > 0.05  # something was drawn

@@ -70,20 +70,23 @@ def test_levels_train_and_earlier_generators_stay_frozen(tiny_meshes, tiny_model
     assert all(np.isfinite(x).all() for x in _leaves(tiny_model.generators))
 
 
-def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, tiny_result):
-    out = tmp_path / "run"
-    first = train(
-        tiny_meshes,
+def _train_tiny(meshes, checkpoint_dir, **kwargs):
+    """``train`` with the tiny fixtures' configuration and key, checkpointing to ``checkpoint_dir``."""
+    return train(
+        meshes,
         TINY,
         key=jax.random.key(TINY_KEY),
-        checkpoint_dir=out,
-        levels=1,
+        checkpoint_dir=checkpoint_dir,
         progress=False,
+        **kwargs,
     )
+
+
+def test_resume_after_the_last_complete_level_is_exact(tmp_path, tiny_meshes, tiny_result):
+    out = tmp_path / "run"
+    first = _train_tiny(tiny_meshes, out, levels=1)
     assert Checkpoints(out).steps() == [TINY.steps]  # one level done
-    resumed = train(
-        tiny_meshes, TINY, key=jax.random.key(TINY_KEY), checkpoint_dir=out, progress=False
-    )
+    resumed = _train_tiny(tiny_meshes, out)
     assert first.resumed_from is None and resumed.resumed_from == TINY.steps
     assert [r.level for r in first.extra["levels"]] == [0] and [
         r.level for r in resumed.extra["levels"]
@@ -134,14 +137,7 @@ def test_resume_within_a_level_is_exact(tmp_path, tiny_meshes):
 
 def test_resume_with_another_config_or_key_is_refused(tmp_path, tiny_meshes):
     out = tmp_path / "run"
-    train(
-        tiny_meshes,
-        TINY,
-        key=jax.random.key(TINY_KEY),
-        checkpoint_dir=out,
-        levels=1,
-        progress=False,
-    )
+    _train_tiny(tiny_meshes, out, levels=1)
     with pytest.raises(CheckpointMismatchError, match="config"):
         train(
             tiny_meshes,

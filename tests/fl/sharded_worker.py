@@ -25,18 +25,13 @@ import numpy as np  # noqa: E402
 
 from jmeshtex import fl, parallel  # noqa: E402
 
-CONFIG = fl.Config(
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))  # the repository root
+from tests._presets import FL_MICRO_MESHES  # noqa: E402
+
+CONFIG = FL_MICRO_MESHES.replace(
     latent_dim=4,
-    features=8,
-    num_heads=2,
-    num_blocks=1,
-    num_samples=8,
-    decoder_features=16,
-    min_vertices=10,
-    max_vertices=12,
     meshes_per_image=2,
     batch_size=2,
-    max_image_size=16,
     steps=4,
     warmup_steps=1,
     checkpoint_every=2,
@@ -71,18 +66,7 @@ def one_step(config: fl.Config, mesh) -> dict:
     if config.decoder == "log":  # the gradient itself (Adam's first update hides its scale)
 
         def loss(p, b):
-            return fl.core.vae_loss(
-                p,
-                config,
-                b["log"],
-                b["rgb"],
-                b["mask"],
-                key=jax.random.key(2),
-                corners=b["corners"],
-                bary=b["bary"],
-                vertex_mask=b["vertex_mask"],
-                corner_logs=b.get("corner_logs"),
-            )[0]
+            return fl.core.batch_loss(p, config, b, key=jax.random.key(2))[0]
 
         grads = parallel.data_parallel(jax.grad(loss), mesh, batch_argnums=(1,))(params, batch)
         out["grads"] = leaves(parallel.fetch(grads))
@@ -97,6 +81,18 @@ def one_step(config: fl.Config, mesh) -> dict:
     }
 
 
+def train(checkpoint_dir: pathlib.Path | None = None, *, stop_after: int | None = None):
+    """``CONFIG``'s run on :func:`images` with key 0, the one run both processes train."""
+    return fl.train(
+        images(),
+        CONFIG,
+        key=jax.random.key(0),
+        progress=False,
+        checkpoint_dir=checkpoint_dir,
+        stop_after=stop_after,
+    )
+
+
 def main(work: pathlib.Path) -> None:
     assert len(jax.devices()) == 4, jax.devices()
     one = parallel.data_mesh(jax.devices()[:1])
@@ -105,36 +101,13 @@ def main(work: pathlib.Path) -> None:
     for decoder in ("log", "barycentric"):
         c = CONFIG.replace(decoder=decoder)
         out["step"][decoder] = {"one": one_step(c, one), "four": one_step(c, four)}
-    key = jax.random.key(0)
-    full = fl.train(images(), CONFIG, key=key, progress=False)
+    full = train()
     out["full_4"] = full.losses["loss"].tolist()
-    fl.train(
-        images(),
-        CONFIG,
-        key=key,
-        progress=False,
-        checkpoint_dir=work / "ckpt_4",
-        stop_after=2,
-    )
+    train(work / "ckpt_4", stop_after=2)
     fl.save(full.model, work / "model_4")
-    out["resumed_4"] = (
-        fl.train(
-            images(),
-            CONFIG,
-            key=key,
-            progress=False,
-            checkpoint_dir=work / "ckpt_4_resume",
-            stop_after=2,
-        )
-        .losses["loss"]
-        .tolist()
-    )
-    out["resumed_4"] = (
-        fl.train(images(), CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_4_resume")
-        .losses["loss"]
-        .tolist()
-    )
-    resumed = fl.train(images(), CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_1")
+    train(work / "ckpt_4_resume", stop_after=2)
+    out["resumed_4"] = train(work / "ckpt_4_resume").losses["loss"].tolist()
+    resumed = train(work / "ckpt_1")
     out["from_1"] = resumed.losses["loss"].tolist()
     out["from_1_resumed_from"] = resumed.resumed_from
     (work / "result.json").write_text(json.dumps(out))

@@ -12,14 +12,11 @@ from jmeshtex import Mesh, fl
 from jmeshtex.cli import main
 from jmeshtex.data import grid, striped_sphere
 from jmeshtex.io import Checkpoints, save_mesh, save_png
+from tests._presets import FL_MICRO_NETWORK
 
 TINY = {
     "latent_dim": 3,
-    "features": 8,
-    "num_heads": 2,
-    "num_blocks": 1,
-    "num_samples": 8,
-    "decoder_features": 16,
+    **FL_MICRO_NETWORK,
     "min_vertices": 10,
     "max_vertices": 14,
     "meshes_per_image": 1,
@@ -38,26 +35,9 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
         save_png(rng.random((16, 16, 3)).astype(np.float32), images / f"im{i}.png")
     (tmp_path / "config.json").write_text(json.dumps(TINY))
     run = tmp_path / "run"
-    assert (
-        main(
-            [
-                "fl",
-                "train",
-                "--images",
-                str(images),
-                "--out",
-                str(run),
-                "--steps",
-                "2",
-                "--config",
-                str(tmp_path / "config.json"),
-                "--quiet",
-                "--seed",
-                "3",
-            ]
-        )
-        == 0
-    )
+    flags = ["--images", str(images), "--out", str(run), "--steps", "2"]
+    flags += ["--config", str(tmp_path / "config.json"), "--quiet", "--seed", "3"]
+    assert main(["fl", "train", *flags]) == 0
     assert (run / "model.npz").exists() and Checkpoints(run / "checkpoints").latest_step() == 2
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 2 and np.isfinite(summary["final_loss"])
@@ -67,26 +47,7 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
     direct = fl.train(str(images), model.config, key=jax.random.key(3), progress=False)
     np.testing.assert_allclose(summary["final_loss"], direct.losses["loss"].mean(), rtol=1e-12)
     # `pretrain` is the same subcommand; the finished run is resumed, not redone
-    assert (
-        main(
-            [
-                "fl",
-                "pretrain",
-                "--images",
-                str(images),
-                "--out",
-                str(run),
-                "--steps",
-                "2",
-                "--config",
-                str(tmp_path / "config.json"),
-                "--quiet",
-                "--seed",
-                "3",
-            ]
-        )
-        == 0
-    )
+    assert main(["fl", "pretrain", *flags]) == 0
     assert json.loads(capsys.readouterr().out)["final_loss"] == summary["final_loss"]
 
     v, f = grid(4)
@@ -96,23 +57,8 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
     save_mesh(mesh, tmp_path / "sheet.obj")
     tex = tmp_path / "sheet.png"
     assert tex.exists()
-    assert (
-        main(
-            [
-                "fl",
-                "encode",
-                "--mesh",
-                str(tmp_path / "sheet.obj"),
-                "--texture",
-                str(tex),
-                "--model",
-                str(run),
-                "--out",
-                str(tmp_path / "lat.npz"),
-            ]
-        )
-        == 0
-    )
+    sheet = ["--mesh", str(tmp_path / "sheet.obj"), "--texture", str(tex), "--model", str(run)]
+    assert main(["fl", "encode", *sheet, "--out", str(tmp_path / "lat.npz")]) == 0
     with np.load(tmp_path / "lat.npz") as data:
         assert data["mu"].shape == (25, 3) and np.iscomplexobj(data["mu"])
     # a procedural mesh spec (vertex colours), and the shipped model by default
@@ -140,26 +86,8 @@ def test_pretrain_encode_reconstruct(tmp_path, capsys):
     capsys.readouterr()
 
     out = tmp_path / "recon"
-    assert (
-        main(
-            [
-                "fl",
-                "reconstruct",
-                "--mesh",
-                str(tmp_path / "sheet.obj"),
-                "--texture",
-                str(tex),
-                "--model",
-                str(run),
-                "--out",
-                str(out),
-                "--size",
-                "16",
-                "--no-lpips",
-            ]
-        )
-        == 0
-    )
+    flags = ["--out", str(out), "--size", "16", "--no-lpips"]
+    assert main(["fl", "reconstruct", *sheet, *flags]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     assert set(metrics) >= {"psnr", "dssim", "texels"} and metrics["texels"] == 256
     # the baselines that bound it, scored on the same texels
@@ -211,11 +139,7 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys):
 def test_train_preset_stops_after_and_draws_the_loss_curve(tmp_path, capsys):
     over = {
         "latent_dim": 3,
-        "features": 8,
-        "num_heads": 2,
-        "num_blocks": 1,
-        "num_samples": 8,
-        "decoder_features": 16,
+        **FL_MICRO_NETWORK,
         "texture_size": 16,
         "pixels_per_vertex": 8.0,
         "procedural_fraction": 1.0,

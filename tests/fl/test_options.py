@@ -14,6 +14,7 @@ from jmeshtex.fl import Config, init, load, load_pretrained
 from jmeshtex.fl._decoder import blend_log_predictions
 from jmeshtex.fl._train import boundary_vertices
 from jmeshtex.fl.core import (
+    batch_loss,
     encode_one_rings,
     encode_samples,
     make_train_step,
@@ -23,10 +24,9 @@ from jmeshtex.fl.core import (
     planar_mesh,
     vae_loss,
 )
+from tests._presets import FL_MICRO
 
-TINY = Config(
-    latent_dim=3, features=8, num_heads=2, num_blocks=1, num_samples=6, decoder_features=16
-)
+TINY = FL_MICRO.replace(latent_dim=3, num_samples=6)
 
 
 def _batch(config, seed=0, n=2):
@@ -127,11 +127,7 @@ def test_the_blended_objective_decodes_each_sample_from_its_three_corners():
 
 def _loss(config, batch, params, scale=1.0):
     b = {k: jnp.asarray(v) for k, v in batch.items()}
-    return vae_loss(
-        params, config, b["log"], b["rgb"], b["mask"], key=jax.random.key(1),
-        corners=b["corners"], bary=b["bary"], vertex_mask=b["vertex_mask"],
-        corner_logs=b["corner_logs"], kl_scale=scale,
-    )  # fmt: skip
+    return batch_loss(params, config, b, key=jax.random.key(1), kl_scale=scale)
 
 
 def test_free_bits_floor_each_channel_and_the_warm_up_scales_the_kl():

@@ -9,18 +9,11 @@ import pytest
 
 from jmeshtex import InputError, Mesh
 from jmeshtex.data import grid
-from jmeshtex.fl import Config, decode_texture, init, reconstruct
+from jmeshtex.fl import decode_texture, init, reconstruct
 from jmeshtex.fl.core import atlas_metrics, side_by_side
+from tests._presets import FL_MICRO
 
-SMALL = Config(
-    latent_dim=3,
-    features=8,
-    num_heads=2,
-    num_blocks=1,
-    decoder_features=16,
-    num_samples=8,
-    encode_chunk=64,
-)
+SMALL = FL_MICRO.replace(latent_dim=3, encode_chunk=64)
 
 
 def _sheet():

@@ -29,14 +29,10 @@ from jmeshtex.fl.core import (
     training_texture,
     vae_loss,
 )
+from tests._presets import FL_MICRO
 
-STREAM = Config(
+STREAM = FL_MICRO.replace(
     latent_dim=4,
-    features=8,
-    num_heads=2,
-    num_blocks=1,
-    num_samples=8,
-    decoder_features=16,
     pixels_per_vertex=8.0,
     density_spread=1.3,
     texture_size=16,

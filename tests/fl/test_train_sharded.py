@@ -16,22 +16,14 @@ import numpy as np
 from jmeshtex import fl
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
-from sharded_worker import CONFIG, images  # noqa: E402
+from sharded_worker import CONFIG, train  # noqa: E402
 
 WORKER = pathlib.Path(__file__).with_name("sharded_worker.py")
 
 
 def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tmp_path):
-    key = jax.random.key(0)
     # a one-device checkpoint at step 2, for the four-device process to resume
-    fl.train(
-        images(),
-        CONFIG,
-        key=key,
-        progress=False,
-        checkpoint_dir=tmp_path / "ckpt_1",
-        stop_after=2,
-    )
+    train(tmp_path / "ckpt_1", stop_after=2)
     env = dict(
         os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu"
     )
@@ -65,7 +57,7 @@ def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tm
     np.testing.assert_allclose(grads_4, grads_1, rtol=1e-4, atol=1e-5 * np.abs(grads_1).max())
 
     full_4 = np.array(out["full_4"])
-    full_1 = fl.train(images(), CONFIG, key=key, progress=False).losses["loss"]  # here: one device
+    full_1 = train().losses["loss"]  # here: one device
     assert full_4.shape == (CONFIG.steps,) and np.isfinite(full_4).all()
     # 4 Adam steps: round-off of each step's reduction compounds a little (Adam divides by sqrt(v))
     np.testing.assert_allclose(full_4, full_1, rtol=1e-4)
@@ -77,7 +69,7 @@ def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tm
     np.testing.assert_allclose(out["from_1"], full_1, rtol=1e-4)
 
     # four-device checkpoint resumed here on one device, and the four-device model file loaded here
-    back = fl.train(images(), CONFIG, key=key, progress=False, checkpoint_dir=tmp_path / "ckpt_4")
+    back = train(tmp_path / "ckpt_4")
     assert back.resumed_from == 2
     np.testing.assert_allclose(back.losses["loss"], full_4, rtol=1e-4)
     model = fl.load(tmp_path / "model_4")

@@ -29,16 +29,9 @@ from jmeshtex.fl import (
 from jmeshtex.fl._io import _PRETRAINED
 from jmeshtex.fl.core import kl_divergence, surface_colors, vae_loss
 from jmeshtex.geometry import one_ring_neighborhood, rasterize_uv
+from tests._presets import FL_MICRO
 
-SMALL = Config(
-    latent_dim=3,
-    features=8,
-    num_heads=2,
-    num_blocks=1,
-    decoder_features=16,
-    num_samples=12,
-    encode_chunk=32,
-)
+SMALL = FL_MICRO.replace(latent_dim=3, num_samples=12, encode_chunk=32)
 
 
 def test_kl_matches_the_closed_form_per_channel():

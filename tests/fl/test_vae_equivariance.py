@@ -5,17 +5,15 @@ from __future__ import annotations
 import jax.numpy as jnp
 import pytest
 
-from jmeshtex.testing import Entry, Field, check
+from jmeshtex.testing import Field, check
 from jmeshtex.testing._methods import fl as _equivariance
+from tests._equivariance_checks import assert_flagged, assert_passes
 
 
 @pytest.mark.parametrize("entry", _equivariance.ENTRIES, ids=lambda e: e.name)
 def test_registered_entries_pass_their_exact_transforms(entry):
     # smooth isometries (cylinder, cone) are slow convergence studies: `jmeshtex verify` runs them
-    for t in _equivariance.FL_TRANSFORMS:
-        result = check(entry, t, dtype=jnp.float64)
-        assert result.passed, (t, result)
-    assert check(entry, "gauge", dtype=jnp.float32).passed  # float32 bound 1e-5
+    assert_passes(entry, _equivariance.FL_TRANSFORMS, "gauge")
 
 
 def _frame_blind_encoder(state, params, c):
@@ -26,17 +24,7 @@ def _frame_blind_encoder(state, params, c):
 
 def test_an_encoder_blind_to_the_gauge_is_flagged():
     good = _equivariance.ENTRIES[0]
-    bad = Entry(
-        "fl.negative.frame_blind",
-        _frame_blind_encoder,
-        good.inputs,
-        good.transforms,
-        init=good.init,
-        expect_fail=("gauge",),
-        group="negative",
-    )
-    result = check(bad, "gauge")
-    assert result.expect_fail and result.passed and result.error > 1e-3
+    assert_flagged(good, "fl.negative.frame_blind", _frame_blind_encoder, "gauge")
 
 
 @pytest.mark.parametrize("entry", _equivariance.PRESET_ENTRIES, ids=lambda e: e.name)

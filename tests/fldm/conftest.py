@@ -29,11 +29,13 @@ def striped_exemplar() -> Mesh:
     return striped_sphere(subdivisions=3)
 
 
+def _stripe_dataset(mesh: Mesh, config: fldm.Config, key: jax.Array) -> fldm.Dataset:
+    return fldm.build_dataset(mesh, config, encode=stripe_encoder, key=key, progress=False)
+
+
 @pytest.fixture(scope="session")
 def striped_data(striped_exemplar) -> fldm.Dataset:
-    return fldm.build_dataset(
-        striped_exemplar, fldm.Config.demo(), encode=stripe_encoder, key=DATA_KEY, progress=False
-    )
+    return _stripe_dataset(striped_exemplar, fldm.Config.demo(), DATA_KEY)
 
 
 @pytest.fixture(scope="session")
@@ -59,6 +61,23 @@ TINY_DATA_FIELDS = (
 TINY_DATA = fldm.Config.tiny(latent_channels=2, n_copies=3, copy_vertices=80, knn=7, bucket=32)
 #: the key of ``tiny_data``'s copies
 TINY_DATA_KEY = jax.random.key(0)
+#: the few-step training settings on ``tiny_data`` that ``test_fldm.py`` and the mask-conditioning
+#: tests share (each adds its own ``steps`` and switches)
+TINY_TRAIN = TINY_DATA.replace(widths=(6, 8), hdim=4, diffusion_steps=50, batch_size=2)
+#: ``jmeshtex fldm train`` on the tiny preset, 2 copies × 60 vertices, 2 steps (the CLI tests add
+#: ``--mesh``, ``--out`` and their own flags)
+TINY_CLI_TRAIN = (
+    "fldm",
+    "train",
+    "--preset",
+    "tiny",
+    "--copies",
+    "2",
+    "--vertices",
+    "60",
+    "--steps",
+    "2",
+)
 
 
 def uses_tiny_data(config: fldm.Config) -> bool:
@@ -73,6 +92,4 @@ def tiny_sphere() -> Mesh:
 
 @pytest.fixture(scope="session")
 def tiny_data(tiny_sphere) -> fldm.Dataset:
-    return fldm.build_dataset(
-        tiny_sphere, TINY_DATA, encode=stripe_encoder, key=TINY_DATA_KEY, progress=False
-    )
+    return _stripe_dataset(tiny_sphere, TINY_DATA, TINY_DATA_KEY)

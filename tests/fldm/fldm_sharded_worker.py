@@ -31,21 +31,12 @@ import numpy as np  # noqa: E402
 from jmeshtex import ConfigError, fldm, parallel  # noqa: E402
 from jmeshtex.data import icosphere  # noqa: E402
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))  # the repository root
+from tests._presets import FLDM_MICRO  # noqa: E402
+
 # 4 copies per step (one per device), an EMA so the returned model is the replicated EMA
-CONFIG = fldm.Config.tiny(
-    latent_channels=2,
-    n_copies=4,
-    copy_vertices=40,
-    widths=(4, 6),
-    hdim=2,
-    knn=5,
-    diffusion_steps=20,
-    bucket=16,
-    batch_size=4,
-    steps=4,
-    checkpoint_every=2,
-    warmup_steps=1,
-    ema_decay=0.9,
+CONFIG = FLDM_MICRO.replace(
+    n_copies=4, batch_size=4, steps=4, checkpoint_every=2, warmup_steps=1, ema_decay=0.9
 )
 
 

@@ -13,6 +13,7 @@ from jmeshtex import CheckpointMismatchError, Mesh, fl, fldm
 from jmeshtex.cli import main
 from jmeshtex.data import icosphere
 from jmeshtex.io import save_mesh
+from tests.fldm.conftest import TINY_CLI_TRAIN
 
 CFG = fldm.Config.tiny(
     latent_channels=8, n_copies=2, copy_vertices=60, bucket=32, steps=2, checkpoint_every=1
@@ -102,18 +103,7 @@ def test_cli_retrain_with_new_colours_is_not_a_resume(tmp_path, capsys):
         tmp_path / "a.ply",
     )
     save_mesh(Mesh(m.vertices, m.faces, vertex_colors=_bright(m)), tmp_path / "b.ply")
-    args = [
-        "fldm",
-        "train",
-        "--preset",
-        "tiny",
-        "--copies",
-        "2",
-        "--vertices",
-        "60",
-        "--steps",
-        "2",
-    ]
+    args = list(TINY_CLI_TRAIN)
     out = tmp_path / "run"
     assert main([*args, "--mesh", str(tmp_path / "a.ply"), "--out", str(out), "--quiet"]) == 0
     capsys.readouterr()

@@ -3,6 +3,8 @@ a Gaussian data set whose exact denoiser is known, inpainting, latent scaling, r
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -95,6 +97,14 @@ def test_ddpm_step_is_the_posterior_mean_with_the_true_noise():
         )
 
 
+def _sample_in_10_of_60_steps(denoiser, s, method, *, key):
+    """``method``'s samples of a (6, 2) complex128 field in 10 of the 60-step schedule ``s``."""
+    zT, steps, _ = draw_sampling_noise(
+        key, (6, 2), method=method, num_steps=10, diffusion_steps=60, dtype=jnp.complex128
+    )
+    return sample_from_noise(denoiser, s, zT, steps, method=method, num_steps=10)
+
+
 @pytest.mark.parametrize("method", ["ddim", "ddpm"])
 def test_oracle_denoiser_recovers_the_data(method):
     """A denoiser that knows z0 predicts ε exactly; DDIM (η=0) then lands on z0, and so does DDPM."""
@@ -105,15 +115,7 @@ def test_oracle_denoiser_recovers_the_data(method):
     def oracle(z, t):
         return (z - jnp.sqrt(ab[t]) * z0) / jnp.sqrt(1 - ab[t])
 
-    zT, steps, _ = draw_sampling_noise(
-        jax.random.key(5),
-        (6, 2),
-        method=method,
-        num_steps=10,
-        diffusion_steps=60,
-        dtype=jnp.complex128,
-    )
-    out = sample_from_noise(oracle, s, zT, steps, method=method, num_steps=10)
+    out = _sample_in_10_of_60_steps(oracle, s, method, key=jax.random.key(5))
     np.testing.assert_allclose(out, z0, atol=1e-9)
 
 
@@ -154,15 +156,7 @@ def test_v_oracle_through_the_conversion_recovers_the_data(method):
         eps = (z - jnp.sqrt(ab[t]) * z0) / jnp.sqrt(1 - ab[t])
         return epsilon_from_output(s, "v", z, t, prediction_target(s, "v", z0, t, eps))
 
-    zT, steps, _ = draw_sampling_noise(
-        jax.random.key(14),
-        (6, 2),
-        method=method,
-        num_steps=10,
-        diffusion_steps=60,
-        dtype=jnp.complex128,
-    )
-    out = sample_from_noise(v_oracle, s, zT, steps, method=method, num_steps=10)
+    out = _sample_in_10_of_60_steps(v_oracle, s, method, key=jax.random.key(14))
     np.testing.assert_allclose(out, z0, atol=1e-8)
 
 
@@ -190,14 +184,10 @@ def test_gaussian_data_with_the_exact_denoiser_gives_the_data_distribution():
     def exact(z, t):
         return jnp.sqrt(1 - ab[t]) * z / (ab[t] * v + 1 - ab[t])
 
-    zT, steps, _ = draw_sampling_noise(
-        jax.random.key(6),
-        (4000, 2),
-        method="ddpm",
-        num_steps=0,
-        diffusion_steps=100,
-        dtype=jnp.complex128,
+    draw = functools.partial(
+        draw_sampling_noise, shape=(4000, 2), diffusion_steps=100, dtype=jnp.complex128
     )
+    zT, steps, _ = draw(jax.random.key(6), method="ddpm", num_steps=0)
     out = sample_from_noise(exact, s, zT, steps, method="ddpm")
     power = float(jnp.mean(jnp.abs(out) ** 2))
     assert abs(power - expect) < 0.04 * expect, (
@@ -206,14 +196,7 @@ def test_gaussian_data_with_the_exact_denoiser_gives_the_data_distribution():
     )  # 8000 samples: std of the estimate ~1.1 %
     assert abs(complex(jnp.mean(out**2))) < 0.1 * v  # circular: no preferred direction
     # DDIM with η=1 on a sub-sequence samples (nearly) the same law
-    zT, steps, _ = draw_sampling_noise(
-        jax.random.key(7),
-        (4000, 2),
-        method="ddim",
-        num_steps=50,
-        diffusion_steps=100,
-        dtype=jnp.complex128,
-    )
+    zT, steps, _ = draw(jax.random.key(7), method="ddim", num_steps=50)
     out = sample_from_noise(exact, s, zT, steps, method="ddim", num_steps=50, eta=1.0)
     assert abs(float(jnp.mean(jnp.abs(out) ** 2)) - v) < 0.15 * v
 

@@ -12,23 +12,11 @@ import pytest
 
 from jmeshtex import CheckpointMismatchError, ConfigError, InputError, TrainResult
 from jmeshtex.data import stripe_encoder, striped_sphere, torus
-from jmeshtex.fldm import Config, build_dataset, inpaint, load, sample, save, train
+from jmeshtex.fldm import build_dataset, inpaint, load, sample, save, train
 from jmeshtex.fldm._data import copy_mesh, transfer_labels
-from tests.fldm.conftest import TINY_DATA_KEY, uses_tiny_data
+from tests.fldm.conftest import TINY_CLI_TRAIN, TINY_DATA_KEY, TINY_TRAIN, uses_tiny_data
 
-CFG = Config.tiny(
-    latent_channels=2,
-    n_copies=3,
-    copy_vertices=80,
-    steps=4,
-    checkpoint_every=2,
-    widths=(6, 8),
-    hdim=4,
-    knn=7,
-    diffusion_steps=50,
-    bucket=32,
-    batch_size=2,
-)
+CFG = TINY_TRAIN.replace(steps=4, checkpoint_every=2)
 DATA_KEY = TINY_DATA_KEY
 TRAIN_KEY = jax.random.key(1)
 
@@ -237,56 +225,29 @@ def test_label_guided_training_and_sampling(sphere):
         sample(model, mesh, key=key, steps=3)
 
 
+def _cli_train(mesh: str, out, *flags: str) -> int:
+    """``jmeshtex fldm train`` on the tiny preset with the stripe codec, into ``out``."""
+    from jmeshtex.cli._main import main
+
+    args = [*TINY_CLI_TRAIN, "--mesh", mesh, "--codec", "stripes", *flags]
+    return main([*args, "--out", str(out), "--quiet"])
+
+
+def _cli_inpaint(model, mask, out, *flags: str) -> int:
+    from jmeshtex.cli._main import main
+
+    args = ["fldm", "inpaint", "--model", str(model), "--mask", str(mask), *flags]
+    return main([*args, "--out", str(out), "--quiet"])
+
+
 @pytest.mark.slow
 def test_cli_train_sample_inpaint(tmp_path):
     from jmeshtex.cli._main import main
 
     out = tmp_path / "model"
-    rc = main(
-        [
-            "fldm",
-            "train",
-            "--mesh",
-            "icosphere:2",
-            "--codec",
-            "stripes",
-            "--preset",
-            "tiny",
-            "--copies",
-            "2",
-            "--vertices",
-            "60",
-            "--steps",
-            "2",
-            "--out",
-            str(out),
-            "--quiet",
-        ]
-    )
+    rc = _cli_train("icosphere:2", out)
     assert rc == 2  # icosphere has no colours to read: a clear error, no traceback
-    rc = main(
-        [
-            "fldm",
-            "train",
-            "--mesh",
-            "striped-sphere",
-            "--codec",
-            "stripes",
-            "--preset",
-            "tiny",
-            "--copies",
-            "2",
-            "--vertices",
-            "60",
-            "--steps",
-            "2",
-            "--prediction",
-            "v",
-            "--out",
-            str(out),
-            "--quiet",
-        ]
-    )
+    rc = _cli_train("striped-sphere", out, "--prediction", "v")
     assert rc == 0 and (out / "model.npz").exists() and (out / "data" / "copy_0001.npz").exists()
     assert load(out).config.prediction == "v"  # the tiny preset's own is epsilon
     rc = main(
@@ -310,78 +271,13 @@ def test_cli_train_sample_inpaint(tmp_path):
     assert np.load(tmp_path / "s" / "latents.npz")["latents"].shape == (2, 70, 2)
     mesh = striped_sphere(subdivisions=3)
     np.save(tmp_path / "mask.npy", mesh.vertices[:, 2] > 0)
-    rc = main(
-        [
-            "fldm",
-            "inpaint",
-            "--model",
-            str(out),
-            "--mask",
-            str(tmp_path / "mask.npy"),
-            "--steps",
-            "3",
-            "--n",
-            "1",
-            "--out",
-            str(tmp_path / "i"),
-            "--quiet",
-        ]
-    )
+    rc = _cli_inpaint(out, tmp_path / "mask.npy", tmp_path / "i", "--steps", "3", "--n", "1")
     assert rc == 0 and len(list((tmp_path / "i").glob("inpaint_*.png"))) == 1
     masked = tmp_path / "masked"
-    rc = main(
-        [
-            "fldm",
-            "train",
-            "--mesh",
-            "striped-sphere",
-            "--codec",
-            "stripes",
-            "--preset",
-            "tiny",
-            "--copies",
-            "2",
-            "--vertices",
-            "60",
-            "--steps",
-            "2",
-            "--mask-conditioning",
-            "--out",
-            str(masked),
-            "--quiet",
-        ]
-    )
+    rc = _cli_train("striped-sphere", masked, "--mask-conditioning")
     assert rc == 0 and load(masked).config.mask_conditioning
-    rc = main(
-        [
-            "fldm",
-            "inpaint",
-            "--model",
-            str(masked),
-            "--mask",
-            str(tmp_path / "mask.npy"),
-            "--steps",
-            "3",
-            "--n",
-            "1",
-            "--out",
-            str(tmp_path / "mi"),
-            "--quiet",
-        ]
-    )
+    rc = _cli_inpaint(masked, tmp_path / "mask.npy", tmp_path / "mi", "--steps", "3", "--n", "1")
     assert rc == 0 and len(list((tmp_path / "mi").glob("inpaint_*.png"))) == 1
     np.save(tmp_path / "bad.npy", np.ones(5, bool))
-    rc = main(
-        [
-            "fldm",
-            "inpaint",
-            "--model",
-            str(out),
-            "--mask",
-            str(tmp_path / "bad.npy"),
-            "--out",
-            str(tmp_path / "j"),
-            "--quiet",
-        ]
-    )
+    rc = _cli_inpaint(out, tmp_path / "bad.npy", tmp_path / "j")
     assert rc == 2

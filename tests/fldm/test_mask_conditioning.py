@@ -23,7 +23,7 @@ from jmeshtex.fldm.core import (
     training_masks,
 )
 from jmeshtex.ops import tangent_noise
-from tests.fldm.conftest import uses_tiny_data
+from tests.fldm.conftest import TINY_TRAIN, uses_tiny_data
 
 CFG = Config.tiny(
     latent_channels=2, widths=(6, 8), hdim=4, knn=7, time_features=8, mask_conditioning=True
@@ -119,19 +119,7 @@ def test_random_training_masks():
     )
 
 
-CFG_TRAIN = Config.tiny(
-    latent_channels=2,
-    n_copies=3,
-    copy_vertices=80,
-    steps=3,
-    widths=(6, 8),
-    hdim=4,
-    knn=7,
-    diffusion_steps=50,
-    bucket=32,
-    batch_size=2,
-    mask_conditioning=True,
-)
+CFG_TRAIN = TINY_TRAIN.replace(steps=3, mask_conditioning=True)
 
 
 @pytest.fixture(scope="module")

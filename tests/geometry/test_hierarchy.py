@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from hypothesis import given
-from hypothesis import strategies as st
 from scipy.sparse.csgraph import dijkstra
 
 from jmeshtex import ConfigError, InputError
@@ -26,8 +25,8 @@ from jmeshtex.geometry import (
     tangent_frames,
     validate_mesh,
 )
-from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes, fold_sheet, valid_meshes
-from tests.geometry._helpers import euler
+from jmeshtex.testing import BAD_MESH_KINDS, fold_sheet, valid_meshes
+from tests.geometry._helpers import bad_mesh_cases, euler
 
 
 def _level_graph(h, level):
@@ -301,11 +300,7 @@ def test_property_any_valid_mesh_decimates_with_its_topology(mesh):
         np.testing.assert_allclose(pm.children_weight.sum(axis=1), 1.0, rtol=1e-12)
 
 
-@given(
-    st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(
-        lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))
-    )
-)
+@given(bad_mesh_cases())
 @pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case

@@ -7,7 +7,6 @@ import numpy as np
 import potpourri3d as pp3d
 import pytest
 from hypothesis import given
-from hypothesis import strategies as st
 
 from jmeshtex.data import grid, icosahedron, icosphere, torus
 from jmeshtex.geometry import (
@@ -17,7 +16,8 @@ from jmeshtex.geometry import (
     one_ring_neighborhood,
     one_rings,
 )
-from jmeshtex.testing import BAD_MESH_KINDS, bad_meshes, fold_sheet, valid_meshes
+from jmeshtex.testing import BAD_MESH_KINDS, fold_sheet, valid_meshes
+from tests.geometry._helpers import bad_mesh_cases
 
 
 def _reference(v, f):
@@ -314,11 +314,7 @@ def _reverse(nb, p, q):
     return np.argmax(nb.index[q] == p[:, None], axis=1)
 
 
-@given(
-    st.sampled_from(sorted(BAD_MESH_KINDS)).flatmap(
-        lambda kind: st.tuples(st.just(kind), bad_meshes(kind, max_vertices=60))
-    )
-)
+@given(bad_mesh_cases())
 @pytest.mark.unchecked  # ill-typed arguments on purpose: the function's own typed errors
 def test_property_bad_meshes_raise_typed_errors(case):
     kind, (v, f) = case

@@ -86,58 +86,28 @@ def test_synthesize_then_stylize(files, capsys):
     assert rc == 0 and (out2 / "texture.png").is_file()
 
 
-def test_errors_are_one_line(files, capsys):
-    rc = main(
-        [
-            "surfacecnn",
-            "stylize",
-            "--mesh",
-            str(files / "ball.obj"),
-            "--style",
-            str(files / "exemplar.png"),
-            "--size",
-            "16",
-            "--steps",
-            "1",
-            "--out",
-            str(files / "o"),
-            "--quiet",
-        ]
-    )
-    assert rc == 2 and "content" in capsys.readouterr().err
-    rc = main(
-        [
-            "surfacecnn",
-            "synthesize",
-            "--mesh",
-            str(files / "ball.obj"),
-            "--exemplar",
-            str(files / "exemplar.png"),
-            "--layers",
-            "relu9_1",
-            "--size",
-            "16",
-            "--out",
-            str(files / "o"),
-            "--quiet",
-        ]
-    )
-    assert rc == 2 and "VGG layer names" in capsys.readouterr().err
-    rc = main(
-        [
-            "surfacecnn",
-            "synthesize",
-            "--mesh",
-            str(files / "ball.obj"),
-            "--exemplar",
-            str(files / "exemplar.png"),
-            "--vgg19",
-            str(files / "vgg19.h5"),
-            "--out",
-            str(files / "o"),
-        ]
-    )
-    assert rc == 2 and "vgg19.h5" in capsys.readouterr().err
+@pytest.mark.parametrize(
+    "verb, extra, message",
+    [
+        ("stylize", ["--size", "16", "--steps", "1", "--quiet"], "content"),
+        ("synthesize", ["--layers", "relu9_1", "--size", "16", "--quiet"], "VGG layer names"),
+        ("synthesize", ["--vgg19", "vgg19.h5"], "vgg19.h5"),
+    ],
+    ids=["stylize-without-content-layer", "unknown-vgg-layer", "missing-vgg19-file"],
+)
+def test_errors_are_one_line(files, capsys, verb, extra, message):
+    image = "--style" if verb == "stylize" else "--exemplar"
+    extra = [str(files / a) if a.endswith(".h5") else a for a in extra]  # a file that is not there
+    args = [
+        "surfacecnn",
+        verb,
+        "--mesh",
+        str(files / "ball.obj"),
+        image,
+        str(files / "exemplar.png"),
+    ]
+    rc = main([*args, *extra, "--out", str(files / "o")])
+    assert rc == 2 and message in capsys.readouterr().err
 
 
 def test_procedural_mesh_seed_and_resume(files):

@@ -154,14 +154,9 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
         synthesize(mesh, ex, Config(size=8, steps=10), checkpoint_dir=ckpt, **kw)
     with pytest.raises(CheckpointMismatchError, match="data"):
         synthesize(mesh, ex[::-1], Config(size=16, steps=10), checkpoint_dir=ckpt, **kw)
+    other_key = {**kw, "key": jax.random.key(4)}
     with pytest.raises(CheckpointMismatchError, match="key"):
-        synthesize(
-            mesh,
-            ex,
-            Config(size=16, steps=10),
-            checkpoint_dir=ckpt,
-            **{**kw, "key": jax.random.key(4)},
-        )
+        synthesize(mesh, ex, Config(size=16, steps=10), checkpoint_dir=ckpt, **other_key)
     with pytest.raises(InputError, match="past this run"):
         synthesize(mesh, ex, Config(size=16, steps=5), checkpoint_dir=ckpt, **kw)
 
@@ -183,14 +178,9 @@ def test_uv_space_synthesis_resumes_from_its_checkpoint(tmp_path):
     assert resumed.stats["resumed_at"] == 5
     np.testing.assert_array_equal(resumed.losses, full.losses)
     np.testing.assert_array_equal(resumed.colors, full.colors)
+    other_key = {**kw, "key": jax.random.key(4)}
     with pytest.raises(CheckpointMismatchError, match="key"):
-        synthesize_uv(
-            mesh,
-            ex,
-            Config(size=16, steps=8),
-            checkpoint_dir=ckpt,
-            **{**kw, "key": jax.random.key(4)},
-        )
+        synthesize_uv(mesh, ex, Config(size=16, steps=8), checkpoint_dir=ckpt, **other_key)
     # the image is the mesh's only through the atlas that reads it: another mesh's run resumes it
     v2, f2 = grid(3)
     other = Mesh(v2, f2, uv=0.6 * v2[f2][..., :2])  # covers a third of the image
