@@ -153,10 +153,12 @@ def test_vmap_of_every_transformation():
             np.testing.assert_allclose(got[i], fn(batch[i]), rtol=1e-10, atol=1e-12, err_msg=name)
 
 
+@pytest.mark.parametrize("layers", [1, 2], ids=["one-hidden", "two-hidden"])
 @pytest.mark.parametrize("activation", ["silu", "relu"])
-def test_the_fast_and_general_implementations_are_equal(activation, monkeypatch):
-    # the same one-hidden-layer transported convolution through both implementations: values,
-    # forward-mode and reverse-mode derivatives in every argument (blocked: 5 vertices, blocks of 2)
+def test_the_fast_and_general_implementations_are_equal(activation, layers, monkeypatch):
+    # the same transported convolution (one or two hidden filter layers) through both
+    # implementations: values, forward-mode and reverse-mode derivatives in every argument, the
+    # second layer's weights included (blocked: 5 vertices, blocks of 2)
     monkeypatch.setattr(_field_conv_fast, "BLOCK", 2)
     monkeypatch.setattr(_field_conv_fast, "TANGENT_BLOCK", 2)
     monkeypatch.setattr(_field_conv_general, "GENERAL_BLOCK", 2)
@@ -167,17 +169,22 @@ def test_the_fast_and_general_implementations_are_equal(activation, monkeypatch)
     index, slots = slot_geometry(nbhd, jnp.float64)
     a_w = params.filter_weight
     bias = jnp.broadcast_to(params.filter_bias, (V, H))
+    hidden = None
+    if layers == 2:
+        rng = np.random.default_rng(8)
+        hidden = (rng.standard_normal((H, H)) / np.sqrt(H), 0.3 * rng.standard_normal(H))
+        hidden = tuple(jnp.asarray(a) for a in hidden)
 
-    def fast(x, slots, a_w, bias, mix):
-        return _field_conv_fast.conv_fast(x, index, slots, a_w, bias, mix, 1e-4, activation)
+    def fast(x, slots, a_w, bias, hidden, mix):
+        return _field_conv_fast.conv_fast(x, index, slots, a_w, bias, mix, 1e-4, activation, hidden)
 
-    def general(x, slots, a_w, bias, mix):
+    def general(x, slots, a_w, bias, hidden, mix):
         return _field_conv_general.conv_general(
-            x, index, slots, a_w, bias, mix, None, None,
+            x, index, slots, a_w, bias, mix, None, hidden,
             delta=1e-4, activation=activation, transported=True,
         )  # fmt: skip
 
-    args = (x, slots, a_w, bias, params.mix)
+    args = (x, slots, a_w, bias, hidden, params.mix)
     tangents = jax.tree.map(
         lambda a: jnp.cos(jnp.arange(a.size).reshape(a.shape)).astype(a.dtype), args
     )
