@@ -103,12 +103,12 @@ def field_conv(
     transformation in any order (``jit``, ``vmap``, ``grad``, ``vjp``, ``jvp``, ``linearize``,
     ``jacfwd``, ``jacrev``, ``hessian``, ``checkpoint``, and each under the others, e.g.
     ``jax.jvp(jax.jit(f))``); derivatives with respect to the neighbourhood's geometry work too.
-    Two implementations give the same values to rounding, chosen from the parameters alone (never
-    from how the call is traced): one-hidden-layer filters with the transported argument run a
-    fused blocked forward with a ``custom_jvp`` whose tangent is plain JAX (reverse mode
-    recomputes the filter responses block by block instead of storing them); two hidden layers or
-    the untransported argument run a blocked plain-JAX formula under ``jax.checkpoint``. Timings
-    and memory: docs/design_notes.md, "Field convolution".
+    Two implementations give the same values to rounding, chosen from the arguments alone (never
+    from how the call is traced): the transported argument (one or two hidden filter layers) runs
+    a fused blocked forward with a ``custom_jvp`` whose tangent is plain JAX (reverse mode
+    recomputes the filter responses block by block instead of storing them); the untransported
+    argument runs a blocked plain-JAX formula under ``jax.checkpoint``. Timings and memory:
+    docs/design_notes.md, "Field convolution".
 
     Example:
       >>> import jax
@@ -146,14 +146,14 @@ def field_conv(
     channel = None
     if channel_embedding is not None:
         channel = (jnp.asarray(channel_embedding).astype(rdt), params.channel_weight.astype(rdt))
-    if params.hidden_weight is None and argument == "transported":
-        fast_bias = bias
-        if channel is not None:  # per-channel pre-activation offsets [V, H, C]
-            fast_bias = bias[:, :, None] + channel[1][None, :, None] * channel[0][:, None, :]
-        return conv_fast(x, index, slots, a_w[:2], fast_bias, mix, delta, activation)
     hidden = None
     if params.hidden_weight is not None:
         hidden = (params.hidden_weight.astype(rdt), params.hidden_bias.astype(rdt))
+    if argument == "transported":
+        fast_bias = bias
+        if channel is not None:  # per-channel pre-activation offsets [V, H, C]
+            fast_bias = bias[:, :, None] + channel[1][None, :, None] * channel[0][:, None, :]
+        return conv_fast(x, index, slots, a_w[:2], fast_bias, mix, delta, activation, hidden)
     return conv_general(
         x,
         index,

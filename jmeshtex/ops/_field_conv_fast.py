@@ -1,9 +1,10 @@
-"""The one-hidden-layer, transported-argument field convolution: a fused blocked forward, and a
-``custom_jvp`` whose tangent is plain JAX, linear in the tangents.
+"""The transported-argument field convolution (one or two hidden filter layers): a fused blocked
+forward, and a ``custom_jvp`` whose tangent is plain JAX, linear in the tangents.
 
 Forward: per block of :data:`BLOCK` vertices in one loop, gather → terms → fused filter sums →
-mix, so a block's ``[B, K, C]`` terms and ``[B, H, C]`` sums stay in cache and no response is
-written to memory.
+mix, so a block's ``[B, K, C]`` terms and ``[B, H, C]`` sums stay in cache; with one hidden layer
+no response is written to memory, with two the second layer's matrix product over the block's
+first-layer responses is (:func:`~._field_conv_terms.filtered_sums_fused`).
 
 Derivatives: the forward's fused reduction cannot be transposed by JAX, so it sits behind a
 ``jax.custom_jvp``. Its tangent is the forward-mode derivative of the plain formula
@@ -43,17 +44,17 @@ BLOCK = 512
 TANGENT_BLOCK = 32
 
 
-def conv_fast(x, index, slots, a_w, bias, mix, delta: float, activation: str):
+def conv_fast(x, index, slots, a_w, bias, mix, delta: float, activation: str, hidden=None):
     """``[V, D]`` complex outputs of the fast path (arguments after :func:`field_conv`'s checks).
 
     ``index [V, K]``, ``slots`` the five ``[V, K]`` real slot arrays, ``a_w [2, H]`` the filter rows
     acting on the argument, ``bias`` the pre-activation offsets ``[V, H]`` (or per channel
-    ``[V, H, C]``), ``mix [C, H, D]``.
+    ``[V, H, C]``), ``mix [C, H, D]``, ``hidden`` None or the second filter layer ``(W₂, b₂)``.
     """
-    return as_complex(_conv(x, index, slots, a_w, bias, mix, delta, activation))
+    return as_complex(_conv(x, index, slots, a_w, bias, hidden, mix, delta, activation))
 
 
-def blocked_forward(x, index, slots, a_w, bias, mix, delta, activation, *, keep_sums: bool):
+def blocked_forward(x, index, slots, a_w, bias, hidden, mix, delta, activation, *, keep_sums: bool):
     """Blocked forward: ``[V, 2D]`` real outputs (real block, imaginary block) and, with ``keep_sums``,
     the filtered sums ``[V, 2·H·C]`` (real part's ``(h, c)`` block, then the imaginary part's)."""
     v, d = x.shape[0], mix.shape[2]
@@ -62,7 +63,7 @@ def blocked_forward(x, index, slots, a_w, bias, mix, delta, activation, *, keep_
 
     def block(idx, sl, b):
         zr, zi, ar, ai = gather_terms(xr, xi, idx, sl, delta, blocked=True)
-        s_r, s_i = filtered_sums_fused(zr, zi, ar, ai, a_w, b, activation)
+        s_r, s_i = filtered_sums_fused(zr, zi, ar, ai, a_w, b, activation, hidden)
         n = s_r.shape[0]
         s_r, s_i = s_r.reshape(n, -1), s_i.reshape(n, -1)
         y = s_r @ m_r + s_i @ m_i
@@ -92,21 +93,27 @@ def blocked_forward(x, index, slots, a_w, bias, mix, delta, activation, *, keep_
     return out if keep_sums else out[0]
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(6, 7))
-def _conv(x, index, slots, a_w, bias, mix, delta, activation):
-    return blocked_forward(x, index, slots, a_w, bias, mix, delta, activation, keep_sums=False)
+@functools.partial(jax.custom_jvp, nondiff_argnums=(7, 8))
+def _conv(x, index, slots, a_w, bias, hidden, mix, delta, activation):
+    return blocked_forward(
+        x, index, slots, a_w, bias, hidden, mix, delta, activation, keep_sums=False
+    )
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(6, 7))
-def _conv_and_sums(x, index, slots, a_w, bias, mix, delta, activation):
-    return blocked_forward(x, index, slots, a_w, bias, mix, delta, activation, keep_sums=True)
+@functools.partial(jax.custom_jvp, nondiff_argnums=(7, 8))
+def _conv_and_sums(x, index, slots, a_w, bias, hidden, mix, delta, activation):
+    return blocked_forward(
+        x, index, slots, a_w, bias, hidden, mix, delta, activation, keep_sums=True
+    )
 
 
 def _out_tangent(primals, sums, tangents, delta, activation):
     """``(ẏ, Ṡ)``: ``Ṡ`` from :func:`sums_tangent`, ``ẏ = Ṡ M + S Ṁ`` (both ``[V, ·]`` real)."""
-    x, index, slots, a_w, bias, mix = primals
-    dx, _, dslots, da_w, dbias, dmix = tangents
-    ds = sums_tangent(x, index, slots, a_w, bias, dx, dslots, da_w, dbias, delta, activation)
+    x, index, slots, a_w, bias, hidden, mix = primals
+    dx, _, dslots, da_w, dbias, dhidden, dmix = tangents
+    ds = sums_tangent(
+        x, index, slots, a_w, bias, hidden, dx, dslots, da_w, dbias, dhidden, delta, activation
+    )
     dy = None
     if ds is not None:
         dy = ds @ mix_matrix(mix)
@@ -133,14 +140,17 @@ _conv.defjvp(_conv_jvp, symbolic_zeros=True)
 _conv_and_sums.defjvp(_conv_and_sums_jvp, symbolic_zeros=True)
 
 
-def sums_tangent(x, index, slots, a_w, bias, dx, dslots, da_w, dbias, delta, activation):
-    """The filtered sums' tangent ``Ṡ [V, 2·H·C]``, linear in ``(ẋ, slots', Ȧ, ḃ)``; None if all zero.
+def sums_tangent(
+    x, index, slots, a_w, bias, hidden, dx, dslots, da_w, dbias, dhidden, delta, activation
+):
+    """The filtered sums' tangent ``Ṡ [V, 2·H·C]``, linear in ``(ẋ, slots', Ȧ, ḃ)`` and the second
+    layer's ``(Ẇ₂, ḃ₂)``; None if all zero.
 
     Per block of :data:`TANGENT_BLOCK` vertices under ``jax.checkpoint``: the block gathers its
     neighbours' features from ``x`` and takes the forward-mode derivative of the plain block
     formula with respect to the inputs that have a tangent (symbolic zeros are left out).
     """
-    named = {"x": dx, "slots": dslots, "a_w": da_w, "bias": dbias}
+    named = {"x": dx, "slots": dslots, "a_w": da_w, "bias": dbias, "hidden": dhidden}
     live = {k: _instantiate(t) for k, t in named.items() if not _all_zero(t)}
     if not live:
         return None
@@ -150,7 +160,7 @@ def sums_tangent(x, index, slots, a_w, bias, dx, dslots, da_w, dbias, delta, act
     per_vertex = {"index": index, "slots": slots, "bias": bias}
     if "x" in live:  # the tangents' gather: linear, outside the loop (one scatter when transposed)
         live["x"] = tuple(jnp.take(part, index, axis=0, mode="clip") for part in (dx.real, dx.imag))
-    tangent_rows = {k: t for k, t in live.items() if k != "a_w"}
+    tangent_rows = {k: t for k, t in live.items() if k not in ("a_w", "hidden")}
     blocks = to_blocks((per_vertex, tangent_rows), n_blocks, block)
     xr, xi = x.real, x.imag
 
@@ -158,13 +168,21 @@ def sums_tangent(x, index, slots, a_w, bias, dx, dslots, da_w, dbias, delta, act
         pv, dt = args
         xqr = jnp.take(xr, pv["index"], axis=0, mode="clip")
         xqi = jnp.take(xi, pv["index"], axis=0, mode="clip")
-        dt = dict(dt, **({"a_w": live["a_w"]} if "a_w" in live else {}))
-        values = {"x": (xqr, xqi), "slots": pv["slots"], "a_w": a_w, "bias": pv["bias"]}
+        dt = dict(dt, **{k: live[k] for k in ("a_w", "hidden") if k in live})
+        values = {
+            "x": (xqr, xqi),
+            "slots": pv["slots"],
+            "a_w": a_w,
+            "bias": pv["bias"],
+            "hidden": hidden,
+        }
 
         def sums(*diff):
             args = dict(values, **dict(zip(dt, diff, strict=True)))
             zr, zi, ar, ai = terms(*args["x"], args["slots"], delta, blocked=False)
-            s_r, s_i = filtered_sums_plain(zr, zi, ar, ai, args["a_w"], args["bias"], activation)
+            s_r, s_i = filtered_sums_plain(
+                zr, zi, ar, ai, args["a_w"], args["bias"], activation, args["hidden"]
+            )
             b = s_r.shape[0]
             return jnp.concatenate([s_r.reshape(b, -1), s_i.reshape(b, -1)], axis=1)
 

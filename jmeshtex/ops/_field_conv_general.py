@@ -1,5 +1,7 @@
-"""The general field convolution: two hidden filter layers, per-channel embeddings, or the
-untransported argument, in plain JAX (every transformation applies through JAX's own rules).
+"""The general field convolution in plain JAX (every transformation applies through JAX's own
+rules): any filter (one or two hidden layers, per-channel embeddings) with either filter argument.
+:func:`~jmeshtex.ops.field_conv` runs it for the untransported argument (the transported one takes
+the fused path of ``_field_conv_fast``); the tests compare the two paths.
 
 Per block of vertices the responses ``[B, K, H, C]`` go through the filter MLP and are summed
 against the transported features; the blocks run under ``jax.checkpoint``, so reverse mode

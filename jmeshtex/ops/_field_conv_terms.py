@@ -85,26 +85,35 @@ def act(p, activation: str):
     return jnp.maximum(p, 0)
 
 
-def responses(ar, ai, a_w, bias, activation: str):
-    """Filter responses ``φ = act(a_r A_0 + a_i A_1 + b)`` of every slot: ``[V, K, H, C]``."""
+def responses(ar, ai, a_w, bias, activation: str, hidden=None):
+    """Filter responses ``φ = act(a_r A_0 + a_i A_1 + b)`` of every slot: ``[V, K, H, C]``.
+
+    ``hidden = (W₂ [H, H], b₂ [H])``: a second layer, ``φ ← act(Σ_i φ_i W₂[i] + b₂)``.
+    """
     p = (
         ar[:, :, None, :] * a_w[0][:, None]
         + ai[:, :, None, :] * a_w[1][:, None]
         + bias3(bias)[:, None]
     )
-    return act(p, activation)
+    phi = act(p, activation)
+    if hidden is not None:
+        hw, hb = hidden
+        phi = act(jnp.einsum("bkic,ij->bkjc", phi, hw) + hb[:, None], activation)
+    return phi
 
 
-def filtered_sums_fused(zr, zi, ar, ai, a_w, bias, activation: str):
+def filtered_sums_fused(zr, zi, ar, ai, a_w, bias, activation: str, hidden=None):
     """``(S_r, S_i)``, each ``[V, H, C]``, in one variadic reduction over the slots.
 
     Its two operands share the responses, so XLA emits a single fusion that evaluates each of the
     ``V·K·H·C`` responses once and never writes them to memory (a sum unrolled over the slots
-    evaluates every response twice, once per output half). For evaluation only: JAX differentiates
+    evaluates every response twice, once per output half). With a second hidden layer its matrix
+    product over the first layer's responses is written to memory (per block, in the fast path),
+    and the reduction fuses the second activation and the sums. For evaluation only: JAX differentiates
     this reduction but cannot transpose its derivative, so the differentiable paths use
     :func:`filtered_sums_plain`.
     """
-    phi = responses(ar, ai, a_w, bias, activation)  # fused into the reduction, never in memory
+    phi = responses(ar, ai, a_w, bias, activation, hidden)  # fused into the reduction
     zero = jnp.zeros((), zr.dtype)
     return jax.lax.reduce(
         (zr[:, :, None, :] * phi, zi[:, :, None, :] * phi),
@@ -114,9 +123,9 @@ def filtered_sums_fused(zr, zi, ar, ai, a_w, bias, activation: str):
     )
 
 
-def filtered_sums_plain(zr, zi, ar, ai, a_w, bias, activation: str):
+def filtered_sums_plain(zr, zi, ar, ai, a_w, bias, activation: str, hidden=None):
     """:func:`filtered_sums_fused` as two plain sums (responses materialised; every mode of autodiff)."""
-    phi = responses(ar, ai, a_w, bias, activation)
+    phi = responses(ar, ai, a_w, bias, activation, hidden)
     return jnp.sum(zr[:, :, None, :] * phi, axis=1), jnp.sum(zi[:, :, None, :] * phi, axis=1)
 
 

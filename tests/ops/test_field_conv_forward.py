@@ -1,6 +1,6 @@
-"""Every JAX transformation through field_conv's fast path, in any order: jvp, linearize,
-jvp(jit(f)), jit(jvp), jacfwd, jacrev, hessian, and vmap of each; the fast and general
-implementations give equal values and derivatives."""
+"""Every JAX transformation through field_conv's fast path (one and two hidden filter layers), in
+any order: jvp, linearize, jvp(jit(f)), jit(jvp), jacfwd, jacrev, hessian, and vmap of each; the
+fast and general implementations give equal values and derivatives."""
 
 from __future__ import annotations
 
@@ -16,8 +16,9 @@ from jmeshtex.ops import _field_conv_fast, _field_conv_general, field_conv, init
 V, K, C, D, H = 5, 3, 2, 3, 4
 
 
-def _setup(seed=0):
-    """A tiny k-NN-like neighbourhood (self slot, one padded slot), float64 / complex128."""
+def _setup(seed=0, layers=1):
+    """A tiny k-NN-like neighbourhood (self slot, one padded slot), float64 / complex128; filters
+    with ``layers`` hidden layers."""
     rng = np.random.default_rng(seed)
     index = rng.integers(0, V, (V, K))
     index[:, 0] = np.arange(V)
@@ -40,13 +41,19 @@ def _setup(seed=0):
         )
     )
     x = jnp.asarray(rng.standard_normal((V, C)) + 1j * rng.standard_normal((V, C)))
-    params = init_field_conv(jax.random.key(seed), C, D, hdim=H, dtype=jnp.complex128)
+    params = init_field_conv(
+        jax.random.key(seed), C, D, hdim=H, hidden_layers=layers, dtype=jnp.complex128
+    )
+    if layers == 2:  # the init's zero second-layer offsets put a ReLU's kink exactly at every
+        # slot whose first-layer responses are all 0, where finite differences are one-sided
+        params = params._replace(hidden_bias=jnp.asarray(0.3 * rng.standard_normal(H)))
     return x, nbhd, params
 
 
+@pytest.mark.parametrize("layers", [1, 2], ids=["one-hidden", "two-hidden"])
 @pytest.mark.parametrize("activation", ["silu", "relu"])
-def test_check_grads_forward_and_reverse_to_second_order(activation):
-    x, nbhd, params = _setup()
+def test_check_grads_forward_and_reverse_to_second_order(activation, layers):
+    x, nbhd, params = _setup(layers=layers)
 
     def f(x, params):
         return field_conv(x, nbhd, params, activation=activation)
@@ -99,8 +106,9 @@ def _real_loss(nbhd, params):
     return loss
 
 
-def test_every_transformation_in_any_order():
-    x, nbhd, params = _setup()
+@pytest.mark.parametrize("layers", [1, 2], ids=["one-hidden", "two-hidden"])
+def test_every_transformation_in_any_order(layers):
+    x, nbhd, params = _setup(layers=layers)
     xr = jnp.concatenate([x.real, x.imag], axis=1)
     t = jnp.cos(jnp.arange(xr.size, dtype=xr.dtype)).reshape(xr.shape)
     loss = _real_loss(nbhd, params)
@@ -134,8 +142,9 @@ def test_every_transformation_in_any_order():
     assert np.abs(np.asarray(hvp)).max() > 1e-3
 
 
-def test_vmap_of_every_transformation():
-    x, nbhd, params = _setup()
+@pytest.mark.parametrize("layers", [1, 2], ids=["one-hidden", "two-hidden"])
+def test_vmap_of_every_transformation(layers):
+    x, nbhd, params = _setup(layers=layers)
     xr = jnp.concatenate([x.real, x.imag], axis=1)
     batch = jnp.stack([xr, 2 * xr + 0.1])
     loss = _real_loss(nbhd, params)
@@ -153,10 +162,12 @@ def test_vmap_of_every_transformation():
             np.testing.assert_allclose(got[i], fn(batch[i]), rtol=1e-10, atol=1e-12, err_msg=name)
 
 
+@pytest.mark.parametrize("layers", [1, 2], ids=["one-hidden", "two-hidden"])
 @pytest.mark.parametrize("activation", ["silu", "relu"])
-def test_the_fast_and_general_implementations_are_equal(activation, monkeypatch):
-    # the same one-hidden-layer transported convolution through both implementations: values,
-    # forward-mode and reverse-mode derivatives in every argument (blocked: 5 vertices, blocks of 2)
+def test_the_fast_and_general_implementations_are_equal(activation, layers, monkeypatch):
+    # the same transported convolution (one or two hidden filter layers) through both
+    # implementations: values, forward-mode and reverse-mode derivatives in every argument, the
+    # second layer's weights included (blocked: 5 vertices, blocks of 2)
     monkeypatch.setattr(_field_conv_fast, "BLOCK", 2)
     monkeypatch.setattr(_field_conv_fast, "TANGENT_BLOCK", 2)
     monkeypatch.setattr(_field_conv_general, "GENERAL_BLOCK", 2)
@@ -167,17 +178,22 @@ def test_the_fast_and_general_implementations_are_equal(activation, monkeypatch)
     index, slots = slot_geometry(nbhd, jnp.float64)
     a_w = params.filter_weight
     bias = jnp.broadcast_to(params.filter_bias, (V, H))
+    hidden = None
+    if layers == 2:
+        rng = np.random.default_rng(8)
+        hidden = (rng.standard_normal((H, H)) / np.sqrt(H), 0.3 * rng.standard_normal(H))
+        hidden = tuple(jnp.asarray(a) for a in hidden)
 
-    def fast(x, slots, a_w, bias, mix):
-        return _field_conv_fast.conv_fast(x, index, slots, a_w, bias, mix, 1e-4, activation)
+    def fast(x, slots, a_w, bias, hidden, mix):
+        return _field_conv_fast.conv_fast(x, index, slots, a_w, bias, mix, 1e-4, activation, hidden)
 
-    def general(x, slots, a_w, bias, mix):
+    def general(x, slots, a_w, bias, hidden, mix):
         return _field_conv_general.conv_general(
-            x, index, slots, a_w, bias, mix, None, None,
+            x, index, slots, a_w, bias, mix, None, hidden,
             delta=1e-4, activation=activation, transported=True,
         )  # fmt: skip
 
-    args = (x, slots, a_w, bias, params.mix)
+    args = (x, slots, a_w, bias, hidden, params.mix)
     tangents = jax.tree.map(
         lambda a: jnp.cos(jnp.arange(a.size).reshape(a.shape)).astype(a.dtype), args
     )

@@ -12,6 +12,7 @@ from jax.test_util import check_grads
 from jmeshtex import ConfigError, InputError
 from jmeshtex.geometry import VertexNeighborhood, pad_to
 from jmeshtex.ops import FieldConvParams, field_conv, init_field_conv
+from jmeshtex.ops import _field_conv_fast as fc_fast
 from jmeshtex.ops import _field_conv_general as fc_module
 
 V, K, C, D, H = 7, 5, 3, 2, 4
@@ -150,16 +151,26 @@ def test_a_zero_channel_embedding_changes_nothing(case):
     assert rel_err(general, fast) < 1e-13
 
 
-def test_blocks_of_the_general_path_cover_every_vertex(case, monkeypatch):
+@pytest.mark.parametrize("argument", ["transported", "untransported"])
+def test_blocks_cover_every_vertex(case, argument, monkeypatch):
+    # two hidden layers and a channel embedding: the transported argument runs the fused path, the
+    # untransported one the general path; 7 vertices in blocks of 3 (the last one overlapping or
+    # padded) give the values and gradients of one block
     nb, x, emb, chan = case
     params = general_params(3)
-    whole = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
-    monkeypatch.setattr(
-        fc_module, "GENERAL_BLOCK", 3
-    )  # 7 vertices: blocks of 3, the last one padded
+
+    def loss(x, params):
+        y = field_conv(x, nb, params, embedding=emb, channel_embedding=chan, argument=argument)
+        return jnp.sum(jnp.abs(y) ** 2), y
+
+    whole = jax.value_and_grad(loss, argnums=(0, 1), has_aux=True)(jnp.asarray(x), params)
+    monkeypatch.setattr(fc_module, "GENERAL_BLOCK", 3)
     monkeypatch.setattr(fc_module, "GENERAL_SINGLE", 0)
-    blocked = field_conv(jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan)
-    assert rel_err(blocked, whole) < 1e-13
+    monkeypatch.setattr(fc_fast, "BLOCK", 3)
+    monkeypatch.setattr(fc_fast, "TANGENT_BLOCK", 3)
+    blocked = jax.value_and_grad(loss, argnums=(0, 1), has_aux=True)(jnp.asarray(x), params)
+    for a, b in zip(jax.tree.leaves(blocked), jax.tree.leaves(whole), strict=True):
+        assert rel_err(a, b) < 1e-12
 
 
 def test_gauge_equivariance_and_the_untransported_negative_control(case, rng):
