@@ -87,8 +87,8 @@ def fl_vae_encoder(vae, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], n
 
     Returns:
       ``encode(copy: Mesh) -> complex128 [V, d]`` (``d = vae.config.latent_dim``), with an
-      ``identity`` attribute naming the weights (so that :func:`build_dataset` does not reuse a
-      cache built with another encoder).
+      ``identity`` attribute naming the encoder's weights and config (so that :func:`build_dataset`
+      does not reuse a cache built with another encoder; the decoder's weights do not enter it).
 
     Example:
       >>> import jax
@@ -116,11 +116,12 @@ def fl_vae_encoder(vae, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], n
         k = jax.random.fold_in(key, counter[0])
         return np.asarray(fl.encode(vae, copy, colors=colors, key=k).mu, np.complex128)
 
+    # the encoder's weights only: a decoder fine-tuned later leaves the latents, and so the cache, valid
     encode.identity = (  # type: ignore[attr-defined]
-        f"fl_vae:{_digest(jax.tree.leaves(vae.params))}:{vae.config!r}:"
+        f"fl_vae_encoder:{_digest(jax.tree.leaves(vae.params.encoder))}:{vae.config!r}:"
         f"colors={_digest(_color_arrays(original))}:key={key_ints(key)}"
     )
-    encode.colors = colors  # type: ignore[attr-defined]  # type: ignore[attr-defined]
+    encode.colors = colors  # type: ignore[attr-defined]
     return encode
 
 

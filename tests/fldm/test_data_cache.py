@@ -3,6 +3,7 @@ input's colours, and a checkpoint folder by the latents themselves."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import jax
@@ -119,3 +120,24 @@ def test_released_noise_scale():
     np.testing.assert_allclose(fldm.core.latent_scale(mu, released=True), [1 / 3, 1 / 3])
     mask = np.array([True, False])
     np.testing.assert_allclose(fldm.core.latent_scale(mu, mask, released=True), [1 / 3, 1 / 3])
+
+
+def test_the_cache_is_keyed_by_the_encoder_not_the_decoder(vae):
+    """A decoder fine-tuned later leaves the latents as they were, so the copies stay valid; any
+    change to the encoder's weights makes another cache."""
+    mesh = _colored(np.full(3, 0.5))
+
+    def identity(model):
+        return fldm.fl_vae_encoder(model, mesh, key=jax.random.key(1)).identity
+
+    def nudged(params):
+        return jax.tree.map(lambda a: a * 1.001, params)
+
+    new_decoder = dataclasses.replace(
+        vae, params=vae.params._replace(decoder=nudged(vae.params.decoder))
+    )
+    new_encoder = dataclasses.replace(
+        vae, params=vae.params._replace(encoder=nudged(vae.params.encoder))
+    )
+    assert identity(new_decoder) == identity(vae)
+    assert identity(new_encoder) != identity(vae)
