@@ -199,8 +199,8 @@ def test_shipped_model_reconstructs_a_held_out_photograph_on_spot(shared_data):
     log decoder is ahead of its barycentric ablation (the paper's Table 1 ordering) and of the P1
     oracle (the true colour at each vertex, interpolated linearly).
 
-    Measured (seed 0, 256² atlas, latents on Spot's 2930 vertices): log 27.36 dB, barycentric
-    25.01, P1 oracle 25.05, constant 17.75 (coffee: 23.94 / 21.83 / 21.72; rocket: 30.87 /
+    Measured (seed 0, 256² atlas, latents on Spot's 2930 vertices): log 27.38 dB, barycentric
+    25.01, P1 oracle 25.05, constant 17.75 (coffee: 23.88 / 21.83 / 21.72; rocket: 31.18 /
     28.76 / 28.97)."""
     from jmeshtex.fl import held_out_images, reconstruct
     from jmeshtex.fl.core import HELD_OUT_IMAGES, p1_baselines
