@@ -27,11 +27,8 @@ VIEW = (20.0, -60.0)
 
 def _spot_z_up(mesh):
     """Spot turned from y-up to the renderer's z-up (the same surface, atlas and texture)."""
-    from ..._mesh import Mesh
-
     v = np.asarray(mesh.vertices)
-    up = np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)
-    return Mesh(up, mesh.faces, uv=mesh.uv, texture=mesh.texture, name=mesh.name)
+    return mesh.replace(vertices=np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1))
 
 
 def _encoding(vae, model, mesh, geometry, key) -> np.ndarray:
