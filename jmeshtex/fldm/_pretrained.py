@@ -17,10 +17,11 @@ def load_pretrained(name: str = "spot") -> Model:
     """An FLDM model shipped in ``jmeshtex/fldm/weights`` (its README says how it was trained and
     how good its samples are).
 
-    ``"spot"``: trained on the shipped FL-VAE's latents (:func:`jmeshtex.fl.load_pretrained`) of
-    re-triangulated copies of Spot (:func:`jmeshtex.data.spot`) at about 3K vertices, Spot's own
-    density, with the flat rings' phases synchronised (``config.phase_sync == "flat"``, beyond the
-    paper). Decode its samples with that FL-VAE (:func:`~jmeshtex.fldm.decode_samples`).
+    ``"spot"``: :meth:`Config.cpu <jmeshtex.fldm.Config.cpu>` trained 10,000 steps on the shipped
+    FL-VAE's latents (:func:`jmeshtex.fl.load_pretrained`) of 16 re-triangulations of Spot
+    (:func:`jmeshtex.data.spot`) at 10,000 vertices, the FL-VAE's training density. Sample it on
+    a mesh of about that density (Spot midpoint-subdivided once: 11.7K vertices) and decode the
+    samples with that FL-VAE (:func:`~jmeshtex.fldm.decode_samples`).
 
     Args:
       name: which shipped model (``"spot"``).
@@ -34,8 +35,8 @@ def load_pretrained(name: str = "spot") -> Model:
 
     Example:
       >>> model = load_pretrained()
-      >>> model.config.phase_sync, model.config.latent_channels
-      ('flat', 8)
+      >>> model.config.copy_vertices, model.config.latent_channels, model.config.steps
+      (10000, 8, 10000)
     """
     if name not in _PRETRAINED:
         raise ConfigError(f"no shipped FLDM model {name!r}; shipped: {sorted(_PRETRAINED)}")

@@ -1,7 +1,7 @@
 """FLDM for ``jmeshtex demo``: the shipped Spot model sampled, inpainted and transferred (no training).
 
 The model is :func:`jmeshtex.fldm.load_pretrained` (trained on the shipped FL-VAE's latents of
-re-triangulated copies of Spot, flat rings' phases synchronised); its samples are decoded with that
+re-triangulated copies of Spot); its samples are decoded with that
 FL-VAE (:func:`jmeshtex.fl.load_pretrained`) to Spot's own UV atlas. Beside them: Spot's texture,
 its encoding decoded (the codec's ceiling: what a perfect model's sample of *this* texture could
 look like), and the protocol's two do-nothing baselines, the best flat colour over the atlas' used
@@ -22,13 +22,22 @@ import numpy as np
 from ._views import Progress, say
 
 #: the camera (elevation, azimuth in degrees, Spot z-up) of every panel
-VIEW = (20.0, -60.0)
+VIEW = (15.0, 35.0)
 
 
-def _spot_z_up(mesh):
-    """Spot turned from y-up to the renderer's z-up (the same surface, atlas and texture)."""
-    v = np.asarray(mesh.vertices)
-    return mesh.replace(vertices=np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1))
+def _spot_z_up(subdivide: bool):
+    """Spot turned from y-up to the renderer's z-up (the same surface, atlas and texture),
+    midpoint-subdivided once if ``subdivide`` (11.7K vertices: the model's training density)."""
+    from ...data import spot
+    from ...geometry import subdivide_midpoint, subdivide_uv
+
+    mesh = spot()
+    v, f, uv = np.asarray(mesh.vertices), mesh.faces, mesh.uv
+    if subdivide:
+        s = subdivide_midpoint(v, f)
+        v, f, uv = s.vertices, s.faces, subdivide_uv(uv)
+    up = np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)
+    return mesh.replace(vertices=up, faces=f, uv=uv)
 
 
 def _encoding(vae, model, mesh, geometry, key) -> np.ndarray:
@@ -51,10 +60,11 @@ def _encoding(vae, model, mesh, geometry, key) -> np.ndarray:
 def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = None) -> dict:
     """Sample the shipped FLDM Spot model, write ``fldm.png``, return a summary dict.
 
-    The figure (:func:`jmeshtex.render.figure`, Spot z-up, one view): Spot, two samples,
-    an inpainting (the rear half kept from Spot's encoding, the front half generated), a transfer
-    to a torus (vertex colours), the encoding decoded, and the two baselines. DDIM with 50 steps
-    (``quick``: 10 steps and a 256² atlas, a smoke run).
+    The figure (:func:`jmeshtex.render.figure`, Spot z-up, one view): Spot, two samples on Spot
+    midpoint-subdivided once (the model's training density), an inpainting (the rear half kept
+    from Spot's encoding, the front half generated), a transfer to a torus (vertex colours), the
+    encoding decoded, and the two baselines. DDIM with 50 steps (``quick``: Spot's own 2,930
+    vertices, 10 steps and a 256² atlas, a smoke run).
 
     Args:
       out_dir: folder for ``fldm.png``.
@@ -65,7 +75,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
       ``{"png", "seconds", "steps", "vertices", "summary"}``.
     """
     from ... import fl, fldm
-    from ...data import spot, torus
+    from ...data import torus
     from ...fldm import core
     from ...geometry import fill_unused_texels
     from ...metrics import flat_baseline
@@ -76,19 +86,21 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     steps, atlas, size = (10, 256, (160, 160)) if quick else (50, 512, (256, 256))
     say(progress, "loading the shipped FLDM and FL-VAE models")
     model, vae = fldm.load_pretrained(), fl.load_pretrained()
-    mesh = _spot_z_up(spot())
+    mesh = _spot_z_up(subdivide=not quick)
     geometry = core.sampling_geometry(mesh, model)
     k_sample, k_inpaint, k_transfer, k_codec, k_shuffle = jax.random.split(jax.random.key(0), 5)
     say(progress, f"sampling 2 textures on Spot (DDIM, {steps} steps)")
     z = np.asarray(fldm.sample(model, geometry, key=k_sample, num_samples=2, steps=steps).latents)
     say(progress, "encoding Spot and inpainting its front half")
     known = _encoding(vae, model, mesh, geometry, k_codec)
-    rear = mesh.vertices[:, 0] > np.median(mesh.vertices[:, 0])
+    rear = mesh.vertices[:, 1] < np.median(mesh.vertices[:, 1])  # Spot (z-up) faces +y
     inpainted = fldm.inpaint(
         model, geometry, known, rear, key=k_inpaint, method="ddim", steps=steps
     ).latents[0]
     say(progress, "transfer to a torus")
-    ring = torus(48, 64, major_radius=1.0, minor_radius=0.4)
+    # Spot's area (5.7) at the sampling mesh's density: the textures' scale carries over
+    n_major, n_minor = (80, 36) if quick else (160, 72)
+    ring = torus(n_major, n_minor, major_radius=0.6, minor_radius=0.24)
     zt = fldm.sample(model, ring, key=k_transfer, num_samples=1, steps=steps).latents[0]
     shuffled = np.asarray(core.shuffle_latents(known, key=k_shuffle))
     say(progress, "decoding and rendering")
