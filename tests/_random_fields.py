@@ -4,9 +4,11 @@ contract (index 0, zero weight, ``False`` mask, zero log, unit transport)."""
 
 from __future__ import annotations
 
+import jax.numpy as jnp
 import numpy as np
 
 from jmeshtex.geometry import VertexNeighborhood
+from jmeshtex.ops import FieldConvParams
 
 
 def crandn(rng: np.random.Generator, *shape: int) -> np.ndarray:
@@ -59,4 +61,17 @@ def gauge_transform(x, nb: VertexNeighborhood, alpha: np.ndarray):
     return x * rot[:, None], nb._replace(
         log=nb.log * rot[:, None],
         transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])),
+    )
+
+
+def field_conv_params(seed: int, *, e: int, c: int, d: int, h: int, dtype) -> FieldConvParams:
+    """NumPy field-convolution parameters distributed like ``init_field_conv`` (no compilation):
+    ``e`` embedding channels, ``c`` → ``d`` channels, ``h`` filter responses; complex ``dtype``
+    (``complex128`` or ``complex64``, the filter weights in the matching real dtype)."""
+    rng = np.random.default_rng(seed)
+    real = np.float64 if dtype == jnp.complex128 else np.float32
+    return FieldConvParams(
+        filter_weight=(rng.standard_normal((2 + e, h)) / np.sqrt(2 + e)).astype(real),
+        filter_bias=rng.standard_normal(h).astype(real),
+        mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
     )

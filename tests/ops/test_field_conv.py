@@ -25,7 +25,14 @@ from jmeshtex.ops import (
     field_conv_terms,
 )
 from jmeshtex.ops._field_conv_stages import _filtered_sums
-from tests._random_fields import crandn, gauge_transform, random_nbhd, rel_err, silu
+from tests._random_fields import (
+    crandn,
+    field_conv_params,
+    gauge_transform,
+    random_nbhd,
+    rel_err,
+    silu,
+)
 
 _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
 # one shape for most tests (V vertices, K slots, C -> D channels, H responses, E embedding): the
@@ -35,17 +42,8 @@ V, K, C, D, H, E = 6, 4, 2, 3, 3, 1
 
 @functools.cache
 def make_params(seed, e=E, c=C, d=D, h=H, dtype=jnp.complex128):
-    """NumPy parameters distributed like init_field_conv (which has its own doctest): no compilation."""
-    rng = np.random.default_rng(seed)
-    real = np.float64 if dtype == jnp.complex128 else np.float32
-    return FieldConvParams(
-        filter_weight=(rng.standard_normal((2 + e, h)) / np.sqrt(2 + e)).astype(real),
-        filter_bias=rng.standard_normal(h).astype(real),
-        mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
-    )
-
-
-# ----------------------------------------------------------------------------- helpers
+    """Parameters distributed like init_field_conv (which has its own doctest): no compilation."""
+    return field_conv_params(seed, e=e, c=c, d=d, h=h, dtype=dtype)
 
 
 def grid_nbhd(n):

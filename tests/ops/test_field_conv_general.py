@@ -11,24 +11,21 @@ from jax.test_util import check_grads
 
 from jmeshtex import ConfigError, InputError
 from jmeshtex.geometry import pad_to
-from jmeshtex.ops import FieldConvParams, field_conv, init_field_conv
 from jmeshtex.ops import _field_conv_fast as fc_fast
 from jmeshtex.ops import _field_conv_general as fc_module
-from tests._random_fields import crandn, gauge_transform, random_nbhd, rel_err, silu
+from jmeshtex.ops import field_conv, init_field_conv
+from tests._random_fields import (
+    crandn,
+    field_conv_params,
+    gauge_transform,
+    random_nbhd,
+    rel_err,
+    silu,
+)
 
 V, K, C, D, H = 7, 5, 3, 2, 4
 
 # ----------------------------------------------------------------------------- helpers
-
-
-def make_params(seed, *, e, c, d, h, dtype):
-    rng = np.random.default_rng(seed)
-    real = np.float64 if dtype == jnp.complex128 else np.float32
-    return FieldConvParams(
-        filter_weight=(rng.standard_normal((2 + e, h)) / np.sqrt(2 + e)).astype(real),
-        filter_bias=rng.standard_normal(h).astype(real),
-        mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
-    )
 
 
 # ----------------------------------------------------------------------------- tests
@@ -36,7 +33,7 @@ def make_params(seed, *, e, c, d, h, dtype):
 
 def general_params(seed, *, hidden=True, channel=True, dtype=jnp.complex128):
     rng = np.random.default_rng(seed)
-    base = make_params(seed, e=1, c=C, d=D, h=H, dtype=dtype)
+    base = field_conv_params(seed, e=1, c=C, d=D, h=H, dtype=dtype)
     real = np.float64 if dtype == jnp.complex128 else np.float32
     extra = {}
     if channel:
