@@ -298,7 +298,7 @@ def unit_edge(mesh):
     from jmeshtex import Mesh
     from jmeshtex.geometry import mean_edge_length
 
-    v, f = np.asarray(mesh[0], np.float64), np.asarray(mesh[1])
+    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
     c = v.mean(axis=0)
     return Mesh((v - c) / mean_edge_length(v, f), f)
 
