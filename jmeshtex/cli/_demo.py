@@ -308,7 +308,7 @@ STEPS: list[Step] = [
     Step("render", _render),
     Step("equivariance (jmeshtex verify, selection)", _verify),
     Step("MeshMatch", method_stage("meshmatch")),
-    Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts")),
+    Step("DGTS (shipped knobs model, transfer)", method_stage("dgts")),
     Step("Field Latents (FL-VAE encode/decode)", method_stage("fl")),
     Step(
         "Field Latent Diffusion (shipped Spot model: sample, inpaint, transfer)",
