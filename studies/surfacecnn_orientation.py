@@ -51,7 +51,13 @@ def _agreement(result, control) -> tuple[float, float]:
 
 
 def orientation(
-    meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+    meshes,
+    exemplars,
+    size: int,
+    steps: int,
+    work: pathlib.Path,
+    out: pathlib.Path | None,
+    methods=("surface", "uv2d"),
 ) -> None:
     """Orientation across UV seams (:func:`jmeshtex.metrics.seam_orientation`) of the surface CNN
     and of UV-space 2D synthesis on the protocol's xatlas layouts, beside the seamless control
@@ -89,7 +95,7 @@ def orientation(
                     "interior": control.interior,
                 },
             }
-            for method in ("surface", "uv2d"):
+            for method in methods:
                 path = work / "orientation" / f"{mesh_name}_{ex_name}_{size}_{steps}_{method}.npz"
                 if path.is_file():
                     with np.load(path) as z:
@@ -144,6 +150,8 @@ def orientation(
     for r in rows:
         c = r["control"]
         for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
+            if method not in r:
+                continue
             m = r[method]
             lines.append(
                 f"| {r['mesh']} | {r['exemplar']} | {label} | **{m['seam']:.3f}** | "
@@ -250,12 +258,21 @@ def main(argv: list[str] | None = None) -> None:
         default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
     )
     ap.add_argument("--out", type=pathlib.Path, default=None)
+    ap.add_argument("--methods", default="surface,uv2d", help="surface, uv2d or both")
     ap.add_argument("--figure", default=None, metavar="MESH", help="only the figure of one mesh")
     a = ap.parse_args(argv)
     if a.figure:
         orientation_figure(a.figure, a.size, a.steps, a.work, a.out)
     else:
-        orientation(a.meshes.split(","), a.exemplars.split(","), a.size, a.steps, a.work, a.out)
+        orientation(
+            a.meshes.split(","),
+            a.exemplars.split(","),
+            a.size,
+            a.steps,
+            a.work,
+            a.out,
+            tuple(a.methods.split(",")),
+        )
 
 
 if __name__ == "__main__":
