@@ -58,6 +58,51 @@ def _encoding(vae, model, mesh, geometry, key) -> np.ndarray:
     return np.asarray(core.synchronize_phases(z, geometry.fine, pinned=pinned))
 
 
+def _atlases(vae, mesh, fields: dict, atlas: int) -> dict[str, np.ndarray]:
+    """Every field decoded to ``mesh``'s atlas (unused texels filled), plus ``"baseline: flat"``:
+    the best constant colour over the texels the atlas uses."""
+    from ... import fldm
+    from ...geometry import fill_unused_texels
+    from ...metrics import flat_baseline
+
+    decoded = fldm.decode_samples(vae, mesh, np.stack(list(fields.values())), size=atlas)
+    textures = {
+        k: fill_unused_texels(d["texture"], d["valid"])
+        for k, d in zip(fields, decoded, strict=True)
+    }
+    valid = decoded[0]["valid"]
+    full = np.asarray(mesh.texture)
+    truth = full[:: full.shape[0] // atlas, :: full.shape[1] // atlas]
+    flat = flat_baseline(truth, mask=valid)[valid][0]
+    textures["baseline: flat"] = np.broadcast_to(flat, truth.shape).astype(np.float32)
+    return textures
+
+
+def _figure(path: pathlib.Path, mesh, ring, textures: dict, size: tuple[int, int]) -> None:
+    """``fldm.png``: Spot, the samples and the inpainting, the torus transfer (its vertex
+    colours), the encoding decoded and the baselines, one view each."""
+    from ...render import figure, render_mesh
+
+    def draw(texture) -> np.ndarray:
+        return render_mesh(mesh.replace(texture=texture), view=VIEW, size=size)
+
+    panels = [("Spot", draw(mesh.texture))]
+    panels += [
+        (name, draw(textures[name])) for name in ("sample 1", "sample 2", "inpaint (rear kept)")
+    ]
+    panels += [(f"transfer: torus {ring.num_vertices} V", render_mesh(ring, view=VIEW, size=size))]
+    panels += [
+        (name, draw(textures[name]))
+        for name in ("encoding decoded", "baseline: flat", "baseline: shuffled")
+    ]
+    figure(
+        panels,
+        columns=4,
+        title="FLDM: the shipped Spot model (samples, inpainting, transfer) and its baselines",
+        path=path,
+    )
+
+
 def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = None) -> dict:
     """Sample the shipped FLDM Spot model, write ``fldm.png``, return a summary dict.
 
@@ -80,9 +125,6 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     from ... import fl, fldm
     from ...data import torus
     from ...fldm import core
-    from ...geometry import fill_unused_texels
-    from ...metrics import flat_baseline
-    from ...render import figure, render_mesh
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
@@ -109,39 +151,9 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     say(progress, "decoding and rendering")
     fields = {"sample 1": z[0], "sample 2": z[1], "inpaint (rear kept)": inpainted}
     fields |= {"encoding decoded": known, "baseline: shuffled": shuffled}
-    decoded = fldm.decode_samples(vae, mesh, np.stack(list(fields.values())), size=atlas)
-    textures = {
-        k: fill_unused_texels(d["texture"], d["valid"])
-        for k, d in zip(fields, decoded, strict=True)
-    }
-    valid = decoded[0]["valid"]
-    truth = np.asarray(mesh.texture)[:: 1024 // atlas, :: 1024 // atlas]
-    textures["baseline: flat"] = np.broadcast_to(
-        flat_baseline(truth, mask=valid)[valid][0], truth.shape
-    ).astype(np.float32)
-
-    def draw(texture) -> np.ndarray:
-        return render_mesh(mesh.replace(texture=texture), view=VIEW, size=size)
-
-    ring_colours = fldm.decode_samples(vae, ring, zt[None])[0]["vertex_colors"]
-    panels = [("Spot", draw(mesh.texture))]
-    panels += [(name, draw(textures[name])) for name in list(fields)[:3]]
-    panels += [
-        (
-            f"transfer: torus {ring.num_vertices} V",
-            render_mesh(ring.replace(vertex_colors=ring_colours), view=VIEW, size=size),
-        )
-    ]
-    panels += [
-        (name, draw(textures[name]))
-        for name in ("encoding decoded", "baseline: flat", "baseline: shuffled")
-    ]
-    figure(
-        panels,
-        columns=4,
-        title="FLDM: the shipped Spot model (samples, inpainting, transfer) and its baselines",
-        path=out / "fldm.png",
-    )
+    textures = _atlases(vae, mesh, fields, atlas)
+    ring = ring.replace(vertex_colors=fldm.decode_samples(vae, ring, zt[None])[0]["vertex_colors"])
+    _figure(out / "fldm.png", mesh, ring, textures, size)
     seconds = time.perf_counter() - t0
     corr = {
         name: float(core.latent_statistics(jnp.asarray(field), geometry.fine)["energy_correlation"])
