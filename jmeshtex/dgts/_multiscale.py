@@ -384,6 +384,7 @@ def training_meshes(
     coarse_reference: Mesh | tuple[Float[np.ndarray, "C 3"], Int[np.ndarray, "H 3"]] | None = None,
     coarse_levels: int = 0,
     rotation: Float[np.ndarray, "3 3"] | None = None,
+    checkpoint: str | os.PathLike | None = None,
 ) -> TrainingMeshes:
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
 
@@ -407,6 +408,10 @@ def training_meshes(
       rotation: optional ``[3, 3]`` rotation of the normalised template before the first fit: the
         reference remeshed with its texture elsewhere on the template's triangles (several such
         remeshes train one model, beyond the paper). None: the template as given.
+      checkpoint: optional ``.npz`` file that keeps the levels fitted so far (written atomically
+        after each level): a call with the same inputs resumes after the last finished level and
+        returns what an uninterrupted call returns. A file written for other inputs (reference,
+        template, config, key, coarse reference, rotation) raises instead of being overwritten.
 
     Returns:
       :class:`TrainingMeshes`.
@@ -415,7 +420,8 @@ def training_meshes(
       InputError: ``reference`` or ``template`` is not a mesh.
       MeshError: (a subclass) an invalid reference or template (:func:`jmeshtex.geometry.validate_mesh`).
       ConfigError: ``coarse_levels`` outside ``[0, config.levels)``, or > 0 without a
-        ``coarse_reference``; ``rotation`` not a ``[3, 3]`` rotation matrix.
+        ``coarse_reference``; ``rotation`` not a ``[3, 3]`` rotation matrix; ``checkpoint`` holds
+        the levels of other inputs.
 
     Example:
       >>> from jmeshtex.data import icosphere, icosahedron
@@ -450,16 +456,62 @@ def training_meshes(
         coarse = ((np.asarray(cv, np.float64) - center) * scale, np.asarray(cf, np.int64))
     report = _progress_bars("prepare") if progress is True else (progress or None)
     surfaces = (coarse, (target, np.asarray(rf, np.int64)))
+    resume = None
+    if checkpoint is not None:
+        inputs = (v, f, *surfaces[1], *(coarse or ()), np.int64(coarse_levels))
+        resume = _LevelCheckpoint(checkpoint, _fit_fingerprint(inputs, config, key))
     levels = _fit_levels(
-        v, f, surfaces, coarse_levels, scale, config=config, key=key, report=report
+        v, f, surfaces, coarse_levels, scale, config=config, key=key, report=report, resume=resume
     )
     return TrainingMeshes(v.copy(), *levels, center)
 
 
-def _fit_levels(v, f, surfaces, coarse_levels: int, scale: float, *, config, key, report):
+def _fit_fingerprint(arrays, config: PrepareConfig, key) -> str:
+    """A digest of what a level fit depends on: the normalised meshes, the config and the key."""
+    import hashlib
+    import json
+
+    h = hashlib.sha256(json.dumps(config.to_dict(), sort_keys=True, default=str).encode())
+    for a in (*arrays, jax.random.key_data(key)):
+        a = np.ascontiguousarray(np.asarray(a))
+        h.update(f"{a.dtype}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+class _LevelCheckpoint:
+    """The fitted vertices of the finished levels in one ``.npz`` (``training_meshes(checkpoint=)``)."""
+
+    def __init__(self, path: str | os.PathLike, fingerprint: str):
+        self.path, self.fingerprint = pathlib.Path(path), fingerprint
+        self.levels: list[np.ndarray] = []
+        if self.path.is_file():
+            data = load_npz(self.path, "training_meshes checkpoint")
+            found = str(data.get("fingerprint", ""))
+            if found != fingerprint:
+                raise ConfigError(
+                    f"training_meshes: checkpoint {self.path} holds the levels of other inputs "
+                    f"(reference, template, config or key differ); pass another checkpoint path "
+                    f"or delete that file to start afresh"
+                )
+            self.levels = [data[f"vertices_{i}"] for i in range(int(data["num_levels"]))]
+
+    def add(self, vertices: np.ndarray) -> None:
+        self.levels.append(np.asarray(vertices, np.float64))
+        arrays = {f"vertices_{i}": v for i, v in enumerate(self.levels)}
+        arrays.update(
+            fingerprint=np.asarray(self.fingerprint), num_levels=np.int64(len(self.levels))
+        )
+        atomic_save_npz(self.path, arrays)
+
+
+def _fit_levels(
+    v, f, surfaces, coarse_levels: int, scale: float, *, config, key, report, resume=None
+):
     """Subdivide, rescale and fit level after level (:func:`training_meshes`); ``surfaces``: the
-    coarse reference (or None) and the reference, normalised. Returns ``(vertices, faces,
-    edge_vertices, scales)`` of the levels."""
+    coarse reference (or None) and the reference, normalised; ``resume``: a
+    :class:`_LevelCheckpoint` whose finished levels are taken instead of fitted again. Returns
+    ``(vertices, faces, edge_vertices, scales)`` of the levels."""
     coarse, (target, rf) = surfaces
     verts, faces, edges, scales = [], [], [], []
     for level in range(config.levels):
@@ -473,14 +525,19 @@ def _fit_levels(v, f, surfaces, coarse_levels: int, scale: float, *, config, key
             scale *= config.scale_factor
         stage = f"level {level}"
         cb = None if report is None else (lambda d, s=stage: report(s, d, config.steps))
-        v, _ = fit_level(
-            (v, f),
-            coarse if level < coarse_levels else (target, rf),
-            config=config,
-            num_samples=config.samples_per_level * (level + 1),
-            key=jax.random.fold_in(key, level),
-            progress=cb,
-        )
+        if resume is not None and level < len(resume.levels):
+            v = resume.levels[level]
+        else:
+            v, _ = fit_level(
+                (v, f),
+                coarse if level < coarse_levels else (target, rf),
+                config=config,
+                num_samples=config.samples_per_level * (level + 1),
+                key=jax.random.fold_in(key, level),
+                progress=cb,
+            )
+            if resume is not None:
+                resume.add(v)
         verts.append(v)
         faces.append(f)
         scales.append(scale)
