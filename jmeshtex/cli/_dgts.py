@@ -1,7 +1,8 @@
 """``jmeshtex dgts prepare|train|transfer|interpolate``: a thin layer over :mod:`jmeshtex.dgts`.
 
 - ``prepare --reference R --template T --levels L --out DIR``: multi-scale training meshes
-  (``DIR/training.npz``, ``DIR/level_XX.obj``, ``DIR/reference.obj``, ``DIR/levels.png``).
+  (``DIR/training.npz``, ``DIR/level_XX.obj``, ``DIR/reference.obj``, ``DIR/levels.png``); run it
+  again after a stop to resume after the last finished level (``DIR/training.levels.npz``).
 - ``train DIR``: trains the hierarchy with checkpoints in ``DIR/checkpoints`` (run it again to
   resume), saves the model into ``DIR/model`` and writes a sample generated from the template
   (``DIR/sample.obj`` / ``.png``).
@@ -234,19 +235,23 @@ def _prepare(args) -> int:
             "levels or a coarser --template"
         )
     key = jax.random.key(args.seed)
-    tm = training_meshes(ref, tmpl, config=config, key=key, progress=not args.quiet)
     out = args.out
-    save_training_meshes(tm, out / "training.npz")
-    for i in range(1, args.remeshes):
-        turn = training_meshes(
+    for i in range(args.remeshes):  # a stopped fit resumes after its last finished level
+        name = "training" if i == 0 else f"training_remesh{i}"
+        fit = training_meshes(
             ref,
             tmpl,
             config=config,
             key=key,
             progress=not args.quiet,
-            rotation=_random_rotation(jax.random.fold_in(key, i)),
+            rotation=_random_rotation(jax.random.fold_in(key, i)) if i else None,
+            checkpoint=out / f"{name}.levels.npz",
         )
-        save_training_meshes(turn, out / f"training_remesh{i}.npz")
+        save_training_meshes(fit, out / f"{name}.npz")
+        if i == 0:
+            tm = fit  # the plain fit: the levels written below
+    for stale in out.glob("training*.levels.npz"):  # kept until every fit is done
+        stale.unlink()
     atomic_write(
         out / "prepare.json",
         json.dumps(

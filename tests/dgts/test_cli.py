@@ -175,3 +175,38 @@ def test_prepare_remeshes_and_train_on_all_of_them(tmp_path, capsys, monkeypatch
     with pytest.raises(SystemExit) as refused:  # argparse refuses it before anything runs
         main(["dgts", "prepare", "--reference", "icosphere:2", "--remeshes", "0", "--out", str(d)])
     assert refused.value.code == 2 and "--remeshes: 0 is out of range" in capsys.readouterr().err
+
+
+def test_a_stopped_prepare_resumes_after_its_last_finished_level(tmp_path, monkeypatch):
+    """Interrupted in the second fit's level 1, ``prepare`` keeps the folder and the finished
+    levels; run again, it fits only what is left and writes what an uninterrupted run writes."""
+    import jmeshtex.dgts._multiscale as multiscale
+    from jmeshtex.dgts import load_training_meshes
+
+    monkeypatch.setenv("JMESHTEX_JAX_CACHE", "0")
+    prepare = ["dgts", "prepare", "--reference", "icosphere:2", "--template", "icosahedron"]
+    prepare += ["--levels", "2", "--steps", "5", "--samples", "100", "--remeshes", "2", "--quiet"]
+    assert main([*prepare, "--out", str(tmp_path / "whole")]) == 0
+    fit_level, fits = multiscale.fit_level, []
+
+    def stopped_in_the_fourth_fit(*args, **kwargs):
+        fits.append(kwargs["num_samples"])
+        if len(fits) == 4:
+            raise KeyboardInterrupt
+        return fit_level(*args, **kwargs)
+
+    monkeypatch.setattr(multiscale, "fit_level", stopped_in_the_fourth_fit)
+    d = tmp_path / "stopped"
+    assert main([*prepare, "--out", str(d)]) == 130
+    assert (d / "training.npz").is_file() and (d / "training_remesh1.levels.npz").is_file()
+    fits.clear()
+    monkeypatch.setattr(
+        multiscale, "fit_level", lambda *a, **k: fits.append(k["num_samples"]) or fit_level(*a, **k)
+    )
+    assert main([*prepare, "--out", str(d)]) == 0
+    assert fits == [200]  # the remesh's level 1 only (level l fits on (l + 1) * 100 samples)
+    assert not list(d.glob("*.levels.npz"))  # removed once every fit is done
+    for name in ("training.npz", "training_remesh1.npz"):
+        a, b = load_training_meshes(d / name), load_training_meshes(tmp_path / "whole" / name)
+        for x, y in zip(a.vertices, b.vertices, strict=True):
+            np.testing.assert_array_equal(x, y)
