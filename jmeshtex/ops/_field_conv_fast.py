@@ -7,15 +7,19 @@ no response is written to memory, with two the second layer's matrix product ove
 first-layer responses is (:func:`~._field_conv_terms.filtered_sums_fused`).
 
 Derivatives: the forward's fused reduction cannot be transposed by JAX, so it sits behind a
-``jax.custom_jvp``. Its tangent is the forward-mode derivative of the plain formula
-(:func:`~._field_conv_terms.filtered_sums_plain`), taken block by block under ``jax.checkpoint``.
-Every transformation then follows from JAX's own rules, in any order and under ``jax.jit``:
-``jvp``, ``linearize``, ``jacfwd``, ``vmap``; reverse mode (``grad``, ``vjp``, ``jacrev``)
-transposes the tangent, recomputing each block's responses instead of storing the ``V·K·H·C`` of
-them (the checkpoint keeps only the inputs), and keeps the forward's ``V·2·H·C`` filtered sums for
-the mix's gradient. Higher orders re-enter the same rule (its primal output calls the rule's own
-function). Inputs without a tangent (usually the neighbourhood) arrive as symbolic zeros and cost
-nothing.
+``jax.custom_jvp`` whose tangent is linear in the tangents and written in plain JAX, so every
+transformation follows from JAX's own rules, in any order and under ``jax.jit``: ``jvp``,
+``linearize``, ``jacfwd``, ``vmap``, reverse mode (``grad``, ``vjp``, ``jacrev``) as JAX's
+transpose of the tangent, higher orders by re-entering the same rule (its primal output calls the
+rule's own function). Inputs without a tangent arrive as symbolic zeros and cost nothing.
+
+Which tangent: with the neighbourhood held fixed (the usual case), ``jax.linear_transpose`` of a
+hand-written blocked VJP (:func:`sums_vjp`), so reverse mode, JAX's transpose of that transpose,
+runs the hand-written VJP itself (each block's responses recomputed and written once in cache, no
+``V·K·H·C`` array stored); forward mode runs its transpose. With a tangent on the neighbourhood's
+geometry, the forward-mode derivative of the plain formula (:func:`sums_tangent_plain`, block by
+block under ``jax.checkpoint``). Reverse mode keeps the forward's ``V·2·H·C`` filtered sums for the
+mix's gradient.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from jax.custom_derivatives import SymbolicZero
 
 from ._field_conv_terms import (
     as_complex,
+    bias3,
     filtered_sums_fused,
     filtered_sums_plain,
     from_blocks,
@@ -145,6 +150,161 @@ def sums_tangent(
 ):
     """The filtered sums' tangent ``Ṡ [V, 2·H·C]``, linear in ``(ẋ, slots', Ȧ, ḃ)`` and the second
     layer's ``(Ẇ₂, ḃ₂)``; None if all zero.
+
+    Without a slot tangent (the neighbourhood held fixed, the usual case), ``Ṡ`` is the transpose of
+    :func:`sums_vjp`, taken by ``jax.linear_transpose``: reverse mode transposes it back, so it runs
+    the hand-written blocked VJP. With a slot tangent, :func:`sums_tangent_plain`.
+    """
+    if not _all_zero(dslots):
+        return sums_tangent_plain(
+            x, index, slots, a_w, bias, hidden, dx, dslots, da_w, dbias, dhidden, delta, activation
+        )
+    named = {"x": dx, "a_w": da_w, "bias": dbias, "hidden": dhidden}
+    live = {k: _instantiate(t) for k, t in named.items() if not _all_zero(t)}
+    if not live:
+        return None
+    v, c, h = x.shape[0], x.shape[1], a_w.shape[1]
+    want = tuple(live)
+
+    def vjp(g):
+        return sums_vjp(x, index, slots, a_w, bias, hidden, g, delta, activation, want)
+
+    transpose = jax.linear_transpose(vjp, jax.ShapeDtypeStruct((v, 2 * h * c), x.real.dtype))
+    if "x" in live:  # the tangents' gather: linear, outside the loop (one scatter transposed)
+        live["x"] = tuple(jnp.take(p, index, axis=0, mode="clip") for p in (dx.real, dx.imag))
+    (ds,) = transpose(live)
+    return ds
+
+
+def sums_vjp(x, index, slots, a_w, bias, hidden, g, delta, activation, want):
+    """The VJP of the filtered sums for fixed slots, block by block: ``g [V, 2·H·C]`` → a dict of
+    cotangents for the names in ``want``: ``"x"`` (of the gathered features ``x_q``, real and
+    imaginary ``[V, K, C]``), ``"a_w"`` ``[2, H]``, ``"bias"`` (the offsets' shape), ``"hidden"``
+    ``(W₂ [H, H], b₂ [H])``.
+
+    Per block of :data:`TANGENT_BLOCK` vertices under ``jax.checkpoint``: :func:`block_vjp`, which
+    recomputes the block's responses from the gathered features.
+    """
+    v, c, h = x.shape[0], x.shape[1], a_w.shape[1]
+    block = min(v, TANGENT_BLOCK)
+    n_blocks = -(-v // block)
+    xr, xi = x.real, x.imag
+    per_vertex = {"index": index, "slots": slots, "bias": bias, "g": g.reshape(v, 2, h, c)}
+
+    def body(pv):
+        xqr = jnp.take(xr, pv["index"], axis=0, mode="clip")
+        xqi = jnp.take(xi, pv["index"], axis=0, mode="clip")
+        return block_vjp(
+            xqr, xqi, pv["slots"], a_w, pv["bias"], hidden, pv["g"], delta, activation, want
+        )
+
+    out = jax.lax.map(
+        jax.checkpoint(body, prevent_cse=False), to_blocks(per_vertex, n_blocks, block)
+    )
+    for k in ("a_w", "hidden"):  # per block → summed
+        if k in out:
+            out[k] = jax.tree.map(lambda t: jnp.sum(t, axis=0), out[k])
+    return {k: (t if k in ("a_w", "hidden") else from_blocks(t, v)) for k, t in out.items()}
+
+
+def block_vjp(xqr, xqi, slots, a_w, bias, hidden, g, delta, activation, want):
+    """Hand-written VJP of one block's filtered sums for fixed slots (see :func:`sums_vjp`).
+
+    With ``p₁ = a_r A_0 + a_i A_1 + b``, ``φ₁ = act(p₁)``, (two layers) ``p₂ = φ₁ W₂ + b₂``,
+    ``φ = act(p₂)`` (one layer: ``φ = φ₁``), ``G_s = ∂L/∂S_s``: ``g₂ = (G_r z_r + G_i z_i) act'(p₂)``
+    and ``∂z_s = Σ_h G_s φ``; ``g₁ = (W₂ g₂) act'(p₁)``, ``∂W₂ = Σ_{b,k,c} φ₁ g₂ᵀ`` (one GEMM per
+    block), ``∂b₂ = Σ g₂``; ``∂a_j = Σ_h g₁ A_j``, ``∂b = Σ_{k(,c)} g₁``, ``∂A_j = Σ_{b,k,c} g₁ a_j``;
+    then the chain through ``a = log · conj(u) / |u|_δ``, ``z = ŵ u`` and ``u = ρ x_q``.
+
+    Linear in ``g`` and plain ``jnp``, so JAX transposes it (the forward-mode tangent) and
+    differentiates it in the primal inputs (higher orders). The sums over ``h`` are unrolled into
+    ``[B, K, C]`` terms; each stage (the slot terms, each layer's responses and derivatives, each
+    layer's ``g``) is written once per block (``[H, B, K, C]``, in cache) behind an optimisation
+    barrier, so that XLA evaluates every response and activation derivative once instead of again
+    inside each fusion that reads it (measured: docs/design_notes.md, "Field convolution").
+    """
+    w, tr, ti, lr, li = (a[..., None] for a in slots)
+    ur = tr * xqr - ti * xqi
+    ui = tr * xqi + ti * xqr
+    inv = jax.lax.rsqrt(ur * ur + ui * ui + jnp.asarray(delta * delta, xqr.dtype))
+    num_r, num_i = lr * ur + li * ui, li * ur - lr * ui
+    _, (ur, ui, inv, num_r, num_i, ar, ai, zr, zi) = _written(
+        [ur, ui, inv, num_r, num_i, num_r * inv, num_i * inv, w * ur, w * ui]
+    )
+    b3 = bias3(bias)  # [B, H, C] or [B, H, 1]
+    g_r, g_i = g[:, 0], g[:, 1]  # [B, H, C]
+    n_h = a_w.shape[1]
+    p1 = [ar * a_w[0, j] + ai * a_w[1, j] + b3[:, None, j, :] for j in range(n_h)]
+    (phi1_st, phi1), (_, dphi1) = _responses(p1, activation)
+    phi, dphi = phi1, dphi1
+    if hidden is not None:
+        hw, hb = hidden
+        p2 = [sum(phi1[i] * hw[i, j] for i in range(n_h)) + hb[j] for j in range(n_h)]
+        (_, phi), (_, dphi) = _responses(p2, activation)
+    dzr = dzi = 0
+    gs = []
+    for j in range(n_h):
+        gr_j, gi_j = g_r[:, None, j, :], g_i[:, None, j, :]
+        gs.append((gr_j * zr + gi_j * zi) * dphi[j])
+        dzr, dzi = dzr + gr_j * phi[j], dzi + gi_j * phi[j]
+    g_st, gs = _written(gs)
+    out = {}
+    if hidden is not None:
+        g2_st, g2 = g_st, gs
+        g_st, gs = _written(
+            [sum(g2[j] * hw[i, j] for j in range(n_h)) * dphi1[i] for i in range(n_h)]
+        )
+        if "hidden" in want:
+            f1, g2_flat = phi1_st.reshape(n_h, -1), g2_st.reshape(n_h, -1)
+            out["hidden"] = (f1 @ g2_flat.T, jnp.sum(g2_flat, axis=1))
+    dar = sum(gs[j] * a_w[0, j] for j in range(n_h))
+    dai = sum(gs[j] * a_w[1, j] for j in range(n_h))
+    if "x" in want:
+        common = (num_r * dar + num_i * dai) * inv * inv * inv  # ∂|u|_δ⁻¹ terms
+        dur = w * dzr + inv * (lr * dar + li * dai) - ur * common
+        dui = w * dzi + inv * (li * dar - lr * dai) - ui * common
+        out["x"] = (tr * dur + ti * dui, tr * dui - ti * dur)
+    if "a_w" in want or "bias" in want:  # g₁ [H, B, K, C] reduced once
+        coef = jnp.stack([jnp.ones_like(ar), ar, ai])  # [3, B, K, C]
+        red = jnp.sum(g_st[:, None] * coef[None], axis=(3, 4)).transpose(2, 0, 1)  # [B, H, 3]
+        if "a_w" in want:
+            out["a_w"] = jnp.sum(red[:, :, 1:], axis=0).T
+        if "bias" in want:
+            if bias.ndim == 3 and bias.shape[2] > 1:  # per-channel offsets: no sum over c
+                out["bias"] = jnp.sum(g_st, axis=2).transpose(1, 0, 2)
+            else:
+                out["bias"] = red[:, :, 0, None] if bias.ndim == 3 else red[:, :, 0]
+    return out
+
+
+def _written(arrays):
+    """``arrays`` (equal shapes) stacked and written behind an optimisation barrier: the stack and
+    its rows (XLA fuses no producer into a reader across it)."""
+    stacked = jax.lax.optimization_barrier(jnp.stack(arrays))
+    return stacked, [stacked[i] for i in range(stacked.shape[0])]
+
+
+def _responses(pre, activation: str):
+    """``act`` and ``act'`` of the pre-activations ``pre`` (a list over ``h``), each :func:`_written`."""
+    values, slopes = zip(*(act_and_grad(p, activation) for p in pre), strict=True)
+    return _written(list(values)), _written(list(slopes))
+
+
+def act_and_grad(p, activation: str):
+    """:func:`~._field_conv_terms.act` and its derivative, in differentiable ``jnp``."""
+    if activation == "silu":
+        q = p * jnp.asarray(0.5, p.dtype)
+        t = jnp.tanh(q)
+        half = jnp.asarray(0.5, p.dtype)
+        return q + q * t, half + half * t + q * half * (1 - t * t)
+    return jnp.maximum(p, 0), (p > 0).astype(p.dtype)
+
+
+def sums_tangent_plain(
+    x, index, slots, a_w, bias, hidden, dx, dslots, da_w, dbias, dhidden, delta, activation
+):
+    """:func:`sums_tangent` as the forward-mode derivative of the plain block formula (any tangent,
+    the slots' included).
 
     Per block of :data:`TANGENT_BLOCK` vertices under ``jax.checkpoint``: the block gathers its
     neighbours' features from ``x`` and takes the forward-mode derivative of the plain block

@@ -211,14 +211,16 @@ def test_the_fast_and_general_implementations_are_equal(activation, layers, monk
     assert np.abs(np.asarray(dy_f)).max() > 0 and np.abs(np.asarray(y_f)).max() > 0
 
 
+@pytest.mark.parametrize("layers", [1, 2], ids=["one-hidden", "two-hidden"])
 @pytest.mark.parametrize("per_channel", [False, True])
 @pytest.mark.parametrize("activation", ["silu", "relu"])
 def test_fixed_neighbourhood_derivatives_equal_the_plain_formula(
-    activation, per_channel, monkeypatch
+    activation, per_channel, layers, monkeypatch
 ):
     # the neighbourhood held fixed (its tangent a symbolic zero, as in training): the fast path's
-    # blocked tangent and its transpose must equal the plain whole-mesh formula's derivatives in
-    # x, the filter rows and the offsets ([V, H], or per channel [V, H, C])
+    # tangent (the transpose of its hand-written blocked VJP) and its reverse mode (that VJP) must
+    # equal the plain whole-mesh formula's derivatives in x, the filter rows, the offsets ([V, H],
+    # or per channel [V, H, C]) and the second layer's (W₂, b₂)
     monkeypatch.setattr(_field_conv_fast, "BLOCK", 2)
     monkeypatch.setattr(_field_conv_fast, "TANGENT_BLOCK", 2)
     x, nbhd, params = _setup(4)
@@ -229,14 +231,18 @@ def test_fixed_neighbourhood_derivatives_equal_the_plain_formula(
     shape = (V, H, C) if per_channel else (V, H)
     bias = jnp.asarray(rng.standard_normal(shape))
     a_w = params.filter_weight
+    hidden = None
+    if layers == 2:
+        hidden = (rng.standard_normal((H, H)) / np.sqrt(H), 0.3 * rng.standard_normal(H))
+        hidden = tuple(jnp.asarray(a) for a in hidden)
 
-    def fast(x, a_w, bias, mix):
-        return _field_conv_fast.conv_fast(x, index, slots, a_w, bias, mix, 1e-4, activation)
+    def fast(x, a_w, bias, hidden, mix):
+        return _field_conv_fast.conv_fast(x, index, slots, a_w, bias, mix, 1e-4, activation, hidden)
 
-    def plain(x, a_w, bias, mix):
-        return _plain(x, index, slots, a_w, bias, mix, activation)
+    def plain(x, a_w, bias, hidden, mix):
+        return _plain(x, index, slots, a_w, bias, mix, activation, hidden)
 
-    args = (x, a_w, bias, params.mix)
+    args = (x, a_w, bias, hidden, params.mix)
     tangents = jax.tree.map(
         lambda a: jnp.cos(jnp.arange(a.size).reshape(a.shape)).astype(a.dtype), args
     )
@@ -253,8 +259,8 @@ def test_fixed_neighbourhood_derivatives_equal_the_plain_formula(
         assert np.abs(np.asarray(a)).max() > 0
 
 
-def _plain(x, index, slots, a_w, bias, mix, activation):
-    """The one-hidden-layer transported convolution as the plain whole-mesh formula (an oracle)."""
+def _plain(x, index, slots, a_w, bias, mix, activation, hidden=None):
+    """The transported convolution as the plain whole-mesh formula (an oracle)."""
     from jmeshtex.ops._field_conv_terms import (
         as_complex,
         filtered_sums_plain,
@@ -263,7 +269,7 @@ def _plain(x, index, slots, a_w, bias, mix, activation):
     )
 
     zr, zi, ar, ai = gather_terms(x.real, x.imag, index, slots, 1e-4, blocked=False)
-    s_r, s_i = filtered_sums_plain(zr, zi, ar, ai, a_w, bias, activation)
+    s_r, s_i = filtered_sums_plain(zr, zi, ar, ai, a_w, bias, activation, hidden)
     m_r, m_i = mix_halves(mix)
     v = x.shape[0]
     return as_complex(s_r.reshape(v, -1) @ m_r + s_i.reshape(v, -1) @ m_i)
