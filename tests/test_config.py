@@ -18,10 +18,12 @@ from jmeshtex._config import (
     ConfigBase,
     cross_rule,
     display_name,
+    flat_names,
     integers,
     is_finite_number,
     is_int,
     rule,
+    stored_config,
     type_ok,
 )
 from jmeshtex.dgts import Config as DGTSConfig
@@ -559,3 +561,214 @@ def test_surfacecnn_layer_names_are_vgg_layers(changes):
     with pytest.raises(ConfigError, match="VGG layer name"):
         SurfaceCNNConfig(**changes)
     assert SurfaceCNNConfig(layers=("conv5_4", "relu1_1", "pool5")).layers[0] == "conv5_4"
+
+
+# --- sections: a nested config (a method's ``experimental`` switches) --------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Switches(ConfigBase):
+    """A section: study switches with their own rules."""
+
+    shift: float = 1.0
+    sizes: tuple[int, ...] = (1, 2)
+
+    _RULES = (rule("shift", lambda x: x > 0, "> 0"),)
+
+
+@dataclasses.dataclass(frozen=True)
+class Run(ConfigBase):
+    """A config with a section in the middle of its fields."""
+
+    steps: int = 10
+    switches: Switches = Switches()
+    width: int = 4
+
+    _RESUMABLE = frozenset({"steps", "shift"})
+    _RULES = (cross_rule(lambda c: c.switches.shift < c.width, "shift must stay below width"),)
+
+
+@dataclasses.dataclass(frozen=True)
+class Flat(ConfigBase):
+    """``Run`` as it was before its switches moved into a section."""
+
+    steps: int = 10
+    shift: float = 1.0
+    sizes: tuple[int, ...] = (1, 2)
+    width: int = 4
+
+    _RESUMABLE = frozenset({"steps", "shift"})
+
+
+@pytest.mark.parametrize(
+    "changes", [{}, {"shift": 2.5}, {"sizes": (3,), "width": 9}, {"steps": 7, "shift": 0.5}]
+)
+def test_a_section_writes_the_same_dict_and_fingerprint_as_the_flat_config_it_replaced(changes):
+    run, flat = Run().replace(**changes), Flat(**changes)
+    assert run.to_dict() == flat.to_dict()
+    assert list(run.to_dict()) == ["steps", "shift", "sizes", "width"]  # the section in its place
+    assert run.fingerprint() == flat.fingerprint() and "shift" not in run.fingerprint()
+    assert Run.from_dict(flat.to_dict()) == run
+    assert Run.from_dict(json.loads(json.dumps(run.to_dict()))) == run
+
+
+def test_a_section_field_is_set_by_its_name_its_dotted_path_or_the_whole_section():
+    want = Run(switches=Switches(shift=2.0))
+    assert Run().replace(shift=2.0) == want
+    assert Run().replace(**{"switches.shift": 2.0}) == want
+    assert Run().replace(switches=Switches(shift=2.0)) == want
+    assert Run().replace(switches={"shift": 2.0}) == want
+    assert Run(switches={"shift": 2.0}) == want
+    assert Run.from_dict({"shift": 2.0}) == want
+    assert Run.from_dict({"switches.shift": 2.0}) == want
+    assert Run.from_dict({"switches": {"shift": 2.0}}) == want
+    # a name changes one field: the rest of the section is kept
+    two = Run().replace(sizes=[5, 6]).replace(shift=3.0)
+    assert two.switches == Switches(shift=3.0, sizes=(5, 6)) and two.switches.sizes == (5, 6)
+    # a whole section and a name of one of its fields: the name wins, the rest from the section
+    both = Run.from_dict({"switches": {"sizes": [7]}, "shift": 0.5})
+    assert both.switches == Switches(shift=0.5, sizes=(7,))
+    assert hash(want) == hash(Run().replace(shift=2.0)) and len({want, Run(), want}) == 2
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: Run().replace(shift=0.0), "Switches.shift must be > 0, got 0.0"),
+        (lambda: Run.from_dict({"switches.shift": -1}), "Switches.shift must be > 0, got -1"),
+        (lambda: Run(switches={"shift": "x"}), "Switches.shift must be > 0, got 'x'"),
+        (lambda: Run().replace(shift=5.0), "shift must stay below width"),
+        (
+            lambda: Run(switches=Flat()),
+            "Run.switches must be a Switches (or a dict of its fields), got Flat(",
+        ),
+        (lambda: Run(switches=None), "Run.switches must be a Switches (or a dict of its fields)"),
+        (
+            lambda: Run().replace(shfit=2.0),
+            "Run: unknown fields ['shfit']; known: ['shift', 'sizes', 'steps', 'width']",
+        ),
+        (lambda: Run.from_dict({"switches.bogus": 1}), "Switches: unknown fields ['bogus']"),
+        (lambda: Run.from_dict({"width.shift": 1}), "Run: unknown fields ['width.shift']"),
+        (lambda: Run.from_dict({"switches": {"bogus": 1}}), "Switches: unknown fields ['bogus']"),
+    ],
+)
+def test_a_section_is_refused_with_a_message_naming_the_field(make, message):
+    with pytest.raises(ConfigError) as err:
+        make()
+    assert str(err.value).startswith(message), str(err.value)
+
+
+@dataclasses.dataclass(frozen=True)
+class Clash(ConfigBase):
+    """A section field named like a field of the config: refused (the flat names would clash)."""
+
+    shift: float = 1.0
+    switches: Switches = Switches()
+
+
+def test_a_section_field_named_like_another_field_is_refused():
+    with pytest.raises(ConfigError, match="'shift' occurs twice"):
+        Clash()
+    assert flat_names(Run) == ("steps", "shift", "sizes", "width")
+
+
+def test_a_stored_config_lacking_a_section_field_is_refused():
+    stored = Run().to_dict()
+    assert stored_config(Run, stored, "m.npz") == Run()
+    del stored["sizes"]
+    with pytest.raises(ConfigError, match=r"m.npz: its stored Run lacks fields \['sizes'\]"):
+        stored_config(Run, stored, "m.npz")
+
+
+# --- what a config writes stays the same for the same values ------------------------------------------
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+#: sha256 (first 16 hex digits) of ``json.dumps(d, sort_keys=True)`` for ``d`` the fingerprint and
+#: the to_dict of each method's default config and presets, computed on main before the study
+#: switches moved into ``experimental`` sections: checkpoints and model files written before keep
+#: loading and resuming
+PINNED = {
+    "fl": {
+        "__init__": ("ec5ac7bb8ed1a165", "c4ae774675b20047"),
+        "paper": ("8d20184db973292a", "4dac6f84f7a51971"),
+        "small": ("7b664e2b064e97c3", "154d0e7cbd0b97f6"),
+    },
+    "fldm": {
+        "__init__": ("eb6bc929f31a043b", "4ac7af7301096c33"),
+        "paper": ("cea85ad7e71d311e", "5621602ee6b53b36"),
+        "cpu": ("dfb975cffdd01bdd", "b237a9ed75b95d53"),
+        "tiny": ("110e8cfabcf4f5df", "eaebbf78f4fa7d50"),
+        "demo": ("b28589f590b7f79e", "6bef817857263fc0"),
+    },
+    "meshmatch": {"__init__": ("cc0d7bf8e1ad1f33", "cc0d7bf8e1ad1f33")},
+    "surfacecnn": {
+        "__init__": ("82dfa5dc4fb9e26d", "c03f17acfa91dfd3"),
+        "paper": ("8923bbacd2594412", "fd8e7914ddb5cb29"),
+        "cpu": ("82dfa5dc4fb9e26d", "c03f17acfa91dfd3"),
+        "tiny": ("30e5aef6ce63de9c", "d65a414fb70d236d"),
+    },
+    "dgts": {
+        "__init__": ("02d26aa8e23476dd", "92fb9f84f8135ce7"),
+        "tiny": ("c877ef8fdd195be2", "59eb2f53cc124837"),
+    },
+}
+
+
+def _digest(d: dict) -> str:
+    import hashlib
+
+    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+
+@pytest.mark.parametrize(
+    "method, preset", [(m, p) for m, presets in PINNED.items() for p in presets]
+)
+def test_fingerprints_and_stored_configs_are_unchanged(method, preset):
+    import importlib
+
+    cls = importlib.import_module(f"jmeshtex.{method}").Config
+    config = cls() if preset == "__init__" else getattr(cls, preset)()
+    assert (_digest(config.fingerprint()), _digest(config.to_dict())) == PINNED[method][preset]
+    assert list(config.to_dict()) == list(flat_names(cls))
+
+
+def _committed_models() -> list[pathlib.Path]:
+    """Every ``.npz`` in the repository whose header says it is a jmeshtex model."""
+    from jmeshtex.io._model_file import HEADER
+
+    found = []
+    for path in sorted(ROOT.glob("**/*.npz")):
+        if ".venv" in path.parts or "runs" in path.parts:
+            continue
+        with np.load(path) as z:
+            if HEADER in z.files:
+                found.append(path.relative_to(ROOT))
+    return found
+
+
+def test_the_committed_model_files_are_found():
+    names = {str(p) for p in _committed_models()}
+    assert {
+        "jmeshtex/fl/weights/fl_vae.npz",
+        "jmeshtex/fl/weights/fl_vae_barycentric.npz",
+        "jmeshtex/dgts/weights/knobs.npz",
+        "benchmarks/results/fldm_spot_mid3_model/model.npz",
+    } <= names, names
+
+
+@pytest.mark.parametrize("rel", _committed_models(), ids=str)
+def test_every_committed_model_file_loads_with_its_stored_config(rel):
+    import importlib
+
+    from jmeshtex.io._model_file import HEADER
+
+    path = ROOT / rel
+    with np.load(path) as z:
+        header = json.loads(str(z[HEADER]))
+    method = importlib.import_module(header["kind"].rsplit(".", 1)[0])
+    model = method.load(path if method.__name__ != "jmeshtex.fldm" else path.parent)
+    written = model.config.to_dict()
+    # every stored value reads back as stored (an older DGTS file lacks fields added since,
+    # which dgts.load fills with the values it was trained with)
+    assert {k: written[k] for k in header["config"]} == header["config"]
