@@ -37,7 +37,7 @@ and :meth:`~ConfigBase.fingerprint` write a section's fields in its place, by th
 field moved into a section leaves model files and checkpoint fingerprints unchanged);
 :meth:`~ConfigBase.from_dict` and :meth:`~ConfigBase.replace` take a section's field by its own name
 (``schedule_shift=2.0``), by its dotted path (``"experimental.schedule_shift"``), or the whole
-section (``experimental=Experimental(...)`` or a dict of its fields).
+section (``experimental=Experimental(...)`` or a dict of its fields); so does the constructor.
 
 Example:
   >>> import dataclasses
@@ -359,7 +359,17 @@ def _normalise(hint: Any, value: Any) -> Any:
     return value
 
 
-class ConfigBase:
+class _Flat(type):
+    """The metaclass of :class:`ConfigBase`: a config with sections also takes their fields by their
+    own names (or dotted paths) as keyword arguments, like :meth:`ConfigBase.replace`."""
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        if kwargs and _sections(cls):
+            kwargs = _routed(cls, kwargs, None)
+        return super().__call__(*args, **kwargs)
+
+
+class ConfigBase(metaclass=_Flat):
     """Base of the frozen config dataclasses: rules checked on creation, JSON round trip, ``replace``.
 
     Subclasses are ``@dataclasses.dataclass(frozen=True)`` and set ``_RULES`` (and ``_MESSAGE`` for
@@ -401,6 +411,12 @@ class ConfigBase:
                         c=self,
                     )
                 )
+
+    def __repr__(self) -> str:
+        """``Name(field=value, ...)`` over the flat names, a section's fields in its place (the
+        dataclass ``repr`` of the same config before its fields moved into the section), for a
+        config declared with ``dataclass(repr=False)``."""
+        return f"{type(self).__qualname__}({', '.join(f'{k}={v!r}' for k, v in _flat_items(self))})"
 
     def to_dict(self) -> dict[str, Any]:
         """The fields as a JSON-compatible dict (tuples become lists), a section's fields in its
@@ -472,6 +488,17 @@ def flat_names(cls: type) -> tuple[str, ...]:
       ('num_layers', 'start_features', 'min_features')
     """
     return tuple(_owners(cls))
+
+
+def _flat_items(config: Any) -> list[tuple[str, Any]]:
+    items = []
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        if f.name in _sections(type(config)):
+            items.extend(_flat_items(value))
+        else:
+            items.append((f.name, value))
+    return items
 
 
 def _routed(cls: type, changes: Mapping[str, Any], current: Any) -> dict[str, Any]:

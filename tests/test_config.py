@@ -28,10 +28,14 @@ from jmeshtex._config import (
 )
 from jmeshtex.dgts import Config as DGTSConfig
 from jmeshtex.dgts import PrepareConfig
+from jmeshtex.dgts.core import Experimental as DGTSExperimental
 from jmeshtex.fl import Config as FLVAEConfig
 from jmeshtex.fl._io import FORMAT_VERSION as FL_FORMAT_VERSION
+from jmeshtex.fl.core import Experimental as FLExperimental
 from jmeshtex.fldm import Config as FLDMConfig
+from jmeshtex.fldm.core import Experimental as FLDMExperimental
 from jmeshtex.meshmatch import Config as MeshMatchConfig
+from jmeshtex.meshmatch.core import Experimental as MeshMatchExperimental
 from jmeshtex.surfacecnn import Config as SurfaceCNNConfig
 
 WEIGHTS = pathlib.Path(__file__).resolve().parents[1] / "jmeshtex" / "fl" / "weights"
@@ -266,6 +270,28 @@ def test_a_huge_integer_is_shown_by_its_length_in_the_message():
 # --- every config of the library uses the mechanism -----------------------------------------------
 
 ALL = [PrepareConfig, DGTSConfig, FLVAEConfig, FLDMConfig, MeshMatchConfig, SurfaceCNNConfig]
+#: the study switches of each method (``Config.experimental``), sections of the configs above
+SECTIONS = [DGTSExperimental, FLExperimental, FLDMExperimental, MeshMatchExperimental]
+ALL += SECTIONS
+
+
+def _fields(cls) -> list:
+    """The fields of ``cls`` that hold values (its sections are checked as configs of their own)."""
+    hints = typing.get_type_hints(cls)
+    return [f for f in dataclasses.fields(cls) if hints[f.name] not in SECTIONS]
+
+
+@pytest.mark.parametrize("cls", [c for c in ALL if c not in SECTIONS])
+def test_each_section_is_the_experimental_field_of_one_method_config(cls):
+    hints = typing.get_type_hints(cls)
+    sections = {name: hint for name, hint in hints.items() if hint in SECTIONS}
+    assert set(sections) <= {"experimental"}
+    for section in sections.values():
+        assert display_name(section) == display_name(cls).replace("Config", "Experimental")
+        assert cls().experimental == section()  # the switches' defaults are the method's
+        bad = _cases_of(section)[0]
+        with pytest.raises(ConfigError):  # a section's rules hold through its config
+            cls().replace(**{bad[1]: bad[2]})
 
 
 @pytest.mark.parametrize("cls", ALL)
@@ -443,14 +469,17 @@ def _bad_for_kinds(hint) -> list:
     raise AssertionError(f"no bad values known for {hint!r}: extend _bad_for")
 
 
+def _cases_of(cls) -> list[tuple]:
+    hints = typing.get_type_hints(cls)
+    return [(cls, f.name, v) for f in _fields(cls) for v in _bad_for(hints[f.name])]
+
+
 def _cases():
     for cls in ALL:
-        hints = typing.get_type_hints(cls)
-        for f in dataclasses.fields(cls):
-            for value in _bad_for(hints[f.name]):
-                yield pytest.param(
-                    cls, f.name, value, id=f"{cls.__module__}.{cls.__name__}.{f.name}={value!r:.20}"
-                )
+        for _, name, value in _cases_of(cls):
+            yield pytest.param(
+                cls, name, value, id=f"{cls.__module__}.{cls.__name__}.{name}={value!r:.20}"
+            )
 
 
 @pytest.mark.parametrize("cls, name, value", list(_cases()))
@@ -465,7 +494,7 @@ def test_the_nonsense_table_covers_every_field_with_several_values():
     counts = {
         (cls.__name__, f.name): len(_bad_for(typing.get_type_hints(cls)[f.name]))
         for cls in ALL
-        for f in dataclasses.fields(cls)
+        for f in _fields(cls)
     }
     assert min(counts.values()) >= 5, counts
 
@@ -542,7 +571,7 @@ def _numeric(hint) -> bool:
     [
         (cls, f.name)
         for cls in ALL
-        for f in dataclasses.fields(cls)
+        for f in _fields(cls)
         if _numeric(typing.get_type_hints(cls)[f.name])
         and (display_name(cls), f.name) not in _NEGATIVE_OK
     ],
@@ -772,3 +801,30 @@ def test_every_committed_model_file_loads_with_its_stored_config(rel):
     # every stored value reads back as stored (an older DGTS file lacks fields added since,
     # which dgts.load fills with the values it was trained with)
     assert {k: written[k] for k in header["config"]} == header["config"]
+
+
+def test_the_fl_config_repr_is_unchanged():
+    # the FLDM copies' cache names its encoder by the FL-VAE config's repr (fldm.fl_vae_encoder):
+    # the flat repr keeps the caches of runs in progress valid (hashes computed before the move)
+    from jmeshtex.fl import load_pretrained
+
+    configs = [FLVAEConfig(), FLVAEConfig.small()]
+    configs += [load_pretrained(decoder=d).config for d in ("log", "barycentric")]
+    want = ["ec0f9ce7013923cc", "1d8ae3dde7317d99", "9158dd451d658af1", "0d81f6336cb55fd9"]
+    assert [_digest_text(repr(c)) for c in configs] == want
+    assert repr(FLVAEConfig()).startswith("Config(latent_dim=8, num_samples=64,")
+
+
+def _digest_text(text: str) -> str:
+    import hashlib
+
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def test_the_constructor_takes_a_section_field_by_its_name():
+    assert Run(shift=2.0, width=5) == Run(switches=Switches(shift=2.0), width=5)
+    assert Run(**{"switches.sizes": [3]}).switches.sizes == (3,)
+    with pytest.raises(ConfigError, match=r"Run: unknown fields \['shfit'\]"):
+        Run(shfit=2.0)
+    with pytest.raises(TypeError):  # a config without sections keeps the dataclass's own check
+        Flat(bogus=1)
