@@ -1,6 +1,7 @@
 """Benchmark: DGTS results from the committed models, and per-level training-step times.
 
-Run: ``python benchmarks/dgts.py [--sections knobs scales timing] [--samples 3] [--vertices 800]``.
+Run: ``python benchmarks/dgts.py [--sections knobs scales timing] [--samples 3] [--vertices 800]
+[--model FOLDER [--name NAME]]``.
 Each section writes its own files, from this run alone:
 
 - ``knobs`` (the results table of ``docs/results.md``, "Rescored"): the committed knobs model
@@ -10,7 +11,10 @@ Each section writes its own files, from this run alone:
   level 1 to the 64 x 24 torus, icosphere(3) and the cow and fandisk remeshed isotropically to
   ``--vertices`` vertices (and tori and spheres from level 2), with the floor (oracle with other
   centres) and ceilings (untrained, matched noise, zero displacement) (:func:`rescore`); writes
-  ``benchmarks/results/dgts_rescore.{json,md,png}``.
+  ``benchmarks/results/dgts_rescore.{json,md,png}``. Transfers run the generators the official
+  ``--gen-levels [1, 4]`` picks on targets scaled to unit edge; a ``targets met`` row per section
+  checks issue 54's targets. ``--model FOLDER`` scores another knobs model the same way (the
+  paper-grade run: ``--model runs/dgts_depth5/knobs``), into ``dgts_rescore_<folder>`` or ``--name``.
 - ``scales``: the committed scales model (``SCALES_MODEL``) the same way, on the level-1 targets;
   writes ``dgts_rescore_scales.{json,md,png}``.
 - ``timing``: seconds per WGAN-GP step (2 critic + 3 generator updates) with the default widths
@@ -38,7 +42,15 @@ import numpy as np
 from _harness import RESULTS, Report, matmul_ceiling
 
 from jmeshtex.data import icosphere, textured_sphere, torus
-from jmeshtex.dgts import Config, PrepareConfig, conditional, train, training_meshes, transfer
+from jmeshtex.dgts import (
+    Config,
+    PrepareConfig,
+    conditional,
+    official_gen_levels,
+    train,
+    training_meshes,
+    transfer,
+)
 from jmeshtex.dgts.core import (
     knob_scores,
     oracle_texture,
@@ -141,8 +153,13 @@ def timing(report: Report, levels: int, measured: int, steps: int) -> None:
 KNOBS_MODEL = RESULTS / "dgts_knobs_coarse2_fixed3_model"
 
 
-#: the start level of the rescored transfers: the official default (``--gen-levels [1, 4]``)
+#: the start level of the rescored transfers: the official default (``--gen-levels [1, 4]``,
+#: ``dgts.official_gen_levels``; the stop level is ``min(4, L - 1)``, the last of a 4- or 5-level model)
 RESCORE_START = 1
+
+#: issue 54's targets: knob density within these ratios of the oracle's (transfers, in-domain) and
+#: the patch distance at most this fraction of untrained weights' and of matched noise's
+DENSITY_BAND, IN_DOMAIN_BAND, DISTANCE_FRACTION = (0.75, 1.25), (0.8, 1.2), 0.5
 
 
 def _knob_rows(report, section: str, rows: dict, truth, ops, extra: dict | None = None) -> dict:
@@ -217,6 +234,7 @@ def _score(report, section, outputs, base, p, *, kind: str, seeds: int, truth=No
         for name, meshes in rows.items()
     }
     _knob_rows(report, section, rows, truth, ops, extra)
+    _verdict(report, section, in_domain=truth is not oracle)
     if truth is not oracle:  # no oracle of the training mesh: the descriptors' sampling floor
         d0 = patch_descriptors(texture_heights(truth, ops), ops)
         floors = []
@@ -234,15 +252,74 @@ def _score(report, section, outputs, base, p, *, kind: str, seeds: int, truth=No
     return oracle
 
 
+def _verdict(report, section: str, *, in_domain: bool) -> None:
+    """A row saying whether the section's trained row meets issue 54's targets (``DENSITY_BAND``
+    or ``IN_DOMAIN_BAND``, ``DISTANCE_FRACTION``), from the rows :func:`_knob_rows` just wrote."""
+    row = {r["name"]: r for r in report.rows}[f"{section}: trained"]
+    low, high = IN_DOMAIN_BAND if in_domain else DENSITY_BAND
+    density = low <= row["density_vs_oracle"] <= high
+    untrained = row["distance_vs_untrained"] <= DISTANCE_FRACTION
+    noise = row["distance_vs_noise"] <= DISTANCE_FRACTION
+    report.add(
+        name=f"{section}: targets met",
+        density_vs_oracle=row["density_vs_oracle"],
+        density_target=f"[{low}, {high}]",
+        density_ok=density,
+        distance_vs_untrained=row["distance_vs_untrained"],
+        distance_vs_noise=row["distance_vs_noise"],
+        distance_target=f"<= {DISTANCE_FRACTION}",
+        distance_ok=untrained and noise,
+        all_ok=density and untrained and noise,
+    )
+
+
+def in_domain_truth(tm, base, reference_period: float, *, level: int = -1, scale_factor=2.0):
+    """In-domain scoring on a shared base (``dgts.core.knob_scores``): training level ``level`` in
+    the template's frame, where samples from the template lie (``conditional``, or
+    ``plan_transfer(start_level=0)`` through ``level``), the undisplaced ``base`` (such a sample's
+    ``Transfer.base`` with ``.faces``: the template subdivided to ``level``) and the reference's
+    period in mean edges of that base. Returns ``(truth, base, period)``."""
+    from jmeshtex import Mesh
+    from jmeshtex.geometry import mean_edge_length
+
+    lv = level % tm.num_levels
+    frame = float(scale_factor) ** lv
+    base = Mesh(np.asarray(base[0], np.float64), np.asarray(base[1], np.int64))
+    if not np.array_equal(np.asarray(tm.faces[lv]), base.faces):
+        raise ValueError(f"in_domain_truth: the base is not the template subdivided to level {lv}")
+    truth = Mesh(np.asarray(tm.vertices[lv], np.float64) / frame, base.faces)
+    period = reference_period * float(tm.scales[lv]) / frame / mean_edge_length(*base)
+    return truth, base, period
+
+
+def unit_edge(mesh):
+    """``mesh`` scaled about its centroid to mean edge 1 (the official ``to_unit_edge``: how the
+    paper prepares targets; the transfer does it again, and the measure is scale-free)."""
+    from jmeshtex import Mesh
+    from jmeshtex.geometry import mean_edge_length
+
+    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
+    c = v.mean(axis=0)
+    return Mesh((v - c) / mean_edge_length(v, f), f)
+
+
 def rescore(
-    *, seeds: int = 3, vertices: int = 800, png: pathlib.Path | None = None, kind: str = "knobs"
+    *,
+    seeds: int = 3,
+    vertices: int = 800,
+    png: pathlib.Path | None = None,
+    kind: str = "knobs",
+    model: pathlib.Path | None = None,
+    name: str | None = None,
 ) -> None:
     """The committed knobs model (``KNOBS_MODEL``) and untrained weights of its architecture,
     scored by ``dgts.core.knob_scores`` over ``seeds`` noise draws: in-domain (unconditional
     samples from the template against the finest training mesh, on the subdivided template as
     the shared base) and transferred from level ``RESCORE_START`` to the 64 × 24 torus (the old
     headline's target), icosphere(3), and the cow and fandisk remeshed isotropically to
-    ``vertices`` vertices, each against its oracle. Rows: the oracle, the oracle with other
+    ``vertices`` vertices, each scaled to unit edge (as the paper prepares targets) and run through
+    the generators the official ``--gen-levels [1, 4]`` picks (``dgts.official_gen_levels``),
+    each against its oracle. Rows: the oracle, the oracle with other
     centres (the floor), trained, untrained, zero displacement, Gaussian noise matched to the
     oracle's band-passed relief (``texture_noise``); in-domain, where no oracle of the training
     mesh exists, the floor is the training mesh described at other centres (the distance's
@@ -251,16 +328,43 @@ def rescore(
     (and a figure with ``png``). ``kind="scales"``: the committed scales model (``SCALES_MODEL``,
     the same architecture; untrained weights as for knobs) transferred to the same level-1
     targets against the scales oracle, the patch distance its meaningful column (no in-domain
-    rows: its training meshes are not committed); writes ``dgts_rescore_scales``."""
+    rows: its training meshes are not committed); writes ``dgts_rescore_scales``. ``model``: another
+    knobs model folder (``model.npz`` beside its ``training_meshes*.npz``, as
+    ``studies/dgts_depth.py`` leaves ``WORK/knobs``), scored the same way without the level-2
+    rows, into ``name`` (default ``dgts_rescore_<folder>``). A ``targets met`` row per section
+    says whether the trained row meets issue 54's targets."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import load, load_training_meshes
-    from jmeshtex.geometry import mean_edge_length, remesh
+    from jmeshtex.geometry import remesh
 
-    report = Report("dgts_rescore" if kind == "knobs" else f"dgts_rescore_{kind}", ceilings=False)
-    report.config = {"kind": kind, "seeds": seeds, "vertices": vertices, "start": RESCORE_START}
-    tm = load_training_meshes(KNOBS_MODEL / "training_meshes_coarse2.npz")
-    trained = load(KNOBS_MODEL if kind == "knobs" else SCALES_MODEL)
-    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    committed = model is None
+    if name is None:
+        name = "dgts_rescore" if kind == "knobs" else f"dgts_rescore_{kind}"
+        name = name if committed else f"dgts_rescore_{pathlib.Path(model).name}"
+    if not committed and kind != "knobs":
+        raise ValueError("rescore: --model takes a knobs model")
+    folder = KNOBS_MODEL if committed else pathlib.Path(model)
+    meshes = sorted(folder.glob("training_meshes*.npz"))
+    if not (folder / "model.npz").is_file() or not meshes:
+        raise FileNotFoundError(
+            f"rescore: {folder} needs model.npz and a training_meshes*.npz beside it "
+            "(studies/dgts_depth.py leaves them in WORK/<kind>/)"
+        )
+    report = Report(name, ceilings=False)
+    tm = load_training_meshes(meshes[0])
+    trained = load(folder if kind == "knobs" else SCALES_MODEL)
+    untrained = train(
+        tm, trained.config.replace(steps=0), key=jax.random.key(0), progress=False
+    ).model
+    start, stop = official_gen_levels(trained, (RESCORE_START, 4))
+    report.config = {
+        "kind": kind,
+        "model": str(folder if kind == "knobs" else SCALES_MODEL),
+        "levels": trained.num_levels,
+        "seeds": seeds,
+        "vertices": vertices,
+        "gen_levels": [start, stop],
+    }
     models = {"trained": trained, "untrained": untrained}
     reference_period = DEPTH_TEXTURES[kind]
     period = period_in_mean_edges(tm, reference_period) if kind == "knobs" else SCALES_PERIOD
@@ -280,11 +384,12 @@ def rescore(
     )
     if outputs:
         cond = conditional(trained, template, level=0, key=keys[0])
-        levels = trained.num_levels
-        frame = trained.config.scale_factor ** (levels - 1)
-        truth = Mesh(np.asarray(tm.vertices[-1], np.float64) / frame, cond.faces)
-        base = Mesh(cond.base, cond.faces)
-        p = reference_period * float(tm.scales[-1]) / frame / mean_edge_length(*base)
+        truth, base, p = in_domain_truth(
+            tm,
+            (cond.base, cond.faces),
+            reference_period,
+            scale_factor=trained.config.scale_factor,
+        )
         _score(
             report,
             f"in-domain (period {p:.2f} base edges)",
@@ -300,15 +405,16 @@ def rescore(
             ("in-domain: trained", outputs["trained"][0]),
             ("in-domain: untrained", outputs["untrained"][0]),
         ]
-    targets = [("torus 64x24", torus(64, 24), RESCORE_START)]
-    targets.append(("icosphere(3)", icosphere(3), RESCORE_START))
-    for name, mesh in transfer_targets(("cow", "fandisk"))[1:]:
+    targets = [("torus 64x24", torus(64, 24), start)]
+    targets.append(("icosphere(3)", icosphere(3), start))
+    for mesh_name, mesh in transfer_targets(("cow", "fandisk"))[1:]:
         iso = remesh(mesh, n_vertices=vertices, key=jax.random.key(0), even_lengths=True)
-        targets.append((f"{name} isotropic {vertices} V", iso, RESCORE_START))
+        targets.append((f"{mesh_name} isotropic {vertices} V", iso, start))
+    targets = [(n, unit_edge(t), s) for n, t, s in targets]
     # the curvature study's cases (its torus and spheres from level 2), rescored
     targets += (
         []
-        if kind != "knobs"
+        if kind != "knobs" or not committed
         else [
             ("torus 32x12", torus(32, 12), 2),
             ("torus 64x24", torus(64, 24), 2),
@@ -316,16 +422,16 @@ def rescore(
             ("icosphere(3)", icosphere(3), 2),
         ]
     )
-    for target_name, target, start in targets:
+    for target_name, target, level in targets:
         results = {
-            name: [transfer(m, target, start_level=start, key=k) for k in keys]
+            name: [transfer(m, target, start_level=level, stop_level=stop, key=k) for k in keys]
             for name, m in models.items()
         }
         outputs = {name: [r.mesh(0) for r in rs] for name, rs in results.items()}
         base = Mesh(results["trained"][0].base, results["trained"][0].faces)
-        section = f"{target_name} from level {start} ({len(base.faces)} F)"
+        section = f"{target_name} from level {level} ({len(base.faces)} F)"
         oracle = _score(report, section, outputs, base, period, kind=kind, seeds=seeds)
-        if start == RESCORE_START:
+        if level == start:
             panels += [
                 (f"{target_name}: oracle", oracle),
                 (f"{target_name}: trained", outputs["trained"][0]),
@@ -338,7 +444,9 @@ def rescore(
         "rotation-invariant ring descriptors (mean and std of the heights in 4 rings to one "
         "period) at 512 area-uniform centres, to the truth's; mean (sd) over the seeds.",
         "Targets (issue 54): density_vs_oracle in [0.75, 1.25] (in-domain [0.8, 1.2]); "
-        "distance_vs_untrained and distance_vs_noise <= 0.5.",
+        "distance_vs_untrained and distance_vs_noise <= 0.5 (the 'targets met' rows).",
+        f"Transfers: targets scaled to unit edge, generators {start} ... {stop} (the official "
+        "--gen-levels [1, 4] on this model); real meshes remeshed isotropically (even edges).",
         "old_peak_density_vs_truth: the former headline (peaks per squared mean edge of each "
         "mesh, Taubin heights), a diagnostic only.",
     ]
@@ -349,8 +457,8 @@ def rescore(
         figure(
             [(title, render_mesh(mesh, size=(300, 300))) for title, mesh in panels],
             columns=3,
-            title=f"DGTS {kind} (committed model) from level {RESCORE_START}: "
-            "oracle | trained | untrained",
+            title=f"DGTS {kind} ({folder.name if kind == 'knobs' else SCALES_MODEL.name}, "
+            f"{trained.num_levels} levels) from level {start}: oracle | trained | untrained",
             path=png,
         )
 
@@ -368,12 +476,29 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--levels", type=int, default=5, help="levels of the timed hierarchy")
     ap.add_argument("--measured-levels", type=int, default=3)
     ap.add_argument("--measure", type=int, default=10, help="timed steps per measured level")
+    ap.add_argument(
+        "--model",
+        type=pathlib.Path,
+        help="section knobs: score this knobs model folder (model.npz + training_meshes*.npz, "
+        "e.g. WORK/knobs of studies/dgts_depth.py) instead of the committed one",
+    )
+    ap.add_argument(
+        "--name", help="with --model: the results' name (default dgts_rescore_<folder>)"
+    )
     args = ap.parse_args(argv)
     for kind in ("knobs", "scales"):
         if kind in args.sections:
+            model = args.model if kind == "knobs" else None
             name = "dgts_rescore" if kind == "knobs" else f"dgts_rescore_{kind}"
+            if model is not None:
+                name = args.name or f"dgts_rescore_{model.name}"
             rescore(
-                seeds=args.samples, vertices=args.vertices, png=RESULTS / f"{name}.png", kind=kind
+                seeds=args.samples,
+                vertices=args.vertices,
+                png=RESULTS / f"{name}.png",
+                kind=kind,
+                model=model,
+                name=name,
             )
     if "timing" in args.sections:
         report = Report("dgts_timing")

@@ -264,12 +264,19 @@ PROTOCOL_MESHES = {
     "cow": ("cow.obj", "y"),
     "fandisk": ("fandisk.obj", "y"),
 }
-PROTOCOL_EXEMPLARS = ("brick", "grass", "immunohistochemistry")
+#: the three photographs of issue 33 and an oriented exemplar (issue 58: orientation across seams)
+PROTOCOL_EXEMPLARS = ("brick", "grass", "immunohistochemistry", "stripes")
 
 
 def protocol_exemplar(name: str) -> np.ndarray:
-    """A scikit-image photograph at its native 512² (1 exemplar pixel = 1 texel), RGB in [0, 1]."""
+    """A scikit-image photograph at its native 512² (1 exemplar pixel = 1 texel), RGB in [0, 1];
+    ``"stripes"``: 512² grey stripes, a sine along the columns with a period of 8 pixels (the
+    orientation study's exemplar at the protocol's size)."""
     import skimage.data
+
+    if name == "stripes":
+        s = 0.5 + 0.5 * np.sin(2 * np.pi * np.arange(512) / 8.0)
+        return np.repeat(np.repeat(s[None, :, None], 512, 0), 3, 2)
 
     image = getattr(skimage.data, name)().astype(np.float64) / 255.0
     return image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
@@ -574,7 +581,7 @@ def _write_quality(rows, spreads, size, steps, out):
         "# surfacecnn quality\n",
         f"Protocol of issue 33: {size}² textures, {steps} steps (Adam 0.1 halved every 200), every "
         "ReLU and pool output of the embedded VGG-16, xatlas layouts, exemplars at native 512² "
-        "(1 exemplar pixel = 1 texel). Surface patches: 32 geodesic patches of 32² texels in the "
+        "(three photographs and 8-pixel stripes; 1 exemplar pixel = 1 texel). Surface patches: 32 geodesic patches of 32² texels in the "
         "synthesis frames against exemplar crops; cells read patch Gram / log radial spectrum L1 "
         "(network-free). Seam ratio: mean colour difference across chart seams over inside charts "
         "(in brackets: the exemplar tiled in UV space on the same layout). "

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from equivariance_tests._toy_operators import centroid_distance, centroid_distance_and_height
 from jmeshtex import InputError, MeshError
 from jmeshtex.data import icosphere
 from jmeshtex.testing import (
@@ -20,21 +21,9 @@ from jmeshtex.testing import (
 )
 
 
-def _spread_and_height(state, x):
-    """Channel 0: distance to the centroid (rigid-invariant); channel 1: the z coordinate (not)."""
-    p = state.points()
-    spread = jnp.linalg.norm(p - p.mean(0), axis=1)
-    return Field("vertex_scalar", jnp.stack([spread, p[:, 2]], axis=1) * x)
-
-
-def _spread(state, x):
-    p = state.points()
-    return Field("vertex_scalar", jnp.linalg.norm(p - p.mean(0), axis=1)[:, None] * x)
-
-
 def test_an_equivariant_operator_passes_every_named_transform_in_one_call():
     errors = assert_equivariant(
-        _spread,
+        centroid_distance,
         jax.random.key(3),
         {"x": ("vertex_scalar", 2)},
         transforms=("rigid", "reflection", "permute_vertices", "permute_faces"),
@@ -48,7 +37,9 @@ def test_a_failure_names_the_transform_and_the_broken_output_channel():
     state = MeshState(v, f)
     real = CATALOGUE["rigid"].draw(np.random.default_rng(1), state)
     with pytest.raises(AssertionError) as info:
-        assert_equivariant(_spread_and_height, 0, {"x": ("vertex_scalar", 1)}, transforms=[real])
+        assert_equivariant(
+            centroid_distance_and_height, 0, {"x": ("vertex_scalar", 1)}, transforms=[real]
+        )
     message = str(info.value)
     assert "rigid: relative error" in message
     # channel 1 (the height) is the broken one: listed first, channel 0 at round-off
@@ -62,11 +53,11 @@ def test_bad_arguments_are_typed_errors():
     v, f = icosphere(1)
     fixed = {"x": Field("vertex_scalar", np.ones((len(v), 1)))}
     with pytest.raises(InputError, match="fixed Fields on one mesh"):
-        assert_equivariant(_spread, 0, fixed, transforms=("rigid",))
+        assert_equivariant(centroid_distance, 0, fixed, transforms=("rigid",))
     with pytest.raises(InputError, match="unknown transforms"):
-        assert_equivariant(_spread, 0, {"x": ("vertex_scalar", 1)}, transforms=("shear",))
+        assert_equivariant(centroid_distance, 0, {"x": ("vertex_scalar", 1)}, transforms=("shear",))
     with pytest.raises(InputError, match="key must be"):
-        assert_equivariant(_spread, "seed", {"x": ("vertex_scalar", 1)})
+        assert_equivariant(centroid_distance, "seed", {"x": ("vertex_scalar", 1)})
 
 
 def _selected(state):

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from equivariance_tests._toy_operators import centroid_distance, height
 from jmeshtex.data import icosphere
 from jmeshtex.testing import (
     CATALOGUE,
@@ -27,25 +28,13 @@ from jmeshtex.testing import (
 )
 
 
-def _centroid_distance(state, x):
-    """Distance of every vertex to the centroid, times a scalar input: rigid- and label-equivariant."""
-    p = state.points()
-    d = jnp.linalg.norm(p - p.mean(0), axis=1)
-    return Field("vertex_scalar", d[:, None] * x)
-
-
-def _height(state, x):
-    """The z coordinate: not rotation invariant."""
-    return Field("vertex_scalar", state.points()[:, 2:3] * x)
-
-
 @given(R=rotations(), t=st.lists(st.floats(-10, 10), min_size=3, max_size=3))
 def test_equivariant_operator_has_roundoff_error(R, t):
     v, f = icosphere(1)
     state = MeshState(v, f)
     x = Field("vertex_scalar", np.random.default_rng(0).standard_normal((len(v), 2)))
     errors = assert_equivariant(
-        _centroid_distance, 0, {"x": x}, transforms=[rigid_motion(state, R, np.array(t))]
+        centroid_distance, 0, {"x": x}, transforms=[rigid_motion(state, R, np.array(t))]
     )
     assert errors["rigid"] < 1e-12
 
@@ -58,11 +47,11 @@ def test_non_equivariant_operator_is_flagged(R):
     real = rigid_motion(state, R)
     if abs(R[2, 2]) > 1 - 1e-6:  # a rotation about z leaves heights unchanged
         return
-    assert equivariance_error(_height, real, {"x": x}) > 1e-6
+    assert equivariance_error(height, real, {"x": x}) > 1e-6
     with pytest.raises(
         AssertionError, match=r"not equivariant \(float64\):\n  rigid: relative error"
     ):
-        assert_equivariant(_height, 0, {"x": x}, transforms=[real])
+        assert_equivariant(height, 0, {"x": x}, transforms=[real])
 
 
 @pytest.mark.parametrize(

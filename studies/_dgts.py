@@ -14,7 +14,13 @@ import re
 import jax
 import numpy as np
 from _study import Report
-from dgts import DEPTH_TEXTURES, KIND, PERIOD, transfer_targets  # noqa: F401  (the benchmark's own)
+from dgts import (  # noqa: F401  (the benchmark's own)
+    DEPTH_TEXTURES,
+    KIND,
+    PERIOD,
+    in_domain_truth,
+    transfer_targets,
+)
 
 from jmeshtex.data import icosphere, textured_sphere
 from jmeshtex.dgts import Config, PrepareConfig, conditional, train, training_meshes, transfer
@@ -48,14 +54,24 @@ def layout_correlation(mesh, truth) -> float:
 
 
 def score_rows(
-    report, section: str, rows: dict, truth, base, samples: dict, period: float | None = None
+    report,
+    section: str,
+    rows: dict,
+    truth,
+    base,
+    samples: dict,
+    period: float | None = None,
+    knob_base=None,
 ) -> None:
     """One row per mesh list in ``rows`` (mean over its meshes), scored against ``truth``. With a
-    shared ``base`` and the ``period`` (its mean edges) the headline columns come first: knobs per
-    squared period against the truth's and the patch distance (``dgts.core.knob_scores``); the
-    older per-mesh-edge columns (``peak_density`` …) follow as diagnostics."""
+    shared base (``base``, or in-domain, where the older columns take none, ``knob_base``:
+    :func:`in_domain_truth`) and the ``period`` (its mean edges) the headline columns come first:
+    knobs per squared period against the truth's and the patch distance
+    (``dgts.core.knob_scores``); the older per-mesh-edge columns (``peak_density`` …) follow as
+    diagnostics."""
     own = texture_scores(truth, truth, base=base)
-    ops = None if base is None or period is None else texture_operators(base, period=period)
+    shared = base if base is not None else knob_base
+    ops = None if shared is None or period is None else texture_operators(shared, period=period)
     knob_own = None if ops is None else knob_scores(truth, truth, ops=ops)
     for name, meshes in rows.items():
         scores = [texture_scores(m, truth, base=base) for m in meshes]
@@ -111,10 +127,13 @@ def evaluate(
     displacement and matched noise; level reconstruction errors as a diagnostic; a render figure."""
     period = period_in_mean_edges(tm, reference_period)
     # in-domain: samples from the template (fresh noise at every level) against the training mesh
-    truth = tm.mesh(-1)
+    # (in the template's frame, on the subdivided template: in_domain_truth)
     template = (tm.template, tm.faces[0])
     cond = conditional(trained, template, level=0, num_samples=samples, key=jax.random.key(2))
     cond_u = conditional(untrained, template, level=0, num_samples=samples, key=jax.random.key(2))
+    truth, in_base, in_period = in_domain_truth(
+        tm, (cond.base, cond.faces), reference_period, scale_factor=trained.config.scale_factor
+    )
     relief = float(np.std(relief_heights(truth)))
     score_rows(
         report,
@@ -132,6 +151,8 @@ def evaluate(
         truth,
         None,
         {},
+        in_period,
+        knob_base=in_base,
     )
     for name, model in (("trained", trained), ("untrained", untrained)):
         errs = reconstruction_errors(model, tm)

@@ -19,7 +19,7 @@ filled in into the files themselves:
 Usage (from the repository root; files are rewritten in place, atomically, and a file already in
 format 2 is left as it is)::
 
-    python studies/convert_to_format_2.py jmeshtex/fl/weights/fl_vae.npz benchmarks/results/fldm_spot_mid3_model
+    python studies/convert_to_format_2.py jmeshtex/fl/weights/fl_vae.npz jmeshtex/fldm/weights/spot
     python studies/convert_to_format_2.py runs/fldm_spot_coherent3k/train runs/fldm_spot_coherent3k/models/step_01000
 """
 

@@ -41,11 +41,13 @@ def depth(
     work: pathlib.Path,
     samples: int,
     checkpoint_every: int = 250,
+    train_only: bool = False,
 ) -> None:
     """The paper's network (``dgts.Config()``: 7 layers, 32 → 128 channels, ``steps`` per level) on
     ``levels`` levels of each textured sphere, resumable in ``work/<kind>/`` (the fitted training
     meshes, checkpoints every ``checkpoint_every`` steps, the final ``model.npz``); then
-    :func:`evaluate` into ``dgts_depth`` with one figure per kind."""
+    :func:`evaluate` into ``dgts_depth`` with one figure per kind (skipped with ``train_only``:
+    ``benchmarks/dgts.py --model WORK/<kind>`` scores a finished model)."""
     from jmeshtex.dgts import save
 
     report = Report("dgts_depth")  # the kinds of this run only: no row outlives its run
@@ -66,6 +68,9 @@ def depth(
         )
         trained = result.model
         save(trained, folder)  # folder/model.npz
+        if train_only:
+            print(f"{kind}: trained, {folder / 'model.npz'}", flush=True)
+            continue
         untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
         period = period_in_mean_edges(tm, reference_period)
         tag = f"[{kind} {levels} levels, period {period:.2f} edges] "
@@ -101,8 +106,13 @@ def depth(
 def main(argv: list[str] | None = None) -> None:
     ap = study_parser(__doc__, kind=False, train_levels=4)
     ap.add_argument("kinds", nargs="+", choices=sorted(DEPTH_TEXTURES))
+    ap.add_argument(
+        "--train-only",
+        action="store_true",
+        help="fit, train and save WORK/<kind>/model.npz; no scoring (resumable as it is)",
+    )
     args = ap.parse_args(argv)
-    depth(args.kinds, **study_arguments(args))
+    depth(args.kinds, train_only=args.train_only, **study_arguments(args))
 
 
 if __name__ == "__main__":

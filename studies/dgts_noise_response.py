@@ -20,6 +20,7 @@ import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
     depth_meshes,
+    in_domain_truth,
     score_rows,
     score_transfers,
     study_arguments,
@@ -28,7 +29,7 @@ from _dgts import (
 )
 from _study import RESULTS, Report
 
-from jmeshtex.dgts import Config, train
+from jmeshtex.dgts import Config, conditional, train
 from jmeshtex.dgts.core import (
     period_in_mean_edges,
 )
@@ -142,7 +143,17 @@ def noise_response(
         for k in range(levels + 1):
             label = f"fresh noise at level {k} only" if k < levels else "reconstruction (no noise)"
             rows[label] = [only_at(model, plan, k, i) for i in range(samples)]
-        score_rows(report, f"[{name}] in-domain vs training mesh", rows, truth, None, {})
+        base = conditional(model, template, level=levels, key=jax.random.key(0))  # its .base
+        truth_t, in_base, in_period = in_domain_truth(
+            tm,
+            (base.base, base.faces),
+            DEPTH_TEXTURES[kind],
+            scale_factor=model.config.scale_factor,
+        )
+        score_rows(
+            report, f"[{name}] in-domain vs training mesh", rows, truth_t, None, {}, in_period,
+            knob_base=in_base,
+        )  # fmt: skip
         panels.append((f"{name}: noise at level {levels - 1} only", rows[label_last][0]))
     for target_name, target in transfer_targets(real):
         for start in starts:

@@ -16,6 +16,7 @@ import numpy as np
 from _dgts import (
     DEPTH_TEXTURES,
     depth_meshes,
+    in_domain_truth,
     score_rows,
     score_transfers,
     study_arguments,
@@ -24,7 +25,7 @@ from _dgts import (
 )
 from _study import RESULTS, Report
 
-from jmeshtex.dgts import Config, train
+from jmeshtex.dgts import Config, conditional, train
 from jmeshtex.dgts.core import (
     period_in_mean_edges,
 )
@@ -114,7 +115,16 @@ def receptive_field(
         ]
         for name, m in models.items()
     }
-    score_rows(report, f"in-domain, fresh noise at level {layout} only", rows, truth, None, {})
+    first = next(iter(models.values()))
+    base = conditional(first, template, level=first.num_levels, key=jax.random.key(0))  # .base
+    truth_t, in_base, in_period = in_domain_truth(
+        tm, (base.base, base.faces), DEPTH_TEXTURES[kind], level=last,
+        scale_factor=first.config.scale_factor,
+    )  # fmt: skip
+    score_rows(
+        report, f"in-domain, fresh noise at level {layout} only", rows, truth_t, None, {},
+        in_period, knob_base=in_base,
+    )  # fmt: skip
     panels = [("training mesh", truth)] + [(f"in-domain: {n}", r[0]) for n, r in rows.items()]
     for target_name, target in transfer_targets(real):
         rows, oracle = score_transfers(

@@ -8,8 +8,10 @@ truth: in-domain samples against the finest training mesh, transfers (torus 64 x
 ``../shared/data`` is there, the cow; from the default start level and from level 0) against
 their oracles (``dgts.core.oracle_texture``). Rows: the truth, the oracle with other centres (the
 metric's spread), trained, untrained (same architecture, no step), zero displacement, Gaussian
-normal noise of the truth's relief; columns from ``dgts.core.texture_scores`` (the former
-per-mesh-edge peak density). Writes ``studies/results/dgts_tiny.{json,md}``.
+normal noise of the truth's relief; the headline columns from ``dgts.core.knob_scores`` (knobs per
+squared period of the shared base, the patch distance; in-domain on the subdivided template), the
+former per-mesh-edge peak density (``dgts.core.texture_scores``) after them as a diagnostic.
+Writes ``studies/results/dgts_tiny.{json,md}``.
 """
 
 from __future__ import annotations

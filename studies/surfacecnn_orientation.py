@@ -1,12 +1,13 @@
 """Study: orientation across UV seams (issue 58), the surface CNN against UV-space 2D synthesis.
 
 ``python studies/surfacecnn_orientation.py [--meshes spot,cow,fandisk] [--exemplars stripes]
-[--size 128] [--steps 150] [--work runs/surfacecnn_quality]``: the protocol meshes' xatlas
-layouts with a stripes exemplar: orientation across UV seams
-(:func:`jmeshtex.metrics.seam_orientation`) of the surface CNN and UV-space 2D synthesis beside
-the seamless control and the colour seam ratio. Writes
-``studies/results/surfacecnn_orientation.{md,json}``; ``--figure MESH`` draws
-``surfacecnn_orientation_<mesh>.png`` from the cells already run.
+[--size 128] [--steps 150] [--methods surface,uv2d] [--frame-smoothing 4]
+[--work runs/surfacecnn_quality]``: the protocol meshes' xatlas layouts with a stripes exemplar:
+orientation across UV seams (:func:`jmeshtex.metrics.seam_orientation`) of the surface CNN and
+UV-space 2D synthesis beside the seamless control and the colour seam ratio. Writes
+``studies/results/surfacecnn_orientation.{md,json}`` (``_fs<r>`` added to the name for a frame
+smoothing other than the library's default; ``--frame-smoothing 0``: the paper's frames);
+``--figure MESH`` draws ``surfacecnn_orientation_<mesh>.png`` from the cells already run.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from jmeshtex import Mesh
 from jmeshtex.metrics import load_vgg16
 from jmeshtex.surfacecnn import Config, prepare_surface
 from jmeshtex.surfacecnn.core import (
+    FRAME_SMOOTHING,
     default_layers,
     required_levels,
 )
@@ -51,7 +53,14 @@ def _agreement(result, control) -> tuple[float, float]:
 
 
 def orientation(
-    meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+    meshes,
+    exemplars,
+    size: int,
+    steps: int,
+    work: pathlib.Path,
+    out: pathlib.Path | None,
+    methods=("surface", "uv2d"),
+    frame_smoothing: float = FRAME_SMOOTHING,
 ) -> None:
     """Orientation across UV seams (:func:`jmeshtex.metrics.seam_orientation`) of the surface CNN
     and of UV-space 2D synthesis on the protocol's xatlas layouts, beside the seamless control
@@ -70,7 +79,7 @@ def orientation(
     for mesh_name in meshes:
         mesh = protocol_mesh(mesh_name, work)
         t0 = time.perf_counter()
-        surface = prepare_surface(mesh, size=size, levels=levels)
+        surface = prepare_surface(mesh, size=size, levels=levels, frame_smoothing=frame_smoothing)
         prep = time.perf_counter() - t0
         geometry = tracer_geometry(mesh.vertices, mesh.faces)
         laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
@@ -82,6 +91,7 @@ def orientation(
             row = {
                 **cell_columns(mesh_name, ex_name, size, steps, surface),
                 "prepare_s": prep,
+                "frame_smoothing": frame_smoothing,
                 "control": {
                     "seam": control.seam,
                     "seam_smooth": control.seam_at(0.0, 30.0),
@@ -89,8 +99,8 @@ def orientation(
                     "interior": control.interior,
                 },
             }
-            for method in ("surface", "uv2d"):
-                path = work / "orientation" / f"{mesh_name}_{ex_name}_{size}_{steps}_{method}.npz"
+            for method in methods:
+                path = _texture_path(work, mesh_name, ex_name, size, steps, method, frame_smoothing)
                 if path.is_file():
                     with np.load(path) as z:
                         texture, colors, loss, cpu = z["texture"], z["colors"], z["loss"], z["cpu"]
@@ -126,7 +136,8 @@ def orientation(
     lines = [
         "# surfacecnn orientation across UV seams\n",
         f"{size}² textures, {steps} steps, every ReLU and pool output of the embedded VGG-16, "
-        "global frames (x), the protocol's xatlas layouts. Alignment: mean |cos| between the "
+        f"global frames (x) heat-smoothed over {frame_smoothing:g} texels (0: the paper's), "
+        "the protocol's xatlas layouts. Alignment: mean |cos| between the "
         "structure-tensor stripe normals of the two faces of an edge (disk of radius 6 texels in "
         "the face's chart), unfolded across the edge; seam edges vs interior edges; random line "
         "fields give 2/π = 0.637. Control: stripes along x (period 8 texels) baked into the same "
@@ -144,6 +155,8 @@ def orientation(
     for r in rows:
         c = r["control"]
         for method, label in (("surface", "surface CNN"), ("uv2d", "UV-space 2D")):
+            if method not in r:
+                continue
             m = r[method]
             lines.append(
                 f"| {r['mesh']} | {r['exemplar']} | {label} | **{m['seam']:.3f}** | "
@@ -163,8 +176,17 @@ def orientation(
     text = "\n".join(lines) + "\n"
     print(text)
     directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
-    (directory / "surfacecnn_orientation.md").write_text(text)
-    (directory / "surfacecnn_orientation.json").write_text(json.dumps(rows, indent=1) + "\n")
+    stem = "surfacecnn_orientation" + (
+        "" if frame_smoothing == FRAME_SMOOTHING else f"_fs{frame_smoothing:g}"
+    )
+    (directory / f"{stem}.md").write_text(text)
+    (directory / f"{stem}.json").write_text(json.dumps(rows, indent=1) + "\n")
+
+
+def _texture_path(work, mesh_name, ex_name, size, steps, method, frame_smoothing) -> pathlib.Path:
+    """Where a cell's texture is kept: the surface CNN's per frame smoothing, UV-space 2D's once."""
+    tail = f"_fs{frame_smoothing:g}" if method == "surface" else ""
+    return work / "orientation" / f"{mesh_name}_{ex_name}_{size}_{steps}_{method}{tail}.npz"
 
 
 def orientation_figure(
@@ -180,7 +202,7 @@ def orientation_figure(
     mesh = protocol_mesh(mesh_name, work)
     tex = {}
     for method in ("surface", "uv2d"):
-        path = work / "orientation" / f"{mesh_name}_stripes_{size}_{steps}_{method}.npz"
+        path = _texture_path(work, mesh_name, "stripes", size, steps, method, FRAME_SMOOTHING)
         with np.load(path) as z:
             tex[method] = np.asarray(z["texture"], np.float64)
     up = PROTOCOL_MESHES[mesh_name][1]
@@ -250,12 +272,28 @@ def main(argv: list[str] | None = None) -> None:
         default=pathlib.Path(__file__).resolve().parents[1] / "runs" / "surfacecnn_quality",
     )
     ap.add_argument("--out", type=pathlib.Path, default=None)
+    ap.add_argument("--methods", default="surface,uv2d", help="surface, uv2d or both")
+    ap.add_argument(
+        "--frame-smoothing",
+        type=float,
+        default=FRAME_SMOOTHING,
+        help="texels over which the frames turn at creases (0: the paper's frames)",
+    )
     ap.add_argument("--figure", default=None, metavar="MESH", help="only the figure of one mesh")
     a = ap.parse_args(argv)
     if a.figure:
         orientation_figure(a.figure, a.size, a.steps, a.work, a.out)
     else:
-        orientation(a.meshes.split(","), a.exemplars.split(","), a.size, a.steps, a.work, a.out)
+        orientation(
+            a.meshes.split(","),
+            a.exemplars.split(","),
+            a.size,
+            a.steps,
+            a.work,
+            a.out,
+            tuple(a.methods.split(",")),
+            a.frame_smoothing,
+        )
 
 
 if __name__ == "__main__":

@@ -1,6 +1,8 @@
 """The equivariance checks the method tests share: a registered entry passes its transforms (in
-float64, and one of them in float32), and a negative control (an operator broken on purpose,
-registered like a good one) is flagged by the transform it breaks."""
+float64, and one of them in float32), the registry's own test asserts a registered entry's
+transforms (so a method's tests need not prove them a second time at full cost), and a negative
+control (an operator broken on purpose, registered like a good one) is flagged by the transform it
+breaks."""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ from collections.abc import Callable
 
 import jax.numpy as jnp
 
-from jmeshtex.testing import Entry, check
+from jmeshtex.testing import Entry, asserted, check, load_entries, transforms_of
 
 
 def assert_passes(entry: Entry, transforms: tuple[str, ...], float32_transform: str) -> None:
@@ -18,6 +20,15 @@ def assert_passes(entry: Entry, transforms: tuple[str, ...], float32_transform: 
         result = check(entry, t, dtype=jnp.float64)
         assert result.passed, (t, result)
     assert check(entry, float32_transform, dtype=jnp.float32).passed
+
+
+def assert_registry_asserts(entry: Entry, transforms: tuple[str, ...], dtype=jnp.float64) -> None:
+    """``entry`` is the registered one, and ``equivariance_tests/test_registry.py`` asserts its
+    bound under each of ``transforms`` in ``dtype`` (with the same :func:`check` a method's test
+    would call; in float32 on the closed sample mesh only)."""
+    assert load_entries()[entry.name] is entry, entry.name
+    for t in transforms:
+        assert t in transforms_of(entry) and asserted(entry, t, dtype), (entry.name, t, dtype)
 
 
 def assert_flagged(

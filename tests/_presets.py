@@ -15,6 +15,12 @@ FL_MICRO = fl.Config(**FL_MICRO_NETWORK)
 #: :data:`FL_MICRO` on 10-12-vertex planar meshes of 16-pixel images
 FL_MICRO_MESHES = FL_MICRO.replace(min_vertices=10, max_vertices=12, max_image_size=16)
 
+#: a four-step FL-VAE training run with a checkpoint half-way (the training, resume and data-stream
+#: tests' schedule)
+FL_SHORT_RUN = dict(
+    latent_dim=4, batch_size=2, steps=4, warmup_steps=2, checkpoint_every=2, learning_rate=3e-3
+)
+
 #: the smallest FLDM: two latent channels on 40-vertex copies, 4/6-wide blocks, T = 20
 FLDM_MICRO = fldm.Config.tiny(
     latent_channels=2,

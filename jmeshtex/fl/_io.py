@@ -17,8 +17,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._config import stored_config
-from .._errors import ConfigError, CorruptModelError, InputError, MeshIOError
-from ..io import load_model, save_model
+from .._errors import ConfigError, CorruptModelError, MeshIOError
+from .._model_folder import MODEL_FILE, save_model_folder
+from ..io import load_model
 from ._config import Config
 from ._model import Model, init
 
@@ -28,8 +29,6 @@ _PRETRAINED = {
     "log": WEIGHTS_DIR / "fl_vae.npz",
     "barycentric": WEIGHTS_DIR / "fl_vae_barycentric.npz",
 }
-#: the file :func:`save` writes into its folder
-MODEL_FILE = "model.npz"
 #: the ``kind`` recorded in an FL-VAE model file
 MODEL_KIND = "jmeshtex.fl.Model"
 #: the layout of the file: parameters by key path, every config field in the header
@@ -64,20 +63,15 @@ def save(model: Model, path: str | os.PathLike, *, extra: dict | None = None) ->
       >>> load_extra(folder), sorted(p.name for p in folder.iterdir())
       ({'step': 3}, ['model.npz'])
     """
-    if not isinstance(model, Model):
-        raise InputError(
-            f"save(model, path): expected a jmeshtex.fl.Model first, got {type(model).__name__}"
-        )
-    out = pathlib.Path(path)
-    save_model(
-        out / MODEL_FILE,
+    return save_model_folder(
+        model,
+        path,
+        model_type=Model,
         kind=MODEL_KIND,
-        params=jax.tree.map(np.asarray, model.params),
-        config=model.config.to_dict(),
-        extra=extra,
+        arrays=lambda m: jax.tree.map(np.asarray, m.params),
         format_version=FORMAT_VERSION,
+        extra=extra,
     )
-    return out
 
 
 def _file(path: str | os.PathLike) -> pathlib.Path:

@@ -30,29 +30,15 @@ from .._errors import InputError
 from .._mesh import Mesh
 from .._random import check_key, host_rng
 from .._types import Float
-from ._planar import _to_rgb01, builtin_images, downscale, planar_mesh
+from ._planar import BUILTIN_IMAGES, _to_rgb01, builtin_images, downscale, planar_mesh
 
-#: scikit-image images (bundled in its wheel) that training textures are cut from
-TRAINING_IMAGES = (
-    "astronaut",
-    "brick",
-    "camera",
-    "cell",
-    "clock",
-    "coins",
-    "colorwheel",
-    "grass",
-    "gravel",
-    "hubble_deep_field",
-    "immunohistochemistry",
-    "logo",
-    "moon",
-    "page",
-    "retina",
-    "text",
-)
 #: scikit-image images never used for training (natural colour photographs; ``cat`` is ``chelsea``)
 HELD_OUT_IMAGES = ("chelsea", "coffee", "rocket")
+#: scikit-image images (bundled in its wheel) that training textures are cut from: the built-in
+#: images less the held-out photographs, plus five grey ones (cells, a clock, a logo, text)
+TRAINING_IMAGES = tuple(
+    sorted(set(BUILTIN_IMAGES) - set(HELD_OUT_IMAGES) | {"cell", "clock", "logo", "page", "text"})
+)
 #: matplotlib's bundled sample data used as extra training images (``Config.extra_images``): a
 #: photograph, a logo, two elevation maps and an MRI slice (grey ones as grey images)
 MATPLOTLIB_IMAGES = (

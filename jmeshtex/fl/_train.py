@@ -29,7 +29,6 @@ the same folder resumes.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import os
 import threading
@@ -45,8 +44,9 @@ from .._mesh import Mesh
 from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
 from .._types import PRNGKey
+from .._weight_average import averaged_params, averaged_state, averaged_step
 from ..ops import conjugate_complex_grads
-from ..optim import ema_update, flat
+from ..optim import flat
 from ..parallel import (
     batch_multiple,
     data_parallel,
@@ -364,19 +364,13 @@ def _driver_step(config: Config, device_mesh: jax.sharding.Mesh):
     """The training driver's step: one Adam step of the VAE and, with ``config.ema_decay > 0``, the
     weight average; it records the loss and its terms (the per-channel KL vector left out)."""
     vae_step = make_train_step(config, device_mesh)
-    use_ema = config.ema_decay > 0
-    ema_step = data_parallel(
-        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
-    )
 
-    def step(state, batch):
-        params, opt_state, loss, aux = vae_step(state["params"], state["opt_state"], *batch)
-        new = {"params": params, "opt_state": opt_state}
-        if use_ema:
-            new["ema"] = ema_step(state["ema"], params, batch[2])
-        return new, {"loss": loss, **{k: v for k, v in aux.items() if k != "kl_channels"}}
+    def update(params, opt_state, batch):
+        params, opt_state, loss, aux = vae_step(params, opt_state, *batch)
+        metrics = {"loss": loss, **{k: v for k, v in aux.items() if k != "kl_channels"}}
+        return params, opt_state, metrics, batch[2]
 
-    return step
+    return averaged_step(update, decay=config.ema_decay, device_mesh=device_mesh)
 
 
 def train(
@@ -467,7 +461,6 @@ def train(
 
     if prefetch:
         batches = _prefetched(batches)
-    use_ema = config.ema_decay > 0
     step = _driver_step(config, device_mesh)
 
     def curve(done: int, state, losses: dict) -> None:
@@ -475,9 +468,7 @@ def train(
         plot_losses({"loss": losses["loss"], "l1": losses["l1"]}, loss_curve, title=title)
 
     params = init(config, key=k_init, dtype=dtype).params
-    state = {"params": params, "opt_state": optimizer(config).init(params)}
-    if use_ema:
-        state["ema"] = params
+    state = averaged_state(params, optimizer(config).init(params), decay=config.ema_decay)
     return fit(
         step,
         state,
@@ -492,8 +483,6 @@ def train(
         ),
         device_mesh=device_mesh,
         progress=Progress(progress, "FL-VAE train", ("loss", "l1")),
-        model=lambda s: Model(
-            jax.tree.map(jnp.asarray, fetch(s["ema" if use_ema else "params"])), config
-        ),
+        model=lambda s: Model(jax.tree.map(jnp.asarray, fetch(averaged_params(s))), config),
         started=started,
     )

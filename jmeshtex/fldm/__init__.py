@@ -42,6 +42,7 @@ from ._masks import random_mask as random_mask
 from ._model import Model as Model
 from ._model import load as load
 from ._model import save as save
+from ._pretrained import load_pretrained as load_pretrained
 from ._sample import Samples as Samples
 from ._sample import decode_samples as decode_samples
 from ._sample import inpaint as inpaint

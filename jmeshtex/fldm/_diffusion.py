@@ -36,7 +36,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._config import is_int
+from .._config import is_finite_number, is_int
 from .._errors import ConfigError, InputError
 from .._types import Array, Bool, Complex, Float, Int, PRNGKey
 from ..ops import tangent_noise
@@ -95,7 +95,7 @@ def make_schedule(kind: str = "linear", *, num_steps: int = 1000, shift: float =
         raise ConfigError(f"schedule must be one of {SCHEDULES}, got {kind!r}")
     if not is_int(num_steps, 2):
         raise ConfigError(f"num_steps must be an integer >= 2, got {num_steps!r}")
-    if not (isinstance(shift, (int, float)) and math.isfinite(shift) and shift > 0):
+    if not (is_finite_number(shift) and shift > 0):
         raise ConfigError(f"shift must be a finite number > 0, got {shift!r}")
     T = int(num_steps)
     if kind == "linear":

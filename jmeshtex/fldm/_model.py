@@ -14,12 +14,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._config import stored_config
-from .._errors import ConfigError, CorruptModelError, InputError
-from ..io import load_model, save_model
+from .._errors import ConfigError, CorruptModelError
+from .._model_folder import MODEL_FILE, save_model_folder
+from ..io import load_model
 from ._config import Config
 from ._denoiser import init_denoiser
 
-MODEL_FILE = "model.npz"
 CARD_FILE = "card.json"
 #: the ``kind`` recorded in an FLDM model file
 MODEL_KIND = "jmeshtex.fldm.Model"
@@ -83,20 +83,12 @@ def save(model: Model, path: str | os.PathLike, *, card: dict | None = None) -> 
       >>> load(folder).config == cfg
       True
     """
-    if not isinstance(model, Model):
-        raise InputError(
-            f"save(model, path): expected a jmeshtex.fldm.Model first, got {type(model).__name__}"
-        )
-    out = pathlib.Path(path)
-    params = {
-        "params": jax.tree.map(np.asarray, model.params),
-        "scale": np.asarray(model.scale, np.float64),
-    }
-    save_model(
-        out / MODEL_FILE,
+    out = save_model_folder(
+        model,
+        path,
+        model_type=Model,
         kind=MODEL_KIND,
-        params=params,
-        config=model.config.to_dict(),
+        arrays=_arrays,
         format_version=FORMAT_VERSION,
     )
     if card is not None:
@@ -105,6 +97,14 @@ def save(model: Model, path: str | os.PathLike, *, card: dict | None = None) -> 
         text = json.dumps({"config": model.config.to_dict(), **card}, indent=1, default=float)
         atomic_write(out / CARD_FILE, text.encode())
     return out
+
+
+def _arrays(model: Model) -> dict:
+    """What :func:`save` stores: the parameters and the latents' scale (float64)."""
+    return {
+        "params": jax.tree.map(np.asarray, model.params),
+        "scale": np.asarray(model.scale, np.float64),
+    }
 
 
 def model_card(result) -> dict:

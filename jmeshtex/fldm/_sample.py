@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._config import is_int
+from .._config import is_finite_number, is_int
 from .._errors import InputError
 from .._jit import jit_loop
 from .._mesh import Mesh, as_mesh
@@ -203,7 +203,7 @@ def sample(
 
     if not _is_count(num_samples):
         raise InputError(f"num_samples must be an integer >= 1, got {num_samples!r}")
-    if not (isinstance(eta, (int, float)) and not isinstance(eta, bool) and 0.0 <= eta <= 1.0):
+    if not (is_finite_number(eta) and 0.0 <= eta <= 1.0):
         raise InputError(f"eta must be a number in [0, 1] (0: deterministic DDIM), got {eta!r}")
     geo = target if isinstance(target, DenoiserGeometry) else sampling_geometry(target, model)
     V, d = geo.num_vertices, model.config.latent_channels

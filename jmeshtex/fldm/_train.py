@@ -60,8 +60,9 @@ from .._neighborhoods import to_jax
 from .._random import host_rng, key_ints
 from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
+from .._weight_average import averaged_params, averaged_state, averaged_step
 from ..ops import conjugate_complex_grads, tangent_noise
-from ..optim import ema_update, flat
+from ..optim import flat
 from ..parallel import (
     batch_multiple,
     data_parallel,
@@ -431,20 +432,13 @@ def _driver_step(config: Config, device_mesh: jax.sharding.Mesh, *, channel_weig
     """The training driver's step: one optimiser step of the denoiser and, with
     ``config.ema_decay > 0``, the weight average; it records the loss."""
     denoiser_step = make_train_step(config, device_mesh, channel_weight=channel_weight)
-    use_ema = config.ema_decay > 0
-    ema_step = data_parallel(
-        functools.partial(ema_update, decay=float(config.ema_decay)), device_mesh, batch_argnums=()
-    )
 
-    def step(state, batch):
+    def update(params, opt_state, batch):
         args, t = batch
-        params, opt_state, loss = denoiser_step(state["params"], state["opt_state"], *args)
-        new = {"params": params, "opt_state": opt_state}
-        if use_ema:
-            new["ema"] = ema_step(state["ema"], params, t)
-        return new, {"loss": loss}
+        params, opt_state, loss = denoiser_step(params, opt_state, *args)
+        return params, opt_state, {"loss": loss}, t
 
-    return step
+    return averaged_step(update, decay=config.ema_decay, device_mesh=device_mesh)
 
 
 def train(
@@ -503,7 +497,6 @@ def train(
     device_mesh = resolve_mesh(device_mesh, devices)
     _check_batch(config, device_mesh)
     k_init, k_batch, k_noise = _split(key)
-    use_ema = config.ema_decay > 0
     weight, keep = channel_weights(data, config)
     batches = _batch_source(data, config, keep, k_batch=k_batch, k_noise=k_noise, dtype=dtype)
     step = _driver_step(
@@ -512,12 +505,8 @@ def train(
         channel_weight=weight if config.experimental.collapsed_channels == "downweight" else None,
     )
     params = init_denoiser(k_init, config, dtype=dtype)
-    state = {"params": params, "opt_state": optimizer(config).init(params)}
-    if use_ema:
-        state["ema"] = params
-    stats = _CheckpointStatistics(
-        data, config, key=jax.random.fold_in(key, 7), dtype=dtype, use_ema=use_ema
-    )
+    state = averaged_state(params, optimizer(config).init(params), decay=config.ema_decay)
+    stats = _CheckpointStatistics(data, config, key=jax.random.fold_in(key, 7), dtype=dtype)
     stats.resume(checkpoint_dir, _fingerprint(data, config, key, dtype))
     result = fit(
         step,
@@ -533,9 +522,7 @@ def train(
         ),
         device_mesh=device_mesh,
         progress=Progress(progress, "FLDM train"),
-        model=lambda s: Model(
-            fetch(s["ema" if use_ema else "params"]), config, np.asarray(data.scale)
-        ),
+        model=lambda s: Model(fetch(averaged_params(s)), config, np.asarray(data.scale)),
         started=started,
         on_step=stats.on_step,
     )
@@ -585,9 +572,8 @@ class _CheckpointStatistics:
     back on resume and ends up in ``TrainResult.extra["statistics"]``.
     """
 
-    def __init__(self, data: Dataset, config: Config, *, key, dtype, use_ema: bool):
+    def __init__(self, data: Dataset, config: Config, *, key, dtype):
         self.data, self.config, self.key, self.dtype = data, config, key, dtype
-        self.use_ema = use_ema
         self.history: list[dict] = []
         self.state = None
         self._geo = None
@@ -624,7 +610,7 @@ class _CheckpointStatistics:
         geo = self._geo
         V = self.data.meshes[0].num_vertices
         t0 = time.perf_counter()
-        params = fetch(self.state["ema" if self.use_ema else "params"])
+        params = fetch(averaged_params(self.state))
         model = Model(params, self.config, np.asarray(self.data.scale))
         z = sample(
             model,

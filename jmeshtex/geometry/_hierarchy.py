@@ -47,7 +47,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from .._config import is_int
+from .._config import is_finite_number, is_int
 from .._errors import ConfigError, DecimationError, InputError
 from .._mesh import accepts_mesh
 from .._neighborhoods import PoolingMap, VertexNeighborhood
@@ -166,7 +166,7 @@ def mesh_hierarchy(
       >>> bool(np.allclose(np.abs(pm.to_parent), 1)), bool(np.allclose(pm.children_weight.sum(1), 1))
       (True, True)
     """
-    if not (isinstance(ratio, (int, float, np.floating)) and 0.0 < float(ratio) < 1.0):
+    if not (is_finite_number(ratio) and 0.0 < ratio < 1.0):
         raise ConfigError(f"ratio must be in (0, 1), got {ratio!r}")
     if not is_int(min_vertices, 4):
         raise ConfigError(f"min_vertices must be an integer >= 4, got {min_vertices!r}")

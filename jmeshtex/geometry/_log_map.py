@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._config import is_finite_number
 from .._errors import DegenerateFaceError, InputError
 from .._mesh import accepts_mesh
 from .._neighborhoods import VertexNeighborhood, scale_log_maps
@@ -164,9 +165,7 @@ def check_scale(scale) -> None:
     """Raise :class:`~jmeshtex.InputError` unless ``scale`` is None, ``"mean_edge"`` or a positive float."""
     if scale is None or (isinstance(scale, str) and scale == "mean_edge"):
         return
-    if isinstance(scale, str) or isinstance(scale, bool) or not isinstance(scale, (int, float)):
-        raise InputError(f'scale must be None, "mean_edge" or a positive length, got {scale!r}')
-    if not (np.isfinite(scale) and scale > 0):
+    if not (is_finite_number(scale) and scale > 0):
         raise InputError(f'scale must be None, "mean_edge" or a positive length, got {scale!r}')
 
 

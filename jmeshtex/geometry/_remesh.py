@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from .._config import is_int
+from .._config import is_finite_number, is_int
 from .._errors import ConfigError, DecimationError, InputError
 from .._mesh import Mesh, accepts_mesh
 from .._random import check_key, host_rng
@@ -170,9 +170,9 @@ def remesh(
     if not is_int(n_vertices, 4):
         raise ConfigError(f"n_vertices must be an integer >= 4, got {n_vertices!r}")
     check_key(key)
-    if not (isinstance(oversample, (int, float)) and oversample >= 1.5):
+    if not (is_finite_number(oversample) and oversample >= 1.5):
         raise ConfigError(f"oversample must be a number >= 1.5, got {oversample!r}")
-    if not (isinstance(jitter, (int, float)) and 0.0 <= jitter <= 0.45):
+    if not (is_finite_number(jitter) and 0.0 <= jitter <= 0.45):
         raise ConfigError(
             f"jitter must be in [0, 0.45] (split positions stay inside the edge), got {jitter!r}"
         )

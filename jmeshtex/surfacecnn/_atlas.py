@@ -31,20 +31,29 @@ from typing import NamedTuple
 import numpy as np
 from jaxtyping import Complex, Float, Int
 
-from .._config import is_int
+from .._config import is_finite_number, is_int
 from .._errors import InputError, MeshError
 from ..geometry import (
     TracerGeometry,
     check_mesh_scale,
+    connection_laplacian,
     face_frame_to_world,
     fill_unused_texels,
     global_direction_field,
+    one_ring_neighborhood,
     project_direction,
     rasterize_uv,
     smoothest_direction_field,
+    tangent_frames,
+    tangent_from_3d,
+    tangent_to_3d,
     tracer_geometry,
 )
 from ._config import FRAME_MODES
+
+#: radius (texels) over which the ``"global"`` frames turn at a crease (texture_atlas
+#: ``frame_smoothing``): chosen on the fandisk's creases, numbers in ``docs/results.md``
+FRAME_SMOOTHING = 4.0
 
 
 class TextureAtlas(NamedTuple):
@@ -179,12 +188,28 @@ def vertex_directions(
     *,
     frames: str = "global",
     frame_vector=(1.0, 0.0, 0.0),
+    smoothing: float = 0.0,
 ) -> Float[np.ndarray, "V 3"]:
     """The per-vertex direction field the texel frames follow (``frames`` ``"global"`` or ``"smooth"``).
 
     ``"global"``: :func:`~jmeshtex.geometry.global_direction_field` of ``frame_vector`` (the paper's
-    construction); ``"smooth"``: :func:`~jmeshtex.geometry.smoothest_direction_field` started from
+    construction), heat-smoothed intrinsically over ``smoothing`` (world units; 0 keeps the paper's
+    field); ``"smooth"``: :func:`~jmeshtex.geometry.smoothest_direction_field` started from
     ``frame_vector`` (Knöppel et al. 2013).
+
+    **Smoothing.** Projected on each face's plane, a global vector turns across a crease by the
+    crease's whole intrinsic kink within one face (the faces' planes jump), so a texture that
+    follows the frames must either break its colours along the crease or turn its structure there.
+    ``smoothing = r > 0`` spreads that turn over a distance ``r`` on either side: one implicit heat
+    step of the field with the connection Laplacian ``L`` (intrinsic transport, so across a fold it
+    compares directions *unfolded*) and the vertex areas ``M``,
+
+    .. math:: (M + r^2 L)\\, u = M\\, u_0,
+
+    normalised per vertex. A field that is already parallel (a flat sheet) is unchanged; on smooth
+    surfaces it moves by second-order terms; at a crease it no longer turns within a face.
+    :func:`texture_atlas` carries the smoothed field into the faces with
+    :func:`intrinsic_tangents`; the 3D vectors returned here are for display.
 
     Returns:
       ``[V, 3]`` unit tangent vectors.
@@ -193,13 +218,122 @@ def vertex_directions(
       >>> from jmeshtex.data import grid
       >>> vertex_directions(*grid(1))[0].tolist()
       [1.0, 0.0, 0.0]
+      >>> vertex_directions(*grid(2), smoothing=0.5)[4].round(12).tolist()  # flat: unchanged
+      [1.0, 0.0, 0.0]
     """
     p = np.asarray(frame_vector, dtype=np.float64)
+    if not (is_finite_number(smoothing) and smoothing >= 0):
+        raise InputError(f"vertex_directions: smoothing must be a number >= 0, got {smoothing!r}")
     if frames == "global":
-        return global_direction_field(vertices, faces, primary=p, secondary=_second(p))
+        field = global_direction_field(vertices, faces, primary=p, secondary=_second(p))
+        return _heat_smoothed(vertices, faces, field, float(smoothing), p)
     if frames == "smooth":
         return smoothest_direction_field(vertices, faces, primary=p)
     raise InputError(f"vertex_directions: frames must be 'global' or 'smooth', got {frames!r}")
+
+
+def _heat_smoothed(vertices, faces, field, radius: float, p: np.ndarray) -> np.ndarray:
+    """``field`` after one implicit heat step with the connection Laplacian (:func:`vertex_directions`),
+    back in 3D; ``radius = 0`` returns it unchanged."""
+    if radius == 0.0:
+        return field
+    frames = tangent_frames(vertices, faces)
+    u = _smoothed_intrinsic(vertices, faces, field, radius, frames)
+    return project_direction(
+        tangent_to_3d(u, frames), frames.normal, primary=p, secondary=_second(p)
+    )
+
+
+def _smoothed_intrinsic(vertices, faces, field, radius: float, frames) -> np.ndarray:
+    """``[V]`` complex unit directions in the one-ring gauges: ``(M + r² L) u = M u₀``, ``u₀`` the 3D
+    ``field`` in the vertex frames (vertices where ``u`` vanishes keep ``u₀``)."""
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import splu
+
+    L, area = connection_laplacian(vertices, faces)
+    u0 = tangent_from_3d(np.asarray(field, np.float64), frames).astype(np.complex128)
+    u = splu((diags(area.astype(np.complex128)) + radius**2 * L).tocsc()).solve(area * u0)
+    small = np.abs(u) <= 1e-9 * max(float(np.abs(u).max(initial=0.0)), 1e-300)
+    u = np.where(small, u0, u)
+    return u / np.maximum(np.abs(u), 1e-300)
+
+
+def intrinsic_tangents(
+    vertices: Float[np.ndarray, "V 3"],
+    faces: Int[np.ndarray, "F 3"],
+    u: Complex[np.ndarray, " V"],
+    face: Int[np.ndarray, " N"],
+    bary: Float[np.ndarray, "N 3"],
+) -> Complex[np.ndarray, " N"]:
+    """Unit tangents at surface points from an intrinsic vertex field, carried into each face
+    intrinsically.
+
+    Corner ``k`` of face ``f`` carries ``u_{v_k}`` (one-ring gauge) into ``f``'s local frame by the
+    angle between the face's edges at the corner and the same edges in the one-ring,
+    ``z_k = u_{v_k} e^{i(\\arg_f e - \\theta_e)}`` (averaged over the corner's two edges), then
+
+    .. math:: t = \\textstyle\\sum_k b_k z_k \\,/\\, \\lVert\\cdot\\rVert.
+
+    Unlike projecting a 3D vertex vector on the face plane, this uses edge lengths only: across a
+    fold both faces receive the vertex's direction unfolded, at its intrinsic angle (a projection
+    from the vertex's averaged plane squeezes it towards the fold line, so a smoothed field would
+    turn within the faces next to a crease again; measured in ``tests/surfacecnn``).
+
+    Args:
+      vertices, faces: the mesh.
+      u: ``[V]`` complex directions in the one-ring gauges of
+        :func:`~jmeshtex.geometry.one_ring_neighborhood` (slot 0 the reference edge).
+      face: ``[N]`` faces of the points.
+      bary: ``[N, 3]`` barycentric coordinates in them.
+
+    Returns:
+      ``[N]`` complex128 unit tangents in each face's local frame (tracer convention, as
+      :func:`surface_tangents`).
+
+    Example:
+      >>> from jmeshtex.data import grid
+      >>> from jmeshtex.geometry import tangent_frames, tangent_from_3d
+      >>> v, f = grid(2)
+      >>> u = tangent_from_3d(np.tile([1.0, 0.0, 0.0], (len(v), 1)), tangent_frames(v, f))
+      >>> t = intrinsic_tangents(v, f, u, np.arange(len(f)), np.full((len(f), 3), 1 / 3))
+      >>> bool(np.allclose(t, surface_tangents(v, f, np.tile([1.0, 0, 0], (len(v), 1)),
+      ...     np.arange(len(f)), np.full((len(f), 3), 1 / 3))))
+      True
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    V = len(vertices)
+    nb = one_ring_neighborhood(vertices, faces, scale=None)
+    index, mask = np.asarray(nb.index, np.int64), np.asarray(nb.mask, bool)
+    rows = np.broadcast_to(np.arange(V)[:, None], index.shape)
+    keys = rows[mask] * V + index[mask]
+    order = np.argsort(keys)
+    keys, unit_log = keys[order], np.asarray(nb.log)[mask][order]
+    unit_log = unit_log / np.maximum(np.abs(unit_log), 1e-300)
+
+    def ring_direction(a, b):  # unit direction of edge a→b in a's one-ring gauge
+        return unit_log[np.clip(np.searchsorted(keys, a * V + b), 0, len(keys) - 1)]
+
+    tri = vertices[faces[face]]  # [N, 3, 3]
+    x = tri[:, 1] - tri[:, 0]
+    n = np.cross(x, tri[:, 2] - tri[:, 0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    y = np.cross(n, x)
+    rel = tri - tri[:, :1]
+    corner = np.sum(rel * x[:, None], axis=2) + 1j * np.sum(rel * y[:, None], axis=2)  # [N, 3]
+    t = np.zeros(len(face), np.complex128)
+    vs = faces[face]
+    for k in range(3):
+        turn = 0.0
+        for j in (1, 2):
+            edge = corner[:, (k + j) % 3] - corner[:, k]
+            turn = turn + edge / np.abs(edge) * np.conj(
+                ring_direction(vs[:, k], vs[:, (k + j) % 3])
+            )
+        turn /= np.maximum(np.abs(turn), 1e-300)
+        t += bary[:, k] * u[vs[:, k]] * turn
+    return t / np.maximum(np.abs(t), 1e-300)
 
 
 def _second(p: np.ndarray) -> np.ndarray:
@@ -264,6 +398,7 @@ def texture_atlas(
     size: int,
     frames: str = "global",
     frame_vector=(1.0, 0.0, 0.0),
+    frame_smoothing: float = FRAME_SMOOTHING,
     geometry: TracerGeometry | None = None,
 ) -> TextureAtlas:
     """Valid texels, surface points, world texel size and tangent frames of a ``size²`` texture.
@@ -288,6 +423,9 @@ def texture_atlas(
       size: texture resolution.
       frames: ``"global"`` (default), ``"smooth"`` or ``"uv"`` (module docstring).
       frame_vector: the world vector of the ``"global"`` field (start of the ``"smooth"`` one).
+      frame_smoothing: radius, in texels, over which the ``"global"`` field turns at creases
+        (:func:`vertex_directions` ``smoothing``; default ``FRAME_SMOOTHING``, measured in
+        ``docs/results.md``); 0 is the paper's field.
       geometry: :func:`~jmeshtex.geometry.tracer_geometry` tables, to skip rebuilding them.
 
     Returns:
@@ -315,10 +453,23 @@ def texture_atlas(
     point = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
     if frames not in FRAME_MODES:
         raise InputError(f"texture_atlas: frames must be one of {FRAME_MODES}, got {frames!r}")
-    tangent, down, frame = _texel_frames(
-        vertices, faces, geometry, uv, face, bary, frames=frames, frame_vector=frame_vector
-    )
+    if not (is_finite_number(frame_smoothing) and frame_smoothing >= 0):
+        raise InputError(
+            f"texture_atlas: frame_smoothing must be a number of texels >= 0, got {frame_smoothing!r}"
+        )
     ratio, usable = _world_per_texel(geometry, uv, size)
+    texel_size = float(np.median(ratio[usable]))
+    tangent, down, frame = _texel_frames(
+        vertices,
+        faces,
+        geometry,
+        uv,
+        face,
+        bary,
+        frames=frames,
+        frame_vector=frame_vector,
+        smoothing=float(frame_smoothing) * texel_size,
+    )
     return TextureAtlas(
         size=size,
         texel=texel,
@@ -330,7 +481,7 @@ def texture_atlas(
         down=down,
         frame=frame,
         uv=uv,
-        texel_size=float(np.median(ratio[usable])),
+        texel_size=texel_size,
         local_size=ratio[face],
     )
 
@@ -376,7 +527,9 @@ def _nearest_triangle_texels(uv: Float[np.ndarray, "F 3 2"], size: int) -> tuple
     return texel, index_of, face, bary
 
 
-def _texel_frames(vertices, faces, geometry, uv, face, bary, *, frames, frame_vector) -> tuple:
+def _texel_frames(
+    vertices, faces, geometry, uv, face, bary, *, frames, frame_vector, smoothing=0.0
+) -> tuple:
     """Each texel's tangent ``t`` and ``down`` in its face's frame and its world frame
     ``[N, 3 (t, d, n), 3]`` (module docstring, "Frames")."""
     t, side = uv_face_tangents(geometry, uv)
@@ -386,7 +539,15 @@ def _texel_frames(vertices, faces, geometry, uv, face, bary, *, frames, frame_ve
         normal_sign = side[face][:, None]
     else:
         field = vertex_directions(vertices, faces, frames=frames, frame_vector=frame_vector)
-        tangent = surface_tangents(vertices, faces, field, face, bary, frame_vector=frame_vector)
+        if frames == "global" and smoothing > 0:  # intrinsic all the way (vertex_directions)
+            u = _smoothed_intrinsic(
+                vertices, faces, field, smoothing, tangent_frames(vertices, faces)
+            )
+            tangent = intrinsic_tangents(vertices, faces, u, face, bary)
+        else:
+            tangent = surface_tangents(
+                vertices, faces, field, face, bary, frame_vector=frame_vector
+            )
         down = -1j * tangent  # t turned clockwise seen from outside: the exemplar is not mirrored
         normal_sign = -1.0
     tw = face_frame_to_world(vertices, faces, face, tangent)

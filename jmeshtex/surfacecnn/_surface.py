@@ -9,7 +9,7 @@ import numpy as np
 
 from .._mesh import Mesh, as_mesh
 from ..geometry import tracer_geometry
-from ._atlas import TextureAtlas, texture_atlas
+from ._atlas import FRAME_SMOOTHING, TextureAtlas, texture_atlas
 from ._neighborhood import texel_taps
 from ._pyramid import BACKOFF, TexelPyramid, texel_pyramid
 
@@ -37,6 +37,7 @@ def prepare_surface(
     rotation: float | np.ndarray = 0.0,
     frames: str = "global",
     frame_vector=(1.0, 0.0, 0.0),
+    frame_smoothing: float = FRAME_SMOOTHING,
     backoff: tuple[float, ...] = BACKOFF,
     couple: bool = True,
 ) -> Surface:
@@ -51,7 +52,8 @@ def prepare_surface(
       boundary: failed-walk rule (:func:`~jmeshtex.surfacecnn.core.texel_taps`; default the reference's
         ``"opposite"``, as :class:`~jmeshtex.surfacecnn.Config`).
       rotation: tap-frame rotation (radians, scalar or per texel).
-      frames, frame_vector: the tangent frames (:func:`~jmeshtex.surfacecnn.core.texture_atlas`).
+      frames, frame_vector, frame_smoothing: the tangent frames
+        (:func:`~jmeshtex.surfacecnn.core.texture_atlas`).
       backoff: overshoot back-off fractions (:func:`~jmeshtex.surfacecnn.core.texel_pyramid`).
       couple: every texel read by another texel's taps (:func:`~jmeshtex.surfacecnn.core.texel_taps`;
         default True).
@@ -78,6 +80,7 @@ def prepare_surface(
         size=size,
         frames=frames,
         frame_vector=frame_vector,
+        frame_smoothing=frame_smoothing,
         geometry=geometry,
     )
     t1 = time.perf_counter()

@@ -8,7 +8,7 @@ The method's contract (``Config``, ``synthesize`` / ``stylize`` and their
 
 - Atlas: :func:`texture_atlas` / :class:`TextureAtlas`, :func:`image_to_texels`,
   :func:`texels_to_image`, :func:`uv_face_tangents`, :func:`surface_tangents`,
-  :func:`vertex_directions`.
+  :func:`intrinsic_tangents`, :func:`vertex_directions` (``FRAME_SMOOTHING``).
 - Neighbourhoods: :func:`texel_taps` / :class:`TexelTaps` (tap offsets ``TAP_DX``, ``TAP_DY``),
   :func:`trace_taps`, :func:`uv_to_texels`, :func:`opposite_source`; pooling:
   :func:`texel_pyramid` / :class:`TexelPyramid` (``BACKOFF``).
@@ -20,8 +20,10 @@ The method's contract (``Config``, ``synthesize`` / ``stylize`` and their
   :func:`seam_ratio`.
 """
 
+from ._atlas import FRAME_SMOOTHING as FRAME_SMOOTHING
 from ._atlas import TextureAtlas as TextureAtlas
 from ._atlas import image_to_texels as image_to_texels
+from ._atlas import intrinsic_tangents as intrinsic_tangents
 from ._atlas import surface_tangents as surface_tangents
 from ._atlas import texel_density_spread as texel_density_spread
 from ._atlas import texels_to_image as texels_to_image

@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._mesh import Mesh
 from .._neighborhoods import VertexNeighborhood, to_jax
 
 
@@ -65,6 +66,9 @@ class MeshState:
       (12, 12)
     """
 
+    num_vertices = Mesh.num_vertices  # the same record sizes as a Mesh
+    num_faces = Mesh.num_faces
+
     def __init__(self, vertices, faces, *, gauge=None, dtype=None):
         self.vertices = np.asarray(vertices, dtype=np.float64)
         self.faces = np.asarray(faces, dtype=np.int64)
@@ -75,14 +79,6 @@ class MeshState:
         self.dtype = jnp.dtype(dtype)
         self._cache: dict[Any, Any] = {}  # values holding JAX arrays (in ``dtype``)
         self._host: dict[Any, Any] = {}  # host (NumPy) values: the same in every dtype
-
-    @property
-    def num_vertices(self) -> int:
-        return int(self.vertices.shape[0])
-
-    @property
-    def num_faces(self) -> int:
-        return int(self.faces.shape[0])
 
     @property
     def complex_dtype(self):

@@ -26,17 +26,9 @@ import numpy as np  # noqa: E402
 from jmeshtex import fl, parallel  # noqa: E402
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))  # the repository root
-from tests._presets import FL_MICRO_MESHES  # noqa: E402
+from tests._presets import FL_MICRO_MESHES, FL_SHORT_RUN  # noqa: E402
 
-CONFIG = FL_MICRO_MESHES.replace(
-    latent_dim=4,
-    meshes_per_image=2,
-    batch_size=2,
-    steps=4,
-    warmup_steps=1,
-    checkpoint_every=2,
-    learning_rate=3e-3,
-)
+CONFIG = FL_MICRO_MESHES.replace(**FL_SHORT_RUN).replace(meshes_per_image=2, warmup_steps=1)
 
 
 def images() -> list[np.ndarray]:

@@ -29,20 +29,15 @@ from jmeshtex.fl.core import (
     training_texture,
     vae_loss,
 )
-from tests._presets import FL_MICRO
+from tests._presets import FL_MICRO, FL_SHORT_RUN
 
 STREAM = FL_MICRO.replace(
-    latent_dim=4,
     pixels_per_vertex=8.0,
     density_spread=1.3,
     texture_size=16,
     procedural_fraction=1.0,
     loss_normalization="paper",
-    batch_size=2,
-    steps=4,
-    warmup_steps=2,
-    checkpoint_every=2,
-    learning_rate=3e-3,
+    **FL_SHORT_RUN,
 )
 
 

@@ -22,9 +22,9 @@ from jmeshtex.fl.core import (
     planar_mesh,
     surface_colors,
 )
+from tests._presets import FL_SHORT_RUN
 
 TINY = Config(
-    latent_dim=4,
     features=16,
     num_heads=2,
     num_blocks=1,
@@ -33,12 +33,8 @@ TINY = Config(
     min_vertices=24,
     max_vertices=36,
     meshes_per_image=3,
-    batch_size=2,
     max_image_size=32,
-    steps=4,
-    warmup_steps=2,
-    checkpoint_every=2,
-    learning_rate=3e-3,
+    **FL_SHORT_RUN,
 )
 
 

@@ -52,16 +52,20 @@ def _slots(nb):
     return p, j, nb.index[p, j]
 
 
+#: a closed sphere, an open grid (boundary vertices) and a torus (genus one)
+CLOSED_OPEN_AND_GENUS_ONE = pytest.mark.parametrize(
+    "make",
+    [lambda: icosphere(2), lambda: grid(5), lambda: torus(12, 8)],
+    ids=["sphere", "grid", "torus"],
+)
+
+
 def _perturbed(mesh, rng, amount):
     v, f = mesh
     return v + amount * rng.normal(size=v.shape), f
 
 
-@pytest.mark.parametrize(
-    "make",
-    [lambda: icosphere(2), lambda: grid(5), lambda: torus(12, 8)],
-    ids=["sphere", "grid", "torus"],
-)
+@CLOSED_OPEN_AND_GENUS_ONE
 def test_matches_loop_reference(make, rng):
     v, f = _perturbed(make(), rng, 0.01)
     nb = one_ring_neighborhood(v, f, scale=None)
@@ -121,11 +125,7 @@ def test_flat_grid_log_is_the_rotated_offset_and_transport_the_frame_rotation():
         np.testing.assert_allclose(nb.transport[p, j], frame[q] / frame[p], rtol=0, atol=1e-14)
 
 
-@pytest.mark.parametrize(
-    "make",
-    [lambda: icosphere(2), lambda: grid(4), lambda: torus(10, 7)],
-    ids=["sphere", "grid", "torus"],
-)
+@CLOSED_OPEN_AND_GENUS_ONE
 def test_gauge_consistency_per_edge(make, rng):
     """ρ_{q→p} log_q(p) = -log_p(q) and ρ_{q→p} ρ_{p→q} = 1 for every edge."""
     v, f = _perturbed(make(), rng, 0.02)

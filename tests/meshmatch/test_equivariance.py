@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import jax.numpy as jnp
-import pytest
-
-from jmeshtex.testing import REGISTRY, check
+from tests._equivariance_checks import assert_registry_asserts
 
 
-@pytest.mark.parametrize("transform", ["rigid", "gauge", "permute_vertices", "fold"])
-def test_fan_descriptor_is_invariant(transform):
-    import jmeshtex.testing._methods.meshmatch  # noqa: F401  (registers the entry)
+def test_fan_descriptor_is_invariant():
+    """Rigid motions, gauge changes, relabelling and a fold: asserted by
+    equivariance_tests/test_registry.py (float64 and float32), with the same ``check``."""
+    from jmeshtex.testing._methods import meshmatch as _equivariance  # registers the entry
 
-    result = check(REGISTRY["meshmatch.fan_descriptor"], transform, dtype=jnp.float64)
-    assert result.passed, result
+    assert_registry_asserts(_equivariance.ENTRY, ("rigid", "gauge", "permute_vertices", "fold"))

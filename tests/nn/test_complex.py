@@ -24,18 +24,11 @@ from jmeshtex.ops import (
     vn_nonlinearity,
     vn_transformer_block,
 )
+from tests._random_fields import crandn, rel_err
 
 C = 4
 AREA = np.array([1.0, 2.0, 0.5, 1.5, 1.0])
 MASK = np.array([True, True, False, True, True])
-
-
-def crandn(rng, *shape):
-    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
 
 
 def nested(flat, cls):

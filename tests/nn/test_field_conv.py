@@ -12,41 +12,12 @@ import numpy as np
 import pytest
 
 from jmeshtex import ConfigError, InputError
-from jmeshtex.geometry import VertexNeighborhood, pad_to
+from jmeshtex.geometry import pad_to
 from jmeshtex.nn import FRN, FieldConv, FieldConvEmb, VNNonlinearity
 from jmeshtex.ops import FieldConvParams, field_conv
+from tests._random_fields import crandn, random_nbhd, rel_err
 
 V, K, C, E = 6, 4, 3, 2
-
-
-def crandn(rng, *shape):
-    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
-
-
-def random_nbhd(rng, v=V, k=K):
-    """A valid random k-NN-like neighbourhood with a self slot and some padded slots."""
-    index = rng.integers(0, v, (v, k))
-    mask = rng.random((v, k)) > 0.3
-    index[:, 0], mask[:, 0] = np.arange(v), True
-    log = np.where(
-        mask, rng.uniform(0.2, 1, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))), 0
-    )
-    log[:, 0] = 0
-    transport = np.where(mask, np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k))), 1)
-    transport[:, 0] = 1
-    return VertexNeighborhood(
-        index=np.where(mask, index, 0).astype(np.int32),
-        mask=mask,
-        log=log,
-        transport=transport,
-        weight=np.where(mask, rng.uniform(0.5, 1.5, (v, k)), 0),
-        area=rng.uniform(0.5, 1.5, v),
-        vertex_mask=np.ones(v, bool),
-    )
 
 
 def filled(shapes, seed=0):
@@ -81,12 +52,12 @@ class Chain(nn.Module):
 @functools.cache
 def block_variables(features, dtype=jnp.complex128):
     m = Chain(features, param_dtype=dtype)
-    x, nb = jnp.zeros((V, C), dtype), random_nbhd(np.random.default_rng(0))
+    x, nb = jnp.zeros((V, C), dtype), random_nbhd(np.random.default_rng(0), V, K)
     return filled(jax.eval_shape(m.init, jax.random.key(0), x, nb, jnp.zeros((V, E))))
 
 
 def test_field_conv_modules_apply_the_op(rng):
-    nb = random_nbhd(rng)
+    nb = random_nbhd(rng, V, K)
     x = jnp.asarray(crandn(rng, V, C), jnp.complex128)
     emb = rng.standard_normal((V, E))
     plain, with_emb = FieldConv(5, hdim=3, activation="relu"), FieldConvEmb(5, hdim=3)
@@ -115,7 +86,7 @@ def test_field_conv_options_apply_the_op(rng):
     """Two-hidden-layer filters, a per-channel embedding and the reference's untransported argument
     (the options the FLDM denoiser's blocks use) reach :func:`field_conv` unchanged; the parameters
     are the FieldConvParams fields, and a channel embedding the module was not built for is an error."""
-    nb = random_nbhd(rng)
+    nb = random_nbhd(rng, V, K)
     x = jnp.asarray(crandn(rng, V, C), jnp.complex128)
     e = jnp.asarray(rng.standard_normal((V, C)))
     for argument in ("transported", "untransported"):
@@ -154,7 +125,7 @@ def test_field_conv_options_apply_the_op(rng):
 
 
 def test_block_is_gauge_equivariant(rng):
-    nb = random_nbhd(rng)
+    nb = random_nbhd(rng, V, K)
     m = Chain(C)
     v = block_variables(C)
     x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
@@ -169,7 +140,7 @@ def test_block_is_gauge_equivariant(rng):
 
 
 def test_block_padding_invariance(rng):
-    nb = random_nbhd(rng)
+    nb = random_nbhd(rng, V, K)
     m = Chain(C)
     v = block_variables(C)
     x, emb = crandn(rng, V, C), rng.standard_normal((V, E))
@@ -182,7 +153,7 @@ def test_block_padding_invariance(rng):
 
 
 def test_block_init_and_jit_without_recompiling(rng):
-    nb = random_nbhd(rng)
+    nb = random_nbhd(rng, V, K)
     m = Chain(4, hdim=2, param_dtype=jnp.complex64)
     x = jnp.asarray(crandn(rng, V, C), jnp.complex64)
     v = jax.jit(m.init)(jax.random.key(0), x, nb, jnp.zeros(1))

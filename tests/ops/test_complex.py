@@ -27,20 +27,9 @@ from jmeshtex.ops import (
     vn_nonlinearity,
     vn_transformer_block,
 )
+from tests._random_fields import crandn, rel_err, silu
 
 S, C, HEADS = 5, 4, 2  # set size, channels, attention heads used throughout
-
-
-def crandn(rng, *shape):
-    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
-
-
-def silu(t):
-    return t / (1 + np.exp(-t))
 
 
 # ----------------------------------------------------------------------------- slow references

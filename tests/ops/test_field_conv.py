@@ -25,6 +25,14 @@ from jmeshtex.ops import (
     field_conv_terms,
 )
 from jmeshtex.ops._field_conv_stages import _filtered_sums
+from tests._random_fields import (
+    crandn,
+    field_conv_params,
+    gauge_transform,
+    random_nbhd,
+    rel_err,
+    silu,
+)
 
 _conv = jax.jit(field_conv, static_argnames=("delta", "activation"))
 # one shape for most tests (V vertices, K slots, C -> D channels, H responses, E embedding): the
@@ -34,41 +42,8 @@ V, K, C, D, H, E = 6, 4, 2, 3, 3, 1
 
 @functools.cache
 def make_params(seed, e=E, c=C, d=D, h=H, dtype=jnp.complex128):
-    """NumPy parameters distributed like init_field_conv (which has its own doctest): no compilation."""
-    rng = np.random.default_rng(seed)
-    real = np.float64 if dtype == jnp.complex128 else np.float32
-    return FieldConvParams(
-        filter_weight=(rng.standard_normal((2 + e, h)) / np.sqrt(2 + e)).astype(real),
-        filter_bias=rng.standard_normal(h).astype(real),
-        mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
-    )
-
-
-# ----------------------------------------------------------------------------- helpers
-
-
-def random_nbhd(rng, v, k, *, self_slot=True, p_pad=0.3):
-    """A valid random k-NN-like neighbourhood (host NumPy, float64), padded slots per the contract."""
-    index = rng.integers(0, v, (v, k))
-    mask = rng.random((v, k)) > p_pad
-    log = rng.uniform(0.2, 1.0, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
-    transport = np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
-    weight = rng.uniform(0.5, 1.5, (v, k))
-    if self_slot:
-        index[:, 0], mask[:, 0], log[:, 0], transport[:, 0] = np.arange(v), True, 0, 1
-    mask[:, 0] = True
-    index, log, transport, weight = (
-        np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0))
-    )
-    return VertexNeighborhood(
-        index=index.astype(np.int32),
-        mask=mask,
-        log=log,
-        transport=transport,
-        weight=weight,
-        area=rng.uniform(0.5, 1.5, v),
-        vertex_mask=np.ones(v, bool),
-    )
+    """Parameters distributed like init_field_conv (which has its own doctest): no compilation."""
+    return field_conv_params(seed, e=e, c=c, d=d, h=h, dtype=dtype)
 
 
 def grid_nbhd(n):
@@ -102,14 +77,6 @@ def grid_nbhd(n):
     )
 
 
-def crandn(rng, *shape):
-    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
-
-
-def silu(t):
-    return t / (1 + np.exp(-t))
-
-
 def loop_reference(x, nb, params, emb=None, delta=1e-4, printed_eq34=False, activation="silu"):
     """Slow NumPy field convolution, one (vertex, slot, channel) at a time.
 
@@ -134,19 +101,6 @@ def loop_reference(x, nb, params, emb=None, delta=1e-4, printed_eq34=False, acti
                 phi = silu(pre) if activation == "silu" else np.maximum(pre, 0)
                 y[p] += w * u * (phi @ mix[ch])
     return y
-
-
-def gauge_transform(x, nb, alpha):
-    """Rotate every frame p by alpha_p: features and logs by e^{-iα_p}, transports by e^{i(α_q − α_p)}."""
-    rot = np.exp(-1j * alpha)
-    return x * rot[:, None], nb._replace(
-        log=nb.log * rot[:, None],
-        transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])),
-    )
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
 
 
 # ----------------------------------------------------------------------------- exact cases

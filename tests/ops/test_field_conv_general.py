@@ -10,67 +10,22 @@ import pytest
 from jax.test_util import check_grads
 
 from jmeshtex import ConfigError, InputError
-from jmeshtex.geometry import VertexNeighborhood, pad_to
-from jmeshtex.ops import FieldConvParams, field_conv, init_field_conv
+from jmeshtex.geometry import pad_to
 from jmeshtex.ops import _field_conv_fast as fc_fast
 from jmeshtex.ops import _field_conv_general as fc_module
+from jmeshtex.ops import field_conv, init_field_conv
+from tests._random_fields import (
+    crandn,
+    field_conv_params,
+    gauge_transform,
+    random_nbhd,
+    rel_err,
+    silu,
+)
 
 V, K, C, D, H = 7, 5, 3, 2, 4
 
-# ----------------------------------------------------------------------------- helpers (as in test_field_conv.py)
-
-
-def crandn(rng, *shape):
-    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
-
-
-def silu(t):
-    return t / (1 + np.exp(-t))
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
-
-
-def random_nbhd(rng, v, k, p_pad=0.3):
-    """A random k-NN-like neighbourhood with a self slot, padded slots per the contract."""
-    index = rng.integers(0, v, (v, k))
-    mask = rng.random((v, k)) > p_pad
-    log = rng.uniform(0.2, 1.0, (v, k)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
-    transport = np.exp(1j * rng.uniform(-np.pi, np.pi, (v, k)))
-    weight = rng.uniform(0.5, 1.5, (v, k))
-    index[:, 0], mask[:, 0], log[:, 0], transport[:, 0] = np.arange(v), True, 0, 1
-    index, log, transport, weight = (
-        np.where(mask, a, pad) for a, pad in ((index, 0), (log, 0), (transport, 1), (weight, 0))
-    )
-    return VertexNeighborhood(
-        index=index.astype(np.int32),
-        mask=mask,
-        log=log,
-        transport=transport,
-        weight=weight,
-        area=rng.uniform(0.5, 1.5, v),
-        vertex_mask=np.ones(v, bool),
-    )
-
-
-def gauge_transform(x, nb, alpha):
-    """Rotate every frame p by alpha_p: features and logs by e^{-iα_p}, transports by e^{i(α_q − α_p)}."""
-    rot = np.exp(-1j * alpha)
-    return x * rot[:, None], nb._replace(
-        log=nb.log * rot[:, None],
-        transport=nb.transport * np.exp(1j * (alpha[nb.index] - alpha[:, None])),
-    )
-
-
-def make_params(seed, *, e, c, d, h, dtype):
-    rng = np.random.default_rng(seed)
-    real = np.float64 if dtype == jnp.complex128 else np.float32
-    return FieldConvParams(
-        filter_weight=(rng.standard_normal((2 + e, h)) / np.sqrt(2 + e)).astype(real),
-        filter_bias=rng.standard_normal(h).astype(real),
-        mix=(crandn(rng, c, h, d) / np.sqrt(2 * c * h)).astype(dtype),
-    )
+# ----------------------------------------------------------------------------- helpers
 
 
 # ----------------------------------------------------------------------------- tests
@@ -78,7 +33,7 @@ def make_params(seed, *, e, c, d, h, dtype):
 
 def general_params(seed, *, hidden=True, channel=True, dtype=jnp.complex128):
     rng = np.random.default_rng(seed)
-    base = make_params(seed, e=1, c=C, d=D, h=H, dtype=dtype)
+    base = field_conv_params(seed, e=1, c=C, d=D, h=H, dtype=dtype)
     real = np.float64 if dtype == jnp.complex128 else np.float32
     extra = {}
     if channel:

@@ -12,17 +12,10 @@ from jax.test_util import check_grads
 from jmeshtex import InputError
 from jmeshtex.geometry import PoolingMap, pad_to
 from jmeshtex.ops import tangent_pool, tangent_unpool
+from tests._random_fields import crandn, rel_err
 
 _pool, _unpool = jax.jit(tangent_pool), jax.jit(tangent_unpool)
 VF, VC, C = 9, 4, 3
-
-
-def crandn(rng, *shape):
-    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
 
 
 def random_map(rng, vf=VF, vc=VC):

@@ -1,18 +1,13 @@
-"""A small FLDM run for ``jmeshtex demo`` and the notebook: a striped sphere.
+"""FLDM for ``jmeshtex demo``: the shipped Spot model sampled, inpainted and transferred (no training).
 
-The exemplar is a unit sphere with latitudinal stripes, ``s(p) = ½ + ½ sin(ω p_z)``. To keep the
-check about the *diffusion model* (and fast, with no pre-trained FL-VAE needed), the latents come
-from a small analytic codec with the FL-VAE's contract (complex ``[V, d]`` in the one-ring frames):
-
-.. math:: z_{v,0} = (a + s_v)\\, \\hat g_v, \\qquad z_{v,1} = i\\,(a + 1 - s_v)\\, \\hat g_v
-
-with ``ĝ_v`` the unit tangent direction of the meridian (the stripes' gradient direction) in v's
-frame, and decoding ``s = ½ (|z_0| − a) + ½ (1 + a − |z_1|)`` clipped to [0, 1]. Magnitudes carry the
-colour, phases the stripes' orientation: a model must learn both the stripe statistics and a
-coherent direction field. With a trained FL-VAE (:func:`jmeshtex.fldm.fl_vae_encoder`) the same
-pipeline runs on real textures (``docs/results.md``).
-
-The learning check on the same sphere is :func:`jmeshtex.testing.fldm_learning_check`.
+The model is :func:`jmeshtex.fldm.load_pretrained` (trained on the shipped FL-VAE's latents of
+re-triangulated copies of Spot); its samples are decoded with that
+FL-VAE (:func:`jmeshtex.fl.load_pretrained`) to Spot's own UV atlas. Beside them: Spot's texture,
+its encoding decoded (the codec's ceiling: what a perfect model's sample of *this* texture could
+look like), and the protocol's two do-nothing baselines, the best flat colour over the atlas' used
+texels and the encoding's latents permuted over vertices (the right marginal, no structure). The
+numbers behind the figure (the surface-patch measure, the decoder-free statistics, DDPM) are
+``benchmarks/fldm.py``'s, in ``docs/results.md``.
 """
 
 from __future__ import annotations
@@ -22,123 +17,158 @@ import pathlib
 import time
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
-from ...data import (
-    intensity_to_rgb,
-    rgb_to_intensity,
-    stripe_decoder,
-    stripe_encoder,
-    striped_sphere,
-)
-from ._views import Progress, say, view
+from ._views import Progress, say
 
-VIEWS = ((20.0, -60.0), (-30.0, 60.0))
+#: the camera (elevation, azimuth in degrees, Spot z-up) of every panel
+VIEW = (15.0, 35.0)
 
 
-def tiny_config(quick: bool = True):
-    """The demo configuration (seconds on a CPU)."""
-    from ...fldm import Config
+def _spot_z_up(subdivide: bool):
+    """Spot turned from y-up to the renderer's z-up (the same surface, atlas and texture),
+    midpoint-subdivided once if ``subdivide`` (11.7K vertices: the model's training density)."""
+    from ...data import spot
+    from ...geometry import subdivide_midpoint, subdivide_uv
 
-    if quick:
-        return Config.demo()
-    return Config.cpu(  # the stripe codec is deterministic: one encoding per copy
-        latent_channels=2,
-        n_copies=8,
-        copy_vertices=1500,
-        steps=1500,
-        diffusion_steps=1000,
-        encodings_per_copy=1,
-        invariants=False,  # the stripe codec's phases are coherent; the demo's bounds were measured without
+    mesh = spot()
+    v, f, uv = np.asarray(mesh.vertices), mesh.faces, mesh.uv
+    if subdivide:
+        s = subdivide_midpoint(v, f)
+        v, f, uv = s.vertices, s.faces, subdivide_uv(uv)
+    up = np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)
+    return mesh.replace(vertices=up, faces=f, uv=uv)
+
+
+def _encoding(vae, model, mesh, geometry, key) -> np.ndarray:
+    """``mesh``'s own texture encoded as the model's training latents were: the FL-VAE's mean,
+    then the flat rings' phases synchronised (``model.config.phase_sync``)."""
+    from ... import fl
+    from ...fldm import core
+
+    z = np.asarray(fl.encode(vae, mesh, key=key).mu)
+    cfg = model.config
+    if cfg.phase_sync == "none":
+        return z
+    pinned = None
+    if cfg.phase_sync == "flat":
+        spread = core.ring_color_spread(mesh, fl.core.surface_colors(mesh))
+        pinned = spread >= cfg.flat_spread
+    return np.asarray(core.synchronize_phases(z, geometry.fine, pinned=pinned))
+
+
+def _atlases(vae, mesh, fields: dict, atlas: int) -> dict[str, np.ndarray]:
+    """Every field decoded to ``mesh``'s atlas (unused texels filled), plus ``"baseline: flat"``:
+    the best constant colour over the texels the atlas uses."""
+    from ... import fldm
+    from ...geometry import fill_unused_texels
+    from ...metrics import flat_baseline
+
+    decoded = fldm.decode_samples(vae, mesh, np.stack(list(fields.values())), size=atlas)
+    textures = {
+        k: fill_unused_texels(d["texture"], d["valid"])
+        for k, d in zip(fields, decoded, strict=True)
+    }
+    valid = decoded[0]["valid"]
+    full = np.asarray(mesh.texture)
+    truth = full[:: full.shape[0] // atlas, :: full.shape[1] // atlas]
+    flat = flat_baseline(truth, mask=valid)[valid][0]
+    textures["baseline: flat"] = np.broadcast_to(flat, truth.shape).astype(np.float32)
+    return textures
+
+
+def _figure(path: pathlib.Path, mesh, ring, textures: dict, size: tuple[int, int]) -> None:
+    """``fldm.png``: Spot, the samples and the inpainting, the torus transfer (its vertex
+    colours), the encoding decoded and the baselines, one view each."""
+    from ...render import figure, render_mesh
+
+    def draw(texture) -> np.ndarray:
+        return render_mesh(mesh.replace(texture=texture), view=VIEW, size=size)
+
+    panels = [("Spot", draw(mesh.texture))]
+    panels += [
+        (name, draw(textures[name])) for name in ("sample 1", "sample 2", "inpaint (rear kept)")
+    ]
+    panels += [(f"transfer: torus {ring.num_vertices} V", render_mesh(ring, view=VIEW, size=size))]
+    panels += [
+        (name, draw(textures[name]))
+        for name in ("encoding decoded", "baseline: flat", "baseline: shuffled")
+    ]
+    figure(
+        panels,
+        columns=4,
+        title="FLDM: the shipped Spot model (samples, inpainting, transfer) and its baselines",
+        path=path,
     )
 
 
 def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = None) -> dict:
-    """Run a tiny FLDM train + sample + inpaint + transfer, write ``fldm.png``, return a summary dict.
+    """Sample the shipped FLDM Spot model, write ``fldm.png``, return a summary dict.
 
-    The figure (:func:`jmeshtex.render.figure`, vertex colours, smooth-shaded): the exemplar, two
-    samples on a training copy, an inpainting (upper half kept), a transfer to a finer
-    re-triangulation (more vertices: smaller stripes, §6.6), and the protocol's two baselines on
-    the copy: the exemplar's mean colour (:func:`~jmeshtex.metrics.flat_baseline`) and the copy's
-    training latents permuted over vertices, decoded (the right marginal, no structure).
+    The figure (:func:`jmeshtex.render.figure`, Spot z-up, one view): Spot, two samples on Spot
+    midpoint-subdivided once (the model's training density), an inpainting (the rear half kept
+    from Spot's encoding, the front half generated), a transfer to a torus (vertex colours), the
+    encoding decoded, and the two baselines. DDIM with 50 steps (``quick``: Spot's own 2,930
+    vertices, 10 steps and a 256² atlas, a smoke run).
 
     Args:
       out_dir: folder for ``fldm.png``.
-      quick: a smoke run (2 copies, 120 steps); else the learning check's configuration.
-      progress: called with status lines, or None; with a hook, dataset building, training and
-        sampling show their own tqdm bars.
+      quick: a smoke run (fewer sampling steps, smaller atlas and panels).
+      progress: called with status lines, or None.
 
     Returns:
-      ``{"png", "seconds", "loss_first", "loss_last", "summary"}``.
+      ``{"png", "seconds", "steps", "vertices", "summary"}``; the summary gives the neighbour
+      correlation of ``|z|²`` (:func:`~jmeshtex.fldm.core.latent_statistics`) of a sample, of
+      Spot's encoding and of the shuffled baseline.
     """
-    from ... import fldm
-    from ...geometry import remesh
-    from ...metrics import flat_baseline, permuted_baseline
-    from ...render import figure
+    from ... import fl, fldm
+    from ...data import torus
+    from ...fldm import core
 
     t0 = time.perf_counter()
     out = pathlib.Path(out_dir)
-    bars = progress is not None
-    cfg = tiny_config(True)  # full: the learning check's configuration (300 steps)
-    if quick:  # a smoke run: a few seconds of training
-        cfg = cfg.replace(n_copies=2, copy_vertices=300, steps=120)
-    exemplar = striped_sphere(subdivisions=3)
-    k_data, k_train, key = jax.random.split(jax.random.key(0), 3)
-    say(progress, "building the dataset")
-    data = fldm.build_dataset(exemplar, cfg, encode=stripe_encoder, key=k_data, progress=bars)
-    say(progress, f"training {cfg.steps} steps")
-    result = fldm.train(data, cfg, key=k_train, progress=bars)
-    model = result.model
-    target = data.meshes[0]
-    say(progress, "sampling")
-    z = fldm.sample(model, target, key=key, num_samples=2, steps=25).latents
-    known = stripe_encoder(target)
-    mask = target.vertices[:, 2] > 0
-    say(progress, "inpainting")
-    zi = fldm.inpaint(model, target, known, mask, key=key, method="ddim", steps=25).latents[0]
-    say(progress, "transfer")
-    fine = remesh(exemplar, n_vertices=2 * target.num_vertices, key=jax.random.key(99))
-    zf = fldm.sample(model, fine, key=key, num_samples=1, steps=25).latents[0]
-    say(progress, "rendering")
-    # the copy's training latents decoded (per vertex, so permuting them = permuting this)
-    copy = stripe_decoder(np.asarray(data.latents[0, : target.num_vertices]))[:, None]
-    size = (240, 240)
-
-    def stripes(mesh, intensity):
-        return view(
-            (mesh.vertices, mesh.faces),
-            vertex_colors=intensity_to_rgb(intensity),
-            azimuth=VIEWS[0][1],
-            elevation=VIEWS[0][0],
-            size=size,
-        )
-
-    figure(
-        [
-            ("exemplar", stripes(exemplar, rgb_to_intensity(exemplar.vertex_colors))),
-            ("sample 1", stripes(target, stripe_decoder(z[0]))),
-            ("sample 2", stripes(target, stripe_decoder(z[1]))),
-            ("inpaint (top kept)", stripes(target, stripe_decoder(zi))),
-            (f"transfer {fine.num_vertices} V", stripes(fine, stripe_decoder(zf))),
-            ("baseline: flat", stripes(target, flat_baseline(copy)[:, 0])),
-            ("baseline: shuffled", stripes(target, permuted_baseline(copy, key=key)[:, 0])),
-        ],
-        columns=4,
-        title="FLDM: diffusion on field latents of a striped sphere",
-        path=out / "fldm.png",
-    )
+    steps, atlas, size = (10, 256, (240, 240)) if quick else (50, 512, (256, 256))
+    say(progress, "loading the shipped FLDM and FL-VAE models")
+    model, vae = fldm.load_pretrained(), fl.load_pretrained()
+    mesh = _spot_z_up(subdivide=not quick)
+    geometry = core.sampling_geometry(mesh, model)
+    k_sample, k_inpaint, k_transfer, k_codec, k_shuffle = jax.random.split(jax.random.key(0), 5)
+    say(progress, f"sampling 2 textures on Spot (DDIM, {steps} steps)")
+    z = np.asarray(fldm.sample(model, geometry, key=k_sample, num_samples=2, steps=steps).latents)
+    say(progress, "encoding Spot and inpainting its front half")
+    known = _encoding(vae, model, mesh, geometry, k_codec)
+    rear = mesh.vertices[:, 1] < np.median(mesh.vertices[:, 1])  # Spot (z-up) faces +y
+    inpainted = fldm.inpaint(
+        model, geometry, known, rear, key=k_inpaint, method="ddim", steps=steps
+    ).latents[0]
+    say(progress, "transfer to a torus")
+    # Spot's area (5.7) at the sampling mesh's density: the textures' scale carries over
+    n_major, n_minor = (80, 36) if quick else (160, 72)
+    ring = torus(n_major, n_minor, major_radius=0.6, minor_radius=0.24)
+    zt = fldm.sample(model, ring, key=k_transfer, num_samples=1, steps=steps).latents[0]
+    shuffled = np.asarray(core.shuffle_latents(known, key=k_shuffle))
+    say(progress, "decoding and rendering")
+    fields = {"sample 1": z[0], "sample 2": z[1], "inpaint (rear kept)": inpainted}
+    fields |= {"encoding decoded": known, "baseline: shuffled": shuffled}
+    textures = _atlases(vae, mesh, fields, atlas)
+    ring = ring.replace(vertex_colors=fldm.decode_samples(vae, ring, zt[None])[0]["vertex_colors"])
+    _figure(out / "fldm.png", mesh, ring, textures, size)
     seconds = time.perf_counter() - t0
-    losses = result.losses["loss"]
-    first, last = float(np.mean(losses[:20])), float(np.mean(losses[-20:]))
+    corr = {
+        name: float(core.latent_statistics(jnp.asarray(field), geometry.fine)["energy_correlation"])
+        for name, field in (("samples", z[0]), ("encoding", known), ("shuffled", shuffled))
+    }
     summary = (
-        f"FLDM: {cfg.n_copies} copies × {cfg.copy_vertices} V, {len(losses)} steps, "
-        f"{fldm.core.LOSS_NAMES[cfg.prediction]} {first:.3f} → {last:.3f}, 2 samples + inpaint + transfer, "
+        f"FLDM: shipped Spot model, 2 samples + inpaint + torus transfer on {mesh.num_vertices} V, "
+        f"DDIM-{steps}; |z|² neighbour corr.: sample {corr['samples']:.2f}, Spot's encoding "
+        f"{corr['encoding']:.2f}, shuffled {corr['shuffled']:.2f} (flat colour in the figure), "
         f"{seconds:.1f} s"
     )
     return {
         "png": str(out / "fldm.png"),
         "seconds": seconds,
-        "loss_first": first,
-        "loss_last": last,
+        "steps": steps,
+        "vertices": mesh.num_vertices,
         "summary": summary,
     }
