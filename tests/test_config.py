@@ -785,7 +785,7 @@ def test_the_committed_model_files_are_found():
         "jmeshtex/fl/weights/fl_vae.npz",
         "jmeshtex/fl/weights/fl_vae_barycentric.npz",
         "jmeshtex/dgts/weights/knobs.npz",
-        "benchmarks/results/fldm_spot_mid3_model/model.npz",
+        "jmeshtex/fldm/weights/spot/model.npz",
     } <= names, names
 
 
