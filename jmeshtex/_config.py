@@ -61,9 +61,11 @@ Example:
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import functools
 import math
+import sys
 import types
 import typing
 from collections.abc import Callable, Mapping
@@ -361,7 +363,13 @@ def _normalise(hint: Any, value: Any) -> Any:
 
 class _Flat(type):
     """The metaclass of :class:`ConfigBase`: a config with sections also takes their fields by their
-    own names (or dotted paths) as keyword arguments, like :meth:`ConfigBase.replace`."""
+    own names (or dotted paths) as keyword arguments, like :meth:`ConfigBase.replace`; and a config
+    class's annotations are read in the namespace its ``class`` statement ran in (:func:`_hints`)."""
+
+    def __init__(cls, name: str, bases: tuple[type, ...], namespace: dict[str, Any]) -> None:
+        super().__init__(name, bases, namespace)
+        frame = sys._getframe(1)  # the module (or function) body running the class statement
+        cls._defined_in = collections.ChainMap(frame.f_locals, frame.f_globals)
 
     def __call__(cls, *args: Any, **kwargs: Any) -> Any:
         if kwargs and _sections(cls):
@@ -601,7 +609,11 @@ def _plain(value: Any) -> Any:
 
 @functools.cache
 def _hints(cls: type) -> dict[str, Any]:
-    return typing.get_type_hints(cls)
+    """``cls``'s resolved annotations, names looked up first where its ``class`` statement ran: a
+    section's class is then the one the config was defined with, even when ``sys.modules`` holds a
+    second copy of the module by now (pytest's ``--import-mode=importlib`` runs a module file of
+    the doctests again under its own name)."""
+    return typing.get_type_hints(cls, localns=getattr(cls, "_defined_in", None))
 
 
 @functools.cache

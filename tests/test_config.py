@@ -824,6 +824,47 @@ def _digest_text(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+_SECTIONED_MODULE = """
+from __future__ import annotations
+
+import dataclasses
+
+from jmeshtex._config import ConfigBase
+
+
+@dataclasses.dataclass(frozen=True)
+class Knobs(ConfigBase):
+    shift: float = 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Job(ConfigBase):
+    width: int = 8
+    knobs: Knobs = Knobs()
+"""
+
+
+def test_a_second_copy_of_a_config_module_leaves_the_first_ones_section_type(tmp_path, monkeypatch):
+    # pytest --import-mode=importlib runs a module file of the doctests a second time under its
+    # own name, so sys.modules names the copy when the first module's config is first built
+    import importlib
+    import importlib.util
+    import sys
+
+    (tmp_path / "h59_sectioned.py").write_text(_SECTIONED_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    first = importlib.import_module("h59_sectioned")
+    spec = importlib.util.spec_from_file_location("h59_sectioned", first.__file__)
+    copy = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "h59_sectioned", copy)
+    spec.loader.exec_module(copy)
+    assert copy.Knobs is not first.Knobs
+    assert first.Job(shift=2.0).knobs == first.Knobs(shift=2.0)
+    assert copy.Job(shift=3.0).knobs == copy.Knobs(shift=3.0)
+    with pytest.raises(ConfigError, match=r"Job.knobs must be a Knobs"):
+        first.Job(knobs=copy.Knobs())
+
+
 def test_the_constructor_takes_a_section_field_by_its_name():
     assert Run(shift=2.0, width=5) == Run(switches=Switches(shift=2.0), width=5)
     assert Run(**{"switches.sizes": [3]}).switches.sizes == (3,)
