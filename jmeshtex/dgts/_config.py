@@ -129,7 +129,7 @@ class Experimental(ConfigBase):
 
     The defaults are the reference code's; the studies (``docs/results.md``, DGTS) and
     :func:`~jmeshtex.dgts.from_official_state_dict` set them. Their names are unique across
-    :class:`Config`, so ``Config(official_axes=True)`` and ``config.replace(fake_inputs=...)`` reach
+    :class:`~jmeshtex.dgts.Config`, so ``Config(official_axes=True)`` and ``config.replace(fake_inputs=...)`` reach
     them, and a model file stores them among the config's own fields.
 
     Attributes:
@@ -148,7 +148,7 @@ class Experimental(ConfigBase):
       official_axes: True: the generator's in-plane displacement coefficient is along ``x × n``
         (the official code's axis) instead of jmeshtex's ``n × x``; set by
         :func:`~jmeshtex.dgts.from_official_state_dict` so official weights run unchanged
-        (:attr:`y_sign`).
+        (:attr:`~jmeshtex.dgts.Config.y_sign`).
 
     Example:
       >>> Config(fake_inputs="reconstructed").experimental.fake_inputs
@@ -201,7 +201,7 @@ class Config(ConfigBase):
       experimental: the switches beyond the paper and the parity switch
         (:class:`~jmeshtex.dgts.core.Experimental`: the fixed noise's levels, the critic's fakes,
         the official in-plane axis); each may also be given by its own name to the constructor,
-        :meth:`replace`, :meth:`from_dict` and :meth:`tiny`, and a model file stores them among
+        ``replace``, ``from_dict`` and :meth:`tiny`, and a model file stores them among
         the fields above.
       checkpoint_every: with ``train(checkpoint_dir=)``, also checkpoint every this many steps
         within a level (rounded up to a multiple of ``CHUNK``); None: only after each level. A
@@ -289,7 +289,7 @@ class Config(ConfigBase):
 
     @property
     def y_sign(self) -> float:
-        """The sign of the in-plane displacement coefficient (−1 with :attr:`official_axes`, else 1).
+        """The sign of the in-plane displacement coefficient (−1 with :attr:`~jmeshtex.dgts.core.Experimental.official_axes`, else 1).
 
         Example:
           >>> Config().y_sign, Config(official_axes=True).y_sign

@@ -64,7 +64,7 @@ class Experimental(ConfigBase):
 
     Their defaults are the shipped models' recipe (``token`` excepted: the reference's, which the
     shipped models were converted to); the studies (``docs/results.md``) set them. Their names are
-    unique across :class:`Config`, so ``Config.small(free_bits=0.1)``,
+    unique across :class:`~jmeshtex.fl.Config`, so ``Config.small(free_bits=0.1)``,
     ``config.replace(vn_norm="channel")`` and ``--set token=ring_mean`` reach them, and a model
     file stores them among the config's own fields.
 
@@ -147,8 +147,8 @@ class Config(ConfigBase):
       experimental: the study switches beyond the shipped recipe and the paper
         (:class:`~jmeshtex.fl.core.Experimental`: the token, the log decoder's objective, the
         VN norm, the attention's linear path, KL warm-up and free bits, the initial ``log σ``,
-        boundary rings in the loss); each may also be given by its own name to :meth:`replace`,
-        :meth:`from_dict` and the presets, and a model file stores them among the fields above.
+        boundary rings in the loss); each may also be given by its own name to ``replace``,
+        ``from_dict`` and the presets, and a model file stores them among the fields above.
 
     Planar pre-training (supplement §9.1). Two data modes: with ``pixels_per_vertex = 0`` (the
     shipped model's) a fixed pool of ``meshes_per_image`` meshes of ``min_vertices``–``max_vertices``

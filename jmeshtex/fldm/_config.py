@@ -35,7 +35,7 @@ class Experimental(ConfigBase):
     """The study switches of an FLDM run, beyond the paper: ``Config.experimental``.
 
     Their defaults are the paper's denoiser and data; the studies (``docs/results.md``) and the
-    :meth:`Config.cpu` preset set them. Their names are unique across :class:`Config`, so
+    :meth:`~jmeshtex.fldm.Config.cpu` preset set them. Their names are unique across :class:`~jmeshtex.fldm.Config`, so
     ``Config.tiny(invariants=True)``, ``config.replace(schedule_shift=2.0)`` and a command line's
     ``--set phase_sync=flat`` (or ``--set experimental.phase_sync=flat``) reach them, and a model
     file or checkpoint stores them among the config's own fields.
@@ -157,7 +157,7 @@ class Config(ConfigBase):
       accumulate: micro-batches per optimiser step (gradient accumulation; ``batch_size`` must
         be a multiple); 1: the whole batch at once.
       experimental: the study switches beyond the paper (:class:`~jmeshtex.fldm.core.Experimental`);
-        each may also be given by its own name to :meth:`replace`, :meth:`from_dict` and the presets
+        each may also be given by its own name to ``replace``, ``from_dict`` and the presets
         (``Config.tiny(invariants=True)``), and a model file stores them among the fields above.
 
     Randomness (copies, initialisation, training noise) comes from the ``key`` of

@@ -44,7 +44,7 @@ class Experimental(ConfigBase):
     """MeshMatch's search budget and the paper's variants of it: ``Config.experimental``.
 
     The defaults are the measured ones (``docs/design_notes.md``, MeshMatch); the benchmark's and
-    the studies' option rows set them. Their names are unique across :class:`Config`, so
+    the studies' option rows set them. Their names are unique across :class:`~jmeshtex.meshmatch.Config`, so
     ``Config().replace(star_candidates=True)`` and ``Config.intrinsic(exact_candidates=64)``
     reach them, and a saved transfer stores them among the config's own fields.
 
@@ -190,7 +190,7 @@ class Config(ConfigBase):
       experimental: the search budget and the paper's variants of it
         (:class:`~jmeshtex.meshmatch.core.Experimental`: HKS level size, random and global
         candidates, exact and whole-star candidates, level buckets, the vote's resampling width);
-        each may also be given by its own name to :meth:`replace`, :meth:`from_dict` and
+        each may also be given by its own name to ``replace``, ``from_dict`` and
         :meth:`intrinsic`.
 
     Example:
