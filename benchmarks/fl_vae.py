@@ -309,7 +309,7 @@ def encode_decode_rows(report: Report, model, *, n: int, atlas: int) -> None:
         mesh.faces,
         config.num_samples,
         rng=np.random.default_rng(0),
-        center=config.token == "centre",
+        center=config.experimental.token == "centre",
     )
     points = np.einsum("vsk,vskd->vsd", s.bary, mesh.vertices[mesh.faces[s.face]])
     rgb = colors.at_points(points.reshape(-1, 3)).reshape(*s.face.shape, 3)

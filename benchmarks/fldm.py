@@ -206,7 +206,7 @@ class Context:
         self._keep_recorded_scale()
         self.dataset_seconds = (time.perf_counter() - t0, _cpu() - c0)
         print(
-            f"[dataset] {self.data.num_copies} copies × {self.cfg.encodings_per_copy} encodings, "
+            f"[dataset] {self.data.num_copies} copies × {self.cfg.experimental.encodings_per_copy} encodings, "
             f"V0={self.data.latents.shape[1]}: {self.dataset_seconds[0]:.1f} s wall, "
             f"{self.dataset_seconds[1]:.1f} CPU-s",
             flush=True,
@@ -474,11 +474,12 @@ def _sample_fields(ctx: Context, model, stage) -> _Fields:
     stage("sample DDPM", t0, c0)
     z = {k: np.asarray(v.latents) for k, v in z.items()}
     recon = np.asarray(fl.encode(ctx.vae, target, key=ctx.k_codec).mu)
-    if cfg.phase_sync != "none":  # the codec's latents as the model was trained on them
+    ex = cfg.experimental
+    if ex.phase_sync != "none":  # the codec's latents as the model was trained on them
         pinned = None
-        if cfg.phase_sync == "flat":
+        if ex.phase_sync == "flat":
             spread = st.ring_color_spread(target, fl.core.surface_colors(spot))
-            pinned = spread >= cfg.flat_spread
+            pinned = spread >= ex.flat_spread
         recon = st.synchronize_phases(recon, nb, pinned=pinned)
     kb = jax.random.key(args.seed + 101)
     fields = {
@@ -646,7 +647,7 @@ def _curve_rows(ctx: Context, report: Report, card: dict) -> None:
             energy_corr=rec.get("energy_correlation"),
             phase_coh=rec.get("phase_coherence"),
             rms=rec.get("rms"),
-            what=f"{cfg.stats_samples} DDIM-{cfg.stats_ddim_steps} samples on training copy 0",
+            what=f"{cfg.experimental.stats_samples} DDIM-{cfg.experimental.stats_ddim_steps} samples on training copy 0",
         )
     data_ref = next((r["data"] for r in card.get("statistics", []) if "data" in r), None)
     if data_ref:
@@ -711,7 +712,7 @@ def _notes(ctx: Context, report: Report, order, step: int, sampling_vertices: in
     report.notes += [
         f"model: snapshot of step {step} of {cfg.steps} (`{ctx.work / 'models'}`), config "
         f"`fldm.Config.cpu` at {cfg.copy_vertices} vertices per copy, {cfg.n_copies} copies × "
-        f"{cfg.encodings_per_copy} encodings; samples on Spot midpoint-subdivided "
+        f"{cfg.experimental.encodings_per_copy} encodings; samples on Spot midpoint-subdivided "
         f"{run['subdivide']}× ({sampling_vertices} vertices), atlas {run['atlas']}², "
         f"{len(run['views'])} views at {run['size']}².",
         "",

@@ -210,7 +210,7 @@ def cross(args) -> None:
                 v == label if v in variants_here else v in label for v in args.variants
             ):
                 continue
-            _add_run(report, case, label, Config(**{**fields, **extra}))
+            _add_run(report, case, label, Config.from_dict({**fields, **extra}))
         # where the dB go: start the finest level from the truth (true matches, their colours) and
         # see how far its iterations move it at each finest-level shape weight
         for w in () if args.variants else (0.0, 0.3, 3.0):
@@ -218,7 +218,7 @@ def cross(args) -> None:
                 report,
                 case,
                 f"finest level only, started from the truth, shape weight {w:g}",
-                Config(**{**fields, "levels": 1, "coarse_steps": 6, "shape_weight": w}),
+                Config.from_dict({**fields, "levels": 1, "coarse_steps": 6, "shape_weight": w}),
                 initial_nnf=gt,
             )
     report.notes.append(
@@ -260,7 +260,7 @@ def figure(args) -> None:
         ]
         for label, cfg in (
             ("intrinsic", Config.intrinsic(**fields)),
-            ("default (aligned)", Config(**fields)),
+            ("default (aligned)", Config.from_dict(fields)),
         ):
             r = meshmatch(s, sc, t, key=jax.random.key(0), config=cfg)
             cells.append(
@@ -556,7 +556,7 @@ def real(args) -> None:
                 f"{name} {base['size']}: ceiling {ceiling} dB (remesh {remesh_s:.1f} s)", flush=True
             )
             for label, extra in variants.items():
-                cfg = Config(**extra)
+                cfg = Config.from_dict(extra)
                 t0 = time.perf_counter()
                 try:
                     r = meshmatch(s, sc, t, key=jax.random.key(0), config=cfg)
@@ -692,7 +692,7 @@ def speed(report: Report, cfg: Config, sizes: list[int]) -> None:
         words = (
             3 * 18 * 3 * 3
             + 36
-            + cfg.sweeps * (13 * 27 + (cfg.exact_candidates + 1) * 190 + 168)
+            + cfg.sweeps * (13 * 27 + (cfg.experimental.exact_candidates + 1) * 190 + 168)
             + 252
         )
         bytes_moved = len(tv) * 4 * words

@@ -30,6 +30,15 @@ reads them back: lists become tuples for fields annotated with a tuple type, mis
 defaults (so older files and partial JSON still load) and unknown keys raise
 :class:`~jmeshtex.ConfigError` naming them.
 
+A field annotated with another :class:`ConfigBase` class is a *section* (a method's
+``experimental`` switches): it is validated by its own rules, and the config reads as one flat
+namespace, so section fields' names must be unique across the config. :meth:`~ConfigBase.to_dict`
+and :meth:`~ConfigBase.fingerprint` write a section's fields in its place, by their own names (a
+field moved into a section leaves model files and checkpoint fingerprints unchanged);
+:meth:`~ConfigBase.from_dict` and :meth:`~ConfigBase.replace` take a section's field by its own name
+(``schedule_shift=2.0``), by its dotted path (``"experimental.schedule_shift"``), or the whole
+section (``experimental=Experimental(...)`` or a dict of its fields); so does the constructor.
+
 Example:
   >>> import dataclasses
   >>> @dataclasses.dataclass(frozen=True)
@@ -52,9 +61,11 @@ Example:
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import functools
 import math
+import sys
 import types
 import typing
 from collections.abc import Callable, Mapping
@@ -267,6 +278,8 @@ def type_ok(hint: Any, value: Any) -> bool:
         return any(type_ok(a, value) for a in typing.get_args(hint))
     if hint is type(None) or hint is None:
         return value is None
+    if _is_section(hint):
+        return type(value) is hint
     if hint is bool:
         return isinstance(value, bool)
     if hint is int:
@@ -302,6 +315,8 @@ def type_words(hint: Any) -> str:
         return ", ".join(words[:-1]) + " or " + words[-1] if len(words) > 1 else words[0]
     if hint is type(None) or hint is None:
         return "None"
+    if _is_section(hint):
+        return f"a {display_name(hint)} (or a dict of its fields)"
     if hint is tuple or origin is tuple:
         args = typing.get_args(hint)
         if not args:
@@ -330,7 +345,9 @@ def _plural(hint: Any) -> str:
 
 def _normalise(hint: Any, value: Any) -> Any:
     """NumPy scalars and 0-d NumPy / JAX arrays as Python scalars; a list or 1-D array given for a
-    tuple field as a tuple."""
+    tuple field as a tuple; a dict given for a section as that section (:meth:`ConfigBase.from_dict`)."""
+    if _is_section(hint) and isinstance(value, Mapping):
+        return hint.from_dict(value)
     if isinstance(value, np.generic):
         return value.item()
     if type(value).__module__.split(".")[0] in ("numpy", "jax", "jaxlib") and np.ndim(value) == 0:
@@ -344,7 +361,23 @@ def _normalise(hint: Any, value: Any) -> Any:
     return value
 
 
-class ConfigBase:
+class _Flat(type):
+    """The metaclass of :class:`ConfigBase`: a config with sections also takes their fields by their
+    own names (or dotted paths) as keyword arguments, like :meth:`ConfigBase.replace`; and a config
+    class's annotations are read in the namespace its ``class`` statement ran in (:func:`_hints`)."""
+
+    def __init__(cls, name: str, bases: tuple[type, ...], namespace: dict[str, Any]) -> None:
+        super().__init__(name, bases, namespace)
+        frame = sys._getframe(1)  # the module (or function) body running the class statement
+        cls._defined_in = collections.ChainMap(frame.f_locals, frame.f_globals)
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        if kwargs and _sections(cls):
+            kwargs = _routed(cls, kwargs, None)
+        return super().__call__(*args, **kwargs)
+
+
+class ConfigBase(metaclass=_Flat):
     """Base of the frozen config dataclasses: rules checked on creation, JSON round trip, ``replace``.
 
     Subclasses are ``@dataclasses.dataclass(frozen=True)`` and set ``_RULES`` (and ``_MESSAGE`` for
@@ -364,29 +397,53 @@ class ConfigBase:
             normal = _normalise(hints.get(f.name), value)
             if normal is not value:
                 object.__setattr__(self, f.name, normal)
+        sections = _sections(type(self))
+        if sections:
+            _owners(type(self))  # refuses a section field named like another field
+        self._check_types(hints, sections)  # sections first: the rules may read their fields
         for r in self._RULES:
             r.check(self)
-        for f in dataclasses.fields(self):  # type: ignore[arg-type]
-            hint = hints.get(f.name)
-            value = getattr(self, f.name)
+        self._check_types(hints, [f.name for f in dataclasses.fields(self)])  # type: ignore[arg-type]
+
+    def _check_types(self, hints: dict[str, Any], names: Any) -> None:
+        for name in names:
+            hint = hints.get(name)
+            value = getattr(self, name)
             if hint is not None and not type_ok(hint, value):
                 raise ConfigError(
                     self._MESSAGE.format(
                         cls=display_name(type(self)),
-                        name=f.name,
+                        name=name,
                         value=_shown(value),
                         must=type_words(hint),
                         c=self,
                     )
                 )
 
+    def __repr__(self) -> str:
+        """``Name(field=value, ...)`` over the flat names, a section's fields in its place (the
+        dataclass ``repr`` of the same config before its fields moved into the section), for a
+        config declared with ``dataclass(repr=False)``."""
+        return f"{type(self).__qualname__}({', '.join(f'{k}={v!r}' for k, v in _flat_items(self))})"
+
     def to_dict(self) -> dict[str, Any]:
-        """The fields as a JSON-compatible dict (tuples become lists)."""
-        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+        """The fields as a JSON-compatible dict (tuples become lists), a section's fields in its
+        place by their own names (module docstring)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            if isinstance(value, ConfigBase) and f.name in _sections(type(self)):
+                out.update(value.to_dict())
+            else:
+                out[f.name] = _plain(value)
+        return out
 
     @classmethod
     def from_dict(cls: type[_C], data: Mapping[str, Any]) -> _C:
         """Rebuild from :meth:`to_dict` output; missing keys take their defaults.
+
+        A section's fields are read by their own names, by their dotted paths
+        (``"experimental.schedule_shift"``) or as a dict under the section's name.
 
         Raises:
           ConfigError: ``data`` is not a mapping, has unknown keys, or holds invalid values.
@@ -396,11 +453,9 @@ class ConfigBase:
                 f"{display_name(cls)}.from_dict needs a dict of fields (as written by to_dict), "
                 f"got {type(data).__name__}"
             )
-        _reject_unknown(cls, data)
         tuples = _tuple_fields(cls)
-        return cls(
-            **{k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in data.items()}
-        )
+        data = {k: tuple(v) if k in tuples and isinstance(v, list) else v for k, v in data.items()}
+        return cls(**_routed(cls, data, None))
 
     def fingerprint(self) -> dict[str, Any]:
         """The fields a checkpoint must have been written with to be resumed under this config:
@@ -420,9 +475,103 @@ class ConfigBase:
         return {k: v for k, v in self.to_dict().items() if k not in self._RESUMABLE}
 
     def replace(self: _C, **changes: Any) -> _C:
-        """A copy with some fields changed (validated again); unknown names raise ConfigError."""
-        _reject_unknown(type(self), changes)
-        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+        """A copy with some fields changed (validated again); unknown names raise ConfigError.
+
+        A section's field may be named by its own name or its dotted path
+        (``replace(**{"experimental.remat": True})``, as a command line's ``--set`` gives it).
+        """
+        return dataclasses.replace(self, **_routed(type(self), changes, self))  # type: ignore[type-var]
+
+
+def flat_names(cls: type) -> tuple[str, ...]:
+    """The names :meth:`ConfigBase.to_dict` writes for config class ``cls``: its fields, a section's
+    fields (recursively) in the section's place.
+
+    Raises:
+      ConfigError: a name occurs twice (a section field named like another field).
+
+    Example:
+      >>> from jmeshtex.dgts import Config
+      >>> flat_names(Config)[:3]
+      ('num_layers', 'start_features', 'min_features')
+    """
+    return tuple(_owners(cls))
+
+
+def _flat_items(config: Any) -> list[tuple[str, Any]]:
+    items = []
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        if f.name in _sections(type(config)):
+            items.extend(_flat_items(value))
+        else:
+            items.append((f.name, value))
+    return items
+
+
+def _routed(cls: type, changes: Mapping[str, Any], current: Any) -> dict[str, Any]:
+    """``changes`` (flat, dotted or whole-section names) as keyword arguments of ``cls`` (or of
+    :func:`dataclasses.replace` of ``current``), each section's changes applied to its value."""
+    owners, sections = _owners(cls), _sections(cls)
+    out: dict[str, Any] = {}
+    inner: dict[str, dict[str, Any]] = {}
+    unknown = []
+    for name, value in changes.items():
+        head, dot, rest = name.partition(".") if isinstance(name, str) else (name, "", "")
+        if dot and head in sections:
+            inner.setdefault(head, {})[rest] = value
+        elif not dot and name in sections:
+            out[name] = value
+        elif not dot and owners.get(name, "") is None:
+            out[name] = value
+        elif not dot and name in owners:
+            inner.setdefault(owners[name], {})[name] = value
+        else:
+            unknown.append(name)
+    if unknown:
+        raise ConfigError(
+            f"{display_name(cls)}: unknown fields {sorted(unknown, key=str)}; "
+            f"known: {sorted(owners)}"
+        )
+    for section, fields in inner.items():
+        base = out.get(section, getattr(current, section, None))
+        if isinstance(base, Mapping):
+            out[section] = sections[section].from_dict({**base, **fields})
+        elif isinstance(base, ConfigBase):
+            out[section] = base.replace(**fields)
+        else:
+            out[section] = sections[section].from_dict(fields)
+    return out
+
+
+@functools.cache
+def _sections(cls: type) -> dict[str, type]:
+    """The section fields of ``cls`` (annotated with a :class:`ConfigBase` class) and their classes."""
+    hints = _hints(cls)
+    return {
+        f.name: hints[f.name] for f in dataclasses.fields(cls) if _is_section(hints.get(f.name))
+    }
+
+
+@functools.cache
+def _owners(cls: type) -> dict[str, str | None]:
+    """Every flat name of ``cls`` and the section holding it (None: a field of ``cls`` itself)."""
+    owners: dict[str, str | None] = {}
+    sections = _sections(cls)
+    for f in dataclasses.fields(cls):
+        names = _owners(sections[f.name]) if f.name in sections else {f.name: None}
+        for name in names:
+            if name in owners:
+                raise ConfigError(
+                    f"{display_name(cls)}: the name {name!r} occurs twice among its fields and "
+                    "its sections' fields; a section's field names must be unique in the config"
+                )
+            owners[name] = f.name if f.name in sections else None
+    return owners
+
+
+def _is_section(hint: Any) -> bool:
+    return isinstance(hint, type) and issubclass(hint, ConfigBase)
 
 
 def stored_config(cls: type[_C], data: Mapping[str, Any], where: Any) -> _C:
@@ -445,7 +594,7 @@ def stored_config(cls: type[_C], data: Mapping[str, Any], where: Any) -> _C:
       jmeshtex._errors.ConfigError: m.npz: its stored surfacecnn.Config lacks fields [...
     """
     if isinstance(data, Mapping):
-        missing = sorted({f.name for f in dataclasses.fields(cls)} - set(data))  # type: ignore[arg-type]
+        missing = sorted(set(flat_names(cls)) - set(data))
         if missing:
             raise ConfigError(
                 f"{where}: its stored {display_name(cls)} lacks fields {missing} (written by "
@@ -454,20 +603,17 @@ def stored_config(cls: type[_C], data: Mapping[str, Any], where: Any) -> _C:
     return cls.from_dict(data)
 
 
-def _reject_unknown(cls: type, data: Mapping[str, Any]) -> None:
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - names, key=str)  # keys of any type (JSON gives strings)
-    if unknown:
-        raise ConfigError(f"{display_name(cls)}: unknown fields {unknown}; known: {sorted(names)}")
-
-
 def _plain(value: Any) -> Any:
     return [_plain(v) for v in value] if isinstance(value, (tuple, list)) else value
 
 
 @functools.cache
 def _hints(cls: type) -> dict[str, Any]:
-    return typing.get_type_hints(cls)
+    """``cls``'s resolved annotations, names looked up first where its ``class`` statement ran: a
+    section's class is then the one the config was defined with, even when ``sys.modules`` holds a
+    second copy of the module by now (pytest's ``--import-mode=importlib`` runs a module file of
+    the doctests again under its own name)."""
+    return typing.get_type_hints(cls, localns=getattr(cls, "_defined_in", None))
 
 
 @functools.cache

@@ -1,4 +1,4 @@
-"""Study: coherent field latents on Spot (``fldm.Config.phase_sync``; beyond the paper).
+"""Study: coherent field latents on Spot (``fldm.Config.experimental.phase_sync``; beyond the paper).
 
 Run::
 
@@ -112,7 +112,9 @@ def main(argv: list[str] | None = None) -> int:
         seconds = (time.perf_counter() - t) / 2
         free = np.ones(c0.num_vertices, bool) if pinned[0] is None else ~np.asarray(pinned[0])
         if pinned[0] is False:
-            free = spreads[0] < cfg.flat_spread  # report the flat rings' coherence all the same
+            free = (
+                spreads[0] < cfg.experimental.flat_spread
+            )  # report the flat rings' coherence all the same
 
         def coh(mask):
             return (
@@ -144,20 +146,22 @@ def main(argv: list[str] | None = None) -> int:
             for i, c in enumerate(copies)
         ]
         base = row(f"{decoder} none", vae, mus, [False, False], None)["psnr"]
-        flat = [s >= cfg.flat_spread for s in spreads]
+        flat = [s >= cfg.experimental.flat_spread for s in spreads]
         row(f"{decoder} flat", vae, mus, flat, base)
         row(f"{decoder} all", vae, mus, [None, None], base)
         if decoder == "log":
             for thr in (0.005, 0.08):
                 row(f"log flat_spread={thr}", vae, mus, [s >= thr for s in spreads], base)
     report.notes += [
-        "Beyond the paper: `fldm.Config(phase_sync=...)`; see the module docstring of "
+        "Beyond the paper: `fldm.Config.experimental.phase_sync`; see the module docstring of "
         "`studies/fldm_phase_sync.py` for the columns. `dpsnr` is the change of the decoded "
         "colours' PSNR against the same codec's `none` row; `lin_err_*` the best local "
         "gauge-equivariant linear denoiser's relative x̂₀ error (lower: more structure a denoiser "
         "can use)."
     ]
-    report.config = dict(vertices=args.vertices, flat_spread=cfg.flat_spread, knn=cfg.knn)
+    report.config = dict(
+        vertices=args.vertices, flat_spread=cfg.experimental.flat_spread, knn=cfg.knn
+    )
     report.write(args.out)
     return 0
 

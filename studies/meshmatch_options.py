@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sizes", default="16", help="target sizes in K vertices (16 and/or 64)")
     args = ap.parse_args(argv)
     changes = dict(item.split("=", 1) for item in args.fields)
-    cfg = Config(**{k: ast.literal_eval(v) for k, v in changes.items()})
+    cfg = Config.from_dict({k: ast.literal_eval(v) for k, v in changes.items()})
     report = Report(args.name)
     report.notes.append(f"Config overrides: {', '.join(args.fields)}")
     speed(report, cfg, [int(s) for s in args.sizes.split(",")])

@@ -18,18 +18,24 @@ from jmeshtex._config import (
     ConfigBase,
     cross_rule,
     display_name,
+    flat_names,
     integers,
     is_finite_number,
     is_int,
     rule,
+    stored_config,
     type_ok,
 )
 from jmeshtex.dgts import Config as DGTSConfig
 from jmeshtex.dgts import PrepareConfig
+from jmeshtex.dgts.core import Experimental as DGTSExperimental
 from jmeshtex.fl import Config as FLVAEConfig
 from jmeshtex.fl._io import FORMAT_VERSION as FL_FORMAT_VERSION
+from jmeshtex.fl.core import Experimental as FLExperimental
 from jmeshtex.fldm import Config as FLDMConfig
+from jmeshtex.fldm.core import Experimental as FLDMExperimental
 from jmeshtex.meshmatch import Config as MeshMatchConfig
+from jmeshtex.meshmatch.core import Experimental as MeshMatchExperimental
 from jmeshtex.surfacecnn import Config as SurfaceCNNConfig
 
 WEIGHTS = pathlib.Path(__file__).resolve().parents[1] / "jmeshtex" / "fl" / "weights"
@@ -264,6 +270,28 @@ def test_a_huge_integer_is_shown_by_its_length_in_the_message():
 # --- every config of the library uses the mechanism -----------------------------------------------
 
 ALL = [PrepareConfig, DGTSConfig, FLVAEConfig, FLDMConfig, MeshMatchConfig, SurfaceCNNConfig]
+#: the study switches of each method (``Config.experimental``), sections of the configs above
+SECTIONS = [DGTSExperimental, FLExperimental, FLDMExperimental, MeshMatchExperimental]
+ALL += SECTIONS
+
+
+def _fields(cls) -> list:
+    """The fields of ``cls`` that hold values (its sections are checked as configs of their own)."""
+    hints = typing.get_type_hints(cls)
+    return [f for f in dataclasses.fields(cls) if hints[f.name] not in SECTIONS]
+
+
+@pytest.mark.parametrize("cls", [c for c in ALL if c not in SECTIONS])
+def test_each_section_is_the_experimental_field_of_one_method_config(cls):
+    hints = typing.get_type_hints(cls)
+    sections = {name: hint for name, hint in hints.items() if hint in SECTIONS}
+    assert set(sections) <= {"experimental"}
+    for section in sections.values():
+        assert display_name(section) == display_name(cls).replace("Config", "Experimental")
+        assert cls().experimental == section()  # the switches' defaults are the method's
+        bad = _cases_of(section)[0]
+        with pytest.raises(ConfigError):  # a section's rules hold through its config
+            cls().replace(**{bad[1]: bad[2]})
 
 
 @pytest.mark.parametrize("cls", ALL)
@@ -327,7 +355,7 @@ def test_config_dicts_written_before_the_refactor_still_load():
     # ... and fields added since (the training-data and loss options) take their defaults, which are
     # the recipe that model was trained with (e.g. loss_normalization="mean")
     added = set(written) - set(_OLD_FL_CONFIG)
-    assert added and all(written[k] == getattr(FLVAEConfig(), k) for k in added), added
+    assert added and all(written[k] == FLVAEConfig().to_dict()[k] for k in added), added
     assert written["loss_normalization"] == "mean"
 
 
@@ -441,14 +469,17 @@ def _bad_for_kinds(hint) -> list:
     raise AssertionError(f"no bad values known for {hint!r}: extend _bad_for")
 
 
+def _cases_of(cls) -> list[tuple]:
+    hints = typing.get_type_hints(cls)
+    return [(cls, f.name, v) for f in _fields(cls) for v in _bad_for(hints[f.name])]
+
+
 def _cases():
     for cls in ALL:
-        hints = typing.get_type_hints(cls)
-        for f in dataclasses.fields(cls):
-            for value in _bad_for(hints[f.name]):
-                yield pytest.param(
-                    cls, f.name, value, id=f"{cls.__module__}.{cls.__name__}.{f.name}={value!r:.20}"
-                )
+        for _, name, value in _cases_of(cls):
+            yield pytest.param(
+                cls, name, value, id=f"{cls.__module__}.{cls.__name__}.{name}={value!r:.20}"
+            )
 
 
 @pytest.mark.parametrize("cls, name, value", list(_cases()))
@@ -463,7 +494,7 @@ def test_the_nonsense_table_covers_every_field_with_several_values():
     counts = {
         (cls.__name__, f.name): len(_bad_for(typing.get_type_hints(cls)[f.name]))
         for cls in ALL
-        for f in dataclasses.fields(cls)
+        for f in _fields(cls)
     }
     assert min(counts.values()) >= 5, counts
 
@@ -525,7 +556,10 @@ def test_fl_train_config_file_with_nonsense_is_a_one_line_error(tmp_path, capsys
 
 
 #: numeric fields where a negative value is meaningful
-_NEGATIVE_OK = {("fl.Config", "log_sigma_max"), ("fl.Config", "log_sigma_init")}  # log σ values
+_NEGATIVE_OK = {
+    ("fl.Config", "log_sigma_max"),
+    ("fl.Experimental", "log_sigma_init"),
+}  # log σ values
 
 
 def _numeric(hint) -> bool:
@@ -540,7 +574,7 @@ def _numeric(hint) -> bool:
     [
         (cls, f.name)
         for cls in ALL
-        for f in dataclasses.fields(cls)
+        for f in _fields(cls)
         if _numeric(typing.get_type_hints(cls)[f.name])
         and (display_name(cls), f.name) not in _NEGATIVE_OK
     ],
@@ -559,3 +593,282 @@ def test_surfacecnn_layer_names_are_vgg_layers(changes):
     with pytest.raises(ConfigError, match="VGG layer name"):
         SurfaceCNNConfig(**changes)
     assert SurfaceCNNConfig(layers=("conv5_4", "relu1_1", "pool5")).layers[0] == "conv5_4"
+
+
+# --- sections: a nested config (a method's ``experimental`` switches) --------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Switches(ConfigBase):
+    """A section: study switches with their own rules."""
+
+    shift: float = 1.0
+    sizes: tuple[int, ...] = (1, 2)
+
+    _RULES = (rule("shift", lambda x: x > 0, "> 0"),)
+
+
+@dataclasses.dataclass(frozen=True)
+class Run(ConfigBase):
+    """A config with a section in the middle of its fields."""
+
+    steps: int = 10
+    switches: Switches = Switches()
+    width: int = 4
+
+    _RESUMABLE = frozenset({"steps", "shift"})
+    _RULES = (cross_rule(lambda c: c.switches.shift < c.width, "shift must stay below width"),)
+
+
+@dataclasses.dataclass(frozen=True)
+class Flat(ConfigBase):
+    """``Run`` as it was before its switches moved into a section."""
+
+    steps: int = 10
+    shift: float = 1.0
+    sizes: tuple[int, ...] = (1, 2)
+    width: int = 4
+
+    _RESUMABLE = frozenset({"steps", "shift"})
+
+
+@pytest.mark.parametrize(
+    "changes", [{}, {"shift": 2.5}, {"sizes": (3,), "width": 9}, {"steps": 7, "shift": 0.5}]
+)
+def test_a_section_writes_the_same_dict_and_fingerprint_as_the_flat_config_it_replaced(changes):
+    run, flat = Run().replace(**changes), Flat(**changes)
+    assert run.to_dict() == flat.to_dict()
+    assert list(run.to_dict()) == ["steps", "shift", "sizes", "width"]  # the section in its place
+    assert run.fingerprint() == flat.fingerprint() and "shift" not in run.fingerprint()
+    assert Run.from_dict(flat.to_dict()) == run
+    assert Run.from_dict(json.loads(json.dumps(run.to_dict()))) == run
+
+
+def test_a_section_field_is_set_by_its_name_its_dotted_path_or_the_whole_section():
+    want = Run(switches=Switches(shift=2.0))
+    assert Run().replace(shift=2.0) == want
+    assert Run().replace(**{"switches.shift": 2.0}) == want
+    assert Run().replace(switches=Switches(shift=2.0)) == want
+    assert Run().replace(switches={"shift": 2.0}) == want
+    assert Run(switches={"shift": 2.0}) == want
+    assert Run.from_dict({"shift": 2.0}) == want
+    assert Run.from_dict({"switches.shift": 2.0}) == want
+    assert Run.from_dict({"switches": {"shift": 2.0}}) == want
+    # a name changes one field: the rest of the section is kept
+    two = Run().replace(sizes=[5, 6]).replace(shift=3.0)
+    assert two.switches == Switches(shift=3.0, sizes=(5, 6)) and two.switches.sizes == (5, 6)
+    # a whole section and a name of one of its fields: the name wins, the rest from the section
+    both = Run.from_dict({"switches": {"sizes": [7]}, "shift": 0.5})
+    assert both.switches == Switches(shift=0.5, sizes=(7,))
+    assert hash(want) == hash(Run().replace(shift=2.0)) and len({want, Run(), want}) == 2
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: Run().replace(shift=0.0), "Switches.shift must be > 0, got 0.0"),
+        (lambda: Run.from_dict({"switches.shift": -1}), "Switches.shift must be > 0, got -1"),
+        (lambda: Run(switches={"shift": "x"}), "Switches.shift must be > 0, got 'x'"),
+        (lambda: Run().replace(shift=5.0), "shift must stay below width"),
+        (
+            lambda: Run(switches=Flat()),
+            "Run.switches must be a Switches (or a dict of its fields), got Flat(",
+        ),
+        (lambda: Run(switches=None), "Run.switches must be a Switches (or a dict of its fields)"),
+        (
+            lambda: Run().replace(shfit=2.0),
+            "Run: unknown fields ['shfit']; known: ['shift', 'sizes', 'steps', 'width']",
+        ),
+        (lambda: Run.from_dict({"switches.bogus": 1}), "Switches: unknown fields ['bogus']"),
+        (lambda: Run.from_dict({"width.shift": 1}), "Run: unknown fields ['width.shift']"),
+        (lambda: Run.from_dict({"switches": {"bogus": 1}}), "Switches: unknown fields ['bogus']"),
+    ],
+)
+def test_a_section_is_refused_with_a_message_naming_the_field(make, message):
+    with pytest.raises(ConfigError) as err:
+        make()
+    assert str(err.value).startswith(message), str(err.value)
+
+
+@dataclasses.dataclass(frozen=True)
+class Clash(ConfigBase):
+    """A section field named like a field of the config: refused (the flat names would clash)."""
+
+    shift: float = 1.0
+    switches: Switches = Switches()
+
+
+def test_a_section_field_named_like_another_field_is_refused():
+    with pytest.raises(ConfigError, match="'shift' occurs twice"):
+        Clash()
+    assert flat_names(Run) == ("steps", "shift", "sizes", "width")
+
+
+def test_a_stored_config_lacking_a_section_field_is_refused():
+    stored = Run().to_dict()
+    assert stored_config(Run, stored, "m.npz") == Run()
+    del stored["sizes"]
+    with pytest.raises(ConfigError, match=r"m.npz: its stored Run lacks fields \['sizes'\]"):
+        stored_config(Run, stored, "m.npz")
+
+
+# --- what a config writes stays the same for the same values ------------------------------------------
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+#: sha256 (first 16 hex digits) of ``json.dumps(d, sort_keys=True)`` for ``d`` the fingerprint and
+#: the to_dict of each method's default config and presets, computed on main before the study
+#: switches moved into ``experimental`` sections: checkpoints and model files written before keep
+#: loading and resuming
+PINNED = {
+    "fl": {
+        "__init__": ("ec5ac7bb8ed1a165", "c4ae774675b20047"),
+        "paper": ("8d20184db973292a", "4dac6f84f7a51971"),
+        "small": ("7b664e2b064e97c3", "154d0e7cbd0b97f6"),
+    },
+    "fldm": {
+        "__init__": ("eb6bc929f31a043b", "4ac7af7301096c33"),
+        "paper": ("cea85ad7e71d311e", "5621602ee6b53b36"),
+        "cpu": ("dfb975cffdd01bdd", "b237a9ed75b95d53"),
+        "tiny": ("110e8cfabcf4f5df", "eaebbf78f4fa7d50"),
+        "demo": ("b28589f590b7f79e", "6bef817857263fc0"),
+    },
+    "meshmatch": {"__init__": ("cc0d7bf8e1ad1f33", "cc0d7bf8e1ad1f33")},
+    "surfacecnn": {
+        "__init__": ("82dfa5dc4fb9e26d", "c03f17acfa91dfd3"),
+        "paper": ("8923bbacd2594412", "fd8e7914ddb5cb29"),
+        "cpu": ("82dfa5dc4fb9e26d", "c03f17acfa91dfd3"),
+        "tiny": ("30e5aef6ce63de9c", "d65a414fb70d236d"),
+    },
+    "dgts": {
+        "__init__": ("02d26aa8e23476dd", "92fb9f84f8135ce7"),
+        "tiny": ("c877ef8fdd195be2", "59eb2f53cc124837"),
+    },
+}
+
+
+def _digest(d: dict) -> str:
+    import hashlib
+
+    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+
+@pytest.mark.parametrize(
+    "method, preset", [(m, p) for m, presets in PINNED.items() for p in presets]
+)
+def test_fingerprints_and_stored_configs_are_unchanged(method, preset):
+    import importlib
+
+    cls = importlib.import_module(f"jmeshtex.{method}").Config
+    config = cls() if preset == "__init__" else getattr(cls, preset)()
+    assert (_digest(config.fingerprint()), _digest(config.to_dict())) == PINNED[method][preset]
+    assert list(config.to_dict()) == list(flat_names(cls))
+
+
+def _committed_models() -> list[pathlib.Path]:
+    """Every ``.npz`` in the repository whose header says it is a jmeshtex model."""
+    from jmeshtex.io._model_file import HEADER
+
+    found = []
+    for path in sorted(ROOT.glob("**/*.npz")):
+        if ".venv" in path.parts or "runs" in path.parts:
+            continue
+        with np.load(path) as z:
+            if HEADER in z.files:
+                found.append(path.relative_to(ROOT))
+    return found
+
+
+def test_the_committed_model_files_are_found():
+    names = {str(p) for p in _committed_models()}
+    assert {
+        "jmeshtex/fl/weights/fl_vae.npz",
+        "jmeshtex/fl/weights/fl_vae_barycentric.npz",
+        "jmeshtex/dgts/weights/knobs.npz",
+        "jmeshtex/fldm/weights/spot/model.npz",
+    } <= names, names
+
+
+@pytest.mark.parametrize("rel", _committed_models(), ids=str)
+def test_every_committed_model_file_loads_with_its_stored_config(rel):
+    import importlib
+
+    from jmeshtex.io._model_file import HEADER
+
+    path = ROOT / rel
+    with np.load(path) as z:
+        header = json.loads(str(z[HEADER]))
+    method = importlib.import_module(header["kind"].rsplit(".", 1)[0])
+    model = method.load(path if method.__name__ != "jmeshtex.fldm" else path.parent)
+    written = model.config.to_dict()
+    # every stored value reads back as stored (an older DGTS file lacks fields added since,
+    # which dgts.load fills with the values it was trained with)
+    assert {k: written[k] for k in header["config"]} == header["config"]
+
+
+def test_the_fl_config_repr_is_unchanged():
+    # the FLDM copies' cache names its encoder by the FL-VAE config's repr (fldm.fl_vae_encoder):
+    # the flat repr keeps the caches of runs in progress valid (hashes computed before the move)
+    from jmeshtex.fl import load_pretrained
+
+    configs = [FLVAEConfig(), FLVAEConfig.small()]
+    configs += [load_pretrained(decoder=d).config for d in ("log", "barycentric")]
+    want = ["ec0f9ce7013923cc", "1d8ae3dde7317d99", "9158dd451d658af1", "0d81f6336cb55fd9"]
+    assert [_digest_text(repr(c)) for c in configs] == want
+    assert repr(FLVAEConfig()).startswith("Config(latent_dim=8, num_samples=64,")
+
+
+def _digest_text(text: str) -> str:
+    import hashlib
+
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+_SECTIONED_MODULE = """
+from __future__ import annotations
+
+import dataclasses
+
+from jmeshtex._config import ConfigBase
+
+
+@dataclasses.dataclass(frozen=True)
+class Knobs(ConfigBase):
+    shift: float = 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Job(ConfigBase):
+    width: int = 8
+    knobs: Knobs = Knobs()
+"""
+
+
+def test_a_second_copy_of_a_config_module_leaves_the_first_ones_section_type(tmp_path, monkeypatch):
+    # pytest --import-mode=importlib runs a module file of the doctests a second time under its
+    # own name, so sys.modules names the copy when the first module's config is first built
+    import importlib
+    import importlib.util
+    import sys
+
+    (tmp_path / "h59_sectioned.py").write_text(_SECTIONED_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    first = importlib.import_module("h59_sectioned")
+    spec = importlib.util.spec_from_file_location("h59_sectioned", first.__file__)
+    copy = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "h59_sectioned", copy)
+    spec.loader.exec_module(copy)
+    assert copy.Knobs is not first.Knobs
+    assert first.Job(shift=2.0).knobs == first.Knobs(shift=2.0)
+    assert copy.Job(shift=3.0).knobs == copy.Knobs(shift=3.0)
+    with pytest.raises(ConfigError, match=r"Job.knobs must be a Knobs"):
+        first.Job(knobs=copy.Knobs())
+
+
+def test_the_constructor_takes_a_section_field_by_its_name():
+    assert Run(shift=2.0, width=5) == Run(switches=Switches(shift=2.0), width=5)
+    assert Run(**{"switches.sizes": [3]}).switches.sizes == (3,)
+    with pytest.raises(ConfigError, match=r"Run: unknown fields \['shfit'\]"):
+        Run(shfit=2.0)
+    with pytest.raises(TypeError):  # a config without sections keeps the dataclass's own check
+        Flat(bogus=1)

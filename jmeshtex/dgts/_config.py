@@ -124,6 +124,48 @@ FAKE_INPUTS = ("sampled", "reconstructed")
 
 
 @dataclasses.dataclass(frozen=True)
+class Experimental(ConfigBase):
+    """DGTS switches beyond the paper, and the official code's parity switch: ``Config.experimental``.
+
+    The defaults are the reference code's; the studies (``docs/results.md``, DGTS) and
+    :func:`~jmeshtex.dgts.from_official_state_dict` set them. Their names are unique across
+    :class:`~jmeshtex.dgts.Config`, so ``Config(official_axes=True)`` and ``config.replace(fake_inputs=...)`` reach
+    them, and a model file stores them among the config's own fields.
+
+    Attributes:
+      fixed_noise_levels: the reconstruction's noise is fixed (drawn once, kept in the model) at
+        levels ``0 … fixed_noise_levels − 1`` and zero above. The reference: 1 (``z*`` at the
+        coarsest level only). Beyond the paper: when the coarsest levels carry no texture
+        (``training_meshes(coarse_levels=K)``), ``K + 1`` makes the first textured level
+        reconstruct its layout from noise of its own, so its generator learns to lay the texture
+        out from noise rather than to key it to the template's triangles.
+      fake_inputs: what the frozen levels ``0 … L−1`` make the critic's fakes of level ``L`` from:
+        ``"sampled"`` (the reference's: fresh noise at every level, so level ``L`` sees coarse
+        shapes it cannot correct) or ``"reconstructed"`` (the reconstruction's noise below ``L``
+        and fresh noise at level ``L`` only: the critic judges the
+        detail level ``L`` adds to the training mesh's own coarse shape, as a transfer feeds it a
+        real target; beyond the paper).
+      official_axes: True: the generator's in-plane displacement coefficient is along ``x × n``
+        (the official code's axis) instead of jmeshtex's ``n × x``; set by
+        :func:`~jmeshtex.dgts.from_official_state_dict` so official weights run unchanged
+        (:attr:`~jmeshtex.dgts.Config.y_sign`).
+
+    Example:
+      >>> Config(fake_inputs="reconstructed").experimental.fake_inputs
+      'reconstructed'
+    """
+
+    fixed_noise_levels: int = 1
+    fake_inputs: str = "sampled"
+    official_axes: bool = False
+
+    _RULES = (
+        rule("fixed_noise_levels", lambda x: x >= 1, ">= 1"),
+        rule("fake_inputs", lambda x: x in FAKE_INPUTS, f"one of {FAKE_INPUTS}"),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
 class Config(ConfigBase):
     """The hierarchical WGAN-GP of DGTS (§3.4) with the reference code's defaults.
 
@@ -148,30 +190,19 @@ class Config(ConfigBase):
         WGAN-GP default would be 10).
       reconstruction_start: first level using the fixed noise z* for the reconstruction; below it
         the reconstruction uses fresh noise (the reference uses 1).
-      fixed_noise_levels: the reconstruction's noise is fixed (drawn once, kept in the model) at
-        levels ``0 … fixed_noise_levels − 1`` and zero above. The reference: 1 (``z*`` at the
-        coarsest level only). Beyond the paper: when the coarsest levels carry no texture
-        (``training_meshes(coarse_levels=K)``), ``K + 1`` makes the first textured level
-        reconstruct its layout from noise of its own, so its generator learns to lay the texture
-        out from noise rather than to key it to the template's triangles.
-      fake_inputs: what the frozen levels ``0 … L−1`` make the critic's fakes of level ``L`` from:
-        ``"sampled"`` (the reference's: fresh noise at every level, so level ``L`` sees coarse
-        shapes it cannot correct) or ``"reconstructed"`` (the reconstruction's noise below ``L``
-        and fresh noise at level ``L`` only: the critic judges the
-        detail level ``L`` adds to the training mesh's own coarse shape, as a transfer feeds it a
-        real target; beyond the paper).
       steps: training steps per level (2000); one step is ``discriminator_steps`` critic updates
         followed by ``generator_steps`` generator updates.
       negative_slope: leaky-ReLU slope (0.2).
       eps: instance-norm regulariser (1e-5).
-      official_axes: True: the generator's in-plane displacement coefficient is along ``x × n``
-        (the official code's axis) instead of jmeshtex's ``n × x``; set by
-        :func:`~jmeshtex.dgts.from_official_state_dict` so official weights run unchanged
-        (:attr:`y_sign`).
       shared_levels: levels ``0 … shared_levels − 1`` are padded (masked faces and vertices, which
         change no output) to the size of level ``shared_levels − 1``, so that, when their widths
         agree, they run one compiled training step instead of one each (0 or 1: no padding). Worth
         it for small, equal-width configurations (tests, demo), where compilation dominates.
+      experimental: the switches beyond the paper and the parity switch
+        (:class:`~jmeshtex.dgts.core.Experimental`: the fixed noise's levels, the critic's fakes,
+        the official in-plane axis); each may also be given by its own name to the constructor,
+        ``replace``, ``from_dict`` and :meth:`tiny`, and a model file stores them among
+        the fields above.
       checkpoint_every: with ``train(checkpoint_dir=)``, also checkpoint every this many steps
         within a level (rounded up to a multiple of ``CHUNK``); None: only after each level. A
         resumed run may change it.
@@ -198,14 +229,12 @@ class Config(ConfigBase):
     reconstruction_weight: float = 5.0
     penalty_weight: float = 0.1
     reconstruction_start: int = 1
-    fixed_noise_levels: int = 1
-    fake_inputs: str = "sampled"
     steps: int = 2000
     negative_slope: float = 0.2
     eps: float = 1e-5
     shared_levels: int = 0
-    official_axes: bool = False
     checkpoint_every: int | None = None
+    experimental: Experimental = Experimental()
 
     #: what a resumed run may change (:meth:`~jmeshtex.ConfigBase.fingerprint`)
     _RESUMABLE = frozenset({"checkpoint_every"})
@@ -213,8 +242,7 @@ class Config(ConfigBase):
     _RULES = (
         rule("num_layers", lambda x: x >= 3, ">= 3 (input, one hidden, output)"),
         rule(
-            "start_features min_features learning_rate_decay_every generator_steps "
-            "fixed_noise_levels",
+            "start_features min_features learning_rate_decay_every generator_steps",
             lambda x: x >= 1,
             ">= 1",
         ),
@@ -227,7 +255,6 @@ class Config(ConfigBase):
         rule("beta1 beta2", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("learning_rate_decay", lambda x: 0 < x <= 1, "in (0, 1]"),
         rule("reconstruction_start", lambda x: x >= 0, ">= 0"),
-        rule("fake_inputs", lambda x: x in FAKE_INPUTS, f"one of {FAKE_INPUTS}"),
         rule("negative_slope", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("eps", lambda x: x > 0, "> 0"),
         rule("checkpoint_every", lambda x: x is None or x >= 1, ">= 1 or None"),
@@ -262,13 +289,13 @@ class Config(ConfigBase):
 
     @property
     def y_sign(self) -> float:
-        """The sign of the in-plane displacement coefficient (−1 with :attr:`official_axes`, else 1).
+        """The sign of the in-plane displacement coefficient (−1 with :attr:`~jmeshtex.dgts.core.Experimental.official_axes`, else 1).
 
         Example:
           >>> Config().y_sign, Config(official_axes=True).y_sign
           (1.0, -1.0)
         """
-        return -1.0 if self.official_axes else 1.0
+        return -1.0 if self.experimental.official_axes else 1.0
 
     def level_features(self, level: int, *, generator: bool) -> tuple[int, ...]:
         """Output widths of the weight layers at ``level`` (embedding first, 3 or 1 last).

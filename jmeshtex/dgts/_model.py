@@ -49,7 +49,7 @@ class Model:
       generators: one :class:`~jmeshtex.ops.FaceConvStackParams` per trained level, coarsest first.
       discriminators: the matching critics (kept to warm-start the next level).
       z_star: ``[V_0, 3]`` float32 fixed reconstruction noise of the coarsest level.
-      z_star_finer: the fixed reconstruction noise of levels ``1 … config.fixed_noise_levels − 1``
+      z_star_finer: the fixed reconstruction noise of levels ``1 … config.experimental.fixed_noise_levels − 1``
         (``[V_l, 3]`` float32 each, as far as the training meshes went); empty by default.
 
     Example:
@@ -75,7 +75,7 @@ class Model:
 
     def reconstruction_noise(self, sizes: Sequence[int]) -> list[np.ndarray]:
         """The training reconstruction's noise on levels of ``sizes`` vertices: ``z*`` at level 0,
-        :attr:`z_star_finer` up to ``config.fixed_noise_levels − 1``, zero above.
+        :attr:`z_star_finer` up to ``config.experimental.fixed_noise_levels − 1``, zero above.
 
         Raises:
           InputError: ``sizes[0]`` is not ``z*``'s vertex count (not the training template), or a
@@ -94,14 +94,14 @@ class Model:
             )
         noise = [z]
         for level, size in enumerate(sizes[1:], start=1):
-            if level >= self.config.fixed_noise_levels:
+            if level >= self.config.experimental.fixed_noise_levels:
                 noise.append(np.zeros((size, 3), np.float32))
                 continue
             fixed = self.z_star_finer[level - 1] if level <= len(self.z_star_finer) else None
             if fixed is None or np.shape(fixed) != (size, 3):
                 raise InputError(
                     f"the model reconstructs level {level} from fixed noise "
-                    f"(fixed_noise_levels={self.config.fixed_noise_levels}) but holds "
+                    f"(fixed_noise_levels={self.config.experimental.fixed_noise_levels}) but holds "
                     f"{'none' if fixed is None else np.shape(fixed)} for its {size} vertices: "
                     "pass the training template, or a model saved by this jmeshtex"
                 )

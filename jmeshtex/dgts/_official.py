@@ -168,7 +168,7 @@ def _official_level_arrays(layers: Mapping[int, dict], level: int) -> list[tuple
 def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:
     """The inverse of :func:`~jmeshtex.dgts.from_official_state_dict`: a model's generators under official names.
 
-    Only a model with ``config.official_axes`` (a converted one, or one trained with that flag) has
+    Only a model with ``config.experimental.official_axes`` (a converted one, or one trained with that flag) has
     an exact official equivalent: with jmeshtex's axis the ``y`` displacement would need a min
     where the official network takes a max.
 
@@ -178,7 +178,7 @@ def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:
       ``SingleMeshGenerator.load_state_dict`` (its generator part).
 
     Raises:
-      ConfigError: ``model.config.official_axes`` is False.
+      ConfigError: ``model.config.experimental.official_axes`` is False.
 
     Example:
       >>> import jax
@@ -188,7 +188,7 @@ def to_official_state_dict(model: Model) -> dict[str, np.ndarray]:
       >>> sorted(to_official_state_dict(m))[:2]
       ['levels.0.layers.0.0.conv.bias', 'levels.0.layers.0.0.conv.weight']
     """
-    if not model.config.official_axes:
+    if not model.config.experimental.official_axes:
         raise ConfigError(
             "to_official_state_dict: the model uses jmeshtex's in-plane axis (n × x); only a model "
             "with Config(official_axes=True) has an exact official equivalent"
@@ -269,7 +269,7 @@ def from_official_state_dict(
       >>> gs = tuple(init_level(c, i, generator=True, key=jax.random.key(i)) for i in range(2))
       >>> m = Model(c, gs, gs, np.zeros((12, 3), np.float32))
       >>> back = from_official_state_dict(to_official_state_dict(m), config=c)
-      >>> back.num_levels, back.config.official_axes, bool(np.allclose(back.generators[1].embed.weight, gs[1].embed.weight))
+      >>> back.num_levels, back.config.experimental.official_axes, bool(np.allclose(back.generators[1].embed.weight, gs[1].embed.weight))
       (2, True, True)
     """
     config = (Config() if config is None else config).replace(official_axes=True)

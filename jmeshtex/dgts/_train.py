@@ -252,7 +252,7 @@ def level_batch(
       key: PRNG key of the chunk's draws.
       config, chunk: the training config and the steps of the chunk.
       z_finer: ``[R, V_l, 3]`` each reference's fixed reconstruction noise of levels ``1, 2, …``
-        below ``config.fixed_noise_levels`` (zero noise at the levels it does not reach).
+        below ``config.experimental.fixed_noise_levels`` (zero noise at the levels it does not reach).
       noise, alpha: given, used instead of the draws from ``key`` (to replay another
         implementation's draws, e.g. the official code's): ``noise[l]`` the fresh
         noise of level ``l = 0 … L``, ``[N, V_l, 3]`` already scaled by the amplitude, rows as
@@ -278,7 +278,7 @@ def level_batch(
     rows = jnp.concatenate([jnp.repeat(ref, D + G), rec_ref])  # each row's reference
     # "reconstructed": every row's frozen levels run on the reconstruction's noise, so they run
     # once per reference
-    shared = c.fake_inputs == "reconstructed"
+    shared = c.experimental.fake_inputs == "reconstructed"
     v = templates.astype(dtype) if shared else templates.astype(dtype)[rows]
 
     def rec_noise(level: int):  # the reconstruction's noise of every reference at ``level``
@@ -548,7 +548,7 @@ def _level_state(config: Config, level: int, g, d) -> dict:
 def _checkpoint_like(config: Config, meta: dict, sizes: Sequence[int]) -> dict:
     """The structure, shapes and dtypes of the checkpoint ``meta`` describes (for restoring);
     ``sizes``: the training levels' vertex counts."""
-    finer = sizes[1 : config.fixed_noise_levels]
+    finer = sizes[1 : config.experimental.fixed_noise_levels]
     like = {"model": model_like(config, int(meta["completed_levels"]), sizes[0], finer)}
     if meta["level_steps"]:
         level = int(meta["completed_levels"])
@@ -734,7 +734,7 @@ class _Hierarchy:
                     amplitude
                     * jax.random.normal(_finer_key(k_z, level, 0), (V[level], 3), jnp.float32)
                 )
-                for level in range(1, min(config.fixed_noise_levels, len(V)))
+                for level in range(1, min(config.experimental.fixed_noise_levels, len(V)))
             ),
             snap_every=None if snapshot_every is None else -(-int(snapshot_every) // CHUNK),
             chunk_step=jax.jit(functools.partial(_chunk_step, config=config)),

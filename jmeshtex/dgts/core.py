@@ -5,6 +5,8 @@ Everything here is a pure function or a plain record over the arrays of one leve
 the method's contract (``Config``, ``Model``, ``train`` / ``save`` / ``load``, the task verbs) lives
 one level up, in :mod:`jmeshtex.dgts`.
 
+- Switches beyond the paper and the official parity switch: :class:`Experimental`
+  (``Config.experimental``).
 - Multi-scale fitting (§3.3): :func:`fit_level` (one level of the template fit),
   :func:`sample_points`.
 - Networks (§3.4): :class:`Generator` / :class:`Discriminator` (one level's parameters),
@@ -29,6 +31,7 @@ one level up, in :mod:`jmeshtex.dgts`.
 """
 
 from ._baselines import scores_beside_baselines as scores_beside_baselines
+from ._config import Experimental as Experimental
 from ._multiscale import fit_level as fit_level
 from ._multiscale import sample_points as sample_points
 from ._networks import Discriminator as Discriminator

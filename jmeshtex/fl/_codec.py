@@ -108,7 +108,7 @@ def encode(
         mesh.faces,
         model.config.num_samples,
         rng=_numpy_rng(key),
-        center=model.config.token == "centre",
+        center=model.config.experimental.token == "centre",
     )
     if colors.vertices is mesh.vertices or (
         colors.faces.shape == mesh.faces.shape
@@ -161,11 +161,11 @@ def encode_one_rings(
         raise InputError(
             f"samples must be OneRingSamples (see jmeshtex.fl.one_ring_samples), got {type(samples).__name__}"
         )
-    if (model.config.token == "centre") != bool(samples.centered):
+    if (model.config.experimental.token == "centre") != bool(samples.centered):
         raise InputError(
-            f"the model's token is {model.config.token!r}, so its samples must "
-            f"{'' if model.config.token == 'centre' else 'not '}have the ring's centre in column 0: "
-            f"draw them with one_ring_samples(..., center={model.config.token == 'centre'})"
+            f"the model's token is {model.config.experimental.token!r}, so its samples must "
+            f"{'' if model.config.experimental.token == 'centre' else 'not '}have the ring's centre in column 0: "
+            f"draw them with one_ring_samples(..., center={model.config.experimental.token == 'centre'})"
         )
     log, mask, rgb = np.asarray(samples.log), np.asarray(samples.mask), np.asarray(rgb)
     if rgb.shape != (*log.shape, 3):

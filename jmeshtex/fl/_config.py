@@ -59,29 +59,16 @@ LOSS_NORMALIZATIONS = ("mean", "paper")
 
 
 @dataclasses.dataclass(frozen=True)
-class Config(ConfigBase):
-    """Every hyper-parameter of the FL-VAE, its one-ring sampling and its planar pre-training.
+class Experimental(ConfigBase):
+    """The study switches of the FL-VAE, beyond the shipped recipe: ``Config.experimental``.
 
-    Model (paper §4, eq. 21–28):
+    Their defaults are the shipped models' recipe (``token`` excepted: the reference's, which the
+    shipped models were converted to); the studies (``docs/results.md``) set them. Their names are
+    unique across :class:`~jmeshtex.fl.Config`, so ``Config.small(free_bits=0.1)``,
+    ``config.replace(vn_norm="channel")`` and ``--set token=ring_mean`` reach them, and a model
+    file stores them among the config's own fields.
 
     Attributes:
-      latent_dim: ``d``, complex latent channels per vertex (paper: 8).
-      num_samples: ``S``, area-uniform samples per one-ring (paper: 64).
-      features: width ``C`` of the encoder's real sample MLP and complex set features.
-      num_heads: attention heads of each VN-Transformer block (``features`` divisible by it).
-      num_blocks: VN-Transformer blocks over {samples, token}.
-      decoder_features: width of the decoder MLP.
-      decoder_layers: dense layers of the decoder MLP, SiLU between them (paper: 5).
-      decoder: ``"log"`` (the paper's FL-VAE: invariants plus ``log_p(q)·conj(z)``, eq. 18) or
-        ``"barycentric"`` (the "FL-VAE (Bary.)" ablation: invariants interpolated across the triangle,
-        no log coordinates).
-      kl_weight: ``λ`` of the KL term (paper: 0.01).
-      loss_normalization: ``"paper"`` (eq. 26–28 as printed: the L1 norm over RGB and the KL summed
-        over the ``d`` channels, each averaged over samples / vertices) or ``"mean"`` (L1 and KL
-        also averaged over RGB and channels, which weakens ``λ`` by ``3/d``: the recipe of the shipped
-        model, kept as the default so its stored config reads as trained). The presets use ``"paper"``.
-      log_sigma_max: upper clip of ``log σ`` (keeps ``exp`` finite early in training).
-      delta: ``δ > 0`` of the layer norms and vector-neuron layers.
       token: the token's reference colour: ``"centre"`` (the reference's: the colour at the vertex
         itself, sample 0 of :func:`~jmeshtex.fl.core.one_ring_samples` with ``center=True``, which
         is also a reconstruction target) or ``"ring_mean"`` (the mean sample colour; the shipped
@@ -107,6 +94,61 @@ class Config(ConfigBase):
         reference's zero-initialised log-variance head, the prior's width).
       boundary_in_loss: False drops the one-rings of boundary vertices (half-rings, never met on
         closed meshes) from the reconstruction and KL terms (True: the shipped models' recipe).
+
+    Example:
+      >>> Config().replace(vn_norm="channel").experimental.vn_norm
+      'channel'
+    """
+
+    token: str = "centre"
+    log_objective: str = "blended"
+    vn_norm: str = "element"
+    attention_linear: bool = False
+    kl_warmup_steps: int = 0
+    free_bits: float = 0.0
+    boundary_in_loss: bool = True
+    log_sigma_init: float = -2.0
+
+    _MESSAGE = "{name} must be {must}, got {value!r}"
+    _RULES = (
+        rule("token", lambda x: x in TOKENS, f"one of {TOKENS}"),
+        rule("log_objective", lambda x: x in LOG_OBJECTIVES, f"one of {LOG_OBJECTIVES}"),
+        rule("vn_norm", lambda x: x in VN_NORMS, f"one of {VN_NORMS}"),
+        rule("kl_warmup_steps", lambda x: x >= 0, ">= 0 (0: no KL warm-up)"),
+        rule("free_bits", lambda x: x >= 0, ">= 0 nats per channel (0: off)"),
+    )
+
+
+#: ``repr`` flat (:class:`~jmeshtex._config.ConfigBase`): the FLDM copies' cache names the encoder by it
+@dataclasses.dataclass(frozen=True, repr=False)
+class Config(ConfigBase):
+    """Every hyper-parameter of the FL-VAE, its one-ring sampling and its planar pre-training.
+
+    Model (paper §4, eq. 21–28):
+
+    Attributes:
+      latent_dim: ``d``, complex latent channels per vertex (paper: 8).
+      num_samples: ``S``, area-uniform samples per one-ring (paper: 64).
+      features: width ``C`` of the encoder's real sample MLP and complex set features.
+      num_heads: attention heads of each VN-Transformer block (``features`` divisible by it).
+      num_blocks: VN-Transformer blocks over {samples, token}.
+      decoder_features: width of the decoder MLP.
+      decoder_layers: dense layers of the decoder MLP, SiLU between them (paper: 5).
+      decoder: ``"log"`` (the paper's FL-VAE: invariants plus ``log_p(q)·conj(z)``, eq. 18) or
+        ``"barycentric"`` (the "FL-VAE (Bary.)" ablation: invariants interpolated across the triangle,
+        no log coordinates).
+      kl_weight: ``λ`` of the KL term (paper: 0.01).
+      loss_normalization: ``"paper"`` (eq. 26–28 as printed: the L1 norm over RGB and the KL summed
+        over the ``d`` channels, each averaged over samples / vertices) or ``"mean"`` (L1 and KL
+        also averaged over RGB and channels, which weakens ``λ`` by ``3/d``: the recipe of the shipped
+        model, kept as the default so its stored config reads as trained). The presets use ``"paper"``.
+      log_sigma_max: upper clip of ``log σ`` (keeps ``exp`` finite early in training).
+      delta: ``δ > 0`` of the layer norms and vector-neuron layers.
+      experimental: the study switches beyond the shipped recipe and the paper
+        (:class:`~jmeshtex.fl.core.Experimental`: the token, the log decoder's objective, the
+        VN norm, the attention's linear path, KL warm-up and free bits, the initial ``log σ``,
+        boundary rings in the loss); each may also be given by its own name to ``replace``,
+        ``from_dict`` and the presets, and a model file stores them among the fields above.
 
     Planar pre-training (supplement §9.1). Two data modes: with ``pixels_per_vertex = 0`` (the
     shipped model's) a fixed pool of ``meshes_per_image`` meshes of ``min_vertices``–``max_vertices``
@@ -164,14 +206,7 @@ class Config(ConfigBase):
     loss_normalization: str = "mean"
     log_sigma_max: float = 2.0
     delta: float = 1e-6
-    token: str = "centre"
-    log_objective: str = "blended"
-    vn_norm: str = "element"
-    attention_linear: bool = False
-    kl_warmup_steps: int = 0
-    free_bits: float = 0.0
-    boundary_in_loss: bool = True
-    log_sigma_init: float = -2.0
+    experimental: Experimental = Experimental()
     # planar pre-training
     min_vertices: int = 64
     max_vertices: int = 192
@@ -211,15 +246,10 @@ class Config(ConfigBase):
         rule("decoder_features", lambda x: int(x) >= 1, ">= 1"),
         rule("decoder", lambda x: x in DECODERS, f"one of {DECODERS}"),
         rule("kl_weight", lambda x: x >= 0, ">= 0"),
-        rule("token", lambda x: x in TOKENS, f"one of {TOKENS}"),
-        rule("log_objective", lambda x: x in LOG_OBJECTIVES, f"one of {LOG_OBJECTIVES}"),
-        rule("vn_norm", lambda x: x in VN_NORMS, f"one of {VN_NORMS}"),
-        rule("kl_warmup_steps", lambda x: x >= 0, ">= 0 (0: no KL warm-up)"),
         rule("ema_decay", lambda x: 0 <= x < 1, "in [0, 1) (0: no weight average)"),
-        rule("free_bits", lambda x: x >= 0, ">= 0 nats per channel (0: off)"),
         cross_rule(
-            lambda c: -20 <= c.log_sigma_init <= c.log_sigma_max,
-            "need -20 <= log_sigma_init <= log_sigma_max, got {c.log_sigma_init}, "
+            lambda c: -20 <= c.experimental.log_sigma_init <= c.log_sigma_max,
+            "need -20 <= log_sigma_init <= log_sigma_max, got {c.experimental.log_sigma_init}, "
             "{c.log_sigma_max}",
         ),
         rule(
@@ -282,7 +312,7 @@ class Config(ConfigBase):
             warmup_steps=1000,
             checkpoint_every=1000,
         )
-        return cls(**{**base, **changes})
+        return cls.from_dict({**base, **changes})
 
     @classmethod
     def small(cls, **changes) -> Config:
@@ -323,5 +353,5 @@ class Config(ConfigBase):
           >>> Config(steps=7, learning_rate=0.1).architecture() == Config()
           True
         """
-        defaults = Config()
-        return self.replace(**{name: getattr(defaults, name) for name in _TRAINING_FIELDS})
+        defaults = Config().to_dict()
+        return self.replace(**{name: defaults[name] for name in _TRAINING_FIELDS})

@@ -355,7 +355,7 @@ def _vnt_block(
 def encoder_size(config) -> int:
     """Number of standard normals :func:`init_encoder` draws."""
     c, d = config.features, config.latent_dim
-    block = 2 * (4 * c * c + 4 * c * c) + (2 * c * c if config.attention_linear else 0)
+    block = 2 * (4 * c * c + 4 * c * c) + (2 * c * c if config.experimental.attention_linear else 0)
     return (
         _dense_size((3, c, c, c))
         + _dense_size((7, c, c))
@@ -372,14 +372,17 @@ def init_encoder(draw: _Draw, config, *, dtype=jnp.float32) -> EncoderParams:
     sample_mlp = _dense_init(draw, (3, c, c, c), dtype)
     token_mlp = _dense_init(draw, (7, c, c), dtype)
     blocks = tuple(
-        _vnt_block(draw, c, config.num_heads, cdt, dtype, config.attention_linear)
+        _vnt_block(draw, c, config.num_heads, cdt, dtype, config.experimental.attention_linear)
         for _ in range(config.num_blocks)
     )
     mean = _complex_init(draw, (c, d), c, cdt)
     sigma_dir = _complex_init(draw, (c, c), c, cdt)
     w, b = _dense_init(draw, (c, d), dtype)[0]
-    # start at log σ ≈ config.log_sigma_init (-2: small σ, the KL pulls it up as training allows)
-    sigma = (w * jnp.asarray(0.1, dtype), b + jnp.asarray(config.log_sigma_init, dtype))
+    # start at log σ ≈ config.experimental.log_sigma_init (-2: small σ, the KL pulls it up as training allows)
+    sigma = (
+        w * jnp.asarray(0.1, dtype),
+        b + jnp.asarray(config.experimental.log_sigma_init, dtype),
+    )
     return EncoderParams(sample_mlp, token_mlp, blocks, mean, sigma_dir, sigma)
 
 
@@ -396,7 +399,7 @@ def encode_samples_raw(
     log_q = jnp.asarray(log_q).astype(cdt)
     rgb = jnp.asarray(rgb).astype(rdt) - jnp.asarray(0.5, rdt)
     mask = jnp.asarray(mask, bool)
-    center = config.token == "centre"
+    center = config.experimental.token == "centre"
     if center:  # column 0 is the ring's centre: the token's reference colour, not a set element
         center_rgb = rgb[:, :1, :]
         log_q, rgb, mask = log_q[:, 1:], rgb[:, 1:], mask[:, 1:]
@@ -420,13 +423,13 @@ def encode_samples_raw(
     # valid sample) are left out
     token_valid = (
         jnp.any(mask, axis=1, keepdims=True)
-        if config.vn_norm == "channel"
+        if config.experimental.vn_norm == "channel"
         else jnp.ones((mask.shape[0], 1), bool)
     )
     seq_mask = jnp.concatenate([mask, token_valid], axis=1)
     for block in params.blocks:
         seq = vn_transformer_block(
-            seq, block, mask=seq_mask, delta=config.delta, norm=config.vn_norm
+            seq, block, mask=seq_mask, delta=config.delta, norm=config.experimental.vn_norm
         )
     u = seq[:, -1, :]
     mu = complex_linear(u, params.mean)

@@ -100,13 +100,13 @@ def vae_loss(
     recipe) the L1 term is also divided by 3 and the KL averaged over channels (``λ`` effectively
     ``3/d`` as strong).
 
-    Log decoder with ``config.log_objective == "blended"`` (the default): each sample ``x`` is
+    Log decoder with ``config.experimental.log_objective == "blended"`` (the default): each sample ``x`` is
     decoded as at inference, ``Σ_k b_k D(z_{v_k}, log_{v_k} x)`` over its face's three corners
     (``corners``, ``bary``, ``corner_logs`` required); with ``"vertex"`` each vertex reconstructs
     its own one-ring from its own latent. Barycentric ablation: each sample is decoded from the
     interpolated invariants of its face's three corner latents (``corners``, ``bary`` required).
 
-    KL options: ``config.free_bits = τ > 0`` replaces each channel's batch-mean KL by
+    KL options: ``config.experimental.free_bits = τ > 0`` replaces each channel's batch-mean KL by
     ``max(KL_c, τ)`` (a floor with no gradient below it); ``kl_scale`` multiplies ``λ`` (the
     warm-up of :func:`~jmeshtex.fl.train`).
 
@@ -130,7 +130,7 @@ def vae_loss(
     Example:
       >>> import jax, jax.numpy as jnp
       >>> from jmeshtex.fl import init
-      >>> c = Config(latent_dim=2, features=8, num_heads=2, num_blocks=1, log_objective="vertex")
+      >>> c = Config(latent_dim=2, features=8, num_heads=2, num_blocks=1).replace(log_objective="vertex")
       >>> p = init(c, key=jax.random.key(0)).params
       >>> log = jnp.ones((1, 5), jnp.complex64)
       >>> loss, aux = vae_loss(p, c, log, jnp.full((1, 5, 3), 0.3), jnp.ones((1, 5), bool), key=jax.random.key(1))
@@ -140,11 +140,11 @@ def vae_loss(
     _check_samples(log_q, rgb, mask)
     if config.decoder == "barycentric" and (corners is None or bary is None):
         raise InputError("vae_loss with decoder='barycentric' needs corners and bary [V, S, 3]")
-    blended = config.decoder == "log" and config.log_objective == "blended"
+    blended = config.decoder == "log" and config.experimental.log_objective == "blended"
     if blended and (corners is None or bary is None or corner_logs is None):
         raise InputError(
             "vae_loss with the blended log objective needs corners, bary and corner_logs "
-            "[V, S, 3] (fl.core.mesh_batch builds them), or Config(log_objective='vertex')"
+            "[V, S, 3] (fl.core.mesh_batch builds them), or config.replace(log_objective='vertex')"
         )
     lat = encode_samples(params, config, log_q, rgb, mask)
     z = sample_latents(lat, key=key)
@@ -176,8 +176,8 @@ def vae_loss(
     reduce = jnp.sum if paper else jnp.mean  # "paper": summed over the d channels
     kl = reduce(channels)
     floored = kl
-    if config.free_bits > 0:
-        floored = reduce(jnp.maximum(channels, jnp.asarray(config.free_bits, rdt)))
+    if config.experimental.free_bits > 0:
+        floored = reduce(jnp.maximum(channels, jnp.asarray(config.experimental.free_bits, rdt)))
     weight = jnp.asarray(config.kl_weight, rdt) * jnp.asarray(kl_scale, rdt)
     loss = l1 + weight * floored
     return loss, {"l1": l1, "kl": kl, "kl_channels": channels}

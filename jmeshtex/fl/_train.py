@@ -142,8 +142,10 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
         return batch_loss(params, config, batch, key=key, kl_scale=scale)
 
     def step(params, opt_state, batch, key, step=0):
-        if config.kl_warmup_steps > 0:
-            scale = jnp.minimum(1.0, (jnp.asarray(step, jnp.float32) + 1) / config.kl_warmup_steps)
+        if config.experimental.kl_warmup_steps > 0:
+            scale = jnp.minimum(
+                1.0, (jnp.asarray(step, jnp.float32) + 1) / config.experimental.kl_warmup_steps
+            )
         else:
             scale = 1.0
         (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key, scale)
@@ -183,7 +185,7 @@ def mesh_batch(
       (global vertex ids of each sample's face), ``bary [N, S, 3]``, ``corner_logs [N, S, 3]``
       (each sample's log map seen from each corner of its face, normalised as ``log``),
       ``vertex_mask [N]`` (the vertices whose rings enter the loss: real ones, and with
-      ``config.boundary_in_loss = False`` only interior ones). With ``config.token == "centre"``
+      ``config.experimental.boundary_in_loss = False`` only interior ones). With ``config.experimental.token == "centre"``
       column 0 is each ring's centre (``S + 1`` columns).
 
     Example:
@@ -201,7 +203,12 @@ def mesh_batch(
     for mesh in meshes:
         geom = ring_geometry(mesh.vertices, mesh.faces)
         s = one_ring_samples(
-            mesh.vertices, mesh.faces, S, rng=rng, geometry=geom, center=config.token == "centre"
+            mesh.vertices,
+            mesh.faces,
+            S,
+            rng=rng,
+            geometry=geom,
+            center=config.experimental.token == "centre",
         )
         logs.append(s.log)
         rgbs.append(surface_colors(mesh).at_barycentric(s.face, s.bary))
@@ -217,7 +224,7 @@ def mesh_batch(
         )
         keep.append(
             np.ones(mesh.num_vertices, bool)
-            if config.boundary_in_loss
+            if config.experimental.boundary_in_loss
             else ~boundary_vertices(mesh.faces, mesh.num_vertices)
         )
         offset += mesh.num_vertices

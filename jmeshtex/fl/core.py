@@ -5,6 +5,7 @@ The functions here take ``(params, config, arrays)`` and are jit/grad-safe, or b
 on the host; the method's contract (``Config``, ``Model``, ``train`` / ``save`` / ``load``, the
 encode/decode verbs) lives one level up, in :mod:`jmeshtex.fl`.
 
+- Study switches beyond the shipped recipe: :class:`Experimental` (``Config.experimental``).
 - Parameters: :func:`~jmeshtex.fl.init` (an untrained :class:`~jmeshtex.fl.Model`), :class:`Params`,
   :class:`EncoderParams`.
 - Encoder: :func:`one_ring_samples` / :class:`OneRingSamples` (colours read in each vertex's
@@ -30,6 +31,7 @@ from ._baselines import p1_least_squares as p1_least_squares
 from ._codec import encode_one_rings as encode_one_rings
 from ._colors import SurfaceColors as SurfaceColors
 from ._colors import surface_colors as surface_colors
+from ._config import Experimental as Experimental
 from ._decoder import decoder_features as decoder_features
 from ._encoder import EncoderParams as EncoderParams
 from ._encoder import OneRingSamples as OneRingSamples

@@ -39,7 +39,7 @@ def magnitude_context(x, nbhd):
     gauge-invariant (powers need no transport), 0 on padding vertices.
 
     Why: on flat rings the FL-VAE's latents have a common phase per vertex that is sampling noise
-    (unless ``Config.phase_sync`` synchronises it), so a field convolution's sum over such
+    (unless ``Config.experimental.phase_sync`` synchronises it), so a field convolution's sum over such
     neighbours adds vectors of random phase and cancels; the pattern of
     magnitudes over the surface has no other path into a block. Fed to the filters of ``FC_e``,
     whose centre tap scales the vertex's own vector, it lets a vertex's output follow its
@@ -110,7 +110,7 @@ class FCResBlock(nn.Module):
       filter_layers: hidden layers of the filter MLPs.
       activation: filter nonlinearity.
       argument: filter argument form of both convolutions.
-      invariants: the invariant stream (:attr:`jmeshtex.fldm.Config.invariants`): ``FC_e``'s
+      invariants: the invariant stream (:attr:`jmeshtex.fldm.core.Experimental.invariants`): ``FC_e``'s
         embedding also sees :func:`magnitude_context` of the block's input.
       param_dtype: complex dtype of the complex weights.
 

@@ -31,6 +31,79 @@ PHASE_SYNC = ("none", "flat", "all")
 
 
 @dataclasses.dataclass(frozen=True)
+class Experimental(ConfigBase):
+    """The study switches of an FLDM run, beyond the paper: ``Config.experimental``.
+
+    Their defaults are the paper's denoiser and data; the studies (``docs/results.md``) and the
+    :meth:`~jmeshtex.fldm.Config.cpu` preset set them. Their names are unique across :class:`~jmeshtex.fldm.Config`, so
+    ``Config.tiny(invariants=True)``, ``config.replace(schedule_shift=2.0)`` and a command line's
+    ``--set phase_sync=flat`` (or ``--set experimental.phase_sync=flat``) reach them, and a model
+    file or checkpoint stores them among the config's own fields.
+
+    Attributes:
+      schedule_shift: divide the schedule's signal-to-noise ratio by its square
+        (:func:`~jmeshtex.fldm.core.make_schedule`, beyond the paper); 1: the plain schedule.
+      remat: recompute each FCResNet block's activations in the backward pass instead of keeping
+        them (gradient checkpointing, :func:`flax.linen.remat`), for roughly one more forward pass
+        of compute; the numbers agree to float32 round-off. It trims the activations kept between
+        blocks, not the peak inside one field convolution: at the paper's size (30K vertices,
+        batch 1) XLA's CPU memory analysis gives 11.6 GiB with or without it.
+      collapsed_channels: what to do with channels whose raw mean power is below
+        ``collapsed_below`` × the strongest channel's: ``"keep"``; ``"downweight"`` (their loss
+        weight is that power ratio); ``"drop"`` (their latents are zeroed in training, so the
+        model learns to generate zeros there).
+      collapsed_below: the power ratio under which a channel counts as collapsed.
+      encodings_per_copy: FL-VAE encodings kept per copy, each with a fresh one-ring sampling
+        (an augmentation of the phase noise; each training draw picks one at random).
+      stats_samples: DDIM samples drawn at every checkpoint for the decoder-free statistics
+        (:func:`~jmeshtex.fldm.core.latent_statistics`) logged with it; 0: none.
+      stats_ddim_steps: DDIM steps of those samples.
+      invariants: an invariant stream, beyond the paper: every block's embedding (the filter input
+        of its second field convolution) also sees, per vertex and channel, the block input's
+        normalised power and its mean over the k-NN neighbourhood
+        (:func:`~jmeshtex.fldm.core.magnitude_context`). On flat rings the FL-VAE's latents have
+        a common phase per vertex that is sampling noise (``phase_sync="none"``), so the field
+        convolutions' sums over neighbours cancel there and the layout of magnitudes (where a
+        texture's patches live) has no other way in. False (default, the paper's denoiser).
+      phase_sync: coherent latents, beyond the paper (:func:`~jmeshtex.fldm.core.synchronize_phases`):
+        ``"none"`` (the encoder's phases, the paper's); ``"flat"`` (every encoding's flat rings,
+        :func:`~jmeshtex.fldm.core.ring_color_spread` below ``flat_spread``, turned to agree with
+        their neighbours after transport; textured rings keep their phase; for the log decoder);
+        ``"all"`` (every ring; for the barycentric decoder, which reads no phase).
+      flat_spread: the RGB RMS colour spread under which a ring counts as flat (``phase_sync="flat"``).
+
+    Example:
+      >>> Config.tiny(phase_sync="flat").experimental.phase_sync
+      'flat'
+    """
+
+    schedule_shift: float = 1.0
+    remat: bool = False
+    collapsed_channels: str = "keep"
+    collapsed_below: float = 0.05
+    encodings_per_copy: int = 1
+    stats_samples: int = 0
+    stats_ddim_steps: int = 25
+    invariants: bool = False
+    phase_sync: str = "none"
+    flat_spread: float = 0.02
+
+    _RULES = (
+        rule("schedule_shift", lambda x: x > 0, "> 0"),
+        rule(
+            "collapsed_channels",
+            lambda x: x in ("keep", "downweight", "drop"),
+            "'keep', 'downweight' or 'drop'",
+        ),
+        rule("collapsed_below", lambda x: 0 <= x < 1, "in [0, 1)"),
+        rule("encodings_per_copy stats_ddim_steps", lambda x: is_int(x, 1), "a positive integer"),
+        rule("stats_samples", lambda x: is_int(x, 0), "an integer >= 0"),
+        rule("phase_sync", lambda x: x in PHASE_SYNC, f"one of {PHASE_SYNC}"),
+        rule("flat_spread", lambda x: 0 <= x < 2, "in [0, 2)"),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
 class Config(ConfigBase):
     """Every choice of an FLDM run.
 
@@ -55,8 +128,6 @@ class Config(ConfigBase):
         (eq. 14), so it stays exact. False (default): the plain denoiser; inpainting by
         replacement alone.
       schedule: ``"linear"`` or ``"cosine"``.
-      schedule_shift: divide the schedule's signal-to-noise ratio by its square
-        (:func:`~jmeshtex.fldm.core.make_schedule`, beyond the paper); 1: the plain schedule.
       prediction: what the denoiser outputs: ``"epsilon"`` (paper, eq. 10) or ``"v"``
         (:func:`~jmeshtex.fldm.core.prediction_target`; the CPU preset's: a small denoiser trained on the ε-loss
         over-shoots the latents' magnitude several times when sampled).
@@ -75,11 +146,6 @@ class Config(ConfigBase):
       copy_vertices: vertices per copy (0: the input's count).
       pool_ratio: coarse / fine vertex ratio of the U-Net's one downsampling.
       bucket: vertex counts are padded up to a multiple of this (limits recompiles).
-      remat: recompute each FCResNet block's activations in the backward pass instead of keeping
-        them (gradient checkpointing, :func:`flax.linen.remat`), for roughly one more forward pass
-        of compute; the numbers agree to float32 round-off. It trims the activations kept between
-        blocks, not the peak inside one field convolution: at the paper's size (30K vertices,
-        batch 1) XLA's CPU memory analysis gives 11.6 GiB with or without it.
       loss: the training loss: ``"l2"`` (the paper's eq. 10: mean squared modulus of the error)
         or ``"l1"`` (the released ``get_l1_loss``: mean modulus of the error).
       latent_scaling: ``"per_channel"`` (every channel to unit mean power, eq. 38–39),
@@ -88,31 +154,11 @@ class Config(ConfigBase):
         (the released ``train.py``'s noise scale, ``σ = √2·mean|μ|`` per real noise component
         on the raw latents: :func:`~jmeshtex.fldm.core.latent_scale` with ``released=True``;
         noise power 2.6× the data's on the shipped FL-VAE's Spot latents).
-      collapsed_channels: what to do with channels whose raw mean power is below
-        ``collapsed_below`` × the strongest channel's: ``"keep"``; ``"downweight"`` (their loss
-        weight is that power ratio); ``"drop"`` (their latents are zeroed in training, so the
-        model learns to generate zeros there).
-      collapsed_below: the power ratio under which a channel counts as collapsed.
       accumulate: micro-batches per optimiser step (gradient accumulation; ``batch_size`` must
         be a multiple); 1: the whole batch at once.
-      encodings_per_copy: FL-VAE encodings kept per copy, each with a fresh one-ring sampling
-        (an augmentation of the phase noise; each training draw picks one at random).
-      stats_samples: DDIM samples drawn at every checkpoint for the decoder-free statistics
-        (:func:`~jmeshtex.fldm.core.latent_statistics`) logged with it; 0: none.
-      stats_ddim_steps: DDIM steps of those samples.
-      invariants: an invariant stream, beyond the paper: every block's embedding (the filter input
-        of its second field convolution) also sees, per vertex and channel, the block input's
-        normalised power and its mean over the k-NN neighbourhood
-        (:func:`~jmeshtex.fldm.core.magnitude_context`). On flat rings the FL-VAE's latents have
-        a common phase per vertex that is sampling noise (``phase_sync="none"``), so the field
-        convolutions' sums over neighbours cancel there and the layout of magnitudes (where a
-        texture's patches live) has no other way in. False (default, the paper's denoiser).
-      phase_sync: coherent latents, beyond the paper (:func:`~jmeshtex.fldm.core.synchronize_phases`):
-        ``"none"`` (the encoder's phases, the paper's); ``"flat"`` (every encoding's flat rings,
-        :func:`~jmeshtex.fldm.core.ring_color_spread` below ``flat_spread``, turned to agree with
-        their neighbours after transport; textured rings keep their phase; for the log decoder);
-        ``"all"`` (every ring; for the barycentric decoder, which reads no phase).
-      flat_spread: the RGB RMS colour spread under which a ring counts as flat (``phase_sync="flat"``).
+      experimental: the study switches beyond the paper (:class:`~jmeshtex.fldm.core.Experimental`);
+        each may also be given by its own name to ``replace``, ``from_dict`` and the presets
+        (``Config.tiny(invariants=True)``), and a model file stores them among the fields above.
 
     Randomness (copies, initialisation, training noise) comes from the ``key`` of
     :func:`~jmeshtex.fldm.build_dataset` and :func:`~jmeshtex.fldm.train`, not from the config.
@@ -135,7 +181,6 @@ class Config(ConfigBase):
     num_labels: int = 0
     mask_conditioning: bool = False
     schedule: str = "linear"
-    schedule_shift: float = 1.0
     prediction: str = "epsilon"
     diffusion_steps: int = 1000
     learning_rate: float = 5e-4
@@ -150,18 +195,10 @@ class Config(ConfigBase):
     copy_vertices: int = 30000
     pool_ratio: float = 0.25
     bucket: int = 256
-    remat: bool = False
     loss: str = "l2"
     latent_scaling: str = "per_channel"
-    collapsed_channels: str = "keep"
-    collapsed_below: float = 0.05
     accumulate: int = 1
-    encodings_per_copy: int = 1
-    stats_samples: int = 0
-    stats_ddim_steps: int = 25
-    invariants: bool = False
-    phase_sync: str = "none"
-    flat_spread: float = 0.02
+    experimental: Experimental = Experimental()
 
     _MESSAGE = "{name} must be {must}, got {value!r}"
     #: what a resumed run may change: step counts, checkpoint cadence, the checkpoint statistics'
@@ -194,7 +231,6 @@ class Config(ConfigBase):
         rule("end_learning_rate", lambda x: x >= 0, ">= 0"),
         rule("ema_decay", lambda x: 0 <= x < 1, "in [0, 1)"),
         rule("schedule", lambda x: x in SCHEDULES, f"one of {SCHEDULES}"),
-        rule("schedule_shift", lambda x: x > 0, "> 0"),
         rule("prediction", lambda x: x in PREDICTIONS, f"one of {PREDICTIONS}"),
         rule("num_labels", lambda x: is_int(x, 0), ">= 0"),
         rule(
@@ -204,24 +240,10 @@ class Config(ConfigBase):
         ),
         rule("pool_ratio", lambda x: 0.05 <= x <= 0.75, "in [0.05, 0.75]"),
         rule("learning_rate", lambda x: x > 0, "> 0"),
-        rule("remat", lambda x: isinstance(x, bool), "True or False"),
         rule("loss", lambda x: x in LOSSES, f"one of {LOSSES}"),
         rule("latent_scaling", lambda x: x in SCALINGS, f"one of {SCALINGS}"),
-        rule("phase_sync", lambda x: x in PHASE_SYNC, f"one of {PHASE_SYNC}"),
-        rule("flat_spread", lambda x: 0 <= x < 2, "in [0, 2)"),
-        rule(
-            "collapsed_channels",
-            lambda x: x in ("keep", "downweight", "drop"),
-            "'keep', 'downweight' or 'drop'",
-        ),
-        rule("collapsed_below", lambda x: 0 <= x < 1, "in [0, 1)"),
-        rule(
-            "accumulate encodings_per_copy stats_ddim_steps",
-            lambda x: is_int(x, 1),
-            "a positive integer",
-        ),
-        rule("stats_samples", lambda x: is_int(x, 0), "an integer >= 0"),
-        rule("mask_conditioning invariants", lambda x: isinstance(x, bool), "True or False"),
+        rule("accumulate", lambda x: is_int(x, 1), "a positive integer"),
+        rule("mask_conditioning", lambda x: isinstance(x, bool), "True or False"),
         rule("diffusion_steps", lambda x: x >= 2, ">= 2", message="{name} must be {must}"),
         cross_rule(
             lambda c: c.batch_size % c.accumulate == 0,
@@ -255,7 +277,7 @@ class Config(ConfigBase):
             loss="l1",
             latent_scaling="released",
         )
-        return cls(**{**base, **changes})
+        return cls.from_dict({**base, **changes})
 
     @classmethod
     def cpu(cls, **changes) -> Config:
@@ -277,8 +299,8 @@ class Config(ConfigBase):
 
         Example:
           >>> c = Config.cpu()
-          >>> c.widths, c.blocks, c.schedule, c.steps, c.learning_rate, c.encodings_per_copy, c.invariants
-          ((16, 32), (1, 3, 1), 'cosine', 10000, 0.002, 4, True)
+          >>> c.widths, c.blocks, c.schedule, c.steps, c.learning_rate, c.experimental.invariants
+          ((16, 32), (1, 3, 1), 'cosine', 10000, 0.002, True)
         """
         base = dict(
             blocks=(1, 3, 1),
@@ -337,7 +359,9 @@ class Config(ConfigBase):
           (1000, True)
         """
         return make_schedule(
-            self.schedule, num_steps=self.diffusion_steps, shift=float(self.schedule_shift)
+            self.schedule,
+            num_steps=self.diffusion_steps,
+            shift=float(self.experimental.schedule_shift),
         )
 
     def network(self) -> Config:
@@ -350,7 +374,8 @@ class Config(ConfigBase):
           >>> Config.tiny(steps=5).network() == Config.tiny(steps=9, diffusion_steps=50).network()
           True
         """
-        return type(self)(**{f: getattr(self, f) for f in NETWORK_FIELDS})
+        fields = self.to_dict()
+        return type(self).from_dict({f: fields[f] for f in NETWORK_FIELDS})
 
     @classmethod
     def tiny(cls, **changes) -> Config:
@@ -379,7 +404,7 @@ class Config(ConfigBase):
             checkpoint_every=100,
             bucket=64,
         )
-        return cls(**{**base, **changes})
+        return cls.from_dict({**base, **changes})
 
 
 #: the :class:`Config` fields the denoiser network reads (:meth:`Config.network`)

@@ -10,7 +10,7 @@ that it learns the texture and not the connectivity. For each copy ``i`` (:func:
 3. its latents from an ``encode`` callable ``Mesh -> complex [V, d]`` — normally the FL-VAE reading
    the *original* surface's colours at the copy's one-ring samples (:func:`fl_vae_encoder`), in the
    copy's ``one_ring_neighborhood`` frames, which are the denoiser's fine frames;
-4. with ``config.phase_sync`` (beyond the paper), every encoding's phases synchronised over the
+4. with ``config.experimental.phase_sync`` (beyond the paper), every encoding's phases synchronised over the
    copy's k-NN connection (:func:`~jmeshtex.fldm.core.synchronize_phases`; ``"flat"``: textured
    rings, :func:`~jmeshtex.fldm.core.ring_color_spread` ≥ ``flat_spread``, pinned);
 5. optional per-vertex labels, carried from the original by the closest surface point.
@@ -60,7 +60,7 @@ class Dataset(NamedTuple):
       scale: ``[d]`` per-channel latent scale (eq. 38–39) over all copies.
       meshes: the copies as :class:`~jmeshtex.Mesh` (host, for rendering and checks).
       encodings: ``[N, K − 1, V₀, d]`` complex64 further encodings of every copy (fresh one-ring
-        samplings; ``config.encodings_per_copy = K``), or None (one encoding per copy).
+        samplings; ``config.experimental.encodings_per_copy = K``), or None (one encoding per copy).
     """
 
     latents: np.ndarray
@@ -302,7 +302,7 @@ def build_dataset(
       cache_dir: folder for ``copy_####.npz`` and ``data.json`` (None: no cache).
       progress: tqdm bar.
 
-    With ``config.encodings_per_copy = K > 1`` each copy is encoded ``K`` times (``encode`` is
+    With ``config.experimental.encodings_per_copy = K > 1`` each copy is encoded ``K`` times (``encode`` is
     called again; :func:`fl_vae_encoder` draws new one-ring samples each call): the first in
     ``latents`` (and the scale), the others in ``Dataset.encodings``.
 
@@ -376,9 +376,11 @@ def _cache_record(mesh: Mesh, config: Config, encode, labels, key: jax.Array) ->
         "pool_ratio": config.pool_ratio,
         "key": key_ints(key),
         "latent_channels": config.latent_channels,
-        "encodings_per_copy": config.encodings_per_copy,
-        "phase_sync": config.phase_sync,
-        "flat_spread": config.flat_spread if config.phase_sync == "flat" else None,
+        "encodings_per_copy": config.experimental.encodings_per_copy,
+        "phase_sync": config.experimental.phase_sync,
+        "flat_spread": config.experimental.flat_spread
+        if config.experimental.phase_sync == "flat"
+        else None,
     }
 
 
@@ -407,7 +409,7 @@ def _open_cache(cache_dir, meta: dict) -> tuple[pathlib.Path | None, bool]:
 
 def _build_copy(mesh: Mesh, config: Config, i: int, *, key, encode, labels, sync) -> tuple:
     """Copy ``i`` (module docstring, steps 1–5): ``(mesh, geometry, latents, labels)`` plus, with
-    ``config.encodings_per_copy > 1``, its further encodings ``[K − 1, V, d]`` complex64."""
+    ``config.experimental.encodings_per_copy > 1``, its further encodings ``[K − 1, V, d]`` complex64."""
     copy = copy_mesh(mesh, config, i, key=key)
     geo = denoiser_geometry(copy, knn=config.knn, pool_ratio=config.pool_ratio)
     mu = np.asarray(encode(copy))
@@ -419,20 +421,20 @@ def _build_copy(mesh: Mesh, config: Config, i: int, *, key, encode, labels, sync
     lab = None if labels is None else transfer_labels(mesh, labels, copy)
     fix = sync(copy, geo)
     mu = fix(mu)
-    if config.encodings_per_copy <= 1:
+    if config.experimental.encodings_per_copy <= 1:
         return (copy, geo, mu, lab)
     extra = np.stack(
-        [fix(np.asarray(encode(copy))) for _ in range(config.encodings_per_copy - 1)]
+        [fix(np.asarray(encode(copy))) for _ in range(config.experimental.encodings_per_copy - 1)]
     ).astype(np.complex64)
     return (copy, geo, mu, lab, extra)
 
 
 def _phase_synchronizer(mesh: Mesh, config: Config, encode):
-    """``sync(copy, geometry) -> (mu -> mu)``: ``config.phase_sync`` applied to one copy's encodings."""
-    if config.phase_sync == "none":
+    """``sync(copy, geometry) -> (mu -> mu)``: ``config.experimental.phase_sync`` applied to one copy's encodings."""
+    if config.experimental.phase_sync == "none":
         return lambda copy, geo: lambda mu: mu
     colors = None
-    if config.phase_sync == "flat":
+    if config.experimental.phase_sync == "flat":
         colors = getattr(encode, "colors", None)
         if colors is None:
             if not (mesh.has_texture or mesh.vertex_colors is not None):
@@ -447,7 +449,7 @@ def _phase_synchronizer(mesh: Mesh, config: Config, encode):
     def for_copy(copy: Mesh, geo: DenoiserGeometry):
         pinned = None
         if colors is not None:
-            pinned = ring_color_spread(copy, colors) >= config.flat_spread
+            pinned = ring_color_spread(copy, colors) >= config.experimental.flat_spread
         return lambda mu: synchronize_phases(mu, geo.fine, pinned=pinned)
 
     return for_copy

@@ -214,11 +214,11 @@ class Denoiser(nn.Module):
             filter_layers=cfg.filter_layers,
             activation=cfg.activation,
             argument=self.argument,
-            invariants=cfg.invariants,
+            invariants=cfg.experimental.invariants,
             param_dtype=self.param_dtype,
         )
         Block = (
-            nn.remat(FCResBlock) if cfg.remat else FCResBlock
+            nn.remat(FCResBlock) if cfg.experimental.remat else FCResBlock
         )  # same parameters, recomputed in the backward pass
         h = ComplexDense(c0, self.param_dtype, name="lift")(z)
         for i in range(cfg.blocks[0]):

@@ -116,7 +116,7 @@ def model_card(result) -> dict:
     Returns:
       ``{"steps", "final_loss", "statistics"}``: ``statistics`` the decoder-free statistics logged
       at each checkpoint (:func:`~jmeshtex.fldm.core.latent_statistics`; empty without
-      ``config.stats_samples``).
+      ``config.experimental.stats_samples``).
     """
     return {
         "steps": int(result.steps),

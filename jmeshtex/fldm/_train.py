@@ -37,7 +37,7 @@ folder (atomic; the newest two kept), fingerprinted with the run's settings (the
 shape, scale and a hash of its contents, :func:`data_digest`). Calling :func:`train` again with the
 same folder resumes after the newest step and
 gives the same parameters and losses as an uninterrupted run; a folder written by another run raises
-:class:`~jmeshtex.CheckpointMismatchError`. With ``config.stats_samples`` every checkpoint also
+:class:`~jmeshtex.CheckpointMismatchError`. With ``config.experimental.stats_samples`` every checkpoint also
 records the decoder-free statistics (:func:`~jmeshtex.fldm.core.latent_statistics`) of a few DDIM
 samples drawn on copy 0, and of copy 0's own latents once; the history is read back on resume and
 returned in ``TrainResult.extra["statistics"]``. The finished model is written with :func:`save`
@@ -502,7 +502,7 @@ def train(
     step = _driver_step(
         config,
         device_mesh,
-        channel_weight=weight if config.collapsed_channels == "downweight" else None,
+        channel_weight=weight if config.experimental.collapsed_channels == "downweight" else None,
     )
     params = init_denoiser(k_init, config, dtype=dtype)
     state = averaged_state(params, optimizer(config).init(params), decay=config.ema_decay)
@@ -531,10 +531,10 @@ def train(
 
 
 def channel_weights(data: Dataset, config: Config) -> tuple[np.ndarray, np.ndarray]:
-    """``(loss weight [d], kept [d] bool)`` of the latent channels (``config.collapsed_channels``).
+    """``(loss weight [d], kept [d] bool)`` of the latent channels (``config.experimental.collapsed_channels``).
 
     A channel is collapsed when its mean raw power ``mean |μ_c|²`` over the copies' real vertices is
-    below ``config.collapsed_below`` times the strongest channel's. ``"keep"``: weights 1, all kept;
+    below ``config.experimental.collapsed_below`` times the strongest channel's. ``"keep"``: weights 1, all kept;
     ``"downweight"``: a collapsed channel's weight is its power ratio; ``"drop"``: weights 1, the
     collapsed channels not kept (zeroed in training).
 
@@ -552,18 +552,18 @@ def channel_weights(data: Dataset, config: Config) -> tuple[np.ndarray, np.ndarr
     real = np.arange(data.latents.shape[1])[None] < np.asarray(data.num_vertices)[:, None]
     power = (np.abs(data.latents) ** 2 * real[..., None]).sum((0, 1)) / max(real.sum(), 1)
     ratio = power / max(float(power.max()), 1e-30)
-    collapsed = ratio < config.collapsed_below
+    collapsed = ratio < config.experimental.collapsed_below
     weight = np.ones(len(power), np.float32)
     keep = np.ones(len(power), bool)
-    if config.collapsed_channels == "downweight":
+    if config.experimental.collapsed_channels == "downweight":
         weight = np.where(collapsed, ratio, 1.0).astype(np.float32)
-    elif config.collapsed_channels == "drop":
+    elif config.experimental.collapsed_channels == "drop":
         keep = ~collapsed
     return weight, keep
 
 
 class _CheckpointStatistics:
-    """The decoder-free statistics logged at every checkpoint (``config.stats_samples``).
+    """The decoder-free statistics logged at every checkpoint (``config.experimental.stats_samples``).
 
     At each save point: ``stats_samples`` DDIM-``stats_ddim_steps`` samples of the current model
     (EMA weights when kept) on copy 0, and :func:`~jmeshtex.fldm.latent_statistics` of each; the
@@ -579,7 +579,7 @@ class _CheckpointStatistics:
         self._geo = None
 
     def resume(self, checkpoint_dir, fingerprint) -> None:
-        if checkpoint_dir is None or self.config.stats_samples == 0:
+        if checkpoint_dir is None or self.config.experimental.stats_samples == 0:
             return
         from ..io import Checkpoints
 
@@ -598,7 +598,7 @@ class _CheckpointStatistics:
         self.state = state
 
     def meta(self, done: int) -> dict:
-        if self.config.stats_samples == 0 or self.state is None:
+        if self.config.experimental.stats_samples == 0 or self.state is None:
             return {}
         from ._sample import sample
         from ._statistics import latent_statistics
@@ -616,8 +616,8 @@ class _CheckpointStatistics:
             model,
             geo,
             key=jax.random.fold_in(self.key, done),
-            num_samples=self.config.stats_samples,
-            steps=self.config.stats_ddim_steps,
+            num_samples=self.config.experimental.stats_samples,
+            steps=self.config.experimental.stats_ddim_steps,
             dtype=self.dtype,
         ).latents
         per = [latent_statistics(jnp.asarray(zi[:V]), geo.fine) for zi in z]

@@ -5,6 +5,9 @@ Everything here is a pure function over padded arrays (jit/grad/vmap-safe) or bu
 on the host; the method's contract (``Config``, ``Model``, ``train`` / ``save`` / ``load``, the
 verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
 
+- Study switches beyond the paper: :class:`Experimental` (``Config.experimental``: the schedule
+  shift, rematerialisation, collapsed channels, several encodings per copy, the checkpoint
+  statistics, the invariant stream, phase synchronisation).
 - Denoiser: :func:`init_denoiser`, :func:`denoise`, :func:`denoiser_geometry` /
   :class:`DenoiserGeometry` (the frozen neighbourhoods of one mesh), :func:`pad_geometry`,
   :func:`geometry_sizes`, :func:`sampling_geometry`; cost models :func:`denoiser_flops`,
@@ -29,6 +32,7 @@ verbs ``sample`` and ``inpaint``) lives one level up, in :mod:`jmeshtex.fldm`.
 """
 
 from ._blocks import magnitude_context as magnitude_context
+from ._config import Experimental as Experimental
 from ._data import copy_mesh as copy_mesh
 from ._data import stack_copies as stack_copies
 from ._denoiser import DenoiserGeometry as DenoiserGeometry

@@ -40,6 +40,59 @@ _WEIGHT_MESSAGE = "{cls}.{name} must be finite and >= 0, got ({value!r},)"
 
 
 @dataclasses.dataclass(frozen=True)
+class Experimental(ConfigBase):
+    """MeshMatch's search budget and the paper's variants of it: ``Config.experimental``.
+
+    The defaults are the measured ones (``docs/design_notes.md``, MeshMatch); the benchmark's and
+    the studies' option rows set them. Their names are unique across :class:`~jmeshtex.meshmatch.Config`, so
+    ``Config().replace(star_candidates=True)`` and ``Config.intrinsic(exact_candidates=64)``
+    reach them, and a saved transfer stores them among the config's own fields.
+
+    Attributes:
+      hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
+        vertices and copied down to the finer levels through the parent maps (it is smooth).
+      random_search_levels: how many hierarchy levels the random search hops up (then down again
+        at random); 0 turns the hierarchical search off.
+      global_candidates: uniformly random source vertices tried per target vertex and iteration.
+      exact_candidates: per candidate set (random search + first sweep, then each further sweep)
+        only this many candidates, those with the smallest rotation-invariant lower bound of the
+        patch distance, get the exact rotation search (a number at least the candidate count,
+        about ``3 + global_candidates + K``, searches every candidate exactly, as the paper does).
+      star_candidates: propagation proposes the whole star (the vertex and its one-ring) of each
+        neighbour's match, as the paper does, instead of the one star vertex nearest the
+        propagated offset (about 7× the candidates, all pre-scored by the bound).
+      bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
+        common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
+        (see :func:`~jmeshtex.meshmatch.core.level_groups`); 0 pads nothing (every level
+        compiles its own step).
+      interp_sigma: standard deviation of the Gaussian that reads a source colour at an offset
+        inside the matched vertex's star (the vote's resampling), in the source level's mean edge
+        lengths. At 0.5 a vertex read at its own position keeps only about 55 % of its own colour
+        (six neighbours one edge away weigh ``e⁻²`` each): the vote blurs by about an edge
+        (0.5: smaller values did not help consistently, ``docs/design_notes.md``).
+
+    Example:
+      >>> Config().replace(star_candidates=True).experimental.star_candidates
+      True
+    """
+
+    hks_max_vertices: int = 4096
+    random_search_levels: int = 3
+    global_candidates: int = 4
+    exact_candidates: int = 2
+    star_candidates: bool = False
+    bucket_vertices: int = 4096
+    interp_sigma: float = 0.5
+
+    _RULES = (
+        integers("hks_max_vertices", 16),
+        integers("exact_candidates", 1),
+        integers("random_search_levels global_candidates bucket_vertices", 0),
+        rule("interp_sigma", lambda x: is_finite_number(x) and x > 0, "a positive number"),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
 class Config(ConfigBase):
     """Settings of a MeshMatch transfer. All lengths are in units of the level's mean edge length.
 
@@ -68,8 +121,6 @@ class Config(ConfigBase):
       hks_times: number of log-spaced heat kernel signature times.
       hks_eigenpairs: Laplacian eigenpairs used for the HKS (32: more cost time and did not help
         across shapes, ``docs/design_notes.md``, ``hks_eigenpairs``).
-      hks_max_vertices: the HKS is computed on the finest hierarchy level with at most this many
-        vertices and copied down to the finer levels through the parent maps (it is smooth).
       up: the "up" direction of the ``n · up`` shape feature: a 3-vector or an axis name
         ``"x"|"y"|"z"|"-x"|"-y"|"-z"`` (``"y"`` for Y-up models, as OBJ files are usually
         authored), or None to leave the feature out. Source and target must share it. Used only
@@ -98,9 +149,6 @@ class Config(ConfigBase):
         (propagation moves good matches ``sweeps`` rings per iteration there; the level is tiny).
       tolerance: a level stops early when fewer than this fraction of target vertices changed
         their match in an iteration.
-      random_search_levels: how many hierarchy levels the random search hops up (then down again
-        at random); 0 turns the hierarchical search off.
-      global_candidates: uniformly random source vertices tried per target vertex and iteration.
       sweeps: propagation sweeps per iteration; each sweep propagates from the matches the previous
         one found, so an iteration moves good matches ``sweeps`` rings (1 = Jacobi-style).
       propagation: ``"parallel"`` (default: every target vertex of a sweep proposes from the
@@ -110,13 +158,6 @@ class Config(ConfigBase):
         the matches the earlier ones just found; odd sweeps run backwards from the far end). The
         default is parallel: as accurate, several times faster
         (``docs/design_notes.md``, ``propagation``).
-      exact_candidates: per candidate set (random search + first sweep, then each further sweep)
-        only this many candidates, those with the smallest rotation-invariant lower bound of the
-        patch distance, get the exact rotation search (a number at least the candidate count,
-        about ``3 + global_candidates + K``, searches every candidate exactly, as the paper does).
-      star_candidates: propagation proposes the whole star (the vertex and its one-ring) of each
-        neighbour's match, as the paper does, instead of the one star vertex nearest the
-        propagated offset (about 7× the candidates, all pre-scored by the bound).
       vote: the M-step (how the target's colours are voted from the matches), ``"ring"`` (default)
         or ``"fan"``. ``"ring"``: a vertex averages the source colours its own match and its
         one-ring neighbours' matches put at its position (read in the matched star, see
@@ -135,18 +176,9 @@ class Config(ConfigBase):
         rotation carried the same way, then a re-vote of the level's colours before its
         iterations. The default is ``"copy"``: the level's iterations erase the offset start's
         head start (``docs/design_notes.md``, ``upsample``).
-      bucket_vertices: hierarchy levels with at most this many target vertices are padded to one
-        common shape and share one compiled PatchMatch step; larger levels share theirs in pairs
-        (see :func:`~jmeshtex.meshmatch.core.level_groups`); 0 pads nothing (every level
-        compiles its own step).
       vote_sigma: standard deviation of the Gaussian vote weights (M-step), in mean edge lengths
         (of the target level with ``vote="ring"``; of the fans, as ``fan_radius``, with
         ``vote="fan"``; ``docs/design_notes.md``, ``vote_sigma``).
-      interp_sigma: standard deviation of the Gaussian that reads a source colour at an offset
-        inside the matched vertex's star (the vote's resampling), in the source level's mean edge
-        lengths. At 0.5 a vertex read at its own position keeps only about 55 % of its own colour
-        (six neighbours one edge away weigh ``e⁻²`` each): the vote blurs by about an edge
-        (0.5: smaller values did not help consistently, ``docs/design_notes.md``).
       min_vertices: coarsest hierarchy level size (decimation stops below it).
       levels: number of hierarchy levels, or None for "down to ``min_vertices``".
       max_scale_ratio: the largest ratio of the source's and the target's bounding-box diagonals
@@ -155,6 +187,11 @@ class Config(ConfigBase):
         different units (a ×100 mismatch) otherwise pair the wrong levels silently. None turns
         the check off (a small exemplar patch on a large mesh, on purpose).
       dtype: ``"float32"`` (default, the fast path) or ``"float64"`` for the jitted steps.
+      experimental: the search budget and the paper's variants of it
+        (:class:`~jmeshtex.meshmatch.core.Experimental`: HKS level size, random and global
+        candidates, exact and whole-star candidates, level buckets, the vote's resampling width);
+        each may also be given by its own name to ``replace``, ``from_dict`` and
+        :meth:`intrinsic`.
 
     Example:
       >>> c = Config(num_angles=12)
@@ -170,7 +207,6 @@ class Config(ConfigBase):
     affinity_weight: float = 1.0
     hks_times: int = 8
     hks_eigenpairs: int = 32
-    hks_max_vertices: int = 4096
     up: tuple[float, float, float] | str | None = (0.0, 0.0, 1.0)
     side: tuple[float, float, float] | str | None = None
     aligned: bool = True
@@ -179,34 +215,27 @@ class Config(ConfigBase):
     steps: int = 6
     coarse_steps: int = 30
     tolerance: float = 0.002
-    random_search_levels: int = 3
-    global_candidates: int = 4
     sweeps: int = 2
-    exact_candidates: int = 2
-    star_candidates: bool = False
     propagation: str = "parallel"
     vote: str = "ring"
     upsample: str = "copy"
-    bucket_vertices: int = 4096
     vote_sigma: float = 1.0
-    interp_sigma: float = 0.5
     min_vertices: int = 128
     levels: int | None = None
     max_scale_ratio: float | None = 2.0
     dtype: str = "float32"
+    experimental: Experimental = Experimental()
 
     _RULES = (
         integers("num_radii", 1),
         integers("num_angles", 2),
         integers("hks_times", 1),
         integers("hks_eigenpairs", 2),
-        integers("hks_max_vertices", 16),
         integers("steps coarse_steps", 1),
         integers("min_vertices", 8),
-        integers("sweeps exact_candidates", 1),
-        integers("random_search_levels global_candidates bucket_vertices", 0),
+        integers("sweeps", 1),
         rule(
-            "vote_sigma interp_sigma",
+            "vote_sigma",
             lambda x: is_finite_number(x) and x > 0,
             "a positive number",
         ),
@@ -221,7 +250,7 @@ class Config(ConfigBase):
             lambda x: x is None or (is_finite_number(x) and x >= 0),
             "None or a number >= 0",
         ),
-        rule("aligned star_candidates", lambda x: isinstance(x, bool), "True or False"),
+        rule("aligned", lambda x: isinstance(x, bool), "True or False"),
         rule("color_weight", lambda x: _weights_ok((x,)), message=_WEIGHT_MESSAGE),
         cross_rule(
             lambda c: _weights_ok(_as_tuple(c.shape_weight)),
@@ -271,7 +300,7 @@ class Config(ConfigBase):
           >>> c.aligned, c.normal_axes()["up"], c.normal_axes()["position_weight"]
           (False, (0.0, 1.0, 0.0), 0.0)
         """
-        return cls(**{"aligned": False, **fields})
+        return cls.from_dict({"aligned": False, **fields})
 
     def up_vector(self) -> tuple[float, float, float] | None:
         """``up`` as a unit 3-vector (axis names resolved), or None.

@@ -352,11 +352,13 @@ class _Level(NamedTuple):
 def _group_dims(source: Side, target: Side, pairing, config: Config) -> dict:
     """Per target level in a group of more than one level, the group's common padded sizes."""
     dims_of = {}
-    if config.bucket_vertices > 0:
+    if config.experimental.bucket_vertices > 0:
         sizes = [len(x) for x in target.hierarchy.vertices]
-        for group in level_groups(sizes, config.bucket_vertices):
+        for group in level_groups(sizes, config.experimental.bucket_vertices):
             if len(group) > 1:
-                dims = bucket_dims(source, target, pairing, group, config.random_search_levels)
+                dims = bucket_dims(
+                    source, target, pairing, group, config.experimental.random_search_levels
+                )
                 if config.propagation == "sequential":  # the wavefront tables share one shape too
                     shapes = [_wavefronts(target, lv).shape for lv in group]
                     dims["order"] = (max(a for a, _ in shapes), max(b for _, b in shapes))
@@ -402,7 +404,7 @@ def _step_weights(
         color_scale=jnp.asarray(config.color_weight / (R * A * C * variance), dtype),
         shape_weight=jnp.asarray(config.shape_weight_at(level), dtype),
         sigma2=jnp.asarray((config.vote_sigma * target.edge[level]) ** 2, dtype),
-        tau2=jnp.asarray((config.interp_sigma * source.edge[m]) ** 2, dtype),
+        tau2=jnp.asarray((config.experimental.interp_sigma * source.edge[m]) ** 2, dtype),
         fan_weight=fan_weight,
     )
 
@@ -455,7 +457,7 @@ def _level_inputs(
         t_feat,
         dtype,
     )
-    up, down = search_tables(sh, m, config.random_search_levels)
+    up, down = search_tables(sh, m, config.experimental.random_search_levels)
     valid_index = np.nonzero(valid_m)[0].astype(np.int32)
     num_valid = len(valid_index)
     if dims is not None:

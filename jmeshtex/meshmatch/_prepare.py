@@ -149,7 +149,7 @@ def prepare_side(
         inv = np.full(n0, -1, np.int64)
         inv[hierarchy.vertex_index[level]] = np.arange(len(v))
         inverse.append(inv)
-    level = hks_level(hierarchy, config.hks_max_vertices)
+    level = hks_level(hierarchy, config.experimental.hks_max_vertices)
     log_hks, times = hks_features(
         hierarchy, level=level, times=hks_times, num_times=config.hks_times, k=config.hks_eigenpairs
     )

@@ -76,10 +76,10 @@ class SearchOptions(NamedTuple):
         return cls(
             config.num_angles,
             tuple(int(s) for s in prefilter_steps),
-            config.global_candidates,
+            config.experimental.global_candidates,
             config.sweeps,
-            config.exact_candidates,
-            config.star_candidates,
+            config.experimental.exact_candidates,
+            config.experimental.star_candidates,
             config.propagation,
             config.vote,
         )

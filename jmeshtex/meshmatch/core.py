@@ -4,6 +4,7 @@
 The method's contract (``Config``, the task verbs and their :class:`~jmeshtex.meshmatch.Transfer`,
 ``save`` / ``load``) lives one level up, in :mod:`jmeshtex.meshmatch`.
 
+- The search budget and the paper's variants of it: :class:`Experimental` (``Config.experimental``).
 - Geodesic fans: :func:`geodesic_fans` / :class:`GeodesicFans`, :func:`sample_fans`,
   :func:`filtered_fans`, :func:`fan_descriptor`, :func:`prefilter_steps`; the smoothing they use:
   :func:`smoother` / :class:`Smoother`, :func:`smooth`.
@@ -15,6 +16,7 @@ The method's contract (``Config``, the task verbs and their :class:`~jmeshtex.me
 - Results: :func:`nnf_colors`; displacements: :func:`base_surface`, :func:`detail_displacement`.
 """
 
+from ._config import Experimental as Experimental
 from ._displacement import base_surface as base_surface
 from ._displacement import detail_displacement as detail_displacement
 from ._fans import GeodesicFans as GeodesicFans

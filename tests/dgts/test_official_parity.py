@@ -104,7 +104,7 @@ def test_load_official_runs_the_official_level_through_a_model(official, tmp_pat
         np.testing.assert_array_equal(back[k], v)
     v = jnp.asarray(d["vertices"], jnp.float32)
     nb = to_jax(face_neighborhood(d["faces"], len(v)))
-    assert model.config.official_axes
+    assert model.config.experimental.official_axes
     moved = np.asarray(
         v
         + generator_level(

@@ -219,7 +219,7 @@ def test_a_model_file_of_another_version_or_lacking_fields_is_refused_by_name(tm
                format_version=FORMAT_VERSION)  # fmt: skip
     assert load(tmp_path / "ok.npz").config == TINY
     for name in ("log", "barycentric"):
-        assert load_pretrained(decoder=name).config.token == "centre"
+        assert load_pretrained(decoder=name).config.experimental.token == "centre"
 
 
 @pytest.mark.parametrize(
@@ -239,7 +239,7 @@ def test_a_model_file_of_another_version_or_lacking_fields_is_refused_by_name(tm
 )
 def test_new_fields_are_validated(changes):
     with pytest.raises(ConfigError):
-        Config(**changes)
+        Config.from_dict(changes)
 
 
 def test_extra_images_are_matplotlib_sample_data_never_a_held_out_one():

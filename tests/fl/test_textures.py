@@ -143,8 +143,9 @@ def test_loss_is_the_papers_equation_by_hand():
         num_blocks=1,
         decoder_features=16,
         kl_weight=0.37,
-        log_objective="vertex",  # each ring from its own latent (the blended one: test_options)
-    )
+    ).replace(
+        log_objective="vertex"
+    )  # each ring from its own latent (the blended one: test_options)
     params = init(c, key=jax.random.key(0), dtype=jnp.float64).params
     rng = np.random.default_rng(0)
     v, s = 3, 5

@@ -92,7 +92,7 @@ def test_builtin_images_are_rgb_in_unit_range():
 def test_batch_concatenates_meshes_with_global_corner_ids(rng):
     meshes = [planar_mesh(rng.random((8, 8, 3)), 10, rng=rng) for _ in range(2)]
     b = mesh_batch(meshes, TINY, rng, num_vertices=25)
-    # the ring's centre (TINY.token == "centre") and the samples
+    # the ring's centre (TINY.experimental.token == "centre") and the samples
     assert b["log"].shape == (25, TINY.num_samples + 1) and b["vertex_mask"].sum() == 20
     assert b["corners"][:10].max() < 10 and b["corners"][10:20].min() >= 10
     assert not b["mask"][20:].any()

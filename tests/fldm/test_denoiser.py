@@ -231,6 +231,7 @@ def test_the_network_reads_only_the_fields_its_programs_are_keyed_on():
     """``init_denoiser`` and ``denoise`` compile once per ``Config.network()``: a field the network
     read but ``network()`` reset would silently take its default. Trace the module with a config
     that records every field read (every option switched on) and check the reads."""
+    from jmeshtex._config import ConfigBase
     from jmeshtex.fldm._config import NETWORK_FIELDS
     from jmeshtex.fldm._denoiser import Denoiser, _as_jax
 
@@ -241,8 +242,11 @@ def test_the_network_reads_only_the_fields_its_programs_are_keyed_on():
             object.__setattr__(self, "_config", config)
 
         def __getattr__(self, name):
+            value = getattr(self._config, name)
+            if isinstance(value, ConfigBase):  # a section: its fields are read by their flat names
+                return Recording(value)
             read.add(name)
-            return getattr(self._config, name)
+            return value
 
         def __hash__(self):
             return hash(self._config)

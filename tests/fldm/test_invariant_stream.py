@@ -1,4 +1,4 @@
-"""The denoiser's invariant stream (``Config.invariants``): its input features and old runs' resume."""
+"""The denoiser's invariant stream (``Config.experimental.invariants``): its input features and old runs' resume."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``Config.remat``: every FCResNet block under ``flax.linen.remat`` has the same parameters, and the same
+"""``Config.experimental.remat``: every FCResNet block under ``flax.linen.remat`` has the same parameters, and the same
 output and gradient as without it (in float64, to round-off)."""
 
 from __future__ import annotations

@@ -177,7 +177,7 @@ def test_new_config_rules():
         ("stats_ddim_steps", 0),
     ):
         with pytest.raises(ConfigError, match=field):
-            Config(**{field: bad})
+            Config.from_dict({field: bad})
     p = Config.paper()
     assert (p.schedule, p.batch_size // p.accumulate, p.loss, p.latent_scaling) == (
         "cosine",

@@ -99,7 +99,7 @@ def _level(cfg, colors, v, f):
     t_arr, _ = level_arrays(
         side, 0, radii, cfg, np.zeros_like(colors), np.ones(len(v), bool), side.features, np.float64
     )
-    up, down = search_tables(side.hierarchy, 0, cfg.random_search_levels)
+    up, down = search_tables(side.hierarchy, 0, cfg.experimental.random_search_levels)
     return side, s_arr, t_arr, steps, up, down
 
 
@@ -162,8 +162,10 @@ def test_one_iteration_propagates_a_correct_match_sweeps_rings(sweeps, rng, key)
     far vertex: one iteration (no random search) must fix exactly the ``sweeps``-ring disc."""
     v, f = _bumpy(2)
     colors = rng.uniform(0, 1, (len(v), 3))
-    cfg = Config(
-        levels=1, random_search_levels=0, global_candidates=0, sweeps=sweeps, exact_candidates=2
+    cfg = Config.from_dict(
+        dict(
+            levels=1, random_search_levels=0, global_candidates=0, sweeps=sweeps, exact_candidates=2
+        )
     )
     _, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
     seed_vertex = 7
@@ -186,13 +188,15 @@ def test_one_sequential_sweep_carries_a_correct_match_across_the_mesh(rng, key):
     whose random neighbours' matches happen to propose them)."""
     v, f = _bumpy(2)
     colors = rng.uniform(0, 1, (len(v), 3))
-    cfg = Config(
-        levels=1,
-        random_search_levels=0,
-        global_candidates=0,
-        sweeps=1,
-        exact_candidates=2,
-        propagation="sequential",
+    cfg = Config.from_dict(
+        dict(
+            levels=1,
+            random_search_levels=0,
+            global_candidates=0,
+            sweeps=1,
+            exact_candidates=2,
+            propagation="sequential",
+        )
     )
     _, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
     seed_vertex = 7
@@ -238,7 +242,9 @@ def test_padding_leaves_every_real_vertex_unchanged(rng, key):
     colors = rng.uniform(0, 1, (len(v), 3))
     cfg = Config(levels=2, min_vertices=40)
     side, s_arr, t_arr, steps, up, down = _level(cfg, colors, v, f)
-    assert len(up) == cfg.random_search_levels  # structure fixed even above the hierarchy's top
+    assert (
+        len(up) == cfg.experimental.random_search_levels
+    )  # structure fixed even above the hierarchy's top
     nnf = rng.integers(0, len(v), len(v)).astype(np.int32)
     plain = _step(cfg, t_arr, s_arr, up, down, steps, nnf, colors, key)
     K = t_arr.nb_index.shape[1]
@@ -293,8 +299,12 @@ def test_level_groups_share_a_step_and_change_no_result():
     colors = 0.5 + 0.4 * np.sin(4 * v[:, :3] + np.array([0.0, 1.0, 2.0]))
     base = dict(levels=3, min_vertices=40, steps=2, coarse_steps=3, hks_eigenpairs=12)
     key = jax.random.key(0)
-    padded = meshmatch((v, f), colors, (v, f), key=key, config=Config(bucket_vertices=100, **base))
-    plain = meshmatch((v, f), colors, (v, f), key=key, config=Config(bucket_vertices=0, **base))
+    padded = meshmatch(
+        (v, f), colors, (v, f), key=key, config=Config(**base).replace(bucket_vertices=100)
+    )
+    plain = meshmatch(
+        (v, f), colors, (v, f), key=key, config=Config(**base).replace(bucket_vertices=0)
+    )
     stats = padded.stats["levels"]
     assert [s["padded_vertices"] for s in stats] == [max(s["vertices"] for s in stats[:2])] * 2 + [
         162

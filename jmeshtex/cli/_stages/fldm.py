@@ -43,12 +43,12 @@ def _spot_z_up(subdivide: bool):
 
 def _encoding(vae, model, mesh, geometry, key) -> np.ndarray:
     """``mesh``'s own texture encoded as the model's training latents were: the FL-VAE's mean,
-    then the flat rings' phases synchronised (``model.config.phase_sync``)."""
+    then the flat rings' phases synchronised (``model.config.experimental.phase_sync``)."""
     from ... import fl
     from ...fldm import core
 
     z = np.asarray(fl.encode(vae, mesh, key=key).mu)
-    cfg = model.config
+    cfg = model.config.experimental
     if cfg.phase_sync == "none":
         return z
     pinned = None

@@ -20,7 +20,7 @@
 - ``fldm.denoiser_mask``: the mask-conditioned denoiser (``Config.mask_conditioning``): the
   inpainting mask (``s > 0`` of a random scalar field, so it follows relabelling) in the filters and
   the known latents (a second tangent input) as extra channels; with the invariant stream
-  (``Config.invariants``: each block's filters also see the powers of its input and their
+  (``Config.experimental.invariants``: each block's filters also see the powers of its input and their
   neighbourhood means), so one entry covers both per-vertex filter inputs.
 - ``fldm.sampler_inpaint``: ancestral DDPM (a 4-step schedule) with the mask-conditioned denoiser
   and replacement inpainting (eq. 14), as a map of its noise (initial, per-step and the known
