@@ -454,14 +454,15 @@ class _Fields(NamedTuple):
 def _sample_fields(ctx: Context, model, stage) -> _Fields:
     """Samples (DDIM, DDPM) and the baseline fields (reconstruction, shuffled latents, random
     channel phases) on Spot midpoint-subdivided to about the training density."""
-    from jmeshtex import fl, fldm
+    from jmeshtex import fldm
     from jmeshtex.fldm import core as st
     from jmeshtex.fldm.core import denoiser_geometry, sampling_geometry
 
     args, cfg, run, spot = ctx.args, ctx.cfg, ctx.run, ctx.spot
     n = run["samples"] if args.samples is None else args.samples
     target = subdivided(spot, run["subdivide"])
-    nb = denoiser_geometry(target, knn=cfg.knn, pool_ratio=cfg.pool_ratio).fine
+    denoiser = denoiser_geometry(target, knn=cfg.knn, pool_ratio=cfg.pool_ratio)
+    nb = denoiser.fine
     t0, c0 = time.perf_counter(), _cpu()
     geo = sampling_geometry(target, model)
     z = {"DDIM": fldm.sample(model, geo, key=ctx.k_sample, num_samples=n, steps=run["ddim"])}
@@ -473,14 +474,8 @@ def _sample_fields(ctx: Context, model, stage) -> _Fields:
         z["DDPM"] = fldm.sample(model, geo, key=k, num_samples=n_ddpm, method="ddpm")
     stage("sample DDPM", t0, c0)
     z = {k: np.asarray(v.latents) for k, v in z.items()}
-    recon = np.asarray(fl.encode(ctx.vae, target, key=ctx.k_codec).mu)
-    ex = cfg.experimental
-    if ex.phase_sync != "none":  # the codec's latents as the model was trained on them
-        pinned = None
-        if ex.phase_sync == "flat":
-            spread = st.ring_color_spread(target, fl.core.surface_colors(spot))
-            pinned = spread >= ex.flat_spread
-        recon = st.synchronize_phases(recon, nb, pinned=pinned)
+    # the codec's latents as the model was trained on them (phase_sync)
+    recon = fldm.encode(ctx.vae, target, cfg, key=ctx.k_codec, geometry=denoiser)
     kb = jax.random.key(args.seed + 101)
     fields = {
         "reconstruction": recon[None],

@@ -12,7 +12,8 @@ The method's shape is that of every jmeshtex method:
 - :func:`train` (resumable, returns a :class:`~jmeshtex.TrainResult` holding a :class:`Model`),
   :func:`save` / :func:`load`;
 - the task verbs :func:`sample` and :func:`inpaint` (a mesh and ``key=`` in, :class:`Samples`
-  out).
+  out), and :func:`encode` (a textured mesh as the latents a model was trained on: what inpainting
+  keeps, or the reference beside the samples).
 
 The denoiser, the diffusion maths (schedules, DDPM/DDIM steps) and the training step are building
 blocks in :mod:`jmeshtex.fldm.core`.
@@ -37,6 +38,7 @@ from . import core as core  # the building blocks
 from ._config import Config as Config
 from ._data import Dataset as Dataset
 from ._data import build_dataset as build_dataset
+from ._data import encode as encode
 from ._data import fl_vae_encoder as fl_vae_encoder
 from ._masks import random_mask as random_mask
 from ._model import Model as Model

@@ -125,6 +125,75 @@ def fl_vae_encoder(vae, original: Mesh, *, key: jax.Array) -> Callable[[Mesh], n
     return encode
 
 
+def encode(
+    vae,
+    mesh: Mesh,
+    config: Config,
+    *,
+    key: jax.Array,
+    geometry: DenoiserGeometry | None = None,
+    colors=None,
+) -> np.ndarray:
+    """A mesh's texture as the latents a model with ``config`` was trained on (e.g. the known part of
+    :func:`~jmeshtex.fldm.inpaint`, or the reference beside a model's samples).
+
+    The FL-VAE's means ``μ`` (as :func:`fl_vae_encoder` gives them), then, with
+    ``config.experimental.phase_sync``, the phases synchronised as :func:`build_dataset` synchronised
+    every training copy's (:func:`~jmeshtex.fldm.core.synchronize_phases`; ``"flat"`` pins the rings
+    whose :func:`~jmeshtex.fldm.core.ring_color_spread` reaches ``flat_spread``).
+
+    Args:
+      vae: the FL-VAE the model's data were encoded with (:class:`jmeshtex.fl.Model`).
+      mesh: a textured or vertex-coloured :class:`~jmeshtex.Mesh`.
+      config: the model's :class:`Config` (``model.config``).
+      key: PRNG key of the encoder's one-ring samples.
+      geometry: ``mesh``'s :class:`~jmeshtex.fldm.core.DenoiserGeometry` (default: built from
+        ``config.knn`` and ``config.pool_ratio``; pass the sampler's to avoid building it twice).
+      colors: the surface colours (:func:`jmeshtex.fl.core.surface_colors`) when ``mesh`` is a
+        re-triangulation of a textured original; default: ``mesh``'s own.
+
+    Returns:
+      ``complex128 [V, d]`` latents (``d = vae.config.latent_dim``).
+
+    Raises:
+      InputError: ``vae`` is not an FL-VAE, or ``mesh`` has no colours.
+
+    Example:
+      >>> import jax
+      >>> from jmeshtex import Mesh, fl
+      >>> from jmeshtex.data import icosphere
+      >>> v, f = icosphere(1)
+      >>> m = Mesh(v, f, vertex_colors=np.tile((v[:, :1] > 0) * 1.0, (1, 3)))
+      >>> vae = fl.init(fl.Config(features=8, num_heads=2, num_blocks=1, num_samples=8, encode_chunk=16),
+      ...               key=jax.random.key(0))
+      >>> z = encode(vae, m, Config.tiny(latent_channels=8, phase_sync="flat"), key=jax.random.key(1))
+      >>> z.shape, z.dtype
+      ((42, 8), dtype('complex128'))
+    """
+    from .. import fl
+
+    if not isinstance(vae, fl.Model):
+        raise InputError(f"fldm.encode: expected a jmeshtex.fl.Model, got {type(vae).__name__}")
+    mesh = as_mesh(mesh, what="mesh")
+    if colors is None:
+        colors = fl.core.surface_colors(mesh)
+    mu = np.asarray(fl.encode(vae, mesh, colors=colors, key=key).mu, np.complex128)
+    if config.experimental.phase_sync == "none":
+        return mu
+    if geometry is None:
+        geometry = denoiser_geometry(mesh, knn=config.knn, pool_ratio=config.pool_ratio)
+    return np.asarray(_synchronized(mu, mesh, geometry, config, colors), np.complex128)
+
+
+def _synchronized(mu, copy: Mesh, geo: DenoiserGeometry, config: Config, colors):
+    """``mu`` with ``config.experimental.phase_sync`` applied on ``copy`` (``colors``: its surface
+    colours, needed for ``"flat"``)."""
+    pinned = None
+    if config.experimental.phase_sync == "flat":
+        pinned = ring_color_spread(copy, colors) >= config.experimental.flat_spread
+    return synchronize_phases(mu, geo.fine, pinned=pinned)
+
+
 def _digest(arrays) -> str:
     h = hashlib.sha1()
     for a in arrays:
@@ -446,13 +515,7 @@ def _phase_synchronizer(mesh: Mesh, config: Config, encode):
 
             colors = fl.core.surface_colors(mesh)
 
-    def for_copy(copy: Mesh, geo: DenoiserGeometry):
-        pinned = None
-        if colors is not None:
-            pinned = ring_color_spread(copy, colors) >= config.experimental.flat_spread
-        return lambda mu: synchronize_phases(mu, geo.fine, pinned=pinned)
-
-    return for_copy
+    return lambda copy, geo: lambda mu: _synchronized(mu, copy, geo, config, colors)
 
 
 def batch_geometry(data: Dataset, index: np.ndarray) -> DenoiserGeometry:

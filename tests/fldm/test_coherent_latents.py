@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from jmeshtex import Mesh, fl, fldm
+from jmeshtex import InputError, Mesh, fl, fldm
 from jmeshtex.data import icosphere
 from jmeshtex.fldm.core import (
     denoiser_geometry,
@@ -95,3 +95,25 @@ def test_synchronised_copies_decode_alike_and_cohere(sphere, decoder, sync):
         assert abs(change) < 0.05, change
     else:  # the log decoder's residual anisotropy on flat rings (Spot: −0.10 dB at 3K vertices)
         assert abs(change) < 0.5, change
+
+
+def test_encode_gives_a_mesh_the_latents_training_gave_its_copy(sphere):
+    """``fldm.encode`` on a training copy, with the encoder's key of that copy, is exactly what
+    ``build_dataset`` stored for it, phases synchronised or not."""
+    vae = fl.load_pretrained(decoder="log")
+    stored = {}
+    for sync in ("none", "flat"):
+        data = _build(sphere, vae, sync)
+        copy = data.meshes[0]
+        z = fldm.encode(
+            vae,
+            copy,
+            fldm.Config.tiny(latent_channels=vae.config.latent_dim, phase_sync=sync),
+            key=jax.random.fold_in(jax.random.key(1), 1),  # fl_vae_encoder's first call
+            colors=fl.core.surface_colors(sphere),
+        )
+        stored[sync] = data.latents[0, : copy.num_vertices]
+        np.testing.assert_array_equal(z, stored[sync])
+    assert np.abs(stored["flat"] - stored["none"]).max() > 0.1  # the synchronisation shows
+    with pytest.raises(InputError, match="expected a jmeshtex.fl.Model"):
+        fldm.encode(object(), sphere, fldm.Config.tiny(), key=jax.random.key(0))

@@ -41,23 +41,6 @@ def _spot_z_up(subdivide: bool):
     return mesh.replace(vertices=up, faces=f, uv=uv)
 
 
-def _encoding(vae, model, mesh, geometry, key) -> np.ndarray:
-    """``mesh``'s own texture encoded as the model's training latents were: the FL-VAE's mean,
-    then the flat rings' phases synchronised (``model.config.experimental.phase_sync``)."""
-    from ... import fl
-    from ...fldm import core
-
-    z = np.asarray(fl.encode(vae, mesh, key=key).mu)
-    cfg = model.config.experimental
-    if cfg.phase_sync == "none":
-        return z
-    pinned = None
-    if cfg.phase_sync == "flat":
-        spread = core.ring_color_spread(mesh, fl.core.surface_colors(mesh))
-        pinned = spread >= cfg.flat_spread
-    return np.asarray(core.synchronize_phases(z, geometry.fine, pinned=pinned))
-
-
 def _atlases(vae, mesh, fields: dict, atlas: int) -> dict[str, np.ndarray]:
     """Every field decoded to ``mesh``'s atlas (unused texels filled), plus ``"baseline: flat"``:
     the best constant colour over the texels the atlas uses."""
@@ -137,7 +120,7 @@ def demo_stage(out_dir: str | os.PathLike, *, quick: bool, progress: Progress = 
     say(progress, f"sampling 2 textures on Spot (DDIM, {steps} steps)")
     z = np.asarray(fldm.sample(model, geometry, key=k_sample, num_samples=2, steps=steps).latents)
     say(progress, "encoding Spot and inpainting its front half")
-    known = _encoding(vae, model, mesh, geometry, k_codec)
+    known = fldm.encode(vae, mesh, model.config, key=k_codec, geometry=geometry)
     rear = mesh.vertices[:, 1] < np.median(mesh.vertices[:, 1])  # Spot (z-up) faces +y
     inpainted = fldm.inpaint(
         model, geometry, known, rear, key=k_inpaint, method="ddim", steps=steps
