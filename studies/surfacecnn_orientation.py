@@ -84,8 +84,16 @@ def orientation(
     for mesh_name in meshes:
         mesh = protocol_mesh(mesh_name, work)
         t0 = time.perf_counter()
+        kept = [
+            _texture_path(work, mesh_name, ex, size, steps, "surface", frame_smoothing).is_file()
+            for ex in exemplars
+        ]
+        needs_pyramid = "surface" in methods and not all(kept)  # else only the atlas is read
         surface = prepare_surface(
-            mesh, size=size, levels=levels, frame_smoothing=config.frame_smoothing
+            mesh,
+            size=size,
+            levels=levels if needs_pyramid else 0,
+            frame_smoothing=config.frame_smoothing,
         )
         prep = time.perf_counter() - t0
         geometry = tracer_geometry(mesh.vertices, mesh.faces)
@@ -204,6 +212,7 @@ def orientation_figure(
     out: pathlib.Path | None,
     path: pathlib.Path | None = None,
     close: float = 0.3,
+    uv2d_steps: int | None = None,
 ) -> pathlib.Path:
     """Stripes on a protocol mesh from the orientation textures in ``work``: the surface CNN, the
     seamless control (3D stripes baked into the same atlas) and UV-space 2D synthesis, a whole view
@@ -211,14 +220,16 @@ def orientation_figure(
     and a 4× crop of each. The close view looks at the front-facing seam edge whose two faces
     read the control's stripes most coherently (a choice by the layout alone, not by any
     synthesis), from ``0.6`` mesh radii away, ``close`` radii half-height. Writes ``path``
-    (default ``results/surfacecnn_orientation_<mesh>.png``)."""
+    (default ``results/surfacecnn_orientation_<mesh>.png``). ``uv2d_steps``: the UV-space 2D
+    run's step count where it differs from the surface CNN's (named in its panels)."""
     from jmeshtex import render
     from jmeshtex.metrics import seam_orientation, uv_charts
 
     mesh = protocol_mesh(mesh_name, work)
     tex = {}
-    for method in ("surface", "uv2d"):
-        texture = _texture_path(work, mesh_name, "stripes", size, steps, method, FRAME_SMOOTHING)
+    runs = {"surface": steps, "uv2d": steps if uv2d_steps is None else uv2d_steps}
+    for method, n in runs.items():
+        texture = _texture_path(work, mesh_name, "stripes", size, n, method, FRAME_SMOOTHING)
         with np.load(texture) as z:
             tex[method] = np.asarray(z["texture"], np.float64)
     surface = prepare_surface(mesh, size=size, levels=0)  # the atlas (texel size) of the layout
@@ -264,7 +275,7 @@ def orientation_figure(
     labels = {
         "surface": "surface CNN",
         "control": "seamless control (3D stripes)",
-        "uv2d": "UV-space 2D",
+        "uv2d": "UV-space 2D" + ("" if runs["uv2d"] == steps else f" ({runs['uv2d']} steps)"),
     }
     panels += [
         (labels["surface"], views["surface"][0]),
@@ -408,6 +419,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--seam-sources", default=None, metavar="MESH", help="where a cell's seam ratio comes from"
     )
+    ap.add_argument("--uv2d-steps", type=int, default=None, help="the figure's UV-space 2D run")
     ap.add_argument("--figure-path", type=pathlib.Path, default=None, help="where it goes")
     ap.add_argument(
         "--close", type=float, default=0.3, help="close view's half-height (mesh radii)"
@@ -416,7 +428,9 @@ def main(argv: list[str] | None = None) -> None:
     if a.seam_sources:
         seam_sources(a.seam_sources, a.size, a.steps, a.work, a.out)
     elif a.figure:
-        orientation_figure(a.figure, a.size, a.steps, a.work, a.out, a.figure_path, a.close)
+        orientation_figure(
+            a.figure, a.size, a.steps, a.work, a.out, a.figure_path, a.close, a.uv2d_steps
+        )
     else:
         orientation(
             a.meshes.split(","),
