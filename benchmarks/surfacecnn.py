@@ -356,6 +356,7 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
     config = Config(size=size, steps=steps)
     cams = render.orbit_cameras(mesh, azimuths=4, elevations=(20.0,), size=(size, size), up=up)
     row = cell_columns(mesh_name, ex_name, size, steps, surface)
+    row["frames"] = {"frames": config.frames, "frame_smoothing": config.frame_smoothing}
     row["texel_density_spread"] = _layout_spread(mesh_name, work)
     laid = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv)
     control = seam_orientation(laid, orientation_control(mesh, surface, config))
@@ -573,12 +574,22 @@ def _orientation_cell(row: dict, m: dict) -> str:
     return f"{m['orientation_seam']:.3f} / {m['orientation_interior']:.3f} ({control}; {tiled})"
 
 
+def _frames_words(row: dict) -> str:
+    """The tangent frames a cell was synthesised with (``Config.frames``, ``frame_smoothing``)."""
+    f = row.get("frames")
+    if f is None:
+        return "not recorded (cells finished before issue 58's frame smoothing: the paper's frames)"
+    return f"{f['frames']}, smoothed over {f['frame_smoothing']:g} texels"
+
+
 def _write_quality(rows, spreads, size, steps, out):
     import json
 
     baselines = ("flat", "permuted", "initial", "uv_tiled", "floor")
+    frames = sorted({_frames_words(r) for r in rows})
     lines = [
         "# surfacecnn quality\n",
+        f"Tangent frames of the cells: {'; '.join(frames)}.\n",
         f"Protocol of issue 33: {size}² textures, {steps} steps (Adam 0.1 halved every 200), every "
         "ReLU and pool output of the embedded VGG-16, xatlas layouts, exemplars at native 512² "
         "(three photographs and 8-pixel stripes; 1 exemplar pixel = 1 texel). Surface patches: 32 geodesic patches of 32² texels in the "

@@ -49,11 +49,7 @@ from ..geometry import (
     tangent_to_3d,
     tracer_geometry,
 )
-from ._config import FRAME_MODES
-
-#: radius (texels) over which the ``"global"`` frames turn at a crease (texture_atlas
-#: ``frame_smoothing``): chosen on the fandisk's creases, numbers in ``docs/results.md``
-FRAME_SMOOTHING = 4.0
+from ._config import FRAME_MODES, FRAME_SMOOTHING
 
 
 class TextureAtlas(NamedTuple):

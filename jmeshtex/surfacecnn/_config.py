@@ -11,6 +11,9 @@ BOUNDARY_MODES = ("opposite", "zero", "clamp")
 FRAME_MODES = ("global", "smooth", "uv")
 EXEMPLAR_PADDING = ("centre", "zero")
 POOL_MODES = ("mean", "max")
+#: radius (texels) over which the ``"global"`` frames turn at a crease (``Config.frame_smoothing``):
+#: chosen on the fandisk's creases, numbers in ``docs/results.md``
+FRAME_SMOOTHING = 4.0
 #: every feature map a VGG-16 or VGG-19 has: ``conv<b>_<i>``, ``relu<b>_<i>``, ``pool<b>``
 LAYER_NAMES = frozenset(
     [
@@ -56,6 +59,10 @@ class Config(ConfigBase):
         smoothest direction field, Knöppel et al. 2013) or ``"uv"`` (the UV layout's; jumps at
         chart seams — an ablation).
       frame_vector: the world vector of the ``"global"`` frames (reference: x, fallback y).
+      frame_smoothing: radius, in texels, over which the ``"global"`` frames turn at creases
+        (:func:`~jmeshtex.surfacecnn.core.texture_atlas`; default ``FRAME_SMOOTHING`` = 4, chosen
+        in ``docs/results.md``); 0 is the paper's field. Left out of :meth:`fingerprint` at its
+        default, so checkpoints written before the field existed still resume.
       unwrap: the texture layout :func:`~jmeshtex.surfacecnn.synthesize` optimises: ``"xatlas"``
         (the reference's: every mesh is re-unwrapped, so a texel covers about the same surface
         everywhere) or ``"mesh"`` (the mesh's own UVs, whose texel density may vary a lot:
@@ -95,6 +102,7 @@ class Config(ConfigBase):
     boundary: str = "opposite"
     frames: str = "global"
     frame_vector: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    frame_smoothing: float = FRAME_SMOOTHING
     unwrap: str = "xatlas"
     exemplar_padding: str = "centre"
     layers: tuple[str, ...] | None = None
@@ -107,6 +115,9 @@ class Config(ConfigBase):
 
     #: what a resumed run may change: the step count and the checkpoint cadence
     _RESUMABLE = frozenset({"steps", "checkpoint_every"})
+    #: fields added after checkpoints were written, with the value those runs had: left out of
+    #: :meth:`fingerprint` while they hold it, so the earlier checkpoints still resume
+    _ADDED = {"frame_smoothing": FRAME_SMOOTHING}
     _RULES = (
         integers("size", 4),
         integers("steps", 0),
@@ -122,6 +133,11 @@ class Config(ConfigBase):
             "None or a finite number >= 0",
         ),
         rule("learning_rate", lambda x: x > 0, "> 0"),
+        rule(
+            "frame_smoothing",
+            lambda x: is_finite_number(x) and x >= 0,
+            "a finite number of texels >= 0 (0: the paper's frames)",
+        ),
         cross_rule(
             lambda c: 0.0 <= c.init_low <= c.init_high <= 1.0,
             "{cls} needs 0 <= init_low <= init_high <= 1, got {c.init_low}, {c.init_high}",
@@ -189,6 +205,22 @@ class Config(ConfigBase):
           (16, 3, ('relu1_1', 'pool1'))
         """
         return cls(**{**dict(size=16, steps=3, layers=("relu1_1", "pool1")), **changes})
+
+    def fingerprint(self) -> dict:
+        """The fields a checkpoint must share to be resumed (all but ``steps`` and
+        ``checkpoint_every``), without the ``_ADDED`` fields that hold the value every earlier
+        checkpoint was written with (a frame smoothing other than the
+        default is recorded, so a checkpoint of other frames does not resume by mistake).
+
+        Example:
+          >>> "frame_smoothing" in Config().fingerprint(), Config(frame_smoothing=0).fingerprint()["frame_smoothing"]
+          (False, 0)
+        """
+        return {
+            k: v
+            for k, v in super().fingerprint().items()
+            if not (k in self._ADDED and v == self._ADDED[k])
+        }
 
     def learning_rate_at(self, step: int) -> float:
         """The learning rate of (0-based) step ``step``: halved after every ``halve_every`` steps."""

@@ -102,6 +102,7 @@ def _setup(
             boundary=config.boundary,
             frames=config.frames,
             frame_vector=config.frame_vector,
+            frame_smoothing=config.frame_smoothing,
         )
     elif surface.pyramid.levels < levels or surface.atlas.size != config.size:
         raise InputError(

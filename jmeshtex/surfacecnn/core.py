@@ -20,7 +20,6 @@ The method's contract (``Config``, ``synthesize`` / ``stylize`` and their
   :func:`seam_ratio`.
 """
 
-from ._atlas import FRAME_SMOOTHING as FRAME_SMOOTHING
 from ._atlas import TextureAtlas as TextureAtlas
 from ._atlas import image_to_texels as image_to_texels
 from ._atlas import intrinsic_tangents as intrinsic_tangents
@@ -30,6 +29,7 @@ from ._atlas import texels_to_image as texels_to_image
 from ._atlas import texture_atlas as texture_atlas
 from ._atlas import uv_face_tangents as uv_face_tangents
 from ._atlas import vertex_directions as vertex_directions
+from ._config import FRAME_SMOOTHING as FRAME_SMOOTHING
 from ._loss import default_content_weight as default_content_weight
 from ._loss import default_layers as default_layers
 from ._loss import gram_targets as gram_targets

@@ -83,6 +83,14 @@ def test_the_quality_table_shows_orientation_beside_control_and_tiled_or_a_dash(
     assert surfacecnn._orientation_cell({}, {"seam_ratio": 1.0}) == "—"  # scored before the measure
 
 
+def test_the_quality_table_names_each_cells_frames():
+    smoothed = {"frames": {"frames": "global", "frame_smoothing": 4.0}}
+    paper = {"frames": {"frames": "global", "frame_smoothing": 0.0}}
+    assert surfacecnn._frames_words(smoothed) == "global, smoothed over 4 texels"
+    assert surfacecnn._frames_words(paper) == "global, smoothed over 0 texels"
+    assert "not recorded" in surfacecnn._frames_words({})  # a cell finished before the record
+
+
 def test_the_orientation_control_runs_straight_across_seams():
     """The control the benchmark bakes (stripes along the frames' vector) is seamless on a layout
     with a seam: its seam alignment is the interior's."""

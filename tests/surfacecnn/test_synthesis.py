@@ -72,6 +72,8 @@ def test_learning_rate_schedule_and_config_errors():
         {"init_low": 0.5, "init_high": 0.1},
         {"layers": ()},
         {"dtype": "float16"},
+        {"frame_smoothing": -1.0},
+        {"frame_smoothing": float("nan")},
     ):
         with pytest.raises(ConfigError):
             Config(**bad)
@@ -159,6 +161,48 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
         synthesize(mesh, ex, Config(size=16, steps=10), checkpoint_dir=ckpt, **other_key)
     with pytest.raises(InputError, match="past this run"):
         synthesize(mesh, ex, Config(size=16, steps=5), checkpoint_dir=ckpt, **kw)
+
+
+def test_frame_smoothing_is_a_config_field_the_checkpoint_records(tmp_path):
+    """The frames change the texture, so a checkpoint of other frames is refused; the default is
+    left out of the fingerprint, so a checkpoint written before the field existed still resumes."""
+    from jmeshtex.data import grid
+    from jmeshtex.io import Checkpoints
+    from jmeshtex.surfacecnn.core import FRAME_SMOOTHING
+
+    assert Config().frame_smoothing == FRAME_SMOOTHING == 4.0
+    assert Config.from_dict({"size": 16}).frame_smoothing == FRAME_SMOOTHING  # older JSON loads
+    assert "frame_smoothing" not in Config().fingerprint()
+    assert Config(frame_smoothing=0).fingerprint()["frame_smoothing"] == 0
+    assert Config(frame_smoothing=2.0).fingerprint() != Config().fingerprint()
+    # the field reaches the frames: a folded sheet (a crease the smoothing bends the frames over)
+    flat, f = grid(4)
+    v = np.asarray(flat, np.float64).copy()
+    v[:, 2] = np.maximum(v[:, 0] - 0.5, 0.0)  # fold along x = 0.5
+    v[:, 0] = np.minimum(v[:, 0], 0.5)
+    frame_vector = (1.0, 1.0, 0.0)
+    mesh = Mesh(v, f, uv=np.asarray(flat)[f][..., :2])
+    ex = np.random.default_rng(0).uniform(size=(16, 16, 3))
+    kw = dict(key=jax.random.key(3), layers=("relu1_1",), progress=False)
+    base = Config(size=16, steps=2, unwrap="mesh", frame_vector=frame_vector)
+    runs = {
+        s: synthesize(
+            mesh, ex, base.replace(frame_smoothing=s), checkpoint_dir=tmp_path / str(s), **kw
+        )
+        for s in (0.0, FRAME_SMOOTHING)
+    }
+    t0, t4 = (runs[s].surface.atlas.frame[:, 0] for s in (0.0, FRAME_SMOOTHING))
+    assert np.abs(t0 - t4).max() > 0.05
+    # a checkpoint of other frames is refused (its config differs)
+    with pytest.raises(CheckpointMismatchError, match="config"):
+        synthesize(mesh, ex, base.replace(steps=4), checkpoint_dir=tmp_path / "0.0", **kw)
+    # a default run's fingerprint is the one written before the field existed: it resumes
+    stored = Checkpoints(tmp_path / "4.0").read_meta()["fingerprint"]["config"]
+    assert set(stored) == {f for f in base.to_dict() if f != "frame_smoothing"} - set(
+        Config._RESUMABLE
+    )
+    again = synthesize(mesh, ex, base.replace(steps=4), checkpoint_dir=tmp_path / "4.0", **kw)
+    assert again.stats["resumed_at"] == 2
 
 
 def test_uv_space_synthesis_resumes_from_its_checkpoint(tmp_path):
