@@ -61,8 +61,9 @@ class Config(ConfigBase):
       frame_vector: the world vector of the ``"global"`` frames (reference: x, fallback y).
       frame_smoothing: radius, in texels, over which the ``"global"`` frames turn at creases
         (:func:`~jmeshtex.surfacecnn.core.texture_atlas`; default ``FRAME_SMOOTHING`` = 4, chosen
-        in ``docs/results.md``); 0 is the paper's field. Left out of :meth:`fingerprint` at its
-        default, so checkpoints written before the field existed still resume.
+        in ``docs/results.md``); 0 is the paper's field. In the checkpoint fingerprint: a
+        checkpoint written before the field existed (whose frames may have been the paper's) is
+        refused rather than resumed under other frames.
       unwrap: the texture layout :func:`~jmeshtex.surfacecnn.synthesize` optimises: ``"xatlas"``
         (the reference's: every mesh is re-unwrapped, so a texel covers about the same surface
         everywhere) or ``"mesh"`` (the mesh's own UVs, whose texel density may vary a lot:
@@ -115,9 +116,6 @@ class Config(ConfigBase):
 
     #: what a resumed run may change: the step count and the checkpoint cadence
     _RESUMABLE = frozenset({"steps", "checkpoint_every"})
-    #: fields added after checkpoints were written, with the value those runs had: left out of
-    #: :meth:`fingerprint` while they hold it, so the earlier checkpoints still resume
-    _ADDED = {"frame_smoothing": FRAME_SMOOTHING}
     _RULES = (
         integers("size", 4),
         integers("steps", 0),
@@ -205,22 +203,6 @@ class Config(ConfigBase):
           (16, 3, ('relu1_1', 'pool1'))
         """
         return cls(**{**dict(size=16, steps=3, layers=("relu1_1", "pool1")), **changes})
-
-    def fingerprint(self) -> dict:
-        """The fields a checkpoint must share to be resumed (all but ``steps`` and
-        ``checkpoint_every``), without the ``_ADDED`` fields that hold the value every earlier
-        checkpoint was written with (a frame smoothing other than the
-        default is recorded, so a checkpoint of other frames does not resume by mistake).
-
-        Example:
-          >>> "frame_smoothing" in Config().fingerprint(), Config(frame_smoothing=0).fingerprint()["frame_smoothing"]
-          (False, 0)
-        """
-        return {
-            k: v
-            for k, v in super().fingerprint().items()
-            if not (k in self._ADDED and v == self._ADDED[k])
-        }
 
     def learning_rate_at(self, step: int) -> float:
         """The learning rate of (0-based) step ``step``: halved after every ``halve_every`` steps."""

@@ -164,15 +164,15 @@ def test_checkpoint_resume_reproduces_an_uninterrupted_run(tmp_path, monkeypatch
 
 
 def test_frame_smoothing_is_a_config_field_the_checkpoint_records(tmp_path):
-    """The frames change the texture, so a checkpoint of other frames is refused; the default is
-    left out of the fingerprint, so a checkpoint written before the field existed still resumes."""
+    """The frames change the texture, so a checkpoint of other frames is refused, and so is one
+    written before the field existed (its fingerprint lacks it: its frames are not known)."""
     from jmeshtex.data import grid
     from jmeshtex.io import Checkpoints
     from jmeshtex.surfacecnn.core import FRAME_SMOOTHING
 
     assert Config().frame_smoothing == FRAME_SMOOTHING == 4.0
     assert Config.from_dict({"size": 16}).frame_smoothing == FRAME_SMOOTHING  # older JSON loads
-    assert "frame_smoothing" not in Config().fingerprint()
+    assert Config().fingerprint()["frame_smoothing"] == FRAME_SMOOTHING
     assert Config(frame_smoothing=0).fingerprint()["frame_smoothing"] == 0
     assert Config(frame_smoothing=2.0).fingerprint() != Config().fingerprint()
     # the field reaches the frames: a folded sheet (a crease the smoothing bends the frames over)
@@ -196,11 +196,15 @@ def test_frame_smoothing_is_a_config_field_the_checkpoint_records(tmp_path):
     # a checkpoint of other frames is refused (its config differs)
     with pytest.raises(CheckpointMismatchError, match="config"):
         synthesize(mesh, ex, base.replace(steps=4), checkpoint_dir=tmp_path / "0.0", **kw)
-    # a default run's fingerprint is the one written before the field existed: it resumes
-    stored = Checkpoints(tmp_path / "4.0").read_meta()["fingerprint"]["config"]
-    assert set(stored) == {f for f in base.to_dict() if f != "frame_smoothing"} - set(
-        Config._RESUMABLE
-    )
+    # a checkpoint written before the field existed (no frame_smoothing in its fingerprint) is
+    # refused, and the same frames resume
+    fingerprint = Checkpoints(tmp_path / "4.0").read_meta()["fingerprint"]
+    assert fingerprint["config"]["frame_smoothing"] == FRAME_SMOOTHING
+    del fingerprint["config"]["frame_smoothing"]  # as written before the field existed
+    old = tmp_path / "before the field"
+    Checkpoints(old, fingerprint=fingerprint).save(2, {"texture": np.zeros(3)})
+    with pytest.raises(CheckpointMismatchError, match="frame_smoothing"):
+        synthesize(mesh, ex, base.replace(steps=4), checkpoint_dir=old, **kw)
     again = synthesize(mesh, ex, base.replace(steps=4), checkpoint_dir=tmp_path / "4.0", **kw)
     assert again.stats["resumed_at"] == 2
 
