@@ -1,4 +1,4 @@
-"""Convert FL-VAE / FLDM model files and FL / FLDM checkpoint folders written before format 2, once.
+"""Convert FL-VAE / FLDM / DGTS model files and FL / FLDM checkpoint folders written before format 2, once.
 
 Format 2 stores every config field in a model file's header and takes a checkpoint's config
 fingerprint from ``ConfigBase.fingerprint()`` (every field but the resumable ones). Earlier files
@@ -9,8 +9,8 @@ filled in into the files themselves:
 - an FL-VAE model file (``.npz``, kind ``jmeshtex.fl.Model``, version 1): fields it lacks get
   ``token="ring_mean"``, ``log_objective="vertex"`` (what the version-1 reader assumed) and today's
   defaults for the rest; the header's version becomes 2;
-- an FLDM model folder or its ``model.npz`` (version 1): fields it lacks get today's defaults (what
-  the version-1 reader gave them); version 2;
+- an FLDM or DGTS model folder or its ``model.npz`` (version 1): fields it lacks get today's
+  defaults (what the version-1 reader gave them); version 2;
 - a checkpoint folder of ``fl.train`` / ``fldm.train`` (``.jmeshtex-checkpoints.json`` in it): each
   step's stored fingerprint gets the config fields the old fingerprint left out at their default
   (fl ``ema_decay``; fldm ``invariants``, ``schedule_shift``, ``phase_sync``, ``flat_spread``), and
@@ -20,6 +20,7 @@ Usage (from the repository root; files are rewritten in place, atomically, and a
 format 2 is left as it is)::
 
     python studies/convert_to_format_2.py jmeshtex/fl/weights/fl_vae.npz jmeshtex/fldm/weights/spot
+    python studies/convert_to_format_2.py jmeshtex/dgts/weights/knobs.npz benchmarks/results/dgts_*_model
     python studies/convert_to_format_2.py runs/fldm_spot_coherent3k/train runs/fldm_spot_coherent3k/models/step_01000
 """
 
@@ -31,7 +32,7 @@ import json
 import pathlib
 import sys
 
-from jmeshtex import fl, fldm
+from jmeshtex import dgts, fl, fldm
 from jmeshtex.io import atomic_write, read_arrays, save_model
 
 HEADER = "__jmeshtex_model__"
@@ -63,8 +64,10 @@ def convert_model(path: pathlib.Path) -> str:
         cls, filled = fl.Config, {k: v for k, v in FL_LEGACY.items() if k not in stored}
     elif kind == "jmeshtex.fldm.Model":
         cls, filled = fldm.Config, {}
+    elif kind == "jmeshtex.dgts.Model":
+        cls, filled = dgts.Config, {}
     else:
-        raise SystemExit(f"{path}: a {kind!r}, not an FL-VAE or FLDM model")
+        raise SystemExit(f"{path}: a {kind!r}, not an FL-VAE, FLDM or DGTS model")
     defaults = cls().to_dict()
     filled.update({k: defaults[k] for k in defaults if k not in stored and k not in filled})
     config = cls.from_dict({**stored, **filled}).to_dict()  # validated

@@ -18,6 +18,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from .._config import stored_config
 from .._errors import CorruptModelError, InputError
 from .._model_folder import MODEL_FILE, save_model_folder
 from ..io import load_model
@@ -27,8 +28,9 @@ from ._networks import init_level
 
 #: the ``kind`` recorded in a model file
 MODEL_KIND = "jmeshtex.dgts.Model"
-#: the layout of the arrays in the file
-FORMAT_VERSION = 1
+#: the layout of the arrays in the file; 2: every config field stored (a version-1 file is
+#: converted once by ``studies/convert_to_format_2.py``)
+FORMAT_VERSION = 2
 _WHAT = "DGTS model"
 
 
@@ -208,7 +210,12 @@ def load(path: str | os.PathLike) -> Model:
             "(or `jmeshtex dgts train`)"
         )
     stored = load_model(file, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT)
-    config = stored.config_as(Config)
+    try:
+        config = stored_config(Config, stored.config, file)
+    except (ValueError, TypeError, KeyError) as err:
+        raise CorruptModelError(
+            f"model file {file}: its stored config is not a valid dgts.Config: {err}"
+        ) from err
     levels = {n.split("/")[1] for n in stored.arrays if n.startswith("generators/")}
     z_star = stored.arrays.get("z_star")
     if z_star is None or z_star.ndim != 2 or not levels:

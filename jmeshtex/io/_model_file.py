@@ -122,17 +122,6 @@ class ModelFile:
             leaves.append(got)
         return jax.tree_util.tree_unflatten(treedef, leaves)
 
-    def config_as(self, cls):
-        """``cls.from_dict(self.config)``; an invalid stored config is a
-        :class:`~jmeshtex.CorruptModelError`."""
-        try:
-            return cls.from_dict(self.config)
-        except (ValueError, TypeError, KeyError) as err:
-            raise CorruptModelError(
-                f"model file {self.path}: its stored config is not a valid "
-                f"{cls.__qualname__}: {err}"
-            ) from err
-
 
 def save_model(
     path: str | os.PathLike,

@@ -161,6 +161,33 @@ def test_save_load_round_trip(tmp_path, tiny_model):
     _assert_same_model(load(folder), tiny_model)
 
 
+def test_a_model_file_stores_every_config_field_and_an_older_one_is_refused(tmp_path, tiny_model):
+    """Format 2 stores every config field; a version-1 file, or one lacking fields, is refused
+    with the fields named (never filled with defaults; studies/convert_to_format_2.py converts)."""
+    from jmeshtex import CorruptModelError
+    from jmeshtex.dgts._model import FORMAT_VERSION, MODEL_KIND
+    from jmeshtex.io import read_arrays, save_model
+    from jmeshtex.io._model_file import HEADER
+
+    arrays = read_arrays(save(tiny_model, tmp_path / "model") / "model.npz")
+    arrays.pop(HEADER)
+    config = tiny_model.config.to_dict()
+    save_model(tmp_path / "v1.npz", kind=MODEL_KIND, params=arrays, config=config,
+               format_version=1)  # fmt: skip
+    with pytest.raises(CorruptModelError, match="format version 1; this jmeshtex reads 2"):
+        load(tmp_path / "v1.npz")
+    lacking = {k: v for k, v in config.items() if k not in ("checkpoint_every", "fake_inputs")}
+    save_model(tmp_path / "v2.npz", kind=MODEL_KIND, params=arrays, config=lacking,
+               format_version=FORMAT_VERSION)  # fmt: skip
+    with pytest.raises(
+        CorruptModelError, match=r"lacks fields \['checkpoint_every', 'fake_inputs'\]"
+    ):
+        load(tmp_path / "v2.npz")
+    save_model(tmp_path / "v2_whole.npz", kind=MODEL_KIND, params=arrays, config=config,
+               format_version=FORMAT_VERSION)  # fmt: skip
+    _assert_same_model(load(tmp_path / "v2_whole.npz"), tiny_model)
+
+
 def test_errors(tmp_path, tiny_meshes):
     with pytest.raises(MeshIOError, match="holds no DGTS model"):
         load(tmp_path)
