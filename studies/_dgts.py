@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 import re
+import shutil
 
 import jax
 import numpy as np
@@ -237,7 +238,7 @@ def depth_meshes(
     """The run at depth's reference (a textured sphere, period ``DEPTH_TEXTURES[kind]``) and its
     ``levels`` fitted training levels on an icosphere(1) template, kept in
     ``folder/training_meshes.npz`` (fitted once, about 12 CPU-minutes at 4 levels; a stopped fit
-    resumes after its last finished level, kept in ``training_meshes.levels.npz``). With
+    resumes after its last finished level, kept in ``training_meshes.levels/``). With
     ``coarse_levels`` the coarsest ones fit the sphere without its texture
     (``training_meshes(coarse_reference=...)``; ``folder/training_meshes_coarse<K>.npz``). Remesh
     ``i > 0`` fits the template under a random rotation (seed ``i``), so the texture lies elsewhere
@@ -262,10 +263,10 @@ def depth_meshes(
         coarse_reference=untextured,
         coarse_levels=coarse_levels,
         rotation=Rotation.random(random_state=remesh).as_matrix() if remesh else None,
-        checkpoint=meshes_file.with_suffix(".levels.npz"),  # a stopped fit resumes by level
+        checkpoint_dir=meshes_file.with_suffix(".levels"),  # a stopped fit resumes by level
     )
     save_training_meshes(tm, meshes_file)
-    meshes_file.with_suffix(".levels.npz").unlink()
+    shutil.rmtree(meshes_file.with_suffix(".levels"))
     return reference, tm
 
 

@@ -2,7 +2,7 @@
 
 - ``prepare --reference R --template T --levels L --out DIR``: multi-scale training meshes
   (``DIR/training.npz``, ``DIR/level_XX.obj``, ``DIR/reference.obj``, ``DIR/levels.png``); run it
-  again after a stop to resume after the last finished level (``DIR/training.levels.npz``).
+  again after a stop to resume after the last finished level (``DIR/training.levels/``).
 - ``train DIR``: trains the hierarchy with checkpoints in ``DIR/checkpoints`` (run it again to
   resume), saves the model into ``DIR/model`` and writes a sample generated from the template
   (``DIR/sample.obj`` / ``.png``).
@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import shutil
 
 from .._config import is_int
 from .._errors import InputError
@@ -245,13 +246,13 @@ def _prepare(args) -> int:
             key=key,
             progress=not args.quiet,
             rotation=_random_rotation(jax.random.fold_in(key, i)) if i else None,
-            checkpoint=out / f"{name}.levels.npz",
+            checkpoint_dir=out / f"{name}.levels",
         )
         save_training_meshes(fit, out / f"{name}.npz")
         if i == 0:
             tm = fit  # the plain fit: the levels written below
-    for stale in out.glob("training*.levels.npz"):  # kept until every fit is done
-        stale.unlink()
+    for done in out.glob("training*.levels"):  # kept until every fit is done
+        shutil.rmtree(done)
     atomic_write(
         out / "prepare.json",
         json.dumps(

@@ -384,7 +384,7 @@ def training_meshes(
     coarse_reference: Mesh | tuple[Float[np.ndarray, "C 3"], Int[np.ndarray, "H 3"]] | None = None,
     coarse_levels: int = 0,
     rotation: Float[np.ndarray, "3 3"] | None = None,
-    checkpoint: str | os.PathLike | None = None,
+    checkpoint_dir: str | os.PathLike | None = None,
 ) -> TrainingMeshes:
     """Build the multi-scale training meshes of a reference from a template (DGTS §3.3).
 
@@ -408,10 +408,11 @@ def training_meshes(
       rotation: optional ``[3, 3]`` rotation of the normalised template before the first fit: the
         reference remeshed with its texture elsewhere on the template's triangles (several such
         remeshes train one model, beyond the paper). None: the template as given.
-      checkpoint: optional ``.npz`` file that keeps the levels fitted so far (written atomically
-        after each level): a call with the same inputs resumes after the last finished level and
-        returns what an uninterrupted call returns. A file written for other inputs (reference,
-        template, config, key, coarse reference, rotation) raises instead of being overwritten.
+      checkpoint_dir: optional folder that keeps the levels fitted so far (``levels.npz``, written
+        atomically after each level): a call with the same inputs resumes after the last finished
+        level and returns what an uninterrupted call returns. A file written for other inputs
+        (reference, template, config, key, coarse reference, rotation) raises instead of being
+        overwritten.
 
     Returns:
       :class:`TrainingMeshes`.
@@ -420,8 +421,8 @@ def training_meshes(
       InputError: ``reference`` or ``template`` is not a mesh.
       MeshError: (a subclass) an invalid reference or template (:func:`jmeshtex.geometry.validate_mesh`).
       ConfigError: ``coarse_levels`` outside ``[0, config.levels)``, or > 0 without a
-        ``coarse_reference``; ``rotation`` not a ``[3, 3]`` rotation matrix; ``checkpoint`` holds
-        the levels of other inputs.
+        ``coarse_reference``; ``rotation`` not a ``[3, 3]`` rotation matrix; ``checkpoint_dir``
+        holds the levels of other inputs.
 
     Example:
       >>> from jmeshtex.data import icosphere, icosahedron
@@ -457,9 +458,10 @@ def training_meshes(
     report = _progress_bars("prepare") if progress is True else (progress or None)
     surfaces = (coarse, (target, np.asarray(rf, np.int64)))
     resume = None
-    if checkpoint is not None:
+    if checkpoint_dir is not None:
         inputs = (v, f, *surfaces[1], *(coarse or ()), np.int64(coarse_levels))
-        resume = _LevelCheckpoint(checkpoint, _fit_fingerprint(inputs, config, key))
+        path = pathlib.Path(checkpoint_dir) / LEVELS_FILE
+        resume = _LevelCheckpoint(path, _fit_fingerprint(inputs, config, key))
     levels = _fit_levels(
         v, f, surfaces, coarse_levels, scale, config=config, key=key, report=report, resume=resume
     )
@@ -479,8 +481,12 @@ def _fit_fingerprint(arrays, config: PrepareConfig, key) -> str:
     return h.hexdigest()
 
 
+#: the file in ``training_meshes(checkpoint_dir=)`` that keeps the finished levels
+LEVELS_FILE = "levels.npz"
+
+
 class _LevelCheckpoint:
-    """The fitted vertices of the finished levels in one ``.npz`` (``training_meshes(checkpoint=)``)."""
+    """The fitted vertices of the finished levels in one ``.npz`` (``training_meshes(checkpoint_dir=)``)."""
 
     def __init__(self, path: str | os.PathLike, fingerprint: str):
         self.path, self.fingerprint = pathlib.Path(path), fingerprint
@@ -491,7 +497,7 @@ class _LevelCheckpoint:
             if found != fingerprint:
                 raise ConfigError(
                     f"training_meshes: checkpoint {self.path} holds the levels of other inputs "
-                    f"(reference, template, config or key differ); pass another checkpoint path "
+                    f"(reference, template, config or key differ); pass another checkpoint_dir "
                     f"or delete that file to start afresh"
                 )
             self.levels = [data[f"vertices_{i}"] for i in range(int(data["num_levels"]))]

@@ -198,14 +198,16 @@ def test_a_stopped_prepare_resumes_after_its_last_finished_level(tmp_path, monke
     monkeypatch.setattr(multiscale, "fit_level", stopped_in_the_fourth_fit)
     d = tmp_path / "stopped"
     assert main([*prepare, "--out", str(d)]) == 130
-    assert (d / "training.npz").is_file() and (d / "training_remesh1.levels.npz").is_file()
+    assert (d / "training.npz").is_file() and (
+        d / "training_remesh1.levels" / "levels.npz"
+    ).is_file()
     fits.clear()
     monkeypatch.setattr(
         multiscale, "fit_level", lambda *a, **k: fits.append(k["num_samples"]) or fit_level(*a, **k)
     )
     assert main([*prepare, "--out", str(d)]) == 0
     assert fits == [200]  # the remesh's level 1 only (level l fits on (l + 1) * 100 samples)
-    assert not list(d.glob("*.levels.npz"))  # removed once every fit is done
+    assert not list(d.glob("*.levels"))  # removed once every fit is done
     for name in ("training.npz", "training_remesh1.npz"):
         a, b = load_training_meshes(d / name), load_training_meshes(tmp_path / "whole" / name)
         for x, y in zip(a.vertices, b.vertices, strict=True):

@@ -202,7 +202,7 @@ def test_a_rotation_remeshes_the_reference_from_the_rotated_template(tiny_meshes
 def test_a_checkpointed_fit_resumes_after_its_last_finished_level(tmp_path, tiny_meshes):
     cfg = PrepareConfig(levels=2, steps=20, samples_per_level=200)  # the fixture's settings
     reference, template = icosphere(2), icosahedron()
-    path = tmp_path / "levels.npz"
+    path = tmp_path / "levels"
 
     class Stop(Exception):
         pass
@@ -218,9 +218,9 @@ def test_a_checkpointed_fit_resumes_after_its_last_finished_level(tmp_path, tiny
             config=cfg,
             key=jax.random.key(0),
             progress=stop_in_level_1,
-            checkpoint=path,
+            checkpoint_dir=path,
         )
-    assert path.is_file()  # level 0 was kept
+    assert (path / "levels.npz").is_file()  # level 0 was kept
     stages = []
     resumed = training_meshes(
         reference,
@@ -228,7 +228,7 @@ def test_a_checkpointed_fit_resumes_after_its_last_finished_level(tmp_path, tiny
         config=cfg,
         key=jax.random.key(0),
         progress=lambda stage, *_: stages.append(stage),
-        checkpoint=path,
+        checkpoint_dir=path,
     )
     assert set(stages) == {"level 1"}  # level 0 came from the file, not fitted again
     for level in range(2):  # and the result is the uninterrupted one, bit for bit
@@ -239,10 +239,15 @@ def test_a_checkpointed_fit_resumes_after_its_last_finished_level(tmp_path, tiny
         config=cfg,
         key=jax.random.key(0),
         progress=lambda *a: pytest.fail(f"a finished fit was fitted again: {a}"),
-        checkpoint=path,
+        checkpoint_dir=path,
     )
     np.testing.assert_array_equal(again.vertices[1], tiny_meshes.vertices[1])
     with pytest.raises(ConfigError, match="other inputs"):  # never overwritten for other inputs
         training_meshes(
-            reference, template, config=cfg, key=jax.random.key(1), progress=False, checkpoint=path
+            reference,
+            template,
+            config=cfg,
+            key=jax.random.key(1),
+            progress=False,
+            checkpoint_dir=path,
         )
