@@ -18,7 +18,6 @@ from typing import Any
 import jax
 import numpy as np
 
-from .._config import stored_config
 from .._errors import CorruptModelError, InputError
 from .._model_folder import MODEL_FILE, save_model_folder
 from ..io import load_model
@@ -210,12 +209,7 @@ def load(path: str | os.PathLike) -> Model:
             "(or `jmeshtex dgts train`)"
         )
     stored = load_model(file, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT)
-    try:
-        config = stored_config(Config, stored.config, file)
-    except (ValueError, TypeError, KeyError) as err:
-        raise CorruptModelError(
-            f"model file {file}: its stored config is not a valid dgts.Config: {err}"
-        ) from err
+    config = stored.config_as(Config)
     levels = {n.split("/")[1] for n in stored.arrays if n.startswith("generators/")}
     z_star = stored.arrays.get("z_star")
     if z_star is None or z_star.ndim != 2 or not levels:

@@ -16,7 +16,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._config import stored_config
 from .._errors import ConfigError, CorruptModelError, MeshIOError
 from .._model_folder import MODEL_FILE, save_model_folder
 from ..io import load_model
@@ -95,12 +94,7 @@ def _like(config: Config, real) -> object:
 def _load(path: str | os.PathLike) -> tuple[Model, dict]:
     path = _file(path)
     file = load_model(path, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT)
-    try:
-        config = stored_config(Config, file.config, path)
-    except (ValueError, TypeError, KeyError) as err:
-        raise CorruptModelError(
-            f"model file {path}: its stored config is not a valid fl.Config: {err}"
-        ) from err
+    config = file.config_as(Config)
     mean = file.arrays.get("encoder/mean")
     real = jnp.float64 if mean is not None and mean.dtype == np.complex128 else jnp.float32
     params = file.restore(_like(config, real))

@@ -13,7 +13,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._config import stored_config
 from .._errors import ConfigError, CorruptModelError
 from .._model_folder import MODEL_FILE, save_model_folder
 from ..io import load_model
@@ -156,12 +155,7 @@ def load(path: str | os.PathLike) -> Model:
     file = load_model(
         out / MODEL_FILE, kind=MODEL_KIND, format_versions=(FORMAT_VERSION,), what=_WHAT
     )
-    try:
-        config = stored_config(Config, file.config, out / MODEL_FILE)
-    except ConfigError as err:
-        raise CorruptModelError(
-            f"model file {out / MODEL_FILE}: its stored config is not a valid Config: {err}"
-        ) from err
+    config = file.config_as(Config)
     shapes = jax.eval_shape(lambda k: init_denoiser(k, config), jax.random.key(0))
     # parameters saved from a float64 run (complex128 weights) are restored as such
     if any(a.dtype == np.complex128 for n, a in file.arrays.items() if n.startswith("params/")):

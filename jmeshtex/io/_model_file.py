@@ -84,6 +84,23 @@ class ModelFile:
     arrays: dict[str, np.ndarray]
     params: Any
 
+    def config_as(self, cls):
+        """The stored config as ``cls`` (a method's ``Config``): every field must be stored
+        (:func:`jmeshtex._config.stored_config`, no defaults filled in).
+
+        Raises:
+          CorruptModelError: fields missing, unknown or invalid; the message names them and the file.
+        """
+        from .._config import display_name, stored_config
+
+        try:
+            return stored_config(cls, self.config, self.path)
+        except (ValueError, TypeError, KeyError) as err:
+            raise CorruptModelError(
+                f"model file {self.path}: its stored config is not a valid Config "
+                f"({display_name(cls)}): {err}"
+            ) from err
+
     def restore(self, like) -> Any:
         """The arrays in the structure of ``like``; every key path, shape and dtype must match.
 
