@@ -85,8 +85,8 @@ class ModelFile:
     params: Any
 
     def config_as(self, cls):
-        """The stored config as ``cls`` (a method's ``Config``): every field must be stored
-        (:func:`jmeshtex._config.stored_config`, no defaults filled in).
+        """The stored config as ``cls`` (a method's ``Config``): every field must be stored,
+        no defaults filled in (``jmeshtex._config.stored_config``).
 
         Raises:
           CorruptModelError: fields missing, unknown or invalid; the message names them and the file.
