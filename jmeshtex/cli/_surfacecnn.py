@@ -138,6 +138,14 @@ def _options(p: argparse.ArgumentParser) -> None:
         "smoothest direction field) or uv (the UV layout's; jumps at seams, an ablation)",
     )
     p.add_argument(
+        "--frame-smoothing",
+        type=float_in(0.0, 64.0),
+        default=None,
+        metavar="TEXELS",
+        help="radius in texels over which the global frames turn at creases (default: "
+        "surfacecnn.Config's, 4; 0: the paper's frames, which turn at once)",
+    )
+    p.add_argument(
         "--vgg19",
         type=pathlib.Path,
         default=None,
@@ -226,6 +234,7 @@ def _setup(args):
         frames=args.frames,
         unwrap=unwrap,
         **extra,
+        **({} if args.frame_smoothing is None else {"frame_smoothing": args.frame_smoothing}),
     )
     weights = load_vgg19(args.vgg19) if args.vgg19 else None
     return mesh, config, weights

@@ -171,3 +171,25 @@ def test_unwrap_mesh_keeps_uvs_and_reports_their_spread(files, capsys):
     np.testing.assert_allclose(surfacecnn.load(files / "a").mesh.uv, uv, atol=1e-5)
     assert main([*args, "--out", str(files / "b"), "--quiet"]) == 0  # default: xatlas
     assert not np.allclose(surfacecnn.load(files / "b").mesh.uv, uv, atol=1e-3)
+
+
+@pytest.mark.parametrize("flag", [[], ["--frame-smoothing", "0"], ["--frame-smoothing", "2.5"]])
+def test_frame_smoothing_reaches_the_config(files, flag):
+    """``--frame-smoothing`` sets ``Config.frame_smoothing`` (0: the paper's frames); without it the
+    library's default holds."""
+    from jmeshtex.cli._main import build_parser
+    from jmeshtex.cli._surfacecnn import _setup
+
+    argv = ["surfacecnn", "synthesize", "--mesh", "icosphere:1", "--exemplar", "e.png"]
+    args = build_parser().parse_args([*argv, "--out", str(files / "o"), *flag])
+    _, config, _ = _setup(args)
+    expected = float(flag[1]) if flag else surfacecnn.Config().frame_smoothing
+    assert config.frame_smoothing == expected
+
+
+def test_frame_smoothing_out_of_range_is_a_usage_error(files, capsys):
+    argv = ["surfacecnn", "synthesize", "--mesh", "icosphere:1", "--exemplar", "e.png"]
+    with pytest.raises(SystemExit) as refused:  # argparse refuses it before anything runs
+        main([*argv, "--frame-smoothing", "-1", "--out", str(files / "o")])
+    assert refused.value.code == 2
+    assert "--frame-smoothing: -1 is out of range" in capsys.readouterr().err
