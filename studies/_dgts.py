@@ -107,6 +107,12 @@ def score_rows(
         )
 
 
+def untrained_weights(tm, cfg: Config, *, seed: int = 0):
+    """The baseline every study row stands beside: ``cfg``'s architecture on ``tm``, no step taken
+    (the initial weights of training key ``seed``)."""
+    return train(tm, cfg.replace(steps=0), key=jax.random.key(seed), progress=False).model
+
+
 def evaluate(
     report: Report,
     tag: str,
@@ -298,8 +304,7 @@ def study_models(kind: str, runs: list[str], levels: int, work: pathlib.Path) ->
         coarse = int(re.match(r"coarse(\d+)_", run)[1]) if run.startswith("coarse") else 0
         _, tm = depth_meshes(kind, levels, work / kind, coarse)
         models[run] = (load(work / kind / run), period_in_mean_edges(tm, DEPTH_TEXTURES[kind]))
-    untrained = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
-    models["untrained"] = (untrained, models[runs[-1]][1])
+    models["untrained"] = (untrained_weights(tm, Config()), models[runs[-1]][1])
     return models
 
 

@@ -24,6 +24,7 @@ from _dgts import (
     evaluate,
     study_arguments,
     study_parser,
+    untrained_weights,
 )
 from _study import RESULTS, Report
 
@@ -71,7 +72,7 @@ def depth(
         if train_only:
             print(f"{kind}: trained, {folder / 'model.npz'}", flush=True)
             continue
-        untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
+        untrained = untrained_weights(tm, cfg)
         period = period_in_mean_edges(tm, reference_period)
         tag = f"[{kind} {levels} levels, period {period:.2f} edges] "
         report.add(

@@ -21,6 +21,7 @@ from _dgts import (
     KIND,
     PERIOD,
     tiny_configs,
+    untrained_weights,
 )
 from _study import Report
 
@@ -91,9 +92,9 @@ def learning_margins(seeds: int, settings: list[str]) -> None:
             t0 = time.perf_counter()
             trained = train(tm, cfg, key=jax.random.key(seed), progress=False).model
             seconds = time.perf_counter() - t0
-            untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(seed), progress=False)
+            untrained = untrained_weights(tm, cfg, seed=seed)
             s = learning_scores(
-                {"trained": trained, "untrained": untrained.model},
+                {"trained": trained, "untrained": untrained},
                 tm,
                 target,
                 key=jax.random.key(100 + seed),

@@ -26,6 +26,7 @@ from _dgts import (
     study_arguments,
     study_parser,
     transfer_targets,
+    untrained_weights,
 )
 from _study import RESULTS, Report
 
@@ -123,7 +124,7 @@ def noise_response(
         }
         cost.write_text(json.dumps(spent))
         report.add(name=f"train ({choice})", **spent)
-    models["untrained"] = train(tm, Config(steps=0), key=jax.random.key(0), progress=False).model
+    models["untrained"] = untrained_weights(tm, Config())
     panels = [("training mesh", truth)]
     label_last = f"fresh noise at level {levels - 1} only"
 

@@ -27,6 +27,7 @@ from _dgts import (
     PERIOD,
     evaluate,
     tiny_configs,
+    untrained_weights,
 )
 from _study import Report
 
@@ -50,7 +51,7 @@ def quality(
     t0 = time.perf_counter()
     trained = train(tm, cfg, key=jax.random.key(0), progress=False).model
     t_train = time.perf_counter() - t0
-    untrained = train(tm, cfg.replace(steps=0), key=jax.random.key(0), progress=False).model
+    untrained = untrained_weights(tm, cfg)
     period = period_in_mean_edges(tm, reference_period)
     tag = f"[period {period:.2f} edges] "
     report.add(

@@ -14,6 +14,9 @@ FL_MICRO_NETWORK = dict(features=8, num_heads=2, num_blocks=1, num_samples=8, de
 FL_MICRO = fl.Config(**FL_MICRO_NETWORK)
 #: :data:`FL_MICRO` on 10-12-vertex planar meshes of 16-pixel images
 FL_MICRO_MESHES = FL_MICRO.replace(min_vertices=10, max_vertices=12, max_image_size=16)
+#: the encoder / decoder / loss tests' network: three latent channels, 8 features, 2 heads, 1 block,
+#: a 16-wide decoder, the default samples per vertex
+FL_SMALL = fl.Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
 
 #: a four-step FL-VAE training run with a checkpoint half-way (the training, resume and data-stream
 #: tests' schedule)

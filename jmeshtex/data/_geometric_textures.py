@@ -25,6 +25,7 @@ import numpy as np
 from .._config import is_finite_number
 from .._errors import InputError
 from .._mesh import Mesh
+from .._triangles import triangle_areas
 from .._types import Float
 from ._meshes import icosphere, torus
 from ._procedural import fibonacci_sphere
@@ -300,7 +301,7 @@ def textured_mesh(
         )
     rng = np.random.default_rng(seed)
     tri = v[f]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = triangle_areas(tri)
     n_samples = max(2000, int(15 * area.sum() / period**2))
     face = rng.choice(len(f), n_samples, p=area / area.sum())
     a, b = rng.uniform(size=(2, n_samples))

@@ -36,6 +36,7 @@ import scipy.spatial
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._random import check_key, host_rng
+from .._triangles import triangle_areas
 from .._types import Float, Int
 from ..data import textured_mesh
 from ..geometry import mean_edge_length, unique_edges, vertex_normals
@@ -218,14 +219,7 @@ def peak_statistics(
     is_max[lo] = False
     is_max[hi[h[e[:, 0]] == h[e[:, 1]]]] = False
     peaks = np.flatnonzero(is_max)
-    tri = v[f]
-    area = (
-        0.5
-        * float(
-            np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
-        )
-        / ell**2
-    )
+    area = float(triangle_areas(v[f]).sum()) / ell**2
     spacing = np.inf
     if len(peaks) >= 2:
         d, _ = scipy.spatial.cKDTree(v[peaks] / ell).query(v[peaks] / ell, k=2)

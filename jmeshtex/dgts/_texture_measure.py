@@ -35,6 +35,7 @@ import scipy.spatial
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
 from .._random import check_key, host_rng
+from .._triangles import triangle_areas
 from .._types import Float, Int
 from ..geometry import mean_edge_length, vertex_normals
 
@@ -77,8 +78,7 @@ class TextureOperators(NamedTuple):
 
 
 def _vertex_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    tri = v[f]
-    a = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    a = triangle_areas(v[f])
     return np.bincount(f.ravel(), weights=np.repeat(a / 3.0, 3), minlength=len(v))
 
 

@@ -207,13 +207,17 @@ class LevelBatch(NamedTuple):
     real: Float[Array, "K V 3"]
 
 
+def _level_output(g, base, z, nbhd: FaceNeighborhood, config: Config):
+    """``b + G(b, z)``: a generator level's output on its input ``base`` and noise ``z``."""
+    return base + generator_level(
+        g, base, nbhd, z, negative_slope=config.negative_slope, eps=config.eps, y_sign=config.y_sign
+    )
+
+
 @functools.partial(jax.jit, static_argnames=("config",))
 def _advance(params, vertices, noise, geometry, *, config: Config):
     """One frozen level on a batch: ``s·U(v + G(v, z))`` for every row (forward only)."""
-    kw = {"negative_slope": config.negative_slope, "eps": config.eps}
-    out = jax.vmap(
-        lambda v, z: v + generator_level(params, v, geometry.nbhd, z, **kw, y_sign=config.y_sign)
-    )(vertices, noise)
+    out = jax.vmap(lambda v, z: _level_output(params, v, z, geometry.nbhd, config))(vertices, noise)
     return jax.vmap(lambda v: upsample(v, geometry.edge_vertices, scale=config.scale_factor))(out)
 
 
@@ -428,12 +432,9 @@ def generator_loss(
     """
     c = config
     kw = {"negative_slope": c.negative_slope, "eps": c.eps}
-
-    def produce(b, noise):
-        return b + generator_level(g, b, nbhd, noise, **kw, y_sign=c.y_sign)
-
     # two calls, not a vmap over both: the vmapped gathers cost ~25 % more compile and run (CPU)
-    fake, rec = produce(base, z), produce(rec_base, rec_z)
+    fake = _level_output(g, base, z, nbhd, c)
+    rec = _level_output(g, rec_base, rec_z, nbhd, c)
     adv = -masked_mean(discriminator(d, fake, nbhd, **kw), nbhd.face_mask)
     mse = masked_mean(jnp.mean((rec - real) ** 2, axis=1), nbhd.vertex_mask)
     return adv + c.reconstruction_weight * mse, jnp.stack([adv, mse])
@@ -456,11 +457,6 @@ def train_chunk(g, d, opt, nbhd, batch: LevelBatch, n, *, config: Config):
     opt_d = _optimizer(c, c.discriminator_steps)
     opt_g = _optimizer(c, c.generator_steps)
 
-    def produce(g, base, z):
-        return base + generator_level(
-            g, base, nbhd, z, negative_slope=c.negative_slope, eps=c.eps, y_sign=c.y_sign
-        )
-
     def d_loss(d, fake, alpha, real):
         return critic_loss(d, fake, real, alpha, nbhd, config=c)
 
@@ -480,7 +476,7 @@ def train_chunk(g, d, opt, nbhd, batch: LevelBatch, n, *, config: Config):
         def d_step(carry, inputs):
             d, state = carry
             base, z, alpha = inputs
-            fake = jax.lax.stop_gradient(produce(g, base, z))
+            fake = jax.lax.stop_gradient(_level_output(g, base, z, nbhd, c))
             (_, aux), grads = jax.value_and_grad(d_loss, has_aux=True)(d, fake, alpha, b.real)
             return update(opt_d, grads, state, d), aux
 
@@ -967,10 +963,7 @@ def _snapshot(g, nbhd, batch: LevelBatch, *, config: Config) -> tuple[np.ndarray
 
 @functools.partial(jax.jit, static_argnames=("config",))
 def _generate_pair(g, nbhd, base, z, rec_base, rec_z, *, config: Config):
-    kw = {"negative_slope": config.negative_slope, "eps": config.eps, "y_sign": config.y_sign}
-    return base + generator_level(g, base, nbhd, z, **kw), rec_base + generator_level(
-        g, rec_base, nbhd, rec_z, **kw
-    )
+    return _level_output(g, base, z, nbhd, config), _level_output(g, rec_base, rec_z, nbhd, config)
 
 
 def _padded_sizes(geos, shared_levels: int) -> list[dict[str, int]]:

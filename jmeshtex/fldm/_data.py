@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import pathlib
 from collections.abc import Callable
@@ -40,7 +39,13 @@ from .._mesh import Mesh, as_mesh
 from .._random import key_ints
 from ..geometry import PoolingMap, VertexNeighborhood, remesh, surface_correspondence
 from ._config import Config
-from ._denoiser import DenoiserGeometry, denoiser_geometry, geometry_sizes, pad_geometry
+from ._denoiser import (
+    DenoiserGeometry,
+    _bucketed_vertices,
+    denoiser_geometry,
+    geometry_sizes,
+    pad_geometry,
+)
 from ._diffusion import latent_scale
 from ._phase import ring_color_spread, synchronize_phases
 
@@ -285,10 +290,6 @@ def _load_copy(path: pathlib.Path):
         ) from err
 
 
-def _round_up(n: int, bucket: int) -> int:
-    return int(math.ceil(n / bucket) * bucket)
-
-
 def stack_copies(
     copies: list[tuple[Mesh, DenoiserGeometry, np.ndarray, np.ndarray | None]], config: Config
 ) -> Dataset:
@@ -317,8 +318,9 @@ def stack_copies(
     if any(e is None for e in extras) != all(e is None for e in extras):
         raise InputError("stack_copies: give further encodings for every copy or for none")
     sizes = [geometry_sizes(g) for _, g, _, _ in copies]
-    V0 = _round_up(max(s["V0"] for s in sizes), config.bucket)
-    V1 = _round_up(max(s["V1"] for s in sizes), max(config.bucket // 4, 1))
+    V0, V1 = _bucketed_vertices(
+        max(s["V0"] for s in sizes), max(s["V1"] for s in sizes), config.bucket
+    )
     M = max(s["M"] for s in sizes)
     geos = [pad_geometry(g, V0=V0, V1=V1, M=M) for _, g, _, _ in copies]
     geometry = jax.tree.map(lambda *xs: np.stack(xs), *geos)

@@ -133,6 +133,16 @@ def geometry_sizes(geo: DenoiserGeometry) -> dict[str, int]:
     }
 
 
+def _round_up(n: int, multiple: int) -> int:
+    return -(-int(n) // int(multiple)) * int(multiple)
+
+
+def _bucketed_vertices(V0: int, V1: int, bucket: int) -> tuple[int, int]:
+    """Fine and coarse vertex counts padded for bucketing: ``V0`` up to a multiple of ``bucket``,
+    ``V1`` of ``bucket // 4`` (at least 1), so nearby sizes share one compiled program."""
+    return _round_up(V0, bucket), _round_up(V1, max(bucket // 4, 1))
+
+
 def pad_geometry(geo: DenoiserGeometry, *, V0: int, V1: int, M: int) -> DenoiserGeometry:
     """Pad a geometry to static sizes (padding contract: masked slots, vertices, children).
 

@@ -32,7 +32,15 @@ from .._config import is_finite_number, is_int
 from .._errors import InputError
 from .._jit import jit_loop
 from .._mesh import Mesh, as_mesh
-from ._denoiser import DenoiserGeometry, denoise, denoiser_geometry, geometry_sizes, pad_geometry
+from ._denoiser import (
+    DenoiserGeometry,
+    _bucketed_vertices,
+    _round_up,
+    denoise,
+    denoiser_geometry,
+    geometry_sizes,
+    pad_geometry,
+)
 from ._diffusion import (
     Inpaint,
     draw_sampling_noise,
@@ -74,10 +82,6 @@ class Samples:
     def num_vertices(self) -> int:
         """Number of vertices of the mesh the samples live on."""
         return int(self.latents.shape[1])
-
-
-def _round_up(n: int, bucket: int) -> int:
-    return -(-int(n) // int(bucket)) * int(bucket)
 
 
 def sampling_geometry(mesh: Mesh, model: Model) -> DenoiserGeometry:
@@ -277,14 +281,8 @@ def _bucketed_geometry(geo: DenoiserGeometry, bucket: int) -> tuple[DenoiserGeom
     """``geo`` padded to sizes rounded up to ``bucket`` (``bucket // 4`` for the coarse level, 4 for
     the pooling width), and the padded vertex count."""
     sizes = geometry_sizes(geo)
-    Vp = _round_up(geo.num_vertices, bucket)
-    geo = pad_geometry(
-        geo,
-        V0=Vp,
-        V1=_round_up(sizes["V1"], max(bucket // 4, 1)),
-        M=_round_up(sizes["M"], 4),
-    )
-    return geo, Vp
+    Vp, V1 = _bucketed_vertices(geo.num_vertices, sizes["V1"], bucket)
+    return pad_geometry(geo, V0=Vp, V1=V1, M=_round_up(sizes["M"], 4)), Vp
 
 
 def _is_count(value) -> bool:

@@ -13,6 +13,7 @@ from .._config import is_int
 from .._errors import EmptyMeshError, FaceIndexError, InputError, NonTriangleFaceError
 from .._mesh import accepts_mesh
 from .._random import check_key, host_rng
+from .._triangles import triangle_areas
 from .._types import ArrayLike
 
 
@@ -102,7 +103,7 @@ def sample_surface(
         raise InputError(f"n must be a non-negative int, got {n!r}")
 
     tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = triangle_areas(tri)
     cdf = np.cumsum(area)
     total = cdf[-1]
     if not (np.isfinite(total) and total > 0):

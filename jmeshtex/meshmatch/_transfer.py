@@ -25,6 +25,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
+from .._triangles import triangle_areas
 from .._types import Float, Int
 from ..geometry import fill_unused_texels, rasterize_uv, sample_texture
 from ._config import Config
@@ -144,8 +145,7 @@ def vertex_colors_from_texture(mesh: Mesh, *, prefilter: str = "area") -> Float[
             axis=1,
         )
         return out / np.maximum(count, 1)[:, None]
-    x = np.asarray(mesh.vertices, np.float64)[faces]
-    area = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
+    area = triangle_areas(np.asarray(mesh.vertices, np.float64)[faces])
     sub = _face_subdivisions(mesh, texture.shape[:2])
     num = np.zeros((V, C))
     den = np.zeros(V)

@@ -31,6 +31,7 @@ from jaxtyping import Float, Int
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
+from .._triangles import face_normals
 from ..geometry import rasterize_uv
 from ._surface_patches import uv_charts
 
@@ -199,7 +200,7 @@ def seam_orientation(
     outer = G[..., :, None] * G[..., None, :]  # [S, S, 3, 3]
 
     S3, count = _disk_sums(outer, ok, chart_px, chart, tex, radius)
-    fn = _face_normals(V, faces)
+    fn = face_normals(V, faces)
     proj = np.eye(3) - fn[:, :, None] * fn[:, None, :]  # onto the face's plane
     S3 = proj @ S3 @ proj  # [F, 3, 3] surface structure tensor
     w, vec = np.linalg.eigh(S3)
@@ -293,11 +294,6 @@ def _unfolded_alignment(edge, nf, ng, vf, vg) -> np.ndarray:
     bf, bg = np.cross(nf, e), np.cross(ng, e)
     unfolded = np.sum(vg * e, 1)[:, None] * e + np.sum(vg * bg, 1)[:, None] * bf
     return np.abs(np.sum(vf * unfolded, axis=1))
-
-
-def _face_normals(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    n = np.cross(V[faces[:, 1]] - V[faces[:, 0]], V[faces[:, 2]] - V[faces[:, 0]])
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
 def stripe_texture(

@@ -16,6 +16,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
+from .._triangles import face_normals
 from .._types import ArrayLike, Float, Int, Num
 from ..geometry import check_mesh_arrays, vertex_normals
 from ._camera import Camera, view_camera
@@ -216,8 +217,7 @@ class _Scene:
             self.uv = uv.astype(np.float64)
         else:
             _log.info("the mesh has no colours or texture: rendering it shaded grey")
-        fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-        fn = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+        fn = face_normals(v, f)
         if shading == "flat":
             self.normals = np.repeat(fn[:, None], 3, axis=1)
         else:

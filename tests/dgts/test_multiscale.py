@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -201,8 +203,10 @@ def test_a_rotation_remeshes_the_reference_from_the_rotated_template(tiny_meshes
 
 def test_a_checkpointed_fit_resumes_after_its_last_finished_level(tmp_path, tiny_meshes):
     cfg = PrepareConfig(levels=2, steps=20, samples_per_level=200)  # the fixture's settings
-    reference, template = icosphere(2), icosahedron()
     path = tmp_path / "levels"
+    fit = functools.partial(
+        training_meshes, icosphere(2), icosahedron(), config=cfg, checkpoint_dir=path
+    )
 
     class Stop(Exception):
         pass
@@ -212,42 +216,17 @@ def test_a_checkpointed_fit_resumes_after_its_last_finished_level(tmp_path, tiny
             raise Stop
 
     with pytest.raises(Stop):
-        training_meshes(
-            reference,
-            template,
-            config=cfg,
-            key=jax.random.key(0),
-            progress=stop_in_level_1,
-            checkpoint_dir=path,
-        )
+        fit(key=jax.random.key(0), progress=stop_in_level_1)
     assert (path / "levels.npz").is_file()  # level 0 was kept
     stages = []
-    resumed = training_meshes(
-        reference,
-        template,
-        config=cfg,
-        key=jax.random.key(0),
-        progress=lambda stage, *_: stages.append(stage),
-        checkpoint_dir=path,
-    )
+    resumed = fit(key=jax.random.key(0), progress=lambda stage, *_: stages.append(stage))
     assert set(stages) == {"level 1"}  # level 0 came from the file, not fitted again
     for level in range(2):  # and the result is the uninterrupted one, bit for bit
         np.testing.assert_array_equal(resumed.vertices[level], tiny_meshes.vertices[level])
-    again = training_meshes(
-        reference,
-        template,
-        config=cfg,
+    again = fit(
         key=jax.random.key(0),
         progress=lambda *a: pytest.fail(f"a finished fit was fitted again: {a}"),
-        checkpoint_dir=path,
     )
     np.testing.assert_array_equal(again.vertices[1], tiny_meshes.vertices[1])
     with pytest.raises(ConfigError, match="other inputs"):  # never overwritten for other inputs
-        training_meshes(
-            reference,
-            template,
-            config=cfg,
-            key=jax.random.key(1),
-            progress=False,
-            checkpoint_dir=path,
-        )
+        fit(key=jax.random.key(1), progress=False)

@@ -6,15 +6,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jmeshtex.fl import Config, init
+from jmeshtex.fl import init
 from jmeshtex.fl.core import (
     decode_barycentric,
     decode_points,
     decode_vertex_colors_from_latents,
     decoder_features,
 )
+from tests._presets import FL_SMALL
 
-LOG = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
+LOG = FL_SMALL
 BARY = LOG.replace(decoder="barycentric")
 
 

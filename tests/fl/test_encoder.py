@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from jmeshtex.data import grid, icosphere
-from jmeshtex.fl import Config, init
+from jmeshtex.fl import init
 from jmeshtex.fl._encoder import corner_logs, ring_geometry
 from jmeshtex.fl.core import encode_samples, one_ring_samples
 from jmeshtex.geometry import one_ring_neighborhood
+from tests._presets import FL_SMALL as SMALL
 
-SMALL = Config(latent_dim=3, features=8, num_heads=2, num_blocks=1, decoder_features=16)
 #: jitted once per test session (op-by-op dispatch under jax_debug_nans is ~50x slower)
 encode = jax.jit(encode_samples, static_argnums=1)
 

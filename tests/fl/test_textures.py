@@ -29,7 +29,7 @@ from jmeshtex.fl.core import (
     training_texture,
     vae_loss,
 )
-from tests._presets import FL_MICRO, FL_SHORT_RUN
+from tests._presets import FL_MICRO, FL_SHORT_RUN, FL_SMALL
 
 STREAM = FL_MICRO.replace(
     pixels_per_vertex=8.0,
@@ -136,16 +136,8 @@ def test_presets():
 def test_loss_is_the_papers_equation_by_hand():
     """Eq. 26–28: mean over samples of the RGB L1 norm, plus λ times the KL summed over the d channels
     (KL of N(μ, σ²I₂) to N(0, I₂) from the general Gaussian formula), averaged over real vertices."""
-    c = Config(
-        latent_dim=3,
-        features=8,
-        num_heads=2,
-        num_blocks=1,
-        decoder_features=16,
-        kl_weight=0.37,
-    ).replace(
-        log_objective="vertex"
-    )  # each ring from its own latent (the blended one: test_options)
+    # each ring from its own latent (the blended one: test_options)
+    c = FL_SMALL.replace(kl_weight=0.37, log_objective="vertex")
     params = init(c, key=jax.random.key(0), dtype=jnp.float64).params
     rng = np.random.default_rng(0)
     v, s = 3, 5
