@@ -1,12 +1,13 @@
 """Run by tests/fldm/test_train_sharded.py in a fresh process with 4 forced host devices (not a test).
 
-argv: a mode and a work folder. Mode ``step`` writes ``step.json``: the training loss and its
-gradient for the same parameters, batch and noise on one device (``one``) and on four (``four``).
-Mode ``train`` writes ``train.json``:
+argv: a work folder holding ``ckpt_1`` (a one-device checkpoint the parent wrote half-way). Writes
+``result.json`` there, in one process (one start, one import, one data set for both tests):
+- ``step``: the training loss and its gradient for the same parameters, batch and noise on one
+  device (``one``) and on four (``four``);
 - ``full_4``, ``full_4_model``: the losses and the (EMA) model's leaves of an uninterrupted run on
   four devices (the parent runs it on one: the optimiser step of one device against four);
 - ``resumed_4``: the same run stopped half-way and resumed from its checkpoint, on four;
-- ``from_1``: resumed on four devices from ``ckpt_1`` (a checkpoint the parent wrote on one device);
+- ``from_1``: resumed on four devices from ``ckpt_1``;
 - ``errors``: the message of the ConfigError of a batch that does not split over four devices.
 Leaves ``ckpt_4`` (a four-device checkpoint half-way) and ``model_4`` (the four-device model) for
 the parent to load on one device.
@@ -77,15 +78,11 @@ def one_gradient(data: fldm.Dataset, mesh) -> dict:
     return {"loss": float(value), "grads": leaves(grads)}
 
 
-def main(mode: str, work: pathlib.Path) -> None:
+def main(work: pathlib.Path) -> None:
     assert len(jax.devices()) == 4, jax.devices()
     data = dataset()
-    if mode == "step":
-        one, four = parallel.data_mesh(jax.devices()[:1]), parallel.data_mesh()
-        out = {"one": one_gradient(data, one), "four": one_gradient(data, four)}
-        (work / "step.json").write_text(json.dumps(out))
-        return
-    out = {"errors": []}
+    one, four = parallel.data_mesh(jax.devices()[:1]), parallel.data_mesh()
+    out = {"step": {"one": one_gradient(data, one), "four": one_gradient(data, four)}, "errors": []}
     key = jax.random.key(5)
     full = fldm.train(data, CONFIG, key=key, progress=False)
     out["full_4"] = full.losses["loss"].tolist()
@@ -108,7 +105,7 @@ def main(mode: str, work: pathlib.Path) -> None:
         fldm.train(data, CONFIG.replace(batch_size=2), key=key, progress=False)
     except ConfigError as err:
         out["errors"].append(str(err))
-    (work / "train.json").write_text(json.dumps(out))
+    (work / "result.json").write_text(json.dumps(out))
 
 
 def compile_once(work: pathlib.Path) -> None:
@@ -121,5 +118,5 @@ def compile_once(work: pathlib.Path) -> None:
 
 
 if __name__ == "__main__":
-    compile_once(pathlib.Path(sys.argv[2]))
-    main(sys.argv[1], pathlib.Path(sys.argv[2]))
+    compile_once(pathlib.Path(sys.argv[1]))
+    main(pathlib.Path(sys.argv[1]))

@@ -23,19 +23,31 @@ from fldm_sharded_worker import CONFIG, dataset, leaves  # noqa: E402
 WORKER = pathlib.Path(__file__).with_name("fldm_sharded_worker.py")
 
 
-def _worker(mode: str, work: pathlib.Path) -> dict:
+#: the training run both processes follow
+KEY = jax.random.key(5)
+
+
+@pytest.fixture(scope="module")
+def sharded(tmp_path_factory) -> tuple[pathlib.Path, dict]:
+    """One four-device process for both tests (its start, imports and data set once): the work
+    folder and the worker's ``result.json``. The parent first writes ``ckpt_1``, a one-device
+    checkpoint at step 2, for the four-device process to resume."""
+    work = tmp_path_factory.mktemp("sharded")
+    fldm.train(
+        dataset(), CONFIG, key=KEY, progress=False, checkpoint_dir=work / "ckpt_1", stop_after=2
+    )
     env = dict(
         os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu"
     )
     run = subprocess.run(
-        [sys.executable, str(WORKER), mode, str(work)],
+        [sys.executable, str(WORKER), str(work)],
         env=env,
         capture_output=True,
         text=True,
         timeout=600,
     )
     assert run.returncode == 0, run.stderr[-4000:]
-    return json.loads((work / f"{mode}.json").read_text())
+    return work, json.loads((work / "result.json").read_text())
 
 
 def _close(a, b, *, rtol, atol_scale):
@@ -45,9 +57,8 @@ def _close(a, b, *, rtol, atol_scale):
         np.testing.assert_allclose(x, y, rtol=rtol, atol=atol_scale * np.abs(y).max())
 
 
-def test_sharded_loss_and_gradient_equal_one_device(tmp_path):
-    out = _worker("step", tmp_path)
-    one, four = out["one"], out["four"]
+def test_sharded_loss_and_gradient_equal_one_device(sharded):
+    one, four = sharded[1]["step"]["one"], sharded[1]["step"]["four"]
     assert one["loss"] > 0
     # float32 round-off: XLA reduces the per-device sums over the batch in another order
     np.testing.assert_allclose(four["loss"], one["loss"], rtol=1e-5)
@@ -56,14 +67,9 @@ def test_sharded_loss_and_gradient_equal_one_device(tmp_path):
     np.testing.assert_allclose(g4, g1, rtol=1e-4, atol=1e-5 * np.abs(g1).max())
 
 
-def test_sharded_training_follows_one_device_and_resumes_across_meshes(tmp_path):
-    data = dataset()
-    key = jax.random.key(5)
-    # a one-device checkpoint at step 2, for the four-device process to resume
-    fldm.train(
-        data, CONFIG, key=key, progress=False, checkpoint_dir=tmp_path / "ckpt_1", stop_after=2
-    )
-    out = _worker("train", tmp_path)
+def test_sharded_training_follows_one_device_and_resumes_across_meshes(sharded):
+    work, out = sharded
+    data, key = dataset(), KEY
 
     # the optimiser steps (make_train_step on a mesh of four, EMA included) follow the one-device run here
     full_1 = fldm.train(data, CONFIG, key=key, progress=False)
@@ -86,11 +92,11 @@ def test_sharded_training_follows_one_device_and_resumes_across_meshes(tmp_path)
     np.testing.assert_allclose(out["from_1"], full_1.losses["loss"], rtol=1e-4)
 
     # a four-device checkpoint resumed here on one device, and the four-device model file loaded here
-    back = fldm.train(data, CONFIG, key=key, progress=False, checkpoint_dir=tmp_path / "ckpt_4")
+    back = fldm.train(data, CONFIG, key=key, progress=False, checkpoint_dir=work / "ckpt_4")
     assert back.resumed_from == 2
     np.testing.assert_allclose(back.losses["loss"], full_4, rtol=1e-4)
     _close(leaves(back.model.params), out["full_4_model"], rtol=1e-4, atol_scale=1e-4)
-    model = fldm.load(tmp_path / "model_4")
+    model = fldm.load(work / "model_4")
     assert model.config == CONFIG
     _close(
         leaves(model.params), out["full_4_model"], rtol=0, atol_scale=0
