@@ -14,12 +14,14 @@ transpose of the tangent, higher orders by re-entering the same rule (its primal
 rule's own function). Inputs without a tangent arrive as symbolic zeros and cost nothing.
 
 Which tangent: with the neighbourhood held fixed (the usual case), ``jax.linear_transpose`` of a
-hand-written blocked VJP (:func:`sums_vjp`), so reverse mode, JAX's transpose of that transpose,
+hand-written blocked VJP (:func:`blocked_vjp`), so reverse mode, JAX's transpose of that transpose,
 runs the hand-written VJP itself (each block's responses recomputed and written once in cache, no
-``V·K·H·C`` array stored); forward mode runs its transpose. With a tangent on the neighbourhood's
-geometry, the forward-mode derivative of the plain formula (:func:`sums_tangent_plain`, block by
-block under ``jax.checkpoint``). Reverse mode keeps the forward's ``V·2·H·C`` filtered sums for the
-mix's gradient.
+``V·K·H·C`` array stored); forward mode runs its transpose. For the output's tangent the mix is
+folded into that VJP's blocks (each block forms its own ``∂S = ∂y Mᵀ``) and each block scatter-adds
+its neighbours' feature cotangents, so no ``[V, 2·H·C]`` or ``[V, K, C]`` cotangent is written.
+With a tangent on the neighbourhood's geometry, the forward-mode derivative of the plain formula
+(:func:`sums_tangent_plain`, block by block under ``jax.checkpoint``). Reverse mode keeps the
+forward's ``V·2·H·C`` filtered sums (transposed once) for the mix's gradient.
 """
 
 from __future__ import annotations
@@ -112,6 +114,15 @@ def _conv_and_sums(x, index, slots, a_w, bias, hidden, mix, delta, activation):
     )
 
 
+def _mix_tangent(sums, dmix):
+    """``S Ṁ`` (``[V, 2D]`` real), from the sums transposed once behind a barrier: reverse mode
+    then forms ``∂M = Sᵀ ∂y`` from ``[2·H·C, V]`` rows, which XLA's CPU multiplies faster than
+    the same product contracted over ``S``'s leading axis (docs/design_notes.md, "Field
+    convolution")."""
+    sums_t = jax.lax.optimization_barrier(sums.T)
+    return jax.lax.dot_general(sums_t, mix_matrix(dmix), (((0,), (0,)), ((), ())))
+
+
 def _out_tangent(primals, sums, tangents, delta, activation):
     """``(ẏ, Ṡ)``: ``Ṡ`` from :func:`sums_tangent`, ``ẏ = Ṡ M + S Ṁ`` (both ``[V, ·]`` real)."""
     x, index, slots, a_w, bias, hidden, mix = primals
@@ -123,17 +134,38 @@ def _out_tangent(primals, sums, tangents, delta, activation):
     if ds is not None:
         dy = ds @ mix_matrix(mix)
     if not isinstance(dmix, SymbolicZero):
-        term = sums @ mix_matrix(dmix)
+        term = _mix_tangent(sums, dmix)
         dy = term if dy is None else dy + term
     if ds is None:
         ds = jnp.zeros_like(sums)
     return dy, ds
 
 
+def _y_tangent(primals, sums, tangents, delta, activation):
+    """``ẏ`` alone (``[V, 2D]`` real, or None if zero): with the neighbourhood held fixed, the
+    transpose of :func:`blocked_vjp` with the mix folded into its blocks (reverse mode runs that
+    VJP, each block forming its own ``∂S = ∂y Mᵀ``); otherwise ``Ṡ M``, ``Ṡ`` from
+    :func:`sums_tangent_plain`. Plus ``S Ṁ``."""
+    x, index, slots, a_w, bias, hidden, mix = primals
+    dx, _, dslots, da_w, dbias, dhidden, dmix = tangents
+    if not _all_zero(dslots):
+        ds = sums_tangent_plain(
+            x, index, slots, a_w, bias, hidden, dx, dslots, da_w, dbias, dhidden, delta, activation
+        )
+        dy = None if ds is None else ds @ mix_matrix(mix)
+    else:
+        dy = _transposed_vjp(
+            x, index, slots, a_w, bias, hidden, dx, da_w, dbias, dhidden, delta, activation, mix
+        )
+    if not isinstance(dmix, SymbolicZero):
+        term = _mix_tangent(sums, dmix)
+        dy = term if dy is None else dy + term
+    return dy
+
+
 def _conv_jvp(delta, activation, primals, tangents):
     y, sums = _conv_and_sums(*primals, delta, activation)
-    dy, _ = _out_tangent(primals, sums, tangents, delta, activation)
-    return y, dy
+    return y, _y_tangent(primals, sums, tangents, delta, activation)
 
 
 def _conv_and_sums_jvp(delta, activation, primals, tangents):
@@ -152,35 +184,46 @@ def sums_tangent(
     layer's ``(Ẇ₂, ḃ₂)``; None if all zero.
 
     Without a slot tangent (the neighbourhood held fixed, the usual case), ``Ṡ`` is the transpose of
-    :func:`sums_vjp`, taken by ``jax.linear_transpose``: reverse mode transposes it back, so it runs
-    the hand-written blocked VJP. With a slot tangent, :func:`sums_tangent_plain`.
+    :func:`blocked_vjp`, taken by ``jax.linear_transpose``: reverse mode transposes it back, so it
+    runs the hand-written blocked VJP. With a slot tangent, :func:`sums_tangent_plain`.
     """
     if not _all_zero(dslots):
         return sums_tangent_plain(
             x, index, slots, a_w, bias, hidden, dx, dslots, da_w, dbias, dhidden, delta, activation
         )
+    return _transposed_vjp(
+        x, index, slots, a_w, bias, hidden, dx, da_w, dbias, dhidden, delta, activation, None
+    )
+
+
+def _transposed_vjp(
+    x, index, slots, a_w, bias, hidden, dx, da_w, dbias, dhidden, delta, activation, mix
+):
+    """``jax.linear_transpose`` of :func:`blocked_vjp` applied to the live tangents: ``Ṡ`` (``mix``
+    None) or ``Ṡ M`` (``[V, 2D]``); None if every tangent is a symbolic zero."""
     named = {"x": dx, "a_w": da_w, "bias": dbias, "hidden": dhidden}
     live = {k: _instantiate(t) for k, t in named.items() if not _all_zero(t)}
     if not live:
         return None
-    v, c, h = x.shape[0], x.shape[1], a_w.shape[1]
+    if "x" in live:
+        live["x"] = (live["x"].real, live["x"].imag)
+    width = 2 * (a_w.shape[1] * x.shape[1] if mix is None else mix.shape[2])
     want = tuple(live)
 
     def vjp(g):
-        return sums_vjp(x, index, slots, a_w, bias, hidden, g, delta, activation, want)
+        return blocked_vjp(x, index, slots, a_w, bias, hidden, g, delta, activation, want, mix)
 
-    transpose = jax.linear_transpose(vjp, jax.ShapeDtypeStruct((v, 2 * h * c), x.real.dtype))
-    if "x" in live:  # the tangents' gather: linear, outside the loop (one scatter transposed)
-        live["x"] = tuple(jnp.take(p, index, axis=0, mode="clip") for p in (dx.real, dx.imag))
-    (ds,) = transpose(live)
-    return ds
+    transpose = jax.linear_transpose(vjp, jax.ShapeDtypeStruct((x.shape[0], width), x.real.dtype))
+    (out,) = transpose(live)
+    return out
 
 
-def sums_vjp(x, index, slots, a_w, bias, hidden, g, delta, activation, want):
-    """The VJP of the filtered sums for fixed slots, block by block: ``g [V, 2·H·C]`` → a dict of
-    cotangents for the names in ``want``: ``"x"`` (of the gathered features ``x_q``, real and
-    imaginary ``[V, K, C]``), ``"a_w"`` ``[2, H]``, ``"bias"`` (the offsets' shape), ``"hidden"``
-    ``(W₂ [H, H], b₂ [H])``.
+def blocked_vjp(x, index, slots, a_w, bias, hidden, g, delta, activation, want, mix=None):
+    """The VJP of the filtered sums (``mix`` None; ``g = ∂L/∂S [V, 2·H·C]``) or of the outputs
+    through them (``g = ∂L/∂y [V, 2D]``, each block forming ``∂S = g Mᵀ``), for fixed slots and
+    mix, block by block: a dict of cotangents for the names in ``want``: ``"x"`` (real and imaginary
+    ``[V, C]``, scatter-added over each block's neighbours in the loop), ``"a_w"`` ``[2, H]``,
+    ``"bias"`` (the offsets' shape), ``"hidden"`` ``(W₂ [H, H], b₂ [H])``.
 
     Per block of :data:`TANGENT_BLOCK` vertices under ``jax.checkpoint``: :func:`block_vjp`, which
     recomputes the block's responses from the gathered features.
@@ -189,26 +232,44 @@ def sums_vjp(x, index, slots, a_w, bias, hidden, g, delta, activation, want):
     block = min(v, TANGENT_BLOCK)
     n_blocks = -(-v // block)
     xr, xi = x.real, x.imag
-    per_vertex = {"index": index, "slots": slots, "bias": bias, "g": g.reshape(v, 2, h, c)}
+    m = None if mix is None else mix_matrix(mix)  # [2HC, 2D]
 
-    def body(pv):
+    def body(acc, pv):
         xqr = jnp.take(xr, pv["index"], axis=0, mode="clip")
         xqi = jnp.take(xi, pv["index"], axis=0, mode="clip")
-        return block_vjp(
-            xqr, xqi, pv["slots"], a_w, pv["bias"], hidden, pv["g"], delta, activation, want
-        )
+        # g Mᵀ against M's rows as stored (a transposed copy of M: 15 % slower value-and-grad)
+        g_s = pv["g"] if m is None else jax.lax.dot_general(pv["g"], m, (((1,), (1,)), ((), ())))
+        out = block_vjp(
+            xqr, xqi, pv["slots"], a_w, pv["bias"], hidden, g_s.reshape(-1, 2, h, c), delta,
+            activation, want,
+        )  # fmt: skip
+        acc = dict(acc)
+        if "x" in out:  # the gather's transpose, per block
+            acc["x"] = tuple(
+                a.at[pv["index"]].add(d, mode="clip")
+                for a, d in zip(acc["x"], out.pop("x"), strict=True)
+            )
+        for k in ("a_w", "hidden"):
+            if k in out:
+                acc[k] = jax.tree.map(jnp.add, acc[k], out.pop(k))
+        return acc, out
 
-    out = jax.lax.map(
-        jax.checkpoint(body, prevent_cse=False), to_blocks(per_vertex, n_blocks, block)
+    acc = {}
+    if "x" in want:
+        acc["x"] = (jnp.zeros_like(xr), jnp.zeros_like(xi))
+    if "a_w" in want:
+        acc["a_w"] = jnp.zeros_like(a_w)
+    if "hidden" in want:
+        acc["hidden"] = jax.tree.map(jnp.zeros_like, hidden)
+    per_vertex = {"index": index, "slots": slots, "bias": bias, "g": g}
+    acc, per_block = jax.lax.scan(
+        jax.checkpoint(body, prevent_cse=False), acc, to_blocks(per_vertex, n_blocks, block)
     )
-    for k in ("a_w", "hidden"):  # per block → summed
-        if k in out:
-            out[k] = jax.tree.map(lambda t: jnp.sum(t, axis=0), out[k])
-    return {k: (t if k in ("a_w", "hidden") else from_blocks(t, v)) for k, t in out.items()}
+    return dict(acc, **from_blocks(per_block, v))
 
 
 def block_vjp(xqr, xqi, slots, a_w, bias, hidden, g, delta, activation, want):
-    """Hand-written VJP of one block's filtered sums for fixed slots (see :func:`sums_vjp`).
+    """Hand-written VJP of one block's filtered sums for fixed slots (see :func:`blocked_vjp`).
 
     With ``p₁ = a_r A_0 + a_i A_1 + b``, ``φ₁ = act(p₁)``, (two layers) ``p₂ = φ₁ W₂ + b₂``,
     ``φ = act(p₂)`` (one layer: ``φ = φ₁``), ``G_s = ∂L/∂S_s``: ``g₂ = (G_r z_r + G_i z_i) act'(p₂)``
