@@ -336,11 +336,24 @@ def synthesize_cell(method, mesh, exemplar, config, surface, weights, checkpoint
     )
 
 
-def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps, weights, work):
+def _protocol_cell(
+    mesh_name,
+    mesh,
+    up,
+    surface,
+    geometry,
+    ex_name,
+    size,
+    steps,
+    weights,
+    work,
+    methods=("surface", "uv2d"),
+):
     """One (mesh, exemplar) cell: the surface CNN and UV-space 2D synthesis with the same
     settings, each scored by seams, specks and surface patches; resumable (checkpoints and the
     finished row in ``work``). The 2D image does not depend on the mesh, so one run per exemplar
-    (``work/uv2d/<exemplar>_<size>_<steps>``) serves every mesh's cell."""
+    (``work/uv2d/<exemplar>_<size>_<steps>``) serves every mesh's cell. ``methods``: a study that
+    changes only the surface CNN runs ``("surface",)`` in its own ``work``."""
     import json
 
     from jmeshtex import render
@@ -363,7 +376,8 @@ def _protocol_cell(mesh_name, mesh, up, surface, geometry, ex_name, size, steps,
     row["orientation_control"] = {"seam": control.seam, "interior": control.interior}
     panels = [("exemplar", exemplar)]
     folders = {"surface": cell / "surface", "uv2d": work / "uv2d" / f"{ex_name}_{size}_{steps}"}
-    for method, folder in folders.items():
+    for method in methods:
+        folder = folders[method]
         resumed = folder.is_dir() and any(folder.iterdir())
         t0, c0 = time.perf_counter(), time.process_time()
         r = synthesize_cell(method, mesh, exemplar, config, surface, weights, folder)
