@@ -424,12 +424,11 @@ def _protocol_cell(
     return row
 
 
-def quality(
-    meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+def run_cells(
+    meshes, exemplars, size: int, steps: int, work: pathlib.Path, methods=("surface", "uv2d")
 ) -> None:
-    """The issue-33 protocol: every (mesh, exemplar) cell at ``size``² and ``steps`` steps, every
-    VGG-16 ReLU and pool output, xatlas layouts, exemplars at native resolution. The report lists
-    every finished cell (:func:`finished_rows`), in protocol order."""
+    """Every (mesh, exemplar) protocol cell at ``size``² and ``steps`` steps in ``work``,
+    resumable; ``methods`` as :func:`_protocol_cell`'s."""
     from jmeshtex.geometry import tracer_geometry
 
     weights = load_vgg16()
@@ -438,8 +437,9 @@ def quality(
         mesh = protocol_mesh(mesh_name, work)
         surface, geometry = None, None
         for ex_name in exemplars:
-            cell = work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json"
-            if surface is None and not cell.is_file():
+            if (work / f"{mesh_name}_{ex_name}_{size}_{steps}" / "row.json").is_file():
+                continue
+            if surface is None:
                 surface = prepare_surface(mesh, size=size, levels=levels)
                 geometry = tracer_geometry(mesh.vertices, mesh.faces)
             _protocol_cell(
@@ -453,7 +453,17 @@ def quality(
                 steps,
                 weights,
                 work,
+                methods,
             )
+
+
+def quality(
+    meshes, exemplars, size: int, steps: int, work: pathlib.Path, out: pathlib.Path | None
+) -> None:
+    """The issue-33 protocol: every (mesh, exemplar) cell at ``size``² and ``steps`` steps, every
+    VGG-16 ReLU and pool output, xatlas layouts, exemplars at native resolution. The report lists
+    every finished cell (:func:`finished_rows`), in protocol order."""
+    run_cells(meshes, exemplars, size, steps, work)
     rows = finished_rows(work, size, steps)
     spreads = {}
     for row in rows:

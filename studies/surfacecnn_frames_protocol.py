@@ -24,50 +24,13 @@ import json
 import pathlib
 
 from _study import RESULTS, ROOT
-from surfacecnn import (
-    PROTOCOL_MESHES,
-    _protocol_cell,
-    protocol_mesh,
-)
+from surfacecnn import PROTOCOL_MESHES, run_cells
 
 PHOTOGRAPHS = ("brick", "grass", "immunohistochemistry")
 COMMITTED = ROOT / "benchmarks" / "results" / "surfacecnn.quality.json"
 SIZE, STEPS = 512, 500
 #: the targets of issue 58 for the photograph cells
 PATCH_TOLERANCE, SEAM_CEILING = 0.10, 1.2
-
-
-def run_cells(meshes, exemplars, work: pathlib.Path) -> None:
-    """Every (mesh, exemplar) cell's surface CNN under the default (smoothed) frames, resumable."""
-    from jmeshtex.geometry import tracer_geometry
-    from jmeshtex.metrics import load_vgg16
-    from jmeshtex.surfacecnn import prepare_surface
-    from jmeshtex.surfacecnn.core import default_layers, required_levels
-
-    weights = load_vgg16()
-    levels = required_levels(weights, default_layers(weights))
-    for mesh_name in meshes:
-        mesh = protocol_mesh(mesh_name, work)
-        surface, geometry = None, None
-        for ex_name in exemplars:
-            if (work / f"{mesh_name}_{ex_name}_{SIZE}_{STEPS}" / "row.json").is_file():
-                continue
-            if surface is None:
-                surface = prepare_surface(mesh, size=SIZE, levels=levels)
-                geometry = tracer_geometry(mesh.vertices, mesh.faces)
-            _protocol_cell(
-                mesh_name,
-                mesh,
-                PROTOCOL_MESHES[mesh_name][1],
-                surface,
-                geometry,
-                ex_name,
-                SIZE,
-                STEPS,
-                weights,
-                work,
-                methods=("surface",),
-            )
 
 
 def compare(work: pathlib.Path) -> list[dict]:
@@ -169,7 +132,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=pathlib.Path, default=RESULTS)
     a = ap.parse_args(argv)
     if not a.report_only:
-        run_cells(a.meshes.split(","), a.exemplars.split(","), a.work)
+        run_cells(
+            a.meshes.split(","), a.exemplars.split(","), SIZE, STEPS, a.work, methods=("surface",)
+        )
     write(compare(a.work), a.out)
 
 
