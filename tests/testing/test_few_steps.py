@@ -1,5 +1,5 @@
-"""The suite's ``few_steps`` marker (``conftest.py``): a marked module's fixtures and tests build their
-loop programs at ``XLA_FLAGS``' level; an unmarked test keeps the loops' full level
+"""The suite's ``few_steps`` marker (``conftest.py``): a marked module's fixtures and tests build
+their loop programs at ``XLA_FLAGS``' level; an unmarked test keeps the loops' full level
 (``tests/test_jit.py::test_the_suite_compiles_its_loops_fully``)."""
 
 from __future__ import annotations
