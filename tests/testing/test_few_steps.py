@@ -4,6 +4,8 @@ their loop programs at ``XLA_FLAGS``' level; an unmarked test keeps the loops' f
 
 from __future__ import annotations
 
+import pathlib
+
 import pytest
 
 from jmeshtex import _jit
@@ -23,10 +25,21 @@ def test_a_marked_module_s_fixtures_and_tests_compile_their_loops_at_the_lowest_
     assert _jit.loop_options() is None
 
 
-def test_the_loops_full_level_is_restored_after_a_marked_test():
+def _root_conftest(config: pytest.Config):
+    """The repository's ``conftest.py`` as pytest loaded it (a plugin; importing it again would run
+    it twice)."""
+    root = config.rootpath / "conftest.py"
+    return next(
+        p
+        for p in config.pluginmanager.get_plugins()
+        if getattr(p, "__file__", None) and pathlib.Path(p.__file__) == root
+    )
+
+
+def test_the_loops_full_level_is_restored_after_a_marked_test(request):
     """A marked test's fixture restores what it found (here: the module's setting, itself set over
     the suite's full level)."""
-    conftest = __import__("conftest")
+    conftest = _root_conftest(request.config)
     with conftest._lowest_level_loops():
         assert _jit.loop_options() is None
     assert _jit.loop_options() is None  # the module's own setting, still in force
