@@ -13,7 +13,9 @@
 - XLA compiles at its lowest optimisation level, except the programs that run in a loop
   (``jmeshtex._jit.jit_loop``, the training driver's steps, ``parallel.data_parallel``), which this
   file gives XLA's full level (``jmeshtex._jit.set_compiler_options``; the library alone leaves
-  ``XLA_FLAGS`` in charge); ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully;
+  ``XLA_FLAGS`` in charge); ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully. A test marked
+  ``few_steps`` (its trainings run a handful of steps, so compiling them fully costs more than it
+  saves) compiles the training steps it builds at the lowest level too;
 - JAX's persistent compilation cache is on, in one folder all xdist workers share under a file
   lock (``.pytest_cache/jax``, ``JMESHTEX_TEST_JAX_CACHE`` moves it, ``0`` turns it off): a program
   is compiled once per run, not once per worker, and a second run skips most compilation;
@@ -28,6 +30,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pathlib
 import random
@@ -144,6 +147,57 @@ settings.register_profile(
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci" if os.environ.get("CI") else "dev"))
 
 _SEED_ENV = "JMESHTEX_SEED"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "few_steps: its trainings run a few steps: the training steps it builds compile at the"
+        " suite's lowest XLA level, not the loops' full one (conftest.py)",
+    )
+
+
+@contextlib.contextmanager
+def _lowest_level_loops():
+    """Loop programs built inside compile at ``XLA_FLAGS``' level (the suite's lowest)."""
+    before = set_compiler_options(loop=None)  # (sets both kinds: ``once`` is put back next)
+    set_compiler_options(once=before["once"], loop=None)
+    try:
+        yield
+    finally:
+        set_compiler_options(**before)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _few_step_module(request: pytest.FixtureRequest):
+    """A module marked ``few_steps`` (``pytestmark``) builds its loop programs at the lowest level,
+    its module fixtures' included (autouse: set up before them; session fixtures come first and
+    keep the loops' full level). See :func:`_few_step_loops`."""
+    if request.node.get_closest_marker("few_steps") is None:
+        yield
+        return
+    with _lowest_level_loops():
+        yield
+
+
+@pytest.fixture(autouse=True)
+def _few_step_loops(request: pytest.FixtureRequest):
+    """Tests marked ``few_steps`` build their loop programs at ``XLA_FLAGS``' lowest level.
+
+    The suite gives loop programs XLA's full optimisation because a training step at the lowest
+    level runs about 2.5x slower; a test whose trainings run a handful of steps pays the full
+    level's longer compile and never earns it back. What such a test checks (a resumed run equals an
+    uninterrupted one, a cache is keyed right, a flag reaches the step) compares programs compiled
+    alike within the test. Only programs built during the test follow: the training driver's steps
+    (``fit`` and ``parallel.data_parallel`` read the options when they compile), not the functions
+    ``jit_loop`` decorated at import, nor a session fixture, nor a module fixture of an unmarked
+    module.
+    """
+    if request.node.get_closest_marker("few_steps") is None:
+        yield
+        return
+    with _lowest_level_loops():
+        yield
 
 
 @pytest.fixture(autouse=True)

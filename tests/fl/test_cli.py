@@ -7,12 +7,16 @@ import json
 import jax
 import matplotlib.image
 import numpy as np
+import pytest
 
 from jmeshtex import Mesh, fl
 from jmeshtex.cli import main
 from jmeshtex.data import grid, striped_sphere
 from jmeshtex.io import Checkpoints, save_mesh, save_png
 from tests._presets import FL_MICRO_NETWORK
+
+#: trainings of 2-3 steps: their steps compile at the suite's lowest XLA level (conftest.py)
+pytestmark = pytest.mark.few_steps
 
 TINY = {
     "latent_dim": 3,

@@ -16,6 +16,9 @@ from jmeshtex.data import icosphere
 from jmeshtex.io import save_mesh
 from tests.fldm.conftest import TINY_CLI_TRAIN
 
+#: trainings of 1-2 steps: their steps compile at the suite's lowest XLA level (conftest.py)
+pytestmark = pytest.mark.few_steps
+
 CFG = fldm.Config.tiny(
     latent_channels=8, n_copies=2, copy_vertices=60, bucket=32, steps=2, checkpoint_every=1
 )

@@ -64,9 +64,28 @@ def test_trained_samples_beat_flat_colour_and_shuffled_latents():
         assert r["lpips_diversity"] > 0.02, (k, figures)  # samples differ from each other
 
 
+#: training steps of the FL-VAE-codec check (the demo preset's own; it trained 800 before issue 59)
+FL_VAE_STEPS = 300
+
+
 @pytest.mark.slow
 def test_trained_samples_learn_the_stripes_through_the_fl_vae():
-    r = learning_check(quick=True, n_samples=3, key=jax.random.key(0), codec="fl_vae", steps=800)
+    """Through the shipped FL-VAE (encode the copies, decode sample latents to vertex colours),
+    trained samples must be far closer to the exemplar's texture statistics than the untrained
+    model's samples (same noise), the codec's own reconstruction far closer still, and the samples
+    must differ from each other.
+
+    Trained for :data:`FL_VAE_STEPS` = 300 (issue 59: the suite's time; it was 800), measured side
+    by side with the shipped FL-VAE of round 27 (3 samples; trained / untrained / codec Gram,
+    last-50 / first-20 loss, diversity LPIPS): 800 steps, key(0): 11.40 / 108.26 / 0.239 (trained /
+    untrained 0.105, codec / trained 0.021), loss 0.163, LPIPS 0.57, 171 CPU-s for the test; 300
+    steps, key(0): 10.93 / 108.26 / 0.239 (0.101, 0.022), loss 0.193, LPIPS 0.57; 400 steps, keys
+    0 / 1 / 2: trained / untrained 0.107 / 0.202 / 0.157, codec / trained 0.021 / 0.022 / 0.029,
+    loss 0.16 / 0.17 / 0.19, LPIPS 0.56 / 0.59 / 0.59. (Earlier figures, with the FL-VAE shipped
+    then and 800 steps: 84 / 148 / 17.0 for key(0), trained / untrained 0.51-0.58 over seeds.)"""
+    r = learning_check(
+        quick=True, n_samples=3, key=jax.random.key(0), codec="fl_vae", steps=FL_VAE_STEPS
+    )
     losses = r["losses"]
     print(
         {
@@ -75,16 +94,11 @@ def test_trained_samples_learn_the_stripes_through_the_fl_vae():
         },
         {"loss_first": np.mean(losses[:20]), "loss_last": np.mean(losses[-50:])},
     )
-    assert np.mean(losses[-50:]) < 0.5 * np.mean(losses[:20])  # measured 0.91 → 0.18 (key(0))
-    # measured with 3 samples (trained / untrained / FL-VAE reconstruction of the exemplar): key(0):
-    # 84 / 148 / 17.0 (ratio 0.57); the integer seeds before keys gave seed 0: 95 / 182 / 11.7;
-    # seed 1: 110 / 216 / 17.1; seed 2: 98 / 168 / 10.8 (ratios 0.51-0.58)
+    assert np.mean(losses[-50:]) < 0.5 * np.mean(losses[:20])  # measured 1.24 → 0.24 (key(0))
     assert r["gram_trained"] < 0.7 * r["gram_untrained"], (r["gram_trained"], r["gram_untrained"])
     # the codec can represent the stripes: its reconstruction is far closer than any sample
     assert r["gram_codec"] < 0.5 * r["gram_trained"], (r["gram_codec"], r["gram_trained"])
-    assert r["lpips_diversity"] > 0.02, r[
-        "lpips_diversity"
-    ]  # measured 0.29 (key(0)); 0.31-0.37 with seeds
+    assert r["lpips_diversity"] > 0.02, r["lpips_diversity"]  # measured 0.57 (key(0))
     assert r["samples"].shape == (3, r["target"].num_vertices, 8)
 
 

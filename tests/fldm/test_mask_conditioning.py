@@ -25,6 +25,9 @@ from jmeshtex.fldm.core import (
 from jmeshtex.ops import tangent_noise
 from tests.fldm.conftest import TINY_TRAIN, uses_tiny_data
 
+#: a training of 3 steps: its steps compile at the suite's lowest XLA level (conftest.py)
+pytestmark = pytest.mark.few_steps
+
 CFG = Config.tiny(
     latent_channels=2, widths=(6, 8), hdim=4, knn=7, time_features=8, mask_conditioning=True
 )

@@ -22,6 +22,11 @@ from fldm_sharded_worker import CONFIG, dataset, leaves  # noqa: E402
 
 WORKER = pathlib.Path(__file__).with_name("fldm_sharded_worker.py")
 
+#: every training here runs a few steps, so every program compiles at the suite's lowest XLA level:
+#: the one-device runs here (``few_steps``, conftest.py) and the four-device process alike (it
+#: inherits the suite's ``XLA_FLAGS``)
+pytestmark = pytest.mark.few_steps
+
 
 #: the training run both processes follow
 KEY = jax.random.key(5)
@@ -36,9 +41,8 @@ def sharded(tmp_path_factory) -> tuple[pathlib.Path, dict]:
     fldm.train(
         dataset(), CONFIG, key=KEY, progress=False, checkpoint_dir=work / "ckpt_1", stop_after=2
     )
-    env = dict(
-        os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu"
-    )
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=4"
+    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS="cpu")
     run = subprocess.run(
         [sys.executable, str(WORKER), str(work)],
         env=env,

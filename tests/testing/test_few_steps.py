@@ -1,0 +1,52 @@
+"""The suite's ``few_steps`` marker (``conftest.py``): a marked module's fixtures and tests build
+their loop programs at ``XLA_FLAGS``' level; an unmarked test keeps the loops' full level
+(``tests/test_jit.py::test_the_suite_compiles_its_loops_fully``)."""
+
+from __future__ import annotations
+
+import pathlib
+
+import pytest
+
+from jmeshtex import _jit
+
+pytestmark = pytest.mark.few_steps
+
+
+@pytest.fixture(scope="module")
+def options_in_a_module_fixture():
+    return {"loop": _jit.loop_options(), "once": _jit._OPTIONS["once"]}
+
+
+def test_a_marked_module_s_fixtures_and_tests_compile_their_loops_at_the_lowest_level(
+    options_in_a_module_fixture,
+):
+    assert options_in_a_module_fixture == {"loop": None, "once": None}
+    assert _jit.loop_options() is None
+
+
+def _root_conftest(config: pytest.Config):
+    """The repository's ``conftest.py`` as pytest loaded it (a plugin; importing it again would run
+    it twice)."""
+    root = config.rootpath / "conftest.py"
+    return next(
+        p
+        for p in config.pluginmanager.get_plugins()
+        if getattr(p, "__file__", None) and pathlib.Path(p.__file__) == root
+    )
+
+
+def test_the_loops_full_level_is_restored_after_a_marked_test(request):
+    """A marked test's fixture restores what it found (here: the module's setting, itself set over
+    the suite's full level)."""
+    conftest = _root_conftest(request.config)
+    with conftest._lowest_level_loops():
+        assert _jit.loop_options() is None
+    assert _jit.loop_options() is None  # the module's own setting, still in force
+    before = _jit.set_compiler_options(loop=_jit.FULL_OPTIMISATION)
+    try:
+        with conftest._lowest_level_loops():
+            assert _jit.loop_options() is None
+        assert _jit.loop_options() == _jit.FULL_OPTIMISATION
+    finally:
+        _jit.set_compiler_options(**before)
