@@ -280,11 +280,11 @@ def block_vjp(xqr, xqi, slots, a_w, bias, hidden, g, delta, activation, want):
     Linear in ``g`` and plain ``jnp``, so JAX transposes it (the forward-mode tangent) and
     differentiates it in the primal inputs (higher orders). The sums over ``h`` are unrolled into
     ``[B, K, C]`` terms; each stage (the slot terms, each layer's responses and derivatives, the
-    second layer's pre-activations, each layer's ``g``) is written once per block (``[H, B, K, C]``,
-    in cache) behind an optimisation barrier, so that XLA evaluates every response and activation
-    derivative once instead of again inside each fusion that reads it. The second activation and
-    the outer layer's ``g`` are evaluated on whole ``[H, B, K, C]`` stacks rather than per ``h``
-    (measured: docs/design_notes.md, "Field convolution").
+    second layer's pre-activations, each layer's ``g``, ``∂z``) is written once per block
+    (``[H, B, K, C]``, in cache) behind an optimisation barrier, so that XLA evaluates every
+    response and activation derivative once instead of again inside each fusion that reads it. The
+    second activation and the outer layer's ``g`` are evaluated on whole ``[H, B, K, C]`` stacks
+    rather than per ``h`` (measured: docs/design_notes.md, "Field convolution").
     """
     w, tr, ti, lr, li = (a[..., None] for a in slots)
     ur = tr * xqr - ti * xqi
@@ -312,8 +312,9 @@ def block_vjp(xqr, xqi, slots, a_w, bias, hidden, g, delta, activation, want):
     g_rh, g_ih = (jnp.moveaxis(t, 1, 0)[:, :, None, :] for t in (g_r, g_i))
     g_st = jax.lax.optimization_barrier((g_rh * zr + g_ih * zi) * dphi_st)
     gs = [g_st[j] for j in range(n_h)]
-    dzr = sum(g_r[:, None, j, :] * phi[j] for j in range(n_h))
-    dzi = sum(g_i[:, None, j, :] * phi[j] for j in range(n_h))
+    _, (dzr, dzi) = _written(  # read by both halves of the features' cotangent
+        [sum(t[:, None, j, :] * phi[j] for j in range(n_h)) for t in (g_r, g_i)]
+    )
     out = {}
     if hidden is not None:
         g2_st, g2 = g_st, gs
