@@ -279,10 +279,12 @@ def block_vjp(xqr, xqi, slots, a_w, bias, hidden, g, delta, activation, want):
 
     Linear in ``g`` and plain ``jnp``, so JAX transposes it (the forward-mode tangent) and
     differentiates it in the primal inputs (higher orders). The sums over ``h`` are unrolled into
-    ``[B, K, C]`` terms; each stage (the slot terms, each layer's responses and derivatives, each
-    layer's ``g``) is written once per block (``[H, B, K, C]``, in cache) behind an optimisation
-    barrier, so that XLA evaluates every response and activation derivative once instead of again
-    inside each fusion that reads it (measured: docs/design_notes.md, "Field convolution").
+    ``[B, K, C]`` terms; each stage (the slot terms, each layer's responses and derivatives, the
+    second layer's pre-activations, each layer's ``g``, ``∂z``) is written once per block
+    (``[H, B, K, C]``, in cache) behind an optimisation barrier, so that XLA evaluates every
+    response and activation derivative once instead of again inside each fusion that reads it. The
+    second activation and the outer layer's ``g`` are evaluated on whole ``[H, B, K, C]`` stacks
+    rather than per ``h`` (measured: docs/design_notes.md, "Field convolution").
     """
     w, tr, ti, lr, li = (a[..., None] for a in slots)
     ur = tr * xqr - ti * xqi
@@ -296,19 +298,23 @@ def block_vjp(xqr, xqi, slots, a_w, bias, hidden, g, delta, activation, want):
     g_r, g_i = g[:, 0], g[:, 1]  # [B, H, C]
     n_h = a_w.shape[1]
     p1 = [ar * a_w[0, j] + ai * a_w[1, j] + b3[:, None, j, :] for j in range(n_h)]
-    (phi1_st, phi1), (_, dphi1) = _responses(p1, activation)
-    phi, dphi = phi1, dphi1
+    (phi1_st, phi1), (dphi1_st, dphi1) = _responses(p1, activation)
+    phi, dphi_st = phi1, dphi1_st
     if hidden is not None:
         hw, hb = hidden
-        p2 = [sum(phi1[i] * hw[i, j] for i in range(n_h)) + hb[j] for j in range(n_h)]
-        (_, phi), (_, dphi) = _responses(p2, activation)
-    dzr = dzi = 0
-    gs = []
-    for j in range(n_h):
-        gr_j, gi_j = g_r[:, None, j, :], g_i[:, None, j, :]
-        gs.append((gr_j * zr + gi_j * zi) * dphi[j])
-        dzr, dzi = dzr + gr_j * phi[j], dzi + gi_j * phi[j]
-    g_st, gs = _written(gs)
+        p2_st, _ = _written(
+            [sum(phi1[i] * hw[i, j] for i in range(n_h)) + hb[j] for j in range(n_h)]
+        )
+        # the second activation on the whole written stack, in one fusion per output
+        phi2_st, dphi_st = jax.lax.optimization_barrier(act_and_grad(p2_st, activation))
+        phi = [phi2_st[j] for j in range(n_h)]
+    # g = (G_r z_r + G_i z_i) act'(p), broadcast over h in one fusion ([H, B, K, C])
+    g_rh, g_ih = (jnp.moveaxis(t, 1, 0)[:, :, None, :] for t in (g_r, g_i))
+    g_st = jax.lax.optimization_barrier((g_rh * zr + g_ih * zi) * dphi_st)
+    gs = [g_st[j] for j in range(n_h)]
+    _, (dzr, dzi) = _written(  # read by both halves of the features' cotangent
+        [sum(t[:, None, j, :] * phi[j] for j in range(n_h)) for t in (g_r, g_i)]
+    )
     out = {}
     if hidden is not None:
         g2_st, g2 = g_st, gs
@@ -325,16 +331,14 @@ def block_vjp(xqr, xqi, slots, a_w, bias, hidden, g, delta, activation, want):
         dur = w * dzr + inv * (lr * dar + li * dai) - ur * common
         dui = w * dzi + inv * (li * dar - lr * dai) - ui * common
         out["x"] = (tr * dur + ti * dui, tr * dui - ti * dur)
-    if "a_w" in want or "bias" in want:  # g₁ [H, B, K, C] reduced once
-        coef = jnp.stack([jnp.ones_like(ar), ar, ai])  # [3, B, K, C]
-        red = jnp.sum(g_st[:, None] * coef[None], axis=(3, 4)).transpose(2, 0, 1)  # [B, H, 3]
-        if "a_w" in want:
-            out["a_w"] = jnp.sum(red[:, :, 1:], axis=0).T
-        if "bias" in want:
-            if bias.ndim == 3 and bias.shape[2] > 1:  # per-channel offsets: no sum over c
-                out["bias"] = jnp.sum(g_st, axis=2).transpose(1, 0, 2)
-            else:
-                out["bias"] = red[:, :, 0, None] if bias.ndim == 3 else red[:, :, 0]
+    if "a_w" in want:  # g₁ [H, B, K, C] against a: sums over (b, k), then over c
+        out["a_w"] = jnp.stack([jnp.sum(jnp.sum(g_st * a, axis=(1, 2)), axis=1) for a in (ar, ai)])
+    if "bias" in want:
+        if bias.ndim == 3 and bias.shape[2] > 1:  # per-channel offsets: no sum over c
+            out["bias"] = jnp.sum(g_st, axis=2).transpose(1, 0, 2)
+        else:
+            red = jnp.sum(g_st, axis=(2, 3)).T  # [B, H]
+            out["bias"] = red[:, :, None] if bias.ndim == 3 else red
     return out
 
 
