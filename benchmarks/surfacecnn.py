@@ -386,7 +386,7 @@ def _protocol_cell(
         seams = seam_ratio(r.colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
         textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=r.texture)
         views = render.render_views(textured, cams, shading="unlit")
-        specks = [specks(v) for v in views]
+        view_specks = [specks(v) for v in views]
         patches = patch_scores(textured, r.texture, exemplar, surface, weights)
         orient = seam_orientation(textured, r.texture)
         row[method] = {
@@ -398,8 +398,8 @@ def _protocol_cell(
             "seam_ratio": float(seams["ratio"]),
             "orientation_seam": orient.seam,
             "orientation_interior": orient.interior,
-            "speck_abs": float(np.mean([s["abs"] for s in specks])),
-            "speck_local": float(np.mean([s["local"] for s in specks])),
+            "speck_abs": float(np.mean([s["abs"] for s in view_specks])),
+            "speck_local": float(np.mean([s["local"] for s in view_specks])),
             "patches": patches,
         }
         print(
@@ -551,14 +551,14 @@ def tiled_baseline(rows: list[dict], work: pathlib.Path) -> None:
         colors = tiled.reshape(n * n, 3)[surface.atlas.texel]
         seams = seam_ratio(colors, surface.atlas, surface.pyramid.nearest[0], geometry=geometry)
         textured = Mesh(mesh.vertices, mesh.faces, uv=surface.atlas.uv, texture=tiled)
-        specks = [specks(v) for v in render.render_views(textured, cams, shading="unlit")]
+        view_specks = [specks(v) for v in render.render_views(textured, cams, shading="unlit")]
         orient = seam_orientation(textured, tiled)
         row["uv_tiled"] = {
             "seam_ratio": float(seams["ratio"]),
             "orientation_seam": orient.seam,
             "orientation_interior": orient.interior,
-            "speck_abs": float(np.mean([s["abs"] for s in specks])),
-            "speck_local": float(np.mean([s["local"] for s in specks])),
+            "speck_abs": float(np.mean([s["abs"] for s in view_specks])),
+            "speck_local": float(np.mean([s["local"] for s in view_specks])),
         }
 
 
