@@ -168,16 +168,21 @@ def _lowest_level_loops():
         set_compiler_options(**before)
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _few_step_module(request: pytest.FixtureRequest):
-    """A module marked ``few_steps`` (``pytestmark``) builds its loop programs at the lowest level,
-    its module fixtures' included (autouse: set up before them; session fixtures come first and
-    keep the loops' full level). See :func:`_few_step_loops`."""
+def _lowest_level_if_marked(request: pytest.FixtureRequest):
+    """The body of both ``few_steps`` fixtures: :func:`_lowest_level_loops` around the marked."""
     if request.node.get_closest_marker("few_steps") is None:
         yield
         return
     with _lowest_level_loops():
         yield
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _few_step_module(request: pytest.FixtureRequest):
+    """A module marked ``few_steps`` (``pytestmark``) builds its loop programs at the lowest level,
+    its module fixtures' included (autouse: set up before them; session fixtures come first and
+    keep the loops' full level). See :func:`_few_step_loops`."""
+    yield from _lowest_level_if_marked(request)
 
 
 @pytest.fixture(autouse=True)
@@ -193,11 +198,7 @@ def _few_step_loops(request: pytest.FixtureRequest):
     ``jit_loop`` decorated at import, nor a session fixture, nor a module fixture of an unmarked
     module.
     """
-    if request.node.get_closest_marker("few_steps") is None:
-        yield
-        return
-    with _lowest_level_loops():
-        yield
+    yield from _lowest_level_if_marked(request)
 
 
 @pytest.fixture(autouse=True)
