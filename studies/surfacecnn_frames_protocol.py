@@ -12,9 +12,11 @@ across seams. The report sets each cell beside the committed cell of
 ``benchmarks/results/surfacecnn.quality.json`` (the paper's frames) and names the targets: patch
 Gram and spectrum within 10 %, colour seam ratio ≤ 1.2.
 
-Cells resume (checkpoints every 50 steps under ``--work``; a finished cell's ``row.json`` is read
-back), so the nine cells (about 35 CPU-min each on one quiet core) can span sessions; the report
-lists the cells finished so far. Writes ``studies/results/surfacecnn_frames_protocol.{json,md}``.
+Cells resume (checkpoints every 50 steps under ``--work``), and a finished cell's row is kept in
+the repository (``studies/results/surfacecnn_frames_protocol_cells/<mesh>_<exemplar>.json``) and
+not rerun, so the nine cells (about 35 CPU-min each on one quiet core) can span sessions and
+machines; the report lists the cells finished so far. Writes
+``studies/results/surfacecnn_frames_protocol.{json,md}``.
 """
 
 from __future__ import annotations
@@ -27,13 +29,28 @@ from _study import RESULTS, ROOT
 from surfacecnn import PROTOCOL_MESHES, run_cells
 
 PHOTOGRAPHS = ("brick", "grass", "immunohistochemistry")
+#: the finished cells' rows, one file a cell, kept between sessions
+CELLS = RESULTS / "surfacecnn_frames_protocol_cells"
 COMMITTED = ROOT / "benchmarks" / "results" / "surfacecnn.quality.json"
 SIZE, STEPS = 512, 500
 #: the targets of issue 58 for the photograph cells
 PATCH_TOLERANCE, SEAM_CEILING = 0.10, 1.2
 
 
-def compare(work: pathlib.Path) -> list[dict]:
+def keep_finished(work: pathlib.Path, cells: pathlib.Path = CELLS) -> None:
+    """Copy every cell finished in ``work`` into ``cells`` (written whole, then renamed)."""
+    cells.mkdir(parents=True, exist_ok=True)
+    for mesh_name in PROTOCOL_MESHES:
+        for ex_name in PHOTOGRAPHS:
+            done = work / f"{mesh_name}_{ex_name}_{SIZE}_{STEPS}" / "row.json"
+            kept = cells / f"{mesh_name}_{ex_name}.json"
+            if done.is_file() and not kept.is_file():
+                tmp = kept.with_suffix(".tmp")
+                tmp.write_text(done.read_text())
+                tmp.replace(kept)
+
+
+def compare(cells: pathlib.Path = CELLS) -> list[dict]:
     """Each finished cell beside its committed cell (paper's frames): patch Gram and spectrum
     (and their ratios, new ÷ committed), the baselines under the new frames, the colour seam ratio,
     orientation across seams and the loss."""
@@ -43,7 +60,7 @@ def compare(work: pathlib.Path) -> list[dict]:
     rows = []
     for mesh_name in PROTOCOL_MESHES:
         for ex_name in PHOTOGRAPHS:
-            done = work / f"{mesh_name}_{ex_name}_{SIZE}_{STEPS}" / "row.json"
+            done = cells / f"{mesh_name}_{ex_name}.json"
             if not done.is_file() or (mesh_name, ex_name) not in committed:
                 continue
             new, old = json.loads(done.read_text()), committed[(mesh_name, ex_name)]
@@ -132,10 +149,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=pathlib.Path, default=RESULTS)
     a = ap.parse_args(argv)
     if not a.report_only:
-        run_cells(
-            a.meshes.split(","), a.exemplars.split(","), SIZE, STEPS, a.work, methods=("surface",)
-        )
-    write(compare(a.work), a.out)
+        for mesh_name in a.meshes.split(","):
+            for ex_name in a.exemplars.split(","):
+                if not (CELLS / f"{mesh_name}_{ex_name}.json").is_file():
+                    run_cells([mesh_name], [ex_name], SIZE, STEPS, a.work, methods=("surface",))
+                    keep_finished(a.work)
+    write(compare(), a.out)
 
 
 if __name__ == "__main__":
