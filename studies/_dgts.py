@@ -239,10 +239,16 @@ def evaluate(
 
 
 def depth_meshes(
-    kind: str, levels: int, folder: pathlib.Path, coarse_levels: int = 0, remesh: int = 0
+    kind: str,
+    levels: int,
+    folder: pathlib.Path,
+    coarse_levels: int = 0,
+    remesh: int = 0,
+    template: int = 1,
 ):
     """The run at depth's reference (a textured sphere, period ``DEPTH_TEXTURES[kind]``) and its
-    ``levels`` fitted training levels on an icosphere(1) template, kept in
+    ``levels`` fitted training levels on an icosphere(``template``) template (the finest level
+    has icosphere(``template + levels - 1``)'s faces), kept in
     ``folder/training_meshes.npz`` (fitted once, about 12 CPU-minutes at 4 levels; a stopped fit
     resumes after its last finished level, kept in ``training_meshes.levels/``). With
     ``coarse_levels`` the coarsest ones fit the sphere without its texture
@@ -254,16 +260,18 @@ def depth_meshes(
     from jmeshtex.dgts import load_training_meshes, save_training_meshes
 
     folder.mkdir(parents=True, exist_ok=True)
-    reference = textured_sphere(kind, subdivisions=levels + 1, period=DEPTH_TEXTURES[kind])
+    fine = levels + template  # one subdivision finer than the finest level
+    reference = textured_sphere(kind, subdivisions=fine, period=DEPTH_TEXTURES[kind])
     suffix = f"_coarse{coarse_levels}" if coarse_levels else ""
     suffix += f"_remesh{remesh}" if remesh else ""
+    suffix += f"_template{template}" if template != 1 else ""
     meshes_file = folder / f"training_meshes{suffix}.npz"
     if meshes_file.is_file():
         return reference, load_training_meshes(meshes_file)
-    untextured = icosphere(levels + 1) if coarse_levels else None  # the sphere under the texture
+    untextured = icosphere(fine) if coarse_levels else None  # the sphere under the texture
     tm = training_meshes(
         reference,
-        icosphere(1),
+        icosphere(template),
         config=PrepareConfig(levels=levels),
         key=jax.random.key(0),
         coarse_reference=untextured,

@@ -1,8 +1,9 @@
 """Study: DGTS at depth, the paper's network trained on textured spheres.
 
-``python studies/dgts_depth.py KIND [KIND ...] [--levels 4] [--steps 2000] [--work runs/dgts_depth]``:
-the paper's network (``dgts.Config()``: 7 layers, 32 -> 128 channels) trained STEPS per level on
-LEVELS levels (80 -> 5120 faces from an icosphere(1) template) of a textured sphere of each kind
+``python studies/dgts_depth.py KIND [KIND ...] [--levels 4] [--steps 2000] [--template 1]
+[--work runs/dgts_depth]``: the paper's network (``dgts.Config()``: 7 layers, 32 -> 128 channels)
+trained STEPS per level on LEVELS levels (from an icosphere(TEMPLATE) template: 80 -> 5120 faces
+at 4 levels from icosphere(1), 20 -> 5120 at 5 levels from icosphere(0)) of a textured sphere of each kind
 (``DEPTH_TEXTURES``), resumable in ``WORK/<kind>/`` (fitted training meshes, checkpoints every 250
 steps, ``model.npz``), then scored in-domain and transferred to the torus, the cow and fandisk
 against their oracles. Writes ``studies/results/dgts_depth.{json,md}`` (the kinds of this run only)
@@ -43,10 +44,12 @@ def depth(
     samples: int,
     checkpoint_every: int = 250,
     train_only: bool = False,
+    template: int = 1,
 ) -> None:
     """The paper's network (``dgts.Config()``: 7 layers, 32 → 128 channels, ``steps`` per level) on
     ``levels`` levels of each textured sphere, resumable in ``work/<kind>/`` (the fitted training
-    meshes, checkpoints every ``checkpoint_every`` steps, the final ``model.npz``); then
+    meshes on an icosphere(``template``), checkpoints every ``checkpoint_every`` steps, the final
+    ``model.npz``); then
     :func:`evaluate` into ``dgts_depth`` with one figure per kind (skipped with ``train_only``:
     ``benchmarks/dgts.py --model WORK/<kind>`` scores a finished model)."""
     from jmeshtex.dgts import save
@@ -57,7 +60,7 @@ def depth(
         folder = work / kind
         folder.mkdir(parents=True, exist_ok=True)
         t0, c0 = time.perf_counter(), time.process_time()
-        reference, tm = depth_meshes(kind, levels, folder)
+        reference, tm = depth_meshes(kind, levels, folder, template=template)
         prepare = (time.perf_counter() - t0, time.process_time() - c0)
         cfg = Config(steps=steps, checkpoint_every=checkpoint_every)
         t0, c0 = time.perf_counter(), time.process_time()
@@ -112,8 +115,19 @@ def main(argv: list[str] | None = None) -> None:
         action="store_true",
         help="fit, train and save WORK/<kind>/model.npz; no scoring (resumable as it is)",
     )
+    ap.add_argument(
+        "--template",
+        type=int,
+        default=1,
+        help="icosphere subdivisions of the coarsest level (0: 20 faces, 1: 80)",
+    )
     args = ap.parse_args(argv)
-    depth(args.kinds, train_only=args.train_only, **study_arguments(args))
+    depth(
+        args.kinds,
+        train_only=args.train_only,
+        template=args.template,
+        **study_arguments(args),
+    )
 
 
 if __name__ == "__main__":
