@@ -27,6 +27,7 @@ import numpy as np  # noqa: E402
 from jmeshtex import fl, parallel  # noqa: E402
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))  # the repository root
+from tests._four_devices import compile_once  # noqa: E402
 from tests._presets import FL_MICRO_MESHES, FL_SHORT_RUN  # noqa: E402
 
 CONFIG = FL_MICRO_MESHES.replace(**FL_SHORT_RUN).replace(meshes_per_image=2, warmup_steps=1)
@@ -104,15 +105,6 @@ def main(work: pathlib.Path) -> None:
     out["from_1"] = resumed.losses["loss"].tolist()
     out["from_1_resumed_from"] = resumed.resumed_from
     (work / "result.json").write_text(json.dumps(out))
-
-
-def compile_once(work: pathlib.Path) -> None:
-    """A persistent compilation cache in the work folder: each ``fl.train`` call jits its step
-    afresh, so the run's four trainings on four devices compile the step once, not four times
-    (the same programs, read back: the same numbers)."""
-    jax.config.update("jax_compilation_cache_dir", str(work / "jax_cache"))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 if __name__ == "__main__":

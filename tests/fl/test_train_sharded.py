@@ -5,9 +5,7 @@ uninterrupted one, and checkpoints move between one device and four."""
 from __future__ import annotations
 
 import json
-import os
 import pathlib
-import subprocess
 import sys
 
 import jax
@@ -15,6 +13,7 @@ import numpy as np
 import pytest
 
 from jmeshtex import fl
+from tests._four_devices import run_worker
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 from sharded_worker import CONFIG, train  # noqa: E402
@@ -30,16 +29,7 @@ def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tm
     when both compiled their steps at XLA's full level, 71 now."""
     # a one-device checkpoint at step 2, for the four-device process to resume
     train(tmp_path / "ckpt_1", stop_after=2)
-    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=4"
-    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS="cpu")
-    run = subprocess.run(
-        [sys.executable, str(WORKER), str(tmp_path)],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert run.returncode == 0, run.stderr[-4000:]
+    run_worker(WORKER, tmp_path)
     out = json.loads((tmp_path / "result.json").read_text())
 
     # one step: four devices equal one device to float32 round-off (the gradient is reduced over devices

@@ -33,6 +33,7 @@ from jmeshtex import ConfigError, fldm, parallel  # noqa: E402
 from jmeshtex.data import icosphere  # noqa: E402
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))  # the repository root
+from tests._four_devices import compile_once  # noqa: E402
 from tests._presets import FLDM_MICRO  # noqa: E402
 
 # 4 copies per step (one per device), an EMA so the returned model is the replicated EMA
@@ -106,15 +107,6 @@ def main(work: pathlib.Path) -> None:
     except ConfigError as err:
         out["errors"].append(str(err))
     (work / "result.json").write_text(json.dumps(out))
-
-
-def compile_once(work: pathlib.Path) -> None:
-    """A persistent compilation cache in the work folder: each ``fldm.train`` call jits its step
-    afresh, so the run's four trainings on four devices compile the step once, not four times
-    (the same programs, read back: the same numbers)."""
-    jax.config.update("jax_compilation_cache_dir", str(work / "jax_cache"))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 if __name__ == "__main__":

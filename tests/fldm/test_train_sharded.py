@@ -6,9 +6,7 @@ files move between one device and four, and a batch that does not split raises a
 from __future__ import annotations
 
 import json
-import os
 import pathlib
-import subprocess
 import sys
 
 import jax
@@ -16,6 +14,7 @@ import numpy as np
 import pytest
 
 from jmeshtex import ConfigError, fldm, parallel
+from tests._four_devices import run_worker
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 from fldm_sharded_worker import CONFIG, dataset, leaves  # noqa: E402
@@ -41,16 +40,7 @@ def sharded(tmp_path_factory) -> tuple[pathlib.Path, dict]:
     fldm.train(
         dataset(), CONFIG, key=KEY, progress=False, checkpoint_dir=work / "ckpt_1", stop_after=2
     )
-    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=4"
-    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS="cpu")
-    run = subprocess.run(
-        [sys.executable, str(WORKER), str(work)],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert run.returncode == 0, run.stderr[-4000:]
+    run_worker(WORKER, work)
     return work, json.loads((work / "result.json").read_text())
 
 

@@ -217,24 +217,15 @@ def test_init_options_keep_the_one_layer_parameters_and_have_the_documented_shap
 def test_general_path_bad_inputs_raise_typed_errors(case):
     nb, x, emb, chan = case
     params = general_params(7)
-    with pytest.raises(InputError, match="channel_embedding needs"):
-        field_conv(
-            jnp.asarray(x),
-            nb,
-            params._replace(channel_weight=None),
-            embedding=emb,
-            channel_embedding=chan,
-        )
+    # parameters that lack a part the channel embedding or the hidden layer needs
+    for broken, match in (
+        (params._replace(channel_weight=None), "channel_embedding needs"),
+        (params._replace(hidden_bias=None), "hidden_weight and hidden_bias"),
+    ):
+        with pytest.raises(InputError, match=match):
+            field_conv(jnp.asarray(x), nb, broken, embedding=emb, channel_embedding=chan)
     with pytest.raises(InputError, match="channel_weight but channel_embedding=None"):
         field_conv(jnp.asarray(x), nb, params, embedding=emb)
-    with pytest.raises(InputError, match="hidden_weight and hidden_bias"):
-        field_conv(
-            jnp.asarray(x),
-            nb,
-            params._replace(hidden_bias=None),
-            embedding=emb,
-            channel_embedding=chan,
-        )
     with pytest.raises(ConfigError, match="argument must be"):
         field_conv(
             jnp.asarray(x), nb, params, embedding=emb, channel_embedding=chan, argument="printed"
