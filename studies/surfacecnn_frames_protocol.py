@@ -12,11 +12,13 @@ across seams. The report sets each cell beside the committed cell of
 ``benchmarks/results/surfacecnn.quality.json`` (the paper's frames) and names the targets: patch
 Gram and spectrum within 10 %, colour seam ratio ≤ 1.2.
 
-Cells resume (checkpoints every 50 steps under ``--work``), and a finished cell's row is kept in
-the repository (``studies/results/surfacecnn_frames_protocol_cells/<mesh>_<exemplar>.json``) and
-not rerun, so the nine cells (about 35 CPU-min each on one quiet core) can span sessions and
-machines; the report lists the cells finished so far. Writes
-``studies/results/surfacecnn_frames_protocol.{json,md}``.
+Cells resume (checkpoints every 50 steps under ``--work``, which does not outlive the machine),
+and a finished cell is kept in the repository as the study's own resume state
+(``studies/cells/surfacecnn_frames_protocol/<mesh>_<exemplar>.json``: the cell's row with the
+date and commit it ran at) and not rerun, so the nine cells (about 35 CPU-min each on one quiet
+core) can span sessions and machines. They are one protocol run in parts, not results of
+earlier runs: the report names each cell's date and commit and lists the cells finished so far.
+Writes ``studies/results/surfacecnn_frames_protocol.{json,md}``.
 """
 
 from __future__ import annotations
@@ -29,8 +31,8 @@ from _study import RESULTS, ROOT
 from surfacecnn import PROTOCOL_MESHES, run_cells
 
 PHOTOGRAPHS = ("brick", "grass", "immunohistochemistry")
-#: the finished cells' rows, one file a cell, kept between sessions
-CELLS = RESULTS / "surfacecnn_frames_protocol_cells"
+#: the finished cells, one file a cell: the study's resume state, kept in git between sessions
+CELLS = ROOT / "studies" / "cells" / "surfacecnn_frames_protocol"
 COMMITTED = ROOT / "benchmarks" / "results" / "surfacecnn.quality.json"
 SIZE, STEPS = 512, 500
 #: the targets of issue 58 for the photograph cells
@@ -38,15 +40,24 @@ PATCH_TOLERANCE, SEAM_CEILING = 0.10, 1.2
 
 
 def keep_finished(work: pathlib.Path, cells: pathlib.Path = CELLS) -> None:
-    """Copy every cell finished in ``work`` into ``cells`` (written whole, then renamed)."""
+    """Keep every cell finished in ``work`` in ``cells`` with the date and commit it ran at
+    (written whole, then renamed)."""
+    import datetime
+    import subprocess
+
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+    ).stdout.strip()
     cells.mkdir(parents=True, exist_ok=True)
     for mesh_name in PROTOCOL_MESHES:
         for ex_name in PHOTOGRAPHS:
             done = work / f"{mesh_name}_{ex_name}_{SIZE}_{STEPS}" / "row.json"
             kept = cells / f"{mesh_name}_{ex_name}.json"
             if done.is_file() and not kept.is_file():
+                row = json.loads(done.read_text())
+                row["ran"] = {"date": datetime.date.today().isoformat(), "commit": commit}
                 tmp = kept.with_suffix(".tmp")
-                tmp.write_text(done.read_text())
+                tmp.write_text(json.dumps(row, indent=1) + "\n")
                 tmp.replace(kept)
 
 
@@ -86,6 +97,7 @@ def compare(cells: pathlib.Path = CELLS) -> list[dict]:
                     ],
                     "loss": [new["surface"]["final_loss"], old["surface"]["final_loss"]],
                     "cpu_s": None if new["surface"]["resumed"] else new["surface"]["cpu_s"],
+                    "ran": new.get("ran", {}),
                     "meets": abs(gram - 1) <= PATCH_TOLERANCE
                     and abs(spectrum - 1) <= PATCH_TOLERANCE
                     and seam <= SEAM_CEILING,
@@ -108,8 +120,8 @@ def write(rows: list[dict], out: pathlib.Path) -> None:
         f"{SEAM_CEILING}.\n",
         "| mesh | exemplar | patch Gram: new / committed (÷) | spectrum: new / committed (÷) "
         "| flat / permuted / initial / floor (Gram) | seam ratio: new / committed | orientation "
-        "seam / interior (control) | loss: new / committed | CPU-s | target |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "seam / interior (control) | loss: new / committed | CPU-s | ran (date, commit) | target |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         b = r["baselines"]
@@ -122,6 +134,7 @@ def write(rows: list[dict], out: pathlib.Path) -> None:
             + f" | {r['seam_ratio'][0]:.3f} / {r['seam_ratio'][1]:.3f} | "
             f"{o[0]:.3f} / {o[1]:.3f} ({o[2]:.3f}) | {r['loss'][0]:.3g} / {r['loss'][1]:.3g} | "
             + ("resumed" if r["cpu_s"] is None else f"{r['cpu_s']:.0f}")
+            + f" | {r['ran'].get('date', '?')}, {r['ran'].get('commit', '?')}"
             + f" | {'met' if r['meets'] else 'missed'} |"
         )
     lines.append(
