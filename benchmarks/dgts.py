@@ -276,18 +276,28 @@ def _verdict(report, section: str, *, in_domain: bool) -> None:
 def in_domain_truth(tm, base, reference_period: float, *, level: int = -1, scale_factor=2.0):
     """In-domain scoring on a shared base (``dgts.core.knob_scores``): training level ``level`` in
     the template's frame, where samples from the template lie (``conditional``, or
-    ``plan_transfer(start_level=0)`` through ``level``), the undisplaced ``base`` (such a sample's
-    ``Transfer.base`` with ``.faces``: the template subdivided to ``level``) and the reference's
-    period in mean edges of that base. Returns ``(truth, base, period)``."""
+    ``plan_transfer(start_level=0)`` through ``level``), the undisplaced base and the reference's
+    period in mean edges of that base. Returns ``(truth, base, period)``.
+
+    ``base`` is such a sample's ``Transfer.base`` with ``.faces``: the template subdivided flat to
+    ``level``, a polyhedron with the template's facets. The references here are textured spheres,
+    so the undisplaced surface is a sphere: the base's vertices are pushed radially onto the
+    truth's sphere (centre its vertices' mean, radius their mean distance). Scored on the facets
+    instead, the heights carry the facets' bulge and creases (an icosphere(0) template's edges
+    show in the band-pass), which outputs and truth share and which hides their texture."""
     from jmeshtex import Mesh
     from jmeshtex.geometry import mean_edge_length
 
     lv = level % tm.num_levels
     frame = float(scale_factor) ** lv
-    base = Mesh(np.asarray(base[0], np.float64), np.asarray(base[1], np.int64))
-    if not np.array_equal(np.asarray(tm.faces[lv]), base.faces):
+    faces = np.asarray(base[1], np.int64)
+    if not np.array_equal(np.asarray(tm.faces[lv]), faces):
         raise ValueError(f"in_domain_truth: the base is not the template subdivided to level {lv}")
-    truth = Mesh(np.asarray(tm.vertices[lv], np.float64) / frame, base.faces)
+    truth = Mesh(np.asarray(tm.vertices[lv], np.float64) / frame, faces)
+    centre = truth.vertices.mean(axis=0)
+    radius = np.linalg.norm(truth.vertices - centre, axis=1).mean()
+    offset = np.asarray(base[0], np.float64) - centre
+    base = Mesh(centre + radius * offset / np.linalg.norm(offset, axis=1, keepdims=True), faces)
     period = reference_period * float(tm.scales[lv]) / frame / mean_edge_length(*base)
     return truth, base, period
 
