@@ -321,6 +321,7 @@ def rescore(
     kind: str = "knobs",
     model: pathlib.Path | None = None,
     name: str | None = None,
+    start_level: int | None = None,
 ) -> None:
     """The committed knobs model (``KNOBS_MODEL``) and untrained weights of its architecture,
     scored by ``dgts.core.knob_scores`` over ``seeds`` noise draws: in-domain (unconditional
@@ -341,8 +342,9 @@ def rescore(
     rows: its training meshes are not committed); writes ``dgts_rescore_scales``. ``model``: another
     knobs model folder (``model.npz`` beside its ``training_meshes*.npz``, as
     ``studies/dgts_depth.py`` leaves ``WORK/knobs``), scored the same way without the level-2
-    rows, into ``name`` (default ``dgts_rescore_<folder>``). A ``targets met`` row per section
-    says whether the trained row meets issue 54's targets."""
+    rows, into ``name`` (default ``dgts_rescore_<folder>``); ``start_level`` (with ``model``)
+    starts its transfers at another level than the official one. A ``targets met`` row per
+    section says whether the trained row meets issue 54's targets."""
     from jmeshtex import Mesh
     from jmeshtex.dgts import load, load_training_meshes
     from jmeshtex.geometry import remesh
@@ -367,6 +369,7 @@ def rescore(
         tm, trained.config.replace(steps=0), key=jax.random.key(0), progress=False
     ).model
     start, stop = official_gen_levels(trained, (RESCORE_START, 4))
+    start = start if start_level is None else start_level  # a study of the start, not the default
     report.config = {
         "kind": kind,
         "model": str(folder if kind == "knobs" else SCALES_MODEL),
@@ -495,6 +498,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--name", help="with --model: the results' name (default dgts_rescore_<folder>)"
     )
+    ap.add_argument(
+        "--start-level",
+        type=int,
+        help="with --model: transfers start at this level instead of the official 1",
+    )
     args = ap.parse_args(argv)
     for kind in ("knobs", "scales"):
         if kind in args.sections:
@@ -509,6 +517,7 @@ def main(argv: list[str] | None = None) -> None:
                 kind=kind,
                 model=model,
                 name=name,
+                start_level=args.start_level if model is not None else None,
             )
     if "timing" in args.sections:
         report = Report("dgts_timing")
