@@ -27,7 +27,8 @@ Protocol (Mitchel et al. 2024, §6.1, §6.6):
    ``--vertices`` vertices (default 10,000: the FL-VAE's training density, not Spot's own 2,930),
    each encoded ``encodings_per_copy`` times with the shipped FL-VAE (fresh one-ring samplings);
 2. ``fldm.train`` with ``fldm.Config.cpu`` (the decoder-free statistics logged at every checkpoint);
-3. samples on Spot midpoint-subdivided once (≈ the training density, with Spot's UV atlas):
+3. samples on Spot midpoint-subdivided to about the training density (``sampling_subdivisions``:
+   once at 10,000 vertices, not at all at 3,000; with Spot's UV atlas):
    DDIM-50 and DDPM-1000, decoded to the atlas (``fldm.decode_samples``), rendered at fixed views.
 
 Rows (table ``quality``; sources vs the exemplar's renders from the same views):
@@ -133,8 +134,28 @@ def presets(quick: bool, latent_dim: int, vertices: int):
         run = dict(samples=2, ddpm=1, views=VIEWS[:2], size=96, atlas=128, ddim=3, subdivide=0)
     else:
         cfg = fldm.Config.cpu(latent_channels=latent_dim, copy_vertices=vertices)
-        run = dict(samples=6, ddpm=2, views=VIEWS, size=256, atlas=512, ddim=50, subdivide=1)
+        run = dict(
+            samples=6,
+            ddpm=2,
+            views=VIEWS,
+            size=256,
+            atlas=512,
+            ddim=50,
+            subdivide=sampling_subdivisions(vertices),
+        )
     return cfg, run
+
+
+#: Spot's own vertex count; each midpoint subdivision multiplies it by about 4
+SPOT_VERTICES = 2930
+
+
+def sampling_subdivisions(vertices: int) -> int:
+    """The midpoint subdivisions of Spot whose vertex count is nearest (in ratio) the training
+    copies' ``vertices``: the samples are drawn at the density the denoiser was trained at (its
+    k-NN neighbourhoods span a fixed number of vertices, so a denser mesh shrinks them on the
+    surface). 10,000 → 1 (11,714 vertices), 3,000 → 0 (Spot itself)."""
+    return max(0, round(float(np.log(vertices / SPOT_VERTICES) / np.log(4.0))))
 
 
 def subdivided(spot: Mesh, times: int) -> Mesh:

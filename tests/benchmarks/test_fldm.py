@@ -110,3 +110,13 @@ def test_missing_spot_exits_with_a_clear_message(tmp_path):
         "spot_triangulated.obj not found" in proc.stderr and "JMESHTEX_SHARED_DATA" in proc.stderr
     )
     assert not (tmp_path / "fldm_spot.json").exists()
+
+
+def test_samples_are_drawn_at_the_training_density():
+    """The sampling mesh is Spot subdivided to the training copies' density (nearest in ratio):
+    a 3K-vertex model samples on Spot itself, a 10K one on Spot subdivided once."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import fldm as bench
+
+    got = [bench.sampling_subdivisions(v) for v in (400, 3000, 5000, 10000, 40000)]
+    assert got == [0, 0, 0, 1, 2]
