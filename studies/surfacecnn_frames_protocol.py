@@ -40,8 +40,9 @@ PATCH_TOLERANCE, SEAM_CEILING = 0.10, 1.2
 
 
 def keep_finished(work: pathlib.Path, cells: pathlib.Path = CELLS) -> None:
-    """Keep every cell finished in ``work`` in ``cells`` with the date and commit it ran at
-    (written whole, then renamed)."""
+    """Keep every cell finished in ``work`` in ``cells`` with the date and the commit checked out
+    when it was kept (the cell ran on that code unless the checkout moved under it; written
+    whole, then renamed)."""
     import datetime
     import subprocess
 
