@@ -504,6 +504,8 @@ def main(argv: list[str] | None = None) -> None:
         help="with --model: transfers start at this level instead of the official 1",
     )
     args = ap.parse_args(argv)
+    if args.start_level is not None and args.model is None:
+        ap.error("--start-level studies another model's start: give --model too")
     for kind in ("knobs", "scales"):
         if kind in args.sections:
             model = args.model if kind == "knobs" else None
@@ -517,7 +519,7 @@ def main(argv: list[str] | None = None) -> None:
                 kind=kind,
                 model=model,
                 name=name,
-                start_level=args.start_level if model is not None else None,
+                start_level=args.start_level if kind == "knobs" else None,
             )
     if "timing" in args.sections:
         report = Report("dgts_timing")

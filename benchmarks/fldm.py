@@ -112,7 +112,7 @@ def _field_change(item: str) -> tuple[str, object]:
         return name.strip(), value
 
 
-def presets(quick: bool, latent_dim: int, vertices: int):
+def presets(quick: bool, latent_dim: int, vertices: int, spot_vertices: int):
     """``(fldm.Config, run settings)`` of the full benchmark or the ``--quick`` smoke run."""
     from jmeshtex import fldm
 
@@ -141,21 +141,18 @@ def presets(quick: bool, latent_dim: int, vertices: int):
             size=256,
             atlas=512,
             ddim=50,
-            subdivide=sampling_subdivisions(vertices),
+            subdivide=sampling_subdivisions(vertices, spot_vertices),
         )
     return cfg, run
 
 
-#: Spot's own vertex count; each midpoint subdivision multiplies it by about 4
-SPOT_VERTICES = 2930
-
-
-def sampling_subdivisions(vertices: int) -> int:
-    """The midpoint subdivisions of Spot whose vertex count is nearest (in ratio) the training
-    copies' ``vertices``: the samples are drawn at the density the denoiser was trained at (its
+def sampling_subdivisions(vertices: int, spot_vertices: int) -> int:
+    """The midpoint subdivisions of Spot (``spot_vertices`` vertices; each subdivision multiplies
+    them by about 4) whose vertex count is nearest (in ratio) the training copies' ``vertices``:
+    the samples are drawn at the density the denoiser was trained at (its
     k-NN neighbourhoods span a fixed number of vertices, so a denser mesh shrinks them on the
     surface). 10,000 → 1 (11,714 vertices), 3,000 → 0 (Spot itself)."""
-    return max(0, round(float(np.log(vertices / SPOT_VERTICES) / np.log(4.0))))
+    return max(0, round(float(np.log(vertices / spot_vertices) / np.log(4.0))))
 
 
 def subdivided(spot: Mesh, times: int) -> Mesh:
@@ -207,7 +204,9 @@ class Context:
             spot_dir / "spot_triangulated.obj", texture=spot_dir / "spot_texture.png"
         )
         self.vae = fl.load_pretrained(decoder=args.decoder)
-        self.cfg, self.run = presets(args.quick, self.vae.config.latent_dim, args.vertices)
+        self.cfg, self.run = presets(
+            args.quick, self.vae.config.latent_dim, args.vertices, len(self.spot.vertices)
+        )
         if args.steps is not None:
             self.cfg = self.cfg.replace(steps=args.steps)
         if args.set:

@@ -118,5 +118,5 @@ def test_samples_are_drawn_at_the_training_density():
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import fldm as bench
 
-    got = [bench.sampling_subdivisions(v) for v in (400, 3000, 5000, 10000, 40000)]
+    got = [bench.sampling_subdivisions(v, 2930) for v in (400, 3000, 5000, 10000, 40000)]
     assert got == [0, 0, 0, 1, 2]
