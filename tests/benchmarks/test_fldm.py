@@ -18,7 +18,7 @@ SCRIPT = ROOT / "benchmarks" / "fldm.py"
 
 def _run(args: list[str], env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess:
     # a separate process: the benchmark runs in float32 without debug_nans, as from the command
-    # line; it inherits the suite's XLA_FLAGS (lowest optimisation level, conftest.py), which keeps
+    # line; it inherits the suite's XLA_FLAGS (its quick optimisation level, conftest.py), which keeps
     # this compile-bound smoke run cheaper (measured: 148 CPU-s, 190 with XLA's defaults)
     return subprocess.run(
         [sys.executable, str(SCRIPT), *args],

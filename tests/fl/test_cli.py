@@ -15,7 +15,7 @@ from jmeshtex.data import grid, striped_sphere
 from jmeshtex.io import Checkpoints, save_mesh, save_png
 from tests._presets import FL_MICRO_NETWORK
 
-#: trainings of 2-3 steps: their steps compile at the suite's lowest XLA level (conftest.py)
+#: trainings of 2-3 steps: their steps compile at the suite's quick XLA level (conftest.py)
 pytestmark = pytest.mark.few_steps
 
 TINY = {

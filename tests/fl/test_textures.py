@@ -175,7 +175,7 @@ def test_loss_is_the_papers_equation_by_hand():
         np.testing.assert_allclose(float(loss), want_l1 + 0.37 * want_kl, rtol=1e-10)
 
 
-@pytest.mark.few_steps  # 4 steps: compiled at the suite's lowest XLA level (conftest.py)
+@pytest.mark.few_steps  # 4 steps: compiled at the suite's quick XLA level (conftest.py)
 def test_stream_training_resumes_exactly_and_draws_a_loss_curve(tmp_path):
     key = jax.random.key(3)
     curve = tmp_path / "loss.png"

@@ -98,7 +98,7 @@ def test_batch_concatenates_meshes_with_global_corner_ids(rng):
     assert not b["mask"][20:].any()
 
 
-@pytest.mark.few_steps  # 4 steps: compiled at the suite's lowest XLA level (conftest.py)
+@pytest.mark.few_steps  # 4 steps: compiled at the suite's quick XLA level (conftest.py)
 def test_resumed_training_equals_uninterrupted_training(tmp_path):
     imgs = procedural_images(np.random.default_rng(0), 2)
     key = jax.random.key(5)
@@ -195,7 +195,7 @@ def test_short_training_reconstructs_well_above_a_constant_colour():
         assert model > constant + margin
 
 
-@pytest.mark.few_steps  # 4 steps: compiled at the suite's lowest XLA level (conftest.py)
+@pytest.mark.few_steps  # 4 steps: compiled at the suite's quick XLA level (conftest.py)
 def test_the_weight_average_is_the_model_its_recurrence_and_resumes(tmp_path):
     """``ema_decay > 0``: the model is ``optim.ema_update`` applied to the very weights the plain run
     trains (the average never feeds back), and a resumed run continues the average exactly."""

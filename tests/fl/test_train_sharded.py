@@ -23,7 +23,7 @@ WORKER = pathlib.Path(__file__).with_name("sharded_worker.py")
 
 @pytest.mark.few_steps
 def test_sharded_fl_vae_training_matches_one_device_and_resumes_across_meshes(tmp_path):
-    """Every training here runs 4 steps, so every program compiles at the suite's lowest XLA level:
+    """Every training here runs 4 steps, so every program compiles at the suite's quick XLA level:
     the one-device runs here (``few_steps``, conftest.py) and the four-device process alike (it
     inherits the suite's ``XLA_FLAGS``). Measured (-n 0, empty JAX cache): 113 CPU-s for the test
     when both compiled their steps at XLA's full level, 71 now."""

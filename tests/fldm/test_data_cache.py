@@ -16,7 +16,7 @@ from jmeshtex.data import icosphere
 from jmeshtex.io import save_mesh
 from tests.fldm.conftest import TINY_CLI_TRAIN
 
-#: trainings of 1-2 steps: their steps compile at the suite's lowest XLA level (conftest.py)
+#: trainings of 1-2 steps: their steps compile at the suite's quick XLA level (conftest.py)
 pytestmark = pytest.mark.few_steps
 
 CFG = fldm.Config.tiny(

@@ -16,7 +16,7 @@ from jmeshtex.fldm import build_dataset, inpaint, load, sample, save, train
 from jmeshtex.fldm._data import copy_mesh, transfer_labels
 from tests.fldm.conftest import TINY_CLI_TRAIN, TINY_DATA_KEY, TINY_TRAIN, uses_tiny_data
 
-#: trainings of 2-4 steps: their steps compile at the suite's lowest XLA level (conftest.py)
+#: trainings of 2-4 steps: their steps compile at the suite's quick XLA level (conftest.py)
 pytestmark = pytest.mark.few_steps
 
 CFG = TINY_TRAIN.replace(steps=4, checkpoint_every=2)

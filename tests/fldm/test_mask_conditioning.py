@@ -25,7 +25,7 @@ from jmeshtex.fldm.core import (
 from jmeshtex.ops import tangent_noise
 from tests.fldm.conftest import TINY_TRAIN, uses_tiny_data
 
-#: a training of 3 steps: its steps compile at the suite's lowest XLA level (conftest.py)
+#: a training of 3 steps: its steps compile at the suite's quick XLA level (conftest.py)
 pytestmark = pytest.mark.few_steps
 
 CFG = Config.tiny(

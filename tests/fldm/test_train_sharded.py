@@ -21,7 +21,7 @@ from fldm_sharded_worker import CONFIG, dataset, leaves  # noqa: E402
 
 WORKER = pathlib.Path(__file__).with_name("fldm_sharded_worker.py")
 
-#: every training here runs a few steps, so every program compiles at the suite's lowest XLA level:
+#: every training here runs a few steps, so every program compiles at the suite's quick XLA level:
 #: the one-device runs here (``few_steps``, conftest.py) and the four-device process alike (it
 #: inherits the suite's ``XLA_FLAGS``)
 pytestmark = pytest.mark.few_steps

@@ -30,7 +30,7 @@ def _free_port() -> int:
 
 @pytest.mark.few_steps
 def test_two_processes_train_like_one(tmp_path):
-    """Trainings of 3 steps: every program compiles at the suite's lowest XLA level, the one-process
+    """Trainings of 3 steps: every program compiles at the suite's quick XLA level, the one-process
     run here (``few_steps``, conftest.py) and the two processes alike (they get the suite's
     ``XLA_FLAGS``, less any forced device count: each must see one device). Measured (-n 0, empty
     JAX cache): 68 CPU-s for the test when all three compiled their steps at XLA's full level, 48

@@ -18,7 +18,7 @@ def options_in_a_module_fixture():
     return {"loop": _jit.loop_options(), "once": _jit._OPTIONS["once"]}
 
 
-def test_a_marked_module_s_fixtures_and_tests_compile_their_loops_at_the_lowest_level(
+def test_a_marked_module_s_fixtures_and_tests_compile_their_loops_at_the_quick_level(
     options_in_a_module_fixture,
 ):
     assert options_in_a_module_fixture == {"loop": None, "once": None}
@@ -40,12 +40,12 @@ def test_the_loops_full_level_is_restored_after_a_marked_test(request):
     """A marked test's fixture restores what it found (here: the module's setting, itself set over
     the suite's full level)."""
     conftest = _root_conftest(request.config)
-    with conftest._lowest_level_loops():
+    with conftest._quick_level_loops():
         assert _jit.loop_options() is None
     assert _jit.loop_options() is None  # the module's own setting, still in force
     before = _jit.set_compiler_options(loop=_jit.FULL_OPTIMISATION)
     try:
-        with conftest._lowest_level_loops():
+        with conftest._quick_level_loops():
             assert _jit.loop_options() is None
         assert _jit.loop_options() == _jit.FULL_OPTIMISATION
     finally:
