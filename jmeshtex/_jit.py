@@ -20,9 +20,10 @@ from collections.abc import Mapping
 import jax
 
 #: XLA options that compile fast (both are plain ``DebugOptions``, valid on every backend). Level 1,
-#: not 0: jaxlib 0.10.2's CPU backend at level 0 computes wrong gradients (DGTS's generator update:
-#: per-face cotangents 2-7 % off a float64 evaluation, where levels 1 and 3 agree to 1e-6;
-#: ``tests/dgts/test_official_training.py`` caught it)
+#: not 0: with ``XLA_FLAGS`` at level 0, jaxlib 0.10.2's CPU backend computes wrong gradients (DGTS's
+#: generator update: per-face cotangents 2-7 % off a float64 evaluation, where levels 1 and 3 agree
+#: to 1e-6; ``tests/dgts/test_official_training.py`` caught it; level 0 given per compilation alone
+#: did not reproduce it)
 FAST_COMPILE = {"xla_backend_optimization_level": 1, "xla_llvm_disable_expensive_passes": True}
 #: XLA's own default, full optimisation (jaxlib 0.10), stated so that it can win over ``XLA_FLAGS``
 FULL_OPTIMISATION = {
