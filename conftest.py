@@ -44,7 +44,7 @@ import time
 # update, per-face cotangents 2-7 % off float64, where levels 1 and 3 agree to 1e-6; the parity
 # test tests/dgts/test_official_training.py failed on it). Programs that run in a loop (training
 # steps, samplers: ``jmeshtex._jit.jit_loop`` and the training driver) get XLA's full optimisation
-# back below (at the quick level an FLDM training step runs about 2.5x slower).
+# back below (at level 0 an FLDM training step ran about 2.5x slower).
 # ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully.
 if os.environ.get("JMESHTEX_TEST_XLA_FULL") != "1":
     os.environ["XLA_FLAGS"] = " ".join(
