@@ -40,11 +40,10 @@ import time
 # XLA compiles every program at a quick optimisation level (read when JAX's backend starts, so set
 # before anything runs; subprocesses inherit it): most of the suite's programs run once, and its
 # compile-bound tests cost about 25 % less CPU (tests/ops: 148 -> 107 s, measured at level 0).
-# Level 1, not 0: jaxlib 0.10.2's CPU backend at level 0 computes wrong gradients (DGTS's generator
-# update, per-face cotangents 2-7 % off float64, where levels 1 and 3 agree to 1e-6; the parity
-# test tests/dgts/test_official_training.py failed on it). Programs that run in a loop (training
-# steps, samplers: ``jmeshtex._jit.jit_loop`` and the training driver) get XLA's full optimisation
-# back below (at level 0 an FLDM training step ran about 2.5x slower).
+# Level 1, not 0: at level 0 jaxlib 0.10.2 computes wrong gradients (``jmeshtex._jit.FAST_COMPILE``
+# says what was measured). Programs that run in a loop (training steps, samplers:
+# ``jmeshtex._jit.jit_loop`` and the training driver) get XLA's full optimisation back below (at
+# level 0 an FLDM training step ran about 2.5x slower).
 # ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully.
 if os.environ.get("JMESHTEX_TEST_XLA_FULL") != "1":
     os.environ["XLA_FLAGS"] = " ".join(

@@ -112,10 +112,10 @@ def test_missing_spot_exits_with_a_clear_message(tmp_path):
     assert not (tmp_path / "fldm_spot.json").exists()
 
 
-def test_samples_are_drawn_at_the_training_density():
+def test_samples_are_drawn_at_the_training_density(monkeypatch):
     """The sampling mesh is Spot subdivided to the training copies' density (nearest in ratio):
     a 3K-vertex model samples on Spot itself, a 10K one on Spot subdivided once."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
     import fldm as bench
 
     got = [bench.sampling_subdivisions(v, 2930) for v in (400, 3000, 5000, 10000, 40000)]
