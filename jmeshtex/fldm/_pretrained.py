@@ -19,7 +19,9 @@ def load_pretrained(name: str = "spot") -> Model:
 
     ``"spot"``: :meth:`Config.cpu <jmeshtex.fldm.Config.cpu>` trained 10,000 steps on the shipped
     FL-VAE's latents (:func:`jmeshtex.fl.load_pretrained`) of 16 re-triangulations of Spot
-    (:func:`jmeshtex.data.spot`) at 10,000 vertices, the FL-VAE's training density. Sample it on
+    (:func:`jmeshtex.data.spot`) at 10,000 vertices, the FL-VAE's training density, with the
+    latents' phases on flat rings synchronised (``phase_sync="flat"``, beyond the paper:
+    :func:`~jmeshtex.fldm.core.synchronize_phases`). Sample it on
     a mesh of about that density (Spot midpoint-subdivided once: 11.7K vertices) and decode the
     samples with that FL-VAE (:func:`~jmeshtex.fldm.decode_samples`).
 
