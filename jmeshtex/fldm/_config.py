@@ -153,7 +153,9 @@ class Config(ConfigBase):
         one σ as released, but the released code does not reach unit power) or ``"released"``
         (the released ``train.py``'s noise scale, ``σ = √2·mean|μ|`` per real noise component
         on the raw latents: :func:`~jmeshtex.fldm.core.latent_scale` with ``released=True``;
-        noise power 2.6× the data's on the shipped FL-VAE's Spot latents).
+        noise power 2.6× the data's on the shipped FL-VAE's Spot latents; ``Config.paper``'s).
+        On Spot's synchronised latents at 3K vertices ``"per_channel"`` learns faster over the
+        first 2,000 steps (``docs/results.md``, "Noise scale"), so the other presets keep it.
       accumulate: micro-batches per optimiser step (gradient accumulation; ``batch_size`` must
         be a multiple); 1: the whole batch at once.
       experimental: the study switches beyond the paper (:class:`~jmeshtex.fldm.core.Experimental`);
