@@ -15,6 +15,7 @@ import argparse
 import pathlib
 
 import jax
+from _dgts import untrained_weights
 from _study import RESULTS, ROOT, Report
 from dgts import DEPTH_TEXTURES, _score, unit_edge
 
@@ -44,7 +45,7 @@ def start_resolution(models: list[pathlib.Path], *, samples: int) -> None:
     architecture, scored against the oracle on the transfer's base at the model's own period in
     mean edges of its finest training level. Writes ``dgts_start_resolution``."""
     from jmeshtex import Mesh
-    from jmeshtex.dgts import load, load_training_meshes, train, transfer
+    from jmeshtex.dgts import load, load_training_meshes, transfer
     from jmeshtex.dgts.core import period_in_mean_edges
     from jmeshtex.render import figure, render_mesh
 
@@ -55,9 +56,7 @@ def start_resolution(models: list[pathlib.Path], *, samples: int) -> None:
     for folder in models:
         tm = load_training_meshes(sorted(folder.glob("training_meshes*.npz"))[0])
         trained = load(folder)
-        untrained = train(
-            tm, trained.config.replace(steps=0), key=jax.random.key(0), progress=False
-        ).model
+        untrained = untrained_weights(tm, trained.config)  # no step, training key 0
         period = period_in_mean_edges(tm, DEPTH_TEXTURES["knobs"])
         L = trained.num_levels
         for name, target, start in cases(L):
