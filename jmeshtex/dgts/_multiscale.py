@@ -186,9 +186,7 @@ def fitting_loss(
     num_samples: int,
 ) -> tuple[Float[Array, ""], dict[str, Float[Array, ""]]]:
     """The level-fitting objective of :class:`PrepareConfig` and its terms (see there)."""
-    k_s, k_t = jax.random.split(key)
-    ps, ns = sample_points(vertices, geo.faces, num_samples, key=k_s)
-    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
+    ps, ns, pt, nt = fit_samples(vertices, geo, key, num_samples=num_samples)
     cd = chamfer_distance(
         ps, pt, p_normals=ns, q_normals=nt, squared=config.squared_chamfer, oriented=True
     )
@@ -200,15 +198,32 @@ def fitting_loss(
         "normal_t2s": cd.normal_q_to_p,
         **reg_terms,
     }
+    return chamfer_objective(terms, config) + reg, terms
+
+
+def fit_samples(
+    vertices: Float[Array, "V 3"], geo: _FitGeometry, key: PRNGKey, *, num_samples: int
+):
+    """``(points, normals)`` of ``num_samples`` uniform samples on the fitted mesh, then on the
+    target (:func:`sample_points`; the two surfaces' keys split from ``key``)."""
+    k_s, k_t = jax.random.split(key)
+    ps, ns = sample_points(vertices, geo.faces, num_samples, key=k_s)
+    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
+    return ps, ns, pt, nt
+
+
+def chamfer_objective(
+    terms: dict[str, Float[Array, ""]], config: PrepareConfig
+) -> Float[Array, ""]:
+    """The weighted Chamfer and normal terms of the fitting objective (:class:`PrepareConfig`'s
+    ``weight_s2t``, ``weight_t2s``, ``weight_normal_s2t``, ``weight_normal_t2s``)."""
     c = config
-    loss = (
+    return (
         c.weight_s2t * terms["s2t"]
         + c.weight_t2s * terms["t2s"]
         + c.weight_normal_s2t * terms["normal_s2t"]
         + c.weight_normal_t2s * terms["normal_t2s"]
-        + reg
     )
-    return loss, terms
 
 
 def regularizer_loss(

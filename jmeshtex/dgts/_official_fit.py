@@ -24,7 +24,13 @@ import scipy.spatial
 from .._types import Array, Float, PRNGKey
 from ..ops import safe_norm
 from ._config import PrepareConfig
-from ._multiscale import _FitGeometry, regularizer_loss, sample_points
+from ._multiscale import (
+    _FitGeometry,
+    chamfer_objective,
+    fit_samples,
+    regularizer_loss,
+    sample_points,
+)
 
 
 def _apply(opt, v, state, g):
@@ -46,12 +52,7 @@ def _reg_steps(v, state, geo, *, config: PrepareConfig):
     return jax.lax.fori_loop(0, config.regularizer_steps, body, (v, state))
 
 
-@functools.partial(jax.jit, static_argnames=("num_samples",))
-def _sample(v, geo, key, *, num_samples: int):
-    k_s, k_t = jax.random.split(key)
-    ps, ns = sample_points(v, geo.faces, num_samples, key=k_s)
-    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
-    return ps, ns, pt, nt
+_sample = jax.jit(fit_samples, static_argnames=("num_samples",))
 
 
 def _chamfer_loss(v, geo, key, pt, nt, s2t, t2s, *, config: PrepareConfig, num_samples: int):
@@ -69,13 +70,7 @@ def _chamfer_loss(v, geo, key, pt, nt, s2t, t2s, *, config: PrepareConfig, num_s
         "normal_s2t": jnp.mean(1 - jnp.sum(ns * nt[s2t], -1)),
         "normal_t2s": jnp.mean(1 - jnp.sum(nt * ns[t2s], -1)),
     }
-    loss = (
-        c.weight_s2t * terms["s2t"]
-        + c.weight_t2s * terms["t2s"]
-        + c.weight_normal_s2t * terms["normal_s2t"]
-        + c.weight_normal_t2s * terms["normal_t2s"]
-    )
-    return loss, terms
+    return chamfer_objective(terms, c), terms
 
 
 @functools.partial(jax.jit, static_argnames=("config", "num_samples"))
