@@ -41,6 +41,7 @@ import optax
 
 from .._errors import ConfigError, InputError
 from .._mesh import Mesh
+from .._random import key_ints
 from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
 from .._types import PRNGKey
@@ -313,15 +314,6 @@ def _load_images(
     )
 
 
-def _key_data(key: PRNGKey) -> list[int]:
-    data = (
-        jax.random.key_data(key)
-        if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key)
-        else key
-    )
-    return np.asarray(data, dtype=np.uint32).ravel().tolist()
-
-
 def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) -> dict:
     """What a checkpoint must have been written for to be resumed by this call."""
     digest = hashlib.sha256()
@@ -330,7 +322,7 @@ def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) 
         digest.update(np.ascontiguousarray(im, np.float64).tobytes())
     return {
         "config": config.fingerprint(),
-        "key": _key_data(key),
+        "key": key_ints(key),
         "images": digest.hexdigest(),
         "dtype": jnp.dtype(dtype).name,
     }
