@@ -63,6 +63,7 @@ import optax
 from .._config import is_int
 from .._errors import ConfigError, InputError
 from .._neighborhoods import FaceNeighborhood
+from .._random import key_ints
 from .._train_result import TrainResult
 from .._training import CheckpointPolicy, Progress, fit
 from .._types import Array, Float, PRNGKey
@@ -524,7 +525,7 @@ def _fingerprint(references: tuple[TrainingMeshes, ...], config: Config, key: PR
             h.update(a.tobytes())
     return {
         "config": config.fingerprint(),
-        "key": np.asarray(jax.random.key_data(key)).tolist(),
+        "key": key_ints(key),
         "meshes": h.hexdigest(),
     }
 
