@@ -27,6 +27,7 @@ import optax
 from .._config import is_int
 from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh, as_mesh
+from .._training import optimizer_update
 from .._types import Array, Float, Int, PRNGKey
 from ..geometry import mean_edge_length, subdivide_midpoint, unique_edges, validate_mesh
 from ..io import atomic_save_npz, load_npz
@@ -266,9 +267,8 @@ def _fit_chunk(v, state, key, geo, n, *, config: PrepareConfig, num_samples: int
             ),
             has_aux=True,
         )(v)
-        with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-            updates, state = opt.update(g, state, v)
-        return optax.apply_updates(v, updates), state, terms
+        v, state = optimizer_update(opt, g, state, v)
+        return v, state, terms
 
     terms0 = jax.eval_shape(
         lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import optax
 import scipy.spatial
 
+from .._training import optimizer_update
 from .._types import Array, Float, PRNGKey
 from ..ops import safe_norm
 from ._config import PrepareConfig
@@ -33,12 +34,6 @@ from ._multiscale import (
 )
 
 
-def _apply(opt, v, state, g):
-    with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-        updates, state = opt.update(g, state, v)
-    return optax.apply_updates(v, updates), state
-
-
 @functools.partial(jax.jit, static_argnames=("config",))
 def _reg_steps(v, state, geo, *, config: PrepareConfig):
     """``config.regularizer_steps`` Adam steps on the regularisers (one compiled call)."""
@@ -47,7 +42,7 @@ def _reg_steps(v, state, geo, *, config: PrepareConfig):
     def body(_, carry):
         v, state = carry
         g = jax.grad(lambda x: regularizer_loss(x, geo, config=config)[0])(v)
-        return _apply(opt, v, state, g)
+        return optimizer_update(opt, g, state, v)
 
     return jax.lax.fori_loop(0, config.regularizer_steps, body, (v, state))
 
@@ -78,7 +73,7 @@ def _chamfer_step(v, state, geo, key, pt, nt, s2t, t2s, *, config, num_samples):
     (_, terms), g = jax.value_and_grad(_chamfer_loss, has_aux=True)(
         v, geo, key, pt, nt, s2t, t2s, config=config, num_samples=num_samples
     )
-    v, state = _apply(optax.adam(config.learning_rate), v, state, g)
+    v, state = optimizer_update(optax.adam(config.learning_rate), g, state, v)
     return v, state, terms
 
 

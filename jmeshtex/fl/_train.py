@@ -43,7 +43,7 @@ from .._errors import ConfigError, InputError
 from .._mesh import Mesh
 from .._random import key_ints
 from .._train_result import TrainResult
-from .._training import CheckpointPolicy, Progress, fit
+from .._training import CheckpointPolicy, Progress, fit, optimizer_update
 from .._types import PRNGKey
 from .._weight_average import averaged_params, averaged_state, averaged_step
 from ..ops import conjugate_complex_grads
@@ -150,10 +150,7 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
         else:
             scale = 1.0
         (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key, scale)
-        grads = conjugate_complex_grads(grads)
-        with jax.numpy_dtype_promotion("standard"):
-            updates, opt_state = opt.update(grads, opt_state, params)
-            params = optax.apply_updates(params, updates)
+        params, opt_state = optimizer_update(opt, conjugate_complex_grads(grads), opt_state, params)
         channels = aux["kl_channels"]
         aux = {**aux, **{f"kl{c}": channels[c] for c in range(config.latent_dim)}}
         return params, opt_state, loss, aux
