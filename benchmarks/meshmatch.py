@@ -285,7 +285,7 @@ SIDE_AXIS = {"cow -> remeshed, stretched (1.15, 1, 0.9)": "z"}
 DATA = pathlib.Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 
 
-def _sphere_bumps(u, amp):
+def sphere_bumps(u, amp):
     """Radius of an asymmetric bumpy sphere at unit directions ``u`` (low-frequency, no symmetry)."""
     return 1 + amp * (
         np.sin(3 * u[:, 0] + 1) * np.cos(2 * u[:, 1] + 0.7) + 0.6 * np.sin(4 * u[:, 2] + 0.5)
@@ -305,6 +305,23 @@ def _sphere_colors(u):
 
 def _unit(v):
     return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def sphere_pair(subdivisions: int):
+    """The first cross-shape pair: a bumpy sphere and a bumpier one of another tessellation (the
+    same icosphere turned), coloured by one smooth field of the direction from the centre.
+
+    Returns ``(source, source colours, target, true target colours, u, tu)``, ``u`` and ``tu`` the
+    unit directions of the source's and the target's vertices (``tests/meshmatch/test_cross_shape.py``
+    runs the small one, ``subdivisions=3``).
+    """
+    v, f = icosphere(subdivisions)
+    u = _unit(v)
+    q, _ = np.linalg.qr(np.random.default_rng(1).standard_normal((3, 3)))
+    tu = _unit(v @ q.T)  # the same icosphere turned: another tessellation of the directions
+    source = Mesh(u * sphere_bumps(u, 0.15)[:, None], f)
+    target = Mesh(tu * sphere_bumps(tu, 0.22)[:, None], f)
+    return source, _sphere_colors(u), target, _sphere_colors(tu), u, tu
 
 
 def _angled_torus(n_major, n_minor, minor):
@@ -343,36 +360,29 @@ def _cow_colors(p):
 def pairs(small: bool = False, *, with_cow: bool = True):
     """The benchmark's pairs; ``small`` halves the resolution (the test's size)."""
     out = []
-    ls, lt = (3, 3) if small else (4, 4)
     # 1. bumpy sphere -> bumpier sphere, another tessellation (a rotated icosphere)
-    v, f = icosphere(ls)
-    u = _unit(v)
-    source = Mesh(u * _sphere_bumps(u, 0.15)[:, None], f)
-    q, _ = np.linalg.qr(np.random.default_rng(1).standard_normal((3, 3)))
-    tv, tf = icosphere(lt)
-    tu = _unit(tv @ q.T)
-    target = Mesh(tu * _sphere_bumps(tu, 0.22)[:, None], tf)
+    source, source_colors, target, target_colors, u, tu = sphere_pair(3 if small else 4)
     out.append(
         (
             "bumpy sphere -> bumpier sphere",
             source,
-            _sphere_colors(u),
+            source_colors,
             target,
-            _sphere_colors(tu),
-            lambda x: _unit(x) * _sphere_bumps(_unit(x), 0.15)[:, None],
+            target_colors,
+            lambda x: _unit(x) * sphere_bumps(_unit(x), 0.15)[:, None],
             {},
         )
     )
     # 2. bumpy sphere -> the same bumpy sphere stretched non-uniformly (1.3, 1, 0.8), rotated tessellation
     stretch = np.array([1.15, 1.0, 0.9])
-    target2 = Mesh(tu * _sphere_bumps(tu, 0.15)[:, None] * stretch, tf)
+    target2 = Mesh(tu * sphere_bumps(tu, 0.15)[:, None] * stretch, target.faces)
     out.append(
         (
             "bumpy sphere -> stretched (1.15, 1, 0.9)",
             source,
-            _sphere_colors(u),
+            source_colors,
             target2,
-            _sphere_colors(tu),
+            target_colors,
             lambda x: x / stretch,
             {},
         )

@@ -9,7 +9,8 @@ refusal of checkpoints in a multi-process run. Compiled steps belong to the call
 compiled ahead of time once per argument shapes into a cache the caller owns (``compiled``), never a
 process-global one. Two small records keep its signature narrow: :class:`CheckpointPolicy` (where,
 when and what is saved, and how a checkpoint becomes a state again) and :class:`Progress` (the bar
-and the run's name in messages).
+and the run's name in messages). :func:`optimizer_update` is the one optax update every method's
+step applies.
 
 Example:
   >>> import jax, jax.numpy as jnp
@@ -120,6 +121,25 @@ class Progress:
     bar: bool = True
     desc: str = "train"
     show: tuple[str, ...] = ("loss",)
+
+
+def optimizer_update(opt, grads, state, params):
+    """``(params, state)`` after one update of the optax transformation ``opt``: ``opt.update`` then
+    ``optax.apply_updates``, under standard dtype promotion (optax mixes integer step counters with
+    float leaves, which strict promotion refuses).
+
+    Example:
+      >>> import jax.numpy as jnp, optax
+      >>> opt, w = optax.sgd(0.5), jnp.ones(2)
+      >>> w, state = optimizer_update(opt, jnp.ones(2), opt.init(w), w)  # gradient 1
+      >>> w.tolist()
+      [0.5, 0.5]
+    """
+    import optax
+
+    with jax.numpy_dtype_promotion("standard"):
+        updates, state = opt.update(grads, state, params)
+        return optax.apply_updates(params, updates), state
 
 
 def fit(

@@ -42,7 +42,7 @@ from ._common import (
     int_in,
     load_mesh_spec,
 )
-from ._output import claim_output
+from ._output import claim_args, claim_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -219,13 +219,7 @@ def _prepare(args) -> int:
     if args.samples is not None:
         changes["samples_per_level"] = args.samples
     config = PrepareConfig(**changes)
-    claim_output(
-        args.out,
-        command="dgts prepare",
-        inputs=(args.reference, args.template),
-        overwrite=args.overwrite,
-        accept=("dgts train",),
-    )
+    claim_args(args, "dgts prepare", args.reference, args.template, accept=("dgts train",))
     ref = load_mesh_spec(args.reference)
     tmpl = load_mesh_spec(args.template)
     finest = tmpl.num_faces * 4 ** (config.levels - 1)  # each level subdivides the one before
@@ -422,12 +416,7 @@ def _model_and_target(args, command: str):
     """Claim ``--out`` for ``command``, then load ``--model`` and ``--target``."""
     from ..dgts import load
 
-    claim_output(
-        args.out,
-        command=command,
-        inputs=(args.model, args.target),
-        overwrite=args.overwrite,
-    )
+    claim_args(args, command, args.model, args.target)
     return load(_model_dir(args.model)), load_mesh_spec(args.target)
 
 

@@ -32,7 +32,7 @@ from ._common import (
     int_in,
     load_mesh_spec,
 )
-from ._output import check_output_file, claim_output
+from ._output import check_output_file, claim_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -145,9 +145,7 @@ def _train(args) -> int:
     from .._errors import ConfigError, MeshIOError
     from ..fl import Config, save, train
 
-    claim_output(
-        args.out, command="fl train", inputs=(args.config, args.images), overwrite=args.overwrite
-    )
+    claim_args(args, "fl train", args.config, args.images)
     check_checkpoints(args.out / "checkpoints")
     data = {}
     if args.config is not None:
@@ -252,12 +250,7 @@ def _reconstruct(args) -> int:
     from ..geometry import remesh
     from ..io import atomic_write, save_png
 
-    claim_output(
-        args.out,
-        command="fl reconstruct",
-        inputs=(args.mesh, args.texture, args.model),
-        overwrite=args.overwrite,
-    )
+    claim_args(args, "fl reconstruct", args.mesh, args.texture, args.model)
     model = _model(args)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     latent_mesh = (

@@ -40,7 +40,7 @@ from ._common import (
     load_mesh_spec,
     spec_for_record,
 )
-from ._output import claim_output
+from ._output import claim_args
 
 PRESETS = ("tiny", "cpu", "paper")
 PREDICTIONS = ("epsilon", "v")  # jmeshtex.fldm.PREDICTIONS, spelled out so that --help needs no JAX
@@ -178,12 +178,7 @@ def _train(args) -> int:
     from ..fldm import Config, build_dataset, save, train
     from ..io import atomic_write
 
-    claim_output(
-        args.out,
-        command="fldm train",
-        inputs=(args.mesh, args.texture, args.labels, args.vae),
-        overwrite=args.overwrite,
-    )
+    claim_args(args, "fldm train", args.mesh, args.texture, args.labels, args.vae)
     check_checkpoints(args.out / "checkpoints")
     mesh = _load_mesh(args.mesh, args.texture)
     labels = None if args.labels is None else load_labels(args.labels)
@@ -255,11 +250,13 @@ def _run_sampling(args, *, inpaint: bool) -> int:
     from ..fldm import load, render_samples, sample
     from ..io import atomic_save_npz
 
-    claim_output(
-        args.out,
-        command=f"fldm {'inpaint' if inpaint else 'sample'}",
-        inputs=(args.model, args.mesh, args.labels, getattr(args, "mask", None)),
-        overwrite=args.overwrite,
+    claim_args(
+        args,
+        f"fldm {'inpaint' if inpaint else 'sample'}",
+        args.model,
+        args.mesh,
+        args.labels,
+        getattr(args, "mask", None),
     )
     model = load(args.model)
     meta_path = args.model / "fldm.json"

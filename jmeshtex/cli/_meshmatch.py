@@ -32,7 +32,7 @@ import json
 import pathlib
 
 from ._common import add_common, add_method, cached, float_in, int_in, load_array, load_mesh_spec
-from ._output import claim_output
+from ._output import claim_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -423,11 +423,6 @@ def _check_finite(values, what: str) -> None:
         )
 
 
-def _claim(args, command: str, *inputs) -> None:
-    """Check and lock ``--out`` before any work (:func:`~jmeshtex.cli._output.claim_output`)."""
-    claim_output(args.out, command=command, inputs=inputs, overwrite=args.overwrite)
-
-
 def _progress(args):
     return not args.quiet
 
@@ -436,7 +431,7 @@ def _transfer(args: argparse.Namespace) -> int:
     from ..geometry import validate_mesh
     from ..meshmatch import transfer
 
-    _claim(
+    claim_args(
         args,
         "meshmatch transfer",
         args.source,
@@ -468,7 +463,7 @@ def _transfer(args: argparse.Namespace) -> int:
 def _paint(args: argparse.Namespace) -> int:
     from ..meshmatch import paint_by_example
 
-    _claim(args, "meshmatch paint", args.mesh, args.texture, args.mask)
+    claim_args(args, "meshmatch paint", args.mesh, args.texture, args.mask)
     mesh = load_mesh_spec(args.mesh, texture=args.texture)
     mask = _load_mask(args.mask, mesh.num_vertices)
     result = paint_by_example(
@@ -486,7 +481,7 @@ def _displace(args: argparse.Namespace) -> int:
     from ..meshmatch import save, transfer_displacement
     from ..meshmatch.core import detail_displacement
 
-    _claim(args, "meshmatch displace", args.source, args.target)
+    claim_args(args, "meshmatch displace", args.source, args.target)
     source = load_mesh_spec(args.source)
     target = load_mesh_spec(args.target)
     for mesh in (source, target):

@@ -233,6 +233,25 @@ def claim_output(
     return out
 
 
+def claim_args(
+    args, command: str, *inputs: str | os.PathLike | None, accept: Iterable[str] = ()
+) -> pathlib.Path:
+    """:func:`claim_output` of a subcommand's parsed arguments: ``args.out`` for ``command``, with
+    ``args.overwrite``; ``inputs`` are the command's input paths (None: not given).
+
+    Example:
+      >>> import argparse, tempfile
+      >>> with tempfile.TemporaryDirectory() as d:
+      ...     args = argparse.Namespace(out=pathlib.Path(d) / "run", overwrite=False)
+      ...     print(read_owner(claim_args(args, "demo example", None)))
+      ...     release_all()
+      demo example
+    """
+    return claim_output(
+        args.out, command=command, inputs=inputs, overwrite=args.overwrite, accept=accept
+    )
+
+
 def owns(out: str | os.PathLike, name: str, command: str | Iterable[str]) -> bool:
     """Whether ``out/name`` was written by ``command`` in an earlier run (so it may delete it).
 

@@ -28,7 +28,7 @@ from ._common import (
     load_mesh_spec,
     procedural_mesh,
 )
-from ._output import claim_output, owns
+from ._output import claim_args, owns
 
 #: the folder under ``--out`` that holds the resumable checkpoints
 CHECKPOINTS = "checkpoints"
@@ -244,11 +244,6 @@ def _setup(args):
 _OWNERS = ("surfacecnn synthesize", "surfacecnn stylize")
 
 
-def _claim(args, command: str, *inputs) -> None:
-    """Check and lock ``--out`` before any work (:func:`~jmeshtex.cli._output.claim_output`)."""
-    claim_output(args.out, command=command, inputs=inputs, overwrite=args.overwrite)
-
-
 #: the bounding-box diagonals between which xatlas unwraps reliably (it loops forever at ~1e12 and
 #: fails below ~1e-3: absolute tolerances inside it); coordinates may sit at most this far off centre
 _UNWRAP_DIAGONAL = (1e-2, 1e6)
@@ -347,7 +342,7 @@ def _report(summary: dict, out: pathlib.Path) -> None:
 def _synthesize(args: argparse.Namespace) -> int:
     from ..surfacecnn import synthesize
 
-    _claim(args, "surfacecnn synthesize", args.mesh, args.exemplar, args.vgg19)
+    claim_args(args, "surfacecnn synthesize", args.mesh, args.exemplar, args.vgg19)
     checkpoint = _checkpoint(args)
     mesh, config, weights = _setup(args)
     exemplar = _image(args.exemplar, args.max_image_size, args.exemplar_scale)
@@ -359,7 +354,7 @@ def _stylize(args: argparse.Namespace) -> int:
     from .._errors import InputError
     from ..surfacecnn import stylize
 
-    _claim(args, "surfacecnn stylize", args.mesh, args.content, args.style, args.vgg19)
+    claim_args(args, "surfacecnn stylize", args.mesh, args.content, args.style, args.vgg19)
     checkpoint = _checkpoint(args)
     mesh, config, weights = _setup(args)
     if mesh.texture is None:

@@ -27,6 +27,7 @@ import optax
 from .._config import is_int
 from .._errors import ConfigError, InputError, MeshIOError
 from .._mesh import Mesh, as_mesh
+from .._training import optimizer_update
 from .._types import Array, Float, Int, PRNGKey
 from ..geometry import mean_edge_length, subdivide_midpoint, unique_edges, validate_mesh
 from ..io import atomic_save_npz, load_npz
@@ -186,9 +187,7 @@ def fitting_loss(
     num_samples: int,
 ) -> tuple[Float[Array, ""], dict[str, Float[Array, ""]]]:
     """The level-fitting objective of :class:`PrepareConfig` and its terms (see there)."""
-    k_s, k_t = jax.random.split(key)
-    ps, ns = sample_points(vertices, geo.faces, num_samples, key=k_s)
-    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
+    ps, ns, pt, nt = fit_samples(vertices, geo, key, num_samples=num_samples)
     cd = chamfer_distance(
         ps, pt, p_normals=ns, q_normals=nt, squared=config.squared_chamfer, oriented=True
     )
@@ -200,15 +199,32 @@ def fitting_loss(
         "normal_t2s": cd.normal_q_to_p,
         **reg_terms,
     }
+    return chamfer_objective(terms, config) + reg, terms
+
+
+def fit_samples(
+    vertices: Float[Array, "V 3"], geo: _FitGeometry, key: PRNGKey, *, num_samples: int
+):
+    """``(points, normals)`` of ``num_samples`` uniform samples on the fitted mesh, then on the
+    target (:func:`sample_points`; the two surfaces' keys split from ``key``)."""
+    k_s, k_t = jax.random.split(key)
+    ps, ns = sample_points(vertices, geo.faces, num_samples, key=k_s)
+    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
+    return ps, ns, pt, nt
+
+
+def chamfer_objective(
+    terms: dict[str, Float[Array, ""]], config: PrepareConfig
+) -> Float[Array, ""]:
+    """The weighted Chamfer and normal terms of the fitting objective (:class:`PrepareConfig`'s
+    ``weight_s2t``, ``weight_t2s``, ``weight_normal_s2t``, ``weight_normal_t2s``)."""
     c = config
-    loss = (
+    return (
         c.weight_s2t * terms["s2t"]
         + c.weight_t2s * terms["t2s"]
         + c.weight_normal_s2t * terms["normal_s2t"]
         + c.weight_normal_t2s * terms["normal_t2s"]
-        + reg
     )
-    return loss, terms
 
 
 def regularizer_loss(
@@ -251,9 +267,8 @@ def _fit_chunk(v, state, key, geo, n, *, config: PrepareConfig, num_samples: int
             ),
             has_aux=True,
         )(v)
-        with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-            updates, state = opt.update(g, state, v)
-        return optax.apply_updates(v, updates), state, terms
+        v, state = optimizer_update(opt, g, state, v)
+        return v, state, terms
 
     terms0 = jax.eval_shape(
         lambda x: fitting_loss(x, geo, key=key, config=config, num_samples=num_samples)[1], v

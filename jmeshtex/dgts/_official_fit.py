@@ -21,16 +21,17 @@ import jax.numpy as jnp
 import optax
 import scipy.spatial
 
+from .._training import optimizer_update
 from .._types import Array, Float, PRNGKey
 from ..ops import safe_norm
 from ._config import PrepareConfig
-from ._multiscale import _FitGeometry, regularizer_loss, sample_points
-
-
-def _apply(opt, v, state, g):
-    with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-        updates, state = opt.update(g, state, v)
-    return optax.apply_updates(v, updates), state
+from ._multiscale import (
+    _FitGeometry,
+    chamfer_objective,
+    fit_samples,
+    regularizer_loss,
+    sample_points,
+)
 
 
 @functools.partial(jax.jit, static_argnames=("config",))
@@ -41,17 +42,12 @@ def _reg_steps(v, state, geo, *, config: PrepareConfig):
     def body(_, carry):
         v, state = carry
         g = jax.grad(lambda x: regularizer_loss(x, geo, config=config)[0])(v)
-        return _apply(opt, v, state, g)
+        return optimizer_update(opt, g, state, v)
 
     return jax.lax.fori_loop(0, config.regularizer_steps, body, (v, state))
 
 
-@functools.partial(jax.jit, static_argnames=("num_samples",))
-def _sample(v, geo, key, *, num_samples: int):
-    k_s, k_t = jax.random.split(key)
-    ps, ns = sample_points(v, geo.faces, num_samples, key=k_s)
-    pt, nt = sample_points(geo.target_vertices, geo.target_faces, num_samples, key=k_t)
-    return ps, ns, pt, nt
+_sample = jax.jit(fit_samples, static_argnames=("num_samples",))
 
 
 def _chamfer_loss(v, geo, key, pt, nt, s2t, t2s, *, config: PrepareConfig, num_samples: int):
@@ -69,13 +65,7 @@ def _chamfer_loss(v, geo, key, pt, nt, s2t, t2s, *, config: PrepareConfig, num_s
         "normal_s2t": jnp.mean(1 - jnp.sum(ns * nt[s2t], -1)),
         "normal_t2s": jnp.mean(1 - jnp.sum(nt * ns[t2s], -1)),
     }
-    loss = (
-        c.weight_s2t * terms["s2t"]
-        + c.weight_t2s * terms["t2s"]
-        + c.weight_normal_s2t * terms["normal_s2t"]
-        + c.weight_normal_t2s * terms["normal_t2s"]
-    )
-    return loss, terms
+    return chamfer_objective(terms, c), terms
 
 
 @functools.partial(jax.jit, static_argnames=("config", "num_samples"))
@@ -83,7 +73,7 @@ def _chamfer_step(v, state, geo, key, pt, nt, s2t, t2s, *, config, num_samples):
     (_, terms), g = jax.value_and_grad(_chamfer_loss, has_aux=True)(
         v, geo, key, pt, nt, s2t, t2s, config=config, num_samples=num_samples
     )
-    v, state = _apply(optax.adam(config.learning_rate), v, state, g)
+    v, state = optimizer_update(optax.adam(config.learning_rate), g, state, v)
     return v, state, terms
 
 

@@ -63,8 +63,9 @@ import optax
 from .._config import is_int
 from .._errors import ConfigError, InputError
 from .._neighborhoods import FaceNeighborhood
+from .._random import key_ints
 from .._train_result import TrainResult
-from .._training import CheckpointPolicy, Progress, fit
+from .._training import CheckpointPolicy, Progress, fit, optimizer_update
 from .._types import Array, Float, PRNGKey
 from ..geometry import pad_to
 from ..io import Checkpoints
@@ -463,11 +464,6 @@ def train_chunk(g, d, opt, nbhd, batch: LevelBatch, n, *, config: Config):
     def g_loss(g, d, base, z, rec_base, rec_z, real):
         return generator_loss(g, d, base, z, rec_base, rec_z, real, nbhd, config=c)
 
-    def update(opt, grads, state, params):
-        with jax.numpy_dtype_promotion("standard"):  # optax mixes int counters and floats
-            updates, state = opt.update(grads, state, params)
-        return optax.apply_updates(params, updates), state
-
     def step(i, carry):
         g, d, opt, history = carry
         b = jax.tree.map(lambda x: x[i], batch)
@@ -478,7 +474,7 @@ def train_chunk(g, d, opt, nbhd, batch: LevelBatch, n, *, config: Config):
             base, z, alpha = inputs
             fake = jax.lax.stop_gradient(_level_output(g, base, z, nbhd, c))
             (_, aux), grads = jax.value_and_grad(d_loss, has_aux=True)(d, fake, alpha, b.real)
-            return update(opt_d, grads, state, d), aux
+            return optimizer_update(opt_d, grads, state, d), aux
 
         def g_step(carry, inputs):
             g, state = carry
@@ -486,7 +482,7 @@ def train_chunk(g, d, opt, nbhd, batch: LevelBatch, n, *, config: Config):
             (_, aux), grads = jax.value_and_grad(g_loss, has_aux=True)(
                 g, d, base, z, rbase, rz, b.real
             )
-            return update(opt_g, grads, state, g), aux
+            return optimizer_update(opt_g, grads, state, g), aux
 
         (d, sd), d_aux = jax.lax.scan(
             d_step, (d, opt.d), (b.fake_base[:D], b.fake_noise[:D], b.alpha)
@@ -524,7 +520,7 @@ def _fingerprint(references: tuple[TrainingMeshes, ...], config: Config, key: PR
             h.update(a.tobytes())
     return {
         "config": config.fingerprint(),
-        "key": np.asarray(jax.random.key_data(key)).tolist(),
+        "key": key_ints(key),
         "meshes": h.hexdigest(),
     }
 

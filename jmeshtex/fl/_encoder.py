@@ -31,6 +31,7 @@ import numpy as np
 
 from .._config import is_int
 from .._errors import InputError
+from .._random import key_ints
 from .._types import Array, Bool, Complex, Float, Int
 from ..geometry import corner_angles, edge_lengths, one_ring_angles
 from ..ops import VNTransformerParams, complex_linear, real_dtype, vn_transformer_block
@@ -40,12 +41,7 @@ from ..ops import VNTransformerParams, complex_linear, real_dtype, vn_transforme
 
 def _numpy_rng(key) -> np.random.Generator:
     """A NumPy generator seeded with a JAX key's data (host-side sampling driven by ``key=``)."""
-    data = (
-        jax.random.key_data(key)
-        if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key)
-        else key
-    )
-    return np.random.default_rng(np.asarray(data, dtype=np.uint32).ravel().tolist())
+    return np.random.default_rng(key_ints(key))
 
 
 class RingGeometry(NamedTuple):

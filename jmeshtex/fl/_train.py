@@ -41,8 +41,9 @@ import optax
 
 from .._errors import ConfigError, InputError
 from .._mesh import Mesh
+from .._random import key_ints
 from .._train_result import TrainResult
-from .._training import CheckpointPolicy, Progress, fit
+from .._training import CheckpointPolicy, Progress, fit, optimizer_update
 from .._types import PRNGKey
 from .._weight_average import averaged_params, averaged_state, averaged_step
 from ..ops import conjugate_complex_grads
@@ -149,10 +150,7 @@ def make_train_step(config: Config, device_mesh: jax.sharding.Mesh | None = None
         else:
             scale = 1.0
         (loss, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, batch, key, scale)
-        grads = conjugate_complex_grads(grads)
-        with jax.numpy_dtype_promotion("standard"):
-            updates, opt_state = opt.update(grads, opt_state, params)
-            params = optax.apply_updates(params, updates)
+        params, opt_state = optimizer_update(opt, conjugate_complex_grads(grads), opt_state, params)
         channels = aux["kl_channels"]
         aux = {**aux, **{f"kl{c}": channels[c] for c in range(config.latent_dim)}}
         return params, opt_state, loss, aux
@@ -313,15 +311,6 @@ def _load_images(
     )
 
 
-def _key_data(key: PRNGKey) -> list[int]:
-    data = (
-        jax.random.key_data(key)
-        if jnp.issubdtype(jnp.asarray(key).dtype, jax.dtypes.prng_key)
-        else key
-    )
-    return np.asarray(data, dtype=np.uint32).ravel().tolist()
-
-
 def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) -> dict:
     """What a checkpoint must have been written for to be resumed by this call."""
     digest = hashlib.sha256()
@@ -330,7 +319,7 @@ def _fingerprint(config: Config, key: PRNGKey, images: list[np.ndarray], dtype) 
         digest.update(np.ascontiguousarray(im, np.float64).tobytes())
     return {
         "config": config.fingerprint(),
-        "key": _key_data(key),
+        "key": key_ints(key),
         "images": digest.hexdigest(),
         "dtype": jnp.dtype(dtype).name,
     }

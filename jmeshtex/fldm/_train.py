@@ -59,7 +59,7 @@ from .._errors import ConfigError, InputError
 from .._neighborhoods import to_jax
 from .._random import host_rng, key_ints
 from .._train_result import TrainResult
-from .._training import CheckpointPolicy, Progress, fit
+from .._training import CheckpointPolicy, Progress, fit, optimizer_update
 from .._weight_average import averaged_params, averaged_state, averaged_step
 from ..ops import conjugate_complex_grads, tangent_noise
 from ..optim import flat
@@ -212,10 +212,7 @@ def make_train_step(
         t = jax.random.randint(kt, (z0.shape[0],), 0, config.diffusion_steps)
         eps = tangent_noise(ke, z0.shape, dtype=z0.dtype)
         loss, grads = grads_of(params, z0, geo, labels, t, eps, mask)
-        grads = conjugate_complex_grads(grads)
-        with jax.numpy_dtype_promotion("standard"):
-            updates, opt_state = opt.update(grads, opt_state, params)
-            params = optax.apply_updates(params, updates)
+        params, opt_state = optimizer_update(opt, conjugate_complex_grads(grads), opt_state, params)
         return params, opt_state, loss
 
     if device_mesh is None:

@@ -453,6 +453,18 @@ def _barycentric(geometry: TracerGeometry, face: np.ndarray, position: np.ndarra
     return bary / bary.sum(axis=1, keepdims=True)
 
 
+def _trace_indices(index, count: int, name: str) -> np.ndarray:
+    """``index`` (the start face or vertex of each trace) as a 1-D integer array in ``[0, count)``,
+    or an :class:`~jmeshtex.InputError` that names ``name`` and the first bad traces."""
+    index = np.asarray(index)
+    if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
+        raise InputError(f"{name} must be a 1-D integer array [N], got {index.dtype} {index.shape}")
+    bad = np.nonzero((index < 0) | (index >= count))[0]
+    if bad.size:
+        raise InputError(f"{name} out of range [0, {count}) at traces {bad[:10].tolist()}")
+    return index
+
+
 def _as_traces(n_expected: int | None, direction, length, name: str):
     direction = np.asarray(direction)
     if direction.ndim != 1:
@@ -571,17 +583,8 @@ def trace_geodesics(
       ([[1.0, 0.0, 0.0]], [True], [1.0])
     """
     geometry = _geometry_for(vertices, faces, geometry)
-    start_face = np.asarray(start_face)
-    if start_face.ndim != 1 or not np.issubdtype(start_face.dtype, np.integer):
-        raise InputError(
-            f"start_face must be a 1-D integer array [N], got {start_face.dtype} {start_face.shape}"
-        )
+    start_face = _trace_indices(start_face, len(geometry.faces), "start_face")
     n = len(start_face)
-    bad = np.nonzero((start_face < 0) | (start_face >= len(geometry.faces)))[0]
-    if bad.size:
-        raise InputError(
-            f"start_face out of range [0, {len(geometry.faces)}) at traces {bad[:10].tolist()}"
-        )
     bary = np.asarray(start_bary, dtype=np.float64)
     if bary.shape != (n, 3):
         raise InputError(f"start_bary must have shape [{n}, 3], got {bary.shape}")
@@ -709,15 +712,7 @@ def trace_from_vertices(
       [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
     """
     geometry = _geometry_for(vertices, faces, geometry)
-    vertex = np.asarray(vertex)
-    if vertex.ndim != 1 or not np.issubdtype(vertex.dtype, np.integer):
-        raise InputError(
-            f"vertex must be a 1-D integer array [N], got {vertex.dtype} {vertex.shape}"
-        )
-    n_vertices = len(geometry.vertices)
-    bad = np.nonzero((vertex < 0) | (vertex >= n_vertices))[0]
-    if bad.size:
-        raise InputError(f"vertex out of range [0, {n_vertices}) at traces {bad[:10].tolist()}")
+    vertex = _trace_indices(vertex, len(geometry.vertices), "vertex")
     isolated = np.nonzero(geometry.angle_range[vertex] <= 0)[0]
     if isolated.size:
         raise InputError(

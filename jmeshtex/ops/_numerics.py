@@ -13,6 +13,7 @@ import math
 import jax
 import jax.numpy as jnp
 
+from .._complex_leaves import conjugate_complex_leaves
 from .._config import is_int
 from .._errors import ConfigError, InputError
 from .._types import Array, ArrayLike, Bool, Complex, Float, Inexact
@@ -310,13 +311,7 @@ def conjugate_complex_grads(grads):
       >>> g, conjugate_complex_grads(g)  # steepest ascent is -(1+2j) scaled by 2
       (Array(-2.+4.j, dtype=complex128), Array(-2.-4.j, dtype=complex128))
     """
-
-    def conj(g):
-        if hasattr(g, "dtype") and jnp.issubdtype(g.dtype, jnp.complexfloating):
-            return jnp.conj(g)
-        return g
-
-    return jax.tree.map(conj, grads)
+    return conjugate_complex_leaves(grads)
 
 
 def elementwise_max(xs: tuple[Float[ArrayLike, "..."], ...]) -> Float[Array, "..."]:

@@ -2,18 +2,9 @@
 
 from __future__ import annotations
 
-import jax
-import jax.numpy as jnp
 import optax
 
-
-def _conjugate_complex(tree):
-    def conj(g):
-        if hasattr(g, "dtype") and jnp.issubdtype(g.dtype, jnp.complexfloating):
-            return jnp.conj(g)
-        return g
-
-    return jax.tree.map(conj, tree)
+from .._complex_leaves import conjugate_complex_leaves
 
 
 def complex_steepest() -> optax.GradientTransformation:
@@ -53,6 +44,6 @@ def complex_steepest() -> optax.GradientTransformation:
 
     def update_fn(updates, state, params=None):
         del params
-        return _conjugate_complex(updates), state
+        return conjugate_complex_leaves(updates), state
 
     return optax.GradientTransformation(init_fn, update_fn)

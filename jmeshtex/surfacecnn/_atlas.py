@@ -158,15 +158,7 @@ def uv_face_tangents(
       >>> side.tolist()                                # rows grow downwards: −i·t
       [-1.0, -1.0]
     """
-    tex = np.stack([uv[..., 0], 1.0 - uv[..., 1]], axis=-1)
-    e1, e2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    usable = np.abs(det) > 1e-12 * np.maximum(
-        np.abs(e1).max(axis=1) * np.abs(e2).max(axis=1), 1e-300
-    )
-    corners = geometry.corners
-    dp = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1)
-    P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
+    e1, e2, _, usable, P = _face_edges(geometry, uv, 1.0)
     Q = np.stack([e1, e2], axis=2)  # [F, 2 (col, row), 2 (edge)]
     M = P @ np.linalg.inv(
         np.where(usable[:, None, None], Q, np.eye(2))
@@ -176,6 +168,21 @@ def uv_face_tangents(
     t = np.where(usable, t / np.where(np.abs(t) > 0, np.abs(t), 1.0), 1.0 + 0j)
     side = np.sign((np.conj(t) * r).imag)
     return t, np.where(side == 0, 1.0, side)
+
+
+def _face_edges(geometry: TracerGeometry, uv: Float[np.ndarray, "F 3 2"], size: float):
+    """Per face, the edges 0→1 and 0→2 in texel coordinates ``(col, row) = (u, 1 − v) · size``
+    (``[F, 2]`` each), their determinant ``[F]``, whether the UV triangle is non-degenerate ``[F]``,
+    and the same edges in the face plane of the tracer layout, ``[F, 2 (x, y), 2 (edge)]``."""
+    tex = np.stack([uv[..., 0], 1.0 - uv[..., 1]], axis=-1) * size  # [F, 3, 2] (x=col, y=row)
+    e1, e2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    usable = np.abs(det) > 1e-12 * np.maximum(
+        np.abs(e1).max(axis=1) * np.abs(e2).max(axis=1), 1e-300
+    )
+    corners = geometry.corners
+    dp = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1)
+    return e1, e2, det, usable, np.stack([dp.real, dp.imag], axis=1)
 
 
 def vertex_directions(
@@ -556,19 +563,7 @@ def _world_per_texel(
 ) -> tuple[Float[np.ndarray, " F"], np.ndarray]:
     """Per face, world length per texel ``sqrt(A3D / Atex)`` and whether its UV triangle is
     non-degenerate (the faces the median texel size is taken over)."""
-    tex = np.stack(
-        [uv[..., 0] * size, (1.0 - uv[..., 1]) * size], axis=-1
-    )  # [F, 3, 2] (x=col, y=row)
-    tex_edge1, tex_edge2 = tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]
-    tex_det = tex_edge1[:, 0] * tex_edge2[:, 1] - tex_edge1[:, 1] * tex_edge2[:, 0]
-    usable = np.abs(tex_det) > 1e-12 * np.maximum(
-        np.abs(tex_edge1).max(axis=1) * np.abs(tex_edge2).max(axis=1), 1e-300
-    )
-    corners = geometry.corners
-    dp = np.stack(
-        [corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=1
-    )  # [F, 2] complex
-    P = np.stack([dp.real, dp.imag], axis=1)  # [F, 2 (x, y), 2 (edge)]
+    _, _, tex_det, usable, P = _face_edges(geometry, uv, size)
     area3 = 0.5 * np.abs(P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0])
     ratio = np.sqrt(area3 / np.where(usable, 0.5 * np.abs(tex_det), 1.0))
     return ratio, usable

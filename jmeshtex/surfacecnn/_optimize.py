@@ -20,7 +20,7 @@ import numpy as np
 import optax
 
 from .._errors import InputError
-from .._training import CheckpointPolicy, Progress, fit
+from .._training import CheckpointPolicy, Progress, fit, optimizer_update
 from ..io import Checkpoints
 from ._config import Config
 
@@ -114,9 +114,7 @@ def _adam_step(loss_fn: Callable, config: Config, x0: jax.Array):
     def step(state, aux):
         x = state["x"]
         loss, grad = jax.value_and_grad(loss_fn)(x, aux)
-        with jax.numpy_dtype_promotion("standard"):
-            updates, opt = optimizer.update(grad, state["opt"], x)
-            x = optax.apply_updates(x, updates)
+        x, opt = optimizer_update(optimizer, grad, state["opt"], x)
         return {"x": jnp.clip(x, 0.0, 1.0).astype(x0.dtype), "opt": opt}, {"loss": loss}
 
     with jax.numpy_dtype_promotion("standard"):

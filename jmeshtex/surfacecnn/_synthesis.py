@@ -20,6 +20,7 @@ import numpy as np
 
 from .._errors import InputError
 from .._mesh import Mesh, as_mesh
+from .._random import key_ints
 from .._types import Float
 from ..geometry import check_mesh_scale, to_jax
 from ..metrics import VGGWeights, load_vgg16, load_vgg19
@@ -251,7 +252,7 @@ def synthesize(
         layers,
         _digest(image),
         texels=surface.atlas.num_texels,
-        key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
+        key=key_ints(key),
     )
     x, losses, final, stats = _run_optimization(
         x0,

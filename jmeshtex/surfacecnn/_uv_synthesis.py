@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._mesh import Mesh, as_mesh
+from .._random import key_ints
 from .._types import Float
 from ..metrics import VGGWeights, vgg_features
 from ..ops import gram_matrix
@@ -104,7 +105,7 @@ def synthesize_uv(
         config,
         layers,
         _digest(image),
-        key=np.asarray(jax.random.key_data(key)).ravel().tolist(),
+        key=key_ints(key),
     )
     x, losses, final, stats = _run_optimization(
         x0,

@@ -7,46 +7,30 @@ so the target's true colours are known.
 
 from __future__ import annotations
 
+import pathlib
+import sys
+
 import jax
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from jmeshtex import ConfigError, InputError, Mesh
-from jmeshtex.data import icosphere
-from jmeshtex.meshmatch import Config, meshmatch, transfer
-from jmeshtex.metrics import psnr
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "benchmarks"))
+
+from meshmatch import sphere_bumps, sphere_pair  # noqa: E402 (the benchmark script)
+
+from jmeshtex import ConfigError, InputError, Mesh  # noqa: E402
+from jmeshtex.data import icosphere  # noqa: E402
+from jmeshtex.meshmatch import Config, meshmatch, transfer  # noqa: E402
+from jmeshtex.metrics import psnr  # noqa: E402
 
 
 def _unit(v):
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def _bumps(u, amp):
-    return 1 + amp * (
-        np.sin(3 * u[:, 0] + 1) * np.cos(2 * u[:, 1] + 0.7) + 0.6 * np.sin(4 * u[:, 2] + 0.5)
-    )
-
-
-def _colors(u):
-    return np.stack(
-        [
-            0.5 + 0.4 * np.sin(4 * u[:, 0]) * np.cos(3 * u[:, 1]),
-            0.5 + 0.4 * np.sin(5 * u[:, 2] + 1),
-            0.5 + 0.3 * np.cos(3 * u[:, 0] + 2 * u[:, 1]),
-        ],
-        axis=1,
-    )
-
-
 def _pair():
-    v, f = icosphere(3)
-    u = _unit(v)
-    q, _ = np.linalg.qr(np.random.default_rng(1).standard_normal((3, 3)))
-    tu = _unit(v @ q.T)  # the same icosphere turned: another tessellation of the directions
-    source = Mesh(u * _bumps(u, 0.15)[:, None], f)
-    target = Mesh(tu * _bumps(tu, 0.22)[:, None], f)
-    return source, _colors(u), target, _colors(tu), u, tu
+    return sphere_pair(3)
 
 
 #: measured on this pair (642 vertices each): the default (aligned: whole normal + standardised
@@ -91,26 +75,19 @@ def test_correspondences_flip_a_left_right_symmetric_case():
     halves apart there (HKS and n·up are mirror-symmetric), so the pairs decide. (The aligned
     default's standardised positions tell +x from -x by themselves:
     ``test_a_shared_pose_resolves_the_mirror_ambiguity``.)"""
-    v, f = icosphere(3)
-    source_v = v * np.array([1.6, 1.0, 0.8])
-    q, _ = np.linalg.qr(np.random.default_rng(2).standard_normal((3, 3)))
-    tv, tf = icosphere(3)
-    tv = _unit(tv @ q.T) * np.array(
-        [1.6, 1.0, 0.8]
-    )  # another tessellation, the same symmetric shape
-    red = 0.5 + 0.45 * np.tanh(3 * source_v[:, 0])
-    colors = np.stack([red, 1 - red, 0.5 * np.ones_like(red)], axis=1)
-    s_pos, s_neg = int(np.argmax(source_v[:, 0])), int(np.argmin(source_v[:, 0]))
-    t_pos, t_neg = int(np.argmax(tv[:, 0])), int(np.argmin(tv[:, 0]))
+    source, target = _ellipsoids()
+    sx, tx = source.vertices[:, 0], target.vertices[:, 0]
+    s_pos, s_neg = int(np.argmax(sx)), int(np.argmin(sx))
+    t_pos, t_neg = int(np.argmax(tx)), int(np.argmin(tx))
     cfg = Config.intrinsic(affinity_weight=3.0)
-    side = np.sign(tv[:, 0])
+    side = np.sign(tx)
     for pairs, sign in (
         ([[s_pos, t_pos], [s_neg, t_neg]], 1.0),
         ([[s_pos, t_neg], [s_neg, t_pos]], -1.0),
     ):
         out = transfer(
-            Mesh(source_v, f, vertex_colors=colors),
-            Mesh(tv, tf),
+            source,
+            target,
             key=jax.random.key(0),
             config=cfg,
             correspondences=np.array(pairs),
@@ -230,15 +207,11 @@ def test_side_is_refused_with_the_aligned_default():
 def _stretched_pair():
     """The bumpy sphere and the same surface stretched by (1.15, 1, 0.9), another tessellation, and
     the true match of every target vertex (the nearest source vertex of the known map)."""
-    v, f = icosphere(3)
-    u = _unit(v)
-    q, _ = np.linalg.qr(np.random.default_rng(1).standard_normal((3, 3)))
-    tu = _unit(v @ q.T)
+    source, sc, bumpier, truth, _, tu = sphere_pair(3)
     k = np.array([1.15, 1.0, 0.9])
-    source = Mesh(u * _bumps(u, 0.15)[:, None], f)
-    target = Mesh(tu * _bumps(tu, 0.15)[:, None] * k, f)
+    target = Mesh(tu * sphere_bumps(tu, 0.15)[:, None] * k, bumpier.faces)
     truth_nnf = cKDTree(source.vertices).query(target.vertices / k)[1]
-    return source, _colors(u), target, _colors(tu), truth_nnf
+    return source, sc, target, truth, truth_nnf
 
 
 def test_truth_survives_the_iterations_only_under_a_weak_shape_term():
