@@ -10,12 +10,13 @@
   they pass ill-typed arguments on purpose to test the typed errors the functions raise themselves;
   ``JMESHTEX_TYPECHECK=0`` switches them off for a whole run;
 - BLAS runs one thread per test worker (the workers already use every core);
-- XLA compiles at a quick optimisation level (1, not 0: see below), except the programs that run in a loop
-  (``jmeshtex._jit.jit_loop``, the training driver's steps, ``parallel.data_parallel``), which this
-  file gives XLA's full level (``jmeshtex._jit.set_compiler_options``; the library alone leaves
-  ``XLA_FLAGS`` in charge); ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully. A test marked
-  ``few_steps`` (its trainings run a handful of steps, so compiling them fully costs more than it
-  saves) compiles the training steps it builds at the quick level too;
+- XLA compiles at a quick optimisation level (``XLA_FLAGS`` level 1, not 0: see below); the programs
+  that run once (``jmeshtex._jit.jit_once``) at the quickest (level 0, given per compilation); the
+  programs that run in a loop (``jmeshtex._jit.jit_loop``, the training driver's steps,
+  ``parallel.data_parallel``) at XLA's full level (``jmeshtex._jit.set_compiler_options``; the
+  library alone leaves ``XLA_FLAGS`` in charge); ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything
+  fully. A test marked ``few_steps`` (its trainings run a handful of steps, so compiling them fully
+  costs more than it saves) compiles the training steps it builds as the programs that run once;
 - JAX's persistent compilation cache is on, in one folder all xdist workers share under a file
   lock (``.pytest_cache/jax``, ``JMESHTEX_TEST_JAX_CACHE`` moves it, ``0`` turns it off): a program
   is compiled once per run, not once per worker, and a second run skips most compilation;
@@ -75,10 +76,18 @@ from threadpoolctl import threadpool_limits
 jax.config.update("jax_enable_x64", True)
 
 # the suite's trade-off, set before any module applies ``jit_loop`` / ``jit_once``: loops compile
-# fully whatever ``XLA_FLAGS`` above say; everything else follows them
+# fully whatever ``XLA_FLAGS`` above say; programs that run once (``jit_once``: initialisers, the
+# equivariance harness's checks) and the loops of ``few_steps`` tests compile at level 0, given per
+# compilation. Level 0 per compilation is not the process-wide level 0 above: it computes DGTS's
+# official gradients right (tests/dgts/test_official_training.py passes with every program at it)
+# and costs about 40 % less compile CPU than level 1, which saves little over XLA's full level
+# (an FLDM training step: 7.6 / 11.9 / 13.3 CPU-s at levels 0 / 1 / 3).
 from jmeshtex._jit import FULL_OPTIMISATION, set_compiler_options  # noqa: E402
 
-set_compiler_options(loop=FULL_OPTIMISATION)
+#: the quickest XLA compile, for programs that run once or a few times (per compilation, see above)
+QUICK_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
+if os.environ.get("JMESHTEX_TEST_XLA_FULL") != "1":
+    set_compiler_options(once=QUICK_COMPILE, loop=FULL_OPTIMISATION)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_debug_nans", True)
 # CPU unless JMESHTEX_TEST_PLATFORMS says otherwise (benchmarks/gpu_check.sh runs a subset on "cuda")
@@ -155,15 +164,15 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
         "few_steps: its trainings run a few steps: the training steps it builds compile at the"
-        " suite's quick XLA level, not the loops' full one (conftest.py)",
+        " suite's quickest XLA level, not the loops' full one (conftest.py)",
     )
 
 
 @contextlib.contextmanager
 def _quick_level_loops():
-    """Loop programs built inside compile at ``XLA_FLAGS``' level (the suite's quick one)."""
+    """Loop programs built inside compile as the suite's programs that run once."""
     before = set_compiler_options(loop=None)  # (sets both kinds: ``once`` is put back next)
-    set_compiler_options(once=before["once"], loop=None)
+    set_compiler_options(once=before["once"], loop=before["once"])
     try:
         yield
     finally:
@@ -181,7 +190,7 @@ def _quick_level_if_marked(request: pytest.FixtureRequest):
 
 @pytest.fixture(autouse=True, scope="module")
 def _few_step_module(request: pytest.FixtureRequest):
-    """A module marked ``few_steps`` (``pytestmark``) builds its loop programs at the quick level,
+    """A module marked ``few_steps`` (``pytestmark``) builds its loop programs at the quickest level,
     its module fixtures' included (autouse: set up before them; session fixtures come first and
     keep the loops' full level). See :func:`_few_step_loops`."""
     yield from _quick_level_if_marked(request)
@@ -189,7 +198,7 @@ def _few_step_module(request: pytest.FixtureRequest):
 
 @pytest.fixture(autouse=True)
 def _few_step_loops(request: pytest.FixtureRequest):
-    """Tests marked ``few_steps`` build their loop programs at ``XLA_FLAGS``' quick level.
+    """Tests marked ``few_steps`` build their loop programs as the programs that run once (level 0).
 
     The suite gives loop programs XLA's full optimisation because a training step at the quick
     level runs about 2.5x slower; a test whose trainings run a handful of steps pays the full

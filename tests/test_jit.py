@@ -98,5 +98,7 @@ def test_the_training_driver_compiles_its_step_with_the_process_loop_options(mon
 
 
 def test_the_suite_compiles_its_loops_fully():
-    """This suite's trade-off (conftest.py): XLA_FLAGS lower everything, loops get the full level."""
+    """This suite's trade-off (conftest.py): XLA_FLAGS lower everything, loops get the full level,
+    programs that run once the quickest (level 0, per compilation)."""
     assert _jit.loop_options() == FULL_OPTIMISATION
+    assert _jit._OPTIONS["once"]["xla_backend_optimization_level"] == 0

@@ -60,6 +60,9 @@ from jmeshtex._config import ConfigBase
 from jmeshtex.data import grid, icosahedron, icosphere, striped_sphere, torus
 from tests._presets import FL_MICRO_MESHES, FLDM_MICRO
 
+#: every training here runs 1 to 4 steps: its steps compile at the suite's quick level (conftest.py)
+pytestmark = pytest.mark.few_steps
+
 
 @dataclasses.dataclass(frozen=True)
 class _Method:

@@ -38,6 +38,9 @@ def _encoder(seed=0, weights=(1.0, 0.5)):
     return encode
 
 
+#: every training here runs at most 4 steps: its steps compile at the suite's quick level (conftest.py)
+pytestmark = pytest.mark.few_steps
+
 CFG = Config.tiny(
     latent_channels=2, n_copies=3, copy_vertices=60, bucket=32, widths=(6, 8), diffusion_steps=50
 )

@@ -1,5 +1,5 @@
 """The suite's ``few_steps`` marker (``conftest.py``): a marked module's fixtures and tests build
-their loop programs at ``XLA_FLAGS``' level; an unmarked test keeps the loops' full level
+their loop programs as the programs that run once (level 0 per compilation); an unmarked test keeps the loops' full level
 (``tests/test_jit.py::test_the_suite_compiles_its_loops_fully``)."""
 
 from __future__ import annotations
@@ -21,8 +21,10 @@ def options_in_a_module_fixture():
 def test_a_marked_module_s_fixtures_and_tests_compile_their_loops_at_the_quick_level(
     options_in_a_module_fixture,
 ):
-    assert options_in_a_module_fixture == {"loop": None, "once": None}
-    assert _jit.loop_options() is None
+    once = options_in_a_module_fixture["once"]
+    assert once["xla_backend_optimization_level"] == 0
+    assert options_in_a_module_fixture == {"loop": once, "once": once}
+    assert _jit.loop_options() == once
 
 
 def _root_conftest(config: pytest.Config):
@@ -40,13 +42,14 @@ def test_the_loops_full_level_is_restored_after_a_marked_test(request):
     """A marked test's fixture restores what it found (here: the module's setting, itself set over
     the suite's full level)."""
     conftest = _root_conftest(request.config)
+    once = _jit._OPTIONS["once"]
     with conftest._quick_level_loops():
-        assert _jit.loop_options() is None
-    assert _jit.loop_options() is None  # the module's own setting, still in force
-    before = _jit.set_compiler_options(loop=_jit.FULL_OPTIMISATION)
+        assert _jit.loop_options() == once
+    assert _jit.loop_options() == once  # the module's own setting, still in force
+    before = _jit.set_compiler_options(once=once, loop=_jit.FULL_OPTIMISATION)
     try:
         with conftest._quick_level_loops():
-            assert _jit.loop_options() is None
+            assert _jit.loop_options() == once
         assert _jit.loop_options() == _jit.FULL_OPTIMISATION
     finally:
         _jit.set_compiler_options(**before)
