@@ -80,7 +80,7 @@ jax.config.update("jax_enable_x64", True)
 # equivariance harness's checks) and the loops of ``few_steps`` tests compile at level 0, given per
 # compilation. Level 0 per compilation is not the process-wide level 0 above: it computes DGTS's
 # official gradients right (tests/dgts/test_official_training.py passes with every program at it)
-# and costs about 40 % less compile CPU than level 1, which saves little over XLA's full level
+# and costs about a third less compile CPU than level 1, which saves little over XLA's full level
 # (an FLDM training step: 7.6 / 11.9 / 13.3 CPU-s at levels 0 / 1 / 3).
 from jmeshtex._jit import FULL_OPTIMISATION, set_compiler_options  # noqa: E402
 
