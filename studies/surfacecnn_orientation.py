@@ -57,6 +57,13 @@ def _agreement(result, control) -> tuple[float, float]:
     return float(cos[both & at_seam].mean()), float(cos[both & ~at_seam].mean())
 
 
+def _results_dir(out: pathlib.Path | None) -> pathlib.Path:
+    """Where the results go: ``out`` (made if missing) or ``studies/results/``."""
+    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    directory.mkdir(parents=True, exist_ok=True)
+    return directory
+
+
 def orientation(
     meshes,
     exemplars,
@@ -190,7 +197,7 @@ def orientation(
     lines.append(f"\nLoad average at the end {os.getloadavg()[0]:.1f} (shared 2-core machine).")
     text = "\n".join(lines) + "\n"
     print(text)
-    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    directory = _results_dir(out)
     stem = "surfacecnn_orientation" + (
         "" if frame_smoothing == FRAME_SMOOTHING else f"_fs{frame_smoothing:g}"
     )
@@ -293,7 +300,7 @@ def orientation_figure(
             (f"{labels[method]}, UV image", fit(tex[method], k)),
             (f"{labels[method]}, UV image, centre x4", fit(tex[method][crop, crop], 4 * k)),
         ]
-    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    directory = _results_dir(out)
     path = path if path is not None else directory / f"surfacecnn_orientation_{mesh_name}.png"
     render.figure(
         panels,
@@ -388,7 +395,7 @@ def seam_sources(
         ]
     )
     print(text)
-    directory = out if out is not None else pathlib.Path(__file__).resolve().parent / "results"
+    directory = _results_dir(out)
     (directory / f"surfacecnn_seam_sources_{mesh_name}.md").write_text(text + "\n")
     (directory / f"surfacecnn_seam_sources_{mesh_name}.json").write_text(
         json.dumps(row, indent=1) + "\n"
