@@ -41,8 +41,8 @@ import time
 # XLA compiles every program at a quick optimisation level (read when JAX's backend starts, so set
 # before anything runs; subprocesses inherit it): most of the suite's programs run once, and its
 # compile-bound tests cost about 25 % less CPU (tests/ops: 148 -> 107 s, measured at level 0).
-# Level 1, not 0: at level 0 jaxlib 0.10.2 computes wrong gradients (``jmeshtex._jit.FAST_COMPILE``
-# says what was measured). Programs that run in a loop (training steps, samplers:
+# Level 1, not 0: with ``XLA_FLAGS`` at level 0 jaxlib 0.10.2 computes wrong gradients
+# (``jmeshtex._jit.FAST_COMPILE`` says what was measured). Programs that run in a loop (training steps, samplers:
 # ``jmeshtex._jit.jit_loop`` and the training driver) get XLA's full optimisation back below (at
 # level 0 an FLDM training step ran about 2.5x slower).
 # ``JMESHTEX_TEST_XLA_FULL=1`` compiles everything fully.
@@ -82,12 +82,10 @@ jax.config.update("jax_enable_x64", True)
 # official gradients right (tests/dgts/test_official_training.py passes with every program at it)
 # and costs about a third less compile CPU than level 1, which saves little over XLA's full level
 # (an FLDM training step: 7.6 / 11.9 / 13.3 CPU-s at levels 0 / 1 / 3).
-from jmeshtex._jit import FULL_OPTIMISATION, set_compiler_options  # noqa: E402
+from jmeshtex._jit import FAST_COMPILE, FULL_OPTIMISATION, set_compiler_options  # noqa: E402
 
-#: the quickest XLA compile, for programs that run once or a few times (per compilation, see above)
-QUICK_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
 if os.environ.get("JMESHTEX_TEST_XLA_FULL") != "1":
-    set_compiler_options(once=QUICK_COMPILE, loop=FULL_OPTIMISATION)
+    set_compiler_options(once=FAST_COMPILE, loop=FULL_OPTIMISATION)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_debug_nans", True)
 # CPU unless JMESHTEX_TEST_PLATFORMS says otherwise (benchmarks/gpu_check.sh runs a subset on "cuda")
